@@ -1,0 +1,48 @@
+//! Math foundations shared by every other module: glam re-exports, rays, bounds, orthonormal frames,
+//! sampling warps, tabulated distributions, the deterministic random-number generator and RGB helpers.
+
+mod bounds;
+mod distribution;
+mod frame;
+mod ray;
+mod rng;
+pub mod sampling;
+
+pub use bounds::Aabb;
+pub use distribution::{Distribution1D, Distribution2D};
+pub use frame::Frame;
+pub use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
+pub use ray::Ray;
+pub use rng::Rng;
+
+/// Linear RGB radiance, reflectance or throughput. Channels are (R, G, B) in linear Rec.709 primaries.
+pub type Rgb = Vec3;
+
+/// Relative luminance of a linear Rec.709 colour (ITU-R BT.709 weights).
+pub fn luminance(c: Rgb) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// Converts one sRGB-encoded channel in \[0, 1\] to linear (IEC 61966-2-1).
+pub fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Converts one linear channel to its sRGB encoding (IEC 61966-2-1); the input is clamped to \[0, 1\].
+pub fn linear_to_srgb(v: f32) -> f32 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.003_130_8 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// True when every channel is finite.
+pub fn is_finite_rgb(c: Rgb) -> bool {
+    c.x.is_finite() && c.y.is_finite() && c.z.is_finite()
+}

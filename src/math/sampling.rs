@@ -1,0 +1,122 @@
+//! Sampling warps from the unit square to common domains, with their densities, and MIS weights.
+//! Each warp follows Pharr, Jakob, Humphreys, "Physically Based Rendering" 4th ed. (PBRT4) §A.5.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
+
+/// Concentric (Shirley–Chiu) map from the unit square to the unit disk, PBRT4 §A.5.1.
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Cosine-weighted hemisphere around +z (Malley's method), PBRT4 §A.5.3. Density `cos θ / π`.
+pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+/// Density of [`cosine_hemisphere`] for a direction with `cos θ = cos_theta`.
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Uniform direction on the unit sphere. Density `1 / 4π`.
+pub fn uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Density of [`uniform_sphere`].
+pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
+
+/// Uniform direction in the cone of half-angle `acos(cos_max)` around +z. Density `1 / (2π (1 − cos_max))`.
+pub fn uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
+    let cos_theta = 1.0 - u.x * (1.0 - cos_max);
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+}
+
+/// Density of [`uniform_cone`].
+pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
+    1.0 / (2.0 * PI * (1.0 - cos_max))
+}
+
+/// Uniform barycentrics (b0, b1) on a triangle, PBRT4 §6.5.4 (Heitz 2019's low-distortion map).
+pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
+    let (b0, b1);
+    if u.x < u.y {
+        b0 = u.x / 2.0;
+        b1 = u.y - b0;
+    } else {
+        b1 = u.y / 2.0;
+        b0 = u.x - b1;
+    }
+    (b0, b1)
+}
+
+/// Balance heuristic for one sample from each of two strategies (Veach 1997, eq. 9.10).
+pub fn balance_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    if pdf_a <= 0.0 {
+        return 0.0;
+    }
+    if pdf_a.is_infinite() {
+        return 1.0;
+    }
+    pdf_a / (pdf_a + pdf_b)
+}
+
+/// Power heuristic with β = 2 (Veach 1997, eq. 9.13).
+pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
+    if pdf_a <= 0.0 {
+        return 0.0;
+    }
+    if pdf_a.is_infinite() {
+        return 1.0;
+    }
+    let a = pdf_a * pdf_a;
+    a / (a + pdf_b * pdf_b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Rng;
+
+    #[test]
+    fn warps_land_in_their_domains() {
+        let mut rng = Rng::new(1, 1);
+        for _ in 0..10_000 {
+            let u = rng.next_2d();
+            assert!(concentric_disk(u).length() <= 1.0 + 1e-6);
+            let c = cosine_hemisphere(u);
+            assert!(c.z >= 0.0 && (c.length() - 1.0).abs() < 1e-4);
+            assert!((uniform_sphere(u).length() - 1.0).abs() < 1e-4);
+            assert!(uniform_cone(u, 0.9).z >= 0.9 - 1e-6);
+            let (b0, b1) = uniform_triangle(u);
+            assert!(b0 >= 0.0 && b1 >= 0.0 && b0 + b1 <= 1.0 + 1e-6);
+        }
+    }
+
+    #[test]
+    fn cosine_hemisphere_mean_cosine_is_two_thirds() {
+        // E[cos θ] under cos θ/π is 2/3; its variance is 1/2 − 4/9 = 1/18.
+        let mut rng = Rng::new(5, 9);
+        let n = 100_000;
+        let mean: f64 = (0..n).map(|_| cosine_hemisphere(rng.next_2d()).z as f64).sum::<f64>() / n as f64;
+        let se = (1.0 / 18.0 / n as f64).sqrt();
+        assert!((mean - 2.0 / 3.0).abs() < 4.0 * se, "mean {mean}");
+    }
+}
