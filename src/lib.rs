@@ -2,4 +2,8 @@
 //!
 //! See `ARCHITECTURE.md` for the module map.
 
+pub mod geometry;
+pub mod light;
+pub mod material;
 pub mod math;
+pub mod scene;

@@ -29,7 +29,7 @@ impl Frame {
     pub fn from_normal_tangent(n: Vec3, tangent: Vec3) -> Self {
         let s = tangent - n * n.dot(tangent);
         let len = s.length();
-        if !(len > 1e-6) {
+        if len.is_nan() || len <= 1e-6 {
             return Self::from_normal(n);
         }
         let s = s / len;

@@ -1,0 +1,78 @@
+//! Lights: emissive triangles (area lights), glTF punctual lights, the environment, and the light-selection
+//! distribution by power. Every light samples incident illumination at a point ([`Light::sample_li`]) and
+//! gives the solid-angle density of that sampling for multiple importance sampling.
+
+mod area;
+mod environment;
+mod punctual;
+mod sampler;
+
+pub use area::AreaLight;
+pub use environment::{EnvironmentLight, EnvironmentMap};
+pub use punctual::{DirectionalLight, PointLight, SpotLight};
+pub use sampler::LightSampler;
+
+use crate::material::Texture;
+use crate::math::{Rgb, Vec2, Vec3};
+
+/// Incident illumination sampled from a light at a receiving point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the receiving point toward the light.
+    pub wi: Vec3,
+    /// Incident radiance along `wi` (for delta lights, the irradiance-producing intensity already divided by
+    /// the squared distance).
+    pub radiance: Rgb,
+    /// Solid-angle density of choosing `wi` (1 for delta lights, whose `is_delta` is set).
+    pub pdf: f32,
+    /// Distance to the sampled point on the light; infinite for lights at infinity.
+    pub distance: f32,
+    /// True for point, spot and directional lights, which MIS cannot hit.
+    pub is_delta: bool,
+}
+
+/// One light of the scene.
+#[derive(Clone, Debug)]
+pub enum Light {
+    /// An emissive triangle.
+    Area(AreaLight),
+    /// KHR_lights_punctual point light.
+    Point(PointLight),
+    /// KHR_lights_punctual spot light.
+    Spot(SpotLight),
+    /// KHR_lights_punctual directional light.
+    Directional(DirectionalLight),
+    /// Light arriving from infinitely far away in every direction.
+    Environment(EnvironmentLight),
+}
+
+impl Light {
+    /// Samples the light as seen from `p`.
+    pub fn sample_li(&self, p: Vec3, u: Vec2, textures: &[Texture]) -> Option<LightSample> {
+        match self {
+            Light::Area(l) => l.sample_li(p, u, textures),
+            Light::Point(l) => l.sample_li(p),
+            Light::Spot(l) => l.sample_li(p),
+            Light::Directional(l) => Some(l.sample_li()),
+            Light::Environment(l) => l.sample_li(u),
+        }
+    }
+
+    /// Total emitted power (up to a constant shared by all lights), for the light-selection distribution.
+    /// `scene_radius` sizes the disc that lights at infinity illuminate.
+    pub fn power(&self, scene_radius: f32) -> f32 {
+        let disc = std::f32::consts::PI * scene_radius * scene_radius;
+        match self {
+            Light::Area(l) => l.power(),
+            Light::Point(l) => l.power(),
+            Light::Spot(l) => l.power(),
+            Light::Directional(l) => crate::math::luminance(l.irradiance) * disc,
+            Light::Environment(l) => l.average_luminance() * std::f32::consts::PI * disc,
+        }
+    }
+
+    /// True for lights that cannot be hit by a ray (delta position or direction).
+    pub fn is_delta(&self) -> bool {
+        matches!(self, Light::Point(_) | Light::Spot(_) | Light::Directional(_))
+    }
+}

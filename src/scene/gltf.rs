@@ -1,0 +1,518 @@
+//! glTF 2.0 loader (`.gltf` with external or data-URI buffers, and `.glb`), on top of the `gltf` crate.
+//!
+//! Reads the default scene's node hierarchy (TRS and matrix transforms), triangle meshes (indexed or not,
+//! strips and fans triangulated; POSITION, NORMAL, TANGENT, TEXCOORD_0), the first perspective camera met in
+//! traversal order, metallic-roughness materials with textures and the extensions listed in
+//! [`SUPPORTED_EXTENSIONS`], and `KHR_lights_punctual` lights.
+//!
+//! Scene `extras` read: `nimbus_environment` (see [`crate::light::EnvironmentLight`]) and `max_bounces`.
+//!
+//! Validation is the `gltf` crate's own, except that the extensions Nimbus implements may be listed in
+//! `extensionsRequired` (the crate rejects some of them). Accessor and index ranges are checked here before any
+//! read, so a malformed file is an error naming the element, never a panic.
+
+use super::{Camera, SceneBuilder, SceneError, SceneErrorKind};
+use crate::geometry::Mesh;
+use crate::light::{DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight};
+use crate::material::{ColorSpace, Material, Texture, Wrap};
+use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
+use gltf::json::validation::Validate;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// The glTF extensions Nimbus implements; any other extension in `extensionsRequired` is an error, and any
+/// other in `extensionsUsed` a warning.
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_volume",
+    "KHR_materials_specular",
+];
+
+/// Deepest node hierarchy accepted; deeper (or cyclic) hierarchies are errors.
+const MAX_NODE_DEPTH: usize = 256;
+
+/// Loads a `.gltf` or `.glb` file.
+pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
+    let bytes = std::fs::read(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+    load_slice(&bytes, path)
+}
+
+/// Loads glTF or GLB bytes; `path` names the file in errors and its folder resolves external URIs.
+pub fn load_slice(bytes: &[u8], path: &Path) -> Result<SceneBuilder, SceneError> {
+    let err = |kind| SceneError::new(path, kind);
+    let malformed = |m: String| err(SceneErrorKind::Malformed(m));
+    let (root, blob) = parse(bytes).map_err(|e| malformed(e))?;
+    let mut warnings = validate(&root).map_err(&err)?;
+    let document = gltf::Document::from_json_without_validation(root);
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+
+    let mut blob = blob;
+    let mut buffers = Vec::new();
+    for buffer in document.buffers() {
+        let name = match buffer.source() {
+            gltf::buffer::Source::Bin => "the GLB binary chunk".to_string(),
+            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => format!("buffer {} (data URI)", buffer.index()),
+            gltf::buffer::Source::Uri(u) => format!("buffer {} ('{u}')", buffer.index()),
+        };
+        let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(&base), &mut blob)
+            .map_err(|e| err(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?;
+        if data.len() < buffer.length() {
+            return Err(malformed(format!(
+                "{name} holds {} bytes but declares byteLength {}",
+                data.len(),
+                buffer.length()
+            )));
+        }
+        buffers.push(data);
+    }
+    let mut loader = Loader {
+        path,
+        base,
+        buffers: &buffers,
+        builder: SceneBuilder::default(),
+        texture_cache: HashMap::new(),
+        images: HashMap::new(),
+        material_map: HashMap::new(),
+    };
+    loader.builder.warnings.append(&mut warnings);
+    let scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+        .ok_or_else(|| malformed("the file has no scene".into()))?;
+    for node in scene.nodes() {
+        loader.visit(node, Mat4::IDENTITY, 0)?;
+    }
+    loader.read_scene_extras(scene.extras())?;
+    Ok(loader.builder)
+}
+
+type JsonParse = (gltf::json::Root, Option<Vec<u8>>);
+
+fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
+    if bytes.starts_with(b"glTF") {
+        let mut glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| format!("GLB container: {e}"))?;
+        let root = gltf::json::deserialize::from_slice(&glb.json).map_err(|e| format!("JSON chunk: {e}"))?;
+        Ok((root, glb.bin.take().map(|b| b.into_owned())))
+    } else {
+        let root = gltf::json::deserialize::from_slice(bytes).map_err(|e| format!("JSON: {e}"))?;
+        Ok((root, None))
+    }
+}
+
+/// Runs the `gltf` crate's validation, accepting the required extensions Nimbus implements. Returns warnings
+/// for used-but-unknown extensions.
+fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        errors.push((path().to_string(), error));
+    });
+    let mut fatal = Vec::new();
+    for (path, error) in errors {
+        // Required extensions are checked below against Nimbus's own list.
+        let required_extension = matches!(error, gltf::json::validation::Error::Unsupported)
+            && path.starts_with("extensionsRequired");
+        if !required_extension {
+            fatal.push(format!("{path}: {error}"));
+        }
+    }
+    for ext in &root.extensions_required {
+        if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+            return Err(SceneErrorKind::Unsupported(format!("required extension {ext}")));
+        }
+    }
+    if !fatal.is_empty() {
+        return Err(SceneErrorKind::Malformed(fatal.join("; ")));
+    }
+    Ok(root
+        .extensions_used
+        .iter()
+        .filter(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str()))
+        .map(|e| format!("optional extension {e} is not supported and is ignored"))
+        .collect())
+}
+
+struct Loader<'a> {
+    path: &'a Path,
+    base: PathBuf,
+    buffers: &'a [gltf::buffer::Data],
+    builder: SceneBuilder,
+    texture_cache: HashMap<(usize, ColorSpace), u32>,
+    images: HashMap<usize, image::RgbaImage>,
+    material_map: HashMap<Option<usize>, u32>,
+}
+
+impl Loader<'_> {
+    fn error(&self, kind: SceneErrorKind) -> SceneError {
+        SceneError::new(self.path, kind)
+    }
+
+    fn visit(&mut self, node: gltf::Node, parent: Mat4, depth: usize) -> Result<(), SceneError> {
+        if depth > MAX_NODE_DEPTH {
+            return Err(self.error(SceneErrorKind::Malformed(format!(
+                "node {} is nested deeper than {MAX_NODE_DEPTH} levels (a cycle?)",
+                node.index()
+            ))));
+        }
+        let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+        let world = parent * local;
+        if !world.is_finite() {
+            return Err(self.error(SceneErrorKind::Malformed(format!(
+                "node {} has a non-finite transform",
+                node.index()
+            ))));
+        }
+        if let Some(mesh) = node.mesh() {
+            self.load_mesh(&node, mesh, &world)?;
+        }
+        if let Some(camera) = node.camera() {
+            if self.builder.camera.is_none() {
+                if let gltf::camera::Projection::Perspective(p) = camera.projection() {
+                    self.builder.camera = Some(Camera {
+                        camera_to_world: rigid(&world),
+                        yfov: p.yfov(),
+                        aspect_ratio: p.aspect_ratio(),
+                    });
+                } else {
+                    self.builder
+                        .warnings
+                        .push(format!("camera {} is orthographic, which is not supported; skipped", camera.index()));
+                }
+            }
+        }
+        if let Some(light) = node.light() {
+            self.load_light(light, &world);
+        }
+        for child in node.children() {
+            self.visit(child, world, depth + 1)?;
+        }
+        Ok(())
+    }
+
+    fn load_light(&mut self, light: gltf::khr_lights_punctual::Light, world: &Mat4) {
+        let color = Rgb::from(light.color()) * light.intensity();
+        let position = world.transform_point3(Vec3::ZERO);
+        let direction = world.transform_vector3(-Vec3::Z).normalize_or_zero();
+        let l = match light.kind() {
+            gltf::khr_lights_punctual::Kind::Point => Light::Point(PointLight { position, intensity: color }),
+            gltf::khr_lights_punctual::Kind::Directional => Light::Directional(DirectionalLight {
+                direction,
+                irradiance: color,
+            }),
+            gltf::khr_lights_punctual::Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => Light::Spot(SpotLight {
+                position,
+                direction,
+                intensity: color,
+                cos_inner: inner_cone_angle.cos(),
+                cos_outer: outer_cone_angle.cos(),
+            }),
+        };
+        if light.range().is_some() {
+            self.builder
+                .warnings
+                .push(format!("light {}: 'range' is ignored (physical inverse-square falloff)", light.index()));
+        }
+        self.builder.lights.push(l);
+    }
+
+    fn load_mesh(&mut self, node: &gltf::Node, mesh: gltf::Mesh, world: &Mat4) -> Result<(), SceneError> {
+        let mesh_name = mesh.name().map_or_else(|| format!("mesh {}", mesh.index()), str::to_owned);
+        for primitive in mesh.primitives() {
+            let what = format!("{mesh_name}, primitive {}", primitive.index());
+            let mode = primitive.mode();
+            if !matches!(
+                mode,
+                gltf::mesh::Mode::Triangles | gltf::mesh::Mode::TriangleStrip | gltf::mesh::Mode::TriangleFan
+            ) {
+                self.builder
+                    .warnings
+                    .push(format!("{what}: {mode:?} primitives are not triangles; skipped"));
+                continue;
+            }
+            for (_, accessor) in primitive.attributes() {
+                self.check_accessor(&accessor, &what)?;
+            }
+            if let Some(a) = primitive.indices() {
+                self.check_accessor(&a, &what)?;
+            }
+            let reader = primitive.reader(|b| self.buffers.get(b.index()).map(|d| d.0.as_slice()));
+            let positions: Vec<Vec3> = reader
+                .read_positions()
+                .ok_or_else(|| self.error(SceneErrorKind::Malformed(format!("{what} has no POSITION"))))?
+                .map(Vec3::from)
+                .collect();
+            let count = positions.len();
+            let normals: Vec<Vec3> = reader.read_normals().map(|n| n.map(Vec3::from).collect()).unwrap_or_default();
+            let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
+            let tangents: Option<Vec<Vec4>> = reader.read_tangents().map(|t| t.map(Vec4::from).collect());
+            let flat: Vec<u32> = match reader.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..count as u32).collect(),
+            };
+            if let Some(bad) = flat.iter().find(|&&i| i as usize >= count) {
+                return Err(self.error(SceneErrorKind::InvalidReference(format!(
+                    "{what}: index {bad} is out of range for {count} vertices"
+                ))));
+            }
+            let same_len = |n: usize| n == count;
+            if (!normals.is_empty() && !same_len(normals.len()))
+                || uvs.as_ref().is_some_and(|u| !same_len(u.len()))
+                || tangents.as_ref().is_some_and(|t| !same_len(t.len()))
+            {
+                return Err(self.error(SceneErrorKind::Malformed(format!(
+                    "{what}: attribute counts differ from POSITION's {count}"
+                ))));
+            }
+            let indices = triangulate(&flat, mode);
+            let material = self.material(primitive.material())?;
+            let mut m = Mesh {
+                name: node.name().map_or_else(|| mesh_name.clone(), str::to_owned),
+                positions,
+                normals,
+                uvs,
+                tangents,
+                indices,
+                material,
+            };
+            if m.normals.is_empty() {
+                m.generate_normals();
+            }
+            m.transform(world);
+            self.builder.add_mesh(m);
+        }
+        Ok(())
+    }
+
+    /// Checks that an accessor's bytes lie inside its buffer view and the view inside its buffer.
+    fn check_accessor(&self, accessor: &gltf::Accessor, what: &str) -> Result<(), SceneError> {
+        let bad = |m: String| {
+            self.error(SceneErrorKind::InvalidReference(format!(
+                "{what}: accessor {}: {m}",
+                accessor.index()
+            )))
+        };
+        if accessor.sparse().is_some() {
+            return Err(self.error(SceneErrorKind::Unsupported(format!(
+                "{what}: accessor {} is sparse",
+                accessor.index()
+            ))));
+        }
+        let Some(view) = accessor.view() else {
+            return Err(bad("has no buffer view".into()));
+        };
+        let buffer_len = self.buffers.get(view.buffer().index()).map_or(0, |b| b.len());
+        let view_end = view.offset().checked_add(view.length());
+        if view_end.is_none_or(|e| e > buffer_len) {
+            return Err(bad(format!("buffer view {} runs past the end of its buffer", view.index())));
+        }
+        let element = accessor.size();
+        let stride = view.stride().unwrap_or(element);
+        if stride < element {
+            return Err(bad(format!("byteStride {stride} is smaller than the element size {element}")));
+        }
+        let count = accessor.count();
+        if count > 0 {
+            let end = (count - 1)
+                .checked_mul(stride)
+                .and_then(|v| v.checked_add(accessor.offset()))
+                .and_then(|v| v.checked_add(element));
+            if end.is_none_or(|e| e > view.length()) {
+                return Err(bad(format!("{count} elements run past the end of buffer view {}", view.index())));
+            }
+        }
+        Ok(())
+    }
+
+    fn material(&mut self, material: gltf::Material) -> Result<u32, SceneError> {
+        if let Some(&id) = self.material_map.get(&material.index()) {
+            return Ok(id);
+        }
+        let pbr = material.pbr_metallic_roughness();
+        let emissive_strength = material.emissive_strength().unwrap_or(1.0);
+        let base_color_texture = match pbr.base_color_texture() {
+            Some(t) => Some(self.texture(t.texture(), ColorSpace::Srgb, t.tex_coord())?),
+            None => None,
+        };
+        let metallic_roughness_texture = match pbr.metallic_roughness_texture() {
+            Some(t) => Some(self.texture(t.texture(), ColorSpace::Linear, t.tex_coord())?),
+            None => None,
+        };
+        let normal_texture = match material.normal_texture() {
+            Some(t) => Some((self.texture(t.texture(), ColorSpace::Linear, t.tex_coord())?, t.scale())),
+            None => None,
+        };
+        let emission_texture = match material.emissive_texture() {
+            Some(t) => Some(self.texture(t.texture(), ColorSpace::Srgb, t.tex_coord())?),
+            None => None,
+        };
+        let (specular_factor, specular_color) = material
+            .specular()
+            .map_or((1.0, Rgb::ONE), |s| (s.specular_factor(), Rgb::from(s.specular_color_factor())));
+        let m = Material {
+            name: material
+                .name()
+                .map_or_else(|| format!("material {}", material.index().map_or(-1, |i| i as i64)), str::to_owned),
+            base_color: Vec4::from(pbr.base_color_factor()),
+            base_color_texture,
+            metallic: pbr.metallic_factor(),
+            roughness: pbr.roughness_factor(),
+            metallic_roughness_texture,
+            normal_texture,
+            emission: Rgb::from(material.emissive_factor()) * emissive_strength,
+            emission_texture,
+            ior: material.ior().unwrap_or(1.5),
+            specular_factor,
+            specular_color,
+            transmission: material.transmission().map_or(0.0, |t| t.transmission_factor()),
+            double_sided: material.double_sided(),
+        };
+        let id = self.builder.add_material(m);
+        self.material_map.insert(material.index(), id);
+        Ok(id)
+    }
+
+    fn texture(&mut self, texture: gltf::Texture, space: ColorSpace, tex_coord: u32) -> Result<u32, SceneError> {
+        if tex_coord != 0 {
+            self.builder.warnings.push(format!(
+                "texture {} uses TEXCOORD_{tex_coord}; only TEXCOORD_0 is read",
+                texture.index()
+            ));
+        }
+        let source = texture.source();
+        let key = (source.index(), space);
+        if let Some(&id) = self.texture_cache.get(&key) {
+            return Ok(id);
+        }
+        let image = self.image(source)?;
+        let wrap = |w: gltf::texture::WrappingMode| match w {
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        };
+        let sampler = texture.sampler();
+        let t = Texture::from_rgba8(image.width() as usize, image.height() as usize, image.as_raw(), space)
+            .ok_or_else(|| self.error(SceneErrorKind::Malformed(format!("image {} is empty", key.0))))?
+            .with_wrap(wrap(sampler.wrap_s()), wrap(sampler.wrap_t()));
+        self.builder.textures.push(t);
+        let id = (self.builder.textures.len() - 1) as u32;
+        self.texture_cache.insert(key, id);
+        Ok(id)
+    }
+
+    fn image(&mut self, image: gltf::Image) -> Result<image::RgbaImage, SceneError> {
+        if let Some(img) = self.images.get(&image.index()) {
+            return Ok(img.clone());
+        }
+        let name = match image.source() {
+            gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => format!("image {} ('{uri}')", image.index()),
+            _ => format!("image {}", image.index()),
+        };
+        let bytes: Vec<u8> = match image.source() {
+            gltf::image::Source::View { view, .. } => {
+                let buffer = &self.buffers[view.buffer().index()];
+                let end = view.offset().checked_add(view.length());
+                match end {
+                    Some(end) if end <= buffer.len() => buffer[view.offset()..end].to_vec(),
+                    _ => {
+                        return Err(self.error(SceneErrorKind::InvalidReference(format!(
+                            "{name}: buffer view {} runs past its buffer",
+                            view.index()
+                        ))))
+                    }
+                }
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                let source = gltf::buffer::Source::Uri(uri);
+                gltf::buffer::Data::from_source(source, Some(&self.base))
+                    .map_err(|e| self.error(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?
+                    .0
+            }
+        };
+        let decoded = image::load_from_memory(&bytes)
+            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{name}: {e}"))))?
+            .to_rgba8();
+        self.images.insert(image.index(), decoded.clone());
+        Ok(decoded)
+    }
+
+    fn read_scene_extras(&mut self, extras: &gltf::json::Extras) -> Result<(), SceneError> {
+        let Some(raw) = extras else { return Ok(()) };
+        let value: serde_json::Value = serde_json::from_str(raw.get())
+            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("scene extras: {e}"))))?;
+        if let Some(b) = value.get("max_bounces") {
+            let b = b
+                .as_u64()
+                .ok_or_else(|| self.error(SceneErrorKind::Malformed("scene extras: max_bounces must be a non-negative integer".into())))?;
+            self.builder.max_bounces = Some(b.min(u32::MAX as u64) as u32);
+        }
+        if let Some(env) = value.get("nimbus_environment") {
+            let env = parse_environment(env, &self.base).map_err(|m| self.error(SceneErrorKind::Malformed(format!("nimbus_environment: {m}"))))?;
+            self.builder.set_environment(env);
+        }
+        Ok(())
+    }
+}
+
+/// Parses a `nimbus_environment` object: `{"color": [r,g,b]}` or `{"map": "file", "intensity": s}`; the map
+/// path is relative to `base`.
+pub fn parse_environment(value: &serde_json::Value, base: &Path) -> Result<EnvironmentLight, String> {
+    if let Some(c) = value.get("color") {
+        let rgb = parse_rgb(c).ok_or("'color' must be an array of three non-negative numbers")?;
+        return Ok(EnvironmentLight::Constant(rgb));
+    }
+    if let Some(m) = value.get("map") {
+        let file = m.as_str().ok_or("'map' must be a file name")?;
+        let intensity = match value.get("intensity") {
+            Some(v) => v.as_f64().filter(|v| v.is_finite() && *v >= 0.0).ok_or("'intensity' must be a non-negative number")? as f32,
+            None => 1.0,
+        };
+        let map = EnvironmentMap::load(&base.join(file), intensity)?;
+        return Ok(EnvironmentLight::Map(Box::new(map)));
+    }
+    Err("expected 'color' or 'map'".into())
+}
+
+/// Parses `[r, g, b]` with finite non-negative components.
+pub fn parse_rgb(value: &serde_json::Value) -> Option<Rgb> {
+    let a = value.as_array()?;
+    if a.len() != 3 {
+        return None;
+    }
+    let mut c = [0.0f32; 3];
+    for (i, v) in a.iter().enumerate() {
+        c[i] = v.as_f64().filter(|v| v.is_finite() && *v >= 0.0)? as f32;
+    }
+    Some(Rgb::from(c))
+}
+
+/// Converts strip and fan index lists to triangle lists (glTF 2.0 §3.7.2.1); degenerate triangles are dropped.
+fn triangulate(indices: &[u32], mode: gltf::mesh::Mode) -> Vec<[u32; 3]> {
+    let tris: Vec<[u32; 3]> = match mode {
+        gltf::mesh::Mode::TriangleStrip => (2..indices.len())
+            .map(|i| {
+                if i % 2 == 0 {
+                    [indices[i - 2], indices[i - 1], indices[i]]
+                } else {
+                    [indices[i - 1], indices[i - 2], indices[i]]
+                }
+            })
+            .collect(),
+        gltf::mesh::Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
+        _ => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    };
+    tris.into_iter().filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]).collect()
+}
+
+/// Removes scale and shear from a camera's world matrix, keeping its rotation and position.
+fn rigid(m: &Mat4) -> Mat4 {
+    let x = m.x_axis.truncate().normalize_or(Vec3::X);
+    let y0 = m.y_axis.truncate();
+    let z = x.cross(y0).normalize_or(Vec3::Z);
+    let y = z.cross(x);
+    Mat4::from_cols(x.extend(0.0), y.extend(0.0), z.extend(0.0), m.w_axis)
+}

@@ -1,0 +1,287 @@
+//! The scene model (surfaces, materials, textures, lights, camera) and its loaders.
+//!
+//! Loaders fill a [`SceneBuilder`]; [`SceneBuilder::build`] flattens the meshes into one BVH, turns emissive
+//! triangles into area lights and builds the light-selection distribution.
+
+mod camera;
+mod error;
+pub mod gltf;
+pub mod obj;
+
+pub use camera::Camera;
+pub use error::{SceneError, SceneErrorKind};
+
+use crate::geometry::{Bvh, Mesh};
+use crate::light::{AreaLight, EnvironmentLight, Light, LightSampler};
+use crate::material::{Material, Texture};
+use crate::math::{Aabb, Frame, Ray, Vec2, Vec3};
+use std::path::Path;
+
+/// Everything a loader produces, before acceleration structures are built.
+#[derive(Default)]
+pub struct SceneBuilder {
+    /// World-space meshes.
+    pub meshes: Vec<Mesh>,
+    /// Materials indexed by `Mesh::material`.
+    pub materials: Vec<Material>,
+    /// Textures indexed by material texture ids.
+    pub textures: Vec<Texture>,
+    /// Punctual lights and the environment (area lights are added by `build`).
+    pub lights: Vec<Light>,
+    /// The camera, or `None` for one framing the scene.
+    pub camera: Option<Camera>,
+    /// Maximum bounces requested by the scene file (glTF `extras.max_bounces`), if any.
+    pub max_bounces: Option<u32>,
+    /// Non-fatal problems met while loading (unknown optional extensions, dropped primitives).
+    pub warnings: Vec<String>,
+}
+
+impl SceneBuilder {
+    /// Adds a material and returns its index.
+    pub fn add_material(&mut self, material: Material) -> u32 {
+        self.materials.push(material);
+        (self.materials.len() - 1) as u32
+    }
+
+    /// Adds a world-space mesh, generating normals when it has none.
+    pub fn add_mesh(&mut self, mut mesh: Mesh) {
+        if mesh.normals.len() != mesh.positions.len() {
+            mesh.generate_normals();
+        }
+        self.meshes.push(mesh);
+    }
+
+    /// Replaces any environment light with `env`.
+    pub fn set_environment(&mut self, env: EnvironmentLight) {
+        self.lights.retain(|l| !matches!(l, Light::Environment(_)));
+        self.lights.push(Light::Environment(env));
+    }
+
+    /// Builds the renderable scene.
+    pub fn build(self) -> Scene {
+        let mut prims = Vec::new();
+        let mut triangles = Vec::new();
+        let mut lights = self.lights;
+        for (mesh_index, mesh) in self.meshes.iter().enumerate() {
+            let material = &self.materials[mesh.material as usize];
+            for tri in 0..mesh.indices.len() {
+                let vertices = mesh.triangle(tri);
+                let prim = triangles.len() as u32;
+                if material.is_emissive() {
+                    let uvs = match &mesh.uvs {
+                        Some(uv) => mesh.indices[tri].map(|i| uv[i as usize]),
+                        None => [Vec2::ZERO; 3],
+                    };
+                    if let Some(l) = AreaLight::new(vertices, uvs, material, prim) {
+                        lights.push(Light::Area(l));
+                    }
+                }
+                triangles.push(vertices);
+                prims.push((mesh_index as u32, tri as u32));
+            }
+        }
+        let mut light_of_prim = vec![u32::MAX; triangles.len()];
+        for (i, l) in lights.iter().enumerate() {
+            if let Light::Area(a) = l {
+                light_of_prim[a.prim as usize] = i as u32;
+            }
+        }
+        let bvh = Bvh::build(&triangles);
+        let bounds = bvh.bounds();
+        let radius = if bounds.is_empty() { 1.0 } else { (bounds.extent().length() * 0.5).max(1e-3) };
+        let light_sampler = LightSampler::new(&lights, radius);
+        let environment = lights.iter().position(|l| matches!(l, Light::Environment(_)));
+        Scene {
+            camera: self.camera.unwrap_or_else(|| Camera::framing(&bounds)),
+            meshes: self.meshes,
+            materials: self.materials,
+            textures: self.textures,
+            lights,
+            light_sampler,
+            environment,
+            bvh,
+            prims,
+            light_of_prim,
+            bounds,
+            max_bounces: self.max_bounces,
+            warnings: self.warnings,
+        }
+    }
+}
+
+/// A renderable scene.
+pub struct Scene {
+    /// World-space meshes.
+    pub meshes: Vec<Mesh>,
+    /// Materials.
+    pub materials: Vec<Material>,
+    /// Textures.
+    pub textures: Vec<Texture>,
+    /// All lights, area lights included.
+    pub lights: Vec<Light>,
+    /// Light selection by power.
+    pub light_sampler: LightSampler,
+    /// Index of the environment light in `lights`, if any.
+    pub environment: Option<usize>,
+    /// The camera.
+    pub camera: Camera,
+    /// Bounds of all surfaces.
+    pub bounds: Aabb,
+    /// Maximum bounces requested by the scene file, if any.
+    pub max_bounces: Option<u32>,
+    /// Problems met while loading.
+    pub warnings: Vec<String>,
+    bvh: Bvh,
+    prims: Vec<(u32, u32)>,
+    light_of_prim: Vec<u32>,
+}
+
+/// Where a ray hit a surface, with everything shading needs.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    /// Distance along the ray.
+    pub t: f32,
+    /// World position.
+    pub p: Vec3,
+    /// Unit geometric normal of the front (counter-clockwise) face.
+    pub geometric_normal: Vec3,
+    /// Shading frame: the interpolated (and normal-mapped) normal, kept on the front side of the geometric
+    /// normal; the integrator flips it for back-face hits on double-sided materials.
+    pub shading: Frame,
+    /// True when the ray arrived on the front face.
+    pub front_face: bool,
+    /// Texture coordinates.
+    pub uv: Vec2,
+    /// Material index.
+    pub material: u32,
+    /// Global triangle index.
+    pub prim: u32,
+    /// Barycentrics of the hit (of vertices 1 and 2).
+    pub barycentrics: Vec2,
+}
+
+impl Scene {
+    /// Loads a scene file, choosing the loader by extension (.gltf, .glb, .obj).
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+        let builder = match ext.as_deref() {
+            Some("gltf") | Some("glb") => gltf::load(path)?,
+            Some("obj") => obj::load(path)?,
+            _ => return Err(SceneError::new(path, SceneErrorKind::UnknownFormat)),
+        };
+        Ok(builder.build())
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.prims.len()
+    }
+
+    /// Bytes held by the acceleration structure.
+    pub fn bvh_memory_bytes(&self) -> usize {
+        self.bvh.memory_bytes()
+    }
+
+    /// Radius of a sphere around the scene bounds.
+    pub fn radius(&self) -> f32 {
+        if self.bounds.is_empty() {
+            1.0
+        } else {
+            (self.bounds.extent().length() * 0.5).max(1e-3)
+        }
+    }
+
+    /// True when something blocks the segment `(t_min, t_max)` of `ray`.
+    pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.bvh.occluded(ray, t_min, t_max)
+    }
+
+    /// The index in `lights` of the area light on triangle `prim`, if it emits.
+    pub fn area_light_of(&self, prim: u32) -> Option<usize> {
+        let l = *self.light_of_prim.get(prim as usize)?;
+        (l != u32::MAX).then_some(l as usize)
+    }
+
+    /// The environment light, if any.
+    pub fn environment_light(&self) -> Option<&EnvironmentLight> {
+        match self.environment.map(|i| &self.lights[i]) {
+            Some(Light::Environment(e)) => Some(e),
+            _ => None,
+        }
+    }
+
+    /// The closest surface hit along `ray` in `(t_min, t_max)`.
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<SurfaceHit> {
+        let hit = self.bvh.intersect(ray, t_min, t_max)?;
+        let (mesh_index, tri) = self.prims[hit.prim as usize];
+        let mesh = &self.meshes[mesh_index as usize];
+        let [i0, i1, i2] = mesh.indices[tri as usize].map(|i| i as usize);
+        let (b1, b2) = (hit.b1, hit.b2);
+        let b0 = 1.0 - b1 - b2;
+        let [v0, v1, v2] = [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]];
+        let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
+        let front_face = geometric_normal.dot(ray.dir) < 0.0;
+        let mut n = (mesh.normals[i0] * b0 + mesh.normals[i1] * b1 + mesh.normals[i2] * b2).normalize_or_zero();
+        if n == Vec3::ZERO {
+            n = geometric_normal;
+        }
+        let uv = match &mesh.uvs {
+            Some(uv) => uv[i0] * b0 + uv[i1] * b1 + uv[i2] * b2,
+            None => Vec2::ZERO,
+        };
+        let material = &self.materials[mesh.material as usize];
+        let mut frame = self.tangent_frame(mesh, [i0, i1, i2], n, Vec2::new(b1, b2));
+        if let Some(mapped) = material.normal_map(uv, &self.textures) {
+            let n_mapped = frame.to_world(mapped).normalize_or_zero();
+            if n_mapped != Vec3::ZERO {
+                frame = Frame::from_normal_tangent(n_mapped, frame.s);
+            }
+        }
+        // Keep the shading normal on the geometric normal's side so that one-sided BSDFs see the front.
+        if frame.n.dot(geometric_normal) < 0.0 {
+            frame = Frame::from_normal(geometric_normal);
+        }
+        Some(SurfaceHit {
+            t: hit.t,
+            p: ray.at(hit.t),
+            geometric_normal,
+            shading: frame,
+            front_face,
+            uv,
+            material: mesh.material,
+            prim: hit.prim,
+            barycentrics: Vec2::new(b1, b2),
+        })
+    }
+
+    /// The tangent frame at a hit: from vertex tangents when present, else from the triangle's uv gradient,
+    /// else arbitrary around the normal.
+    fn tangent_frame(&self, mesh: &Mesh, idx: [usize; 3], n: Vec3, b: Vec2) -> Frame {
+        let b0 = 1.0 - b.x - b.y;
+        if let Some(t) = &mesh.tangents {
+            let tangent = t[idx[0]].truncate() * b0 + t[idx[1]].truncate() * b.x + t[idx[2]].truncate() * b.y;
+            let frame = Frame::from_normal_tangent(n, tangent);
+            // The bitangent sign (w) says whether the uv mapping is mirrored.
+            if t[idx[0]].w < 0.0 {
+                return Frame { s: frame.s, t: -frame.t, n: frame.n };
+            }
+            return frame;
+        }
+        if let Some(uv) = &mesh.uvs {
+            let (p0, p1, p2) = (mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]);
+            let (d1, d2) = (uv[idx[1]] - uv[idx[0]], uv[idx[2]] - uv[idx[0]]);
+            let det = d1.x * d2.y - d1.y * d2.x;
+            if det.abs() > 1e-12 {
+                let dpdu = ((p1 - p0) * d2.y - (p2 - p0) * d1.y) / det;
+                let dpdv = ((p2 - p0) * d1.x - (p1 - p0) * d2.x) / det;
+                let frame = Frame::from_normal_tangent(n, dpdu);
+                // glTF's v runs downward in the image; the normal map's +y follows +v's bitangent direction.
+                if frame.t.dot(dpdv) < 0.0 {
+                    return Frame { s: frame.s, t: -frame.t, n: frame.n };
+                }
+                return frame;
+            }
+        }
+        Frame::from_normal(n)
+    }
+}
