@@ -3,3 +3,5 @@
 //! See `ARCHITECTURE.md` for the module map.
 
 pub mod math;
+pub mod output;
+pub mod render;
