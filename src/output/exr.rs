@@ -5,7 +5,7 @@
 //!
 //! | AOV      | channels                                   |
 //! |----------|--------------------------------------------|
-//! | beauty   | `R`, `G`, `B` (default layer), `A` = 1      |
+//! | beauty   | `R`, `G`, `B` (default layer), `A` = 1     |
 //! | albedo   | `albedo.R`, `albedo.G`, `albedo.B`         |
 //! | normal   | `normal.X`, `normal.Y`, `normal.Z`         |
 //! | depth    | `depth.Z`                                  |
@@ -61,26 +61,19 @@ impl ExrLayers {
 /// channel names). Non-finite samples are written as they are.
 pub fn write_exr(image: &RenderImage, path: &Path) -> Result<(), OutputError> {
     validate(image, path)?;
-    let rgb = |name: &str, data: &[Rgb], c: usize| {
-        AnyChannel::new(name, FlatSamples::F32(data.iter().map(|v| v[c]).collect()))
-    };
+    let component =
+        |name: &str, data: &[Rgb], c: usize| channel(name, data.iter().map(|v| v[c]).collect());
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     for (c, suffix) in ["R", "G", "B"].into_iter().enumerate() {
-        list.push(rgb(suffix, &image.beauty, c));
-        list.push(rgb(&format!("albedo.{suffix}"), &image.albedo, c));
-        list.push(rgb(&format!("variance.{suffix}"), &image.variance, c));
+        list.push(component(suffix, &image.beauty, c));
+        list.push(component(&format!("albedo.{suffix}"), &image.albedo, c));
+        list.push(component(&format!("variance.{suffix}"), &image.variance, c));
     }
     for (c, axis) in ["X", "Y", "Z"].into_iter().enumerate() {
-        list.push(rgb(&format!("normal.{axis}"), &image.normal, c));
+        list.push(component(&format!("normal.{axis}"), &image.normal, c));
     }
-    list.push(AnyChannel::new(
-        "A",
-        FlatSamples::F32(vec![1.0; image.pixel_count()]),
-    ));
-    list.push(AnyChannel::new(
-        "depth.Z",
-        FlatSamples::F32(image.depth.clone()),
-    ));
+    list.push(channel("A", vec![1.0; image.pixel_count()]));
+    list.push(channel("depth.Z", image.depth.clone()));
 
     let layer = Layer::new(
         Vec2(image.width, image.height),
@@ -95,6 +88,17 @@ pub fn write_exr(image: &RenderImage, path: &Path) -> Result<(), OutputError> {
             path: path.to_path_buf(),
             source,
         })
+}
+
+/// A full-resolution f32 channel. `pLinear` is left off, as the OpenEXR library does by default; it only
+/// guides the lossy B44 compressors, which this writer does not use.
+fn channel(name: &str, samples: Vec<f32>) -> AnyChannel<FlatSamples> {
+    AnyChannel {
+        name: name.into(),
+        sample_data: FlatSamples::F32(samples),
+        quantize_linearly: false,
+        sampling: Vec2(1, 1),
+    }
 }
 
 /// Reads every channel of every part of the EXR at `path` (largest resolution level, no deep data),
@@ -234,6 +238,7 @@ mod tests {
             .list
             .iter()
             .all(|c| c.sample_type == ::exr::meta::attribute::SampleType::F32));
+        assert!(header.channels.list.iter().all(|c| !c.quantize_linearly));
         let names: Vec<String> = header
             .channels
             .list
@@ -246,6 +251,44 @@ mod tests {
             names, sorted,
             "EXR requires an alphabetically sorted channel list"
         );
+        std::fs::remove_file(&path).unwrap();
+    }
+
+    #[test]
+    fn reader_prefixes_part_names_once_and_widens_half_floats() {
+        use ::exr::prelude::f16;
+        let path = temp_path("two_parts.exr");
+        let beauty = Layer::new(
+            Vec2(2, 1),
+            LayerAttributes::named("beauty"),
+            Encoding::UNCOMPRESSED,
+            AnyChannels::sort(SmallVec::from_vec(vec![channel("R", vec![0.5, 2.0])])),
+        );
+        let half = vec![f16::from_f32(0.25), f16::from_f32(-3.0)];
+        let albedo = Layer::new(
+            Vec2(2, 1),
+            LayerAttributes::named("albedo"),
+            Encoding::UNCOMPRESSED,
+            AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new(
+                "albedo.G",
+                FlatSamples::F16(half),
+            )])),
+        );
+        Image::from_layers(
+            ::exr::meta::header::ImageAttributes::with_size(Vec2(2, 1)),
+            vec![beauty, albedo],
+        )
+        .write()
+        .to_file(&path)
+        .unwrap();
+        let layers = read_exr_layers(&path).unwrap();
+        assert_eq!(
+            layers.channels.keys().collect::<Vec<_>>(),
+            ["albedo.G", "beauty.R"]
+        );
+        assert_eq!(layers.channel("beauty.R").unwrap(), [0.5, 2.0]);
+        assert_eq!(layers.channel("albedo.G").unwrap(), [0.25, -3.0]);
+        assert_eq!(layers.rgb(""), None);
         std::fs::remove_file(&path).unwrap();
     }
 
