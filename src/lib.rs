@@ -6,4 +6,6 @@ pub mod geometry;
 pub mod light;
 pub mod material;
 pub mod math;
+pub mod output;
+pub mod render;
 pub mod scene;

@@ -1,0 +1,75 @@
+//! Writing and reading rendered images: the multi-layer OpenEXR file and the 8-bit sRGB PNG preview.
+
+pub mod exr;
+pub mod png;
+
+pub use self::exr::{read_exr_layers, write_exr, ExrLayers};
+pub use self::png::{preview_path, write_png_preview};
+
+use std::path::PathBuf;
+
+/// Why writing or reading an output image failed; every variant names the file involved.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The OpenEXR encoder or decoder failed (I/O, malformed file, unsupported feature).
+    #[error("EXR file {path}: {source}")]
+    Exr {
+        /// The file being written or read.
+        path: PathBuf,
+        /// The underlying `exr` crate error.
+        #[source]
+        source: ::exr::error::Error,
+    },
+    /// The PNG encoder failed (I/O or encoding).
+    #[error("PNG file {path}: {source}")]
+    Png {
+        /// The file being written.
+        path: PathBuf,
+        /// The underlying `image` crate error.
+        #[source]
+        source: ::image::ImageError,
+    },
+    /// The image cannot be written or the file's contents are unusable (empty image, buffer
+    /// lengths that disagree with the size, layers of different sizes...).
+    #[error("image for {path}: {reason}")]
+    Invalid {
+        /// The file being written or read.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+/// Checks that `image` is non-empty and that every buffer holds `width * height` pixels.
+fn validate(image: &crate::render::RenderImage, path: &std::path::Path) -> Result<(), OutputError> {
+    let invalid = |reason: String| OutputError::Invalid {
+        path: path.to_path_buf(),
+        reason,
+    };
+    if image.width == 0 || image.height == 0 {
+        return Err(invalid(format!(
+            "empty image {}x{}",
+            image.width, image.height
+        )));
+    }
+    let n = image
+        .width
+        .checked_mul(image.height)
+        .ok_or_else(|| invalid(format!("size {}x{} overflows", image.width, image.height)))?;
+    let lens = [
+        ("beauty", image.beauty.len()),
+        ("albedo", image.albedo.len()),
+        ("normal", image.normal.len()),
+        ("depth", image.depth.len()),
+        ("variance", image.variance.len()),
+    ];
+    for (name, len) in lens {
+        if len != n {
+            return Err(invalid(format!(
+                "{name} buffer holds {len} pixels, expected {n} for {}x{}",
+                image.width, image.height
+            )));
+        }
+    }
+    Ok(())
+}
