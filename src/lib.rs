@@ -3,6 +3,7 @@
 //! See `ARCHITECTURE.md` for the module map.
 
 pub mod geometry;
+pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod math;

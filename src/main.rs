@@ -1,1 +1,236 @@
-fn main() {}
+//! The `nimbus` command line: `render` a scene to EXR + PNG, `info` about a VDB file.
+
+use clap::{Args, Parser, Subcommand};
+use nimbus::light::EnvironmentLight;
+use nimbus::math::Rgb;
+use nimbus::render::{Progress, RenderSettings, Renderer};
+use nimbus::scene::{Scene, SceneBuilder};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+#[derive(Parser)]
+#[command(
+    name = "nimbus",
+    version,
+    about = "A volumetric path tracer for glTF/OBJ scenes with OpenVDB volumes"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene (.gltf, .glb, .obj) to an EXR with AOV layers and a PNG preview.
+    Render(RenderArgs),
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Scene file; without it, the bundled demo scene is rendered.
+    scene: Option<PathBuf>,
+    /// Output EXR; the PNG preview goes beside it with the same stem.
+    #[arg(short = 'o', long = "output", default_value = "render.exr")]
+    output: PathBuf,
+    /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Image width in pixels.
+    #[arg(long)]
+    width: Option<usize>,
+    /// Image height in pixels (default: from the camera's aspect ratio, else 3/4 of the width).
+    #[arg(long)]
+    height: Option<usize>,
+    /// Seed of the random streams.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Maximum scattering events (bounces) per path, as pbrt's maxdepth.
+    #[arg(long = "max-depth")]
+    max_depth: Option<u32>,
+    /// Render progressively for this many seconds, then write what there is.
+    #[arg(long = "time-limit")]
+    time_limit: Option<f64>,
+    /// Write render statistics as JSON to this file.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// Constant environment radiance r,g,b (overrides the scene's nimbus_environment).
+    #[arg(long = "env-color", value_parser = parse_rgb)]
+    env_color: Option<Rgb>,
+    /// Exposure of the PNG preview in stops.
+    #[arg(long, default_value_t = 0.0)]
+    exposure: f32,
+}
+
+fn parse_rgb(s: &str) -> Result<Rgb, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f32>().map_err(|e| format!("'{c}': {e}")))
+        .collect::<Result<_, _>>()?;
+    match v.as_slice() {
+        [r, g, b] if v.iter().all(|c| c.is_finite() && *c >= 0.0) => Ok(Rgb::new(*r, *g, *b)),
+        _ => Err("expected three non-negative numbers r,g,b".into()),
+    }
+}
+
+/// The bundled demo scene, embedded so that `nimbus render` works from any folder.
+const DEMO_SCENE: &[u8] = include_bytes!("../assets/demo.glb");
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("nimbus: error: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn load_builder(scene: Option<&Path>) -> Result<SceneBuilder, String> {
+    match scene {
+        Some(path) => nimbus::scene::load_builder(path).map_err(|e| e.to_string()),
+        None => nimbus::scene::gltf::load_slice(DEMO_SCENE, Path::new("assets/demo.glb"))
+            .map_err(|e| e.to_string()),
+    }
+}
+
+fn render(args: RenderArgs) -> Result<(), String> {
+    let mut builder = load_builder(args.scene.as_deref())?;
+    if let Some(c) = args.env_color {
+        builder.set_environment(EnvironmentLight::Constant(c));
+    }
+    let scene: Scene = builder.build();
+    for w in &scene.warnings {
+        eprintln!("nimbus: warning: {w}");
+    }
+    let width = args.width.unwrap_or(640).max(1);
+    let aspect = scene.camera.aspect_ratio.unwrap_or(4.0 / 3.0);
+    let height = args
+        .height
+        .unwrap_or(((width as f32 / aspect).round() as usize).max(1))
+        .max(1);
+    let time_limit = match args.time_limit {
+        Some(t) if t.is_finite() && t >= 0.0 => Some(Duration::from_secs_f64(t)),
+        Some(t) => {
+            return Err(format!(
+                "--time-limit {t} is not a non-negative number of seconds"
+            ))
+        }
+        None => None,
+    };
+    let spp = args
+        .spp
+        .unwrap_or(if time_limit.is_some() { u32::MAX } else { 64 });
+    let settings = RenderSettings {
+        width,
+        height,
+        spp,
+        seed: args.seed,
+        threads: args.threads,
+        max_depth: args.max_depth.or(scene.max_bounces).unwrap_or(64),
+        time_limit,
+    };
+    eprintln!(
+        "nimbus: {} triangles, {} lights, {width}x{height}, {} spp{}",
+        scene.triangle_count(),
+        scene.lights.len(),
+        if spp == u32::MAX {
+            "unlimited".to_string()
+        } else {
+            spp.to_string()
+        },
+        time_limit.map_or(String::new(), |t| format!(
+            ", time limit {:.1} s",
+            t.as_secs_f64()
+        ))
+    );
+    let renderer = Renderer::new(settings);
+    let mut reporter = ProgressReporter::new();
+    let (image, stats) = renderer
+        .render(&scene, &mut |p| reporter.report(p))
+        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    reporter.finish();
+    nimbus::output::write_exr(&image, &args.output).map_err(|e| e.to_string())?;
+    let png = nimbus::output::preview_path(&args.output);
+    nimbus::output::write_png_preview(&image, &png, args.exposure).map_err(|e| e.to_string())?;
+    eprintln!(
+        "nimbus: wrote {} and {} ({} spp in {:.2} s, {:.0} samples/s)",
+        args.output.display(),
+        png.display(),
+        stats.samples_per_pixel,
+        stats.render_seconds,
+        stats.samples_per_second
+    );
+    if stats.nan_samples > 0 {
+        eprintln!(
+            "nimbus: warning: {} NaN/Inf samples were dropped",
+            stats.nan_samples
+        );
+    }
+    if let Some(path) = args.stats {
+        let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;
+        std::fs::write(&path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// A progress bar on a terminal, plain log lines otherwise (CI).
+struct ProgressReporter {
+    bar: Option<indicatif::ProgressBar>,
+    last_logged: f64,
+}
+
+impl ProgressReporter {
+    fn new() -> Self {
+        let interactive = std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
+        let bar = interactive.then(|| {
+            let bar = indicatif::ProgressBar::new(1000);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{bar:40} {percent:>3}% {msg} [{elapsed_precise} < {eta}]",
+                )
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            bar
+        });
+        Self {
+            bar,
+            last_logged: -1.0,
+        }
+    }
+
+    fn report(&mut self, p: &Progress) -> bool {
+        match &self.bar {
+            Some(bar) => {
+                bar.set_position((p.fraction * 1000.0) as u64);
+                bar.set_message(format!("{} spp", p.samples_done));
+            }
+            None => {
+                if p.fraction - self.last_logged >= 0.1 || p.fraction >= 1.0 {
+                    self.last_logged = p.fraction;
+                    eprintln!(
+                        "nimbus: {:>3.0}% {} spp {:.1} s",
+                        p.fraction * 100.0,
+                        p.samples_done,
+                        p.elapsed_seconds
+                    );
+                }
+            }
+        }
+        true
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}

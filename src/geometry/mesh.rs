@@ -26,7 +26,11 @@ impl Mesh {
     /// The three positions of triangle `tri`.
     pub fn triangle(&self, tri: usize) -> [Vec3; 3] {
         let [a, b, c] = self.indices[tri];
-        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
     }
 
     /// Bounds of all vertices.

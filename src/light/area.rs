@@ -27,7 +27,12 @@ pub struct AreaLight {
 
 impl AreaLight {
     /// Builds the light for a triangle with `material`; `None` for degenerate or non-emissive triangles.
-    pub fn new(vertices: [Vec3; 3], uvs: [Vec2; 3], material: &Material, prim: u32) -> Option<AreaLight> {
+    pub fn new(
+        vertices: [Vec3; 3],
+        uvs: [Vec2; 3],
+        material: &Material,
+        prim: u32,
+    ) -> Option<AreaLight> {
         let cross = (vertices[1] - vertices[0]).cross(vertices[2] - vertices[0]);
         let area = 0.5 * cross.length();
         if area.is_nan() || area <= 0.0 || !material.is_emissive() {
@@ -108,16 +113,26 @@ mod tests {
     fn one_sided_emission_and_solid_angle_pdf() {
         let mut m = Material::lambertian("light", Rgb::ZERO);
         m.emission = Rgb::ONE;
-        let v = [Vec3::new(-1.0, 1.0, -1.0), Vec3::new(-1.0, 1.0, 1.0), Vec3::new(1.0, 1.0, -1.0)];
+        let v = [
+            Vec3::new(-1.0, 1.0, -1.0),
+            Vec3::new(-1.0, 1.0, 1.0),
+            Vec3::new(1.0, 1.0, -1.0),
+        ];
         let l = AreaLight::new(v, [Vec2::ZERO; 3], &m, 0).unwrap();
         assert!(l.normal.distance(-Vec3::Y) < 1e-6, "normal {:?}", l.normal);
         assert!((l.area - 2.0).abs() < 1e-6);
-        let s = l.sample_li(Vec3::ZERO, Vec2::new(0.3, 0.3), &[]).expect("lit from below");
+        let s = l
+            .sample_li(Vec3::ZERO, Vec2::new(0.3, 0.3), &[])
+            .expect("lit from below");
         assert_eq!(s.radiance, Rgb::ONE);
         let q = s.wi * s.distance;
         let cos = s.wi.y;
         assert!((s.pdf - s.distance * s.distance / (cos * 2.0)).abs() < 1e-4 * s.pdf);
-        assert!(l.sample_li(Vec3::new(0.0, 2.0, 0.0), Vec2::new(0.3, 0.3), &[]).is_none(), "dark above");
+        assert!(
+            l.sample_li(Vec3::new(0.0, 2.0, 0.0), Vec2::new(0.3, 0.3), &[])
+                .is_none(),
+            "dark above"
+        );
         assert!(l.pdf_from_point(Vec3::ZERO, q).is_some());
     }
 }

@@ -51,7 +51,8 @@ impl EnvironmentMap {
                 solid_angle_weighted += (l * sin_theta) as f64;
             }
         }
-        let average_luminance = (solid_angle_weighted * (PI as f64 / 2.0) / (width * height) as f64) as f32;
+        let average_luminance =
+            (solid_angle_weighted * (PI as f64 / 2.0) / (width * height) as f64) as f32;
         Some(Self {
             distribution: Distribution2D::new(&weights, width, height),
             width,
@@ -65,7 +66,9 @@ impl EnvironmentMap {
     /// The error message names the file.
     pub fn load(path: &std::path::Path, intensity: f32) -> Result<Self, String> {
         let name = path.display();
-        let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        let is_exr = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         let (width, height, texels) = if is_exr {
             let image = exr::prelude::read_first_rgba_layer_from_file(
                 path,
@@ -76,17 +79,29 @@ impl EnvironmentMap {
             )
             .map_err(|e| format!("{name}: {e}"))?;
             let size = image.layer_data.size;
-            (size.width(), size.height(), image.layer_data.channel_data.pixels.1)
+            (
+                size.width(),
+                size.height(),
+                image.layer_data.channel_data.pixels.1,
+            )
         } else {
-            let img = image::open(path).map_err(|e| format!("{name}: {e}"))?.to_rgb32f();
+            let img = image::open(path)
+                .map_err(|e| format!("{name}: {e}"))?
+                .to_rgb32f();
             let (w, h) = (img.width() as usize, img.height() as usize);
             let texels = img
                 .pixels()
-                .map(|p| Rgb::new(p[0], p[1], p[2]).to_array().map(crate::math::srgb_to_linear).into())
+                .map(|p| {
+                    Rgb::new(p[0], p[1], p[2])
+                        .to_array()
+                        .map(crate::math::srgb_to_linear)
+                        .into()
+                })
                 .collect();
             (w, h, texels)
         };
-        Self::new(width, height, texels, intensity).ok_or_else(|| format!("{name}: the map is empty"))
+        Self::new(width, height, texels, intensity)
+            .ok_or_else(|| format!("{name}: the map is empty"))
     }
 
     fn lookup(&self, uv: Vec2) -> Rgb {
@@ -189,7 +204,11 @@ mod tests {
         assert!(uv_to_direction(Vec2::new(0.0, 0.5)).distance(-Vec3::Z) < 1e-6);
         assert!(uv_to_direction(Vec2::new(0.25, 0.5)).distance(Vec3::X) < 1e-6);
         assert!(uv_to_direction(Vec2::new(0.3, 0.0)).distance(Vec3::Y) < 1e-6);
-        for uv in [Vec2::new(0.1, 0.2), Vec2::new(0.6, 0.7), Vec2::new(0.9, 0.4)] {
+        for uv in [
+            Vec2::new(0.1, 0.2),
+            Vec2::new(0.6, 0.7),
+            Vec2::new(0.9, 0.4),
+        ] {
             assert!(direction_to_uv(uv_to_direction(uv)).distance(uv) < 1e-5);
         }
     }
@@ -197,7 +216,9 @@ mod tests {
     #[test]
     fn map_sampling_density_matches_pdf_and_integrates_to_one() {
         let (w, h) = (16, 8);
-        let texels = (0..w * h).map(|i| Rgb::splat(1.0 + (i % 7) as f32)).collect();
+        let texels = (0..w * h)
+            .map(|i| Rgb::splat(1.0 + (i % 7) as f32))
+            .collect();
         let env = EnvironmentLight::Map(Box::new(EnvironmentMap::new(w, h, texels, 1.0).unwrap()));
         let mut rng = crate::math::Rng::new(9, 2);
         let n = 20_000;
@@ -206,13 +227,21 @@ mod tests {
         let mut sum2 = 0.0f64;
         for _ in 0..n {
             let s = env.sample_li(rng.next_2d()).unwrap();
-            assert!((env.pdf(s.wi) - s.pdf).abs() < 2e-3 * s.pdf, "{} vs {}", env.pdf(s.wi), s.pdf);
+            assert!(
+                (env.pdf(s.wi) - s.pdf).abs() < 2e-3 * s.pdf,
+                "{} vs {}",
+                env.pdf(s.wi),
+                s.pdf
+            );
             let x = 1.0 / s.pdf as f64;
             sum += x;
             sum2 += x * x;
         }
         let mean = sum / n as f64;
         let se = ((sum2 / n as f64 - mean * mean) / n as f64).sqrt();
-        assert!((mean - 4.0 * std::f64::consts::PI).abs() < 4.0 * se, "mean {mean} se {se}");
+        assert!(
+            (mean - 4.0 * std::f64::consts::PI).abs() < 4.0 * se,
+            "mean {mean} se {se}"
+        );
     }
 }

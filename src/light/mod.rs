@@ -73,6 +73,9 @@ impl Light {
 
     /// True for lights that cannot be hit by a ray (delta position or direction).
     pub fn is_delta(&self) -> bool {
-        matches!(self, Light::Point(_) | Light::Spot(_) | Light::Directional(_))
+        matches!(
+            self,
+            Light::Point(_) | Light::Spot(_) | Light::Directional(_)
+        )
     }
 }

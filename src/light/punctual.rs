@@ -114,9 +114,14 @@ mod tests {
 
     #[test]
     fn point_light_is_inverse_square() {
-        let l = PointLight { position: Vec3::new(0.0, 2.0, 0.0), intensity: Rgb::splat(8.0) };
+        let l = PointLight {
+            position: Vec3::new(0.0, 2.0, 0.0),
+            intensity: Rgb::splat(8.0),
+        };
         let s = l.sample_li(Vec3::ZERO).unwrap();
-        assert!((s.radiance.x - 2.0).abs() < 1e-6 && s.wi.distance(Vec3::Y) < 1e-6 && s.distance == 2.0);
+        assert!(
+            (s.radiance.x - 2.0).abs() < 1e-6 && s.wi.distance(Vec3::Y) < 1e-6 && s.distance == 2.0
+        );
     }
 
     #[test]

@@ -31,6 +31,8 @@ impl LightSampler {
 
     /// Probability of picking light `index`.
     pub fn pmf(&self, index: usize) -> f32 {
-        self.distribution.as_ref().map_or(0.0, |d| d.discrete_pdf(index))
+        self.distribution
+            .as_ref()
+            .map_or(0.0, |d| d.discrete_pdf(index))
     }
 }

@@ -70,7 +70,8 @@ impl Default for Material {
 }
 
 fn lookup(textures: &[Texture], id: Option<TextureId>, uv: Vec2) -> Option<Vec4> {
-    id.and_then(|i| textures.get(i as usize)).map(|t| t.sample(uv))
+    id.and_then(|i| textures.get(i as usize))
+        .map(|t| t.sample(uv))
 }
 
 impl Material {
@@ -135,7 +136,11 @@ impl Material {
     pub fn normal_map(&self, uv: Vec2, textures: &[Texture]) -> Option<Vec3> {
         let (id, scale) = self.normal_texture?;
         let t = textures.get(id as usize)?.sample(uv);
-        let n = Vec3::new((t.x * 2.0 - 1.0) * scale, (t.y * 2.0 - 1.0) * scale, t.z * 2.0 - 1.0);
+        let n = Vec3::new(
+            (t.x * 2.0 - 1.0) * scale,
+            (t.y * 2.0 - 1.0) * scale,
+            t.z * 2.0 - 1.0,
+        );
         let n = n.normalize_or_zero();
         (n.z > 0.0).then_some(n)
     }

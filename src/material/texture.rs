@@ -39,7 +39,12 @@ pub struct Texture {
 impl Texture {
     /// Builds a texture from 8-bit RGBA data, decoding colour channels per `space`.
     /// Returns `None` when `rgba8` does not hold `width × height` texels.
-    pub fn from_rgba8(width: usize, height: usize, rgba8: &[u8], space: ColorSpace) -> Option<Texture> {
+    pub fn from_rgba8(
+        width: usize,
+        height: usize,
+        rgba8: &[u8],
+        space: ColorSpace,
+    ) -> Option<Texture> {
         if width == 0 || height == 0 || rgba8.len() != width.checked_mul(height)?.checked_mul(4)? {
             return None;
         }
@@ -52,7 +57,14 @@ impl Texture {
         };
         let texels = rgba8
             .chunks_exact(4)
-            .map(|p| Vec4::new(decode(p[0]), decode(p[1]), decode(p[2]), p[3] as f32 / 255.0))
+            .map(|p| {
+                Vec4::new(
+                    decode(p[0]),
+                    decode(p[1]),
+                    decode(p[2]),
+                    p[3] as f32 / 255.0,
+                )
+            })
             .collect();
         Some(Texture {
             width,
@@ -127,7 +139,11 @@ fn wrap_index(i: i64, n: usize, wrap: Wrap) -> usize {
         Wrap::ClampToEdge => i.clamp(0, n - 1) as usize,
         Wrap::MirroredRepeat => {
             let period = i.rem_euclid(2 * n);
-            (if period < n { period } else { 2 * n - 1 - period }) as usize
+            (if period < n {
+                period
+            } else {
+                2 * n - 1 - period
+            }) as usize
         }
     }
 }
@@ -138,7 +154,9 @@ mod tests {
 
     #[test]
     fn bilinear_interpolates_between_texel_centres() {
-        let t = Texture::from_linear(2, 1, vec![Vec4::ZERO, Vec4::ONE]).unwrap().with_wrap(Wrap::ClampToEdge, Wrap::ClampToEdge);
+        let t = Texture::from_linear(2, 1, vec![Vec4::ZERO, Vec4::ONE])
+            .unwrap()
+            .with_wrap(Wrap::ClampToEdge, Wrap::ClampToEdge);
         assert!((t.sample(Vec2::new(0.25, 0.5)).x - 0.0).abs() < 1e-6);
         assert!((t.sample(Vec2::new(0.5, 0.5)).x - 0.5).abs() < 1e-6);
         assert!((t.sample(Vec2::new(0.75, 0.5)).x - 1.0).abs() < 1e-6);

@@ -1,5 +1,10 @@
-//! Rendering: the output image with its arbitrary output variables (AOVs).
+//! Rendering: the film that accumulates samples and their AOVs, the progressive pass loop with its time budget,
+//! progress and cancellation, and the statistics of a render.
 
+mod film;
 pub mod image;
+mod renderer;
 
+pub use film::Film;
 pub use image::RenderImage;
+pub use renderer::{peak_memory_bytes, Progress, RenderSettings, RenderStats, Renderer};

@@ -17,7 +17,11 @@ pub struct Camera {
 impl Camera {
     /// A camera at `eye` looking at `target` with +Y up.
     pub fn look_at(eye: Vec3, target: Vec3, yfov: f32) -> Self {
-        let up = if (target - eye).normalize_or_zero().cross(Vec3::Y).length() < 1e-4 { Vec3::Z } else { Vec3::Y };
+        let up = if (target - eye).normalize_or_zero().cross(Vec3::Y).length() < 1e-4 {
+            Vec3::Z
+        } else {
+            Vec3::Y
+        };
         Self {
             camera_to_world: Mat4::look_at_rh(eye, target, up).inverse(),
             yfov,
@@ -49,7 +53,10 @@ impl Camera {
         let tan_half = (self.yfov * 0.5).tan();
         let x = (2.0 * film.x - 1.0) * tan_half * aspect;
         let y = (1.0 - 2.0 * film.y) * tan_half;
-        let dir = self.camera_to_world.transform_vector3(Vec3::new(x, y, -1.0)).normalize();
+        let dir = self
+            .camera_to_world
+            .transform_vector3(Vec3::new(x, y, -1.0))
+            .normalize();
         Ray::new(self.position(), dir)
     }
 }
@@ -62,8 +69,14 @@ mod tests {
     fn centre_ray_looks_at_the_target_and_corners_span_the_fov() {
         let cam = Camera::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 90f32.to_radians());
         let r = cam.generate_ray(Vec2::splat(0.5), 1.0);
-        assert!(r.dir.distance(-Vec3::Z) < 1e-6 && r.origin.distance(Vec3::new(0.0, 0.0, 5.0)) < 1e-6);
+        assert!(
+            r.dir.distance(-Vec3::Z) < 1e-6 && r.origin.distance(Vec3::new(0.0, 0.0, 5.0)) < 1e-6
+        );
         let top = cam.generate_ray(Vec2::new(0.5, 0.0), 1.0);
-        assert!((top.dir.y - std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-5, "top edge is +45°: {:?}", top.dir);
+        assert!(
+            (top.dir.y - std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-5,
+            "top edge is +45°: {:?}",
+            top.dir
+        );
     }
 }

@@ -35,6 +35,9 @@ pub enum SceneErrorKind {
 impl SceneError {
     /// An error about `path`.
     pub fn new(path: impl Into<PathBuf>, kind: SceneErrorKind) -> Self {
-        Self { path: path.into(), kind }
+        Self {
+            path: path.into(),
+            kind,
+        }
     }
 }

@@ -13,7 +13,9 @@
 
 use super::{Camera, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
-use crate::light::{DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight};
+use crate::light::{
+    DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
+};
 use crate::material::{ColorSpace, Material, Texture, Wrap};
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use gltf::json::validation::Validate;
@@ -54,11 +56,14 @@ pub fn load_slice(bytes: &[u8], path: &Path) -> Result<SceneBuilder, SceneError>
     for buffer in document.buffers() {
         let name = match buffer.source() {
             gltf::buffer::Source::Bin => "the GLB binary chunk".to_string(),
-            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => format!("buffer {} (data URI)", buffer.index()),
+            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => {
+                format!("buffer {} (data URI)", buffer.index())
+            }
             gltf::buffer::Source::Uri(u) => format!("buffer {} ('{u}')", buffer.index()),
         };
-        let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(&base), &mut blob)
-            .map_err(|e| err(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?;
+        let data =
+            gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(&base), &mut blob)
+                .map_err(|e| err(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?;
         if data.len() < buffer.length() {
             return Err(malformed(format!(
                 "{name} holds {} bytes but declares byteLength {}",
@@ -93,8 +98,10 @@ type JsonParse = (gltf::json::Root, Option<Vec<u8>>);
 
 fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
     if bytes.starts_with(b"glTF") {
-        let mut glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| format!("GLB container: {e}"))?;
-        let root = gltf::json::deserialize::from_slice(&glb.json).map_err(|e| format!("JSON chunk: {e}"))?;
+        let mut glb =
+            gltf::binary::Glb::from_slice(bytes).map_err(|e| format!("GLB container: {e}"))?;
+        let root = gltf::json::deserialize::from_slice(&glb.json)
+            .map_err(|e| format!("JSON chunk: {e}"))?;
         Ok((root, glb.bin.take().map(|b| b.into_owned())))
     } else {
         let root = gltf::json::deserialize::from_slice(bytes).map_err(|e| format!("JSON: {e}"))?;
@@ -120,7 +127,9 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
     }
     for ext in &root.extensions_required {
         if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
-            return Err(SceneErrorKind::Unsupported(format!("required extension {ext}")));
+            return Err(SceneErrorKind::Unsupported(format!(
+                "required extension {ext}"
+            )));
         }
     }
     if !fatal.is_empty() {
@@ -176,9 +185,10 @@ impl Loader<'_> {
                         aspect_ratio: p.aspect_ratio(),
                     });
                 } else {
-                    self.builder
-                        .warnings
-                        .push(format!("camera {} is orthographic, which is not supported; skipped", camera.index()));
+                    self.builder.warnings.push(format!(
+                        "camera {} is orthographic, which is not supported; skipped",
+                        camera.index()
+                    ));
                 }
             }
         }
@@ -196,7 +206,10 @@ impl Loader<'_> {
         let position = world.transform_point3(Vec3::ZERO);
         let direction = world.transform_vector3(-Vec3::Z).normalize_or_zero();
         let l = match light.kind() {
-            gltf::khr_lights_punctual::Kind::Point => Light::Point(PointLight { position, intensity: color }),
+            gltf::khr_lights_punctual::Kind::Point => Light::Point(PointLight {
+                position,
+                intensity: color,
+            }),
             gltf::khr_lights_punctual::Kind::Directional => Light::Directional(DirectionalLight {
                 direction,
                 irradiance: color,
@@ -213,25 +226,35 @@ impl Loader<'_> {
             }),
         };
         if light.range().is_some() {
-            self.builder
-                .warnings
-                .push(format!("light {}: 'range' is ignored (physical inverse-square falloff)", light.index()));
+            self.builder.warnings.push(format!(
+                "light {}: 'range' is ignored (physical inverse-square falloff)",
+                light.index()
+            ));
         }
         self.builder.lights.push(l);
     }
 
-    fn load_mesh(&mut self, node: &gltf::Node, mesh: gltf::Mesh, world: &Mat4) -> Result<(), SceneError> {
-        let mesh_name = mesh.name().map_or_else(|| format!("mesh {}", mesh.index()), str::to_owned);
+    fn load_mesh(
+        &mut self,
+        node: &gltf::Node,
+        mesh: gltf::Mesh,
+        world: &Mat4,
+    ) -> Result<(), SceneError> {
+        let mesh_name = mesh
+            .name()
+            .map_or_else(|| format!("mesh {}", mesh.index()), str::to_owned);
         for primitive in mesh.primitives() {
             let what = format!("{mesh_name}, primitive {}", primitive.index());
             let mode = primitive.mode();
             if !matches!(
                 mode,
-                gltf::mesh::Mode::Triangles | gltf::mesh::Mode::TriangleStrip | gltf::mesh::Mode::TriangleFan
+                gltf::mesh::Mode::Triangles
+                    | gltf::mesh::Mode::TriangleStrip
+                    | gltf::mesh::Mode::TriangleFan
             ) {
-                self.builder
-                    .warnings
-                    .push(format!("{what}: {mode:?} primitives are not triangles; skipped"));
+                self.builder.warnings.push(format!(
+                    "{what}: {mode:?} primitives are not triangles; skipped"
+                ));
                 continue;
             }
             for (_, accessor) in primitive.attributes() {
@@ -243,13 +266,21 @@ impl Loader<'_> {
             let reader = primitive.reader(|b| self.buffers.get(b.index()).map(|d| d.0.as_slice()));
             let positions: Vec<Vec3> = reader
                 .read_positions()
-                .ok_or_else(|| self.error(SceneErrorKind::Malformed(format!("{what} has no POSITION"))))?
+                .ok_or_else(|| {
+                    self.error(SceneErrorKind::Malformed(format!("{what} has no POSITION")))
+                })?
                 .map(Vec3::from)
                 .collect();
             let count = positions.len();
-            let normals: Vec<Vec3> = reader.read_normals().map(|n| n.map(Vec3::from).collect()).unwrap_or_default();
-            let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
-            let tangents: Option<Vec<Vec4>> = reader.read_tangents().map(|t| t.map(Vec4::from).collect());
+            let normals: Vec<Vec3> = reader
+                .read_normals()
+                .map(|n| n.map(Vec3::from).collect())
+                .unwrap_or_default();
+            let uvs: Option<Vec<Vec2>> = reader
+                .read_tex_coords(0)
+                .map(|t| t.into_f32().map(Vec2::from).collect());
+            let tangents: Option<Vec<Vec4>> =
+                reader.read_tangents().map(|t| t.map(Vec4::from).collect());
             let flat: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
                 None => (0..count as u32).collect(),
@@ -305,15 +336,23 @@ impl Loader<'_> {
         let Some(view) = accessor.view() else {
             return Err(bad("has no buffer view".into()));
         };
-        let buffer_len = self.buffers.get(view.buffer().index()).map_or(0, |b| b.len());
+        let buffer_len = self
+            .buffers
+            .get(view.buffer().index())
+            .map_or(0, |b| b.len());
         let view_end = view.offset().checked_add(view.length());
         if view_end.is_none_or(|e| e > buffer_len) {
-            return Err(bad(format!("buffer view {} runs past the end of its buffer", view.index())));
+            return Err(bad(format!(
+                "buffer view {} runs past the end of its buffer",
+                view.index()
+            )));
         }
         let element = accessor.size();
         let stride = view.stride().unwrap_or(element);
         if stride < element {
-            return Err(bad(format!("byteStride {stride} is smaller than the element size {element}")));
+            return Err(bad(format!(
+                "byteStride {stride} is smaller than the element size {element}"
+            )));
         }
         let count = accessor.count();
         if count > 0 {
@@ -322,7 +361,10 @@ impl Loader<'_> {
                 .and_then(|v| v.checked_add(accessor.offset()))
                 .and_then(|v| v.checked_add(element));
             if end.is_none_or(|e| e > view.length()) {
-                return Err(bad(format!("{count} elements run past the end of buffer view {}", view.index())));
+                return Err(bad(format!(
+                    "{count} elements run past the end of buffer view {}",
+                    view.index()
+                )));
             }
         }
         Ok(())
@@ -343,20 +385,24 @@ impl Loader<'_> {
             None => None,
         };
         let normal_texture = match material.normal_texture() {
-            Some(t) => Some((self.texture(t.texture(), ColorSpace::Linear, t.tex_coord())?, t.scale())),
+            Some(t) => Some((
+                self.texture(t.texture(), ColorSpace::Linear, t.tex_coord())?,
+                t.scale(),
+            )),
             None => None,
         };
         let emission_texture = match material.emissive_texture() {
             Some(t) => Some(self.texture(t.texture(), ColorSpace::Srgb, t.tex_coord())?),
             None => None,
         };
-        let (specular_factor, specular_color) = material
-            .specular()
-            .map_or((1.0, Rgb::ONE), |s| (s.specular_factor(), Rgb::from(s.specular_color_factor())));
+        let (specular_factor, specular_color) = material.specular().map_or((1.0, Rgb::ONE), |s| {
+            (s.specular_factor(), Rgb::from(s.specular_color_factor()))
+        });
         let m = Material {
-            name: material
-                .name()
-                .map_or_else(|| format!("material {}", material.index().map_or(-1, |i| i as i64)), str::to_owned),
+            name: material.name().map_or_else(
+                || format!("material {}", material.index().map_or(-1, |i| i as i64)),
+                str::to_owned,
+            ),
             base_color: Vec4::from(pbr.base_color_factor()),
             base_color_texture,
             metallic: pbr.metallic_factor(),
@@ -368,7 +414,9 @@ impl Loader<'_> {
             ior: material.ior().unwrap_or(1.5),
             specular_factor,
             specular_color,
-            transmission: material.transmission().map_or(0.0, |t| t.transmission_factor()),
+            transmission: material
+                .transmission()
+                .map_or(0.0, |t| t.transmission_factor()),
             double_sided: material.double_sided(),
         };
         let id = self.builder.add_material(m);
@@ -376,7 +424,12 @@ impl Loader<'_> {
         Ok(id)
     }
 
-    fn texture(&mut self, texture: gltf::Texture, space: ColorSpace, tex_coord: u32) -> Result<u32, SceneError> {
+    fn texture(
+        &mut self,
+        texture: gltf::Texture,
+        space: ColorSpace,
+        tex_coord: u32,
+    ) -> Result<u32, SceneError> {
         if tex_coord != 0 {
             self.builder.warnings.push(format!(
                 "texture {} uses TEXCOORD_{tex_coord}; only TEXCOORD_0 is read",
@@ -395,9 +448,19 @@ impl Loader<'_> {
             gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
         };
         let sampler = texture.sampler();
-        let t = Texture::from_rgba8(image.width() as usize, image.height() as usize, image.as_raw(), space)
-            .ok_or_else(|| self.error(SceneErrorKind::Malformed(format!("image {} is empty", key.0))))?
-            .with_wrap(wrap(sampler.wrap_s()), wrap(sampler.wrap_t()));
+        let t = Texture::from_rgba8(
+            image.width() as usize,
+            image.height() as usize,
+            image.as_raw(),
+            space,
+        )
+        .ok_or_else(|| {
+            self.error(SceneErrorKind::Malformed(format!(
+                "image {} is empty",
+                key.0
+            )))
+        })?
+        .with_wrap(wrap(sampler.wrap_s()), wrap(sampler.wrap_t()));
         self.builder.textures.push(t);
         let id = (self.builder.textures.len() - 1) as u32;
         self.texture_cache.insert(key, id);
@@ -409,7 +472,9 @@ impl Loader<'_> {
             return Ok(img.clone());
         }
         let name = match image.source() {
-            gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => format!("image {} ('{uri}')", image.index()),
+            gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
+                format!("image {} ('{uri}')", image.index())
+            }
             _ => format!("image {}", image.index()),
         };
         let bytes: Vec<u8> = match image.source() {
@@ -429,7 +494,9 @@ impl Loader<'_> {
             gltf::image::Source::Uri { uri, .. } => {
                 let source = gltf::buffer::Source::Uri(uri);
                 gltf::buffer::Data::from_source(source, Some(&self.base))
-                    .map_err(|e| self.error(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?
+                    .map_err(|e| {
+                        self.error(SceneErrorKind::InvalidReference(format!("{name}: {e}")))
+                    })?
                     .0
             }
         };
@@ -445,13 +512,19 @@ impl Loader<'_> {
         let value: serde_json::Value = serde_json::from_str(raw.get())
             .map_err(|e| self.error(SceneErrorKind::Malformed(format!("scene extras: {e}"))))?;
         if let Some(b) = value.get("max_bounces") {
-            let b = b
-                .as_u64()
-                .ok_or_else(|| self.error(SceneErrorKind::Malformed("scene extras: max_bounces must be a non-negative integer".into())))?;
+            let b = b.as_u64().ok_or_else(|| {
+                self.error(SceneErrorKind::Malformed(
+                    "scene extras: max_bounces must be a non-negative integer".into(),
+                ))
+            })?;
             self.builder.max_bounces = Some(b.min(u32::MAX as u64) as u32);
         }
         if let Some(env) = value.get("nimbus_environment") {
-            let env = parse_environment(env, &self.base).map_err(|m| self.error(SceneErrorKind::Malformed(format!("nimbus_environment: {m}"))))?;
+            let env = parse_environment(env, &self.base).map_err(|m| {
+                self.error(SceneErrorKind::Malformed(format!(
+                    "nimbus_environment: {m}"
+                )))
+            })?;
             self.builder.set_environment(env);
         }
         Ok(())
@@ -460,7 +533,10 @@ impl Loader<'_> {
 
 /// Parses a `nimbus_environment` object: `{"color": [r,g,b]}` or `{"map": "file", "intensity": s}`; the map
 /// path is relative to `base`.
-pub fn parse_environment(value: &serde_json::Value, base: &Path) -> Result<EnvironmentLight, String> {
+pub fn parse_environment(
+    value: &serde_json::Value,
+    base: &Path,
+) -> Result<EnvironmentLight, String> {
     if let Some(c) = value.get("color") {
         let rgb = parse_rgb(c).ok_or("'color' must be an array of three non-negative numbers")?;
         return Ok(EnvironmentLight::Constant(rgb));
@@ -468,7 +544,10 @@ pub fn parse_environment(value: &serde_json::Value, base: &Path) -> Result<Envir
     if let Some(m) = value.get("map") {
         let file = m.as_str().ok_or("'map' must be a file name")?;
         let intensity = match value.get("intensity") {
-            Some(v) => v.as_f64().filter(|v| v.is_finite() && *v >= 0.0).ok_or("'intensity' must be a non-negative number")? as f32,
+            Some(v) => v
+                .as_f64()
+                .filter(|v| v.is_finite() && *v >= 0.0)
+                .ok_or("'intensity' must be a non-negative number")? as f32,
             None => 1.0,
         };
         let map = EnvironmentMap::load(&base.join(file), intensity)?;
@@ -502,10 +581,17 @@ fn triangulate(indices: &[u32], mode: gltf::mesh::Mode) -> Vec<[u32; 3]> {
                 }
             })
             .collect(),
-        gltf::mesh::Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
-        _ => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        gltf::mesh::Mode::TriangleFan => (2..indices.len())
+            .map(|i| [indices[0], indices[i - 1], indices[i]])
+            .collect(),
+        _ => indices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
     };
-    tris.into_iter().filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]).collect()
+    tris.into_iter()
+        .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+        .collect()
 }
 
 /// Removes scale and shear from a camera's world matrix, keeping its rotation and position.

@@ -17,6 +17,19 @@ use crate::material::{Material, Texture};
 use crate::math::{Aabb, Frame, Ray, Vec2, Vec3};
 use std::path::Path;
 
+/// Reads a scene file into a builder (to be adjusted, then built), choosing the loader by extension.
+pub fn load_builder(path: &Path) -> Result<SceneBuilder, SceneError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("gltf") | Some("glb") => gltf::load(path),
+        Some("obj") => obj::load(path),
+        _ => Err(SceneError::new(path, SceneErrorKind::UnknownFormat)),
+    }
+}
+
 /// Everything a loader produces, before acceleration structures are built.
 #[derive(Default)]
 pub struct SceneBuilder {
@@ -88,9 +101,15 @@ impl SceneBuilder {
         }
         let bvh = Bvh::build(&triangles);
         let bounds = bvh.bounds();
-        let radius = if bounds.is_empty() { 1.0 } else { (bounds.extent().length() * 0.5).max(1e-3) };
+        let radius = if bounds.is_empty() {
+            1.0
+        } else {
+            (bounds.extent().length() * 0.5).max(1e-3)
+        };
         let light_sampler = LightSampler::new(&lights, radius);
-        let environment = lights.iter().position(|l| matches!(l, Light::Environment(_)));
+        let environment = lights
+            .iter()
+            .position(|l| matches!(l, Light::Environment(_)));
         Scene {
             camera: self.camera.unwrap_or_else(|| Camera::framing(&bounds)),
             meshes: self.meshes,
@@ -163,13 +182,7 @@ pub struct SurfaceHit {
 impl Scene {
     /// Loads a scene file, choosing the loader by extension (.gltf, .glb, .obj).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
-        let builder = match ext.as_deref() {
-            Some("gltf") | Some("glb") => gltf::load(path)?,
-            Some("obj") => obj::load(path)?,
-            _ => return Err(SceneError::new(path, SceneErrorKind::UnknownFormat)),
-        };
-        Ok(builder.build())
+        Ok(load_builder(path)?.build())
     }
 
     /// Number of triangles.
@@ -221,7 +234,8 @@ impl Scene {
         let [v0, v1, v2] = [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]];
         let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
         let front_face = geometric_normal.dot(ray.dir) < 0.0;
-        let mut n = (mesh.normals[i0] * b0 + mesh.normals[i1] * b1 + mesh.normals[i2] * b2).normalize_or_zero();
+        let mut n = (mesh.normals[i0] * b0 + mesh.normals[i1] * b1 + mesh.normals[i2] * b2)
+            .normalize_or_zero();
         if n == Vec3::ZERO {
             n = geometric_normal;
         }
@@ -259,16 +273,25 @@ impl Scene {
     fn tangent_frame(&self, mesh: &Mesh, idx: [usize; 3], n: Vec3, b: Vec2) -> Frame {
         let b0 = 1.0 - b.x - b.y;
         if let Some(t) = &mesh.tangents {
-            let tangent = t[idx[0]].truncate() * b0 + t[idx[1]].truncate() * b.x + t[idx[2]].truncate() * b.y;
+            let tangent =
+                t[idx[0]].truncate() * b0 + t[idx[1]].truncate() * b.x + t[idx[2]].truncate() * b.y;
             let frame = Frame::from_normal_tangent(n, tangent);
             // The bitangent sign (w) says whether the uv mapping is mirrored.
             if t[idx[0]].w < 0.0 {
-                return Frame { s: frame.s, t: -frame.t, n: frame.n };
+                return Frame {
+                    s: frame.s,
+                    t: -frame.t,
+                    n: frame.n,
+                };
             }
             return frame;
         }
         if let Some(uv) = &mesh.uvs {
-            let (p0, p1, p2) = (mesh.positions[idx[0]], mesh.positions[idx[1]], mesh.positions[idx[2]]);
+            let (p0, p1, p2) = (
+                mesh.positions[idx[0]],
+                mesh.positions[idx[1]],
+                mesh.positions[idx[2]],
+            );
             let (d1, d2) = (uv[idx[1]] - uv[idx[0]], uv[idx[2]] - uv[idx[0]]);
             let det = d1.x * d2.y - d1.y * d2.x;
             if det.abs() > 1e-12 {
@@ -277,7 +300,11 @@ impl Scene {
                 let frame = Frame::from_normal_tangent(n, dpdu);
                 // glTF's v runs downward in the image; the normal map's +y follows +v's bitangent direction.
                 if frame.t.dot(dpdv) < 0.0 {
-                    return Frame { s: frame.s, t: -frame.t, n: frame.n };
+                    return Frame {
+                        s: frame.s,
+                        t: -frame.t,
+                        n: frame.n,
+                    };
                 }
                 return frame;
             }

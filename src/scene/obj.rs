@@ -26,28 +26,48 @@ pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
         .map_err(|e| SceneError::new(path, SceneErrorKind::Malformed(e.to_string())))?;
     let mut builder = SceneBuilder::default();
     let materials = materials.unwrap_or_else(|e| {
-        builder.warnings.push(format!("{}: material library: {e}; using defaults", path.display()));
+        builder.warnings.push(format!(
+            "{}: material library: {e}; using defaults",
+            path.display()
+        ));
         Vec::new()
     });
-    let ids: Vec<u32> = materials.iter().map(|m| builder.add_material(convert_material(m))).collect();
+    let ids: Vec<u32> = materials
+        .iter()
+        .map(|m| builder.add_material(convert_material(m)))
+        .collect();
     let default_material = builder.add_material(Material::lambertian("default", Rgb::splat(0.8)));
     for model in models {
         let m = &model.mesh;
-        let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+        let positions: Vec<Vec3> = m
+            .positions
+            .chunks_exact(3)
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect();
         let count = positions.len();
         let normals: Vec<Vec3> = if m.normals.len() == count * 3 {
-            m.normals.chunks_exact(3).map(|n| Vec3::new(n[0], n[1], n[2]).normalize_or_zero()).collect()
+            m.normals
+                .chunks_exact(3)
+                .map(|n| Vec3::new(n[0], n[1], n[2]).normalize_or_zero())
+                .collect()
         } else {
             Vec::new()
         };
         // OBJ's v runs upward; glTF's (and Nimbus's) downward from the top of the image.
-        let uvs = (m.texcoords.len() == count * 2)
-            .then(|| m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect());
+        let uvs = (m.texcoords.len() == count * 2).then(|| {
+            m.texcoords
+                .chunks_exact(2)
+                .map(|t| Vec2::new(t[0], 1.0 - t[1]))
+                .collect()
+        });
         let material = match m.material_id {
             Some(i) => *ids.get(i).ok_or_else(|| {
                 SceneError::new(
                     path,
-                    SceneErrorKind::InvalidReference(format!("object '{}' uses material {i}, which is missing", model.name)),
+                    SceneErrorKind::InvalidReference(format!(
+                        "object '{}' uses material {i}, which is missing",
+                        model.name
+                    )),
                 )
             })?,
             None => default_material,
@@ -58,14 +78,21 @@ pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
             normals,
             uvs,
             tangents: None,
-            indices: m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            indices: m
+                .indices
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect(),
             material,
         };
         let dropped = mesh.remove_invalid_triangles();
         if dropped > 0 {
             return Err(SceneError::new(
                 path,
-                SceneErrorKind::InvalidReference(format!("object '{}': {dropped} faces index missing vertices", model.name)),
+                SceneErrorKind::InvalidReference(format!(
+                    "object '{}': {dropped} faces index missing vertices",
+                    model.name
+                )),
             ));
         }
         builder.add_mesh(mesh);
@@ -112,7 +139,10 @@ fn convert_material(m: &tobj::Material) -> Material {
 }
 
 fn parse_triplet(s: &str) -> Option<Rgb> {
-    let v: Vec<f32> = s.split_whitespace().filter_map(|t| t.parse().ok()).collect();
+    let v: Vec<f32> = s
+        .split_whitespace()
+        .filter_map(|t| t.parse().ok())
+        .collect();
     match v.as_slice() {
         [r, g, b] => Some(Rgb::new(*r, *g, *b).max(Rgb::ZERO)),
         [x] => Some(Rgb::splat(*x).max(Rgb::ZERO)),

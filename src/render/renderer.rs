@@ -1,0 +1,241 @@
+//! The progressive renderer: passes of samples over the whole image in parallel (rayon), until the sample
+//! count is reached, the time budget is spent, or the caller cancels.
+//!
+//! Determinism: sample `s` of pixel `i` draws its random numbers from `Rng::for_sample(seed, i, s)` and every
+//! pixel adds its samples in order, so the same seed gives the same image, bit for bit, for any thread count.
+
+use super::film::Film;
+use super::RenderImage;
+use crate::integrator::{PathTracer, RayCounters, RendererServices};
+use crate::math::{is_finite_rgb, Rng, Vec2};
+use crate::scene::Scene;
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
+
+/// How to render.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: usize,
+    /// Image height in pixels.
+    pub height: usize,
+    /// Samples per pixel to reach (the render may stop earlier under a time limit).
+    pub spp: u32,
+    /// Seed of every random stream.
+    pub seed: u64,
+    /// Worker threads; 0 uses every core.
+    pub threads: usize,
+    /// Maximum scattering events per path.
+    pub max_depth: u32,
+    /// Wall-clock budget; rendering stops after the pass during which it runs out.
+    pub time_limit: Option<Duration>,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            width: 640,
+            height: 480,
+            spp: 64,
+            seed: 0,
+            threads: 0,
+            max_depth: 64,
+            time_limit: None,
+        }
+    }
+}
+
+/// Progress reported after every pass.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Samples per pixel completed so far.
+    pub samples_done: u32,
+    /// Samples per pixel aimed for.
+    pub samples_target: u32,
+    /// Seconds since the render started.
+    pub elapsed_seconds: f64,
+    /// Fraction of the work or of the time budget done, in \[0, 1\].
+    pub fraction: f64,
+}
+
+/// What a render did, as written by `--stats`.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct RenderStats {
+    /// Samples per pixel actually taken.
+    pub samples_per_pixel: u32,
+    /// Wall-clock seconds spent rendering (scene loading excluded).
+    pub render_seconds: f64,
+    /// Rays traced, by kind.
+    pub rays: RayCounters,
+    /// Samples dropped because their radiance was NaN or infinite (never written to the film).
+    pub nan_samples: u64,
+    /// Peak resident memory of the process, when the platform reports it.
+    pub peak_memory_bytes: Option<u64>,
+    /// Image width.
+    pub width: usize,
+    /// Image height.
+    pub height: usize,
+    /// Worker threads used.
+    pub threads: usize,
+    /// The seed.
+    pub seed: u64,
+    /// Maximum scattering events per path.
+    pub max_depth: u32,
+    /// Samples per second over the whole image.
+    pub samples_per_second: f64,
+    /// True when the caller cancelled the render.
+    pub cancelled: bool,
+}
+
+/// Renders scenes with fixed settings.
+pub struct Renderer {
+    settings: RenderSettings,
+}
+
+impl Renderer {
+    /// A renderer with `settings`.
+    pub fn new(settings: RenderSettings) -> Self {
+        Self { settings }
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    /// Renders `scene`. `progress` is called after every pass; returning `false` cancels the render, which
+    /// then returns what it has.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        progress: &mut dyn FnMut(&Progress) -> bool,
+    ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
+        let s = &self.settings;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(s.threads)
+            .build()?;
+        let threads = pool.current_num_threads();
+        let start = Instant::now();
+        let mut film = Film::new(s.width, s.height);
+        let mut counters = RayCounters::default();
+        let mut nan_samples = 0u64;
+        let mut done = 0u32;
+        let mut cancelled = false;
+        let target = s.spp.max(1);
+        // Pass size: about 16 passes for progress reports, 1 spp at first under a time budget.
+        let mut pass = if s.time_limit.is_some() {
+            1
+        } else {
+            target.div_ceil(16)
+        };
+        while done < target {
+            let count = pass.min(target - done);
+            let pass_start = Instant::now();
+            let (c, nans) = pool.install(|| self.render_pass(scene, &mut film, done, count));
+            counters.add(&c);
+            nan_samples += nans;
+            done += count;
+            let elapsed = start.elapsed();
+            let fraction = match s.time_limit {
+                Some(limit) => (elapsed.as_secs_f64() / limit.as_secs_f64().max(1e-9))
+                    .max(done as f64 / target as f64),
+                None => done as f64 / target as f64,
+            };
+            let report = Progress {
+                samples_done: done,
+                samples_target: target,
+                elapsed_seconds: elapsed.as_secs_f64(),
+                fraction: fraction.min(1.0),
+            };
+            if !progress(&report) {
+                cancelled = true;
+                break;
+            }
+            if let Some(limit) = s.time_limit {
+                if elapsed >= limit {
+                    break;
+                }
+                // Size the next pass to use about half of the remaining budget.
+                let per_spp = pass_start.elapsed().as_secs_f64() / count as f64;
+                let remaining = (limit - elapsed).as_secs_f64();
+                pass = ((remaining * 0.5 / per_spp.max(1e-9)) as u32).clamp(1, 64);
+            }
+        }
+        let seconds = start.elapsed().as_secs_f64();
+        let stats = RenderStats {
+            samples_per_pixel: done,
+            render_seconds: seconds,
+            rays: counters,
+            nan_samples,
+            peak_memory_bytes: peak_memory_bytes(),
+            width: s.width,
+            height: s.height,
+            threads,
+            seed: s.seed,
+            max_depth: s.max_depth,
+            samples_per_second: (done as f64 * (s.width * s.height) as f64) / seconds.max(1e-9),
+            cancelled,
+        };
+        Ok((film.image(), stats))
+    }
+
+    /// Adds samples `first..first + count` to every pixel. Returns the counters and the dropped NaN samples.
+    fn render_pass(
+        &self,
+        scene: &Scene,
+        film: &mut Film,
+        first: u32,
+        count: u32,
+    ) -> (RayCounters, u64) {
+        let s = &self.settings;
+        let (width, height) = (film.width, film.height);
+        debug_assert!(width > 0 && height > 0);
+        let aspect = width as f32 / height as f32;
+        let tracer = PathTracer {
+            max_depth: s.max_depth,
+        };
+        let services = RendererServices::new(scene);
+        film.pixels_mut()
+            .par_chunks_mut(width)
+            .enumerate()
+            .map(|(y, row)| {
+                let mut counters = RayCounters::default();
+                let mut nans = 0u64;
+                for (x, pixel) in row.iter_mut().enumerate() {
+                    let pixel_index = (y * width + x) as u64;
+                    for sample in first..first + count {
+                        let mut rng = Rng::for_sample(s.seed, pixel_index, sample as u64);
+                        // Box filter: uniform jitter over the pixel, unweighted mean.
+                        let jitter = rng.next_2d();
+                        let film_pos = Vec2::new(
+                            (x as f32 + jitter.x) / width as f32,
+                            (y as f32 + jitter.y) / height as f32,
+                        );
+                        let ray = scene.camera.generate_ray(film_pos, aspect);
+                        let result = tracer.trace(&services, ray, &mut rng, &mut counters);
+                        if is_finite_rgb(result.radiance) {
+                            pixel.add(&result);
+                        } else {
+                            nans += 1;
+                        }
+                    }
+                }
+                (counters, nans)
+            })
+            .reduce(
+                || (RayCounters::default(), 0),
+                |mut a, b| {
+                    a.0.add(&b.0);
+                    (a.0, a.1 + b.1)
+                },
+            )
+    }
+}
+
+/// Peak resident set size of this process (Linux `VmHWM`), or `None` where unknown.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
