@@ -3,3 +3,4 @@
 //! See `ARCHITECTURE.md` for the module map.
 
 pub mod math;
+pub mod vdb;
