@@ -146,7 +146,10 @@ pub(crate) fn read_values<T: VoxelValue>(
     let nbytes = count * elem;
     ctx.scratch.clear();
     ctx.scratch.resize(nbytes, 0);
-    read_data(r, ctx.compression, &mut ctx.scratch)?;
+    // OpenVDB's half reader returns before touching the stream when there is nothing to read.
+    if !(ctx.half && count == 0) {
+        read_data(r, ctx.compression, &mut ctx.scratch)?;
+    }
     let buf = &ctx.scratch;
     let half = ctx.half;
     let scalar = ctx.scalar;
