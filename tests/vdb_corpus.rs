@@ -22,8 +22,16 @@ fn check(g: &GridInfo, t: &[&str], what: &str) {
     };
     assert_eq!(type_name, t[2], "{what}: type");
     assert_eq!(g.half, t[3] == "1", "{what}: half");
-    assert_eq!(g.active_voxels, t[4].parse::<u64>().unwrap(), "{what}: active");
-    assert_eq!(g.leaf_voxels, t[5].parse::<u64>().unwrap(), "{what}: leaf voxels");
+    assert_eq!(
+        g.active_voxels,
+        t[4].parse::<u64>().unwrap(),
+        "{what}: active"
+    );
+    assert_eq!(
+        g.leaf_voxels,
+        t[5].parse::<u64>().unwrap(),
+        "{what}: leaf voxels"
+    );
     assert_eq!(g.tiles, t[6].parse::<u64>().unwrap(), "{what}: tiles");
     assert_eq!(g.leaves, t[7].parse::<u64>().unwrap(), "{what}: leaves");
     let sum: f64 = t[8].parse().unwrap();
@@ -34,11 +42,17 @@ fn check(g: &GridInfo, t: &[&str], what: &str) {
     assert_eq!(g.bbox_min, ivec(t[11]), "{what}: bbox min");
     assert_eq!(g.bbox_max, ivec(t[12]), "{what}: bbox max");
     let vs: f64 = t[14].parse().unwrap();
-    assert!(close(g.voxel_size[0], vs, 1e-6), "{what}: voxel size {:?} vs {vs}", g.voxel_size);
+    assert!(
+        close(g.voxel_size[0], vs, 1e-6),
+        "{what}: voxel size {:?} vs {vs}",
+        g.voxel_size
+    );
     if type_name != "Tree_vec3s_5_4_3" {
         let bg: f64 = t[15].parse().unwrap();
         match g.background {
-            nimbus::vdb::Background::Float(b) => assert!(close(b as f64, bg, 1e-6), "{what}: background"),
+            nimbus::vdb::Background::Float(b) => {
+                assert!(close(b as f64, bg, 1e-6), "{what}: background")
+            }
             _ => panic!("{what}: vector background on a scalar grid"),
         }
     }
@@ -47,7 +61,10 @@ fn check(g: &GridInfo, t: &[&str], what: &str) {
         for c in 0..4 {
             // truth is row-vector (M_r), ours column-vector: ours[r][c] == truth[c][r].
             let (a, b) = (g.index_to_world[r * 4 + c], m[c * 4 + r]);
-            assert!((a - b).abs() <= 1e-6 * (1.0 + b.abs()), "{what}: matrix[{r}][{c}] {a} vs {b}");
+            assert!(
+                (a - b).abs() <= 1e-6 * (1.0 + b.abs()),
+                "{what}: matrix[{r}][{c}] {a} vs {b}"
+            );
         }
     }
 }

@@ -19,7 +19,9 @@ pub enum VdbErrorKind {
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
     /// The data ended before a field was complete.
-    #[error("truncated data: {what} needs {needed} bytes at offset {offset}, only {remaining} left")]
+    #[error(
+        "truncated data: {what} needs {needed} bytes at offset {offset}, only {remaining} left"
+    )]
     Truncated {
         /// The field being read.
         what: &'static str,

@@ -114,7 +114,12 @@ impl fmt::Display for FileInfo {
         for g in &self.grids {
             let bbox = format!(
                 "{},{},{}..{},{},{}",
-                g.bbox_min[0], g.bbox_min[1], g.bbox_min[2], g.bbox_max[0], g.bbox_max[1], g.bbox_max[2]
+                g.bbox_min[0],
+                g.bbox_min[1],
+                g.bbox_min[2],
+                g.bbox_max[0],
+                g.bbox_max[1],
+                g.bbox_max[2]
             );
             writeln!(
                 f,

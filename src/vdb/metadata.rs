@@ -138,7 +138,10 @@ mod tests {
         let m = read_metadata(&mut Reader::new(&v)).unwrap();
         assert_eq!(m.get_str("class"), Some("fog volume"));
         assert_eq!(m.get_int("n"), Some(7));
-        assert!(matches!(m.get("file_delayed_load"), Some(MetaValue::Other { size: 5, .. })));
+        assert!(matches!(
+            m.get("file_delayed_load"),
+            Some(MetaValue::Other { size: 5, .. })
+        ));
         assert!(read_metadata(&mut Reader::new(&v[..v.len() - 1])).is_err());
     }
 }

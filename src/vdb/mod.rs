@@ -22,11 +22,14 @@ mod stream;
 mod transform;
 mod tree_io;
 
-pub use compression::{blosc_decompress, unshuffle, zlib_decompress, COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC, COMPRESS_ZIP};
+pub use compression::{
+    blosc_decompress, unshuffle, zlib_decompress, COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC,
+    COMPRESS_ZIP,
+};
 pub use error::{VdbError, VdbErrorKind};
 pub use grid::{
-    leaf_voxel, lower_child_origin, upper_child_origin, Accessor, FloatTree, InternalNode, Leaf, LowerNode,
-    RootSlot, Tree, TreeStats, UpperNode, Vec3Tree, VoxelValue, NO_CHILD,
+    leaf_voxel, lower_child_origin, upper_child_origin, Accessor, FloatTree, InternalNode, Leaf,
+    LowerNode, RootSlot, Tree, TreeStats, UpperNode, Vec3Tree, VoxelValue, NO_CHILD,
 };
 pub use half::half_to_f32;
 pub use header::{FileHeader, GridDescriptor};

@@ -87,11 +87,19 @@ impl<'a> Reader<'a> {
     }
     /// Reads three `i32`.
     pub fn ivec3(&mut self, what: &'static str) -> KResult<IVec3> {
-        Ok(IVec3::new(self.i32(what)?, self.i32(what)?, self.i32(what)?))
+        Ok(IVec3::new(
+            self.i32(what)?,
+            self.i32(what)?,
+            self.i32(what)?,
+        ))
     }
     /// Reads three `f64`.
     pub fn dvec3(&mut self, what: &'static str) -> KResult<DVec3> {
-        Ok(DVec3::new(self.f64(what)?, self.f64(what)?, self.f64(what)?))
+        Ok(DVec3::new(
+            self.f64(what)?,
+            self.f64(what)?,
+            self.f64(what)?,
+        ))
     }
     /// Reads a `u32` length followed by that many bytes, as (lossy) UTF-8.
     pub fn string(&mut self, what: &'static str) -> KResult<String> {

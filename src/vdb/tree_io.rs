@@ -7,7 +7,8 @@
 use super::compression::{read_data, COMPRESS_ACTIVE_MASK};
 use super::error::{corrupt, KResult};
 use super::grid::{
-    lower_child_origin, upper_child_origin, InternalNode, Leaf, RootSlot, Tree, VoxelValue, NO_CHILD,
+    lower_child_origin, upper_child_origin, InternalNode, Leaf, RootSlot, Tree, VoxelValue,
+    NO_CHILD,
 };
 use super::half::half_to_f32;
 use super::stream::Reader;
@@ -69,7 +70,9 @@ impl TreeCtx {
 
 fn decode_full<T: VoxelValue>(b: &[u8], scalar: Scalar) -> T {
     match scalar {
-        Scalar::F32 => T::from_components(|c| f32::from_le_bytes(b[4 * c..4 * c + 4].try_into().expect("4"))),
+        Scalar::F32 => {
+            T::from_components(|c| f32::from_le_bytes(b[4 * c..4 * c + 4].try_into().expect("4")))
+        }
         Scalar::F64 => T::from_components(|c| {
             f64::from_le_bytes(b[8 * c..8 * c + 8].try_into().expect("8")) as f32
         }),
@@ -276,8 +279,7 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
             .push((origin, RootSlot::Child(tree.uppers.len() as u32)));
         tree.uppers.push(upper);
     }
-    tree.root
-        .sort_by(|a, b| (a.0.x, a.0.y, a.0.z).cmp(&(b.0.x, b.0.y, b.0.z)));
+    tree.root.sort_by_key(|e| (e.0.x, e.0.y, e.0.z));
     if tree.root.windows(2).any(|w| w[0].0 == w[1].0) {
         return corrupt("duplicate root table entries");
     }
@@ -328,7 +330,11 @@ mod tests {
                 bytes.extend_from_slice(&w.to_le_bytes());
             }
         }
-        let n_stored = if mode == NO_MASK_AND_ALL_VALS { 64 } else { active };
+        let n_stored = if mode == NO_MASK_AND_ALL_VALS {
+            64
+        } else {
+            active
+        };
         for i in 0..n_stored {
             bytes.extend_from_slice(&(100.0 + i as f32).to_le_bytes());
         }

@@ -17,9 +17,15 @@ pub fn shared_dir() -> Option<PathBuf> {
         return Some(dir);
     }
     if std::env::var("NIMBUS_REQUIRE_SHARED").as_deref() == Ok("1") {
-        panic!("shared data folder {} is missing and NIMBUS_REQUIRE_SHARED=1", dir.display());
+        panic!(
+            "shared data folder {} is missing and NIMBUS_REQUIRE_SHARED=1",
+            dir.display()
+        );
     }
-    eprintln!("SKIP: shared data folder {} not found (set NIMBUS_SHARED_DIR)", dir.display());
+    eprintln!(
+        "SKIP: shared data folder {} not found (set NIMBUS_SHARED_DIR)",
+        dir.display()
+    );
     None
 }
 
