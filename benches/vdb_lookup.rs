@@ -23,6 +23,33 @@ impl SplitMix {
     }
 }
 
+/// On-CPU time of this thread in ns (Linux `schedstat`), so that a loaded machine does not inflate the figures;
+/// falls back to wall time elsewhere.
+fn cpu_ns(wall: Instant) -> u64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or_else(|| wall.elapsed().as_nanos() as u64)
+}
+
+/// Times `f`, returning (wall ns, on-CPU ns).
+fn timed(f: impl FnOnce()) -> (f64, f64) {
+    let origin = Instant::now();
+    let c0 = cpu_ns(origin);
+    let t = Instant::now();
+    f();
+    let wall = t.elapsed().as_nanos() as f64;
+    (wall, (cpu_ns(origin) - c0) as f64)
+}
+
+fn report(label: &str, (wall, cpu): (f64, f64), n: usize) {
+    println!(
+        "{label}: {:.2} ns (on-CPU), {:.2} ns (wall)",
+        cpu / n as f64,
+        wall / n as f64
+    );
+}
+
 fn default_path() -> PathBuf {
     let shared = std::env::var_os("NIMBUS_SHARED_DIR")
         .map(PathBuf::from)
@@ -80,26 +107,44 @@ fn main() {
             )
         })
         .collect();
-    let t = Instant::now();
-    let mut s = 0.0f32;
-    for &p in &coords {
-        s += tree.value(p);
-    }
-    black_box(s);
-    let random_ns = t.elapsed().as_secs_f64() * 1e9 / N as f64;
-    println!("random lookups (Tree::value): {random_ns:.1} ns/lookup");
-    let t = Instant::now();
-    let mut acc = tree.accessor();
-    let mut s = 0.0f32;
-    for &p in &coords {
-        s += acc.value(p);
-    }
-    black_box(s);
-    println!(
-        "random lookups (Accessor): {:.1} ns/lookup",
-        t.elapsed().as_secs_f64() * 1e9 / N as f64
-    );
+    let t = timed(|| {
+        let mut s = 0.0f32;
+        for &p in &coords {
+            s += tree.value(p);
+        }
+        black_box(s);
+    });
+    report("random lookups, Tree::value, per lookup", t, N);
+    let t = timed(|| {
+        let mut acc = tree.accessor();
+        let mut s = 0.0f32;
+        for &p in &coords {
+            s += acc.value(p);
+        }
+        black_box(s);
+    });
+    report("random lookups, Accessor, per lookup", t, N);
     drop(coords);
+
+    // Scanlines: every voxel of the bbox in x, y, z order (the accessor's best case).
+    let scan_n = (ext.x * ext.y * ext.z) as usize;
+    let t = timed(|| {
+        let mut acc = tree.accessor();
+        let mut s = 0.0f32;
+        for x in lo.x..=hi.x {
+            for y in lo.y..=hi.y {
+                for z in lo.z..=hi.z {
+                    s += acc.value(IVec3::new(x, y, z));
+                }
+            }
+        }
+        black_box(s);
+    });
+    report(
+        "scanline walk over the bbox, Accessor, per lookup",
+        t,
+        scan_n,
+    );
 
     // Coherent walks: rays from random points in random directions, one lookup per unit step.
     let size = (hi - lo + IVec3::ONE).as_vec3();
@@ -114,47 +159,50 @@ fn main() {
             (o, Vec3::new(r * phi.cos(), r * phi.sin(), z))
         })
         .collect();
-    let t = Instant::now();
-    let mut s = 0.0f32;
-    let mut acc = tree.accessor();
-    for &(o, d) in &rays {
-        let mut p = o;
-        for _ in 0..steps {
-            s += acc.value(p.floor().as_ivec3());
-            p += d;
+    let t = timed(|| {
+        let mut s = 0.0f32;
+        let mut acc = tree.accessor();
+        for &(o, d) in &rays {
+            let mut p = o;
+            for _ in 0..steps {
+                s += acc.value(p.floor().as_ivec3());
+                p += d;
+            }
         }
-    }
-    black_box(s);
-    let coherent_ns = t.elapsed().as_secs_f64() * 1e9 / (nrays * steps) as f64;
-    println!("coherent walks (Accessor, {nrays} rays x {steps} steps): {coherent_ns:.2} ns/lookup");
-
-    let t = Instant::now();
-    let mut s = 0.0f32;
-    let mut acc = tree.accessor();
-    for &(o, d) in &rays {
-        let mut p = o;
-        for _ in 0..steps {
-            s += acc.sample_trilinear(p);
-            p += d;
+        black_box(s);
+    });
+    report(
+        &format!("coherent ray walks ({nrays} rays x {steps} unit steps), Accessor, per lookup"),
+        t,
+        nrays * steps,
+    );
+    let t = timed(|| {
+        let mut s = 0.0f32;
+        let mut acc = tree.accessor();
+        for &(o, d) in &rays {
+            let mut p = o;
+            for _ in 0..steps {
+                s += acc.sample_trilinear(p);
+                p += d;
+            }
         }
-    }
-    black_box(s);
-    println!(
-        "trilinear samples along rays (Accessor): {:.2} ns/sample",
-        t.elapsed().as_secs_f64() * 1e9 / (nrays * steps) as f64
+        black_box(s);
+    });
+    report(
+        "trilinear samples along the rays, Accessor, per sample",
+        t,
+        nrays * steps,
     );
     let m = 2_000_000;
     let pts: Vec<Vec3> = (0..m)
         .map(|_| lo.as_vec3() + Vec3::new(rng.unit(), rng.unit(), rng.unit()) * size)
         .collect();
-    let t = Instant::now();
-    let mut s = 0.0f32;
-    for &p in &pts {
-        s += tree.sample_trilinear(p);
-    }
-    black_box(s);
-    println!(
-        "trilinear samples at random points: {:.1} ns/sample",
-        t.elapsed().as_secs_f64() * 1e9 / m as f64
-    );
+    let t = timed(|| {
+        let mut s = 0.0f32;
+        for &p in &pts {
+            s += tree.sample_trilinear(p);
+        }
+        black_box(s);
+    });
+    report("trilinear samples at random points, per sample", t, m);
 }

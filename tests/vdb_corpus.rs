@@ -94,3 +94,88 @@ fn corpus_matches_openvdb() {
         eprintln!("ok {file}");
     }
 }
+
+/// An instanced grid (sharing its parent's tree) is synthesised from `f_affine.vdb` in memory: a second
+/// descriptor with an instance parent, followed by compression flags, empty metadata and a transform.
+#[test]
+fn instanced_grid_shares_parent_tree() {
+    let Some(dir) = common::vdb_corpus_dir() else {
+        return;
+    };
+    let mut data = std::fs::read(dir.join("generated/f_affine.vdb")).unwrap();
+    let find = |d: &[u8], pat: &[u8]| d.windows(pat.len()).position(|w| w == pat).unwrap();
+    let desc = find(
+        &data,
+        b"\x07\x00\x00\x00density\x10\x00\x00\x00Tree_float_5_4_3",
+    );
+    let count_at = desc - 4;
+    assert_eq!(&data[count_at..desc], &1i32.to_le_bytes());
+    data[count_at..desc].copy_from_slice(&2i32.to_le_bytes());
+    let map = find(&data, b"\x09\x00\x00\x00AffineMap");
+    let transform = data[map..map + 4 + 9 + 128].to_vec();
+    let grid_at = desc + 35;
+    let compression = data
+        [i64::from_le_bytes(data[grid_at..grid_at + 8].try_into().unwrap()) as usize..][..4]
+        .to_vec();
+
+    let mut extra = Vec::new();
+    for s in ["inst", "Tree_float_5_4_3", "density"] {
+        extra.extend_from_slice(&(s.len() as u32).to_le_bytes());
+        extra.extend_from_slice(s.as_bytes());
+    }
+    let grid_pos = (data.len() + extra.len() + 24) as i64;
+    let end_pos = grid_pos + 4 + 4 + transform.len() as i64;
+    for p in [grid_pos, end_pos, end_pos] {
+        extra.extend_from_slice(&p.to_le_bytes());
+    }
+    extra.extend_from_slice(&compression);
+    extra.extend_from_slice(&0i32.to_le_bytes());
+    extra.extend_from_slice(&transform);
+    data.extend_from_slice(&extra);
+
+    let f = nimbus::vdb::read_bytes(&data, std::path::Path::new("instanced.vdb")).unwrap();
+    assert_eq!(f.grids.len(), 2);
+    assert_eq!(f.grids[1].name, "inst");
+    assert_eq!(f.grids[1].instance_of.as_deref(), Some("density"));
+    assert!(std::sync::Arc::ptr_eq(&f.grids[0].tree, &f.grids[1].tree));
+    assert_eq!(f.grids[1].tree.stats().active_voxels, 17256);
+    assert_eq!(f.grids[0].index_to_world, f.grids[1].index_to_world);
+}
+
+/// The cached accessor and its trilinear sampler agree with uncached lookups on real trees with tiles.
+#[test]
+fn accessor_agrees_with_tree_on_corpus() {
+    let Some(dir) = common::vdb_corpus_dir() else {
+        return;
+    };
+    for name in [
+        "generated/h_tiles.vdb",
+        "generated/j_root_tile.vdb",
+        "real/elyg_pig.vdb",
+    ] {
+        let f = nimbus::vdb::read_file(&dir.join(name)).unwrap();
+        let t = f.grids[0].tree.as_float().unwrap();
+        let (lo, hi) = t.stats().bbox.unwrap();
+        let (lo, hi) = (
+            lo.max(glam::IVec3::splat(-400)),
+            hi.min(glam::IVec3::splat(400)),
+        );
+        let size = (hi - lo).as_vec3() + 40.0;
+        let mut a = t.accessor();
+        let mut seed = 7u64;
+        for _ in 0..100_000 {
+            let mut u = || {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((seed >> 40) as f32) / (1u64 << 24) as f32
+            };
+            let x = lo.as_vec3() - 20.0 + glam::Vec3::new(u(), u(), u()) * size;
+            let p = x.floor().as_ivec3();
+            assert_eq!(a.value(p), t.value(p), "{name} at {p}");
+            let s = a.sample_trilinear(x);
+            let s2 = t.sample_trilinear(x);
+            assert!((s - s2).abs() <= 1e-5 * s2.abs().max(1.0), "{name} at {x}");
+        }
+    }
+}

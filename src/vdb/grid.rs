@@ -104,6 +104,18 @@ pub struct Leaf<T> {
     pub max: T,
 }
 
+impl<T> Leaf<T> {
+    /// Inclusive index bounding box covered by the leaf.
+    pub fn bbox(&self) -> (IVec3, IVec3) {
+        (self.origin, self.origin + IVec3::splat(7))
+    }
+
+    /// Whether voxel `i` (`(x<<6)|(y<<3)|z`) is active.
+    pub fn is_active(&self, i: usize) -> bool {
+        bit(&self.value_mask, i)
+    }
+}
+
 /// A node of `N` slots, each a child (by index) or a tile value.
 #[derive(Clone, Debug)]
 pub struct InternalNode<T> {
@@ -136,6 +148,29 @@ impl<T: VoxelValue> InternalNode<T> {
             value_mask: vec![0u64; n / 64].into_boxed_slice(),
             min: fill,
             max: fill,
+        }
+    }
+
+    /// Edge length of the node in voxels (128 for lower nodes, 4096 for upper nodes).
+    pub fn edge(&self) -> i32 {
+        if self.children.len() == 4096 {
+            1 << LOWER_LOG2
+        } else {
+            1 << UPPER_LOG2
+        }
+    }
+
+    /// Inclusive index bounding box covered by the node.
+    pub fn bbox(&self) -> (IVec3, IVec3) {
+        (self.origin, self.origin + IVec3::splat(self.edge() - 1))
+    }
+
+    /// Index origin of slot `i` (a child's or tile's first voxel).
+    pub fn slot_origin(&self, i: usize) -> IVec3 {
+        if self.children.len() == 4096 {
+            lower_child_origin(self.origin, i)
+        } else {
+            upper_child_origin(self.origin, i)
         }
     }
 
@@ -534,10 +569,19 @@ fn node_range<T: VoxelValue>(n: &mut InternalNode<T>, child: impl Fn(usize) -> (
 }
 
 /// Cached, coherent access to a [`Tree`]: remembers the last leaf, lower and upper node it visited.
+///
+/// The innermost cache is a region (a leaf, or a tile of any level, or an empty root region) with its values:
+/// a lookup inside it is one masked compare and one load, whether the region holds voxels or a constant.
 pub struct Accessor<'a, T> {
     tree: &'a Tree<T>,
-    leaf_key: IVec3,
-    leaf: u32,
+    /// Key mask of the cached region (`!7`, `!127` or `!4095`).
+    region_mask: i32,
+    /// Origin of the cached region.
+    region_key: IVec3,
+    /// Values of the cached region: a leaf's 512 values, or one tile value.
+    region_values: &'a [T],
+    /// `511` for a leaf, `0` for a constant region.
+    value_mask: usize,
     lower_key: IVec3,
     lower: u32,
     upper_key: IVec3,
@@ -551,8 +595,10 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     pub fn new(tree: &'a Tree<T>) -> Self {
         Self {
             tree,
-            leaf_key: NO_KEY,
-            leaf: 0,
+            region_mask: !7,
+            region_key: NO_KEY,
+            region_values: std::slice::from_ref(&tree.background),
+            value_mask: 0,
             lower_key: NO_KEY,
             lower: 0,
             upper_key: NO_KEY,
@@ -563,10 +609,19 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     /// The value at index coordinate `p` (same result as [`Tree::value`]).
     #[inline(always)]
     pub fn value(&mut self, p: IVec3) -> T {
-        if p & !7 == self.leaf_key {
-            return self.tree.leaves[self.leaf as usize].values[leaf_slot(p)];
+        if p & IVec3::splat(self.region_mask) == self.region_key {
+            return self.region_values[leaf_slot(p) & self.value_mask];
         }
         self.value_slow(p)
+    }
+
+    #[inline(always)]
+    fn cache(&mut self, p: IVec3, mask: i32, values: &'a [T], value_mask: usize) -> T {
+        self.region_mask = mask;
+        self.region_key = p & IVec3::splat(mask);
+        self.region_values = values;
+        self.value_mask = value_mask;
+        values[leaf_slot(p) & value_mask]
     }
 
     #[inline(never)]
@@ -575,8 +630,10 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
         if p & !127 != self.lower_key {
             if p & !4095 != self.upper_key {
                 match t.root_slot(p) {
-                    None => return t.background,
-                    Some(RootSlot::Tile { value, .. }) => return *value,
+                    None => return self.cache(p, !4095, std::slice::from_ref(&t.background), 0),
+                    Some(RootSlot::Tile { value, .. }) => {
+                        return self.cache(p, !4095, std::slice::from_ref(value), 0)
+                    }
                     Some(RootSlot::Child(u)) => {
                         self.upper = *u;
                         self.upper_key = p & !4095;
@@ -586,7 +643,7 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
             let n = &t.uppers[self.upper as usize];
             let s = upper_slot(p);
             match n.children[s] {
-                NO_CHILD => return n.tiles[s],
+                NO_CHILD => return self.cache(p, !127, std::slice::from_ref(&n.tiles[s]), 0),
                 l => {
                     self.lower = l;
                     self.lower_key = p & !127;
@@ -596,12 +653,8 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
         let n = &t.lowers[self.lower as usize];
         let s = lower_slot(p);
         match n.children[s] {
-            NO_CHILD => n.tiles[s],
-            c => {
-                self.leaf = c;
-                self.leaf_key = p & !7;
-                t.leaves[c as usize].values[leaf_slot(p)]
-            }
+            NO_CHILD => self.cache(p, !7, std::slice::from_ref(&n.tiles[s]), 0),
+            c => self.cache(p, !7, &t.leaves[c as usize].values, 511),
         }
     }
 
@@ -611,11 +664,31 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
         let f0 = index_pos.floor();
         let f = index_pos - f0;
         let p = f0.as_ivec3();
-        let v = |a: &mut Self, dx: i32, dy: i32, dz: i32| a.value(p + IVec3::new(dx, dy, dz));
-        let c00 = T::lerp(v(self, 0, 0, 0), v(self, 0, 0, 1), f.z);
-        let c01 = T::lerp(v(self, 0, 1, 0), v(self, 0, 1, 1), f.z);
-        let c10 = T::lerp(v(self, 1, 0, 0), v(self, 1, 0, 1), f.z);
-        let c11 = T::lerp(v(self, 1, 1, 0), v(self, 1, 1, 1), f.z);
+        let corners: [T; 8] = if (p & 7).cmpne(IVec3::splat(7)).all() {
+            // All eight corners lie in one leaf-sized cell: read them from the cached region directly.
+            self.value(p);
+            let base = leaf_slot(p);
+            let m = self.value_mask;
+            let v = self.region_values;
+            let g = |o: usize| v[(base + o) & m];
+            [g(0), g(1), g(8), g(9), g(64), g(65), g(72), g(73)]
+        } else {
+            let mut v = |dx: i32, dy: i32, dz: i32| self.value(p + IVec3::new(dx, dy, dz));
+            [
+                v(0, 0, 0),
+                v(0, 0, 1),
+                v(0, 1, 0),
+                v(0, 1, 1),
+                v(1, 0, 0),
+                v(1, 0, 1),
+                v(1, 1, 0),
+                v(1, 1, 1),
+            ]
+        };
+        let c00 = T::lerp(corners[0], corners[1], f.z);
+        let c01 = T::lerp(corners[2], corners[3], f.z);
+        let c10 = T::lerp(corners[4], corners[5], f.z);
+        let c11 = T::lerp(corners[6], corners[7], f.z);
         let c0 = T::lerp(c00, c01, f.y);
         let c1 = T::lerp(c10, c11, f.y);
         T::lerp(c0, c1, f.x)
@@ -706,5 +779,81 @@ mod tests {
         }
         let upper_max = t.uppers.iter().map(|n| n.max).fold(f32::MIN, f32::max);
         assert_eq!(upper_max, 12881.0);
+    }
+
+    fn naive_trilinear(t: &FloatTree, x: Vec3) -> f32 {
+        let f0 = x.floor();
+        let f = x - f0;
+        let p = f0.as_ivec3();
+        let v = |dx, dy, dz| t.value(p + IVec3::new(dx, dy, dz));
+        let l = |a: f32, b: f32, w: f32| a + (b - a) * w;
+        l(
+            l(
+                l(v(0, 0, 0), v(0, 0, 1), f.z),
+                l(v(0, 1, 0), v(0, 1, 1), f.z),
+                f.y,
+            ),
+            l(
+                l(v(1, 0, 0), v(1, 0, 1), f.z),
+                l(v(1, 1, 0), v(1, 1, 1), f.z),
+                f.y,
+            ),
+            f.x,
+        )
+    }
+
+    #[test]
+    fn accessor_matches_tree_with_tiles_at_every_level() {
+        let mut t = tiny();
+        t.root.push((
+            IVec3::new(4096, 0, 0),
+            RootSlot::Tile {
+                value: 3.0,
+                active: true,
+            },
+        ));
+        // An upper-level tile (128^3) and a lower-level tile (8^3) without children.
+        let us = (0..t.uppers[0].children.len())
+            .find(|&i| t.uppers[0].children[i] == NO_CHILD)
+            .unwrap();
+        t.uppers[0].tiles[us] = 4.0;
+        let ls = (0..4096)
+            .find(|&i| t.lowers[0].children[i] == NO_CHILD)
+            .unwrap();
+        t.lowers[0].tiles[ls] = 5.0;
+        t.finalize();
+        let mut rng = 12345u64;
+        let mut next = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((rng >> 33) as f32) / (1u64 << 31) as f32
+        };
+        let mut a = t.accessor();
+        let lo = Vec3::new(-300.0, -200.0, -100.0);
+        let size = Vec3::new(4700.0, 400.0, 400.0);
+        for i in 0..200_000 {
+            let x = if i % 2 == 0 {
+                lo + Vec3::new(next(), next(), next()) * size
+            } else {
+                Vec3::new(-1.5, 6.0, 126.0) + Vec3::new(next(), next(), next()) * 4.0
+            };
+            let p = x.floor().as_ivec3();
+            assert_eq!(a.value(p), t.value(p), "at {p}");
+            let (s, n) = (a.sample_trilinear(x), naive_trilinear(&t, x));
+            assert!(
+                (s - n).abs() <= 1e-3 * n.abs().max(1.0),
+                "at {x}: {s} vs {n}"
+            );
+        }
+        assert_eq!(t.value(IVec3::new(5000, 7, 9)), 3.0);
+        assert_eq!(
+            t.value(upper_child_origin(t.uppers[0].origin, us) + IVec3::splat(5)),
+            4.0
+        );
+        assert_eq!(
+            t.value(lower_child_origin(t.lowers[0].origin, ls) + IVec3::splat(1)),
+            5.0
+        );
     }
 }

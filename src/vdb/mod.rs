@@ -11,6 +11,8 @@
 //! let v = density.value(glam::IVec3::new(1, 2, 3));
 //! ```
 
+#![warn(missing_docs)]
+
 mod compression;
 mod error;
 mod grid;

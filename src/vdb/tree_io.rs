@@ -299,6 +299,9 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
         leaf.value_mask = mask;
         leaf.values = values;
     }
+    tree.leaves.shrink_to_fit();
+    tree.lowers.shrink_to_fit();
+    tree.uppers.shrink_to_fit();
     tree.finalize();
     Ok(tree)
 }
