@@ -253,6 +253,24 @@ fn leaf_slot(p: IVec3) -> usize {
     (((p.x & 7) << 6) | ((p.y & 7) << 3) | (p.z & 7)) as usize
 }
 
+/// `floor` of each component as integers, without a libm call (baseline x86-64 has no SSE4.1 `roundps`).
+/// Valid for |x| < 2³¹.
+#[inline(always)]
+pub fn floor_ivec3(x: Vec3) -> IVec3 {
+    let t = x.as_ivec3(); // truncates toward zero
+    t - x.cmplt(t.as_vec3()).into_ivec3_mask()
+}
+
+trait MaskToInt {
+    fn into_ivec3_mask(self) -> IVec3;
+}
+impl MaskToInt for glam::BVec3 {
+    #[inline(always)]
+    fn into_ivec3_mask(self) -> IVec3 {
+        IVec3::new(self.x as i32, self.y as i32, self.z as i32)
+    }
+}
+
 /// Index origin of slot `i` of an upper node.
 pub fn upper_child_origin(origin: IVec3, i: usize) -> IVec3 {
     let i = i as i32;
@@ -661,9 +679,8 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     /// Trilinear interpolation at a continuous index position (OpenVDB `BoxSampler` convention).
     #[inline]
     pub fn sample_trilinear(&mut self, index_pos: Vec3) -> T {
-        let f0 = index_pos.floor();
-        let f = index_pos - f0;
-        let p = f0.as_ivec3();
+        let p = floor_ivec3(index_pos);
+        let f = index_pos - p.as_vec3();
         let corners: [T; 8] = if (p & 7).cmpne(IVec3::splat(7)).all() {
             // All eight corners lie in one leaf-sized cell: read them from the cached region directly.
             self.value(p);
@@ -710,6 +727,16 @@ mod tests {
             }
         }
         FloatTree::from_voxels(-5.0, v)
+    }
+
+    #[test]
+    fn floor_matches_std() {
+        for x in [
+            -2.5f32, -2.0, -0.5, -0.0, 0.0, 0.3, 1.0, 7.99, -1e-7, 123456.7,
+        ] {
+            let v = Vec3::new(x, -x, x * 0.5);
+            assert_eq!(floor_ivec3(v), v.floor().as_ivec3(), "{v}");
+        }
     }
 
     #[test]

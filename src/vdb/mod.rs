@@ -30,8 +30,9 @@ pub use compression::{
 };
 pub use error::{VdbError, VdbErrorKind};
 pub use grid::{
-    leaf_voxel, lower_child_origin, upper_child_origin, Accessor, FloatTree, InternalNode, Leaf,
-    LowerNode, RootSlot, Tree, TreeStats, UpperNode, Vec3Tree, VoxelValue, NO_CHILD,
+    floor_ivec3, leaf_voxel, lower_child_origin, upper_child_origin, Accessor, FloatTree,
+    InternalNode, Leaf, LowerNode, RootSlot, Tree, TreeStats, UpperNode, Vec3Tree, VoxelValue,
+    NO_CHILD,
 };
 pub use half::half_to_f32;
 pub use header::{FileHeader, GridDescriptor};
