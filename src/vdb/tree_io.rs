@@ -156,8 +156,7 @@ pub(crate) fn read_values<T: VoxelValue>(
     let buf = &ctx.scratch;
     let half = ctx.half;
     let scalar = ctx.scalar;
-    let get = |i: usize| -> T {
-        let b = &buf[i * elem..(i + 1) * elem];
+    let get = |b: &[u8]| -> T {
         if half {
             T::from_components(|c| half_to_f32(u16::from_le_bytes([b[2 * c], b[2 * c + 1]])))
         } else {
@@ -165,16 +164,16 @@ pub(crate) fn read_values<T: VoxelValue>(
         }
     };
     if count == out.len() {
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = get(i);
+        for (o, b) in out.iter_mut().zip(buf.chunks_exact(elem)) {
+            *o = get(b);
         }
     } else {
-        let mut t = 0;
+        let mut stored = buf.chunks_exact(elem);
         for (i, o) in out.iter_mut().enumerate() {
             let on = value_mask[i >> 6] >> (i & 63) & 1 != 0;
             *o = if on {
-                t += 1;
-                get(t - 1)
+                // count == popcount(value_mask), so a stored value is always left here.
+                stored.next().map_or(inactive0, get)
             } else if selection
                 .as_ref()
                 .is_some_and(|s| s[i >> 6] >> (i & 63) & 1 != 0)
@@ -293,11 +292,9 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
                 return corrupt(format!("leaf has {nbuf} buffers, expected 1"));
             }
         }
-        let mut values = [background; 512];
-        read_values(r, ctx, background, &mask, &mut values)?;
         let leaf = &mut tree.leaves[i];
+        read_values(r, ctx, background, &mask, &mut leaf.values)?;
         leaf.value_mask = mask;
-        leaf.values = values;
     }
     tree.leaves.shrink_to_fit();
     tree.lowers.shrink_to_fit();
