@@ -87,6 +87,16 @@ fn unsupported_grid_type_is_a_named_error() {
     }
     let msg = err.to_string();
     assert!(msg.contains("x.vdb") && msg.contains("density"), "{msg}");
+    // With skip_unsupported the grid is listed instead of failing the file.
+    let opts = nimbus::vdb::ReadOptions {
+        skip_unsupported: true,
+    };
+    let f = nimbus::vdb::read_bytes_with(&data, Path::new("x.vdb"), &opts).unwrap();
+    assert!(f.grids.is_empty());
+    assert_eq!(
+        f.skipped,
+        vec![("density".to_string(), "Tree_int32_5_4_3".to_string())]
+    );
 }
 
 #[test]

@@ -59,6 +59,16 @@ pub struct VdbFile {
     pub metadata: Metadata,
     /// The grids, in file order.
     pub grids: Vec<Grid>,
+    /// Grids left out because of an unsupported type, as (name, type name); only with
+    /// [`ReadOptions::skip_unsupported`].
+    pub skipped: Vec<(String, String)>,
+}
+
+/// Options for [`read_file_with`] / [`read_bytes_with`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Leave out grids of unsupported types (listing them in [`VdbFile::skipped`]) instead of failing.
+    pub skip_unsupported: bool,
 }
 
 impl VdbFile {
@@ -197,18 +207,32 @@ impl Grid {
     }
 }
 
-/// Reads a VDB file from disk.
+/// Reads a VDB file from disk; any grid of an unsupported type is an error.
 pub fn read_file(path: &Path) -> Result<VdbFile, VdbError> {
+    read_file_with(path, &ReadOptions::default())
+}
+
+/// Reads a VDB file from disk with options.
+pub fn read_file_with(path: &Path, options: &ReadOptions) -> Result<VdbFile, VdbError> {
     let bytes = std::fs::read(path).map_err(|e| VdbError {
         path: path.to_path_buf(),
         kind: e.into(),
     })?;
-    read_bytes(&bytes, path)
+    read_bytes_with(&bytes, path, options)
 }
 
 /// Reads a VDB file held in memory; `path_for_errors` names it in errors.
 pub fn read_bytes(bytes: &[u8], path_for_errors: &Path) -> Result<VdbFile, VdbError> {
-    read_impl(bytes).map_err(|kind| VdbError {
+    read_bytes_with(bytes, path_for_errors, &ReadOptions::default())
+}
+
+/// Reads a VDB file held in memory with options; `path_for_errors` names it in errors.
+pub fn read_bytes_with(
+    bytes: &[u8],
+    path_for_errors: &Path,
+    options: &ReadOptions,
+) -> Result<VdbFile, VdbError> {
+    read_impl(bytes, options).map_err(|kind| VdbError {
         path: PathBuf::from(path_for_errors),
         kind,
     })
@@ -224,7 +248,7 @@ fn in_grid(name: &str) -> impl FnOnce(VdbErrorKind) -> VdbErrorKind + '_ {
     }
 }
 
-fn read_impl(bytes: &[u8]) -> KResult<VdbFile> {
+fn read_impl(bytes: &[u8], options: &ReadOptions) -> KResult<VdbFile> {
     let mut r = Reader::new(bytes);
     let header = header::read_header(&mut r)?;
     let metadata = metadata::read_metadata(&mut r)?;
@@ -240,15 +264,24 @@ fn read_impl(bytes: &[u8]) -> KResult<VdbFile> {
     }
     let mut descs = Vec::with_capacity(count as usize);
     let mut grids: Vec<Grid> = Vec::with_capacity(count as usize);
+    let mut skipped = Vec::new();
     for _ in 0..count {
         let d = header::read_descriptor(&mut r)?;
         if d.end_pos <= r.pos() as u64 {
             return error::corrupt(format!("grid '{}' end offset points backwards", d.name));
         }
-        let g = read_grid(bytes, &header, &d).map_err(in_grid(&d.name))?;
+        match read_grid(bytes, &header, &d) {
+            Err(VdbErrorKind::UnsupportedGridType { grid, type_name })
+                if options.skip_unsupported =>
+            {
+                skipped.push((grid, type_name));
+            }
+            g => {
+                grids.push(g.map_err(in_grid(&d.name))?);
+                descs.push(d.clone());
+            }
+        }
         r.seek(d.end_pos)?;
-        grids.push(g);
-        descs.push(d);
     }
     // Resolve instances: share the parent's tree.
     for i in 0..grids.len() {
@@ -272,6 +305,7 @@ fn read_impl(bytes: &[u8]) -> KResult<VdbFile> {
         header,
         metadata,
         grids,
+        skipped,
     })
 }
 
