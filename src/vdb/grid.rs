@@ -590,6 +590,7 @@ fn node_range<T: VoxelValue>(n: &mut InternalNode<T>, child: impl Fn(usize) -> (
 ///
 /// The innermost cache is a region (a leaf, or a tile of any level, or an empty root region) with its values:
 /// a lookup inside it is one masked compare and one load, whether the region holds voxels or a constant.
+/// For incoherent (random) lookups [`Tree::value`] is a little faster: it has no cache to update.
 pub struct Accessor<'a, T> {
     tree: &'a Tree<T>,
     /// Key mask of the cached region (`!7`, `!127` or `!4095`).
