@@ -179,3 +179,52 @@ fn accessor_agrees_with_tree_on_corpus() {
         }
     }
 }
+
+/// `FileInfo` serialises to exactly the documented keys, and its table names every grid.
+#[test]
+fn info_json_keys_and_table() {
+    let Some(dir) = common::vdb_corpus_dir() else {
+        return;
+    };
+    let info = file_info(&dir.join("generated/g_vec3.vdb")).unwrap();
+    let v = serde_json::to_value(&info).unwrap();
+    let top: Vec<&str> = v.as_object().unwrap().keys().map(|k| k.as_str()).collect();
+    assert_eq!(top.len(), 2);
+    assert!(top.contains(&"file") && top.contains(&"grids"));
+    let expected = [
+        "name",
+        "value_type",
+        "class",
+        "half",
+        "active_voxels",
+        "leaf_voxels",
+        "tiles",
+        "leaves",
+        "sum",
+        "min",
+        "max",
+        "bbox_min",
+        "bbox_max",
+        "voxel_size",
+        "background",
+        "index_to_world",
+        "memory_bytes",
+    ];
+    for g in v["grids"].as_array().unwrap() {
+        let mut keys: Vec<&str> = g.as_object().unwrap().keys().map(|k| k.as_str()).collect();
+        keys.sort();
+        let mut want = expected.to_vec();
+        want.sort();
+        assert_eq!(keys, want);
+        assert_eq!(g["index_to_world"].as_array().unwrap().len(), 16);
+    }
+    assert!(
+        v["grids"][1]["background"].is_array(),
+        "vector background is an array"
+    );
+    let table = info.to_string();
+    assert!(
+        table.contains("density") && table.contains("vel"),
+        "{table}"
+    );
+}
