@@ -10,3 +10,4 @@ pub mod math;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod vdb;
