@@ -25,6 +25,17 @@ struct Cli {
 enum Command {
     /// Render a scene (.gltf, .glb, .obj) to an EXR with AOV layers and a PNG preview.
     Render(RenderArgs),
+    /// Describe the grids of an OpenVDB file: counts, statistics, bounds and transform.
+    Info(InfoArgs),
+}
+
+#[derive(Args)]
+struct InfoArgs {
+    /// The .vdb file.
+    file: PathBuf,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -84,6 +95,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::Info(args) => info(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -92,6 +104,19 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn info(args: InfoArgs) -> Result<(), String> {
+    let info = nimbus::vdb::file_info(&args.file).map_err(|e| e.to_string())?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&info).map_err(|e| e.to_string())?
+        );
+    } else {
+        print!("{info}");
+    }
+    Ok(())
 }
 
 fn load_builder(scene: Option<&Path>) -> Result<SceneBuilder, String> {
