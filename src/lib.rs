@@ -2,4 +2,6 @@
 //!
 //! See `ARCHITECTURE.md` for the module map.
 
+pub mod material;
 pub mod math;
+pub mod volume;

@@ -1,0 +1,14 @@
+//! Materials and the BSDFs they create for surface hits.
+//!
+//! Directions are in the local shading frame (z = shading normal) and point away from the surface. See
+//! [`Bsdf`] for the contract with the integrator and [`PbrParams`] for the glTF parameters read.
+
+pub mod bsdf;
+pub mod dielectric;
+pub mod fresnel;
+pub mod gltf_pbr;
+pub mod lambert;
+pub mod microfacet;
+
+pub use bsdf::{Bsdf, BsdfSample};
+pub use gltf_pbr::PbrParams;
