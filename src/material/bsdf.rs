@@ -376,6 +376,7 @@ mod tests {
             transmission: 1.0,
             roughness: 0.0,
             ior,
+            metallic: 0.0,
             ..Default::default()
         });
         assert!(bsdf.is_delta() && !bsdf.is_index_matched());
@@ -460,6 +461,7 @@ mod tests {
             transmission: 1.0,
             ior,
             roughness: 0.3,
+            metallic: 0.0,
             ..Default::default()
         });
         assert_eq!(bsdf.albedo(), params(0.0, 0.3).base_color);
