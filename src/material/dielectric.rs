@@ -50,7 +50,8 @@ impl Dielectric {
         self.alpha < DELTA_ALPHA || (self.ior - 1.0).abs() < 1e-6
     }
 
-    /// Rough-interface BSDF value (0 for a smooth one). With `wo` oriented above, η as in [`orient`] and
+    /// Rough-interface BSDF value (0 for a smooth one). With the pair mirrored so that `wo` is above, η the
+    /// index of `wi`'s side over `wo`'s, and
     /// `h` the (generalised) half vector: reflection `F D G2 / (4 |wo.z| |wi.z|)` (Walter et al. 2007, eqs. 13
     /// and 20); transmission `|wi·h| |wo·h| (1 − F) D G2 / (|wi.z| |wo.z| (η wi·h + wo·h)²)` (eqs. 16 and 21
     /// with η_o = 1, η_i = η), times the tint. F is the exact Fresnel term at `wo·h`.
@@ -76,7 +77,7 @@ impl Dielectric {
         self.tint * value
     }
 
-    /// Solid-angle density of the non-delta directions of [`Dielectric::sample`] (0 for a smooth interface):
+    /// Solid-angle density of the non-delta directions of its sampler (0 for a smooth interface):
     /// the visible-normal density times the lobe probability (F or 1 − F) times the half-vector Jacobian,
     /// `1/(4 |wo·h|)` for reflection (Walter et al. 2007, eq. 14) and `η² |wi·h| / (η wi·h + wo·h)²` for
     /// transmission (eq. 17).

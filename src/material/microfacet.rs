@@ -55,7 +55,7 @@ impl Ggx {
 
     /// Density of visible normals seen from `wo` (`wo.z > 0`), `D_wo(m) = G1(wo) max(0, wo·m) D(m) / wo.z`
     /// (Heitz 2014, the distribution of visible normals; Heitz 2018, "Sampling the GGX Distribution of Visible
-    /// Normals", JCGT 7(4), eq. 1): the
+    /// Normals", JCGT 7(4), §2): the
     /// solid-angle density of [`Ggx::sample_visible`].
     pub fn pdf_visible(&self, wo: Vec3, m: Vec3) -> f32 {
         if wo.z <= 0.0 {
@@ -118,6 +118,21 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    #[should_panic(expected = "chi-square rejects")]
+    fn chi2_detects_a_slightly_wrong_density() {
+        // Power check: samples for α = 0.5 against the density of α = 0.55 must be rejected.
+        let wo = Vec3::new(0.8, 0.0, 0.6);
+        let (sampled, claimed) = (Ggx { alpha: 0.5 }, Ggx { alpha: 0.55 });
+        chi2::assert_sampler_fits(
+            "GGX visible normals with a wrong alpha",
+            100_000,
+            77,
+            |rng| Some(sampled.sample_visible(wo, rng.next_2d())),
+            |m| claimed.pdf_visible(wo, m) as f64,
+        );
     }
 
     #[test]

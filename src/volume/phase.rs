@@ -18,7 +18,7 @@ const ISOTROPIC_G: f32 = 1e-3;
 pub enum PhaseFunction {
     /// `p = 1/(4π)`.
     Isotropic,
-    /// Henyey & Greenstein 1941, "Diffuse radiation in the Galaxy" (ApJ 93, 70), eq. 1:
+    /// Henyey & Greenstein 1941, "Diffuse radiation in the Galaxy" (ApJ 93, 70–83), their phase function:
     /// `p(θ) = (1 − g²) / (4π (1 + g² − 2g cos θ)^{3/2})`.
     HenyeyGreenstein {
         /// Mean cosine of the scattering angle, in (−1, 1).
