@@ -515,4 +515,44 @@ mod tests {
         })
         .is_index_matched());
     }
+
+    #[test]
+    fn random_materials_and_directions_stay_finite() {
+        let mut rng = Rng::new(99, 1);
+        for _ in 0..2000 {
+            let p = PbrParams {
+                base_color: Rgb::new(rng.next_f32(), rng.next_f32(), rng.next_f32()),
+                metallic: [0.0, 1.0, rng.next_f32()][(rng.next_u32() % 3) as usize],
+                roughness: [0.0, 0.011, 1.0, rng.next_f32()][(rng.next_u32() % 4) as usize],
+                ior: [1.0, 1.5, 1.0 + 2.0 * rng.next_f32()][(rng.next_u32() % 3) as usize],
+                specular_factor: [0.0, 1.0, rng.next_f32()][(rng.next_u32() % 3) as usize],
+                specular_color: Rgb::new(rng.next_f32(), 1.0, 2.0),
+                transmission: [0.0, 1.0, rng.next_f32()][(rng.next_u32() % 3) as usize],
+            };
+            let bsdf = Bsdf::from_gltf(&p);
+            for _ in 0..20 {
+                // Include grazing and exactly tangent directions.
+                let mut wo = sampling::uniform_sphere(rng.next_2d());
+                if rng.next_f32() < 0.1 {
+                    wo = Vec3::new(wo.x, wo.y, 0.0).normalize();
+                }
+                let wi = sampling::uniform_sphere(rng.next_2d());
+                assert!(
+                    crate::math::is_finite_rgb(bsdf.eval(wo, wi))
+                        && bsdf.eval(wo, wi).min_element() >= 0.0
+                );
+                assert!(
+                    bsdf.pdf(wo, wi).is_finite() && bsdf.pdf(wo, wi) >= 0.0,
+                    "{p:?}"
+                );
+                if let Some(s) = bsdf.sample(wo, rng.next_f32(), rng.next_2d()) {
+                    let weight = s.f * s.wi.z.abs() / s.pdf;
+                    assert!(
+                        crate::math::is_finite_rgb(weight) && s.pdf > 0.0,
+                        "{p:?} {wo} {s:?}"
+                    );
+                }
+            }
+        }
+    }
 }
