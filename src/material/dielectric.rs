@@ -4,6 +4,7 @@
 //!
 //! glTF: `KHR_materials_transmission.transmissionFactor` selects it, `KHR_materials_ior.ior` is the index
 //! (default 1.5), `roughnessFactor`² is the GGX α and `baseColorFactor` tints the transmitted light.
+//! Reflection uses the exact Fresnel term and is untinted; `KHR_materials_specular` does not apply here.
 //!
 //! Conventions: the surface is a solid interface with index `ior` below (z < 0) and 1 above. `wo` and `wi`
 //! point away from the surface; `wo.z < 0` means the ray arrives from inside. Refraction carries radiance, so
