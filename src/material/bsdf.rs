@@ -1,71 +1,558 @@
-//! TEMPORARY stub until the bsdf branch lands (Lambert only).
-use crate::math::{sampling, Rgb, Vec2, Vec3};
-/// stub
+//! The BSDF handed to the integrator: an enum over the scattering models, built from glTF parameters.
+//!
+//! Contract: every direction is in the local shading frame (z = shading normal), unit length, and both `wo`
+//! and `wi` point away from the surface. Opaque lobes are one-sided (zero unless `wo.z > 0` and `wi.z > 0`);
+//! the integrator flips the frame for double-sided materials hit from behind. The sample weight is
+//! `f |wi.z| / pdf`.
+
+use super::dielectric::Dielectric;
+use super::gltf_pbr::{GltfPbr, PbrParams};
+use super::lambert::Lambert;
+use crate::math::{Rgb, Vec2, Vec3};
+
+/// One sampled direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BsdfSample {
+    /// The sampled direction, pointing away from the surface.
     pub wi: Vec3,
+    /// BSDF value for (wo, wi), without the cosine. For delta lobes, the lobe's value such that
+    /// `f |wi.z| / pdf` is the sample weight.
     pub f: Rgb,
+    /// Solid-angle density of `wi`; for delta lobes the discrete probability of the chosen lobe.
     pub pdf: f32,
+    /// True when `wi` comes from a delta lobe (no MIS, no `eval`).
     pub is_delta: bool,
 }
-/// stub
-#[derive(Clone, Copy, Debug, Default)]
-pub struct PbrParams {
-    pub base_color: Rgb,
-    pub metallic: f32,
-    pub roughness: f32,
-    pub ior: f32,
-    pub specular_factor: f32,
-    pub specular_color: Rgb,
-    pub transmission: f32,
-}
-/// stub
+
+/// A surface scattering model.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Bsdf {
-    Lambert(Rgb),
+    /// Ideal diffuse reflection.
+    Lambert(Lambert),
+    /// A pure dielectric interface (full transmission, no metal): smooth or rough.
+    Dielectric(Dielectric),
+    /// The general glTF metallic-roughness model, with optional partial transmission.
+    Pbr(GltfPbr),
 }
+
 impl Bsdf {
-    /// stub
+    /// Maps glTF 2.0 material parameters (spec Appendix B and the extensions of [`PbrParams`]) to a BSDF:
+    /// metallic 0, specular 0 and no transmission give exactly [`Lambert`]; transmission 1 with metallic 0
+    /// gives a pure [`Dielectric`] tinted by the base colour; everything else (mirrors included: metallic 1 and
+    /// roughness 0) the [`GltfPbr`] mixture.
     pub fn from_gltf(p: &PbrParams) -> Bsdf {
-        Bsdf::Lambert(p.base_color)
+        if p.metallic <= 0.0 && p.specular_factor <= 0.0 && p.transmission <= 0.0 {
+            return Bsdf::Lambert(Lambert {
+                albedo: p.base_color.max(Rgb::ZERO),
+            });
+        }
+        let pbr = GltfPbr::new(p);
+        if pbr.transmission >= 1.0 {
+            Bsdf::Dielectric(pbr.dielectric)
+        } else {
+            Bsdf::Pbr(pbr)
+        }
     }
-    /// stub
+
+    /// BSDF value of the non-delta lobes, without the cosine.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
-        let Bsdf::Lambert(a) = self;
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            Rgb::ZERO
-        } else {
-            *a / std::f32::consts::PI
+        match self {
+            Bsdf::Lambert(b) => b.eval(wo, wi),
+            Bsdf::Dielectric(b) => b.eval(wo, wi),
+            Bsdf::Pbr(b) => b.eval(wo, wi),
         }
     }
-    /// stub
+
+    /// Solid-angle density with which [`Bsdf::sample`] picks `wi` through its non-delta lobes.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 {
-            0.0
-        } else {
-            sampling::cosine_hemisphere_pdf(wi.z)
+        match self {
+            Bsdf::Lambert(b) => b.pdf(wo, wi),
+            Bsdf::Dielectric(b) => b.pdf(wo, wi),
+            Bsdf::Pbr(b) => b.pdf(wo, wi),
         }
     }
-    /// stub
-    pub fn sample(&self, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        let wi = sampling::cosine_hemisphere(u);
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| BsdfSample {
-            wi,
-            f: self.eval(wo, wi),
-            pdf,
-            is_delta: false,
-        })
+
+    /// Samples a direction with `u_lobe` choosing the lobe and `u` the direction within it; `None` when no
+    /// direction carries energy (e.g. `wo` below an opaque surface).
+    pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        match self {
+            Bsdf::Lambert(b) => {
+                let wi = b.sample(wo, u)?;
+                Some(BsdfSample {
+                    wi,
+                    f: b.eval(wo, wi),
+                    pdf: b.pdf(wo, wi),
+                    is_delta: false,
+                })
+            }
+            Bsdf::Dielectric(b) => {
+                let s = b.sample(wo, u_lobe, u)?;
+                match s.delta {
+                    Some((f, pdf)) => Some(BsdfSample {
+                        wi: s.wi,
+                        f,
+                        pdf,
+                        is_delta: true,
+                    }),
+                    None => {
+                        let pdf = b.pdf(wo, s.wi);
+                        (pdf > 0.0).then(|| BsdfSample {
+                            wi: s.wi,
+                            f: b.eval(wo, s.wi),
+                            pdf,
+                            is_delta: false,
+                        })
+                    }
+                }
+            }
+            Bsdf::Pbr(b) => b.sample(wo, u_lobe, u),
+        }
     }
-    /// stub
+
+    /// True when every lobe is a delta distribution (next-event estimation is then pointless).
     pub fn is_delta(&self) -> bool {
-        false
+        match self {
+            Bsdf::Lambert(_) => false,
+            Bsdf::Dielectric(b) => b.is_smooth(),
+            Bsdf::Pbr(b) => b.is_delta(),
+        }
     }
-    /// stub
+
+    /// A representative colour for the albedo AOV: the base colour (the tint for a dielectric).
     pub fn albedo(&self) -> Rgb {
-        let Bsdf::Lambert(a) = self;
-        *a
+        match self {
+            Bsdf::Lambert(b) => b.albedo,
+            Bsdf::Dielectric(b) => b.tint,
+            Bsdf::Pbr(b) => b.base_color,
+        }
     }
-    /// stub
+
+    /// True for an invisible boundary: a smooth pure dielectric with ior 1 and a white tint, whose
+    /// [`Bsdf::sample`] always returns `-wo` with weight 1.
     pub fn is_index_matched(&self) -> bool {
-        false
+        matches!(self, Bsdf::Dielectric(d) if d.ior == 1.0 && d.is_smooth() && d.tint == Rgb::ONE)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::fresnel;
+    use crate::math::{chi2, sampling, Rng};
+    use std::f32::consts::FRAC_1_PI;
+
+    const SAMPLES: usize = 100_000;
+
+    /// A unit direction with the given cos θ (negative: below the surface) and φ = 0.7.
+    fn dir(cos_theta: f32) -> Vec3 {
+        let s = (1.0 - cos_theta * cos_theta).sqrt();
+        Vec3::new(s * 0.7f32.cos(), s * 0.7f32.sin(), cos_theta)
+    }
+
+    fn params(metallic: f32, roughness: f32) -> PbrParams {
+        PbrParams {
+            base_color: Rgb::new(0.9, 0.6, 0.3),
+            metallic,
+            roughness,
+            ..Default::default()
+        }
+    }
+
+    fn close(a: f32, b: f32) -> bool {
+        (a - b).abs() <= 1e-3 * a.abs().max(b.abs()) + 1e-6
+    }
+
+    /// Chi-square test of the non-delta directions of `bsdf.sample` against `bsdf.pdf` (delta samples count as
+    /// rejected, so their probability must be the mass `pdf` lacks); also checks that each sample's `pdf` and
+    /// `f` equal `pdf()` and `eval()`.
+    fn chi2_bsdf(name: &str, bsdf: &Bsdf, wo: Vec3, seed: u64) -> f64 {
+        chi2::assert_sampler_fits(
+            name,
+            SAMPLES,
+            seed,
+            |rng| {
+                let s = bsdf.sample(wo, rng.next_f32(), rng.next_2d())?;
+                assert!(
+                    s.pdf > 0.0 && s.pdf.is_finite() && crate::math::is_finite_rgb(s.f),
+                    "{name}: {s:?}"
+                );
+                assert!((s.wi.length() - 1.0).abs() < 1e-4, "{name}: unit wi");
+                if s.is_delta {
+                    return None;
+                }
+                let (pdf, f) = (bsdf.pdf(wo, s.wi), bsdf.eval(wo, s.wi));
+                assert!(
+                    close(s.pdf, pdf),
+                    "{name}: sampled pdf {} vs pdf() {pdf}",
+                    s.pdf
+                );
+                for c in 0..3 {
+                    assert!(
+                        close(s.f[c], f[c]),
+                        "{name}: sampled f {} vs eval() {f}",
+                        s.f
+                    );
+                }
+                Some(s.wi)
+            },
+            |wi| bsdf.pdf(wo, wi) as f64,
+        )
+    }
+
+    #[test]
+    fn lambert_chi2() {
+        let bsdf = Bsdf::from_gltf(&PbrParams {
+            metallic: 0.0,
+            specular_factor: 0.0,
+            ..params(0.0, 0.5)
+        });
+        for (k, c) in [0.95, 0.5, 0.15].into_iter().enumerate() {
+            chi2_bsdf(&format!("Lambert cos {c}"), &bsdf, dir(c), k as u64);
+        }
+    }
+
+    #[test]
+    fn gltf_metallic_roughness_chi2() {
+        let mut seed = 1000;
+        for metallic in [0.0, 0.5, 1.0] {
+            for roughness in [0.1, 0.3, 0.7, 1.0] {
+                let bsdf = Bsdf::from_gltf(&params(metallic, roughness));
+                assert!(matches!(bsdf, Bsdf::Pbr(_)));
+                for c in [0.95, 0.5, 0.15] {
+                    seed += 1;
+                    chi2_bsdf(
+                        &format!("glTF metallic {metallic} roughness {roughness} cos {c}"),
+                        &bsdf,
+                        dir(c),
+                        seed,
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rough_dielectric_chi2_outside_and_inside() {
+        let mut seed = 2000;
+        for roughness in [0.1, 0.3, 0.7, 1.0] {
+            let bsdf = Bsdf::from_gltf(&PbrParams {
+                transmission: 1.0,
+                metallic: 0.0,
+                ..params(0.0, roughness)
+            });
+            assert!(matches!(bsdf, Bsdf::Dielectric(_)) && !bsdf.is_delta());
+            for c in [0.95, 0.5, 0.15, -0.95, -0.5, -0.15] {
+                seed += 1;
+                chi2_bsdf(
+                    &format!("rough dielectric roughness {roughness} cos {c}"),
+                    &bsdf,
+                    dir(c),
+                    seed,
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn partial_transmission_chi2() {
+        // Rough everywhere, from both sides; and smooth, where delta lobes take the mass pdf() lacks.
+        let rough = Bsdf::from_gltf(&PbrParams {
+            transmission: 0.5,
+            ..params(0.2, 0.5)
+        });
+        chi2_bsdf("transmission 0.5 rough outside", &rough, dir(0.6), 3001);
+        chi2_bsdf("transmission 0.5 rough inside", &rough, dir(-0.6), 3002);
+        let smooth = Bsdf::from_gltf(&PbrParams {
+            transmission: 0.5,
+            ..params(0.0, 0.0)
+        });
+        assert!(!smooth.is_delta());
+        chi2_bsdf("transmission 0.5 smooth outside", &smooth, dir(0.6), 3003);
+    }
+
+    #[test]
+    fn lambert_mapping_is_exact_and_conserves_energy() {
+        let base = Rgb::new(0.2, 0.5, 0.8);
+        let bsdf = Bsdf::from_gltf(&PbrParams {
+            base_color: base,
+            metallic: 0.0,
+            specular_factor: 0.0,
+            ..Default::default()
+        });
+        assert!(matches!(bsdf, Bsdf::Lambert(_)));
+        let (wo, wi) = (dir(0.3), dir(0.8));
+        assert_eq!(bsdf.eval(wo, wi), base * FRAC_1_PI);
+        assert_eq!(bsdf.pdf(wo, wi), wi.z * FRAC_1_PI);
+        assert_eq!(bsdf.eval(wo, -wi), Rgb::ZERO);
+        assert_eq!(bsdf.albedo(), base);
+        // White furnace: ∫ f cos dω = 1 for albedo 1, by uniform-sphere Monte Carlo within 4 standard errors.
+        let white = Bsdf::from_gltf(&PbrParams {
+            metallic: 0.0,
+            specular_factor: 0.0,
+            ..Default::default()
+        });
+        let mut rng = Rng::new(5, 5);
+        let n = 200_000;
+        let (mut s, mut s2) = (0.0f64, 0.0f64);
+        for _ in 0..n {
+            let wi = sampling::uniform_sphere(rng.next_2d());
+            let v = (white.eval(wo, wi).x * wi.z.abs() / sampling::UNIFORM_SPHERE_PDF) as f64;
+            s += v;
+            s2 += v * v;
+        }
+        let mean = s / n as f64;
+        let se = ((s2 / n as f64 - mean * mean) / n as f64).sqrt();
+        assert!((mean - 1.0).abs() < 4.0 * se, "albedo {mean} ± {se}");
+    }
+
+    #[test]
+    fn reflection_is_reciprocal_and_one_sided() {
+        let mut rng = Rng::new(8, 8);
+        for (metallic, roughness) in [(0.0, 0.3), (0.5, 0.6), (1.0, 0.2), (0.3, 1.0)] {
+            for bsdf in [
+                Bsdf::from_gltf(&params(metallic, roughness)),
+                Bsdf::from_gltf(&PbrParams {
+                    transmission: 1.0,
+                    ..params(0.0, roughness)
+                }),
+            ] {
+                for _ in 0..1000 {
+                    let wo = sampling::cosine_hemisphere(rng.next_2d());
+                    let wi = sampling::cosine_hemisphere(rng.next_2d());
+                    let (a, b) = (bsdf.eval(wo, wi), bsdf.eval(wi, wo));
+                    for c in 0..3 {
+                        assert!(
+                            (a[c] - b[c]).abs() <= 1e-3 * a[c].max(b[c]) + 1e-6,
+                            "{bsdf:?}: {a} vs {b}"
+                        );
+                    }
+                    if matches!(bsdf, Bsdf::Pbr(_)) {
+                        assert_eq!(bsdf.eval(-wo, wi), Rgb::ZERO);
+                        assert_eq!(bsdf.eval(wo, -wi), Rgb::ZERO);
+                        assert!(bsdf.sample(-wo, 0.5, rng.next_2d()).is_none());
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn smooth_metal_is_a_schlick_mirror() {
+        let base = Rgb::new(0.95, 0.64, 0.54);
+        let bsdf = Bsdf::from_gltf(&PbrParams {
+            base_color: base,
+            metallic: 1.0,
+            roughness: 0.0,
+            ..Default::default()
+        });
+        assert!(bsdf.is_delta());
+        for c in [1.0, 0.7, 0.2, 0.01] {
+            let wo = dir(c);
+            let s = bsdf
+                .sample(wo, 0.3, Vec2::new(0.2, 0.9))
+                .expect("a mirror reflects");
+            assert!(s.is_delta);
+            assert!(
+                (s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-6,
+                "reflection law"
+            );
+            let weight = s.f * s.wi.z / s.pdf;
+            assert!((weight - fresnel::schlick(base, c)).abs().max_element() < 1e-5);
+            assert_eq!(bsdf.eval(wo, s.wi), Rgb::ZERO);
+            assert_eq!(bsdf.pdf(wo, s.wi), 0.0);
+        }
+    }
+
+    #[test]
+    fn smooth_dielectric_follows_snell_fresnel_and_conserves_energy() {
+        let ior = 1.5;
+        let bsdf = Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            roughness: 0.0,
+            ior,
+            ..params(0.0, 0.0)
+        });
+        let white = Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            roughness: 0.0,
+            ior,
+            metallic: 0.0,
+            ..Default::default()
+        });
+        assert!(bsdf.is_delta() && !bsdf.is_index_matched());
+        let mut rng = Rng::new(13, 13);
+        for c in [0.9f32, 0.5, 0.2, -0.9, -0.8, -0.5] {
+            let wo = dir(c);
+            let eta = if c > 0.0 { ior } else { 1.0 / ior };
+            let fresnel = fresnel::dielectric(c, eta);
+            let n = 100_000;
+            let (mut reflected, mut energy, mut energy2) = (0usize, 0.0f64, 0.0f64);
+            for _ in 0..n {
+                let s = white
+                    .sample(wo, rng.next_f32(), rng.next_2d())
+                    .expect("a dielectric always scatters");
+                assert!(s.is_delta);
+                let weight = s.f.x * s.wi.z.abs() / s.pdf;
+                if s.wi.z * wo.z > 0.0 {
+                    reflected += 1;
+                    assert!(
+                        (s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-6,
+                        "reflection law"
+                    );
+                    energy += weight as f64;
+                    energy2 += (weight * weight) as f64;
+                } else {
+                    let (sin_i, sin_t) = (wo.truncate().length(), s.wi.truncate().length());
+                    assert!((sin_i - eta * sin_t).abs() < 1e-5, "Snell's law");
+                    assert!(
+                        wo.truncate().dot(s.wi.truncate()) <= 0.0,
+                        "plane of incidence"
+                    );
+                    // Undo the radiance scaling 1/η²: the rest must be exactly the transmitted energy.
+                    let w = weight * eta * eta;
+                    energy += w as f64;
+                    energy2 += (w * w) as f64;
+                    let tinted = bsdf.sample(wo, 0.999_999, Vec2::ZERO).expect("refracts");
+                    assert!(
+                        (tinted.f * tinted.wi.z.abs() / tinted.pdf * eta * eta - bsdf.albedo())
+                            .abs()
+                            .max_element()
+                            < 1e-4
+                    );
+                }
+            }
+            // The fraction reflected is Fresnel's R within 4 binomial standard errors; R + T = 1.
+            let frac = reflected as f64 / n as f64;
+            let se = (fresnel as f64 * (1.0 - fresnel as f64) / n as f64)
+                .sqrt()
+                .max(1e-9);
+            assert!(
+                (frac - fresnel as f64).abs() < 4.0 * se,
+                "cos {c}: reflected {frac} vs Fresnel {fresnel}"
+            );
+            let mean = energy / n as f64;
+            assert!(
+                (mean - 1.0).abs() < 1e-5 && (energy2 / n as f64 - mean * mean).abs() < 1e-5,
+                "R + T = {mean}"
+            );
+        }
+        // Past the critical angle from inside every sample reflects.
+        let wo = dir(-0.3);
+        for _ in 0..100 {
+            let s = white.sample(wo, rng.next_f32(), rng.next_2d()).unwrap();
+            assert!(
+                s.wi.z < 0.0 && (s.f.x * s.wi.z.abs() / s.pdf - 1.0).abs() < 1e-5,
+                "total internal reflection"
+            );
+        }
+    }
+
+    #[test]
+    fn rough_dielectric_loses_energy_only_to_masking() {
+        // E[f |cos| / pdf], with refraction's 1/η² undone, is ∫(f_r + η² f_t)|cos| = E[G2/G1] ≤ 1: close to 1
+        // for a fairly smooth interface.
+        let ior = 1.5;
+        let bsdf = Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            ior,
+            ..params(0.0, 0.3)
+        });
+        let white = Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            ior,
+            roughness: 0.3,
+            metallic: 0.0,
+            ..Default::default()
+        });
+        assert_eq!(bsdf.albedo(), params(0.0, 0.3).base_color);
+        let mut rng = Rng::new(17, 17);
+        for c in [0.8f32, 0.4, -0.8, -0.4] {
+            let wo = dir(c);
+            let eta = if c > 0.0 { ior } else { 1.0 / ior };
+            let n = 100_000;
+            let (mut s, mut s2) = (0.0f64, 0.0f64);
+            for _ in 0..n {
+                if let Some(smp) = white.sample(wo, rng.next_f32(), rng.next_2d()) {
+                    let scale = if smp.wi.z * wo.z < 0.0 {
+                        eta * eta
+                    } else {
+                        1.0
+                    };
+                    let w = (smp.f.x * smp.wi.z.abs() / smp.pdf * scale) as f64;
+                    s += w;
+                    s2 += w * w;
+                }
+            }
+            let mean = s / n as f64;
+            let se = ((s2 / n as f64 - mean * mean) / n as f64).sqrt();
+            assert!(
+                mean < 1.0 + 4.0 * se && mean > 0.9,
+                "cos {c}: albedo {mean} ± {se}"
+            );
+        }
+    }
+
+    #[test]
+    fn index_matched_boundary_is_invisible() {
+        let bsdf = Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            ior: 1.0,
+            roughness: 0.0,
+            metallic: 0.0,
+            ..Default::default()
+        });
+        assert!(bsdf.is_index_matched() && bsdf.is_delta());
+        for c in [0.9, 0.1, -0.4] {
+            let wo = dir(c);
+            let s = bsdf.sample(wo, 0.7, Vec2::new(0.3, 0.3)).unwrap();
+            assert!(s.is_delta && (s.wi + wo).length() < 1e-6);
+            assert!((s.f * s.wi.z.abs() / s.pdf - Rgb::ONE).abs().max_element() < 1e-5);
+        }
+        assert!(!Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            metallic: 0.0,
+            ..Default::default()
+        })
+        .is_index_matched());
+    }
+
+    #[test]
+    fn random_materials_and_directions_stay_finite() {
+        let mut rng = Rng::new(99, 1);
+        for _ in 0..2000 {
+            let p = PbrParams {
+                base_color: Rgb::new(rng.next_f32(), rng.next_f32(), rng.next_f32()),
+                metallic: [0.0, 1.0, rng.next_f32()][(rng.next_u32() % 3) as usize],
+                roughness: [0.0, 0.011, 1.0, rng.next_f32()][(rng.next_u32() % 4) as usize],
+                ior: [1.0, 1.5, 1.0 + 2.0 * rng.next_f32()][(rng.next_u32() % 3) as usize],
+                specular_factor: [0.0, 1.0, rng.next_f32()][(rng.next_u32() % 3) as usize],
+                specular_color: Rgb::new(rng.next_f32(), 1.0, 2.0),
+                transmission: [0.0, 1.0, rng.next_f32()][(rng.next_u32() % 3) as usize],
+            };
+            let bsdf = Bsdf::from_gltf(&p);
+            for _ in 0..20 {
+                // Include grazing and exactly tangent directions.
+                let mut wo = sampling::uniform_sphere(rng.next_2d());
+                if rng.next_f32() < 0.1 {
+                    wo = Vec3::new(wo.x, wo.y, 0.0).normalize();
+                }
+                let wi = sampling::uniform_sphere(rng.next_2d());
+                assert!(
+                    crate::math::is_finite_rgb(bsdf.eval(wo, wi))
+                        && bsdf.eval(wo, wi).min_element() >= 0.0
+                );
+                assert!(
+                    bsdf.pdf(wo, wi).is_finite() && bsdf.pdf(wo, wi) >= 0.0,
+                    "{p:?}"
+                );
+                if let Some(s) = bsdf.sample(wo, rng.next_f32(), rng.next_2d()) {
+                    let weight = s.f * s.wi.z.abs() / s.pdf;
+                    assert!(
+                        crate::math::is_finite_rgb(weight) && s.pdf > 0.0,
+                        "{p:?} {wo} {s:?}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -7,8 +7,8 @@
 //! `KHR_materials_specular.{specularFactor, specularColorFactor}`, `KHR_materials_transmission.transmissionFactor`,
 //! `KHR_materials_ior.ior` (default 1.5). OBJ/MTL materials are mapped onto the same fields by the OBJ loader.
 
-use super::bsdf::{Bsdf, PbrParams};
 use super::texture::Texture;
+use super::{Bsdf, PbrParams};
 use crate::math::{Rgb, Vec2, Vec3, Vec4};
 
 /// A texture reference: an index into the scene's texture list.

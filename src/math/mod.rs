@@ -2,6 +2,8 @@
 //! sampling warps, tabulated distributions, the deterministic random-number generator and RGB helpers.
 
 mod bounds;
+#[cfg(test)]
+pub(crate) mod chi2;
 mod distribution;
 mod frame;
 mod ray;

@@ -1,0 +1,155 @@
+//! A dielectric interface that reflects and refracts: smooth (delta lobes picked by exact Fresnel) or rough
+//! (Walter et al. 2007, "Microfacet Models for Refraction through Rough Surfaces", with GGX and visible-normal
+//! sampling).
+//!
+//! glTF: `KHR_materials_transmission.transmissionFactor` selects it, `KHR_materials_ior.ior` is the index
+//! (default 1.5), `roughnessFactor`² is the GGX α and `baseColorFactor` tints the transmitted light.
+//! Reflection uses the exact Fresnel term and is untinted; `KHR_materials_specular` does not apply here.
+//!
+//! Conventions: the surface is a solid interface with index `ior` below (z < 0) and 1 above. `wo` and `wi`
+//! point away from the surface; `wo.z < 0` means the ray arrives from inside. Refraction carries radiance, so
+//! it includes the factor 1/η² with η = η(wi side)/η(wo side) (Veach 1997, §5.2): camera paths only.
+
+use super::fresnel;
+use super::microfacet::{Ggx, DELTA_ALPHA};
+use crate::math::{Rgb, Vec2, Vec3};
+
+/// A direction chosen by [`Dielectric::sample`]: the direction, whether it is a delta lobe and, for delta
+/// lobes only, the BSDF value and the discrete lobe probability.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct DielectricSample {
+    pub wi: Vec3,
+    /// Delta lobes: (f, probability). Non-delta: `None`, evaluate with `eval`/`pdf`.
+    pub delta: Option<(Rgb, f32)>,
+}
+
+/// Dielectric interface between the outside (index 1, above) and a solid of index `ior` (below).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Dielectric {
+    /// Index of refraction of the solid below the surface.
+    pub ior: f32,
+    /// GGX α of the interface; below [`DELTA_ALPHA`] it is smooth.
+    pub alpha: f32,
+    /// Colour multiplying the transmitted light (glTF base colour).
+    pub tint: Rgb,
+}
+
+/// Mirrors a direction pair so that `wo` is above the surface, and returns the relative index
+/// η = η(far side)/η(wo's side).
+fn orient(ior: f32, wo: Vec3, wi: Vec3) -> (Vec3, Vec3, f32) {
+    if wo.z < 0.0 {
+        (-wo, -wi, 1.0 / ior)
+    } else {
+        (wo, wi, ior)
+    }
+}
+
+impl Dielectric {
+    /// True when the interface is a delta BSDF: α below [`DELTA_ALPHA`], or the indices match (then the
+    /// microfacets refract nothing and every roughness is invisible).
+    pub fn is_smooth(&self) -> bool {
+        self.alpha < DELTA_ALPHA || (self.ior - 1.0).abs() < 1e-6
+    }
+
+    /// Rough-interface BSDF value (0 for a smooth one). With the pair mirrored so that `wo` is above, η the
+    /// index of `wi`'s side over `wo`'s, and
+    /// `h` the (generalised) half vector: reflection `F D G2 / (4 |wo.z| |wi.z|)` (Walter et al. 2007, eqs. 13
+    /// and 20); transmission `|wi·h| |wo·h| (1 − F) D G2 / (|wi.z| |wo.z| (η wi·h + wo·h)²)` (eqs. 16 and 21
+    /// with η_o = 1, η_i = η), times the tint. F is the exact Fresnel term at `wo·h`.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        if self.is_smooth() || wo.z == 0.0 || wi.z == 0.0 {
+            return Rgb::ZERO;
+        }
+        let (wo, wi, eta) = orient(self.ior, wo, wi);
+        let ggx = Ggx { alpha: self.alpha };
+        if wi.z > 0.0 {
+            let h = (wo + wi).normalize();
+            let f = fresnel::dielectric(wo.dot(h), eta);
+            return Rgb::splat(f * ggx.d(h) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z));
+        }
+        let Some(h) = transmission_half_vector(wo, wi, eta) else {
+            return Rgb::ZERO;
+        };
+        let (oh, ih) = (wo.dot(h), wi.dot(h));
+        let f = fresnel::dielectric(oh, eta);
+        let denom = eta * ih + oh;
+        let value = (ih * oh).abs() * (1.0 - f) * ggx.d(h) * ggx.g2(wo, wi)
+            / ((wi.z * wo.z).abs() * denom * denom);
+        self.tint * value
+    }
+
+    /// Solid-angle density of the non-delta directions of its sampler (0 for a smooth interface):
+    /// the visible-normal density times the lobe probability (F or 1 − F) times the half-vector Jacobian,
+    /// `1/(4 |wo·h|)` for reflection (Walter et al. 2007, eq. 14) and `η² |wi·h| / (η wi·h + wo·h)²` for
+    /// transmission (eq. 17).
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if self.is_smooth() || wo.z == 0.0 || wi.z == 0.0 {
+            return 0.0;
+        }
+        let (wo, wi, eta) = orient(self.ior, wo, wi);
+        let ggx = Ggx { alpha: self.alpha };
+        if wi.z > 0.0 {
+            let h = (wo + wi).normalize();
+            let oh = wo.dot(h);
+            return fresnel::dielectric(oh, eta) * ggx.pdf_visible(wo, h) / (4.0 * oh);
+        }
+        let Some(h) = transmission_half_vector(wo, wi, eta) else {
+            return 0.0;
+        };
+        let (oh, ih) = (wo.dot(h), wi.dot(h));
+        let denom = eta * ih + oh;
+        (1.0 - fresnel::dielectric(oh, eta)) * ggx.pdf_visible(wo, h) * eta * eta * ih.abs()
+            / (denom * denom)
+    }
+
+    /// Samples the interface. Smooth: reflection with probability F(|wo.z|) (exact Fresnel), else refraction
+    /// by Snell's law; f is `F/|cos|` or `tint (1 − F) / (η² |cos|)` so the weight `f |cos| / pdf` is 1 or
+    /// `tint / η²`. Rough: a visible normal `h` (Heitz 2018), then reflection about `h` with probability
+    /// F(wo·h), else refraction through `h`; `None` when the direction ends on the wrong side.
+    pub(super) fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<DielectricSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let sign = wo.z.signum();
+        let (wo_up, _, eta) = orient(self.ior, wo, Vec3::Z);
+        if self.is_smooth() {
+            let f = fresnel::dielectric(wo_up.z, eta);
+            if u_lobe < f {
+                let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+                return Some(DielectricSample {
+                    wi,
+                    delta: Some((Rgb::splat(f / wi.z.abs()), f)),
+                });
+            }
+            let wi = fresnel::refract(wo_up, Vec3::Z, eta)? * sign;
+            let value = self.tint * ((1.0 - f) / (eta * eta * wi.z.abs()));
+            return Some(DielectricSample {
+                wi,
+                delta: Some((value, 1.0 - f)),
+            });
+        }
+        let h = Ggx { alpha: self.alpha }.sample_visible(wo_up, u);
+        let oh = wo_up.dot(h);
+        if oh <= 0.0 {
+            return None;
+        }
+        let wi_up = if u_lobe < fresnel::dielectric(oh, eta) {
+            Some(fresnel::reflect(wo_up, h)).filter(|w| w.z > 0.0)
+        } else {
+            fresnel::refract(wo_up, h, eta).filter(|w| w.z < 0.0)
+        }?;
+        Some(DielectricSample {
+            wi: wi_up * sign,
+            delta: None,
+        })
+    }
+}
+
+/// The generalised half vector of a refraction pair (Walter et al. 2007, eq. 16) oriented to +z, with `wo`
+/// above and index ratio η; `None` when the pair cannot come from one microfacet (the side conditions
+/// `wo·h > 0 > wi·h`).
+fn transmission_half_vector(wo: Vec3, wi: Vec3, eta: f32) -> Option<Vec3> {
+    let h = (wo + eta * wi).try_normalize()?;
+    let h = if h.z < 0.0 { -h } else { h };
+    (wo.dot(h) > 0.0 && wi.dot(h) < 0.0).then_some(h)
+}

@@ -1,0 +1,280 @@
+//! The glTF 2.0 metallic-roughness BRDF (glTF 2.0 specification, Appendix B) with `KHR_materials_specular`,
+//! `KHR_materials_ior` and `KHR_materials_transmission`.
+//!
+//! glTF keys read (through [`PbrParams`]): `baseColorFactor`, `metallicFactor`, `roughnessFactor`
+//! (α = roughness²), `KHR_materials_ior.ior` (default 1.5), `KHR_materials_specular.specularFactor` (default 1)
+//! and `specularColorFactor` (default \[1, 1, 1\]), `KHR_materials_transmission.transmissionFactor` (default 0).
+//!
+//! The opaque part is `mix(dielectric_brdf, metal_brdf, metallic)` where
+//! - `dielectric_brdf = (1 − s·max(F_d)) · base/π + s·F_d · specular`, with `F_d` Schlick's Fresnel at `wo·h` with
+//!   `f0 = min(((ior − 1)/(ior + 1))² · specularColor, 1)` and `s = specularFactor` (KHR_materials_specular);
+//! - `metal_brdf = F_m · specular`, `F_m` Schlick's Fresnel with `f0 = baseColor`;
+//! - `specular = D G2 / (4 |wo.z| |wi.z|)`, GGX with the height-correlated Smith G2, or a delta mirror when α is
+//!   below [`DELTA_ALPHA`].
+//!
+//! The transmissive part is a [`Dielectric`] interface tinted by the base colour. Metals do not transmit, so the
+//! BSDF is `(1 − t)·opaque + t·dielectric` with `t = transmission · (1 − metallic)`.
+
+use super::bsdf::BsdfSample;
+use super::dielectric::Dielectric;
+use super::fresnel;
+use super::microfacet::{Ggx, DELTA_ALPHA};
+use crate::math::sampling::cosine_hemisphere;
+use crate::math::{Rgb, Vec2, Vec3};
+use std::f32::consts::FRAC_1_PI;
+
+/// Material parameters of the glTF 2.0 metallic-roughness model and the extensions Nimbus reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PbrParams {
+    /// `baseColorFactor` × texture, linear RGB. Default 1.
+    pub base_color: Rgb,
+    /// `metallicFactor` × texture, in \[0, 1\]. Default 1.
+    pub metallic: f32,
+    /// Perceptual `roughnessFactor` × texture; the GGX α is its square. Default 1.
+    pub roughness: f32,
+    /// `KHR_materials_ior.ior`. Default 1.5.
+    pub ior: f32,
+    /// `KHR_materials_specular.specularFactor`. Default 1.
+    pub specular_factor: f32,
+    /// `KHR_materials_specular.specularColorFactor`. Default 1.
+    pub specular_color: Rgb,
+    /// `KHR_materials_transmission.transmissionFactor`. Default 0.
+    pub transmission: f32,
+}
+
+impl Default for PbrParams {
+    /// The glTF 2.0 defaults: white, fully metallic, fully rough, ior 1.5, specular 1, no transmission.
+    fn default() -> Self {
+        Self {
+            base_color: Rgb::ONE,
+            metallic: 1.0,
+            roughness: 1.0,
+            ior: 1.5,
+            specular_factor: 1.0,
+            specular_color: Rgb::ONE,
+            transmission: 0.0,
+        }
+    }
+}
+
+/// The glTF metallic-roughness BSDF: the opaque BRDF of the module documentation, mixed with a dielectric
+/// interface by the effective transmission weight.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GltfPbr {
+    /// Base colour (diffuse albedo, metal f0 and transmission tint).
+    pub base_color: Rgb,
+    /// Metallic weight in \[0, 1\].
+    pub metallic: f32,
+    /// `specularFactor`.
+    pub specular_factor: f32,
+    /// Dielectric f0: `min(((ior − 1)/(ior + 1))² · specularColor, 1)`.
+    pub f0: Rgb,
+    /// GGX α of the specular lobes.
+    pub alpha: f32,
+    /// Effective transmission weight `transmission · (1 − metallic)`, in \[0, 1).
+    pub transmission: f32,
+    /// The transmissive interface (ior, α, tint = base colour).
+    pub dielectric: Dielectric,
+}
+
+/// Largest channel of a colour.
+fn max_component(c: Rgb) -> f32 {
+    c.x.max(c.y).max(c.z)
+}
+
+/// Mean of the channels of a colour.
+fn mean(c: Rgb) -> f32 {
+    (c.x + c.y + c.z) / 3.0
+}
+
+impl GltfPbr {
+    /// Builds the BSDF from glTF parameters (clamped to their valid ranges).
+    pub fn new(p: &PbrParams) -> Self {
+        let ior = p.ior.max(1.0);
+        let metallic = p.metallic.clamp(0.0, 1.0);
+        let roughness = p.roughness.clamp(0.0, 1.0);
+        let alpha = roughness * roughness;
+        let r = (ior - 1.0) / (ior + 1.0);
+        let base_color = p.base_color.max(Rgb::ZERO);
+        Self {
+            base_color,
+            metallic,
+            specular_factor: p.specular_factor.clamp(0.0, 1.0),
+            f0: (r * r * p.specular_color.max(Rgb::ZERO)).min(Rgb::ONE),
+            alpha,
+            transmission: p.transmission.clamp(0.0, 1.0) * (1.0 - metallic),
+            dielectric: Dielectric {
+                ior,
+                alpha,
+                tint: base_color,
+            },
+        }
+    }
+
+    /// True when the specular lobes are delta mirrors.
+    fn specular_is_delta(&self) -> bool {
+        self.alpha < DELTA_ALPHA
+    }
+
+    /// True when the diffuse lobe can be non-zero.
+    fn has_diffuse(&self) -> bool {
+        self.metallic < 1.0 && self.transmission < 1.0 && max_component(self.base_color) > 0.0
+    }
+
+    /// True when the specular reflection lobe can be non-zero.
+    fn has_specular(&self) -> bool {
+        self.metallic > 0.0 || self.specular_factor > 0.0
+    }
+
+    /// True when every lobe is a delta distribution.
+    pub fn is_delta(&self) -> bool {
+        let opaque_delta = !self.has_diffuse() && self.specular_is_delta();
+        opaque_delta && (self.transmission == 0.0 || self.dielectric.is_smooth())
+    }
+
+    /// The Fresnel weights of the opaque part at `cos = wo·h`: the scalar weight of the diffuse base,
+    /// `(1 − metallic)(1 − s·max(F_d))`, and the colour of the specular layer, `(1 − metallic) s F_d + metallic F_m`
+    /// (glTF 2.0 Appendix B `fresnel_mix` and `conductor_fresnel`, with KHR_materials_specular).
+    fn fresnel_weights(&self, cos: f32) -> (f32, Rgb) {
+        let f_d = fresnel::schlick(self.f0, cos);
+        let f_m = fresnel::schlick(self.base_color, cos);
+        let dielectric = 1.0 - self.metallic;
+        let kd = dielectric * (1.0 - self.specular_factor * max_component(f_d));
+        let ks = dielectric * self.specular_factor * f_d + self.metallic * f_m;
+        (kd, ks)
+    }
+
+    /// Probability of sampling the diffuse lobe of the opaque part for `wo`, from the lobe weights at
+    /// `cos = wo.z`, kept within \[0.05, 0.95\] when both lobes exist so that neither is ever starved.
+    fn diffuse_probability(&self, wo: Vec3) -> f32 {
+        match (self.has_diffuse(), self.has_specular()) {
+            (true, false) => 1.0,
+            (false, _) => 0.0,
+            (true, true) => {
+                let (kd, ks) = self.fresnel_weights(wo.z);
+                let wd = kd * mean(self.base_color);
+                let ws = mean(ks);
+                if wd + ws > 0.0 {
+                    (wd / (wd + ws)).clamp(0.05, 0.95)
+                } else {
+                    0.5
+                }
+            }
+        }
+    }
+
+    /// Opaque BRDF value (non-delta part), one-sided.
+    fn eval_opaque(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let h = (wo + wi).normalize();
+        let (kd, ks) = self.fresnel_weights(wo.dot(h));
+        let diffuse = kd * FRAC_1_PI * self.base_color;
+        if self.specular_is_delta() {
+            return diffuse;
+        }
+        let ggx = Ggx { alpha: self.alpha };
+        diffuse + ks * (ggx.d(h) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z))
+    }
+
+    /// Density of the non-delta directions of the opaque sampler: `p_d cos θi/π + (1 − p_d) D_wo(h)/(4 wo·h)`
+    /// (visible normals, Heitz 2018, with the reflection Jacobian of Walter et al. 2007, eq. 14).
+    fn pdf_opaque(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return 0.0;
+        }
+        let pd = self.diffuse_probability(wo);
+        let mut pdf = pd * wi.z * FRAC_1_PI;
+        if !self.specular_is_delta() && pd < 1.0 {
+            let h = (wo + wi).normalize();
+            pdf += (1.0 - pd) * Ggx { alpha: self.alpha }.pdf_visible(wo, h) / (4.0 * wo.dot(h));
+        }
+        pdf
+    }
+
+    /// Probability of sampling the dielectric interface rather than the opaque part: the transmission weight
+    /// from outside, 1 from inside (where the one-sided opaque part is black).
+    fn dielectric_probability(&self, wo: Vec3) -> f32 {
+        if self.transmission == 0.0 {
+            0.0
+        } else if wo.z < 0.0 {
+            1.0
+        } else {
+            self.transmission
+        }
+    }
+
+    /// BSDF value, non-delta part: `(1 − t) opaque + t dielectric`.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        let t = self.transmission;
+        let mut f = (1.0 - t) * self.eval_opaque(wo, wi);
+        if t > 0.0 {
+            f += t * self.dielectric.eval(wo, wi);
+        }
+        f
+    }
+
+    /// Solid-angle density of the non-delta directions of [`GltfPbr::sample`], the mixture of the lobe
+    /// densities with the lobe-selection probabilities.
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let p = self.dielectric_probability(wo);
+        let mut pdf = 0.0;
+        if p < 1.0 {
+            pdf += (1.0 - p) * self.pdf_opaque(wo, wi);
+        }
+        if p > 0.0 {
+            pdf += p * self.dielectric.pdf(wo, wi);
+        }
+        pdf
+    }
+
+    /// Picks the dielectric or the opaque part with `u_lobe`, then, in the opaque part, the diffuse or the
+    /// specular lobe; samples it (cosine hemisphere, or GGX visible normals reflected about `h`). Non-delta
+    /// samples carry the full mixture `eval` and `pdf`; delta samples their lobe's weighted value and discrete
+    /// probability.
+    pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let p = self.dielectric_probability(wo);
+        let wi = if u_lobe < p {
+            let s = self.dielectric.sample(wo, u_lobe / p, u)?;
+            if let Some((f, prob)) = s.delta {
+                return Some(BsdfSample {
+                    wi: s.wi,
+                    f: self.transmission * f,
+                    pdf: p * prob,
+                    is_delta: true,
+                });
+            }
+            s.wi
+        } else {
+            if wo.z <= 0.0 {
+                return None;
+            }
+            let u_lobe = ((u_lobe - p) / (1.0 - p)).min(1.0 - f32::EPSILON);
+            let pd = self.diffuse_probability(wo);
+            if u_lobe < pd {
+                cosine_hemisphere(u)
+            } else if self.specular_is_delta() {
+                let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+                let (_, ks) = self.fresnel_weights(wo.z);
+                let f = (1.0 - self.transmission) * ks / wi.z;
+                return Some(BsdfSample {
+                    wi,
+                    f,
+                    pdf: (1.0 - p) * (1.0 - pd),
+                    is_delta: true,
+                });
+            } else {
+                let h = Ggx { alpha: self.alpha }.sample_visible(wo, u);
+                fresnel::reflect(wo, h)
+            }
+        };
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0).then(|| BsdfSample {
+            wi,
+            f: self.eval(wo, wi),
+            pdf,
+            is_delta: false,
+        })
+    }
+}
