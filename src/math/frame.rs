@@ -29,11 +29,15 @@ impl Frame {
     pub fn from_normal_tangent(n: Vec3, tangent: Vec3) -> Self {
         let s = tangent - n * n.dot(tangent);
         let len = s.length();
-        if !(len > 1e-6) {
+        if len.is_nan() || len <= 1e-6 {
             return Self::from_normal(n);
         }
         let s = s / len;
-        Self { s, t: n.cross(s), n }
+        Self {
+            s,
+            t: n.cross(s),
+            n,
+        }
     }
 
     /// World direction to local coordinates.
@@ -53,9 +57,16 @@ mod tests {
 
     #[test]
     fn frames_are_orthonormal_and_invertible() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize()] {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.3, -0.5, 0.8).normalize(),
+        ] {
             let f = Frame::from_normal(n);
-            assert!(f.s.dot(f.t).abs() < 1e-5 && f.s.dot(f.n).abs() < 1e-5 && f.t.dot(f.n).abs() < 1e-5);
+            assert!(
+                f.s.dot(f.t).abs() < 1e-5 && f.s.dot(f.n).abs() < 1e-5 && f.t.dot(f.n).abs() < 1e-5
+            );
             assert!(f.s.cross(f.t).distance(f.n) < 1e-5, "right-handed");
             let v = Vec3::new(0.2, 0.7, -0.1);
             assert!(f.to_world(f.to_local(v)).distance(v) < 1e-5);
