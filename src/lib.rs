@@ -2,4 +2,5 @@
 //!
 //! See `ARCHITECTURE.md` for the module map.
 
+pub mod geometry;
 pub mod math;

@@ -12,7 +12,13 @@ impl Distribution1D {
     pub fn new(values: &[f32]) -> Self {
         let n = values.len().max(1);
         let func: Vec<f32> = (0..n)
-            .map(|i| values.get(i).copied().filter(|v| v.is_finite() && *v > 0.0).unwrap_or(0.0))
+            .map(|i| {
+                values
+                    .get(i)
+                    .copied()
+                    .filter(|v| v.is_finite() && *v > 0.0)
+                    .unwrap_or(0.0)
+            })
             .collect();
         let mut cdf = vec![0.0f32; n + 1];
         let mut acc = 0.0f64;
@@ -31,7 +37,11 @@ impl Distribution1D {
             }
         }
         cdf[n] = 1.0;
-        Self { func, cdf, integral }
+        Self {
+            func,
+            cdf,
+            integral,
+        }
     }
 
     /// Number of bins.
@@ -64,7 +74,11 @@ impl Distribution1D {
     pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
         let i = self.find_interval(u);
         let width = self.cdf[i + 1] - self.cdf[i];
-        let du = if width > 0.0 { (u - self.cdf[i]) / width } else { 0.5 };
+        let du = if width > 0.0 {
+            (u - self.cdf[i]) / width
+        } else {
+            0.5
+        };
         let n = self.func.len() as f32;
         let x = ((i as f32 + du.clamp(0.0, 1.0)) / n).min(1.0 - f32::EPSILON);
         (x, self.pdf_bin(i), i)
@@ -150,14 +164,21 @@ mod tests {
         for _ in 0..1000 {
             let (p, pdf) = d.sample(rng.next_2d());
             assert!(pdf > 0.0);
-            assert!((d.pdf(p) - pdf).abs() < 1e-4 * pdf.max(1.0), "{} vs {pdf}", d.pdf(p));
+            assert!(
+                (d.pdf(p) - pdf).abs() < 1e-4 * pdf.max(1.0),
+                "{} vs {pdf}",
+                d.pdf(p)
+            );
         }
         // Riemann sum of the density over a fine grid is 1.
         let n = 300;
         let mut total = 0.0;
         for j in 0..n {
             for i in 0..n {
-                total += d.pdf(glam::Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32));
+                total += d.pdf(glam::Vec2::new(
+                    (i as f32 + 0.5) / n as f32,
+                    (j as f32 + 0.5) / n as f32,
+                ));
             }
         }
         assert!((total / (n * n) as f32 - 1.0).abs() < 1e-3);

@@ -115,7 +115,10 @@ mod tests {
         // E[cos θ] under cos θ/π is 2/3; its variance is 1/2 − 4/9 = 1/18.
         let mut rng = Rng::new(5, 9);
         let n = 100_000;
-        let mean: f64 = (0..n).map(|_| cosine_hemisphere(rng.next_2d()).z as f64).sum::<f64>() / n as f64;
+        let mean: f64 = (0..n)
+            .map(|_| cosine_hemisphere(rng.next_2d()).z as f64)
+            .sum::<f64>()
+            / n as f64;
         let se = (1.0 / 18.0 / n as f64).sqrt();
         assert!((mean - 2.0 / 3.0).abs() < 4.0 * se, "mean {mean}");
     }
