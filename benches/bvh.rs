@@ -1,7 +1,9 @@
 //! BVH benchmark: build time, memory and ray throughput on a procedural ~1M-triangle bumpy sphere.
 //!
 //! Run with `cargo bench --bench bvh`. Rays are generated up front; each figure is the best of a few runs
-//! of the whole ray set on a rayon pool with the given number of threads.
+//! of the whole ray set on a rayon pool with the given number of threads. Throughput is given per second of
+//! wall time and per second of CPU time summed over threads (steadier on a shared machine; with two
+//! threads it is per-core throughput, so the wall figure shows the scaling).
 
 use nimbus::geometry::Bvh;
 use nimbus::math::sampling::uniform_sphere;
@@ -86,16 +88,32 @@ fn pool(threads: usize) -> rayon::ThreadPool {
         .expect("thread pool")
 }
 
-/// Best-of-`reps` seconds for `f`, and its last result.
-fn time<R>(reps: usize, mut f: impl FnMut() -> R) -> (f64, R) {
-    let mut best = f64::INFINITY;
+/// CPU time consumed so far by this process, all threads (including exited ones) together, in seconds:
+/// `utime + stime` of Linux's `/proc/self/stat`, in 10 ms clock ticks; `None` elsewhere. On a shared machine
+/// this is steadier than wall time, which also counts time spent waiting for a core.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15 of the whole line.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let mut fields = rest.split_whitespace().skip(11);
+    let utime: u64 = fields.next()?.parse().ok()?;
+    let stime: u64 = fields.next()?.parse().ok()?;
+    Some((utime + stime) as f64 / 100.0)
+}
+
+/// Best-of-`reps` wall and CPU seconds for `f` (CPU time summed over threads), and its last result.
+fn time<R>(reps: usize, mut f: impl FnMut() -> R) -> (f64, Option<f64>, R) {
+    let (mut wall, mut cpu) = (f64::INFINITY, None::<f64>);
     let mut out = None;
     for _ in 0..reps {
-        let start = Instant::now();
+        let (start, cpu0) = (Instant::now(), cpu_seconds());
         out = Some(f());
-        best = best.min(start.elapsed().as_secs_f64());
+        wall = wall.min(start.elapsed().as_secs_f64());
+        if let (Some(a), Some(b)) = (cpu0, cpu_seconds()) {
+            cpu = Some(cpu.map_or(b - a, |c| c.min(b - a)));
+        }
     }
-    (best, out.expect("at least one repetition"))
+    (wall, cpu, out.expect("at least one repetition"))
 }
 
 fn main() {
@@ -105,11 +123,13 @@ fn main() {
 
     let mut bvh = None;
     for threads in [1, 2] {
-        let (secs, built) = time(2, || pool(threads).install(|| Bvh::build(&tris)));
+        let p = pool(threads);
+        let (secs, cpu, built) = time(2, || p.install(|| Bvh::build(&tris)));
         println!(
-            "build ({threads} thread{}): {:.3} s",
+            "build ({threads} thread{}): {:.3} s wall, {:.3} s CPU",
             if threads > 1 { "s" } else { "" },
-            secs
+            secs,
+            cpu.unwrap_or(f64::NAN)
         );
         bvh = Some(built);
     }
@@ -126,14 +146,14 @@ fn main() {
     ];
     println!();
     println!(
-        "{:<20} {:<9} {:>7} {:>12} {:>10}",
-        "rays", "query", "threads", "Mrays/s", "hit frac"
+        "{:<20} {:<9} {:>7} {:>14} {:>18} {:>9}",
+        "rays", "query", "threads", "Mrays/s wall", "Mrays/CPU-second", "hit frac"
     );
     for (name, rays) in &sets {
         for query in ["closest", "occluded"] {
             for threads in [1, 2] {
                 let p = pool(threads);
-                let (secs, hits) = time(3, || {
+                let (secs, cpu, hits) = time(3, || {
                     p.install(|| {
                         rays.par_chunks(1024)
                             .map(|chunk| {
@@ -148,12 +168,14 @@ fn main() {
                             .sum::<usize>()
                     })
                 });
+                let mrays = |s: f64| rays.len() as f64 / s / 1e6;
                 println!(
-                    "{:<20} {:<9} {:>7} {:>12.2} {:>10.3}",
+                    "{:<20} {:<9} {:>7} {:>14.2} {:>18.2} {:>9.3}",
                     name,
                     query,
                     threads,
-                    rays.len() as f64 / secs / 1e6,
+                    mrays(secs),
+                    cpu.map_or(f64::NAN, mrays),
                     hits as f64 / rays.len() as f64
                 );
             }

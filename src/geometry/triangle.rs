@@ -2,10 +2,11 @@
 //! Intersection", JCGT 2(1).
 //!
 //! The test translates the vertices to the ray origin, shears them so that the ray becomes the +z axis
-//! (§3, the permutation and shear), evaluates the three 2D edge functions of the projected triangle and
-//! re-evaluates them in double precision when one of them is exactly zero (§4). Because a vertex's sheared
+//! (the permutation and shear), evaluates the three 2D edge functions of the projected triangle and
+//! re-evaluates them in double precision when one of them is exactly zero. Because a vertex's sheared
 //! coordinates depend only on that vertex and the ray, two triangles sharing an edge see bit-identical
-//! edge-function inputs along it, so a ray can never slip between them.
+//! edge-function inputs along it, so a ray can never slip between them. (Section numbers of the papers
+//! are not cited because they were not checked against the published PDFs.)
 //!
 //! Triangles are hit from both sides; face culling is the integrator's job.
 
@@ -24,7 +25,7 @@ pub struct TriangleHit {
     pub b2: f32,
 }
 
-/// The per-ray constants of the watertight test (Woop et al. 2013, §3): the origin, and the rows of the
+/// The per-ray constants of the watertight test (Woop et al. 2013): the origin, and the rows of the
 /// permute-and-shear transform that maps the ray direction onto +z.
 ///
 /// Computing this once per ray and reusing it for every triangle is what makes the test cheap.
@@ -57,7 +58,7 @@ fn row(a: Vec3, s: Vec3) -> f32 {
 
 impl WatertightRay {
     /// Precomputes the permutation (largest direction component becomes z, winding preserved) and the
-    /// shear constants `Sx = dx/dz`, `Sy = dy/dz`, `Sz = 1/dz` of Woop et al. 2013, §3.
+    /// shear constants `Sx = dx/dz`, `Sy = dy/dz`, `Sz = 1/dz` of Woop et al. 2013.
     pub fn new(ray: &Ray) -> Self {
         let d = ray.dir;
         let kz = d.abs().max_position();
@@ -78,7 +79,7 @@ impl WatertightRay {
     }
 }
 
-/// Intersects the ray with triangle `tri` (Woop et al. 2013, Fig. 3 / §3–§4), from either side.
+/// Intersects the ray with triangle `tri` (Woop et al. 2013), from either side.
 ///
 /// Returns `(t, b1, b2)` for a hit with `t_min <= t <= t_max`, where `p = (1-b1-b2)·v0 + b1·v1 + b2·v2`.
 /// Degenerate (zero-area or edge-on) triangles never hit. A point exactly on an edge or vertex counts as a
@@ -102,7 +103,7 @@ pub fn intersect_triangle(
     let mut v = ax * cy - ay * cx;
     let mut w = bx * ay - by * ax;
     if u == 0.0 || v == 0.0 || w == 0.0 {
-        // §4: an exact zero may be a rounding artefact; decide it in double precision.
+        // An exact zero may be a rounding artefact; decide it in double precision.
         let (ax, ay, bx, by, cx, cy) = (
             ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
         );
