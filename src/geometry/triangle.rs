@@ -11,6 +11,7 @@
 //! Triangles are hit from both sides; face culling is the integrator's job.
 
 use crate::math::{Ray, Vec3};
+use glam::{Vec3A, Vec3Swizzles};
 
 /// A closest hit found by [`crate::geometry::Bvh::intersect`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -32,7 +33,8 @@ pub struct TriangleHit {
 #[derive(Clone, Copy, Debug)]
 pub struct WatertightRay {
     origin: Vec3,
-    /// Row giving the sheared x: `A[kx] - Sx·A[kz]`, written as a dot product with one exact zero.
+    /// Row giving the sheared x: `A[kx] - Sx·A[kz]`, written as the dot product `(A.x·s.x + A.y·s.y) +
+    /// A.z·s.z` with one exact 1 and one exact 0 in `s`, so it rounds exactly like the paper's form.
     shear_x: Vec3,
     /// Row giving the sheared y: `A[ky] - Sy·A[kz]`.
     shear_y: Vec3,
@@ -47,13 +49,6 @@ fn axis(i: usize) -> Vec3 {
         1 => Vec3::Y,
         _ => Vec3::Z,
     }
-}
-
-/// `a·s` evaluated in a fixed order. With `s` holding one 1, one 0 and one shear factor this is exactly the
-/// paper's `A[k] - S·A[kz]`, so every triangle sharing a vertex computes the same bits for it.
-#[inline(always)]
-fn row(a: Vec3, s: Vec3) -> f32 {
-    a.x * s.x + a.y * s.y + a.z * s.z
 }
 
 impl WatertightRay {
@@ -84,6 +79,10 @@ impl WatertightRay {
 /// Returns `(t, b1, b2)` for a hit with `t_min <= t <= t_max`, where `p = (1-b1-b2)·v0 + b1·v1 + b2·v2`.
 /// Degenerate (zero-area or edge-on) triangles never hit. A point exactly on an edge or vertex counts as a
 /// hit, which is what makes a closed mesh watertight.
+///
+/// The three vertices are processed in the three SIMD lanes of a `Vec3A`; each lane performs exactly the
+/// scalar operations of the paper, in the same order, so a vertex shared by two triangles still gets the
+/// same sheared coordinates in both.
 #[inline(always)]
 pub fn intersect_triangle(
     ray: &WatertightRay,
@@ -91,39 +90,33 @@ pub fn intersect_triangle(
     t_min: f32,
     t_max: f32,
 ) -> Option<(f32, f32, f32)> {
-    let a = tri[0] - ray.origin;
-    let b = tri[1] - ray.origin;
-    let c = tri[2] - ray.origin;
-    let (ax, ay) = (row(a, ray.shear_x), row(a, ray.shear_y));
-    let (bx, by) = (row(b, ray.shear_x), row(b, ray.shear_y));
-    let (cx, cy) = (row(c, ray.shear_x), row(c, ray.shear_y));
+    let o = ray.origin;
+    // Lane i holds vertex i, translated to the ray origin.
+    let xs = Vec3A::new(tri[0].x, tri[1].x, tri[2].x) - o.x;
+    let ys = Vec3A::new(tri[0].y, tri[1].y, tri[2].y) - o.y;
+    let zs = Vec3A::new(tri[0].z, tri[1].z, tri[2].z) - o.z;
+    let row = |s: Vec3| xs * s.x + ys * s.y + zs * s.z;
+    // Sheared x and y of (A, B, C).
+    let sx = row(ray.shear_x);
+    let sy = row(ray.shear_y);
 
-    // Scaled barycentrics: the 2D edge functions of the projected triangle.
-    let mut u = cx * by - cy * bx;
-    let mut v = ax * cy - ay * cx;
-    let mut w = bx * ay - by * ax;
-    if u == 0.0 || v == 0.0 || w == 0.0 {
+    // Scaled barycentrics (U, V, W) = (Cx·By - Cy·Bx, Ax·Cy - Ay·Cx, Bx·Ay - By·Ax): 2D edge functions.
+    let mut uvw = sx.zxy() * sy.yzx() - sy.zxy() * sx.yzx();
+    if uvw.cmpeq(Vec3A::ZERO).any() {
         // An exact zero may be a rounding artefact; decide it in double precision.
-        let (ax, ay, bx, by, cx, cy) = (
-            ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
-        );
-        u = (cx * by - cy * bx) as f32;
-        v = (ax * cy - ay * cx) as f32;
-        w = (bx * ay - by * ax) as f32;
+        let (x, y) = (sx.as_dvec3(), sy.as_dvec3());
+        uvw = (x.zxy() * y.yzx() - y.zxy() * x.yzx()).as_vec3().into();
     }
-    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+    if uvw.cmplt(Vec3A::ZERO).any() && uvw.cmpgt(Vec3A::ZERO).any() {
         return None;
     }
+    let (u, v, w) = (uvw.x, uvw.y, uvw.z);
     let det = u + v + w;
     if det == 0.0 {
         return None;
     }
-    let (az, bz, cz) = (
-        row(a, ray.scale_z),
-        row(b, ray.scale_z),
-        row(c, ray.scale_z),
-    );
-    let t_scaled = u * az + v * bz + w * cz;
+    let z = row(ray.scale_z) * uvw;
+    let t_scaled = z.x + z.y + z.z;
     let rcp = 1.0 / det;
     let t = t_scaled * rcp;
     if !(t >= t_min && t <= t_max) {
