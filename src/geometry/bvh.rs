@@ -895,6 +895,32 @@ mod tests {
     }
 
     #[test]
+    fn axis_rays_in_box_planes_match_brute_force() {
+        // Origins share coordinates with mesh vertices, so axis-aligned rays lie exactly in the planes of
+        // many node boxes (the `0·∞ = NaN` case of the slab test) and pass exactly through vertices.
+        let tris = sphere(Vec3::new(0.25, 0.0, -0.5), 1.0, 16, 32);
+        let mut rng = Rng::new(13, 14);
+        let axes = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z];
+        let rays: Vec<_> = (0..3000)
+            .map(|i| {
+                let v = tris[rng.next_u32() as usize % tris.len()][i % 3];
+                let w = tris[rng.next_u32() as usize % tris.len()][(i + 1) % 3];
+                let d = axes[i % 6];
+                // The coordinates across the ray stay exactly those of `v` (or of `w` on one axis),
+                // since `d` has exact zeros there; every fifth ray points away from the mesh.
+                let mut o = v;
+                if i % 2 == 0 {
+                    o.x = w.x;
+                }
+                let o = o - d * 5.0;
+                let d = if i % 5 == 0 { -d } else { d };
+                (Ray::new(o, d), 0.0, f32::INFINITY)
+            })
+            .collect();
+        check_agreement(&tris, &rays);
+    }
+
+    #[test]
     fn closed_mesh_is_watertight() {
         let tris = sphere(Vec3::new(0.1, 0.2, -0.3), 1.5, 64, 128);
         let bvh = Bvh::build(&tris);
