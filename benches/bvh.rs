@@ -1,0 +1,184 @@
+//! BVH benchmark: build time, memory and ray throughput on a procedural ~1M-triangle bumpy sphere.
+//!
+//! Run with `cargo bench --bench bvh`. Rays are generated up front; each figure is the best of a few runs
+//! of the whole ray set on a rayon pool with the given number of threads. Throughput is given per second of
+//! wall time and per second of CPU time summed over threads (steadier on a shared machine; with two
+//! threads it is per-core throughput, so the wall figure shows the scaling).
+
+use nimbus::geometry::Bvh;
+use nimbus::math::sampling::uniform_sphere;
+use nimbus::math::{Ray, Rng, Vec3};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// A closed UV sphere whose vertices are displaced radially by a smooth bump field plus per-vertex noise,
+/// so neighbouring triangles are not coplanar and the surface folds slightly: `2·rings·segments` triangles
+/// (less the pole caps' shared rows).
+fn bumpy_sphere(rings: usize, segments: usize, rng: &mut Rng) -> Vec<[Vec3; 3]> {
+    use std::f32::consts::{PI, TAU};
+    let point = |theta: f32, phi: f32, rng: &mut Rng| {
+        let bump = 0.08 * (7.0 * theta).sin() * (11.0 * phi).sin() + 0.03 * (rng.next_f32() - 0.5);
+        (1.0 + bump)
+            * Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            )
+    };
+    let north = point(0.0, 0.0, rng);
+    let south = point(PI, 0.0, rng);
+    let grid: Vec<Vec<Vec3>> = (1..rings)
+        .map(|i| {
+            (0..segments)
+                .map(|j| {
+                    point(
+                        PI * i as f32 / rings as f32,
+                        TAU * j as f32 / segments as f32,
+                        rng,
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    let mut tris = Vec::with_capacity(2 * rings * segments);
+    for j in 0..segments {
+        let k = (j + 1) % segments;
+        tris.push([north, grid[0][j], grid[0][k]]);
+        tris.push([south, grid[rings - 2][k], grid[rings - 2][j]]);
+        for i in 0..rings - 2 {
+            tris.push([grid[i][j], grid[i + 1][j], grid[i][k]]);
+            tris.push([grid[i][k], grid[i + 1][j], grid[i + 1][k]]);
+        }
+    }
+    tris
+}
+
+/// Primary rays of a `res`×`res` pinhole camera looking at the origin.
+fn camera_rays(res: usize) -> Vec<Ray> {
+    let eye = Vec3::new(0.4, 0.6, 2.6);
+    let forward = (-eye).normalize();
+    let right = forward.cross(Vec3::Y).normalize();
+    let up = right.cross(forward);
+    let tan_half = (50.0f32.to_radians() * 0.5).tan();
+    (0..res * res)
+        .map(|p| {
+            let (x, y) = ((p % res) as f32 + 0.5, (p / res) as f32 + 0.5);
+            let sx = (2.0 * x / res as f32 - 1.0) * tan_half;
+            let sy = (1.0 - 2.0 * y / res as f32) * tan_half;
+            Ray::new(eye, (forward + sx * right + sy * up).normalize())
+        })
+        .collect()
+}
+
+/// Rays with uniform random origins inside `bvh`'s bounds and uniform random directions.
+fn random_rays(n: usize, bvh: &Bvh, rng: &mut Rng) -> Vec<Ray> {
+    let b = bvh.bounds();
+    (0..n)
+        .map(|_| {
+            let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            Ray::new(b.min + u * b.extent(), uniform_sphere(rng.next_2d()))
+        })
+        .collect()
+}
+
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool")
+}
+
+/// CPU time consumed so far by this process, all threads (including exited ones) together, in seconds:
+/// `utime + stime` of Linux's `/proc/self/stat`, in 10 ms clock ticks; `None` elsewhere. On a shared machine
+/// this is steadier than wall time, which also counts time spent waiting for a core.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15 of the whole line.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let mut fields = rest.split_whitespace().skip(11);
+    let utime: u64 = fields.next()?.parse().ok()?;
+    let stime: u64 = fields.next()?.parse().ok()?;
+    Some((utime + stime) as f64 / 100.0)
+}
+
+/// Best-of-`reps` wall and CPU seconds for `f` (CPU time summed over threads), and its last result.
+fn time<R>(reps: usize, mut f: impl FnMut() -> R) -> (f64, Option<f64>, R) {
+    let (mut wall, mut cpu) = (f64::INFINITY, None::<f64>);
+    let mut out = None;
+    for _ in 0..reps {
+        let (start, cpu0) = (Instant::now(), cpu_seconds());
+        out = Some(f());
+        wall = wall.min(start.elapsed().as_secs_f64());
+        if let (Some(a), Some(b)) = (cpu0, cpu_seconds()) {
+            cpu = Some(cpu.map_or(b - a, |c| c.min(b - a)));
+        }
+    }
+    (wall, cpu, out.expect("at least one repetition"))
+}
+
+fn main() {
+    let mut rng = Rng::new(2024, 1);
+    let tris = bumpy_sphere(708, 708, &mut rng);
+    println!("mesh: bumpy sphere, {} triangles", tris.len());
+
+    let mut bvh = None;
+    for threads in [1, 2] {
+        let p = pool(threads);
+        let (secs, cpu, built) = time(2, || p.install(|| Bvh::build(&tris)));
+        println!(
+            "build ({threads} thread{}): {:.3} s wall, {:.3} s CPU",
+            if threads > 1 { "s" } else { "" },
+            secs,
+            cpu.unwrap_or(f64::NAN)
+        );
+        bvh = Some(built);
+    }
+    let bvh = bvh.expect("built");
+    println!(
+        "memory: {:.1} MiB ({:.1} bytes/triangle)",
+        bvh.memory_bytes() as f64 / (1 << 20) as f64,
+        bvh.memory_bytes() as f64 / tris.len() as f64
+    );
+
+    let sets = [
+        ("primary (coherent)", camera_rays(1024)),
+        ("random (incoherent)", random_rays(1 << 20, &bvh, &mut rng)),
+    ];
+    println!();
+    println!(
+        "{:<20} {:<9} {:>7} {:>14} {:>18} {:>9}",
+        "rays", "query", "threads", "Mrays/s wall", "Mrays/CPU-second", "hit frac"
+    );
+    for (name, rays) in &sets {
+        for query in ["closest", "occluded"] {
+            for threads in [1, 2] {
+                let p = pool(threads);
+                let (secs, cpu, hits) = time(3, || {
+                    p.install(|| {
+                        rays.par_chunks(1024)
+                            .map(|chunk| {
+                                chunk
+                                    .iter()
+                                    .filter(|r| match query {
+                                        "closest" => bvh.intersect(r, 0.0, f32::INFINITY).is_some(),
+                                        _ => bvh.occluded(r, 0.0, f32::INFINITY),
+                                    })
+                                    .count()
+                            })
+                            .sum::<usize>()
+                    })
+                });
+                let mrays = |s: f64| rays.len() as f64 / s / 1e6;
+                println!(
+                    "{:<20} {:<9} {:>7} {:>14.2} {:>18.2} {:>9.3}",
+                    name,
+                    query,
+                    threads,
+                    mrays(secs),
+                    cpu.map_or(f64::NAN, mrays),
+                    hits as f64 / rays.len() as f64
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,178 @@
+//! Watertight ray–triangle intersection after Woop, Benthin, Wald 2013, "Watertight Ray/Triangle
+//! Intersection", JCGT 2(1).
+//!
+//! The test translates the vertices to the ray origin, shears them so that the ray becomes the +z axis
+//! (the permutation and shear), evaluates the three 2D edge functions of the projected triangle and
+//! re-evaluates them in double precision when one of them is exactly zero. Because a vertex's sheared
+//! coordinates depend only on that vertex and the ray, two triangles sharing an edge see bit-identical
+//! edge-function inputs along it, so a ray can never slip between them. (Section numbers of the papers
+//! are not cited because they were not checked against the published PDFs.)
+//!
+//! Triangles are hit from both sides; face culling is the integrator's job.
+
+use crate::math::{Ray, Vec3};
+use glam::{Vec3A, Vec3Swizzles};
+
+/// A closest hit found by [`crate::geometry::Bvh::intersect`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    /// Distance along the ray (the ray direction is unit length, so a world-space distance).
+    pub t: f32,
+    /// Index of the triangle in the list given to [`crate::geometry::Bvh::build`].
+    pub prim: u32,
+    /// Barycentric weight of the second vertex: `p = (1 - b1 - b2)·v0 + b1·v1 + b2·v2`.
+    pub b1: f32,
+    /// Barycentric weight of the third vertex.
+    pub b2: f32,
+}
+
+/// The per-ray constants of the watertight test (Woop et al. 2013): the origin, and the rows of the
+/// permute-and-shear transform that maps the ray direction onto +z.
+///
+/// Computing this once per ray and reusing it for every triangle is what makes the test cheap.
+#[derive(Clone, Copy, Debug)]
+pub struct WatertightRay {
+    origin: Vec3,
+    /// Row giving the sheared x: `A[kx] - Sx·A[kz]`, written as the dot product `(A.x·s.x + A.y·s.y) +
+    /// A.z·s.z` with one exact 1 and one exact 0 in `s`, so it rounds exactly like the paper's form.
+    shear_x: Vec3,
+    /// Row giving the sheared y: `A[ky] - Sy·A[kz]`.
+    shear_y: Vec3,
+    /// Row giving the scaled z: `Sz·A[kz]`.
+    scale_z: Vec3,
+}
+
+/// The `i`-th unit axis.
+fn axis(i: usize) -> Vec3 {
+    match i {
+        0 => Vec3::X,
+        1 => Vec3::Y,
+        _ => Vec3::Z,
+    }
+}
+
+impl WatertightRay {
+    /// Precomputes the permutation (largest direction component becomes z, winding preserved) and the
+    /// shear constants `Sx = dx/dz`, `Sy = dy/dz`, `Sz = 1/dz` of Woop et al. 2013.
+    pub fn new(ray: &Ray) -> Self {
+        let d = ray.dir;
+        let kz = d.abs().max_position();
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = 1.0 / d[kz];
+        let sx = d[kx] * sz;
+        let sy = d[ky] * sz;
+        Self {
+            origin: ray.origin,
+            shear_x: axis(kx) - sx * axis(kz),
+            shear_y: axis(ky) - sy * axis(kz),
+            scale_z: sz * axis(kz),
+        }
+    }
+}
+
+/// Intersects the ray with triangle `tri` (Woop et al. 2013), from either side.
+///
+/// Returns `(t, b1, b2)` for a hit with `t_min <= t <= t_max`, where `p = (1-b1-b2)·v0 + b1·v1 + b2·v2`.
+/// Degenerate (zero-area or edge-on) triangles never hit. A point exactly on an edge or vertex counts as a
+/// hit, which is what makes a closed mesh watertight.
+///
+/// The three vertices are processed in the three SIMD lanes of a `Vec3A`; each lane performs exactly the
+/// scalar operations of the paper, in the same order, so a vertex shared by two triangles still gets the
+/// same sheared coordinates in both.
+#[inline(always)]
+pub fn intersect_triangle(
+    ray: &WatertightRay,
+    tri: &[Vec3; 3],
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32, f32)> {
+    let o = ray.origin;
+    // Lane i holds vertex i, translated to the ray origin.
+    let xs = Vec3A::new(tri[0].x, tri[1].x, tri[2].x) - o.x;
+    let ys = Vec3A::new(tri[0].y, tri[1].y, tri[2].y) - o.y;
+    let zs = Vec3A::new(tri[0].z, tri[1].z, tri[2].z) - o.z;
+    let row = |s: Vec3| xs * s.x + ys * s.y + zs * s.z;
+    // Sheared x and y of (A, B, C).
+    let sx = row(ray.shear_x);
+    let sy = row(ray.shear_y);
+
+    // Scaled barycentrics (U, V, W) = (Cx·By - Cy·Bx, Ax·Cy - Ay·Cx, Bx·Ay - By·Ax): 2D edge functions.
+    let mut uvw = sx.zxy() * sy.yzx() - sy.zxy() * sx.yzx();
+    if uvw.cmpeq(Vec3A::ZERO).any() {
+        // An exact zero may be a rounding artefact; decide it in double precision.
+        let (x, y) = (sx.as_dvec3(), sy.as_dvec3());
+        uvw = (x.zxy() * y.yzx() - y.zxy() * x.yzx()).as_vec3().into();
+    }
+    if uvw.cmplt(Vec3A::ZERO).any() && uvw.cmpgt(Vec3A::ZERO).any() {
+        return None;
+    }
+    let (u, v, w) = (uvw.x, uvw.y, uvw.z);
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    let z = row(ray.scale_z) * uvw;
+    let t_scaled = z.x + z.y + z.z;
+    let rcp = 1.0 / det;
+    let t = t_scaled * rcp;
+    if !(t >= t_min && t <= t_max) {
+        return None;
+    }
+    Some((t, v * rcp, w * rcp))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hit(o: Vec3, d: Vec3, tri: &[Vec3; 3]) -> Option<(f32, f32, f32)> {
+        intersect_triangle(
+            &WatertightRay::new(&Ray::new(o, d)),
+            tri,
+            0.0,
+            f32::INFINITY,
+        )
+    }
+
+    #[test]
+    fn hit_from_both_sides_with_barycentrics() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let (t, b1, b2) = hit(Vec3::new(0.25, 0.5, 2.0), -Vec3::Z, &tri).unwrap();
+        assert!((t - 2.0).abs() < 1e-6 && (b1 - 0.25).abs() < 1e-6 && (b2 - 0.5).abs() < 1e-6);
+        let (t, b1, b2) = hit(Vec3::new(0.25, 0.5, -3.0), Vec3::Z, &tri).unwrap();
+        assert!((t - 3.0).abs() < 1e-6 && (b1 - 0.25).abs() < 1e-6 && (b2 - 0.5).abs() < 1e-6);
+        assert!(hit(Vec3::new(0.75, 0.5, 2.0), -Vec3::Z, &tri).is_none());
+        assert!(hit(Vec3::new(0.25, 0.5, 2.0), Vec3::Z, &tri).is_none());
+    }
+
+    #[test]
+    fn edges_and_vertices_count_as_hits() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        for p in [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.5, 0.5, 0.0)] {
+            assert!(hit(p + Vec3::Z, -Vec3::Z, &tri).is_some(), "{p}");
+        }
+    }
+
+    #[test]
+    fn degenerate_and_edge_on_triangles_miss() {
+        let line = [Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
+        assert!(hit(Vec3::new(0.5, 0.0, 1.0), -Vec3::Z, &line).is_none());
+        let point = [Vec3::ONE; 3];
+        assert!(hit(Vec3::new(1.0, 1.0, 2.0), -Vec3::Z, &point).is_none());
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        assert!(hit(Vec3::new(-1.0, 0.25, 0.0), Vec3::X, &tri).is_none());
+    }
+
+    #[test]
+    fn t_range_is_inclusive() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let r = WatertightRay::new(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z));
+        assert!(intersect_triangle(&r, &tri, 1.0, 1.0).is_some());
+        assert!(intersect_triangle(&r, &tri, 0.0, 0.999).is_none());
+        assert!(intersect_triangle(&r, &tri, 1.001, 2.0).is_none());
+    }
+}
