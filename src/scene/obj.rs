@@ -120,9 +120,7 @@ fn convert_material(m: &tobj::Material) -> Material {
             out.specular_factor = 1.0;
         }
     }
-    if let Some(ke) = m.unknown_param.get("Ke").and_then(|s| parse_triplet(s)) {
-        out.emission = ke;
-    }
+    out.emission = rgb(m.emissive);
     if let Some(ni) = m.optical_density.filter(|v| v.is_finite() && *v > 0.0) {
         out.ior = ni;
     }
@@ -136,16 +134,4 @@ fn convert_material(m: &tobj::Material) -> Material {
         }
     }
     out
-}
-
-fn parse_triplet(s: &str) -> Option<Rgb> {
-    let v: Vec<f32> = s
-        .split_whitespace()
-        .filter_map(|t| t.parse().ok())
-        .collect();
-    match v.as_slice() {
-        [r, g, b] => Some(Rgb::new(*r, *g, *b).max(Rgb::ZERO)),
-        [x] => Some(Rgb::splat(*x).max(Rgb::ZERO)),
-        _ => None,
-    }
 }

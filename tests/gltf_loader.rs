@@ -1,0 +1,208 @@
+//! glTF and OBJ loading: features that must work, and malformed input that must give an error naming the
+//! file, never a panic.
+
+use nimbus::scene::{gltf, load_builder, SceneErrorKind};
+use std::path::{Path, PathBuf};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("nimbus-gltf-test-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(A[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// One triangle's positions (3 × vec3 f32) followed by u16 indices 0,1,2 (+ padding).
+fn triangle_buffer() -> Vec<u8> {
+    let mut b = Vec::new();
+    for v in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        for c in v {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for i in [0u16, 1, 2, 0] {
+        b.extend_from_slice(&i.to_le_bytes());
+    }
+    b
+}
+
+/// A glTF document with one triangle mesh under a translated, scaled node and a camera node.
+fn document(buffer_uri: &str, count: usize, extra: &str) -> String {
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+        "nodes":[{{"mesh":0,"translation":[10,0,0],"scale":[2,2,2]}},
+                 {{"camera":0,"matrix":[1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,5,1]}}],
+        "cameras":[{{"type":"perspective","perspective":{{"yfov":0.5,"znear":0.1,"aspectRatio":2.0}}}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":{count},"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+                     {{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":8}}],
+        "buffers":[{{"uri":"{buffer_uri}","byteLength":44}}]{extra}}}"#
+    )
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn data_uri_buffer_transforms_and_camera() {
+    let dir = temp_dir("datauri");
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64(&triangle_buffer())
+    );
+    let path = write(&dir, "tri.gltf", &document(&uri, 3, ""));
+    let scene = load_builder(&path).expect("loads").build();
+    assert_eq!(scene.triangle_count(), 1);
+    // translation 10 and scale 2: x spans [10, 12], y [0, 2].
+    assert!((scene.bounds.min.x - 10.0).abs() < 1e-6 && (scene.bounds.max.x - 12.0).abs() < 1e-6);
+    assert!((scene.bounds.max.y - 2.0).abs() < 1e-6);
+    assert_eq!(scene.camera.yfov, 0.5);
+    assert_eq!(scene.camera.aspect_ratio, Some(2.0));
+    assert!((scene.camera.position().z - 5.0).abs() < 1e-6);
+    // The default glTF material is not double-sided; normals were generated from the CCW winding (+z).
+    assert!(scene.meshes[0]
+        .normals
+        .iter()
+        .all(|n| (n.z - 1.0).abs() < 1e-6));
+}
+
+#[test]
+fn external_buffer_and_missing_buffer() {
+    let dir = temp_dir("external");
+    std::fs::write(dir.join("tri.bin"), triangle_buffer()).unwrap();
+    let ok = write(&dir, "ok.gltf", &document("tri.bin", 3, ""));
+    assert_eq!(load_builder(&ok).unwrap().build().triangle_count(), 1);
+    let missing = write(&dir, "missing.gltf", &document("nope.bin", 3, ""));
+    let err = load_builder(&missing)
+        .err()
+        .expect("missing buffer is an error");
+    assert!(
+        matches!(err.kind, SceneErrorKind::InvalidReference(_)),
+        "{err}"
+    );
+    assert!(
+        err.to_string().contains("missing.gltf") && err.to_string().contains("nope.bin"),
+        "{err}"
+    );
+}
+
+#[test]
+fn malformed_json_is_an_error() {
+    let dir = temp_dir("json");
+    let p = write(
+        &dir,
+        "bad.gltf",
+        "{\"asset\": {\"version\": \"2.0\"}, \"nodes\": [",
+    );
+    let err = load_builder(&p).err().expect("error");
+    assert!(matches!(err.kind, SceneErrorKind::Malformed(_)));
+    assert!(err.to_string().contains("bad.gltf"));
+}
+
+#[test]
+fn accessor_past_its_buffer_view_is_an_error() {
+    let dir = temp_dir("accessor");
+    std::fs::write(dir.join("tri.bin"), triangle_buffer()).unwrap();
+    let p = write(&dir, "bad.gltf", &document("tri.bin", 300, ""));
+    let err = load_builder(&p).err().expect("error");
+    assert!(err.to_string().contains("accessor 0"), "{err}");
+}
+
+#[test]
+fn dangling_index_is_an_error() {
+    let dir = temp_dir("dangling");
+    std::fs::write(dir.join("tri.bin"), triangle_buffer()).unwrap();
+    let text = document("tri.bin", 3, "").replace(r#""indices":1"#, r#""indices":7"#);
+    let p = write(&dir, "bad.gltf", &text);
+    assert!(load_builder(&p).is_err());
+}
+
+#[test]
+fn required_extensions_supported_or_refused() {
+    let dir = temp_dir("ext");
+    std::fs::write(dir.join("tri.bin"), triangle_buffer()).unwrap();
+    let ok = write(
+        &dir,
+        "ok.gltf",
+        &document(
+            "tri.bin",
+            3,
+            r#","extensionsUsed":["KHR_materials_volume","KHR_materials_specular","EXT_fancy"],"extensionsRequired":["KHR_materials_volume","KHR_materials_specular"]"#,
+        ),
+    );
+    let builder = load_builder(&ok).expect("the extensions Nimbus implements may be required");
+    assert!(
+        builder.warnings.iter().any(|w| w.contains("EXT_fancy")),
+        "{:?}",
+        builder.warnings
+    );
+    let bad = write(
+        &dir,
+        "bad.gltf",
+        &document(
+            "tri.bin",
+            3,
+            r#","extensionsUsed":["EXT_fancy"],"extensionsRequired":["EXT_fancy"]"#,
+        ),
+    );
+    let err = load_builder(&bad).err().expect("error");
+    assert!(matches!(err.kind, SceneErrorKind::Unsupported(_)), "{err}");
+}
+
+#[test]
+fn truncated_glb_is_an_error_at_every_length() {
+    let glb = include_bytes!("../assets/demo.glb");
+    let path = Path::new("demo.glb");
+    for len in (0..glb.len() - 1).step_by(glb.len() / 97) {
+        let result = std::panic::catch_unwind(|| gltf::load_slice(&glb[..len], path).map(|_| ()));
+        let result = result.unwrap_or_else(|_| panic!("panic at length {len}"));
+        assert!(result.is_err(), "truncated at {len} should fail");
+    }
+    assert!(gltf::load_slice(glb, path).is_ok());
+}
+
+#[test]
+fn obj_with_mtl_maps_diffuse_and_emission() {
+    let dir = temp_dir("obj");
+    std::fs::write(
+        dir.join("m.mtl"),
+        "newmtl wall\nKd 0.5 0.25 0.125\nnewmtl lamp\nKd 0 0 0\nKe 4 4 4\n",
+    )
+    .unwrap();
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl wall\nf 1 2 3 4\nusemtl lamp\nf 1 3 2\n";
+    let p = write(&dir, "scene.obj", obj);
+    let scene = load_builder(&p).unwrap().build();
+    assert_eq!(scene.triangle_count(), 3);
+    let wall = scene.materials.iter().find(|m| m.name == "wall").unwrap();
+    assert_eq!(
+        wall.base_color.truncate(),
+        nimbus::math::Vec3::new(0.5, 0.25, 0.125)
+    );
+    assert_eq!(wall.specular_factor, 0.0, "no Ks: exactly Lambertian");
+    assert_eq!(scene.lights.len(), 1, "the emissive face is an area light");
+    let err = load_builder(&dir.join("absent.obj")).err().unwrap();
+    assert!(err.to_string().contains("absent.obj"));
+}
