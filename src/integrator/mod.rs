@@ -1,10 +1,13 @@
-//! The light integrator: a unidirectional path tracer with next-event estimation and multiple importance
-//! sampling, and the renderer services it hands to whoever needs light samples or shadow-ray transmittance.
+//! The light integrator: a unidirectional volumetric path tracer with next-event estimation and multiple
+//! importance sampling at surfaces and in media, and the renderer services it hands to whoever needs light
+//! samples or shadow-ray transmittance.
 
+mod medium_stack;
 mod path;
 mod services;
 mod stats;
 
+pub use medium_stack::MediumStack;
 pub use path::{PathSample, PathTracer};
-pub use services::RendererServices;
-pub use stats::RayCounters;
+pub use services::{offset_origin, ChosenLight, RendererServices};
+pub use stats::{PathCounters, RayCounters};

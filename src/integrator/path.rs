@@ -1,13 +1,21 @@
-//! The path tracer: next-event estimation at every non-delta scattering event, BSDF sampling to continue the
-//! path, and multiple importance sampling of both strategies with the power heuristic (Veach 1997, §9.2,
-//! eq. 9.13). Russian roulette (Arvo & Kirk 1990) ends low-throughput paths after a few bounces.
+//! The volumetric path tracer: next-event estimation at every non-delta scattering event (surface or medium),
+//! BSDF or phase-function sampling to continue the path, and multiple importance sampling of both strategies
+//! with the power heuristic (Veach 1997, §9.2, eq. 9.13). Russian roulette (Arvo & Kirk 1990) ends
+//! low-throughput paths after a few bounces.
 //!
-//! `max_depth` counts scattering events, as pbrt's `maxdepth`: 0 shows emitters seen directly, 1 adds direct
-//! lighting, and so on. Crossing an index-matched boundary (transmission 1, ior 1, smooth) is not a scattering
-//! event and does not count.
+//! Media: along each segment every medium proposes its next real collision ([`Medium::sample_free_flight`]);
+//! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. Nothing
+//! here depends on which tracking method a medium uses.
+//!
+//! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
+//! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
+//! 1, ior 1, smooth) is not a scattering event and does not count.
+//!
+//! [`Medium::sample_free_flight`]: crate::volume::Medium::sample_free_flight
+//! [`Medium::free_flight_weight`]: crate::volume::Medium::free_flight_weight
 
 use super::services::{offset_origin, RendererServices};
-use super::RayCounters;
+use super::{MediumStack, PathCounters};
 use crate::math::{sampling::power_heuristic, Frame, Ray, Rgb, Rng, Vec3};
 
 /// Bounces after which Russian roulette may end a path.
@@ -35,6 +43,20 @@ pub struct PathTracer {
     pub max_depth: u32,
 }
 
+/// The state of a path between events.
+struct PathState {
+    radiance: Rgb,
+    beta: Rgb,
+    depth: u32,
+    /// Whether the last scattering event was a delta lobe (no MIS for emitters hit next).
+    prev_delta: bool,
+    /// Solid-angle density of the last sampled direction, for MIS on emitters hit next.
+    prev_pdf: f32,
+    /// Where the last scattering event happened.
+    prev_p: Vec3,
+    stack: MediumStack,
+}
+
 impl PathTracer {
     /// Traces one camera path.
     pub fn trace(
@@ -42,33 +64,79 @@ impl PathTracer {
         services: &RendererServices,
         mut ray: Ray,
         rng: &mut Rng,
-        counters: &mut RayCounters,
+        counters: &mut PathCounters,
     ) -> PathSample {
         let scene = services.scene();
         let mut out = PathSample::default();
-        let mut radiance = Rgb::ZERO;
-        let mut beta = Rgb::ONE;
-        let mut depth = 0u32;
+        let mut s = PathState {
+            radiance: Rgb::ZERO,
+            beta: Rgb::ONE,
+            depth: 0,
+            prev_delta: true,
+            prev_pdf: 0.0,
+            prev_p: ray.origin,
+            stack: MediumStack::default(),
+        };
         let mut crossings = 0u32;
-        // State of the previous scattering event, for MIS on emitters hit by BSDF sampling.
-        let mut prev_delta = true;
-        let mut prev_pdf = 0.0f32;
-        let mut prev_p = ray.origin;
         let mut first_hit = true;
-        counters.camera += 1;
+        counters.rays.camera += 1;
         loop {
-            let Some(hit) = scene.intersect(&ray, 0.0, f32::INFINITY) else {
+            let hit = scene.intersect(&ray, 0.0, f32::INFINITY);
+            let t_surface = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
+
+            // Media along the segment: the nearest proposed collision wins.
+            let media = services.segment_media(&ray, t_surface, &s.stack);
+            let mut nearest: Option<(f32, u32)> = None;
+            let throughput = s.beta;
+            for &m in media.ids() {
+                let medium = &scene.media[m as usize];
+                if let Some(t) = medium.sample_free_flight(
+                    &ray,
+                    t_surface,
+                    throughput,
+                    rng,
+                    &mut counters.media[m as usize],
+                ) {
+                    if nearest.is_none_or(|(tn, _)| t < tn) {
+                        nearest = Some((t, m));
+                    }
+                }
+            }
+            let t_event = nearest.map_or(t_surface, |(t, _)| t);
+            for &m in media.ids() {
+                let collided = nearest.is_some_and(|(_, n)| n == m);
+                let medium = &scene.media[m as usize];
+                s.beta *= medium.free_flight_weight(
+                    &ray,
+                    t_event,
+                    collided,
+                    throughput,
+                    rng,
+                    &mut counters.media[m as usize],
+                );
+            }
+            if let Some((t, m)) = nearest {
+                if !self.scatter_in_medium(services, &mut s, &mut ray, t, m, rng, counters) {
+                    break;
+                }
+                continue;
+            }
+
+            let Some(hit) = hit else {
                 if let Some(env) = scene.environment_light() {
                     let le = env.radiance(ray.dir);
-                    let weight = if prev_delta {
+                    let weight = if s.prev_delta {
                         1.0
                     } else {
-                        power_heuristic(prev_pdf, services.environment_pdf(ray.dir))
+                        power_heuristic(s.prev_pdf, services.environment_pdf(ray.dir))
                     };
-                    radiance += beta * le * weight;
+                    s.radiance += s.beta * le * weight;
                 }
                 break;
             };
+            if s.beta.max_element() <= 0.0 {
+                break;
+            }
             let material = &scene.materials[hit.material as usize];
             let wo_world = -ray.dir;
             if first_hit {
@@ -85,12 +153,12 @@ impl PathTracer {
             if hit.front_face && material.is_emissive() {
                 let le = material.emission_at(hit.uv, &scene.textures);
                 let weight = match scene.area_light_of(hit.prim) {
-                    Some(light) if !prev_delta => {
-                        power_heuristic(prev_pdf, services.area_light_pdf(light, prev_p, hit.p))
+                    Some(light) if !s.prev_delta => {
+                        power_heuristic(s.prev_pdf, services.area_light_pdf(light, s.prev_p, hit.p))
                     }
                     _ => 1.0,
                 };
-                radiance += beta * le * weight;
+                s.radiance += s.beta * le * weight;
             }
             let bsdf = material.bsdf(hit.uv, &scene.textures);
             if bsdf.is_index_matched() {
@@ -98,11 +166,15 @@ impl PathTracer {
                 if crossings > MAX_BOUNDARY_CROSSINGS {
                     break;
                 }
-                counters.bounce += 1;
+                if let Some(interior) = material.interior {
+                    s.stack
+                        .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
+                }
+                counters.rays.bounce += 1;
                 ray = Ray::new(offset_origin(hit.p, hit.geometric_normal, ray.dir), ray.dir);
                 continue;
             }
-            if depth >= self.max_depth {
+            if s.depth >= self.max_depth {
                 break;
             }
             // Orient the shading frame: one-sided surfaces reflect nothing from behind.
@@ -126,7 +198,18 @@ impl PathTracer {
                     let f = bsdf.eval(wo, wi) * wi.z.abs();
                     if f.max_element() > 0.0 {
                         let origin = offset_origin(hit.p, hit.geometric_normal, ls.wi);
-                        let tr = services.transmittance(origin, ls.wi, ls.distance, counters);
+                        let mut stack = s.stack;
+                        if let Some(interior) = material.interior {
+                            stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
+                        }
+                        let tr = services.transmittance(
+                            origin,
+                            ls.wi,
+                            ls.distance,
+                            &stack,
+                            rng,
+                            counters,
+                        );
                         if tr.max_element() > 0.0 {
                             let light_pdf = chosen.pmf * ls.pdf;
                             let weight = if ls.is_delta {
@@ -134,7 +217,7 @@ impl PathTracer {
                             } else {
                                 power_heuristic(light_pdf, bsdf.pdf(wo, wi))
                             };
-                            radiance += beta * f * tr * ls.radiance * (weight / light_pdf);
+                            s.radiance += s.beta * f * tr * ls.radiance * (weight / light_pdf);
                         }
                     }
                 }
@@ -147,25 +230,93 @@ impl PathTracer {
                 break;
             }
             let wi_world = frame.to_world(bs.wi);
-            beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
-            prev_delta = bs.is_delta;
-            prev_pdf = bs.pdf;
-            prev_p = hit.p;
-            depth += 1;
-            if depth > ROULETTE_START {
-                let survive = beta.max_element().clamp(0.05, 1.0);
-                if rng.next_f32() >= survive {
-                    break;
+            s.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+            s.prev_delta = bs.is_delta;
+            s.prev_pdf = bs.pdf;
+            s.prev_p = hit.p;
+            if let Some(interior) = material.interior {
+                // Crossing the surface (refraction) enters or leaves its interior.
+                let crossing = wi_world.dot(hit.geometric_normal).signum()
+                    != wo_world.dot(hit.geometric_normal).signum();
+                if crossing {
+                    s.stack
+                        .cross(interior, wi_world.dot(hit.geometric_normal) < 0.0);
                 }
-                beta /= survive;
             }
-            counters.bounce += 1;
+            if !self.next_bounce(&mut s, rng) {
+                break;
+            }
+            counters.rays.bounce += 1;
             ray = Ray::new(
                 offset_origin(hit.p, hit.geometric_normal, wi_world),
                 wi_world,
             );
         }
-        out.radiance = radiance;
+        out.radiance = s.radiance;
         out
+    }
+
+    /// Handles a real collision at distance `t` in medium `m`: emission, next-event estimation with MIS against
+    /// phase sampling, then phase sampling to continue. Returns false when the path ends.
+    #[allow(clippy::too_many_arguments)]
+    fn scatter_in_medium(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &mut Ray,
+        t: f32,
+        m: u32,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> bool {
+        let scene = services.scene();
+        let p = ray.at(t);
+        let collision = scene.media[m as usize].collision(p);
+        s.radiance += s.beta * collision.emission;
+        s.beta *= collision.albedo;
+        if s.beta.max_element() <= 0.0 || s.depth >= self.max_depth {
+            return false;
+        }
+        let wo = -ray.dir;
+        if let Some(chosen) = services.sample_light(p, rng) {
+            let ls = chosen.sample;
+            let phase = collision.phase.eval(wo, ls.wi);
+            if phase > 0.0 {
+                let tr = services.transmittance(p, ls.wi, ls.distance, &s.stack, rng, counters);
+                if tr.max_element() > 0.0 {
+                    let light_pdf = chosen.pmf * ls.pdf;
+                    let weight = if ls.is_delta {
+                        1.0
+                    } else {
+                        power_heuristic(light_pdf, phase)
+                    };
+                    s.radiance += s.beta * tr * ls.radiance * (phase * weight / light_pdf);
+                }
+            }
+        }
+        // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
+        let (wi, pdf) = collision.phase.sample(wo, rng.next_2d());
+        s.prev_delta = false;
+        s.prev_pdf = pdf;
+        s.prev_p = p;
+        if !self.next_bounce(s, rng) {
+            return false;
+        }
+        counters.rays.bounce += 1;
+        *ray = Ray::new(p, wi);
+        true
+    }
+
+    /// Counts a scattering event and plays Russian roulette; returns false when the path ends.
+    fn next_bounce(&self, s: &mut PathState, rng: &mut Rng) -> bool {
+        s.depth += 1;
+        if s.depth > ROULETTE_START {
+            let survive = s.beta.max_element().clamp(0.05, 1.0);
+            if rng.next_f32() >= survive {
+                return false;
+            }
+            s.beta /= survive;
+        }
+        true
     }
 }

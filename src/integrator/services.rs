@@ -1,8 +1,9 @@
 //! Renderer services (Fong et al. 2017, "Production Volume Rendering", §5): what the renderer offers to
-//! whoever integrates light at a point — a surface BSDF today, a volume later — without them knowing the scene:
-//! choosing and sampling a light, and the transmittance of a shadow ray.
+//! whoever integrates light at a point — a surface BSDF or a medium's scattering event — without them knowing
+//! the scene: choosing and sampling a light, and the transmittance of a shadow ray through everything in
+//! between (index-matched boundaries, nested interiors, overlapping position-filled volumes).
 
-use super::RayCounters;
+use super::{MediumStack, PathCounters};
 use crate::light::{Light, LightSample};
 use crate::math::{Ray, Rgb, Rng, Vec3};
 use crate::scene::Scene;
@@ -23,6 +24,10 @@ pub struct ChosenLight {
 
 /// Offset for ray origins leaving a surface, relative to the magnitude of the coordinates.
 const RAY_EPSILON: f32 = 1e-4;
+/// Surfaces a shadow ray may pass through (index-matched boundaries) before it is considered blocked.
+const MAX_SHADOW_CROSSINGS: u32 = 64;
+/// Most media a segment can be inside at once (one interior plus overlapping volumes).
+pub const MAX_SEGMENT_MEDIA: usize = 8;
 
 /// Moves `p` off the surface with geometric normal `n` toward the side that `dir` points to.
 pub fn offset_origin(p: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
@@ -31,6 +36,28 @@ pub fn offset_origin(p: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
         p + n * scale
     } else {
         p - n * scale
+    }
+}
+
+/// The media a ray segment runs through: the current interior and every position-filled volume whose bounds
+/// it crosses.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SegmentMedia {
+    ids: [u32; MAX_SEGMENT_MEDIA],
+    len: usize,
+}
+
+impl SegmentMedia {
+    /// The medium indices.
+    pub fn ids(&self) -> &[u32] {
+        &self.ids[..self.len]
+    }
+
+    fn push(&mut self, id: u32) {
+        if self.len < MAX_SEGMENT_MEDIA && !self.ids().contains(&id) {
+            self.ids[self.len] = id;
+            self.len += 1;
+        }
     }
 }
 
@@ -43,6 +70,21 @@ impl<'a> RendererServices<'a> {
     /// The scene.
     pub fn scene(&self) -> &'a Scene {
         self.scene
+    }
+
+    /// The media the segment `(0, t_max)` of `ray` runs through, given the interior stack.
+    pub fn segment_media(&self, ray: &Ray, t_max: f32, stack: &MediumStack) -> SegmentMedia {
+        let mut out = SegmentMedia::default();
+        if let Some(m) = stack.current() {
+            out.push(m);
+        }
+        for &m in &self.scene.filled_media {
+            let bounds = self.scene.media[m as usize].fill_bounds();
+            if bounds.is_some_and(|b| b.intersect(ray, 0.0, t_max).is_some()) {
+                out.push(m);
+            }
+        }
+        out
     }
 
     /// Chooses a light by power and samples it as seen from `p`.
@@ -74,26 +116,55 @@ impl<'a> RendererServices<'a> {
     }
 
     /// Transmittance of the shadow ray from `origin` along unit `dir` over `distance` (infinite for lights at
-    /// infinity): 1 when nothing blocks it, 0 otherwise.
+    /// infinity), starting inside the interiors of `stack`. Index-matched boundaries let it through (updating
+    /// the interiors); any other surface blocks it. Media contribute their transmittance estimates.
     pub fn transmittance(
         &self,
         origin: Vec3,
         dir: Vec3,
         distance: f32,
-        counters: &mut RayCounters,
+        stack: &MediumStack,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
     ) -> Rgb {
-        counters.shadow += 1;
-        let ray = Ray::new(origin, dir);
+        counters.rays.shadow += 1;
+        let scene = self.scene;
+        let mut stack = *stack;
+        let mut ray = Ray::new(origin, dir);
         // Stop short of the light's own surface.
-        let t_max = if distance.is_finite() {
+        let mut remaining = if distance.is_finite() {
             distance * (1.0 - 1e-4)
         } else {
             f32::INFINITY
         };
-        if self.scene.occluded(&ray, 0.0, t_max) {
-            Rgb::ZERO
-        } else {
-            Rgb::ONE
+        let mut tr = Rgb::ONE;
+        for _ in 0..MAX_SHADOW_CROSSINGS {
+            let hit = scene.intersect(&ray, 0.0, remaining);
+            let t_seg = hit.as_ref().map_or(remaining, |h| h.t);
+            for &m in self.segment_media(&ray, t_seg, &stack).ids() {
+                let medium = &scene.media[m as usize];
+                tr *= medium.transmittance(&ray, t_seg, rng, &mut counters.media[m as usize]);
+            }
+            if tr.max_element() <= 0.0 {
+                return Rgb::ZERO;
+            }
+            let Some(hit) = hit else { return tr };
+            let material = &scene.materials[hit.material as usize];
+            if !material.bsdf(hit.uv, &scene.textures).is_index_matched() {
+                return Rgb::ZERO;
+            }
+            if let Some(interior) = material.interior {
+                stack.cross(interior, dir.dot(hit.geometric_normal) < 0.0);
+            }
+            let next = offset_origin(hit.p, hit.geometric_normal, dir);
+            if remaining.is_finite() {
+                remaining -= (next - ray.origin).length();
+                if remaining <= 0.0 {
+                    return tr;
+                }
+            }
+            ray = Ray::new(next, dir);
         }
+        Rgb::ZERO
     }
 }

@@ -45,6 +45,8 @@ pub struct Material {
     pub transmission: f32,
     /// When false the back face of an opaque surface reflects nothing.
     pub double_sided: bool,
+    /// The medium filling the interior of a closed mesh with this material (index into `Scene::media`).
+    pub interior: Option<u32>,
 }
 
 impl Default for Material {
@@ -65,6 +67,7 @@ impl Default for Material {
             specular_color: Rgb::ONE,
             transmission: 0.0,
             double_sided: false,
+            interior: None,
         }
     }
 }

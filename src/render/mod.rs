@@ -7,4 +7,6 @@ mod renderer;
 
 pub use film::Film;
 pub use image::RenderImage;
-pub use renderer::{peak_memory_bytes, Progress, RenderSettings, RenderStats, Renderer};
+pub use renderer::{
+    peak_memory_bytes, MediumStats, Progress, RenderSettings, RenderStats, Renderer,
+};

@@ -6,9 +6,10 @@
 
 use super::film::Film;
 use super::RenderImage;
-use crate::integrator::{PathTracer, RayCounters, RendererServices};
+use crate::integrator::{PathCounters, PathTracer, RayCounters, RendererServices};
 use crate::math::{is_finite_rgb, Rng, Vec2};
 use crate::scene::Scene;
+use crate::volume::TrackingCounters;
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -85,6 +86,23 @@ pub struct RenderStats {
     pub samples_per_second: f64,
     /// True when the caller cancelled the render.
     pub cancelled: bool,
+    /// Per-medium tracking work and the method chosen.
+    pub media: Vec<MediumStats>,
+}
+
+/// Statistics of one medium, as written by `--stats` under `media`.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct MediumStats {
+    /// The glTF node or material that declared it.
+    pub name: String,
+    /// The estimator chosen for it.
+    pub method: String,
+    /// Bytes held by the medium (grids, majorants).
+    pub memory_bytes: usize,
+    /// Tracking counters (`density_lookups`, `real_collisions`, `null_collisions`, `majorant_segments`,
+    /// `majorant_violations`).
+    #[serde(flatten)]
+    pub counters: TrackingCounters,
 }
 
 /// Renders scenes with fixed settings.
@@ -117,7 +135,7 @@ impl Renderer {
         let threads = pool.current_num_threads();
         let start = Instant::now();
         let mut film = Film::new(s.width, s.height);
-        let mut counters = RayCounters::default();
+        let mut counters = PathCounters::new(scene.media.len());
         let mut nan_samples = 0u64;
         let mut done = 0u32;
         let mut cancelled = false;
@@ -165,7 +183,7 @@ impl Renderer {
         let stats = RenderStats {
             samples_per_pixel: done,
             render_seconds: seconds,
-            rays: counters,
+            rays: counters.rays,
             nan_samples,
             peak_memory_bytes: peak_memory_bytes(),
             width: s.width,
@@ -175,6 +193,17 @@ impl Renderer {
             max_depth: s.max_depth,
             samples_per_second: (done as f64 * (s.width * s.height) as f64) / seconds.max(1e-9),
             cancelled,
+            media: scene
+                .media
+                .iter()
+                .zip(&counters.media)
+                .map(|(m, c)| MediumStats {
+                    name: m.name().to_owned(),
+                    method: m.method(),
+                    memory_bytes: m.memory_bytes(),
+                    counters: *c,
+                })
+                .collect(),
         };
         Ok((film.image(), stats))
     }
@@ -186,7 +215,7 @@ impl Renderer {
         film: &mut Film,
         first: u32,
         count: u32,
-    ) -> (RayCounters, u64) {
+    ) -> (PathCounters, u64) {
         let s = &self.settings;
         let (width, height) = (film.width, film.height);
         debug_assert!(width > 0 && height > 0);
@@ -199,7 +228,7 @@ impl Renderer {
             .par_chunks_mut(width)
             .enumerate()
             .map(|(y, row)| {
-                let mut counters = RayCounters::default();
+                let mut counters = PathCounters::new(scene.media.len());
                 let mut nans = 0u64;
                 for (x, pixel) in row.iter_mut().enumerate() {
                     let pixel_index = (y * width + x) as u64;
@@ -223,7 +252,7 @@ impl Renderer {
                 (counters, nans)
             })
             .reduce(
-                || (RayCounters::default(), 0),
+                || (PathCounters::new(scene.media.len()), 0),
                 |mut a, b| {
                     a.0.add(&b.0);
                     (a.0, a.1 + b.1)

@@ -418,10 +418,62 @@ impl Loader<'_> {
                 .transmission()
                 .map_or(0.0, |t| t.transmission_factor()),
             double_sided: material.double_sided(),
+            interior: None,
         };
+        let mut m = m;
+        m.interior = self.interior_medium(&material, &m)?;
         let id = self.builder.add_material(m);
         self.material_map.insert(material.index(), id);
         Ok(id)
+    }
+
+    /// The medium filling meshes with this material: `extras.nimbus_medium`, else `KHR_materials_volume` with
+    /// `thicknessFactor` > 0 on a transmissive material (absorption only).
+    fn interior_medium(
+        &mut self,
+        material: &gltf::Material,
+        m: &Material,
+    ) -> Result<Option<u32>, SceneError> {
+        let bad = |msg: String| {
+            self.error(SceneErrorKind::Malformed(format!(
+                "material '{}': {msg}",
+                m.name
+            )))
+        };
+        if let Some(raw) = material.extras() {
+            let extras: serde_json::Value =
+                serde_json::from_str(raw.get()).map_err(|e| bad(format!("extras: {e}")))?;
+            if let Some(spec) = extras.get("nimbus_medium") {
+                let medium = crate::volume::parse_nimbus_medium(spec, &m.name)
+                    .map_err(|e| bad(format!("nimbus_medium: {e}")))?;
+                return Ok(Some(self.builder.add_medium(medium)));
+            }
+        }
+        if let Some(volume) = material.volume() {
+            if volume.thickness_factor() > 0.0 && m.transmission > 0.0 {
+                let distance = volume.attenuation_distance();
+                let color = Rgb::from(volume.attenuation_color());
+                if distance.is_nan() || distance <= 0.0 || color.min_element() <= 0.0 {
+                    return Err(bad(
+                        "KHR_materials_volume needs attenuationDistance > 0 and a positive attenuationColor".into(),
+                    ));
+                }
+                // Beer's law: attenuationColor is the transmittance after attenuationDistance (infinite: none).
+                let sigma_a = if distance.is_finite() {
+                    Rgb::new(-color.x.ln(), -color.y.ln(), -color.z.ln()).max(Rgb::ZERO) / distance
+                } else {
+                    Rgb::ZERO
+                };
+                let medium = crate::volume::homogeneous::HomogeneousMedium::new(
+                    &m.name,
+                    sigma_a,
+                    Rgb::ZERO,
+                    0.0,
+                );
+                return Ok(Some(self.builder.add_medium(std::sync::Arc::new(medium))));
+            }
+        }
+        Ok(None)
     }
 
     fn texture(

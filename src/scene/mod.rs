@@ -15,7 +15,9 @@ use crate::geometry::{Bvh, Mesh};
 use crate::light::{AreaLight, EnvironmentLight, Light, LightSampler};
 use crate::material::{Material, Texture};
 use crate::math::{Aabb, Frame, Ray, Vec2, Vec3};
+use crate::volume::Medium;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Reads a scene file into a builder (to be adjusted, then built), choosing the loader by extension.
 pub fn load_builder(path: &Path) -> Result<SceneBuilder, SceneError> {
@@ -47,9 +49,17 @@ pub struct SceneBuilder {
     pub max_bounces: Option<u32>,
     /// Non-fatal problems met while loading (unknown optional extensions, dropped primitives).
     pub warnings: Vec<String>,
+    /// Participating media: mesh interiors (referenced by `Material::interior`) and position-filled volumes.
+    pub media: Vec<Arc<dyn Medium>>,
 }
 
 impl SceneBuilder {
+    /// Adds a medium and returns its index.
+    pub fn add_medium(&mut self, medium: Arc<dyn Medium>) -> u32 {
+        self.media.push(medium);
+        (self.media.len() - 1) as u32
+    }
+
     /// Adds a material and returns its index.
     pub fn add_material(&mut self, material: Material) -> u32 {
         self.materials.push(material);
@@ -110,7 +120,12 @@ impl SceneBuilder {
         let environment = lights
             .iter()
             .position(|l| matches!(l, Light::Environment(_)));
+        let filled_media = (0..self.media.len() as u32)
+            .filter(|&m| self.media[m as usize].fill_bounds().is_some())
+            .collect();
         Scene {
+            media: self.media,
+            filled_media,
             camera: self.camera.unwrap_or_else(|| Camera::framing(&bounds)),
             meshes: self.meshes,
             materials: self.materials,
@@ -150,6 +165,10 @@ pub struct Scene {
     pub max_bounces: Option<u32>,
     /// Problems met while loading.
     pub warnings: Vec<String>,
+    /// Participating media.
+    pub media: Vec<Arc<dyn Medium>>,
+    /// Indices of the media that fill a region by position (VDB volumes), not a mesh interior.
+    pub filled_media: Vec<u32>,
     bvh: Bvh,
     prims: Vec<(u32, u32)>,
     light_of_prim: Vec<u32>,

@@ -97,3 +97,44 @@ pub fn quad(corners: [Vec3; 4], material: u32) -> Mesh {
         material,
     }
 }
+
+/// An axis-aligned box with outward normals and counter-clockwise front faces (flat-shaded, 24 vertices).
+pub fn cuboid(min: Vec3, max: Vec3, material: u32) -> Mesh {
+    let c = |x: usize, y: usize, z: usize| {
+        Vec3::new([min.x, max.x][x], [min.y, max.y][y], [min.z, max.z][z])
+    };
+    // Each face: four corners counter-clockwise seen from outside.
+    let faces = [
+        [c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)], // +x
+        [c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)], // -x
+        [c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)], // +y
+        [c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)], // -y
+        [c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)], // +z
+        [c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)], // -z
+    ];
+    let mut mesh = Mesh {
+        name: "box".into(),
+        material,
+        ..Default::default()
+    };
+    for f in faces {
+        let base = mesh.positions.len() as u32;
+        let n = (f[1] - f[0]).cross(f[3] - f[0]).normalize();
+        mesh.positions.extend_from_slice(&f);
+        mesh.normals.extend_from_slice(&[n; 4]);
+        mesh.indices.push([base, base + 1, base + 2]);
+        mesh.indices.push([base, base + 2, base + 3]);
+    }
+    mesh
+}
+
+/// An index-matched boundary material (transmission 1, ior 1, smooth) owning `medium` as its interior.
+pub fn boundary(medium: u32) -> nimbus::material::Material {
+    let mut m = nimbus::material::Material::lambertian("boundary", Vec3::ONE);
+    m.transmission = 1.0;
+    m.ior = 1.0;
+    m.roughness = 0.0;
+    m.specular_factor = 1.0;
+    m.interior = Some(medium);
+    m
+}
