@@ -49,7 +49,7 @@ def quat_from_basis(x, y, z):
         s = 2 * math.sqrt(1 + m22 - m00 - m11)
         q = [(m02 + m20) / s, (m12 + m21) / s, s / 4, (m10 - m01) / s]
     n = math.sqrt(sum(c * c for c in q))
-    return [c / n for c in q]
+    return [c / n + 0.0 for c in q]          # + 0.0: no "-0.0" in the JSON
 
 
 def look_rotation(forward, up=(0.0, 1.0, 0.0)):
@@ -151,6 +151,17 @@ class GltfBuilder:
         n = normalize(cross(sub(b, a), sub(d, a)))
         return self.add_mesh(name, [a, b, c, d], [n] * 4, [0, 1, 2, 0, 2, 3], material, **node_fields)
 
+    def quads(self, name, quad_list, material, **node_fields):
+        """many quads (each: corners counter-clockwise seen from the front) in one mesh, flat normals"""
+        pos, nor, idx = [], [], []
+        for a, b, c, d in quad_list:
+            n = normalize(cross(sub(b, a), sub(d, a)))
+            k = len(pos)
+            pos += [a, b, c, d]
+            nor += [n] * 4
+            idx += [k, k + 1, k + 2, k, k + 2, k + 3]
+        return self.add_mesh(name, pos, nor, idx, material, **node_fields)
+
     def box(self, name, lo, hi, material, **node_fields):
         """closed axis-aligned box [lo, hi], 6 faces x 4 vertices with flat outward normals, CCW seen from outside"""
         x0, y0, z0 = lo
@@ -241,8 +252,10 @@ class GltfBuilder:
             self.buffer.append(0)
         gltf = {
             "asset": {"version": "2.0", "generator": generator},
-            "extensionsUsed": extensions_used if extensions_used is not None else self.extensions_in_use(),
         }
+        used = extensions_used if extensions_used is not None else self.extensions_in_use()
+        if used:                                   # the schema wants at least one item when present
+            gltf["extensionsUsed"] = used
         if self.lights:
             gltf["extensions"] = {"KHR_lights_punctual": {"lights": self.lights}}
         scene = {"nodes": list(range(len(self.nodes)))}
