@@ -17,10 +17,12 @@ scaled by 1.15 and displaced by 5-octave fBm of a value noise written here in nu
 quintic-smoothed trilinear interpolation), turned into density with a soft ramp 0.12 m wide at the surface and a
 gentle fBm modulation inside. The cloud's base sits at y = 0 of the VDB's own space, centred on x = z = 0; the glTF
 node places it. Voxels below 1e-3 are inactive (the background is 0). Files are written by OpenVDB's default
-writer: Blosc (LZ4, byte shuffle) if the library has Blosc, else zip, with active-mask compression; float32 values.
+writer (header UUID made deterministic): Blosc (LZ4, byte shuffle) if the library has Blosc, else zip, with active-mask compression; float32 values.
 """
 import os
+import re
 import sys
+import uuid
 
 import numpy as np
 import pyopenvdb as vdb
@@ -133,6 +135,19 @@ def make_grid(arr, name, lo, voxel, tolerance):
     return g
 
 
+def write_vdb(path, grids, metadata):
+    """vdb.write, then the file header's random UUID replaced by one derived from the file name and SEED, so that
+    reruns give byte-identical files. Header: int64 magic, uint32 file version, uint32 x2 library version, uint8
+    has-grid-offsets, then the UUID as 36 ASCII characters at byte 21."""
+    vdb.write(path, grids=grids, metadata=metadata)
+    with open(path, "r+b") as f:
+        head = f.read(57)
+        if head[:8] != b" BDV\0\0\0\0" or not re.fullmatch(rb"[0-9a-f-]{36}", head[21:57]):
+            raise RuntimeError(f"{path}: unexpected OpenVDB header layout; UUID left as written")
+        f.seek(21)
+        f.write(str(uuid.uuid5(uuid.NAMESPACE_URL, f"nimbus:{os.path.basename(path)}:{SEED}")).encode())
+
+
 def describe(path):
     for g in vdb.readAll(path)[0]:
         lo, hi = g.evalActiveVoxelBoundingBox()
@@ -151,16 +166,24 @@ def main():
     density = make_grid(rho, "density", LO, VOXEL, 1e-3)
     temperature = make_grid(temp, "temperature", LO, VOXEL, 1.0)
     cloud = os.path.join(root, "assets", "cloud.vdb")
-    vdb.write(cloud, grids=[density, temperature],
-              metadata={"creator": "nimbus assets/make_cloud.py", "seed": SEED})
+    write_vdb(cloud, [density, temperature], {"creator": "nimbus assets/make_cloud.py", "seed": SEED})
     print("wrote", cloud, os.path.getsize(cloud), "bytes")
     describe(cloud)
 
-    ones = np.ones((16, 16, 16), np.float32)
-    const = make_grid(ones, "density", (0, 0, 0), CONST_VOXEL, 0.0)
+    # set voxel by voxel: 8 dense leaves of 8^3 voxels (copyFromArray or prune() would fold each constant leaf
+    # into an active tile of value 1; the test fixture keeps the plainest layout)
+    const = vdb.FloatGrid(0.0)
+    const.name = "density"
+    const.gridClass = vdb.GridClass.FOG_VOLUME
+    const.transform = vdb.createLinearTransform(voxelSize=CONST_VOXEL)
+    acc = const.getAccessor()
+    for i in range(16):
+        for j in range(16):
+            for k in range(16):
+                acc.setValueOn((i, j, k), 1.0)
     out = os.path.join(root, "tests", "scenes", "constant_grid.vdb")
     os.makedirs(os.path.dirname(out), exist_ok=True)
-    vdb.write(out, grids=[const], metadata={"creator": "nimbus assets/make_cloud.py"})
+    write_vdb(out, [const], {"creator": "nimbus assets/make_cloud.py"})
     print("wrote", out, os.path.getsize(out), "bytes")
     describe(out)
     return 0
