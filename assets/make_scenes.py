@@ -53,13 +53,14 @@ def written(path, n):
 # ----------------------------------------------------------------------------------------------- cloud scenes
 def cloud_scene():
     b = GltfBuilder()
-    ground = b.lambert("ground", [0.45, 0.45, 0.42])
+    ground = b.lambert("ground", [0.3, 0.3, 0.28])
     g = 40.0
     b.quad("ground", [[-g, 0, g], [g, 0, g], [g, 0, -g], [-g, 0, -g]], ground)
     # the cloud's base 1 m above the ground
     b.volume_node("cloud_volume", dict(CLOUD), translation=[0.0, 1.0, 0.0])
-    b.directional_light("sun", direction=[-0.6, -0.55, -0.6], color=[1.0, 0.9, 0.75], intensity=3.0)
-    b.camera("camera", eye=[0.0, 0.9, 4.2], target=[0.05, 1.45, 0.0], yfov_deg=30, aspect=16 / 9)
+    # the sun ~58 degrees high, from the front right: lit side towards the camera, shadow behind-left on the ground
+    b.directional_light("sun", direction=[-0.5, -1.0, -0.35], color=[1.0, 0.9, 0.75], intensity=3.0)
+    b.camera("camera", eye=[0.4, 1.6, 4.2], target=[-0.1, 1.2, 0.0], yfov_deg=32, aspect=16 / 9)
     out = os.path.join(ASSETS, "cloud.gltf")
     written(out, b.write(out, GENERATOR, scene_extras={"nimbus_environment": {"color": [0.35, 0.5, 0.8]},
                                                        "max_bounces": 64}))
@@ -104,14 +105,15 @@ def beers_law_scene():
     r = 0.75
     for x, sigma, kind in [(-2.55, 0.4, "khr_volume"), (-0.85, 0.4, "nimbus_medium"),
                            (0.85, 0.8, "khr_volume"), (2.55, 0.8, "nimbus_medium")]:
-        name = f"sphere_{kind}_sigma_a_{sigma}"
+        tag = f"{sigma:g}".replace(".", "p")        # no '.' in names: Mitsuba object keys reserve it
+        name = f"sphere_{kind}_sigma_a_{tag}"
         if kind == "khr_volume":
             # Beer's law from KHR_materials_volume: sigma_a = -ln(attenuationColor) / attenuationDistance
             c = math.exp(-sigma)
-            mat = b.dielectric(f"beer_khr_{sigma}", ior=1.0, extensions={"KHR_materials_volume": {
+            mat = b.dielectric(f"beer_khr_sigma_a_{tag}", ior=1.0, extensions={"KHR_materials_volume": {
                 "thicknessFactor": 2 * r, "attenuationDistance": 1.0, "attenuationColor": [c, c, c]}})
         else:
-            mat = b.medium_boundary(f"beer_nimbus_{sigma}", {"sigma_a": [sigma] * 3, "sigma_s": [0.0] * 3,
+            mat = b.medium_boundary(f"beer_nimbus_sigma_a_{tag}", {"sigma_a": [sigma] * 3, "sigma_s": [0.0] * 3,
                                                               "anisotropy": 0.0})
         b.sphere_instance(name, [x, r, 0.0], r, mat, **SPHERE_RES)
     b.camera("camera", eye=[0.0, 2.2, 7.5], target=[0.0, 0.6, 0.0], yfov_deg=30, aspect=2.0)
@@ -126,9 +128,9 @@ def noise_spheres_scene():
     area_light(b)
     r = 1.0
     for x, dmax in [(-1.3, 1.0), (1.3, 3.0)]:
-        mat = b.medium_boundary(f"perlin_noise_max_density_{dmax}",
+        mat = b.medium_boundary(f"perlin_noise_max_density_{dmax:g}",
                                 {"noise": {"scale": 2.0, "max_density": dmax, "seed": 7}})
-        b.sphere_instance(f"sphere_noise_max_density_{dmax}", [x, r, 0.0], r, mat, **SPHERE_RES)
+        b.sphere_instance(f"sphere_noise_max_density_{dmax:g}", [x, r, 0.0], r, mat, **SPHERE_RES)
     b.camera("camera", eye=[0.0, 2.0, 6.5], target=[0.0, 0.9, 0.0], yfov_deg=30, aspect=1.5)
     out = os.path.join(ASSETS, "thesis_noise_spheres.gltf")
     written(out, b.write(out, GENERATOR, scene_extras={"nimbus_environment": {"color": [0.2, 0.2, 0.2]},
