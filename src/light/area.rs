@@ -115,8 +115,8 @@ mod tests {
         m.emission = Rgb::ONE;
         let v = [
             Vec3::new(-1.0, 1.0, -1.0),
-            Vec3::new(-1.0, 1.0, 1.0),
             Vec3::new(1.0, 1.0, -1.0),
+            Vec3::new(-1.0, 1.0, 1.0),
         ];
         let l = AreaLight::new(v, [Vec2::ZERO; 3], &m, 0).unwrap();
         assert!(l.normal.distance(-Vec3::Y) < 1e-6, "normal {:?}", l.normal);
