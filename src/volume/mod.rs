@@ -21,10 +21,12 @@
 pub mod homogeneous;
 pub mod noise;
 pub mod phase;
+pub mod spec;
 pub mod tracking;
 
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 pub use phase::PhaseFunction;
+pub use spec::VolumeSpec;
 pub use tracking::TrackingCounters;
 
 /// What happens at a real collision inside a medium.
