@@ -54,6 +54,13 @@ pub struct SceneBuilder {
 }
 
 impl SceneBuilder {
+    /// Loads the VDB volume `spec` describes and adds it as a position-filled medium; returns its index.
+    /// Errors name the VDB file (missing file or grid, unreadable grid).
+    pub fn add_volume(&mut self, spec: &crate::volume::VolumeSpec) -> Result<u32, SceneError> {
+        let medium = crate::volume::load_grid_medium(spec)?;
+        Ok(self.add_medium(medium))
+    }
+
     /// Adds a medium and returns its index.
     pub fn add_medium(&mut self, medium: Arc<dyn Medium>) -> u32 {
         self.media.push(medium);
