@@ -195,9 +195,34 @@ impl Loader<'_> {
         if let Some(light) = node.light() {
             self.load_light(light, &world);
         }
+        self.load_volume(&node, &world)?;
         for child in node.children() {
             self.visit(child, world, depth + 1)?;
         }
+        Ok(())
+    }
+
+    /// A node's `extras.nimbus_volume` becomes a grid medium placed by the node's world matrix.
+    fn load_volume(&mut self, node: &gltf::Node, world: &Mat4) -> Result<(), SceneError> {
+        let Some(raw) = node.extras() else {
+            return Ok(());
+        };
+        let name = node
+            .name()
+            .map_or_else(|| format!("node {}", node.index()), str::to_owned);
+        let bad = |m: String| self.error(SceneErrorKind::Malformed(format!("node '{name}': {m}")));
+        let extras: serde_json::Value =
+            serde_json::from_str(raw.get()).map_err(|e| bad(format!("extras: {e}")))?;
+        let Some(value) = extras.get("nimbus_volume") else {
+            return Ok(());
+        };
+        let spec = crate::volume::VolumeSpec::from_json(value, &name, &self.base, *world)
+            .map_err(|e| bad(format!("nimbus_volume: {e}")))?;
+        self.builder.add_volume(&spec).map_err(|e| {
+            self.error(SceneErrorKind::InvalidReference(format!(
+                "node '{name}': nimbus_volume: {e}"
+            )))
+        })?;
         Ok(())
     }
 
