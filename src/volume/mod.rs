@@ -19,6 +19,7 @@
 //!   shadow rays.
 
 pub mod emission;
+pub mod grid;
 pub mod homogeneous;
 pub mod noise;
 pub mod phase;
@@ -26,6 +27,7 @@ pub mod spec;
 pub mod tracking;
 
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
+pub use grid::load_grid_medium;
 pub use phase::PhaseFunction;
 pub use spec::VolumeSpec;
 pub use tracking::TrackingCounters;
@@ -152,12 +154,3 @@ pub fn parse_nimbus_medium(
     )))
 }
 
-/// Loads the VDB file of `spec` and builds its grid medium.
-pub fn load_grid_medium(
-    spec: &VolumeSpec,
-) -> Result<std::sync::Arc<dyn Medium>, crate::scene::SceneError> {
-    Err(crate::scene::SceneError::new(
-        &spec.file,
-        crate::scene::SceneErrorKind::Unsupported("grid media land with the volcore branch".into()),
-    ))
-}

@@ -13,6 +13,8 @@
 //!
 //! Placement: index space → the VDB's own index-to-world matrix → the node's world matrix.
 
+use super::grid::ShadowEstimator;
+use super::majorant::MajorantKind;
 use crate::math::{Mat4, Rgb};
 use std::path::PathBuf;
 
@@ -41,6 +43,10 @@ pub struct VolumeSpec {
     pub temperature_offset: f32,
     /// The node's world matrix, applied after the VDB's own transform.
     pub node_to_world: Mat4,
+    /// Majorant structure for delta tracking (`"majorant"`: `"adaptive"` (default), `"grid16"`, `"global"`).
+    pub majorant: MajorantKind,
+    /// Shadow-ray estimator (`"shadow_estimator"`: `"ratio"` (default) or `"residual_ratio"`).
+    pub shadow_estimator: ShadowEstimator,
 }
 
 impl VolumeSpec {
@@ -58,6 +64,8 @@ impl VolumeSpec {
             temperature_scale: 1.0,
             temperature_offset: 0.0,
             node_to_world,
+            majorant: MajorantKind::Adaptive,
+            shadow_estimator: ShadowEstimator::Ratio,
         }
     }
 
@@ -139,6 +147,21 @@ impl VolumeSpec {
         }
         if let Some(v) = number("temperature_offset")? {
             spec.temperature_offset = v;
+        }
+        if let Some(m) = string("majorant")? {
+            spec.majorant = match m.as_str() {
+                "adaptive" => MajorantKind::Adaptive,
+                "grid16" => MajorantKind::Grid16,
+                "global" => MajorantKind::Global,
+                other => return Err(format!("'majorant' {other:?} is not adaptive, grid16 or global")),
+            };
+        }
+        if let Some(m) = string("shadow_estimator")? {
+            spec.shadow_estimator = match m.as_str() {
+                "ratio" => ShadowEstimator::Ratio,
+                "residual_ratio" => ShadowEstimator::ResidualRatio,
+                other => return Err(format!("'shadow_estimator' {other:?} is not ratio or residual_ratio")),
+            };
         }
         if let Some(a) = value.get("albedo") {
             spec.albedo = match a.as_f64() {
