@@ -75,6 +75,9 @@ struct RenderArgs {
     /// Exposure of the PNG preview in stops.
     #[arg(long, default_value_t = 0.0)]
     exposure: f32,
+    /// Print the estimator chosen for each medium before rendering.
+    #[arg(long)]
+    explain: bool,
 }
 
 fn parse_rgb(s: &str) -> Result<Rgb, String> {
@@ -136,6 +139,11 @@ fn render(args: RenderArgs) -> Result<(), String> {
     for w in &scene.warnings {
         eprintln!("nimbus: warning: {w}");
     }
+    if args.explain {
+        for m in &scene.media {
+            eprintln!("nimbus: medium '{}': {}", m.name(), m.method());
+        }
+    }
     let width = args.width.unwrap_or(640).max(1);
     let aspect = scene.camera.aspect_ratio.unwrap_or(4.0 / 3.0);
     let height = args
@@ -194,6 +202,12 @@ fn render(args: RenderArgs) -> Result<(), String> {
         stats.render_seconds,
         stats.samples_per_second
     );
+    for m in stats.media.iter().filter(|m| m.counters.majorant_violations > 0) {
+        eprintln!(
+            "nimbus: warning: medium '{}': {} density lookups exceeded their majorant; the estimate is biased there",
+            m.name, m.counters.majorant_violations
+        );
+    }
     if stats.nan_samples > 0 {
         eprintln!(
             "nimbus: warning: {} NaN/Inf samples were dropped",
