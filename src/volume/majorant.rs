@@ -470,3 +470,94 @@ impl Majorants {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Rng;
+    use crate::volume::density::test_fields::sphere_grid;
+
+    #[test]
+    fn majorants_bound_the_trilinear_density() {
+        let g = sphere_grid(8.0);
+        let b = g.index_bounds();
+        let mut rng = Rng::new(42, 7);
+        let u3 = |rng: &mut Rng| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        for kind in MajorantKind::ALL {
+            let m = Majorants::build(kind, &g);
+            // Small beside the tree it bounds.
+            assert!(
+                m.memory_bytes() < g.memory_bytes() / 2,
+                "{kind:?}: {} vs tree {}",
+                m.memory_bytes(),
+                g.memory_bytes()
+            );
+            let (mut checked, mut segments) = (0, 0);
+            for _ in 0..2000 {
+                // Rays in index space from outside towards random points of the bounds.
+                let target = b.min + u3(&mut rng) * b.extent();
+                let from = b.center() + (u3(&mut rng) - 0.5) * 3.0 * b.extent();
+                let ray = Ray::new(from, target - from);
+                let mut last = f32::NEG_INFINITY;
+                let _ = m.for_each_segment(&ray, 0.0, 3.0, |s| {
+                    segments += 1;
+                    assert!(s.t0 >= last - 1e-5 && s.t1 >= s.t0 && s.sigma_max > 0.0);
+                    last = s.t1;
+                    for _ in 0..4 {
+                        let t = s.t0 + (s.t1 - s.t0) * rng.next_f32();
+                        let d = g.density_index(ray.at(t));
+                        assert!(d <= s.sigma_max * (1.0 + 1e-5), "{kind:?}: {d} > {s:?}");
+                        assert!(
+                            d >= s.sigma_min * (1.0 - 1e-5) - 1e-6,
+                            "{kind:?}: {d} < {s:?}"
+                        );
+                        checked += 1;
+                    }
+                    ControlFlow::Continue(())
+                });
+            }
+            assert!(checked > 4000, "{kind:?}: {checked}");
+            // Empty space is skipped: points outside all segments must have zero density.
+            let ray = Ray::new(b.min - 5.0, b.extent());
+            let mut covered = Vec::new();
+            let _ = m.for_each_segment(&ray, 0.0, 1.0, |s| {
+                covered.push((s.t0, s.t1));
+                ControlFlow::Continue(())
+            });
+            for i in 0..5000 {
+                let t = i as f32 / 5000.0;
+                if !covered.iter().any(|&(a, b)| t >= a - 1e-5 && t <= b + 1e-5) {
+                    assert_eq!(g.density_index(ray.at(t)), 0.0, "{kind:?} t={t}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn adaptive_is_tighter_than_global() {
+        // Mean majorant optical depth along random unit-speed rays (t in voxels): the subdivided structures are
+        // tighter than the global bound on a sparse field.
+        let g = sphere_grid(1.0);
+        let b = g.index_bounds();
+        let mut rng = Rng::new(5, 5);
+        let mut total = [0.0f64; 3];
+        let kinds = MajorantKind::ALL.map(|k| Majorants::build(k, &g));
+        for _ in 0..500 {
+            let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let (p, q) = (b.min + u * b.extent(), b.min + v * b.extent());
+            let d = (q - p).normalize();
+            let ray = Ray::new(p - d * 100.0, d);
+            for (i, m) in kinds.iter().enumerate() {
+                let _ = m.for_each_segment(&ray, 0.0, 300.0, |s| {
+                    total[i] += ((s.t1 - s.t0) * s.sigma_max) as f64;
+                    ControlFlow::Continue(())
+                });
+            }
+        }
+        assert!(
+            total[2] < 0.8 * total[0] && total[1] < 0.8 * total[0],
+            "{total:?}"
+        );
+    }
+}
