@@ -2,7 +2,7 @@
 //!
 //! `cargo bench --bench majorants -- [FILE.vdb ...] [--rays N] [--tau T]` (defaults: the shared corpus
 //! `generated/e_big256.vdb` and `real/elyg_pig.vdb` under `$NIMBUS_SHARED_DIR` or `../shared`, 20000 rays, a
-//! density scale giving a mean optical depth T = 10 along the rays). Single-threaded; times are on-CPU.
+//! density scale giving a mean optical depth T = 10 along the rays). Single-threaded; times are wall-clock (build: best of 3).
 //! For each majorant kind it reports build time, memory, per-ray density lookups, null collisions per real
 //! collision, segments per ray, ns per delta-tracked free flight and per ratio-tracked transmittance, and the
 //! mean transmittance (which must agree across kinds within the printed standard errors).
@@ -15,23 +15,14 @@ use nimbus::volume::majorant::{MajorantKind, Majorants};
 use nimbus::volume::tracking::{
     optical_depth_quadrature, ratio_tracking, sample_collision, TrackingCounters,
 };
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// On-CPU time of this thread in ns (Linux `schedstat`), falling back to wall time elsewhere.
-fn cpu_ns(wall: Instant) -> u64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse().ok())
-        .unwrap_or_else(|| wall.elapsed().as_nanos() as u64)
-}
-
-/// On-CPU ns taken by `f`, and its result.
+/// Wall-clock ns taken by `f`, and its result.
 fn timed<R>(f: impl FnOnce() -> R) -> (f64, R) {
-    let origin = Instant::now();
-    let c0 = cpu_ns(origin);
+    let t = Instant::now();
     let r = f();
-    ((cpu_ns(origin) - c0) as f64, r)
+    (t.elapsed().as_nanos() as f64, r)
 }
 
 fn shared_dir() -> PathBuf {
@@ -60,7 +51,7 @@ fn random_rays(field: &GridDensity, n: usize, seed: u64) -> (Vec<Ray>, f32) {
     (rays, 4.0 * r)
 }
 
-fn bench_file(path: &PathBuf, n_rays: usize, tau_target: f64) {
+fn bench_file(path: &Path, n_rays: usize, tau_target: f64) {
     let file = match read_file(path) {
         Ok(f) => f,
         Err(e) => {

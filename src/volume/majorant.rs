@@ -10,10 +10,11 @@
 //!   "A Fast Voxel Traversal Algorithm for Ray Tracing"), as pbrt-v4 does for grid media;
 //! - `Adaptive`: a two-level hierarchy aligned with the VDB tree — 128³-voxel cells (the tree's lower nodes)
 //!   refined into 16³ bricks of 8³-voxel cells (its leaves) only where the data varies — walked with a
-//!   hierarchical DDA in the spirit of Hofmann, Ling, Kaplanyan et al. 2021 ("Hierarchical Multi-level DDA over
-//!   sparse VDB trees"). Empty 128³ cells are skipped in one DDA step; uniform ones keep no brick. Along the ray,
-//!   neighbouring segments are merged when merging adds less than [`MERGE_TAU`] of majorant optical depth
-//!   (the expected number of extra null collisions), which trades DDA segments against null collisions.
+//!   hierarchical DDA in the spirit of the multi-level DDA over VDB trees of Hofmann and Evans 2021
+//!   ("Efficient Unbiased Volume Path Tracing on the GPU", Ray Tracing Gems II). Empty 128³ cells are skipped in
+//!   one DDA step; uniform ones keep no brick. Along the ray, neighbouring segments are merged when merging adds
+//!   less than [`MERGE_TAU`] of majorant optical depth (the expected number of extra null collisions), which
+//!   trades DDA segments against null collisions.
 //!
 //! Bounds are conservative for trilinear interpolation: a lookup at `x` reads voxels `floor(x)` and
 //! `floor(x) + 1`, so a cell's bound covers every voxel its points can read, one voxel beyond the cell.
@@ -26,7 +27,8 @@ use std::ops::ControlFlow;
 
 /// Resolution per axis of the [`MajorantKind::Grid16`] grid.
 pub const GRID16_RES: i32 = 16;
-/// Extra majorant optical depth below which [`MajorantKind::Adaptive`] merges neighbouring segments.
+/// Extra majorant optical depth below which [`MajorantKind::Adaptive`] merges neighbouring segments, measured
+/// as σ̄ × ray parameter (an optical depth for rays whose world direction has unit length).
 pub const MERGE_TAU: f32 = 0.25;
 const COARSE_LOG2: i32 = 7;
 const FINE_LOG2: i32 = 3;
@@ -406,14 +408,12 @@ impl Majorants {
                 }
             }),
             Repr::Adaptive(h) => {
-                let len = ray.dir.length();
                 let mut pending: Option<Segment> = None;
                 let mut emit = |s: Segment| -> ControlFlow<()> {
                     if let Some(p) = &mut pending {
                         let m = p.sigma_max.max(s.sigma_max);
-                        let extra = ((m - p.sigma_max) * (p.t1 - p.t0)
-                            + (m - s.sigma_max) * (s.t1 - s.t0))
-                            * len;
+                        let extra =
+                            (m - p.sigma_max) * (p.t1 - p.t0) + (m - s.sigma_max) * (s.t1 - s.t0);
                         // Contiguous up to round-off (a brick's entry is recomputed from its own box).
                         let contiguous = s.t0 - p.t1 <= 1e-6 * (1.0 + s.t0.abs());
                         if contiguous && extra < MERGE_TAU {
