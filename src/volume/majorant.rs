@@ -9,7 +9,8 @@
 //! - `Grid16`: a 16³ grid of maxima over the field's bounds, walked with a 3D DDA (Amanatides & Woo 1987,
 //!   "A Fast Voxel Traversal Algorithm for Ray Tracing"), as pbrt-v4 does for grid media;
 //! - `Adaptive`: a two-level hierarchy aligned with the VDB tree — 128³-voxel cells (the tree's lower nodes)
-//!   refined into 16³ bricks of 8³-voxel cells (its leaves) only where the data varies — walked with a
+//!   refined into 16³ bricks of 8³-voxel cells (its leaves) only where the data varies, with a 4³ mid level of
+//!   32³-voxel cells inside each brick to skip its empty or uniform quarters — walked with a
 //!   hierarchical DDA in the spirit of the multi-level DDA over VDB trees of Hofmann and Evans 2021
 //!   ("Efficient Unbiased Volume Path Tracing on the GPU", Ray Tracing Gems II). Empty 128³ cells are skipped in
 //!   one DDA step; uniform ones keep no brick. Along the ray, neighbouring segments are merged when merging adds
@@ -21,7 +22,7 @@
 
 use super::density::{for_each_region, AnalyticDensity, DensityField, GridDensity};
 use crate::math::{Aabb, Ray, Vec3};
-use crate::vdb::{FloatTree, RootSlot, NO_CHILD};
+use crate::vdb::{floor_ivec3, FloatTree, RootSlot, NO_CHILD};
 use glam::IVec3;
 use std::ops::ControlFlow;
 
@@ -34,6 +35,18 @@ const COARSE_LOG2: i32 = 7;
 const FINE_LOG2: i32 = 3;
 const BRICK: i32 = 1 << (COARSE_LOG2 - FINE_LOG2);
 const NO_BRICK: u32 = u32::MAX;
+/// Mid-level cells per brick edge.
+const MID: i32 = 4;
+/// Fine cells per mid-level cell edge.
+const FINE_PER_MID: i32 = BRICK / MID;
+
+/// A 16³ brick of 8³-voxel cells under one 128³ cell, with a 4³ mid level of 32³-voxel cells that lets the DDA
+/// skip empty or uniform quarters of the brick in one step. Entries are (min, max).
+#[derive(Clone, Debug)]
+struct Brick {
+    mid: [(f32, f32); (MID * MID * MID) as usize],
+    fine: [(f32, f32); (BRICK * BRICK * BRICK) as usize],
+}
 
 /// Which majorant structure to build.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -81,43 +94,47 @@ impl UniformGrid {
         (self.res.x * self.res.y * self.res.z) as usize
     }
 
-    /// Walks the cells pierced by `ray` over `[t0, t1]` with the 3D DDA of Amanatides & Woo (1987): per axis,
-    /// the parameter of the next cell boundary `t_next` and the parameter step per cell `t_delta`; each step
-    /// advances the axis with the smallest `t_next`.
+    /// Walks the cells pierced by `ray` over `[t0, t1]`, clipped to the grid; see [`Self::walk_inside`].
     fn walk(
         &self,
         ray: &Ray,
+        inv_dir: Vec3,
         t0: f32,
         t1: f32,
+        f: impl FnMut(IVec3, f32, f32) -> ControlFlow<()>,
+    ) -> ControlFlow<()> {
+        let ta = (self.origin - ray.origin) * inv_dir;
+        let tb = (self.origin + self.cell * self.res.as_vec3() - ray.origin) * inv_dir;
+        let t0 = ta.min(tb).max_element().max(t0);
+        let t1 = ta.max(tb).min_element().min(t1);
+        if t0 < t1 {
+            self.walk_inside(ray, inv_dir, t0, t1, f)
+        } else {
+            ControlFlow::Continue(())
+        }
+    }
+
+    /// Walks the cells pierced by `ray` over `[ta, tb]` (known to lie in the grid up to round-off) with the 3D DDA
+    /// of Amanatides & Woo (1987): per axis, the parameter of the next cell boundary `t_next` and the parameter
+    /// step per cell `t_delta`; each step advances the axis with the smallest `t_next`.
+    fn walk_inside(
+        &self,
+        ray: &Ray,
+        inv_dir: Vec3,
+        ta: f32,
+        tb: f32,
         mut f: impl FnMut(IVec3, f32, f32) -> ControlFlow<()>,
     ) -> ControlFlow<()> {
-        let hi = self.origin + self.cell * self.res.as_vec3();
-        let Some((ta, tb)) = Aabb::new(self.origin, hi).intersect(ray, t0, t1) else {
-            return ControlFlow::Continue(());
-        };
         // Start from the cell of the interval's entry point (clamped inside against round-off).
-        let p = ray.at(ta);
-        let mut c = ((p - self.origin) / self.cell)
-            .floor()
-            .as_ivec3()
-            .clamp(IVec3::ZERO, self.res - 1);
-        let mut step = IVec3::ZERO;
-        let mut t_next = Vec3::INFINITY;
-        let mut t_delta = Vec3::INFINITY;
-        for a in 0..3 {
-            let d = ray.dir[a];
-            if d > 0.0 {
-                step[a] = 1;
-                let b = self.origin[a] + (c[a] + 1) as f32 * self.cell[a];
-                t_next[a] = (b - ray.origin[a]) / d;
-                t_delta[a] = self.cell[a] / d;
-            } else if d < 0.0 {
-                step[a] = -1;
-                let b = self.origin[a] + c[a] as f32 * self.cell[a];
-                t_next[a] = (b - ray.origin[a]) / d;
-                t_delta[a] = -self.cell[a] / d;
-            }
-        }
+        let mut c =
+            floor_ivec3((ray.at(ta) - self.origin) / self.cell).clamp(IVec3::ZERO, self.res - 1);
+        let flat = ray.dir.cmpeq(Vec3::ZERO);
+        let up = ray.dir.cmpgt(Vec3::ZERO);
+        let step = IVec3::select(up, IVec3::ONE, IVec3::NEG_ONE);
+        let boundary =
+            self.origin + (c + IVec3::select(up, IVec3::ONE, IVec3::ZERO)).as_vec3() * self.cell;
+        let mut t_next = Vec3::select(flat, Vec3::INFINITY, (boundary - ray.origin) * inv_dir);
+        let t_delta = Vec3::select(flat, Vec3::INFINITY, self.cell * inv_dir.abs());
         let mut t = ta;
         loop {
             let a = if t_next.x <= t_next.y && t_next.x <= t_next.z {
@@ -144,14 +161,14 @@ impl UniformGrid {
     }
 }
 
-/// The [`MajorantKind::Adaptive`] structure: coarse 128³ cells with optional 16³ bricks of 8³ cells.
+/// The [`MajorantKind::Adaptive`] structure: coarse 128³ cells with optional bricks.
 #[derive(Clone, Debug)]
 struct Hierarchy {
     coarse: UniformGrid,
     /// Per coarse cell: (min, max, brick index or `NO_BRICK`).
     cells: Vec<(f32, f32, u32)>,
     /// Bricks of 16³ (min, max) pairs.
-    bricks: Vec<[(f32, f32); (BRICK * BRICK * BRICK) as usize]>,
+    bricks: Vec<Brick>,
 }
 
 #[derive(Clone, Debug)]
@@ -297,6 +314,9 @@ impl Majorants {
         let mut cells = vec![(0.0f32, 0.0f32, NO_BRICK); coarse.cells()];
         let mut bricks = Vec::new();
         let n = BRICK as usize;
+        // Blocks (8³ voxels) per fine cell edge, and fine cells per mid cell edge.
+        let r = 1usize << (FINE_LOG2 - 3);
+        let q = n / MID as usize;
         for x in 0..coarse.res.x {
             for y in 0..coarse.res.y {
                 for z in 0..coarse.res.z {
@@ -305,13 +325,14 @@ impl Majorants {
                     if cmax[idx] <= 0.0 {
                         continue;
                     }
-                    // Ranges of the 17³ blocks this cell's 16³ fine cells read from.
+                    // Ranges of the 8³-voxel blocks this cell's fine cells read from (one beyond).
                     let base = (lo + ci) * c;
-                    let mut block = vec![(0.0f32, 0.0f32); (n + 1) * (n + 1) * (n + 1)];
-                    let bi = |i: usize, j: usize, k: usize| (i * (n + 1) + j) * (n + 1) + k;
-                    for i in 0..=n {
-                        for j in 0..=n {
-                            for k in 0..=n {
+                    let nb = n * r + 1;
+                    let mut block = vec![(0.0f32, 0.0f32); nb * nb * nb];
+                    let bi = |i: usize, j: usize, k: usize| (i * nb + j) * nb + k;
+                    for i in 0..nb {
+                        for j in 0..nb {
+                            for k in 0..nb {
                                 let p = base + IVec3::new(i as i32, j as i32, k as i32) * 8;
                                 let (a, b) = block_range(tree, p);
                                 block[bi(i, j, k)] = (a.max(0.0) * s, b.max(0.0) * s);
@@ -324,11 +345,14 @@ impl Majorants {
                         for j in 0..n {
                             for k in 0..n {
                                 let (mut a, mut b) = (f32::INFINITY, 0.0f32);
-                                for d in 0..8 {
-                                    let r =
-                                        block[bi(i + (d >> 2), j + ((d >> 1) & 1), k + (d & 1))];
-                                    a = a.min(r.0);
-                                    b = b.max(r.1);
+                                for di in 0..=r {
+                                    for dj in 0..=r {
+                                        for dk in 0..=r {
+                                            let v = block[bi(i * r + di, j * r + dj, k * r + dk)];
+                                            a = a.min(v.0);
+                                            b = b.max(v.1);
+                                        }
+                                    }
                                 }
                                 brick[(i * n + j) * n + k] = (a, b);
                                 bmin = bmin.min(a);
@@ -339,7 +363,18 @@ impl Majorants {
                     cells[idx] = if bmin == bmax {
                         (bmin, bmax, NO_BRICK)
                     } else {
-                        bricks.push(brick);
+                        let mut mid = [(f32::INFINITY, 0.0f32); (MID * MID * MID) as usize];
+                        for i in 0..n {
+                            for j in 0..n {
+                                for k in 0..n {
+                                    let m = &mut mid
+                                        [(i / q * MID as usize + j / q) * MID as usize + k / q];
+                                    let (a, b) = brick[(i * n + j) * n + k];
+                                    *m = (m.0.min(a), m.1.max(b));
+                                }
+                            }
+                        }
+                        bricks.push(Brick { mid, fine: brick });
                         (bmin, bmax, (bricks.len() - 1) as u32)
                     };
                 }
@@ -384,6 +419,7 @@ impl Majorants {
         t_max: f32,
         mut f: impl FnMut(Segment) -> ControlFlow<()>,
     ) -> ControlFlow<()> {
+        let inv_dir = ray.dir.recip();
         match &self.repr {
             Repr::Global => match self.bounds.intersect(ray, t_min, t_max) {
                 Some((t0, t1)) if self.sigma_max > 0.0 && t1 > t0 => f(Segment {
@@ -394,7 +430,7 @@ impl Majorants {
                 }),
                 _ => ControlFlow::Continue(()),
             },
-            Repr::Grid { grid, values } => grid.walk(ray, t_min, t_max, |c, t0, t1| {
+            Repr::Grid { grid, values } => grid.walk(ray, inv_dir, t_min, t_max, |c, t0, t1| {
                 let m = values[grid.index(c)];
                 if m > 0.0 {
                     f(Segment {
@@ -429,7 +465,7 @@ impl Majorants {
                     pending = Some(s);
                     ControlFlow::Continue(())
                 };
-                h.coarse.walk(ray, t_min, t_max, |c, t0, t1| {
+                h.coarse.walk(ray, inv_dir, t_min, t_max, |c, t0, t1| {
                     let (lo, hi, b) = h.cells[h.coarse.index(c)];
                     if hi <= 0.0 {
                         return ControlFlow::Continue(());
@@ -443,23 +479,44 @@ impl Majorants {
                         });
                     }
                     let brick = &h.bricks[b as usize];
-                    let fine = UniformGrid {
+                    let fine_edge = (1 << FINE_LOG2) as f32;
+                    let mid = UniformGrid {
                         origin: h.coarse.origin + c.as_vec3() * h.coarse.cell,
-                        cell: Vec3::splat((1 << FINE_LOG2) as f32),
-                        res: IVec3::splat(BRICK),
+                        cell: Vec3::splat(fine_edge * FINE_PER_MID as f32),
+                        res: IVec3::splat(MID),
                     };
-                    fine.walk(ray, t0, t1, |fc, a, b| {
-                        let (lo, hi) = brick[((fc.x * BRICK + fc.y) * BRICK + fc.z) as usize];
-                        if hi > 0.0 {
-                            emit(Segment {
-                                t0: a,
-                                t1: b,
+                    mid.walk_inside(ray, inv_dir, t0, t1, |mc, ma, mb| {
+                        let (lo, hi) = brick.mid[((mc.x * MID + mc.y) * MID + mc.z) as usize];
+                        if hi <= 0.0 {
+                            return ControlFlow::Continue(());
+                        }
+                        if lo == hi {
+                            return emit(Segment {
+                                t0: ma,
+                                t1: mb,
                                 sigma_max: hi,
                                 sigma_min: lo,
-                            })
-                        } else {
-                            ControlFlow::Continue(())
+                            });
                         }
+                        let fine = UniformGrid {
+                            origin: mid.origin + mc.as_vec3() * mid.cell,
+                            cell: Vec3::splat(fine_edge),
+                            res: IVec3::splat(FINE_PER_MID),
+                        };
+                        fine.walk_inside(ray, inv_dir, ma, mb, |fc, a, b| {
+                            let f = mc * FINE_PER_MID + fc;
+                            let (lo, hi) = brick.fine[((f.x * BRICK + f.y) * BRICK + f.z) as usize];
+                            if hi > 0.0 {
+                                emit(Segment {
+                                    t0: a,
+                                    t1: b,
+                                    sigma_max: hi,
+                                    sigma_min: lo,
+                                })
+                            } else {
+                                ControlFlow::Continue(())
+                            }
+                        })
                     })
                 })?;
                 match pending {
