@@ -45,6 +45,8 @@ const FINE_PER_MID: i32 = BRICK / MID;
 #[derive(Clone, Debug)]
 struct Brick {
     mid: [(f32, f32); (MID * MID * MID) as usize],
+    /// Bit per mid cell: walk it as one segment (its fine cells would save less than [`MERGE_TAU`]).
+    flat: u64,
     fine: [(f32, f32); (BRICK * BRICK * BRICK) as usize],
 }
 
@@ -276,7 +278,14 @@ impl Majorants {
                 });
                 Repr::Grid { grid, values }
             }
-            MajorantKind::Adaptive => Repr::Adaptive(Self::build_hierarchy(tree, s, bounds)),
+            MajorantKind::Adaptive => {
+                let m = field.index_to_world();
+                let voxel = (m.x_axis.truncate().length()
+                    + m.y_axis.truncate().length()
+                    + m.z_axis.truncate().length())
+                    / 3.0;
+                Repr::Adaptive(Self::build_hierarchy(tree, s, bounds, voxel))
+            }
         };
         Self {
             kind,
@@ -287,7 +296,10 @@ impl Majorants {
         }
     }
 
-    fn build_hierarchy(tree: &FloatTree, s: f32, bounds: Aabb) -> Hierarchy {
+    /// Builds the two-level structure. `voxel` (mean world voxel edge) only steers where refinement pays: a cell
+    /// is kept as one segment where refining would save less than [`MERGE_TAU`] of majorant optical depth per
+    /// crossing, estimated as (cell max − mean of its fine maxima) × cell edge.
+    fn build_hierarchy(tree: &FloatTree, s: f32, bounds: Aabb, voxel: f32) -> Hierarchy {
         let c = 1 << COARSE_LOG2;
         let lo = bounds.min.floor().as_ivec3().div_euclid(IVec3::splat(c));
         let hi = (bounds.max.ceil().as_ivec3() - 1).div_euclid(IVec3::splat(c));
@@ -340,7 +352,7 @@ impl Majorants {
                         }
                     }
                     let mut brick = [(0.0f32, 0.0f32); (BRICK * BRICK * BRICK) as usize];
-                    let (mut bmin, mut bmax) = (f32::INFINITY, 0.0f32);
+                    let (mut bmin, mut bmax, mut bsum) = (f32::INFINITY, 0.0f32, 0.0f32);
                     for i in 0..n {
                         for j in 0..n {
                             for k in 0..n {
@@ -357,24 +369,38 @@ impl Majorants {
                                 brick[(i * n + j) * n + k] = (a, b);
                                 bmin = bmin.min(a);
                                 bmax = bmax.max(b);
+                                bsum += b;
                             }
                         }
                     }
-                    cells[idx] = if bmin == bmax {
+                    let saved = (bmax - bsum / (n * n * n) as f32) * c as f32 * voxel;
+                    cells[idx] = if bmin == bmax || saved < MERGE_TAU {
                         (bmin, bmax, NO_BRICK)
                     } else {
                         let mut mid = [(f32::INFINITY, 0.0f32); (MID * MID * MID) as usize];
+                        let mut sum = [0.0f32; (MID * MID * MID) as usize];
                         for i in 0..n {
                             for j in 0..n {
                                 for k in 0..n {
-                                    let m = &mut mid
-                                        [(i / q * MID as usize + j / q) * MID as usize + k / q];
+                                    let mi = (i / q * MID as usize + j / q) * MID as usize + k / q;
                                     let (a, b) = brick[(i * n + j) * n + k];
-                                    *m = (m.0.min(a), m.1.max(b));
+                                    mid[mi] = (mid[mi].0.min(a), mid[mi].1.max(b));
+                                    sum[mi] += b;
                                 }
                             }
                         }
-                        bricks.push(Brick { mid, fine: brick });
+                        let mut flat = 0u64;
+                        for (mi, &(a, b)) in mid.iter().enumerate() {
+                            let saved = (b - sum[mi] / (q * q * q) as f32) * (q * 8) as f32 * voxel;
+                            if a == b || saved < MERGE_TAU {
+                                flat |= 1 << mi;
+                            }
+                        }
+                        bricks.push(Brick {
+                            mid,
+                            flat,
+                            fine: brick,
+                        });
                         (bmin, bmax, (bricks.len() - 1) as u32)
                     };
                 }
@@ -486,11 +512,12 @@ impl Majorants {
                         res: IVec3::splat(MID),
                     };
                     mid.walk_inside(ray, inv_dir, t0, t1, |mc, ma, mb| {
-                        let (lo, hi) = brick.mid[((mc.x * MID + mc.y) * MID + mc.z) as usize];
+                        let mi = ((mc.x * MID + mc.y) * MID + mc.z) as usize;
+                        let (lo, hi) = brick.mid[mi];
                         if hi <= 0.0 {
                             return ControlFlow::Continue(());
                         }
-                        if lo == hi {
+                        if brick.flat >> mi & 1 != 0 {
                             return emit(Segment {
                                 t0: ma,
                                 t1: mb,
