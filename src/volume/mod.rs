@@ -18,9 +18,11 @@
 //! - [`grid`]: VDB grids, delta tracking over subdivided majorants, ratio or residual ratio tracking for
 //!   shadow rays.
 
+pub mod density;
 pub mod emission;
 pub mod grid;
 pub mod homogeneous;
+pub mod majorant;
 pub mod noise;
 pub mod phase;
 pub mod spec;
