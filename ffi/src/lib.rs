@@ -69,7 +69,6 @@ struct Tagged<T> {
     value: T,
 }
 
-
 /// How to render, for [`nimbus_render`]. Start from [`nimbus_render_settings_default`] and change fields.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -261,9 +260,12 @@ unsafe fn c_str<'a>(p: *const c_char, what: &str) -> Result<&'a str, Failure> {
     if p.is_null() {
         return Err(Failure::null(what));
     }
-    CStr::from_ptr(p)
-        .to_str()
-        .map_err(|_| Failure::new(NimbusStatus::InvalidArgument, format!("{what} is not UTF-8")))
+    CStr::from_ptr(p).to_str().map_err(|_| {
+        Failure::new(
+            NimbusStatus::InvalidArgument,
+            format!("{what} is not UTF-8"),
+        )
+    })
 }
 
 /// Writes `value` through the out-pointer `out`, failing on null.
@@ -291,7 +293,9 @@ fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure>
         )));
     }
     if s.spp == 0 {
-        return Err(invalid("spp is 0; at least 1 sample per pixel is needed".into()));
+        return Err(invalid(
+            "spp is 0; at least 1 sample per pixel is needed".into(),
+        ));
     }
     let time_limit = match s.time_limit_seconds {
         t if t == 0.0 => None,
@@ -398,9 +402,7 @@ pub unsafe extern "C" fn nimbus_render(
             Some(f) => f(p.fraction as f32, p.samples_done, user_data) != 0,
             None => true,
         };
-        let (image, stats) = renderer
-            .render(scene, &mut report)
-            .map_err(Error::from)?;
+        let (image, stats) = renderer.render(scene, &mut report).map_err(Error::from)?;
         let status = if stats.cancelled {
             set_last_error("the progress callback cancelled the render".into());
             NimbusStatus::Cancelled
@@ -507,7 +509,10 @@ pub unsafe extern "C" fn nimbus_image_channel(
         if len < samples.len() {
             return Err(Failure::new(
                 NimbusStatus::BufferTooSmall,
-                format!("buffer holds {len} floats, channel {name} needs {}", samples.len()),
+                format!(
+                    "buffer holds {len} floats, channel {name} needs {}",
+                    samples.len()
+                ),
             ));
         }
         std::slice::from_raw_parts_mut(out, samples.len()).copy_from_slice(&samples);

@@ -37,3 +37,90 @@ impl CancelToken {
         self.0.load(Ordering::Relaxed)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::Material;
+    use crate::math::{Rgb, Vec3};
+    use crate::render::{RenderSettings, Renderer};
+    use crate::scene::{Camera, Scene, SceneBuilder};
+    use std::time::{Duration, Instant};
+
+    /// A lit floor seen from above.
+    fn floor_scene() -> Scene {
+        let mut b = SceneBuilder::new();
+        let m = b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+        let quad = vec![
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+        ];
+        b.add_triangle_mesh(quad, vec![[0, 1, 2], [0, 2, 3]], m)
+            .unwrap();
+        b.add_point_light(Vec3::Y, Rgb::ONE);
+        b.set_camera(Camera::look_at(Vec3::new(0.0, 2.0, 0.5), Vec3::ZERO, 1.0));
+        b.build()
+    }
+
+    #[test]
+    fn a_cancel_from_another_thread_lands_inside_a_pass() {
+        let scene = floor_scene();
+        // One pass is 1000 spp over 4096 pixels on one thread: seconds of work.
+        let settings = RenderSettings {
+            width: 64,
+            height: 64,
+            spp: 16_000,
+            threads: 1,
+            ..RenderSettings::default()
+        };
+        let token = CancelToken::new();
+        let remote = token.clone();
+        let canceller = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(100));
+            remote.cancel();
+        });
+        let start = Instant::now();
+        let mut reports = 0;
+        let (image, stats) = Renderer::new(settings)
+            .render_with_cancel(
+                &scene,
+                &mut |_| {
+                    reports += 1;
+                    true
+                },
+                &token,
+            )
+            .unwrap();
+        canceller.join().unwrap();
+        assert!(stats.cancelled);
+        assert_eq!(stats.samples_per_pixel, 0, "no pass completed");
+        assert_eq!(reports, 0);
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "{:?}",
+            start.elapsed()
+        );
+        assert!(image.beauty.iter().all(|c| c.is_finite()));
+        assert!(
+            image.beauty.iter().any(|c| c.max_element() > 0.0),
+            "pixels keep their samples"
+        );
+    }
+
+    #[test]
+    fn a_progress_callback_that_returns_false_cancels_between_passes() {
+        let settings = RenderSettings {
+            width: 4,
+            height: 4,
+            spp: 32,
+            ..RenderSettings::default()
+        };
+        let (_, stats) = Renderer::new(settings)
+            .render(&floor_scene(), &mut |p| p.samples_done < 2)
+            .unwrap();
+        assert!(stats.cancelled);
+        assert_eq!(stats.samples_per_pixel, 2);
+    }
+}

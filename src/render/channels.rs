@@ -68,7 +68,9 @@ mod tests {
         assert_eq!(img.channel("B"), Some(vec![3.0]));
         assert_eq!(img.channel("normal.Y"), Some(vec![5.0]));
         assert_eq!(img.channel("depth.Z"), Some(vec![7.0]));
-        for bad in ["", "RG", "X", "albedo.X", "normal.R", "depth.R", "beauty.R", ".R", "albedo."] {
+        for bad in [
+            "", "RG", "X", "albedo.X", "normal.R", "depth.R", "beauty.R", ".R", "albedo.",
+        ] {
             assert_eq!(img.channel(bad), None, "{bad}");
         }
     }

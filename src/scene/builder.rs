@@ -26,14 +26,19 @@ impl SceneBuilder {
         indices: Vec<[u32; 3]>,
         material: u32,
     ) -> Result<usize, SceneError> {
-        let invalid = |what: String| SceneError::new(BUILDER_PATH, SceneErrorKind::InvalidReference(what));
+        let invalid =
+            |what: String| SceneError::new(BUILDER_PATH, SceneErrorKind::InvalidReference(what));
         if material as usize >= self.materials.len() {
             return Err(invalid(format!(
                 "material {material} of a mesh, but only {} materials were added",
                 self.materials.len()
             )));
         }
-        if let Some(i) = indices.iter().flatten().find(|&&i| i as usize >= positions.len()) {
+        if let Some(i) = indices
+            .iter()
+            .flatten()
+            .find(|&&i| i as usize >= positions.len())
+        {
             return Err(invalid(format!(
                 "vertex index {i} of a mesh with {} positions",
                 positions.len()
@@ -62,8 +67,10 @@ impl SceneBuilder {
 
     /// Adds a point light at `position` with radiant `intensity` (W/sr per channel).
     pub fn add_point_light(&mut self, position: Vec3, intensity: Rgb) {
-        self.lights
-            .push(Light::Point(PointLight { position, intensity }));
+        self.lights.push(Light::Point(PointLight {
+            position,
+            intensity,
+        }));
     }
 
     /// Adds a directional light travelling along `direction` (normalised here) with `irradiance` (W/m² per
@@ -85,7 +92,9 @@ mod tests {
     fn add_triangle_mesh_validates_indices_and_material() {
         let mut b = SceneBuilder::new();
         let tri = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
-        assert!(b.add_triangle_mesh(tri.clone(), vec![[0, 1, 2]], 0).is_err());
+        assert!(b
+            .add_triangle_mesh(tri.clone(), vec![[0, 1, 2]], 0)
+            .is_err());
         let m = b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
         let err = b
             .add_triangle_mesh(tri.clone(), vec![[0, 1, 3]], m)
