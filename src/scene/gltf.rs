@@ -46,7 +46,7 @@ pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
 pub fn load_slice(bytes: &[u8], path: &Path) -> Result<SceneBuilder, SceneError> {
     let err = |kind| SceneError::new(path, kind);
     let malformed = |m: String| err(SceneErrorKind::Malformed(m));
-    let (root, blob) = parse(bytes).map_err(|e| malformed(e))?;
+    let (root, blob) = parse(bytes).map_err(&malformed)?;
     let mut warnings = validate(&root).map_err(&err)?;
     let document = gltf::Document::from_json_without_validation(root);
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
