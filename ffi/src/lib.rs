@@ -298,7 +298,7 @@ fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure>
         ));
     }
     let time_limit = match s.time_limit_seconds {
-        t if t == 0.0 => None,
+        0.0 => None,
         t if t.is_finite() && t > 0.0 => Some(Duration::from_secs_f64(t)),
         t => {
             return Err(invalid(format!(

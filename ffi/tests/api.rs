@@ -97,7 +97,7 @@ fn load_render_read_write_and_free() {
 
 #[test]
 fn a_bad_path_names_the_file() {
-    let mut scene = 1usize as *mut NimbusScene; // garbage that must be overwritten
+    let mut scene = std::ptr::dangling_mut::<NimbusScene>(); // garbage that must be overwritten
     let path = CString::new("/no/such/dir/cloud.glb").unwrap();
     let status = unsafe { nimbus_scene_load(path.as_ptr(), &mut scene) };
     assert_eq!(status, NimbusStatus::SceneError);
