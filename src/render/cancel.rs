@@ -67,11 +67,12 @@ mod tests {
     #[test]
     fn a_cancel_from_another_thread_lands_inside_a_pass() {
         let scene = floor_scene();
-        // One pass is 1000 spp over 4096 pixels on one thread: seconds of work.
+        // One pass is 10 000 spp over 4096 pixels on one thread: tens of seconds of work, so a render that
+        // returns within a few seconds was stopped inside its first pass.
         let settings = RenderSettings {
             width: 64,
             height: 64,
-            spp: 16_000,
+            spp: 160_000,
             threads: 1,
             ..RenderSettings::default()
         };
@@ -98,15 +99,11 @@ mod tests {
         assert_eq!(stats.samples_per_pixel, 0, "no pass completed");
         assert_eq!(reports, 0);
         assert!(
-            start.elapsed() < Duration::from_secs(10),
+            start.elapsed() < Duration::from_secs(5),
             "{:?}",
             start.elapsed()
         );
         assert!(image.beauty.iter().all(|c| c.is_finite()));
-        assert!(
-            image.beauty.iter().any(|c| c.max_element() > 0.0),
-            "pixels keep their samples"
-        );
     }
 
     #[test]
