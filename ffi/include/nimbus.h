@@ -52,14 +52,14 @@ typedef enum {
   NIMBUS_STATUS_PANIC = 9,
 } NimbusStatus;
 
-// A rendered image with its AOV layers. Opaque: create with [`nimbus_render`], free with
-// [`nimbus_image_free`].
+// A rendered image with its AOV layers. Opaque: create with `nimbus_render()`, free with
+// `nimbus_image_free()`.
 typedef struct NimbusImage NimbusImage;
 
-// A loaded scene. Opaque: create with [`nimbus_scene_load`], free with [`nimbus_scene_free`].
+// A loaded scene. Opaque: create with `nimbus_scene_load()`, free with `nimbus_scene_free()`.
 typedef struct NimbusScene NimbusScene;
 
-// How to render, for [`nimbus_render`]. Start from [`nimbus_render_settings_default`] and change fields.
+// How to render, for `nimbus_render()`. Start from `nimbus_render_settings_default()` and change fields.
 typedef struct {
   // Image width in pixels, 1 to 32768.
   uint32_t width;
@@ -77,7 +77,7 @@ typedef struct {
   double time_limit_seconds;
 } NimbusRenderSettings;
 
-// Progress callback of [`nimbus_render`], called on the rendering thread after every pass with the fraction
+// Progress callback of `nimbus_render()`, called on the rendering thread after every pass with the fraction
 // done in \[0, 1\], the samples per pixel done so far and the caller's `user_data`. Return non-zero to go on,
 // zero to cancel.
 typedef int (*NimbusProgressFn)(float fraction, uint32_t spp, void *user_data);
@@ -96,7 +96,7 @@ NimbusRenderSettings nimbus_render_settings_default(void);
 // Loads a scene file (`.gltf`, `.glb` or `.obj`, chosen by extension) into `*out_scene`.
 //
 // On failure `*out_scene` is set to null, the status is `NIMBUS_STATUS_SCENE_ERROR` (or another) and
-// [`nimbus_last_error`] names the file and what is wrong.
+// `nimbus_last_error()` names the file and what is wrong.
 //
 // # Safety
 // `path` must be null or a NUL-terminated UTF-8 string; `out_scene` must be null or point to writable storage
@@ -108,7 +108,7 @@ NimbusStatus nimbus_scene_load(const char *path,
 // from the scene stay valid.
 //
 // # Safety
-// `scene` must be null or point to a pointer that is null or was returned by [`nimbus_scene_load`].
+// `scene` must be null or point to a pointer that is null or was returned by `nimbus_scene_load()`.
 NimbusStatus nimbus_scene_free(NimbusScene **scene);
 
 // Renders `scene` with `settings` into a new image stored in `*out_image`.
@@ -116,10 +116,10 @@ NimbusStatus nimbus_scene_free(NimbusScene **scene);
 // `progress` (may be null) is called on the calling thread after every pass with `user_data`; when it returns
 // zero the render stops, `*out_image` receives the partial image and the status is `NIMBUS_STATUS_CANCELLED`.
 // On `NIMBUS_STATUS_OK` and `NIMBUS_STATUS_CANCELLED` the caller owns `*out_image` and frees it with
-// [`nimbus_image_free`]; on any other status `*out_image` is null.
+// `nimbus_image_free()`; on any other status `*out_image` is null.
 //
 // # Safety
-// `scene` must be null or a handle from [`nimbus_scene_load`]; `settings` must be null or point to settings;
+// `scene` must be null or a handle from `nimbus_scene_load()`; `settings` must be null or point to settings;
 // `out_image` must be null or point to writable storage for a pointer; `progress` must be safe to call with
 // `user_data` from this thread.
 NimbusStatus nimbus_render(const NimbusScene *scene,
@@ -131,26 +131,26 @@ NimbusStatus nimbus_render(const NimbusScene *scene,
 // Frees the image `*image` and sets `*image` to null. A null `image` or `*image` is a no-op.
 //
 // # Safety
-// `image` must be null or point to a pointer that is null or was returned by [`nimbus_render`].
+// `image` must be null or point to a pointer that is null or was returned by `nimbus_render()`.
 NimbusStatus nimbus_image_free(NimbusImage **image);
 
 // Stores the image width in pixels in `*out_width`.
 //
 // # Safety
-// `image` must be null or a handle from [`nimbus_render`]; `out_width` must be null or writable.
+// `image` must be null or a handle from `nimbus_render()`; `out_width` must be null or writable.
 NimbusStatus nimbus_image_width(const NimbusImage *image, uint32_t *out_width);
 
 // Stores the image height in pixels in `*out_height`.
 //
 // # Safety
-// `image` must be null or a handle from [`nimbus_render`]; `out_height` must be null or writable.
+// `image` must be null or a handle from `nimbus_render()`; `out_height` must be null or writable.
 NimbusStatus nimbus_image_height(const NimbusImage *image, uint32_t *out_height);
 
 // Stores in `*out_spp` the samples per pixel the render completed (fewer than asked when it was cancelled or
 // ran out of time).
 //
 // # Safety
-// `image` must be null or a handle from [`nimbus_render`]; `out_spp` must be null or writable.
+// `image` must be null or a handle from `nimbus_render()`; `out_spp` must be null or writable.
 NimbusStatus nimbus_image_samples_per_pixel(const NimbusImage *image,
                                             uint32_t *out_spp);
 
@@ -161,7 +161,7 @@ NimbusStatus nimbus_image_samples_per_pixel(const NimbusImage *image,
 // below `width * height` gives `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
 //
 // # Safety
-// `image` must be null or a handle from [`nimbus_render`]; `name` must be null or a NUL-terminated string;
+// `image` must be null or a handle from `nimbus_render()`; `name` must be null or a NUL-terminated string;
 // `out` must be null or point to `len` writable floats.
 NimbusStatus nimbus_image_channel(const NimbusImage *image,
                                   const char *name,
@@ -171,7 +171,7 @@ NimbusStatus nimbus_image_channel(const NimbusImage *image,
 // Writes the image, beauty and every AOV, to `path` as a multi-layer OpenEXR file.
 //
 // # Safety
-// `image` must be null or a handle from [`nimbus_render`]; `path` must be null or a NUL-terminated UTF-8
+// `image` must be null or a handle from `nimbus_render()`; `path` must be null or a NUL-terminated UTF-8
 // string.
 NimbusStatus nimbus_image_write_exr(const NimbusImage *image,
                                     const char *path);
@@ -179,7 +179,7 @@ NimbusStatus nimbus_image_write_exr(const NimbusImage *image,
 // Writes the beauty pass to `path` as an 8-bit sRGB PNG, scaled by `2^exposure` and clamped.
 //
 // # Safety
-// `image` must be null or a handle from [`nimbus_render`]; `path` must be null or a NUL-terminated UTF-8
+// `image` must be null or a handle from `nimbus_render()`; `path` must be null or a NUL-terminated UTF-8
 // string.
 NimbusStatus nimbus_image_write_png(const NimbusImage *image,
                                     const char *path,

@@ -49,11 +49,11 @@ pub enum NimbusStatus {
     Panic = 9,
 }
 
-/// A loaded scene. Opaque: create with [`nimbus_scene_load`], free with [`nimbus_scene_free`].
+/// A loaded scene. Opaque: create with `nimbus_scene_load()`, free with `nimbus_scene_free()`.
 pub struct NimbusScene(Tagged<Scene>);
 
-/// A rendered image with its AOV layers. Opaque: create with [`nimbus_render`], free with
-/// [`nimbus_image_free`].
+/// A rendered image with its AOV layers. Opaque: create with `nimbus_render()`, free with
+/// `nimbus_image_free()`.
 pub struct NimbusImage(Tagged<ImageData>);
 
 /// What an image handle holds.
@@ -69,7 +69,7 @@ struct Tagged<T> {
     value: T,
 }
 
-/// How to render, for [`nimbus_render`]. Start from [`nimbus_render_settings_default`] and change fields.
+/// How to render, for `nimbus_render()`. Start from `nimbus_render_settings_default()` and change fields.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NimbusRenderSettings {
@@ -89,7 +89,7 @@ pub struct NimbusRenderSettings {
     pub time_limit_seconds: f64,
 }
 
-/// Progress callback of [`nimbus_render`], called on the rendering thread after every pass with the fraction
+/// Progress callback of `nimbus_render()`, called on the rendering thread after every pass with the fraction
 /// done in \[0, 1\], the samples per pixel done so far and the caller's `user_data`. Return non-zero to go on,
 /// zero to cancel.
 pub type NimbusProgressFn =
@@ -342,7 +342,7 @@ pub extern "C" fn nimbus_render_settings_default() -> NimbusRenderSettings {
 /// Loads a scene file (`.gltf`, `.glb` or `.obj`, chosen by extension) into `*out_scene`.
 ///
 /// On failure `*out_scene` is set to null, the status is `NIMBUS_STATUS_SCENE_ERROR` (or another) and
-/// [`nimbus_last_error`] names the file and what is wrong.
+/// `nimbus_last_error()` names the file and what is wrong.
 ///
 /// # Safety
 /// `path` must be null or a NUL-terminated UTF-8 string; `out_scene` must be null or point to writable storage
@@ -365,7 +365,7 @@ pub unsafe extern "C" fn nimbus_scene_load(
 /// from the scene stay valid.
 ///
 /// # Safety
-/// `scene` must be null or point to a pointer that is null or was returned by [`nimbus_scene_load`].
+/// `scene` must be null or point to a pointer that is null or was returned by `nimbus_scene_load()`.
 #[no_mangle]
 pub unsafe extern "C" fn nimbus_scene_free(scene: *mut *mut NimbusScene) -> NimbusStatus {
     call(|| {
@@ -379,10 +379,10 @@ pub unsafe extern "C" fn nimbus_scene_free(scene: *mut *mut NimbusScene) -> Nimb
 /// `progress` (may be null) is called on the calling thread after every pass with `user_data`; when it returns
 /// zero the render stops, `*out_image` receives the partial image and the status is `NIMBUS_STATUS_CANCELLED`.
 /// On `NIMBUS_STATUS_OK` and `NIMBUS_STATUS_CANCELLED` the caller owns `*out_image` and frees it with
-/// [`nimbus_image_free`]; on any other status `*out_image` is null.
+/// `nimbus_image_free()`; on any other status `*out_image` is null.
 ///
 /// # Safety
-/// `scene` must be null or a handle from [`nimbus_scene_load`]; `settings` must be null or point to settings;
+/// `scene` must be null or a handle from `nimbus_scene_load()`; `settings` must be null or point to settings;
 /// `out_image` must be null or point to writable storage for a pointer; `progress` must be safe to call with
 /// `user_data` from this thread.
 #[no_mangle]
@@ -417,7 +417,7 @@ pub unsafe extern "C" fn nimbus_render(
 /// Frees the image `*image` and sets `*image` to null. A null `image` or `*image` is a no-op.
 ///
 /// # Safety
-/// `image` must be null or point to a pointer that is null or was returned by [`nimbus_render`].
+/// `image` must be null or point to a pointer that is null or was returned by `nimbus_render()`.
 #[no_mangle]
 pub unsafe extern "C" fn nimbus_image_free(image: *mut *mut NimbusImage) -> NimbusStatus {
     call(|| {
@@ -429,7 +429,7 @@ pub unsafe extern "C" fn nimbus_image_free(image: *mut *mut NimbusImage) -> Nimb
 /// Stores the image width in pixels in `*out_width`.
 ///
 /// # Safety
-/// `image` must be null or a handle from [`nimbus_render`]; `out_width` must be null or writable.
+/// `image` must be null or a handle from `nimbus_render()`; `out_width` must be null or writable.
 #[no_mangle]
 pub unsafe extern "C" fn nimbus_image_width(
     image: *const NimbusImage,
@@ -445,7 +445,7 @@ pub unsafe extern "C" fn nimbus_image_width(
 /// Stores the image height in pixels in `*out_height`.
 ///
 /// # Safety
-/// `image` must be null or a handle from [`nimbus_render`]; `out_height` must be null or writable.
+/// `image` must be null or a handle from `nimbus_render()`; `out_height` must be null or writable.
 #[no_mangle]
 pub unsafe extern "C" fn nimbus_image_height(
     image: *const NimbusImage,
@@ -462,7 +462,7 @@ pub unsafe extern "C" fn nimbus_image_height(
 /// ran out of time).
 ///
 /// # Safety
-/// `image` must be null or a handle from [`nimbus_render`]; `out_spp` must be null or writable.
+/// `image` must be null or a handle from `nimbus_render()`; `out_spp` must be null or writable.
 #[no_mangle]
 pub unsafe extern "C" fn nimbus_image_samples_per_pixel(
     image: *const NimbusImage,
@@ -482,7 +482,7 @@ pub unsafe extern "C" fn nimbus_image_samples_per_pixel(
 /// below `width * height` gives `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
 ///
 /// # Safety
-/// `image` must be null or a handle from [`nimbus_render`]; `name` must be null or a NUL-terminated string;
+/// `image` must be null or a handle from `nimbus_render()`; `name` must be null or a NUL-terminated string;
 /// `out` must be null or point to `len` writable floats.
 #[no_mangle]
 pub unsafe extern "C" fn nimbus_image_channel(
@@ -523,7 +523,7 @@ pub unsafe extern "C" fn nimbus_image_channel(
 /// Writes the image, beauty and every AOV, to `path` as a multi-layer OpenEXR file.
 ///
 /// # Safety
-/// `image` must be null or a handle from [`nimbus_render`]; `path` must be null or a NUL-terminated UTF-8
+/// `image` must be null or a handle from `nimbus_render()`; `path` must be null or a NUL-terminated UTF-8
 /// string.
 #[no_mangle]
 pub unsafe extern "C" fn nimbus_image_write_exr(
@@ -541,7 +541,7 @@ pub unsafe extern "C" fn nimbus_image_write_exr(
 /// Writes the beauty pass to `path` as an 8-bit sRGB PNG, scaled by `2^exposure` and clamped.
 ///
 /// # Safety
-/// `image` must be null or a handle from [`nimbus_render`]; `path` must be null or a NUL-terminated UTF-8
+/// `image` must be null or a handle from `nimbus_render()`; `path` must be null or a NUL-terminated UTF-8
 /// string.
 #[no_mangle]
 pub unsafe extern "C" fn nimbus_image_write_png(
