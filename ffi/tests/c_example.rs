@@ -21,11 +21,12 @@ fn find_c_compiler() -> Option<String> {
     })
 }
 
-/// The folder holding the built libraries: this test runs from `<target>/<profile>/deps/`.
+/// The folder holding the shared library built for this test run: `cargo test` leaves it in
+/// `<target>/<profile>/deps/`, beside this test's executable (only `cargo build` copies it up a level, so the
+/// copy there may be stale or missing).
 fn library_dir() -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
     exe.parent()
-        .and_then(Path::parent)
         .expect("test executable lies in <target>/<profile>/deps")
         .to_path_buf()
 }
