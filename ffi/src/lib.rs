@@ -562,3 +562,34 @@ pub unsafe extern "C" fn nimbus_image_write_png(
         Ok(NimbusStatus::Ok)
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn last_error() -> String {
+        unsafe { CStr::from_ptr(nimbus_last_error()) }
+            .to_string_lossy()
+            .into_owned()
+    }
+
+    #[test]
+    fn a_panic_becomes_a_status_and_a_message() {
+        let status = call(|| panic!("boom at the boundary"));
+        assert_eq!(status, NimbusStatus::Panic);
+        assert!(
+            last_error().contains("boom at the boundary"),
+            "{}",
+            last_error()
+        );
+        assert_eq!(call(|| Ok(NimbusStatus::Ok)), NimbusStatus::Ok);
+        assert_eq!(last_error(), "", "success clears the message");
+    }
+
+    #[test]
+    fn messages_with_nul_bytes_survive() {
+        let status = call(|| Err(Failure::new(NimbusStatus::InvalidArgument, "a\0b")));
+        assert_eq!(status, NimbusStatus::InvalidArgument);
+        assert_eq!(last_error(), "a b");
+    }
+}
