@@ -1,6 +1,88 @@
 //! Nimbus: a production volumetric path tracer for glTF, OBJ and USD scenes with OpenVDB volumes.
 //!
-//! See `ARCHITECTURE.md` for the module map.
+//! See `ARCHITECTURE.md` for the module map and `docs/embedding.md` for embedding Nimbus in an application,
+//! from Rust or through the C API of the `nimbus-ffi` crate.
+//!
+//! # Embedding in three steps
+//!
+//! 1. Get a [`Scene`]: load a file with [`Scene::load`] (glTF `.gltf`/`.glb`, Wavefront `.obj`), or build one in
+//!    code with a [`SceneBuilder`] (meshes, materials, lights, camera).
+//! 2. Render it with a [`Renderer`] made from [`RenderSettings`]: [`Renderer::render`] reports [`Progress`]
+//!    after every pass to a callback that returns `false` to stop, and [`Renderer::render_with_cancel`] also
+//!    stops when a [`CancelToken`] is cancelled from any thread.
+//! 3. Use the [`RenderImage`] (beauty and AOV layers: albedo, normal, depth, variance) and the [`RenderStats`],
+//!    or write the image with [`write_exr`] (multi-layer EXR) and [`write_png_preview`] (8-bit sRGB).
+//!
+//! Nimbus keeps no global state: scenes, renderers and images are plain values, and every render builds its own
+//! worker pool. Every fallible call returns a typed error; [`Error`] wraps them all for hosts that want one
+//! `Result` type.
+//!
+//! # Example: a programmatic scene
+//!
+//! ```
+//! use nimbus::math::{Rgb, Vec3};
+//! use nimbus::{Camera, Material, RenderSettings, Renderer, SceneBuilder};
+//!
+//! # fn main() -> nimbus::Result<()> {
+//! let mut builder = SceneBuilder::new();
+//! let grey = builder.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+//! // A 2 m square floor at y = 0, facing up.
+//! let floor = vec![
+//!     Vec3::new(-1.0, 0.0, -1.0),
+//!     Vec3::new(-1.0, 0.0, 1.0),
+//!     Vec3::new(1.0, 0.0, 1.0),
+//!     Vec3::new(1.0, 0.0, -1.0),
+//! ];
+//! builder.add_triangle_mesh(floor, vec![[0, 1, 2], [0, 2, 3]], grey)?;
+//! builder.add_point_light(Vec3::new(0.0, 1.0, 0.0), Rgb::splat(2.0));
+//! builder.set_camera(Camera::look_at(Vec3::new(0.0, 1.0, 2.0), Vec3::ZERO, 0.8));
+//! let scene = builder.build();
+//!
+//! let settings = RenderSettings { width: 8, height: 8, spp: 1, ..RenderSettings::default() };
+//! let (image, stats) = Renderer::new(settings).render(&scene, &mut |progress| {
+//!     assert!(progress.fraction <= 1.0);
+//!     true // keep going
+//! })?;
+//! assert_eq!((image.width, image.height), (8, 8));
+//! assert_eq!(stats.samples_per_pixel, 1);
+//! assert!(image.beauty.iter().all(|c| c.is_finite()));
+//! assert!(image.beauty.iter().any(|c| c.max_element() > 0.0), "the lit floor shows");
+//!
+//! let exr = std::env::temp_dir().join(format!("nimbus-doc-{}.exr", std::process::id()));
+//! nimbus::write_exr(&image, &exr)?;
+//! nimbus::write_png_preview(&image, &exr.with_extension("png"), 0.0)?;
+//! # std::fs::remove_file(&exr).ok();
+//! # std::fs::remove_file(exr.with_extension("png")).ok();
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! # Example: cancelling from another thread
+//!
+//! ```
+//! use nimbus::{CancelToken, RenderSettings, Renderer, SceneBuilder};
+//!
+//! let scene = SceneBuilder::new().build();
+//! let token = CancelToken::new();
+//! token.clone().cancel(); // e.g. from a UI thread
+//! let settings = RenderSettings { width: 8, height: 8, spp: 4, ..RenderSettings::default() };
+//! let (image, stats) = Renderer::new(settings)
+//!     .render_with_cancel(&scene, &mut |_| true, &token)
+//!     .expect("worker threads start");
+//! assert!(stats.cancelled);
+//! assert_eq!(stats.samples_per_pixel, 0);
+//! assert_eq!(image.width, 8);
+//! ```
+//!
+//! # Example: a file that does not load
+//!
+//! ```
+//! let err = nimbus::Scene::load(std::path::Path::new("missing.glb")).err().unwrap();
+//! let err = nimbus::Error::from(err);
+//! assert!(err.to_string().contains("missing.glb"));
+//! ```
+
+mod error;
 
 pub mod geometry;
 pub mod integrator;
@@ -12,3 +94,12 @@ pub mod render;
 pub mod scene;
 pub mod vdb;
 pub mod volume;
+
+pub use error::{Error, Result};
+pub use material::Material;
+pub use output::{write_exr, write_png_preview, OutputError};
+pub use render::{
+    CancelToken, Progress, RenderImage, RenderSettings, RenderStats, Renderer, CHANNEL_NAMES,
+};
+pub use scene::{Camera, Scene, SceneBuilder, SceneError};
+pub use vdb::VdbError;

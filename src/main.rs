@@ -202,7 +202,11 @@ fn render(args: RenderArgs) -> Result<(), String> {
         stats.render_seconds,
         stats.samples_per_second
     );
-    for m in stats.media.iter().filter(|m| m.counters.majorant_violations > 0) {
+    for m in stats
+        .media
+        .iter()
+        .filter(|m| m.counters.majorant_violations > 0)
+    {
         eprintln!(
             "nimbus: warning: medium '{}': {} density lookups exceeded their majorant; the estimate is biased there",
             m.name, m.counters.majorant_violations

@@ -5,7 +5,7 @@
 //! pixel adds its samples in order, so the same seed gives the same image, bit for bit, for any thread count.
 
 use super::film::Film;
-use super::RenderImage;
+use super::{CancelToken, RenderImage};
 use crate::integrator::{PathCounters, PathTracer, RayCounters, RendererServices};
 use crate::math::{is_finite_rgb, Rng, Vec2};
 use crate::scene::Scene;
@@ -128,6 +128,18 @@ impl Renderer {
         scene: &Scene,
         progress: &mut dyn FnMut(&Progress) -> bool,
     ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
+        self.render_with_cancel(scene, progress, &CancelToken::new())
+    }
+
+    /// Renders `scene` like [`render`](Self::render), and also stops when `cancel` is cancelled: the token is
+    /// checked between passes and before every pixel. A cancelled render returns what it has, with
+    /// `stats.cancelled` set and `stats.samples_per_pixel` counting the passes that completed.
+    pub fn render_with_cancel(
+        &self,
+        scene: &Scene,
+        progress: &mut dyn FnMut(&Progress) -> bool,
+        cancel: &CancelToken,
+    ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
         let s = &self.settings;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(s.threads)
@@ -146,12 +158,16 @@ impl Renderer {
         } else {
             target.div_ceil(16)
         };
-        while done < target {
+        while done < target && !cancel.is_cancelled() {
             let count = pass.min(target - done);
             let pass_start = Instant::now();
-            let (c, nans) = pool.install(|| self.render_pass(scene, &mut film, done, count));
+            let (c, nans) =
+                pool.install(|| self.render_pass(scene, &mut film, done, count, cancel));
             counters.add(&c);
             nan_samples += nans;
+            if cancel.is_cancelled() {
+                break;
+            }
             done += count;
             let elapsed = start.elapsed();
             let fraction = match s.time_limit {
@@ -179,6 +195,7 @@ impl Renderer {
                 pass = ((remaining * 0.5 / per_spp.max(1e-9)) as u32).clamp(1, 64);
             }
         }
+        cancelled |= cancel.is_cancelled();
         let seconds = start.elapsed().as_secs_f64();
         let stats = RenderStats {
             samples_per_pixel: done,
@@ -208,13 +225,15 @@ impl Renderer {
         Ok((film.image(), stats))
     }
 
-    /// Adds samples `first..first + count` to every pixel. Returns the counters and the dropped NaN samples.
+    /// Adds samples `first..first + count` to every pixel, skipping the pixels left once `cancel` is
+    /// cancelled. Returns the counters and the dropped NaN samples.
     fn render_pass(
         &self,
         scene: &Scene,
         film: &mut Film,
         first: u32,
         count: u32,
+        cancel: &CancelToken,
     ) -> (PathCounters, u64) {
         let s = &self.settings;
         let (width, height) = (film.width, film.height);
@@ -231,6 +250,9 @@ impl Renderer {
                 let mut counters = PathCounters::new(scene.media.len());
                 let mut nans = 0u64;
                 for (x, pixel) in row.iter_mut().enumerate() {
+                    if cancel.is_cancelled() {
+                        break;
+                    }
                     let pixel_index = (y * width + x) as u64;
                     for sample in first..first + count {
                         let mut rng = Rng::for_sample(s.seed, pixel_index, sample as u64);

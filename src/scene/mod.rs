@@ -3,11 +3,13 @@
 //! Loaders fill a [`SceneBuilder`]; [`SceneBuilder::build`] flattens the meshes into one BVH, turns emissive
 //! triangles into area lights and builds the light-selection distribution.
 
+mod builder;
 mod camera;
 mod error;
 pub mod gltf;
 pub mod obj;
 
+pub use builder::BUILDER_PATH;
 pub use camera::Camera;
 pub use error::{SceneError, SceneErrorKind};
 

@@ -84,21 +84,34 @@ impl GridMedium {
     pub fn load(spec: &VolumeSpec) -> Result<Self, SceneError> {
         let err = |m: String| SceneError::new(&spec.file, SceneErrorKind::InvalidReference(m));
         let file = crate::vdb::read_file(&spec.file).map_err(|e| {
-            SceneError::new(&spec.file, SceneErrorKind::Malformed(format!("{} ({})", e.kind, spec.name)))
+            SceneError::new(
+                &spec.file,
+                SceneErrorKind::Malformed(format!("{} ({})", e.kind, spec.name)),
+            )
         })?;
         let find = |name: &str| {
             file.grid(name).ok_or_else(|| {
                 let names: Vec<&str> = file.grids.iter().map(|g| g.name.as_str()).collect();
-                err(format!("{}: no grid named '{name}' (the file has {names:?})", spec.name))
+                err(format!(
+                    "{}: no grid named '{name}' (the file has {names:?})",
+                    spec.name
+                ))
             })
         };
         let node = spec.node_to_world.as_dmat4();
         let density = GridDensity::new(find(&spec.density_grid)?, node, spec.density_scale)
             .map_err(|e| err(format!("{}: {e}", spec.name)))?;
-        let mut medium = Self::new(&spec.name, density, spec.majorant, spec.albedo, spec.anisotropy)
-            .with_shadow_estimator(spec.shadow_estimator);
+        let mut medium = Self::new(
+            &spec.name,
+            density,
+            spec.majorant,
+            spec.albedo,
+            spec.anisotropy,
+        )
+        .with_shadow_estimator(spec.shadow_estimator);
         if let Some(t) = &spec.temperature_grid {
-            let temperature = GridDensity::new(find(t)?, node, 1.0).map_err(|e| err(format!("{}: {e}", spec.name)))?;
+            let temperature = GridDensity::new(find(t)?, node, 1.0)
+                .map_err(|e| err(format!("{}: {e}", spec.name)))?;
             medium.emission = Some(Emission {
                 temperature,
                 table: BlackbodyTable::new(),
@@ -132,7 +145,10 @@ impl Medium for GridMedium {
     fn memory_bytes(&self) -> usize {
         self.density.memory_bytes()
             + self.majorants.memory_bytes()
-            + self.emission.as_ref().map_or(0, |e| e.temperature.memory_bytes())
+            + self
+                .emission
+                .as_ref()
+                .map_or(0, |e| e.temperature.memory_bytes())
     }
 
     fn fill_bounds(&self) -> Option<Aabb> {
@@ -151,10 +167,26 @@ impl Medium for GridMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> Option<f32> {
-        sample_collision(&self.density, &self.majorants, ray, 0.0, t_max, rng, counters)
+        sample_collision(
+            &self.density,
+            &self.majorants,
+            ray,
+            0.0,
+            t_max,
+            rng,
+            counters,
+        )
     }
 
-    fn free_flight_weight(&self, _: &Ray, _: f32, _: bool, _: Rgb, _: &mut Rng, _: &mut TrackingCounters) -> Rgb {
+    fn free_flight_weight(
+        &self,
+        _: &Ray,
+        _: f32,
+        _: bool,
+        _: Rgb,
+        _: &mut Rng,
+        _: &mut TrackingCounters,
+    ) -> Rgb {
         // Delta tracking of a grey medium is analog.
         Rgb::ONE
     }
@@ -167,15 +199,39 @@ impl Medium for GridMedium {
             }
             None => Rgb::ZERO,
         };
-        Collision { albedo: self.albedo, emission, phase: self.phase }
+        Collision {
+            albedo: self.albedo,
+            emission,
+            phase: self.phase,
+        }
     }
 
-    fn transmittance(&self, ray: &Ray, t_max: f32, rng: &mut Rng, counters: &mut TrackingCounters) -> Rgb {
+    fn transmittance(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        rng: &mut Rng,
+        counters: &mut TrackingCounters,
+    ) -> Rgb {
         let t = match self.shadow {
-            ShadowEstimator::Ratio => ratio_tracking(&self.density, &self.majorants, ray, 0.0, t_max, rng, counters),
-            ShadowEstimator::ResidualRatio => {
-                residual_ratio_tracking(&self.density, &self.majorants, ray, 0.0, t_max, rng, counters)
-            }
+            ShadowEstimator::Ratio => ratio_tracking(
+                &self.density,
+                &self.majorants,
+                ray,
+                0.0,
+                t_max,
+                rng,
+                counters,
+            ),
+            ShadowEstimator::ResidualRatio => residual_ratio_tracking(
+                &self.density,
+                &self.majorants,
+                ray,
+                0.0,
+                t_max,
+                rng,
+                counters,
+            ),
         };
         Rgb::splat(t)
     }

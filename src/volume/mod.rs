@@ -155,4 +155,3 @@ pub fn parse_nimbus_medium(
         g as f32,
     )))
 }
-

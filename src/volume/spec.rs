@@ -153,14 +153,22 @@ impl VolumeSpec {
                 "adaptive" => MajorantKind::Adaptive,
                 "grid16" => MajorantKind::Grid16,
                 "global" => MajorantKind::Global,
-                other => return Err(format!("'majorant' {other:?} is not adaptive, grid16 or global")),
+                other => {
+                    return Err(format!(
+                        "'majorant' {other:?} is not adaptive, grid16 or global"
+                    ))
+                }
             };
         }
         if let Some(m) = string("shadow_estimator")? {
             spec.shadow_estimator = match m.as_str() {
                 "ratio" => ShadowEstimator::Ratio,
                 "residual_ratio" => ShadowEstimator::ResidualRatio,
-                other => return Err(format!("'shadow_estimator' {other:?} is not ratio or residual_ratio")),
+                other => {
+                    return Err(format!(
+                        "'shadow_estimator' {other:?} is not ratio or residual_ratio"
+                    ))
+                }
             };
         }
         if let Some(a) = value.get("albedo") {

@@ -1,0 +1,595 @@
+//! The C API of Nimbus: load a scene, render it with a progress callback that can cancel, read the image's
+//! channels and write EXR and PNG files, through opaque handles. The header is `include/nimbus.h`, generated
+//! from this file by cbindgen (`cbindgen.toml`); the test `header_is_up_to_date` fails when it is stale and
+//! rewrites it when run with `NIMBUS_BLESS_HEADER=1`.
+//!
+//! Rules every function follows (the header repeats them):
+//! - It returns a [`NimbusStatus`]; on failure [`nimbus_last_error`] gives this thread's message.
+//! - No panic crosses the boundary: each body runs under `catch_unwind`, and a panic becomes
+//!   [`NimbusStatus::Panic`].
+//! - A null pointer gives [`NimbusStatus::NullPointer`]; a handle whose type tag does not match (another kind of
+//!   handle, or one already freed whose memory still holds the cleared tag) gives
+//!   [`NimbusStatus::InvalidHandle`].
+//! - Output handles are written only on success (and, for [`nimbus_render`], on cancellation); on any other
+//!   status they are set to null.
+//! - Handles are freed with `nimbus_*_free(&handle)`, which nulls the caller's pointer, so freeing twice through
+//!   the same variable is a no-op; freeing null is a no-op.
+
+use nimbus::render::{RenderImage, RenderSettings, RenderStats, Renderer};
+use nimbus::{Error, Scene};
+use std::cell::RefCell;
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// The outcome of a call.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NimbusStatus {
+    /// Success.
+    Ok = 0,
+    /// A required pointer argument was null.
+    NullPointer = 1,
+    /// A handle was not a live handle of the expected type.
+    InvalidHandle = 2,
+    /// An argument was out of range or malformed (bad settings, unknown channel, path not UTF-8...).
+    InvalidArgument = 3,
+    /// A scene file could not be loaded; the message names the file.
+    SceneError = 4,
+    /// An image file could not be written; the message names the file.
+    OutputError = 5,
+    /// The renderer could not run (its worker threads could not start).
+    RenderError = 6,
+    /// The progress callback asked to stop; the partial image is still returned.
+    Cancelled = 7,
+    /// The caller's buffer is smaller than the data to copy.
+    BufferTooSmall = 8,
+    /// An internal error (a Rust panic) was caught at the boundary.
+    Panic = 9,
+}
+
+/// A loaded scene. Opaque: create with `nimbus_scene_load()`, free with `nimbus_scene_free()`.
+pub struct NimbusScene(Tagged<Scene>);
+
+/// A rendered image with its AOV layers. Opaque: create with `nimbus_render()`, free with
+/// `nimbus_image_free()`.
+pub struct NimbusImage(Tagged<ImageData>);
+
+/// What an image handle holds.
+struct ImageData {
+    image: RenderImage,
+    stats: RenderStats,
+}
+
+/// A value behind a type tag, read before every use and cleared on free.
+#[repr(C)]
+struct Tagged<T> {
+    magic: u64,
+    value: T,
+}
+
+/// How to render, for `nimbus_render()`. Start from `nimbus_render_settings_default()` and change fields.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NimbusRenderSettings {
+    /// Image width in pixels, 1 to 32768.
+    pub width: u32,
+    /// Image height in pixels, 1 to 32768 (and at most 2^26 pixels in all).
+    pub height: u32,
+    /// Samples per pixel to reach, at least 1.
+    pub spp: u32,
+    /// Maximum scattering events per path.
+    pub max_depth: u32,
+    /// Worker threads; 0 uses every core.
+    pub threads: u32,
+    /// Seed of every random stream: the same seed gives the same image.
+    pub seed: u64,
+    /// Wall-clock budget in seconds; 0 means none. The render stops after the pass in which it runs out.
+    pub time_limit_seconds: f64,
+}
+
+/// Progress callback of `nimbus_render()`, called on the rendering thread after every pass with the fraction
+/// done in \[0, 1\], the samples per pixel done so far and the caller's `user_data`. Return non-zero to go on,
+/// zero to cancel.
+pub type NimbusProgressFn =
+    Option<unsafe extern "C" fn(fraction: f32, spp: u32, user_data: *mut c_void) -> c_int>;
+
+const MAX_SIDE: u32 = 32768;
+const MAX_PIXELS: u64 = 1 << 26;
+
+thread_local! {
+    /// This thread's last error message (empty after a successful call).
+    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+}
+
+/// A failed call: its status and message.
+struct Failure {
+    status: NimbusStatus,
+    message: String,
+}
+
+impl Failure {
+    fn new(status: NimbusStatus, message: impl Into<String>) -> Self {
+        Self {
+            status,
+            message: message.into(),
+        }
+    }
+
+    fn null(what: &str) -> Self {
+        Self::new(NimbusStatus::NullPointer, format!("{what} is null"))
+    }
+}
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Self {
+        let status = match e {
+            Error::Scene(_) | Error::Vdb(_) => NimbusStatus::SceneError,
+            Error::Output(_) => NimbusStatus::OutputError,
+            Error::ThreadPool(_) => NimbusStatus::RenderError,
+        };
+        Self::new(status, e.to_string())
+    }
+}
+
+fn set_last_error(message: String) {
+    let message = CString::new(message.replace('\0', " ")).unwrap_or_default();
+    LAST_ERROR.with(|e| *e.borrow_mut() = message);
+}
+
+/// Runs `body` with the error slot cleared, catching panics, and turns its outcome into a status.
+fn call(body: impl FnOnce() -> Result<NimbusStatus, Failure>) -> NimbusStatus {
+    set_last_error(String::new());
+    let outcome = catch_unwind(AssertUnwindSafe(body)).unwrap_or_else(|payload| {
+        let what = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown panic".into());
+        Err(Failure::new(
+            NimbusStatus::Panic,
+            format!("internal error: {what}"),
+        ))
+    });
+    match outcome {
+        Ok(status) => status,
+        Err(f) => {
+            set_last_error(f.message);
+            f.status
+        }
+    }
+}
+
+/// An opaque handle type: a tagged value behind a pointer handed to C.
+trait Handle: Sized {
+    /// What the handle holds.
+    type Value;
+    /// The tag of live handles of this type.
+    const MAGIC: u64;
+    /// The handle's name in messages.
+    const WHAT: &'static str;
+
+    /// Wraps `value` in a tagged handle.
+    fn wrap(value: Self::Value) -> Self;
+
+    /// The tagged value of the handle at `p`.
+    ///
+    /// # Safety
+    /// `p` must not be null.
+    unsafe fn tagged(p: *mut Self) -> *mut Tagged<Self::Value>;
+
+    /// Moves `value` into a new handle owned by the caller.
+    fn into_raw(value: Self::Value) -> *mut Self {
+        Box::into_raw(Box::new(Self::wrap(value)))
+    }
+
+    /// Checks the tag of the handle at `p` and borrows its value.
+    ///
+    /// # Safety
+    /// `p` must be null or point to readable memory at least as large as a handle.
+    unsafe fn get<'a>(p: *const Self) -> Result<&'a Self::Value, Failure> {
+        if p.is_null() {
+            return Err(Failure::null(Self::WHAT));
+        }
+        let tagged = Self::tagged(p.cast_mut());
+        if !p.is_aligned() || (*tagged).magic != Self::MAGIC {
+            return Err(Failure::new(
+                NimbusStatus::InvalidHandle,
+                format!(
+                    "{} is not a live handle of its type (freed, or another kind of handle)",
+                    Self::WHAT
+                ),
+            ));
+        }
+        Ok(&(*tagged).value)
+    }
+
+    /// Frees the handle `*slot` points to, if any, and nulls `*slot`.
+    ///
+    /// # Safety
+    /// `slot` must be null or point to a pointer that is null or was returned by [`Handle::into_raw`].
+    unsafe fn free(slot: *mut *mut Self) -> Result<(), Failure> {
+        if slot.is_null() || (*slot).is_null() {
+            return Ok(());
+        }
+        Self::get(*slot)?;
+        (*Self::tagged(*slot)).magic = 0;
+        drop(Box::from_raw(*slot));
+        *slot = std::ptr::null_mut();
+        Ok(())
+    }
+}
+
+impl Handle for NimbusScene {
+    type Value = Scene;
+    const MAGIC: u64 = u64::from_be_bytes(*b"NIMSCENE");
+    const WHAT: &'static str = "scene";
+
+    fn wrap(value: Scene) -> Self {
+        Self(Tagged {
+            magic: Self::MAGIC,
+            value,
+        })
+    }
+
+    unsafe fn tagged(p: *mut Self) -> *mut Tagged<Scene> {
+        std::ptr::addr_of_mut!((*p).0)
+    }
+}
+
+impl Handle for NimbusImage {
+    type Value = ImageData;
+    const MAGIC: u64 = u64::from_be_bytes(*b"NIMIMAGE");
+    const WHAT: &'static str = "image";
+
+    fn wrap(value: ImageData) -> Self {
+        Self(Tagged {
+            magic: Self::MAGIC,
+            value,
+        })
+    }
+
+    unsafe fn tagged(p: *mut Self) -> *mut Tagged<ImageData> {
+        std::ptr::addr_of_mut!((*p).0)
+    }
+}
+
+/// Reads a NUL-terminated UTF-8 string argument.
+unsafe fn c_str<'a>(p: *const c_char, what: &str) -> Result<&'a str, Failure> {
+    if p.is_null() {
+        return Err(Failure::null(what));
+    }
+    CStr::from_ptr(p).to_str().map_err(|_| {
+        Failure::new(
+            NimbusStatus::InvalidArgument,
+            format!("{what} is not UTF-8"),
+        )
+    })
+}
+
+/// Writes `value` through the out-pointer `out`, failing on null.
+unsafe fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
+    if out.is_null() {
+        return Err(Failure::null(what));
+    }
+    out.write(value);
+    Ok(())
+}
+
+/// Checks C settings and converts them.
+fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure> {
+    let invalid = |m: String| Failure::new(NimbusStatus::InvalidArgument, m);
+    if s.width == 0 || s.height == 0 || s.width > MAX_SIDE || s.height > MAX_SIDE {
+        return Err(invalid(format!(
+            "image size {}x{} is not within 1..={MAX_SIDE} on each side",
+            s.width, s.height
+        )));
+    }
+    if u64::from(s.width) * u64::from(s.height) > MAX_PIXELS {
+        return Err(invalid(format!(
+            "image size {}x{} has more than {MAX_PIXELS} pixels",
+            s.width, s.height
+        )));
+    }
+    if s.spp == 0 {
+        return Err(invalid(
+            "spp is 0; at least 1 sample per pixel is needed".into(),
+        ));
+    }
+    let time_limit = match s.time_limit_seconds {
+        0.0 => None,
+        t if t.is_finite() && t > 0.0 => Some(Duration::from_secs_f64(t)),
+        t => {
+            return Err(invalid(format!(
+                "time_limit_seconds {t} is not a non-negative number of seconds"
+            )))
+        }
+    };
+    Ok(RenderSettings {
+        width: s.width as usize,
+        height: s.height as usize,
+        spp: s.spp,
+        seed: s.seed,
+        threads: s.threads as usize,
+        max_depth: s.max_depth,
+        time_limit,
+    })
+}
+
+/// The message of the last failed call on the calling thread, or an empty string when the last call
+/// succeeded. Never null. The text stays valid until the next `nimbus_*` call on this thread.
+#[no_mangle]
+pub extern "C" fn nimbus_last_error() -> *const c_char {
+    LAST_ERROR.with(|e| e.borrow().as_ptr())
+}
+
+/// The default render settings: 640x480, 64 spp, max depth 64, every core, seed 0, no time limit.
+#[no_mangle]
+pub extern "C" fn nimbus_render_settings_default() -> NimbusRenderSettings {
+    let d = RenderSettings::default();
+    NimbusRenderSettings {
+        width: d.width as u32,
+        height: d.height as u32,
+        spp: d.spp,
+        max_depth: d.max_depth,
+        threads: d.threads as u32,
+        seed: d.seed,
+        time_limit_seconds: 0.0,
+    }
+}
+
+/// Loads a scene file (`.gltf`, `.glb` or `.obj`, chosen by extension) into `*out_scene`.
+///
+/// On failure `*out_scene` is set to null, the status is `NIMBUS_STATUS_SCENE_ERROR` (or another) and
+/// `nimbus_last_error()` names the file and what is wrong.
+///
+/// # Safety
+/// `path` must be null or a NUL-terminated UTF-8 string; `out_scene` must be null or point to writable storage
+/// for a pointer.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_scene_load(
+    path: *const c_char,
+    out_scene: *mut *mut NimbusScene,
+) -> NimbusStatus {
+    call(|| {
+        put(out_scene, std::ptr::null_mut(), "out_scene")?;
+        let path = PathBuf::from(c_str(path, "path")?);
+        let scene = Scene::load(&path).map_err(Error::from)?;
+        *out_scene = NimbusScene::into_raw(scene);
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Frees the scene `*scene` and sets `*scene` to null. A null `scene` or `*scene` is a no-op. Images rendered
+/// from the scene stay valid.
+///
+/// # Safety
+/// `scene` must be null or point to a pointer that is null or was returned by `nimbus_scene_load()`.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_scene_free(scene: *mut *mut NimbusScene) -> NimbusStatus {
+    call(|| {
+        NimbusScene::free(scene)?;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Renders `scene` with `settings` into a new image stored in `*out_image`.
+///
+/// `progress` (may be null) is called on the calling thread after every pass with `user_data`; when it returns
+/// zero the render stops, `*out_image` receives the partial image and the status is `NIMBUS_STATUS_CANCELLED`.
+/// On `NIMBUS_STATUS_OK` and `NIMBUS_STATUS_CANCELLED` the caller owns `*out_image` and frees it with
+/// `nimbus_image_free()`; on any other status `*out_image` is null.
+///
+/// # Safety
+/// `scene` must be null or a handle from `nimbus_scene_load()`; `settings` must be null or point to settings;
+/// `out_image` must be null or point to writable storage for a pointer; `progress` must be safe to call with
+/// `user_data` from this thread.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_render(
+    scene: *const NimbusScene,
+    settings: *const NimbusRenderSettings,
+    progress: NimbusProgressFn,
+    user_data: *mut c_void,
+    out_image: *mut *mut NimbusImage,
+) -> NimbusStatus {
+    call(|| {
+        put(out_image, std::ptr::null_mut(), "out_image")?;
+        let scene = NimbusScene::get(scene)?;
+        let settings = settings.as_ref().ok_or_else(|| Failure::null("settings"))?;
+        let renderer = Renderer::new(convert_settings(settings)?);
+        let mut report = |p: &nimbus::Progress| match progress {
+            Some(f) => f(p.fraction as f32, p.samples_done, user_data) != 0,
+            None => true,
+        };
+        let (image, stats) = renderer.render(scene, &mut report).map_err(Error::from)?;
+        let status = if stats.cancelled {
+            set_last_error("the progress callback cancelled the render".into());
+            NimbusStatus::Cancelled
+        } else {
+            NimbusStatus::Ok
+        };
+        *out_image = NimbusImage::into_raw(ImageData { image, stats });
+        Ok(status)
+    })
+}
+
+/// Frees the image `*image` and sets `*image` to null. A null `image` or `*image` is a no-op.
+///
+/// # Safety
+/// `image` must be null or point to a pointer that is null or was returned by `nimbus_render()`.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_free(image: *mut *mut NimbusImage) -> NimbusStatus {
+    call(|| {
+        NimbusImage::free(image)?;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Stores the image width in pixels in `*out_width`.
+///
+/// # Safety
+/// `image` must be null or a handle from `nimbus_render()`; `out_width` must be null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_width(
+    image: *const NimbusImage,
+    out_width: *mut u32,
+) -> NimbusStatus {
+    call(|| {
+        let data = NimbusImage::get(image)?;
+        put(out_width, data.image.width as u32, "out_width")?;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Stores the image height in pixels in `*out_height`.
+///
+/// # Safety
+/// `image` must be null or a handle from `nimbus_render()`; `out_height` must be null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_height(
+    image: *const NimbusImage,
+    out_height: *mut u32,
+) -> NimbusStatus {
+    call(|| {
+        let data = NimbusImage::get(image)?;
+        put(out_height, data.image.height as u32, "out_height")?;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Stores in `*out_spp` the samples per pixel the render completed (fewer than asked when it was cancelled or
+/// ran out of time).
+///
+/// # Safety
+/// `image` must be null or a handle from `nimbus_render()`; `out_spp` must be null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_samples_per_pixel(
+    image: *const NimbusImage,
+    out_spp: *mut u32,
+) -> NimbusStatus {
+    call(|| {
+        let data = NimbusImage::get(image)?;
+        put(out_spp, data.stats.samples_per_pixel, "out_spp")?;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Copies channel `name` of the image into `out`, `width * height` floats, row-major from the top row.
+///
+/// Channel names are the EXR file's: `R`, `G`, `B`, `A` (constant 1), `albedo.R|G|B`, `normal.X|Y|Z`,
+/// `depth.Z`, `variance.R|G|B`. An unknown name gives `NIMBUS_STATUS_INVALID_ARGUMENT`; `len` (in floats)
+/// below `width * height` gives `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
+///
+/// # Safety
+/// `image` must be null or a handle from `nimbus_render()`; `name` must be null or a NUL-terminated string;
+/// `out` must be null or point to `len` writable floats.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_channel(
+    image: *const NimbusImage,
+    name: *const c_char,
+    out: *mut f32,
+    len: usize,
+) -> NimbusStatus {
+    call(|| {
+        let data = NimbusImage::get(image)?;
+        let name = c_str(name, "channel name")?;
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        let samples = data.image.channel(name).ok_or_else(|| {
+            Failure::new(
+                NimbusStatus::InvalidArgument,
+                format!(
+                    "unknown channel {name:?}; known: {}",
+                    nimbus::CHANNEL_NAMES.join(", ")
+                ),
+            )
+        })?;
+        if len < samples.len() {
+            return Err(Failure::new(
+                NimbusStatus::BufferTooSmall,
+                format!(
+                    "buffer holds {len} floats, channel {name} needs {}",
+                    samples.len()
+                ),
+            ));
+        }
+        std::slice::from_raw_parts_mut(out, samples.len()).copy_from_slice(&samples);
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Writes the image, beauty and every AOV, to `path` as a multi-layer OpenEXR file.
+///
+/// # Safety
+/// `image` must be null or a handle from `nimbus_render()`; `path` must be null or a NUL-terminated UTF-8
+/// string.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_write_exr(
+    image: *const NimbusImage,
+    path: *const c_char,
+) -> NimbusStatus {
+    call(|| {
+        let data = NimbusImage::get(image)?;
+        let path = PathBuf::from(c_str(path, "path")?);
+        nimbus::write_exr(&data.image, &path).map_err(Error::from)?;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Writes the beauty pass to `path` as an 8-bit sRGB PNG, scaled by `2^exposure` and clamped.
+///
+/// # Safety
+/// `image` must be null or a handle from `nimbus_render()`; `path` must be null or a NUL-terminated UTF-8
+/// string.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_write_png(
+    image: *const NimbusImage,
+    path: *const c_char,
+    exposure: f32,
+) -> NimbusStatus {
+    call(|| {
+        let data = NimbusImage::get(image)?;
+        let path = PathBuf::from(c_str(path, "path")?);
+        if !exposure.is_finite() {
+            return Err(Failure::new(
+                NimbusStatus::InvalidArgument,
+                format!("exposure {exposure} is not finite"),
+            ));
+        }
+        nimbus::write_png_preview(&data.image, &path, exposure).map_err(Error::from)?;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn last_error() -> String {
+        unsafe { CStr::from_ptr(nimbus_last_error()) }
+            .to_string_lossy()
+            .into_owned()
+    }
+
+    #[test]
+    fn a_panic_becomes_a_status_and_a_message() {
+        let status = call(|| panic!("boom at the boundary"));
+        assert_eq!(status, NimbusStatus::Panic);
+        assert!(
+            last_error().contains("boom at the boundary"),
+            "{}",
+            last_error()
+        );
+        assert_eq!(call(|| Ok(NimbusStatus::Ok)), NimbusStatus::Ok);
+        assert_eq!(last_error(), "", "success clears the message");
+    }
+
+    #[test]
+    fn messages_with_nul_bytes_survive() {
+        let status = call(|| Err(Failure::new(NimbusStatus::InvalidArgument, "a\0b")));
+        assert_eq!(status, NimbusStatus::InvalidArgument);
+        assert_eq!(last_error(), "a b");
+    }
+}

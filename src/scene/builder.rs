@@ -1,0 +1,116 @@
+//! Convenience methods for building a scene in code rather than loading it from a file.
+
+use super::{Camera, SceneBuilder, SceneError, SceneErrorKind};
+use crate::geometry::Mesh;
+use crate::light::{DirectionalLight, Light, PointLight};
+use crate::math::{Rgb, Vec3};
+
+/// The name that errors about a programmatic scene give in place of a file path.
+pub const BUILDER_PATH: &str = "<scene builder>";
+
+impl SceneBuilder {
+    /// An empty builder: no meshes, materials or lights, and a camera framing whatever is added.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a world-space triangle mesh made of `positions` and counter-clockwise `indices` into them, with the
+    /// material at index `material` (as returned by [`add_material`](Self::add_material)). Normals are
+    /// generated from the faces. Returns the index of the mesh.
+    ///
+    /// Fails, adding nothing, when an index is out of range, a position is not finite or the material does
+    /// not exist.
+    pub fn add_triangle_mesh(
+        &mut self,
+        positions: Vec<Vec3>,
+        indices: Vec<[u32; 3]>,
+        material: u32,
+    ) -> Result<usize, SceneError> {
+        let invalid =
+            |what: String| SceneError::new(BUILDER_PATH, SceneErrorKind::InvalidReference(what));
+        if material as usize >= self.materials.len() {
+            return Err(invalid(format!(
+                "material {material} of a mesh, but only {} materials were added",
+                self.materials.len()
+            )));
+        }
+        if let Some(i) = indices
+            .iter()
+            .flatten()
+            .find(|&&i| i as usize >= positions.len())
+        {
+            return Err(invalid(format!(
+                "vertex index {i} of a mesh with {} positions",
+                positions.len()
+            )));
+        }
+        if !positions.iter().all(|p| p.is_finite()) {
+            return Err(SceneError::new(
+                BUILDER_PATH,
+                SceneErrorKind::Malformed("a mesh position is not finite".into()),
+            ));
+        }
+        self.add_mesh(Mesh {
+            name: format!("mesh{}", self.meshes.len()),
+            positions,
+            indices,
+            material,
+            ..Mesh::default()
+        });
+        Ok(self.meshes.len() - 1)
+    }
+
+    /// Sets the camera, replacing any from a loaded file.
+    pub fn set_camera(&mut self, camera: Camera) {
+        self.camera = Some(camera);
+    }
+
+    /// Adds a point light at `position` with radiant `intensity` (W/sr per channel).
+    pub fn add_point_light(&mut self, position: Vec3, intensity: Rgb) {
+        self.lights.push(Light::Point(PointLight {
+            position,
+            intensity,
+        }));
+    }
+
+    /// Adds a directional light travelling along `direction` (normalised here) with `irradiance` (W/m² per
+    /// channel at normal incidence).
+    pub fn add_directional_light(&mut self, direction: Vec3, irradiance: Rgb) {
+        self.lights.push(Light::Directional(DirectionalLight {
+            direction: direction.normalize_or(Vec3::NEG_Y),
+            irradiance,
+        }));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::Material;
+
+    #[test]
+    fn add_triangle_mesh_validates_indices_and_material() {
+        let mut b = SceneBuilder::new();
+        let tri = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        assert!(b
+            .add_triangle_mesh(tri.clone(), vec![[0, 1, 2]], 0)
+            .is_err());
+        let m = b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+        let err = b
+            .add_triangle_mesh(tri.clone(), vec![[0, 1, 3]], m)
+            .unwrap_err();
+        assert!(err.to_string().contains("vertex index 3"), "{err}");
+        assert!(b
+            .add_triangle_mesh(vec![Vec3::NAN, Vec3::X, Vec3::Y], vec![[0, 1, 2]], m)
+            .is_err());
+        assert!(b.meshes.is_empty());
+        assert_eq!(b.add_triangle_mesh(tri, vec![[0, 1, 2]], m).unwrap(), 0);
+        assert_eq!(b.meshes[0].normals.len(), 3);
+        b.add_point_light(Vec3::Y, Rgb::ONE);
+        b.add_directional_light(Vec3::ZERO, Rgb::ONE);
+        b.set_camera(Camera::look_at(Vec3::Z, Vec3::ZERO, 1.0));
+        let scene = b.build();
+        assert_eq!(scene.triangle_count(), 1);
+        assert_eq!(scene.lights.len(), 2);
+    }
+}
