@@ -128,7 +128,7 @@ impl UniformGrid {
         mut f: impl FnMut(IVec3, f32, f32) -> ControlFlow<()>,
     ) -> ControlFlow<()> {
         // Start from the cell of the interval's entry point (clamped inside against round-off).
-        let mut c =
+        let c =
             floor_ivec3((ray.at(ta) - self.origin) / self.cell).clamp(IVec3::ZERO, self.res - 1);
         let flat = ray.dir.cmpeq(Vec3::ZERO);
         let up = ray.dir.cmpgt(Vec3::ZERO);
