@@ -128,34 +128,42 @@ impl UniformGrid {
         mut f: impl FnMut(IVec3, f32, f32) -> ControlFlow<()>,
     ) -> ControlFlow<()> {
         // Start from the cell of the interval's entry point (clamped inside against round-off).
-        let mut c =
+        let c =
             floor_ivec3((ray.at(ta) - self.origin) / self.cell).clamp(IVec3::ZERO, self.res - 1);
         let flat = ray.dir.cmpeq(Vec3::ZERO);
         let up = ray.dir.cmpgt(Vec3::ZERO);
         let step = IVec3::select(up, IVec3::ONE, IVec3::NEG_ONE);
         let boundary =
             self.origin + (c + IVec3::select(up, IVec3::ONE, IVec3::ZERO)).as_vec3() * self.cell;
-        let mut t_next = Vec3::select(flat, Vec3::INFINITY, (boundary - ray.origin) * inv_dir);
+        let t_next = Vec3::select(flat, Vec3::INFINITY, (boundary - ray.origin) * inv_dir);
         let t_delta = Vec3::select(flat, Vec3::INFINITY, self.cell * inv_dir.abs());
+        // Plain arrays: indexing glam vectors by a runtime axis compiles to a branch per access.
+        let (mut t_next, t_delta, step, res) = (
+            t_next.to_array(),
+            t_delta.to_array(),
+            step.to_array(),
+            self.res.to_array(),
+        );
+        let mut cell = c.to_array();
         let mut t = ta;
         loop {
-            let a = if t_next.x <= t_next.y && t_next.x <= t_next.z {
+            let a = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
                 0
-            } else if t_next.y <= t_next.z {
+            } else if t_next[1] <= t_next[2] {
                 1
             } else {
                 2
             };
             let t_end = t_next[a].min(tb);
             if t_end > t {
-                f(c, t, t_end)?;
+                f(IVec3::from_array(cell), t, t_end)?;
             }
             if t_end >= tb {
                 return ControlFlow::Continue(());
             }
             t = t_end;
-            c[a] += step[a];
-            if c[a] < 0 || c[a] >= self.res[a] {
+            cell[a] += step[a];
+            if cell[a] < 0 || cell[a] >= res[a] {
                 return ControlFlow::Continue(());
             }
             t_next[a] += t_delta[a];
