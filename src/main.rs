@@ -91,8 +91,11 @@ fn parse_rgb(s: &str) -> Result<Rgb, String> {
     }
 }
 
-/// The bundled demo scene, embedded so that `nimbus render` works from any folder.
-const DEMO_SCENE: &[u8] = include_bytes!("../assets/demo.glb");
+/// The bundled demo scene (a VDB cloud over a ground plane), embedded with its VDB so that `nimbus render`
+/// works from any folder.
+const DEMO_SCENE: &[u8] = include_bytes!("../assets/cloud.gltf");
+/// The demo's cloud.
+const DEMO_CLOUD: &[u8] = include_bytes!("../assets/cloud.vdb");
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -125,8 +128,12 @@ fn info(args: InfoArgs) -> Result<(), String> {
 fn load_builder(scene: Option<&Path>) -> Result<SceneBuilder, String> {
     match scene {
         Some(path) => nimbus::scene::load_builder(path).map_err(|e| e.to_string()),
-        None => nimbus::scene::gltf::load_slice(DEMO_SCENE, Path::new("assets/demo.glb"))
-            .map_err(|e| e.to_string()),
+        None => nimbus::scene::gltf::load_slice_with_embedded(
+            DEMO_SCENE,
+            Path::new("assets/cloud.gltf"),
+            &[("cloud.vdb", DEMO_CLOUD)],
+        )
+        .map_err(|e| e.to_string()),
     }
 }
 

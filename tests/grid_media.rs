@@ -20,7 +20,9 @@ const VOXEL: f64 = 0.0625;
 
 /// A 16³ block of density 1 with voxel centres at world [−0.5, 0.4375]³ (voxel size 1/16 m).
 fn block(scale: f32) -> GridDensity {
-    let voxels = (0..16).flat_map(|x| (0..16).flat_map(move |y| (0..16).map(move |z| (IVec3::new(x, y, z), 1.0f32))));
+    let voxels = (0..16).flat_map(|x| {
+        (0..16).flat_map(move |y| (0..16).map(move |z| (IVec3::new(x, y, z), 1.0f32)))
+    });
     let tree = Tree::from_voxels(0.0, voxels);
     let m = DMat4::from_translation(DVec3::splat(-0.5)) * DMat4::from_scale(DVec3::splat(VOXEL));
     GridDensity::from_tree(Arc::new(GridTree::Float(tree)), m, scale).unwrap()
@@ -40,20 +42,39 @@ fn ball(scale: f32) -> GridDensity {
         }
     }
     let tree = Tree::from_voxels(0.0, voxels);
-    GridDensity::from_tree(Arc::new(GridTree::Float(tree)), DMat4::from_scale(DVec3::splat(VOXEL)), scale).unwrap()
+    GridDensity::from_tree(
+        Arc::new(GridTree::Float(tree)),
+        DMat4::from_scale(DVec3::splat(VOXEL)),
+        scale,
+    )
+    .unwrap()
 }
 
 fn render(b: SceneBuilder, size: usize, spp: u32, max_depth: u32) -> (RenderImage, RenderStats) {
     let scene = b.build();
-    let settings = RenderSettings { width: size, height: size, spp, seed: 5, threads: 2, max_depth, time_limit: None };
-    Renderer::new(settings).render(&scene, &mut |_| true).unwrap()
+    let settings = RenderSettings {
+        width: size,
+        height: size,
+        spp,
+        seed: 5,
+        threads: 2,
+        max_depth,
+        time_limit: None,
+    };
+    Renderer::new(settings)
+        .render(&scene, &mut |_| true)
+        .unwrap()
 }
 
 fn scene_with(medium: Arc<dyn nimbus::volume::Medium>, fov: f32, distance: f32) -> SceneBuilder {
     let mut b = SceneBuilder::default();
     b.add_medium(medium);
     b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
-    b.camera = Some(Camera::look_at(Vec3::new(0.0, 0.0, distance), Vec3::ZERO, fov.to_radians()));
+    b.camera = Some(Camera::look_at(
+        Vec3::new(0.0, 0.0, distance),
+        Vec3::ZERO,
+        fov.to_radians(),
+    ));
     b
 }
 
@@ -71,22 +92,50 @@ fn delta_tracking_on_a_constant_grid_matches_the_closed_form() {
     // With max_depth 0 a collision ends the path, so the pixel value is the transmittance.
     let scale = 1.5f32;
     let truth = (-(scale as f64) * 16.0 * VOXEL).exp();
-    let medium = GridMedium::new("block", block(scale), MajorantKind::Adaptive, Rgb::splat(0.8), 0.0);
+    let medium = GridMedium::new(
+        "block",
+        block(scale),
+        MajorantKind::Adaptive,
+        Rgb::splat(0.8),
+        0.0,
+    );
     let (img, stats) = render(scene_with(Arc::new(medium), 0.3, 60.0), 8, 256, 0);
     let (mean, se) = mean_and_se(&img, 1);
-    assert!((mean - truth).abs() < 4.0 * se, "delta tracking {mean} vs closed form {truth} (se {se})");
-    assert!(stats.media[0].counters.real_collisions > 0 && stats.media[0].counters.majorant_violations == 0);
+    assert!(
+        (mean - truth).abs() < 4.0 * se,
+        "delta tracking {mean} vs closed form {truth} (se {se})"
+    );
+    assert!(
+        stats.media[0].counters.real_collisions > 0
+            && stats.media[0].counters.majorant_violations == 0
+    );
 
     // The equivalent homogeneous slab (closed-form tracking) gives the same value.
     let mut b = SceneBuilder::default();
-    let h = b.add_medium(Arc::new(HomogeneousMedium::new("slab", Rgb::ZERO, Rgb::splat(scale), 0.0)));
+    let h = b.add_medium(Arc::new(HomogeneousMedium::new(
+        "slab",
+        Rgb::ZERO,
+        Rgb::splat(scale),
+        0.0,
+    )));
     let mat = b.add_material(common::boundary(h));
-    b.add_mesh(common::cuboid(Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5), mat));
+    b.add_mesh(common::cuboid(
+        Vec3::new(-0.5, -0.5, -0.5),
+        Vec3::new(0.5, 0.5, 0.5),
+        mat,
+    ));
     b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
-    b.camera = Some(Camera::look_at(Vec3::new(0.0, 0.0, 60.0), Vec3::ZERO, 0.3f32.to_radians()));
+    b.camera = Some(Camera::look_at(
+        Vec3::new(0.0, 0.0, 60.0),
+        Vec3::ZERO,
+        0.3f32.to_radians(),
+    ));
     let (closed, _) = render(b, 8, 256, 0);
     let (m2, se2) = mean_and_se(&closed, 1);
-    assert!((m2 - truth).abs() < 4.0 * se2 + 1e-4, "closed form {m2} vs {truth}");
+    assert!(
+        (m2 - truth).abs() < 4.0 * se2 + 1e-4,
+        "closed form {m2} vs {truth}"
+    );
 }
 
 #[test]
@@ -96,7 +145,10 @@ fn white_furnace_with_a_heterogeneous_grid() {
         let (img, stats) = render(scene_with(Arc::new(medium), 20.0, 3.0), 12, 16, 100_000);
         for c in 0..3 {
             let (mean, se) = mean_and_se(&img, c);
-            assert!((mean - 1.0).abs() < 4.0 * se + 1e-5, "scale {scale}: {mean} vs 1 (se {se})");
+            assert!(
+                (mean - 1.0).abs() < 4.0 * se + 1e-5,
+                "scale {scale}: {mean} vs 1 (se {se})"
+            );
         }
         assert_eq!(stats.nan_samples, 0);
         assert!(stats.media[0].counters.real_collisions > 0);
@@ -106,7 +158,11 @@ fn white_furnace_with_a_heterogeneous_grid() {
 #[test]
 fn every_majorant_structure_gives_the_same_image() {
     let mut means = Vec::new();
-    for kind in [MajorantKind::Global, MajorantKind::Grid16, MajorantKind::Adaptive] {
+    for kind in [
+        MajorantKind::Global,
+        MajorantKind::Grid16,
+        MajorantKind::Adaptive,
+    ] {
         let medium = GridMedium::new("ball", ball(20.0), kind, Rgb::splat(0.9), 0.0);
         let mut b = scene_with(Arc::new(medium), 20.0, 3.0);
         b.set_environment(EnvironmentLight::Constant(Rgb::new(1.0, 0.5, 0.25)));
@@ -116,9 +172,17 @@ fn every_majorant_structure_gives_the_same_image() {
     }
     let (_, (m0, s0), c0) = means[0];
     for (kind, (m, s), c) in &means[1..] {
-        assert!((m - m0).abs() < 4.0 * (s * s + s0 * s0).sqrt(), "{kind:?}: {m} vs global {m0}");
+        assert!(
+            (m - m0).abs() < 4.0 * (s * s + s0 * s0).sqrt(),
+            "{kind:?}: {m} vs global {m0}"
+        );
         // Tighter majorants waste fewer lookups on null collisions.
-        assert!(c.null_collisions < c0.null_collisions, "{kind:?}: {} vs {}", c.null_collisions, c0.null_collisions);
+        assert!(
+            c.null_collisions < c0.null_collisions,
+            "{kind:?}: {} vs {}",
+            c.null_collisions,
+            c0.null_collisions
+        );
     }
 }
 
@@ -127,9 +191,13 @@ fn an_underestimated_majorant_is_counted() {
     let density = ball(10.0);
     let bounds = density.local_bounds();
     let low = Majorants::global(bounds, 0.0, 10.0 * 0.5);
-    let medium = GridMedium::new("ball", density, MajorantKind::Global, Rgb::splat(0.9), 0.0).with_majorants(low);
+    let medium = GridMedium::new("ball", density, MajorantKind::Global, Rgb::splat(0.9), 0.0)
+        .with_majorants(low);
     let (_, stats) = render(scene_with(Arc::new(medium), 20.0, 3.0), 8, 4, 8);
-    assert!(stats.media[0].counters.majorant_violations > 0, "violations must be reported");
+    assert!(
+        stats.media[0].counters.majorant_violations > 0,
+        "violations must be reported"
+    );
 }
 
 #[test]
@@ -146,14 +214,23 @@ fn gltf_nimbus_volume_loads_the_grid() {
            "nodes":[{"name":"smoke","extras":{"nimbus_volume":{"file":"missing.vdb"}}}]}"#,
     )
     .unwrap();
-    let err = nimbus::scene::Scene::load(&bad).err().expect("a missing VDB is an error").to_string();
-    assert!(err.contains("smoke") && err.contains("missing.vdb"), "{err}");
+    let err = nimbus::scene::Scene::load(&bad)
+        .err()
+        .expect("a missing VDB is an error")
+        .to_string();
+    assert!(
+        err.contains("smoke") && err.contains("missing.vdb"),
+        "{err}"
+    );
     std::fs::write(
         &bad,
         r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],
            "nodes":[{"name":"smoke","extras":{"nimbus_volume":{"file":"x.vdb","albedo":[2,0,0]}}}]}"#,
     )
     .unwrap();
-    let err = nimbus::scene::Scene::load(&bad).err().expect("albedo > 1 is an error").to_string();
+    let err = nimbus::scene::Scene::load(&bad)
+        .err()
+        .expect("albedo > 1 is an error")
+        .to_string();
     assert!(err.contains("smoke") && err.contains("albedo"), "{err}");
 }

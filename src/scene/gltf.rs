@@ -44,6 +44,16 @@ pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
 
 /// Loads glTF or GLB bytes; `path` names the file in errors and its folder resolves external URIs.
 pub fn load_slice(bytes: &[u8], path: &Path) -> Result<SceneBuilder, SceneError> {
+    load_slice_with_embedded(bytes, path, &[])
+}
+
+/// Like [`load_slice`], with VDB files given in memory: a `nimbus_volume` whose `file` equals one of the
+/// `embedded` names reads those bytes instead of the file system (used for the bundled demo).
+pub fn load_slice_with_embedded(
+    bytes: &[u8],
+    path: &Path,
+    embedded: &[(&str, &'static [u8])],
+) -> Result<SceneBuilder, SceneError> {
     let err = |kind| SceneError::new(path, kind);
     let malformed = |m: String| err(SceneErrorKind::Malformed(m));
     let (root, blob) = parse(bytes).map_err(malformed)?;
@@ -81,6 +91,7 @@ pub fn load_slice(bytes: &[u8], path: &Path) -> Result<SceneBuilder, SceneError>
         texture_cache: HashMap::new(),
         images: HashMap::new(),
         material_map: HashMap::new(),
+        embedded,
     };
     loader.builder.warnings.append(&mut warnings);
     let scene = document
@@ -151,6 +162,7 @@ struct Loader<'a> {
     texture_cache: HashMap<(usize, ColorSpace), u32>,
     images: HashMap<usize, image::RgbaImage>,
     material_map: HashMap<Option<usize>, u32>,
+    embedded: &'a [(&'a str, &'static [u8])],
 }
 
 impl Loader<'_> {
@@ -216,8 +228,14 @@ impl Loader<'_> {
         let Some(value) = extras.get("nimbus_volume") else {
             return Ok(());
         };
-        let spec = crate::volume::VolumeSpec::from_json(value, &name, &self.base, *world)
+        let mut spec = crate::volume::VolumeSpec::from_json(value, &name, &self.base, *world)
             .map_err(|e| bad(format!("nimbus_volume: {e}")))?;
+        let file = value.get("file").and_then(|f| f.as_str());
+        spec.embedded = self
+            .embedded
+            .iter()
+            .find(|(n, _)| Some(*n) == file)
+            .map(|(_, b)| *b);
         self.builder.add_volume(&spec).map_err(|e| {
             self.error(SceneErrorKind::InvalidReference(format!(
                 "node '{name}': nimbus_volume: {e}"

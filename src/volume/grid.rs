@@ -83,7 +83,11 @@ impl GridMedium {
     /// Loads the grids `spec` names and builds the medium. Errors name the VDB file.
     pub fn load(spec: &VolumeSpec) -> Result<Self, SceneError> {
         let err = |m: String| SceneError::new(&spec.file, SceneErrorKind::InvalidReference(m));
-        let file = crate::vdb::read_file(&spec.file).map_err(|e| {
+        let read = match spec.embedded {
+            Some(bytes) => crate::vdb::read_bytes(bytes, &spec.file),
+            None => crate::vdb::read_file(&spec.file),
+        };
+        let file = read.map_err(|e| {
             SceneError::new(
                 &spec.file,
                 SceneErrorKind::Malformed(format!("{} ({})", e.kind, spec.name)),

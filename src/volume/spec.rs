@@ -47,6 +47,8 @@ pub struct VolumeSpec {
     pub majorant: MajorantKind,
     /// Shadow-ray estimator (`"shadow_estimator"`: `"ratio"` (default) or `"residual_ratio"`).
     pub shadow_estimator: ShadowEstimator,
+    /// The VDB file's bytes when they are embedded in the program (the bundled demo); otherwise `file` is read.
+    pub embedded: Option<&'static [u8]>,
 }
 
 impl VolumeSpec {
@@ -66,6 +68,7 @@ impl VolumeSpec {
             node_to_world,
             majorant: MajorantKind::Adaptive,
             shadow_estimator: ShadowEstimator::Ratio,
+            embedded: None,
         }
     }
 
