@@ -65,6 +65,7 @@ impl SceneBuilder {
 
     /// Adds a medium and returns its index.
     pub fn add_medium(&mut self, medium: Arc<dyn Medium>) -> u32 {
+        self.warnings.extend(medium.warnings());
         self.media.push(medium);
         (self.media.len() - 1) as u32
     }

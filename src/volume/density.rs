@@ -47,6 +47,65 @@ pub struct GridDensity {
     world_to_index: Mat4,
     scale: f32,
     index_bounds: Aabb,
+    bad_values: BadValues,
+}
+
+/// Stored values a density grid cannot use, replaced by zero when the field is built.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct BadValues {
+    /// NaN voxels and tiles.
+    pub nan: u64,
+    /// Infinite voxels and tiles.
+    pub infinite: u64,
+    /// Negative voxels and tiles.
+    pub negative: u64,
+}
+
+impl BadValues {
+    /// Total number of replaced values.
+    pub fn total(&self) -> u64 {
+        self.nan + self.infinite + self.negative
+    }
+
+    fn check(&mut self, v: &mut f32) {
+        if v.is_nan() {
+            self.nan += 1;
+        } else if v.is_infinite() {
+            self.infinite += 1;
+        } else if *v < 0.0 {
+            self.negative += 1;
+        } else {
+            return;
+        }
+        *v = 0.0;
+    }
+}
+
+/// Replaces NaN, infinite and negative values (voxels and tiles, active or not) by zero and recomputes the
+/// node ranges, so majorants stay finite. Returns what was replaced; the tree is untouched when nothing was.
+fn sanitize(tree: &FloatTree) -> Option<(FloatTree, BadValues)> {
+    let bad = |v: f32| !v.is_finite() || v < 0.0;
+    let any = tree.leaves.iter().any(|l| l.values.iter().any(|v| bad(*v)))
+        || tree.uppers.iter().chain(tree.lowers.iter()).any(|n| n.tiles.iter().any(|v| bad(*v)))
+        || tree.root.iter().any(|(_, s)| matches!(s, RootSlot::Tile { value, .. } if bad(*value)));
+    if !any {
+        return None;
+    }
+    let mut t = tree.clone();
+    let mut counts = BadValues::default();
+    for leaf in &mut t.leaves {
+        leaf.values.iter_mut().for_each(|v| counts.check(v));
+    }
+    for node in t.uppers.iter_mut().chain(t.lowers.iter_mut()) {
+        node.tiles.iter_mut().for_each(|v| counts.check(v));
+    }
+    for (_, slot) in &mut t.root {
+        if let RootSlot::Tile { value, .. } = slot {
+            counts.check(value);
+        }
+    }
+    t.finalize();
+    Some((t, counts))
 }
 
 /// Calls `f(origin, edge, min, max)` for every leaf and every tile of `tree` whose values are not all zero:
@@ -105,6 +164,13 @@ impl GridDensity {
         if !(density_scale.is_finite() && density_scale >= 0.0) {
             return Err(format!("invalid density scale {density_scale}"));
         }
+        let (tree, bad_values) = match sanitize(t) {
+            Some((clean, counts)) => (Arc::new(GridTree::Float(clean)), counts),
+            None => (tree, BadValues::default()),
+        };
+        let Some(t) = tree.as_float() else {
+            return Err("a density grid must be scalar".into());
+        };
         // A trilinear lookup at x reads voxels floor(x) and floor(x) + 1, so a region [o, o + e) of voxels can
         // influence the continuous positions [o - 1, o + e).
         let mut b = Aabb::EMPTY;
@@ -120,7 +186,13 @@ impl GridDensity {
             world_to_index: world_to_index.as_mat4(),
             scale: density_scale,
             index_bounds: b,
+            bad_values,
         })
+    }
+
+    /// NaN, infinite and negative values found in the grid and replaced by zero.
+    pub fn bad_values(&self) -> BadValues {
+        self.bad_values
     }
 
     /// The scalar tree (shared with the VDB file).

@@ -159,6 +159,23 @@ impl Medium for GridMedium {
         Some(self.density.bounds())
     }
 
+    fn warnings(&self) -> Vec<String> {
+        let mut bad = self.density.bad_values();
+        if let Some(e) = &self.emission {
+            let t = e.temperature.bad_values();
+            bad.nan += t.nan;
+            bad.infinite += t.infinite;
+            bad.negative += t.negative;
+        }
+        if bad.total() == 0 {
+            return Vec::new();
+        }
+        vec![format!(
+            "medium '{}': {} NaN, {} infinite and {} negative grid values were replaced by zero",
+            self.name, bad.nan, bad.infinite, bad.negative
+        )]
+    }
+
     fn is_absorbing_only(&self) -> bool {
         false
     }

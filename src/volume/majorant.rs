@@ -439,7 +439,7 @@ impl Majorants {
                 Repr::Grid { values, .. } => values.len() * 4,
                 Repr::Adaptive(h) => {
                     h.cells.len() * std::mem::size_of::<(f32, f32, u32)>()
-                        + h.bricks.len() * std::mem::size_of_val(&h.bricks[0..1])
+                        + h.bricks.len() * std::mem::size_of::<Brick>()
                 }
             }
     }

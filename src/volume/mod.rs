@@ -62,6 +62,11 @@ pub trait Medium: Send + Sync {
     /// the interior of a closed mesh (entered and left through its boundary).
     fn fill_bounds(&self) -> Option<Aabb>;
 
+    /// Problems found in the medium's data (bad voxels replaced by zero), reported as warnings.
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
+
     /// True when the medium never scatters, so paths only need its transmittance.
     fn is_absorbing_only(&self) -> bool;
 
