@@ -7,6 +7,7 @@ mod camera;
 mod error;
 pub mod gltf;
 pub mod obj;
+pub mod usd;
 
 pub use camera::Camera;
 pub use error::{SceneError, SceneErrorKind};
@@ -28,6 +29,7 @@ pub fn load_builder(path: &Path) -> Result<SceneBuilder, SceneError> {
     match ext.as_deref() {
         Some("gltf") | Some("glb") => gltf::load(path),
         Some("obj") => obj::load(path),
+        Some("usd") | Some("usda") | Some("usdc") | Some("usdz") => usd::load(path),
         _ => Err(SceneError::new(path, SceneErrorKind::UnknownFormat)),
     }
 }
@@ -206,7 +208,8 @@ pub struct SurfaceHit {
 }
 
 impl Scene {
-    /// Loads a scene file, choosing the loader by extension (.gltf, .glb, .obj).
+    /// Loads a scene file, choosing the loader by extension (.gltf, .glb, .obj, .usd, .usda,
+    /// .usdc, .usdz).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         Ok(load_builder(path)?.build())
     }

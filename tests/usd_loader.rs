@@ -1,0 +1,213 @@
+//! The USD loader against stages authored by Pixar's USD library (`tests/usd/make_stages.py`): what each stage
+//! holds, the volume declaration, robustness to damaged files, and the same Cornell box rendered from USD and
+//! from glTF.
+
+use nimbus::light::Light;
+use nimbus::math::{Rgb, Vec3};
+use nimbus::render::{RenderImage, RenderSettings, Renderer};
+use nimbus::scene::{usd, Scene, SceneBuilder};
+use std::path::{Path, PathBuf};
+
+fn stage(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/usd")
+        .join(name)
+}
+
+fn read(name: &str) -> SceneBuilder {
+    let (builder, volumes) = usd::read(&stage(name)).unwrap_or_else(|e| panic!("{e}"));
+    assert!(volumes.is_empty());
+    builder
+}
+
+/// Checks the Cornell box as `make_stages.py` authors it.
+fn check_cornell(b: &SceneBuilder) {
+    // 5 walls of 1 quad, 2 boxes of 6 quads, and the rect light's quad.
+    assert_eq!(b.meshes.len(), 8);
+    let triangles: usize = b.meshes.iter().map(|m| m.indices.len()).sum();
+    assert_eq!(triangles, 36);
+    assert!(b.lights.is_empty(), "the rect light is an emissive mesh");
+    assert!(b.warnings.is_empty(), "{:?}", b.warnings);
+    let cam = b.camera.as_ref().expect("camera");
+    assert!((cam.yfov - 2.0 * (12.0f32 / 35.0).atan()).abs() < 1e-5);
+    assert_eq!(cam.aspect_ratio, Some(1.0));
+    assert!(cam.position().distance(Vec3::new(0.0, 1.0, 3.6)) < 1e-5);
+    // The light: 0.5 x 0.4 at y = 1.98, emitting downward, radiance colour x 6 x 2^1.
+    let light = b.meshes.iter().find(|m| m.name == "/World/Light").unwrap();
+    let bounds = light.bounds();
+    assert!((bounds.max.x - 0.25).abs() < 1e-5 && (bounds.max.z - 0.2).abs() < 1e-5);
+    assert!((bounds.min.y - 1.98).abs() < 1e-5);
+    let [a, b2, c] = light.triangle(0);
+    assert!((b2 - a).cross(c - a).normalize().distance(-Vec3::Y) < 1e-5);
+    let emission = b.materials[light.material as usize].emission;
+    assert!(emission.distance(Rgb::new(1.0, 0.85, 0.7) * 12.0) < 1e-4);
+    let red = b.materials.iter().find(|m| m.name == "/World/Materials/Red").unwrap();
+    assert!(red.base_color.truncate().distance(Rgb::new(0.65, 0.05, 0.05)) < 1e-6);
+    assert_eq!((red.metallic, red.roughness, red.specular_factor), (0.0, 0.9, 1.0));
+    let built = b.meshes.iter().map(|m| m.indices.len()).sum::<usize>();
+    assert_eq!(built, 36);
+}
+
+#[test]
+fn cornell_usda_loads() {
+    let b = read("cornell.usda");
+    check_cornell(&b);
+    let scene = b.build();
+    assert_eq!(scene.triangle_count(), 36);
+    let area_lights = scene.lights.iter().filter(|l| matches!(l, Light::Area(_))).count();
+    assert_eq!(area_lights, 2);
+}
+
+#[test]
+fn cornell_usdc_matches_usda() {
+    let a = read("cornell.usda");
+    let c = read("cornell.usdc");
+    check_cornell(&c);
+    for (x, y) in a.meshes.iter().zip(&c.meshes) {
+        assert_eq!(x.name, y.name);
+        assert_eq!(x.positions, y.positions);
+        assert_eq!(x.indices, y.indices);
+    }
+}
+
+#[test]
+fn referenced_layer_overrides_apply() {
+    let b = read("override.usda");
+    assert_eq!(b.meshes.iter().map(|m| m.indices.len()).sum::<usize>(), 36);
+    let red = b.materials.iter().find(|m| m.name == "/World/Materials/Red").unwrap();
+    assert!(red.base_color.truncate().distance(Rgb::new(0.05, 0.05, 0.65)) < 1e-6);
+    let tall = b.meshes.iter().find(|m| m.name == "/World/TallBox/Geom").unwrap();
+    assert!((tall.bounds().center().z + 0.5).abs() < 1e-5);
+    assert!(b.camera.is_some());
+}
+
+#[test]
+fn volume_spec_from_usdvol() {
+    let (b, volumes) = usd::read(&stage("volume.usda")).unwrap();
+    assert!(b.meshes.is_empty());
+    assert!(b.warnings.is_empty(), "{:?}", b.warnings);
+    assert_eq!(volumes.len(), 1);
+    let v = &volumes[0];
+    assert_eq!(v.name, "/World/Cloud");
+    assert_eq!(
+        v.file.canonicalize().unwrap(),
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("assets/cloud.vdb")
+            .canonicalize()
+            .unwrap()
+    );
+    assert_eq!(v.density_grid, "density");
+    assert_eq!(v.temperature_grid.as_deref(), Some("temperature"));
+    assert_eq!(v.density_scale, 8.0);
+    assert!(v.albedo.distance(Rgb::new(0.9, 0.8, 0.7)) < 1e-6);
+    assert_eq!(
+        (v.anisotropy, v.emission_scale, v.temperature_scale, v.temperature_offset),
+        (0.6, 2.0, 1.5, -100.0)
+    );
+    // Z-up centimetres: translate (10, 20, 30) cm lands at (0.1, 0.3, -0.2) m in Y-up; the 100x scale cancels
+    // the 0.01 m unit, and the stage's +Z becomes +Y.
+    let m = v.node_to_world;
+    assert!(m.transform_point3(Vec3::ZERO).distance(Vec3::new(0.1, 0.3, -0.2)) < 1e-5);
+    assert!(m.transform_vector3(Vec3::Z).distance(Vec3::Y) < 1e-5);
+    assert!(m.transform_vector3(Vec3::X).distance(Vec3::X) < 1e-5);
+}
+
+#[test]
+fn load_builder_dispatches_usd_extensions() {
+    let b = nimbus::scene::load_builder(&stage("cornell.usdc")).unwrap();
+    assert_eq!(b.meshes.len(), 8);
+}
+
+/// Writes `bytes` to a fresh file with `ext` in the temporary folder.
+fn temp_file(tag: &str, ext: &str, bytes: &[u8]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nimbus_usd_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(format!("{tag}.{ext}"));
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn truncated_and_corrupted_stages_are_errors_not_panics() {
+    for (name, ext) in [("cornell.usda", "usda"), ("cornell.usdc", "usdc")] {
+        let bytes = std::fs::read(stage(name)).unwrap();
+        let first_def = if ext == "usda" {
+            String::from_utf8_lossy(&bytes).find("def ").unwrap()
+        } else {
+            0
+        };
+        let step = (bytes.len() / 97).max(1);
+        for cut in (0..bytes.len() - 1).step_by(step) {
+            let p = temp_file(&format!("cut{cut}"), ext, &bytes[..cut]);
+            let r = usd::read(&p);
+            if cut > first_def {
+                assert!(r.is_err(), "{name} truncated at {cut} loaded");
+            }
+            std::fs::remove_file(&p).unwrap();
+        }
+        let mut rng = 0x2545F4914F6CDD1Du64;
+        for i in 0..64 {
+            let mut damaged = bytes.clone();
+            for _ in 0..4 {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                let at = (rng % bytes.len() as u64) as usize;
+                damaged[at] ^= (rng >> 32) as u8 | 1;
+            }
+            let p = temp_file(&format!("flip{i}"), ext, &damaged);
+            // Either outcome is fine; the process must not panic.
+            let _ = usd::read(&p);
+            std::fs::remove_file(&p).unwrap();
+        }
+    }
+}
+
+#[test]
+fn missing_reference_is_an_error_naming_the_layer() {
+    let p = temp_file(
+        "dangling",
+        "usda",
+        b"#usda 1.0\n\ndef \"World\" (\n    references = @./nowhere.usda@\n)\n{\n}\n",
+    );
+    let err = usd::read(&p).err().expect("a dangling reference is an error");
+    assert!(err.to_string().contains("nowhere.usda"), "{err}");
+}
+
+fn render(scene: &Scene) -> RenderImage {
+    let settings = RenderSettings {
+        width: 24,
+        height: 24,
+        spp: 16,
+        seed: 3,
+        threads: 2,
+        max_depth: 8,
+        time_limit: None,
+    };
+    Renderer::new(settings)
+        .render(scene, &mut |_| true)
+        .unwrap()
+        .0
+}
+
+#[test]
+fn usd_and_gltf_cornell_boxes_render_alike() {
+    let from_usd = read("cornell.usda").build();
+    let from_gltf = Scene::load(&stage("cornell.gltf")).unwrap();
+    let (a, b) = (render(&from_usd), render(&from_gltf));
+    for c in 0..3 {
+        let stats = |img: &RenderImage| {
+            let n = img.pixel_count() as f64;
+            let mean = img.beauty.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+            let var = img.variance.iter().map(|p| p[c] as f64).sum::<f64>() / (n * n);
+            (mean, var)
+        };
+        let ((ma, va), (mb, vb)) = (stats(&a), stats(&b));
+        let se = (va + vb).sqrt();
+        assert!(ma > 0.01, "channel {c}: the USD box is lit ({ma})");
+        assert!(
+            (ma - mb).abs() < 4.0 * se,
+            "channel {c}: USD {ma} vs glTF {mb} (se {se})"
+        );
+    }
+}
