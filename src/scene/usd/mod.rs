@@ -37,6 +37,8 @@
 //! Asset paths (`filePath`, `inputs:file`, `inputs:texture:file`) resolve relative to the layer that authored
 //! them. Prim types Nimbus does not render are listed once each in the warnings.
 
+mod crate_check;
+
 use super::camera::Camera;
 use super::{gltf, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
@@ -73,7 +75,21 @@ pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
 }
 
 /// Reads a USD stage into a builder, returning the `Volume` prims as [`VolumeSpec`]s not yet added.
+///
+/// `openusd` 0.6 indexes out of bounds on some damaged `.usdc` files; such a panic is caught here (a last
+/// resort: its message still reaches the panic hook) and returned as a malformed-file error.
 pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_stage(path))).unwrap_or_else(|panic| {
+        let message = panic
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()))
+            .unwrap_or_default();
+        Err(malformed(path, format!("the USD reader failed: {message}")))
+    })
+}
+
+fn read_stage(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let stage = open(path)?;
     let mut loader = Loader {
         path,
@@ -88,22 +104,33 @@ pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> 
     for child in loader.children(&stage.prim("/"))? {
         loader.visit(&child, root, None, 0)?;
     }
+    // References and payloads report their errors as the prims that use them are composed.
+    composition_errors(path, &stage)?;
     Ok((loader.builder, loader.volumes))
 }
 
 /// Opens and composes a stage; any parse or composition error is a [`SceneError`] naming the layer.
 fn open(path: &Path) -> Result<usd::Stage, SceneError> {
-    std::fs::metadata(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+    let bytes = std::fs::read(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+    if bytes.starts_with(b"PXR-USDC") {
+        crate_check::check(&bytes).map_err(|m| malformed(path, m))?;
+    }
     let name = path
         .to_str()
         .ok_or_else(|| malformed(path, "the path is not valid UTF-8".into()))?;
     let stage = usd::Stage::open(name).map_err(|e| malformed(path, format!("{e:#}")))?;
-    let errors = stage.composition_errors();
-    if !errors.is_empty() {
-        let list: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
-        return Err(malformed(path, format!("composition: {}", list.join("; "))));
-    }
+    composition_errors(path, &stage)?;
     Ok(stage)
+}
+
+/// The composition errors met so far (a missing sublayer or referenced layer names it), as one error.
+fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<(), SceneError> {
+    let errors = stage.composition_errors();
+    if errors.is_empty() {
+        return Ok(());
+    }
+    let list: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
+    Err(malformed(path, format!("composition: {}", list.join("; "))))
 }
 
 fn malformed(path: &Path, message: String) -> SceneError {
