@@ -41,9 +41,21 @@ fn check_cornell(b: &SceneBuilder) {
     assert!((b2 - a).cross(c - a).normalize().distance(-Vec3::Y) < 1e-5);
     let emission = b.materials[light.material as usize].emission;
     assert!(emission.distance(Rgb::new(1.0, 0.85, 0.7) * 12.0) < 1e-4);
-    let red = b.materials.iter().find(|m| m.name == "/World/Materials/Red").unwrap();
-    assert!(red.base_color.truncate().distance(Rgb::new(0.65, 0.05, 0.05)) < 1e-6);
-    assert_eq!((red.metallic, red.roughness, red.specular_factor), (0.0, 0.9, 1.0));
+    let red = b
+        .materials
+        .iter()
+        .find(|m| m.name == "/World/Materials/Red")
+        .unwrap();
+    assert!(
+        red.base_color
+            .truncate()
+            .distance(Rgb::new(0.65, 0.05, 0.05))
+            < 1e-6
+    );
+    assert_eq!(
+        (red.metallic, red.roughness, red.specular_factor),
+        (0.0, 0.9, 1.0)
+    );
     let built = b.meshes.iter().map(|m| m.indices.len()).sum::<usize>();
     assert_eq!(built, 36);
 }
@@ -54,7 +66,11 @@ fn cornell_usda_loads() {
     check_cornell(&b);
     let scene = b.build();
     assert_eq!(scene.triangle_count(), 36);
-    let area_lights = scene.lights.iter().filter(|l| matches!(l, Light::Area(_))).count();
+    let area_lights = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Area(_)))
+        .count();
     assert_eq!(area_lights, 2);
 }
 
@@ -74,9 +90,22 @@ fn cornell_usdc_matches_usda() {
 fn referenced_layer_overrides_apply() {
     let b = read("override.usda");
     assert_eq!(b.meshes.iter().map(|m| m.indices.len()).sum::<usize>(), 36);
-    let red = b.materials.iter().find(|m| m.name == "/World/Materials/Red").unwrap();
-    assert!(red.base_color.truncate().distance(Rgb::new(0.05, 0.05, 0.65)) < 1e-6);
-    let tall = b.meshes.iter().find(|m| m.name == "/World/TallBox/Geom").unwrap();
+    let red = b
+        .materials
+        .iter()
+        .find(|m| m.name == "/World/Materials/Red")
+        .unwrap();
+    assert!(
+        red.base_color
+            .truncate()
+            .distance(Rgb::new(0.05, 0.05, 0.65))
+            < 1e-6
+    );
+    let tall = b
+        .meshes
+        .iter()
+        .find(|m| m.name == "/World/TallBox/Geom")
+        .unwrap();
     assert!((tall.bounds().center().z + 0.5).abs() < 1e-5);
     assert!(b.camera.is_some());
 }
@@ -101,13 +130,22 @@ fn volume_spec_from_usdvol() {
     assert_eq!(v.density_scale, 8.0);
     assert!(v.albedo.distance(Rgb::new(0.9, 0.8, 0.7)) < 1e-6);
     assert_eq!(
-        (v.anisotropy, v.emission_scale, v.temperature_scale, v.temperature_offset),
+        (
+            v.anisotropy,
+            v.emission_scale,
+            v.temperature_scale,
+            v.temperature_offset
+        ),
         (0.6, 2.0, 1.5, -100.0)
     );
     // Z-up centimetres: translate (10, 20, 30) cm lands at (0.1, 0.3, -0.2) m in Y-up; the 100x scale cancels
     // the 0.01 m unit, and the stage's +Z becomes +Y.
     let m = v.node_to_world;
-    assert!(m.transform_point3(Vec3::ZERO).distance(Vec3::new(0.1, 0.3, -0.2)) < 1e-5);
+    assert!(
+        m.transform_point3(Vec3::ZERO)
+            .distance(Vec3::new(0.1, 0.3, -0.2))
+            < 1e-5
+    );
     assert!(m.transform_vector3(Vec3::Z).distance(Vec3::Y) < 1e-5);
     assert!(m.transform_vector3(Vec3::X).distance(Vec3::X) < 1e-5);
 }
@@ -170,7 +208,9 @@ fn missing_reference_is_an_error_naming_the_layer() {
         "usda",
         b"#usda 1.0\n\ndef \"World\" (\n    references = @./nowhere.usda@\n)\n{\n}\n",
     );
-    let err = usd::read(&p).err().expect("a dangling reference is an error");
+    let err = usd::read(&p)
+        .err()
+        .expect("a dangling reference is an error");
     assert!(err.to_string().contains("nowhere.usda"), "{err}");
 }
 
@@ -210,4 +250,61 @@ fn usd_and_gltf_cornell_boxes_render_alike() {
             "channel {c}: USD {ma} vs glTF {mb} (se {se})"
         );
     }
+}
+
+#[test]
+fn hand_written_stage_exercises_ops_primvars_and_lights() {
+    let p = temp_file(
+        "features",
+        "usda",
+        br#"#usda 1.0
+def Xform "X" {
+    double3 xformOp:translate = (1, 0, 0)
+    float3 xformOp:rotateXYZ = (0, 90, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+    def Mesh "M" {
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        uniform token orientation = "leftHanded"
+        uniform bool doubleSided = 1
+        texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (interpolation = "faceVarying")
+    }
+    def SphereLight "S" {
+        float inputs:radius = 0.1
+        float inputs:intensity = 2
+        bool treatAsPoint = 1
+    }
+    def DomeLight "D" {
+        color3f inputs:color = (0.5, 0.25, 1)
+    }
+    def Cube "C" {}
+    def Cube "C2" {}
+}
+"#,
+    );
+    let (b, _) = usd::read(&p).unwrap();
+    assert_eq!(b.meshes.len(), 1);
+    let m = &b.meshes[0];
+    assert_eq!(m.indices.len(), 2);
+    // translate (1, 0, 0) after rotateY 90: the local +X corner lands at (1, 0, -1).
+    assert!(m.positions[1].distance(Vec3::new(1.0, 0.0, -1.0)) < 1e-5);
+    // leftHanded: the front face is local -Z, i.e. world -X after the rotation.
+    let [a, b2, c] = m.triangle(0);
+    assert!((b2 - a).cross(c - a).normalize().distance(-Vec3::X) < 1e-5);
+    let uv = m.uvs.as_ref().unwrap();
+    assert_eq!(uv[0], nimbus::math::Vec2::new(0.0, 1.0), "USD's t runs up");
+    assert!(b.materials[m.material as usize].double_sided);
+    let point = b.lights.iter().find_map(|l| match l {
+        Light::Point(p) => Some(p),
+        _ => None,
+    });
+    let expected = 2.0 * std::f32::consts::PI * 0.01;
+    assert!((point.unwrap().intensity.x - expected).abs() < 1e-6);
+    assert!(b.lights.iter().any(|l| matches!(
+        l,
+        Light::Environment(nimbus::light::EnvironmentLight::Constant(c)) if *c == Rgb::new(0.5, 0.25, 1.0)
+    )));
+    let cube_warnings = b.warnings.iter().filter(|w| w.contains("'Cube'")).count();
+    assert_eq!(cube_warnings, 1, "{:?}", b.warnings);
 }

@@ -17,13 +17,19 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
     if bytes.get(..8) != Some(b"PXR-USDC".as_slice()) {
         return Err("not a USD crate file (bad magic)".into());
     }
-    let version = (bytes.get(8).copied(), bytes.get(9).copied(), bytes.get(10).copied());
+    let version = (
+        bytes.get(8).copied(),
+        bytes.get(9).copied(),
+        bytes.get(10).copied(),
+    );
     let (Some(major), Some(minor), Some(patch)) = version else {
         return Err("truncated header".into());
     };
     let version = (major, minor, patch);
     if version < (0, 4, 0) {
-        return Err(format!("crate version {major}.{minor}.{patch} is older than 0.4.0"));
+        return Err(format!(
+            "crate version {major}.{minor}.{patch} is older than 0.4.0"
+        ));
     }
     c.pos = 16;
     let toc = c.u64()?;
@@ -35,8 +41,13 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
     for _ in 0..sections {
         let name = c.take(16)?.to_vec();
         let (start, size) = (c.u64()?, c.u64()?);
-        let name = String::from_utf8_lossy(&name).trim_end_matches('\0').to_owned();
-        if start.checked_add(size).is_none_or(|end| end > bytes.len() as u64) {
+        let name = String::from_utf8_lossy(&name)
+            .trim_end_matches('\0')
+            .to_owned();
+        if start
+            .checked_add(size)
+            .is_none_or(|end| end > bytes.len() as u64)
+        {
             return Err(format!("section {name} runs past the end of the file"));
         }
         let mut s = Reader { bytes, pos: 0 };
@@ -98,7 +109,10 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
             // Compressed arrays hold an LZ4 block (integers) or a codec byte before one (floats).
             let mut block = Reader { bytes, pos: a.pos };
             if block.compressed().is_err() {
-                let mut after_code = Reader { bytes, pos: a.pos + 1 };
+                let mut after_code = Reader {
+                    bytes,
+                    pos: a.pos + 1,
+                };
                 after_code.compressed_or_table()?;
             }
         }
@@ -127,7 +141,12 @@ impl Reader<'_> {
 
     fn take(&mut self, n: usize) -> Result<&[u8], String> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len());
-        let end = end.ok_or_else(|| format!("{n} bytes at offset {} run past the end of the file", self.pos))?;
+        let end = end.ok_or_else(|| {
+            format!(
+                "{n} bytes at offset {} run past the end of the file",
+                self.pos
+            )
+        })?;
         let s = &self.bytes[self.pos..end];
         self.pos = end;
         Ok(s)
@@ -142,7 +161,10 @@ impl Reader<'_> {
     fn count(&mut self) -> Result<usize, String> {
         let n = self.u64()?;
         if n > self.limit() {
-            return Err(format!("a count of {n} at offset {} exceeds the file", self.pos - 8));
+            return Err(format!(
+                "a count of {n} at offset {} exceeds the file",
+                self.pos - 8
+            ));
         }
         Ok(n as usize)
     }

@@ -79,14 +79,16 @@ pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
 /// `openusd` 0.6 indexes out of bounds on some damaged `.usdc` files; such a panic is caught here (a last
 /// resort: its message still reaches the panic hook) and returned as a malformed-file error.
 pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_stage(path))).unwrap_or_else(|panic| {
-        let message = panic
-            .downcast_ref::<String>()
-            .cloned()
-            .or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()))
-            .unwrap_or_default();
-        Err(malformed(path, format!("the USD reader failed: {message}")))
-    })
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_stage(path))).unwrap_or_else(
+        |panic| {
+            let message = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()))
+                .unwrap_or_default();
+            Err(malformed(path, format!("the USD reader failed: {message}")))
+        },
+    )
 }
 
 fn read_stage(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
@@ -166,9 +168,14 @@ impl Loader<'_> {
                 .map_err(|e| self.error("stage metadata", format!("{key}: {e:#}")))
         };
         let up = meta("upAxis")?.and_then(|v| token(&v));
-        let mpu = meta("metersPerUnit")?.and_then(|v| number(&v)).unwrap_or(1.0);
+        let mpu = meta("metersPerUnit")?
+            .and_then(|v| number(&v))
+            .unwrap_or(1.0);
         if !(mpu.is_finite() && mpu > 0.0) {
-            return Err(self.error("stage metadata", format!("metersPerUnit {mpu} must be positive")));
+            return Err(self.error(
+                "stage metadata",
+                format!("metersPerUnit {mpu} must be positive"),
+            ));
         }
         let rotate = match up.as_deref() {
             Some("Z") => Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
@@ -184,9 +191,12 @@ impl Loader<'_> {
 
     /// The composed value of attribute `name` on `prim`, if authored.
     fn value(&self, prim: &usd::Prim, name: &str) -> Result<Option<sdf::Value>, SceneError> {
-        prim.attribute(name)
-            .get::<sdf::Value>()
-            .map_err(|e| self.error(&format!("{}.{name}", prim.path().as_str()), format!("{e:#}")))
+        prim.attribute(name).get::<sdf::Value>().map_err(|e| {
+            self.error(
+                &format!("{}.{name}", prim.path().as_str()),
+                format!("{e:#}"),
+            )
+        })
     }
 
     fn float(&self, prim: &usd::Prim, name: &str, default: f32) -> Result<f32, SceneError> {
@@ -195,16 +205,24 @@ impl Loader<'_> {
             Some(v) => number(&v)
                 .filter(|x| x.is_finite())
                 .map(|x| x as f32)
-                .ok_or_else(|| self.error(&format!("{}.{name}", prim.path().as_str()), "expected a number")),
+                .ok_or_else(|| {
+                    self.error(
+                        &format!("{}.{name}", prim.path().as_str()),
+                        "expected a number",
+                    )
+                }),
         }
     }
 
     fn color(&self, prim: &usd::Prim, name: &str, default: Rgb) -> Result<Rgb, SceneError> {
         match self.value(prim, name)? {
             None => Ok(default),
-            Some(v) => vec3(&v)
-                .filter(|c| c.is_finite())
-                .ok_or_else(|| self.error(&format!("{}.{name}", prim.path().as_str()), "expected a colour")),
+            Some(v) => vec3(&v).filter(|c| c.is_finite()).ok_or_else(|| {
+                self.error(
+                    &format!("{}.{name}", prim.path().as_str()),
+                    "expected a colour",
+                )
+            }),
         }
     }
 
@@ -227,7 +245,10 @@ impl Loader<'_> {
         if depth > MAX_DEPTH {
             return Err(self.error(&at, format!("nested deeper than {MAX_DEPTH} levels")));
         }
-        if !prim.is_active().map_err(|e| self.error(&at, format!("{e:#}")))? {
+        if !prim
+            .is_active()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?
+        {
             return Ok(());
         }
         let (local, reset) = self.local_transform(prim)?;
@@ -247,7 +268,9 @@ impl Loader<'_> {
             k if STRUCTURAL_TYPES.contains(&k) => {}
             k => {
                 if self.unsupported.insert(k.to_owned()) {
-                    self.warn(format!("USD prim type '{k}' is not supported (first at {at}); skipped"));
+                    self.warn(format!(
+                        "USD prim type '{k}' is not supported (first at {at}); skipped"
+                    ));
                 }
             }
         }
@@ -263,7 +286,8 @@ impl Loader<'_> {
         let Some(order) = self.value(prim, "xformOpOrder")? else {
             return Ok((Mat4::IDENTITY, false));
         };
-        let ops = tokens(&order).ok_or_else(|| self.error(at, "xformOpOrder must be a token array"))?;
+        let ops =
+            tokens(&order).ok_or_else(|| self.error(at, "xformOpOrder must be a token array"))?;
         let mut m = Mat4::IDENTITY;
         let mut reset = false;
         for op in ops {
@@ -279,8 +303,9 @@ impl Loader<'_> {
                 .value(prim, name)?
                 .ok_or_else(|| self.error(at, format!("xformOp '{name}' has no value")))?;
             let op_kind = name.split(':').nth(1).unwrap_or("");
-            let mut op_m = xform_op(op_kind, &value)
-                .ok_or_else(|| self.error(at, format!("unsupported or malformed xformOp '{name}'")))?;
+            let mut op_m = xform_op(op_kind, &value).ok_or_else(|| {
+                self.error(at, format!("unsupported or malformed xformOp '{name}'"))
+            })?;
             if invert {
                 op_m = op_m.inverse();
             }
@@ -298,23 +323,42 @@ impl Loader<'_> {
         Ok(targets.first().map(|p| p.prim_path().as_str().to_owned()))
     }
 
-    fn mesh(&mut self, prim: &usd::Prim, world: &Mat4, binding: Option<&str>) -> Result<(), SceneError> {
+    fn mesh(
+        &mut self,
+        prim: &usd::Prim,
+        world: &Mat4,
+        binding: Option<&str>,
+    ) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
         let points = match self.value(prim, "points")? {
-            Some(v) => vec3_array(&v).ok_or_else(|| self.error(&at, "points must be a point3f[]"))?,
+            Some(v) => {
+                vec3_array(&v).ok_or_else(|| self.error(&at, "points must be a point3f[]"))?
+            }
             None => return Ok(()),
         };
         let counts = self.int_array(prim, "faceVertexCounts")?;
         let indices = self.int_array(prim, "faceVertexIndices")?;
         let total: usize = counts.iter().map(|&c| c.max(0) as usize).sum();
         if total != indices.len() {
-            return Err(self.error(&at, format!(
-                "faceVertexCounts sum to {total} but faceVertexIndices has {} entries",
-                indices.len()
-            )));
+            return Err(self.error(
+                &at,
+                format!(
+                    "faceVertexCounts sum to {total} but faceVertexIndices has {} entries",
+                    indices.len()
+                ),
+            ));
         }
-        if let Some(bad) = indices.iter().find(|&&i| i < 0 || i as usize >= points.len()) {
-            return Err(self.error(&at, format!("face vertex index {bad} is out of range ({} points)", points.len())));
+        if let Some(bad) = indices
+            .iter()
+            .find(|&&i| i < 0 || i as usize >= points.len())
+        {
+            return Err(self.error(
+                &at,
+                format!(
+                    "face vertex index {bad} is out of range ({} points)",
+                    points.len()
+                ),
+            ));
         }
         if !points.iter().all(|p| p.is_finite()) {
             return Err(self.error(&at, "points must be finite"));
@@ -326,13 +370,21 @@ impl Loader<'_> {
             indices: &indices,
             points: points.len(),
         };
-        let normals = normals.map(|p| topology.expand(p, &at)).transpose().map_err(|m| self.error(&at, m))?;
-        let uvs = uvs.map(|p| topology.expand(p, &at)).transpose().map_err(|m| self.error(&at, m))?;
+        let normals = normals
+            .map(|p| topology.expand(p, &at))
+            .transpose()
+            .map_err(|m| self.error(&at, m))?;
+        let uvs = uvs
+            .map(|p| topology.expand(p, &at))
+            .transpose()
+            .map_err(|m| self.error(&at, m))?;
         let left_handed = self
             .value(prim, "orientation")?
             .and_then(|v| token(&v))
             .is_some_and(|o| o == "leftHanded");
-        let double_sided = self.value(prim, "doubleSided")?.is_some_and(|v| matches!(v, sdf::Value::Bool(true)));
+        let double_sided = self
+            .value(prim, "doubleSided")?
+            .is_some_and(|v| matches!(v, sdf::Value::Bool(true)));
         let material = self.material(prim, binding, double_sided)?;
         // One vertex per face corner: simple, and right for every interpolation.
         let mut mesh = Mesh {
@@ -342,13 +394,21 @@ impl Loader<'_> {
         };
         mesh.positions = indices.iter().map(|&i| points[i as usize]).collect();
         mesh.normals = normals.unwrap_or_default();
-        mesh.uvs = uvs.map(|st| st.into_iter().map(|t: Vec2| Vec2::new(t.x, 1.0 - t.y)).collect());
+        mesh.uvs = uvs.map(|st| {
+            st.into_iter()
+                .map(|t: Vec2| Vec2::new(t.x, 1.0 - t.y))
+                .collect()
+        });
         let mut start = 0u32;
         for &c in &counts {
             let c = c.max(0) as u32;
             for k in 2..c {
                 let tri = [start, start + k - 1, start + k];
-                mesh.indices.push(if left_handed { [tri[0], tri[2], tri[1]] } else { tri });
+                mesh.indices.push(if left_handed {
+                    [tri[0], tri[2], tri[1]]
+                } else {
+                    tri
+                });
             }
             start += c;
         }
@@ -361,7 +421,10 @@ impl Loader<'_> {
         match self.value(prim, name)? {
             None => Ok(Vec::new()),
             Some(sdf::Value::IntVec(v)) => Ok(v),
-            Some(_) => Err(self.error(&format!("{}.{name}", prim.path().as_str()), "expected an int[]")),
+            Some(_) => Err(self.error(
+                &format!("{}.{name}", prim.path().as_str()),
+                "expected an int[]",
+            )),
         }
     }
 
@@ -374,7 +437,9 @@ impl Loader<'_> {
         convert: fn(&sdf::Value) -> Option<Vec<T>>,
     ) -> Result<Option<Primvar<T>>, SceneError> {
         for name in names {
-            let Some(v) = self.value(prim, name)? else { continue };
+            let Some(v) = self.value(prim, name)? else {
+                continue;
+            };
             let at = format!("{}.{name}", prim.path().as_str());
             let values = convert(&v).ok_or_else(|| self.error(&at, "unexpected value type"))?;
             let attr = prim.attribute(*name);
@@ -396,7 +461,10 @@ impl Loader<'_> {
                     .ok_or_else(|| self.error(&at, "primvar index out of range"))?,
                 None => values,
             };
-            return Ok(Some(Primvar { values, interpolation }));
+            return Ok(Some(Primvar {
+                values,
+                interpolation,
+            }));
         }
         Ok(None)
     }
@@ -409,10 +477,20 @@ impl Loader<'_> {
         let h = self.float(prim, "horizontalAperture", 20.955)?;
         let v = self.float(prim, "verticalAperture", 15.2908)?;
         if !(focal > 0.0 && h > 0.0 && v > 0.0) {
-            return Err(self.error(prim.path().as_str(), "focalLength and apertures must be positive"));
+            return Err(self.error(
+                prim.path().as_str(),
+                "focalLength and apertures must be positive",
+            ));
         }
-        if self.value(prim, "projection")?.and_then(|p| token(&p)).is_some_and(|p| p == "orthographic") {
-            self.warn(format!("camera {}: orthographic projection is not supported; rendered as perspective", prim.path().as_str()));
+        if self
+            .value(prim, "projection")?
+            .and_then(|p| token(&p))
+            .is_some_and(|p| p == "orthographic")
+        {
+            self.warn(format!(
+                "camera {}: orthographic projection is not supported; rendered as perspective",
+                prim.path().as_str()
+            ));
         }
         self.builder.camera = Some(Camera {
             camera_to_world: gltf::rigid(world),
@@ -427,7 +505,10 @@ impl Loader<'_> {
         let intensity = self.float(prim, "inputs:intensity", 1.0)?;
         let exposure = self.float(prim, "inputs:exposure", 0.0)?;
         let color = self.color(prim, "inputs:color", Rgb::ONE)?;
-        let normalize = matches!(self.value(prim, "inputs:normalize")?, Some(sdf::Value::Bool(true)));
+        let normalize = matches!(
+            self.value(prim, "inputs:normalize")?,
+            Some(sdf::Value::Bool(true))
+        );
         let radiance = (color * intensity * exposure.exp2()).max(Rgb::ZERO);
         if !radiance.is_finite() {
             return Err(self.error(&at, "light intensity is not finite"));
@@ -443,7 +524,12 @@ impl Loader<'_> {
                     Vec3::new(w, h, 0.0),
                     Vec3::new(w, -h, 0.0),
                 ];
-                let uvs = vec![Vec2::new(0.0, 1.0), Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0)];
+                let uvs = vec![
+                    Vec2::new(0.0, 1.0),
+                    Vec2::new(0.0, 0.0),
+                    Vec2::new(1.0, 0.0),
+                    Vec2::new(1.0, 1.0),
+                ];
                 Mesh {
                     positions,
                     uvs: Some(uvs),
@@ -454,8 +540,15 @@ impl Loader<'_> {
             "DiskLight" => disk(self.float(prim, "inputs:radius", 0.5)?, 48),
             "SphereLight" => {
                 let r = self.float(prim, "inputs:radius", 0.5)?;
-                if matches!(self.value(prim, "treatAsPoint")?, Some(sdf::Value::Bool(true))) {
-                    let scale = if normalize { 0.25 } else { std::f32::consts::PI * r * r };
+                if matches!(
+                    self.value(prim, "treatAsPoint")?,
+                    Some(sdf::Value::Bool(true))
+                ) {
+                    let scale = if normalize {
+                        0.25
+                    } else {
+                        std::f32::consts::PI * r * r
+                    };
                     self.builder.lights.push(Light::Point(PointLight {
                         position: world.transform_point3(Vec3::ZERO),
                         intensity: radiance * scale,
@@ -466,12 +559,16 @@ impl Loader<'_> {
             }
             "DistantLight" => {
                 if self.float(prim, "inputs:angle", 0.53)? > 0.0 {
-                    self.warn(format!("{at}: DistantLight inputs:angle is ignored (a delta directional light)"));
+                    self.warn(format!(
+                        "{at}: DistantLight inputs:angle is ignored (a delta directional light)"
+                    ));
                 }
-                self.builder.lights.push(Light::Directional(DirectionalLight {
-                    direction: world.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Y),
-                    irradiance: radiance,
-                }));
+                self.builder
+                    .lights
+                    .push(Light::Directional(DirectionalLight {
+                        direction: world.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Y),
+                        irradiance: radiance,
+                    }));
                 return Ok(());
             }
             _ => return self.dome(prim, radiance, world),
@@ -502,14 +599,21 @@ impl Loader<'_> {
 
     fn dome(&mut self, prim: &usd::Prim, radiance: Rgb, world: &Mat4) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
-        let rotation = Mat4::from_mat3(glam::Mat3::from_mat4(*world)).to_scale_rotation_translation().1;
+        let rotation = Mat4::from_mat3(glam::Mat3::from_mat4(*world))
+            .to_scale_rotation_translation()
+            .1;
         if rotation.angle_between(Quat::IDENTITY) > 1e-3 {
-            self.warn(format!("{at}: the DomeLight's rotation is ignored (Nimbus's lat-long orientation)"));
+            self.warn(format!(
+                "{at}: the DomeLight's rotation is ignored (Nimbus's lat-long orientation)"
+            ));
         }
         let env = match self.asset(prim, "inputs:texture:file")? {
             Some(file) => {
-                if (radiance.x - radiance.y).abs() > 1e-6 || (radiance.y - radiance.z).abs() > 1e-6 {
-                    self.warn(format!("{at}: a textured DomeLight's colour is ignored (only its luminous scale)"));
+                if (radiance.x - radiance.y).abs() > 1e-6 || (radiance.y - radiance.z).abs() > 1e-6
+                {
+                    self.warn(format!(
+                        "{at}: a textured DomeLight's colour is ignored (only its luminous scale)"
+                    ));
                 }
                 let scale = radiance.max_element();
                 let map = EnvironmentMap::load(&file, scale)
@@ -548,7 +652,12 @@ impl Loader<'_> {
     }
 
     /// The material index for a mesh: the bound `UsdPreviewSurface`, else one from `primvars:displayColor`.
-    fn material(&mut self, prim: &usd::Prim, binding: Option<&str>, double_sided: bool) -> Result<u32, SceneError> {
+    fn material(
+        &mut self,
+        prim: &usd::Prim,
+        binding: Option<&str>,
+        double_sided: bool,
+    ) -> Result<u32, SceneError> {
         let key = match binding {
             Some(b) => b.to_owned(),
             None => {
@@ -586,19 +695,28 @@ impl Loader<'_> {
             .connections()
             .map_err(|e| self.error(path, format!("{e:#}")))?;
         let Some(shader_path) = surface.first().map(|p| p.prim_path()) else {
-            self.warn(format!("material {path} has no outputs:surface; default surface used"));
+            self.warn(format!(
+                "material {path} has no outputs:surface; default surface used"
+            ));
             return Ok(m);
         };
         let shader = self.stage.prim(shader_path.as_str());
-        let id = self.value(&shader, "info:id")?.and_then(|v| token(&v)).unwrap_or_default();
+        let id = self
+            .value(&shader, "info:id")?
+            .and_then(|v| token(&v))
+            .unwrap_or_default();
         if id != "UsdPreviewSurface" {
-            self.warn(format!("material {path}: shader '{id}' is not UsdPreviewSurface; default surface used"));
+            self.warn(format!(
+                "material {path}: shader '{id}' is not UsdPreviewSurface; default surface used"
+            ));
             return Ok(m);
         }
-        let (diffuse, diffuse_tex) = self.color_input(&shader, "inputs:diffuseColor", Rgb::splat(0.18), true)?;
+        let (diffuse, diffuse_tex) =
+            self.color_input(&shader, "inputs:diffuseColor", Rgb::splat(0.18), true)?;
         m.base_color = diffuse.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0);
         m.base_color_texture = diffuse_tex;
-        let (emission, emission_tex) = self.color_input(&shader, "inputs:emissiveColor", Rgb::ZERO, true)?;
+        let (emission, emission_tex) =
+            self.color_input(&shader, "inputs:emissiveColor", Rgb::ZERO, true)?;
         m.emission = emission.max(Rgb::ZERO);
         m.emission_texture = emission_tex;
         m.metallic = self.scalar_input(&shader, "inputs:metallic", 0.0)?;
@@ -606,7 +724,9 @@ impl Loader<'_> {
         m.ior = self.scalar_input(&shader, "inputs:ior", 1.5)?;
         m.transmission = (1.0 - self.scalar_input(&shader, "inputs:opacity", 1.0)?).clamp(0.0, 1.0);
         if self.texture_of(&shader, "inputs:normal", false)?.is_some() {
-            m.normal_texture = self.texture_of(&shader, "inputs:normal", false)?.map(|t| (t, 1.0));
+            m.normal_texture = self
+                .texture_of(&shader, "inputs:normal", false)?
+                .map(|t| (t, 1.0));
         }
         let specular_workflow = match self.value(&shader, "inputs:useSpecularWorkflow")? {
             Some(v) => number(&v).unwrap_or(0.0) != 0.0,
@@ -614,15 +734,25 @@ impl Loader<'_> {
         };
         if specular_workflow {
             m.metallic = 0.0;
-            self.warn(format!("material {path}: useSpecularWorkflow is not supported; read as metallic 0"));
+            self.warn(format!(
+                "material {path}: useSpecularWorkflow is not supported; read as metallic 0"
+            ));
         }
         Ok(m)
     }
 
     /// A scalar shader input; a texture connection is reported and its fallback value used.
-    fn scalar_input(&mut self, shader: &usd::Prim, name: &str, default: f32) -> Result<f32, SceneError> {
+    fn scalar_input(
+        &mut self,
+        shader: &usd::Prim,
+        name: &str,
+        default: f32,
+    ) -> Result<f32, SceneError> {
         if self.connection(shader, name)?.is_some() {
-            self.warn(format!("{}.{name}: textured scalar inputs are not supported; value used", shader.path().as_str()));
+            self.warn(format!(
+                "{}.{name}: textured scalar inputs are not supported; value used",
+                shader.path().as_str()
+            ));
         }
         self.float(shader, name, default)
     }
@@ -647,18 +777,29 @@ impl Loader<'_> {
             .attribute(name)
             .connections()
             .map_err(|e| self.error(shader.path().as_str(), format!("{e:#}")))?;
-        Ok(targets.first().map(|p| self.stage.prim(p.prim_path().as_str())))
+        Ok(targets
+            .first()
+            .map(|p| self.stage.prim(p.prim_path().as_str())))
     }
 
     /// The texture a shader input reads through a `UsdUVTexture`, loaded once per file and colour space.
-    fn texture_of(&mut self, shader: &usd::Prim, name: &str, srgb_default: bool) -> Result<Option<u32>, SceneError> {
+    fn texture_of(
+        &mut self,
+        shader: &usd::Prim,
+        name: &str,
+        srgb_default: bool,
+    ) -> Result<Option<u32>, SceneError> {
         let Some(tex) = self.connection(shader, name)? else {
             return Ok(None);
         };
         let Some(file) = self.asset(&tex, "inputs:file")? else {
             return Ok(None);
         };
-        let srgb = match self.value(&tex, "inputs:sourceColorSpace")?.and_then(|v| token(&v)).as_deref() {
+        let srgb = match self
+            .value(&tex, "inputs:sourceColorSpace")?
+            .and_then(|v| token(&v))
+            .as_deref()
+        {
             Some("raw") => false,
             Some("sRGB") => true,
             _ => srgb_default,
@@ -669,9 +810,18 @@ impl Loader<'_> {
         let image = image::open(&file)
             .map_err(|e| SceneError::new(&file, SceneErrorKind::InvalidReference(e.to_string())))?
             .to_rgba8();
-        let space = if srgb { ColorSpace::Srgb } else { ColorSpace::Linear };
-        let t = Texture::from_rgba8(image.width() as usize, image.height() as usize, image.as_raw(), space)
-            .ok_or_else(|| SceneError::new(&file, SceneErrorKind::Malformed("empty image".into())))?;
+        let space = if srgb {
+            ColorSpace::Srgb
+        } else {
+            ColorSpace::Linear
+        };
+        let t = Texture::from_rgba8(
+            image.width() as usize,
+            image.height() as usize,
+            image.as_raw(),
+            space,
+        )
+        .ok_or_else(|| SceneError::new(&file, SceneErrorKind::Malformed("empty image".into())))?;
         self.builder.textures.push(t);
         let id = (self.builder.textures.len() - 1) as u32;
         self.textures.insert((file, srgb), id);
@@ -691,7 +841,10 @@ impl Loader<'_> {
                     let asset = self.stage.prim(t.prim_path().as_str());
                     let kind = self.type_name(&asset)?;
                     if kind != "OpenVDBAsset" {
-                        return Err(self.error(&at, format!("{name} targets a '{kind}', not an OpenVDBAsset")));
+                        return Err(self.error(
+                            &at,
+                            format!("{name} targets a '{kind}', not an OpenVDBAsset"),
+                        ));
                     }
                     let file = self
                         .asset(&asset, "filePath")?
@@ -701,7 +854,10 @@ impl Loader<'_> {
                         .and_then(|v| token(&v))
                         .unwrap_or_else(|| name["field:".len()..].to_owned());
                     if self.float(&asset, "fieldIndex", 0.0)? != 0.0 {
-                        self.warn(format!("{}: fieldIndex is ignored (the grid is found by name)", asset.path().as_str()));
+                        self.warn(format!(
+                            "{}: fieldIndex is ignored (the grid is found by name)",
+                            asset.path().as_str()
+                        ));
                     }
                     Some((file, grid))
                 }
@@ -709,15 +865,21 @@ impl Loader<'_> {
             };
             fields.push(field);
         }
-        let (Some((file, density_grid)), temperature) = (fields[0].clone(), fields[1].clone()) else {
-            self.warn(format!("{at}: Volume without a field:density relationship; skipped"));
+        let (Some((file, density_grid)), temperature) = (fields[0].clone(), fields[1].clone())
+        else {
+            self.warn(format!(
+                "{at}: Volume without a field:density relationship; skipped"
+            ));
             return Ok(());
         };
         let mut spec = VolumeSpec::new(&at, file.clone(), *world);
         spec.density_grid = density_grid;
         if let Some((t_file, t_grid)) = temperature {
             if t_file != file {
-                return Err(self.error(&at, "density and temperature fields must come from the same VDB file"));
+                return Err(self.error(
+                    &at,
+                    "density and temperature fields must come from the same VDB file",
+                ));
             }
             spec.temperature_grid = Some(t_grid);
         }
@@ -730,8 +892,10 @@ impl Loader<'_> {
         };
         spec.anisotropy = self.float(prim, "nimbus:anisotropy", spec.anisotropy)?;
         spec.emission_scale = self.float(prim, "nimbus:emission_scale", spec.emission_scale)?;
-        spec.temperature_scale = self.float(prim, "nimbus:temperature_scale", spec.temperature_scale)?;
-        spec.temperature_offset = self.float(prim, "nimbus:temperature_offset", spec.temperature_offset)?;
+        spec.temperature_scale =
+            self.float(prim, "nimbus:temperature_scale", spec.temperature_scale)?;
+        spec.temperature_offset =
+            self.float(prim, "nimbus:temperature_offset", spec.temperature_offset)?;
         spec.validate().map_err(|m| self.error(&at, m))?;
         self.volumes.push(spec);
         Ok(())
@@ -828,7 +992,11 @@ fn sphere(r: f32, rings: u32, segments: u32) -> Mesh {
         let theta = std::f32::consts::PI * i as f32 / rings as f32;
         for s in 0..=segments {
             let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
-            let n = Vec3::new(theta.sin() * phi.sin(), theta.cos(), theta.sin() * phi.cos());
+            let n = Vec3::new(
+                theta.sin() * phi.sin(),
+                theta.cos(),
+                theta.sin() * phi.cos(),
+            );
             normals.push(n);
             positions.push(n * r);
         }
@@ -869,8 +1037,12 @@ fn xform_op(op: &str, value: &sdf::Value) -> Option<Mat4> {
         "orient" => {
             let q = match value {
                 sdf::Value::Quatf(q) => Quat::from_xyzw(q.x, q.y, q.z, q.w),
-                sdf::Value::Quatd(q) => Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32),
-                sdf::Value::Quath(q) => Quat::from_xyzw(q.x.to_f32(), q.y.to_f32(), q.z.to_f32(), q.w.to_f32()),
+                sdf::Value::Quatd(q) => {
+                    Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32)
+                }
+                sdf::Value::Quath(q) => {
+                    Quat::from_xyzw(q.x.to_f32(), q.y.to_f32(), q.z.to_f32(), q.w.to_f32())
+                }
                 _ => return None,
             };
             let len = q.length();
@@ -940,8 +1112,16 @@ fn vec3(v: &sdf::Value) -> Option<Vec3> {
 fn vec3_array(v: &sdf::Value) -> Option<Vec<Vec3>> {
     match v {
         sdf::Value::Vec3fVec(a) => Some(a.iter().map(|a| Vec3::new(a.x, a.y, a.z)).collect()),
-        sdf::Value::Vec3dVec(a) => Some(a.iter().map(|a| Vec3::new(a.x as f32, a.y as f32, a.z as f32)).collect()),
-        sdf::Value::Vec3hVec(a) => Some(a.iter().map(|a| Vec3::new(a.x.to_f32(), a.y.to_f32(), a.z.to_f32())).collect()),
+        sdf::Value::Vec3dVec(a) => Some(
+            a.iter()
+                .map(|a| Vec3::new(a.x as f32, a.y as f32, a.z as f32))
+                .collect(),
+        ),
+        sdf::Value::Vec3hVec(a) => Some(
+            a.iter()
+                .map(|a| Vec3::new(a.x.to_f32(), a.y.to_f32(), a.z.to_f32()))
+                .collect(),
+        ),
         _ => None,
     }
 }
@@ -949,8 +1129,16 @@ fn vec3_array(v: &sdf::Value) -> Option<Vec<Vec3>> {
 fn vec2_array(v: &sdf::Value) -> Option<Vec<Vec2>> {
     match v {
         sdf::Value::Vec2fVec(a) => Some(a.iter().map(|a| Vec2::new(a.x, a.y)).collect()),
-        sdf::Value::Vec2dVec(a) => Some(a.iter().map(|a| Vec2::new(a.x as f32, a.y as f32)).collect()),
-        sdf::Value::Vec2hVec(a) => Some(a.iter().map(|a| Vec2::new(a.x.to_f32(), a.y.to_f32())).collect()),
+        sdf::Value::Vec2dVec(a) => Some(
+            a.iter()
+                .map(|a| Vec2::new(a.x as f32, a.y as f32))
+                .collect(),
+        ),
+        sdf::Value::Vec2hVec(a) => Some(
+            a.iter()
+                .map(|a| Vec2::new(a.x.to_f32(), a.y.to_f32()))
+                .collect(),
+        ),
         _ => None,
     }
 }
