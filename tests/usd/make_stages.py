@@ -10,13 +10,18 @@ Writes, next to this script:
 - cornell.gltf: the same box, with the same metallic-roughness mapping (metallic 0, roughness as authored, glTF's
   default specular layer) and the RectLight as an emissive quad facing down;
 - override.usda: references cornell.usda, recolours the red wall's material blue and moves the tall box;
+- cornell.usdz: cornell.usdc packaged by UsdUtils;
+- textured.usda + checker.png: a quad whose UsdPreviewSurface diffuseColor reads a 2x2 PNG through UsdUVTexture,
+  with faceVarying primvars:st;
 - volume.usda: a Z-up stage in centimetres with a Volume prim whose field:density and field:temperature point at
   OpenVDBAsset prims reading ../../assets/cloud.vdb, with nimbus: attributes.
 """
 import os
+import struct
 import sys
+import zlib
 
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdVol
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdUtils, UsdVol
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "..", "assets"))
@@ -162,12 +167,46 @@ def volume_stage(path):
     return stage
 
 
+def write_png(path, width, height, rgb_rows):
+    """an 8-bit RGB PNG from rows of (r, g, b) tuples"""
+    raw = b"".join(b"\0" + bytes(c for px in row for c in px) for row in rgb_rows)
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    with open(path, "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+                + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+
+
+def textured_stage(path):
+    write_png(os.path.join(HERE, "checker.png"), 2, 2, [[(255, 0, 0), (0, 255, 0)], [(0, 0, 255), (255, 255, 255)]])
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    mat = UsdShade.Material.Define(stage, "/Looks/Checker")
+    surface = UsdShade.Shader.Define(stage, "/Looks/Checker/Surface")
+    surface.CreateIdAttr("UsdPreviewSurface")
+    tex = UsdShade.Shader.Define(stage, "/Looks/Checker/Texture")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set("./checker.png")
+    tex.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("sRGB")
+    rgb = tex.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+    surface.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(rgb)
+    mat.CreateSurfaceOutput().ConnectToSource(surface.ConnectableAPI(), "surface")
+    mesh = usd_mesh(stage, "/Quad", [[(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]], mat)
+    st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                 UsdGeom.Tokens.faceVarying)
+    st.Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    return stage
+
+
 def main():
     stage = cornell_stage(os.path.join(HERE, "cornell.usda"))
     stage.Save()
     stage.GetRootLayer().Export(os.path.join(HERE, "cornell.usdc"))
+    UsdUtils.CreateNewUsdzPackage(os.path.join(HERE, "cornell.usdc"), os.path.join(HERE, "cornell.usdz"))
     cornell_gltf(os.path.join(HERE, "cornell.gltf"))
-    for make, name in ((override_stage, "override.usda"), (volume_stage, "volume.usda")):
+    for make, name in ((override_stage, "override.usda"), (volume_stage, "volume.usda"),
+                       (textured_stage, "textured.usda")):
         stage = make(os.path.join(HERE, name))
         stage.Save()
 

@@ -723,11 +723,9 @@ impl Loader<'_> {
         m.roughness = self.scalar_input(&shader, "inputs:roughness", 0.5)?;
         m.ior = self.scalar_input(&shader, "inputs:ior", 1.5)?;
         m.transmission = (1.0 - self.scalar_input(&shader, "inputs:opacity", 1.0)?).clamp(0.0, 1.0);
-        if self.texture_of(&shader, "inputs:normal", false)?.is_some() {
-            m.normal_texture = self
-                .texture_of(&shader, "inputs:normal", false)?
-                .map(|t| (t, 1.0));
-        }
+        m.normal_texture = self
+            .texture_of(&shader, "inputs:normal", false)?
+            .map(|t| (t, 1.0));
         let specular_workflow = match self.value(&shader, "inputs:useSpecularWorkflow")? {
             Some(v) => number(&v).unwrap_or(0.0) != 0.0,
             None => false,
