@@ -31,8 +31,8 @@
 //! −Z axis of their frame; sphere lights become emissive spheres, or with `treatAsPoint` a point light of
 //! intensity `L·πr²` (the intensity of a sphere of radiance L). A dome light maps its texture with Nimbus's
 //! latitude–longitude contract (see [`crate::light::EnvironmentLight`]: top row +Y, u = 0 toward −Z,
-//! u = 0.25 toward +X) in the stage's Y-up frame; the dome's own transform is ignored (a warning says so when
-//! it rotates). A dome without texture is a constant environment.
+//! u = 0.25 toward +X) after the up-axis correction, so the top row is the stage's up axis; the dome's rotation
+//! relative to the stage is ignored (a warning says so). A dome without texture is a constant environment.
 //!
 //! Asset paths (`filePath`, `inputs:file`, `inputs:texture:file`) resolve relative to the layer that authored
 //! them. Prim types Nimbus does not render are listed once each in the warnings.
@@ -44,7 +44,7 @@ use super::{gltf, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::light::{DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight};
 use crate::material::{ColorSpace, Material, Texture};
-use crate::math::{Mat4, Quat, Rgb, Vec2, Vec3};
+use crate::math::{Mat3, Mat4, Quat, Rgb, Vec2, Vec3};
 use crate::volume::VolumeSpec;
 use openusd::{sdf, usd};
 use std::collections::{HashMap, HashSet};
@@ -101,10 +101,11 @@ fn read_stage(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError
         materials: HashMap::new(),
         textures: HashMap::new(),
         unsupported: HashSet::new(),
+        root: Mat4::IDENTITY,
     };
-    let root = loader.stage_root()?;
+    loader.root = loader.stage_root()?;
     for child in loader.children(&stage.prim("/"))? {
-        loader.visit(&child, root, None, 0)?;
+        loader.visit(&child, loader.root, None, 0)?;
     }
     // References and payloads report their errors as the prims that use them are composed.
     composition_errors(path, &stage)?;
@@ -149,6 +150,8 @@ struct Loader<'a> {
     /// (resolved file, colour space is sRGB) → texture index.
     textures: HashMap<(PathBuf, bool), u32>,
     unsupported: HashSet<String>,
+    /// Stage units and up axis to Nimbus's metres and +Y up.
+    root: Mat4,
 }
 
 impl Loader<'_> {
@@ -599,7 +602,7 @@ impl Loader<'_> {
 
     fn dome(&mut self, prim: &usd::Prim, radiance: Rgb, world: &Mat4) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
-        let rotation = Mat4::from_mat3(glam::Mat3::from_mat4(*world))
+        let rotation = Mat4::from_mat3(Mat3::from_mat4(self.root.inverse() * *world))
             .to_scale_rotation_translation()
             .1;
         if rotation.angle_between(Quat::IDENTITY) > 1e-3 {
@@ -1138,5 +1141,62 @@ fn vec2_array(v: &sdf::Value) -> Option<Vec<Vec2>> {
                 .collect(),
         ),
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotate_xyz_applies_x_first() {
+        let v = sdf::Value::Vec3f([90.0, 90.0, 0.0].into());
+        let m = xform_op("rotateXYZ", &v).unwrap();
+        // X by 90 takes +Y to +Z, then Y by 90 takes +Z to +X.
+        assert!(m.transform_vector3(Vec3::Y).distance(Vec3::X) < 1e-6);
+        let zyx = xform_op("rotateZYX", &v).unwrap();
+        // Y by 90 takes +Y to +Y, then X by 90 takes +Y to +Z.
+        assert!(zyx.transform_vector3(Vec3::Y).distance(Vec3::Z) < 1e-6);
+        assert!(xform_op("rotateXYW", &v).is_none());
+        assert!(xform_op("translate", &sdf::Value::Float(1.0)).is_none());
+    }
+
+    #[test]
+    fn usd_matrices_keep_translation_in_the_last_row() {
+        let mut a = [0.0f64; 16];
+        for i in 0..4 {
+            a[i * 5] = 1.0;
+        }
+        a[12..15].copy_from_slice(&[1.0, 2.0, 3.0]);
+        let v = sdf::Value::Matrix4d(openusd::gf::Matrix4d(a));
+        let m = xform_op("transform", &v).unwrap();
+        assert_eq!(m.transform_point3(Vec3::ZERO), Vec3::new(1.0, 2.0, 3.0));
+    }
+
+    #[test]
+    fn primvars_expand_to_face_corners() {
+        let topo = Topology {
+            counts: &[3, 4],
+            indices: &[0, 1, 2, 0, 2, 3, 4],
+            points: 5,
+        };
+        let uniform = Primvar {
+            values: vec![1, 2],
+            interpolation: "uniform".into(),
+        };
+        assert_eq!(topo.expand(uniform, "m").unwrap(), [1, 1, 1, 2, 2, 2, 2]);
+        let vertex = Primvar {
+            values: vec![10, 11, 12, 13, 14],
+            interpolation: "vertex".into(),
+        };
+        assert_eq!(
+            topo.expand(vertex, "m").unwrap(),
+            [10, 11, 12, 10, 12, 13, 14]
+        );
+        let short = Primvar {
+            values: vec![1, 2],
+            interpolation: "faceVarying".into(),
+        };
+        assert!(topo.expand(short, "m").is_err());
     }
 }
