@@ -179,6 +179,18 @@ fn truncated_and_corrupted_stages_are_errors_not_panics() {
             if cut > first_def {
                 assert!(r.is_err(), "{name} truncated at {cut} loaded");
             }
+            if ext == "usdc" {
+                // The same damaged layer reached through a reference.
+                let layer = format!(
+                    "#usda 1.0\ndef \"R\" (\n    references = @./cut{cut}.usdc@</World>\n)\n{{\n}}\n"
+                );
+                let root = temp_file(&format!("ref{cut}"), "usda", layer.as_bytes());
+                assert!(
+                    usd::read(&root).is_err(),
+                    "reference to {name} cut at {cut}"
+                );
+                std::fs::remove_file(&root).unwrap();
+            }
             std::fs::remove_file(&p).unwrap();
         }
         let mut rng = 0x2545F4914F6CDD1Du64;

@@ -8,8 +8,9 @@
 //! block runs past the end of the file. Crate versions before 0.4.0 (uncompressed structural sections) are
 //! refused; Pixar's USD has written 0.4.0 or later since 2017.
 
+use openusd::ar;
 use openusd::usdc::CrateFile;
-use std::io::Cursor;
+use std::io::{self, Cursor};
 
 /// Checks `bytes`, a `.usdc` file, for counts that would make the reader allocate beyond the data.
 pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
@@ -188,5 +189,55 @@ impl Reader<'_> {
             return Err(format!("a lookup table of {n} entries exceeds the file"));
         }
         Ok(())
+    }
+}
+
+/// The default file-system resolver, with every binary crate layer it opens (the root layer, sublayers,
+/// references and payloads, layers inside `.usdz` packages) bounds-checked by [`check`] before `openusd`
+/// parses it. A failed check is an `InvalidData` error naming the layer, which `openusd` reports as a load or
+/// composition error.
+pub(super) struct CheckingResolver(pub(super) ar::DefaultResolver);
+
+impl ar::Resolver for CheckingResolver {
+    fn create_identifier(&self, asset_path: &str, anchor: Option<&ar::ResolvedPath>) -> String {
+        self.0.create_identifier(asset_path, anchor)
+    }
+
+    fn resolve(&self, asset_path: &str) -> Option<ar::ResolvedPath> {
+        self.0.resolve(asset_path)
+    }
+
+    fn resolve_for_new_asset(&self, asset_path: &str) -> Option<ar::ResolvedPath> {
+        self.0.resolve_for_new_asset(asset_path)
+    }
+
+    fn open_asset(&self, resolved_path: &ar::ResolvedPath) -> io::Result<Box<dyn ar::Asset>> {
+        let bytes = self.0.open_asset(resolved_path)?.read_all()?;
+        if bytes.starts_with(b"PXR-USDC") {
+            check(&bytes).map_err(|m| {
+                io::Error::new(io::ErrorKind::InvalidData, format!("{resolved_path}: {m}"))
+            })?;
+        }
+        Ok(Box::new(Cursor::new(bytes)))
+    }
+
+    fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
+        self.0.get_extension(asset_path)
+    }
+
+    fn get_asset_info(&self, asset_path: &str, resolved_path: &ar::ResolvedPath) -> ar::AssetInfo {
+        self.0.get_asset_info(asset_path, resolved_path)
+    }
+
+    fn get_modification_timestamp(
+        &self,
+        asset_path: &str,
+        resolved_path: &ar::ResolvedPath,
+    ) -> Option<std::time::SystemTime> {
+        self.0.get_modification_timestamp(asset_path, resolved_path)
+    }
+
+    fn identity(&self) -> String {
+        self.0.identity()
     }
 }

@@ -46,7 +46,7 @@ use crate::light::{DirectionalLight, EnvironmentLight, EnvironmentMap, Light, Po
 use crate::material::{ColorSpace, Material, Texture};
 use crate::math::{Mat3, Mat4, Quat, Rgb, Vec2, Vec3};
 use crate::volume::VolumeSpec;
-use openusd::{sdf, usd};
+use openusd::{ar, sdf, usd};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
@@ -76,8 +76,9 @@ pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
 
 /// Reads a USD stage into a builder, returning the `Volume` prims as [`VolumeSpec`]s not yet added.
 ///
-/// `openusd` 0.6 indexes out of bounds on some damaged `.usdc` files; such a panic is caught here (a last
-/// resort: its message still reaches the panic hook) and returned as a malformed-file error.
+/// Every `.usdc` layer is bounds-checked before `openusd` parses it (see `crate_check`); `openusd` 0.6 still
+/// indexes out of bounds on some damaged `.usdc` files, and such a panic is caught here (a last resort: its
+/// message still reaches the panic hook) and returned as a malformed-file error.
 pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_stage(path))).unwrap_or_else(
         |panic| {
@@ -114,14 +115,14 @@ fn read_stage(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError
 
 /// Opens and composes a stage; any parse or composition error is a [`SceneError`] naming the layer.
 fn open(path: &Path) -> Result<usd::Stage, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    if bytes.starts_with(b"PXR-USDC") {
-        crate_check::check(&bytes).map_err(|m| malformed(path, m))?;
-    }
+    std::fs::metadata(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
     let name = path
         .to_str()
         .ok_or_else(|| malformed(path, "the path is not valid UTF-8".into()))?;
-    let stage = usd::Stage::open(name).map_err(|e| malformed(path, format!("{e:#}")))?;
+    let stage = usd::Stage::builder()
+        .resolver(crate_check::CheckingResolver(ar::DefaultResolver::new()))
+        .open(name)
+        .map_err(|e| malformed(path, format!("{e:#}")))?;
     composition_errors(path, &stage)?;
     Ok(stage)
 }
