@@ -341,3 +341,33 @@ fn preview_surface_reads_uv_texture() {
     let bottom_left = t.sample(nimbus::math::Vec2::new(0.25, 0.75)).truncate();
     assert!(bottom_left.distance(Rgb::Z) < 1e-3, "{bottom_left:?}");
 }
+
+#[test]
+fn bad_topology_and_values_are_errors_naming_the_prim() {
+    for (tag, body) in [
+        (
+            "index",
+            "point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n int[] faceVertexCounts = [3]\n \
+             int[] faceVertexIndices = [0, 1, 7]",
+        ),
+        (
+            "counts",
+            "point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n int[] faceVertexCounts = [4]\n \
+             int[] faceVertexIndices = [0, 1, 2]",
+        ),
+        (
+            "normals",
+            "point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n int[] faceVertexCounts = [3]\n \
+             int[] faceVertexIndices = [0, 1, 2]\n normal3f[] normals = [(0, 0, 1)] (interpolation = \"faceVarying\")",
+        ),
+        (
+            "xform",
+            "float xformOp:translate = 3\n uniform token[] xformOpOrder = [\"xformOp:translate\"]",
+        ),
+    ] {
+        let text = format!("#usda 1.0\ndef Mesh \"Bad\" {{\n {body}\n}}\n");
+        let p = temp_file(&format!("bad_{tag}"), "usda", text.as_bytes());
+        let err = usd::read(&p).err().unwrap_or_else(|| panic!("{tag} loaded"));
+        assert!(err.to_string().contains("/Bad"), "{tag}: {err}");
+    }
+}

@@ -3,10 +3,10 @@
 //! `openusd` 0.6 sizes buffers from counts read in the file without comparing them to the file's length, so a
 //! damaged count makes it request terabytes and the process aborts (an allocation failure cannot be caught).
 //! This walks the same structure first (header, table of contents, the TOKENS, STRINGS, FIELDS, FIELDSETS,
-//! PATHS and SPECS sections, then the length of every array value) and rejects any count that the file could
-//! not hold: LZ4 expands at most 255-fold, so no decoded buffer exceeds 256 × the file size, and no compressed
-//! block runs past the end of the file. Crate versions before 0.4.0 (uncompressed structural sections) are
-//! refused; Pixar's USD has written 0.4.0 or later since 2017.
+//! PATHS and SPECS sections, then the element count of every array value and the first compressed block of
+//! compressed arrays) and rejects any count that the file could not hold: LZ4 expands at most 255-fold, so no
+//! decoded buffer exceeds 256 × the file size, and no compressed block runs past the end of the file. Crate
+//! versions before 0.4.0 (uncompressed structural sections) are refused rather than checked.
 
 use openusd::ar;
 use openusd::usdc::CrateFile;
