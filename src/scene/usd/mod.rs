@@ -375,11 +375,11 @@ impl Loader<'_> {
             points: points.len(),
         };
         let normals = normals
-            .map(|p| topology.expand(p, &at))
+            .map(|p| topology.expand(p))
             .transpose()
             .map_err(|m| self.error(&at, m))?;
         let uvs = uvs
-            .map(|p| topology.expand(p, &at))
+            .map(|p| topology.expand(p))
             .transpose()
             .map_err(|m| self.error(&at, m))?;
         let left_handed = self
@@ -466,6 +466,7 @@ impl Loader<'_> {
                 None => values,
             };
             return Ok(Some(Primvar {
+                name: (*name).to_owned(),
                 values,
                 interpolation,
             }));
@@ -917,6 +918,8 @@ fn preview_defaults(name: &str) -> Material {
 
 /// A primvar's values after `:indices` were applied, and its interpolation.
 struct Primvar<T> {
+    /// The attribute's name, for messages.
+    name: String,
     values: Vec<T>,
     interpolation: String,
 }
@@ -930,11 +933,12 @@ struct Topology<'a> {
 
 impl Topology<'_> {
     /// One value per face corner, from any interpolation.
-    fn expand<T: Copy>(&self, p: Primvar<T>, at: &str) -> Result<Vec<T>, String> {
+    fn expand<T: Copy>(&self, p: Primvar<T>) -> Result<Vec<T>, String> {
         let need = |n: usize| {
             if p.values.len() < n {
                 Err(format!(
-                    "{at}: {} interpolation needs {n} values, has {}",
+                    "{}: {} interpolation needs {n} values, has {}",
+                    p.name,
                     p.interpolation,
                     p.values.len()
                 ))
@@ -964,7 +968,7 @@ impl Topology<'_> {
                 need(self.points)?;
                 Ok(self.indices.iter().map(|&i| p.values[i as usize]).collect())
             }
-            other => Err(format!("{at}: unknown interpolation '{other}'")),
+            other => Err(format!("{}: unknown interpolation '{other}'", p.name)),
         }
     }
 }
@@ -1182,22 +1186,22 @@ mod tests {
             points: 5,
         };
         let uniform = Primvar {
+            name: "p".into(),
             values: vec![1, 2],
             interpolation: "uniform".into(),
         };
-        assert_eq!(topo.expand(uniform, "m").unwrap(), [1, 1, 1, 2, 2, 2, 2]);
+        assert_eq!(topo.expand(uniform).unwrap(), [1, 1, 1, 2, 2, 2, 2]);
         let vertex = Primvar {
+            name: "p".into(),
             values: vec![10, 11, 12, 13, 14],
             interpolation: "vertex".into(),
         };
-        assert_eq!(
-            topo.expand(vertex, "m").unwrap(),
-            [10, 11, 12, 10, 12, 13, 14]
-        );
+        assert_eq!(topo.expand(vertex).unwrap(), [10, 11, 12, 10, 12, 13, 14]);
         let short = Primvar {
+            name: "p".into(),
             values: vec![1, 2],
             interpolation: "faceVarying".into(),
         };
-        assert!(topo.expand(short, "m").is_err());
+        assert!(topo.expand(short).is_err());
     }
 }
