@@ -152,9 +152,7 @@ pub fn parse_nimbus_medium(
 }
 
 /// Loads the VDB file of `spec` and builds its grid medium.
-pub fn load_grid_medium(
-    spec: &VolumeSpec,
-) -> Result<std::sync::Arc<dyn Medium>, crate::scene::SceneError> {
+pub fn load_grid_medium(spec: &VolumeSpec) -> Result<std::sync::Arc<dyn Medium>, crate::scene::SceneError> {
     Err(crate::scene::SceneError::new(
         &spec.file,
         crate::scene::SceneErrorKind::Unsupported("grid media land with the volcore branch".into()),
