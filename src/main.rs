@@ -14,7 +14,7 @@ use std::time::Duration;
 #[command(
     name = "nimbus",
     version,
-    about = "A volumetric path tracer for glTF/OBJ scenes with OpenVDB volumes"
+    about = "A volumetric path tracer for glTF/OBJ/USD scenes with OpenVDB volumes"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -23,7 +23,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a scene (.gltf, .glb, .obj) to an EXR with AOV layers and a PNG preview.
+    /// Render a scene (.gltf, .glb, .obj, .usd, .usda, .usdc, .usdz) to an EXR with AOV layers and a PNG preview.
     Render(RenderArgs),
     /// Describe the grids of an OpenVDB file: counts, statistics, bounds and transform.
     Info(InfoArgs),

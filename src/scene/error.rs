@@ -28,7 +28,7 @@ pub enum SceneErrorKind {
     #[error("invalid reference: {0}")]
     InvalidReference(String),
     /// The file extension names no format Nimbus reads.
-    #[error("unknown scene format (expected .gltf, .glb or .obj)")]
+    #[error("unknown scene format (expected .gltf, .glb, .obj, .usd, .usda, .usdc or .usdz)")]
     UnknownFormat,
 }
 

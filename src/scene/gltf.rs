@@ -690,7 +690,7 @@ fn triangulate(indices: &[u32], mode: gltf::mesh::Mode) -> Vec<[u32; 3]> {
 }
 
 /// Removes scale and shear from a camera's world matrix, keeping its rotation and position.
-fn rigid(m: &Mat4) -> Mat4 {
+pub(crate) fn rigid(m: &Mat4) -> Mat4 {
     let x = m.x_axis.truncate().normalize_or(Vec3::X);
     let y0 = m.y_axis.truncate();
     let z = x.cross(y0).normalize_or(Vec3::Z);

@@ -8,6 +8,7 @@ mod camera;
 mod error;
 pub mod gltf;
 pub mod obj;
+pub mod usd;
 
 pub use builder::BUILDER_PATH;
 pub use camera::Camera;
@@ -30,6 +31,7 @@ pub fn load_builder(path: &Path) -> Result<SceneBuilder, SceneError> {
     match ext.as_deref() {
         Some("gltf") | Some("glb") => gltf::load(path),
         Some("obj") => obj::load(path),
+        Some("usd") | Some("usda") | Some("usdc") | Some("usdz") => usd::load(path),
         _ => Err(SceneError::new(path, SceneErrorKind::UnknownFormat)),
     }
 }
@@ -209,7 +211,8 @@ pub struct SurfaceHit {
 }
 
 impl Scene {
-    /// Loads a scene file, choosing the loader by extension (.gltf, .glb, .obj).
+    /// Loads a scene file, choosing the loader by extension (.gltf, .glb, .obj, .usd, .usda,
+    /// .usdc, .usdz).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         Ok(load_builder(path)?.build())
     }

@@ -1,0 +1,243 @@
+//! A bounds check of binary `.usdc` (crate) files before `openusd` 0.6 reads them.
+//!
+//! `openusd` 0.6 sizes buffers from counts read in the file without comparing them to the file's length, so a
+//! damaged count makes it request terabytes and the process aborts (an allocation failure cannot be caught).
+//! This walks the same structure first (header, table of contents, the TOKENS, STRINGS, FIELDS, FIELDSETS,
+//! PATHS and SPECS sections, then the element count of every array value and the first compressed block of
+//! compressed arrays) and rejects any count that the file could not hold: LZ4 expands at most 255-fold, so no
+//! decoded buffer exceeds 256 × the file size, and no compressed block runs past the end of the file. Crate
+//! versions before 0.4.0 (uncompressed structural sections) are refused rather than checked.
+
+use openusd::ar;
+use openusd::usdc::CrateFile;
+use std::io::{self, Cursor};
+
+/// Checks `bytes`, a `.usdc` file, for counts that would make the reader allocate beyond the data.
+pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
+    let mut c = Reader { bytes, pos: 0 };
+    if bytes.get(..8) != Some(b"PXR-USDC".as_slice()) {
+        return Err("not a USD crate file (bad magic)".into());
+    }
+    let version = (
+        bytes.get(8).copied(),
+        bytes.get(9).copied(),
+        bytes.get(10).copied(),
+    );
+    let (Some(major), Some(minor), Some(patch)) = version else {
+        return Err("truncated header".into());
+    };
+    let version = (major, minor, patch);
+    if version < (0, 4, 0) {
+        return Err(format!(
+            "crate version {major}.{minor}.{patch} is older than 0.4.0"
+        ));
+    }
+    c.pos = 16;
+    let toc = c.u64()?;
+    c.seek(toc)?;
+    let sections = c.u64()?;
+    if sections == 0 || sections >= 64 {
+        return Err(format!("{sections} sections"));
+    }
+    for _ in 0..sections {
+        let name = c.take(16)?.to_vec();
+        let (start, size) = (c.u64()?, c.u64()?);
+        let name = String::from_utf8_lossy(&name)
+            .trim_end_matches('\0')
+            .to_owned();
+        if start
+            .checked_add(size)
+            .is_none_or(|end| end > bytes.len() as u64)
+        {
+            return Err(format!("section {name} runs past the end of the file"));
+        }
+        let mut s = Reader { bytes, pos: 0 };
+        s.seek(start)?;
+        match name.as_str() {
+            "TOKENS" => {
+                s.count()?;
+                s.count()?;
+                s.compressed()?;
+            }
+            "STRINGS" => {
+                let n = s.count()?;
+                s.take(n.checked_mul(4).ok_or("string count overflows")?)?;
+            }
+            "FIELDS" => {
+                s.count()?;
+                s.compressed()?;
+                s.compressed()?;
+            }
+            "FIELDSETS" | "SPECS" => {
+                s.count()?;
+                let blocks = if name == "SPECS" { 3 } else { 1 };
+                for _ in 0..blocks {
+                    s.compressed()?;
+                }
+            }
+            "PATHS" => {
+                s.count()?;
+                s.count()?;
+                for _ in 0..3 {
+                    s.compressed()?;
+                }
+            }
+            _ => {}
+        }
+    }
+    // The structure is sound: let the crate reader decode it, then check every array value's length.
+    let file = CrateFile::open(Cursor::new(bytes)).map_err(|e| format!("{e:#}"))?;
+    file.validate().map_err(|e| format!("{e:#}"))?;
+    for field in &file.fields {
+        let rep = field.value_rep;
+        if !rep.is_array() || rep.is_inlined() || rep.payload() == 0 {
+            continue;
+        }
+        let mut a = Reader { bytes, pos: 0 };
+        a.seek(rep.payload())?;
+        if version < (0, 5, 0) {
+            a.take(4)?;
+        }
+        let n = if version < (0, 7, 0) {
+            u32::from_le_bytes(a.take(4)?.try_into().unwrap_or_default()) as u64
+        } else {
+            a.u64()?
+        };
+        if n > a.limit() {
+            return Err(format!("an array claims {n} elements"));
+        }
+        if rep.is_compressed() && n >= 4 {
+            // Compressed arrays hold an LZ4 block (integers) or a codec byte before one (floats).
+            let mut block = Reader { bytes, pos: a.pos };
+            if block.compressed().is_err() {
+                let mut after_code = Reader {
+                    bytes,
+                    pos: a.pos + 1,
+                };
+                after_code.compressed_or_table()?;
+            }
+        }
+    }
+    Ok(())
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl Reader<'_> {
+    /// The largest count or decoded size the file could justify.
+    fn limit(&self) -> u64 {
+        256 * self.bytes.len() as u64 + 1024
+    }
+
+    fn seek(&mut self, pos: u64) -> Result<(), String> {
+        if pos > self.bytes.len() as u64 {
+            return Err(format!("offset {pos} is past the end of the file"));
+        }
+        self.pos = pos as usize;
+        Ok(())
+    }
+
+    fn take(&mut self, n: usize) -> Result<&[u8], String> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len());
+        let end = end.ok_or_else(|| {
+            format!(
+                "{n} bytes at offset {} run past the end of the file",
+                self.pos
+            )
+        })?;
+        let s = &self.bytes[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+
+    fn u64(&mut self) -> Result<u64, String> {
+        let b = self.take(8)?;
+        Ok(u64::from_le_bytes(b.try_into().unwrap_or_default()))
+    }
+
+    /// A count or decoded size, bounded by what the file could hold.
+    fn count(&mut self) -> Result<usize, String> {
+        let n = self.u64()?;
+        if n > self.limit() {
+            return Err(format!(
+                "a count of {n} at offset {} exceeds the file",
+                self.pos - 8
+            ));
+        }
+        Ok(n as usize)
+    }
+
+    /// A compressed block: its size, then that many bytes.
+    fn compressed(&mut self) -> Result<(), String> {
+        let n = self.u64()?;
+        let n = usize::try_from(n).map_err(|_| "compressed size overflows")?;
+        self.take(n).map(|_| ())
+    }
+
+    /// A float array's integer-coded block, or its lookup table (a u32 size) followed by a block.
+    fn compressed_or_table(&mut self) -> Result<(), String> {
+        let start = self.pos;
+        if self.compressed().is_ok() {
+            return Ok(());
+        }
+        self.pos = start;
+        let n = u32::from_le_bytes(self.take(4)?.try_into().unwrap_or_default()) as u64;
+        if n > self.limit() {
+            return Err(format!("a lookup table of {n} entries exceeds the file"));
+        }
+        Ok(())
+    }
+}
+
+/// The default file-system resolver, with every binary crate layer it opens (the root layer, sublayers,
+/// references and payloads, layers inside `.usdz` packages) bounds-checked by [`check`] before `openusd`
+/// parses it. A failed check is an `InvalidData` error naming the layer, which `openusd` reports as a load or
+/// composition error.
+pub(super) struct CheckingResolver(pub(super) ar::DefaultResolver);
+
+impl ar::Resolver for CheckingResolver {
+    fn create_identifier(&self, asset_path: &str, anchor: Option<&ar::ResolvedPath>) -> String {
+        self.0.create_identifier(asset_path, anchor)
+    }
+
+    fn resolve(&self, asset_path: &str) -> Option<ar::ResolvedPath> {
+        self.0.resolve(asset_path)
+    }
+
+    fn resolve_for_new_asset(&self, asset_path: &str) -> Option<ar::ResolvedPath> {
+        self.0.resolve_for_new_asset(asset_path)
+    }
+
+    fn open_asset(&self, resolved_path: &ar::ResolvedPath) -> io::Result<Box<dyn ar::Asset>> {
+        let bytes = self.0.open_asset(resolved_path)?.read_all()?;
+        if bytes.starts_with(b"PXR-USDC") {
+            check(&bytes).map_err(|m| {
+                io::Error::new(io::ErrorKind::InvalidData, format!("{resolved_path}: {m}"))
+            })?;
+        }
+        Ok(Box::new(Cursor::new(bytes)))
+    }
+
+    fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
+        self.0.get_extension(asset_path)
+    }
+
+    fn get_asset_info(&self, asset_path: &str, resolved_path: &ar::ResolvedPath) -> ar::AssetInfo {
+        self.0.get_asset_info(asset_path, resolved_path)
+    }
+
+    fn get_modification_timestamp(
+        &self,
+        asset_path: &str,
+        resolved_path: &ar::ResolvedPath,
+    ) -> Option<std::time::SystemTime> {
+        self.0.get_modification_timestamp(asset_path, resolved_path)
+    }
+
+    fn identity(&self) -> String {
+        self.0.identity()
+    }
+}

@@ -1,0 +1,373 @@
+//! The USD loader against stages authored by Pixar's USD library (`tests/usd/make_stages.py`): what each stage
+//! holds, the volume declaration, robustness to damaged files, and the same Cornell box rendered from USD and
+//! from glTF.
+
+use nimbus::light::Light;
+use nimbus::math::{Rgb, Vec3};
+use nimbus::render::{RenderImage, RenderSettings, Renderer};
+use nimbus::scene::{usd, Scene, SceneBuilder};
+use std::path::{Path, PathBuf};
+
+fn stage(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/usd")
+        .join(name)
+}
+
+fn read(name: &str) -> SceneBuilder {
+    let (builder, volumes) = usd::read(&stage(name)).unwrap_or_else(|e| panic!("{e}"));
+    assert!(volumes.is_empty());
+    builder
+}
+
+/// Checks the Cornell box as `make_stages.py` authors it.
+fn check_cornell(b: &SceneBuilder) {
+    // 5 walls of 1 quad, 2 boxes of 6 quads, and the rect light's quad.
+    assert_eq!(b.meshes.len(), 8);
+    let triangles: usize = b.meshes.iter().map(|m| m.indices.len()).sum();
+    assert_eq!(triangles, 36);
+    assert!(b.lights.is_empty(), "the rect light is an emissive mesh");
+    assert!(b.warnings.is_empty(), "{:?}", b.warnings);
+    let cam = b.camera.as_ref().expect("camera");
+    assert!((cam.yfov - 2.0 * (12.0f32 / 35.0).atan()).abs() < 1e-5);
+    assert_eq!(cam.aspect_ratio, Some(1.0));
+    assert!(cam.position().distance(Vec3::new(0.0, 1.0, 3.6)) < 1e-5);
+    // The light: 0.5 x 0.4 at y = 1.98, emitting downward, radiance colour x 6 x 2^1.
+    let light = b.meshes.iter().find(|m| m.name == "/World/Light").unwrap();
+    let bounds = light.bounds();
+    assert!((bounds.max.x - 0.25).abs() < 1e-5 && (bounds.max.z - 0.2).abs() < 1e-5);
+    assert!((bounds.min.y - 1.98).abs() < 1e-5);
+    let [a, b2, c] = light.triangle(0);
+    assert!((b2 - a).cross(c - a).normalize().distance(-Vec3::Y) < 1e-5);
+    let emission = b.materials[light.material as usize].emission;
+    assert!(emission.distance(Rgb::new(1.0, 0.85, 0.7) * 12.0) < 1e-4);
+    let red = b
+        .materials
+        .iter()
+        .find(|m| m.name == "/World/Materials/Red")
+        .unwrap();
+    assert!(
+        red.base_color
+            .truncate()
+            .distance(Rgb::new(0.65, 0.05, 0.05))
+            < 1e-6
+    );
+    assert_eq!(
+        (red.metallic, red.roughness, red.specular_factor),
+        (0.0, 0.9, 1.0)
+    );
+}
+
+#[test]
+fn cornell_usda_loads() {
+    let b = read("cornell.usda");
+    check_cornell(&b);
+    let scene = b.build();
+    assert_eq!(scene.triangle_count(), 36);
+    let area_lights = scene
+        .lights
+        .iter()
+        .filter(|l| matches!(l, Light::Area(_)))
+        .count();
+    assert_eq!(area_lights, 2);
+}
+
+#[test]
+fn cornell_usdc_matches_usda() {
+    let a = read("cornell.usda");
+    let c = read("cornell.usdc");
+    check_cornell(&c);
+    for (x, y) in a.meshes.iter().zip(&c.meshes) {
+        assert_eq!(x.name, y.name);
+        assert_eq!(x.positions, y.positions);
+        assert_eq!(x.indices, y.indices);
+    }
+}
+
+#[test]
+fn referenced_layer_overrides_apply() {
+    let b = read("override.usda");
+    assert_eq!(b.meshes.iter().map(|m| m.indices.len()).sum::<usize>(), 36);
+    let red = b
+        .materials
+        .iter()
+        .find(|m| m.name == "/World/Materials/Red")
+        .unwrap();
+    assert!(
+        red.base_color
+            .truncate()
+            .distance(Rgb::new(0.05, 0.05, 0.65))
+            < 1e-6
+    );
+    let tall = b
+        .meshes
+        .iter()
+        .find(|m| m.name == "/World/TallBox/Geom")
+        .unwrap();
+    assert!((tall.bounds().center().z + 0.5).abs() < 1e-5);
+    assert!(b.camera.is_some());
+}
+
+#[test]
+fn volume_spec_from_usdvol() {
+    let (b, volumes) = usd::read(&stage("volume.usda")).unwrap();
+    assert!(b.meshes.is_empty());
+    assert!(b.warnings.is_empty(), "{:?}", b.warnings);
+    assert_eq!(volumes.len(), 1);
+    let v = &volumes[0];
+    assert_eq!(v.name, "/World/Cloud");
+    assert_eq!(
+        v.file.canonicalize().unwrap(),
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("assets/cloud.vdb")
+            .canonicalize()
+            .unwrap()
+    );
+    assert_eq!(v.density_grid, "density");
+    assert_eq!(v.temperature_grid.as_deref(), Some("temperature"));
+    assert_eq!(v.density_scale, 8.0);
+    assert!(v.albedo.distance(Rgb::new(0.9, 0.8, 0.7)) < 1e-6);
+    assert_eq!(
+        (
+            v.anisotropy,
+            v.emission_scale,
+            v.temperature_scale,
+            v.temperature_offset
+        ),
+        (0.6, 2.0, 1.5, -100.0)
+    );
+    // Z-up centimetres: translate (10, 20, 30) cm lands at (0.1, 0.3, -0.2) m in Y-up; the 100x scale cancels
+    // the 0.01 m unit, and the stage's +Z becomes +Y.
+    let m = v.node_to_world;
+    assert!(
+        m.transform_point3(Vec3::ZERO)
+            .distance(Vec3::new(0.1, 0.3, -0.2))
+            < 1e-5
+    );
+    assert!(m.transform_vector3(Vec3::Z).distance(Vec3::Y) < 1e-5);
+    assert!(m.transform_vector3(Vec3::X).distance(Vec3::X) < 1e-5);
+}
+
+#[test]
+fn load_builder_dispatches_usd_extensions() {
+    let b = nimbus::scene::load_builder(&stage("cornell.usdc")).unwrap();
+    assert_eq!(b.meshes.len(), 8);
+}
+
+/// Writes `bytes` to a fresh file with `ext` in the temporary folder.
+fn temp_file(tag: &str, ext: &str, bytes: &[u8]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nimbus_usd_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(format!("{tag}.{ext}"));
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn truncated_and_corrupted_stages_are_errors_not_panics() {
+    for (name, ext) in [("cornell.usda", "usda"), ("cornell.usdc", "usdc")] {
+        let bytes = std::fs::read(stage(name)).unwrap();
+        let first_def = if ext == "usda" {
+            String::from_utf8_lossy(&bytes).find("def ").unwrap()
+        } else {
+            0
+        };
+        let step = (bytes.len() / 97).max(1);
+        for cut in (0..bytes.len() - 1).step_by(step) {
+            let p = temp_file(&format!("cut{cut}"), ext, &bytes[..cut]);
+            let r = usd::read(&p);
+            if cut > first_def {
+                assert!(r.is_err(), "{name} truncated at {cut} loaded");
+            }
+            if ext == "usdc" {
+                // The same damaged layer reached through a reference.
+                let layer = format!(
+                    "#usda 1.0\ndef \"R\" (\n    references = @./cut{cut}.usdc@</World>\n)\n{{\n}}\n"
+                );
+                let root = temp_file(&format!("ref{cut}"), "usda", layer.as_bytes());
+                assert!(
+                    usd::read(&root).is_err(),
+                    "reference to {name} cut at {cut}"
+                );
+                std::fs::remove_file(&root).unwrap();
+            }
+            std::fs::remove_file(&p).unwrap();
+        }
+        let mut rng = 0x2545F4914F6CDD1Du64;
+        for i in 0..64 {
+            let mut damaged = bytes.clone();
+            for _ in 0..4 {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                let at = (rng % bytes.len() as u64) as usize;
+                damaged[at] ^= (rng >> 32) as u8 | 1;
+            }
+            let p = temp_file(&format!("flip{i}"), ext, &damaged);
+            // Either outcome is fine; the process must not panic.
+            let _ = usd::read(&p);
+            std::fs::remove_file(&p).unwrap();
+        }
+    }
+}
+
+#[test]
+fn missing_reference_is_an_error_naming_the_layer() {
+    let p = temp_file(
+        "dangling",
+        "usda",
+        b"#usda 1.0\n\ndef \"World\" (\n    references = @./nowhere.usda@\n)\n{\n}\n",
+    );
+    let err = usd::read(&p)
+        .err()
+        .expect("a dangling reference is an error");
+    assert!(err.to_string().contains("nowhere.usda"), "{err}");
+}
+
+fn render(scene: &Scene) -> RenderImage {
+    let settings = RenderSettings {
+        width: 24,
+        height: 24,
+        spp: 16,
+        seed: 3,
+        threads: 2,
+        max_depth: 8,
+        time_limit: None,
+    };
+    Renderer::new(settings)
+        .render(scene, &mut |_| true)
+        .unwrap()
+        .0
+}
+
+#[test]
+fn usd_and_gltf_cornell_boxes_render_alike() {
+    let from_usd = read("cornell.usda").build();
+    let from_gltf = Scene::load(&stage("cornell.gltf")).unwrap();
+    let (a, b) = (render(&from_usd), render(&from_gltf));
+    for c in 0..3 {
+        let stats = |img: &RenderImage| {
+            let n = img.pixel_count() as f64;
+            let mean = img.beauty.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+            let var = img.variance.iter().map(|p| p[c] as f64).sum::<f64>() / (n * n);
+            (mean, var)
+        };
+        let ((ma, va), (mb, vb)) = (stats(&a), stats(&b));
+        let se = (va + vb).sqrt();
+        assert!(ma > 0.01, "channel {c}: the USD box is lit ({ma})");
+        assert!(
+            (ma - mb).abs() < 4.0 * se,
+            "channel {c}: USD {ma} vs glTF {mb} (se {se})"
+        );
+    }
+}
+
+#[test]
+fn hand_written_stage_exercises_ops_primvars_and_lights() {
+    let p = temp_file(
+        "features",
+        "usda",
+        br#"#usda 1.0
+def Xform "X" {
+    double3 xformOp:translate = (1, 0, 0)
+    float3 xformOp:rotateXYZ = (0, 90, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]
+    def Mesh "M" {
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        uniform token orientation = "leftHanded"
+        uniform bool doubleSided = 1
+        texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (interpolation = "faceVarying")
+    }
+    def SphereLight "S" {
+        float inputs:radius = 0.1
+        float inputs:intensity = 2
+        bool treatAsPoint = 1
+    }
+    def DomeLight "D" {
+        color3f inputs:color = (0.5, 0.25, 1)
+    }
+    def Cube "C" {}
+    def Cube "C2" {}
+}
+"#,
+    );
+    let (b, _) = usd::read(&p).unwrap();
+    assert_eq!(b.meshes.len(), 1);
+    let m = &b.meshes[0];
+    assert_eq!(m.indices.len(), 2);
+    // translate (1, 0, 0) after rotateY 90: the local +X corner lands at (1, 0, -1).
+    assert!(m.positions[1].distance(Vec3::new(1.0, 0.0, -1.0)) < 1e-5);
+    // leftHanded: the front face is local -Z, i.e. world -X after the rotation.
+    let [a, b2, c] = m.triangle(0);
+    assert!((b2 - a).cross(c - a).normalize().distance(-Vec3::X) < 1e-5);
+    let uv = m.uvs.as_ref().unwrap();
+    assert_eq!(uv[0], nimbus::math::Vec2::new(0.0, 1.0), "USD's t runs up");
+    assert!(b.materials[m.material as usize].double_sided);
+    let point = b.lights.iter().find_map(|l| match l {
+        Light::Point(p) => Some(p),
+        _ => None,
+    });
+    let expected = 2.0 * std::f32::consts::PI * 0.01;
+    assert!((point.unwrap().intensity.x - expected).abs() < 1e-6);
+    assert!(b.lights.iter().any(|l| matches!(
+        l,
+        Light::Environment(nimbus::light::EnvironmentLight::Constant(c)) if *c == Rgb::new(0.5, 0.25, 1.0)
+    )));
+    let cube_warnings = b.warnings.iter().filter(|w| w.contains("'Cube'")).count();
+    assert_eq!(cube_warnings, 1, "{:?}", b.warnings);
+}
+
+#[test]
+fn cornell_usdz_package_loads() {
+    check_cornell(&read("cornell.usdz"));
+}
+
+#[test]
+fn preview_surface_reads_uv_texture() {
+    let b = read("textured.usda");
+    assert_eq!(b.meshes.len(), 1);
+    let m = &b.materials[b.meshes[0].material as usize];
+    let tex = m
+        .base_color_texture
+        .expect("diffuseColor connects to a UsdUVTexture");
+    assert_eq!(m.base_color.truncate(), Rgb::ONE);
+    // checker.png's top-left texel is red; USD's st (0, 0) is the image's bottom-left (blue).
+    let t = &b.textures[tex as usize];
+    let top_left = t.sample(nimbus::math::Vec2::new(0.25, 0.25)).truncate();
+    assert!(top_left.distance(Rgb::X) < 1e-3, "{top_left:?}");
+    assert_eq!(b.meshes[0].uvs.as_ref().unwrap()[0], nimbus::math::Vec2::Y);
+    let bottom_left = t.sample(nimbus::math::Vec2::new(0.25, 0.75)).truncate();
+    assert!(bottom_left.distance(Rgb::Z) < 1e-3, "{bottom_left:?}");
+}
+
+#[test]
+fn bad_topology_and_values_are_errors_naming_the_prim() {
+    for (tag, body) in [
+        (
+            "index",
+            "point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n int[] faceVertexCounts = [3]\n \
+             int[] faceVertexIndices = [0, 1, 7]",
+        ),
+        (
+            "counts",
+            "point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n int[] faceVertexCounts = [4]\n \
+             int[] faceVertexIndices = [0, 1, 2]",
+        ),
+        (
+            "normals",
+            "point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n int[] faceVertexCounts = [3]\n \
+             int[] faceVertexIndices = [0, 1, 2]\n normal3f[] normals = [(0, 0, 1)] (interpolation = \"faceVarying\")",
+        ),
+        (
+            "xform",
+            "float xformOp:translate = 3\n uniform token[] xformOpOrder = [\"xformOp:translate\"]",
+        ),
+    ] {
+        let text = format!("#usda 1.0\ndef Mesh \"Bad\" {{\n {body}\n}}\n");
+        let p = temp_file(&format!("bad_{tag}"), "usda", text.as_bytes());
+        let err = usd::read(&p).err().unwrap_or_else(|| panic!("{tag} loaded"));
+        assert!(err.to_string().contains("/Bad"), "{tag}: {err}");
+    }
+}
