@@ -97,7 +97,8 @@ pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<C
             let settings = RenderSettings {
                 time_limit: Some(Duration::from_secs_f64(seconds)),
                 spp: u32::MAX,
-                seed: options.seed ^ 0x5EED_0F_2EF,
+                // Another seed than the methods', so that the reference's noise is independent of theirs.
+                seed: options.seed ^ 0x5EED_F00D,
                 ..settings(options, &scene, width, height, Method::Default)
             };
             let (image, stats) = Renderer::new(settings)
