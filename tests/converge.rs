@@ -64,3 +64,44 @@ fn converge_writes_csv_chart_and_summary() {
     assert!(summary.contains("| default |") && summary.contains("| no-media-mis |"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Mean of the beauty over the image and channels.
+fn mean(image: &nimbus::render::RenderImage) -> f64 {
+    let sum: f64 = image.beauty.iter().map(|p| (p.x + p.y + p.z) as f64).sum();
+    sum / (3 * image.beauty.len()) as f64
+}
+
+#[test]
+fn light_sampling_only_in_media_and_overridden_majorants_agree_with_the_default() {
+    use nimbus::converge::Method;
+    use nimbus::render::{RenderSettings, Renderer};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/constant_grid.gltf");
+    let render = |method: Method| {
+        let scene = nimbus::scene::load_builder_with(&path, &|s| method.apply_to_volume(s))
+            .unwrap()
+            .build();
+        let settings = RenderSettings {
+            width: 16,
+            height: 16,
+            spp: 128,
+            seed: 3,
+            threads: 2,
+            media_mis: method.media_mis(),
+            ..RenderSettings::default()
+        };
+        let (image, _) = Renderer::new(settings)
+            .render(&scene, &mut |_| true)
+            .unwrap();
+        (mean(&image), scene.media[0].method())
+    };
+    let (base, _) = render(Method::Default);
+    let (global, how) = render(Method::GlobalMajorant);
+    assert!(how.to_lowercase().contains("global"), "{how}");
+    let (no_mis, _) = render(Method::NoMediaMis);
+    for (name, m) in [("global-majorant", global), ("no-media-mis", no_mis)] {
+        assert!(
+            (m - base).abs() < 0.02 * base,
+            "{name}: {m} vs default {base}"
+        );
+    }
+}
