@@ -84,6 +84,7 @@
 
 mod error;
 
+pub mod converge;
 pub mod geometry;
 pub mod integrator;
 pub mod light;

@@ -27,6 +27,42 @@ enum Command {
     Render(RenderArgs),
     /// Describe the grids of an OpenVDB file: counts, statistics, bounds and transform.
     Info(InfoArgs),
+    /// Compare methods' error against a reference over render time: CSV, log-log chart, summary.
+    Converge(ConvergeArgs),
+}
+
+#[derive(Args)]
+struct ConvergeArgs {
+    /// Scene file (.gltf, .glb, .obj).
+    scene: PathBuf,
+    /// Reference EXR; without it one is rendered with the default method (4x the budget) to DIR/reference.exr.
+    #[arg(long)]
+    reference: Option<PathBuf>,
+    /// Comma-separated methods: default, global-majorant, grid16-majorant, adaptive-majorant, ratio-shadow,
+    /// residual-ratio-shadow, no-media-mis.
+    #[arg(
+        long,
+        default_value = "default,global-majorant,grid16-majorant,adaptive-majorant,ratio-shadow,residual-ratio-shadow,no-media-mis"
+    )]
+    methods: String,
+    /// Render seconds over all methods, shared equally.
+    #[arg(long, default_value_t = 60.0)]
+    budget: f64,
+    /// Image width (default: the reference's, else 96).
+    #[arg(long)]
+    width: Option<usize>,
+    /// Image height (default: the reference's, else from the camera's aspect ratio).
+    #[arg(long)]
+    height: Option<usize>,
+    /// Seed of the methods' random streams.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Output folder.
+    #[arg(short = 'o', long = "output")]
+    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -102,6 +138,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Info(args) => info(args),
+        Command::Converge(args) => converge(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -122,6 +159,26 @@ fn info(args: InfoArgs) -> Result<(), String> {
     } else {
         print!("{info}");
     }
+    Ok(())
+}
+
+fn converge(args: ConvergeArgs) -> Result<(), String> {
+    let options = nimbus::converge::ConvergeOptions {
+        scene: args.scene,
+        reference: args.reference,
+        methods: nimbus::converge::Method::parse_list(&args.methods)?,
+        budget_seconds: args.budget,
+        width: args.width,
+        height: args.height,
+        output_dir: args.output,
+        seed: args.seed,
+        threads: args.threads,
+    };
+    nimbus::converge::run(&options, &mut |line| eprintln!("nimbus: {line}"))?;
+    eprintln!(
+        "nimbus: wrote convergence.csv, convergence.png, convergence.svg and summary.md to {}",
+        options.output_dir.display()
+    );
     Ok(())
 }
 
@@ -177,6 +234,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
         threads: args.threads,
         max_depth: args.max_depth.or(scene.max_bounces).unwrap_or(64),
         time_limit,
+        media_mis: true,
     };
     eprintln!(
         "nimbus: {} triangles, {} lights, {width}x{height}, {} spp{}",

@@ -18,6 +18,7 @@ fn render(scene: &Scene, size: usize, spp: u32, max_depth: u32, threads: usize) 
         threads,
         max_depth,
         time_limit: None,
+        media_mis: true,
     };
     Renderer::new(settings)
         .render(scene, &mut |_| true)

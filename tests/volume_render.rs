@@ -20,6 +20,7 @@ fn render(b: SceneBuilder, size: usize, spp: u32, max_depth: u32) -> (RenderImag
         threads: 2,
         max_depth,
         time_limit: None,
+        media_mis: true,
     };
     Renderer::new(settings)
         .render(&scene, &mut |_| true)

@@ -314,6 +314,7 @@ fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure>
         threads: s.threads as usize,
         max_depth: s.max_depth,
         time_limit,
+        media_mis: true,
     })
 }
 

@@ -41,6 +41,10 @@ pub struct PathSample {
 pub struct PathTracer {
     /// Maximum number of scattering events per path.
     pub max_depth: u32,
+    /// Multiple importance sampling at medium scattering events (default true). When false, emitters are
+    /// reached from inside media by light sampling only: next-event estimation gets weight 1 and phase-sampled
+    /// hits on emitters add nothing (still unbiased, usually noisier).
+    pub media_mis: bool,
 }
 
 /// The state of a path between events.
@@ -54,6 +58,8 @@ struct PathState {
     prev_pdf: f32,
     /// Where the last scattering event happened.
     prev_p: Vec3,
+    /// Whether emitters hit next were already counted by light sampling alone (a medium event without MIS).
+    prev_light_only: bool,
     stack: MediumStack,
 }
 
@@ -75,6 +81,7 @@ impl PathTracer {
             prev_delta: true,
             prev_pdf: 0.0,
             prev_p: ray.origin,
+            prev_light_only: false,
             stack: MediumStack::default(),
         };
         let mut crossings = 0u32;
@@ -125,7 +132,9 @@ impl PathTracer {
             let Some(hit) = hit else {
                 if let Some(env) = scene.environment_light() {
                     let le = env.radiance(ray.dir);
-                    let weight = if s.prev_delta {
+                    let weight = if s.prev_light_only {
+                        0.0
+                    } else if s.prev_delta {
                         1.0
                     } else {
                         power_heuristic(s.prev_pdf, services.environment_pdf(ray.dir))
@@ -153,6 +162,7 @@ impl PathTracer {
             if hit.front_face && material.is_emissive() {
                 let le = material.emission_at(hit.uv, &scene.textures);
                 let weight = match scene.area_light_of(hit.prim) {
+                    Some(_) if s.prev_light_only => 0.0,
                     Some(light) if !s.prev_delta => {
                         power_heuristic(s.prev_pdf, services.area_light_pdf(light, s.prev_p, hit.p))
                     }
@@ -234,6 +244,7 @@ impl PathTracer {
             s.prev_delta = bs.is_delta;
             s.prev_pdf = bs.pdf;
             s.prev_p = hit.p;
+            s.prev_light_only = false;
             if let Some(interior) = material.interior {
                 // Crossing the surface (refraction) enters or leaves its interior.
                 let crossing = wi_world.dot(hit.geometric_normal).signum()
@@ -285,7 +296,7 @@ impl PathTracer {
                 let tr = services.transmittance(p, ls.wi, ls.distance, &s.stack, rng, counters);
                 if tr.max_element() > 0.0 {
                     let light_pdf = chosen.pmf * ls.pdf;
-                    let weight = if ls.is_delta {
+                    let weight = if ls.is_delta || !self.media_mis {
                         1.0
                     } else {
                         power_heuristic(light_pdf, phase)
@@ -299,6 +310,7 @@ impl PathTracer {
         s.prev_delta = false;
         s.prev_pdf = pdf;
         s.prev_p = p;
+        s.prev_light_only = !self.media_mis;
         if !self.next_bounce(s, rng) {
             return false;
         }

@@ -30,6 +30,8 @@ pub struct RenderSettings {
     pub max_depth: u32,
     /// Wall-clock budget; rendering stops after the pass during which it runs out.
     pub time_limit: Option<Duration>,
+    /// Multiple importance sampling at medium scattering events (see [`PathTracer::media_mis`]).
+    pub media_mis: bool,
 }
 
 impl Default for RenderSettings {
@@ -42,6 +44,7 @@ impl Default for RenderSettings {
             threads: 0,
             max_depth: 64,
             time_limit: None,
+            media_mis: true,
         }
     }
 }
@@ -140,6 +143,28 @@ impl Renderer {
         progress: &mut dyn FnMut(&Progress) -> bool,
         cancel: &CancelToken,
     ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
+        self.run(scene, &mut |p, _| progress(p), cancel, false)
+    }
+
+    /// Renders `scene` in passes that double the sample count (1, 2, 4, 8, … spp, capped by `spp` and any time
+    /// limit) and shows `snapshot` the film after each, for convergence measurements. Time spent in `snapshot`
+    /// counts in later `elapsed_seconds`. Returning `false` stops the render.
+    pub fn render_with_snapshots(
+        &self,
+        scene: &Scene,
+        snapshot: &mut dyn FnMut(&Progress, &Film) -> bool,
+    ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
+        self.run(scene, snapshot, &CancelToken::new(), true)
+    }
+
+    /// The pass loop; `doubling` makes every pass as large as all the previous ones together.
+    fn run(
+        &self,
+        scene: &Scene,
+        progress: &mut dyn FnMut(&Progress, &Film) -> bool,
+        cancel: &CancelToken,
+        doubling: bool,
+    ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
         let s = &self.settings;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(s.threads)
@@ -153,7 +178,7 @@ impl Renderer {
         let mut cancelled = false;
         let target = s.spp.max(1);
         // Pass size: about 16 passes for progress reports, 1 spp at first under a time budget.
-        let mut pass = if s.time_limit.is_some() {
+        let mut pass = if s.time_limit.is_some() || doubling {
             1
         } else {
             target.div_ceil(16)
@@ -181,7 +206,7 @@ impl Renderer {
                 elapsed_seconds: elapsed.as_secs_f64(),
                 fraction: fraction.min(1.0),
             };
-            if !progress(&report) {
+            if !progress(&report, &film) {
                 cancelled = true;
                 break;
             }
@@ -193,6 +218,9 @@ impl Renderer {
                 let per_spp = pass_start.elapsed().as_secs_f64() / count as f64;
                 let remaining = (limit - elapsed).as_secs_f64();
                 pass = ((remaining * 0.5 / per_spp.max(1e-9)) as u32).clamp(1, 64);
+            }
+            if doubling {
+                pass = done;
             }
         }
         cancelled |= cancel.is_cancelled();
@@ -241,6 +269,7 @@ impl Renderer {
         let aspect = width as f32 / height as f32;
         let tracer = PathTracer {
             max_depth: s.max_depth,
+            media_mis: s.media_mis,
         };
         let services = RendererServices::new(scene);
         film.pixels_mut()

@@ -54,6 +54,25 @@ pub fn load_slice_with_embedded(
     path: &Path,
     embedded: &[(&str, &'static [u8])],
 ) -> Result<SceneBuilder, SceneError> {
+    load_slice_with(bytes, path, embedded, &|_| {})
+}
+
+/// Loads a `.gltf` or `.glb` file, passing every `nimbus_volume` declaration through `override_volume` before
+/// its medium is built (to compare majorant structures or shadow estimators on the same scene).
+pub fn load_with(path: &Path, override_volume: VolumeOverride) -> Result<SceneBuilder, SceneError> {
+    let bytes = std::fs::read(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+    load_slice_with(&bytes, path, &[], override_volume)
+}
+
+/// A change applied to each VDB volume's declaration after it is read and before its medium is built.
+pub type VolumeOverride<'a> = &'a dyn Fn(&mut crate::volume::VolumeSpec);
+
+fn load_slice_with(
+    bytes: &[u8],
+    path: &Path,
+    embedded: &[(&str, &'static [u8])],
+    override_volume: VolumeOverride,
+) -> Result<SceneBuilder, SceneError> {
     let err = |kind| SceneError::new(path, kind);
     let malformed = |m: String| err(SceneErrorKind::Malformed(m));
     let (root, blob) = parse(bytes).map_err(malformed)?;
@@ -92,6 +111,7 @@ pub fn load_slice_with_embedded(
         images: HashMap::new(),
         material_map: HashMap::new(),
         embedded,
+        override_volume,
     };
     loader.builder.warnings.append(&mut warnings);
     let scene = document
@@ -163,6 +183,7 @@ struct Loader<'a> {
     images: HashMap<usize, image::RgbaImage>,
     material_map: HashMap<Option<usize>, u32>,
     embedded: &'a [(&'a str, &'static [u8])],
+    override_volume: VolumeOverride<'a>,
 }
 
 impl Loader<'_> {
@@ -236,6 +257,7 @@ impl Loader<'_> {
             .iter()
             .find(|(n, _)| Some(*n) == file)
             .map(|(_, b)| *b);
+        (self.override_volume)(&mut spec);
         self.builder.add_volume(&spec).map_err(|e| {
             self.error(SceneErrorKind::InvalidReference(format!(
                 "node '{name}': nimbus_volume: {e}"

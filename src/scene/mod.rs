@@ -36,6 +36,20 @@ pub fn load_builder(path: &Path) -> Result<SceneBuilder, SceneError> {
     }
 }
 
+/// Like [`load_builder`], passing every VDB volume declaration through `override_volume` before its medium is
+/// built (OBJ scenes have none).
+pub fn load_builder_with(
+    path: &Path,
+    override_volume: gltf::VolumeOverride,
+) -> Result<SceneBuilder, SceneError> {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some(e) if e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb") => {
+            gltf::load_with(path, override_volume)
+        }
+        _ => load_builder(path),
+    }
+}
+
 /// Everything a loader produces, before acceleration structures are built.
 #[derive(Default)]
 pub struct SceneBuilder {

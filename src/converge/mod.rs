@@ -1,0 +1,207 @@
+//! `nimbus converge`: renders one scene with several method configurations progressively, measures the error
+//! against a reference at doubling sample counts, and writes `convergence.csv`, a log-log chart
+//! (`convergence.png`, `convergence.svg`) and `summary.md`.
+
+mod chart;
+mod methods;
+mod metrics;
+mod summary;
+
+pub use chart::draw_chart;
+pub use methods::Method;
+pub use metrics::{error_metrics, ErrorMetrics};
+pub use summary::{
+    csv, efficiency, rmse_at, summarize, summary_markdown, Checkpoint, Curve, MethodSummary,
+    CSV_HEADER,
+};
+
+use crate::math::Rgb;
+use crate::render::{RenderSettings, Renderer};
+use crate::scene::Scene;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Fewest checkpoints per method, whatever the budget.
+pub const MIN_CHECKPOINTS: usize = 6;
+/// The reference rendered when none is given gets this many times the whole budget.
+pub const REFERENCE_BUDGET_FACTOR: f64 = 4.0;
+/// Image width when neither `--width` nor a reference gives one.
+pub const DEFAULT_WIDTH: usize = 96;
+
+/// What to compare, and where to write.
+#[derive(Clone, Debug)]
+pub struct ConvergeOptions {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Reference EXR (beauty = the default layer); rendered with the default method when `None`.
+    pub reference: Option<PathBuf>,
+    /// Methods to compare, in order.
+    pub methods: Vec<Method>,
+    /// Render seconds over all methods (each gets an equal share).
+    pub budget_seconds: f64,
+    /// Image width; default the reference's, else [`DEFAULT_WIDTH`].
+    pub width: Option<usize>,
+    /// Image height; default the reference's, else from the camera's aspect ratio (4:3 without one).
+    pub height: Option<usize>,
+    /// Output folder.
+    pub output_dir: PathBuf,
+    /// Seed of the methods' renders (the reference uses another).
+    pub seed: u64,
+    /// Worker threads, 0 = all cores.
+    pub threads: usize,
+}
+
+/// Runs the comparison and writes every output; `log` receives progress lines. Returns the curves.
+pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Curve>, String> {
+    if !(options.budget_seconds.is_finite() && options.budget_seconds > 0.0) {
+        return Err(format!(
+            "--budget {} is not a positive number of seconds",
+            options.budget_seconds
+        ));
+    }
+    if options.methods.is_empty() {
+        return Err("no method to compare".into());
+    }
+    std::fs::create_dir_all(&options.output_dir)
+        .map_err(|e| format!("{}: {e}", options.output_dir.display()))?;
+    let (width, height, reference) = match &options.reference {
+        Some(path) => {
+            let layers = crate::output::read_exr_layers(path).map_err(|e| e.to_string())?;
+            let beauty = layers
+                .rgb("")
+                .ok_or_else(|| format!("{}: no R, G, B channels", path.display()))?;
+            let (w, h) = (options.width, options.height);
+            if w.is_some_and(|w| w != layers.width) || h.is_some_and(|h| h != layers.height) {
+                return Err(format!(
+                    "{} is {}x{}, not the size asked for",
+                    path.display(),
+                    layers.width,
+                    layers.height
+                ));
+            }
+            (layers.width, layers.height, beauty)
+        }
+        None => {
+            let scene = load(&options.scene, Method::Default)?;
+            let width = options.width.unwrap_or(DEFAULT_WIDTH).max(1);
+            let aspect = scene.camera.aspect_ratio.unwrap_or(4.0 / 3.0);
+            let height = options
+                .height
+                .unwrap_or(((width as f32 / aspect).round() as usize).max(1))
+                .max(1);
+            let seconds = REFERENCE_BUDGET_FACTOR * options.budget_seconds;
+            log(&format!(
+                "no --reference: rendering one with the default method for {seconds:.1} s \
+                 ({REFERENCE_BUDGET_FACTOR}x the budget)"
+            ));
+            let settings = RenderSettings {
+                time_limit: Some(Duration::from_secs_f64(seconds)),
+                spp: u32::MAX,
+                // Another seed than the methods', so that the reference's noise is independent of theirs.
+                seed: options.seed ^ 0x5EED_F00D,
+                ..settings(options, &scene, width, height, Method::Default)
+            };
+            let (image, stats) = Renderer::new(settings)
+                .render(&scene, &mut |_| true)
+                .map_err(|e| format!("cannot start worker threads: {e}"))?;
+            let path = options.output_dir.join("reference.exr");
+            crate::output::write_exr(&image, &path).map_err(|e| e.to_string())?;
+            log(&format!(
+                "wrote {} ({} spp)",
+                path.display(),
+                stats.samples_per_pixel
+            ));
+            (width, height, image.beauty)
+        }
+    };
+    let share = options.budget_seconds / options.methods.len() as f64;
+    let mut curves = Vec::new();
+    for &method in &options.methods {
+        let scene = load(&options.scene, method)?;
+        let curve = measure(options, &scene, width, height, method, share, &reference)?;
+        if let Some(last) = curve.points.last() {
+            log(&format!(
+                "{method}: {} checkpoints, {} spp in {:.2} s, RMSE {:.4e}",
+                curve.points.len(),
+                last.spp,
+                last.seconds,
+                last.metrics.rmse
+            ));
+        }
+        curves.push(curve);
+    }
+    let dir = &options.output_dir;
+    let write = |name: &str, text: String| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))
+    };
+    write("convergence.csv", csv(&curves))?;
+    let scene_name = options.scene.display().to_string();
+    write(
+        "summary.md",
+        summary_markdown(&scene_name, width, height, &curves),
+    )?;
+    draw_chart(
+        &curves,
+        &dir.join("convergence.png"),
+        &dir.join("convergence.svg"),
+    )?;
+    Ok(curves)
+}
+
+/// Loads and builds the scene with `method`'s overrides.
+fn load(path: &Path, method: Method) -> Result<Scene, String> {
+    let builder = crate::scene::load_builder_with(path, &|spec| method.apply_to_volume(spec))
+        .map_err(|e| e.to_string())?;
+    Ok(builder.build())
+}
+
+fn settings(
+    options: &ConvergeOptions,
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    method: Method,
+) -> RenderSettings {
+    RenderSettings {
+        width,
+        height,
+        spp: u32::MAX,
+        seed: options.seed,
+        threads: options.threads,
+        max_depth: scene.max_bounces.unwrap_or(64),
+        time_limit: None,
+        media_mis: method.media_mis(),
+    }
+}
+
+/// Renders `scene` with doubling passes, measuring after each, until `share` seconds would be exceeded by
+/// the next pass (but at least [`MIN_CHECKPOINTS`] checkpoints).
+fn measure(
+    options: &ConvergeOptions,
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    method: Method,
+    share: f64,
+    reference: &[Rgb],
+) -> Result<Curve, String> {
+    let mut points = Vec::new();
+    let mut measuring = 0.0f64;
+    Renderer::new(settings(options, scene, width, height, method))
+        .render_with_snapshots(scene, &mut |p, film| {
+            let start = Instant::now();
+            let seconds = p.elapsed_seconds - measuring;
+            let image = film.image();
+            points.push(Checkpoint {
+                spp: p.samples_done,
+                seconds,
+                metrics: error_metrics(&image.beauty, reference),
+            });
+            measuring += start.elapsed().as_secs_f64();
+            // The next pass doubles the samples, so it takes about as long as everything so far.
+            points.len() < MIN_CHECKPOINTS || 2.0 * seconds <= share
+        })
+        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    Ok(Curve { method, points })
+}
