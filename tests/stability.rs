@@ -37,11 +37,22 @@ fn ball_voxels(center: IVec3) -> Vec<(IVec3, f32)> {
 
 fn grid(voxels: Vec<(IVec3, f32)>, voxel: f64, scale: f32) -> GridDensity {
     let tree = Tree::from_voxels(0.0, voxels);
-    GridDensity::from_tree(Arc::new(GridTree::Float(tree)), DMat4::from_scale(DVec3::splat(voxel)), scale).unwrap()
+    GridDensity::from_tree(
+        Arc::new(GridTree::Float(tree)),
+        DMat4::from_scale(DVec3::splat(voxel)),
+        scale,
+    )
+    .unwrap()
 }
 
 fn medium(density: GridDensity, albedo: f32, g: f32) -> Arc<dyn Medium> {
-    Arc::new(GridMedium::new("grid", density, MajorantKind::Adaptive, Rgb::splat(albedo), g))
+    Arc::new(GridMedium::new(
+        "grid",
+        density,
+        MajorantKind::Adaptive,
+        Rgb::splat(albedo),
+        g,
+    ))
 }
 
 struct Case {
@@ -73,10 +84,19 @@ fn run(case: Case, spp: u32) -> (RenderImage, RenderStats, f64) {
     b.lights.extend(case.lights);
     b.camera = Some(case.camera);
     let scene = b.build();
-    let settings =
-        RenderSettings { width: 10, height: 10, spp, seed: 11, threads: 2, max_depth: case.max_depth, time_limit: None };
+    let settings = RenderSettings {
+        width: 10,
+        height: 10,
+        spp,
+        seed: 11,
+        threads: 2,
+        max_depth: case.max_depth,
+        time_limit: None,
+    };
     let start = Instant::now();
-    let (img, stats) = Renderer::new(settings).render(&scene, &mut |_| true).unwrap();
+    let (img, stats) = Renderer::new(settings)
+        .render(&scene, &mut |_| true)
+        .unwrap();
     (img, stats, start.elapsed().as_secs_f64())
 }
 
@@ -90,10 +110,13 @@ fn mean_and_se(img: &RenderImage) -> (f64, f64) {
 /// Prints a table row and checks the invariants every case shares.
 fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, expected: Option<f64>) {
     let (mean, se) = mean_and_se(img);
-    let c = stats.media.iter().fold(nimbus::volume::TrackingCounters::default(), |mut a, m| {
-        a.add(&m.counters);
-        a
-    });
+    let c = stats
+        .media
+        .iter()
+        .fold(nimbus::volume::TrackingCounters::default(), |mut a, m| {
+            a.add(&m.counters);
+            a
+        });
     println!(
         "| {name} | {mean:.4} ± {se:.4} | {} | {:.2} | {} | {} | {} | {seconds:.2} |",
         expected.map_or("—".to_string(), |e| format!("{e}")),
@@ -103,9 +126,15 @@ fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, expe
         c.majorant_violations,
     );
     assert_eq!(stats.nan_samples, 0, "{name}: NaN samples");
-    assert!(img.beauty.iter().all(|p| p.is_finite()), "{name}: non-finite pixel");
+    assert!(
+        img.beauty.iter().all(|p| p.is_finite()),
+        "{name}: non-finite pixel"
+    );
     if let Some(e) = expected {
-        assert!((mean - e).abs() < 4.0 * se + 1e-5, "{name}: {mean} vs {e} (se {se})");
+        assert!(
+            (mean - e).abs() < 4.0 * se + 1e-5,
+            "{name}: {mean} vs {e} (se {se})"
+        );
     }
 }
 
@@ -118,31 +147,66 @@ fn stability_suite() {
     // Optically very thick (density × 1000): albedo 0.9 so paths end; bounded by roulette and max depth.
     let thick = Case {
         max_depth: 64,
-        ..furnace(vec![medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 20_000.0), 0.9, 0.0)], eye)
+        ..furnace(
+            vec![medium(
+                grid(ball_voxels(IVec3::ZERO), VOXEL, 20_000.0),
+                0.9,
+                0.0,
+            )],
+            eye,
+        )
     };
     let (img, stats, s) = run(thick, 4);
     report("thick (σ_t × 1000, albedo 0.9)", &img, &stats, s, None);
     assert!(s < 60.0, "thick media finish in bounded time");
 
     // Very thin (× 0.001): the furnace holds.
-    let (img, stats, s) = run(furnace(vec![medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 0.02), 1.0, 0.0)], eye), 8);
+    let (img, stats, s) = run(
+        furnace(
+            vec![medium(
+                grid(ball_voxels(IVec3::ZERO), VOXEL, 0.02),
+                1.0,
+                0.0,
+            )],
+            eye,
+        ),
+        8,
+    );
     report("thin (σ_t × 0.001)", &img, &stats, s, Some(1.0));
 
     // Henyey–Greenstein g = ±0.99.
     for g in [0.99f32, -0.99] {
-        let (img, stats, s) = run(furnace(vec![medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 20.0), 1.0, g)], eye), 16);
+        let (img, stats, s) = run(
+            furnace(
+                vec![medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 20.0), 1.0, g)],
+                eye,
+            ),
+            16,
+        );
         report(&format!("HG g = {g}"), &img, &stats, s, Some(1.0));
     }
 
     // An empty (all-zero) grid: nothing to track.
     let zeros = (0..8).map(|i| (IVec3::new(i, 0, 0), 0.0)).collect();
-    let (img, stats, s) = run(furnace(vec![medium(grid(zeros, VOXEL, 10.0), 1.0, 0.0)], eye), 4);
+    let (img, stats, s) = run(
+        furnace(vec![medium(grid(zeros, VOXEL, 10.0), 1.0, 0.0)], eye),
+        4,
+    );
     report("empty grid", &img, &stats, s, Some(1.0));
-    assert_eq!(stats.media[0].counters.density_lookups, 0, "empty space costs no lookups");
+    assert_eq!(
+        stats.media[0].counters.density_lookups, 0,
+        "empty space costs no lookups"
+    );
 
     // A single-voxel grid, dense: the trilinear footprint of one voxel.
     let one = vec![(IVec3::ZERO, 1.0)];
-    let (img, stats, s) = run(furnace(vec![medium(grid(one, 0.5, 50.0), 1.0, 0.0)], Vec3::new(0.0, 0.0, 2.0)), 16);
+    let (img, stats, s) = run(
+        furnace(
+            vec![medium(grid(one, 0.5, 50.0), 1.0, 0.0)],
+            Vec3::new(0.0, 0.0, 2.0),
+        ),
+        16,
+    );
     report("single voxel", &img, &stats, s, Some(1.0));
 
     // NaN, Inf and negative voxels: the reader keeps them; the medium must neither crash nor write NaN.
@@ -152,16 +216,35 @@ fn stability_suite() {
     bad.push((IVec3::new(-2, 0, 0), -5.0));
     let bad_grid = grid(bad, VOXEL, 20.0);
     let found = bad_grid.bad_values();
-    assert_eq!((found.nan, found.infinite, found.negative), (1, 1, 1), "bad voxels are counted");
+    assert_eq!(
+        (found.nan, found.infinite, found.negative),
+        (1, 1, 1),
+        "bad voxels are counted"
+    );
     let m = medium(bad_grid, 1.0, 0.0);
-    assert!(m.warnings()[0].contains("1 NaN, 1 infinite and 1 negative"), "{:?}", m.warnings());
+    assert!(
+        m.warnings()[0].contains("1 NaN, 1 infinite and 1 negative"),
+        "{:?}",
+        m.warnings()
+    );
     // Replaced by zero, the grid is a valid medium again: the furnace holds.
     let (img, stats, s) = run(furnace(vec![m], eye), 8);
-    report("NaN, Inf and negative voxels (replaced by 0, warned)", &img, &stats, s, Some(1.0));
+    report(
+        "NaN, Inf and negative voxels (replaced by 0, warned)",
+        &img,
+        &stats,
+        s,
+        Some(1.0),
+    );
 
     // The camera inside a volume (position-filled media need no boundary to enter).
-    let (img, stats, s) =
-        run(furnace(vec![medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 5.0), 1.0, 0.3)], Vec3::new(0.0, 0.0, 0.1)), 16);
+    let (img, stats, s) = run(
+        furnace(
+            vec![medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 5.0), 1.0, 0.3)],
+            Vec3::new(0.0, 0.0, 0.1),
+        ),
+        16,
+    );
     report("camera inside the volume", &img, &stats, s, Some(1.0));
 
     // A light inside a volume (no environment): finite, and light does reach the camera.
@@ -169,7 +252,10 @@ fn stability_suite() {
         media: vec![medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 5.0), 0.9, 0.0)],
         camera: Camera::look_at(eye, Vec3::ZERO, 30f32.to_radians()),
         env: None,
-        lights: vec![Light::Point(PointLight { position: Vec3::ZERO, intensity: Rgb::splat(10.0) })],
+        lights: vec![Light::Point(PointLight {
+            position: Vec3::ZERO,
+            intensity: Rgb::splat(10.0),
+        })],
         max_depth: 64,
     };
     let (img, stats, s) = run(inside, 16);
@@ -178,11 +264,31 @@ fn stability_suite() {
 
     // Two overlapping volumes: the furnace holds for their sum.
     let a = medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 10.0), 1.0, 0.0);
-    let b = medium(grid(ball_voxels(IVec3::new(6, 3, 0)), VOXEL, 10.0), 1.0, 0.5);
+    let b = medium(
+        grid(ball_voxels(IVec3::new(6, 3, 0)), VOXEL, 10.0),
+        1.0,
+        0.5,
+    );
     let (img, stats, s) = run(furnace(vec![a, b], eye), 16);
     report("two overlapping volumes", &img, &stats, s, Some(1.0));
 
     // A volume much larger than the scene: a thin 1.6 km ball around the camera.
-    let (img, stats, s) = run(furnace(vec![medium(grid(ball_voxels(IVec3::ZERO), 64.0, 0.002), 1.0, 0.0)], eye), 8);
-    report("volume 1000 × larger than the scene", &img, &stats, s, Some(1.0));
+    let (img, stats, s) = run(
+        furnace(
+            vec![medium(
+                grid(ball_voxels(IVec3::ZERO), 64.0, 0.002),
+                1.0,
+                0.0,
+            )],
+            eye,
+        ),
+        8,
+    );
+    report(
+        "volume 1000 × larger than the scene",
+        &img,
+        &stats,
+        s,
+        Some(1.0),
+    );
 }

@@ -86,8 +86,15 @@ impl BadValues {
 fn sanitize(tree: &FloatTree) -> Option<(FloatTree, BadValues)> {
     let bad = |v: f32| !v.is_finite() || v < 0.0;
     let any = tree.leaves.iter().any(|l| l.values.iter().any(|v| bad(*v)))
-        || tree.uppers.iter().chain(tree.lowers.iter()).any(|n| n.tiles.iter().any(|v| bad(*v)))
-        || tree.root.iter().any(|(_, s)| matches!(s, RootSlot::Tile { value, .. } if bad(*value)));
+        || tree
+            .uppers
+            .iter()
+            .chain(tree.lowers.iter())
+            .any(|n| n.tiles.iter().any(|v| bad(*v)))
+        || tree
+            .root
+            .iter()
+            .any(|(_, s)| matches!(s, RootSlot::Tile { value, .. } if bad(*value)));
     if !any {
         return None;
     }
