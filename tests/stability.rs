@@ -91,7 +91,7 @@ fn run(case: Case, spp: u32) -> (RenderImage, RenderStats, f64) {
         seed: 11,
         threads: 2,
         max_depth: case.max_depth,
-        time_limit: None,
+        ..RenderSettings::default()
     };
     let start = Instant::now();
     let (img, stats) = Renderer::new(settings)

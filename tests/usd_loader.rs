@@ -232,7 +232,7 @@ fn render(scene: &Scene) -> RenderImage {
         seed: 3,
         threads: 2,
         max_depth: 8,
-        time_limit: None,
+        ..RenderSettings::default()
     };
     Renderer::new(settings)
         .render(scene, &mut |_| true)
