@@ -78,6 +78,43 @@ impl Mesh {
             .collect();
     }
 
+    /// A closed UV sphere with outward normals and counter-clockwise front faces: `rings` latitude bands from
+    /// +Y to −Y and `segments` longitude slices. The pole rows hold zero-area triangles, which never render.
+    pub fn uv_sphere(center: Vec3, radius: f32, rings: u32, segments: u32, material: u32) -> Mesh {
+        let mut positions = Vec::new();
+        let mut normals = Vec::new();
+        for r in 0..=rings {
+            let theta = std::f32::consts::PI * r as f32 / rings as f32;
+            for s in 0..=segments {
+                let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
+                let n = Vec3::new(
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                    theta.sin() * phi.cos(),
+                );
+                normals.push(n);
+                positions.push(center + radius * n);
+            }
+        }
+        let mut indices = Vec::new();
+        for r in 0..rings {
+            for s in 0..segments {
+                let a = r * (segments + 1) + s;
+                let b = a + segments + 1;
+                indices.push([a, b, a + 1]);
+                indices.push([a + 1, b, b + 1]);
+            }
+        }
+        Mesh {
+            name: "sphere".into(),
+            positions,
+            normals,
+            indices,
+            material,
+            ..Default::default()
+        }
+    }
+
     /// Drops triangles whose indices fall outside the vertex list; returns how many were dropped.
     pub fn remove_invalid_triangles(&mut self) -> usize {
         let n = self.positions.len() as u32;

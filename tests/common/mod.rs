@@ -47,39 +47,7 @@ use nimbus::math::Vec3;
 
 /// A closed UV sphere with outward normals and counter-clockwise front faces.
 pub fn uv_sphere(center: Vec3, radius: f32, rings: u32, segments: u32, material: u32) -> Mesh {
-    let mut positions = Vec::new();
-    let mut normals = Vec::new();
-    for r in 0..=rings {
-        let theta = std::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..=segments {
-            let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
-            let n = Vec3::new(
-                theta.sin() * phi.sin(),
-                theta.cos(),
-                theta.sin() * phi.cos(),
-            );
-            normals.push(n);
-            positions.push(center + radius * n);
-        }
-    }
-    let mut indices = Vec::new();
-    for r in 0..rings {
-        for s in 0..segments {
-            let a = r * (segments + 1) + s;
-            let b = a + segments + 1;
-            indices.push([a, b, a + 1]);
-            indices.push([a + 1, b, b + 1]);
-        }
-    }
-    Mesh {
-        name: "sphere".into(),
-        positions,
-        normals,
-        uvs: None,
-        tangents: None,
-        indices,
-        material,
-    }
+    Mesh::uv_sphere(center, radius, rings, segments, material)
 }
 
 /// A quad from four corners, counter-clockwise seen from its front.

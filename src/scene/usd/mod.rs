@@ -560,7 +560,7 @@ impl Loader<'_> {
                     }));
                     return Ok(());
                 }
-                sphere(r, 16, 32)
+                Mesh::uv_sphere(Vec3::ZERO, r, 16, 32, 0)
             }
             "DistantLight" => {
                 if self.float(prim, "inputs:angle", 0.53)? > 0.0 {
@@ -985,41 +985,6 @@ fn disk(r: f32, segments: u32) -> Mesh {
         .collect();
     Mesh {
         positions,
-        indices,
-        ..Default::default()
-    }
-}
-
-/// A UV sphere of radius `r` at the origin, front faces outward.
-fn sphere(r: f32, rings: u32, segments: u32) -> Mesh {
-    let mut positions = Vec::new();
-    let mut normals = Vec::new();
-    for i in 0..=rings {
-        let theta = std::f32::consts::PI * i as f32 / rings as f32;
-        for s in 0..=segments {
-            let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
-            let n = Vec3::new(
-                theta.sin() * phi.sin(),
-                theta.cos(),
-                theta.sin() * phi.cos(),
-            );
-            normals.push(n);
-            positions.push(n * r);
-        }
-    }
-    let mut indices = Vec::new();
-    for i in 0..rings {
-        for s in 0..segments {
-            let a = i * (segments + 1) + s;
-            let b = a + segments + 1;
-            indices.push([a, b, a + 1]);
-            indices.push([a + 1, b, b + 1]);
-        }
-    }
-    // The pole rows give zero-area triangles, which neither render nor emit.
-    Mesh {
-        positions,
-        normals,
         indices,
         ..Default::default()
     }
