@@ -7,7 +7,7 @@ mod common;
 use glam::{DMat4, DVec3, IVec3};
 use nimbus::light::EnvironmentLight;
 use nimbus::math::{Rgb, Vec3};
-use nimbus::render::{RenderImage, RenderSettings, RenderStats, Renderer};
+use nimbus::render::{RenderImage, RenderStats};
 use nimbus::scene::{Camera, SceneBuilder};
 use nimbus::vdb::{GridTree, Tree};
 use nimbus::volume::density::{DensityField, GridDensity};
@@ -51,20 +51,7 @@ fn ball(scale: f32) -> GridDensity {
 }
 
 fn render(b: SceneBuilder, size: usize, spp: u32, max_depth: u32) -> (RenderImage, RenderStats) {
-    let scene = b.build();
-    let settings = RenderSettings {
-        width: size,
-        height: size,
-        spp,
-        seed: 5,
-        threads: 2,
-        max_depth,
-        time_limit: None,
-        media_mis: true,
-    };
-    Renderer::new(settings)
-        .render(&scene, &mut |_| true)
-        .unwrap()
+    common::render_square(b, size, spp, max_depth, 5)
 }
 
 fn scene_with(medium: Arc<dyn nimbus::volume::Medium>, fov: f32, distance: f32) -> SceneBuilder {
@@ -77,13 +64,6 @@ fn scene_with(medium: Arc<dyn nimbus::volume::Medium>, fov: f32, distance: f32) 
         fov.to_radians(),
     ));
     b
-}
-
-fn mean_and_se(img: &RenderImage, c: usize) -> (f64, f64) {
-    let n = img.pixel_count() as f64;
-    let mean = img.beauty.iter().map(|p| p[c] as f64).sum::<f64>() / n;
-    let var: f64 = img.variance.iter().map(|v| v[c] as f64).sum();
-    (mean, var.sqrt() / n)
 }
 
 #[test]
@@ -101,7 +81,7 @@ fn delta_tracking_on_a_constant_grid_matches_the_closed_form() {
         0.0,
     );
     let (img, stats) = render(scene_with(Arc::new(medium), 0.3, 60.0), 8, 256, 0);
-    let (mean, se) = mean_and_se(&img, 1);
+    let (mean, se) = common::mean_and_se(&img, 1);
     assert!(
         (mean - truth).abs() < 4.0 * se,
         "delta tracking {mean} vs closed form {truth} (se {se})"
@@ -132,7 +112,7 @@ fn delta_tracking_on_a_constant_grid_matches_the_closed_form() {
         0.3f32.to_radians(),
     ));
     let (closed, _) = render(b, 8, 256, 0);
-    let (m2, se2) = mean_and_se(&closed, 1);
+    let (m2, se2) = common::mean_and_se(&closed, 1);
     assert!(
         (m2 - truth).abs() < 4.0 * se2 + 1e-4,
         "closed form {m2} vs {truth}"
@@ -145,7 +125,7 @@ fn white_furnace_with_a_heterogeneous_grid() {
         let medium = GridMedium::new("ball", ball(scale), MajorantKind::Adaptive, Rgb::ONE, 0.4);
         let (img, stats) = render(scene_with(Arc::new(medium), 20.0, 3.0), 12, 16, 100_000);
         for c in 0..3 {
-            let (mean, se) = mean_and_se(&img, c);
+            let (mean, se) = common::mean_and_se(&img, c);
             assert!(
                 (mean - 1.0).abs() < 4.0 * se + 1e-5,
                 "scale {scale}: {mean} vs 1 (se {se})"
@@ -169,7 +149,7 @@ fn every_majorant_structure_gives_the_same_image() {
         b.set_environment(EnvironmentLight::Constant(Rgb::new(1.0, 0.5, 0.25)));
         let (img, stats) = render(b, 12, 16, 64);
         assert_eq!(stats.media[0].counters.majorant_violations, 0, "{kind:?}");
-        means.push((kind, mean_and_se(&img, 0), stats.media[0].counters));
+        means.push((kind, common::mean_and_se(&img, 0), stats.media[0].counters));
     }
     let (_, (m0, s0), c0) = means[0];
     for (kind, (m, s), c) in &means[1..] {

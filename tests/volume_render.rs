@@ -5,26 +5,13 @@ mod common;
 
 use nimbus::light::EnvironmentLight;
 use nimbus::math::{Rgb, Vec3};
-use nimbus::render::{RenderImage, RenderSettings, RenderStats, Renderer};
+use nimbus::render::{RenderImage, RenderStats};
 use nimbus::scene::{Camera, SceneBuilder};
 use nimbus::volume::homogeneous::HomogeneousMedium;
 use std::sync::Arc;
 
 fn render(b: SceneBuilder, size: usize, spp: u32, max_depth: u32) -> (RenderImage, RenderStats) {
-    let scene = b.build();
-    let settings = RenderSettings {
-        width: size,
-        height: size,
-        spp,
-        seed: 3,
-        threads: 2,
-        max_depth,
-        time_limit: None,
-        media_mis: true,
-    };
-    Renderer::new(settings)
-        .render(&scene, &mut |_| true)
-        .unwrap()
+    common::render_square(b, size, spp, max_depth, 3)
 }
 
 /// A box medium [-1,1]³ with an index-matched boundary, a constant environment and a camera on +z.
@@ -42,13 +29,6 @@ fn box_scene(sigma_a: Rgb, sigma_s: Rgb, env: Rgb, fov: f32) -> SceneBuilder {
         fov.to_radians(),
     ));
     b
-}
-
-fn mean_and_se(img: &RenderImage, c: usize) -> (f64, f64) {
-    let n = img.pixel_count() as f64;
-    let mean = img.beauty.iter().map(|p| p[c] as f64).sum::<f64>() / n;
-    let var: f64 = img.variance.iter().map(|v| v[c] as f64).sum();
-    (mean, var.sqrt() / n)
 }
 
 #[test]
@@ -106,7 +86,7 @@ fn white_furnace_scattering_media_thin_thick_and_chromatic() {
         let (img, stats) = render(box_scene(Rgb::ZERO, sigma_s, env, 30.0), 12, 16, 10_000);
         assert_eq!(stats.nan_samples, 0);
         for c in 0..3 {
-            let (mean, se) = mean_and_se(&img, c);
+            let (mean, se) = common::mean_and_se(&img, c);
             assert!(
                 (mean - 0.7).abs() < 4.0 * se + 1e-5,
                 "{label}, channel {c}: {mean} vs 0.7 (se {se})"
@@ -127,7 +107,7 @@ fn single_scattering_slab_matches_closed_form_in_depth_one() {
     let sigma_s = Rgb::splat(0.5);
     let (img, _) = render(box_scene(Rgb::ZERO, sigma_s, Rgb::ONE, 10.0), 8, 64, 1);
     let t = (-1.0f64).exp();
-    let (mean, se) = mean_and_se(&img, 0);
+    let (mean, se) = common::mean_and_se(&img, 0);
     assert!(
         mean > t - 4.0 * se && mean < 1.0 + 4.0 * se,
         "{mean} outside [{t}, 1]"
@@ -161,7 +141,7 @@ fn homogeneous_sphere_transmittance_for_every_method() {
         ));
         let (img, _) = render(b, 4, 256, 0);
         let truth = (-2.0f64 * (sigma_a + sigma_s) as f64).exp();
-        let (mean, se) = mean_and_se(&img, 0);
+        let (mean, se) = common::mean_and_se(&img, 0);
         assert!(
             (mean - truth).abs() < 4.0 * se + 2e-3 * truth,
             "{label}: {mean} vs {truth} (se {se})"

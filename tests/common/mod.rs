@@ -106,3 +106,34 @@ pub fn boundary(medium: u32) -> nimbus::material::Material {
     m.interior = Some(medium);
     m
 }
+
+/// Renders `builder` at `size`² with `spp` samples, `max_depth` bounces and `seed`, on two threads.
+pub fn render_square(
+    builder: nimbus::scene::SceneBuilder,
+    size: usize,
+    spp: u32,
+    max_depth: u32,
+    seed: u64,
+) -> (nimbus::render::RenderImage, nimbus::render::RenderStats) {
+    let scene = builder.build();
+    let settings = nimbus::render::RenderSettings {
+        width: size,
+        height: size,
+        spp,
+        seed,
+        threads: 2,
+        max_depth,
+        ..Default::default()
+    };
+    nimbus::render::Renderer::new(settings)
+        .render(&scene, &mut |_| true)
+        .unwrap()
+}
+
+/// Channel `c`'s mean over all pixels and its standard error, from each pixel's variance of its mean.
+pub fn mean_and_se(img: &nimbus::render::RenderImage, c: usize) -> (f64, f64) {
+    let n = img.pixel_count() as f64;
+    let mean = img.beauty.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+    let var: f64 = img.variance.iter().map(|v| v[c] as f64).sum();
+    (mean, var.sqrt() / n)
+}
