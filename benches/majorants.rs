@@ -1,6 +1,6 @@
 //! Majorant benchmark: Global vs Grid16 vs Adaptive majorants for delta and ratio tracking through VDB grids.
 //!
-//! `cargo bench --bench majorants -- [FILE.vdb ...] [--rays N] [--tau T] [--kind KIND]` (defaults: the shared corpus
+//! `cargo bench --bench majorants -- [FILE.vdb ...] [--rays N] [--tau T[,T...]] [--kind KIND] [--csv]` (defaults: the shared corpus
 //! `generated/e_big256.vdb` and `real/elyg_pig.vdb` under `$NIMBUS_SHARED_DIR` or `../shared`, 20000 rays, a
 //! density scale giving a mean optical depth T = 10 along the rays). Single-threaded; times are wall-clock, the best of 3 interleaved rounds (build: best of 3).
 //! For each majorant kind it reports build time, memory, per-ray density lookups, null collisions per real
@@ -8,10 +8,11 @@
 //! mean transmittance (which must agree across kinds within the printed standard errors).
 
 use glam::DMat4;
-use nimbus::math::{Ray, Rng, Vec3};
+use nimbus::math::Rng;
 use nimbus::vdb::read_file;
-use nimbus::volume::density::{DensityField, GridDensity};
+use nimbus::volume::density::GridDensity;
 use nimbus::volume::majorant::{MajorantKind, Majorants};
+use nimbus::volume::majorant_choice::{choose, pilot_rays};
 use nimbus::volume::tracking::{
     optical_depth_quadrature, ratio_tracking, sample_collision, TrackingCounters,
 };
@@ -31,27 +32,7 @@ fn shared_dir() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared"))
 }
 
-/// Random unit-direction rays from the bounding sphere of `field`'s bounds towards points inside them.
-fn random_rays(field: &GridDensity, n: usize, seed: u64) -> (Vec<Ray>, f32) {
-    let b = field.bounds();
-    let r = 0.5 * b.extent().length();
-    let mut rng = Rng::new(seed, 11);
-    let mut u3 = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-    let rays = (0..n)
-        .map(|_| {
-            let target = b.min + u3() * b.extent();
-            let mut d = u3() - 0.5;
-            if d.length() < 1e-3 {
-                d = Vec3::X;
-            }
-            let from = b.center() + d.normalize() * r;
-            Ray::new(from, (target - from).normalize())
-        })
-        .collect();
-    (rays, 4.0 * r)
-}
-
-fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind]) {
+fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind], csv: bool) {
     let file = match read_file(path) {
         Ok(f) => f,
         Err(e) => {
@@ -76,7 +57,7 @@ fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind
         }
     };
     // Scale so that the mean optical depth along the benchmark rays is tau_target.
-    let (probe, t_max) = random_rays(&unit, 256, 99);
+    let (probe, t_max) = pilot_rays(&unit, 256, 99);
     let mean_tau = probe
         .iter()
         .map(|r| optical_depth_quadrature(&unit, r, 0.0, t_max, 2048))
@@ -84,7 +65,7 @@ fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind
         / probe.len() as f64;
     let scale = (tau_target / mean_tau.max(1e-30)) as f32;
     let field = GridDensity::new(grid, DMat4::IDENTITY, scale).expect("checked above");
-    let (rays, t_max) = random_rays(&field, n_rays, 7);
+    let (rays, t_max) = pilot_rays(&field, n_rays, 7);
     let tree = field.tree();
     println!(
         "\n{} grid '{}': {} leaves, tree {:.1} MiB, density scale {scale:.4} (mean optical depth {tau_target} along rays), {n_rays} rays",
@@ -94,22 +75,34 @@ fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind
         field.memory_bytes() as f64 / 1048576.0
     );
     println!(
-        "{:<9} {:>9} {:>10} {:>9} {:>9} {:>9} {:>9} {:>10} {:>10} {:>17} {:>17}",
+        "{:<9} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>17} {:>17}",
         "majorant",
         "build ms",
         "memory KiB",
-        "seg/ray",
+        "cells/ray",
         "look/ray",
         "null/real",
-        "look/ray",
         "ns/flight",
+        "cells/ray",
+        "look/ray",
         "ns/transm",
+        "seg/ray",
         "T delta ± se",
         "T ratio ± se"
     );
     println!(
-        "{:<9} {:>9} {:>10} {:>9} {:>9} {:>9} {:>9} {:>10} {:>10}",
-        "", "", "", "(ratio)", "(delta)", "(delta)", "(ratio)", "(delta)", "(ratio)"
+        "{:<9} {:>8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "",
+        "",
+        "",
+        "(delta)",
+        "(delta)",
+        "(delta)",
+        "(delta)",
+        "(ratio)",
+        "(ratio)",
+        "(ratio)",
+        "(ratio)"
     );
     // Build each kind (best of 3), then time the kinds interleaved over ROUNDS rounds and keep the fastest
     // round of each, which filters out most of the noise of a shared machine. Every round replays the same
@@ -160,21 +153,35 @@ fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind
         let mr = sum / n;
         let se_r = ((sum2 / n - mr * mr).max(0.0) / n).sqrt();
         println!(
-            "{:<9} {:>9.2} {:>10.1} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>10.0} {:>10.0} {:>8.4} ± {:.4} {:>8.4} ± {:.4}",
+            "{:<9} {:>8.2} {:>10.1} {:>9.2} {:>9.2} {:>9.2} {:>9.0} {:>9.2} {:>9.2} {:>9.0} {:>9.2} {:>8.4} ± {:.4} {:>8.4} ± {:.4}",
             format!("{kind:?}"),
             build_ns / 1e6,
             maj.memory_bytes() as f64 / 1024.0,
-            cr.majorant_segments as f64 / n,
+            cd.majorant_cells as f64 / n,
             cd.density_lookups as f64 / n,
             cd.null_collisions as f64 / cd.real_collisions.max(1) as f64,
-            cr.density_lookups as f64 / n,
             delta_ns / n,
+            cr.majorant_cells as f64 / n,
+            cr.density_lookups as f64 / n,
             ratio_ns / n,
+            cr.majorant_segments as f64 / n,
             pd,
             se_d,
             mr,
             se_r
         );
+        if csv {
+            println!(
+                "CSV,{},{tau_target},{kind:?},{},{},{},{},{},{}",
+                path.display(),
+                cd.majorant_cells as f64 / n,
+                cd.density_lookups as f64 / n,
+                delta_ns / n,
+                cr.majorant_cells as f64 / n,
+                cr.density_lookups as f64 / n,
+                ratio_ns / n
+            );
+        }
         if cd.majorant_violations + cr.majorant_violations > 0 {
             println!(
                 "  !! {} majorant violations",
@@ -182,12 +189,29 @@ fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind
             );
         }
     }
+    let (t, (chosen, estimates)) = timed(|| choose(&field));
+    let best = built
+        .iter()
+        .zip(&best)
+        .min_by(|a, b| (a.1 .0 + a.1 .1).total_cmp(&(b.1 .0 + b.1 .1)))
+        .map(|((_, m), _)| m.kind());
+    println!(
+        "auto ({:.1} ms pilot) picks {:?}; measured fastest (flight + transmittance): {best:?}; pilot estimates ns: {}",
+        t / 1e6,
+        chosen.kind(),
+        estimates
+            .iter()
+            .map(|e| format!("{:?} {:.0}", e.kind, e.cost_ns))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
 }
 
 fn main() {
     let mut files = Vec::new();
     let mut n_rays = 20_000usize;
-    let mut tau = 10.0f64;
+    let mut taus = vec![10.0f64];
+    let mut csv = false;
     let mut kinds = MajorantKind::ALL.to_vec();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -197,7 +221,13 @@ fn main() {
                 let k = args.next().unwrap_or_default();
                 kinds.retain(|x| format!("{x:?}").eq_ignore_ascii_case(&k));
             }
-            "--tau" => tau = args.next().and_then(|v| v.parse().ok()).unwrap_or(tau),
+            "--tau" => {
+                taus = args
+                    .next()
+                    .map(|v| v.split(',').filter_map(|t| t.parse().ok()).collect())
+                    .unwrap_or(taus)
+            }
+            "--csv" => csv = true,
             s if s.starts_with("--") => {}
             s => files.push(PathBuf::from(s)),
         }
@@ -210,6 +240,8 @@ fn main() {
         ];
     }
     for f in &files {
-        bench_file(f, n_rays, tau, &kinds);
+        for &tau in &taus {
+            bench_file(f, n_rays, tau, &kinds, csv);
+        }
     }
 }

@@ -12,7 +12,6 @@ use nimbus::scene::{Camera, SceneBuilder};
 use nimbus::vdb::{GridTree, Tree};
 use nimbus::volume::density::GridDensity;
 use nimbus::volume::grid::GridMedium;
-use nimbus::volume::majorant::MajorantKind;
 use nimbus::volume::Medium;
 use std::sync::Arc;
 use std::time::Instant;
@@ -46,10 +45,9 @@ fn grid(voxels: Vec<(IVec3, f32)>, voxel: f64, scale: f32) -> GridDensity {
 }
 
 fn medium(density: GridDensity, albedo: f32, g: f32) -> Arc<dyn Medium> {
-    Arc::new(GridMedium::new(
+    Arc::new(GridMedium::with_chosen_majorants(
         "grid",
         density,
-        MajorantKind::Adaptive,
         Rgb::splat(albedo),
         g,
     ))
@@ -117,9 +115,16 @@ fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, expe
             a.add(&m.counters);
             a
         });
+    // The structure `auto` picked, per medium, from the method description ("... over a global majorant (auto").
+    let majorants: Vec<&str> = stats
+        .media
+        .iter()
+        .filter_map(|m| m.method.split(" over ").nth(1)?.split(" (").next())
+        .collect();
     println!(
-        "| {name} | {mean:.4} ± {se:.4} | {} | {:.2} | {} | {} | {} | {seconds:.2} |",
+        "| {name} | {mean:.4} ± {se:.4} | {} | {} | {:.2} | {} | {} | {} | {seconds:.2} |",
         expected.map_or("—".to_string(), |e| format!("{e}")),
+        majorants.join(", "),
         c.null_collisions as f64 / c.real_collisions.max(1) as f64,
         c.density_lookups,
         stats.nan_samples,
@@ -140,8 +145,8 @@ fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, expe
 
 #[test]
 fn stability_suite() {
-    println!("| case | mean ± s.e. | expected | null/real | lookups | NaN samples | violations | seconds |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| case | mean ± s.e. | expected | majorant (auto) | null/real | lookups | NaN samples | violations | seconds |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     let eye = Vec3::new(0.0, 0.0, 3.0);
 
     // Optically very thick (density × 1000): albedo 0.9 so paths end; bounded by roulette and max depth.

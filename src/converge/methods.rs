@@ -68,9 +68,9 @@ impl Method {
     /// Changes a VDB volume's declaration as this method requires.
     pub fn apply_to_volume(self, spec: &mut VolumeSpec) {
         match self {
-            Method::GlobalMajorant => spec.majorant = MajorantKind::Global,
-            Method::Grid16Majorant => spec.majorant = MajorantKind::Grid16,
-            Method::AdaptiveMajorant => spec.majorant = MajorantKind::Adaptive,
+            Method::GlobalMajorant => spec.majorant = Some(MajorantKind::Global),
+            Method::Grid16Majorant => spec.majorant = Some(MajorantKind::Grid16),
+            Method::AdaptiveMajorant => spec.majorant = Some(MajorantKind::Adaptive),
             Method::RatioShadow => spec.shadow_estimator = ShadowEstimator::Ratio,
             Method::ResidualRatioShadow => spec.shadow_estimator = ShadowEstimator::ResidualRatio,
             Method::Default | Method::NoMediaMis => {}
@@ -125,7 +125,7 @@ mod tests {
         let mut spec = VolumeSpec::new("v", "a.vdb".into(), crate::math::Mat4::IDENTITY);
         Method::GlobalMajorant.apply_to_volume(&mut spec);
         Method::ResidualRatioShadow.apply_to_volume(&mut spec);
-        assert_eq!(spec.majorant, MajorantKind::Global);
+        assert_eq!(spec.majorant, Some(MajorantKind::Global));
         assert_eq!(spec.shadow_estimator, ShadowEstimator::ResidualRatio);
         assert!(!Method::NoMediaMis.media_mis() && Method::Default.media_mis());
     }

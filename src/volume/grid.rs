@@ -3,8 +3,10 @@
 //!
 //! - σ_t(x) = density_scale · ρ(x) per world metre (ρ: OpenVDB BoxSampler trilinear lookup), grey; σ_s = albedo ·
 //!   σ_t; Henyey–Greenstein phase function.
-//! - Free flights: delta tracking (Woodcock et al. 1965) over a majorant structure, by default Nimbus's
-//!   adaptive tree-aligned hierarchy (`"majorant": "adaptive" | "grid16" | "global"`).
+//! - Free flights: delta tracking (Woodcock et al. 1965) over a majorant structure
+//!   (`"majorant": "auto" | "adaptive" | "grid16" | "global"`); `auto`, the default, picks the cheapest for this
+//!   grid at this density scale by a fixed-seed pilot ([`super::majorant_choice`]). Segments of constant
+//!   density are tracked in closed form.
 //! - Shadow rays: ratio tracking (Novák et al. 2014, eq. 6), or residual ratio tracking (Novák et al. 2014, §4)
 //!   with `"shadow_estimator": "residual_ratio"`.
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
@@ -13,6 +15,7 @@
 use super::density::{DensityField, GridDensity};
 use super::emission::BlackbodyTable;
 use super::majorant::{MajorantKind, Majorants};
+use super::majorant_choice::{self, MajorantEstimate};
 use super::tracking::{ratio_tracking, residual_ratio_tracking, sample_collision};
 use super::{Collision, Medium, PhaseFunction, TrackingCounters, VolumeSpec};
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
@@ -42,6 +45,8 @@ pub struct GridMedium {
     name: String,
     density: GridDensity,
     majorants: Majorants,
+    /// The pilot's estimates when the structure was chosen automatically.
+    majorant_estimates: Vec<MajorantEstimate>,
     albedo: Rgb,
     phase: PhaseFunction,
     shadow: ShadowEstimator,
@@ -52,10 +57,28 @@ impl GridMedium {
     /// Builds a medium from a placed density field and its parameters.
     pub fn new(name: &str, density: GridDensity, kind: MajorantKind, albedo: Rgb, g: f32) -> Self {
         let majorants = Majorants::build(kind, &density);
+        Self::with_parts(name, density, majorants, Vec::new(), albedo, g)
+    }
+
+    /// Builds a medium whose majorant structure is the cheapest by the pilot of [`majorant_choice::choose`].
+    pub fn with_chosen_majorants(name: &str, density: GridDensity, albedo: Rgb, g: f32) -> Self {
+        let (majorants, estimates) = majorant_choice::choose(&density);
+        Self::with_parts(name, density, majorants, estimates, albedo, g)
+    }
+
+    fn with_parts(
+        name: &str,
+        density: GridDensity,
+        majorants: Majorants,
+        majorant_estimates: Vec<MajorantEstimate>,
+        albedo: Rgb,
+        g: f32,
+    ) -> Self {
         Self {
             name: name.to_owned(),
             density,
             majorants,
+            majorant_estimates,
             albedo,
             phase: PhaseFunction::henyey_greenstein(g),
             shadow: ShadowEstimator::Ratio,
@@ -72,6 +95,7 @@ impl GridMedium {
     /// Replaces the majorant structure (for benchmarks and tests of under-estimated majorants).
     pub fn with_majorants(mut self, majorants: Majorants) -> Self {
         self.majorants = majorants;
+        self.majorant_estimates.clear();
         self
     }
 
@@ -105,14 +129,11 @@ impl GridMedium {
         let node = spec.node_to_world.as_dmat4();
         let density = GridDensity::new(find(&spec.density_grid)?, node, spec.density_scale)
             .map_err(|e| err(format!("{}: {e}", spec.name)))?;
-        let mut medium = Self::new(
-            &spec.name,
-            density,
-            spec.majorant,
-            spec.albedo,
-            spec.anisotropy,
-        )
-        .with_shadow_estimator(spec.shadow_estimator);
+        let medium = match spec.majorant {
+            Some(kind) => Self::new(&spec.name, density, kind, spec.albedo, spec.anisotropy),
+            None => Self::with_chosen_majorants(&spec.name, density, spec.albedo, spec.anisotropy),
+        };
+        let mut medium = medium.with_shadow_estimator(spec.shadow_estimator);
         if let Some(t) = &spec.temperature_grid {
             let temperature = GridDensity::new(find(t)?, node, 1.0)
                 .map_err(|e| err(format!("{}: {e}", spec.name)))?;
@@ -143,7 +164,29 @@ impl Medium for GridMedium {
             ShadowEstimator::Ratio => "ratio tracking",
             ShadowEstimator::ResidualRatio => "residual ratio tracking",
         };
-        format!("delta tracking over {majorant}; {shadow} for shadow rays")
+        let why = if self.majorant_estimates.is_empty() {
+            " (as requested)".to_string()
+        } else {
+            let costs: Vec<String> = self
+                .majorant_estimates
+                .iter()
+                .map(|e| {
+                    format!(
+                        "{} {:.0} ({:.1} lookups, {:.1} cells)",
+                        e.kind.name(),
+                        e.cost_ns,
+                        e.lookups_per_ray,
+                        e.cells_per_ray
+                    )
+                })
+                .collect();
+            format!(
+                " (auto: cheapest in a {}-ray pilot, estimated ns per ray: {})",
+                majorant_choice::PILOT_RAYS,
+                costs.join(", ")
+            )
+        };
+        format!("delta tracking over {majorant}{why}, closed form on constant-density segments; {shadow} for shadow rays")
     }
 
     fn memory_bytes(&self) -> usize {

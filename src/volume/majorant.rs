@@ -64,6 +64,15 @@ pub enum MajorantKind {
 impl MajorantKind {
     /// All kinds, in the order benchmarks report them.
     pub const ALL: [MajorantKind; 3] = [Self::Global, Self::Grid16, Self::Adaptive];
+
+    /// The scene-file name of the kind (`"majorant"` key).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Global => "global",
+            Self::Grid16 => "grid16",
+            Self::Adaptive => "adaptive",
+        }
+    }
 }
 
 /// A ray interval `[t0, t1)` on which `sigma_min ≤ σ_t ≤ sigma_max`.
@@ -77,6 +86,15 @@ pub struct Segment {
     pub sigma_max: f32,
     /// Minorant (per metre), a valid control density for residual ratio tracking.
     pub sigma_min: f32,
+}
+
+impl Segment {
+    /// True when the bounds meet (σ_min = σ̄ > 0): the density is constant on the segment, so trackers use the
+    /// closed form there (the homogeneous-medium solution) instead of tentative collisions.
+    #[inline]
+    pub fn is_uniform(&self) -> bool {
+        self.sigma_min >= self.sigma_max && self.sigma_max > 0.0
+    }
 }
 
 /// A uniform grid of cells over `origin + cell · [0, res)` in local space.
@@ -103,6 +121,7 @@ impl UniformGrid {
         inv_dir: Vec3,
         t0: f32,
         t1: f32,
+        cells: &mut u64,
         f: impl FnMut(IVec3, f32, f32) -> ControlFlow<()>,
     ) -> ControlFlow<()> {
         let ta = (self.origin - ray.origin) * inv_dir;
@@ -110,7 +129,7 @@ impl UniformGrid {
         let t0 = ta.min(tb).max_element().max(t0);
         let t1 = ta.max(tb).min_element().min(t1);
         if t0 < t1 {
-            self.walk_inside(ray, inv_dir, t0, t1, f)
+            self.walk_inside(ray, inv_dir, t0, t1, cells, f)
         } else {
             ControlFlow::Continue(())
         }
@@ -118,13 +137,15 @@ impl UniformGrid {
 
     /// Walks the cells pierced by `ray` over `[ta, tb]` (known to lie in the grid up to round-off) with the 3D DDA
     /// of Amanatides & Woo (1987): per axis, the parameter of the next cell boundary `t_next` and the parameter
-    /// step per cell `t_delta`; each step advances the axis with the smallest `t_next`.
+    /// step per cell `t_delta`; each step advances the axis with the smallest `t_next`. Adds the cells visited
+    /// to `cells`.
     fn walk_inside(
         &self,
         ray: &Ray,
         inv_dir: Vec3,
         ta: f32,
         tb: f32,
+        cells: &mut u64,
         mut f: impl FnMut(IVec3, f32, f32) -> ControlFlow<()>,
     ) -> ControlFlow<()> {
         // Start from the cell of the interval's entry point (clamped inside against round-off).
@@ -147,6 +168,7 @@ impl UniformGrid {
         let mut cell = c.to_array();
         let mut t = ta;
         loop {
+            *cells += 1;
             let a = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
                 0
             } else if t_next[1] <= t_next[2] {
@@ -445,38 +467,45 @@ impl Majorants {
     }
 
     /// Calls `f` for each segment of non-zero majorant along the local-space `ray` over `[t_min, t_max]`, in
-    /// increasing `t`, until `f` breaks. Returns `Break` when `f` did.
+    /// increasing `t`, until `f` breaks. Returns `Break` when `f` did. Adds the structure's cells visited (DDA
+    /// steps at every level, empty ones included; 1 for a global bound) to `cells`, the traversal work.
     pub fn for_each_segment(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
+        cells: &mut u64,
         mut f: impl FnMut(Segment) -> ControlFlow<()>,
     ) -> ControlFlow<()> {
         let inv_dir = ray.dir.recip();
         match &self.repr {
             Repr::Global => match self.bounds.intersect(ray, t_min, t_max) {
-                Some((t0, t1)) if self.sigma_max > 0.0 && t1 > t0 => f(Segment {
-                    t0,
-                    t1,
-                    sigma_max: self.sigma_max,
-                    sigma_min: self.sigma_min,
-                }),
-                _ => ControlFlow::Continue(()),
-            },
-            Repr::Grid { grid, values } => grid.walk(ray, inv_dir, t_min, t_max, |c, t0, t1| {
-                let m = values[grid.index(c)];
-                if m > 0.0 {
+                Some((t0, t1)) if self.sigma_max > 0.0 && t1 > t0 => {
+                    *cells += 1;
                     f(Segment {
                         t0,
                         t1,
-                        sigma_max: m,
-                        sigma_min: 0.0,
+                        sigma_max: self.sigma_max,
+                        sigma_min: self.sigma_min,
                     })
-                } else {
-                    ControlFlow::Continue(())
                 }
-            }),
+                _ => ControlFlow::Continue(()),
+            },
+            Repr::Grid { grid, values } => {
+                grid.walk(ray, inv_dir, t_min, t_max, cells, |c, t0, t1| {
+                    let m = values[grid.index(c)];
+                    if m > 0.0 {
+                        f(Segment {
+                            t0,
+                            t1,
+                            sigma_max: m,
+                            sigma_min: 0.0,
+                        })
+                    } else {
+                        ControlFlow::Continue(())
+                    }
+                })
+            }
             Repr::Adaptive(h) => {
                 let mut pending: Option<Segment> = None;
                 let mut emit = |s: Segment| -> ControlFlow<()> {
@@ -499,61 +528,68 @@ impl Majorants {
                     pending = Some(s);
                     ControlFlow::Continue(())
                 };
-                h.coarse.walk(ray, inv_dir, t_min, t_max, |c, t0, t1| {
-                    let (lo, hi, b) = h.cells[h.coarse.index(c)];
-                    if hi <= 0.0 {
-                        return ControlFlow::Continue(());
-                    }
-                    if b == NO_BRICK {
-                        return emit(Segment {
-                            t0,
-                            t1,
-                            sigma_max: hi,
-                            sigma_min: lo,
-                        });
-                    }
-                    let brick = &h.bricks[b as usize];
-                    let fine_edge = (1 << FINE_LOG2) as f32;
-                    let mid = UniformGrid {
-                        origin: h.coarse.origin + c.as_vec3() * h.coarse.cell,
-                        cell: Vec3::splat(fine_edge * FINE_PER_MID as f32),
-                        res: IVec3::splat(MID),
-                    };
-                    mid.walk_inside(ray, inv_dir, t0, t1, |mc, ma, mb| {
-                        let mi = ((mc.x * MID + mc.y) * MID + mc.z) as usize;
-                        let (lo, hi) = brick.mid[mi];
+                // Cells of the brick levels, counted apart from the walks that hold the outer counters.
+                let (mut mid_cells, mut fine_cells) = (0u64, 0u64);
+                let walked = h
+                    .coarse
+                    .walk(ray, inv_dir, t_min, t_max, cells, |c, t0, t1| {
+                        let (lo, hi, b) = h.cells[h.coarse.index(c)];
                         if hi <= 0.0 {
                             return ControlFlow::Continue(());
                         }
-                        if brick.flat >> mi & 1 != 0 {
+                        if b == NO_BRICK {
                             return emit(Segment {
-                                t0: ma,
-                                t1: mb,
+                                t0,
+                                t1,
                                 sigma_max: hi,
                                 sigma_min: lo,
                             });
                         }
-                        let fine = UniformGrid {
-                            origin: mid.origin + mc.as_vec3() * mid.cell,
-                            cell: Vec3::splat(fine_edge),
-                            res: IVec3::splat(FINE_PER_MID),
+                        let brick = &h.bricks[b as usize];
+                        let fine_edge = (1 << FINE_LOG2) as f32;
+                        let mid = UniformGrid {
+                            origin: h.coarse.origin + c.as_vec3() * h.coarse.cell,
+                            cell: Vec3::splat(fine_edge * FINE_PER_MID as f32),
+                            res: IVec3::splat(MID),
                         };
-                        fine.walk_inside(ray, inv_dir, ma, mb, |fc, a, b| {
-                            let f = mc * FINE_PER_MID + fc;
-                            let (lo, hi) = brick.fine[((f.x * BRICK + f.y) * BRICK + f.z) as usize];
-                            if hi > 0.0 {
-                                emit(Segment {
-                                    t0: a,
-                                    t1: b,
+                        mid.walk_inside(ray, inv_dir, t0, t1, &mut mid_cells, |mc, ma, mb| {
+                            let mi = ((mc.x * MID + mc.y) * MID + mc.z) as usize;
+                            let (lo, hi) = brick.mid[mi];
+                            if hi <= 0.0 {
+                                return ControlFlow::Continue(());
+                            }
+                            if brick.flat >> mi & 1 != 0 {
+                                return emit(Segment {
+                                    t0: ma,
+                                    t1: mb,
                                     sigma_max: hi,
                                     sigma_min: lo,
-                                })
-                            } else {
-                                ControlFlow::Continue(())
+                                });
                             }
+                            let fine = UniformGrid {
+                                origin: mid.origin + mc.as_vec3() * mid.cell,
+                                cell: Vec3::splat(fine_edge),
+                                res: IVec3::splat(FINE_PER_MID),
+                            };
+                            fine.walk_inside(ray, inv_dir, ma, mb, &mut fine_cells, |fc, a, b| {
+                                let f = mc * FINE_PER_MID + fc;
+                                let (lo, hi) =
+                                    brick.fine[((f.x * BRICK + f.y) * BRICK + f.z) as usize];
+                                if hi > 0.0 {
+                                    emit(Segment {
+                                        t0: a,
+                                        t1: b,
+                                        sigma_max: hi,
+                                        sigma_min: lo,
+                                    })
+                                } else {
+                                    ControlFlow::Continue(())
+                                }
+                            })
                         })
-                    })
-                })?;
+                    });
+                *cells += mid_cells + fine_cells;
+                walked?;
                 match pending {
                     Some(p) => f(p),
                     None => ControlFlow::Continue(()),
@@ -591,7 +627,7 @@ mod tests {
                 let from = b.center() + (u3(&mut rng) - 0.5) * 3.0 * b.extent();
                 let ray = Ray::new(from, target - from);
                 let mut last = f32::NEG_INFINITY;
-                let _ = m.for_each_segment(&ray, 0.0, 3.0, |s| {
+                let _ = m.for_each_segment(&ray, 0.0, 3.0, &mut 0, |s| {
                     segments += 1;
                     assert!(s.t0 >= last - 1e-5 && s.t1 >= s.t0 && s.sigma_max > 0.0);
                     last = s.t1;
@@ -612,7 +648,7 @@ mod tests {
             // Empty space is skipped: points outside all segments must have zero density.
             let ray = Ray::new(b.min - 5.0, b.extent());
             let mut covered = Vec::new();
-            let _ = m.for_each_segment(&ray, 0.0, 1.0, |s| {
+            let _ = m.for_each_segment(&ray, 0.0, 1.0, &mut 0, |s| {
                 covered.push((s.t0, s.t1));
                 ControlFlow::Continue(())
             });
@@ -641,7 +677,7 @@ mod tests {
             let d = (q - p).normalize();
             let ray = Ray::new(p - d * 100.0, d);
             for (i, m) in kinds.iter().enumerate() {
-                let _ = m.for_each_segment(&ray, 0.0, 300.0, |s| {
+                let _ = m.for_each_segment(&ray, 0.0, 300.0, &mut 0, |s| {
                     total[i] += ((s.t1 - s.t0) * s.sigma_max) as f64;
                     ControlFlow::Continue(())
                 });

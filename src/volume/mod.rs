@@ -23,6 +23,7 @@ pub mod emission;
 pub mod grid;
 pub mod homogeneous;
 pub mod majorant;
+pub mod majorant_choice;
 pub mod noise;
 pub mod phase;
 pub mod spec;

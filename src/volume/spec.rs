@@ -43,8 +43,9 @@ pub struct VolumeSpec {
     pub temperature_offset: f32,
     /// The node's world matrix, applied after the VDB's own transform.
     pub node_to_world: Mat4,
-    /// Majorant structure for delta tracking (`"majorant"`: `"adaptive"` (default), `"grid16"`, `"global"`).
-    pub majorant: MajorantKind,
+    /// Majorant structure for tracking (`"majorant"`: `"auto"` (default; `None`, the cheapest by a pilot, see
+    /// [`super::majorant_choice`]), `"adaptive"`, `"grid16"` or `"global"`).
+    pub majorant: Option<MajorantKind>,
     /// Shadow-ray estimator (`"shadow_estimator"`: `"ratio"` (default) or `"residual_ratio"`).
     pub shadow_estimator: ShadowEstimator,
     /// The VDB file's bytes when they are embedded in the program (the bundled demo); otherwise `file` is read.
@@ -66,7 +67,7 @@ impl VolumeSpec {
             temperature_scale: 1.0,
             temperature_offset: 0.0,
             node_to_world,
-            majorant: MajorantKind::Adaptive,
+            majorant: None,
             shadow_estimator: ShadowEstimator::Ratio,
             embedded: None,
         }
@@ -153,12 +154,13 @@ impl VolumeSpec {
         }
         if let Some(m) = string("majorant")? {
             spec.majorant = match m.as_str() {
-                "adaptive" => MajorantKind::Adaptive,
-                "grid16" => MajorantKind::Grid16,
-                "global" => MajorantKind::Global,
+                "auto" => None,
+                "adaptive" => Some(MajorantKind::Adaptive),
+                "grid16" => Some(MajorantKind::Grid16),
+                "global" => Some(MajorantKind::Global),
                 other => {
                     return Err(format!(
-                        "'majorant' {other:?} is not adaptive, grid16 or global"
+                        "'majorant' {other:?} is not auto, adaptive, grid16 or global"
                     ))
                 }
             };

@@ -33,6 +33,9 @@ pub struct TrackingCounters {
     pub null_collisions: u64,
     /// Majorant segments visited.
     pub majorant_segments: u64,
+    /// Majorant cells walked (DDA steps at every level of the structure, empty cells included): the traversal
+    /// work, which segments merged by the adaptive structure hide.
+    pub majorant_cells: u64,
     /// Lookups where σ_t exceeded the segment's majorant.
     pub majorant_violations: u64,
 }
@@ -44,19 +47,50 @@ impl TrackingCounters {
         self.real_collisions += other.real_collisions;
         self.null_collisions += other.null_collisions;
         self.majorant_segments += other.majorant_segments;
+        self.majorant_cells += other.majorant_cells;
         self.majorant_violations += other.majorant_violations;
     }
 }
 
-/// Samples the next tentative collision after `t` with rate `rate` per unit of `t`: t − ln(1 − ξ)/rate
-/// (the exponential free-flight distribution of a homogeneous medium of extinction `rate`). Always advances `t`.
-#[inline]
-fn next_collision(t: f32, rate: f32, rng: &mut Rng) -> f32 {
-    let tn = t - (1.0 - rng.next_f32()).ln() / rate;
-    if tn > t {
-        tn
-    } else {
-        t.next_up()
+/// The optical depth left before the next tentative collision, carried across majorant segments.
+///
+/// Tentative collisions of a piecewise-constant majorant rate form a Poisson process: with an Exp(1) sample τ,
+/// the next one lies where the majorant optical depth ∫σ̄ reaches τ. Each segment consumes rate × length of τ;
+/// the segment where τ runs out holds the collision, at t + τ/rate (inversion of the exponential CDF). Carrying
+/// τ over boundaries is the same distribution as restarting the exponential at each one (memorylessness) but
+/// costs one logarithm per collision instead of one per segment, which matters on fine majorant grids.
+struct FreePath {
+    tau: f32,
+}
+
+impl FreePath {
+    /// A fresh Exp(1) optical depth, −ln(1 − ξ).
+    #[inline]
+    fn new(rng: &mut Rng) -> Self {
+        Self {
+            tau: -(1.0 - rng.next_f32()).ln(),
+        }
+    }
+
+    /// Moves `t` towards `t1` at majorant `rate` per unit of `t`. Returns true at a tentative collision (`t` is
+    /// its parameter, strictly advanced, and a fresh τ is drawn for the next one), or false when the segment
+    /// ends first (its optical depth is consumed).
+    #[inline]
+    fn next_collision(&mut self, t: &mut f32, t1: f32, rate: f32, rng: &mut Rng) -> bool {
+        let room = rate * (t1 - *t);
+        if self.tau >= room {
+            self.tau -= room;
+            return false;
+        }
+        let tn = (*t + self.tau / rate).max(t.next_up());
+        if tn >= t1 {
+            // Round-off at the boundary: the collision falls into the next segment at its start.
+            self.tau = 0.0;
+            return false;
+        }
+        *t = tn;
+        *self = Self::new(rng);
+        true
     }
 }
 
@@ -100,7 +134,9 @@ fn roulette(tr: &mut f32, rng: &mut Rng) -> bool {
 /// σ̄ exp(−σ̄ t), and a tentative collision at x is accepted as real with probability σ_t(x)/σ̄ (Woodcock et al.
 /// 1965; Novák et al. 2018 STAR §5.1, eq. 19 and Alg. 1). Restarting the exponential at each segment boundary is
 /// exact by memorylessness. The escape probability is the transmittance exp(−∫σ_t). Terminates at the first
-/// real collision, so optically thick media stay cheap.
+/// real collision, so optically thick media stay cheap. On a segment of constant density
+/// ([`Segment::is_uniform`]) the first tentative collision is real with probability 1, so it is taken without
+/// a lookup: closed-form free-flight sampling.
 pub fn sample_collision<F: DensityField + ?Sized>(
     field: &F,
     majorants: &Majorants,
@@ -113,14 +149,21 @@ pub fn sample_collision<F: DensityField + ?Sized>(
     let lr = local_ray(field, ray);
     let len = ray.dir.length();
     let mut hit = None;
-    let _ = majorants.for_each_segment(&lr, t_min, t_max, |s| {
+    let mut cells = 0;
+    let mut path = FreePath::new(rng);
+    let _ = majorants.for_each_segment(&lr, t_min, t_max, &mut cells, |s: Segment| {
         counters.majorant_segments += 1;
         let rate = s.sigma_max * len;
         let mut t = s.t0;
         loop {
-            t = next_collision(t, rate, rng);
-            if t >= s.t1 {
+            if !path.next_collision(&mut t, s.t1, rate, rng) {
                 return ControlFlow::Continue(());
+            }
+            if s.is_uniform() {
+                // σ_t = σ̄ on the whole segment: every tentative collision is real, no lookup needed.
+                counters.real_collisions += 1;
+                hit = Some(t);
+                return ControlFlow::Break(());
             }
             let sigma = lookup(field, &lr, t, &s, counters);
             if rng.next_f32() * s.sigma_max < sigma {
@@ -131,6 +174,7 @@ pub fn sample_collision<F: DensityField + ?Sized>(
             counters.null_collisions += 1;
         }
     });
+    counters.majorant_cells += cells;
     hit
 }
 
@@ -138,7 +182,9 @@ pub fn sample_collision<F: DensityField + ?Sized>(
 ///
 /// Tentative collisions x_i are sampled with the majorant rate σ̄ and the estimate is
 /// T = ∏ᵢ (1 − σ_t(x_i)/σ̄) (Cramer 1978; Novák et al. 2014, eq. 6; Novák et al. 2018 STAR §5.2). Russian
-/// roulette below [`ROULETTE_THRESHOLD`] keeps it unbiased and bounds the work in thick media.
+/// roulette below [`ROULETTE_THRESHOLD`] keeps it unbiased and bounds the work in thick media. On a segment of
+/// constant density ([`Segment::is_uniform`]) the factor is exp(−σ ℓ) in closed form: residual ratio tracking
+/// with the exact control, so the estimate there has zero variance and costs no lookup.
 pub fn ratio_tracking<F: DensityField + ?Sized>(
     field: &F,
     majorants: &Majorants,
@@ -151,13 +197,19 @@ pub fn ratio_tracking<F: DensityField + ?Sized>(
     let lr = local_ray(field, ray);
     let len = ray.dir.length();
     let mut tr = 1.0f32;
-    let _ = majorants.for_each_segment(&lr, t_min, t_max, |s| {
+    let mut cells = 0;
+    let mut path = FreePath::new(rng);
+    let _ = majorants.for_each_segment(&lr, t_min, t_max, &mut cells, |s: Segment| {
         counters.majorant_segments += 1;
+        if s.is_uniform() {
+            // Constant density: the segment's transmittance in closed form, exactly and without lookups.
+            tr *= (-s.sigma_max * len * (s.t1 - s.t0)).exp();
+            return ControlFlow::Continue(());
+        }
         let rate = s.sigma_max * len;
         let mut t = s.t0;
         loop {
-            t = next_collision(t, rate, rng);
-            if t >= s.t1 {
+            if !path.next_collision(&mut t, s.t1, rate, rng) {
                 return ControlFlow::Continue(());
             }
             let sigma = lookup(field, &lr, t, &s, counters);
@@ -168,6 +220,7 @@ pub fn ratio_tracking<F: DensityField + ?Sized>(
             }
         }
     });
+    counters.majorant_cells += cells;
     tr
 }
 
@@ -190,7 +243,9 @@ pub fn residual_ratio_tracking<F: DensityField + ?Sized>(
     let lr = local_ray(field, ray);
     let len = ray.dir.length();
     let mut tr = 1.0f32;
-    let _ = majorants.for_each_segment(&lr, t_min, t_max, |s| {
+    let mut cells = 0;
+    let mut path = FreePath::new(rng);
+    let _ = majorants.for_each_segment(&lr, t_min, t_max, &mut cells, |s: Segment| {
         counters.majorant_segments += 1;
         let control = s.sigma_min.clamp(0.0, s.sigma_max);
         tr *= (-control * len * (s.t1 - s.t0)).exp();
@@ -208,8 +263,7 @@ pub fn residual_ratio_tracking<F: DensityField + ?Sized>(
         let rate = residual_max * len;
         let mut t = s.t0;
         loop {
-            t = next_collision(t, rate, rng);
-            if t >= s.t1 {
+            if !path.next_collision(&mut t, s.t1, rate, rng) {
                 return ControlFlow::Continue(());
             }
             let sigma = lookup(field, &lr, t, &s, counters);
@@ -220,6 +274,7 @@ pub fn residual_ratio_tracking<F: DensityField + ?Sized>(
             }
         }
     });
+    counters.majorant_cells += cells;
     tr
 }
 
