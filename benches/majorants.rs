@@ -1,11 +1,16 @@
-//! Majorant benchmark: Global vs Grid16 vs Adaptive majorants for delta and ratio tracking through VDB grids.
+//! Majorant benchmark: Global vs Grid16 vs Adaptive majorants for delta and ratio tracking through VDB grids, and
+//! how close `auto` (the pilot of `nimbus::volume::majorant_choice`) comes to the fastest.
 //!
-//! `cargo bench --bench majorants -- [FILE.vdb ...] [--rays N] [--tau T[,T...]] [--kind KIND] [--csv]` (defaults: the shared corpus
-//! `generated/e_big256.vdb` and `real/elyg_pig.vdb` under `$NIMBUS_SHARED_DIR` or `../shared`, 20000 rays, a
-//! density scale giving a mean optical depth T = 10 along the rays). Single-threaded; times are wall-clock, the best of 3 interleaved rounds (build: best of 3).
-//! For each majorant kind it reports build time, memory, per-ray density lookups, null collisions per real
-//! collision, segments per ray, ns per delta-tracked free flight and per ratio-tracked transmittance, and the
-//! mean transmittance (which must agree across kinds within the printed standard errors).
+//! `cargo bench --bench majorants -- [FILE.vdb ...] [--rays N] [--tau T[,T...]] [--kind KIND] [--csv]`
+//! (defaults: the shared corpus `generated/e_big256.vdb` and `real/elyg_pig.vdb` under `$NIMBUS_SHARED_DIR` or
+//! `../shared`, 20000 rays, a density scale giving a mean optical depth T = 10 along the rays).
+//! Single-threaded; times are wall-clock, the best of 3 interleaved rounds (build: best of 3).
+//! For each majorant kind it reports build time, memory, per-ray majorant cells walked, density lookups, null
+//! collisions per real collision, segments per ray, ns per delta-tracked free flight and per ratio-tracked
+//! transmittance, and the mean transmittance (which must agree across kinds within the printed standard errors);
+//! then auto's pick. With every kind it ends with a markdown table of auto against the fastest per case. `--csv`
+//! adds machine-readable rows, the input of `benches/fit_majorant_costs.py` (which fits the pilot's cost
+//! constants).
 
 use glam::DMat4;
 use nimbus::math::Rng;
@@ -32,12 +37,26 @@ fn shared_dir() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared"))
 }
 
-fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind], csv: bool) {
+/// One grid at one optical depth: measured ns per ray (free flight + transmittance) per kind, and auto's pick.
+struct Case {
+    grid: String,
+    tau: f64,
+    ns: Vec<(MajorantKind, f64)>,
+    auto: MajorantKind,
+}
+
+fn bench_file(
+    path: &Path,
+    n_rays: usize,
+    tau_target: f64,
+    kinds: &[MajorantKind],
+    csv: bool,
+) -> Option<Case> {
     let file = match read_file(path) {
         Ok(f) => f,
         Err(e) => {
             println!("skipping {}: {e}", path.display());
-            return;
+            return None;
         }
     };
     let Some(grid) = file
@@ -47,13 +66,13 @@ fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind
         .max_by_key(|g| g.name == "density")
     else {
         println!("skipping {}: no scalar grid", path.display());
-        return;
+        return None;
     };
     let unit = match GridDensity::new(grid, DMat4::IDENTITY, 1.0) {
         Ok(g) => g,
         Err(e) => {
             println!("skipping {}: {e}", path.display());
-            return;
+            return None;
         }
     };
     // Scale so that the mean optical depth along the benchmark rays is tau_target.
@@ -190,13 +209,8 @@ fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind
         }
     }
     let (t, (chosen, estimates)) = timed(|| choose(&field));
-    let best = built
-        .iter()
-        .zip(&best)
-        .min_by(|a, b| (a.1 .0 + a.1 .1).total_cmp(&(b.1 .0 + b.1 .1)))
-        .map(|((_, m), _)| m.kind());
     println!(
-        "auto ({:.1} ms pilot) picks {:?}; measured fastest (flight + transmittance): {best:?}; pilot estimates ns: {}",
+        "auto ({:.1} ms pilot) picks {:?}; pilot estimates ns: {}",
         t / 1e6,
         chosen.kind(),
         estimates
@@ -204,6 +218,59 @@ fn bench_file(path: &Path, n_rays: usize, tau_target: f64, kinds: &[MajorantKind
             .map(|e| format!("{:?} {:.0}", e.kind, e.cost_ns))
             .collect::<Vec<_>>()
             .join(", ")
+    );
+    Some(Case {
+        grid: path
+            .file_stem()
+            .map_or(String::new(), |s| s.to_string_lossy().into_owned()),
+        tau: tau_target,
+        ns: built
+            .iter()
+            .zip(&best)
+            .map(|((_, m), (d, r))| (m.kind(), (d + r) / n_rays as f64))
+            .collect(),
+        auto: chosen.kind(),
+    })
+}
+
+/// Prints the markdown table of auto's pick against the measured fastest, with the geometric-mean slowdown of
+/// each fixed choice and of auto relative to the fastest per case.
+fn print_summary(cases: &[Case]) {
+    println!("\n| grid | mean optical depth | global ns | grid16 ns | adaptive ns | auto picks | auto / fastest |");
+    println!("|---|---|---|---|---|---|---|");
+    let mut log_slowdown = [0.0f64; 4];
+    for c in cases {
+        let fastest = c.ns.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
+        let ns_of = |k: MajorantKind| c.ns.iter().find(|x| x.0 == k).map_or(f64::NAN, |x| x.1);
+        let cells: Vec<String> = MajorantKind::ALL
+            .iter()
+            .map(|&k| {
+                let v = ns_of(k);
+                if v == fastest {
+                    format!("**{v:.0}**")
+                } else {
+                    format!("{v:.0}")
+                }
+            })
+            .collect();
+        println!(
+            "| {} | {} | {} | {} | {:.2} |",
+            c.grid,
+            c.tau,
+            cells.join(" | "),
+            c.auto.name(),
+            ns_of(c.auto) / fastest
+        );
+        for (i, &k) in MajorantKind::ALL.iter().enumerate() {
+            log_slowdown[i] += (ns_of(k) / fastest).ln();
+        }
+        log_slowdown[3] += (ns_of(c.auto) / fastest).ln();
+    }
+    let n = cases.len().max(1) as f64;
+    let g = log_slowdown.map(|l| (l / n).exp());
+    println!(
+        "\ngeometric-mean time relative to the fastest structure per case: global {:.2}, grid16 {:.2}, adaptive {:.2}, auto {:.2}",
+        g[0], g[1], g[2], g[3]
     );
 }
 
@@ -239,9 +306,13 @@ fn main() {
             s.join("real/elyg_pig.vdb"),
         ];
     }
+    let mut cases = Vec::new();
     for f in &files {
         for &tau in &taus {
-            bench_file(f, n_rays, tau, &kinds, csv);
+            cases.extend(bench_file(f, n_rays, tau, &kinds, csv));
         }
+    }
+    if kinds.len() == MajorantKind::ALL.len() {
+        print_summary(&cases);
     }
 }

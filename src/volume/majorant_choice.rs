@@ -9,9 +9,10 @@
 //! The choice is made by a pilot: [`PILOT_RAYS`] fixed-seed rays from the grid's bounding sphere towards points
 //! inside its bounds are tracked through each structure, once by delta tracking (a free flight) and once by
 //! ratio tracking (a shadow ray), counting density lookups and majorant cells walked. The estimated cost is
-//! [`NS_PER_LOOKUP`] per lookup plus [`NS_PER_CELL`] per cell, constants fitted to `cargo bench --bench majorants`
-//! over six corpus grids at mean optical depths 0.1 to 100 (see `docs/method_choices.md`). The pilot counts
-//! work, never time, so the choice is the same on every machine and run.
+//! [`NS_PER_LOOKUP`] per lookup plus [`NS_PER_CELL`] per cell, constants fitted by `benches/fit_majorant_costs.py`
+//! to `cargo bench --bench majorants -- --csv` timings of five corpus grids at mean optical depths 0.1 to 100
+//! (see `docs/method_choices.md`). The pilot counts work, never time, so the choice is the same on every machine
+//! and run.
 
 use super::density::{DensityField, GridDensity};
 use super::majorant::{MajorantKind, Majorants};
