@@ -167,7 +167,7 @@ impl Medium for NoiseMedium {
     }
 
     fn method(&self) -> String {
-        "ratio-tracked transmittance (absorption only, constant majorant)".into()
+        "ratio-tracked transmittance, no collisions (absorption only; one majorant, the noise's maximum)".into()
     }
 
     fn fill_bounds(&self) -> Option<Aabb> {
