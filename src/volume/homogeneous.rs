@@ -14,9 +14,25 @@
 //!   probability proportional to the path's throughput in it (as Cycles and Mitsuba 3 do), and its exponential
 //!   sampled; the pdf is the mixture p̄(t) = Σ_c w_c σ_c exp(−σ_c t), so the throughput weight
 //!   σ_t T(t) / p̄(t) stays bounded for any chromaticity.
+//!
+//! [`ChannelChoice`] overrides the automatic pick, so that benchmarks (`cargo bench --bench method_choices`) can
+//! measure what each choice wins: forced spectral MIS on a grey medium, or a uniform channel choice.
 
 use super::{Collision, Medium, PhaseFunction, TrackingCounters};
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
+
+/// How free-flight sampling picks the channel whose exponential it samples.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ChannelChoice {
+    /// Grey σ_t samples its one exponential with weight 1; chromatic σ_t uses [`ChannelChoice::Throughput`].
+    #[default]
+    Auto,
+    /// Spectral MIS with channel probabilities ∝ path throughput, even when σ_t is grey.
+    Throughput,
+    /// Spectral MIS with each channel chosen with probability 1/3 (the mixture pdf of hero-wavelength
+    /// sampling); its weights grow with the path's chromatic history.
+    Uniform,
+}
 
 /// A medium with constant σ_a, σ_s and phase function.
 #[derive(Clone, Debug)]
@@ -25,6 +41,7 @@ pub struct HomogeneousMedium {
     sigma_s: Rgb,
     sigma_t: Rgb,
     phase: PhaseFunction,
+    channel_choice: ChannelChoice,
 }
 
 fn exp_neg(v: Rgb) -> Rgb {
@@ -41,6 +58,26 @@ impl HomogeneousMedium {
             sigma_s,
             sigma_t: sigma_a + sigma_s,
             phase: PhaseFunction::henyey_greenstein(g),
+            channel_choice: ChannelChoice::Auto,
+        }
+    }
+
+    /// The same medium with free-flight channels chosen by `choice` instead of automatically.
+    pub fn with_channel_choice(mut self, choice: ChannelChoice) -> Self {
+        self.channel_choice = choice;
+        self
+    }
+
+    /// True when free flights sample one exponential shared by all channels (weights 1, no MIS).
+    fn samples_single_channel(&self) -> bool {
+        self.channel_choice == ChannelChoice::Auto && self.is_grey()
+    }
+
+    /// Channel-selection probabilities for a path of `throughput`.
+    fn channel_weights(&self, throughput: Rgb) -> Rgb {
+        match self.channel_choice {
+            ChannelChoice::Uniform => Rgb::splat(1.0 / 3.0),
+            _ => throughput_weights(throughput),
         }
     }
 
@@ -62,11 +99,17 @@ impl Medium for HomogeneousMedium {
 
     fn method(&self) -> String {
         if self.is_absorbing_only() {
-            "closed-form transmittance (absorption only)".into()
-        } else if self.is_grey() {
-            "closed-form free flight (grey)".into()
+            "closed-form transmittance exp(-sigma_a d), no collisions sampled (absorption only: sigma_s = 0)"
+                .into()
+        } else if self.samples_single_channel() {
+            "closed-form free flight, one exponential for all channels (grey sigma_t: no spectral MIS)".into()
         } else {
-            "closed-form free flight, spectral MIS over channels".into()
+            let why = match (self.channel_choice, self.is_grey()) {
+                (ChannelChoice::Uniform, _) => "uniform channel choice (forced)",
+                (_, true) => "channel by path throughput (forced on grey sigma_t)",
+                (_, false) => "channel by path throughput (chromatic sigma_t)",
+            };
+            format!("closed-form free flight, spectral MIS over channels, {why}")
         }
     }
 
@@ -89,11 +132,10 @@ impl Medium for HomogeneousMedium {
         if self.is_absorbing_only() {
             return None;
         }
-        // Channel choice ∝ throughput; for a grey medium every channel is the same.
-        let channel = if self.is_grey() {
+        let channel = if self.samples_single_channel() {
             0
         } else {
-            let w = channel_weights(throughput);
+            let w = self.channel_weights(throughput);
             let u = rng.next_f32();
             if u < w.x {
                 0
@@ -128,10 +170,10 @@ impl Medium for HomogeneousMedium {
         if self.is_absorbing_only() {
             return transmittance;
         }
-        if self.is_grey() {
+        if self.samples_single_channel() {
             return Rgb::ONE;
         }
-        let w = channel_weights(throughput);
+        let w = self.channel_weights(throughput);
         if collided {
             // σ_t T(t) / p̄(t) with p̄(t) = Σ_c w_c σ_c exp(−σ_c t).
             let pdf = (self.sigma_t * transmittance).dot(w);
@@ -180,7 +222,7 @@ impl Medium for HomogeneousMedium {
 }
 
 /// Channel-selection probabilities ∝ throughput (uniform when the throughput is zero or not finite).
-fn channel_weights(throughput: Rgb) -> Rgb {
+fn throughput_weights(throughput: Rgb) -> Rgb {
     let t = throughput.abs();
     let sum = t.x + t.y + t.z;
     if sum > 0.0 && sum.is_finite() {
@@ -246,6 +288,31 @@ mod tests {
             &HomogeneousMedium::new("absorbing", Rgb::new(0.4, 0.8, 1.2), Rgb::ZERO, 0.0),
             2.0,
         );
+    }
+
+    #[test]
+    fn every_channel_choice_gives_the_slab_transmittance() {
+        for choice in [ChannelChoice::Throughput, ChannelChoice::Uniform] {
+            let grey = HomogeneousMedium::new("grey", Rgb::splat(0.3), Rgb::splat(0.5), 0.0)
+                .with_channel_choice(choice);
+            check_slab(&grey, 1.2);
+            let chromatic =
+                HomogeneousMedium::new("chromatic", Rgb::ZERO, Rgb::new(0.2, 2.0, 20.0), 0.0)
+                    .with_channel_choice(choice);
+            check_slab(&chromatic, 0.3);
+        }
+    }
+
+    #[test]
+    fn method_says_which_estimator_and_why() {
+        let absorbing = HomogeneousMedium::new("a", Rgb::ONE, Rgb::ZERO, 0.0);
+        assert!(absorbing.method().contains("absorption only"));
+        let grey = HomogeneousMedium::new("g", Rgb::ZERO, Rgb::ONE, 0.0);
+        assert!(grey.method().contains("no spectral MIS"));
+        let forced = grey.clone().with_channel_choice(ChannelChoice::Throughput);
+        assert!(forced.method().contains("forced on grey"));
+        let chromatic = HomogeneousMedium::new("c", Rgb::ZERO, Rgb::new(1.0, 10.0, 100.0), 0.0);
+        assert!(chromatic.method().contains("chromatic sigma_t"));
     }
 
     #[test]
