@@ -186,7 +186,14 @@ impl Medium for GridMedium {
                 costs.join(", ")
             )
         };
-        format!("delta tracking over {majorant}{why}, closed form on constant-density segments; {shadow} for shadow rays")
+        // Only structures that store minorants can find segments of constant density (`Segment::is_uniform`).
+        let closed_form = match self.majorants.kind() {
+            MajorantKind::Grid16 => "",
+            MajorantKind::Global | MajorantKind::Adaptive => {
+                ", closed form on constant-density segments"
+            }
+        };
+        format!("delta tracking over {majorant}{why}{closed_form}; {shadow} for shadow rays")
     }
 
     fn memory_bytes(&self) -> usize {
