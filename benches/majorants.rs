@@ -1,7 +1,8 @@
 //! Majorant benchmark: Global vs Grid16 vs Adaptive majorants for delta and ratio tracking through VDB grids, and
 //! how close `auto` (the pilot of `nimbus::volume::majorant_choice`) comes to the fastest.
 //!
-//! `cargo bench --bench majorants -- [FILE.vdb ...] [--rays N] [--tau T[,T...]] [--kind KIND] [--csv]`
+//! `cargo bench --bench majorants -- [FILE.vdb ...] [--rays N] [--tau T[,T...]] [--kind KIND] [--csv]
+//! [--chart DIR]`
 //! (defaults: the shared corpus `generated/e_big256.vdb` and `real/elyg_pig.vdb` under `$NIMBUS_SHARED_DIR` or
 //! `../shared`, 20000 rays, a density scale giving a mean optical depth T = 10 along the rays).
 //! Single-threaded; times are wall-clock, the best of 3 interleaved rounds (build: best of 3).
@@ -10,9 +11,11 @@
 //! transmittance, and the mean transmittance (which must agree across kinds within the printed standard errors);
 //! then auto's pick. With every kind it ends with a markdown table of auto against the fastest per case. `--csv`
 //! adds machine-readable rows, the input of `benches/fit_majorant_costs.py` (which fits the pilot's cost
-//! constants).
+//! constants). `--chart DIR` writes `DIR/majorants.png`/`.svg`: per optical depth, each structure's and auto's time
+//! relative to the fastest structure, geometric mean over the grids.
 
 use glam::DMat4;
+use nimbus::converge::{draw_loglog_chart, LegendCorner, LogLogChart, Series};
 use nimbus::math::Rng;
 use nimbus::vdb::read_file;
 use nimbus::volume::density::GridDensity;
@@ -274,7 +277,58 @@ fn print_summary(cases: &[Case]) {
     );
 }
 
+/// Draws each structure's and auto's time relative to the fastest per case, geometric mean over the grids at each
+/// optical depth, against the optical depth.
+fn draw_slowdown_chart(cases: &[Case], dir: &Path) -> Result<(), String> {
+    let mut taus: Vec<f64> = cases.iter().map(|c| c.tau).collect();
+    taus.sort_by(f64::total_cmp);
+    taus.dedup();
+    let ns_of =
+        |c: &Case, k: MajorantKind| c.ns.iter().find(|x| x.0 == k).map_or(f64::NAN, |x| x.1);
+    let slowdown = |pick: &dyn Fn(&Case) -> MajorantKind| -> Vec<(f64, f64)> {
+        taus.iter()
+            .map(|&tau| {
+                let at: Vec<&Case> = cases.iter().filter(|c| c.tau == tau).collect();
+                let log_sum: f64 = at
+                    .iter()
+                    .map(|c| {
+                        let fastest = c.ns.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
+                        (ns_of(c, pick(c)) / fastest).ln()
+                    })
+                    .sum();
+                (tau, (log_sum / at.len() as f64).exp())
+            })
+            .collect()
+    };
+    let mut series: Vec<Series> = MajorantKind::ALL
+        .iter()
+        .map(|&k| Series {
+            label: k.name().into(),
+            points: slowdown(&|_| k),
+        })
+        .collect();
+    series.push(Series {
+        label: "auto (pilot's pick)".into(),
+        points: slowdown(&|c| c.auto),
+    });
+    let chart = LogLogChart {
+        caption: "Majorant structures: time per ray relative to the fastest".into(),
+        x_desc: "mean optical depth along the rays".into(),
+        y_desc: "time / fastest (geometric mean over grids)".into(),
+        series,
+        guide: None,
+        legend: LegendCorner::UpperLeft,
+    };
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    draw_loglog_chart(
+        &chart,
+        &dir.join("majorants.png"),
+        &dir.join("majorants.svg"),
+    )
+}
+
 fn main() {
+    let mut chart_dir = None;
     let mut files = Vec::new();
     let mut n_rays = 20_000usize;
     let mut taus = vec![10.0f64];
@@ -295,6 +349,7 @@ fn main() {
                     .unwrap_or(taus)
             }
             "--csv" => csv = true,
+            "--chart" => chart_dir = args.next().map(PathBuf::from),
             s if s.starts_with("--") => {}
             s => files.push(PathBuf::from(s)),
         }
@@ -314,5 +369,11 @@ fn main() {
     }
     if kinds.len() == MajorantKind::ALL.len() {
         print_summary(&cases);
+        if let Some(dir) = chart_dir {
+            match draw_slowdown_chart(&cases, &dir) {
+                Ok(()) => println!("wrote {}/majorants.{{png,svg}}", dir.display()),
+                Err(e) => println!("chart not written: {e}"),
+            }
+        }
     }
 }

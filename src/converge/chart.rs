@@ -1,5 +1,6 @@
-//! The log-log convergence chart (RMSE against render seconds, one curve per method, and a 1/√t guide),
-//! drawn with `plotters` to PNG and SVG. Text uses the bundled DejaVu Sans Mono (no system fonts needed).
+//! Log-log charts drawn with `plotters` to PNG and SVG: the convergence chart (RMSE against render seconds, one
+//! curve per method, and a 1/√t guide) and any other [`LogLogChart`] (the benches' charts). Text uses the bundled
+//! DejaVu Sans Mono (no system fonts needed).
 
 use super::summary::Curve;
 use plotters::coord::Shift;
@@ -25,8 +26,70 @@ const COLORS: [RGBColor; 7] = [
     RGBColor(140, 86, 75),
 ];
 
-/// Draws the chart of `curves` to `png` and `svg`.
+/// One curve of a log-log chart: a legend label and its (x, y) points.
+#[derive(Clone, Debug)]
+pub struct Series {
+    /// The legend label.
+    pub label: String,
+    /// Points in drawing order; those with a non-positive or non-finite coordinate are left out.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// What a log-log chart shows: its caption, axis titles, curves, and an optional power-law guide line.
+#[derive(Clone, Debug)]
+pub struct LogLogChart {
+    /// The caption above the plot.
+    pub caption: String,
+    /// The x-axis title.
+    pub x_desc: String,
+    /// The y-axis title.
+    pub y_desc: String,
+    /// The curves, coloured in order.
+    pub series: Vec<Series>,
+    /// A grey guide y ∝ x^exponent through the first series' first point, with its legend label.
+    pub guide: Option<(f64, String)>,
+    /// The corner the legend sits in (chosen where it hides no curve).
+    pub legend: LegendCorner,
+}
+
+/// A corner of the plot area.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LegendCorner {
+    /// Top left.
+    UpperLeft,
+    /// Top right.
+    UpperRight,
+    /// Bottom left.
+    LowerLeft,
+    /// Bottom right.
+    LowerRight,
+}
+
+/// Draws the convergence chart of `curves` (RMSE against seconds, with a 1/√t guide) to `png` and `svg`.
 pub fn draw_chart(curves: &[Curve], png: &Path, svg: &Path) -> Result<(), String> {
+    let chart = LogLogChart {
+        caption: "RMSE vs render time".into(),
+        x_desc: "render seconds".into(),
+        y_desc: "RMSE".into(),
+        series: curves
+            .iter()
+            .map(|c| Series {
+                label: c.method.name().into(),
+                points: c
+                    .points
+                    .iter()
+                    .map(|p| (p.seconds, p.metrics.rmse))
+                    .collect(),
+            })
+            .collect(),
+        guide: Some((-0.5, "1/sqrt(t)".into())),
+        legend: LegendCorner::UpperRight,
+    };
+    draw_loglog_chart(&chart, png, svg)
+}
+
+/// Draws `chart` to `png` and `svg`.
+pub fn draw_loglog_chart(chart: &LogLogChart, png: &Path, svg: &Path) -> Result<(), String> {
     static REGISTER: Once = Once::new();
     REGISTER.call_once(|| {
         // The bundled font is valid; a failure would only make text invisible.
@@ -35,7 +98,7 @@ pub fn draw_chart(curves: &[Curve], png: &Path, svg: &Path) -> Result<(), String
     let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
-        draw(&root, curves).map_err(|e| format!("{}: {e}", png.display()))?;
+        draw(&root, chart).map_err(|e| format!("{}: {e}", png.display()))?;
         root.present()
             .map_err(|e| format!("{}: {e}", png.display()))?;
     }
@@ -44,68 +107,82 @@ pub fn draw_chart(curves: &[Curve], png: &Path, svg: &Path) -> Result<(), String
         .save(png)
         .map_err(|e| format!("{}: {e}", png.display()))?;
     let root = SVGBackend::new(svg, SIZE).into_drawing_area();
-    draw(&root, curves).map_err(|e| format!("{}: {e}", svg.display()))?;
+    draw(&root, chart).map_err(|e| format!("{}: {e}", svg.display()))?;
     root.present()
         .map_err(|e| format!("{}: {e}", svg.display()))
 }
 
+fn positive(v: f64) -> bool {
+    v.is_finite() && v > 0.0
+}
+
+/// Formats an axis label: plain decimals from 0.01 to 10⁴, scientific notation beyond.
+fn axis_label(v: f64) -> String {
+    if (1e-2..1e4).contains(&v.abs()) {
+        format!("{v:.3}")
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .to_owned()
+    } else {
+        format!("{v:.1e}")
+    }
+}
+
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    curves: &[Curve],
+    spec: &LogLogChart,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     root.fill(&WHITE)?;
-    let points = curves.iter().flat_map(|c| &c.points);
-    let positive = |v: f64| v.is_finite() && v > 0.0;
-    let (mut t0, mut t1, mut e0, mut e1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for p in points.filter(|p| positive(p.seconds) && positive(p.metrics.rmse)) {
-        t0 = t0.min(p.seconds);
-        t1 = t1.max(p.seconds);
-        e0 = e0.min(p.metrics.rmse);
-        e1 = e1.max(p.metrics.rmse);
+    let visible = |s: &Series| -> Vec<(f64, f64)> {
+        s.points
+            .iter()
+            .copied()
+            .filter(|&(x, y)| positive(x) && positive(y))
+            .collect()
+    };
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for (x, y) in spec.series.iter().flat_map(visible) {
+        (x0, x1) = (x0.min(x), x1.max(x));
+        (y0, y1) = (y0.min(y), y1.max(y));
     }
-    if t0 > t1 {
-        (t0, t1, e0, e1) = (1e-3, 1.0, 1e-3, 1.0);
+    if x0 > x1 {
+        (x0, x1, y0, y1) = (1e-3, 1.0, 1e-3, 1.0);
     }
-    let (t0, t1) = (t0 / 1.5, t1 * 1.5);
-    let (e0, e1) = (e0 / 1.5, e1 * 1.5);
+    let (x0, x1) = (x0 / 1.5, x1 * 1.5);
+    let (y0, y1) = (y0 / 1.5, y1 * 1.5);
     let mut chart = ChartBuilder::on(root)
-        .caption("RMSE vs render time", (FONT, 24))
+        .caption(&spec.caption, (FONT, 24))
         .margin(16)
         .x_label_area_size(48)
         .y_label_area_size(80)
-        .build_cartesian_2d((t0..t1).log_scale(), (e0..e1).log_scale())?;
+        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
     chart
         .configure_mesh()
-        .x_desc("render seconds")
-        .y_desc("RMSE")
+        .x_desc(&spec.x_desc)
+        .y_desc(&spec.y_desc)
         .label_style((FONT, 14))
-        .x_label_formatter(&|v| format!("{v:.3}"))
-        .y_label_formatter(&|v| format!("{v:.1e}"))
+        .x_label_formatter(&|v| axis_label(*v))
+        .y_label_formatter(&|v| axis_label(*v))
         .draw()?;
-    for (i, c) in curves.iter().enumerate() {
+    for (i, s) in spec.series.iter().enumerate() {
         let color = COLORS[i % COLORS.len()];
-        let data: Vec<(f64, f64)> = c
-            .points
-            .iter()
-            .filter(|p| positive(p.seconds) && positive(p.metrics.rmse))
-            .map(|p| (p.seconds, p.metrics.rmse))
-            .collect();
+        let data = visible(s);
         chart
             .draw_series(LineSeries::new(data.clone(), color.stroke_width(2)))?
-            .label(c.method.name())
+            .label(&s.label)
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color.stroke_width(2)));
         chart.draw_series(data.into_iter().map(|p| Circle::new(p, 3, color.filled())))?;
     }
-    // 1/√t guide through the first method's first checkpoint.
-    if let Some(p) = curves.iter().find_map(|c| c.points.first()) {
-        let guide = |t: f64| p.metrics.rmse * (p.seconds / t).sqrt();
+    let anchor = spec.series.iter().find_map(|s| visible(s).first().copied());
+    if let (Some((exponent, label)), Some((ax, ay))) = (&spec.guide, anchor) {
+        let guide = |x: f64| ay * (x / ax).powf(*exponent);
         let grey = RGBColor(150, 150, 150);
         chart
             .draw_series(LineSeries::new(
-                [(t0, guide(t0)), (t1, guide(t1))],
+                [(x0, guide(x0)), (x1, guide(x1))],
                 grey.stroke_width(1),
             ))?
-            .label("1/sqrt(t)")
+            .label(label)
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], grey.stroke_width(1)));
     }
     chart
@@ -113,7 +190,12 @@ fn draw<DB: DrawingBackend>(
         .label_font((FONT, 14))
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
+        .position(match spec.legend {
+            LegendCorner::UpperLeft => SeriesLabelPosition::UpperLeft,
+            LegendCorner::UpperRight => SeriesLabelPosition::UpperRight,
+            LegendCorner::LowerLeft => SeriesLabelPosition::LowerLeft,
+            LegendCorner::LowerRight => SeriesLabelPosition::LowerRight,
+        })
         .draw()?;
     Ok(())
 }

@@ -7,7 +7,7 @@ mod methods;
 mod metrics;
 mod summary;
 
-pub use chart::draw_chart;
+pub use chart::{draw_chart, draw_loglog_chart, LegendCorner, LogLogChart, Series};
 pub use methods::Method;
 pub use metrics::{error_metrics, ErrorMetrics};
 pub use summary::{
