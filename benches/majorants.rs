@@ -48,6 +48,21 @@ struct Case {
     auto: MajorantKind,
 }
 
+impl Case {
+    /// Measured ns per ray of `kind` (NaN when it was not run).
+    fn ns_of(&self, kind: MajorantKind) -> f64 {
+        self.ns
+            .iter()
+            .find(|x| x.0 == kind)
+            .map_or(f64::NAN, |x| x.1)
+    }
+
+    /// The fastest structure's ns per ray.
+    fn fastest(&self) -> f64 {
+        self.ns.iter().map(|x| x.1).fold(f64::INFINITY, f64::min)
+    }
+}
+
 fn bench_file(
     path: &Path,
     n_rays: usize,
@@ -243,12 +258,11 @@ fn print_summary(cases: &[Case]) {
     println!("|---|---|---|---|---|---|---|");
     let mut log_slowdown = [0.0f64; 4];
     for c in cases {
-        let fastest = c.ns.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
-        let ns_of = |k: MajorantKind| c.ns.iter().find(|x| x.0 == k).map_or(f64::NAN, |x| x.1);
+        let fastest = c.fastest();
         let cells: Vec<String> = MajorantKind::ALL
             .iter()
             .map(|&k| {
-                let v = ns_of(k);
+                let v = c.ns_of(k);
                 if v == fastest {
                     format!("**{v:.0}**")
                 } else {
@@ -262,12 +276,12 @@ fn print_summary(cases: &[Case]) {
             c.tau,
             cells.join(" | "),
             c.auto.name(),
-            ns_of(c.auto) / fastest
+            c.ns_of(c.auto) / fastest
         );
         for (i, &k) in MajorantKind::ALL.iter().enumerate() {
-            log_slowdown[i] += (ns_of(k) / fastest).ln();
+            log_slowdown[i] += (c.ns_of(k) / fastest).ln();
         }
-        log_slowdown[3] += (ns_of(c.auto) / fastest).ln();
+        log_slowdown[3] += (c.ns_of(c.auto) / fastest).ln();
     }
     let n = cases.len().max(1) as f64;
     let g = log_slowdown.map(|l| (l / n).exp());
@@ -283,18 +297,13 @@ fn draw_slowdown_chart(cases: &[Case], dir: &Path) -> Result<(), String> {
     let mut taus: Vec<f64> = cases.iter().map(|c| c.tau).collect();
     taus.sort_by(f64::total_cmp);
     taus.dedup();
-    let ns_of =
-        |c: &Case, k: MajorantKind| c.ns.iter().find(|x| x.0 == k).map_or(f64::NAN, |x| x.1);
     let slowdown = |pick: &dyn Fn(&Case) -> MajorantKind| -> Vec<(f64, f64)> {
         taus.iter()
             .map(|&tau| {
                 let at: Vec<&Case> = cases.iter().filter(|c| c.tau == tau).collect();
                 let log_sum: f64 = at
                     .iter()
-                    .map(|c| {
-                        let fastest = c.ns.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
-                        (ns_of(c, pick(c)) / fastest).ln()
-                    })
+                    .map(|c| (c.ns_of(pick(c)) / c.fastest()).ln())
                     .sum();
                 (tau, (log_sum / at.len() as f64).exp())
             })

@@ -68,6 +68,11 @@ fn homogeneous_box(medium: HomogeneousMedium) -> SceneBuilder {
     box_scene(Arc::new(medium), true)
 }
 
+/// A purely scattering (albedo 1) grey medium of extinction `sigma`, for white furnaces.
+fn grey_medium(sigma: f32) -> HomogeneousMedium {
+    HomogeneousMedium::new("grey", Rgb::ZERO, Rgb::splat(sigma), 0.0)
+}
+
 /// The box [-1,1]³ as a constant grid of 64³ voxels of density `sigma`, albedo 1.
 fn constant_grid(sigma: f32) -> GridMedium {
     let n = 64;
@@ -254,10 +259,9 @@ fn print_comparison(title: &str, labels: &[&str], m: &[Measured]) {
 
 fn constant_density(budget: Budget) {
     let sigma = 2.0;
-    let homogeneous = HomogeneousMedium::new("box", Rgb::ZERO, Rgb::splat(sigma), 0.0);
     let grid = constant_grid(sigma);
     let n = if budget.spp < 64 { 20_000 } else { 200_000 };
-    let (h_ns, h_mse, h_lookups) = per_ray(&homogeneous, sigma, n);
+    let (h_ns, h_mse, h_lookups) = per_ray(&grey_medium(sigma), sigma, n);
     let (g_ns, g_mse, g_lookups) = per_ray(&grid, sigma, n);
     println!("\n### Constant density → closed form: the estimators alone ({n} rays inside the box, no geometry)\n");
     println!("| medium | ns per ray (free flight + transmittance) | transmittance MSE | lookups per ray |");
@@ -270,14 +274,7 @@ fn constant_density(budget: Budget) {
     );
     let m = measure(
         &[
-            &|| {
-                homogeneous_box(HomogeneousMedium::new(
-                    "box",
-                    Rgb::ZERO,
-                    Rgb::splat(sigma),
-                    0.0,
-                ))
-            },
+            &|| homogeneous_box(grey_medium(sigma)),
             &|| constant_grid_box(sigma, true),
             &|| constant_grid_box(sigma, false),
         ],
@@ -320,10 +317,9 @@ fn absorption_only(budget: Budget) {
 }
 
 fn grey_extinction(budget: Budget) {
-    let grey = || HomogeneousMedium::new("box", Rgb::ZERO, Rgb::splat(2.0), 0.0);
     let m = measure(
-        &[&|| homogeneous_box(grey()), &|| {
-            homogeneous_box(grey().with_channel_choice(ChannelChoice::Throughput))
+        &[&|| homogeneous_box(grey_medium(2.0)), &|| {
+            homogeneous_box(grey_medium(2.0).with_channel_choice(ChannelChoice::Throughput))
         }],
         &white,
         budget,
@@ -374,30 +370,9 @@ fn chromaticity(budget: Budget, out: &std::path::Path) {
         // Three grey renders: channel c of the answer comes from a render of the grey medium σ_t = sigma[c].
         let greys = measure(
             &[
-                &|| {
-                    homogeneous_box(HomogeneousMedium::new(
-                        "r",
-                        Rgb::ZERO,
-                        Rgb::splat(sigma.x),
-                        0.0,
-                    ))
-                },
-                &|| {
-                    homogeneous_box(HomogeneousMedium::new(
-                        "g",
-                        Rgb::ZERO,
-                        Rgb::splat(sigma.y),
-                        0.0,
-                    ))
-                },
-                &|| {
-                    homogeneous_box(HomogeneousMedium::new(
-                        "b",
-                        Rgb::ZERO,
-                        Rgb::splat(sigma.z),
-                        0.0,
-                    ))
-                },
+                &|| homogeneous_box(grey_medium(sigma.x)),
+                &|| homogeneous_box(grey_medium(sigma.y)),
+                &|| homogeneous_box(grey_medium(sigma.z)),
             ],
             &white,
             budget,

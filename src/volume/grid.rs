@@ -186,12 +186,10 @@ impl Medium for GridMedium {
                 costs.join(", ")
             )
         };
-        // Only structures that store minorants can find segments of constant density (`Segment::is_uniform`).
-        let closed_form = match self.majorants.kind() {
-            MajorantKind::Grid16 => "",
-            MajorantKind::Global | MajorantKind::Adaptive => {
-                ", closed form on constant-density segments"
-            }
+        let closed_form = if self.majorants.stores_minorants() {
+            ", closed form on constant-density segments"
+        } else {
+            ""
         };
         format!("delta tracking over {majorant}{why}{closed_form}; {shadow} for shadow rays")
     }

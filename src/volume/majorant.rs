@@ -448,6 +448,12 @@ impl Majorants {
         self.kind
     }
 
+    /// True when the segments carry minorants (σ_min > 0 where the density allows), so that tracking can find
+    /// segments of constant density (`Segment::is_uniform`). The 16³ grid stores majorants only.
+    pub fn stores_minorants(&self) -> bool {
+        self.kind != MajorantKind::Grid16
+    }
+
     /// The largest majorant anywhere.
     pub fn global_max(&self) -> f32 {
         self.sigma_max
