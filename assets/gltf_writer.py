@@ -224,7 +224,7 @@ class GltfBuilder:
         return self.add_node(node)
 
     def directional_light(self, name, direction, color, intensity):
-        """KHR_lights_punctual directional light shining along `direction`; intensity in lux (W/m^2 for us)"""
+        """KHR_lights_punctual directional light shining along `direction`; intensity in lux (glTF's photometric unit: W/m^2 = lx / 683)"""
         self.lights.append({"name": name, "type": "directional", "color": list(color), "intensity": intensity})
         return self.add_node({"name": name, "rotation": look_rotation(direction),
                               "extensions": {"KHR_lights_punctual": {"light": len(self.lights) - 1}}})

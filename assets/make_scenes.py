@@ -58,8 +58,9 @@ def cloud_scene():
     b.quad("ground", [[-g, 0, g], [g, 0, g], [g, 0, -g], [-g, 0, -g]], ground)
     # the cloud's base 1 m above the ground
     b.volume_node("cloud_volume", dict(CLOUD), translation=[0.0, 1.0, 0.0])
-    # the sun ~58 degrees high, from the front right: lit side towards the camera, shadow behind-left on the ground
-    b.directional_light("sun", direction=[-0.5, -1.0, -0.35], color=[1.0, 0.9, 0.75], intensity=3.0)
+    # the sun ~58 degrees high, from the front right: lit side towards the camera, shadow behind-left on the ground;
+    # 2049 lx is 3 W/m^2 at glTF's 683 lm/W
+    b.directional_light("sun", direction=[-0.5, -1.0, -0.35], color=[1.0, 0.9, 0.75], intensity=3.0 * 683)
     b.camera("camera", eye=[0.4, 1.6, 4.2], target=[-0.1, 1.2, 0.0], yfov_deg=32, aspect=16 / 9)
     out = os.path.join(ASSETS, "cloud.gltf")
     written(out, b.write(out, GENERATOR, scene_extras={"nimbus_environment": {"color": [0.35, 0.5, 0.8]},

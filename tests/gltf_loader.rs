@@ -1,6 +1,8 @@
 //! glTF and OBJ loading: features that must work, and malformed input that must give an error naming the
 //! file, never a panic.
 
+mod common;
+
 use nimbus::scene::{gltf, load_builder, SceneErrorKind};
 use std::path::{Path, PathBuf};
 
@@ -205,4 +207,101 @@ fn obj_with_mtl_maps_diffuse_and_emission() {
     assert_eq!(scene.lights.len(), 1, "the emissive face is an area light");
     let err = load_builder(&dir.join("absent.obj")).err().unwrap();
     assert!(err.to_string().contains("absent.obj"));
+}
+
+/// `realworld/gltf/TextureSettingsTest` pairs two images with five samplers: each texture must keep its own
+/// sampler, even where another texture already uses the same image.
+#[test]
+fn textures_sharing_an_image_keep_their_own_samplers() {
+    use nimbus::material::Wrap::{ClampToEdge, MirroredRepeat, Repeat};
+    let Some(shared) = common::shared_dir() else {
+        return;
+    };
+    let path = shared.join("realworld/gltf/TextureSettingsTest/TextureSettingsTest.gltf");
+    let builder = load_builder(&path).unwrap();
+    let expected = [
+        ("TextureMirrorMaterialT", Repeat, MirroredRepeat),
+        ("TextureMirrorMaterialS", MirroredRepeat, Repeat),
+        ("TextureRepeatMaterialT", ClampToEdge, Repeat),
+        ("TextureClampMaterialT", Repeat, ClampToEdge),
+        ("TextureRepeatMaterialS", Repeat, ClampToEdge),
+        ("TextureClampMaterialS", ClampToEdge, Repeat),
+        ("DoubleSidedMaterial", Repeat, Repeat),
+    ];
+    for (name, wrap_s, wrap_t) in expected {
+        let material = builder
+            .materials
+            .iter()
+            .find(|m| m.name == name)
+            .unwrap_or_else(|| panic!("material {name} missing"));
+        let texture = &builder.textures[material.base_color_texture.unwrap() as usize];
+        let sampler = texture.sampler();
+        assert_eq!((sampler.wrap_s, sampler.wrap_t), (wrap_s, wrap_t), "{name}");
+        // NEAREST_MIPMAP_LINEAR minification, LINEAR magnification.
+        assert_eq!(sampler.min, nimbus::material::Filter::Nearest, "{name}");
+        assert_eq!(
+            sampler.mip,
+            Some(nimbus::material::Filter::Linear),
+            "{name}"
+        );
+        assert_eq!(sampler.mag, nimbus::material::Filter::Linear, "{name}");
+    }
+    // Textures of one image share its decoded pixels: TextureMirrorTextureT and TextureRepeatTextureT both
+    // read CheckAndX_V.png.
+    let texture_of = |name: &str| {
+        let m = builder.materials.iter().find(|m| m.name == name).unwrap();
+        &builder.textures[m.base_color_texture.unwrap() as usize]
+    };
+    assert!(std::sync::Arc::ptr_eq(
+        texture_of("TextureMirrorMaterialT").image(),
+        texture_of("TextureRepeatMaterialT").image()
+    ));
+}
+
+/// KHR_lights_punctual intensities are photometric (cd, lx) and become W/sr and W/m² at 683 lm/W, unless the
+/// scene's extras say they are radiometric already.
+#[test]
+fn punctual_light_units_are_photometric_unless_the_scene_says_radiometric() {
+    use nimbus::light::Light;
+    let dir = temp_dir("light-units");
+    let lights = r#""extensionsUsed":["KHR_lights_punctual"],
+        "extensions":{"KHR_lights_punctual":{"lights":[
+            {"type":"point","intensity":683.0,"color":[1,0.5,0.25]},
+            {"type":"directional","intensity":1366.0}]}},"#;
+    let nodes = r#""nodes":[{"extensions":{"KHR_lights_punctual":{"light":0}}},
+                            {"extensions":{"KHR_lights_punctual":{"light":1}}}]"#;
+    let intensities = |scene_extras: &str| {
+        let text = format!(
+            r#"{{"asset":{{"version":"2.0"}},{lights}"scene":0,
+                "scenes":[{{"nodes":[0,1]{scene_extras}}}],{nodes}}}"#
+        );
+        let path = write(&dir, "lights.gltf", &text);
+        let b = load_builder(&path).map_err(|e| e.to_string())?;
+        let point = b.lights.iter().find_map(|l| match l {
+            Light::Point(p) => Some(p.intensity),
+            _ => None,
+        });
+        let sun = b.lights.iter().find_map(|l| match l {
+            Light::Directional(d) => Some(d.irradiance),
+            _ => None,
+        });
+        Ok::<_, String>((point.unwrap(), sun.unwrap()))
+    };
+    let (point, sun) = intensities("").unwrap();
+    assert!(
+        (point - nimbus::math::Vec3::new(1.0, 0.5, 0.25))
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+    assert!((sun.x - 2.0).abs() < 1e-6);
+    let (point, sun) = intensities(r#","extras":{"nimbus_light_units":"photometric"}"#).unwrap();
+    assert!((point.x - 1.0).abs() < 1e-6 && (sun.x - 2.0).abs() < 1e-6);
+    let (point, sun) = intensities(r#","extras":{"nimbus_light_units":"radiometric"}"#).unwrap();
+    assert!((point.x - 683.0).abs() < 1e-3 && (sun.x - 1366.0).abs() < 1e-3);
+    let err = intensities(r#","extras":{"nimbus_light_units":"watts"}"#).unwrap_err();
+    assert!(
+        err.contains("nimbus_light_units") && err.contains("lights.gltf"),
+        "{err}"
+    );
 }

@@ -27,7 +27,7 @@
 //! [`Bvh::intersect`] returns bit for bit what testing every triangle in input order returns.
 
 use super::triangle::{intersect_triangle, TriangleHit, WatertightRay};
-use crate::math::{Aabb, Ray, Vec3, Vec4};
+use crate::math::{gamma, Aabb, Ray, Vec3, Vec4};
 
 /// Number of centroid bins per axis in the binned SAH (Wald 2007 bins into a small fixed number of slabs; 16–32 is usual).
 const BINS: usize = 32;
@@ -47,13 +47,6 @@ const SAH_MAX_DEPTH: u32 = 64;
 const STACK_MAX: usize = 3 * (SAH_MAX_DEPTH as usize + 32) + 4;
 /// Stack size used when the tree's own bound allows it (nearly always), so each ray clears less memory.
 const STACK_SMALL: usize = 64;
-
-/// `γ(n) = n·ε / (1 - n·ε)` with `ε = 2⁻²⁴`, the bound on the relative error of `n` rounded operations
-/// (Pharr, Jakob, Humphreys, "Physically Based Rendering" 3rd ed., §3.9.1).
-const fn gamma(n: f32) -> f32 {
-    let e = f32::EPSILON * 0.5;
-    n * e / (1.0 - n * e)
-}
 
 /// Scale of a box's far distance. Ize 2013 shows `1 + 2γ(3)` covers the slab test's own rounding; we
 /// double it so it also covers the rounding of the triangle test's distance, so that a hit on a box's

@@ -8,9 +8,10 @@
 //! edge-function inputs along it, so a ray can never slip between them. (Section numbers of the papers
 //! are not cited because they were not checked against the published PDFs.)
 //!
-//! Triangles are hit from both sides; face culling is the integrator's job.
+//! Triangles are hit from both sides; face culling is the integrator's job. A hit closer to the origin than the
+//! distance's own rounding error is rejected, so a ray spawned off a surface never re-hits it.
 
-use crate::math::{Ray, Vec3};
+use crate::math::{gamma, Ray, Vec3};
 use glam::{Vec3A, Vec3Swizzles};
 
 /// A closest hit found by [`crate::geometry::Bvh::intersect`].
@@ -115,14 +116,38 @@ pub fn intersect_triangle(
     if det == 0.0 {
         return None;
     }
-    let z = row(ray.scale_z) * uvw;
+    let zs_scaled = row(ray.scale_z);
+    let z = zs_scaled * uvw;
     let t_scaled = z.x + z.y + z.z;
     let rcp = 1.0 / det;
     let t = t_scaled * rcp;
     if !(t >= t_min && t <= t_max) {
         return None;
     }
+    if t <= distance_error_bound(sx, sy, zs_scaled, uvw, rcp) {
+        // Too close to the origin to tell from rounding whether the hit is in front of it at all.
+        return None;
+    }
     Some((t, v * rcp, w * rcp))
+}
+
+/// A conservative bound on the rounding error of the distance computed by [`intersect_triangle`], from the
+/// magnitudes of the sheared vertex coordinates and edge functions (the forward error analysis of PBRT 4th ed.,
+/// §6.8.4, "Robust Triangle Intersections", applied to Woop et al.'s transform, which rounds no more). A hit
+/// whose distance does not exceed it may lie behind the origin, as it does for a ray leaving the surface it was
+/// spawned from: rejecting it is what lets offset ray origins (see [`crate::geometry::spawn`]) never re-hit
+/// their own triangle.
+#[inline(always)]
+fn distance_error_bound(sx: Vec3A, sy: Vec3A, sz: Vec3A, uvw: Vec3A, rcp: f32) -> f32 {
+    let max_z = sz.abs().max_element();
+    let max_x = sx.abs().max_element();
+    let max_y = sy.abs().max_element();
+    let delta_z = gamma(3.0) * max_z;
+    let delta_x = gamma(5.0) * (max_x + max_z);
+    let delta_y = gamma(5.0) * (max_y + max_z);
+    let delta_e = 2.0 * (gamma(2.0) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    let max_e = uvw.abs().max_element();
+    3.0 * (gamma(3.0) * max_e * max_z + delta_e * max_z + delta_z * max_e) * rcp.abs()
 }
 
 #[cfg(test)]

@@ -9,5 +9,5 @@ mod stats;
 
 pub use medium_stack::MediumStack;
 pub use path::{PathSample, PathTracer};
-pub use services::{offset_origin, ChosenLight, RendererServices};
+pub use services::{ChosenLight, RendererServices};
 pub use stats::{PathCounters, RayCounters};

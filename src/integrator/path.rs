@@ -7,15 +7,24 @@
 //! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. Nothing
 //! here depends on which tracking method a medium uses.
 //!
+//! Texture filtering: each path carries a ray cone (Akenine-Möller et al. 2021, "Improved Shader and Texture
+//! Level of Detail Using Ray Cones", JCGT 10(1)) that starts at the camera with the spread of one pixel. Its
+//! width at a hit, projected onto the surface, is the footprint over which textures are filtered
+//! ([`SurfaceHit::tex_coord`]). The width keeps growing with the distance travelled, through every bounce
+//! (surface curvature is not modelled). Emission is always read at full resolution, so that light sampling and
+//! BSDF sampling see the same emitter.
+//!
 //! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
 //! 1, ior 1, smooth) is not a scattering event and does not count.
 //!
 //! [`Medium::sample_free_flight`]: crate::volume::Medium::sample_free_flight
 //! [`Medium::free_flight_weight`]: crate::volume::Medium::free_flight_weight
+//! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
 
-use super::services::{offset_origin, RendererServices};
+use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
+use crate::geometry::SurfacePoint;
 use crate::math::{sampling::power_heuristic, Frame, Ray, Rgb, Rng, Vec3};
 
 /// Bounces after which Russian roulette may end a path.
@@ -45,6 +54,9 @@ pub struct PathTracer {
     /// reached from inside media by light sampling only: next-event estimation gets weight 1 and phase-sampled
     /// hits on emitters add nothing (still unbiased, usually noisier).
     pub media_mis: bool,
+    /// Spread angle of a camera ray's cone, in radians: the angle one pixel subtends
+    /// ([`crate::scene::Camera::pixel_spread_angle`]). 0 reads every texture at full resolution.
+    pub pixel_spread: f32,
 }
 
 /// The state of a path between events.
@@ -61,6 +73,8 @@ struct PathState {
     /// Whether emitters hit next were already counted by light sampling alone (a medium event without MIS).
     prev_light_only: bool,
     stack: MediumStack,
+    /// Width of the ray cone where the current ray starts, in world units.
+    cone_width: f32,
 }
 
 impl PathTracer {
@@ -83,6 +97,7 @@ impl PathTracer {
             prev_p: ray.origin,
             prev_light_only: false,
             stack: MediumStack::default(),
+            cone_width: 0.0,
         };
         let mut crossings = 0u32;
         let mut first_hit = true;
@@ -146,12 +161,18 @@ impl PathTracer {
             if s.beta.max_element() <= 0.0 {
                 break;
             }
+            let mut hit = hit;
+            s.cone_width += self.pixel_spread * hit.t;
+            let tc = hit.tex_coord(s.cone_width, ray.dir);
             let material = &scene.materials[hit.material as usize];
+            if material.has_normal_map() {
+                scene.apply_normal_map(&mut hit, tc);
+            }
             let wo_world = -ray.dir;
             if first_hit {
                 first_hit = false;
                 out.depth = (hit.p - ray.origin).length();
-                out.albedo = material.pbr_params(hit.uv, &scene.textures).base_color;
+                out.albedo = material.pbr_params(tc, &scene.textures).base_color;
                 out.normal = if hit.shading.n.dot(wo_world) < 0.0 {
                     -hit.shading.n
                 } else {
@@ -160,7 +181,7 @@ impl PathTracer {
             }
             // Light emitted by the surface toward the path.
             if hit.front_face && material.is_emissive() {
-                let le = material.emission_at(hit.uv, &scene.textures);
+                let le = material.emission_at(hit.point_tex_coord(), &scene.textures);
                 let weight = match scene.area_light_of(hit.prim) {
                     Some(_) if s.prev_light_only => 0.0,
                     Some(light) if !s.prev_delta => {
@@ -170,7 +191,7 @@ impl PathTracer {
                 };
                 s.radiance += s.beta * le * weight;
             }
-            let bsdf = material.bsdf(hit.uv, &scene.textures);
+            let bsdf = material.bsdf(tc, &scene.textures);
             if bsdf.is_index_matched() {
                 crossings += 1;
                 if crossings > MAX_BOUNDARY_CROSSINGS {
@@ -181,7 +202,7 @@ impl PathTracer {
                         .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
                 }
                 counters.rays.bounce += 1;
-                ray = Ray::new(offset_origin(hit.p, hit.geometric_normal, ray.dir), ray.dir);
+                ray = Ray::new(hit.spawn_origin(ray.dir), ray.dir);
                 continue;
             }
             if s.depth >= self.max_depth {
@@ -206,20 +227,13 @@ impl PathTracer {
                     let ls = chosen.sample;
                     let wi = frame.to_local(ls.wi);
                     let f = bsdf.eval(wo, wi) * wi.z.abs();
-                    if f.max_element() > 0.0 {
-                        let origin = offset_origin(hit.p, hit.geometric_normal, ls.wi);
+                    let segment = ls.shadow_segment(&hit.surface_point());
+                    if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
                         let mut stack = s.stack;
                         if let Some(interior) = material.interior {
                             stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
                         }
-                        let tr = services.transmittance(
-                            origin,
-                            ls.wi,
-                            ls.distance,
-                            &stack,
-                            rng,
-                            counters,
-                        );
+                        let tr = services.transmittance(&segment, &stack, rng, counters);
                         if tr.max_element() > 0.0 {
                             let light_pdf = chosen.pmf * ls.pdf;
                             let weight = if ls.is_delta {
@@ -258,10 +272,7 @@ impl PathTracer {
                 break;
             }
             counters.rays.bounce += 1;
-            ray = Ray::new(
-                offset_origin(hit.p, hit.geometric_normal, wi_world),
-                wi_world,
-            );
+            ray = Ray::new(hit.spawn_origin(wi_world), wi_world);
         }
         out.radiance = s.radiance;
         out
@@ -281,6 +292,7 @@ impl PathTracer {
         counters: &mut PathCounters,
     ) -> bool {
         let scene = services.scene();
+        s.cone_width += self.pixel_spread * t;
         let p = ray.at(t);
         let collision = scene.media[m as usize].collision(p);
         s.radiance += s.beta * collision.emission;
@@ -292,8 +304,9 @@ impl PathTracer {
         if let Some(chosen) = services.sample_light(p, rng) {
             let ls = chosen.sample;
             let phase = collision.phase.eval(wo, ls.wi);
-            if phase > 0.0 {
-                let tr = services.transmittance(p, ls.wi, ls.distance, &s.stack, rng, counters);
+            let segment = ls.shadow_segment(&SurfacePoint::free(p));
+            if let (true, Some(segment)) = (phase > 0.0, segment) {
+                let tr = services.transmittance(&segment, &s.stack, rng, counters);
                 if tr.max_element() > 0.0 {
                     let light_pdf = chosen.pmf * ls.pdf;
                     let weight = if ls.is_delta || !self.media_mis {

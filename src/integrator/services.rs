@@ -4,6 +4,7 @@
 //! between (index-matched boundaries, nested interiors, overlapping position-filled volumes).
 
 use super::{MediumStack, PathCounters};
+use crate::geometry::ShadowSegment;
 use crate::light::{Light, LightSample};
 use crate::math::{Ray, Rgb, Rng, Vec3};
 use crate::scene::Scene;
@@ -22,22 +23,10 @@ pub struct ChosenLight {
     pub pmf: f32,
 }
 
-/// Offset for ray origins leaving a surface, relative to the magnitude of the coordinates.
-const RAY_EPSILON: f32 = 1e-4;
 /// Surfaces a shadow ray may pass through (index-matched boundaries) before it is considered blocked.
 const MAX_SHADOW_CROSSINGS: u32 = 64;
 /// Most media a segment can be inside at once (one interior plus overlapping volumes).
 pub const MAX_SEGMENT_MEDIA: usize = 8;
-
-/// Moves `p` off the surface with geometric normal `n` toward the side that `dir` points to.
-pub fn offset_origin(p: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
-    let scale = RAY_EPSILON * p.abs().max_element().max(1.0);
-    if n.dot(dir) >= 0.0 {
-        p + n * scale
-    } else {
-        p - n * scale
-    }
-}
 
 /// The media a ray segment runs through: the current interior and every position-filled volume whose bounds
 /// it crosses.
@@ -115,14 +104,12 @@ impl<'a> RendererServices<'a> {
         }
     }
 
-    /// Transmittance of the shadow ray from `origin` along unit `dir` over `distance` (infinite for lights at
-    /// infinity), starting inside the interiors of `stack`. Index-matched boundaries let it through (updating
-    /// the interiors); any other surface blocks it. Media contribute their transmittance estimates.
+    /// Transmittance along the shadow segment (see [`ShadowSegment`]), starting inside the interiors of
+    /// `stack`. Index-matched boundaries let it through (updating the interiors); any other surface blocks it.
+    /// Media contribute their transmittance estimates.
     pub fn transmittance(
         &self,
-        origin: Vec3,
-        dir: Vec3,
-        distance: f32,
+        segment: &ShadowSegment,
         stack: &MediumStack,
         rng: &mut Rng,
         counters: &mut PathCounters,
@@ -130,13 +117,10 @@ impl<'a> RendererServices<'a> {
         counters.rays.shadow += 1;
         let scene = self.scene;
         let mut stack = *stack;
-        let mut ray = Ray::new(origin, dir);
-        // Stop short of the light's own surface.
-        let mut remaining = if distance.is_finite() {
-            distance * (1.0 - 1e-4)
-        } else {
-            f32::INFINITY
-        };
+        let dir = segment.dir;
+        let end = segment.end();
+        let mut ray = Ray::new(segment.origin, dir);
+        let mut remaining = segment.t_max;
         let mut tr = Rgb::ONE;
         for _ in 0..MAX_SHADOW_CROSSINGS {
             let hit = scene.intersect(&ray, 0.0, remaining);
@@ -150,15 +134,19 @@ impl<'a> RendererServices<'a> {
             }
             let Some(hit) = hit else { return tr };
             let material = &scene.materials[hit.material as usize];
-            if !material.bsdf(hit.uv, &scene.textures).is_index_matched() {
+            if !material
+                .bsdf(hit.point_tex_coord(), &scene.textures)
+                .is_index_matched()
+            {
                 return Rgb::ZERO;
             }
             if let Some(interior) = material.interior {
                 stack.cross(interior, dir.dot(hit.geometric_normal) < 0.0);
             }
-            let next = offset_origin(hit.p, hit.geometric_normal, dir);
+            let next = hit.spawn_origin(dir);
             if remaining.is_finite() {
-                remaining -= (next - ray.origin).length();
+                // Measured to the segment's fixed end, never by subtracting offsets.
+                remaining = (end - next).dot(dir);
                 if remaining <= 0.0 {
                     return tr;
                 }

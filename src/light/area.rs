@@ -3,6 +3,7 @@
 //! Sampled uniformly by area and converted to solid angle (PBRT4 §12.2).
 
 use super::LightSample;
+use crate::geometry::SurfacePoint;
 use crate::material::{Material, Texture};
 use crate::math::{luminance, sampling, Rgb, Vec2, Vec3};
 
@@ -67,8 +68,8 @@ impl AreaLight {
     pub fn sample_li(&self, p: Vec3, u: Vec2, textures: &[Texture]) -> Option<LightSample> {
         let (b0, b1) = sampling::uniform_triangle(u);
         let b2 = 1.0 - b0 - b1;
-        let [v0, v1, v2] = self.vertices;
-        let q = v0 * b0 + v1 * b1 + v2 * b2;
+        let point = SurfacePoint::on_triangle(self.vertices, b0, b1, b2, self.normal);
+        let q = point.p;
         let d = q - p;
         let dist2 = d.length_squared();
         if dist2.is_nan() || dist2 <= 0.0 {
@@ -85,7 +86,7 @@ impl AreaLight {
             wi,
             radiance,
             pdf,
-            distance,
+            point: Some(point),
             is_delta: false,
         })
     }
@@ -125,9 +126,10 @@ mod tests {
             .sample_li(Vec3::ZERO, Vec2::new(0.3, 0.3), &[])
             .expect("lit from below");
         assert_eq!(s.radiance, Rgb::ONE);
-        let q = s.wi * s.distance;
+        let distance = s.distance_from(Vec3::ZERO);
+        let q = s.wi * distance;
         let cos = s.wi.y;
-        assert!((s.pdf - s.distance * s.distance / (cos * 2.0)).abs() < 1e-4 * s.pdf);
+        assert!((s.pdf - distance * distance / (cos * 2.0)).abs() < 1e-4 * s.pdf);
         assert!(
             l.sample_li(Vec3::new(0.0, 2.0, 0.0), Vec2::new(0.3, 0.3), &[])
                 .is_none(),

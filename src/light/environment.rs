@@ -7,6 +7,14 @@
 //! Orientation (a contract, Mitsuba's latitude–longitude mapping): map coordinates (u, v) ∈ \[0,1\]², v = 0 the
 //! top row, face the direction `(sin 2πu · sin πv, cos πv, −cos 2πu · sin πv)`. The top row is +Y, u = 0 is −Z
 //! and u = 0.25 is +X.
+//!
+//! Reconstruction (also Mitsuba 3's `envmap`): the texels are samples of a bilinear surface. Texel (i, j) of a
+//! w × h map sits at u = (i + ½)/w, wrapping around in u, and at v = j/(h − 1): the first row is the +Y pole
+//! and the last row the −Y pole. Between four neighbouring texels the radiance is their bilinear blend.
+//!
+//! Sampling: a piecewise-constant density over those bilinear patches (w × (h − 1) of them), each weighted by
+//! its mean radiance (the mean of its four corners, luminance) × sin θ at its centre (PBRT 4th ed. §12.5.2),
+//! so the density is positive wherever the radiance is.
 
 use super::LightSample;
 use crate::math::{luminance, Distribution2D, Rgb, Vec2, Vec3};
@@ -23,13 +31,13 @@ pub struct EnvironmentMap {
 }
 
 impl EnvironmentMap {
-    /// Builds a map from linear RGB texels (row-major, top row first), scaled by `intensity`.
-    /// Returns `None` when the texel count does not match the size.
+    /// Builds a map from linear RGB texels (row-major, top row first), scaled by `intensity`. A single row is
+    /// taken as constant from pole to pole. Returns `None` when the texel count does not match the size.
     pub fn new(width: usize, height: usize, texels: Vec<Rgb>, intensity: f32) -> Option<Self> {
-        if width == 0 || height == 0 || texels.len() != width * height {
+        if width == 0 || height == 0 || texels.len() != width.checked_mul(height)? {
             return None;
         }
-        let texels: Vec<Rgb> = texels
+        let mut texels: Vec<Rgb> = texels
             .into_iter()
             .map(|t| {
                 let t = t * intensity;
@@ -40,26 +48,52 @@ impl EnvironmentMap {
                 }
             })
             .collect();
-        // Weight rows by sin θ so the density in solid angle follows luminance (PBRT4 §12.5.2).
-        let mut weights = Vec::with_capacity(texels.len());
-        let mut solid_angle_weighted = 0.0f64;
-        for y in 0..height {
-            let sin_theta = (PI * (y as f32 + 0.5) / height as f32).sin();
+        let height = if height == 1 {
+            texels.extend_from_within(..);
+            2
+        } else {
+            height
+        };
+        let luma: Vec<f32> = texels.iter().map(|&t| luminance(t)).collect();
+        // Patch (x, y) lies between texel columns x and x + 1 (wrapping) and rows y and y + 1.
+        let patch_rows = height - 1;
+        let mut weights = Vec::with_capacity(width * patch_rows);
+        let mut integral = 0.0f64;
+        for y in 0..patch_rows {
+            let sin_theta = (PI * (y as f32 + 0.5) / patch_rows as f32).sin();
             for x in 0..width {
-                let l = luminance(texels[y * width + x]);
-                weights.push(l * sin_theta);
-                solid_angle_weighted += (l * sin_theta) as f64;
+                let x1 = (x + 1) % width;
+                let mean = 0.25
+                    * (luma[y * width + x]
+                        + luma[y * width + x1]
+                        + luma[(y + 1) * width + x]
+                        + luma[(y + 1) * width + x1]);
+                weights.push(mean * sin_theta);
+                integral += (mean * sin_theta) as f64;
             }
         }
+        // ∫ L dω over the sphere ≈ Σ mean · sin θ · (2π / w) · (π / (h − 1)); the average divides by 4π.
         let average_luminance =
-            (solid_angle_weighted * (PI as f64 / 2.0) / (width * height) as f64) as f32;
+            (integral * std::f64::consts::PI / (2.0 * (width * patch_rows) as f64)) as f32;
         Some(Self {
-            distribution: Distribution2D::new(&weights, width, height),
+            distribution: Distribution2D::new(&weights, width, patch_rows),
             width,
             height,
             texels,
             average_luminance,
         })
+    }
+
+    /// Map coordinates (u, v) of the patch-space point `st` of the sampling distribution, and back: the patches
+    /// start half a texel to the right of u = 0.
+    fn patch_to_uv(&self, st: Vec2) -> Vec2 {
+        let u = st.x + 0.5 / self.width as f32;
+        Vec2::new(if u >= 1.0 { u - 1.0 } else { u }, st.y)
+    }
+
+    fn uv_to_patch(&self, uv: Vec2) -> Vec2 {
+        let s = uv.x - 0.5 / self.width as f32;
+        Vec2::new(if s < 0.0 { s + 1.0 } else { s }, uv.y)
     }
 
     /// Loads an equirectangular map from an EXR (its RGB channels, linear) or a PNG/JPEG (sRGB-decoded).
@@ -104,10 +138,19 @@ impl EnvironmentMap {
             .ok_or_else(|| format!("{name}: the map is empty"))
     }
 
+    /// The bilinear reconstruction at map coordinates `uv` (see the module docs for where texels sit).
     fn lookup(&self, uv: Vec2) -> Rgb {
-        let x = ((uv.x * self.width as f32) as usize).min(self.width - 1);
-        let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
-        self.texels[y * self.width + x]
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = (uv.y * (self.height - 1) as f32).clamp(0.0, (self.height - 1) as f32);
+        let (x0, y0) = (x.floor(), y.floor().min((self.height - 2) as f32));
+        let (fx, fy) = (x - x0, y - y0);
+        let texel = |x: f32, y: f32| {
+            let x = (x as isize).rem_euclid(self.width as isize) as usize;
+            self.texels[y as usize * self.width + x]
+        };
+        let top = texel(x0, y0).lerp(texel(x0 + 1.0, y0), fx);
+        let bottom = texel(x0, y0 + 1.0).lerp(texel(x0 + 1.0, y0 + 1.0), fx);
+        top.lerp(bottom, fy)
     }
 }
 
@@ -155,7 +198,8 @@ impl EnvironmentLight {
                 crate::math::sampling::UNIFORM_SPHERE_PDF,
             ),
             EnvironmentLight::Map(m) => {
-                let (uv, map_pdf) = m.distribution.sample(u);
+                let (st, map_pdf) = m.distribution.sample(u);
+                let uv = m.patch_to_uv(st);
                 let sin_theta = (PI * uv.y).sin();
                 if map_pdf <= 0.0 || sin_theta <= 0.0 {
                     return None;
@@ -167,7 +211,7 @@ impl EnvironmentLight {
             wi,
             radiance: self.radiance(wi),
             pdf,
-            distance: f32::INFINITY,
+            point: None,
             is_delta: false,
         })
     }
@@ -182,7 +226,7 @@ impl EnvironmentLight {
                 if sin_theta <= 0.0 {
                     return 0.0;
                 }
-                m.distribution.pdf(uv) / (2.0 * PI * PI * sin_theta)
+                m.distribution.pdf(m.uv_to_patch(uv)) / (2.0 * PI * PI * sin_theta)
             }
         }
     }
@@ -228,9 +272,10 @@ mod tests {
         let mut sum2 = 0.0f64;
         for _ in 0..n {
             let s = env.sample_li(rng.next_2d()).unwrap();
-            // The density is piecewise constant; away from texel edges (where rounding may pick the
-            // neighbour) the density recomputed from the direction equals the sampled one.
-            let uv = direction_to_uv(s.wi) * Vec2::new(w as f32, h as f32);
+            // The density is piecewise constant over the patches between texels; away from patch edges (where
+            // rounding may pick the neighbour) the density recomputed from the direction equals the sampled one.
+            let uv =
+                direction_to_uv(s.wi) * Vec2::new(w as f32, (h - 1) as f32) - Vec2::new(0.5, 0.0);
             if (uv - uv.round()).abs().min_element() > 1e-3 {
                 let again = env.pdf(s.wi);
                 assert!((again - s.pdf).abs() < 2e-3 * s.pdf, "{again} vs {}", s.pdf);
@@ -245,5 +290,39 @@ mod tests {
             (mean - 4.0 * std::f64::consts::PI).abs() < 4.0 * se,
             "mean {mean} se {se}"
         );
+    }
+
+    /// One bright texel in a black map: the radiance is its bilinear spread, which reaches into the neighbouring
+    /// cells, and the sampling density must cover all of it (else light sampling would miss that light).
+    #[test]
+    fn bilinear_radiance_is_covered_by_the_sampling_density() {
+        let (w, h) = (8, 4);
+        let mut texels = vec![Rgb::ZERO; w * h];
+        texels[w + 3] = Rgb::ONE;
+        let env = EnvironmentLight::Map(Box::new(EnvironmentMap::new(w, h, texels, 1.0).unwrap()));
+        let at = |u: f32, v: f32| env.radiance(uv_to_direction(Vec2::new(u, v))).x;
+        // Texel (3, 1) sits at u = 3.5/8, v = 1/3: the full value there, half of it halfway to the next texel in
+        // u or in v, none a whole texel away.
+        assert!((at(3.5 / 8.0, 1.0 / 3.0) - 1.0).abs() < 1e-4);
+        assert!((at(4.0 / 8.0, 1.0 / 3.0) - 0.5).abs() < 1e-4);
+        assert!((at(3.5 / 8.0, 0.5) - 0.5).abs() < 1e-4);
+        assert!(at(4.5 / 8.0, 1.0 / 3.0).abs() < 1e-4);
+        assert!(at(3.5 / 8.0, 2.0 / 3.0).abs() < 1e-4);
+        let mut rng = crate::math::Rng::new(4, 1);
+        for _ in 0..2000 {
+            let uv = rng.next_2d();
+            let dir = uv_to_direction(uv);
+            if env.radiance(dir).x > 0.0 {
+                assert!(env.pdf(dir) > 0.0, "radiance without density at {uv}");
+            }
+        }
+        // u wraps around: the seam between the last and the first column interpolates between them.
+        let mut texels = vec![Rgb::ZERO; w * h];
+        for y in 0..h {
+            texels[y * w] = Rgb::ONE;
+        }
+        let env = EnvironmentLight::Map(Box::new(EnvironmentMap::new(w, h, texels, 1.0).unwrap()));
+        let seam = env.radiance(uv_to_direction(Vec2::new(0.0, 0.5))).x;
+        assert!((seam - 0.5).abs() < 1e-4, "seam {seam}");
     }
 }

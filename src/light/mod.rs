@@ -9,9 +9,10 @@ mod sampler;
 
 pub use area::AreaLight;
 pub use environment::{EnvironmentLight, EnvironmentMap};
-pub use punctual::{DirectionalLight, PointLight, SpotLight};
+pub use punctual::{DirectionalLight, PointLight, SpotLight, LUMENS_PER_WATT};
 pub use sampler::LightSampler;
 
+use crate::geometry::{ShadowSegment, SurfacePoint};
 use crate::material::Texture;
 use crate::math::{Rgb, Vec2, Vec3};
 
@@ -25,10 +26,28 @@ pub struct LightSample {
     pub radiance: Rgb,
     /// Solid-angle density of choosing `wi` (1 for delta lights, whose `is_delta` is set).
     pub pdf: f32,
-    /// Distance to the sampled point on the light; infinite for lights at infinity.
-    pub distance: f32,
+    /// The sampled point on the light, with its rounding-error bound and surface normal; `None` for lights at
+    /// infinity (directional, environment).
+    pub point: Option<SurfacePoint>,
     /// True for point, spot and directional lights, which MIS cannot hit.
     pub is_delta: bool,
+}
+
+impl LightSample {
+    /// The shadow ray that tests whether the light sample is visible from `from`: a segment between offset end
+    /// points for a point on a light, an unbounded ray toward a light at infinity (see
+    /// [`crate::geometry::spawn`]). `None` when the two ends coincide.
+    pub fn shadow_segment(&self, from: &SurfacePoint) -> Option<ShadowSegment> {
+        match &self.point {
+            Some(to) => ShadowSegment::between(from, to),
+            None => Some(ShadowSegment::toward_infinity(from, self.wi)),
+        }
+    }
+
+    /// Distance from `p` to the sampled point; infinite for lights at infinity.
+    pub fn distance_from(&self, p: Vec3) -> f32 {
+        self.point.map_or(f32::INFINITY, |q| q.p.distance(p))
+    }
 }
 
 /// One light of the scene.

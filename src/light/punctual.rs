@@ -1,12 +1,18 @@
-//! Punctual lights from `KHR_lights_punctual`. Photometric units are taken as radiometric, so `intensity`
-//! (candela) is W/sr for point and spot lights and lux is W/m² for directional lights.
+//! Punctual lights from `KHR_lights_punctual`, in radiometric units: W/sr for point and spot lights, W/m² for
+//! directional lights. The glTF loader converts the file's photometric candela and lux at
+//! [`LUMENS_PER_WATT`] unless the scene says its values are radiometric.
 //!
 //! glTF keys read: `type`, `color`, `intensity`, `spot.innerConeAngle` (default 0), `spot.outerConeAngle`
 //! (default π/4). The light shines along the node's −Z axis.
 
 use super::LightSample;
+use crate::geometry::SurfacePoint;
 use crate::math::{luminance, Rgb, Vec3};
 use std::f32::consts::PI;
+
+/// The luminous efficacy, in lm/W, that converts glTF's photometric light units (candela, lux) to radiometric
+/// ones (W/sr, W/m²): the peak efficacy of photopic vision, which Blender's glTF importer also uses.
+pub const LUMENS_PER_WATT: f32 = 683.0;
 
 /// A point light emitting `intensity` W/sr in every direction.
 #[derive(Clone, Debug)]
@@ -86,7 +92,7 @@ impl DirectionalLight {
             wi: -self.direction,
             radiance: self.irradiance,
             pdf: 1.0,
-            distance: f32::INFINITY,
+            point: None,
             is_delta: true,
         }
     }
@@ -103,7 +109,7 @@ fn delta_sample(light: Vec3, p: Vec3, intensity: Rgb) -> Option<LightSample> {
         wi: d / distance,
         radiance: intensity / dist2,
         pdf: 1.0,
-        distance,
+        point: Some(SurfacePoint::free(light)),
         is_delta: true,
     })
 }
@@ -120,7 +126,9 @@ mod tests {
         };
         let s = l.sample_li(Vec3::ZERO).unwrap();
         assert!(
-            (s.radiance.x - 2.0).abs() < 1e-6 && s.wi.distance(Vec3::Y) < 1e-6 && s.distance == 2.0
+            (s.radiance.x - 2.0).abs() < 1e-6
+                && s.wi.distance(Vec3::Y) < 1e-6
+                && s.distance_from(Vec3::ZERO) == 2.0
         );
     }
 

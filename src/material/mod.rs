@@ -16,4 +16,4 @@ pub mod texture;
 pub use bsdf::{Bsdf, BsdfSample};
 pub use gltf_pbr::PbrParams;
 pub use surface::{Material, TextureId};
-pub use texture::{ColorSpace, Texture, Wrap};
+pub use texture::{ColorSpace, Filter, MipImage, Sampler, TexCoord, Texture, Wrap};

@@ -7,9 +7,9 @@
 //! `KHR_materials_specular.{specularFactor, specularColorFactor}`, `KHR_materials_transmission.transmissionFactor`,
 //! `KHR_materials_ior.ior` (default 1.5). OBJ/MTL materials are mapped onto the same fields by the OBJ loader.
 
-use super::texture::Texture;
+use super::texture::{TexCoord, Texture};
 use super::{Bsdf, PbrParams};
-use crate::math::{Rgb, Vec2, Vec3, Vec4};
+use crate::math::{Rgb, Vec3, Vec4};
 
 /// A texture reference: an index into the scene's texture list.
 pub type TextureId = u32;
@@ -72,9 +72,9 @@ impl Default for Material {
     }
 }
 
-fn lookup(textures: &[Texture], id: Option<TextureId>, uv: Vec2) -> Option<Vec4> {
+fn lookup(textures: &[Texture], id: Option<TextureId>, tc: TexCoord) -> Option<Vec4> {
     id.and_then(|i| textures.get(i as usize))
-        .map(|t| t.sample(uv))
+        .map(|t| t.lookup(tc))
 }
 
 impl Material {
@@ -99,22 +99,22 @@ impl Material {
         self.transmission > 0.0
     }
 
-    /// Emitted radiance at texture coordinates `uv` of a front face.
-    pub fn emission_at(&self, uv: Vec2, textures: &[Texture]) -> Rgb {
-        match lookup(textures, self.emission_texture, uv) {
+    /// Emitted radiance at texture coordinates `tc` of a front face.
+    pub fn emission_at(&self, tc: TexCoord, textures: &[Texture]) -> Rgb {
+        match lookup(textures, self.emission_texture, tc) {
             Some(t) => self.emission * t.truncate(),
             None => self.emission,
         }
     }
 
-    /// The BSDF parameters at texture coordinates `uv`.
-    pub fn pbr_params(&self, uv: Vec2, textures: &[Texture]) -> PbrParams {
+    /// The BSDF parameters at texture coordinates `tc`.
+    pub fn pbr_params(&self, tc: TexCoord, textures: &[Texture]) -> PbrParams {
         let mut base = self.base_color.truncate();
-        if let Some(t) = lookup(textures, self.base_color_texture, uv) {
+        if let Some(t) = lookup(textures, self.base_color_texture, tc) {
             base *= t.truncate();
         }
         let (mut metallic, mut roughness) = (self.metallic, self.roughness);
-        if let Some(t) = lookup(textures, self.metallic_roughness_texture, uv) {
+        if let Some(t) = lookup(textures, self.metallic_roughness_texture, tc) {
             roughness *= t.y;
             metallic *= t.z;
         }
@@ -129,16 +129,21 @@ impl Material {
         }
     }
 
-    /// Creates the BSDF for a hit at texture coordinates `uv`.
-    pub fn bsdf(&self, uv: Vec2, textures: &[Texture]) -> Bsdf {
-        Bsdf::from_gltf(&self.pbr_params(uv, textures))
+    /// Creates the BSDF for a hit at texture coordinates `tc`.
+    pub fn bsdf(&self, tc: TexCoord, textures: &[Texture]) -> Bsdf {
+        Bsdf::from_gltf(&self.pbr_params(tc, textures))
     }
 
-    /// The tangent-space normal from the normal map at `uv` (z up), or `None` without a normal map.
+    /// True when the material has a normal map.
+    pub fn has_normal_map(&self) -> bool {
+        self.normal_texture.is_some()
+    }
+
+    /// The tangent-space normal from the normal map at `tc` (z up), or `None` without a normal map.
     /// glTF stores `(n * 0.5 + 0.5)`; `scale` multiplies the x and y components.
-    pub fn normal_map(&self, uv: Vec2, textures: &[Texture]) -> Option<Vec3> {
+    pub fn normal_map(&self, tc: TexCoord, textures: &[Texture]) -> Option<Vec3> {
         let (id, scale) = self.normal_texture?;
-        let t = textures.get(id as usize)?.sample(uv);
+        let t = textures.get(id as usize)?.lookup(tc);
         let n = Vec3::new(
             (t.x * 2.0 - 1.0) * scale,
             (t.y * 2.0 - 1.0) * scale,

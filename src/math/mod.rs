@@ -1,10 +1,12 @@
 //! Math foundations shared by every other module: glam re-exports, rays, bounds, orthonormal frames,
-//! sampling warps, tabulated distributions, the deterministic random-number generator and RGB helpers.
+//! floating-point error bounds, sampling warps, tabulated distributions, the deterministic random-number
+//! generator and RGB helpers.
 
 mod bounds;
 #[cfg(test)]
 pub(crate) mod chi2;
 mod distribution;
+mod float;
 mod frame;
 mod ray;
 mod rng;
@@ -12,6 +14,7 @@ pub mod sampling;
 
 pub use bounds::Aabb;
 pub use distribution::{Distribution1D, Distribution2D};
+pub use float::gamma;
 pub use frame::Frame;
 pub use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 pub use ray::Ray;

@@ -270,6 +270,7 @@ impl Renderer {
         let tracer = PathTracer {
             max_depth: s.max_depth,
             media_mis: s.media_mis,
+            pixel_spread: scene.camera.pixel_spread_angle(height),
         };
         let services = RendererServices::new(scene);
         film.pixels_mut()

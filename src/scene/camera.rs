@@ -47,6 +47,18 @@ impl Camera {
         self.camera_to_world.transform_point3(Vec3::ZERO)
     }
 
+    /// The angle one pixel of an image `height` pixels high subtends at the image centre: the spread angle of
+    /// camera ray cones, `atan(2·tan(yfov/2) / height)` (Akenine-Möller et al. 2021, "Improved Shader and Texture
+    /// Level of Detail Using Ray Cones", JCGT 10(1), §3).
+    pub fn pixel_spread_angle(&self, height: usize) -> f32 {
+        let spread = (2.0 * (self.yfov * 0.5).tan() / height.max(1) as f32).atan();
+        if spread.is_finite() {
+            spread
+        } else {
+            0.0
+        }
+    }
+
     /// The primary ray through film position `film` in \[0,1\]² ((0,0) = top-left) for an image of `aspect`
     /// = width / height.
     pub fn generate_ray(&self, film: Vec2, aspect: f32) -> Ray {

@@ -5,7 +5,14 @@
 //! traversal order, metallic-roughness materials with textures and the extensions listed in
 //! [`SUPPORTED_EXTENSIONS`], and `KHR_lights_punctual` lights.
 //!
-//! Scene `extras` read: `nimbus_environment` (see [`crate::light::EnvironmentLight`]) and `max_bounces`.
+//! Scene `extras` read: `nimbus_environment` (see [`crate::light::EnvironmentLight`]), `max_bounces`, and
+//! `nimbus_light_units`: `"photometric"` (the default) or `"radiometric"`.
+//!
+//! Light units: `KHR_lights_punctual` gives point and spot intensities in candela and directional ones in lux.
+//! By default they are converted as Blender's importer, three.js and Bevy read them, at 683 lm/W: W/sr =
+//! cd / 683 and W/m² = lx / 683 ([`LUMENS_PER_WATT`]). With `"nimbus_light_units": "radiometric"` the values
+//! are taken as W/sr and W/m² unchanged. Emission (`emissiveFactor` × `emissiveStrength`) is radiance in
+//! either case.
 //!
 //! Validation is the `gltf` crate's own, except that the extensions Nimbus implements may be listed in
 //! `extensionsRequired` (the crate rejects some of them). Accessor and index ranges are checked here before any
@@ -15,12 +22,14 @@ use super::{Camera, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::light::{
     DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
+    LUMENS_PER_WATT,
 };
-use crate::material::{ColorSpace, Material, Texture, Wrap};
+use crate::material::{ColorSpace, Filter, Material, MipImage, Sampler, Texture, Wrap};
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use gltf::json::validation::Validate;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The glTF extensions Nimbus implements; any other extension in `extensionsRequired` is an error, and any
 /// other in `extensionsUsed` a warning.
@@ -112,12 +121,14 @@ fn load_slice_with(
         material_map: HashMap::new(),
         embedded,
         override_volume,
+        light_unit_scale: 1.0 / LUMENS_PER_WATT,
     };
     loader.builder.warnings.append(&mut warnings);
     let scene = document
         .default_scene()
         .or_else(|| document.scenes().next())
         .ok_or_else(|| malformed("the file has no scene".into()))?;
+    loader.read_light_units(scene.extras())?;
     for node in scene.nodes() {
         loader.visit(node, Mat4::IDENTITY, 0)?;
     }
@@ -180,10 +191,12 @@ struct Loader<'a> {
     buffers: &'a [gltf::buffer::Data],
     builder: SceneBuilder,
     texture_cache: HashMap<(usize, ColorSpace), u32>,
-    images: HashMap<usize, image::RgbaImage>,
+    images: HashMap<(usize, ColorSpace), Arc<MipImage>>,
     material_map: HashMap<Option<usize>, u32>,
     embedded: &'a [(&'a str, &'static [u8])],
     override_volume: VolumeOverride<'a>,
+    /// Watts per unit of a `KHR_lights_punctual` intensity (1/683 photometric, 1 radiometric).
+    light_unit_scale: f32,
 }
 
 impl Loader<'_> {
@@ -267,7 +280,7 @@ impl Loader<'_> {
     }
 
     fn load_light(&mut self, light: gltf::khr_lights_punctual::Light, world: &Mat4) {
-        let color = Rgb::from(light.color()) * light.intensity();
+        let color = Rgb::from(light.color()) * (light.intensity() * self.light_unit_scale);
         let position = world.transform_point3(Vec3::ZERO);
         let direction = world.transform_vector3(-Vec3::Z).normalize_or_zero();
         let l = match light.kind() {
@@ -553,41 +566,44 @@ impl Loader<'_> {
                 texture.index()
             ));
         }
-        let source = texture.source();
-        let key = (source.index(), space);
+        // Each glTF texture pairs an image with its own sampler; textures sharing an image share its pixels.
+        let key = (texture.index(), space);
         if let Some(&id) = self.texture_cache.get(&key) {
             return Ok(id);
         }
-        let image = self.image(source)?;
-        let wrap = |w: gltf::texture::WrappingMode| match w {
-            gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
-            gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
-            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
-        };
-        let sampler = texture.sampler();
-        let t = Texture::from_rgba8(
-            image.width() as usize,
-            image.height() as usize,
-            image.as_raw(),
-            space,
-        )
-        .ok_or_else(|| {
-            self.error(SceneErrorKind::Malformed(format!(
-                "image {} is empty",
-                key.0
-            )))
-        })?
-        .with_wrap(wrap(sampler.wrap_s()), wrap(sampler.wrap_t()));
+        let image = self.mip_image(texture.source(), space)?;
+        let t = Texture::new(image, sampler_of(&texture.sampler()));
         self.builder.textures.push(t);
         let id = (self.builder.textures.len() - 1) as u32;
         self.texture_cache.insert(key, id);
         Ok(id)
     }
 
-    fn image(&mut self, image: gltf::Image) -> Result<image::RgbaImage, SceneError> {
-        if let Some(img) = self.images.get(&image.index()) {
+    /// The decoded image with its mip pyramid, decoded once per colour space.
+    fn mip_image(
+        &mut self,
+        image: gltf::Image,
+        space: ColorSpace,
+    ) -> Result<Arc<MipImage>, SceneError> {
+        let key = (image.index(), space);
+        if let Some(img) = self.images.get(&key) {
             return Ok(img.clone());
         }
+        let index = image.index();
+        let rgba = self.decode_image(image)?;
+        let mip = MipImage::from_rgba8(
+            rgba.width() as usize,
+            rgba.height() as usize,
+            rgba.as_raw(),
+            space,
+        )
+        .ok_or_else(|| self.error(SceneErrorKind::Malformed(format!("image {index} is empty"))))?;
+        let mip = Arc::new(mip);
+        self.images.insert(key, mip.clone());
+        Ok(mip)
+    }
+
+    fn decode_image(&mut self, image: gltf::Image) -> Result<image::RgbaImage, SceneError> {
         let name = match image.source() {
             gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
                 format!("image {} ('{uri}')", image.index())
@@ -620,8 +636,27 @@ impl Loader<'_> {
         let decoded = image::load_from_memory(&bytes)
             .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{name}: {e}"))))?
             .to_rgba8();
-        self.images.insert(image.index(), decoded.clone());
         Ok(decoded)
+    }
+
+    /// Reads `nimbus_light_units` from the scene extras, before any light is loaded.
+    fn read_light_units(&mut self, extras: &gltf::json::Extras) -> Result<(), SceneError> {
+        let Some(raw) = extras else { return Ok(()) };
+        let value: serde_json::Value = serde_json::from_str(raw.get())
+            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("scene extras: {e}"))))?;
+        self.light_unit_scale = match value.get("nimbus_light_units") {
+            None => 1.0 / LUMENS_PER_WATT,
+            Some(v) => match v.as_str() {
+                Some("photometric") => 1.0 / LUMENS_PER_WATT,
+                Some("radiometric") => 1.0,
+                _ => {
+                    return Err(self.error(SceneErrorKind::Malformed(format!(
+                        "scene extras: nimbus_light_units must be \"photometric\" or \"radiometric\", not {v}"
+                    ))))
+                }
+            },
+        };
+        Ok(())
     }
 
     fn read_scene_extras(&mut self, extras: &gltf::json::Extras) -> Result<(), SceneError> {
@@ -645,6 +680,36 @@ impl Loader<'_> {
             self.builder.set_environment(env);
         }
         Ok(())
+    }
+}
+
+/// The sampler a glTF texture reads with: its wrap modes and filters, with glTF viewers' defaults (LINEAR
+/// magnification, LINEAR_MIPMAP_LINEAR minification) where the file names none.
+fn sampler_of(sampler: &gltf::texture::Sampler) -> Sampler {
+    use gltf::texture::{MagFilter, MinFilter, WrappingMode};
+    let wrap = |w: WrappingMode| match w {
+        WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+        WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        WrappingMode::Repeat => Wrap::Repeat,
+    };
+    let mag = match sampler.mag_filter() {
+        Some(MagFilter::Nearest) => Filter::Nearest,
+        Some(MagFilter::Linear) | None => Filter::Linear,
+    };
+    let (min, mip) = match sampler.min_filter() {
+        Some(MinFilter::Nearest) => (Filter::Nearest, None),
+        Some(MinFilter::Linear) => (Filter::Linear, None),
+        Some(MinFilter::NearestMipmapNearest) => (Filter::Nearest, Some(Filter::Nearest)),
+        Some(MinFilter::LinearMipmapNearest) => (Filter::Linear, Some(Filter::Nearest)),
+        Some(MinFilter::NearestMipmapLinear) => (Filter::Nearest, Some(Filter::Linear)),
+        Some(MinFilter::LinearMipmapLinear) | None => (Filter::Linear, Some(Filter::Linear)),
+    };
+    Sampler {
+        wrap_s: wrap(sampler.wrap_s()),
+        wrap_t: wrap(sampler.wrap_t()),
+        mag,
+        min,
+        mip,
     }
 }
 

@@ -14,9 +14,9 @@ pub use builder::BUILDER_PATH;
 pub use camera::Camera;
 pub use error::{SceneError, SceneErrorKind};
 
-use crate::geometry::{Bvh, Mesh};
+use crate::geometry::{Bvh, Mesh, SurfacePoint};
 use crate::light::{AreaLight, EnvironmentLight, Light, LightSampler};
-use crate::material::{Material, Texture};
+use crate::material::{Material, TexCoord, Texture};
 use crate::math::{Aabb, Frame, Ray, Vec2, Vec3};
 use crate::volume::Medium;
 use std::path::Path;
@@ -205,23 +205,67 @@ pub struct Scene {
 pub struct SurfaceHit {
     /// Distance along the ray.
     pub t: f32,
-    /// World position.
+    /// World position, interpolated from the vertices with the barycentrics.
     pub p: Vec3,
+    /// Bound on the rounding error of each coordinate of `p` (see [`SurfacePoint`]).
+    pub p_error: Vec3,
     /// Unit geometric normal of the front (counter-clockwise) face.
     pub geometric_normal: Vec3,
-    /// Shading frame: the interpolated (and normal-mapped) normal, kept on the front side of the geometric
-    /// normal; the integrator flips it for back-face hits on double-sided materials.
+    /// Shading frame: the interpolated normal (normal-mapped once [`Scene::apply_normal_map`] has run), kept
+    /// on the front side of the geometric normal; the integrator flips it for back-face hits on double-sided
+    /// materials.
     pub shading: Frame,
     /// True when the ray arrived on the front face.
     pub front_face: bool,
     /// Texture coordinates.
     pub uv: Vec2,
+    /// Texture-coordinate units per world unit on this triangle, √(uv area / world area): turns a footprint
+    /// width in world units into one in texture coordinates (0 without texture coordinates).
+    pub uv_per_world: f32,
     /// Material index.
     pub material: u32,
     /// Global triangle index.
     pub prim: u32,
     /// Barycentrics of the hit (of vertices 1 and 2).
     pub barycentrics: Vec2,
+}
+
+impl SurfaceHit {
+    /// The hit as a point on its surface, from which rays are spawned.
+    pub fn surface_point(&self) -> SurfacePoint {
+        SurfacePoint {
+            p: self.p,
+            error: self.p_error,
+            n: self.geometric_normal,
+        }
+    }
+
+    /// The origin of a ray leaving the surface in direction `w` (see [`SurfacePoint::spawn_origin`]).
+    pub fn spawn_origin(&self, w: Vec3) -> Vec3 {
+        self.surface_point().spawn_origin(w)
+    }
+
+    /// Where textures are read at this hit, for a ray cone of world-space `width` arriving along unit `dir`:
+    /// the footprint is the cone's width projected onto the surface, `width / |n · dir|`, in texture units
+    /// (the ray-cone level of detail of Akenine-Möller et al. 2021, "Improved Shader and Texture Level of
+    /// Detail Using Ray Cones", JCGT 10(1), given as a width rather than as its log₂).
+    pub fn tex_coord(&self, width: f32, dir: Vec3) -> TexCoord {
+        let cos = self.geometric_normal.dot(dir).abs().max(1e-3);
+        let footprint = width / cos * self.uv_per_world;
+        TexCoord {
+            uv: self.uv,
+            footprint: if footprint.is_finite() {
+                footprint
+            } else {
+                0.0
+            },
+        }
+    }
+
+    /// Texture coordinates with no footprint (the full-resolution image).
+    pub fn point_tex_coord(&self) -> TexCoord {
+        TexCoord::point(self.uv)
+    }
 }
 
 impl Scene {
@@ -279,39 +323,60 @@ impl Scene {
         let b0 = 1.0 - b1 - b2;
         let [v0, v1, v2] = [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]];
         let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
+        let point = SurfacePoint::on_triangle([v0, v1, v2], b0, b1, b2, geometric_normal);
         let front_face = geometric_normal.dot(ray.dir) < 0.0;
         let mut n = (mesh.normals[i0] * b0 + mesh.normals[i1] * b1 + mesh.normals[i2] * b2)
             .normalize_or_zero();
         if n == Vec3::ZERO {
             n = geometric_normal;
         }
-        let uv = match &mesh.uvs {
-            Some(uv) => uv[i0] * b0 + uv[i1] * b1 + uv[i2] * b2,
-            None => Vec2::ZERO,
-        };
-        let material = &self.materials[mesh.material as usize];
-        let mut frame = self.tangent_frame(mesh, [i0, i1, i2], n, Vec2::new(b1, b2));
-        if let Some(mapped) = material.normal_map(uv, &self.textures) {
-            let n_mapped = frame.to_world(mapped).normalize_or_zero();
-            if n_mapped != Vec3::ZERO {
-                frame = Frame::from_normal_tangent(n_mapped, frame.s);
+        let (uv, uv_per_world) = match &mesh.uvs {
+            Some(uv) => {
+                let (t0, t1, t2) = (uv[i0], uv[i1], uv[i2]);
+                let uv_area = 0.5 * (t1 - t0).perp_dot(t2 - t0).abs();
+                let world_area = 0.5 * (v1 - v0).cross(v2 - v0).length();
+                let scale = (uv_area / world_area).sqrt();
+                (
+                    t0 * b0 + t1 * b1 + t2 * b2,
+                    if scale.is_finite() { scale } else { 0.0 },
+                )
             }
-        }
+            None => (Vec2::ZERO, 0.0),
+        };
+        let mut frame = self.tangent_frame(mesh, [i0, i1, i2], n, Vec2::new(b1, b2));
         // Keep the shading normal on the geometric normal's side so that one-sided BSDFs see the front.
         if frame.n.dot(geometric_normal) < 0.0 {
             frame = Frame::from_normal(geometric_normal);
         }
         Some(SurfaceHit {
             t: hit.t,
-            p: ray.at(hit.t),
+            p: point.p,
+            p_error: point.error,
             geometric_normal,
             shading: frame,
             front_face,
             uv,
+            uv_per_world,
             material: mesh.material,
             prim: hit.prim,
             barycentrics: Vec2::new(b1, b2),
         })
+    }
+
+    /// Bends the hit's shading frame by its material's normal map read at `tc`, if it has one. The mapped
+    /// normal stays on the geometric normal's side.
+    pub fn apply_normal_map(&self, hit: &mut SurfaceHit, tc: TexCoord) {
+        let material = &self.materials[hit.material as usize];
+        let Some(mapped) = material.normal_map(tc, &self.textures) else {
+            return;
+        };
+        let n_mapped = hit.shading.to_world(mapped).normalize_or_zero();
+        if n_mapped != Vec3::ZERO {
+            hit.shading = Frame::from_normal_tangent(n_mapped, hit.shading.s);
+            if hit.shading.n.dot(hit.geometric_normal) < 0.0 {
+                hit.shading = Frame::from_normal(hit.geometric_normal);
+            }
+        }
     }
 
     /// The tangent frame at a hit: from vertex tangents when present, else from the triangle's uv gradient,

@@ -1,0 +1,364 @@
+//! Renders every validation scene and compares it with its reference from another renderer (Mitsuba 3).
+//!
+//! Scenes come from `../shared/validation/` (required in CI) and from this repository's own
+//! `tests/validation/` (made by `tests/validation/make_scenes.py`, referenced with
+//! `../shared/tools/gltf2mitsuba.py` by `tests/validation/make_references.sh`). Each scene folder holds
+//! `scene.gltf`, `reference_*_128.exr` (the reference's mean) and `reference_*_128_se.exr` (the per-pixel
+//! standard error of that mean, from the spread of the reference's independent passes).
+//!
+//! Nimbus renders each scene at the reference's 128×128, with `max_depth` from the scene's `extras.max_bounces`
+//! and a fixed seed. Tolerances come from the measured noise of both images, never from a fixed percentage
+//! (see `../shared/validation/README.md`):
+//! - **each channel's image mean** must agree within 4 combined standard errors, the render's from its
+//!   `variance` layer, the reference's from its `_se` image;
+//! - **8×8-blurred blocks**: z = (B_img − B_ref) / √(SE_img² + SE_ref²) for every block and channel. Fireflies
+//!   make single renders heavy-tailed, so the distribution of z is judged, not its maximum: few blocks may lie
+//!   beyond 4;
+//! - **regional bias**: the image is cut into 4×4 regions of 32×32 pixels, and each region's mean must agree
+//!   with the reference's within 4.5 combined standard errors in every channel (48 tests: a false alarm
+//!   once in about 400 seeds). This is where a localised bias shows, such as a wrong shadow or a wrong texture
+//!   filter. The mean of the block z values, which the validation README also suggests, is printed but not
+//!   asserted: with heavy-tailed samples a block's mean and its estimated variance are correlated (blocks that
+//!   missed a rare bright sample are both darker and look less noisy), which drags the mean of z below 0
+//!   without any bias; pooling a region's 1024 pixels before dividing avoids that;
+//! - **the blurred relative RMSE** over the blocks must stay near its noise floor, the value that the two
+//!   images' standard errors alone would give.
+//!
+//! Run `cargo test --release --test validation -- --nocapture` for the table of every figure.
+
+mod common;
+
+use nimbus::math::Rgb;
+use nimbus::output::read_exr_layers;
+use nimbus::render::{RenderImage, RenderSettings, Renderer};
+use nimbus::Scene;
+use std::path::{Path, PathBuf};
+
+/// Side of the blur blocks, in pixels.
+const BLOCK: usize = 8;
+/// Combined standard errors allowed between the two image means.
+const MEAN_Z_LIMIT: f64 = 4.0;
+/// Fraction of (block, channel) pairs allowed beyond |z| = 4. Under Gaussian noise the expected fraction is
+/// 6e-5; the margin covers heavy-tailed blocks whose standard error is underestimated at low sample counts.
+const OUTLIER_FRACTION_LIMIT: f64 = 0.02;
+/// Side of the regions of the bias test, in pixels.
+const REGION: usize = 32;
+/// Combined standard errors allowed between a region's mean and the reference's.
+const REGION_Z_LIMIT: f64 = 4.5;
+/// Allowed ratio of the blurred relative RMSE to its noise floor.
+const REL_RMSE_RATIO_LIMIT: f64 = 1.5;
+/// Seed of every render.
+const SEED: u64 = 1;
+
+/// Samples per pixel for a scene: enough for a meaningful noise floor, few enough to keep the whole test under
+/// three minutes on two cores.
+fn spp_for(scene: &str) -> u32 {
+    match scene {
+        "point-in-medium" => 1024,
+        _ => 512,
+    }
+}
+
+/// A scene folder with its reference images.
+struct ValidationScene {
+    name: String,
+    gltf: PathBuf,
+    reference: PathBuf,
+    reference_se: PathBuf,
+}
+
+/// Every scene folder under `root` that has a `scene.gltf` and a reference pair.
+fn scenes_in(root: &Path) -> Vec<ValidationScene> {
+    let mut out = Vec::new();
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return out;
+    };
+    for entry in entries.flatten() {
+        let dir = entry.path();
+        let gltf = dir.join("scene.gltf");
+        if !gltf.is_file() {
+            continue;
+        }
+        let reference = std::fs::read_dir(&dir)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .map(|e| e.path())
+            .find(|p| {
+                let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+                name.starts_with("reference_") && name.ends_with("_128.exr")
+            });
+        let Some(reference) = reference else {
+            panic!(
+                "{}: scene.gltf without a reference_*_128.exr",
+                dir.display()
+            );
+        };
+        let reference_se = reference.with_file_name(
+            reference
+                .file_name()
+                .unwrap()
+                .to_str()
+                .unwrap()
+                .replace(".exr", "_se.exr"),
+        );
+        assert!(
+            reference_se.is_file(),
+            "{} is missing",
+            reference_se.display()
+        );
+        out.push(ValidationScene {
+            name: dir.file_name().unwrap().to_string_lossy().into_owned(),
+            gltf,
+            reference,
+            reference_se,
+        });
+    }
+    out.sort_by(|a, b| a.name.cmp(&b.name));
+    out
+}
+
+/// Reads the beauty of an EXR as RGB pixels.
+fn read_rgb(path: &Path) -> (usize, usize, Vec<Rgb>) {
+    let layers = read_exr_layers(path).unwrap_or_else(|e| panic!("{e}"));
+    let rgb = layers
+        .rgb("")
+        .unwrap_or_else(|| panic!("{} has no R, G, B channels", path.display()));
+    (layers.width, layers.height, rgb)
+}
+
+/// What the comparison of one scene measured.
+#[derive(Debug)]
+struct Comparison {
+    mean: [f64; 3],
+    reference_mean: [f64; 3],
+    mean_z: [f64; 3],
+    outlier_fraction: f64,
+    /// Per channel: the mean of the block z values × √(blocks) (reported, not asserted; see the module docs).
+    bias_z: [f64; 3],
+    /// The region z value furthest from 0, with its region and channel.
+    worst_region: (f64, usize, usize, usize),
+    rel_rmse: f64,
+    rel_rmse_floor: f64,
+}
+
+impl Comparison {
+    fn failures(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        for c in 0..3 {
+            if self.mean_z[c].abs() > MEAN_Z_LIMIT || !self.mean_z[c].is_finite() {
+                out.push(format!(
+                    "channel {c} mean {:.5} vs reference {:.5} (z = {:.1})",
+                    self.mean[c], self.reference_mean[c], self.mean_z[c]
+                ));
+            }
+        }
+        if self.outlier_fraction > OUTLIER_FRACTION_LIMIT {
+            out.push(format!(
+                "{:.1}% of blurred blocks beyond |z| = 4 (limit {:.1}%)",
+                100.0 * self.outlier_fraction,
+                100.0 * OUTLIER_FRACTION_LIMIT
+            ));
+        }
+        let (z, rx, ry, c) = self.worst_region;
+        if z.abs() > REGION_Z_LIMIT || !z.is_finite() {
+            out.push(format!(
+                "region ({rx}, {ry}) of {REGION}×{REGION} pixels is biased in channel {c}: z = {z:.1}"
+            ));
+        }
+        if self.rel_rmse.is_nan() || self.rel_rmse > REL_RMSE_RATIO_LIMIT * self.rel_rmse_floor {
+            out.push(format!(
+                "blurred relative RMSE {:.4} above {REL_RMSE_RATIO_LIMIT} × its noise floor {:.4}",
+                self.rel_rmse, self.rel_rmse_floor
+            ));
+        }
+        out
+    }
+}
+
+/// Compares a render (mean and variance of the mean per pixel) with a reference (mean and standard error).
+fn compare(img: &RenderImage, reference: &[Rgb], reference_se: &[Rgb]) -> Comparison {
+    let (w, h) = (img.width, img.height);
+    let n = (w * h) as f64;
+    let mut mean = [0.0; 3];
+    let mut reference_mean = [0.0; 3];
+    let mut mean_z = [0.0; 3];
+    for c in 0..3 {
+        let sum: f64 = img.beauty.iter().map(|p| p[c] as f64).sum();
+        let var: f64 = img.variance.iter().map(|v| v[c] as f64).sum();
+        let ref_sum: f64 = reference.iter().map(|p| p[c] as f64).sum();
+        let ref_var: f64 = reference_se.iter().map(|s| (s[c] as f64).powi(2)).sum();
+        mean[c] = sum / n;
+        reference_mean[c] = ref_sum / n;
+        let se = (var + ref_var).sqrt() / n;
+        mean_z[c] = (mean[c] - reference_mean[c]) / se.max(1e-12 * reference_mean[c].abs());
+    }
+    // 8×8 blocks.
+    let (bw, bh) = (w / BLOCK, h / BLOCK);
+    let per_block = (BLOCK * BLOCK) as f64;
+    let image_scale = reference_mean.iter().sum::<f64>() / 3.0;
+    // Relative errors are taken against the block's reference value, with a floor of 1% of the image mean so
+    // that black blocks do not divide by zero.
+    let eps = 0.01 * image_scale.max(1e-12);
+    let mut zs = Vec::new();
+    let mut channel_z_sum = [0.0; 3];
+    let (mut rel_sq, mut floor_sq) = (0.0, 0.0);
+    for by in 0..bh {
+        for bx in 0..bw {
+            for c in 0..3 {
+                let (mut b_img, mut b_ref, mut v_img, mut v_ref) = (0.0, 0.0, 0.0, 0.0);
+                for y in by * BLOCK..(by + 1) * BLOCK {
+                    for x in bx * BLOCK..(bx + 1) * BLOCK {
+                        let i = y * w + x;
+                        b_img += img.beauty[i][c] as f64;
+                        b_ref += reference[i][c] as f64;
+                        v_img += img.variance[i][c] as f64;
+                        v_ref += (reference_se[i][c] as f64).powi(2);
+                    }
+                }
+                b_img /= per_block;
+                b_ref /= per_block;
+                let se2 = (v_img + v_ref) / (per_block * per_block);
+                let diff = b_img - b_ref;
+                // Blocks without noise in either image (e.g. a constant background) must agree to rounding.
+                let se = se2.sqrt().max(1e-5 * b_ref.abs() + 1e-9);
+                zs.push(diff / se);
+                channel_z_sum[c] += diff / se;
+                let denom = b_ref * b_ref + eps * eps;
+                rel_sq += diff * diff / denom;
+                floor_sq += se2 / denom;
+            }
+        }
+    }
+    let count = zs.len() as f64;
+    let outliers = zs
+        .iter()
+        .filter(|z| z.abs() > 4.0 || !z.is_finite())
+        .count() as f64;
+    let blocks = (bw * bh) as f64;
+    Comparison {
+        mean,
+        reference_mean,
+        mean_z,
+        outlier_fraction: outliers / count,
+        bias_z: channel_z_sum.map(|s| s / blocks * blocks.sqrt()),
+        worst_region: worst_region(img, reference, reference_se),
+        rel_rmse: (rel_sq / count).sqrt(),
+        rel_rmse_floor: (floor_sq / count).sqrt(),
+    }
+}
+
+/// The region z value furthest from 0: `(z, region x, region y, channel)`.
+fn worst_region(
+    img: &RenderImage,
+    reference: &[Rgb],
+    reference_se: &[Rgb],
+) -> (f64, usize, usize, usize) {
+    let w = img.width;
+    let mut worst = (0.0f64, 0, 0, 0);
+    for ry in 0..img.height / REGION {
+        for rx in 0..w / REGION {
+            for c in 0..3 {
+                let (mut diff, mut var, mut sum) = (0.0, 0.0, 0.0);
+                for y in ry * REGION..(ry + 1) * REGION {
+                    for x in rx * REGION..(rx + 1) * REGION {
+                        let i = y * w + x;
+                        diff += img.beauty[i][c] as f64 - reference[i][c] as f64;
+                        var += img.variance[i][c] as f64 + (reference_se[i][c] as f64).powi(2);
+                        sum += reference[i][c] as f64;
+                    }
+                }
+                // As for blocks: a region without noise (constant background) must agree to rounding.
+                let pixels = (REGION * REGION) as f64;
+                let z = diff / var.sqrt().max(1e-5 * sum.abs() + 1e-9 * pixels);
+                if z.abs() > worst.0.abs() || !z.is_finite() {
+                    worst = (z, rx, ry, c);
+                }
+            }
+        }
+    }
+    worst
+}
+
+/// Renders one scene and compares it with its reference; returns the table row and any failures.
+fn validate(scene: &ValidationScene) -> (String, Vec<String>) {
+    let (w, h, reference) = read_rgb(&scene.reference);
+    let (ws, hs, reference_se) = read_rgb(&scene.reference_se);
+    assert_eq!((w, h), (ws, hs), "{}: reference sizes differ", scene.name);
+    let loaded = Scene::load(&scene.gltf).unwrap_or_else(|e| panic!("{e}"));
+    let spp = spp_for(&scene.name);
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        spp,
+        seed: SEED,
+        threads: 0,
+        max_depth: loaded.max_bounces.unwrap_or(64),
+        ..Default::default()
+    };
+    let start = std::time::Instant::now();
+    let (img, stats) = Renderer::new(settings)
+        .render(&loaded, &mut |_| true)
+        .unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    let cmp = compare(&img, &reference, &reference_se);
+    let mut failures = cmp.failures();
+    if stats.nan_samples > 0 {
+        failures.push(format!("{} NaN/Inf samples", stats.nan_samples));
+    }
+    let row = format!(
+        "| {} | {spp} | {:.4} {:.4} {:.4} | {:.4} {:.4} {:.4} | {:+.1} {:+.1} {:+.1} | {:.2}% | {:+.1} {:+.1} {:+.1} | {:+.1} | {:.4} | {:.4} | {:.1} |",
+        scene.name,
+        cmp.mean[0],
+        cmp.mean[1],
+        cmp.mean[2],
+        cmp.reference_mean[0],
+        cmp.reference_mean[1],
+        cmp.reference_mean[2],
+        cmp.mean_z[0],
+        cmp.mean_z[1],
+        cmp.mean_z[2],
+        100.0 * cmp.outlier_fraction,
+        cmp.bias_z[0],
+        cmp.bias_z[1],
+        cmp.bias_z[2],
+        cmp.worst_region.0,
+        cmp.rel_rmse,
+        cmp.rel_rmse_floor,
+        seconds,
+    );
+    (row, failures)
+}
+
+#[test]
+fn every_validation_scene_matches_its_reference() {
+    let mut scenes = Vec::new();
+    if let Some(shared) = common::shared_dir() {
+        let dir = shared.join("validation");
+        let found = scenes_in(&dir);
+        if found.is_empty() && std::env::var("NIMBUS_REQUIRE_SHARED").as_deref() == Ok("1") {
+            panic!("no validation scenes under {}", dir.display());
+        }
+        scenes.extend(found);
+    }
+    scenes.extend(scenes_in(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/validation"),
+    ));
+    println!(
+        "| scene | spp | Nimbus mean (R G B) | reference mean | mean z | blocks |z|>4 | block mean z·√N (R G B) | worst region z | blurred relRMSE | noise floor | seconds |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut failed = Vec::new();
+    for scene in &scenes {
+        let (row, failures) = validate(scene);
+        println!("{row}");
+        for f in failures {
+            failed.push(format!("{}: {f}", scene.name));
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "validation failures:\n{}",
+        failed.join("\n")
+    );
+}
