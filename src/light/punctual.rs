@@ -52,10 +52,19 @@ pub struct SpotLight {
 
 impl SpotLight {
     /// The angular falloff recommended by the KHR_lights_punctual specification ("Inner and Outer Cone
-    /// Angles"): a squared linear ramp in cos θ between the outer and inner cones.
+    /// Angles"): a squared linear ramp in cos θ between the outer and inner cones. When the two cones are equal
+    /// the edge is hard, as Blender's importer and three.js render it (the specification's sample code keeps
+    /// a ramp 0.001 wide in cos θ there only to avoid dividing by zero).
     pub fn falloff(&self, cos_theta: f32) -> f32 {
-        let scale = 1.0 / (self.cos_inner - self.cos_outer).max(1e-3);
-        let t = ((cos_theta - self.cos_outer) * scale).clamp(0.0, 1.0);
+        let width = self.cos_inner - self.cos_outer;
+        if width <= 0.0 {
+            return if cos_theta >= self.cos_outer {
+                1.0
+            } else {
+                0.0
+            };
+        }
+        let t = ((cos_theta - self.cos_outer) / width).clamp(0.0, 1.0);
         t * t
     }
 
@@ -146,5 +155,12 @@ mod tests {
         assert!((l.falloff(0.85) - 0.25).abs() < 1e-5);
         assert!(l.sample_li(Vec3::new(0.0, -1.0, 0.0)).is_some());
         assert!(l.sample_li(Vec3::new(0.0, 1.0, 0.0)).is_none());
+        // Equal cones: a hard edge, full intensity right up to it.
+        let hard = SpotLight {
+            cos_inner: 0.8,
+            ..l
+        };
+        assert_eq!(hard.falloff(0.8001), 1.0);
+        assert_eq!(hard.falloff(0.7999), 0.0);
     }
 }

@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""Writes Nimbus's own validation scenes into tests/validation/<scene>/ (scene.gltf and any PNG textures).
+
+Run from the repository root: `python3 tests/validation/make_scenes.py`. Pure Python and deterministic; the
+references beside each scene come from `make_references.py` (Mitsuba 3, through ../shared/tools/gltf2mitsuba.py).
+
+| scene | what it checks |
+|---|---|
+| textured-emitter | an emissive panel whose emissiveTexture (NEAREST, sRGB) is a colour pattern: the texture's orientation on an emitter, light sampling of a textured emitter, and MIS with BSDF-sampled hits on it |
+| spot-cone | two KHR_lights_punctual spot lights (candela, hard cones, one tilted) over a floor and a box: cone direction, cone angle, photometric units, a spot shadow |
+"""
+import math
+import os
+import struct
+import sys
+import zlib
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "..", "assets"))
+from gltf_writer import GltfBuilder, look_rotation  # noqa: E402
+
+GENERATOR = "nimbus tests/validation/make_scenes.py"
+
+
+def write_png(path, width, height, rgb_rows):
+    """8-bit RGB PNG (no filtering), rows top first, each a list of (r, g, b) bytes."""
+    raw = b"".join(b"\x00" + bytes(c for px in row for c in px) for row in rgb_rows)
+
+    def chunk(tag, data):
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) + \
+        chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b"")
+    with open(path, "wb") as f:
+        f.write(png)
+
+
+def textured_quad(b, name, corners, uvs, material):
+    """a quad (corners counter-clockwise seen from the front) with TEXCOORD_0"""
+    a, bb, c, d = corners
+    e1 = [bb[i] - a[i] for i in range(3)]
+    e2 = [d[i] - a[i] for i in range(3)]
+    n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
+    ln = math.sqrt(sum(x * x for x in n))
+    n = [x / ln for x in n]
+    p, nn, i = b.add_geometry(corners, [n] * 4, [0, 1, 2, 0, 2, 3])
+    t = b.add_accessor(uvs, 2, 5126, "VEC2", 34962)
+    b.meshes.append({"name": name, "primitives": [{"attributes": {"POSITION": p, "NORMAL": nn, "TEXCOORD_0": t},
+                                                    "indices": i, "material": material}]})
+    return b.add_node({"name": name, "mesh": len(b.meshes) - 1})
+
+
+def write(b, folder, scene_extras, extra_json=None):
+    os.makedirs(folder, exist_ok=True)
+    out = os.path.join(folder, "scene.gltf")
+    gltf = b.to_gltf(GENERATOR, scene_extras=scene_extras)
+    if extra_json:
+        gltf.update(extra_json)
+    import base64
+    import json
+    gltf["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(bytes(b.buffer)).decode()
+    with open(out, "w") as f:
+        f.write(json.dumps(gltf, separators=(",", ":")) + "\n")
+    print("wrote", os.path.relpath(out))
+
+
+def textured_emitter():
+    folder = os.path.join(HERE, "textured-emitter")
+    os.makedirs(folder, exist_ok=True)
+    # 4 x 2 texels, top row first: red, green, blue, white / yellow, cyan, magenta, dark grey.
+    rows = [[(255, 40, 40), (40, 255, 40), (40, 40, 255), (255, 255, 255)],
+            [(255, 255, 40), (40, 255, 255), (255, 40, 255), (60, 60, 60)]]
+    write_png(os.path.join(folder, "pattern.png"), 4, 2, rows)
+    b = GltfBuilder()
+    floor = b.lambert("floor", [0.6, 0.6, 0.6])
+    b.quad("floor", [[-2, 0, 2], [2, 0, 2], [2, 0, -2], [-2, 0, -2]], floor)
+    white = b.lambert("sphere", [0.8, 0.8, 0.8])
+    b.sphere("sphere", [0.35, 0.3, -0.1], 0.3, white, rings=24, segments=48)
+    panel = b.add_material("panel", pbrMetallicRoughness={"baseColorFactor": [0, 0, 0, 1], "metallicFactor": 0.0},
+                           emissiveFactor=[1.0, 1.0, 1.0], emissiveTexture={"index": 0},
+                           extensions={"KHR_materials_emissive_strength": {"emissiveStrength": 2.5},
+                                       "KHR_materials_specular": {"specularFactor": 0.0}})
+    # The panel stands at z = -0.8 facing +z; uv (0, 0) at its top-left as seen from the front.
+    textured_quad(b, "panel", [[-0.8, 0.2, -0.8], [0.8, 0.2, -0.8], [0.8, 1.0, -0.8], [-0.8, 1.0, -0.8]],
+                  [[0, 1], [1, 1], [1, 0], [0, 0]], panel)
+    b.camera("camera", eye=[-0.4, 0.9, 2.0], target=[0.0, 0.4, -0.4], yfov_deg=45)
+    write(b, folder, {"nimbus_environment": {"color": [0.0, 0.0, 0.0]}, "max_bounces": 8},
+          {"textures": [{"source": 0, "sampler": 0}],
+           "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
+           "images": [{"uri": "pattern.png", "mimeType": "image/png"}]})
+
+
+def spot_cone():
+    folder = os.path.join(HERE, "spot-cone")
+    b = GltfBuilder()
+    floor = b.lambert("floor", [0.7, 0.7, 0.7])
+    b.quad("floor", [[-3, 0, 3], [3, 0, 3], [3, 0, -3], [-3, 0, -3]], floor)
+    grey = b.lambert("box", [0.5, 0.6, 0.7])
+    b.box("box", [-0.55, 0.0, -0.45], [-0.15, 0.45, -0.05], grey)
+    # A wide spot tilted 30 degrees from vertical (cone half-angle 0.5 rad) and a narrow one straight down
+    # (0.18 rad); glTF spots shine along the node's -Z. Intensities in candela (/683 = W/sr).
+    b.lights.append({"name": "wide", "type": "spot", "color": [1.0, 0.85, 0.6], "intensity": 1500.0,
+                     "spot": {"innerConeAngle": 0.5, "outerConeAngle": 0.5}})
+    b.add_node({"name": "wide", "translation": [-1.2, 1.6, 0.2],
+                "rotation": look_rotation([math.sin(math.radians(30)), -math.cos(math.radians(30)), -0.15]),
+                "extensions": {"KHR_lights_punctual": {"light": 0}}})
+    b.lights.append({"name": "narrow", "type": "spot", "color": [0.6, 0.8, 1.0], "intensity": 4000.0,
+                     "spot": {"innerConeAngle": 0.18, "outerConeAngle": 0.18}})
+    b.add_node({"name": "narrow", "translation": [0.9, 1.8, -0.3], "rotation": look_rotation([0.0, -1.0, 0.0]),
+                "extensions": {"KHR_lights_punctual": {"light": 1}}})
+    b.camera("camera", eye=[0.0, 2.2, 2.6], target=[0.0, 0.0, -0.2], yfov_deg=50)
+    write(b, folder, {"nimbus_environment": {"color": [0.0, 0.0, 0.0]}, "max_bounces": 8},
+          {"extensionsUsed": ["KHR_lights_punctual", "KHR_materials_specular"]})
+
+
+if __name__ == "__main__":
+    textured_emitter()
+    spot_cone()
