@@ -164,7 +164,7 @@ fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, refe
     let compared = match reference {
         Reference::ClosedForm(e) => format!("{e} (closed form)"),
         Reference::Render(r, r_se) => format!(
-            "{r:.4} ± {r_se:.4} (render; {:+.1} s.e.)",
+            "{r:.4} ± {r_se:.4} (Nimbus render, self-consistency only; {:+.1} s.e.)",
             (mean - r) / (se * se + r_se * r_se).sqrt()
         ),
     };
