@@ -374,7 +374,7 @@ fn warn_samples(nan_samples: u64, clamped_samples: u64) {
     }
     if clamped_samples > 0 {
         eprintln!(
-            "nimbus: warning: {clamped_samples} samples had values beyond ±2^46 (or NaN/Inf AOVs) and were clamped"
+            "nimbus: warning: {clamped_samples} samples had values beyond ±2^38 (2.7e11) or NaN/Inf AOVs, and were clamped"
         );
     }
 }

@@ -4,6 +4,8 @@
 //! parts and gaps are refused with one line naming the files. Through the library and through the CLI.
 
 use nimbus::farm::{self, FarmError, PartInfo};
+use nimbus::light::EnvironmentLight;
+use nimbus::math::Rgb;
 use nimbus::render::{
     CancelToken, PixelWindow, RenderImage, RenderRegion, RenderSettings, Renderer,
 };
@@ -30,8 +32,13 @@ fn settings(threads: usize) -> RenderSettings {
     }
 }
 
+/// The bundled cloud under a faint sky (10⁻⁹): a pixel on an edge sums sky samples 2^30 times dimmer than the lit
+/// cloud and ground, where float sums of the same samples round differently in different groupings (the case
+/// the exact sums are for), and every pixel's squared values do.
 fn scene() -> Scene {
-    Scene::load(Path::new(SCENE)).unwrap()
+    let mut builder = nimbus::scene::load_builder(Path::new(SCENE)).unwrap();
+    builder.set_environment(EnvironmentLight::Constant(Rgb::splat(1e-9)));
+    builder.build()
 }
 
 /// A fresh folder for one test's files.
@@ -404,7 +411,18 @@ fn nimbus(args: &[&str], env: &[(&str, &str)], dir: &Path) -> (bool, String) {
 fn cli_splits_merge_to_the_same_files_as_one_render() {
     let dir = temp_dir("cli");
     let common = [
-        "render", SCENE, "--width", "37", "--height", "23", "--spp", "10", "--seed", "9",
+        "render",
+        SCENE,
+        "--width",
+        "37",
+        "--height",
+        "23",
+        "--spp",
+        "10",
+        "--seed",
+        "9",
+        "--env-color",
+        "1e-9,1e-9,1e-9",
     ];
     let run = |extra: &[&str], env: &[(&str, &str)]| {
         let args: Vec<&str> = common.iter().chain(extra).copied().collect();
@@ -569,5 +587,120 @@ fn cli_refuses_parts_of_another_scene_or_seed_with_one_line() {
         let (ok, err) = nimbus(&args, env, &dir);
         assert!(!ok && err.contains(expected), "{extra:?}: {err}");
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The `command` array of a Kubernetes manifest (kept as one JSON flow sequence per line).
+fn k8s_command(manifest: &str) -> Vec<String> {
+    let line = manifest
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("command:"))
+        .expect("a command line");
+    serde_json::from_str(line.trim()).expect("command is a JSON array")
+}
+
+#[test]
+fn kubernetes_example_chunks_match_its_completions_and_merge_glob() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("farm/kubernetes");
+    let render = std::fs::read_to_string(dir.join("render-job.yaml")).unwrap();
+    let merge = std::fs::read_to_string(dir.join("merge-job.yaml")).unwrap();
+    let field = |name: &str| -> u32 {
+        render
+            .lines()
+            .find_map(|l| l.trim().strip_prefix(name))
+            .and_then(|v| v.trim().parse().ok())
+            .unwrap_or_else(|| panic!("{name} in render-job.yaml"))
+    };
+    assert!(render.contains("completionMode: Indexed"));
+    let command = k8s_command(&render);
+    let flag = |name: &str| {
+        let i = command
+            .iter()
+            .position(|a| a == name)
+            .unwrap_or_else(|| panic!("{name}"));
+        command[i + 1].clone()
+    };
+    assert_eq!(command[..2], ["nimbus", "render"]);
+    assert!(command.iter().any(|a| a == "--chunk-from-env"));
+    let chunks: u32 = flag("--chunks").parse().unwrap();
+    assert_eq!(
+        chunks,
+        field("completions:"),
+        "--chunks must equal completions"
+    );
+    let spp: u32 = flag("--spp").parse().unwrap();
+    farm::sample_chunk(chunks - 1, chunks, spp).unwrap();
+    // The merge's glob matches every chunk file the render writes, and nothing else of its.
+    let output = PathBuf::from(flag("-o"));
+    let merge_command = k8s_command(&merge).join(" ");
+    let glob = format!(
+        "{}/{}.chunk*.exr",
+        output.parent().unwrap().display(),
+        output.file_stem().unwrap().to_string_lossy()
+    );
+    assert!(
+        merge_command.contains(&format!("nimbus merge {glob}")),
+        "{merge_command}"
+    );
+    let last = farm::chunk_output_path(&output, chunks - 1, chunks);
+    let last = last.file_name().unwrap().to_string_lossy();
+    assert!(
+        last.starts_with("shot.chunk") && last.ends_with(".exr"),
+        "{last}"
+    );
+}
+
+#[test]
+fn samples_whose_float_sums_depend_on_grouping_merge_exactly_through_part_files() {
+    use nimbus::integrator::PathSample;
+    use nimbus::render::Film;
+    // Per pixel: four samples whose f64 running sum and split sums round to different f32 means (see the
+    // film's unit tests), scaled per pixel, with AOVs that vary too.
+    let values = [1.0f32, 2f32.powi(-24), 2f32.powi(-54), 3.0 * 2f32.powi(-55)];
+    let sample = |pixel: usize, k: usize| {
+        let scale = (1 + pixel % 7) as f32;
+        PathSample {
+            radiance: Rgb::new(values[k], values[k] * 0.5, values[3 - k]) * scale,
+            albedo: Rgb::splat(values[k]),
+            normal: nimbus::math::Vec3::new(values[k], 1.0, -values[3 - k]),
+            depth: 1.0 + values[k],
+        }
+    };
+    let (width, height) = (5, 3);
+    let mut whole = Film::new(width, height);
+    for (i, p) in whole.pixels_mut().iter_mut().enumerate() {
+        (0..4).for_each(|k| {
+            p.add(&sample(i, k));
+        });
+    }
+    let dir = temp_dir("crafted");
+    let settings = RenderSettings {
+        width,
+        height,
+        spp: 4,
+        ..Default::default()
+    };
+    let mut paths = Vec::new();
+    for samples in [0..2, 2..4] {
+        let mut film = Film::new(width, height);
+        for (i, p) in film.pixels_mut().iter_mut().enumerate() {
+            samples.clone().for_each(|k| {
+                p.add(&sample(i, k as usize));
+            });
+        }
+        let stats = nimbus::RenderStats {
+            samples_per_pixel: samples.len() as u32,
+            ..Default::default()
+        };
+        let region = RenderRegion {
+            window: PixelWindow::full(width, height),
+            samples: samples.clone(),
+        };
+        let path = dir.join(format!("part{}.exr", samples.start));
+        farm::write_part(&path, &film, &PartInfo::new(&settings, 1, &region, &stats)).unwrap();
+        paths.push(path);
+    }
+    let merged = farm::merge_parts(&paths).unwrap();
+    assert_bit_identical(&merged.image, &whole.image(), "crafted samples");
     std::fs::remove_dir_all(&dir).unwrap();
 }

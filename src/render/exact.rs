@@ -6,23 +6,28 @@
 //! not depend on the order. Every sample value is therefore rounded once, on its own, to a fixed-point
 //! integer, and the integers are summed exactly:
 //!
-//! - [`ValueSum`]: value × 2^48, rounded to the nearest integer (halves away from zero), summed in an `i128`.
-//!   One unit is 2^-48 ≈ 3.6e-15: a value of 2^-24 ≈ 6e-8 or more keeps all 24 bits of its `f32`
-//!   significand, and a smaller one keeps an absolute precision of 1.8e-15.
-//! - [`SquareSum`]: value² (exact in `f64`, the product of two 24-bit significands) × 2^64, rounded the same
-//!   way, summed in 192 bits. One unit is 2^-64 ≈ 5.4e-20.
+//! - [`ValueSum`]: value × 2^56, rounded to the nearest integer (halves away from zero), summed in an `i128`.
+//!   One unit is 2^-56 ≈ 1.4e-17: a value of 2^-32 ≈ 2.3e-10 or more keeps all 24 bits of its `f32`
+//!   significand, and a smaller one keeps an absolute precision of 6.9e-18.
+//! - [`SquareSum`]: value² (exact in `f64`, the product of two 24-bit significands) × 2^80, rounded the same
+//!   way, summed in 192 bits. One unit is 2^-80 ≈ 8.3e-25.
 //!
-//! One sample's value is clamped to ±[`MAX_SAMPLE_VALUE`] = ±2^46 ≈ ±7.0e13 before rounding (the film counts
+//! One sample's value is clamped to ±[`MAX_SAMPLE_VALUE`] = ±2^38 ≈ ±2.7e11 before rounding (the film counts
 //! such samples). With at most `u32::MAX` samples in a pixel a value sum stays below 2^126 and a square
 //! sum below 2^188, so neither can overflow. Turning a sum back into `f64` is one deterministic rounding.
+//!
+//! The price: 240 bytes of film per pixel instead of 112 for `f64` sums, and values below 2.3e-10 keep an
+//! absolute rather than a relative precision. Plain `f64` running sums would give the same `f32` image for
+//! almost every pixel, but not for all: a split moves the roundings of the sum, and where the sum lies near
+//! the midpoint between two `f32` values the mean comes out one unit apart (see the film's tests).
 
-/// Fractional bits of a [`ValueSum`]: one unit is 2^-48.
-pub const VALUE_FRACTION_BITS: i32 = 48;
-/// Fractional bits of a [`SquareSum`]: one unit is 2^-64.
-pub const SQUARE_FRACTION_BITS: i32 = 64;
-/// The largest magnitude of one sample value that the sums take as it is: 2^46 ≈ 7.0e13. See
+/// Fractional bits of a [`ValueSum`]: one unit is 2^-56.
+pub const VALUE_FRACTION_BITS: i32 = 56;
+/// Fractional bits of a [`SquareSum`]: one unit is 2^-80.
+pub const SQUARE_FRACTION_BITS: i32 = 80;
+/// The largest magnitude of one sample value that the sums take as it is: 2^38 ≈ 2.7e11. See
 /// [`clamp_sample`].
-pub const MAX_SAMPLE_VALUE: f32 = 70_368_744_177_664.0;
+pub const MAX_SAMPLE_VALUE: f32 = 274_877_906_944.0;
 
 /// Brings one sample value into the range the sums take: NaN becomes 0 and a magnitude above
 /// [`MAX_SAMPLE_VALUE`] (infinities included) becomes ±[`MAX_SAMPLE_VALUE`]. Returns the value and whether
@@ -57,7 +62,7 @@ fn round_to_i128(x: f64) -> i128 {
     }
 }
 
-/// An exact sum of sample values in fixed point (units of 2^-48); see the module docs.
+/// An exact sum of sample values in fixed point (units of 2^-56); see the module docs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ValueSum(i128);
 
@@ -101,7 +106,7 @@ impl ValueSum {
     }
 }
 
-/// An exact sum of squared sample values in fixed point (units of 2^-64), 192 bits wide; see the module
+/// An exact sum of squared sample values in fixed point (units of 2^-80), 192 bits wide; see the module
 /// docs. Squares are never negative, so the sum is unsigned.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SquareSum([u64; 3]);
@@ -201,9 +206,9 @@ mod tests {
         ]);
         v.extend([
             -MAX_SAMPLE_VALUE,
-            3.0e13,
-            1.5 * 2f32.powi(-48),
-            2.5 * 2f32.powi(-48),
+            2.0e11,
+            1.5 * 2f32.powi(-56),
+            2.5 * 2f32.powi(-56),
         ]);
         v
     }
@@ -265,15 +270,15 @@ mod tests {
         assert_eq!(raw(0.25 * unit), 0);
         assert_eq!(raw(1.5 * unit), 2);
         assert_eq!(raw(2.5 * unit), 3);
-        assert_eq!(raw(1.0), 1 << 48);
-        assert_eq!(raw(-3.0), -3 << 48);
+        assert_eq!(raw(1.0), 1 << 56);
+        assert_eq!(raw(-3.0), -3 << 56);
         assert_eq!(raw(MAX_SAMPLE_VALUE), 1 << 94);
         let mut q = SquareSum::default();
         q.add_square(MAX_SAMPLE_VALUE);
         assert_eq!(q.0, [0, 0, 1 << (156 - 128)]);
         let mut q = SquareSum::default();
         q.add_square(3.0);
-        assert_eq!(q.0, [0, 9, 0]);
+        assert_eq!(q.0, [0, 9 << 16, 0]);
     }
 
     #[test]
@@ -292,8 +297,8 @@ mod tests {
         }
         assert_eq!(s.0, 1 << 126);
         assert_eq!(q.0, [0, 0, 1 << 60]);
-        assert_eq!(s.to_f64(), 2f64.powi(46 + 32));
-        assert_eq!(q.to_f64(), 2f64.powi(92 + 32));
+        assert_eq!(s.to_f64(), 2f64.powi(38 + 32));
+        assert_eq!(q.to_f64(), 2f64.powi(76 + 32));
     }
 
     #[test]

@@ -356,6 +356,33 @@ mod tests {
     }
 
     #[test]
+    fn float_sums_would_give_a_split_other_bits_but_exact_sums_do_not() {
+        // Four samples of one pixel, rendered as the parts [0, 2) and [2, 4).
+        let values = [1.0f32, 2f32.powi(-24), 2f32.powi(-54), 3.0 * 2f32.powi(-55)];
+        // With f64 running sums, a single render adds in order, a merge adds the two parts' sums: the sums
+        // round differently and the f32 means land on either side of a rounding midpoint.
+        let v: Vec<f64> = values.iter().map(|&v| v as f64).collect();
+        let single = ((v[0] + v[1]) + v[2]) + v[3];
+        let merged = (v[0] + v[1]) + (v[2] + v[3]);
+        assert_ne!((single / 4.0) as f32, (merged / 4.0) as f32);
+        // The film's exact sums give the same bits both ways.
+        let add = |film: &mut Film, v: f32| {
+            film.pixels_mut()[0].add(&PathSample {
+                radiance: Rgb::splat(v),
+                ..Default::default()
+            });
+        };
+        let mut whole = Film::new(1, 1);
+        values.iter().for_each(|&v| add(&mut whole, v));
+        let (mut first, mut second) = (Film::new(1, 1), Film::new(1, 1));
+        values[..2].iter().for_each(|&v| add(&mut first, v));
+        values[2..].iter().for_each(|&v| add(&mut second, v));
+        assert!(first.merge(&second));
+        assert_eq!(first, whole);
+        assert_eq!(first.image(), whole.image());
+    }
+
+    #[test]
     fn clamped_values_are_reported() {
         let mut p = PixelSums::default();
         let mut s = sample(1);

@@ -76,7 +76,7 @@ pub struct RenderStats {
     pub rays: RayCounters,
     /// Samples dropped because their radiance was NaN or infinite (never written to the film).
     pub nan_samples: u64,
-    /// Samples with a value beyond ±2^46 (radiance, or an AOV: ±7e13), or a NaN or infinite AOV, clamped into
+    /// Samples with a value (radiance or AOV) beyond ±2^38 ≈ ±2.7e11, or a NaN or infinite AOV, clamped into
     /// the range of the film's exact sums (see [`MAX_SAMPLE_VALUE`](super::exact::MAX_SAMPLE_VALUE)).
     pub clamped_samples: u64,
     /// Peak resident memory of the process, when the platform reports it.
