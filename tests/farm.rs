@@ -146,7 +146,12 @@ fn tile_and_mixed_splits_merge_bit_identically() {
     // Crops on no grid: columns 0..13, 13..14, 14..41; rows 0..10, 10..29; each tile with its own sample split.
     let columns = [(0, 13), (13, 14), (14, 41)];
     let rows = [(0, 10), (10, 29)];
-    let splits: [&[Range<u32>]; 3] = [&[0..12], &[0..5, 5..12], &[0..1, 1..2, 2..11, 11..12]];
+    let whole = 0..SPP;
+    let splits: [&[Range<u32>]; 3] = [
+        std::slice::from_ref(&whole),
+        &[0..5, 5..12],
+        &[0..1, 1..2, 2..11, 11..12],
+    ];
     let mut paths = Vec::new();
     let mut k = 0;
     for (x0, x1) in columns {

@@ -42,9 +42,12 @@ pub fn clamp_sample(v: f32) -> (f32, bool) {
     }
 }
 
+/// 2^63, below which an `f64` converts to `i64` in one instruction.
+const TWO_POW_63: f64 = (1u64 << 63) as f64;
+
 /// `x` rounded to the nearest integer, halves away from zero, for a finite `|x| < 2^127`.
 fn round_to_i128(x: f64) -> i128 {
-    if x.abs() < 9.223_372_036_854_775_808e18 {
+    if x.abs() < TWO_POW_63 {
         // |x| < 2^63: truncate (exact), then look at the fraction, which `x - t` gives exactly.
         let t = x as i64;
         let fraction = x - t as f64;
@@ -129,7 +132,7 @@ impl SquareSum {
 
     /// `x` (finite, `0 ≤ x < 2^192`) rounded to the nearest integer, halves up.
     fn from_non_negative(x: f64) -> Self {
-        if x < 9.223_372_036_854_775_808e18 {
+        if x < TWO_POW_63 {
             return Self([round_to_i128(x) as u64, 0, 0]);
         }
         // x ≥ 2^63 is an integer: its 53-bit significand shifted left by `shift` ≥ 11 bits.

@@ -288,7 +288,7 @@ mod tests {
         PathSample {
             radiance: Rgb::new(0.1 * f, 1.0 / (1.0 + f), 3.0e-9 * f * f),
             albedo: Rgb::new(0.5, 0.25 * (k % 3) as f32, 1.0),
-            normal: Vec3::new(0.6, -0.8, 0.0) * if k % 2 == 0 { 1.0 } else { -1.0 },
+            normal: Vec3::new(0.6, -0.8, 0.0) * if k.is_multiple_of(2) { 1.0 } else { -1.0 },
             depth: 2.5 + f,
         }
     }
