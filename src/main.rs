@@ -368,6 +368,7 @@ fn finish_render(stats: &RenderStats, stats_path: Option<&Path>) -> Result<(), S
     Ok(())
 }
 
+/// Warns about samples dropped as NaN/Inf and samples clamped into the film's range.
 fn warn_samples(nan_samples: u64, clamped_samples: u64) {
     if nan_samples > 0 {
         eprintln!("nimbus: warning: {nan_samples} NaN/Inf samples were dropped");

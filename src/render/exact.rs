@@ -127,39 +127,37 @@ impl SquareSum {
         let v = v as f64;
         // Exact: v * v has a 48-bit significand, and scaling by a power of two is exact.
         let x = v * v * 2f64.powi(SQUARE_FRACTION_BITS);
-        self.add(SquareSum::from_non_negative(x));
+        if x < TWO_POW_63 {
+            self.add_parts(round_to_i128(x) as u128, 0);
+            return;
+        }
+        // x ≥ 2^63 (< 2^157) is an integer: its 53-bit significand shifted left by 11 to 104 bits, split into
+        // the low 128 bits and the bits above them.
+        let bits = x.to_bits();
+        let shift = ((bits >> 52) & 0x7ff) as u32 - 1075;
+        let significand = (bits & ((1u64 << 52) - 1)) | (1u64 << 52);
+        let high = if shift > 75 {
+            significand >> (128 - shift)
+        } else {
+            0
+        };
+        self.add_parts((significand as u128) << shift, high);
     }
 
-    /// `x` (finite, `0 ≤ x < 2^192`) rounded to the nearest integer, halves up.
-    fn from_non_negative(x: f64) -> Self {
-        if x < TWO_POW_63 {
-            return Self([round_to_i128(x) as u64, 0, 0]);
-        }
-        // x ≥ 2^63 is an integer: its 53-bit significand shifted left by `shift` ≥ 11 bits.
-        let bits = x.to_bits();
-        let shift = ((bits >> 52) & 0x7ff) as i32 - 1075;
-        let significand = (bits & ((1u64 << 52) - 1)) | (1u64 << 52);
-        Self(std::array::from_fn(|limb| {
-            let offset = shift - 64 * limb as i32;
-            if (0..64).contains(&offset) {
-                significand << offset
-            } else if (-63..0).contains(&offset) {
-                significand >> -offset
-            } else {
-                0
-            }
-        }))
+    /// Adds `low + high · 2^128`.
+    fn add_parts(&mut self, low: u128, high: u64) {
+        let sum = self.0[0] as u128 | (self.0[1] as u128) << 64;
+        let (sum, carry) = sum.overflowing_add(low);
+        self.0 = [
+            sum as u64,
+            (sum >> 64) as u64,
+            self.0[2] + high + carry as u64,
+        ];
     }
 
     /// Adds another sum; the result does not depend on the order of additions.
     pub fn add(&mut self, other: SquareSum) {
-        let mut carry = false;
-        for (a, b) in self.0.iter_mut().zip(other.0) {
-            let (s, c1) = a.overflowing_add(b);
-            let (s, c2) = s.overflowing_add(carry as u64);
-            *a = s;
-            carry = c1 || c2;
-        }
+        self.add_parts(other.0[0] as u128 | (other.0[1] as u128) << 64, other.0[2]);
     }
 
     /// The sum as `f64` (deterministic; within one unit in the last place of the exact value).
