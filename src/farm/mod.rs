@@ -44,15 +44,6 @@ pub enum FarmError {
         /// What is wrong with it.
         reason: String,
     },
-    /// A file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
-    },
     /// The EXR encoder or decoder failed.
     #[error(transparent)]
     Output(#[from] crate::output::OutputError),
