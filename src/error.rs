@@ -14,6 +14,12 @@ pub enum Error {
     /// A VDB file could not be read.
     #[error(transparent)]
     Vdb(#[from] crate::vdb::VdbError),
+    /// A render region is invalid, or its worker threads could not start.
+    #[error(transparent)]
+    Region(#[from] crate::render::RegionError),
+    /// A farm split or merge failed.
+    #[error(transparent)]
+    Farm(#[from] crate::farm::FarmError),
     /// The render's worker thread pool could not be started.
     #[error("cannot start render worker threads: {0}")]
     ThreadPool(#[from] rayon::ThreadPoolBuildError),

@@ -13,6 +13,9 @@
 //! 3. Use the [`RenderImage`] (beauty and AOV layers: albedo, normal, depth, variance) and the [`RenderStats`],
 //!    or write the image with [`write_exr`] (multi-layer EXR) and [`write_png_preview`] (8-bit sRGB).
 //!
+//! A render can also be cut into parts, by sample range and crop window, rendered on a farm and merged bit for
+//! bit: see [`farm`] and [`Renderer::render_region`].
+//!
 //! Nimbus keeps no global state: scenes, renderers and images are plain values, and every render builds its own
 //! worker pool. Every fallible call returns a typed error; [`Error`] wraps them all for hosts that want one
 //! `Result` type.
@@ -85,6 +88,7 @@
 mod error;
 
 pub mod converge;
+pub mod farm;
 pub mod geometry;
 pub mod integrator;
 pub mod light;
@@ -100,7 +104,8 @@ pub use error::{Error, Result};
 pub use material::Material;
 pub use output::{write_exr, write_png_preview, OutputError};
 pub use render::{
-    CancelToken, Progress, RenderImage, RenderSettings, RenderStats, Renderer, CHANNEL_NAMES,
+    CancelToken, Progress, RenderImage, RenderRegion, RenderSettings, RenderStats, Renderer,
+    CHANNEL_NAMES,
 };
 pub use scene::{Camera, Scene, SceneBuilder, SceneError};
 pub use vdb::VdbError;

@@ -1,11 +1,16 @@
-//! The `nimbus` command line: `render` a scene to EXR + PNG, `info` about a VDB file.
+//! The `nimbus` command line: `render` a scene (or a part of it) to EXR + PNG, `merge` parts, `info` about a VDB
+//! file, `converge` charts.
 
 use clap::{Args, Parser, Subcommand};
+use nimbus::farm::{FarmError, PartInfo};
 use nimbus::light::EnvironmentLight;
 use nimbus::math::Rgb;
-use nimbus::render::{Progress, RenderSettings, Renderer};
+use nimbus::render::{
+    CancelToken, PixelWindow, Progress, RenderRegion, RenderSettings, RenderStats, Renderer,
+};
 use nimbus::scene::{Scene, SceneBuilder};
 use std::io::IsTerminal;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
@@ -29,6 +34,22 @@ enum Command {
     Info(InfoArgs),
     /// Compare methods' error against a reference over render time: CSV, log-log chart, summary.
     Converge(ConvergeArgs),
+    /// Merge parts rendered with --samples, --crop or --chunk-from-env into the image of the whole render, bit
+    /// for bit; refuses parts of different renders, overlapping parts and gaps.
+    Merge(MergeArgs),
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// Part files, in any order (e.g. parts/shot.chunk*.exr).
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output EXR; the PNG preview goes beside it with the same stem.
+    #[arg(short = 'o', long = "output")]
+    output: PathBuf,
+    /// Exposure of the PNG preview in stops.
+    #[arg(long, default_value_t = 0.0)]
+    exposure: f32,
 }
 
 #[derive(Args)]
@@ -114,6 +135,24 @@ struct RenderArgs {
     /// Print the estimator chosen for each medium before rendering.
     #[arg(long)]
     explain: bool,
+    /// Render only samples START..END (END exclusive) of each pixel's --spp samples, as a part for `merge`.
+    #[arg(long, value_parser = nimbus::farm::parse_samples,
+          conflicts_with_all = ["chunk_from_env", "time_limit"])]
+    samples: Option<Range<u32>>,
+    /// Render only the pixels x0 <= x < x1, y0 <= y < y1 of the frame (0,0 = top left), as a part for `merge`.
+    #[arg(long, value_parser = nimbus::farm::parse_crop, conflicts_with = "time_limit")]
+    crop: Option<PixelWindow>,
+    /// Render chunk i of --chunks N of the samples, i read from NIMBUS_TASK_INDEX, SLURM_ARRAY_TASK_ID or
+    /// JOB_COMPLETION_INDEX (first set wins; 0 to N-1), as a part for `merge` written to OUT.chunk<i>.exr.
+    #[arg(
+        long = "chunk-from-env",
+        requires = "chunks",
+        conflicts_with = "time_limit"
+    )]
+    chunk_from_env: bool,
+    /// Number of sample chunks of --chunk-from-env.
+    #[arg(long, requires = "chunk_from_env")]
+    chunks: Option<u32>,
 }
 
 fn parse_rgb(s: &str) -> Result<Rgb, String> {
@@ -139,6 +178,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render(args),
         Command::Info(args) => info(args),
         Command::Converge(args) => converge(args),
+        Command::Merge(args) => merge(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -252,10 +292,38 @@ fn render(args: RenderArgs) -> Result<(), String> {
     );
     let renderer = Renderer::new(settings);
     let mut reporter = ProgressReporter::new();
+    if let Some((region, output)) = part_region(&args, renderer.settings())? {
+        let hash = part_scene_hash(&args, renderer.settings())?;
+        eprintln!(
+            "nimbus: part: samples {}..{} of the pixels in {}",
+            region.samples.start, region.samples.end, region.window
+        );
+        let (film, stats) = renderer
+            .render_region(
+                &scene,
+                &region,
+                &mut |p| reporter.report(p),
+                &CancelToken::new(),
+            )
+            .map_err(|e| e.to_string())?;
+        reporter.finish();
+        let info = PartInfo::new(renderer.settings(), hash, &region, &stats);
+        create_parent(&output)?;
+        nimbus::farm::write_part(&output, &film, &info).map_err(|e| e.to_string())?;
+        eprintln!(
+            "nimbus: wrote part {} ({} spp in {:.2} s, {:.0} samples/s)",
+            output.display(),
+            stats.samples_per_pixel,
+            stats.render_seconds,
+            stats.samples_per_second
+        );
+        return finish_render(&stats, args.stats.as_deref());
+    }
     let (image, stats) = renderer
         .render(&scene, &mut |p| reporter.report(p))
         .map_err(|e| format!("cannot start worker threads: {e}"))?;
     reporter.finish();
+    create_parent(&args.output)?;
     nimbus::output::write_exr(&image, &args.output).map_err(|e| e.to_string())?;
     let png = nimbus::output::preview_path(&args.output);
     nimbus::output::write_png_preview(&image, &png, args.exposure).map_err(|e| e.to_string())?;
@@ -267,6 +335,21 @@ fn render(args: RenderArgs) -> Result<(), String> {
         stats.render_seconds,
         stats.samples_per_second
     );
+    finish_render(&stats, args.stats.as_deref())
+}
+
+/// Creates the folder an output file goes in (every task of an array job may race to create it).
+fn create_parent(path: &Path) -> Result<(), String> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => {
+            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Warns about biased media, dropped and clamped samples, and writes the statistics if asked.
+fn finish_render(stats: &RenderStats, stats_path: Option<&Path>) -> Result<(), String> {
     for m in stats
         .media
         .iter()
@@ -277,16 +360,115 @@ fn render(args: RenderArgs) -> Result<(), String> {
             m.name, m.counters.majorant_violations
         );
     }
-    if stats.nan_samples > 0 {
+    warn_samples(stats.nan_samples, stats.clamped_samples);
+    if let Some(path) = stats_path {
+        let json = serde_json::to_string_pretty(stats).map_err(|e| e.to_string())?;
+        std::fs::write(path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// Warns about samples dropped as NaN/Inf and samples clamped into the film's range.
+fn warn_samples(nan_samples: u64, clamped_samples: u64) {
+    if nan_samples > 0 {
+        eprintln!("nimbus: warning: {nan_samples} NaN/Inf samples were dropped");
+    }
+    if clamped_samples > 0 {
         eprintln!(
-            "nimbus: warning: {} NaN/Inf samples were dropped",
-            stats.nan_samples
+            "nimbus: warning: {clamped_samples} samples had values beyond ±2^38 (2.7e11) or NaN/Inf AOVs, and were clamped"
         );
     }
-    if let Some(path) = args.stats {
-        let json = serde_json::to_string_pretty(&stats).map_err(|e| e.to_string())?;
-        std::fs::write(&path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+}
+
+/// The region and output file of a part render (`--samples`, `--crop`, `--chunk-from-env`), or `None` for a
+/// whole render.
+fn part_region(
+    args: &RenderArgs,
+    settings: &RenderSettings,
+) -> Result<Option<(RenderRegion, PathBuf)>, String> {
+    if args.samples.is_none() && args.crop.is_none() && !args.chunk_from_env {
+        return Ok(None);
     }
+    let window = args
+        .crop
+        .unwrap_or(PixelWindow::full(settings.width, settings.height));
+    if !window.fits(settings.width, settings.height) {
+        return Err(format!(
+            "--crop {window} does not fit the {}x{} frame",
+            settings.width, settings.height
+        ));
+    }
+    let mut output = args.output.clone();
+    let samples = match (&args.samples, args.chunks) {
+        (Some(samples), _) => {
+            if samples.end > settings.spp {
+                return Err(format!(
+                    "--samples {}..{} goes past --spp {}",
+                    samples.start, samples.end, settings.spp
+                ));
+            }
+            samples.clone()
+        }
+        (None, Some(chunks)) => {
+            let task = nimbus::farm::task_index(|k| std::env::var(k).ok(), chunks)
+                .map_err(|e| e.to_string())?;
+            eprintln!(
+                "nimbus: chunk {} of {chunks} (from {})",
+                task.index, task.variable
+            );
+            output = nimbus::farm::chunk_output_path(&args.output, task.index, chunks);
+            nimbus::farm::sample_chunk(task.index, chunks, settings.spp)
+                .map_err(|e| e.to_string())?
+        }
+        (None, None) => 0..settings.spp,
+    };
+    Ok(Some((RenderRegion { window, samples }, output)))
+}
+
+/// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings
+/// and the `--env-color` override.
+fn part_scene_hash(args: &RenderArgs, settings: &RenderSettings) -> Result<u64, String> {
+    let file;
+    let files: Vec<&[u8]> = match &args.scene {
+        Some(path) => {
+            file = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+            vec![&file]
+        }
+        None => vec![DEMO_SCENE, DEMO_CLOUD],
+    };
+    let env: Option<Vec<u8>> = args
+        .env_color
+        .map(|c| c.to_array().iter().flat_map(|v| v.to_le_bytes()).collect());
+    let overrides: Vec<(&str, &[u8])> = env.iter().map(|e| ("env-color", e.as_slice())).collect();
+    Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
+}
+
+fn merge(args: MergeArgs) -> Result<(), String> {
+    if let Ok(out) = args.output.canonicalize() {
+        if let Some(p) = args
+            .parts
+            .iter()
+            .find(|p| p.canonicalize().is_ok_and(|p| p == out))
+        {
+            return Err(FarmError::OutputIsInput { path: p.clone() }.to_string());
+        }
+    }
+    let merged = nimbus::farm::merge_parts(&args.parts).map_err(|e| e.to_string())?;
+    create_parent(&args.output)?;
+    nimbus::output::write_exr(&merged.image, &args.output).map_err(|e| e.to_string())?;
+    let png = nimbus::output::preview_path(&args.output);
+    nimbus::output::write_png_preview(&merged.image, &png, args.exposure)
+        .map_err(|e| e.to_string())?;
+    eprintln!(
+        "nimbus: merged {} parts ({}x{}, {} spp) into {} and {}",
+        merged.parts,
+        merged.image.width,
+        merged.image.height,
+        merged.spp,
+        args.output.display(),
+        png.display()
+    );
+    warn_samples(merged.nan_samples, merged.clamped_samples);
     Ok(())
 }
 

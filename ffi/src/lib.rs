@@ -126,8 +126,8 @@ impl From<Error> for Failure {
     fn from(e: Error) -> Self {
         let status = match e {
             Error::Scene(_) | Error::Vdb(_) => NimbusStatus::SceneError,
-            Error::Output(_) => NimbusStatus::OutputError,
-            Error::ThreadPool(_) => NimbusStatus::RenderError,
+            Error::Output(_) | Error::Farm(_) => NimbusStatus::OutputError,
+            Error::ThreadPool(_) | Error::Region(_) => NimbusStatus::RenderError,
         };
         Self::new(status, e.to_string())
     }

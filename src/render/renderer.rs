@@ -1,16 +1,19 @@
 //! The progressive renderer: passes of samples over the whole image in parallel (rayon), until the sample
 //! count is reached, the time budget is spent, or the caller cancels.
 //!
-//! Determinism: sample `s` of pixel `i` draws its random numbers from `Rng::for_sample(seed, i, s)` and every
-//! pixel adds its samples in order, so the same seed gives the same image, bit for bit, for any thread count.
+//! Determinism: sample `s` of pixel `i` draws its random numbers from `Rng::for_sample(seed, i, s)` and the
+//! film sums samples exactly (in fixed point, see [`super::exact`]), so the same seed gives the same image, bit
+//! for bit, for any thread count, and any split of the render into sample ranges and windows
+//! ([`Renderer::render_region`]) adds up to the bits of the whole.
 
-use super::film::Film;
+use super::film::{Film, PixelWindow};
 use super::{CancelToken, RenderImage};
 use crate::integrator::{PathCounters, PathTracer, RayCounters, RendererServices};
 use crate::math::{is_finite_rgb, Rng, Vec2};
 use crate::scene::Scene;
 use crate::volume::TrackingCounters;
 use rayon::prelude::*;
+use std::ops::Range;
 use std::time::{Duration, Instant};
 
 /// How to render.
@@ -73,6 +76,9 @@ pub struct RenderStats {
     pub rays: RayCounters,
     /// Samples dropped because their radiance was NaN or infinite (never written to the film).
     pub nan_samples: u64,
+    /// Samples with a value (radiance or AOV) beyond ±2^38 ≈ ±2.7e11, or a NaN or infinite AOV, clamped into
+    /// the range of the film's exact sums (see [`MAX_SAMPLE_VALUE`](super::exact::MAX_SAMPLE_VALUE)).
+    pub clamped_samples: u64,
     /// Peak resident memory of the process, when the platform reports it.
     pub peak_memory_bytes: Option<u64>,
     /// Image width.
@@ -106,6 +112,42 @@ pub struct MediumStats {
     /// `majorant_violations`).
     #[serde(flatten)]
     pub counters: TrackingCounters,
+}
+
+/// A part of a render: a window of the frame and a range of every pixel's sample sequence. Parts that cover
+/// the frame and the samples `0..spp` once each merge into the render of the whole, bit for bit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RenderRegion {
+    /// The pixels to render.
+    pub window: PixelWindow,
+    /// The samples of each pixel to take: sample `s` of pixel `i` is the same in every region.
+    pub samples: Range<u32>,
+}
+
+/// Why [`Renderer::render_region`] cannot render a region.
+#[derive(Debug, thiserror::Error)]
+pub enum RegionError {
+    /// The window is empty or does not fit the frame.
+    #[error("crop {window} is empty or does not fit the {width}x{height} frame")]
+    Window {
+        /// The window asked for.
+        window: PixelWindow,
+        /// Frame width.
+        width: usize,
+        /// Frame height.
+        height: usize,
+    },
+    /// The sample range is empty.
+    #[error("sample range {start}..{end} is empty")]
+    Samples {
+        /// First sample.
+        start: u32,
+        /// One past the last sample.
+        end: u32,
+    },
+    /// The worker thread pool could not be started.
+    #[error("cannot start render worker threads: {0}")]
+    ThreadPool(#[from] rayon::ThreadPoolBuildError),
 }
 
 /// Renders scenes with fixed settings.
@@ -143,7 +185,46 @@ impl Renderer {
         progress: &mut dyn FnMut(&Progress) -> bool,
         cancel: &CancelToken,
     ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
-        self.run(scene, &mut |p, _| progress(p), cancel, false)
+        let (film, stats) =
+            self.run(scene, &self.whole(), &mut |p, _| progress(p), cancel, false)?;
+        Ok((film.image(), stats))
+    }
+
+    /// Renders one region of the frame (a crop and a sample range; `settings.spp` is not used) and returns its
+    /// film, whose exact sums [`Film::merge`] adds to the films of other regions. Under a time limit the
+    /// samples taken are `samples.start..samples.start + stats.samples_per_pixel`. A cancelled render returns
+    /// what it has, like [`render_with_cancel`](Self::render_with_cancel): pixels may then hold different
+    /// sample counts, so its film is no part of a whole.
+    pub fn render_region(
+        &self,
+        scene: &Scene,
+        region: &RenderRegion,
+        progress: &mut dyn FnMut(&Progress) -> bool,
+        cancel: &CancelToken,
+    ) -> Result<(Film, RenderStats), RegionError> {
+        let (width, height) = (self.settings.width, self.settings.height);
+        if region.window.is_empty() || !region.window.fits(width, height) {
+            return Err(RegionError::Window {
+                window: region.window,
+                width,
+                height,
+            });
+        }
+        if region.samples.is_empty() {
+            return Err(RegionError::Samples {
+                start: region.samples.start,
+                end: region.samples.end,
+            });
+        }
+        Ok(self.run(scene, region, &mut |p, _| progress(p), cancel, false)?)
+    }
+
+    /// The whole frame and the samples `0..spp` (at least one).
+    fn whole(&self) -> RenderRegion {
+        RenderRegion {
+            window: PixelWindow::full(self.settings.width, self.settings.height),
+            samples: 0..self.settings.spp.max(1),
+        }
     }
 
     /// Renders `scene` in passes that double the sample count (1, 2, 4, 8, … spp, capped by `spp` and any time
@@ -154,29 +235,32 @@ impl Renderer {
         scene: &Scene,
         snapshot: &mut dyn FnMut(&Progress, &Film) -> bool,
     ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
-        self.run(scene, snapshot, &CancelToken::new(), true)
+        let (film, stats) = self.run(scene, &self.whole(), snapshot, &CancelToken::new(), true)?;
+        Ok((film.image(), stats))
     }
 
-    /// The pass loop; `doubling` makes every pass as large as all the previous ones together.
+    /// The pass loop over `region` (valid); `doubling` makes every pass as large as all the previous ones
+    /// together.
     fn run(
         &self,
         scene: &Scene,
+        region: &RenderRegion,
         progress: &mut dyn FnMut(&Progress, &Film) -> bool,
         cancel: &CancelToken,
         doubling: bool,
-    ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
+    ) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
         let s = &self.settings;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(s.threads)
             .build()?;
         let threads = pool.current_num_threads();
         let start = Instant::now();
-        let mut film = Film::new(s.width, s.height);
+        let mut film = Film::with_window(s.width, s.height, region.window);
         let mut counters = PathCounters::new(scene.media.len());
-        let mut nan_samples = 0u64;
+        let (mut nan_samples, mut clamped_samples) = (0u64, 0u64);
         let mut done = 0u32;
         let mut cancelled = false;
-        let target = s.spp.max(1);
+        let target = region.samples.len() as u32;
         // Pass size: about 16 passes for progress reports, 1 spp at first under a time budget.
         let mut pass = if s.time_limit.is_some() || doubling {
             1
@@ -186,10 +270,12 @@ impl Renderer {
         while done < target && !cancel.is_cancelled() {
             let count = pass.min(target - done);
             let pass_start = Instant::now();
-            let (c, nans) =
-                pool.install(|| self.render_pass(scene, &mut film, done, count, cancel));
+            let first = region.samples.start + done;
+            let (c, nans, clamped) =
+                pool.install(|| self.render_pass(scene, &mut film, first, count, cancel));
             counters.add(&c);
             nan_samples += nans;
+            clamped_samples += clamped;
             if cancel.is_cancelled() {
                 break;
             }
@@ -230,13 +316,15 @@ impl Renderer {
             render_seconds: seconds,
             rays: counters.rays,
             nan_samples,
+            clamped_samples,
             peak_memory_bytes: peak_memory_bytes(),
             width: s.width,
             height: s.height,
             threads,
             seed: s.seed,
             max_depth: s.max_depth,
-            samples_per_second: (done as f64 * (s.width * s.height) as f64) / seconds.max(1e-9),
+            samples_per_second: (done as f64 * region.window.pixel_count() as f64)
+                / seconds.max(1e-9),
             cancelled,
             media: scene
                 .media
@@ -250,11 +338,11 @@ impl Renderer {
                 })
                 .collect(),
         };
-        Ok((film.image(), stats))
+        Ok((film, stats))
     }
 
-    /// Adds samples `first..first + count` to every pixel, skipping the pixels left once `cancel` is
-    /// cancelled. Returns the counters and the dropped NaN samples.
+    /// Adds samples `first..first + count` to every pixel of the film's window, skipping the pixels left once
+    /// `cancel` is cancelled. Returns the counters, the dropped NaN samples and the clamped samples.
     fn render_pass(
         &self,
         scene: &Scene,
@@ -262,10 +350,11 @@ impl Renderer {
         first: u32,
         count: u32,
         cancel: &CancelToken,
-    ) -> (PathCounters, u64) {
+    ) -> (PathCounters, u64, u64) {
         let s = &self.settings;
         let (width, height) = (film.width, film.height);
-        debug_assert!(width > 0 && height > 0);
+        let window = film.window();
+        debug_assert!(width > 0 && height > 0 && !window.is_empty());
         let aspect = width as f32 / height as f32;
         let tracer = PathTracer {
             max_depth: s.max_depth,
@@ -274,12 +363,14 @@ impl Renderer {
         };
         let services = RendererServices::new(scene);
         film.pixels_mut()
-            .par_chunks_mut(width)
+            .par_chunks_mut(window.width())
             .enumerate()
-            .map(|(y, row)| {
+            .map(|(row_index, row)| {
+                let y = window.y0 + row_index;
                 let mut counters = PathCounters::new(scene.media.len());
-                let mut nans = 0u64;
-                for (x, pixel) in row.iter_mut().enumerate() {
+                let (mut nans, mut clamped) = (0u64, 0u64);
+                for (column, pixel) in row.iter_mut().enumerate() {
+                    let x = window.x0 + column;
                     if cancel.is_cancelled() {
                         break;
                     }
@@ -294,20 +385,20 @@ impl Renderer {
                         );
                         let ray = scene.camera.generate_ray(film_pos, aspect);
                         let result = tracer.trace(&services, ray, &mut rng, &mut counters);
-                        if is_finite_rgb(result.radiance) {
-                            pixel.add(&result);
-                        } else {
+                        if !is_finite_rgb(result.radiance) {
                             nans += 1;
+                        } else if pixel.add(&result) {
+                            clamped += 1;
                         }
                     }
                 }
-                (counters, nans)
+                (counters, nans, clamped)
             })
             .reduce(
-                || (PathCounters::new(scene.media.len()), 0),
+                || (PathCounters::new(scene.media.len()), 0, 0),
                 |mut a, b| {
                     a.0.add(&b.0);
-                    (a.0, a.1 + b.1)
+                    (a.0, a.1 + b.1, a.2 + b.2)
                 },
             )
     }

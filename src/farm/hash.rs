@@ -1,0 +1,171 @@
+//! The scene hash: a 64-bit fingerprint of what a part was rendered from, so that a merge can refuse parts of
+//! different renders.
+//!
+//! It is FNV-1a (64-bit; Fowler, Noll and Vo) over, in this order, each a length-prefixed field:
+//! 1. the tag `nimbus scene hash 1`;
+//! 2. the bytes of the scene file (for the bundled demo, its embedded glTF and VDB);
+//! 3. the settings that change the image: width, height, seed, max depth and media MIS, little-endian;
+//! 4. each scene override of the command line by name and value (`--env-color` as three `f32`).
+//!
+//! The sample count and range, the crop, the thread count and the time limit are not in it: they do not
+//! change any one sample (parts carry the sample count and range in their own keys). Files the scene file
+//! refers to (buffers, textures, VDB grids, USD layers) are not read: the hash catches a different or edited
+//! scene file, not an edited texture beside an unchanged one. FNV-1a is specified byte by byte, so the hash
+//! is the same on every platform and Rust version.
+
+use crate::render::RenderSettings;
+
+/// FNV-1a 64-bit offset basis.
+const OFFSET_BASIS: u64 = 0xcbf2_9ce4_8422_2325;
+/// FNV-1a 64-bit prime.
+const PRIME: u64 = 0x0000_0100_0000_01b3;
+
+/// An FNV-1a (64-bit) hasher over length-prefixed fields.
+#[derive(Clone, Debug)]
+pub struct SceneHasher {
+    state: u64,
+}
+
+impl Default for SceneHasher {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SceneHasher {
+    /// A hasher that has taken the format tag.
+    pub fn new() -> Self {
+        let mut h = Self {
+            state: OFFSET_BASIS,
+        };
+        h.field(b"nimbus scene hash 1");
+        h
+    }
+
+    /// Adds one field: its length (u64, little-endian), then its bytes, so that fields cannot run into each
+    /// other.
+    pub fn field(&mut self, bytes: &[u8]) {
+        self.raw(&(bytes.len() as u64).to_le_bytes());
+        self.raw(bytes);
+    }
+
+    /// The hash of the fields so far.
+    pub fn finish(&self) -> u64 {
+        self.state
+    }
+
+    fn raw(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.state = (self.state ^ b as u64).wrapping_mul(PRIME);
+        }
+    }
+}
+
+/// The scene hash of a render (see the module docs): `scene_files` are the bytes of the scene file (or of
+/// each embedded file), `overrides` the command line's scene overrides as (name, value bytes).
+pub fn scene_hash(
+    scene_files: &[&[u8]],
+    settings: &RenderSettings,
+    overrides: &[(&str, &[u8])],
+) -> u64 {
+    let mut h = SceneHasher::new();
+    h.field(&(scene_files.len() as u64).to_le_bytes());
+    for file in scene_files {
+        h.field(file);
+    }
+    h.field(&(settings.width as u64).to_le_bytes());
+    h.field(&(settings.height as u64).to_le_bytes());
+    h.field(&settings.seed.to_le_bytes());
+    h.field(&settings.max_depth.to_le_bytes());
+    h.field(&[settings.media_mis as u8]);
+    for (name, value) in overrides {
+        h.field(name.as_bytes());
+        h.field(value);
+    }
+    h.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fnv1a_matches_its_published_test_vectors() {
+        let fnv = |bytes: &[u8]| {
+            let mut h = SceneHasher {
+                state: OFFSET_BASIS,
+            };
+            h.raw(bytes);
+            h.finish()
+        };
+        assert_eq!(fnv(b""), 0xcbf2_9ce4_8422_2325);
+        assert_eq!(fnv(b"a"), 0xaf63_dc4c_8601_ec8c);
+        assert_eq!(fnv(b"foobar"), 0x8594_4171_f739_67e8);
+    }
+
+    #[test]
+    fn every_input_changes_the_hash_and_nothing_else_does() {
+        let s = RenderSettings {
+            width: 64,
+            height: 48,
+            ..Default::default()
+        };
+        let base = scene_hash(&[b"scene"], &s, &[]);
+        assert_eq!(base, scene_hash(&[b"scene"], &s, &[]));
+        let not_in_hash = RenderSettings {
+            spp: 3,
+            threads: 7,
+            time_limit: Some(std::time::Duration::from_secs(1)),
+            ..s.clone()
+        };
+        assert_eq!(base, scene_hash(&[b"scene"], &not_in_hash, &[]));
+        let changed = [
+            scene_hash(&[b"scene!"], &s, &[]),
+            scene_hash(&[b"sce", b"ne"], &s, &[]),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    width: 65,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    height: 47,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    seed: 1,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    max_depth: 3,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    media_mis: false,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(&[b"scene"], &s, &[("env-color", &[0, 0, 0])]),
+        ];
+        for (i, h) in changed.iter().enumerate() {
+            assert_ne!(*h, base, "change {i}");
+        }
+    }
+}
