@@ -1,4 +1,9 @@
 //! Error of an image against a reference, over the beauty RGB (every channel of every pixel counts once).
+//!
+//! A reference rendered by Monte Carlo has noise of its own, which adds its variance to every squared error:
+//! E[(x − r)²] = (x − r_true)² + se_r² for a reference pixel r with standard error se_r, independent of x. When the
+//! reference's standard errors are known, [`error_metrics_against_noisy`] subtracts them, so that the RMSE and
+//! relative MSE estimate the error against the noise-free image instead of flattening at the reference's noise.
 
 use crate::math::Rgb;
 
@@ -22,25 +27,39 @@ impl ErrorMetrics {
 
 /// The errors of `image` against `reference`, pixel by pixel (both the same length and order).
 pub fn error_metrics(image: &[Rgb], reference: &[Rgb]) -> ErrorMetrics {
+    error_metrics_against_noisy(image, reference, None)
+}
+
+/// The errors of `image` against a `reference` whose pixels have the standard errors `reference_se` (same
+/// length and order), with the reference's variance subtracted from each squared error (see the module docs).
+/// The sums are clamped at 0, so an image closer to the truth than the reference can resolve reads 0.
+pub fn error_metrics_against_noisy(
+    image: &[Rgb],
+    reference: &[Rgb],
+    reference_se: Option<&[Rgb]>,
+) -> ErrorMetrics {
     assert_eq!(
         image.len(),
         reference.len(),
         "image and reference sizes differ"
     );
     let (mut se, mut rel, mut sum) = (0.0f64, 0.0f64, 0.0f64);
-    for (x, r) in image.iter().zip(reference) {
-        for (x, r) in x.to_array().into_iter().zip(r.to_array()) {
-            let (x, r) = (x as f64, r as f64);
+    for (i, (x, r)) in image.iter().zip(reference).enumerate() {
+        let noise = reference_se
+            .and_then(|s| s.get(i))
+            .map_or([0.0; 3], |s| s.to_array());
+        for ((x, r), s) in x.to_array().into_iter().zip(r.to_array()).zip(noise) {
+            let (x, r, s) = (x as f64, r as f64, s as f64);
             let d = x - r;
-            se += d * d;
-            rel += d * d / (r * r + 0.01);
+            se += d * d - s * s;
+            rel += (d * d - s * s) / (r * r + 0.01);
             sum += d;
         }
     }
     let n = (image.len() * 3).max(1) as f64;
     ErrorMetrics {
-        rmse: (se / n).sqrt(),
-        relmse: rel / n,
+        rmse: (se.max(0.0) / n).sqrt(),
+        relmse: rel.max(0.0) / n,
         bias: sum / n,
     }
 }
@@ -67,5 +86,36 @@ mod tests {
         assert_eq!((same.rmse, same.relmse, same.bias), (0.0, 0.0, 0.0));
         let offset = error_metrics(&[Rgb::splat(0.5)], &[Rgb::splat(0.25)]);
         assert!((offset.bias - 0.25).abs() < 1e-7 && (offset.rmse - 0.25).abs() < 1e-7);
+    }
+
+    /// Against a noisy reference the expected squared error grows by the reference's variance; subtracting
+    /// the known standard errors recovers the error against the noise-free image.
+    #[test]
+    fn reference_noise_is_subtracted() {
+        let mut rng = crate::math::Rng::new(5, 0);
+        let n = 20_000;
+        let truth = vec![Rgb::splat(1.0); n];
+        // An image 0.02 off the truth, and a reference with Gaussian-like noise of standard error 0.05.
+        let image: Vec<Rgb> = truth.iter().map(|t| *t + Rgb::splat(0.02)).collect();
+        let se = 0.05f32;
+        let reference: Vec<Rgb> = truth
+            .iter()
+            .map(|t| {
+                // Sum of 12 uniforms minus 6 has unit variance.
+                let g = (0..12).map(|_| rng.next_f32()).sum::<f32>() - 6.0;
+                *t + Rgb::new(g, -g, g) * se
+            })
+            .collect();
+        let naive = error_metrics(&image, &reference);
+        let corrected =
+            error_metrics_against_noisy(&image, &reference, Some(&vec![Rgb::splat(se); n]));
+        assert!(
+            (naive.rmse - (0.02f64.powi(2) + 0.05f64.powi(2)).sqrt()).abs() < 2e-3,
+            "{naive:?}"
+        );
+        assert!((corrected.rmse - 0.02).abs() < 2e-3, "{corrected:?}");
+        // Nothing left to subtract from an exact match but noise: clamped at 0.
+        let exact = error_metrics_against_noisy(&truth, &truth, Some(&vec![Rgb::splat(se); n]));
+        assert_eq!(exact.rmse, 0.0);
     }
 }

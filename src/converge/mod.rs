@@ -9,7 +9,7 @@ mod summary;
 
 pub use chart::{draw_chart, draw_loglog_chart, LegendCorner, LogLogChart, Series};
 pub use methods::Method;
-pub use metrics::{error_metrics, ErrorMetrics};
+pub use metrics::{error_metrics, error_metrics_against_noisy, ErrorMetrics};
 pub use summary::{
     csv, efficiency, rmse_at, summarize, summary_markdown, Checkpoint, Curve, MethodSummary,
     CSV_HEADER,
@@ -33,7 +33,9 @@ pub const DEFAULT_WIDTH: usize = 96;
 pub struct ConvergeOptions {
     /// The scene file.
     pub scene: PathBuf,
-    /// Reference EXR (beauty = the default layer); rendered with the default method when `None`.
+    /// Reference EXR (beauty = the default layer); rendered with the default method when `None`. When
+    /// `STEM_se.exr` lies beside it (as `gltf2mitsuba.py --write-se` writes), its per-pixel standard errors are
+    /// subtracted from the squared errors.
     pub reference: Option<PathBuf>,
     /// Methods to compare, in order.
     pub methods: Vec<Method>,
@@ -64,7 +66,7 @@ pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<C
     }
     std::fs::create_dir_all(&options.output_dir)
         .map_err(|e| format!("{}: {e}", options.output_dir.display()))?;
-    let (width, height, reference) = match &options.reference {
+    let (width, height, reference, reference_se) = match &options.reference {
         Some(path) => {
             let layers = crate::output::read_exr_layers(path).map_err(|e| e.to_string())?;
             let beauty = layers
@@ -79,7 +81,28 @@ pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<C
                     layers.height
                 ));
             }
-            (layers.width, layers.height, beauty)
+            let se_path = standard_error_path(path);
+            let se = if se_path.is_file() {
+                let se_layers =
+                    crate::output::read_exr_layers(&se_path).map_err(|e| e.to_string())?;
+                let se = se_layers
+                    .rgb("")
+                    .filter(|s| s.len() == beauty.len())
+                    .ok_or_else(|| {
+                        format!(
+                            "{}: no R, G, B channels of the reference's size",
+                            se_path.display()
+                        )
+                    })?;
+                log(&format!(
+                    "{}: the reference's standard errors are subtracted from the squared errors",
+                    se_path.display()
+                ));
+                Some(se)
+            } else {
+                None
+            };
+            (layers.width, layers.height, beauty, se)
         }
         None => {
             let scene = load(&options.scene, Method::Default)?;
@@ -111,14 +134,31 @@ pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<C
                 path.display(),
                 stats.samples_per_pixel
             ));
-            (width, height, image.beauty)
+            // Its own variance of the mean gives its standard errors.
+            let se = image
+                .variance
+                .iter()
+                .map(|v| v.max(Rgb::ZERO).map(f32::sqrt))
+                .collect();
+            (width, height, image.beauty, Some(se))
         }
     };
+    let noise_floor = reference_se.as_ref().map(|se| {
+        let sum: f64 = se.iter().map(|s| s.length_squared() as f64).sum();
+        (sum / (3 * se.len().max(1)) as f64).sqrt()
+    });
     let share = options.budget_seconds / options.methods.len() as f64;
     let mut curves = Vec::new();
     for &method in &options.methods {
         let scene = load(&options.scene, method)?;
-        let curve = measure(options, &scene, width, height, method, share, &reference)?;
+        let curve = measure(
+            options,
+            &scene,
+            (width, height),
+            method,
+            share,
+            (&reference, reference_se.as_deref()),
+        )?;
         if let Some(last) = curve.points.last() {
             log(&format!(
                 "{method}: {} checkpoints, {} spp in {:.2} s, RMSE {:.4e}",
@@ -139,7 +179,7 @@ pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<C
     let scene_name = options.scene.display().to_string();
     write(
         "summary.md",
-        summary_markdown(&scene_name, width, height, &curves),
+        summary_markdown(&scene_name, width, height, &curves, noise_floor),
     )?;
     draw_chart(
         &curves,
@@ -147,6 +187,15 @@ pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<C
         &dir.join("convergence.svg"),
     )?;
     Ok(curves)
+}
+
+/// `DIR/STEM_se.exr` for a reference `DIR/STEM.exr`: the per-pixel standard errors of its mean.
+pub fn standard_error_path(reference: &Path) -> PathBuf {
+    let stem = reference
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    reference.with_file_name(format!("{stem}_se.exr"))
 }
 
 /// Loads and builds the scene with `method`'s overrides.
@@ -180,11 +229,10 @@ fn settings(
 fn measure(
     options: &ConvergeOptions,
     scene: &Scene,
-    width: usize,
-    height: usize,
+    (width, height): (usize, usize),
     method: Method,
     share: f64,
-    reference: &[Rgb],
+    (reference, reference_se): (&[Rgb], Option<&[Rgb]>),
 ) -> Result<Curve, String> {
     let mut points = Vec::new();
     let mut measuring = 0.0f64;
@@ -196,7 +244,7 @@ fn measure(
             points.push(Checkpoint {
                 spp: p.samples_done,
                 seconds,
-                metrics: error_metrics(&image.beauty, reference),
+                metrics: error_metrics_against_noisy(&image.beauty, reference, reference_se),
             });
             measuring += start.elapsed().as_secs_f64();
             // The next pass doubles the samples, so it takes about as long as everything so far.

@@ -127,7 +127,14 @@ pub fn summarize(curves: &[Curve]) -> (f64, Vec<MethodSummary>) {
 }
 
 /// `summary.md`: the equal-time table and the notes, for `scene` rendered at `width`×`height`.
-pub fn summary_markdown(scene: &str, width: usize, height: usize, curves: &[Curve]) -> String {
+/// `noise_floor` is the reference's RMS standard error, when known (it was subtracted from every MSE).
+pub fn summary_markdown(
+    scene: &str,
+    width: usize,
+    height: usize,
+    curves: &[Curve],
+    noise_floor: Option<f64>,
+) -> String {
     let (common, rows) = summarize(curves);
     let mut out = format!(
         "# Convergence: {scene}\n\n{width}×{height} pixels. Equal-time RMSE is interpolated (log-log) at \
@@ -154,6 +161,18 @@ pub fn summary_markdown(scene: &str, width: usize, height: usize, curves: &[Curv
         "\n\"possible bias\": the RMSE of the last two checkpoints fell by less than 10 % while the samples \
          doubled (the error stopped decreasing; a noisy reference also floors the RMSE).\n",
     );
+    match noise_floor {
+        Some(f) => {
+            let _ = writeln!(
+                out,
+                "\nThe reference's own noise (RMS standard error {f:.4e}) is subtracted from every squared error, \
+                 so the RMSE estimates the error against the noise-free image."
+            );
+        }
+        None => out.push_str(
+            "\nThe reference's noise is not known, so it is included in every RMSE (which cannot fall below it).\n",
+        ),
+    }
     out
 }
 
@@ -217,11 +236,13 @@ mod tests {
         assert!((rows[0].equal_time_rmse - 0.1).abs() < 1e-12);
         assert!((rows[1].equal_time_rmse - 0.08).abs() < 1e-12);
         assert!(!rows[0].possible_bias && !rows[1].possible_bias);
-        let md = summary_markdown("s.gltf", 16, 16, &curves);
+        let md = summary_markdown("s.gltf", 16, 16, &curves, Some(1e-3));
         assert!(
             md.contains("| global-majorant | 4 | 8.00 |") && md.contains("2.00×"),
             "{md}"
         );
+        assert!(md.contains("RMS standard error 1.0000e-3"), "{md}");
+        assert!(summary_markdown("s.gltf", 16, 16, &curves, None).contains("is not known"));
     }
 
     #[test]
