@@ -4,7 +4,7 @@
 
 use super::LightSample;
 use crate::geometry::SurfacePoint;
-use crate::material::{Material, Texture};
+use crate::material::Texture;
 use crate::math::{luminance, sampling, Rgb, Vec2, Vec3};
 
 /// One emissive triangle.
@@ -27,16 +27,19 @@ pub struct AreaLight {
 }
 
 impl AreaLight {
-    /// Builds the light for a triangle with `material`; `None` for degenerate or non-emissive triangles.
+    /// Builds the light for a triangle emitting `emission` (× `emission_texture` at `uvs`, if any); `None` for
+    /// degenerate or non-emitting triangles.
     pub fn new(
         vertices: [Vec3; 3],
         uvs: [Vec2; 3],
-        material: &Material,
+        emission: Rgb,
+        emission_texture: Option<u32>,
         prim: u32,
     ) -> Option<AreaLight> {
         let cross = (vertices[1] - vertices[0]).cross(vertices[2] - vertices[0]);
         let area = 0.5 * cross.length();
-        if area.is_nan() || area <= 0.0 || !material.is_emissive() {
+        let brightest = emission.max_element();
+        if area.is_nan() || area <= 0.0 || brightest.is_nan() || brightest <= 0.0 {
             return None;
         }
         Some(AreaLight {
@@ -44,8 +47,8 @@ impl AreaLight {
             uvs,
             normal: cross.normalize(),
             area,
-            emission: material.emission,
-            emission_texture: material.emission_texture,
+            emission,
+            emission_texture,
             prim,
         })
     }
@@ -112,14 +115,12 @@ mod tests {
 
     #[test]
     fn one_sided_emission_and_solid_angle_pdf() {
-        let mut m = Material::lambertian("light", Rgb::ZERO);
-        m.emission = Rgb::ONE;
         let v = [
             Vec3::new(-1.0, 1.0, -1.0),
             Vec3::new(1.0, 1.0, -1.0),
             Vec3::new(-1.0, 1.0, 1.0),
         ];
-        let l = AreaLight::new(v, [Vec2::ZERO; 3], &m, 0).unwrap();
+        let l = AreaLight::new(v, [Vec2::ZERO; 3], Rgb::ONE, None, 0).unwrap();
         assert!(l.normal.distance(-Vec3::Y) < 1e-6, "normal {:?}", l.normal);
         assert!((l.area - 2.0).abs() < 1e-6);
         let s = l

@@ -8,21 +8,8 @@
 use super::dielectric::Dielectric;
 use super::gltf_pbr::{GltfPbr, PbrParams};
 use super::lambert::Lambert;
+pub use super::sample::BsdfSample;
 use crate::math::{Rgb, Vec2, Vec3};
-
-/// One sampled direction.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BsdfSample {
-    /// The sampled direction, pointing away from the surface.
-    pub wi: Vec3,
-    /// BSDF value for (wo, wi), without the cosine. For delta lobes, the lobe's value such that
-    /// `f |wi.z| / pdf` is the sample weight.
-    pub f: Rgb,
-    /// Solid-angle density of `wi`; for delta lobes the discrete probability of the chosen lobe.
-    pub pdf: f32,
-    /// True when `wi` comes from a delta lobe (no MIS, no `eval`).
-    pub is_delta: bool,
-}
 
 /// A surface scattering model.
 #[derive(Clone, Copy, Debug, PartialEq)]

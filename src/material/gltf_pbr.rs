@@ -15,10 +15,10 @@
 //! The transmissive part is a [`Dielectric`] interface tinted by the base colour. Metals do not transmit, so the
 //! BSDF is `(1 − t)·opaque + t·dielectric` with `t = transmission · (1 − metallic)`.
 
-use super::bsdf::BsdfSample;
 use super::dielectric::Dielectric;
 use super::fresnel;
 use super::microfacet::{Ggx, DELTA_ALPHA};
+use super::sample::BsdfSample;
 use crate::math::sampling::cosine_hemisphere;
 use crate::math::{Rgb, Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;

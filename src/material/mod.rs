@@ -10,6 +10,7 @@ pub mod fresnel;
 pub mod gltf_pbr;
 pub mod lambert;
 pub mod microfacet;
+pub mod sample;
 pub mod surface;
 pub mod texture;
 

@@ -42,6 +42,16 @@ impl Camera {
         Self::look_at(center + dir * distance, center, yfov)
     }
 
+    /// A camera-to-world matrix from a scene node's world matrix: its scale and shear removed, its rotation
+    /// (the x axis, then the y axis made orthogonal to it) and position kept.
+    pub fn rigid(m: &Mat4) -> Mat4 {
+        let x = m.x_axis.truncate().normalize_or(Vec3::X);
+        let y0 = m.y_axis.truncate();
+        let z = x.cross(y0).normalize_or(Vec3::Z);
+        let y = z.cross(x);
+        Mat4::from_cols(x.extend(0.0), y.extend(0.0), z.extend(0.0), m.w_axis)
+    }
+
     /// World position of the pinhole.
     pub fn position(&self) -> Vec3 {
         self.camera_to_world.transform_point3(Vec3::ZERO)

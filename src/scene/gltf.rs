@@ -226,7 +226,7 @@ impl Loader<'_> {
             if self.builder.camera.is_none() {
                 if let gltf::camera::Projection::Perspective(p) = camera.projection() {
                     self.builder.camera = Some(Camera {
-                        camera_to_world: rigid(&world),
+                        camera_to_world: Camera::rigid(&world),
                         yfov: p.yfov(),
                         aspect_ratio: p.aspect_ratio(),
                     });
@@ -774,13 +774,4 @@ fn triangulate(indices: &[u32], mode: gltf::mesh::Mode) -> Vec<[u32; 3]> {
     tris.into_iter()
         .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
         .collect()
-}
-
-/// Removes scale and shear from a camera's world matrix, keeping its rotation and position.
-pub(crate) fn rigid(m: &Mat4) -> Mat4 {
-    let x = m.x_axis.truncate().normalize_or(Vec3::X);
-    let y0 = m.y_axis.truncate();
-    let z = x.cross(y0).normalize_or(Vec3::Z);
-    let y = z.cross(x);
-    Mat4::from_cols(x.extend(0.0), y.extend(0.0), z.extend(0.0), m.w_axis)
 }

@@ -121,7 +121,13 @@ impl SceneBuilder {
                         Some(uv) => mesh.indices[tri].map(|i| uv[i as usize]),
                         None => [Vec2::ZERO; 3],
                     };
-                    if let Some(l) = AreaLight::new(vertices, uvs, material, prim) {
+                    if let Some(l) = AreaLight::new(
+                        vertices,
+                        uvs,
+                        material.emission,
+                        material.emission_texture,
+                        prim,
+                    ) {
                         lights.push(Light::Area(l));
                     }
                 }

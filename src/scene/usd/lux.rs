@@ -1,0 +1,164 @@
+//! UsdLux lights: rect, disk, sphere, distant and dome lights (see the module docs of [`super`] for the units).
+
+use super::Loader;
+use crate::geometry::Mesh;
+use crate::light::{DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight};
+use crate::material::Material;
+use crate::math::{Mat3, Mat4, Quat, Rgb, Vec2, Vec3};
+use crate::scene::{SceneError, SceneErrorKind};
+use openusd::{sdf, usd};
+
+impl Loader<'_> {
+    pub(super) fn light(
+        &mut self,
+        prim: &usd::Prim,
+        kind: &str,
+        world: &Mat4,
+    ) -> Result<(), SceneError> {
+        let at = prim.path().as_str().to_owned();
+        let intensity = self.float(prim, "inputs:intensity", 1.0)?;
+        let exposure = self.float(prim, "inputs:exposure", 0.0)?;
+        let color = self.color(prim, "inputs:color", Rgb::ONE)?;
+        let normalize = matches!(
+            self.value(prim, "inputs:normalize")?,
+            Some(sdf::Value::Bool(true))
+        );
+        let radiance = (color * intensity * exposure.exp2()).max(Rgb::ZERO);
+        if !radiance.is_finite() {
+            return Err(self.error(&at, "light intensity is not finite"));
+        }
+        let mesh = match kind {
+            "RectLight" => {
+                let w = 0.5 * self.float(prim, "inputs:width", 1.0)?;
+                let h = 0.5 * self.float(prim, "inputs:height", 1.0)?;
+                // Counter-clockwise seen from −Z: the front face emits along −Z.
+                let positions = vec![
+                    Vec3::new(-w, -h, 0.0),
+                    Vec3::new(-w, h, 0.0),
+                    Vec3::new(w, h, 0.0),
+                    Vec3::new(w, -h, 0.0),
+                ];
+                let uvs = vec![
+                    Vec2::new(0.0, 1.0),
+                    Vec2::new(0.0, 0.0),
+                    Vec2::new(1.0, 0.0),
+                    Vec2::new(1.0, 1.0),
+                ];
+                Mesh {
+                    positions,
+                    uvs: Some(uvs),
+                    indices: vec![[0, 1, 2], [0, 2, 3]],
+                    ..Default::default()
+                }
+            }
+            "DiskLight" => disk(self.float(prim, "inputs:radius", 0.5)?, 48),
+            "SphereLight" => {
+                let r = self.float(prim, "inputs:radius", 0.5)?;
+                if matches!(
+                    self.value(prim, "treatAsPoint")?,
+                    Some(sdf::Value::Bool(true))
+                ) {
+                    let scale = if normalize {
+                        0.25
+                    } else {
+                        std::f32::consts::PI * r * r
+                    };
+                    self.builder.lights.push(Light::Point(PointLight {
+                        position: world.transform_point3(Vec3::ZERO),
+                        intensity: radiance * scale,
+                    }));
+                    return Ok(());
+                }
+                Mesh::uv_sphere(Vec3::ZERO, r, 16, 32, 0)
+            }
+            "DistantLight" => {
+                if self.float(prim, "inputs:angle", 0.53)? > 0.0 {
+                    self.warn(format!(
+                        "{at}: DistantLight inputs:angle is ignored (a delta directional light)"
+                    ));
+                }
+                self.builder
+                    .lights
+                    .push(Light::Directional(DirectionalLight {
+                        direction: world.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Y),
+                        irradiance: radiance,
+                    }));
+                return Ok(());
+            }
+            _ => return self.dome(prim, radiance, world),
+        };
+        let mut mesh = mesh;
+        mesh.name = at.clone();
+        mesh.transform(world);
+        let area: f32 = (0..mesh.indices.len())
+            .map(|t| {
+                let [a, b, c] = mesh.triangle(t);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum();
+        let emission = if normalize {
+            if area <= 0.0 {
+                return Err(self.error(&at, "a normalized light must have a positive area"));
+            }
+            radiance / area
+        } else {
+            radiance
+        };
+        let mut material = Material::lambertian(&at, Rgb::ZERO);
+        material.emission = emission;
+        mesh.material = self.builder.add_material(material);
+        self.builder.add_mesh(mesh);
+        Ok(())
+    }
+
+    pub(super) fn dome(
+        &mut self,
+        prim: &usd::Prim,
+        radiance: Rgb,
+        world: &Mat4,
+    ) -> Result<(), SceneError> {
+        let at = prim.path().as_str().to_owned();
+        let rotation = Mat4::from_mat3(Mat3::from_mat4(self.root.inverse() * *world))
+            .to_scale_rotation_translation()
+            .1;
+        if rotation.angle_between(Quat::IDENTITY) > 1e-3 {
+            self.warn(format!(
+                "{at}: the DomeLight's rotation is ignored (Nimbus's lat-long orientation)"
+            ));
+        }
+        let env = match self.asset(prim, "inputs:texture:file")? {
+            Some(file) => {
+                if (radiance.x - radiance.y).abs() > 1e-6 || (radiance.y - radiance.z).abs() > 1e-6
+                {
+                    self.warn(format!(
+                        "{at}: a textured DomeLight's colour is ignored (only its luminous scale)"
+                    ));
+                }
+                let scale = radiance.max_element();
+                let map = EnvironmentMap::load(&file, scale)
+                    .map_err(|m| SceneError::new(&file, SceneErrorKind::InvalidReference(m)))?;
+                EnvironmentLight::Map(Box::new(map))
+            }
+            None => EnvironmentLight::Constant(radiance),
+        };
+        self.builder.set_environment(env);
+        Ok(())
+    }
+}
+
+/// A disk of radius `r` in the XY plane, its front face toward −Z.
+pub(super) fn disk(r: f32, segments: u32) -> Mesh {
+    let mut positions = vec![Vec3::ZERO];
+    for s in 0..segments {
+        let phi = -2.0 * std::f32::consts::PI * s as f32 / segments as f32;
+        positions.push(Vec3::new(r * phi.cos(), r * phi.sin(), 0.0));
+    }
+    let indices = (0..segments)
+        .map(|s| [0, 1 + s, 1 + (s + 1) % segments])
+        .collect();
+    Mesh {
+        positions,
+        indices,
+        ..Default::default()
+    }
+}
