@@ -334,6 +334,7 @@ fn draw_slowdown_chart(cases: &[Case], dir: &Path) -> Result<(), String> {
         &dir.join("majorants.png"),
         &dir.join("majorants.svg"),
     )
+    .map_err(|e| e.to_string())
 }
 
 fn main() {

@@ -56,7 +56,7 @@ fn box_scene(medium: Arc<dyn Medium>, with_boundary: bool) -> SceneBuilder {
         b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
     }
     b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
-    b.camera = Some(Camera::look_at(
+    b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 4.0),
         Vec3::ZERO,
         30f32.to_radians(),
@@ -174,7 +174,7 @@ impl Measured {
 }
 
 fn render(builder: SceneBuilder, budget: Budget, seed: u64) -> (RenderImage, f64, String) {
-    let scene = builder.build();
+    let scene = builder.build().unwrap();
     let settings = RenderSettings {
         width: budget.size,
         height: budget.size,

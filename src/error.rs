@@ -20,6 +20,9 @@ pub enum Error {
     /// A farm split or merge failed.
     #[error(transparent)]
     Farm(#[from] crate::farm::FarmError),
+    /// A convergence study could not run.
+    #[error(transparent)]
+    Converge(#[from] crate::converge::ConvergeError),
     /// The render's worker thread pool could not be started.
     #[error("cannot start render worker threads: {0}")]
     ThreadPool(#[from] rayon::ThreadPoolBuildError),

@@ -39,7 +39,7 @@
 //! builder.add_triangle_mesh(floor, vec![[0, 1, 2], [0, 2, 3]], grey)?;
 //! builder.add_point_light(Vec3::new(0.0, 1.0, 0.0), Rgb::splat(2.0));
 //! builder.set_camera(Camera::look_at(Vec3::new(0.0, 1.0, 2.0), Vec3::ZERO, 0.8));
-//! let scene = builder.build();
+//! let scene = builder.build()?; // checks every index the builder was given
 //!
 //! let settings = RenderSettings { width: 8, height: 8, spp: 1, ..RenderSettings::default() };
 //! let (image, stats) = Renderer::new(settings).render(&scene, &mut |progress| {
@@ -65,7 +65,7 @@
 //! ```
 //! use nimbus::{CancelToken, RenderSettings, Renderer, SceneBuilder};
 //!
-//! let scene = SceneBuilder::new().build();
+//! let scene = SceneBuilder::new().build().expect("an empty scene is valid");
 //! let token = CancelToken::new();
 //! token.clone().cancel(); // e.g. from a UI thread
 //! let settings = RenderSettings { width: 8, height: 8, spp: 4, ..RenderSettings::default() };

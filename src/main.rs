@@ -8,7 +8,7 @@ use nimbus::math::Rgb;
 use nimbus::render::{
     CancelToken, PixelWindow, Progress, RenderRegion, RenderSettings, RenderStats, Renderer,
 };
-use nimbus::scene::{Scene, SceneBuilder};
+use nimbus::scene::{LoadOptions, Scene, SceneBuilder};
 use std::io::IsTerminal;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -69,21 +69,29 @@ struct ConvergeArgs {
     /// Render seconds over all methods, shared equally.
     #[arg(long, default_value_t = 60.0)]
     budget: f64,
-    /// Image width (default: the reference's, else 96).
+    /// Image size, seed and threads (converge's default width: the reference's, else 96).
+    #[command(flatten)]
+    image: ImageArgs,
+    /// Output folder.
+    #[arg(short = 'o', long = "output")]
+    output: PathBuf,
+}
+
+/// The image and sampling arguments that `render` and `converge` share.
+#[derive(Args)]
+struct ImageArgs {
+    /// Image width in pixels.
     #[arg(long)]
     width: Option<usize>,
-    /// Image height (default: the reference's, else from the camera's aspect ratio).
+    /// Image height in pixels (default: from the camera's aspect ratio, else 3/4 of the width).
     #[arg(long)]
     height: Option<usize>,
-    /// Seed of the methods' random streams.
+    /// Seed of the random streams.
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Worker threads (0: all cores).
     #[arg(long, default_value_t = 0)]
     threads: usize,
-    /// Output folder.
-    #[arg(short = 'o', long = "output")]
-    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -105,18 +113,9 @@ struct RenderArgs {
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
     #[arg(long)]
     spp: Option<u32>,
-    /// Image width in pixels.
-    #[arg(long)]
-    width: Option<usize>,
-    /// Image height in pixels (default: from the camera's aspect ratio, else 3/4 of the width).
-    #[arg(long)]
-    height: Option<usize>,
-    /// Seed of the random streams.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Worker threads (0: all cores).
-    #[arg(long, default_value_t = 0)]
-    threads: usize,
+    /// Image size, seed and threads.
+    #[command(flatten)]
+    image: ImageArgs,
     /// Maximum scattering events (bounces) per path, as pbrt's maxdepth.
     #[arg(long = "max-depth")]
     max_depth: Option<u32>,
@@ -208,13 +207,14 @@ fn converge(args: ConvergeArgs) -> Result<(), String> {
         reference: args.reference,
         methods: nimbus::converge::Method::parse_list(&args.methods)?,
         budget_seconds: args.budget,
-        width: args.width,
-        height: args.height,
+        width: args.image.width,
+        height: args.image.height,
         output_dir: args.output,
-        seed: args.seed,
-        threads: args.threads,
+        seed: args.image.seed,
+        threads: args.image.threads,
     };
-    nimbus::converge::run(&options, &mut |line| eprintln!("nimbus: {line}"))?;
+    nimbus::converge::run(&options, &mut |line| eprintln!("nimbus: {line}"))
+        .map_err(|e| e.to_string())?;
     eprintln!(
         "nimbus: wrote convergence.csv, convergence.png, convergence.svg and summary.md to {}",
         options.output_dir.display()
@@ -224,14 +224,17 @@ fn converge(args: ConvergeArgs) -> Result<(), String> {
 
 fn load_builder(scene: Option<&Path>) -> Result<SceneBuilder, String> {
     match scene {
-        Some(path) => nimbus::scene::load_builder(path).map_err(|e| e.to_string()),
-        None => nimbus::scene::gltf::load_slice_with_embedded(
+        Some(path) => nimbus::scene::load_builder(path, &LoadOptions::default()),
+        None => nimbus::scene::gltf::load_slice(
             DEMO_SCENE,
             Path::new("assets/cloud.gltf"),
-            &[("cloud.vdb", DEMO_CLOUD)],
-        )
-        .map_err(|e| e.to_string()),
+            &LoadOptions {
+                embedded: &[("cloud.vdb", DEMO_CLOUD)],
+                ..LoadOptions::default()
+            },
+        ),
     }
+    .map_err(|e| e.to_string())
 }
 
 fn render(args: RenderArgs) -> Result<(), String> {
@@ -239,18 +242,19 @@ fn render(args: RenderArgs) -> Result<(), String> {
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
-    let scene: Scene = builder.build();
-    for w in &scene.warnings {
+    let scene: Scene = builder.build().map_err(|e| e.to_string())?;
+    for w in scene.warnings() {
         eprintln!("nimbus: warning: {w}");
     }
     if args.explain {
-        for m in &scene.media {
+        for m in scene.media() {
             eprintln!("nimbus: medium '{}': {}", m.name(), m.method());
         }
     }
-    let width = args.width.unwrap_or(640).max(1);
-    let aspect = scene.camera.aspect_ratio.unwrap_or(4.0 / 3.0);
+    let width = args.image.width.unwrap_or(640).max(1);
+    let aspect = scene.camera().aspect_ratio.unwrap_or(4.0 / 3.0);
     let height = args
+        .image
         .height
         .unwrap_or(((width as f32 / aspect).round() as usize).max(1))
         .max(1);
@@ -270,16 +274,16 @@ fn render(args: RenderArgs) -> Result<(), String> {
         width,
         height,
         spp,
-        seed: args.seed,
-        threads: args.threads,
-        max_depth: args.max_depth.or(scene.max_bounces).unwrap_or(64),
+        seed: args.image.seed,
+        threads: args.image.threads,
+        max_depth: args.max_depth.or(scene.max_bounces()).unwrap_or(64),
         time_limit,
         media_mis: true,
     };
     eprintln!(
         "nimbus: {} triangles, {} lights, {width}x{height}, {} spp{}",
         scene.triangle_count(),
-        scene.lights.len(),
+        scene.lights().len(),
         if spp == u32::MAX {
             "unlimited".to_string()
         } else {

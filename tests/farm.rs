@@ -36,9 +36,9 @@ fn settings(threads: usize) -> RenderSettings {
 /// cloud and ground, where float sums of the same samples round differently in different groupings (the case
 /// the exact sums are for), and every pixel's squared values do.
 fn scene() -> Scene {
-    let mut builder = nimbus::scene::load_builder(Path::new(SCENE)).unwrap();
+    let mut builder = nimbus::scene::load_builder(Path::new(SCENE), &Default::default()).unwrap();
     builder.set_environment(EnvironmentLight::Constant(Rgb::splat(1e-9)));
-    builder.build()
+    builder.build().unwrap()
 }
 
 /// A fresh folder for one test's files.

@@ -112,7 +112,7 @@ fn metal_lobe_in_a_furnace_reflects_its_directional_albedo() {
                 let theta = theta_deg.to_radians();
                 let eye = Vec3::new(theta.sin(), theta.cos(), 0.0);
                 // A narrow view of the plane's centre: every pixel sees it from θo to within 0.05°.
-                b.camera = Some(Camera::look_at(eye, Vec3::ZERO, 0.1f32.to_radians()));
+                b.set_camera(Camera::look_at(eye, Vec3::ZERO, 0.1f32.to_radians()));
                 // Each case its own seed, so that the cases' errors are independent.
                 seed += 1;
                 let (img, stats) = common::render_square(b, 8, 1024, 1, seed);

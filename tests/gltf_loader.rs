@@ -76,16 +76,21 @@ fn data_uri_buffer_transforms_and_camera() {
         base64(&triangle_buffer())
     );
     let path = write(&dir, "tri.gltf", &document(&uri, 3, ""));
-    let scene = load_builder(&path).expect("loads").build();
+    let scene = load_builder(&path, &Default::default())
+        .expect("loads")
+        .build()
+        .unwrap();
     assert_eq!(scene.triangle_count(), 1);
     // translation 10 and scale 2: x spans [10, 12], y [0, 2].
-    assert!((scene.bounds.min.x - 10.0).abs() < 1e-6 && (scene.bounds.max.x - 12.0).abs() < 1e-6);
-    assert!((scene.bounds.max.y - 2.0).abs() < 1e-6);
-    assert_eq!(scene.camera.yfov, 0.5);
-    assert_eq!(scene.camera.aspect_ratio, Some(2.0));
-    assert!((scene.camera.position().z - 5.0).abs() < 1e-6);
+    assert!(
+        (scene.bounds().min.x - 10.0).abs() < 1e-6 && (scene.bounds().max.x - 12.0).abs() < 1e-6
+    );
+    assert!((scene.bounds().max.y - 2.0).abs() < 1e-6);
+    assert_eq!(scene.camera().yfov, 0.5);
+    assert_eq!(scene.camera().aspect_ratio, Some(2.0));
+    assert!((scene.camera().position().z - 5.0).abs() < 1e-6);
     // The default glTF material is not double-sided; normals were generated from the CCW winding (+z).
-    assert!(scene.meshes[0]
+    assert!(scene.meshes()[0]
         .normals
         .iter()
         .all(|n| (n.z - 1.0).abs() < 1e-6));
@@ -96,9 +101,16 @@ fn external_buffer_and_missing_buffer() {
     let dir = temp_dir("external");
     std::fs::write(dir.join("tri.bin"), triangle_buffer()).unwrap();
     let ok = write(&dir, "ok.gltf", &document("tri.bin", 3, ""));
-    assert_eq!(load_builder(&ok).unwrap().build().triangle_count(), 1);
+    assert_eq!(
+        load_builder(&ok, &Default::default())
+            .unwrap()
+            .build()
+            .unwrap()
+            .triangle_count(),
+        1
+    );
     let missing = write(&dir, "missing.gltf", &document("nope.bin", 3, ""));
-    let err = load_builder(&missing)
+    let err = load_builder(&missing, &Default::default())
         .err()
         .expect("missing buffer is an error");
     assert!(
@@ -119,7 +131,7 @@ fn malformed_json_is_an_error() {
         "bad.gltf",
         "{\"asset\": {\"version\": \"2.0\"}, \"nodes\": [",
     );
-    let err = load_builder(&p).err().expect("error");
+    let err = load_builder(&p, &Default::default()).err().expect("error");
     assert!(matches!(err.kind, SceneErrorKind::Malformed(_)));
     assert!(err.to_string().contains("bad.gltf"));
 }
@@ -129,7 +141,7 @@ fn accessor_past_its_buffer_view_is_an_error() {
     let dir = temp_dir("accessor");
     std::fs::write(dir.join("tri.bin"), triangle_buffer()).unwrap();
     let p = write(&dir, "bad.gltf", &document("tri.bin", 300, ""));
-    let err = load_builder(&p).err().expect("error");
+    let err = load_builder(&p, &Default::default()).err().expect("error");
     assert!(err.to_string().contains("accessor 0"), "{err}");
 }
 
@@ -139,7 +151,7 @@ fn dangling_index_is_an_error() {
     std::fs::write(dir.join("tri.bin"), triangle_buffer()).unwrap();
     let text = document("tri.bin", 3, "").replace(r#""indices":1"#, r#""indices":7"#);
     let p = write(&dir, "bad.gltf", &text);
-    assert!(load_builder(&p).is_err());
+    assert!(load_builder(&p, &Default::default()).is_err());
 }
 
 #[test]
@@ -155,11 +167,12 @@ fn required_extensions_supported_or_refused() {
             r#","extensionsUsed":["KHR_materials_volume","KHR_materials_specular","EXT_fancy"],"extensionsRequired":["KHR_materials_volume","KHR_materials_specular"]"#,
         ),
     );
-    let builder = load_builder(&ok).expect("the extensions Nimbus implements may be required");
+    let builder = load_builder(&ok, &Default::default())
+        .expect("the extensions Nimbus implements may be required");
     assert!(
-        builder.warnings.iter().any(|w| w.contains("EXT_fancy")),
+        builder.warnings().iter().any(|w| w.contains("EXT_fancy")),
         "{:?}",
-        builder.warnings
+        builder.warnings()
     );
     let bad = write(
         &dir,
@@ -170,7 +183,9 @@ fn required_extensions_supported_or_refused() {
             r#","extensionsUsed":["EXT_fancy"],"extensionsRequired":["EXT_fancy"]"#,
         ),
     );
-    let err = load_builder(&bad).err().expect("error");
+    let err = load_builder(&bad, &Default::default())
+        .err()
+        .expect("error");
     assert!(matches!(err.kind, SceneErrorKind::Unsupported(_)), "{err}");
 }
 
@@ -179,11 +194,13 @@ fn truncated_glb_is_an_error_at_every_length() {
     let glb = include_bytes!("../assets/demo.glb");
     let path = Path::new("demo.glb");
     for len in (0..glb.len() - 1).step_by(glb.len() / 97) {
-        let result = std::panic::catch_unwind(|| gltf::load_slice(&glb[..len], path).map(|_| ()));
+        let result = std::panic::catch_unwind(|| {
+            gltf::load_slice(&glb[..len], path, &Default::default()).map(|_| ())
+        });
         let result = result.unwrap_or_else(|_| panic!("panic at length {len}"));
         assert!(result.is_err(), "truncated at {len} should fail");
     }
-    assert!(gltf::load_slice(glb, path).is_ok());
+    assert!(gltf::load_slice(glb, path, &Default::default()).is_ok());
 }
 
 #[test]
@@ -196,16 +213,25 @@ fn obj_with_mtl_maps_diffuse_and_emission() {
     .unwrap();
     let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl wall\nf 1 2 3 4\nusemtl lamp\nf 1 3 2\n";
     let p = write(&dir, "scene.obj", obj);
-    let scene = load_builder(&p).unwrap().build();
+    let scene = load_builder(&p, &Default::default())
+        .unwrap()
+        .build()
+        .unwrap();
     assert_eq!(scene.triangle_count(), 3);
-    let wall = scene.materials.iter().find(|m| m.name == "wall").unwrap();
+    let wall = scene.materials().iter().find(|m| m.name == "wall").unwrap();
     assert_eq!(
         wall.base_color.truncate(),
         nimbus::math::Vec3::new(0.5, 0.25, 0.125)
     );
     assert_eq!(wall.specular_factor, 0.0, "no Ks: exactly Lambertian");
-    assert_eq!(scene.lights.len(), 1, "the emissive face is an area light");
-    let err = load_builder(&dir.join("absent.obj")).err().unwrap();
+    assert_eq!(
+        scene.lights().len(),
+        1,
+        "the emissive face is an area light"
+    );
+    let err = load_builder(&dir.join("absent.obj"), &Default::default())
+        .err()
+        .unwrap();
     assert!(err.to_string().contains("absent.obj"));
 }
 
@@ -218,7 +244,7 @@ fn textures_sharing_an_image_keep_their_own_samplers() {
         return;
     };
     let path = shared.join("realworld/gltf/TextureSettingsTest/TextureSettingsTest.gltf");
-    let builder = load_builder(&path).unwrap();
+    let builder = load_builder(&path, &Default::default()).unwrap();
     let expected = [
         ("TextureMirrorMaterialT", Repeat, MirroredRepeat),
         ("TextureMirrorMaterialS", MirroredRepeat, Repeat),
@@ -230,11 +256,11 @@ fn textures_sharing_an_image_keep_their_own_samplers() {
     ];
     for (name, wrap_s, wrap_t) in expected {
         let material = builder
-            .materials
+            .materials()
             .iter()
             .find(|m| m.name == name)
             .unwrap_or_else(|| panic!("material {name} missing"));
-        let texture = &builder.textures[material.base_color_texture.unwrap() as usize];
+        let texture = &builder.textures()[material.base_color_texture.unwrap() as usize];
         let sampler = texture.sampler();
         assert_eq!((sampler.wrap_s, sampler.wrap_t), (wrap_s, wrap_t), "{name}");
         // NEAREST_MIPMAP_LINEAR minification, LINEAR magnification.
@@ -249,8 +275,8 @@ fn textures_sharing_an_image_keep_their_own_samplers() {
     // Textures of one image share its decoded pixels: TextureMirrorTextureT and TextureRepeatTextureT both
     // read CheckAndX_V.png.
     let texture_of = |name: &str| {
-        let m = builder.materials.iter().find(|m| m.name == name).unwrap();
-        &builder.textures[m.base_color_texture.unwrap() as usize]
+        let m = builder.materials().iter().find(|m| m.name == name).unwrap();
+        &builder.textures()[m.base_color_texture.unwrap() as usize]
     };
     assert!(std::sync::Arc::ptr_eq(
         texture_of("TextureMirrorMaterialT").image(),
@@ -276,12 +302,12 @@ fn punctual_light_units_are_photometric_unless_the_scene_says_radiometric() {
                 "scenes":[{{"nodes":[0,1]{scene_extras}}}],{nodes}}}"#
         );
         let path = write(&dir, "lights.gltf", &text);
-        let b = load_builder(&path).map_err(|e| e.to_string())?;
-        let point = b.lights.iter().find_map(|l| match l {
+        let b = load_builder(&path, &Default::default()).map_err(|e| e.to_string())?;
+        let point = b.lights().iter().find_map(|l| match l {
             Light::Point(p) => Some(p.intensity),
             _ => None,
         });
-        let sun = b.lights.iter().find_map(|l| match l {
+        let sun = b.lights().iter().find_map(|l| match l {
             Light::Directional(d) => Some(d.irradiance),
             _ => None,
         });

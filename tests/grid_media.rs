@@ -58,7 +58,7 @@ fn scene_with(medium: Arc<dyn nimbus::volume::Medium>, fov: f32, distance: f32) 
     let mut b = SceneBuilder::default();
     b.add_medium(medium);
     b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
-    b.camera = Some(Camera::look_at(
+    b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, distance),
         Vec3::ZERO,
         fov.to_radians(),
@@ -106,7 +106,7 @@ fn delta_tracking_on_a_constant_grid_matches_the_closed_form() {
         mat,
     ));
     b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
-    b.camera = Some(Camera::look_at(
+    b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 60.0),
         Vec3::ZERO,
         0.3f32.to_radians(),
@@ -185,9 +185,12 @@ fn an_underestimated_majorant_is_counted() {
 fn gltf_nimbus_volume_loads_the_grid() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes");
     let scene = nimbus::scene::Scene::load(&dir.join("constant_grid.gltf")).expect("loads");
-    assert_eq!(scene.media.len(), 1);
-    assert_eq!(scene.filled_media.len(), 1);
-    assert!(scene.media[0].method().contains("delta tracking"));
+    assert_eq!(scene.media().len(), 1);
+    assert!(
+        scene.media()[0].fill_bounds().is_some(),
+        "a VDB volume fills its region by position"
+    );
+    assert!(scene.media()[0].method().contains("delta tracking"));
     let bad = std::env::temp_dir().join(format!("nimbus-badvol-{}.gltf", std::process::id()));
     std::fs::write(
         &bad,

@@ -51,12 +51,12 @@ fn white_furnace_lambertian_sphere_renders_the_environment() {
     let m = b.add_material(Material::lambertian("white", Rgb::ONE));
     b.add_mesh(common::uv_sphere(Vec3::ZERO, 1.0, 24, 48, m));
     b.set_environment(EnvironmentLight::Constant(Rgb::splat(0.8)));
-    b.camera = Some(Camera::look_at(
+    b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 4.0),
         Vec3::ZERO,
         30f32.to_radians(),
     ));
-    let scene = b.build();
+    let scene = b.build().unwrap();
     let img = render(&scene, 24, 16, 64, 2);
     // Only pixels whose centre sees the sphere (depth AOV > 0 for the whole pixel is not guaranteed at edges,
     // but the furnace value is the same off the sphere, so every pixel must match).
@@ -86,13 +86,13 @@ fn floor_scene(albedo: f32, light: Light, fov_degrees: f32) -> Scene {
         ],
         m,
     ));
-    b.lights.push(light);
-    b.camera = Some(Camera::look_at(
+    b.add_light(light);
+    b.set_camera(Camera::look_at(
         Vec3::new(0.0, 3.0, 0.0),
         Vec3::ZERO,
         fov_degrees.to_radians(),
     ));
-    b.build()
+    b.build().unwrap()
 }
 
 /// The analytic radiance of each pixel, averaged over a 16×16 grid inside the pixel (the box filter).
@@ -107,7 +107,7 @@ fn analytic_image(scene: &Scene, size: usize, radiance_at: impl Fn(Vec3) -> f32)
                         (x as f32 + (i as f32 + 0.5) / 16.0) / size as f32,
                         (y as f32 + (j as f32 + 0.5) / 16.0) / size as f32,
                     );
-                    let ray = scene.camera.generate_ray(film, 1.0);
+                    let ray = scene.camera().generate_ray(film, 1.0);
                     let t = -ray.origin.y / ray.dir.y;
                     sum += radiance_at(ray.at(t));
                 }
@@ -175,9 +175,11 @@ fn same_seed_same_image_for_any_thread_count() {
     let scene = nimbus::scene::gltf::load_slice(
         include_bytes!("../assets/demo.glb"),
         std::path::Path::new("assets/demo.glb"),
+        &Default::default(),
     )
     .unwrap()
-    .build();
+    .build()
+    .unwrap();
     let one = render(&scene, 24, 4, 8, 1);
     let two = render(&scene, 24, 4, 8, 2);
     let three = render(&scene, 24, 4, 8, 3);
@@ -211,12 +213,12 @@ fn max_depth_zero_shows_only_emitters() {
         lm,
     ));
     b.add_mesh(common::uv_sphere(Vec3::new(0.0, 0.0, 2.0), 0.2, 8, 16, wm));
-    b.camera = Some(Camera::look_at(
+    b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 5.0),
         Vec3::ZERO,
         10f32.to_radians(),
     ));
-    let scene = b.build();
+    let scene = b.build().unwrap();
     let img = render(&scene, 8, 2, 0, 1);
     // Pixels see the light (radiance 2) or the sphere, which is black at depth 0; edge pixels mix the two.
     assert!(img.beauty.iter().all(|c| c.x >= 0.0 && c.x <= 2.0 + 1e-5));

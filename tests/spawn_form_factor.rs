@@ -58,7 +58,7 @@ fn floor_under_a_rectangular_emitter_receives_the_form_factor_at_every_height_an
             // Looking straight down at p from half the height, seeing a disc of radius 1e-4 h: the irradiance
             // varies over it by about (1e-4)², far below the noise.
             let yfov = 2.0 * (2e-4f32).atan();
-            builder.camera = Some(Camera::look_at(p + Vec3::Y * (0.5 * h), p, yfov));
+            builder.set_camera(Camera::look_at(p + Vec3::Y * (0.5 * h), p, yfov));
             // One bounce: direct light only, with light sampling and BSDF sampling combined by MIS.
             let (img, stats) = common::render_square(builder, 8, 256, 1, 11);
             assert_eq!(stats.nan_samples, 0);

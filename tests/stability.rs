@@ -97,9 +97,11 @@ fn run(case: Case, spp: u32) -> (RenderImage, RenderStats, f64) {
     if let Some(env) = case.env {
         b.set_environment(EnvironmentLight::Constant(env));
     }
-    b.lights.extend(case.lights);
-    b.camera = Some(case.camera);
-    let scene = b.build();
+    for light in case.lights {
+        b.add_light(light);
+    }
+    b.set_camera(case.camera);
+    let scene = b.build().unwrap();
     let settings = RenderSettings {
         width: 10,
         height: 10,

@@ -23,7 +23,7 @@ fn render_plane_albedo(sampler: Sampler, size: usize) -> Vec<Option<f32>> {
         .unwrap()
         .with_sampler(sampler);
     let mut b = SceneBuilder::default();
-    b.textures.push(texture);
+    b.add_texture(texture);
     let mut material = Material::lambertian("checker", Rgb::ONE);
     material.base_color_texture = Some(0);
     let m = b.add_material(material);
@@ -48,12 +48,12 @@ fn render_plane_albedo(sampler: Sampler, size: usize) -> Vec<Option<f32>> {
         material: m,
     });
     // Eye 1 m up, looking 10° down: the lower rows are close (magnified), the upper rows far and grazing.
-    b.camera = Some(Camera::look_at(
+    b.set_camera(Camera::look_at(
         Vec3::new(0.0, 1.0, 0.0),
         Vec3::new(0.0, 1.0 - 10f32.to_radians().tan(), -1.0),
         20f32.to_radians(),
     ));
-    let scene = b.build();
+    let scene = b.build().unwrap();
     let settings = RenderSettings {
         width: size,
         height: size,

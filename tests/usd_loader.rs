@@ -23,26 +23,30 @@ fn read(name: &str) -> SceneBuilder {
 /// Checks the Cornell box as `make_stages.py` authors it.
 fn check_cornell(b: &SceneBuilder) {
     // 5 walls of 1 quad, 2 boxes of 6 quads, and the rect light's quad.
-    assert_eq!(b.meshes.len(), 8);
-    let triangles: usize = b.meshes.iter().map(|m| m.indices.len()).sum();
+    assert_eq!(b.meshes().len(), 8);
+    let triangles: usize = b.meshes().iter().map(|m| m.indices.len()).sum();
     assert_eq!(triangles, 36);
-    assert!(b.lights.is_empty(), "the rect light is an emissive mesh");
-    assert!(b.warnings.is_empty(), "{:?}", b.warnings);
-    let cam = b.camera.as_ref().expect("camera");
+    assert!(b.lights().is_empty(), "the rect light is an emissive mesh");
+    assert!(b.warnings().is_empty(), "{:?}", b.warnings());
+    let cam = b.camera().expect("camera");
     assert!((cam.yfov - 2.0 * (12.0f32 / 35.0).atan()).abs() < 1e-5);
     assert_eq!(cam.aspect_ratio, Some(1.0));
     assert!(cam.position().distance(Vec3::new(0.0, 1.0, 3.6)) < 1e-5);
     // The light: 0.5 x 0.4 at y = 1.98, emitting downward, radiance colour x 6 x 2^1.
-    let light = b.meshes.iter().find(|m| m.name == "/World/Light").unwrap();
+    let light = b
+        .meshes()
+        .iter()
+        .find(|m| m.name == "/World/Light")
+        .unwrap();
     let bounds = light.bounds();
     assert!((bounds.max.x - 0.25).abs() < 1e-5 && (bounds.max.z - 0.2).abs() < 1e-5);
     assert!((bounds.min.y - 1.98).abs() < 1e-5);
     let [a, b2, c] = light.triangle(0);
     assert!((b2 - a).cross(c - a).normalize().distance(-Vec3::Y) < 1e-5);
-    let emission = b.materials[light.material as usize].emission;
+    let emission = b.materials()[light.material as usize].emission;
     assert!(emission.distance(Rgb::new(1.0, 0.85, 0.7) * 12.0) < 1e-4);
     let red = b
-        .materials
+        .materials()
         .iter()
         .find(|m| m.name == "/World/Materials/Red")
         .unwrap();
@@ -62,10 +66,10 @@ fn check_cornell(b: &SceneBuilder) {
 fn cornell_usda_loads() {
     let b = read("cornell.usda");
     check_cornell(&b);
-    let scene = b.build();
+    let scene = b.build().unwrap();
     assert_eq!(scene.triangle_count(), 36);
     let area_lights = scene
-        .lights
+        .lights()
         .iter()
         .filter(|l| matches!(l, Light::Area(_)))
         .count();
@@ -77,7 +81,7 @@ fn cornell_usdc_matches_usda() {
     let a = read("cornell.usda");
     let c = read("cornell.usdc");
     check_cornell(&c);
-    for (x, y) in a.meshes.iter().zip(&c.meshes) {
+    for (x, y) in a.meshes().iter().zip(c.meshes()) {
         assert_eq!(x.name, y.name);
         assert_eq!(x.positions, y.positions);
         assert_eq!(x.indices, y.indices);
@@ -87,9 +91,12 @@ fn cornell_usdc_matches_usda() {
 #[test]
 fn referenced_layer_overrides_apply() {
     let b = read("override.usda");
-    assert_eq!(b.meshes.iter().map(|m| m.indices.len()).sum::<usize>(), 36);
+    assert_eq!(
+        b.meshes().iter().map(|m| m.indices.len()).sum::<usize>(),
+        36
+    );
     let red = b
-        .materials
+        .materials()
         .iter()
         .find(|m| m.name == "/World/Materials/Red")
         .unwrap();
@@ -100,19 +107,19 @@ fn referenced_layer_overrides_apply() {
             < 1e-6
     );
     let tall = b
-        .meshes
+        .meshes()
         .iter()
         .find(|m| m.name == "/World/TallBox/Geom")
         .unwrap();
     assert!((tall.bounds().center().z + 0.5).abs() < 1e-5);
-    assert!(b.camera.is_some());
+    assert!(b.camera().is_some());
 }
 
 #[test]
 fn volume_spec_from_usdvol() {
     let (b, volumes) = usd::read(&stage("volume.usda")).unwrap();
-    assert!(b.meshes.is_empty());
-    assert!(b.warnings.is_empty(), "{:?}", b.warnings);
+    assert!(b.meshes().is_empty());
+    assert!(b.warnings().is_empty(), "{:?}", b.warnings());
     assert_eq!(volumes.len(), 1);
     let v = &volumes[0];
     assert_eq!(v.name, "/World/Cloud");
@@ -150,8 +157,8 @@ fn volume_spec_from_usdvol() {
 
 #[test]
 fn load_builder_dispatches_usd_extensions() {
-    let b = nimbus::scene::load_builder(&stage("cornell.usdc")).unwrap();
-    assert_eq!(b.meshes.len(), 8);
+    let b = nimbus::scene::load_builder(&stage("cornell.usdc"), &Default::default()).unwrap();
+    assert_eq!(b.meshes().len(), 8);
 }
 
 /// Writes `bytes` to a fresh file with `ext` in the temporary folder.
@@ -242,7 +249,7 @@ fn render(scene: &Scene) -> RenderImage {
 
 #[test]
 fn usd_and_gltf_cornell_boxes_render_alike() {
-    let from_usd = read("cornell.usda").build();
+    let from_usd = read("cornell.usda").build().unwrap();
     let from_gltf = Scene::load(&stage("cornell.gltf")).unwrap();
     let (a, b) = (render(&from_usd), render(&from_gltf));
     for c in 0..3 {
@@ -294,8 +301,8 @@ def Xform "X" {
 "#,
     );
     let (b, _) = usd::read(&p).unwrap();
-    assert_eq!(b.meshes.len(), 1);
-    let m = &b.meshes[0];
+    assert_eq!(b.meshes().len(), 1);
+    let m = &b.meshes()[0];
     assert_eq!(m.indices.len(), 2);
     // translate (1, 0, 0) after rotateY 90: the local +X corner lands at (1, 0, -1).
     assert!(m.positions[1].distance(Vec3::new(1.0, 0.0, -1.0)) < 1e-5);
@@ -304,19 +311,19 @@ def Xform "X" {
     assert!((b2 - a).cross(c - a).normalize().distance(-Vec3::X) < 1e-5);
     let uv = m.uvs.as_ref().unwrap();
     assert_eq!(uv[0], nimbus::math::Vec2::new(0.0, 1.0), "USD's t runs up");
-    assert!(b.materials[m.material as usize].double_sided);
-    let point = b.lights.iter().find_map(|l| match l {
+    assert!(b.materials()[m.material as usize].double_sided);
+    let point = b.lights().iter().find_map(|l| match l {
         Light::Point(p) => Some(p),
         _ => None,
     });
     let expected = 2.0 * std::f32::consts::PI * 0.01;
     assert!((point.unwrap().intensity.x - expected).abs() < 1e-6);
-    assert!(b.lights.iter().any(|l| matches!(
+    assert!(b.lights().iter().any(|l| matches!(
         l,
         Light::Environment(nimbus::light::EnvironmentLight::Constant(c)) if *c == Rgb::new(0.5, 0.25, 1.0)
     )));
-    let cube_warnings = b.warnings.iter().filter(|w| w.contains("'Cube'")).count();
-    assert_eq!(cube_warnings, 1, "{:?}", b.warnings);
+    let cube_warnings = b.warnings().iter().filter(|w| w.contains("'Cube'")).count();
+    assert_eq!(cube_warnings, 1, "{:?}", b.warnings());
 }
 
 #[test]
@@ -327,17 +334,20 @@ fn cornell_usdz_package_loads() {
 #[test]
 fn preview_surface_reads_uv_texture() {
     let b = read("textured.usda");
-    assert_eq!(b.meshes.len(), 1);
-    let m = &b.materials[b.meshes[0].material as usize];
+    assert_eq!(b.meshes().len(), 1);
+    let m = &b.materials()[b.meshes()[0].material as usize];
     let tex = m
         .base_color_texture
         .expect("diffuseColor connects to a UsdUVTexture");
     assert_eq!(m.base_color.truncate(), Rgb::ONE);
     // checker.png's top-left texel is red; USD's st (0, 0) is the image's bottom-left (blue).
-    let t = &b.textures[tex as usize];
+    let t = &b.textures()[tex as usize];
     let top_left = t.sample(nimbus::math::Vec2::new(0.25, 0.25)).truncate();
     assert!(top_left.distance(Rgb::X) < 1e-3, "{top_left:?}");
-    assert_eq!(b.meshes[0].uvs.as_ref().unwrap()[0], nimbus::math::Vec2::Y);
+    assert_eq!(
+        b.meshes()[0].uvs.as_ref().unwrap()[0],
+        nimbus::math::Vec2::Y
+    );
     let bottom_left = t.sample(nimbus::math::Vec2::new(0.25, 0.75)).truncate();
     assert!(bottom_left.distance(Rgb::Z) < 1e-3, "{bottom_left:?}");
 }

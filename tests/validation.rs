@@ -293,7 +293,7 @@ fn validate(scene: &ValidationScene) -> (String, Vec<String>) {
         spp,
         seed: SEED,
         threads: 0,
-        max_depth: loaded.max_bounces.unwrap_or(64),
+        max_depth: loaded.max_bounces().unwrap_or(64),
         ..Default::default()
     };
     let start = std::time::Instant::now();

@@ -23,7 +23,7 @@ fn box_scene(sigma_a: Rgb, sigma_s: Rgb, env: Rgb, fov: f32) -> SceneBuilder {
     let mat = b.add_material(common::boundary(medium));
     b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
     b.set_environment(EnvironmentLight::Constant(env));
-    b.camera = Some(Camera::look_at(
+    b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 5.0),
         Vec3::ZERO,
         fov.to_radians(),
@@ -37,7 +37,7 @@ fn beers_law_slab_transmittance_is_exact() {
     // (the narrow field of view keeps every ray inside the box's front face).
     let sigma_a = Rgb::new(0.4, 0.8, 1.6);
     let b = box_scene(sigma_a, Rgb::ZERO, Rgb::ONE, 10.0);
-    let camera = b.camera.clone().unwrap();
+    let camera = b.camera().cloned().unwrap();
     let (img, stats) = render(b, 8, 64, 0);
     // Each ray crosses the slab z ∈ [−1, 1] over 2/|d_z|; the box filter averages that over the pixel, so the
     // expectation is a quadrature over the pixel and the tolerance 4 standard errors of the jitter.
@@ -134,7 +134,7 @@ fn homogeneous_sphere_transmittance_for_every_method() {
         let mat = b.add_material(common::boundary(medium));
         b.add_mesh(common::uv_sphere(Vec3::ZERO, 1.0, 128, 256, mat));
         b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
-        b.camera = Some(Camera::look_at(
+        b.set_camera(Camera::look_at(
             Vec3::new(0.0, 0.0, 50.0),
             Vec3::ZERO,
             0.05f32.to_radians(),

@@ -11,9 +11,9 @@
  *   once with nimbus_scene_free(&scene) / nimbus_image_free(&image). Free functions take the address of the
  *   caller's pointer and set it to NULL, so a second free through the same variable is a no-op; freeing
  *   NULL is a no-op. Images do not borrow from scenes: either may be freed first.
- * - Null pointers give NIMBUS_STATUS_NULL_POINTER. Handles carry a type tag, checked before use and cleared
- *   on free: passing an image where a scene is expected, or a stale copy of a freed handle whose memory has
- *   not been reused, gives NIMBUS_STATUS_INVALID_HANDLE. Any other invalid pointer is undefined behaviour.
+ * - Null pointers give NIMBUS_STATUS_NULL_POINTER. Every live handle is registered; a pointer that is not a
+ *   live handle of the expected kind (an image where a scene is expected, a stale copy of a freed handle, or
+ *   any other pointer) gives NIMBUS_STATUS_INVALID_HANDLE, checked before the pointer is read.
  * - No Rust panic crosses the boundary; one is reported as NIMBUS_STATUS_PANIC.
  * - Handles may be used from any thread, but not from two threads at once while one of them frees it.
  *   Strings are UTF-8.

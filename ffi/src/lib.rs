@@ -7,9 +7,9 @@
 //! - It returns a [`NimbusStatus`]; on failure [`nimbus_last_error`] gives this thread's message.
 //! - No panic crosses the boundary: each body runs under `catch_unwind`, and a panic becomes
 //!   [`NimbusStatus::Panic`].
-//! - A null pointer gives [`NimbusStatus::NullPointer`]; a handle whose type tag does not match (another kind of
-//!   handle, or one already freed whose memory still holds the cleared tag) gives
-//!   [`NimbusStatus::InvalidHandle`].
+//! - A null pointer gives [`NimbusStatus::NullPointer`]; a pointer that is not a live handle of the expected
+//!   kind (freed already, another kind of handle, or never a handle) gives [`NimbusStatus::InvalidHandle`]:
+//!   every live handle is in a registry, which is checked before the pointer is read.
 //! - Output handles are written only on success (and, for [`nimbus_render`], on cancellation); on any other
 //!   status they are set to null.
 //! - Handles are freed with `nimbus_*_free(&handle)`, which nulls the caller's pointer, so freeing twice through
@@ -50,23 +50,20 @@ pub enum NimbusStatus {
 }
 
 /// A loaded scene. Opaque: create with `nimbus_scene_load()`, free with `nimbus_scene_free()`.
-pub struct NimbusScene(Tagged<Scene>);
+pub struct NimbusScene {
+    _opaque: [u8; 0],
+}
 
 /// A rendered image with its AOV layers. Opaque: create with `nimbus_render()`, free with
 /// `nimbus_image_free()`.
-pub struct NimbusImage(Tagged<ImageData>);
+pub struct NimbusImage {
+    _opaque: [u8; 0],
+}
 
 /// What an image handle holds.
 struct ImageData {
     image: RenderImage,
     stats: RenderStats,
-}
-
-/// A value behind a type tag, read before every use and cleared on free.
-#[repr(C)]
-struct Tagged<T> {
-    magic: u64,
-    value: T,
 }
 
 /// How to render, for `nimbus_render()`. Start from `nimbus_render_settings_default()` and change fields.
@@ -127,7 +124,9 @@ impl From<Error> for Failure {
         let status = match e {
             Error::Scene(_) | Error::Vdb(_) => NimbusStatus::SceneError,
             Error::Output(_) | Error::Farm(_) => NimbusStatus::OutputError,
-            Error::ThreadPool(_) | Error::Region(_) => NimbusStatus::RenderError,
+            Error::ThreadPool(_) | Error::Region(_) | Error::Converge(_) => {
+                NimbusStatus::RenderError
+            }
         };
         Self::new(status, e.to_string())
     }
@@ -161,61 +160,111 @@ fn call(body: impl FnOnce() -> Result<NimbusStatus, Failure>) -> NimbusStatus {
     }
 }
 
-/// An opaque handle type: a tagged value behind a pointer handed to C.
+/// The kinds of handle handed to C.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum HandleKind {
+    Scene,
+    Image,
+}
+
+/// A live handle's value: a boxed value of the handle's type, owned by the registry.
+struct Entry {
+    kind: HandleKind,
+    value: *mut (),
+}
+
+// SAFETY: the values behind entries are `Scene` and `ImageData`, which are `Send + Sync`; the registry only
+// moves their addresses between threads.
+unsafe impl Send for Entry {}
+
+/// Every live handle by id, with its kind and value. The pointers handed to C are these ids, never addresses:
+/// C never dereferences them, a pointer is looked up here before every use, and ids are never reused, so a
+/// freed, foreign or mistyped handle is refused whatever the memory it once named now holds.
+static LIVE_HANDLES: std::sync::Mutex<Option<std::collections::HashMap<usize, Entry>>> =
+    std::sync::Mutex::new(None);
+
+/// The next handle id (a multiple of 16, never 0, never reused).
+static NEXT_HANDLE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(16);
+
+/// Runs `f` on the registry, even if a panic poisoned its lock (the map itself is always consistent).
+fn with_live_handles<R>(f: impl FnOnce(&mut std::collections::HashMap<usize, Entry>) -> R) -> R {
+    let mut guard = LIVE_HANDLES
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    f(guard.get_or_insert_with(Default::default))
+}
+
+/// An opaque handle type: an id handed to C for a value the registry owns.
 trait Handle: Sized {
     /// What the handle holds.
     type Value;
-    /// The tag of live handles of this type.
-    const MAGIC: u64;
+    /// The kind of this handle type in the registry.
+    const KIND: HandleKind;
     /// The handle's name in messages.
     const WHAT: &'static str;
 
-    /// Wraps `value` in a tagged handle.
-    fn wrap(value: Self::Value) -> Self;
-
-    /// The tagged value of the handle at `p`.
-    ///
-    /// # Safety
-    /// `p` must not be null.
-    unsafe fn tagged(p: *mut Self) -> *mut Tagged<Self::Value>;
-
-    /// Moves `value` into a new handle owned by the caller.
+    /// Moves `value` into the registry and returns its new handle.
     fn into_raw(value: Self::Value) -> *mut Self {
-        Box::into_raw(Box::new(Self::wrap(value)))
+        let id = NEXT_HANDLE.fetch_add(16, std::sync::atomic::Ordering::Relaxed);
+        let value = Box::into_raw(Box::new(value)).cast::<()>();
+        with_live_handles(|live| {
+            live.insert(
+                id,
+                Entry {
+                    kind: Self::KIND,
+                    value,
+                },
+            )
+        });
+        id as *mut Self
     }
 
-    /// Checks the tag of the handle at `p` and borrows its value.
+    /// The failure for a pointer that is not a live handle of this type.
+    fn not_live() -> Failure {
+        Failure::new(
+            NimbusStatus::InvalidHandle,
+            format!(
+                "{} is not a live handle of its type (freed, or another kind of handle)",
+                Self::WHAT
+            ),
+        )
+    }
+
+    /// Borrows the value of the live handle `p`.
     ///
     /// # Safety
-    /// `p` must be null or point to readable memory at least as large as a handle.
-    unsafe fn get<'a>(p: *const Self) -> Result<&'a Self::Value, Failure> {
+    /// The handle must not be freed while the borrow lasts (the C API's rule: a handle is not freed while
+    /// another call uses it).
+    unsafe fn get<'a>(p: *const Self) -> Result<&'a Self::Value, Failure>
+    where
+        Self: 'a,
+    {
         if p.is_null() {
             return Err(Failure::null(Self::WHAT));
         }
-        let tagged = Self::tagged(p.cast_mut());
-        if !p.is_aligned() || (*tagged).magic != Self::MAGIC {
-            return Err(Failure::new(
-                NimbusStatus::InvalidHandle,
-                format!(
-                    "{} is not a live handle of its type (freed, or another kind of handle)",
-                    Self::WHAT
-                ),
-            ));
-        }
-        Ok(&(*tagged).value)
+        let value = with_live_handles(|live| match live.get(&(p as usize)) {
+            Some(e) if e.kind == Self::KIND => Some(e.value),
+            _ => None,
+        })
+        .ok_or_else(Self::not_live)?;
+        Ok(&*value.cast::<Self::Value>())
     }
 
-    /// Frees the handle `*slot` points to, if any, and nulls `*slot`.
+    /// Frees the handle `*slot` holds, if any, and nulls `*slot`.
     ///
     /// # Safety
-    /// `slot` must be null or point to a pointer that is null or was returned by [`Handle::into_raw`].
+    /// `slot` must be null or point to a readable and writable pointer.
     unsafe fn free(slot: *mut *mut Self) -> Result<(), Failure> {
         if slot.is_null() || (*slot).is_null() {
             return Ok(());
         }
-        Self::get(*slot)?;
-        (*Self::tagged(*slot)).magic = 0;
-        drop(Box::from_raw(*slot));
+        let id = *slot as usize;
+        let value = with_live_handles(|live| match live.get(&id) {
+            Some(e) if e.kind == Self::KIND => live.remove(&id).map(|e| e.value),
+            _ => None,
+        })
+        .ok_or_else(Self::not_live)?;
+        drop(Box::from_raw(value.cast::<Self::Value>()));
         *slot = std::ptr::null_mut();
         Ok(())
     }
@@ -223,36 +272,14 @@ trait Handle: Sized {
 
 impl Handle for NimbusScene {
     type Value = Scene;
-    const MAGIC: u64 = u64::from_be_bytes(*b"NIMSCENE");
+    const KIND: HandleKind = HandleKind::Scene;
     const WHAT: &'static str = "scene";
-
-    fn wrap(value: Scene) -> Self {
-        Self(Tagged {
-            magic: Self::MAGIC,
-            value,
-        })
-    }
-
-    unsafe fn tagged(p: *mut Self) -> *mut Tagged<Scene> {
-        std::ptr::addr_of_mut!((*p).0)
-    }
 }
 
 impl Handle for NimbusImage {
     type Value = ImageData;
-    const MAGIC: u64 = u64::from_be_bytes(*b"NIMIMAGE");
+    const KIND: HandleKind = HandleKind::Image;
     const WHAT: &'static str = "image";
-
-    fn wrap(value: ImageData) -> Self {
-        Self(Tagged {
-            magic: Self::MAGIC,
-            value,
-        })
-    }
-
-    unsafe fn tagged(p: *mut Self) -> *mut Tagged<ImageData> {
-        std::ptr::addr_of_mut!((*p).0)
-    }
 }
 
 /// Reads a NUL-terminated UTF-8 string argument.

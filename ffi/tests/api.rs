@@ -228,6 +228,32 @@ fn a_handle_of_the_wrong_type_is_rejected() {
     }
 }
 
+/// A copy of a freed handle stays invalid, even after new handles are made (which may reuse its memory), and
+/// a pointer that never was a handle is refused without being read.
+#[test]
+fn stale_and_foreign_handles_are_rejected() {
+    unsafe {
+        let mut scene = load_demo();
+        let stale = scene;
+        assert_eq!(nimbus_scene_free(&mut scene), NimbusStatus::Ok);
+        let mut fresh = load_demo();
+        let mut image = render(fresh);
+        let mut out = null_mut();
+        let status = nimbus_render(stale, &tiny_settings(), None, null_mut(), &mut out);
+        assert_eq!(status, NimbusStatus::InvalidHandle);
+        let mut copy = stale;
+        assert_eq!(nimbus_scene_free(&mut copy), NimbusStatus::InvalidHandle);
+        let foreign = 0x1234_5678usize as *mut NimbusImage;
+        let mut w = 0;
+        assert_eq!(
+            nimbus_image_width(foreign, &mut w),
+            NimbusStatus::InvalidHandle
+        );
+        assert_eq!(nimbus_image_free(&mut image), NimbusStatus::Ok);
+        assert_eq!(nimbus_scene_free(&mut fresh), NimbusStatus::Ok);
+    }
+}
+
 #[test]
 fn bad_arguments_are_reported() {
     unsafe {

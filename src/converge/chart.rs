@@ -66,7 +66,7 @@ pub enum LegendCorner {
 }
 
 /// Draws the convergence chart of `curves` (RMSE against seconds, with a 1/√t guide) to `png` and `svg`.
-pub fn draw_chart(curves: &[Curve], png: &Path, svg: &Path) -> Result<(), String> {
+pub fn draw_chart(curves: &[Curve], png: &Path, svg: &Path) -> Result<(), ChartError> {
     let chart = LogLogChart {
         caption: "RMSE vs render time".into(),
         x_desc: "render seconds".into(),
@@ -88,8 +88,27 @@ pub fn draw_chart(curves: &[Curve], png: &Path, svg: &Path) -> Result<(), String
     draw_loglog_chart(&chart, png, svg)
 }
 
+/// A chart that could not be drawn or written.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct ChartError {
+    /// The chart file.
+    pub path: std::path::PathBuf,
+    /// What the plotting or image library reported.
+    pub message: String,
+}
+
+impl ChartError {
+    fn new(path: &Path, message: impl std::fmt::Display) -> Self {
+        Self {
+            path: path.to_path_buf(),
+            message: message.to_string(),
+        }
+    }
+}
+
 /// Draws `chart` to `png` and `svg`.
-pub fn draw_loglog_chart(chart: &LogLogChart, png: &Path, svg: &Path) -> Result<(), String> {
+pub fn draw_loglog_chart(chart: &LogLogChart, png: &Path, svg: &Path) -> Result<(), ChartError> {
     static REGISTER: Once = Once::new();
     REGISTER.call_once(|| {
         // The bundled font is valid; a failure would only make text invisible.
@@ -98,18 +117,16 @@ pub fn draw_loglog_chart(chart: &LogLogChart, png: &Path, svg: &Path) -> Result<
     let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
-        draw(&root, chart).map_err(|e| format!("{}: {e}", png.display()))?;
-        root.present()
-            .map_err(|e| format!("{}: {e}", png.display()))?;
+        draw(&root, chart).map_err(|e| ChartError::new(png, e))?;
+        root.present().map_err(|e| ChartError::new(png, e))?;
     }
     image::RgbImage::from_raw(SIZE.0, SIZE.1, rgb)
-        .ok_or("chart buffer size")?
+        .ok_or_else(|| ChartError::new(png, "chart buffer size"))?
         .save(png)
-        .map_err(|e| format!("{}: {e}", png.display()))?;
+        .map_err(|e| ChartError::new(png, e))?;
     let root = SVGBackend::new(svg, SIZE).into_drawing_area();
-    draw(&root, chart).map_err(|e| format!("{}: {e}", svg.display()))?;
-    root.present()
-        .map_err(|e| format!("{}: {e}", svg.display()))
+    draw(&root, chart).map_err(|e| ChartError::new(svg, e))?;
+    root.present().map_err(|e| ChartError::new(svg, e))
 }
 
 fn positive(v: f64) -> bool {

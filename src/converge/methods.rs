@@ -77,6 +77,11 @@ impl Method {
         }
     }
 
+    /// Whether the method changes VDB volumes' declarations (and so needs a scene with at least one).
+    pub fn changes_volumes(self) -> bool {
+        !matches!(self, Method::Default | Method::NoMediaMis)
+    }
+
     /// Whether the path tracer uses MIS at medium scattering events.
     pub fn media_mis(self) -> bool {
         self != Method::NoMediaMis

@@ -3,11 +3,13 @@
 //! (`convergence.png`, `convergence.svg`) and `summary.md`.
 
 mod chart;
+mod error;
 mod methods;
 mod metrics;
 mod summary;
 
-pub use chart::{draw_chart, draw_loglog_chart, LegendCorner, LogLogChart, Series};
+pub use chart::{draw_chart, draw_loglog_chart, ChartError, LegendCorner, LogLogChart, Series};
+pub use error::ConvergeError;
 pub use methods::Method;
 pub use metrics::{error_metrics, error_metrics_against_noisy, ErrorMetrics};
 pub use summary::{
@@ -17,7 +19,7 @@ pub use summary::{
 
 use crate::math::Rgb;
 use crate::render::{RenderSettings, Renderer};
-use crate::scene::Scene;
+use crate::scene::{LoadOptions, Scene};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -54,45 +56,50 @@ pub struct ConvergeOptions {
 }
 
 /// Runs the comparison and writes every output; `log` receives progress lines. Returns the curves.
-pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Curve>, String> {
+pub fn run(
+    options: &ConvergeOptions,
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<Curve>, ConvergeError> {
     if !(options.budget_seconds.is_finite() && options.budget_seconds > 0.0) {
-        return Err(format!(
-            "--budget {} is not a positive number of seconds",
-            options.budget_seconds
-        ));
+        return Err(ConvergeError::InvalidBudget(options.budget_seconds));
     }
     if options.methods.is_empty() {
-        return Err("no method to compare".into());
+        return Err(ConvergeError::NoMethods);
     }
-    std::fs::create_dir_all(&options.output_dir)
-        .map_err(|e| format!("{}: {e}", options.output_dir.display()))?;
+    std::fs::create_dir_all(&options.output_dir).map_err(|source| ConvergeError::Write {
+        path: options.output_dir.clone(),
+        source,
+    })?;
+    // Every method loads the scene once; this fails early, before any rendering, where one cannot apply.
+    for &method in &options.methods {
+        load(&options.scene, method)?;
+    }
     let (width, height, reference, reference_se) = match &options.reference {
         Some(path) => {
-            let layers = crate::output::read_exr_layers(path).map_err(|e| e.to_string())?;
+            let reference_error = |reason: String| ConvergeError::Reference {
+                path: path.clone(),
+                reason,
+            };
+            let layers = crate::output::read_exr_layers(path)?;
             let beauty = layers
                 .rgb("")
-                .ok_or_else(|| format!("{}: no R, G, B channels", path.display()))?;
+                .ok_or_else(|| reference_error("no R, G, B channels".into()))?;
             let (w, h) = (options.width, options.height);
             if w.is_some_and(|w| w != layers.width) || h.is_some_and(|h| h != layers.height) {
-                return Err(format!(
-                    "{} is {}x{}, not the size asked for",
-                    path.display(),
-                    layers.width,
-                    layers.height
-                ));
+                return Err(reference_error(format!(
+                    "{}x{}, not the size asked for",
+                    layers.width, layers.height
+                )));
             }
             let se_path = standard_error_path(path);
             let se = if se_path.is_file() {
-                let se_layers =
-                    crate::output::read_exr_layers(&se_path).map_err(|e| e.to_string())?;
+                let se_layers = crate::output::read_exr_layers(&se_path)?;
                 let se = se_layers
                     .rgb("")
                     .filter(|s| s.len() == beauty.len())
-                    .ok_or_else(|| {
-                        format!(
-                            "{}: no R, G, B channels of the reference's size",
-                            se_path.display()
-                        )
+                    .ok_or_else(|| ConvergeError::Reference {
+                        path: se_path.clone(),
+                        reason: "no R, G, B channels of the reference's size".into(),
                     })?;
                 log(&format!(
                     "{}: the reference's standard errors are subtracted from the squared errors",
@@ -126,9 +133,9 @@ pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<C
             };
             let (image, stats) = Renderer::new(settings)
                 .render(&scene, &mut |_| true)
-                .map_err(|e| format!("cannot start worker threads: {e}"))?;
+                .map_err(ConvergeError::Threads)?;
             let path = options.output_dir.join("reference.exr");
-            crate::output::write_exr(&image, &path).map_err(|e| e.to_string())?;
+            crate::output::write_exr(&image, &path)?;
             log(&format!(
                 "wrote {} ({} spp)",
                 path.display(),
@@ -173,7 +180,7 @@ pub fn run(options: &ConvergeOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<C
     let dir = &options.output_dir;
     let write = |name: &str, text: String| {
         let path = dir.join(name);
-        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))
+        std::fs::write(&path, text).map_err(|source| ConvergeError::Write { path, source })
     };
     write("convergence.csv", csv(&curves))?;
     let scene_name = options.scene.display().to_string();
@@ -198,11 +205,26 @@ pub fn standard_error_path(reference: &Path) -> PathBuf {
     reference.with_file_name(format!("{stem}_se.exr"))
 }
 
-/// Loads and builds the scene with `method`'s overrides.
-fn load(path: &Path, method: Method) -> Result<Scene, String> {
-    let builder = crate::scene::load_builder_with(path, &|spec| method.apply_to_volume(spec))
-        .map_err(|e| e.to_string())?;
-    Ok(builder.build())
+/// Loads and builds the scene with `method`'s overrides; a method that changes VDB volumes is refused on a
+/// scene that has none (it would render the same image as `default`).
+fn load(path: &Path, method: Method) -> Result<Scene, ConvergeError> {
+    let volumes = std::cell::Cell::new(0usize);
+    let apply = |spec: &mut crate::volume::VolumeSpec| {
+        volumes.set(volumes.get() + 1);
+        method.apply_to_volume(spec);
+    };
+    let options = LoadOptions {
+        volume_override: Some(&apply),
+        ..LoadOptions::default()
+    };
+    let scene = crate::scene::load_builder(path, &options)?.build()?;
+    if method.changes_volumes() && volumes.get() == 0 {
+        return Err(ConvergeError::NoVolumeToChange {
+            scene: path.to_path_buf(),
+            method: method.name(),
+        });
+    }
+    Ok(scene)
 }
 
 fn settings(
@@ -233,7 +255,7 @@ fn measure(
     method: Method,
     share: f64,
     (reference, reference_se): (&[Rgb], Option<&[Rgb]>),
-) -> Result<Curve, String> {
+) -> Result<Curve, ConvergeError> {
     let mut points = Vec::new();
     let mut measuring = 0.0f64;
     Renderer::new(settings(options, scene, width, height, method))
@@ -250,6 +272,6 @@ fn measure(
             // The next pass doubles the samples, so it takes about as long as everything so far.
             points.len() < MIN_CHECKPOINTS || 2.0 * seconds <= share
         })
-        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+        .map_err(ConvergeError::Threads)?;
     Ok(Curve { method, points })
 }

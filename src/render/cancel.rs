@@ -61,7 +61,7 @@ mod tests {
             .unwrap();
         b.add_point_light(Vec3::Y, Rgb::ONE);
         b.set_camera(Camera::look_at(Vec3::new(0.0, 2.0, 0.5), Vec3::ZERO, 1.0));
-        b.build()
+        b.build().unwrap()
     }
 
     #[test]

@@ -67,7 +67,7 @@ impl SceneBuilder {
 
     /// Adds a point light at `position` with radiant `intensity` (W/sr per channel).
     pub fn add_point_light(&mut self, position: Vec3, intensity: Rgb) {
-        self.lights.push(Light::Point(PointLight {
+        self.add_light(Light::Point(PointLight {
             position,
             intensity,
         }));
@@ -76,7 +76,7 @@ impl SceneBuilder {
     /// Adds a directional light travelling along `direction` (normalised here) with `irradiance` (W/m² per
     /// channel at normal incidence).
     pub fn add_directional_light(&mut self, direction: Vec3, irradiance: Rgb) {
-        self.lights.push(Light::Directional(DirectionalLight {
+        self.add_light(Light::Directional(DirectionalLight {
             direction: direction.normalize_or(Vec3::NEG_Y),
             irradiance,
         }));
@@ -103,14 +103,14 @@ mod tests {
         assert!(b
             .add_triangle_mesh(vec![Vec3::NAN, Vec3::X, Vec3::Y], vec![[0, 1, 2]], m)
             .is_err());
-        assert!(b.meshes.is_empty());
+        assert!(b.meshes().is_empty());
         assert_eq!(b.add_triangle_mesh(tri, vec![[0, 1, 2]], m).unwrap(), 0);
-        assert_eq!(b.meshes[0].normals.len(), 3);
+        assert_eq!(b.meshes()[0].normals.len(), 3);
         b.add_point_light(Vec3::Y, Rgb::ONE);
         b.add_directional_light(Vec3::ZERO, Rgb::ONE);
         b.set_camera(Camera::look_at(Vec3::Z, Vec3::ZERO, 1.0));
-        let scene = b.build();
+        let scene = b.build().unwrap();
         assert_eq!(scene.triangle_count(), 1);
-        assert_eq!(scene.lights.len(), 2);
+        assert_eq!(scene.lights().len(), 2);
     }
 }

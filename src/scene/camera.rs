@@ -36,7 +36,7 @@ impl Camera {
             return Self::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, yfov);
         }
         let center = bounds.center();
-        let radius = (bounds.extent().length() * 0.5).max(1e-3);
+        let radius = super::bounding_radius(bounds);
         let distance = radius / (yfov * 0.5).sin() * 1.05;
         let dir = Vec3::new(0.0, 0.25, 1.0).normalize();
         Self::look_at(center + dir * distance, center, yfov)

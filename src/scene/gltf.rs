@@ -18,7 +18,7 @@
 //! `extensionsRequired` (the crate rejects some of them). Accessor and index ranges are checked here before any
 //! read, so a malformed file is an error naming the element, never a panic.
 
-use super::{Camera, SceneBuilder, SceneError, SceneErrorKind};
+use super::{Camera, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::light::{
     DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
@@ -46,41 +46,16 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
 const MAX_NODE_DEPTH: usize = 256;
 
 /// Loads a `.gltf` or `.glb` file.
-pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
+pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
     let bytes = std::fs::read(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    load_slice(&bytes, path)
+    load_slice(&bytes, path, options)
 }
 
 /// Loads glTF or GLB bytes; `path` names the file in errors and its folder resolves external URIs.
-pub fn load_slice(bytes: &[u8], path: &Path) -> Result<SceneBuilder, SceneError> {
-    load_slice_with_embedded(bytes, path, &[])
-}
-
-/// Like [`load_slice`], with VDB files given in memory: a `nimbus_volume` whose `file` equals one of the
-/// `embedded` names reads those bytes instead of the file system (used for the bundled demo).
-pub fn load_slice_with_embedded(
+pub fn load_slice(
     bytes: &[u8],
     path: &Path,
-    embedded: &[(&str, &'static [u8])],
-) -> Result<SceneBuilder, SceneError> {
-    load_slice_with(bytes, path, embedded, &|_| {})
-}
-
-/// Loads a `.gltf` or `.glb` file, passing every `nimbus_volume` declaration through `override_volume` before
-/// its medium is built (to compare majorant structures or shadow estimators on the same scene).
-pub fn load_with(path: &Path, override_volume: VolumeOverride) -> Result<SceneBuilder, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    load_slice_with(&bytes, path, &[], override_volume)
-}
-
-/// A change applied to each VDB volume's declaration after it is read and before its medium is built.
-pub type VolumeOverride<'a> = &'a dyn Fn(&mut crate::volume::VolumeSpec);
-
-fn load_slice_with(
-    bytes: &[u8],
-    path: &Path,
-    embedded: &[(&str, &'static [u8])],
-    override_volume: VolumeOverride,
+    options: &LoadOptions,
 ) -> Result<SceneBuilder, SceneError> {
     let err = |kind| SceneError::new(path, kind);
     let malformed = |m: String| err(SceneErrorKind::Malformed(m));
@@ -119,8 +94,7 @@ fn load_slice_with(
         texture_cache: HashMap::new(),
         images: HashMap::new(),
         material_map: HashMap::new(),
-        embedded,
-        override_volume,
+        options,
         light_unit_scale: 1.0 / LUMENS_PER_WATT,
     };
     loader.builder.warnings.append(&mut warnings);
@@ -193,8 +167,7 @@ struct Loader<'a> {
     texture_cache: HashMap<(usize, ColorSpace), u32>,
     images: HashMap<(usize, ColorSpace), Arc<MipImage>>,
     material_map: HashMap<Option<usize>, u32>,
-    embedded: &'a [(&'a str, &'static [u8])],
-    override_volume: VolumeOverride<'a>,
+    options: &'a LoadOptions<'a>,
     /// Watts per unit of a `KHR_lights_punctual` intensity (1/683 photometric, 1 radiometric).
     light_unit_scale: f32,
 }
@@ -265,12 +238,8 @@ impl Loader<'_> {
         let mut spec = crate::volume::VolumeSpec::from_json(value, &name, &self.base, *world)
             .map_err(|e| bad(format!("nimbus_volume: {e}")))?;
         let file = value.get("file").and_then(|f| f.as_str());
-        spec.embedded = self
-            .embedded
-            .iter()
-            .find(|(n, _)| Some(*n) == file)
-            .map(|(_, b)| *b);
-        (self.override_volume)(&mut spec);
+        spec.embedded = file.and_then(|f| self.options.embedded_file(f));
+        self.options.apply_volume_override(&mut spec);
         self.builder.add_volume(&spec).map_err(|e| {
             self.error(SceneErrorKind::InvalidReference(format!(
                 "node '{name}': nimbus_volume: {e}"

@@ -22,53 +22,64 @@ use crate::volume::Medium;
 use std::path::Path;
 use std::sync::Arc;
 
+/// How a scene file is loaded: the same options for every format (glTF, OBJ, USD).
+#[derive(Clone, Copy, Default)]
+pub struct LoadOptions<'a> {
+    /// Applied to every VDB volume declaration (glTF `nimbus_volume`, USD `Volume`) after it is read and before
+    /// its medium is built, to compare majorant structures or shadow estimators on the same scene.
+    pub volume_override: Option<&'a dyn Fn(&mut crate::volume::VolumeSpec)>,
+    /// VDB files given in memory by name: a volume whose `file` equals one of these names reads its bytes
+    /// instead of the file system (the bundled demo).
+    pub embedded: &'a [(&'a str, &'static [u8])],
+}
+
+impl LoadOptions<'_> {
+    /// Applies the volume override, if any, to `spec`.
+    pub fn apply_volume_override(&self, spec: &mut crate::volume::VolumeSpec) {
+        if let Some(f) = self.volume_override {
+            f(spec);
+        }
+    }
+
+    /// The bytes of the embedded file named `file`, if there is one.
+    pub fn embedded_file(&self, file: &str) -> Option<&'static [u8]> {
+        self.embedded
+            .iter()
+            .find(|(name, _)| *name == file)
+            .map(|(_, bytes)| *bytes)
+    }
+}
+
 /// Reads a scene file into a builder (to be adjusted, then built), choosing the loader by extension.
-pub fn load_builder(path: &Path) -> Result<SceneBuilder, SceneError> {
+pub fn load_builder(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
-        Some("gltf") | Some("glb") => gltf::load(path),
-        Some("obj") => obj::load(path),
-        Some("usd") | Some("usda") | Some("usdc") | Some("usdz") => usd::load(path),
+        Some("gltf") | Some("glb") => gltf::load(path, options),
+        Some("obj") => obj::load(path, options),
+        Some("usd") | Some("usda") | Some("usdc") | Some("usdz") => usd::load(path, options),
         _ => Err(SceneError::new(path, SceneErrorKind::UnknownFormat)),
     }
 }
 
-/// Like [`load_builder`], passing every VDB volume declaration through `override_volume` before its medium is
-/// built (OBJ scenes have none).
-pub fn load_builder_with(
-    path: &Path,
-    override_volume: gltf::VolumeOverride,
-) -> Result<SceneBuilder, SceneError> {
-    match path.extension().and_then(|e| e.to_str()) {
-        Some(e) if e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb") => {
-            gltf::load_with(path, override_volume)
-        }
-        _ => load_builder(path),
-    }
-}
-
-/// Everything a loader produces, before acceleration structures are built.
+/// Everything a loader produces, before acceleration structures are built: add meshes, materials, textures,
+/// lights and media, then [`build`](Self::build) the renderable [`Scene`]. References between them (a mesh's
+/// material, a material's textures and interior medium) are checked when the scene is built, so a dangling
+/// index is an error, never a panic.
 #[derive(Default)]
 pub struct SceneBuilder {
-    /// World-space meshes.
-    pub meshes: Vec<Mesh>,
-    /// Materials indexed by `Mesh::material`.
-    pub materials: Vec<Material>,
-    /// Textures indexed by material texture ids.
-    pub textures: Vec<Texture>,
+    meshes: Vec<Mesh>,
+    materials: Vec<Material>,
+    textures: Vec<Texture>,
     /// Punctual lights and the environment (area lights are added by `build`).
-    pub lights: Vec<Light>,
-    /// The camera, or `None` for one framing the scene.
-    pub camera: Option<Camera>,
-    /// Maximum bounces requested by the scene file (glTF `extras.max_bounces`), if any.
-    pub max_bounces: Option<u32>,
-    /// Non-fatal problems met while loading (unknown optional extensions, dropped primitives).
-    pub warnings: Vec<String>,
-    /// Participating media: mesh interiors (referenced by `Material::interior`) and position-filled volumes.
-    pub media: Vec<Arc<dyn Medium>>,
+    lights: Vec<Light>,
+    camera: Option<Camera>,
+    max_bounces: Option<u32>,
+    warnings: Vec<String>,
+    /// Mesh interiors (referenced by `Material::interior`) and position-filled volumes.
+    media: Vec<Arc<dyn Medium>>,
 }
 
 impl SceneBuilder {
@@ -86,18 +97,34 @@ impl SceneBuilder {
         (self.media.len() - 1) as u32
     }
 
-    /// Adds a material and returns its index.
+    /// Adds a material and returns its index. Its texture and medium indices must refer to textures and media
+    /// added to this builder by the time the scene is built.
     pub fn add_material(&mut self, material: Material) -> u32 {
         self.materials.push(material);
         (self.materials.len() - 1) as u32
     }
 
-    /// Adds a world-space mesh, generating normals when it has none.
+    /// Adds a texture and returns its index.
+    pub fn add_texture(&mut self, texture: Texture) -> u32 {
+        self.textures.push(texture);
+        (self.textures.len() - 1) as u32
+    }
+
+    /// Adds a world-space mesh, generating normals when it has none. Its material index must refer to a
+    /// material added by the time the scene is built.
     pub fn add_mesh(&mut self, mut mesh: Mesh) {
         if mesh.normals.len() != mesh.positions.len() {
             mesh.generate_normals();
         }
         self.meshes.push(mesh);
+    }
+
+    /// Adds a light (area lights come from emissive materials instead; an environment replaces any other).
+    pub fn add_light(&mut self, light: Light) {
+        match light {
+            Light::Environment(env) => self.set_environment(env),
+            other => self.lights.push(other),
+        }
     }
 
     /// Replaces any environment light with `env`.
@@ -106,8 +133,121 @@ impl SceneBuilder {
         self.lights.push(Light::Environment(env));
     }
 
-    /// Builds the renderable scene.
-    pub fn build(self) -> Scene {
+    /// Sets the maximum number of bounces the scene asks for (the default of `--max-depth`).
+    pub fn set_max_bounces(&mut self, bounces: u32) {
+        self.max_bounces = Some(bounces);
+    }
+
+    /// Records a non-fatal problem met while loading.
+    pub fn warn(&mut self, message: impl Into<String>) {
+        self.warnings.push(message.into());
+    }
+
+    /// The meshes added so far.
+    pub fn meshes(&self) -> &[Mesh] {
+        &self.meshes
+    }
+
+    /// The materials added so far, by index.
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    /// The textures added so far, by index.
+    pub fn textures(&self) -> &[Texture] {
+        &self.textures
+    }
+
+    /// The lights added so far (area lights are made by [`build`](Self::build)).
+    pub fn lights(&self) -> &[Light] {
+        &self.lights
+    }
+
+    /// The camera, if one was loaded or set; without one, [`build`](Self::build) frames the scene.
+    pub fn camera(&self) -> Option<&Camera> {
+        self.camera.as_ref()
+    }
+
+    /// The maximum number of bounces the scene asks for, if any.
+    pub fn max_bounces(&self) -> Option<u32> {
+        self.max_bounces
+    }
+
+    /// Problems met while loading.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The media added so far, by index.
+    pub fn media(&self) -> &[Arc<dyn Medium>] {
+        &self.media
+    }
+
+    /// Checks every reference between the parts: a mesh's material and vertex indices and attribute
+    /// lengths, a material's textures and interior medium.
+    fn validate(&self) -> Result<(), SceneError> {
+        let invalid =
+            |what: String| SceneError::new(BUILDER_PATH, SceneErrorKind::InvalidReference(what));
+        for mesh in &self.meshes {
+            if mesh.material as usize >= self.materials.len() {
+                return Err(invalid(format!(
+                    "mesh '{}' uses material {}, but there are {} materials",
+                    mesh.name,
+                    mesh.material,
+                    self.materials.len()
+                )));
+            }
+            let n = mesh.positions.len();
+            if let Some(i) = mesh.indices.iter().flatten().find(|&&i| i as usize >= n) {
+                return Err(invalid(format!(
+                    "mesh '{}' has vertex index {i}, but {n} positions",
+                    mesh.name
+                )));
+            }
+            let lengths_match = mesh.normals.len() == n
+                && mesh.uvs.as_ref().is_none_or(|u| u.len() == n)
+                && mesh.tangents.as_ref().is_none_or(|t| t.len() == n);
+            if !lengths_match {
+                return Err(invalid(format!(
+                    "mesh '{}' has normals, texture coordinates or tangents not one per position",
+                    mesh.name
+                )));
+            }
+        }
+        for m in &self.materials {
+            let textures = [
+                m.base_color_texture,
+                m.metallic_roughness_texture,
+                m.normal_texture.map(|(t, _)| t),
+                m.emission_texture,
+            ];
+            if let Some(t) = textures
+                .into_iter()
+                .flatten()
+                .find(|&t| t as usize >= self.textures.len())
+            {
+                return Err(invalid(format!(
+                    "material '{}' uses texture {t}, but there are {} textures",
+                    m.name,
+                    self.textures.len()
+                )));
+            }
+            if let Some(i) = m.interior.filter(|&i| i as usize >= self.media.len()) {
+                return Err(invalid(format!(
+                    "material '{}' fills its interior with medium {i}, but there are {} media",
+                    m.name,
+                    self.media.len()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Builds the renderable scene: flattens the meshes into one BVH, turns emissive triangles into area
+    /// lights and builds the light-selection distribution. Fails on a dangling reference (see
+    /// [`SceneBuilder`]).
+    pub fn build(self) -> Result<Scene, SceneError> {
+        self.validate()?;
         let mut prims = Vec::new();
         let mut triangles = Vec::new();
         let mut lights = self.lights;
@@ -143,19 +283,14 @@ impl SceneBuilder {
         }
         let bvh = Bvh::build(&triangles);
         let bounds = bvh.bounds();
-        let radius = if bounds.is_empty() {
-            1.0
-        } else {
-            (bounds.extent().length() * 0.5).max(1e-3)
-        };
-        let light_sampler = LightSampler::new(&lights, radius);
+        let light_sampler = LightSampler::new(&lights, bounding_radius(&bounds));
         let environment = lights
             .iter()
             .position(|l| matches!(l, Light::Environment(_)));
         let filled_media = (0..self.media.len() as u32)
             .filter(|&m| self.media[m as usize].fill_bounds().is_some())
             .collect();
-        Scene {
+        Ok(Scene {
             media: self.media,
             filled_media,
             camera: self.camera.unwrap_or_else(|| Camera::framing(&bounds)),
@@ -171,36 +306,47 @@ impl SceneBuilder {
             bounds,
             max_bounces: self.max_bounces,
             warnings: self.warnings,
-        }
+        })
     }
 }
 
-/// A renderable scene.
+/// Radius of a sphere around `bounds` (half its diagonal, at least 1 mm; 1 for empty bounds): the size of the
+/// disc that lights at infinity illuminate, and of the default camera's framing.
+pub(crate) fn bounding_radius(bounds: &Aabb) -> f32 {
+    if bounds.is_empty() {
+        1.0
+    } else {
+        (bounds.extent().length() * 0.5).max(1e-3)
+    }
+}
+
+/// A renderable scene, made by [`SceneBuilder::build`]; read-only (its acceleration structure is built over
+/// its meshes).
 pub struct Scene {
     /// World-space meshes.
-    pub meshes: Vec<Mesh>,
+    pub(crate) meshes: Vec<Mesh>,
     /// Materials.
-    pub materials: Vec<Material>,
+    pub(crate) materials: Vec<Material>,
     /// Textures.
-    pub textures: Vec<Texture>,
+    pub(crate) textures: Vec<Texture>,
     /// All lights, area lights included.
-    pub lights: Vec<Light>,
+    pub(crate) lights: Vec<Light>,
     /// Light selection by power.
-    pub light_sampler: LightSampler,
+    pub(crate) light_sampler: LightSampler,
     /// Index of the environment light in `lights`, if any.
-    pub environment: Option<usize>,
+    pub(crate) environment: Option<usize>,
     /// The camera.
-    pub camera: Camera,
+    pub(crate) camera: Camera,
     /// Bounds of all surfaces.
-    pub bounds: Aabb,
+    pub(crate) bounds: Aabb,
     /// Maximum bounces requested by the scene file, if any.
-    pub max_bounces: Option<u32>,
+    pub(crate) max_bounces: Option<u32>,
     /// Problems met while loading.
-    pub warnings: Vec<String>,
+    pub(crate) warnings: Vec<String>,
     /// Participating media.
-    pub media: Vec<Arc<dyn Medium>>,
+    pub(crate) media: Vec<Arc<dyn Medium>>,
     /// Indices of the media that fill a region by position (VDB volumes), not a mesh interior.
-    pub filled_media: Vec<u32>,
+    pub(crate) filled_media: Vec<u32>,
     bvh: Bvh,
     prims: Vec<(u32, u32)>,
     light_of_prim: Vec<u32>,
@@ -278,7 +424,7 @@ impl Scene {
     /// Loads a scene file, choosing the loader by extension (.gltf, .glb, .obj, .usd, .usda,
     /// .usdc, .usdz).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        Ok(load_builder(path)?.build())
+        load_builder(path, &LoadOptions::default())?.build()
     }
 
     /// Number of triangles.
@@ -293,11 +439,52 @@ impl Scene {
 
     /// Radius of a sphere around the scene bounds.
     pub fn radius(&self) -> f32 {
-        if self.bounds.is_empty() {
-            1.0
-        } else {
-            (self.bounds.extent().length() * 0.5).max(1e-3)
-        }
+        bounding_radius(&self.bounds)
+    }
+
+    /// The meshes, in world space.
+    pub fn meshes(&self) -> &[Mesh] {
+        &self.meshes
+    }
+
+    /// The materials, by index.
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    /// The textures, by index.
+    pub fn textures(&self) -> &[Texture] {
+        &self.textures
+    }
+
+    /// Every light, area lights included.
+    pub fn lights(&self) -> &[Light] {
+        &self.lights
+    }
+
+    /// The camera.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    /// Bounds of all surfaces.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The maximum number of bounces the scene file asks for, if any.
+    pub fn max_bounces(&self) -> Option<u32> {
+        self.max_bounces
+    }
+
+    /// Problems met while loading.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The participating media, by index.
+    pub fn media(&self) -> &[Arc<dyn Medium>] {
+        &self.media
     }
 
     /// True when something blocks the segment `(t_min, t_max)` of `ray`.

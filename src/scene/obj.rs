@@ -9,14 +9,14 @@
 //!
 //! OBJ has no cameras or lights besides emissive faces: the default camera frames the scene.
 
-use super::{SceneBuilder, SceneError, SceneErrorKind};
+use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::material::Material;
 use crate::math::{Rgb, Vec2, Vec3};
 use std::path::Path;
 
-/// Loads an `.obj` file and its `.mtl` libraries.
-pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
+/// Loads an `.obj` file and its `.mtl` libraries. OBJ has no volumes, so `options` change nothing.
+pub fn load(path: &Path, _options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,

@@ -115,7 +115,7 @@ pub fn render_square(
     max_depth: u32,
     seed: u64,
 ) -> (nimbus::render::RenderImage, nimbus::render::RenderStats) {
-    let scene = builder.build();
+    let scene = builder.build().unwrap();
     let settings = nimbus::render::RenderSettings {
         width: size,
         height: size,

@@ -50,7 +50,7 @@ mod vol;
 mod xform;
 
 use super::camera::Camera;
-use super::{SceneBuilder, SceneError, SceneErrorKind};
+use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::math::{Mat4, Rgb, Vec3};
 use crate::volume::VolumeSpec;
 use openusd::{ar, sdf, usd};
@@ -73,11 +73,13 @@ const STRUCTURAL_TYPES: &[&str] = &[
     "GeomSubset",
 ];
 
-/// Loads a USD stage and adds its volumes (see [`read`]).
-pub fn load(path: &Path) -> Result<SceneBuilder, SceneError> {
+/// Loads a USD stage and adds its volumes (see [`read`]), each passed through the options' volume override
+/// first.
+pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
     let (mut builder, volumes) = read(path)?;
-    for spec in &volumes {
-        builder.add_volume(spec)?;
+    for mut spec in volumes {
+        options.apply_volume_override(&mut spec);
+        builder.add_volume(&spec)?;
     }
     Ok(builder)
 }
