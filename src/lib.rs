@@ -104,8 +104,8 @@ pub use error::{Error, Result};
 pub use material::Material;
 pub use output::{write_exr, write_png_preview, OutputError};
 pub use render::{
-    CancelToken, Progress, RenderImage, RenderRegion, RenderSettings, RenderStats, Renderer,
-    CHANNEL_NAMES,
+    channel_names, CancelToken, Progress, RenderImage, RenderRegion, RenderSettings, RenderStats,
+    Renderer,
 };
 pub use scene::{Camera, Scene, SceneBuilder, SceneError};
 pub use vdb::VdbError;

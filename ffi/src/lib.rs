@@ -530,7 +530,7 @@ pub unsafe extern "C" fn nimbus_image_channel(
                 NimbusStatus::InvalidArgument,
                 format!(
                     "unknown channel {name:?}; known: {}",
-                    nimbus::CHANNEL_NAMES.join(", ")
+                    nimbus::channel_names().join(", ")
                 ),
             )
         })?;

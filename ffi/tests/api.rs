@@ -57,7 +57,7 @@ fn load_render_read_write_and_free() {
         assert_eq!((w, h, spp), (6, 4, 2));
         assert_eq!(last_error(), "");
         let mut buf = vec![f32::NAN; 24];
-        for name in nimbus::CHANNEL_NAMES {
+        for name in nimbus::channel_names() {
             let name = CString::new(name).unwrap();
             let status = nimbus_image_channel(image, name.as_ptr(), buf.as_mut_ptr(), buf.len());
             assert_eq!(status, NimbusStatus::Ok, "{}", last_error());

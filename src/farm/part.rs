@@ -23,7 +23,6 @@ use super::FarmError;
 use crate::output::OutputError;
 use crate::render::{
     Film, PixelSums, PixelWindow, RenderImage, RenderRegion, RenderSettings, RenderStats,
-    CHANNEL_NAMES,
 };
 use ::exr::meta::attribute::{AttributeValue, IntegerBounds, Text};
 use ::exr::prelude::{
@@ -137,9 +136,8 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
     }
     let image = film.image();
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
-    for name in CHANNEL_NAMES {
-        let samples = image.channel(name).unwrap_or_default();
-        list.push(AnyChannel::new(name, FlatSamples::F32(samples)));
+    for (name, samples) in image.channels() {
+        list.push(AnyChannel::new(name.as_str(), FlatSamples::F32(samples)));
     }
     let words: Vec<[u32; PixelSums::WORDS]> = film.pixels().iter().map(|p| p.to_words()).collect();
     for (k, name) in PixelSums::WORD_NAMES.iter().enumerate() {
@@ -388,9 +386,8 @@ fn check_image<'a>(
     channel: &dyn Fn(&str) -> Option<&'a FlatSamples>,
     invalid: &dyn Fn(String) -> FarmError,
 ) -> Result<(), FarmError> {
-    for name in CHANNEL_NAMES {
-        let expected = image.channel(name).unwrap_or_default();
-        let Some(FlatSamples::F32(stored)) = channel(name) else {
+    for (name, expected) in image.channels() {
+        let Some(FlatSamples::F32(stored)) = channel(&name) else {
             return Err(invalid(format!("no float channel {name}")));
         };
         if stored.len() != expected.len() {

@@ -26,6 +26,7 @@ use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::math::{sampling::power_heuristic, Frame, Ray, Rgb, Rng, Vec3};
+use crate::scene::SurfaceHit;
 
 /// Bounces after which Russian roulette may end a path.
 const ROULETTE_START: u32 = 3;
@@ -75,10 +76,23 @@ struct PathState {
     stack: MediumStack,
     /// Width of the ray cone where the current ray starts, in world units.
     cone_width: f32,
+    /// Invisible (index-matched) boundaries crossed so far.
+    crossings: u32,
+    /// Whether the next surface hit is the first, whose AOVs the path records.
+    first_hit: bool,
+}
+
+/// What shading a surface hit decided.
+enum SurfaceOutcome {
+    /// The path goes on along this ray.
+    Continue(Ray),
+    /// The path ends here.
+    End,
 }
 
 impl PathTracer {
-    /// Traces one camera path.
+    /// Traces one camera path: alternates [`Self::sample_segment_media`] along each segment with either
+    /// [`Self::scatter_in_medium`] at a real collision or [`Self::shade_surface`] at the surface that ends it.
     pub fn trace(
         &self,
         services: &RendererServices,
@@ -98,184 +112,215 @@ impl PathTracer {
             prev_light_only: false,
             stack: MediumStack::default(),
             cone_width: 0.0,
+            crossings: 0,
+            first_hit: true,
         };
-        let mut crossings = 0u32;
-        let mut first_hit = true;
         counters.rays.camera += 1;
         loop {
             let hit = scene.intersect(&ray, 0.0, f32::INFINITY);
             let t_surface = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
-
-            // Media along the segment: the nearest proposed collision wins.
-            let media = services.segment_media(&ray, t_surface, &s.stack);
-            let mut nearest: Option<(f32, u32)> = None;
-            let throughput = s.beta;
-            for &m in media.ids() {
-                let medium = &scene.media[m as usize];
-                if let Some(t) = medium.sample_free_flight(
-                    &ray,
-                    t_surface,
-                    throughput,
-                    rng,
-                    &mut counters.media[m as usize],
-                ) {
-                    if nearest.is_none_or(|(tn, _)| t < tn) {
-                        nearest = Some((t, m));
-                    }
-                }
-            }
-            let t_event = nearest.map_or(t_surface, |(t, _)| t);
-            for &m in media.ids() {
-                let collided = nearest.is_some_and(|(_, n)| n == m);
-                let medium = &scene.media[m as usize];
-                s.beta *= medium.free_flight_weight(
-                    &ray,
-                    t_event,
-                    collided,
-                    throughput,
-                    rng,
-                    &mut counters.media[m as usize],
-                );
-            }
-            if let Some((t, m)) = nearest {
+            if let Some((t, m)) =
+                self.sample_segment_media(services, &mut s, &ray, t_surface, rng, counters)
+            {
                 if !self.scatter_in_medium(services, &mut s, &mut ray, t, m, rng, counters) {
                     break;
                 }
                 continue;
             }
-
             let Some(hit) = hit else {
-                if let Some(env) = scene.environment_light() {
-                    let le = env.radiance(ray.dir);
-                    let weight = if s.prev_light_only {
-                        0.0
-                    } else if s.prev_delta {
-                        1.0
-                    } else {
-                        power_heuristic(s.prev_pdf, services.environment_pdf(ray.dir))
-                    };
-                    s.radiance += s.beta * le * weight;
-                }
+                self.add_environment(services, &mut s, ray.dir);
                 break;
             };
             if s.beta.max_element() <= 0.0 {
                 break;
             }
-            let mut hit = hit;
-            s.cone_width += self.pixel_spread * hit.t;
-            let tc = hit.tex_coord(s.cone_width, ray.dir);
-            let material = &scene.materials[hit.material as usize];
-            if material.has_normal_map() {
-                scene.apply_normal_map(&mut hit, tc);
+            match self.shade_surface(services, &mut s, &ray, hit, &mut out, rng, counters) {
+                SurfaceOutcome::Continue(next) => ray = next,
+                SurfaceOutcome::End => break,
             }
-            let wo_world = -ray.dir;
-            if first_hit {
-                first_hit = false;
-                out.depth = (hit.p - ray.origin).length();
-                out.albedo = material.pbr_params(tc, &scene.textures).base_color;
-                out.normal = if hit.shading.n.dot(wo_world) < 0.0 {
-                    -hit.shading.n
-                } else {
-                    hit.shading.n
-                };
-            }
-            // Light emitted by the surface toward the path.
-            if hit.front_face && material.is_emissive() {
-                let le = material.emission_at(hit.point_tex_coord(), &scene.textures);
-                let weight = match scene.area_light_of(hit.prim) {
-                    Some(_) if s.prev_light_only => 0.0,
-                    Some(light) if !s.prev_delta => {
-                        power_heuristic(s.prev_pdf, services.area_light_pdf(light, s.prev_p, hit.p))
-                    }
-                    _ => 1.0,
-                };
-                s.radiance += s.beta * le * weight;
-            }
-            let bsdf = material.bsdf(tc, &scene.textures);
-            if bsdf.is_index_matched() {
-                crossings += 1;
-                if crossings > MAX_BOUNDARY_CROSSINGS {
-                    break;
-                }
-                if let Some(interior) = material.interior {
-                    s.stack
-                        .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
-                }
-                counters.rays.bounce += 1;
-                ray = Ray::new(hit.spawn_origin(ray.dir), ray.dir);
-                continue;
-            }
-            if s.depth >= self.max_depth {
-                break;
-            }
-            // Orient the shading frame: one-sided surfaces reflect nothing from behind.
-            let frame = if hit.front_face || material.is_transmissive() {
-                hit.shading
-            } else if material.double_sided {
-                Frame {
-                    s: hit.shading.s,
-                    t: -hit.shading.t,
-                    n: -hit.shading.n,
-                }
-            } else {
-                break;
-            };
-            let wo = frame.to_local(wo_world);
-            // Next-event estimation.
-            if !bsdf.is_delta() {
-                if let Some(chosen) = services.sample_light(hit.p, rng) {
-                    let ls = chosen.sample;
-                    let wi = frame.to_local(ls.wi);
-                    let f = bsdf.eval(wo, wi) * wi.z.abs();
-                    let segment = ls.shadow_segment(&hit.surface_point());
-                    if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
-                        let mut stack = s.stack;
-                        if let Some(interior) = material.interior {
-                            stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
-                        }
-                        let tr = services.transmittance(&segment, &stack, rng, counters);
-                        if tr.max_element() > 0.0 {
-                            let light_pdf = chosen.pmf * ls.pdf;
-                            let weight = if ls.is_delta {
-                                1.0
-                            } else {
-                                power_heuristic(light_pdf, bsdf.pdf(wo, wi))
-                            };
-                            s.radiance += s.beta * f * tr * ls.radiance * (weight / light_pdf);
-                        }
-                    }
-                }
-            }
-            // Continue the path by sampling the BSDF.
-            let Some(bs) = bsdf.sample(wo, rng.next_f32(), rng.next_2d()) else {
-                break;
-            };
-            if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f.max_element() <= 0.0 {
-                break;
-            }
-            let wi_world = frame.to_world(bs.wi);
-            s.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
-            s.prev_delta = bs.is_delta;
-            s.prev_pdf = bs.pdf;
-            s.prev_p = hit.p;
-            s.prev_light_only = false;
-            if let Some(interior) = material.interior {
-                // Crossing the surface (refraction) enters or leaves its interior.
-                let crossing = wi_world.dot(hit.geometric_normal).signum()
-                    != wo_world.dot(hit.geometric_normal).signum();
-                if crossing {
-                    s.stack
-                        .cross(interior, wi_world.dot(hit.geometric_normal) < 0.0);
-                }
-            }
-            if !self.next_bounce(&mut s, rng) {
-                break;
-            }
-            counters.rays.bounce += 1;
-            ray = Ray::new(hit.spawn_origin(wi_world), wi_world);
         }
         out.radiance = s.radiance;
         out
+    }
+
+    /// Runs the media overlapping the segment `[0, t_surface)` of `ray`: every medium proposes its next real
+    /// collision ([`Medium::sample_free_flight`](crate::volume::Medium::sample_free_flight)), the nearest wins,
+    /// and every medium weights the throughput for what happened
+    /// ([`Medium::free_flight_weight`](crate::volume::Medium::free_flight_weight)). Returns the winning
+    /// collision's distance and medium, or `None` when the path reaches the surface (or escapes).
+    fn sample_segment_media(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        t_surface: f32,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> Option<(f32, u32)> {
+        let scene = services.scene();
+        let media = services.segment_media(ray, t_surface, &s.stack);
+        let mut nearest: Option<(f32, u32)> = None;
+        let throughput = s.beta;
+        for &m in media.ids() {
+            let medium = &scene.media[m as usize];
+            let counter = &mut counters.media[m as usize];
+            if let Some(t) = medium.sample_free_flight(ray, t_surface, throughput, rng, counter) {
+                if nearest.is_none_or(|(tn, _)| t < tn) {
+                    nearest = Some((t, m));
+                }
+            }
+        }
+        let t_event = nearest.map_or(t_surface, |(t, _)| t);
+        for &m in media.ids() {
+            let collided = nearest.is_some_and(|(_, n)| n == m);
+            let medium = &scene.media[m as usize];
+            let counter = &mut counters.media[m as usize];
+            s.beta *= medium.free_flight_weight(ray, t_event, collided, throughput, rng, counter);
+        }
+        nearest
+    }
+
+    /// Adds the environment's radiance for a path that escapes along `dir`, MIS-weighted against the
+    /// environment's light sampling.
+    fn add_environment(&self, services: &RendererServices, s: &mut PathState, dir: Vec3) {
+        let Some(env) = services.scene().environment_light() else {
+            return;
+        };
+        let weight = if s.prev_light_only {
+            0.0
+        } else if s.prev_delta {
+            1.0
+        } else {
+            power_heuristic(s.prev_pdf, services.environment_pdf(dir))
+        };
+        s.radiance += s.beta * env.radiance(dir) * weight;
+    }
+
+    /// Shades a surface hit: records the first hit's AOVs, adds the surface's emission (MIS-weighted against
+    /// light sampling), passes through index-matched boundaries, estimates direct light, and samples the BSDF
+    /// for the next ray.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_surface(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        mut hit: SurfaceHit,
+        out: &mut PathSample,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> SurfaceOutcome {
+        let scene = services.scene();
+        s.cone_width += self.pixel_spread * hit.t;
+        let tc = hit.tex_coord(s.cone_width, ray.dir);
+        let material = &scene.materials[hit.material as usize];
+        if material.has_normal_map() {
+            scene.apply_normal_map(&mut hit, tc);
+        }
+        let wo_world = -ray.dir;
+        if s.first_hit {
+            s.first_hit = false;
+            out.depth = (hit.p - ray.origin).length();
+            out.albedo = material.pbr_params(tc, &scene.textures).base_color;
+            out.normal = if hit.shading.n.dot(wo_world) < 0.0 {
+                -hit.shading.n
+            } else {
+                hit.shading.n
+            };
+        }
+        // Light emitted by the surface toward the path.
+        if hit.front_face && material.is_emissive() {
+            let le = material.emission_at(hit.point_tex_coord(), &scene.textures);
+            let weight = match scene.area_light_of(hit.prim) {
+                Some(_) if s.prev_light_only => 0.0,
+                Some(light) if !s.prev_delta => {
+                    power_heuristic(s.prev_pdf, services.area_light_pdf(light, s.prev_p, hit.p))
+                }
+                _ => 1.0,
+            };
+            s.radiance += s.beta * le * weight;
+        }
+        let bsdf = material.bsdf(tc, &scene.textures);
+        if bsdf.is_index_matched() {
+            s.crossings += 1;
+            if s.crossings > MAX_BOUNDARY_CROSSINGS {
+                return SurfaceOutcome::End;
+            }
+            if let Some(interior) = material.interior {
+                s.stack
+                    .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
+            }
+            counters.rays.bounce += 1;
+            return SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir));
+        }
+        if s.depth >= self.max_depth {
+            return SurfaceOutcome::End;
+        }
+        // Orient the shading frame: one-sided surfaces reflect nothing from behind.
+        let frame = if hit.front_face || material.is_transmissive() {
+            hit.shading
+        } else if material.double_sided {
+            Frame {
+                s: hit.shading.s,
+                t: -hit.shading.t,
+                n: -hit.shading.n,
+            }
+        } else {
+            return SurfaceOutcome::End;
+        };
+        let wo = frame.to_local(wo_world);
+        // Next-event estimation.
+        if !bsdf.is_delta() {
+            if let Some(chosen) = services.sample_light(hit.p, rng) {
+                let ls = chosen.sample;
+                let wi = frame.to_local(ls.wi);
+                let f = bsdf.eval(wo, wi) * wi.z.abs();
+                let segment = ls.shadow_segment(&hit.surface_point());
+                if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
+                    let mut stack = s.stack;
+                    if let Some(interior) = material.interior {
+                        stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
+                    }
+                    let tr = services.transmittance(&segment, &stack, rng, counters);
+                    if tr.max_element() > 0.0 {
+                        let light_pdf = chosen.pmf * ls.pdf;
+                        let weight = if ls.is_delta {
+                            1.0
+                        } else {
+                            power_heuristic(light_pdf, bsdf.pdf(wo, wi))
+                        };
+                        s.radiance += s.beta * f * tr * ls.radiance * (weight / light_pdf);
+                    }
+                }
+            }
+        }
+        // Continue the path by sampling the BSDF.
+        let Some(bs) = bsdf.sample(wo, rng.next_f32(), rng.next_2d()) else {
+            return SurfaceOutcome::End;
+        };
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f.max_element() <= 0.0 {
+            return SurfaceOutcome::End;
+        }
+        let wi_world = frame.to_world(bs.wi);
+        s.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+        s.prev_delta = bs.is_delta;
+        s.prev_pdf = bs.pdf;
+        s.prev_p = hit.p;
+        s.prev_light_only = false;
+        if let Some(interior) = material.interior {
+            // Crossing the surface (refraction) enters or leaves its interior.
+            let crossing = wi_world.dot(hit.geometric_normal).signum()
+                != wo_world.dot(hit.geometric_normal).signum();
+            if crossing {
+                s.stack
+                    .cross(interior, wi_world.dot(hit.geometric_normal) < 0.0);
+            }
+        }
+        if !self.next_bounce(s, rng) {
+            return SurfaceOutcome::End;
+        }
+        counters.rays.bounce += 1;
+        SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(wi_world), wi_world))
     }
 
     /// Handles a real collision at distance `t` in medium `m`: emission, next-event estimation with MIS against

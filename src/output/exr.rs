@@ -1,17 +1,10 @@
 //! The multi-layer OpenEXR writer and a generic reader.
 //!
 //! [`write_exr`] writes one single-part scanline file, all channels 32-bit float, ZIP compressed (16 lines
-//! per block), with Nuke-style channel names in one flat, alphabetically sorted channel list:
-//!
-//! | AOV      | channels                                   |
-//! |----------|--------------------------------------------|
-//! | beauty   | `R`, `G`, `B` (default layer), `A` = 1     |
-//! | albedo   | `albedo.R`, `albedo.G`, `albedo.B`         |
-//! | normal   | `normal.X`, `normal.Y`, `normal.Z`         |
-//! | depth    | `depth.Z`                                  |
-//! | variance | `variance.R`, `variance.G`, `variance.B`   |
-//!
-//! OpenEXR and Nuke split such names at the last `.` into layer and channel.
+//! per block), with Nuke-style channel names in one flat, alphabetically sorted channel list: every channel
+//! of the output's channel table, [`crate::render::LAYERS`] (`R`, `G`, `B`, `A` = 1, `albedo.R`...,
+//! `normal.X`..., `depth.Z`, `variance.R`...). OpenEXR and Nuke split such names at the last `.` into layer
+//! and channel.
 
 use super::{validate, OutputError};
 use crate::math::Rgb;
@@ -61,19 +54,11 @@ impl ExrLayers {
 /// channel names). Non-finite samples are written as they are.
 pub fn write_exr(image: &RenderImage, path: &Path) -> Result<(), OutputError> {
     validate(image, path)?;
-    let component =
-        |name: &str, data: &[Rgb], c: usize| channel(name, data.iter().map(|v| v[c]).collect());
-    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
-    for (c, suffix) in ["R", "G", "B"].into_iter().enumerate() {
-        list.push(component(suffix, &image.beauty, c));
-        list.push(component(&format!("albedo.{suffix}"), &image.albedo, c));
-        list.push(component(&format!("variance.{suffix}"), &image.variance, c));
-    }
-    for (c, axis) in ["X", "Y", "Z"].into_iter().enumerate() {
-        list.push(component(&format!("normal.{axis}"), &image.normal, c));
-    }
-    list.push(channel("A", vec![1.0; image.pixel_count()]));
-    list.push(channel("depth.Z", image.depth.clone()));
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = image
+        .channels()
+        .into_iter()
+        .map(|(name, samples)| channel(&name, samples))
+        .collect();
 
     let layer = Layer::new(
         Vec2(image.width, image.height),

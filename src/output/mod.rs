@@ -56,15 +56,15 @@ fn validate(image: &crate::render::RenderImage, path: &std::path::Path) -> Resul
         .width
         .checked_mul(image.height)
         .ok_or_else(|| invalid(format!("size {}x{} overflows", image.width, image.height)))?;
-    let lens = [
-        ("beauty", image.beauty.len()),
-        ("albedo", image.albedo.len()),
-        ("normal", image.normal.len()),
-        ("depth", image.depth.len()),
-        ("variance", image.variance.len()),
-    ];
-    for (name, len) in lens {
+    for layer in &crate::render::LAYERS {
+        let Some(len) = layer.buffer_len(image) else {
+            continue;
+        };
         if len != n {
+            let name = match layer.name {
+                "" => "beauty",
+                name => name,
+            };
             return Err(invalid(format!(
                 "{name} buffer holds {len} pixels, expected {n} for {}x{}",
                 image.width, image.height

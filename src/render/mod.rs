@@ -9,7 +9,7 @@ pub mod image;
 mod renderer;
 
 pub use cancel::CancelToken;
-pub use channels::CHANNEL_NAMES;
+pub use channels::{channel_names, Layer, LayerData, LAYERS};
 pub use film::{Film, PixelSums, PixelWindow};
 pub use image::RenderImage;
 pub use renderer::{
