@@ -331,3 +331,42 @@ fn punctual_light_units_are_photometric_unless_the_scene_says_radiometric() {
         "{err}"
     );
 }
+
+#[test]
+fn a_missing_or_corrupt_environment_map_is_a_typed_error_naming_the_map() {
+    use nimbus::light::EnvironmentError;
+    use nimbus::scene::SceneErrorKind;
+    use std::error::Error as _;
+    let dir = temp_dir("env-map");
+    std::fs::write(dir.join("corrupt.exr"), b"not an exr").unwrap();
+    let buffer = format!(
+        "data:application/octet-stream;base64,{}",
+        base64(&triangle_buffer())
+    );
+    for (map, missing) in [("absent.exr", true), ("corrupt.exr", false)] {
+        let scene = format!(
+            r#""scenes":[{{"nodes":[0,1],"extras":{{"nimbus_environment":{{"map":"{map}"}}}}}}]"#
+        );
+        let text = document(&buffer, 3, "").replace(r#""scenes":[{"nodes":[0,1]}]"#, &scene);
+        let path = write(&dir, "env.gltf", &text);
+        let Err(err) = nimbus::scene::load_builder(&path, &Default::default()) else {
+            panic!("{map} loaded");
+        };
+        assert!(err.to_string().contains(map), "{err}");
+        let SceneErrorKind::Environment(EnvironmentError::Exr {
+            path: map_path,
+            source,
+        }) = &err.kind
+        else {
+            panic!("not an environment map error: {err:?}");
+        };
+        assert!(map_path.ends_with(map));
+        assert!(
+            err.source().is_some(),
+            "the decoder's error is kept as the source"
+        );
+        let io_not_found =
+            matches!(source, exr::error::Error::Io(e) if e.kind() == std::io::ErrorKind::NotFound);
+        assert_eq!(io_not_found, missing, "{source:?}");
+    }
+}

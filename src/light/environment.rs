@@ -19,6 +19,36 @@
 use super::LightSample;
 use crate::math::{luminance, Distribution2D, Rgb, Vec2, Vec3};
 use std::f32::consts::PI;
+use std::path::PathBuf;
+
+/// An environment map file could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum EnvironmentError {
+    /// The EXR decoder failed (missing file, malformed or unsupported EXR).
+    #[error("environment map {}: {source}", path.display())]
+    Exr {
+        /// The map file.
+        path: PathBuf,
+        /// The decoder's error.
+        #[source]
+        source: exr::error::Error,
+    },
+    /// The PNG/JPEG decoder failed (missing file, malformed or unsupported image).
+    #[error("environment map {}: {source}", path.display())]
+    Image {
+        /// The map file.
+        path: PathBuf,
+        /// The decoder's error.
+        #[source]
+        source: image::ImageError,
+    },
+    /// The file decoded to no texels.
+    #[error("environment map {}: the map is empty", path.display())]
+    Empty {
+        /// The map file.
+        path: PathBuf,
+    },
+}
 
 /// An equirectangular radiance map with its sampling distribution.
 #[derive(Clone, Debug)]
@@ -97,9 +127,8 @@ impl EnvironmentMap {
     }
 
     /// Loads an equirectangular map from an EXR (its RGB channels, linear) or a PNG/JPEG (sRGB-decoded).
-    /// The error message names the file.
-    pub fn load(path: &std::path::Path, intensity: f32) -> Result<Self, String> {
-        let name = path.display();
+    /// The error names the file and keeps the decoder's error as its source.
+    pub fn load(path: &std::path::Path, intensity: f32) -> Result<Self, EnvironmentError> {
         let is_exr = path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
@@ -111,7 +140,10 @@ impl EnvironmentMap {
                     px[pos.y() * *w + pos.x()] = Rgb::new(r, g, b);
                 },
             )
-            .map_err(|e| format!("{name}: {e}"))?;
+            .map_err(|source| EnvironmentError::Exr {
+                path: path.to_path_buf(),
+                source,
+            })?;
             let size = image.layer_data.size;
             (
                 size.width(),
@@ -120,7 +152,10 @@ impl EnvironmentMap {
             )
         } else {
             let img = image::open(path)
-                .map_err(|e| format!("{name}: {e}"))?
+                .map_err(|source| EnvironmentError::Image {
+                    path: path.to_path_buf(),
+                    source,
+                })?
                 .to_rgb32f();
             let (w, h) = (img.width() as usize, img.height() as usize);
             let texels = img
@@ -134,8 +169,9 @@ impl EnvironmentMap {
                 .collect();
             (w, h, texels)
         };
-        Self::new(width, height, texels, intensity)
-            .ok_or_else(|| format!("{name}: the map is empty"))
+        Self::new(width, height, texels, intensity).ok_or_else(|| EnvironmentError::Empty {
+            path: path.to_path_buf(),
+        })
     }
 
     /// The bilinear reconstruction at map coordinates `uv` (see the module docs for where texels sit).

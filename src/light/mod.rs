@@ -8,7 +8,7 @@ mod punctual;
 mod sampler;
 
 pub use area::AreaLight;
-pub use environment::{EnvironmentLight, EnvironmentMap};
+pub use environment::{EnvironmentError, EnvironmentLight, EnvironmentMap};
 pub use punctual::{DirectionalLight, PointLight, SpotLight, LUMENS_PER_WATT};
 pub use sampler::LightSampler;
 

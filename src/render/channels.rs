@@ -172,7 +172,10 @@ mod tests {
         let readme = include_str!("../../README.md");
         for layer in LAYERS.iter().filter(|l| !l.name.is_empty()) {
             let listed = format!("`{}.{}`", layer.name, layer.components.join("/"));
-            assert!(readme.contains(&listed), "README's Output section lacks {listed}");
+            assert!(
+                readme.contains(&listed),
+                "README's Output section lacks {listed}"
+            );
         }
     }
 

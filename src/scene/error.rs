@@ -3,8 +3,10 @@
 use std::path::PathBuf;
 
 /// A scene could not be loaded.
-#[derive(Debug, thiserror::Error)]
-#[error("{}: {kind}", path.display())]
+///
+/// Its [`source`](std::error::Error::source) is the typed cause inside [`SceneErrorKind`] (the I/O error,
+/// the environment map's error...), so that a host can tell causes apart by walking the chain.
+#[derive(Debug)]
 pub struct SceneError {
     /// The file that failed (the scene, or a buffer, image or volume it references).
     pub path: PathBuf,
@@ -27,9 +29,24 @@ pub enum SceneErrorKind {
     /// A reference inside the file points at nothing valid (accessor, buffer, image, index out of range).
     #[error("invalid reference: {0}")]
     InvalidReference(String),
+    /// An environment map the scene names could not be loaded.
+    #[error("{0}")]
+    Environment(#[from] crate::light::EnvironmentError),
     /// The file extension names no format Nimbus reads.
     #[error("unknown scene format (expected .gltf, .glb, .obj, .usd, .usda, .usdc or .usdz)")]
     UnknownFormat,
+}
+
+impl std::fmt::Display for SceneError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.path.display(), self.kind)
+    }
+}
+
+impl std::error::Error for SceneError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.kind.source()
+    }
 }
 
 impl SceneError {

@@ -641,11 +641,7 @@ impl Loader<'_> {
             self.builder.max_bounces = Some(b.min(u32::MAX as u64) as u32);
         }
         if let Some(env) = value.get("nimbus_environment") {
-            let env = parse_environment(env, &self.base).map_err(|m| {
-                self.error(SceneErrorKind::Malformed(format!(
-                    "nimbus_environment: {m}"
-                )))
-            })?;
+            let env = parse_environment(env, &self.base).map_err(|kind| self.error(kind))?;
             self.builder.set_environment(env);
         }
         Ok(())
@@ -687,24 +683,29 @@ fn sampler_of(sampler: &gltf::texture::Sampler) -> Sampler {
 pub fn parse_environment(
     value: &serde_json::Value,
     base: &Path,
-) -> Result<EnvironmentLight, String> {
+) -> Result<EnvironmentLight, SceneErrorKind> {
+    let malformed = |m: &str| SceneErrorKind::Malformed(format!("nimbus_environment: {m}"));
     if let Some(c) = value.get("color") {
-        let rgb = parse_rgb(c).ok_or("'color' must be an array of three non-negative numbers")?;
+        let rgb = parse_rgb(c)
+            .ok_or_else(|| malformed("'color' must be an array of three non-negative numbers"))?;
         return Ok(EnvironmentLight::Constant(rgb));
     }
     if let Some(m) = value.get("map") {
-        let file = m.as_str().ok_or("'map' must be a file name")?;
+        let file = m
+            .as_str()
+            .ok_or_else(|| malformed("'map' must be a file name"))?;
         let intensity = match value.get("intensity") {
             Some(v) => v
                 .as_f64()
                 .filter(|v| v.is_finite() && *v >= 0.0)
-                .ok_or("'intensity' must be a non-negative number")? as f32,
+                .ok_or_else(|| malformed("'intensity' must be a non-negative number"))?
+                as f32,
             None => 1.0,
         };
         let map = EnvironmentMap::load(&base.join(file), intensity)?;
         return Ok(EnvironmentLight::Map(Box::new(map)));
     }
-    Err("expected 'color' or 'map'".into())
+    Err(malformed("expected 'color' or 'map'"))
 }
 
 /// Parses `[r, g, b]` with finite non-negative components.

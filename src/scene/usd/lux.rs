@@ -136,7 +136,7 @@ impl Loader<'_> {
                 }
                 let scale = radiance.max_element();
                 let map = EnvironmentMap::load(&file, scale)
-                    .map_err(|m| SceneError::new(&file, SceneErrorKind::InvalidReference(m)))?;
+                    .map_err(|e| SceneError::new(self.path, SceneErrorKind::Environment(e)))?;
                 EnvironmentLight::Map(Box::new(map))
             }
             None => EnvironmentLight::Constant(radiance),
