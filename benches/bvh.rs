@@ -124,7 +124,9 @@ fn main() {
     let mut bvh = None;
     for threads in [1, 2] {
         let p = pool(threads);
-        let (secs, cpu, built) = time(2, || p.install(|| Bvh::build(&tris)));
+        let (secs, cpu, built) = time(2, || {
+            p.install(|| Bvh::build(&tris).expect("within the triangle limit"))
+        });
         println!(
             "build ({threads} thread{}): {:.3} s wall, {:.3} s CPU",
             if threads > 1 { "s" } else { "" },

@@ -52,6 +52,9 @@ pub enum ConvergeError {
         #[source]
         source: std::io::Error,
     },
+    /// The render and the reference hold different numbers of pixels.
+    #[error("render and reference differ in size: {0}")]
+    SizeMismatch(#[source] super::SizeMismatch),
     /// The chart could not be drawn.
     #[error(transparent)]
     Chart(#[from] super::ChartError),

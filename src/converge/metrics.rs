@@ -25,8 +25,18 @@ impl ErrorMetrics {
     }
 }
 
+/// An image and its reference (or the reference's standard errors) hold different numbers of pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("the image has {image} pixels and the reference {reference}")]
+pub struct SizeMismatch {
+    /// Pixels in the image.
+    pub image: usize,
+    /// Pixels in the reference (or in its standard errors).
+    pub reference: usize,
+}
+
 /// The errors of `image` against `reference`, pixel by pixel (both the same length and order).
-pub fn error_metrics(image: &[Rgb], reference: &[Rgb]) -> ErrorMetrics {
+pub fn error_metrics(image: &[Rgb], reference: &[Rgb]) -> Result<ErrorMetrics, SizeMismatch> {
     error_metrics_against_noisy(image, reference, None)
 }
 
@@ -37,17 +47,18 @@ pub fn error_metrics_against_noisy(
     image: &[Rgb],
     reference: &[Rgb],
     reference_se: Option<&[Rgb]>,
-) -> ErrorMetrics {
-    assert_eq!(
-        image.len(),
-        reference.len(),
-        "image and reference sizes differ"
-    );
+) -> Result<ErrorMetrics, SizeMismatch> {
+    for reference in std::iter::once(reference).chain(reference_se) {
+        if reference.len() != image.len() {
+            return Err(SizeMismatch {
+                image: image.len(),
+                reference: reference.len(),
+            });
+        }
+    }
     let (mut se, mut rel, mut sum) = (0.0f64, 0.0f64, 0.0f64);
     for (i, (x, r)) in image.iter().zip(reference).enumerate() {
-        let noise = reference_se
-            .and_then(|s| s.get(i))
-            .map_or([0.0; 3], |s| s.to_array());
+        let noise = reference_se.map_or([0.0; 3], |s| s[i].to_array());
         for ((x, r), s) in x.to_array().into_iter().zip(r.to_array()).zip(noise) {
             let (x, r, s) = (x as f64, r as f64, s as f64);
             let d = x - r;
@@ -57,11 +68,11 @@ pub fn error_metrics_against_noisy(
         }
     }
     let n = (image.len() * 3).max(1) as f64;
-    ErrorMetrics {
+    Ok(ErrorMetrics {
         rmse: (se.max(0.0) / n).sqrt(),
         relmse: rel.max(0.0) / n,
         bias: sum / n,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -69,11 +80,19 @@ mod tests {
     use super::*;
 
     #[test]
+    fn sizes_that_differ_are_an_error() {
+        let two = [Rgb::ZERO; 2];
+        let err = error_metrics(&two, &two[..1]).unwrap_err();
+        assert_eq!((err.image, err.reference), (2, 1));
+        assert!(error_metrics_against_noisy(&two, &two, Some(&two[..1])).is_err());
+    }
+
+    #[test]
     fn hand_computed_metrics() {
         // Differences 0.1, 0.2, 0.3 (pixel 1) and 0, 0, -0.6 (pixel 2) against 0, 1, 0 and 1, 0, 0.
         let reference = [Rgb::new(0.0, 1.0, 0.0), Rgb::new(1.0, 0.0, 0.0)];
         let image = [Rgb::new(0.1, 1.2, 0.3), Rgb::new(1.0, 0.0, -0.6)];
-        let m = error_metrics(&image, &reference);
+        let m = error_metrics(&image, &reference).unwrap();
         // Squares: 0.01, 0.04, 0.09, 0, 0, 0.36 → sum 0.5, mean 1/12.
         assert!((m.rmse - (0.5f64 / 6.0).sqrt()).abs() < 1e-6, "{m:?}");
         assert!((m.mse() - 0.5 / 6.0).abs() < 1e-6);
@@ -82,9 +101,9 @@ mod tests {
         assert!((m.relmse - rel).abs() < 1e-5, "{m:?}");
         // Bias: (0.1 + 0.2 + 0.3 - 0.6) / 6 = 0.
         assert!(m.bias.abs() < 1e-7, "{m:?}");
-        let same = error_metrics(&reference, &reference);
+        let same = error_metrics(&reference, &reference).unwrap();
         assert_eq!((same.rmse, same.relmse, same.bias), (0.0, 0.0, 0.0));
-        let offset = error_metrics(&[Rgb::splat(0.5)], &[Rgb::splat(0.25)]);
+        let offset = error_metrics(&[Rgb::splat(0.5)], &[Rgb::splat(0.25)]).unwrap();
         assert!((offset.bias - 0.25).abs() < 1e-7 && (offset.rmse - 0.25).abs() < 1e-7);
     }
 
@@ -106,16 +125,18 @@ mod tests {
                 *t + Rgb::new(g, -g, g) * se
             })
             .collect();
-        let naive = error_metrics(&image, &reference);
+        let naive = error_metrics(&image, &reference).unwrap();
         let corrected =
-            error_metrics_against_noisy(&image, &reference, Some(&vec![Rgb::splat(se); n]));
+            error_metrics_against_noisy(&image, &reference, Some(&vec![Rgb::splat(se); n]))
+                .unwrap();
         assert!(
             (naive.rmse - (0.02f64.powi(2) + 0.05f64.powi(2)).sqrt()).abs() < 2e-3,
             "{naive:?}"
         );
         assert!((corrected.rmse - 0.02).abs() < 2e-3, "{corrected:?}");
         // Nothing left to subtract from an exact match but noise: clamped at 0.
-        let exact = error_metrics_against_noisy(&truth, &truth, Some(&vec![Rgb::splat(se); n]));
+        let exact =
+            error_metrics_against_noisy(&truth, &truth, Some(&vec![Rgb::splat(se); n])).unwrap();
         assert_eq!(exact.rmse, 0.0);
     }
 }

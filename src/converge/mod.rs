@@ -11,7 +11,7 @@ mod summary;
 pub use chart::{draw_chart, draw_loglog_chart, ChartError, LegendCorner, LogLogChart, Series};
 pub use error::ConvergeError;
 pub use methods::Method;
-pub use metrics::{error_metrics, error_metrics_against_noisy, ErrorMetrics};
+pub use metrics::{error_metrics, error_metrics_against_noisy, ErrorMetrics, SizeMismatch};
 pub use summary::{
     csv, efficiency, rmse_at, summarize, summary_markdown, Checkpoint, Curve, MethodSummary,
     CSV_HEADER,
@@ -258,20 +258,30 @@ fn measure(
 ) -> Result<Curve, ConvergeError> {
     let mut points = Vec::new();
     let mut measuring = 0.0f64;
+    let mut mismatch = None;
     Renderer::new(settings(options, scene, width, height, method))
         .render_with_snapshots(scene, &mut |p, film| {
             let start = Instant::now();
             let seconds = p.elapsed_seconds - measuring;
             let image = film.image();
-            points.push(Checkpoint {
-                spp: p.samples_done,
-                seconds,
-                metrics: error_metrics_against_noisy(&image.beauty, reference, reference_se),
-            });
+            match error_metrics_against_noisy(&image.beauty, reference, reference_se) {
+                Ok(metrics) => points.push(Checkpoint {
+                    spp: p.samples_done,
+                    seconds,
+                    metrics,
+                }),
+                Err(e) => {
+                    mismatch = Some(e);
+                    return false;
+                }
+            }
             measuring += start.elapsed().as_secs_f64();
             // The next pass doubles the samples, so it takes about as long as everything so far.
             points.len() < MIN_CHECKPOINTS || 2.0 * seconds <= share
         })
         .map_err(ConvergeError::Threads)?;
-    Ok(Curve { method, points })
+    match mismatch {
+        Some(e) => Err(ConvergeError::SizeMismatch(e)),
+        None => Ok(Curve { method, points }),
+    }
 }

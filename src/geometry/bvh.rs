@@ -493,16 +493,23 @@ fn clip_of(t: f32) -> f32 {
     t + t.abs() * (FAR_SCALE - 1.0)
 }
 
+/// A triangle list too long for the hierarchy's 32-bit node and triangle indices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0} triangles, more than the {max} a scene may hold", max = Bvh::MAX_TRIANGLES)]
+pub struct TooManyTriangles(pub usize);
+
 impl Bvh {
+    /// The most triangles one hierarchy holds (its node and triangle indices are 32-bit, with flag bits).
+    pub const MAX_TRIANGLES: usize = (1 << 30) - 1;
+
     /// Builds the hierarchy over world-space triangles with the parallel binned SAH, then collapses it to
     /// 4-wide nodes (see the module documentation). Triangles with a non-finite coordinate can never be hit
     /// and are left out; degenerate (zero-area) triangles are kept and never hit. An empty list gives an
-    /// empty hierarchy.
-    pub fn build(triangles: &[[Vec3; 3]]) -> Bvh {
-        assert!(
-            triangles.len() < (1 << 30),
-            "too many triangles for 32-bit node and triangle indices"
-        );
+    /// empty hierarchy. More than [`Bvh::MAX_TRIANGLES`] triangles is an error.
+    pub fn build(triangles: &[[Vec3; 3]]) -> Result<Bvh, TooManyTriangles> {
+        if triangles.len() > Self::MAX_TRIANGLES {
+            return Err(TooManyTriangles(triangles.len()));
+        }
         let mut refs: Vec<PrimRef> = triangles
             .iter()
             .enumerate()
@@ -528,15 +535,16 @@ impl Bvh {
         } else {
             stack_needed(&nodes, 0)
         };
-        assert!(stack_needed <= STACK_MAX);
-        Bvh {
+        // The object-median splits below SAH_MAX_DEPTH bound the depth, and so the stack, by construction.
+        debug_assert!(stack_needed <= STACK_MAX);
+        Ok(Bvh {
             nodes,
             bounds,
             stack_needed,
             triangles: refs.iter().map(|r| triangles[r.id as usize]).collect(),
             prim_ids: refs.iter().map(|r| r.id).collect(),
             input_count: triangles.len(),
-        }
+        })
     }
 
     /// The closest hit with `t_min <= t <= t_max`, from either side of a triangle. Among hits at exactly
@@ -799,7 +807,7 @@ mod tests {
     }
 
     fn check_agreement(tris: &[[Vec3; 3]], rays: &[(Ray, f32, f32)]) {
-        let bvh = Bvh::build(tris);
+        let bvh = Bvh::build(tris).unwrap();
         let mut hits = 0;
         for (k, (ray, t0, t1)) in rays.iter().enumerate() {
             let expect = brute_closest(tris, ray, *t0, *t1);
@@ -818,7 +826,7 @@ mod tests {
 
     #[test]
     fn empty_hierarchy() {
-        let bvh = Bvh::build(&[]);
+        let bvh = Bvh::build(&[]).unwrap();
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
         assert!(bvh.intersect(&ray, 0.0, f32::INFINITY).is_none());
         assert!(!bvh.occluded(&ray, 0.0, f32::INFINITY));
@@ -916,7 +924,7 @@ mod tests {
     #[test]
     fn closed_mesh_is_watertight() {
         let tris = sphere(Vec3::new(0.1, 0.2, -0.3), 1.5, 64, 128);
-        let bvh = Bvh::build(&tris);
+        let bvh = Bvh::build(&tris).unwrap();
         let mut rng = Rng::new(7, 8);
         let mut misses = 0;
         let mut rays = 0;
@@ -947,7 +955,7 @@ mod tests {
     fn hit_reports_input_index_and_barycentrics() {
         let mut rng = Rng::new(9, 10);
         let tris = soup(&mut rng, 500);
-        let bvh = Bvh::build(&tris);
+        let bvh = Bvh::build(&tris).unwrap();
         let mut checked = 0;
         for _ in 0..2000 {
             let ray = random_ray(&mut rng, Vec3::splat(-12.0), Vec3::splat(12.0));
@@ -965,7 +973,7 @@ mod tests {
     fn degenerate_inputs_build_and_miss() {
         // Many identical zero-area triangles: no SAH split exists, the median fallback must terminate.
         let point = [[Vec3::ONE; 3]; 1000];
-        let bvh = Bvh::build(&point);
+        let bvh = Bvh::build(&point).unwrap();
         assert_eq!(bvh.triangle_count(), 1000);
         assert_eq!(bvh.bounds(), Aabb::new(Vec3::ONE, Vec3::ONE));
         let ray = Ray::new(Vec3::ZERO, Vec3::ONE.normalize());
@@ -980,7 +988,7 @@ mod tests {
             ],
             [Vec3::INFINITY, Vec3::X, Vec3::Y],
         ];
-        let bvh = Bvh::build(&tris);
+        let bvh = Bvh::build(&tris).unwrap();
         let hit = bvh
             .intersect(&Ray::new(Vec3::ZERO, Vec3::Z), 0.0, f32::INFINITY)
             .unwrap();
@@ -997,7 +1005,7 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| Bvh::build(&tris))
+                .install(|| Bvh::build(&tris).unwrap())
         };
         let (a, b) = (build_with(1), build_with(3));
         assert!(a.nodes.len() > tris.len() / (4 * MAX_LEAF));

@@ -6,7 +6,7 @@ pub mod mesh;
 pub mod spawn;
 pub mod triangle;
 
-pub use bvh::Bvh;
+pub use bvh::{Bvh, TooManyTriangles};
 pub use mesh::Mesh;
 pub use spawn::{ShadowSegment, SurfacePoint};
 pub use triangle::TriangleHit;

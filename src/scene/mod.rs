@@ -281,7 +281,9 @@ impl SceneBuilder {
                 light_of_prim[a.prim as usize] = i as u32;
             }
         }
-        let bvh = Bvh::build(&triangles);
+        let bvh = Bvh::build(&triangles).map_err(|e| {
+            SceneError::new(BUILDER_PATH, SceneErrorKind::Unsupported(e.to_string()))
+        })?;
         let bounds = bvh.bounds();
         let light_sampler = LightSampler::new(&lights, bounding_radius(&bounds));
         let environment = lights
