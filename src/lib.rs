@@ -90,7 +90,7 @@ mod error;
 pub mod converge;
 pub mod farm;
 pub mod geometry;
-pub mod integrator;
+mod integrator;
 pub mod light;
 pub mod material;
 pub mod math;

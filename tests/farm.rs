@@ -655,8 +655,8 @@ fn kubernetes_example_chunks_match_its_completions_and_merge_glob() {
 
 #[test]
 fn samples_whose_float_sums_depend_on_grouping_merge_exactly_through_part_files() {
-    use nimbus::integrator::PathSample;
     use nimbus::render::Film;
+    use nimbus::render::PathSample;
     // Per pixel: four samples whose f64 running sum and split sums round to different f32 means (see the
     // film's unit tests), scaled per pixel, with AOVs that vary too.
     let values = [1.0f32, 2f32.powi(-24), 2f32.powi(-54), 3.0 * 2f32.powi(-55)];

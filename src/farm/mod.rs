@@ -4,7 +4,7 @@
 //! would have rendered, bit for bit.
 //!
 //! Why the merge is exact: sample `s` of pixel `i` is a pure function of the seed, `i` and `s`
-//! (`Rng::for_sample`), and the film sums samples in fixed-point integers ([`crate::render::exact`]), so the
+//! (`Rng::for_sample`), and the film sums samples in fixed-point integers ([`crate::render::PixelSums`]), so the
 //! sums of any partition of the samples add up to the same integers in any order. A part file
 //! ([`part`]) stores those integer sums beside its viewable float image, and the merge adds the integers of
 //! all parts and takes the image of the total with the same code as a single render.

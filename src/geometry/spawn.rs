@@ -93,7 +93,7 @@ pub struct ShadowSegment {
 
 impl ShadowSegment {
     /// The segment from `from` to the point `to` on a light: both ends offset off their surfaces toward each
-    /// other, the end then pulled in by [`SHADOW_EPSILON`] of the length. `None` when the two offset points
+    /// other, the end then pulled in by `SHADOW_EPSILON` (10⁻⁴) of the length. `None` when the two offset points
     /// coincide.
     pub fn between(from: &SurfacePoint, to: &SurfacePoint) -> Option<Self> {
         let origin = from.spawn_origin(to.p - from.p);

@@ -9,5 +9,5 @@ mod stats;
 
 pub use medium_stack::MediumStack;
 pub use path::{PathSample, PathTracer};
-pub use services::{ChosenLight, RendererServices};
+pub use services::RendererServices;
 pub use stats::{PathCounters, RayCounters};

@@ -36,7 +36,7 @@ pub struct LightSample {
 impl LightSample {
     /// The shadow ray that tests whether the light sample is visible from `from`: a segment between offset end
     /// points for a point on a light, an unbounded ray toward a light at infinity (see
-    /// [`crate::geometry::spawn`]). `None` when the two ends coincide.
+    /// [`crate::geometry::SurfacePoint`]). `None` when the two ends coincide.
     pub fn shadow_segment(&self, from: &SurfacePoint) -> Option<ShadowSegment> {
         match &self.point {
             Some(to) => ShadowSegment::between(from, to),

@@ -1,7 +1,7 @@
 //! Writing and reading rendered images: the multi-layer OpenEXR file and the 8-bit sRGB PNG preview.
 
-pub mod exr;
-pub mod png;
+mod exr;
+mod png;
 
 pub use self::exr::{read_exr_layers, write_exr, ExrLayers};
 pub use self::png::{preview_path, write_png_preview};

@@ -26,7 +26,7 @@ pub const VALUE_FRACTION_BITS: i32 = 56;
 /// Fractional bits of a [`SquareSum`]: one unit is 2^-80.
 pub const SQUARE_FRACTION_BITS: i32 = 80;
 /// The largest magnitude of one sample value that the sums take as it is: 2^38 ≈ 2.7e11. See
-/// [`clamp_sample`].
+/// `clamp_sample`.
 pub const MAX_SAMPLE_VALUE: f32 = 274_877_906_944.0;
 
 /// Brings one sample value into the range the sums take: NaN becomes 0 and a magnitude above

@@ -113,7 +113,7 @@ impl PixelSums {
     ];
 
     /// Adds one sample whose radiance is finite. Returns true when a value had to be clamped into the range
-    /// of the exact sums (see [`clamp_sample`]).
+    /// of the exact sums (see the module docs on clamping).
     pub fn add(&mut self, s: &PathSample) -> bool {
         let mut clamped = false;
         let mut take = |v: f32| {

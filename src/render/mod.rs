@@ -3,13 +3,15 @@
 
 mod cancel;
 mod channels;
-pub mod exact;
+mod exact;
 mod film;
-pub mod image;
+mod image;
 mod renderer;
 
+pub use crate::integrator::PathSample;
 pub use cancel::CancelToken;
 pub use channels::{channel_names, Layer, LayerData, LAYERS};
+pub use exact::MAX_SAMPLE_VALUE;
 pub use film::{Film, PixelSums, PixelWindow};
 pub use image::RenderImage;
 pub use renderer::{

@@ -33,7 +33,7 @@ pub struct RenderSettings {
     pub max_depth: u32,
     /// Wall-clock budget; rendering stops after the pass during which it runs out.
     pub time_limit: Option<Duration>,
-    /// Multiple importance sampling at medium scattering events (see [`PathTracer::media_mis`]).
+    /// Multiple importance sampling at medium scattering events (off: emitters are reached from inside media by light sampling alone).
     pub media_mis: bool,
 }
 
@@ -77,7 +77,7 @@ pub struct RenderStats {
     /// Samples dropped because their radiance was NaN or infinite (never written to the film).
     pub nan_samples: u64,
     /// Samples with a value (radiance or AOV) beyond ±2^38 ≈ ±2.7e11, or a NaN or infinite AOV, clamped into
-    /// the range of the film's exact sums (see [`MAX_SAMPLE_VALUE`](super::exact::MAX_SAMPLE_VALUE)).
+    /// the range of the film's exact sums (see [`MAX_SAMPLE_VALUE`](super::MAX_SAMPLE_VALUE)).
     pub clamped_samples: u64,
     /// Peak resident memory of the process, when the platform reports it.
     pub peak_memory_bytes: Option<u64>,

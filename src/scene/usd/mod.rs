@@ -18,7 +18,7 @@
 //!   vertical aperture, aspect from their ratio); clipping and projection `orthographic` are ignored;
 //! - `Material` → `outputs:surface` → a `UsdPreviewSurface` `Shader` (`info:id`): `inputs:diffuseColor`,
 //!   `emissiveColor`, `metallic`, `roughness`, `opacity`, `ior`, `normal`, `useSpecularWorkflow` (see
-//!   [`shading`] for the mapping); colour and normal inputs may connect to a `UsdUVTexture`
+//!   `usd/shading.rs` for the mapping); colour and normal inputs may connect to a `UsdUVTexture`
 //!   (`inputs:file`, `inputs:sourceColorSpace`);
 //! - UsdLux (`inputs:intensity`, `inputs:exposure`, `inputs:color`, `inputs:normalize`): `RectLight`
 //!   (`inputs:width`, `inputs:height`), `DiskLight` (`inputs:radius`), `SphereLight` (`inputs:radius`,
@@ -37,8 +37,8 @@
 //! Asset paths (`filePath`, `inputs:file`, `inputs:texture:file`) resolve relative to the layer that authored
 //! them. Prim types Nimbus does not render are listed once each in the warnings.
 //!
-//! The loader is split by USD schema domain: [`xform`] (UsdGeomXformable ops), [`geom`] (meshes and primvars),
-//! [`shading`] (UsdShade / UsdPreviewSurface), [`lux`] (UsdLux), [`vol`] (UsdVol), with [`values`] converting
+//! The loader is split by USD schema domain: `xform` (UsdGeomXformable ops), `geom` (meshes and primvars),
+//! `shading` (UsdShade / UsdPreviewSurface), `lux` (UsdLux), `vol` (UsdVol), with `values` converting
 //! attribute values and `crate_check` bounds-checking `.usdc` layers before openusd reads them.
 
 mod crate_check;
