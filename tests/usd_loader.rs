@@ -5,7 +5,7 @@
 use nimbus::light::Light;
 use nimbus::math::{Rgb, Vec3};
 use nimbus::render::{RenderImage, RenderSettings, Renderer};
-use nimbus::scene::{usd, Scene, SceneBuilder};
+use nimbus::scene::{usd, Scene, SceneBuilder, SceneErrorKind};
 use std::path::{Path, PathBuf};
 
 fn stage(name: &str) -> PathBuf {
@@ -172,6 +172,7 @@ fn temp_file(tag: &str, ext: &str, bytes: &[u8]) -> PathBuf {
 
 #[test]
 fn truncated_and_corrupted_stages_are_errors_not_panics() {
+    let mut caught_panics = Vec::new();
     for (name, ext) in [("cornell.usda", "usda"), ("cornell.usdc", "usdc")] {
         let bytes = std::fs::read(stage(name)).unwrap();
         let first_def = if ext == "usda" {
@@ -183,6 +184,11 @@ fn truncated_and_corrupted_stages_are_errors_not_panics() {
         for cut in (0..bytes.len() - 1).step_by(step) {
             let p = temp_file(&format!("cut{cut}"), ext, &bytes[..cut]);
             let r = usd::read(&p);
+            if let Err(e) = &r {
+                if matches!(e.kind, SceneErrorKind::ReaderPanicked { .. }) {
+                    caught_panics.push(format!("{name} cut at {cut}: {e}"));
+                }
+            }
             if cut > first_def {
                 assert!(r.is_err(), "{name} truncated at {cut} loaded");
             }
@@ -211,11 +217,26 @@ fn truncated_and_corrupted_stages_are_errors_not_panics() {
                 damaged[at] ^= (rng >> 32) as u8 | 1;
             }
             let p = temp_file(&format!("flip{i}"), ext, &damaged);
-            // Either outcome is fine; the process must not panic.
-            let _ = usd::read(&p);
+            // Loading or an error are both fine; a panic, even one the loader catches, is not.
+            if let Err(e) = usd::read(&p) {
+                if matches!(e.kind, SceneErrorKind::ReaderPanicked { .. }) {
+                    caught_panics.push(format!("{name} flip {i}: {e}"));
+                }
+            }
             std::fs::remove_file(&p).unwrap();
         }
     }
+    // openusd 0.6 still panics on 5 of these 64 bit-flipped .usdc files (out-of-bounds indices and a
+    // capacity overflow that `crate_check` does not yet rule out); the loader catches them, and this test
+    // sees them. The hostile-input issue removes them; until then any new one fails here.
+    const KNOWN_OPENUSD_PANICS: usize = 5;
+    eprintln!("{}", caught_panics.join("\n"));
+    assert!(
+        caught_panics.len() <= KNOWN_OPENUSD_PANICS,
+        "{} damaged stages panicked inside openusd:\n{}",
+        caught_panics.len(),
+        caught_panics.join("\n")
+    );
 }
 
 #[test]

@@ -97,7 +97,13 @@ pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> 
                 .cloned()
                 .or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()))
                 .unwrap_or_default();
-            Err(malformed(path, format!("the USD reader failed: {message}")))
+            Err(SceneError::new(
+                path,
+                SceneErrorKind::ReaderPanicked {
+                    reader: "openusd",
+                    message,
+                },
+            ))
         },
     )
 }
