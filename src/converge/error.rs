@@ -56,6 +56,7 @@ pub enum ConvergeError {
     #[error("render and reference differ in size: {0}")]
     SizeMismatch(#[source] super::SizeMismatch),
     /// The chart could not be drawn.
+    #[cfg(feature = "charts")]
     #[error(transparent)]
     Chart(#[from] super::ChartError),
     /// The renderer's worker threads could not start.

@@ -1,13 +1,15 @@
 //! `nimbus converge`: renders one scene with several method configurations progressively, measures the error
 //! against a reference at doubling sample counts, and writes `convergence.csv`, a log-log chart
-//! (`convergence.png`, `convergence.svg`) and `summary.md`.
+//! (`convergence.png`, `convergence.svg`, with the `charts` feature) and `summary.md`.
 
+#[cfg(feature = "charts")]
 mod chart;
 mod error;
 mod methods;
 mod metrics;
 mod summary;
 
+#[cfg(feature = "charts")]
 pub use chart::{draw_chart, draw_loglog_chart, ChartError, LegendCorner, LogLogChart, Series};
 pub use error::ConvergeError;
 pub use methods::Method;
@@ -188,6 +190,7 @@ pub fn run(
         "summary.md",
         summary_markdown(&scene_name, width, height, &curves, noise_floor),
     )?;
+    #[cfg(feature = "charts")]
     draw_chart(
         &curves,
         &dir.join("convergence.png"),

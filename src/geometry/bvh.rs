@@ -475,6 +475,7 @@ impl TraversalRay {
 
 /// A hint to bring the cache line at `p` into the cache; it never faults and has no other effect.
 #[inline(always)]
+#[allow(unsafe_code)] // the crate's one unsafe block (see SAFETY below)
 fn prefetch(p: *const i8) {
     #[cfg(target_arch = "x86_64")]
     {
