@@ -8,7 +8,8 @@ use std::path::PathBuf;
 pub struct SceneError {
     /// The file that failed (the scene, or a buffer, image or volume it references).
     pub path: PathBuf,
-    /// What went wrong.
+    /// What went wrong; also the error's `source`, so a host can walk down to the cause.
+    #[source]
     pub kind: SceneErrorKind,
 }
 
@@ -27,6 +28,15 @@ pub enum SceneErrorKind {
     /// A reference inside the file points at nothing valid (accessor, buffer, image, index out of range).
     #[error("invalid reference: {0}")]
     InvalidReference(String),
+    /// A medium declared in the file could not be built: its parameters, its VDB file or its grids.
+    #[error("{at}: {source}")]
+    Volume {
+        /// Where the file declares it: the node, material or prim, and the key (`node 'smoke': nimbus_volume`).
+        at: String,
+        /// Why it could not be built.
+        #[source]
+        source: crate::volume::VolumeError,
+    },
     /// The file extension names no format Nimbus reads.
     #[error("unknown scene format (expected .gltf, .glb, .obj, .usd, .usda, .usdc or .usdz)")]
     UnknownFormat,
