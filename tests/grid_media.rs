@@ -228,7 +228,6 @@ fn gltf_nimbus_volume_loads_the_grid() {
 #[test]
 fn volume_errors_tell_a_missing_grid_from_a_corrupt_file() {
     use nimbus::volume::VolumeError;
-    use std::error::Error as _;
     let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes");
     let dir = std::env::temp_dir().join(format!("nimbus-volerr-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -323,7 +323,8 @@ mod tests {
     fn method_says_which_estimator_and_why() {
         let method = |m: &HomogeneousMedium| {
             let method = m.method();
-            (method.free_flight, method.why, method.to_string())
+            let text = method.to_string();
+            (method.free_flight, method.why, text)
         };
         let absorbing = HomogeneousMedium::new("a", Rgb::ONE, Rgb::ZERO, 0.0);
         let (free_flight, why, text) = method(&absorbing);
