@@ -24,7 +24,7 @@ impl ParamSource for UsdParams<'_> {
         }
         let value = self
             .0
-            .attribute(&self.spelling(key))
+            .attribute(self.spelling(key))
             .get::<sdf::Value>()
             .map_err(|e| ParamError::Unreadable {
                 key: self.spelling(key),
