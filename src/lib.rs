@@ -95,6 +95,7 @@ pub mod light;
 pub mod material;
 pub mod math;
 pub mod output;
+pub mod params;
 pub mod render;
 pub mod scene;
 pub mod vdb;

@@ -190,7 +190,10 @@ fn gltf_nimbus_volume_loads_the_grid() {
         scene.media()[0].fill_bounds().is_some(),
         "a VDB volume fills its region by position"
     );
-    assert!(scene.media()[0].method().contains("delta tracking"));
+    assert!(matches!(
+        scene.media()[0].method().free_flight,
+        nimbus::volume::FreeFlight::DeltaTracking { .. }
+    ));
     let bad = std::env::temp_dir().join(format!("nimbus-badvol-{}.gltf", std::process::id()));
     std::fs::write(
         &bad,
@@ -217,4 +220,123 @@ fn gltf_nimbus_volume_loads_the_grid() {
         .expect("albedo > 1 is an error")
         .to_string();
     assert!(err.contains("smoke") && err.contains("albedo"), "{err}");
+}
+
+/// What a host sees of a VDB volume that does not load: walking `source()` down from the public
+/// `nimbus::Error` reaches the `VolumeError`, which tells a grid missing from a readable file from a corrupt
+/// (truncated) or absent file, and the `VdbError` below it for the latter.
+#[test]
+fn volume_errors_tell_a_missing_grid_from_a_corrupt_file() {
+    use nimbus::volume::VolumeError;
+    let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes");
+    let dir = std::env::temp_dir().join(format!("nimbus-volerr-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(scenes.join("constant_grid.vdb"), dir.join("good.vdb")).unwrap();
+    let mut corrupt = std::fs::read(scenes.join("constant_grid.vdb")).unwrap();
+    corrupt.truncate(corrupt.len() / 2);
+    std::fs::write(dir.join("corrupt.vdb"), corrupt).unwrap();
+    let load = |file: &str, grid: &str| {
+        let gltf = dir.join(format!("{grid}_{file}.gltf"));
+        std::fs::write(
+            &gltf,
+            format!(
+                r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+                   "nodes":[{{"name":"smoke","extras":{{"nimbus_volume":{{"file":"{file}","density_grid":"{grid}"}}}}}}]}}"#
+            ),
+        )
+        .unwrap();
+        let err = nimbus::Error::from(nimbus::scene::Scene::load(&gltf).err().expect("fails"));
+        // Walk the chain: nimbus::Error -> SceneError -> SceneErrorKind::Volume -> VolumeError -> ...
+        let mut chain = Vec::new();
+        let mut next: Option<&(dyn std::error::Error + 'static)> = Some(&err);
+        while let Some(e) = next {
+            chain.push(e);
+            next = e.source();
+        }
+        let volume = chain
+            .iter()
+            .find_map(|e| e.downcast_ref::<VolumeError>())
+            .unwrap_or_else(|| panic!("no VolumeError in the chain of {err}"));
+        let kind = match volume {
+            VolumeError::GridMissing {
+                grid, available, ..
+            } => {
+                assert_eq!(
+                    (grid.as_str(), available.as_slice()),
+                    ("smoke", &["density".to_owned()][..])
+                );
+                "grid missing"
+            }
+            VolumeError::Vdb(_) => {
+                assert!(chain
+                    .iter()
+                    .any(|e| e.downcast_ref::<nimbus::VdbError>().is_some()));
+                "file unreadable"
+            }
+            other => panic!("unexpected {other}"),
+        };
+        let message = err.to_string();
+        assert!(
+            message.contains(&format!("{grid}_{file}.gltf")),
+            "{message}"
+        );
+        assert!(
+            message.contains("node 'smoke'") && message.contains(file),
+            "{message}"
+        );
+        assert!(!message.contains('\n'), "one line: {message}");
+        kind
+    };
+    assert_eq!(load("good.vdb", "smoke"), "grid missing");
+    assert_eq!(load("corrupt.vdb", "density"), "file unreadable");
+    assert_eq!(load("absent.vdb", "density"), "file unreadable");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The `--stats` JSON of a medium keeps the keys the README lists (`method` still the sentence) and adds the
+/// structured method keys.
+#[test]
+fn stats_json_has_the_method_sentence_and_its_fields() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes");
+    let scene = nimbus::scene::Scene::load(&dir.join("constant_grid.gltf")).expect("loads");
+    let settings = nimbus::render::RenderSettings {
+        width: 4,
+        height: 4,
+        spp: 1,
+        threads: 1,
+        ..Default::default()
+    };
+    let (_, stats) = nimbus::render::Renderer::new(settings)
+        .render(&scene, &mut |_| true)
+        .unwrap();
+    let json = serde_json::to_value(&stats).unwrap();
+    let medium = &json["media"][0];
+    for key in [
+        "name",
+        "method",
+        "memory_bytes",
+        "density_lookups",
+        "real_collisions",
+        "null_collisions",
+        "majorant_segments",
+        "majorant_cells",
+        "majorant_violations",
+        "free_flight",
+        "channel_choice",
+        "closed_form_segments",
+        "majorant",
+        "shadow_estimator",
+        "method_reason",
+        "majorant_pilot",
+    ] {
+        assert!(medium.get(key).is_some(), "no '{key}' in {medium}");
+    }
+    assert_eq!(medium["method"], scene.media()[0].method().to_string());
+    assert_eq!(medium["free_flight"], "delta_tracking");
+    assert_eq!(medium["shadow_estimator"], "ratio");
+    // The scene does not name a structure, so auto's pilot chose it, and says what each would cost.
+    assert_eq!(medium["method_reason"], "pilot");
+    let pilot = medium["majorant_pilot"].as_array().unwrap();
+    assert_eq!(pilot.len(), 3);
+    assert!(pilot.iter().any(|p| p["majorant"] == medium["majorant"]));
 }

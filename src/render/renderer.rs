@@ -11,7 +11,7 @@ use super::{CancelToken, RenderImage};
 use crate::integrator::{PathCounters, PathTracer, RayCounters, RendererServices};
 use crate::math::{is_finite_rgb, Rng, Vec2};
 use crate::scene::Scene;
-use crate::volume::TrackingCounters;
+use crate::volume::{MediumMethod, TrackingCounters};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::time::{Duration, Instant};
@@ -104,8 +104,12 @@ pub struct RenderStats {
 pub struct MediumStats {
     /// The glTF node or material that declared it.
     pub name: String,
-    /// The estimator chosen for it.
+    /// The estimator chosen for it, in words (`MediumMethod`'s `Display`).
     pub method: String,
+    /// The same, as data: its `--stats` keys (`free_flight`, `channel_choice`, `closed_form_segments`,
+    /// `majorant`, `shadow_estimator`, `method_reason`, `majorant_pilot`) sit flat beside `method`.
+    #[serde(flatten)]
+    pub method_details: MediumMethod,
     /// Bytes held by the medium (grids, majorants).
     pub memory_bytes: usize,
     /// Tracking counters (`density_lookups`, `real_collisions`, `null_collisions`, `majorant_segments`,
@@ -330,11 +334,15 @@ impl Renderer {
                 .media
                 .iter()
                 .zip(&counters.media)
-                .map(|(m, c)| MediumStats {
-                    name: m.name().to_owned(),
-                    method: m.method(),
-                    memory_bytes: m.memory_bytes(),
-                    counters: *c,
+                .map(|(m, c)| {
+                    let method = m.method();
+                    MediumStats {
+                        name: m.name().to_owned(),
+                        method: method.to_string(),
+                        method_details: method,
+                        memory_bytes: m.memory_bytes(),
+                        counters: *c,
+                    }
                 })
                 .collect(),
         };

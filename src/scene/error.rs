@@ -1,6 +1,6 @@
 //! The error type of every scene loader: it names the file and what is wrong with it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// A scene could not be loaded.
 ///
@@ -8,9 +8,10 @@ use std::path::PathBuf;
 /// the environment map's error...), so that a host can tell causes apart by walking the chain.
 #[derive(Debug)]
 pub struct SceneError {
-    /// The file that failed (the scene, or a buffer, image or volume it references).
-    pub path: PathBuf,
-    /// What went wrong.
+    /// The file that failed (the scene, or a buffer, image or volume it references). Boxed, as `at` in
+    /// [`SceneErrorKind::Volume`], to keep `Result<_, SceneError>` small.
+    pub path: Box<Path>,
+    /// What went wrong; its cause (if any) is the error's `source`.
     pub kind: SceneErrorKind,
 }
 
@@ -41,6 +42,15 @@ pub enum SceneErrorKind {
     /// An environment map the scene names could not be loaded.
     #[error("{0}")]
     Environment(#[from] crate::light::EnvironmentError),
+    /// A medium declared in the file could not be built: its parameters, its VDB file or its grids.
+    #[error("{at}: {source}")]
+    Volume {
+        /// Where the file declares it: the node, material or prim, and the key (`node 'smoke': nimbus_volume`).
+        at: Box<str>,
+        /// Why it could not be built.
+        #[source]
+        source: crate::volume::VolumeError,
+    },
     /// The file extension names no format Nimbus reads.
     #[error("unknown scene format (expected .gltf, .glb, .obj, .usd, .usda, .usdc or .usdz)")]
     UnknownFormat,
@@ -62,7 +72,7 @@ impl SceneError {
     /// An error about `path`.
     pub fn new(path: impl Into<PathBuf>, kind: SceneErrorKind) -> Self {
         Self {
-            path: path.into(),
+            path: path.into().into_boxed_path(),
             kind,
         }
     }

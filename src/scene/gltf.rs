@@ -26,6 +26,7 @@ use crate::light::{
 };
 use crate::material::{ColorSpace, Filter, Material, MipImage, Sampler, Texture, Wrap};
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
+use crate::params::parse_rgb;
 use gltf::json::validation::Validate;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -235,16 +236,19 @@ impl Loader<'_> {
         let Some(value) = extras.get("nimbus_volume") else {
             return Ok(());
         };
+        let volume_error = |source| {
+            self.error(SceneErrorKind::Volume {
+                at: format!("node '{name}': nimbus_volume").into(),
+                source,
+            })
+        };
         let mut spec = crate::volume::VolumeSpec::from_json(value, &name, &self.base, *world)
-            .map_err(|e| bad(format!("nimbus_volume: {e}")))?;
+            .map_err(volume_error)?;
         let file = value.get("file").and_then(|f| f.as_str());
         spec.embedded = file.and_then(|f| self.options.embedded_file(f));
         self.options.apply_volume_override(&mut spec);
-        self.builder.add_volume(&spec).map_err(|e| {
-            self.error(SceneErrorKind::InvalidReference(format!(
-                "node '{name}': nimbus_volume: {e}"
-            )))
-        })?;
+        let medium = crate::volume::load_grid_medium(&spec).map_err(volume_error)?;
+        self.builder.add_medium(medium);
         Ok(())
     }
 
@@ -491,8 +495,13 @@ impl Loader<'_> {
             let extras: serde_json::Value =
                 serde_json::from_str(raw.get()).map_err(|e| bad(format!("extras: {e}")))?;
             if let Some(spec) = extras.get("nimbus_medium") {
-                let medium = crate::volume::parse_nimbus_medium(spec, &m.name)
-                    .map_err(|e| bad(format!("nimbus_medium: {e}")))?;
+                let medium =
+                    crate::volume::parse_nimbus_medium(spec, &m.name).map_err(|source| {
+                        self.error(SceneErrorKind::Volume {
+                            at: format!("material '{}': nimbus_medium", m.name).into(),
+                            source,
+                        })
+                    })?;
                 return Ok(Some(self.builder.add_medium(medium)));
             }
         }
@@ -706,19 +715,6 @@ pub fn parse_environment(
         return Ok(EnvironmentLight::Map(Box::new(map)));
     }
     Err(malformed("expected 'color' or 'map'"))
-}
-
-/// Parses `[r, g, b]` with finite non-negative components.
-pub fn parse_rgb(value: &serde_json::Value) -> Option<Rgb> {
-    let a = value.as_array()?;
-    if a.len() != 3 {
-        return None;
-    }
-    let mut c = [0.0f32; 3];
-    for (i, v) in a.iter().enumerate() {
-        c[i] = v.as_f64().filter(|v| v.is_finite() && *v >= 0.0)? as f32;
-    }
-    Some(Rgb::from(c))
 }
 
 /// Converts strip and fan index lists to triangle lists (glTF 2.0 §3.7.2.1); degenerate triangles are dropped.

@@ -84,9 +84,18 @@ pub struct SceneBuilder {
 
 impl SceneBuilder {
     /// Loads the VDB volume `spec` describes and adds it as a position-filled medium; returns its index.
-    /// Errors name the VDB file (missing file or grid, unreadable grid).
+    /// Errors name the volume and the VDB file, with the [`crate::volume::VolumeError`] (missing file or grid,
+    /// unreadable grid) as a [`SceneErrorKind::Volume`].
     pub fn add_volume(&mut self, spec: &crate::volume::VolumeSpec) -> Result<u32, SceneError> {
-        let medium = crate::volume::load_grid_medium(spec)?;
+        let medium = crate::volume::load_grid_medium(spec).map_err(|source| {
+            SceneError::new(
+                builder::BUILDER_PATH,
+                SceneErrorKind::Volume {
+                    at: format!("volume '{}'", spec.name).into(),
+                    source,
+                },
+            )
+        })?;
         Ok(self.add_medium(medium))
     }
 

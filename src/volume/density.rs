@@ -5,6 +5,7 @@
 //! ([`DensityField::world_to_local`]). A ray mapped by that matrix without renormalising its direction keeps
 //! the same parameter `t`, so tracking can run entirely in local (for grids: index) space.
 
+use super::error::DensityError;
 use crate::math::{Aabb, Mat4, Ray, Vec3};
 use crate::vdb::{FloatTree, Grid, GridTree, RootSlot, NO_CHILD};
 use glam::{DMat4, IVec3};
@@ -144,13 +145,16 @@ impl GridDensity {
     /// Places `grid` (a scalar grid) in the scene under the node matrix `node_to_world` (column-vector
     /// convention). Errors if the grid is not scalar or its background is not zero (a density grid's
     /// outside must be empty).
-    pub fn new(grid: &Grid, node_to_world: DMat4, density_scale: f32) -> Result<Self, String> {
+    pub fn new(
+        grid: &Grid,
+        node_to_world: DMat4,
+        density_scale: f32,
+    ) -> Result<Self, DensityError> {
         Self::from_tree(
             grid.tree.clone(),
             node_to_world * grid.index_to_world,
             density_scale,
         )
-        .map_err(|e| format!("grid '{}': {e}", grid.name))
     }
 
     /// Builds the field from a shared tree and its full index-to-world matrix (column-vector convention).
@@ -158,25 +162,22 @@ impl GridDensity {
         tree: Arc<GridTree>,
         index_to_world: DMat4,
         density_scale: f32,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, DensityError> {
         let Some(t) = tree.as_float() else {
-            return Err("a density grid must be scalar".into());
+            return Err(DensityError::NotScalar);
         };
         if t.background != 0.0 {
-            return Err(format!(
-                "a density grid needs a zero background, found {}",
-                t.background
-            ));
+            return Err(DensityError::NonZeroBackground(t.background));
         }
         if !(density_scale.is_finite() && density_scale >= 0.0) {
-            return Err(format!("invalid density scale {density_scale}"));
+            return Err(DensityError::InvalidScale(density_scale));
         }
         let (tree, bad_values) = match sanitize(t) {
             Some((clean, counts)) => (Arc::new(GridTree::Float(clean)), counts),
             None => (tree, BadValues::default()),
         };
         let Some(t) = tree.as_float() else {
-            return Err("a density grid must be scalar".into());
+            return Err(DensityError::NotScalar);
         };
         // A trilinear lookup at x reads voxels floor(x) and floor(x) + 1, so a region [o, o + e) of voxels can
         // influence the continuous positions [o - 1, o + e).

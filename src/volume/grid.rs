@@ -14,12 +14,15 @@
 
 use super::density::{DensityField, GridDensity};
 use super::emission::BlackbodyTable;
+use super::error::VolumeError;
 use super::majorant::{MajorantKind, Majorants};
 use super::majorant_choice::{self, MajorantEstimate};
 use super::tracking::{ratio_tracking, residual_ratio_tracking, sample_collision};
-use super::{Collision, Medium, PhaseFunction, TrackingCounters, VolumeSpec};
+use super::{
+    Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
+    TransmittanceMethod, VolumeSpec,
+};
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
-use crate::scene::{SceneError, SceneErrorKind};
 use std::sync::Arc;
 
 /// The estimator used for shadow-ray transmittance.
@@ -29,6 +32,24 @@ pub enum ShadowEstimator {
     Ratio,
     /// Residual ratio tracking with the majorant segments' minorants as control.
     ResidualRatio,
+}
+
+impl ShadowEstimator {
+    /// Every estimator, in the order of [`ShadowEstimator::NAMES`].
+    pub const ALL: [ShadowEstimator; 2] = [Self::Ratio, Self::ResidualRatio];
+
+    /// The scene-file names (`"shadow_estimator"` key), in the order of [`ShadowEstimator::ALL`].
+    pub const NAMES: &'static [&'static str] = &["ratio", "residual_ratio"];
+
+    /// The scene-file name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+
+    /// The estimator of a scene-file name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|e| e.name() == name)
+    }
 }
 
 /// Temperature lookup and the blackbody table for an emitting grid.
@@ -104,39 +125,34 @@ impl GridMedium {
         &self.density
     }
 
-    /// Loads the grids `spec` names and builds the medium. Errors name the VDB file.
-    pub fn load(spec: &VolumeSpec) -> Result<Self, SceneError> {
-        let err = |m: String| SceneError::new(&spec.file, SceneErrorKind::InvalidReference(m));
-        let read = match spec.embedded {
+    /// Loads the grids `spec` names and builds the medium. Errors name the VDB file and the grid.
+    pub fn load(spec: &VolumeSpec) -> Result<Self, VolumeError> {
+        let file = match spec.embedded {
             Some(bytes) => crate::vdb::read_bytes(bytes, &spec.file),
             None => crate::vdb::read_file(&spec.file),
-        };
-        let file = read.map_err(|e| {
-            SceneError::new(
-                &spec.file,
-                SceneErrorKind::Malformed(format!("{} ({})", e.kind, spec.name)),
-            )
-        })?;
-        let find = |name: &str| {
-            file.grid(name).ok_or_else(|| {
-                let names: Vec<&str> = file.grids.iter().map(|g| g.name.as_str()).collect();
-                err(format!(
-                    "{}: no grid named '{name}' (the file has {names:?})",
-                    spec.name
-                ))
+        }?;
+        let place = |name: &str, scale: f32| {
+            let grid = file.grid(name).ok_or_else(|| VolumeError::GridMissing {
+                file: spec.file.clone(),
+                grid: name.to_owned(),
+                available: file.grids.iter().map(|g| g.name.clone()).collect(),
+            })?;
+            GridDensity::new(grid, spec.node_to_world.as_dmat4(), scale).map_err(|source| {
+                VolumeError::Density {
+                    file: spec.file.clone(),
+                    grid: name.to_owned(),
+                    source,
+                }
             })
         };
-        let node = spec.node_to_world.as_dmat4();
-        let density = GridDensity::new(find(&spec.density_grid)?, node, spec.density_scale)
-            .map_err(|e| err(format!("{}: {e}", spec.name)))?;
+        let density = place(&spec.density_grid, spec.density_scale)?;
         let medium = match spec.majorant {
             Some(kind) => Self::new(&spec.name, density, kind, spec.albedo, spec.anisotropy),
             None => Self::with_chosen_majorants(&spec.name, density, spec.albedo, spec.anisotropy),
         };
         let mut medium = medium.with_shadow_estimator(spec.shadow_estimator);
         if let Some(t) = &spec.temperature_grid {
-            let temperature = GridDensity::new(find(t)?, node, 1.0)
-                .map_err(|e| err(format!("{}: {e}", spec.name)))?;
+            let temperature = place(t, 1.0)?;
             medium.emission = Some(Emission {
                 temperature,
                 table: BlackbodyTable::new(),
@@ -154,44 +170,22 @@ impl Medium for GridMedium {
         &self.name
     }
 
-    fn method(&self) -> String {
-        let majorant = match self.majorants.kind() {
-            MajorantKind::Global => "a global majorant",
-            MajorantKind::Grid16 => "a 16^3 majorant grid",
-            MajorantKind::Adaptive => "adaptive majorants",
-        };
-        let shadow = match self.shadow {
-            ShadowEstimator::Ratio => "ratio tracking",
-            ShadowEstimator::ResidualRatio => "residual ratio tracking",
-        };
-        let why = if self.majorant_estimates.is_empty() {
-            " (as requested)".to_string()
-        } else {
-            let costs: Vec<String> = self
-                .majorant_estimates
-                .iter()
-                .map(|e| {
-                    format!(
-                        "{} {:.0} ({:.1} lookups, {:.1} cells)",
-                        e.kind.name(),
-                        e.cost_ns,
-                        e.lookups_per_ray,
-                        e.cells_per_ray
-                    )
-                })
-                .collect();
-            format!(
-                " (auto: cheapest in a {}-ray pilot, estimated ns per ray: {})",
-                majorant_choice::PILOT_RAYS,
-                costs.join(", ")
-            )
-        };
-        let closed_form = if self.majorants.stores_minorants() {
-            ", closed form on constant-density segments"
-        } else {
-            ""
-        };
-        format!("delta tracking over {majorant}{why}{closed_form}; {shadow} for shadow rays")
+    fn method(&self) -> MediumMethod {
+        MediumMethod {
+            free_flight: FreeFlight::DeltaTracking {
+                closed_form_segments: self.majorants.stores_minorants(),
+            },
+            majorant: Some(self.majorants.kind()),
+            shadow: match self.shadow {
+                ShadowEstimator::Ratio => TransmittanceMethod::RatioTracking,
+                ShadowEstimator::ResidualRatio => TransmittanceMethod::ResidualRatioTracking,
+            },
+            why: if self.majorant_estimates.is_empty() {
+                MethodReason::Requested
+            } else {
+                MethodReason::Pilot(self.majorant_estimates.clone())
+            },
+        }
     }
 
     fn memory_bytes(&self) -> usize {
@@ -307,6 +301,6 @@ impl Medium for GridMedium {
 }
 
 /// Loads the VDB file of `spec` and builds its grid medium.
-pub fn load_grid_medium(spec: &VolumeSpec) -> Result<Arc<dyn Medium>, SceneError> {
+pub fn load_grid_medium(spec: &VolumeSpec) -> Result<Arc<dyn Medium>, VolumeError> {
     Ok(Arc::new(GridMedium::load(spec)?))
 }

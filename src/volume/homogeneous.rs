@@ -18,7 +18,10 @@
 //! [`ChannelChoice`] overrides the automatic pick, so that benchmarks (`cargo bench --bench method_choices`) can
 //! measure what each choice wins: forced spectral MIS on a grey medium, or a uniform channel choice.
 
-use super::{Collision, Medium, PhaseFunction, TrackingCounters};
+use super::{
+    ChannelSampling, Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction,
+    TrackingCounters, TransmittanceMethod,
+};
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 
 /// How free-flight sampling picks the channel whose exponential it samples.
@@ -97,19 +100,32 @@ impl Medium for HomogeneousMedium {
         &self.name
     }
 
-    fn method(&self) -> String {
-        if self.is_absorbing_only() {
-            "closed-form transmittance exp(-sigma_a d), no collisions sampled (absorption only: sigma_s = 0)"
-                .into()
+    fn method(&self) -> MediumMethod {
+        let (free_flight, why) = if self.is_absorbing_only() {
+            (FreeFlight::None, MethodReason::AbsorptionOnly)
         } else if self.samples_single_channel() {
-            "closed-form free flight, one exponential for all channels (grey sigma_t: no spectral MIS)".into()
+            (FreeFlight::ClosedForm, MethodReason::GreyExtinction)
         } else {
-            let why = match (self.channel_choice, self.is_grey()) {
-                (ChannelChoice::Uniform, _) => "uniform channel choice (forced)",
-                (_, true) => "channel by path throughput (forced on grey sigma_t)",
-                (_, false) => "channel by path throughput (chromatic sigma_t)",
-            };
-            format!("closed-form free flight, spectral MIS over channels, {why}")
+            match (self.channel_choice, self.is_grey()) {
+                (ChannelChoice::Uniform, _) => (
+                    FreeFlight::SpectralMis(ChannelSampling::Uniform),
+                    MethodReason::Forced,
+                ),
+                (_, true) => (
+                    FreeFlight::SpectralMis(ChannelSampling::Throughput),
+                    MethodReason::Forced,
+                ),
+                (_, false) => (
+                    FreeFlight::SpectralMis(ChannelSampling::Throughput),
+                    MethodReason::ChromaticExtinction,
+                ),
+            }
+        };
+        MediumMethod {
+            free_flight,
+            majorant: None,
+            shadow: TransmittanceMethod::ClosedForm,
+            why,
         }
     }
 
@@ -305,14 +321,41 @@ mod tests {
 
     #[test]
     fn method_says_which_estimator_and_why() {
+        let method = |m: &HomogeneousMedium| {
+            let method = m.method();
+            let text = method.to_string();
+            (method.free_flight, method.why, text)
+        };
         let absorbing = HomogeneousMedium::new("a", Rgb::ONE, Rgb::ZERO, 0.0);
-        assert!(absorbing.method().contains("absorption only"));
+        let (free_flight, why, text) = method(&absorbing);
+        assert_eq!(
+            (free_flight, why),
+            (FreeFlight::None, MethodReason::AbsorptionOnly)
+        );
+        assert!(text.contains("absorption only"), "{text}");
         let grey = HomogeneousMedium::new("g", Rgb::ZERO, Rgb::ONE, 0.0);
-        assert!(grey.method().contains("no spectral MIS"));
+        let (free_flight, why, text) = method(&grey);
+        assert_eq!(
+            (free_flight, why),
+            (FreeFlight::ClosedForm, MethodReason::GreyExtinction)
+        );
+        assert!(text.contains("no spectral MIS"), "{text}");
         let forced = grey.clone().with_channel_choice(ChannelChoice::Throughput);
-        assert!(forced.method().contains("forced on grey"));
+        let (free_flight, why, text) = method(&forced);
+        let throughput = FreeFlight::SpectralMis(ChannelSampling::Throughput);
+        assert_eq!((free_flight, why), (throughput, MethodReason::Forced));
+        assert!(text.contains("forced on grey"), "{text}");
+        let uniform = grey.clone().with_channel_choice(ChannelChoice::Uniform);
+        let (free_flight, why, _) = method(&uniform);
+        let uniform_mis = FreeFlight::SpectralMis(ChannelSampling::Uniform);
+        assert_eq!((free_flight, why), (uniform_mis, MethodReason::Forced));
         let chromatic = HomogeneousMedium::new("c", Rgb::ZERO, Rgb::new(1.0, 10.0, 100.0), 0.0);
-        assert!(chromatic.method().contains("chromatic sigma_t"));
+        let (free_flight, why, text) = method(&chromatic);
+        assert_eq!(
+            (free_flight, why),
+            (throughput, MethodReason::ChromaticExtinction)
+        );
+        assert!(text.contains("chromatic sigma_t"), "{text}");
     }
 
     #[test]

@@ -20,17 +20,24 @@
 
 pub mod density;
 pub mod emission;
+pub mod error;
 pub mod grid;
 pub mod homogeneous;
 pub mod majorant;
 pub mod majorant_choice;
+pub mod method;
 pub mod noise;
 pub mod phase;
 pub mod spec;
 pub mod tracking;
 
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
+use crate::params::{
+    JsonParams, ParamDefault, ParamError, ParamKey, ParamRead, ParamType, UsdBinding,
+};
+pub use error::{DensityError, VolumeError};
 pub use grid::load_grid_medium;
+pub use method::{ChannelSampling, FreeFlight, MediumMethod, MethodReason, TransmittanceMethod};
 pub use phase::PhaseFunction;
 pub use spec::VolumeSpec;
 pub use tracking::TrackingCounters;
@@ -51,8 +58,8 @@ pub trait Medium: Send + Sync {
     /// Name for statistics and messages (the glTF node or material).
     fn name(&self) -> &str;
 
-    /// The method used, as reported by `--stats` (e.g. "closed-form", "delta-tracking/adaptive").
-    fn method(&self) -> String;
+    /// The method used and why, as reported by `--explain` (its `Display`) and `--stats`.
+    fn method(&self) -> MediumMethod;
 
     /// Bytes held by the medium's own data (grids, majorants).
     fn memory_bytes(&self) -> usize {
@@ -108,56 +115,96 @@ pub trait Medium: Send + Sync {
     ) -> Rgb;
 }
 
-/// Parses a material's `extras.nimbus_medium`: `{"sigma_a": [r,g,b], "sigma_s": [r,g,b], "anisotropy": g}`
-/// (a homogeneous medium; defaults 0, 0, 0) or `{"noise": {"scale": s, "max_density": d, "seed": n}}` (the
-/// absorption-only Perlin-noise medium). Errors say which key is wrong.
+const NO_USD: UsdBinding = UsdBinding::Elsewhere("none (glTF only)");
+
+const SIGMA_A: ParamKey = ParamKey {
+    name: "sigma_a",
+    ty: ParamType::Rgb,
+    default: ParamDefault::Rgb([0.0; 3]),
+    doc: "absorption coefficient per metre (homogeneous medium)",
+    usd: NO_USD,
+};
+const SIGMA_S: ParamKey = ParamKey {
+    name: "sigma_s",
+    ty: ParamType::Rgb,
+    default: ParamDefault::Rgb([0.0; 3]),
+    doc: "scattering coefficient per metre (homogeneous medium)",
+    usd: NO_USD,
+};
+const ANISOTROPY: ParamKey = ParamKey {
+    name: "anisotropy",
+    ty: ParamType::Number,
+    default: ParamDefault::Number(0.0),
+    doc: "Henyey–Greenstein g, in (−1, 1)",
+    usd: NO_USD,
+};
+const NOISE_SCALE: ParamKey = ParamKey {
+    name: "scale",
+    ty: ParamType::NonNegative,
+    default: ParamDefault::Number(1.0),
+    doc: "noise frequency per metre",
+    usd: NO_USD,
+};
+const NOISE_MAX_DENSITY: ParamKey = ParamKey {
+    name: "max_density",
+    ty: ParamType::NonNegative,
+    default: ParamDefault::Number(1.0),
+    doc: "the largest σ_a per metre",
+    usd: NO_USD,
+};
+const NOISE_SEED: ParamKey = ParamKey {
+    name: "seed",
+    ty: ParamType::NonNegative,
+    default: ParamDefault::Number(0.0),
+    doc: "the noise's permutation seed (an integer)",
+    usd: NO_USD,
+};
+/// The keys of `nimbus_medium.noise`.
+const NOISE_KEYS: &[ParamKey] = &[NOISE_SCALE, NOISE_MAX_DENSITY, NOISE_SEED];
+const NOISE: ParamKey = ParamKey {
+    name: "noise",
+    ty: ParamType::Object(NOISE_KEYS),
+    default: ParamDefault::Unset,
+    doc: "instead of the above: the absorption-only Perlin-noise medium",
+    usd: NO_USD,
+};
+
+/// The keys of a material's `extras.nimbus_medium` (a closed mesh's interior), in the README's order.
+pub const MEDIUM_KEYS: &[ParamKey] = &[SIGMA_A, SIGMA_S, ANISOTROPY, NOISE];
+
+/// Parses a material's `extras.nimbus_medium` ([`MEDIUM_KEYS`]): `{"sigma_a": [r,g,b], "sigma_s": [r,g,b],
+/// "anisotropy": g}` (a homogeneous medium; defaults 0, 0, 0) or `{"noise": {"scale": s, "max_density": d,
+/// "seed": n}}` (the absorption-only Perlin-noise medium). Errors say which key is wrong.
 pub fn parse_nimbus_medium(
     spec: &serde_json::Value,
     name: &str,
-) -> Result<std::sync::Arc<dyn Medium>, String> {
-    let number = |key: &str, default: f64| -> Result<f64, String> {
-        match spec.get(key) {
-            None => Ok(default),
-            Some(v) => v
-                .as_f64()
-                .filter(|v| v.is_finite())
-                .ok_or(format!("'{key}' must be a number")),
-        }
-    };
-    if let Some(noise) = spec.get("noise") {
-        let get = |key: &str, default: f64| -> Result<f64, String> {
-            match noise.get(key) {
-                None => Ok(default),
-                Some(v) => v
-                    .as_f64()
-                    .filter(|v| v.is_finite() && *v >= 0.0)
-                    .ok_or(format!("noise '{key}' must be a non-negative number")),
-            }
+) -> Result<std::sync::Arc<dyn Medium>, VolumeError> {
+    let params = JsonParams::new(spec);
+    if let Some(noise) = params.nested(&NOISE)? {
+        let get = |key: &ParamKey, default: f64| -> Result<f64, ParamError> {
+            Ok(noise.number_f64(key)?.unwrap_or(default))
         };
         let medium = noise::NoiseMedium::new(
             name,
-            get("scale", 1.0)? as f32,
-            get("max_density", 1.0)? as f32,
-            get("seed", 0.0)? as u64,
+            get(&NOISE_SCALE, 1.0)? as f32,
+            get(&NOISE_MAX_DENSITY, 1.0)? as f32,
+            get(&NOISE_SEED, 0.0)? as u64,
         );
         return Ok(std::sync::Arc::new(medium));
     }
-    let rgb = |key: &str| -> Result<Rgb, String> {
-        match spec.get(key) {
-            None => Ok(Rgb::ZERO),
-            Some(v) => crate::scene::gltf::parse_rgb(v).ok_or(format!(
-                "'{key}' must be three non-negative numbers per metre"
-            )),
-        }
-    };
-    let g = number("anisotropy", 0.0)?;
+    let g = params.number_f64(&ANISOTROPY)?.unwrap_or(0.0);
     if g.abs() >= 1.0 {
-        return Err(format!("'anisotropy' {g} must lie in (-1, 1)"));
+        return Err(ParamError::OutOfRange {
+            key: ANISOTROPY.name.to_owned(),
+            value: g.to_string(),
+            constraint: "lie in (-1, 1)",
+        }
+        .into());
     }
     Ok(std::sync::Arc::new(homogeneous::HomogeneousMedium::new(
         name,
-        rgb("sigma_a")?,
-        rgb("sigma_s")?,
+        params.rgb(&SIGMA_A)?.unwrap_or(Rgb::ZERO),
+        params.rgb(&SIGMA_S)?.unwrap_or(Rgb::ZERO),
         g as f32,
     )))
 }

@@ -9,7 +9,11 @@
 //! estimated by ratio tracking (Cramer 1978; Novák, Selle, Jarosz 2014, eq. 6) with the constant majorant `d`,
 //! and Russian roulette once the running estimate falls below 0.1.
 
-use super::{Collision, Medium, PhaseFunction, TrackingCounters};
+use super::majorant::MajorantKind;
+use super::{
+    Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
+    TransmittanceMethod,
+};
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 
 /// Perlin's improved gradient noise with a seeded permutation.
@@ -166,8 +170,14 @@ impl Medium for NoiseMedium {
         &self.name
     }
 
-    fn method(&self) -> String {
-        "ratio-tracked transmittance, no collisions (absorption only; one majorant, the noise's maximum)".into()
+    fn method(&self) -> MediumMethod {
+        // One majorant: the noise's maximum.
+        MediumMethod {
+            free_flight: FreeFlight::None,
+            majorant: Some(MajorantKind::Global),
+            shadow: TransmittanceMethod::RatioTracking,
+            why: MethodReason::AbsorptionOnly,
+        }
     }
 
     fn fill_bounds(&self) -> Option<Aabb> {

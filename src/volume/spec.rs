@@ -1,22 +1,120 @@
 //! The declaration of a VDB volume, shared by every scene format: glTF's node `extras.nimbus_volume` and USD's
 //! `Volume` prims with `nimbus:` attributes.
 //!
-//! Keys (glTF) / attributes (USD, prefixed `nimbus:`), all but `file` optional:
-//! - `file`: the VDB file, relative to the scene file that names it;
-//! - `density_grid` (default `"density"`), `density_scale` (1): σ_t(x) = density_scale · ρ(x) per world metre,
-//!   ρ the trilinear lookup (OpenVDB BoxSampler convention);
-//! - `albedo` (\[1, 1, 1\]): σ_s = albedo · σ_t, σ_a = σ_t − σ_s; each component in \[0, 1\];
-//! - `anisotropy` (0): Henyey–Greenstein g, |g| < 1;
-//! - `temperature_grid` (none), `emission_scale` (1), `temperature_scale` (1), `temperature_offset` (0):
-//!   emission σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
-//!   normalised RGB (pbrt-v4's convention for grid media).
+//! The keys are one table, [`VOLUME_KEYS`] (name, type, default, meaning, USD attribute): both loaders read
+//! through it ([`VolumeSpec::read_params`]) and the README's key table is generated from it (a test keeps them
+//! in agreement). σ_t(x) = density_scale · ρ(x) per world metre, ρ the trilinear lookup (OpenVDB BoxSampler
+//! convention); σ_s = albedo · σ_t, σ_a = σ_t − σ_s; emission σ_a · L_e with L_e = emission_scale ·
+//! blackbody(temperature_scale · T(x) + temperature_offset), normalised RGB (pbrt-v4's convention for grid
+//! media).
 //!
 //! Placement: index space → the VDB's own index-to-world matrix → the node's world matrix.
 
+use super::error::VolumeError;
 use super::grid::ShadowEstimator;
 use super::majorant::MajorantKind;
 use crate::math::{Mat4, Rgb};
+use crate::params::{
+    JsonParams, ParamDefault, ParamError, ParamKey, ParamRead, ParamSource, ParamType, UsdBinding,
+};
 use std::path::PathBuf;
+
+/// The `"majorant"` names: `auto`, then every [`MajorantKind::name`] (a test keeps them in agreement).
+const MAJORANT_CHOICES: &[&str] = &["auto", "global", "grid16", "adaptive"];
+
+const FILE: ParamKey = ParamKey {
+    name: "file",
+    ty: ParamType::Text,
+    default: ParamDefault::Required,
+    doc: "the VDB file, relative to the scene file that names it",
+    usd: UsdBinding::Elsewhere("`filePath` of the `field:density` asset"),
+};
+const DENSITY_GRID: ParamKey = ParamKey {
+    name: "density_grid",
+    ty: ParamType::Text,
+    default: ParamDefault::Text("density"),
+    doc: "the grid holding density ρ",
+    usd: UsdBinding::Elsewhere("`fieldName` of the `field:density` asset"),
+};
+const DENSITY_SCALE: ParamKey = ParamKey {
+    name: "density_scale",
+    ty: ParamType::Number,
+    default: ParamDefault::Number(1.0),
+    doc: "σ_t = density_scale · ρ per world metre; ≥ 0",
+    usd: UsdBinding::Attribute,
+};
+const ALBEDO: ParamKey = ParamKey {
+    name: "albedo",
+    ty: ParamType::GreyOrRgb,
+    default: ParamDefault::Rgb([1.0; 3]),
+    doc: "σ_s = albedo · σ_t; each component in [0, 1]",
+    usd: UsdBinding::Attribute,
+};
+const ANISOTROPY: ParamKey = ParamKey {
+    name: "anisotropy",
+    ty: ParamType::Number,
+    default: ParamDefault::Number(0.0),
+    doc: "Henyey–Greenstein g, in (−1, 1)",
+    usd: UsdBinding::Attribute,
+};
+const TEMPERATURE_GRID: ParamKey = ParamKey {
+    name: "temperature_grid",
+    ty: ParamType::Text,
+    default: ParamDefault::Unset,
+    doc: "the grid holding temperature T, for blackbody emission",
+    usd: UsdBinding::Elsewhere("`fieldName` of the `field:temperature` asset"),
+};
+const EMISSION_SCALE: ParamKey = ParamKey {
+    name: "emission_scale",
+    ty: ParamType::Number,
+    default: ParamDefault::Number(1.0),
+    doc: "multiplies the blackbody emission; ≥ 0",
+    usd: UsdBinding::Attribute,
+};
+const TEMPERATURE_SCALE: ParamKey = ParamKey {
+    name: "temperature_scale",
+    ty: ParamType::Number,
+    default: ParamDefault::Number(1.0),
+    doc: "Kelvin = temperature_scale · T + temperature_offset; ≥ 0",
+    usd: UsdBinding::Attribute,
+};
+const TEMPERATURE_OFFSET: ParamKey = ParamKey {
+    name: "temperature_offset",
+    ty: ParamType::Number,
+    default: ParamDefault::Number(0.0),
+    doc: "Kelvin added to the scaled temperature",
+    usd: UsdBinding::Attribute,
+};
+const MAJORANT: ParamKey = ParamKey {
+    name: "majorant",
+    ty: ParamType::Choice(MAJORANT_CHOICES),
+    default: ParamDefault::Text("auto"),
+    doc: "majorant structure for tracking; `auto` picks the cheapest by a fixed-seed pilot",
+    usd: UsdBinding::Elsewhere("not read (auto)"),
+};
+const SHADOW_ESTIMATOR: ParamKey = ParamKey {
+    name: "shadow_estimator",
+    ty: ParamType::Choice(ShadowEstimator::NAMES),
+    default: ParamDefault::Text("ratio"),
+    doc: "shadow-ray transmittance: ratio or residual ratio tracking",
+    usd: UsdBinding::Elsewhere("not read (ratio)"),
+};
+
+/// The keys of a VDB volume declaration (glTF `extras.nimbus_volume`, USD `Volume` prims), in the README's
+/// order.
+pub const VOLUME_KEYS: &[ParamKey] = &[
+    FILE,
+    DENSITY_GRID,
+    DENSITY_SCALE,
+    ALBEDO,
+    ANISOTROPY,
+    TEMPERATURE_GRID,
+    EMISSION_SCALE,
+    TEMPERATURE_SCALE,
+    TEMPERATURE_OFFSET,
+    MAJORANT,
+    SHADOW_ESTIMATOR,
+];
 
 /// A VDB volume to place in the scene.
 #[derive(Clone, Debug, PartialEq)]
@@ -74,32 +172,80 @@ impl VolumeSpec {
     }
 
     /// Checks the parameters: albedo in \[0, 1\], |g| < 1, finite non-negative scales.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let out_of_range = |key: &ParamKey, value: String, constraint| ParamError::OutOfRange {
+            key: key.name.to_owned(),
+            value,
+            constraint,
+        };
         if !(self.albedo.cmpge(Rgb::ZERO).all() && self.albedo.cmple(Rgb::ONE).all()) {
-            return Err(format!(
-                "albedo {:?} must lie in [0, 1]",
-                self.albedo.to_array()
+            return Err(out_of_range(
+                &ALBEDO,
+                format!("{:?}", self.albedo.to_array()),
+                "lie in [0, 1]",
             ));
         }
         if self.anisotropy.is_nan() || self.anisotropy.abs() >= 1.0 {
-            return Err(format!(
-                "anisotropy {} must lie in (-1, 1)",
-                self.anisotropy
+            return Err(out_of_range(
+                &ANISOTROPY,
+                self.anisotropy.to_string(),
+                "lie in (-1, 1)",
             ));
         }
         for (key, v) in [
-            ("density_scale", self.density_scale),
-            ("emission_scale", self.emission_scale),
-            ("temperature_scale", self.temperature_scale),
+            (&DENSITY_SCALE, self.density_scale),
+            (&EMISSION_SCALE, self.emission_scale),
+            (&TEMPERATURE_SCALE, self.temperature_scale),
         ] {
             if !v.is_finite() || v < 0.0 {
-                return Err(format!("{key} {v} must be a finite non-negative number"));
+                return Err(out_of_range(
+                    key,
+                    v.to_string(),
+                    "be a finite non-negative number",
+                ));
             }
         }
         if !self.temperature_offset.is_finite() {
-            return Err("temperature_offset must be finite".into());
+            return Err(out_of_range(
+                &TEMPERATURE_OFFSET,
+                self.temperature_offset.to_string(),
+                "be finite",
+            ));
         }
         Ok(())
+    }
+
+    /// Reads every key of [`VOLUME_KEYS`] but `file` that `params` gives, leaving the others as they are, then
+    /// validates. glTF gives every key; a USD prim gives its `nimbus:` attributes (the grids come from its
+    /// field relationships).
+    pub fn read_params(&mut self, params: &impl ParamSource) -> Result<(), ParamError> {
+        if let Some(g) = params.text(&DENSITY_GRID)? {
+            self.density_grid = g;
+        }
+        if let Some(g) = params.text(&TEMPERATURE_GRID)? {
+            self.temperature_grid = Some(g);
+        }
+        for (key, field) in [
+            (&DENSITY_SCALE, &mut self.density_scale),
+            (&ANISOTROPY, &mut self.anisotropy),
+            (&EMISSION_SCALE, &mut self.emission_scale),
+            (&TEMPERATURE_SCALE, &mut self.temperature_scale),
+            (&TEMPERATURE_OFFSET, &mut self.temperature_offset),
+        ] {
+            if let Some(v) = params.number(key)? {
+                *field = v;
+            }
+        }
+        if let Some(a) = params.rgb(&ALBEDO)? {
+            self.albedo = a;
+        }
+        if let Some(m) = params.text(&MAJORANT)? {
+            self.majorant = MajorantKind::ALL.into_iter().find(|k| k.name() == m);
+        }
+        if let Some(m) = params.text(&SHADOW_ESTIMATOR)? {
+            self.shadow_estimator = ShadowEstimator::from_name(&m).unwrap_or(self.shadow_estimator);
+        }
+        self.validate()
     }
 
     /// Reads glTF's `extras.nimbus_volume` object; `base` is the glTF file's folder.
@@ -108,82 +254,11 @@ impl VolumeSpec {
         name: &str,
         base: &std::path::Path,
         node_to_world: Mat4,
-    ) -> Result<Self, String> {
-        let file = value
-            .get("file")
-            .and_then(|f| f.as_str())
-            .ok_or("'file' (the VDB path) is required")?;
+    ) -> Result<Self, VolumeError> {
+        let params = JsonParams::new(value);
+        let file = params.required_text(&FILE)?;
         let mut spec = Self::new(name, base.join(file), node_to_world);
-        let number = |key: &str| -> Result<Option<f32>, String> {
-            match value.get(key) {
-                None => Ok(None),
-                Some(v) => v
-                    .as_f64()
-                    .filter(|v| v.is_finite())
-                    .map(|v| Some(v as f32))
-                    .ok_or(format!("'{key}' must be a number")),
-            }
-        };
-        let string = |key: &str| -> Result<Option<String>, String> {
-            match value.get(key) {
-                None => Ok(None),
-                Some(v) => v
-                    .as_str()
-                    .map(|s| Some(s.to_owned()))
-                    .ok_or(format!("'{key}' must be a string")),
-            }
-        };
-        if let Some(g) = string("density_grid")? {
-            spec.density_grid = g;
-        }
-        spec.temperature_grid = string("temperature_grid")?;
-        if let Some(v) = number("density_scale")? {
-            spec.density_scale = v;
-        }
-        if let Some(v) = number("anisotropy")? {
-            spec.anisotropy = v;
-        }
-        if let Some(v) = number("emission_scale")? {
-            spec.emission_scale = v;
-        }
-        if let Some(v) = number("temperature_scale")? {
-            spec.temperature_scale = v;
-        }
-        if let Some(v) = number("temperature_offset")? {
-            spec.temperature_offset = v;
-        }
-        if let Some(m) = string("majorant")? {
-            spec.majorant = match m.as_str() {
-                "auto" => None,
-                "adaptive" => Some(MajorantKind::Adaptive),
-                "grid16" => Some(MajorantKind::Grid16),
-                "global" => Some(MajorantKind::Global),
-                other => {
-                    return Err(format!(
-                        "'majorant' {other:?} is not auto, adaptive, grid16 or global"
-                    ))
-                }
-            };
-        }
-        if let Some(m) = string("shadow_estimator")? {
-            spec.shadow_estimator = match m.as_str() {
-                "ratio" => ShadowEstimator::Ratio,
-                "residual_ratio" => ShadowEstimator::ResidualRatio,
-                other => {
-                    return Err(format!(
-                        "'shadow_estimator' {other:?} is not ratio or residual_ratio"
-                    ))
-                }
-            };
-        }
-        if let Some(a) = value.get("albedo") {
-            spec.albedo = match a.as_f64() {
-                Some(x) => Rgb::splat(x as f32),
-                None => crate::scene::gltf::parse_rgb(a)
-                    .ok_or("'albedo' must be a number or [r, g, b]")?,
-            };
-        }
-        spec.validate()?;
+        spec.read_params(&params)?;
         Ok(spec)
     }
 }
@@ -208,7 +283,10 @@ mod tests {
             ),
             ("density", 1.0, Rgb::ONE, 0.0)
         );
-        assert!(VolumeSpec::from_json(&json!({}), "n", base, Mat4::IDENTITY).is_err());
+        assert!(matches!(
+            VolumeSpec::from_json(&json!({}), "n", base, Mat4::IDENTITY),
+            Err(VolumeError::Param(ParamError::Missing { .. }))
+        ));
         assert!(VolumeSpec::from_json(
             &json!({"file": "a", "albedo": [1.2, 0, 0]}),
             "n",
@@ -237,5 +315,42 @@ mod tests {
             ),
             (10.0, 2.0, 3.0, 4.0)
         );
+    }
+
+    #[test]
+    fn majorant_choices_are_the_kinds_names() {
+        let names: Vec<&str> = MajorantKind::ALL.iter().map(|k| k.name()).collect();
+        assert_eq!(MAJORANT_CHOICES[0], "auto");
+        assert_eq!(&MAJORANT_CHOICES[1..], names.as_slice());
+        let base = std::path::Path::new("/");
+        for kind in MajorantKind::ALL {
+            let v =
+                json!({"file": "a", "majorant": kind.name(), "shadow_estimator": "residual_ratio"});
+            let s = VolumeSpec::from_json(&v, "n", base, Mat4::IDENTITY).unwrap();
+            assert_eq!(s.majorant, Some(kind));
+            assert_eq!(s.shadow_estimator, ShadowEstimator::ResidualRatio);
+        }
+        let v = json!({"file": "a", "majorant": "grid8"});
+        let e = VolumeSpec::from_json(&v, "n", base, Mat4::IDENTITY).unwrap_err();
+        assert!(
+            matches!(e, VolumeError::Param(ParamError::UnknownChoice { .. })),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn readme_key_tables_are_the_code_tables() {
+        let readme =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        for (what, keys) in [
+            ("nimbus_volume", VOLUME_KEYS),
+            ("nimbus_medium", super::super::MEDIUM_KEYS),
+        ] {
+            let table = crate::params::markdown_table(keys);
+            assert!(
+                readme.contains(&table),
+                "README's {what} key table is not the code's; it should read:\n{table}"
+            );
+        }
     }
 }

@@ -79,7 +79,16 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
     let (mut builder, volumes) = read(path)?;
     for mut spec in volumes {
         options.apply_volume_override(&mut spec);
-        builder.add_volume(&spec)?;
+        let medium = crate::volume::load_grid_medium(&spec).map_err(|source| {
+            SceneError::new(
+                path,
+                SceneErrorKind::Volume {
+                    at: spec.name.as_str().into(),
+                    source,
+                },
+            )
+        })?;
+        builder.add_medium(medium);
     }
     Ok(builder)
 }

@@ -1,11 +1,67 @@
-//! UsdVol: `Volume` prims with `OpenVDBAsset` fields, and the `nimbus:` attributes of [`VolumeSpec`].
+//! UsdVol: `Volume` prims with `OpenVDBAsset` fields, and the `nimbus:` attributes of
+//! [`VOLUME_KEYS`](crate::volume::spec::VOLUME_KEYS), read through the same table as glTF's keys.
 
 use super::values::{number, token, vec3};
 use super::Loader;
 use crate::math::{Mat4, Rgb};
-use crate::scene::SceneError;
+use crate::params::{ParamError, ParamKey, ParamSource, ParamType, ParamValue, UsdBinding};
+use crate::scene::{SceneError, SceneErrorKind};
 use crate::volume::VolumeSpec;
-use openusd::usd;
+use openusd::{sdf, usd};
+
+/// A prim's `nimbus:` attributes as a parameter source: keys bound to [`UsdBinding::Attribute`] are read from
+/// `nimbus:<key>`, the others are not given.
+struct UsdParams<'a>(&'a usd::Prim);
+
+impl ParamSource for UsdParams<'_> {
+    fn spelling(&self, key: &ParamKey) -> String {
+        format!("nimbus:{}", key.name)
+    }
+
+    fn get(&self, key: &ParamKey) -> Result<Option<ParamValue>, ParamError> {
+        if key.usd != UsdBinding::Attribute {
+            return Ok(None);
+        }
+        let value = self
+            .0
+            .attribute(self.spelling(key))
+            .get::<sdf::Value>()
+            .map_err(|e| ParamError::Unreadable {
+                key: self.spelling(key),
+                message: format!("{e:#}"),
+            })?;
+        let Some(v) = value else {
+            return Ok(None);
+        };
+        let finite = number(&v).filter(|x| x.is_finite());
+        let converted = match key.ty {
+            ParamType::Number => finite.map(ParamValue::Number),
+            ParamType::NonNegative => finite.filter(|x| *x >= 0.0).map(ParamValue::Number),
+            ParamType::Rgb => vec3(&v)
+                .filter(|c| c.is_finite() && c.min_element() >= 0.0)
+                .map(ParamValue::Rgb),
+            ParamType::GreyOrRgb => vec3(&v)
+                .or_else(|| number(&v).map(|a| Rgb::splat(a as f32)))
+                .map(ParamValue::Rgb),
+            ParamType::Text => token(&v).map(ParamValue::Text),
+            ParamType::Choice(names) => match token(&v) {
+                Some(t) if !names.contains(&t.as_str()) => {
+                    return Err(ParamError::UnknownChoice {
+                        key: self.spelling(key),
+                        value: t,
+                        choices: names,
+                    })
+                }
+                t => t.map(ParamValue::Text),
+            },
+            ParamType::Object(_) => None,
+        };
+        converted.map(Some).ok_or_else(|| ParamError::WrongType {
+            key: self.spelling(key),
+            expected: key.ty.describe(),
+        })
+    }
+}
 
 impl Loader<'_> {
     pub(super) fn volume(&mut self, prim: &usd::Prim, world: &Mat4) -> Result<(), SceneError> {
@@ -63,20 +119,15 @@ impl Loader<'_> {
             }
             spec.temperature_grid = Some(t_grid);
         }
-        spec.density_scale = self.float(prim, "nimbus:density_scale", spec.density_scale)?;
-        spec.albedo = match self.value(prim, "nimbus:albedo")? {
-            None => spec.albedo,
-            Some(v) => vec3(&v)
-                .or_else(|| number(&v).map(|a| Rgb::splat(a as f32)))
-                .ok_or_else(|| self.error(&at, "nimbus:albedo must be a color3f or a float"))?,
-        };
-        spec.anisotropy = self.float(prim, "nimbus:anisotropy", spec.anisotropy)?;
-        spec.emission_scale = self.float(prim, "nimbus:emission_scale", spec.emission_scale)?;
-        spec.temperature_scale =
-            self.float(prim, "nimbus:temperature_scale", spec.temperature_scale)?;
-        spec.temperature_offset =
-            self.float(prim, "nimbus:temperature_offset", spec.temperature_offset)?;
-        spec.validate().map_err(|m| self.error(&at, m))?;
+        spec.read_params(&UsdParams(prim)).map_err(|e| {
+            SceneError::new(
+                self.path,
+                SceneErrorKind::Volume {
+                    at: at.as_str().into(),
+                    source: e.into(),
+                },
+            )
+        })?;
         self.volumes.push(spec);
         Ok(())
     }

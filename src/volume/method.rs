@@ -1,0 +1,259 @@
+//! What a medium does and why, as data: [`MediumMethod`] (returned by `Medium::method`). Its `Display` is the
+//! sentence `--explain` prints and `--stats` writes under `method`; its fields are the structured `--stats`
+//! keys (`free_flight`, `channel_choice`, `closed_form_segments`, `majorant`, `shadow_estimator`,
+//! `method_reason`, `majorant_pilot`), so that tests and tools never parse the sentence.
+
+use super::majorant::MajorantKind;
+use super::majorant_choice::{MajorantEstimate, PILOT_RAYS};
+use serde::ser::SerializeMap;
+use std::fmt;
+
+/// How a medium samples free flights (the distance to the next real collision).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FreeFlight {
+    /// None: the medium only absorbs, so paths need its transmittance only.
+    #[default]
+    None,
+    /// One closed-form exponential for all channels (grey σ_t; analog, weight 1).
+    ClosedForm,
+    /// Closed-form exponentials with spectral MIS over the channels, the channel chosen as given.
+    SpectralMis(ChannelSampling),
+    /// Delta tracking against a majorant structure; with `closed_form_segments`, segments of constant density
+    /// are sampled in closed form.
+    DeltaTracking {
+        /// True when the majorant structure stores minorants, so constant-density segments are found.
+        closed_form_segments: bool,
+    },
+}
+
+/// How spectral MIS picks the channel whose exponential is sampled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChannelSampling {
+    /// With probability ∝ the path throughput.
+    Throughput,
+    /// With probability 1/3 each.
+    Uniform,
+}
+
+/// How a medium estimates the transmittance of shadow rays.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TransmittanceMethod {
+    /// The closed form exp(−σ_t d).
+    #[default]
+    ClosedForm,
+    /// Ratio tracking (Novák et al. 2014).
+    RatioTracking,
+    /// Residual ratio tracking (Novák et al. 2014, §4).
+    ResidualRatioTracking,
+}
+
+/// Why the medium uses its method.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum MethodReason {
+    /// σ_s = 0: nothing scatters.
+    #[default]
+    AbsorptionOnly,
+    /// σ_t is the same in every channel.
+    GreyExtinction,
+    /// σ_t differs between channels.
+    ChromaticExtinction,
+    /// The caller forced the channel choice.
+    Forced,
+    /// The scene (or the caller) named the majorant structure.
+    Requested,
+    /// `auto`: the cheapest majorant structure in a fixed-seed pilot, with each structure's estimate.
+    Pilot(Vec<MajorantEstimate>),
+}
+
+/// The method a medium uses, as reported by `--explain` and `--stats`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MediumMethod {
+    /// How free flights are sampled.
+    pub free_flight: FreeFlight,
+    /// The majorant structure that bounds σ_t for tracking, if the medium tracks.
+    pub majorant: Option<MajorantKind>,
+    /// How shadow rays estimate transmittance.
+    pub shadow: TransmittanceMethod,
+    /// Why.
+    pub why: MethodReason,
+}
+
+/// How a majorant structure reads in the sentence.
+fn majorant_phrase(kind: MajorantKind) -> &'static str {
+    match kind {
+        MajorantKind::Global => "a global majorant",
+        MajorantKind::Grid16 => "a 16^3 majorant grid",
+        MajorantKind::Adaptive => "adaptive majorants",
+    }
+}
+
+impl fmt::Display for MediumMethod {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let shadow = match self.shadow {
+            TransmittanceMethod::ClosedForm => "closed-form transmittance",
+            TransmittanceMethod::RatioTracking => "ratio tracking",
+            TransmittanceMethod::ResidualRatioTracking => "residual ratio tracking",
+        };
+        match self.free_flight {
+            FreeFlight::None => match self.shadow {
+                TransmittanceMethod::ClosedForm => write!(
+                    f,
+                    "closed-form transmittance exp(-sigma_a d), no collisions sampled (absorption only: sigma_s = 0)"
+                ),
+                _ => write!(
+                    f,
+                    "{shadow} for transmittance, no collisions (absorption only; {})",
+                    self.majorant.map_or("no majorant", majorant_phrase)
+                ),
+            },
+            FreeFlight::ClosedForm => write!(
+                f,
+                "closed-form free flight, one exponential for all channels (grey sigma_t: no spectral MIS)"
+            ),
+            FreeFlight::SpectralMis(channel) => {
+                let choice = match channel {
+                    ChannelSampling::Throughput => "channel by path throughput",
+                    ChannelSampling::Uniform => "uniform channel choice",
+                };
+                let why = match (&self.why, channel) {
+                    (MethodReason::Forced, ChannelSampling::Uniform) => "forced",
+                    (MethodReason::Forced, ChannelSampling::Throughput) => "forced on grey sigma_t",
+                    (MethodReason::GreyExtinction, _) => "grey sigma_t",
+                    _ => "chromatic sigma_t",
+                };
+                write!(
+                    f,
+                    "closed-form free flight, spectral MIS over channels, {choice} ({why})"
+                )
+            }
+            FreeFlight::DeltaTracking {
+                closed_form_segments,
+            } => {
+                write!(
+                    f,
+                    "delta tracking over {}",
+                    self.majorant.map_or("no majorant", majorant_phrase)
+                )?;
+                match &self.why {
+                    MethodReason::Pilot(estimates) => {
+                        let costs: Vec<String> = estimates
+                            .iter()
+                            .map(|e| {
+                                format!(
+                                    "{} {:.0} ({:.1} lookups, {:.1} cells)",
+                                    e.kind.name(),
+                                    e.cost_ns,
+                                    e.lookups_per_ray,
+                                    e.cells_per_ray
+                                )
+                            })
+                            .collect();
+                        write!(
+                            f,
+                            " (auto: cheapest in a {PILOT_RAYS}-ray pilot, estimated ns per ray: {})",
+                            costs.join(", ")
+                        )?;
+                    }
+                    _ => write!(f, " (as requested)")?,
+                }
+                if closed_form_segments {
+                    write!(f, ", closed form on constant-density segments")?;
+                }
+                write!(f, "; {shadow} for shadow rays")
+            }
+        }
+    }
+}
+
+/// The `--stats` keys, written flat into each `media` entry.
+impl serde::Serialize for MediumMethod {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let (free_flight, channel, segments) = match self.free_flight {
+            FreeFlight::None => ("none", None, false),
+            FreeFlight::ClosedForm => ("closed_form", None, false),
+            FreeFlight::SpectralMis(c) => (
+                "spectral_mis",
+                Some(match c {
+                    ChannelSampling::Throughput => "throughput",
+                    ChannelSampling::Uniform => "uniform",
+                }),
+                false,
+            ),
+            FreeFlight::DeltaTracking {
+                closed_form_segments,
+            } => ("delta_tracking", None, closed_form_segments),
+        };
+        let shadow = match self.shadow {
+            TransmittanceMethod::ClosedForm => "closed_form",
+            TransmittanceMethod::RatioTracking => "ratio",
+            TransmittanceMethod::ResidualRatioTracking => "residual_ratio",
+        };
+        let (reason, pilot) = match &self.why {
+            MethodReason::AbsorptionOnly => ("absorption_only", &[][..]),
+            MethodReason::GreyExtinction => ("grey_extinction", &[][..]),
+            MethodReason::ChromaticExtinction => ("chromatic_extinction", &[][..]),
+            MethodReason::Forced => ("forced", &[][..]),
+            MethodReason::Requested => ("requested", &[][..]),
+            MethodReason::Pilot(estimates) => ("pilot", estimates.as_slice()),
+        };
+        let pilot: Vec<PilotEntry> = pilot.iter().map(PilotEntry::from).collect();
+        let mut map = serializer.serialize_map(Some(7))?;
+        map.serialize_entry("free_flight", free_flight)?;
+        map.serialize_entry("channel_choice", &channel)?;
+        map.serialize_entry("closed_form_segments", &segments)?;
+        map.serialize_entry("majorant", &self.majorant.map(MajorantKind::name))?;
+        map.serialize_entry("shadow_estimator", shadow)?;
+        map.serialize_entry("method_reason", reason)?;
+        map.serialize_entry("majorant_pilot", &pilot)?;
+        map.end()
+    }
+}
+
+/// One structure's pilot estimate under `majorant_pilot`.
+#[derive(serde::Serialize)]
+struct PilotEntry {
+    majorant: &'static str,
+    cost_ns: f64,
+    lookups_per_ray: f64,
+    cells_per_ray: f64,
+}
+
+impl From<&MajorantEstimate> for PilotEntry {
+    fn from(e: &MajorantEstimate) -> Self {
+        Self {
+            majorant: e.kind.name(),
+            cost_ns: e.cost_ns,
+            lookups_per_ray: e.lookups_per_ray,
+            cells_per_ray: e.cells_per_ray,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_keys_and_sentence() {
+        let m = MediumMethod {
+            free_flight: FreeFlight::DeltaTracking {
+                closed_form_segments: true,
+            },
+            majorant: Some(MajorantKind::Global),
+            shadow: TransmittanceMethod::ResidualRatioTracking,
+            why: MethodReason::Requested,
+        };
+        assert_eq!(
+            m.to_string(),
+            "delta tracking over a global majorant (as requested), closed form on constant-density segments; \
+             residual ratio tracking for shadow rays"
+        );
+        let json = serde_json::to_value(&m).unwrap();
+        assert_eq!(
+            json,
+            serde_json::json!({"free_flight": "delta_tracking", "channel_choice": null,
+                "closed_form_segments": true, "majorant": "global", "shadow_estimator": "residual_ratio",
+                "method_reason": "requested", "majorant_pilot": []})
+        );
+    }
+}
