@@ -812,7 +812,8 @@ mod tests {
             // The gap before the segment is empty.
             for i in 1..samples {
                 let t = last + (s.t0 - last) * i as f32 / samples as f32;
-                if t < s.t0 {
+                // Points within round-off of a segment's ends may read its cells.
+                if t < s.t0 - 1e-5 * (1.0 + s.t0.abs()) && t > last + 1e-5 * (1.0 + last.abs()) {
                     assert_eq!(density(ray.at(t)), 0.0, "{:?}: gap at t = {t}", m.kind());
                 }
             }
@@ -834,7 +835,7 @@ mod tests {
         }
         for i in 1..samples {
             let t = last + (t1 - last) * i as f32 / samples as f32;
-            if t > last {
+            if t > last + 1e-5 * (1.0 + last.abs()) {
                 assert_eq!(density(ray.at(t)), 0.0, "{:?}: gap at t = {t}", m.kind());
             }
         }
