@@ -108,7 +108,7 @@ fn bench_file(
         "\n{} grid '{}': {} leaves, tree {:.1} MiB, density scale {scale:.4} (mean optical depth {tau_target} along rays), {n_rays} rays",
         path.display(),
         grid.name,
-        tree.leaves.len(),
+        tree.stats().leaves,
         field.memory_bytes() as f64 / 1048576.0
     );
     println!(

@@ -1,21 +1,21 @@
 //! The renderer's sparse grid: a flat, index-linked VDB tree in the spirit of NanoVDB.
 //!
-//! A [`Tree`] is a sorted root table of 4096³ regions, each a tile or an [`UpperNode`] (32³ slots of 128³),
-//! whose slots are tiles or [`LowerNode`]s (16³ slots of 8³), whose slots are tiles or [`Leaf`]s (8³ voxels).
-//! Nodes live in flat vectors and refer to children by `u32` index; lookups use bit arithmetic only (no hashing).
-//! Every node and leaf carries the min/max of all values a lookup inside it can return (active or not), so a
-//! majorant built from them is a true bound.
+//! Each level of the 5-4-3 tree has its own type: a [`Root`] table of 4096³ regions, each a tile or an
+//! [`UpperNode`] (32³ slots of 128³ voxels), whose slots are tiles or [`LowerNode`]s (16³ slots of 8³), whose
+//! slots are tiles or [`Leaf`]s (8³ voxels). The sizes are associated constants of those types (`DIM`,
+//! `LOG2DIM`, `CHILD_DIM`), so the slot arithmetic is written once, here. Nodes live in flat vectors and refer
+//! to children by `u32` index; lookups use bit arithmetic only (no hashing). Every node and leaf carries the
+//! min/max of all values a lookup inside it can return (active or not), so a majorant built from them is a true
+//! bound.
+//!
+//! Code outside the reader needs no node internals: [`Tree::regions`] and [`Tree::regions_in`] list the leaves
+//! and tiles (with the range of values a lookup inside each can return), and [`Tree::update_values`] rewrites
+//! stored values and refreshes the ranges.
 
 use glam::{IVec3, Vec3};
 
 /// Sentinel child index meaning "this slot is a tile".
-pub const NO_CHILD: u32 = u32::MAX;
-/// log2 of the leaf edge (8 voxels).
-pub const LEAF_LOG2: i32 = 3;
-/// log2 of the lower-node edge in voxels (128).
-pub const LOWER_LOG2: i32 = 7;
-/// log2 of the upper-node edge in voxels (4096).
-pub const UPPER_LOG2: i32 = 12;
+pub(crate) const NO_CHILD: u32 = u32::MAX;
 
 /// A voxel value type the tree can store: `f32` (scalar grids) or `Vec3` (vector grids).
 pub trait VoxelValue: Copy + Default + PartialEq + std::fmt::Debug + Send + Sync + 'static {
@@ -89,112 +89,269 @@ fn set_bit(mask: &mut [u64], i: usize) {
     mask[i >> 6] |= 1 << (i & 63);
 }
 
-/// An 8³ block of voxels.
+/// An 8³ block of voxels, the tree's lowest level.
 #[derive(Clone, Debug)]
 pub struct Leaf<T> {
-    /// Index coordinate of voxel (0,0,0) of the leaf (a multiple of 8).
-    pub origin: IVec3,
+    /// Index coordinate of voxel (0,0,0) of the leaf (a multiple of [`Leaf::DIM`]).
+    pub(crate) origin: IVec3,
     /// Active-voxel bits, voxel `(x<<6)|(y<<3)|z`.
-    pub value_mask: [u64; 8],
+    pub(crate) value_mask: [u64; 8],
     /// All 512 stored values (inactive ones keep what the file stored).
-    pub values: [T; 512],
+    pub(crate) values: [T; 512],
     /// Minimum over all 512 values.
-    pub min: T,
+    pub(crate) min: T,
     /// Maximum over all 512 values.
-    pub max: T,
+    pub(crate) max: T,
 }
 
-impl<T> Leaf<T> {
-    /// Inclusive index bounding box covered by the leaf.
-    pub fn bbox(&self) -> (IVec3, IVec3) {
-        (self.origin, self.origin + IVec3::splat(7))
+impl<T: Copy> Leaf<T> {
+    /// log2 of the edge in voxels.
+    pub const LOG2DIM: i32 = 3;
+    /// Edge in voxels.
+    pub const DIM: i32 = 1 << Self::LOG2DIM;
+
+    /// Offset of index coordinate `p` in the values of the leaf that holds it, `(x<<6)|(y<<3)|z`.
+    #[inline(always)]
+    pub(crate) fn offset(p: IVec3) -> usize {
+        let m = Self::DIM - 1;
+        (((p.x & m) << (2 * Self::LOG2DIM)) | ((p.y & m) << Self::LOG2DIM) | (p.z & m)) as usize
     }
 
-    /// Whether voxel `i` (`(x<<6)|(y<<3)|z`) is active.
-    pub fn is_active(&self, i: usize) -> bool {
-        bit(&self.value_mask, i)
+    /// Index coordinate of the voxel at offset `i` (see [`Leaf::offset`]).
+    fn voxel(&self, i: usize) -> IVec3 {
+        let (i, m) = (i as i32, Self::DIM - 1);
+        self.origin + IVec3::new(i >> (2 * Self::LOG2DIM), (i >> Self::LOG2DIM) & m, i & m)
+    }
+
+    /// Index coordinate of voxel (0,0,0) of the leaf.
+    pub fn origin(&self) -> IVec3 {
+        self.origin
+    }
+
+    /// (min, max) over all 512 stored values, active or not: every value a lookup inside the leaf can return.
+    pub fn range(&self) -> (T, T) {
+        (self.min, self.max)
+    }
+
+    /// The stored value of the voxel at index coordinate `p` (which must lie in the leaf).
+    pub fn value(&self, p: IVec3) -> T {
+        self.values[Self::offset(p)]
+    }
+
+    /// Whether the voxel at index coordinate `p` (which must lie in the leaf) is active.
+    pub fn is_active(&self, p: IVec3) -> bool {
+        bit(&self.value_mask, Self::offset(p))
+    }
+
+    /// The active voxels, as (index coordinate, value), in offset order.
+    pub fn active_voxels(&self) -> impl Iterator<Item = (IVec3, T)> + '_ {
+        self.value_mask
+            .iter()
+            .enumerate()
+            .flat_map(|(w, &word)| {
+                let mut word = word;
+                std::iter::from_fn(move || {
+                    (word != 0).then(|| {
+                        let b = word.trailing_zeros() as usize;
+                        word &= word - 1;
+                        w * 64 + b
+                    })
+                })
+            })
+            .map(|i| (self.voxel(i), self.values[i]))
     }
 }
 
-/// A node of `N` slots, each a child (by index) or a tile value.
+/// An internal node of (2^`LOG2`)³ slots, each a tile or a child of edge 2^`CHILD_LOG2` voxels. The two internal
+/// levels of a 5-4-3 tree, [`UpperNode`] and [`LowerNode`], are distinct types of this family.
 #[derive(Clone, Debug)]
-pub struct InternalNode<T> {
+pub struct InternalNode<T, const LOG2: i32, const CHILD_LOG2: i32> {
     /// Index coordinate of the node's first voxel.
-    pub origin: IVec3,
+    pub(crate) origin: IVec3,
     /// Child index per slot, or [`NO_CHILD`] for a tile.
-    pub children: Box<[u32]>,
+    pub(crate) children: Box<[u32]>,
     /// Tile value per slot (meaningless where a child is present).
-    pub tiles: Box<[T]>,
+    pub(crate) tiles: Box<[T]>,
     /// Active-tile bits per slot.
-    pub value_mask: Box<[u64]>,
+    pub(crate) value_mask: Box<[u64]>,
     /// Minimum over tiles and children (all values a lookup inside the node can return).
-    pub min: T,
+    pub(crate) min: T,
     /// Maximum over tiles and children.
-    pub max: T,
+    pub(crate) max: T,
 }
 
-/// A 16³ node over 8³ leaves (128³ voxels).
-pub type LowerNode<T> = InternalNode<T>;
-/// A 32³ node over lower nodes (4096³ voxels).
-pub type UpperNode<T> = InternalNode<T>;
+/// The lower internal level: 16³ slots over 8³ leaves (128³ voxels).
+pub type LowerNode<T> = InternalNode<T, 4, { Leaf::<f32>::LOG2DIM }>;
+/// The upper internal level: 32³ slots over lower nodes (4096³ voxels).
+pub type UpperNode<T> = InternalNode<T, 5, { LowerNode::<f32>::LOG2DIM }>;
 
-impl<T: VoxelValue> InternalNode<T> {
-    fn new(origin: IVec3, log2: u32, fill: T) -> Self {
-        let n = 1usize << (3 * log2);
+impl<T, const LOG2: i32, const CHILD_LOG2: i32> InternalNode<T, LOG2, CHILD_LOG2> {
+    /// log2 of the edge in voxels.
+    pub const LOG2DIM: i32 = LOG2 + CHILD_LOG2;
+    /// Edge in voxels.
+    pub const DIM: i32 = 1 << Self::LOG2DIM;
+    /// Edge of a slot (a child or a tile) in voxels.
+    pub const CHILD_DIM: i32 = 1 << CHILD_LOG2;
+    /// Number of slots.
+    pub const SLOTS: usize = 1 << (3 * LOG2);
+
+    /// The slot that holds index coordinate `p` in the node of this level that contains it.
+    #[inline(always)]
+    pub(crate) fn slot(p: IVec3) -> usize {
+        let m = Self::DIM - 1;
+        ((((p.x & m) >> CHILD_LOG2) << (2 * LOG2))
+            | (((p.y & m) >> CHILD_LOG2) << LOG2)
+            | ((p.z & m) >> CHILD_LOG2)) as usize
+    }
+
+    /// Origin of the node of this level that contains index coordinate `p`.
+    #[inline(always)]
+    pub(crate) fn origin_of(p: IVec3) -> IVec3 {
+        p & !(Self::DIM - 1)
+    }
+
+    /// Index origin of slot `i` (a child's or a tile's first voxel).
+    pub(crate) fn slot_origin(&self, i: usize) -> IVec3 {
+        let (i, m) = (i as i32, (1 << LOG2) - 1);
+        self.origin + IVec3::new(i >> (2 * LOG2), (i >> LOG2) & m, i & m) * Self::CHILD_DIM
+    }
+
+    /// The child index in slot `i`, or `None` where the slot is a tile.
+    #[inline(always)]
+    pub(crate) fn child(&self, i: usize) -> Option<u32> {
+        let c = self.children[i];
+        (c != NO_CHILD).then_some(c)
+    }
+
+    /// The slots whose cubes meet the inclusive index box `[lo, hi]` (which must meet the node), in slot order.
+    fn slots_in(&self, lo: IVec3, hi: IVec3) -> impl Iterator<Item = usize> {
+        let last = self.origin + (Self::DIM - 1);
+        let a = (lo.max(self.origin) - self.origin) >> CHILD_LOG2;
+        let b = (hi.min(last) - self.origin) >> CHILD_LOG2;
+        (a.x..=b.x).flat_map(move |x| {
+            (a.y..=b.y).flat_map(move |y| {
+                (a.z..=b.z).map(move |z| ((x << (2 * LOG2)) | (y << LOG2) | z) as usize)
+            })
+        })
+    }
+}
+
+impl<T: VoxelValue, const LOG2: i32, const CHILD_LOG2: i32> InternalNode<T, LOG2, CHILD_LOG2> {
+    /// A node at `origin` whose slots are all inactive tiles of value `fill`.
+    pub(crate) fn new(origin: IVec3, fill: T) -> Self {
+        Self::from_tiles(
+            origin,
+            vec![fill; Self::SLOTS],
+            vec![0; Self::SLOTS / 64],
+            fill,
+        )
+    }
+
+    /// A node without children from its tile values and active-tile bits; `range` stands for its min and max
+    /// until [`Tree::finalize`].
+    pub(crate) fn from_tiles(origin: IVec3, tiles: Vec<T>, value_mask: Vec<u64>, range: T) -> Self {
         Self {
             origin,
-            children: vec![NO_CHILD; n].into_boxed_slice(),
-            tiles: vec![fill; n].into_boxed_slice(),
-            value_mask: vec![0u64; n / 64].into_boxed_slice(),
-            min: fill,
-            max: fill,
+            children: vec![NO_CHILD; Self::SLOTS].into_boxed_slice(),
+            tiles: tiles.into_boxed_slice(),
+            value_mask: value_mask.into_boxed_slice(),
+            min: range,
+            max: range,
         }
     }
 
-    /// Edge length of the node in voxels (128 for lower nodes, 4096 for upper nodes).
-    pub fn edge(&self) -> i32 {
-        if self.children.len() == 4096 {
-            1 << LOWER_LOG2
-        } else {
-            1 << UPPER_LOG2
+    /// Slot `i` as a tile region (the slot must hold no child).
+    fn tile(&self, i: usize) -> Tile<T> {
+        Tile {
+            origin: self.slot_origin(i),
+            edge: Self::CHILD_DIM,
+            value: self.tiles[i],
+            active: bit(&self.value_mask, i),
         }
     }
 
-    /// Inclusive index bounding box covered by the node.
-    pub fn bbox(&self) -> (IVec3, IVec3) {
-        (self.origin, self.origin + IVec3::splat(self.edge() - 1))
-    }
-
-    /// Index origin of slot `i` (a child's or tile's first voxel).
-    pub fn slot_origin(&self, i: usize) -> IVec3 {
-        if self.children.len() == 4096 {
-            lower_child_origin(self.origin, i)
-        } else {
-            upper_child_origin(self.origin, i)
+    /// Sets min/max to the range of the tiles and of the children's ranges (`child(index)`).
+    fn update_range(&mut self, child: impl Fn(usize) -> (T, T)) {
+        let mut r: Option<(T, T)> = None;
+        for (i, &c) in self.children.iter().enumerate() {
+            let (a, b) = if c == NO_CHILD {
+                (self.tiles[i], self.tiles[i])
+            } else {
+                child(c as usize)
+            };
+            r = Some(match r {
+                None => (a, b),
+                Some((lo, hi)) => (lo.min_of(a), hi.max_of(b)),
+            });
+        }
+        if let Some((lo, hi)) = r {
+            self.min = lo;
+            self.max = hi;
         }
     }
 
-    /// True when slot `i` holds an active tile.
-    pub fn is_active_tile(&self, i: usize) -> bool {
-        self.children[i] == NO_CHILD && bit(&self.value_mask, i)
+    /// Approximate heap plus inline size in bytes.
+    fn memory_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.children.len() * (4 + std::mem::size_of::<T>())
+            + self.value_mask.len() * 8
     }
 }
+
+// The levels nest: a lower node's slot is a leaf, an upper node's slot a lower node.
+const _: () = assert!(LowerNode::<f32>::CHILD_DIM == Leaf::<f32>::DIM);
+const _: () = assert!(UpperNode::<f32>::CHILD_DIM == LowerNode::<f32>::DIM);
 
 /// One entry of the root table.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum RootSlot<T> {
-    /// A 4096³ tile.
+pub(crate) enum RootSlot<T> {
+    /// A tile of [`Root::DIM`]³ voxels.
     Tile {
         /// Its value.
         value: T,
         /// Whether it is active.
         active: bool,
     },
-    /// Index into [`Tree::uppers`].
+    /// Index of an [`UpperNode`] of the tree.
     Child(u32),
 }
 
+/// The top level: a table of [`Root::DIM`]³ regions sorted by origin `(x, y, z)`, each a tile or an upper node.
+#[derive(Clone, Debug)]
+pub struct Root<T> {
+    pub(crate) entries: Vec<(IVec3, RootSlot<T>)>,
+}
+
+impl<T> Root<T> {
+    /// Edge of a root region in voxels (an upper node's edge).
+    pub const DIM: i32 = UpperNode::<f32>::DIM;
+
+    /// Origin of the root region that contains index coordinate `p`.
+    #[inline(always)]
+    pub(crate) fn key(p: IVec3) -> IVec3 {
+        p & !(Self::DIM - 1)
+    }
+
+    /// The entry of the region that holds `p`, if any.
+    #[inline]
+    pub(crate) fn get(&self, p: IVec3) -> Option<&RootSlot<T>> {
+        let key = Self::key(p);
+        if self.entries.len() <= 8 {
+            self.entries.iter().find(|(k, _)| *k == key).map(|(_, s)| s)
+        } else {
+            self.search(key).ok().map(|i| &self.entries[i].1)
+        }
+    }
+
+    fn search(&self, key: IVec3) -> Result<usize, usize> {
+        self.entries.binary_search_by(|(k, _)| key_cmp(*k, key))
+    }
+}
+
 /// Summary statistics over the active values of a tree (tiles weighted by their voxel count).
+///
+/// Serialised (for `nimbus info --json`) with the keys `active_voxels`, `leaf_voxels`, `tiles`, `leaves`, `sum`,
+/// `min`, `max`, `bbox_min` and `bbox_max` (the inclusive active bounding box, zeros when nothing is active).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TreeStats {
     /// Active voxels, tiles counted with all their voxels.
@@ -215,19 +372,82 @@ pub struct TreeStats {
     pub bbox: Option<(IVec3, IVec3)>,
 }
 
+impl serde::Serialize for TreeStats {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let (bmin, bmax) = self.bbox.unwrap_or_default();
+        let mut st = s.serialize_struct("TreeStats", 9)?;
+        st.serialize_field("active_voxels", &self.active_voxels)?;
+        st.serialize_field("leaf_voxels", &self.leaf_voxels)?;
+        st.serialize_field("tiles", &self.tiles)?;
+        st.serialize_field("leaves", &self.leaves)?;
+        st.serialize_field("sum", &self.sum)?;
+        st.serialize_field("min", &self.min)?;
+        st.serialize_field("max", &self.max)?;
+        st.serialize_field("bbox_min", &bmin.to_array())?;
+        st.serialize_field("bbox_max", &bmax.to_array())?;
+        st.end()
+    }
+}
+
+/// A tile: a cube of index space, at any level of the tree, holding one value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tile<T> {
+    /// Its first voxel.
+    pub origin: IVec3,
+    /// Its edge in voxels: [`Root::DIM`], [`UpperNode::CHILD_DIM`] or [`LowerNode::CHILD_DIM`].
+    pub edge: i32,
+    /// Its value.
+    pub value: T,
+    /// Whether it is active.
+    pub active: bool,
+}
+
+/// A cube of index space where the tree stores data: a leaf, or a tile of any level. The regions of a tree do
+/// not overlap; outside them every lookup returns the background.
+#[derive(Clone, Copy, Debug)]
+pub enum Region<'a, T> {
+    /// A leaf of [`Leaf::DIM`]³ voxels.
+    Leaf(&'a Leaf<T>),
+    /// A tile.
+    Tile(Tile<T>),
+}
+
+impl<T: Copy> Region<'_, T> {
+    /// The region's first voxel.
+    pub fn origin(&self) -> IVec3 {
+        match self {
+            Self::Leaf(l) => l.origin,
+            Self::Tile(t) => t.origin,
+        }
+    }
+
+    /// The region's edge in voxels.
+    pub fn edge(&self) -> i32 {
+        match self {
+            Self::Leaf(_) => Leaf::<T>::DIM,
+            Self::Tile(t) => t.edge,
+        }
+    }
+
+    /// (min, max) of the values a lookup inside the region can return, active or not.
+    pub fn range(&self) -> (T, T) {
+        match self {
+            Self::Leaf(l) => l.range(),
+            Self::Tile(t) => (t.value, t.value),
+        }
+    }
+}
+
 /// A sparse VDB tree with 5-4-3 node sizes, values of type `T`.
 #[derive(Clone, Debug)]
 pub struct Tree<T> {
     /// Value returned outside all nodes and tiles.
-    pub background: T,
-    /// Root table, sorted by origin `(x, y, z)`.
-    pub root: Vec<(IVec3, RootSlot<T>)>,
-    /// Upper (32³) nodes.
-    pub uppers: Vec<UpperNode<T>>,
-    /// Lower (16³) nodes.
-    pub lowers: Vec<LowerNode<T>>,
-    /// Leaves (8³).
-    pub leaves: Vec<Leaf<T>>,
+    pub(crate) background: T,
+    pub(crate) root: Root<T>,
+    pub(crate) uppers: Vec<UpperNode<T>>,
+    pub(crate) lowers: Vec<LowerNode<T>>,
+    pub(crate) leaves: Vec<Leaf<T>>,
 }
 
 /// A scalar tree.
@@ -238,19 +458,6 @@ pub type Vec3Tree = Tree<Vec3>;
 #[inline(always)]
 fn key_cmp(a: IVec3, b: IVec3) -> std::cmp::Ordering {
     (a.x, a.y, a.z).cmp(&(b.x, b.y, b.z))
-}
-
-#[inline(always)]
-fn upper_slot(p: IVec3) -> usize {
-    ((((p.x & 4095) >> 7) << 10) | (((p.y & 4095) >> 7) << 5) | ((p.z & 4095) >> 7)) as usize
-}
-#[inline(always)]
-fn lower_slot(p: IVec3) -> usize {
-    ((((p.x & 127) >> 3) << 8) | (((p.y & 127) >> 3) << 4) | ((p.z & 127) >> 3)) as usize
-}
-#[inline(always)]
-fn leaf_slot(p: IVec3) -> usize {
-    (((p.x & 7) << 6) | ((p.y & 7) << 3) | (p.z & 7)) as usize
 }
 
 /// `floor` of each component as integers, without a libm call (baseline x86-64 has no SSE4.1 `roundps`).
@@ -271,32 +478,23 @@ impl MaskToInt for glam::BVec3 {
     }
 }
 
-/// Index origin of slot `i` of an upper node.
-pub fn upper_child_origin(origin: IVec3, i: usize) -> IVec3 {
-    let i = i as i32;
-    origin + IVec3::new(i >> 10, (i >> 5) & 31, i & 31) * 128
-}
-/// Index origin of slot `i` of a lower node.
-pub fn lower_child_origin(origin: IVec3, i: usize) -> IVec3 {
-    let i = i as i32;
-    origin + IVec3::new(i >> 8, (i >> 4) & 15, i & 15) * 8
-}
-/// Index coordinate of voxel `i` of a leaf.
-pub fn leaf_voxel(origin: IVec3, i: usize) -> IVec3 {
-    let i = i as i32;
-    origin + IVec3::new(i >> 6, (i >> 3) & 7, i & 7)
-}
-
 impl<T: VoxelValue> Tree<T> {
     /// An empty tree that returns `background` everywhere.
     pub fn new(background: T) -> Self {
         Self {
             background,
-            root: Vec::new(),
+            root: Root {
+                entries: Vec::new(),
+            },
             uppers: Vec::new(),
             lowers: Vec::new(),
             leaves: Vec::new(),
         }
+    }
+
+    /// The value returned outside all leaves and tiles.
+    pub fn background(&self) -> T {
+        self.background
     }
 
     /// Builds a tree from active voxels (later duplicates win); inactive voxels of new leaves hold `background`.
@@ -312,58 +510,61 @@ impl<T: VoxelValue> Tree<T> {
     /// Sets voxel `p` to `v` and marks it active, creating nodes as needed. Call [`Self::finalize`] afterwards
     /// to refresh min/max.
     pub fn set_active(&mut self, p: IVec3, v: T) {
-        let key = p & !4095;
-        let u = match self.root.binary_search_by(|(k, _)| key_cmp(*k, key)) {
-            Ok(i) => match self.root[i].1 {
+        let key = Root::<T>::key(p);
+        let u = match self.root.search(key) {
+            Ok(i) => match self.root.entries[i].1 {
                 RootSlot::Child(u) => u,
                 RootSlot::Tile { value, .. } => {
                     let u = self.push_upper(key, value);
-                    self.root[i].1 = RootSlot::Child(u);
+                    self.root.entries[i].1 = RootSlot::Child(u);
                     u
                 }
             },
             Err(i) => {
                 let u = self.push_upper(key, self.background);
-                self.root.insert(i, (key, RootSlot::Child(u)));
+                self.root.entries.insert(i, (key, RootSlot::Child(u)));
                 u
             }
         };
-        let us = upper_slot(p);
+        let us = UpperNode::<T>::slot(p);
         let up = &self.uppers[u as usize];
-        let l = if up.children[us] == NO_CHILD {
-            let fill = up.tiles[us];
-            let l = self.lowers.len() as u32;
-            self.lowers.push(InternalNode::new(p & !127, 4, fill));
-            self.uppers[u as usize].children[us] = l;
-            l
-        } else {
-            up.children[us]
+        let l = match up.child(us) {
+            Some(l) => l,
+            None => {
+                let fill = up.tiles[us];
+                let l = self.lowers.len() as u32;
+                self.lowers
+                    .push(LowerNode::new(LowerNode::<T>::origin_of(p), fill));
+                self.uppers[u as usize].children[us] = l;
+                l
+            }
         };
-        let ls = lower_slot(p);
+        let ls = LowerNode::<T>::slot(p);
         let lo = &self.lowers[l as usize];
-        let leaf = if lo.children[ls] == NO_CHILD {
-            let fill = lo.tiles[ls];
-            let id = self.leaves.len() as u32;
-            self.leaves.push(Leaf {
-                origin: p & !7,
-                value_mask: [0; 8],
-                values: [fill; 512],
-                min: fill,
-                max: fill,
-            });
-            self.lowers[l as usize].children[ls] = id;
-            id
-        } else {
-            lo.children[ls]
+        let leaf = match lo.child(ls) {
+            Some(c) => c,
+            None => {
+                let fill = lo.tiles[ls];
+                let id = self.leaves.len() as u32;
+                self.leaves.push(Leaf {
+                    origin: p & !(Leaf::<T>::DIM - 1),
+                    value_mask: [0; 8],
+                    values: [fill; 512],
+                    min: fill,
+                    max: fill,
+                });
+                self.lowers[l as usize].children[ls] = id;
+                id
+            }
         };
         let lf = &mut self.leaves[leaf as usize];
-        let i = leaf_slot(p);
+        let i = Leaf::<T>::offset(p);
         lf.values[i] = v;
         set_bit(&mut lf.value_mask, i);
     }
 
     fn push_upper(&mut self, origin: IVec3, fill: T) -> u32 {
-        self.uppers.push(InternalNode::new(origin, 5, fill));
+        self.uppers.push(UpperNode::new(origin, fill));
         (self.uppers.len() - 1) as u32
     }
 
@@ -380,32 +581,107 @@ impl<T: VoxelValue> Tree<T> {
         }
         let leaves = &self.leaves;
         for n in &mut self.lowers {
-            node_range(n, |c| (leaves[c].min, leaves[c].max));
+            n.update_range(|c| (leaves[c].min, leaves[c].max));
         }
         let lowers = &self.lowers;
         for n in &mut self.uppers {
-            node_range(n, |c| (lowers[c].min, lowers[c].max));
+            n.update_range(|c| (lowers[c].min, lowers[c].max));
         }
     }
 
-    /// Root-table lookup.
-    #[inline]
-    fn root_slot(&self, p: IVec3) -> Option<&RootSlot<T>> {
-        let key = p & !4095;
-        if self.root.len() <= 8 {
-            self.root.iter().find(|(k, _)| *k == key).map(|(_, s)| s)
-        } else {
-            self.root
-                .binary_search_by(|(k, _)| key_cmp(*k, key))
-                .ok()
-                .map(|i| &self.root[i].1)
+    /// Every leaf and every tile (of any level, active or not, whatever its value), depth first in root order.
+    /// Together they cover all of index space where a lookup returns something other than the background.
+    pub fn regions(&self) -> impl Iterator<Item = Region<'_, T>> + '_ {
+        self.regions_in(IVec3::MIN, IVec3::MAX)
+    }
+
+    /// The leaves and tiles that meet the inclusive index box `[lo, hi]`, as [`Tree::regions`] lists them; only
+    /// the nodes that meet the box are visited.
+    pub fn regions_in(&self, lo: IVec3, hi: IVec3) -> impl Iterator<Item = Region<'_, T>> + '_ {
+        let meets = move |origin: IVec3, edge: i32| {
+            origin.cmple(hi).all() && (origin + (edge - 1)).cmpge(lo).all()
+        };
+        self.root
+            .entries
+            .iter()
+            .filter(move |(origin, _)| meets(*origin, Root::<T>::DIM))
+            .flat_map(move |&(origin, slot)| {
+                let (tile, upper) = match slot {
+                    RootSlot::Tile { value, active } => (
+                        Some(Region::Tile(Tile {
+                            origin,
+                            edge: Root::<T>::DIM,
+                            value,
+                            active,
+                        })),
+                        None,
+                    ),
+                    RootSlot::Child(u) => (None, Some(self.upper_regions(u, lo, hi))),
+                };
+                tile.into_iter().chain(upper.into_iter().flatten())
+            })
+    }
+
+    /// The regions under upper node `u` that meet `[lo, hi]`.
+    fn upper_regions(&self, u: u32, lo: IVec3, hi: IVec3) -> impl Iterator<Item = Region<'_, T>> {
+        let n = &self.uppers[u as usize];
+        n.slots_in(lo, hi).flat_map(move |i| {
+            let (tile, lower) = match n.child(i) {
+                None => (Some(Region::Tile(n.tile(i))), None),
+                Some(l) => (None, Some(self.lower_regions(l, lo, hi))),
+            };
+            tile.into_iter().chain(lower.into_iter().flatten())
+        })
+    }
+
+    /// The regions under lower node `l` that meet `[lo, hi]`.
+    fn lower_regions(&self, l: u32, lo: IVec3, hi: IVec3) -> impl Iterator<Item = Region<'_, T>> {
+        let n = &self.lowers[l as usize];
+        n.slots_in(lo, hi).map(move |i| match n.child(i) {
+            None => Region::Tile(n.tile(i)),
+            Some(c) => Region::Leaf(&self.leaves[c as usize]),
+        })
+    }
+
+    /// True when `pred` holds for any stored value: a voxel of any leaf (active or not), or a tile of any level
+    /// (including the unused tile values of slots that hold a child).
+    pub fn any_value(&self, pred: impl Fn(T) -> bool) -> bool {
+        self.leaves
+            .iter()
+            .any(|l| l.values.iter().any(|v| pred(*v)))
+            || self.uppers.iter().any(|n| n.tiles.iter().any(|v| pred(*v)))
+            || self.lowers.iter().any(|n| n.tiles.iter().any(|v| pred(*v)))
+            || self
+                .root
+                .entries
+                .iter()
+                .any(|(_, s)| matches!(s, RootSlot::Tile { value, .. } if pred(*value)))
+    }
+
+    /// Passes every stored value that [`Tree::any_value`] tests to `f`, which may change it, then refreshes the
+    /// min/max of every leaf and node.
+    pub fn update_values(&mut self, mut f: impl FnMut(&mut T)) {
+        for leaf in &mut self.leaves {
+            leaf.values.iter_mut().for_each(&mut f);
         }
+        for node in &mut self.uppers {
+            node.tiles.iter_mut().for_each(&mut f);
+        }
+        for node in &mut self.lowers {
+            node.tiles.iter_mut().for_each(&mut f);
+        }
+        for (_, slot) in &mut self.root.entries {
+            if let RootSlot::Tile { value, .. } = slot {
+                f(value);
+            }
+        }
+        self.finalize();
     }
 
     /// The value at index coordinate `p`: the stored voxel or tile value, or the background outside the tree.
     #[inline]
     pub fn value(&self, p: IVec3) -> T {
-        match self.root_slot(p) {
+        match self.root.get(p) {
             None => self.background,
             Some(RootSlot::Tile { value, .. }) => *value,
             Some(RootSlot::Child(u)) => self.upper_value(*u, p),
@@ -415,43 +691,40 @@ impl<T: VoxelValue> Tree<T> {
     #[inline(always)]
     fn upper_value(&self, u: u32, p: IVec3) -> T {
         let n = &self.uppers[u as usize];
-        let s = upper_slot(p);
-        match n.children[s] {
-            NO_CHILD => n.tiles[s],
-            l => self.lower_value(l, p),
+        let s = UpperNode::<T>::slot(p);
+        match n.child(s) {
+            None => n.tiles[s],
+            Some(l) => self.lower_value(l, p),
         }
     }
 
     #[inline(always)]
     fn lower_value(&self, l: u32, p: IVec3) -> T {
         let n = &self.lowers[l as usize];
-        let s = lower_slot(p);
-        match n.children[s] {
-            NO_CHILD => n.tiles[s],
-            c => self.leaves[c as usize].values[leaf_slot(p)],
+        let s = LowerNode::<T>::slot(p);
+        match n.child(s) {
+            None => n.tiles[s],
+            Some(c) => self.leaves[c as usize].values[Leaf::<T>::offset(p)],
         }
     }
 
     /// Whether the voxel at `p` is active (in an active leaf voxel or active tile).
     pub fn is_active(&self, p: IVec3) -> bool {
-        match self.root_slot(p) {
+        match self.root.get(p) {
             None => false,
             Some(RootSlot::Tile { active, .. }) => *active,
             Some(RootSlot::Child(u)) => {
                 let n = &self.uppers[*u as usize];
-                let s = upper_slot(p);
-                if n.children[s] == NO_CHILD {
+                let s = UpperNode::<T>::slot(p);
+                let Some(l) = n.child(s) else {
                     return bit(&n.value_mask, s);
+                };
+                let n = &self.lowers[l as usize];
+                let s = LowerNode::<T>::slot(p);
+                match n.child(s) {
+                    None => bit(&n.value_mask, s),
+                    Some(c) => self.leaves[c as usize].is_active(p),
                 }
-                let n = &self.lowers[n.children[s] as usize];
-                let s = lower_slot(p);
-                if n.children[s] == NO_CHILD {
-                    return bit(&n.value_mask, s);
-                }
-                bit(
-                    &self.leaves[n.children[s] as usize].value_mask,
-                    leaf_slot(p),
-                )
             }
         }
     }
@@ -467,23 +740,21 @@ impl<T: VoxelValue> Tree<T> {
         self.accessor().sample_trilinear(index_pos)
     }
 
-    /// Inclusive bounding box of the active voxels and tiles, `None` if nothing is active.
-    pub fn active_bbox(&self) -> Option<(IVec3, IVec3)> {
-        self.stats().bbox
-    }
-
     /// Approximate heap plus inline size of the tree in bytes.
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
-        let node = |n: &InternalNode<T>| {
-            size_of::<InternalNode<T>>()
-                + n.children.len() * (4 + size_of::<T>())
-                + n.value_mask.len() * 8
-        };
         size_of::<Self>()
-            + self.root.capacity() * size_of::<(IVec3, RootSlot<T>)>()
-            + self.uppers.iter().map(node).sum::<usize>()
-            + self.lowers.iter().map(node).sum::<usize>()
+            + self.root.entries.capacity() * size_of::<(IVec3, RootSlot<T>)>()
+            + self
+                .uppers
+                .iter()
+                .map(UpperNode::memory_bytes)
+                .sum::<usize>()
+            + self
+                .lowers
+                .iter()
+                .map(LowerNode::memory_bytes)
+                .sum::<usize>()
             + self.leaves.capacity() * size_of::<Leaf<T>>()
     }
 
@@ -493,70 +764,38 @@ impl<T: VoxelValue> Tree<T> {
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         let mut bmin = IVec3::splat(i32::MAX);
         let mut bmax = IVec3::splat(i32::MIN);
-        let mut tile = |s: &mut TreeStats, v: T, origin: IVec3, log2: i32| {
-            let m = v.magnitude();
-            let n = 1u64 << (3 * log2);
-            s.active_voxels += n;
-            s.tiles += 1;
-            s.sum += m * n as f64;
-            lo = lo.min(m);
-            hi = hi.max(m);
-            bmin = bmin.min(origin);
-            bmax = bmax.max(origin + IVec3::splat((1 << log2) - 1));
-        };
-        for (origin, slot) in &self.root {
-            if let RootSlot::Tile {
-                value,
-                active: true,
-            } = slot
-            {
-                tile(&mut s, *value, *origin, UPPER_LOG2);
-            }
-        }
-        for n in &self.uppers {
-            for i in 0..n.children.len() {
-                if n.is_active_tile(i) {
-                    tile(
-                        &mut s,
-                        n.tiles[i],
-                        upper_child_origin(n.origin, i),
-                        LOWER_LOG2,
-                    );
-                }
-            }
-        }
-        for n in &self.lowers {
-            for i in 0..n.children.len() {
-                if n.is_active_tile(i) {
-                    tile(
-                        &mut s,
-                        n.tiles[i],
-                        lower_child_origin(n.origin, i),
-                        LEAF_LOG2,
-                    );
-                }
-            }
-        }
-        for lf in &self.leaves {
-            s.leaves += 1;
-            let mut lsum = 0.0;
-            for (w, &word) in lf.value_mask.iter().enumerate() {
-                let mut word = word;
-                while word != 0 {
-                    let i = w * 64 + word.trailing_zeros() as usize;
-                    word &= word - 1;
-                    let m = lf.values[i].magnitude();
-                    lsum += m;
+        let (mut tile_sum, mut leaf_sum) = (0.0, 0.0);
+        for region in self.regions() {
+            match region {
+                Region::Tile(t) if t.active => {
+                    let m = t.value.magnitude();
+                    let n = (t.edge as u64).pow(3);
+                    s.active_voxels += n;
+                    s.tiles += 1;
+                    tile_sum += m * n as f64;
                     lo = lo.min(m);
                     hi = hi.max(m);
-                    let p = leaf_voxel(lf.origin, i);
-                    bmin = bmin.min(p);
-                    bmax = bmax.max(p);
-                    s.leaf_voxels += 1;
+                    bmin = bmin.min(t.origin);
+                    bmax = bmax.max(t.origin + (t.edge - 1));
+                }
+                Region::Tile(_) => {}
+                Region::Leaf(leaf) => {
+                    s.leaves += 1;
+                    let mut sum = 0.0;
+                    for (p, v) in leaf.active_voxels() {
+                        let m = v.magnitude();
+                        sum += m;
+                        lo = lo.min(m);
+                        hi = hi.max(m);
+                        bmin = bmin.min(p);
+                        bmax = bmax.max(p);
+                        s.leaf_voxels += 1;
+                    }
+                    leaf_sum += sum;
                 }
             }
-            s.sum += lsum;
         }
+        s.sum = tile_sum + leaf_sum;
         s.active_voxels += s.leaf_voxels;
         if s.active_voxels > 0 {
             s.min = lo;
@@ -567,25 +806,6 @@ impl<T: VoxelValue> Tree<T> {
     }
 }
 
-fn node_range<T: VoxelValue>(n: &mut InternalNode<T>, child: impl Fn(usize) -> (T, T)) {
-    let mut r: Option<(T, T)> = None;
-    for (i, &c) in n.children.iter().enumerate() {
-        let (a, b) = if c == NO_CHILD {
-            (n.tiles[i], n.tiles[i])
-        } else {
-            child(c as usize)
-        };
-        r = Some(match r {
-            None => (a, b),
-            Some((lo, hi)) => (lo.min_of(a), hi.max_of(b)),
-        });
-    }
-    if let Some((lo, hi)) = r {
-        n.min = lo;
-        n.max = hi;
-    }
-}
-
 /// Cached, coherent access to a [`Tree`]: remembers the last leaf, lower and upper node it visited.
 ///
 /// The innermost cache is a region (a leaf, or a tile of any level, or an empty root region) with its values:
@@ -593,7 +813,7 @@ fn node_range<T: VoxelValue>(n: &mut InternalNode<T>, child: impl Fn(usize) -> (
 /// For incoherent (random) lookups [`Tree::value`] is a little faster: it has no cache to update.
 pub struct Accessor<'a, T> {
     tree: &'a Tree<T>,
-    /// Key mask of the cached region (`!7`, `!127` or `!4095`).
+    /// Key mask of the cached region (`!(DIM - 1)` of a leaf, a lower node or a root region).
     region_mask: i32,
     /// Origin of the cached region.
     region_key: IVec3,
@@ -614,7 +834,7 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     pub fn new(tree: &'a Tree<T>) -> Self {
         Self {
             tree,
-            region_mask: !7,
+            region_mask: !(Leaf::<T>::DIM - 1),
             region_key: NO_KEY,
             region_values: std::slice::from_ref(&tree.background),
             value_mask: 0,
@@ -629,7 +849,7 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     #[inline(always)]
     pub fn value(&mut self, p: IVec3) -> T {
         if p & IVec3::splat(self.region_mask) == self.region_key {
-            return self.region_values[leaf_slot(p) & self.value_mask];
+            return self.region_values[Leaf::<T>::offset(p) & self.value_mask];
         }
         self.value_slow(p)
     }
@@ -640,40 +860,46 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
         self.region_key = p & IVec3::splat(mask);
         self.region_values = values;
         self.value_mask = value_mask;
-        values[leaf_slot(p) & value_mask]
+        values[Leaf::<T>::offset(p) & value_mask]
     }
 
     #[inline(never)]
     fn value_slow(&mut self, p: IVec3) -> T {
+        // Key masks of the three cached levels: a leaf-sized block, a lower node, a root region.
+        let (leaf, lower, root) = (
+            !(Leaf::<T>::DIM - 1),
+            !(LowerNode::<T>::DIM - 1),
+            !(Root::<T>::DIM - 1),
+        );
         let t = self.tree;
-        if p & !127 != self.lower_key {
-            if p & !4095 != self.upper_key {
-                match t.root_slot(p) {
-                    None => return self.cache(p, !4095, std::slice::from_ref(&t.background), 0),
+        if LowerNode::<T>::origin_of(p) != self.lower_key {
+            if Root::<T>::key(p) != self.upper_key {
+                match t.root.get(p) {
+                    None => return self.cache(p, root, std::slice::from_ref(&t.background), 0),
                     Some(RootSlot::Tile { value, .. }) => {
-                        return self.cache(p, !4095, std::slice::from_ref(value), 0)
+                        return self.cache(p, root, std::slice::from_ref(value), 0)
                     }
                     Some(RootSlot::Child(u)) => {
                         self.upper = *u;
-                        self.upper_key = p & !4095;
+                        self.upper_key = Root::<T>::key(p);
                     }
                 }
             }
             let n = &t.uppers[self.upper as usize];
-            let s = upper_slot(p);
-            match n.children[s] {
-                NO_CHILD => return self.cache(p, !127, std::slice::from_ref(&n.tiles[s]), 0),
-                l => {
+            let s = UpperNode::<T>::slot(p);
+            match n.child(s) {
+                None => return self.cache(p, lower, std::slice::from_ref(&n.tiles[s]), 0),
+                Some(l) => {
                     self.lower = l;
-                    self.lower_key = p & !127;
+                    self.lower_key = LowerNode::<T>::origin_of(p);
                 }
             }
         }
         let n = &t.lowers[self.lower as usize];
-        let s = lower_slot(p);
-        match n.children[s] {
-            NO_CHILD => self.cache(p, !7, std::slice::from_ref(&n.tiles[s]), 0),
-            c => self.cache(p, !7, &t.leaves[c as usize].values, 511),
+        let s = LowerNode::<T>::slot(p);
+        match n.child(s) {
+            None => self.cache(p, leaf, std::slice::from_ref(&n.tiles[s]), 0),
+            Some(c) => self.cache(p, leaf, &t.leaves[c as usize].values, 511),
         }
     }
 
@@ -682,10 +908,11 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     pub fn sample_trilinear(&mut self, index_pos: Vec3) -> T {
         let p = floor_ivec3(index_pos);
         let f = index_pos - p.as_vec3();
-        let corners: [T; 8] = if (p & 7).cmpne(IVec3::splat(7)).all() {
+        let last = Leaf::<T>::DIM - 1;
+        let corners: [T; 8] = if (p & last).cmpne(IVec3::splat(last)).all() {
             // All eight corners lie in one leaf-sized cell: read them from the cached region directly.
             self.value(p);
-            let base = leaf_slot(p);
+            let base = Leaf::<T>::offset(p);
             let m = self.value_mask;
             let v = self.region_values;
             let g = |o: usize| v[(base + o) & m];
@@ -830,26 +1057,40 @@ mod tests {
         )
     }
 
-    #[test]
-    fn accessor_matches_tree_with_tiles_at_every_level() {
+    /// Slots of the first upper and lower node of `tiny` without a child.
+    fn free_slots(t: &FloatTree) -> (usize, usize) {
+        let us = (0..UpperNode::<f32>::SLOTS)
+            .find(|&i| t.uppers[0].child(i).is_none())
+            .unwrap();
+        let ls = (0..LowerNode::<f32>::SLOTS)
+            .find(|&i| t.lowers[0].child(i).is_none())
+            .unwrap();
+        (us, ls)
+    }
+
+    /// `tiny` plus an active root tile (4096³), an inactive upper-level tile (128³) and an active lower-level tile
+    /// (8³), all non-zero.
+    fn tiled() -> FloatTree {
         let mut t = tiny();
-        t.root.push((
+        t.root.entries.push((
             IVec3::new(4096, 0, 0),
             RootSlot::Tile {
                 value: 3.0,
                 active: true,
             },
         ));
-        // An upper-level tile (128^3) and a lower-level tile (8^3) without children.
-        let us = (0..t.uppers[0].children.len())
-            .find(|&i| t.uppers[0].children[i] == NO_CHILD)
-            .unwrap();
+        let (us, ls) = free_slots(&t);
         t.uppers[0].tiles[us] = 4.0;
-        let ls = (0..4096)
-            .find(|&i| t.lowers[0].children[i] == NO_CHILD)
-            .unwrap();
         t.lowers[0].tiles[ls] = 5.0;
+        set_bit(&mut t.lowers[0].value_mask, ls);
         t.finalize();
+        t
+    }
+
+    #[test]
+    fn accessor_matches_tree_with_tiles_at_every_level() {
+        let t = tiled();
+        let (us, ls) = free_slots(&t);
         let mut rng = 12345u64;
         let mut next = || {
             rng = rng
@@ -875,13 +1116,98 @@ mod tests {
             );
         }
         assert_eq!(t.value(IVec3::new(5000, 7, 9)), 3.0);
+        assert_eq!(t.value(t.uppers[0].slot_origin(us) + IVec3::splat(5)), 4.0);
+        assert_eq!(t.value(t.lowers[0].slot_origin(ls) + IVec3::splat(1)), 5.0);
+    }
+
+    /// Checks [`Tree::regions_in`] over `[lo, hi]` against a voxel-by-voxel scan: the regions do not overlap, each
+    /// meets the box, their values and active states are the tree's, and every voxel they leave out holds the
+    /// inactive background. Returns the number of active voxels in the box.
+    fn check_regions_in(t: &FloatTree, lo: IVec3, hi: IVec3) -> u64 {
+        let size = hi - lo + 1;
+        let index = |p: IVec3| {
+            let q = p - lo;
+            ((q.x * size.y + q.y) * size.z + q.z) as usize
+        };
+        let mut covered = vec![false; (size.x * size.y * size.z) as usize];
+        let mut active = 0;
+        for r in t.regions_in(lo, hi) {
+            let (a, b) = (r.origin().max(lo), (r.origin() + (r.edge() - 1)).min(hi));
+            assert!(a.cmple(b).all(), "region {r:?} misses the box");
+            let (rmin, rmax) = r.range();
+            for x in a.x..=b.x {
+                for y in a.y..=b.y {
+                    for z in a.z..=b.z {
+                        let p = IVec3::new(x, y, z);
+                        assert!(
+                            !std::mem::replace(&mut covered[index(p)], true),
+                            "overlap at {p}"
+                        );
+                        let (v, on) = match r {
+                            Region::Leaf(l) => (l.value(p), l.is_active(p)),
+                            Region::Tile(t) => (t.value, t.active),
+                        };
+                        assert_eq!((v, on), (t.value(p), t.is_active(p)), "at {p}");
+                        assert!(rmin <= v && v <= rmax);
+                        active += on as u64;
+                    }
+                }
+            }
+        }
+        for x in lo.x..=hi.x {
+            for y in lo.y..=hi.y {
+                for z in lo.z..=hi.z {
+                    let p = IVec3::new(x, y, z);
+                    if !covered[index(p)] {
+                        assert_eq!(t.value(p), t.background, "at {p}");
+                        assert!(!t.is_active(p), "at {p}");
+                    }
+                }
+            }
+        }
+        active
+    }
+
+    #[test]
+    fn regions_in_a_box_match_a_voxel_scan() {
+        let t = tiled();
+        let (us, ls) = free_slots(&t);
+        let (upper_tile, lower_tile) = (t.uppers[0].slot_origin(us), t.lowers[0].slot_origin(ls));
+        // Boxes across leaf, node and root boundaries, over each kind of tile, and one in empty space.
+        let boxes = [
+            (IVec3::new(-3, 4, 120), IVec3::new(3, 10, 131)),
+            (lower_tile - 2, lower_tile + 9),
+            (upper_tile + 120, upper_tile + 135),
+            (IVec3::new(4090, -3, -3), IVec3::new(4100, 3, 3)),
+            (IVec3::new(-9000, 5000, 7), IVec3::new(-8990, 5010, 17)),
+        ];
+        for (lo, hi) in boxes {
+            check_regions_in(&t, lo, hi);
+        }
         assert_eq!(
-            t.value(upper_child_origin(t.uppers[0].origin, us) + IVec3::splat(5)),
-            4.0
+            check_regions_in(&t, IVec3::new(-1, 6, 126), IVec3::new(1, 8, 128)),
+            27
         );
-        assert_eq!(
-            t.value(lower_child_origin(t.lowers[0].origin, ls) + IVec3::splat(1)),
-            5.0
-        );
+        // The whole tree: every active voxel lies in some region, counted as the statistics count them.
+        let s = t.stats();
+        let active: u64 = t
+            .regions()
+            .map(|r| match r {
+                Region::Leaf(l) => l.active_voxels().count() as u64,
+                Region::Tile(t) => t.active as u64 * (t.edge as u64).pow(3),
+            })
+            .sum();
+        assert_eq!(active, s.active_voxels);
+        assert_eq!(s.active_voxels, 27 + 4096u64.pow(3) + 512);
+        assert_eq!(s.tiles, 2);
+        // Regions in a box are those of the whole tree that meet it.
+        let (lo, hi) = (IVec3::new(-3, 4, 120), IVec3::new(3, 10, 131));
+        let meets = |r: &Region<f32>| {
+            r.origin().cmple(hi).all() && (r.origin() + (r.edge() - 1)).cmpge(lo).all()
+        };
+        let key = |r: Region<f32>| (r.origin().to_array(), r.edge());
+        let all: Vec<_> = t.regions().filter(meets).map(key).collect();
+        let some: Vec<_> = t.regions_in(lo, hi).map(key).collect();
+        assert_eq!(all, some);
     }
 }

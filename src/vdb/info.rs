@@ -1,6 +1,6 @@
 //! `nimbus info`: per-grid summaries of a VDB file, as JSON (serde) or a plain table.
 
-use super::{read_file, Background, Grid, VdbError};
+use super::{read_file, Background, Grid, TreeStats, VdbError};
 use serde::Serialize;
 use std::fmt;
 use std::path::Path;
@@ -26,24 +26,10 @@ pub struct GridInfo {
     pub class: String,
     /// Whether the file stored halves.
     pub half: bool,
-    /// Active voxels, tiles included with all their voxels.
-    pub active_voxels: u64,
-    /// Active voxels in leaves.
-    pub leaf_voxels: u64,
-    /// Active tiles.
-    pub tiles: u64,
-    /// Leaf count.
-    pub leaves: u64,
-    /// Sum of active values.
-    pub sum: f64,
-    /// Minimum active value.
-    pub min: f64,
-    /// Maximum active value.
-    pub max: f64,
-    /// Inclusive active index bbox minimum (zeros if empty).
-    pub bbox_min: [i32; 3],
-    /// Inclusive active index bbox maximum (zeros if empty).
-    pub bbox_max: [i32; 3],
+    /// Counts and statistics of the active values; serialised flat, as `active_voxels`, `leaf_voxels`,
+    /// `tiles`, `leaves`, `sum`, `min`, `max`, `bbox_min` and `bbox_max` (zeros when nothing is active).
+    #[serde(flatten)]
+    pub stats: TreeStats,
     /// World length of a voxel step along each index axis.
     pub voxel_size: [f64; 3],
     /// Background value (number, or array for vectors).
@@ -57,8 +43,6 @@ pub struct GridInfo {
 impl GridInfo {
     /// Summarises one grid.
     pub fn from_grid(g: &Grid) -> Self {
-        let s = g.tree.stats();
-        let (bmin, bmax) = s.bbox.unwrap_or_default();
         Self {
             name: g.name.clone(),
             value_type: match g.value_type {
@@ -75,15 +59,7 @@ impl GridInfo {
             }
             .into(),
             half: g.half,
-            active_voxels: s.active_voxels,
-            leaf_voxels: s.leaf_voxels,
-            tiles: s.tiles,
-            leaves: s.leaves,
-            sum: s.sum,
-            min: s.min,
-            max: s.max,
-            bbox_min: bmin.to_array(),
-            bbox_max: bmax.to_array(),
+            stats: g.tree.stats(),
             voxel_size: g.voxel_size().to_array(),
             background: g.background,
             // glam stores columns; its transpose's column-major array is our row-major array.
@@ -112,14 +88,11 @@ impl fmt::Display for FileInfo {
             "bbox", "voxel", "mem_MiB"
         )?;
         for g in &self.grids {
+            let s = &g.stats;
+            let (bmin, bmax) = s.bbox.unwrap_or_default();
             let bbox = format!(
                 "{},{},{}..{},{},{}",
-                g.bbox_min[0],
-                g.bbox_min[1],
-                g.bbox_min[2],
-                g.bbox_max[0],
-                g.bbox_max[1],
-                g.bbox_max[2]
+                bmin.x, bmin.y, bmin.z, bmax.x, bmax.y, bmax.z
             );
             writeln!(
                 f,
@@ -128,13 +101,13 @@ impl fmt::Display for FileInfo {
                 g.value_type,
                 g.class,
                 if g.half { "yes" } else { "no" },
-                g.active_voxels,
-                g.leaf_voxels,
-                g.tiles,
-                g.leaves,
-                g.sum,
-                g.min,
-                g.max,
+                s.active_voxels,
+                s.leaf_voxels,
+                s.tiles,
+                s.leaves,
+                s.sum,
+                s.min,
+                s.max,
                 bbox,
                 g.voxel_size[0],
                 g.memory_bytes as f64 / (1024.0 * 1024.0)

@@ -24,28 +24,22 @@ mod stream;
 mod transform;
 mod tree_io;
 
-pub use compression::{
-    blosc_decompress, unshuffle, zlib_decompress, COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC,
-    COMPRESS_ZIP,
-};
 pub use error::{VdbError, VdbErrorKind};
 pub use grid::{
-    floor_ivec3, leaf_voxel, lower_child_origin, upper_child_origin, Accessor, FloatTree,
-    InternalNode, Leaf, LowerNode, RootSlot, Tree, TreeStats, UpperNode, Vec3Tree, VoxelValue,
-    NO_CHILD,
+    floor_ivec3, Accessor, FloatTree, InternalNode, Leaf, LowerNode, Region, Root, Tile, Tree,
+    TreeStats, UpperNode, Vec3Tree, VoxelValue,
 };
-pub use half::half_to_f32;
-pub use header::{FileHeader, GridDescriptor};
+pub use header::FileHeader;
 pub use info::{file_info, FileInfo, GridInfo};
 pub use metadata::{MetaValue, Metadata};
-pub use transform::Transform;
-pub use tree_io::mask_mode;
 
 use error::KResult;
 use glam::{DMat4, DVec3, Vec3};
+use header::GridDescriptor;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use stream::Reader;
+use transform::Transform;
 use tree_io::{read_tree, Scalar, TreeCtx};
 
 /// A whole VDB file.

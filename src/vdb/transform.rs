@@ -17,11 +17,6 @@ pub struct Transform {
 }
 
 impl Transform {
-    /// World-to-index matrix (the inverse of [`Self::index_to_world`]).
-    pub fn world_to_index(&self) -> DMat4 {
-        self.index_to_world.inverse()
-    }
-
     /// Length in world units of one voxel step along each index axis.
     pub fn voxel_size(&self) -> DVec3 {
         let m = &self.index_to_world;
@@ -110,7 +105,7 @@ mod tests {
             map_type: "AffineMap".into(),
             index_to_world: a,
         };
-        let back = t.world_to_index().transform_point3(p);
+        let back = t.index_to_world.inverse().transform_point3(p);
         assert!((back - DVec3::X).length() < 1e-12);
         assert!((t.voxel_size() - DVec3::new(1.0, 1.0, 2.0)).length() < 1e-12);
     }

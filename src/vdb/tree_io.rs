@@ -6,10 +6,7 @@
 
 use super::compression::{read_data, COMPRESS_ACTIVE_MASK};
 use super::error::{corrupt, KResult};
-use super::grid::{
-    lower_child_origin, upper_child_origin, InternalNode, Leaf, RootSlot, Tree, VoxelValue,
-    NO_CHILD,
-};
+use super::grid::{InternalNode, Leaf, LowerNode, Root, RootSlot, Tree, UpperNode, VoxelValue};
 use super::half::half_to_f32;
 use super::stream::Reader;
 use glam::IVec3;
@@ -114,10 +111,11 @@ pub(crate) fn read_values<T: VoxelValue>(
         return corrupt(format!("invalid compression metadata {mode}"));
     }
     let mut inactive1 = background;
-    let mut inactive0 = if mode == NO_MASK_OR_INACTIVE_VALS {
-        background
-    } else {
-        background.neg()
+    // The inactive value where no selection bit is set; the modes that store it replace it below.
+    let mut inactive0 = match mode {
+        NO_MASK_OR_INACTIVE_VALS => background,
+        NO_MASK_AND_MINUS_BG => background.neg(),
+        _ => background.neg(),
     };
     if matches!(
         mode,
@@ -188,26 +186,18 @@ pub(crate) fn read_values<T: VoxelValue>(
 }
 
 /// Reads an internal node's masks and tile values; returns the node and its child mask.
-fn read_internal<T: VoxelValue>(
+fn read_internal<T: VoxelValue, const LOG2: i32, const CHILD_LOG2: i32>(
     r: &mut Reader<'_>,
     ctx: &mut TreeCtx,
     background: T,
     origin: IVec3,
-    log2: u32,
-) -> KResult<(InternalNode<T>, Vec<u64>)> {
-    let n = 1usize << (3 * log2);
+) -> KResult<(InternalNode<T, LOG2, CHILD_LOG2>, Vec<u64>)> {
+    let n = InternalNode::<T, LOG2, CHILD_LOG2>::SLOTS;
     let child_mask = read_mask_vec(r, n / 64, "internal child mask")?;
     let value_mask = read_mask_vec(r, n / 64, "internal value mask")?;
     let mut tiles = vec![background; n];
     read_values(r, ctx, background, &value_mask, &mut tiles)?;
-    let node = InternalNode {
-        origin,
-        children: vec![NO_CHILD; n].into_boxed_slice(),
-        tiles: tiles.into_boxed_slice(),
-        value_mask: value_mask.into_boxed_slice(),
-        min: background,
-        max: background,
-    };
+    let node = InternalNode::from_tiles(origin, tiles, value_mask, background);
     Ok((node, child_mask))
 }
 
@@ -235,7 +225,8 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
     let num_tiles = r.u32("root tile count")? as u64;
     let num_children = r.u32("root child count")? as u64;
     let tile_bytes = 12 + ctx.full_size::<T>() as u64 + 1;
-    let min_child_bytes = 12 + 2 * 4096;
+    // An origin and an upper node's child and value masks.
+    let min_child_bytes = 12 + 2 * (UpperNode::<T>::SLOTS / 8) as u64;
     if num_tiles * tile_bytes + num_children * min_child_bytes > r.remaining() as u64 {
         return corrupt(format!(
             "root claims {num_tiles} tiles and {num_children} children, more than the data holds"
@@ -246,25 +237,33 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
         let origin = r.ivec3("root tile origin")?;
         let value = read_full(r, ctx, "root tile value")?;
         let active = r.u8("root tile active flag")? != 0;
-        if origin & IVec3::splat(4095) != IVec3::ZERO {
-            return corrupt(format!("root tile origin {origin} is not aligned to 4096"));
+        if Root::<T>::key(origin) != origin {
+            return corrupt(format!(
+                "root tile origin {origin} is not aligned to {}",
+                Root::<T>::DIM
+            ));
         }
-        tree.root.push((origin, RootSlot::Tile { value, active }));
+        tree.root
+            .entries
+            .push((origin, RootSlot::Tile { value, active }));
     }
     for _ in 0..num_children {
         let origin = r.ivec3("root child origin")?;
-        if origin & IVec3::splat(4095) != IVec3::ZERO {
-            return corrupt(format!("root child origin {origin} is not aligned to 4096"));
+        if Root::<T>::key(origin) != origin {
+            return corrupt(format!(
+                "root child origin {origin} is not aligned to {}",
+                Root::<T>::DIM
+            ));
         }
-        let (mut upper, umask) = read_internal(r, ctx, background, origin, 5)?;
+        let (mut upper, umask): (UpperNode<T>, _) = read_internal(r, ctx, background, origin)?;
         for ui in set_bits(&umask) {
-            let lorigin = upper_child_origin(origin, ui);
-            let (mut lower, lmask) = read_internal(r, ctx, background, lorigin, 4)?;
+            let lorigin = upper.slot_origin(ui);
+            let (mut lower, lmask): (LowerNode<T>, _) = read_internal(r, ctx, background, lorigin)?;
             for li in set_bits(&lmask) {
                 let value_mask = r.mask::<8>("leaf value mask")?;
                 lower.children[li] = tree.leaves.len() as u32;
                 tree.leaves.push(Leaf {
-                    origin: lower_child_origin(lorigin, li),
+                    origin: lower.slot_origin(li),
                     value_mask,
                     values: [background; 512],
                     min: background,
@@ -275,11 +274,12 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
             tree.lowers.push(lower);
         }
         tree.root
+            .entries
             .push((origin, RootSlot::Child(tree.uppers.len() as u32)));
         tree.uppers.push(upper);
     }
-    tree.root.sort_by_key(|e| (e.0.x, e.0.y, e.0.z));
-    if tree.root.windows(2).any(|w| w[0].0 == w[1].0) {
+    tree.root.entries.sort_by_key(|e| (e.0.x, e.0.y, e.0.z));
+    if tree.root.entries.windows(2).any(|w| w[0].0 == w[1].0) {
         return corrupt("duplicate root table entries");
     }
     // Buffers: the leaves in the same depth-first order.

@@ -7,8 +7,8 @@
 
 use super::error::DensityError;
 use crate::math::{Aabb, Mat4, Ray, Vec3};
-use crate::vdb::{FloatTree, Grid, GridTree, RootSlot, NO_CHILD};
-use glam::{DMat4, IVec3};
+use crate::vdb::{FloatTree, Grid, GridTree, Region};
+use glam::DMat4;
 use std::sync::Arc;
 
 /// A scalar extinction field σ_t (per metre, already scaled) that tracking estimators can query.
@@ -85,60 +85,19 @@ impl BadValues {
 /// Replaces NaN, infinite and negative values (voxels and tiles, active or not) by zero and recomputes the
 /// node ranges, so majorants stay finite. Returns what was replaced; the tree is untouched when nothing was.
 fn sanitize(tree: &FloatTree) -> Option<(FloatTree, BadValues)> {
-    let bad = |v: f32| !v.is_finite() || v < 0.0;
-    let any = tree.leaves.iter().any(|l| l.values.iter().any(|v| bad(*v)))
-        || tree
-            .uppers
-            .iter()
-            .chain(tree.lowers.iter())
-            .any(|n| n.tiles.iter().any(|v| bad(*v)))
-        || tree
-            .root
-            .iter()
-            .any(|(_, s)| matches!(s, RootSlot::Tile { value, .. } if bad(*value)));
-    if !any {
+    if !tree.any_value(|v| !v.is_finite() || v < 0.0) {
         return None;
     }
     let mut t = tree.clone();
     let mut counts = BadValues::default();
-    for leaf in &mut t.leaves {
-        leaf.values.iter_mut().for_each(|v| counts.check(v));
-    }
-    for node in t.uppers.iter_mut().chain(t.lowers.iter_mut()) {
-        node.tiles.iter_mut().for_each(|v| counts.check(v));
-    }
-    for (_, slot) in &mut t.root {
-        if let RootSlot::Tile { value, .. } = slot {
-            counts.check(value);
-        }
-    }
-    t.finalize();
+    t.update_values(|v| counts.check(v));
     Some((t, counts))
 }
 
-/// Calls `f(origin, edge, min, max)` for every leaf and every tile of `tree` whose values are not all zero:
-/// the index-space cube `[origin, origin + edge)` and the range of values a lookup inside it can return.
-pub(crate) fn for_each_region(tree: &FloatTree, mut f: impl FnMut(IVec3, i32, f32, f32)) {
-    for (origin, slot) in &tree.root {
-        if let RootSlot::Tile { value, .. } = slot {
-            if *value != 0.0 {
-                f(*origin, 4096, *value, *value);
-            }
-        }
-    }
-    for n in tree.uppers.iter().chain(tree.lowers.iter()) {
-        let edge = n.edge() / if n.children.len() == 4096 { 16 } else { 32 };
-        for (i, &c) in n.children.iter().enumerate() {
-            if c == NO_CHILD && n.tiles[i] != 0.0 {
-                f(n.slot_origin(i), edge, n.tiles[i], n.tiles[i]);
-            }
-        }
-    }
-    for lf in &tree.leaves {
-        if lf.min != 0.0 || lf.max != 0.0 {
-            f(lf.origin, 8, lf.min, lf.max);
-        }
-    }
+/// The leaves and tiles of `tree` whose values are not all zero, with the range of values a lookup inside each
+/// can return.
+pub(crate) fn nonzero_regions(tree: &FloatTree) -> impl Iterator<Item = Region<'_, f32>> {
+    tree.regions().filter(|r| r.range() != (0.0, 0.0))
 }
 
 impl GridDensity {
@@ -166,8 +125,8 @@ impl GridDensity {
         let Some(t) = tree.as_float() else {
             return Err(DensityError::NotScalar);
         };
-        if t.background != 0.0 {
-            return Err(DensityError::NonZeroBackground(t.background));
+        if t.background() != 0.0 {
+            return Err(DensityError::NonZeroBackground(t.background()));
         }
         if !(density_scale.is_finite() && density_scale >= 0.0) {
             return Err(DensityError::InvalidScale(density_scale));
@@ -182,11 +141,10 @@ impl GridDensity {
         // A trilinear lookup at x reads voxels floor(x) and floor(x) + 1, so a region [o, o + e) of voxels can
         // influence the continuous positions [o - 1, o + e).
         let mut b = Aabb::EMPTY;
-        for_each_region(t, |o, e, _, hi| {
-            if hi > 0.0 {
-                b = b.union(&Aabb::new((o - 1).as_vec3(), (o + e).as_vec3()));
-            }
-        });
+        for r in t.regions().filter(|r| r.range().1 > 0.0) {
+            let (o, e) = (r.origin(), r.edge());
+            b = b.union(&Aabb::new((o - 1).as_vec3(), (o + e).as_vec3()));
+        }
         let world_to_index = index_to_world.inverse();
         Ok(Self {
             tree,
@@ -397,6 +355,7 @@ impl DensityField for AnalyticDensity {
 pub(crate) mod test_fields {
     use super::*;
     use crate::vdb::Tree;
+    use glam::IVec3;
 
     /// A 40³ sphere of radius 16 voxels with a smooth falloff and an empty slab gap at x ∈ [18, 22), offset so
     /// that it straddles leaf, lower-node and sign boundaries; voxel size 0.05 m, rotated and translated.
@@ -456,7 +415,7 @@ mod tests {
         let b = g.bounds();
         // Conservative: covers the trilinear support [-1.1, 0.0] on x (leaf-granular).
         assert!(b.contains(p) && b.min.x <= -1.1 + 1e-4 && b.max.x >= -1e-4 && b.max.x < 0.2);
-        assert!(g.memory_bytes() > g.tree().leaves.len() * 2048);
+        assert!(g.memory_bytes() > g.tree().stats().leaves as usize * 2048);
     }
 
     #[test]

@@ -17,26 +17,35 @@
 //!   less than [`MERGE_TAU`] of majorant optical depth (the expected number of extra null collisions), which
 //!   trades DDA segments against null collisions.
 //!
+//! Trackers pull the segments from a [`MajorantIterator`] ([`Majorants::segments`]), an external iterator that
+//! keeps the DDA state between calls to `next()`, as pbrt-v4's `DDAMajorantIterator` does (Pharr, Jakob,
+//! Humphreys, "Physically Based Rendering", 4th ed., §11.4.3 "Majorant grids"); here the state is one DDA per
+//! level of the structure.
+//!
 //! Bounds are conservative for trilinear interpolation: a lookup at `x` reads voxels `floor(x)` and
 //! `floor(x) + 1`, so a cell's bound covers every voxel its points can read, one voxel beyond the cell.
 
-use super::density::{for_each_region, AnalyticDensity, DensityField, GridDensity};
+use super::density::{nonzero_regions, AnalyticDensity, DensityField, GridDensity};
 use crate::math::{Aabb, Ray, Vec3};
-use crate::vdb::{floor_ivec3, FloatTree, RootSlot, NO_CHILD};
+use crate::vdb::{floor_ivec3, FloatTree, Leaf, LowerNode};
 use glam::IVec3;
-use std::ops::ControlFlow;
 
 /// Resolution per axis of the [`MajorantKind::Grid16`] grid.
 pub const GRID16_RES: i32 = 16;
 /// Extra majorant optical depth below which [`MajorantKind::Adaptive`] merges neighbouring segments, measured
 /// as σ̄ × ray parameter (an optical depth for rays whose world direction has unit length).
 pub const MERGE_TAU: f32 = 0.25;
-const COARSE_LOG2: i32 = 7;
-const FINE_LOG2: i32 = 3;
+/// log2 of the coarse cell edge in voxels: a lower node of the VDB tree.
+const COARSE_LOG2: i32 = LowerNode::<f32>::LOG2DIM;
+/// log2 of the fine cell edge in voxels: a leaf of the VDB tree.
+const FINE_LOG2: i32 = Leaf::<f32>::LOG2DIM;
+/// Fine cells per brick edge.
 const BRICK: i32 = 1 << (COARSE_LOG2 - FINE_LOG2);
+const BRICK_CELLS: usize = (BRICK * BRICK * BRICK) as usize;
 const NO_BRICK: u32 = u32::MAX;
 /// Mid-level cells per brick edge.
 const MID: i32 = 4;
+const MID_CELLS: usize = (MID * MID * MID) as usize;
 /// Fine cells per mid-level cell edge.
 const FINE_PER_MID: i32 = BRICK / MID;
 
@@ -44,10 +53,10 @@ const FINE_PER_MID: i32 = BRICK / MID;
 /// skip empty or uniform quarters of the brick in one step. Entries are (min, max).
 #[derive(Clone, Debug)]
 struct Brick {
-    mid: [(f32, f32); (MID * MID * MID) as usize],
+    mid: [(f32, f32); MID_CELLS],
     /// Bit per mid cell: walk it as one segment (its fine cells would save less than [`MERGE_TAU`]).
     flat: u64,
-    fine: [(f32, f32); (BRICK * BRICK * BRICK) as usize],
+    fine: [(f32, f32); BRICK_CELLS],
 }
 
 /// Which majorant structure to build.
@@ -110,86 +119,130 @@ impl UniformGrid {
         ((c.x * self.res.y + c.y) * self.res.z + c.z) as usize
     }
 
+    /// The cell of [`Self::index`] `i`.
+    fn coords(&self, i: usize) -> IVec3 {
+        let i = i as i32;
+        IVec3::new(
+            i / (self.res.y * self.res.z),
+            i / self.res.z % self.res.y,
+            i % self.res.z,
+        )
+    }
+
     fn cells(&self) -> usize {
         (self.res.x * self.res.y * self.res.z) as usize
     }
 
-    /// Walks the cells pierced by `ray` over `[t0, t1]`, clipped to the grid; see [`Self::walk_inside`].
-    fn walk(
-        &self,
-        ray: &Ray,
-        inv_dir: Vec3,
-        t0: f32,
-        t1: f32,
-        cells: &mut u64,
-        f: impl FnMut(IVec3, f32, f32) -> ControlFlow<()>,
-    ) -> ControlFlow<()> {
-        let ta = (self.origin - ray.origin) * inv_dir;
-        let tb = (self.origin + self.cell * self.res.as_vec3() - ray.origin) * inv_dir;
+    /// Raises `values` of the cells `a..=b` (clamped to the grid) to at least `v`.
+    fn raise(&self, values: &mut [f32], a: IVec3, b: IVec3, v: f32) {
+        let (a, b) = (a.max(IVec3::ZERO), b.min(self.res - 1));
+        for x in a.x..=b.x {
+            for y in a.y..=b.y {
+                for z in a.z..=b.z {
+                    let m = &mut values[self.index(IVec3::new(x, y, z))];
+                    *m = m.max(v);
+                }
+            }
+        }
+    }
+}
+
+/// A 3D DDA through a [`UniformGrid`] (Amanatides & Woo 1987): per axis, the parameter of the next cell
+/// boundary `t_next` and the parameter step per cell `t_delta`; each step advances the axis with the smallest
+/// `t_next`. Plain arrays: indexing glam vectors by a runtime axis compiles to a branch per access.
+#[derive(Clone, Debug)]
+struct Dda {
+    cell: [i32; 3],
+    t_next: [f32; 3],
+    t_delta: [f32; 3],
+    step: [i32; 3],
+    res: [i32; 3],
+    /// Parameter where the current cell is entered.
+    t: f32,
+    /// End of the walk.
+    t_end: f32,
+    done: bool,
+}
+
+impl Dda {
+    /// A walk that visits nothing.
+    const EMPTY: Dda = Dda {
+        cell: [0; 3],
+        t_next: [0.0; 3],
+        t_delta: [0.0; 3],
+        step: [0; 3],
+        res: [0; 3],
+        t: 0.0,
+        t_end: 0.0,
+        done: true,
+    };
+
+    /// Walks the cells of `grid` pierced by `ray` over `[t0, t1]`, clipped to the grid.
+    fn clipped(grid: &UniformGrid, ray: &Ray, inv_dir: Vec3, t0: f32, t1: f32) -> Self {
+        let ta = (grid.origin - ray.origin) * inv_dir;
+        let tb = (grid.origin + grid.cell * grid.res.as_vec3() - ray.origin) * inv_dir;
         let t0 = ta.min(tb).max_element().max(t0);
         let t1 = ta.max(tb).min_element().min(t1);
         if t0 < t1 {
-            self.walk_inside(ray, inv_dir, t0, t1, cells, f)
+            Self::inside(grid, ray, inv_dir, t0, t1)
         } else {
-            ControlFlow::Continue(())
+            Self::EMPTY
         }
     }
 
-    /// Walks the cells pierced by `ray` over `[ta, tb]` (known to lie in the grid up to round-off) with the 3D DDA
-    /// of Amanatides & Woo (1987): per axis, the parameter of the next cell boundary `t_next` and the parameter
-    /// step per cell `t_delta`; each step advances the axis with the smallest `t_next`. Adds the cells visited
-    /// to `cells`.
-    fn walk_inside(
-        &self,
-        ray: &Ray,
-        inv_dir: Vec3,
-        ta: f32,
-        tb: f32,
-        cells: &mut u64,
-        mut f: impl FnMut(IVec3, f32, f32) -> ControlFlow<()>,
-    ) -> ControlFlow<()> {
+    /// Walks the cells of `grid` pierced by `ray` over `[ta, tb]`, known to lie in the grid up to round-off.
+    fn inside(grid: &UniformGrid, ray: &Ray, inv_dir: Vec3, ta: f32, tb: f32) -> Self {
         // Start from the cell of the interval's entry point (clamped inside against round-off).
         let c =
-            floor_ivec3((ray.at(ta) - self.origin) / self.cell).clamp(IVec3::ZERO, self.res - 1);
+            floor_ivec3((ray.at(ta) - grid.origin) / grid.cell).clamp(IVec3::ZERO, grid.res - 1);
         let flat = ray.dir.cmpeq(Vec3::ZERO);
         let up = ray.dir.cmpgt(Vec3::ZERO);
         let step = IVec3::select(up, IVec3::ONE, IVec3::NEG_ONE);
         let boundary =
-            self.origin + (c + IVec3::select(up, IVec3::ONE, IVec3::ZERO)).as_vec3() * self.cell;
+            grid.origin + (c + IVec3::select(up, IVec3::ONE, IVec3::ZERO)).as_vec3() * grid.cell;
         let t_next = Vec3::select(flat, Vec3::INFINITY, (boundary - ray.origin) * inv_dir);
-        let t_delta = Vec3::select(flat, Vec3::INFINITY, self.cell * inv_dir.abs());
-        // Plain arrays: indexing glam vectors by a runtime axis compiles to a branch per access.
-        let (mut t_next, t_delta, step, res) = (
-            t_next.to_array(),
-            t_delta.to_array(),
-            step.to_array(),
-            self.res.to_array(),
-        );
-        let mut cell = c.to_array();
-        let mut t = ta;
-        loop {
+        let t_delta = Vec3::select(flat, Vec3::INFINITY, grid.cell * inv_dir.abs());
+        Self {
+            cell: c.to_array(),
+            t_next: t_next.to_array(),
+            t_delta: t_delta.to_array(),
+            step: step.to_array(),
+            res: grid.res.to_array(),
+            t: ta,
+            t_end: tb,
+            done: false,
+        }
+    }
+
+    /// The next cell of non-zero length and its parameter interval, adding every cell stepped through to
+    /// `cells`; `None` once the walk has left the interval or the grid.
+    #[inline]
+    fn next(&mut self, cells: &mut u64) -> Option<(IVec3, f32, f32)> {
+        while !self.done {
             *cells += 1;
-            let a = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
+            let t = &self.t_next;
+            let a = if t[0] <= t[1] && t[0] <= t[2] {
                 0
-            } else if t_next[1] <= t_next[2] {
+            } else if t[1] <= t[2] {
                 1
             } else {
                 2
             };
-            let t_end = t_next[a].min(tb);
-            if t_end > t {
-                f(IVec3::from_array(cell), t, t_end)?;
+            let cell = self.cell;
+            let (t0, t1) = (self.t, self.t_next[a].min(self.t_end));
+            if t1 >= self.t_end {
+                self.done = true;
+            } else {
+                self.t = t1;
+                self.cell[a] += self.step[a];
+                self.done = self.cell[a] < 0 || self.cell[a] >= self.res[a];
+                self.t_next[a] += self.t_delta[a];
             }
-            if t_end >= tb {
-                return ControlFlow::Continue(());
+            if t1 > t0 {
+                return Some((IVec3::from_array(cell), t0, t1));
             }
-            t = t_end;
-            cell[a] += step[a];
-            if cell[a] < 0 || cell[a] >= res[a] {
-                return ControlFlow::Continue(());
-            }
-            t_next[a] += t_delta[a];
         }
+        None
     }
 }
 
@@ -220,35 +273,6 @@ pub struct Majorants {
     repr: Repr,
 }
 
-/// (min, max) of the stored values a lookup can return in the 8³ block at leaf-aligned index `p`.
-fn block_range(tree: &FloatTree, p: IVec3) -> (f32, f32) {
-    let key = p & !4095;
-    let Ok(i) = tree
-        .root
-        .binary_search_by(|(k, _)| (k.x, k.y, k.z).cmp(&(key.x, key.y, key.z)))
-    else {
-        return (tree.background, tree.background);
-    };
-    let u = match tree.root[i].1 {
-        RootSlot::Tile { value, .. } => return (value, value),
-        RootSlot::Child(u) => &tree.uppers[u as usize],
-    };
-    let us =
-        ((((p.x & 4095) >> 7) << 10) | (((p.y & 4095) >> 7) << 5) | ((p.z & 4095) >> 7)) as usize;
-    let l = match u.children[us] {
-        NO_CHILD => return (u.tiles[us], u.tiles[us]),
-        l => &tree.lowers[l as usize],
-    };
-    let ls = ((((p.x & 127) >> 3) << 8) | (((p.y & 127) >> 3) << 4) | ((p.z & 127) >> 3)) as usize;
-    match l.children[ls] {
-        NO_CHILD => (l.tiles[ls], l.tiles[ls]),
-        c => {
-            let lf = &tree.leaves[c as usize];
-            (lf.min, lf.max)
-        }
-    }
-}
-
 impl Majorants {
     /// One global bound `[sigma_min, sigma_max]` over the local box `bounds` (Mitsuba 3 style). Also the way to
     /// build a deliberately wrong majorant for tests.
@@ -273,39 +297,14 @@ impl Majorants {
         let tree = field.tree();
         let s = field.scale();
         let bounds = field.index_bounds();
-        let mut global_max = 0.0f32;
-        for_each_region(tree, |_, _, _, hi| global_max = global_max.max(hi));
-        let global_max = global_max * s;
+        let global_max = nonzero_regions(tree).fold(0.0f32, |m, r| m.max(r.range().1)) * s;
         if bounds.is_empty() || global_max <= 0.0 {
             return Self::global(Aabb::EMPTY, 0.0, 0.0);
         }
         let repr = match kind {
             MajorantKind::Global => Repr::Global,
             MajorantKind::Grid16 => {
-                let grid = UniformGrid {
-                    origin: bounds.min,
-                    cell: bounds.extent() / GRID16_RES as f32,
-                    res: IVec3::splat(GRID16_RES),
-                };
-                let mut values = vec![0.0f32; grid.cells()];
-                for_each_region(tree, |o, e, _, hi| {
-                    // Positions [o - 1, o + e) can read the region: mark every cell overlapping it.
-                    let lo = ((((o - 1).as_vec3()) - grid.origin) / grid.cell)
-                        .floor()
-                        .as_ivec3();
-                    let up = (((o + e).as_vec3() - grid.origin) / grid.cell)
-                        .floor()
-                        .as_ivec3();
-                    let (lo, up) = (lo.max(IVec3::ZERO), up.min(grid.res - 1));
-                    for x in lo.x..=up.x {
-                        for y in lo.y..=up.y {
-                            for z in lo.z..=up.z {
-                                let v = &mut values[grid.index(IVec3::new(x, y, z))];
-                                *v = v.max(hi * s);
-                            }
-                        }
-                    }
-                });
+                let (grid, values) = grid16(tree, s, bounds);
                 Repr::Grid { grid, values }
             }
             MajorantKind::Adaptive => {
@@ -314,7 +313,7 @@ impl Majorants {
                     + m.y_axis.truncate().length()
                     + m.z_axis.truncate().length())
                     / 3.0;
-                Repr::Adaptive(Self::build_hierarchy(tree, s, bounds, voxel))
+                Repr::Adaptive(Hierarchy::build(tree, s, bounds, voxel))
             }
         };
         Self {
@@ -323,123 +322,6 @@ impl Majorants {
             sigma_min: 0.0,
             sigma_max: global_max,
             repr,
-        }
-    }
-
-    /// Builds the two-level structure. `voxel` (mean world voxel edge) only steers where refinement pays: a cell
-    /// is kept as one segment where refining would save less than [`MERGE_TAU`] of majorant optical depth per
-    /// crossing, estimated as (cell max − mean of its fine maxima) × cell edge.
-    fn build_hierarchy(tree: &FloatTree, s: f32, bounds: Aabb, voxel: f32) -> Hierarchy {
-        let c = 1 << COARSE_LOG2;
-        let lo = bounds.min.floor().as_ivec3().div_euclid(IVec3::splat(c));
-        let hi = (bounds.max.ceil().as_ivec3() - 1).div_euclid(IVec3::splat(c));
-        let coarse = UniformGrid {
-            origin: (lo * c).as_vec3(),
-            cell: Vec3::splat(c as f32),
-            res: hi - lo + 1,
-        };
-        // Coarse maxima: the voxels read from a coarse cell are [cell, cell + 128] (one beyond), so a region
-        // [o, o + e) marks the coarse cells holding the integer positions [o - 1, o + e - 1].
-        let mut cmax = vec![0.0f32; coarse.cells()];
-        for_each_region(tree, |o, e, _, h| {
-            let a = ((o - 1).div_euclid(IVec3::splat(c)) - lo).max(IVec3::ZERO);
-            let b = ((o + e - 1).div_euclid(IVec3::splat(c)) - lo).min(coarse.res - 1);
-            for x in a.x..=b.x {
-                for y in a.y..=b.y {
-                    for z in a.z..=b.z {
-                        let v = &mut cmax[coarse.index(IVec3::new(x, y, z))];
-                        *v = v.max(h * s);
-                    }
-                }
-            }
-        });
-        let mut cells = vec![(0.0f32, 0.0f32, NO_BRICK); coarse.cells()];
-        let mut bricks = Vec::new();
-        let n = BRICK as usize;
-        // Blocks (8³ voxels) per fine cell edge, and fine cells per mid cell edge.
-        let r = 1usize << (FINE_LOG2 - 3);
-        let q = n / MID as usize;
-        for x in 0..coarse.res.x {
-            for y in 0..coarse.res.y {
-                for z in 0..coarse.res.z {
-                    let ci = IVec3::new(x, y, z);
-                    let idx = coarse.index(ci);
-                    if cmax[idx] <= 0.0 {
-                        continue;
-                    }
-                    // Ranges of the 8³-voxel blocks this cell's fine cells read from (one beyond).
-                    let base = (lo + ci) * c;
-                    let nb = n * r + 1;
-                    let mut block = vec![(0.0f32, 0.0f32); nb * nb * nb];
-                    let bi = |i: usize, j: usize, k: usize| (i * nb + j) * nb + k;
-                    for i in 0..nb {
-                        for j in 0..nb {
-                            for k in 0..nb {
-                                let p = base + IVec3::new(i as i32, j as i32, k as i32) * 8;
-                                let (a, b) = block_range(tree, p);
-                                block[bi(i, j, k)] = (a.max(0.0) * s, b.max(0.0) * s);
-                            }
-                        }
-                    }
-                    let mut brick = [(0.0f32, 0.0f32); (BRICK * BRICK * BRICK) as usize];
-                    let (mut bmin, mut bmax, mut bsum) = (f32::INFINITY, 0.0f32, 0.0f32);
-                    for i in 0..n {
-                        for j in 0..n {
-                            for k in 0..n {
-                                let (mut a, mut b) = (f32::INFINITY, 0.0f32);
-                                for di in 0..=r {
-                                    for dj in 0..=r {
-                                        for dk in 0..=r {
-                                            let v = block[bi(i * r + di, j * r + dj, k * r + dk)];
-                                            a = a.min(v.0);
-                                            b = b.max(v.1);
-                                        }
-                                    }
-                                }
-                                brick[(i * n + j) * n + k] = (a, b);
-                                bmin = bmin.min(a);
-                                bmax = bmax.max(b);
-                                bsum += b;
-                            }
-                        }
-                    }
-                    let saved = (bmax - bsum / (n * n * n) as f32) * c as f32 * voxel;
-                    cells[idx] = if bmin == bmax || saved < MERGE_TAU {
-                        (bmin, bmax, NO_BRICK)
-                    } else {
-                        let mut mid = [(f32::INFINITY, 0.0f32); (MID * MID * MID) as usize];
-                        let mut sum = [0.0f32; (MID * MID * MID) as usize];
-                        for i in 0..n {
-                            for j in 0..n {
-                                for k in 0..n {
-                                    let mi = (i / q * MID as usize + j / q) * MID as usize + k / q;
-                                    let (a, b) = brick[(i * n + j) * n + k];
-                                    mid[mi] = (mid[mi].0.min(a), mid[mi].1.max(b));
-                                    sum[mi] += b;
-                                }
-                            }
-                        }
-                        let mut flat = 0u64;
-                        for (mi, &(a, b)) in mid.iter().enumerate() {
-                            let saved = (b - sum[mi] / (q * q * q) as f32) * (q * 8) as f32 * voxel;
-                            if a == b || saved < MERGE_TAU {
-                                flat |= 1 << mi;
-                            }
-                        }
-                        bricks.push(Brick {
-                            mid,
-                            flat,
-                            fine: brick,
-                        });
-                        (bmin, bmax, (bricks.len() - 1) as u32)
-                    };
-                }
-            }
-        }
-        Hierarchy {
-            coarse,
-            cells,
-            bricks,
         }
     }
 
@@ -472,134 +354,353 @@ impl Majorants {
             }
     }
 
-    /// Calls `f` for each segment of non-zero majorant along the local-space `ray` over `[t_min, t_max]`, in
-    /// increasing `t`, until `f` breaks. Returns `Break` when `f` did. Adds the structure's cells visited (DDA
-    /// steps at every level, empty ones included; 1 for a global bound) to `cells`, the traversal work.
-    pub fn for_each_segment(
-        &self,
-        ray: &Ray,
-        t_min: f32,
-        t_max: f32,
-        cells: &mut u64,
-        mut f: impl FnMut(Segment) -> ControlFlow<()>,
-    ) -> ControlFlow<()> {
+    /// The segments of non-zero majorant along the local-space `ray` over `[t_min, t_max]`, in increasing `t`.
+    pub fn segments(&self, ray: &Ray, t_min: f32, t_max: f32) -> MajorantIterator<'_> {
         let inv_dir = ray.dir.recip();
-        match &self.repr {
-            Repr::Global => match self.bounds.intersect(ray, t_min, t_max) {
-                Some((t0, t1)) if self.sigma_max > 0.0 && t1 > t0 => {
-                    *cells += 1;
-                    f(Segment {
+        let walk = match &self.repr {
+            Repr::Global => Walk::Global(match self.bounds.intersect(ray, t_min, t_max) {
+                Some((t0, t1)) if self.sigma_max > 0.0 && t1 > t0 => Some(Segment {
+                    t0,
+                    t1,
+                    sigma_max: self.sigma_max,
+                    sigma_min: self.sigma_min,
+                }),
+                _ => None,
+            }),
+            Repr::Grid { grid, values } => Walk::Grid {
+                grid,
+                values,
+                dda: Dda::clipped(grid, ray, inv_dir, t_min, t_max),
+            },
+            Repr::Adaptive(h) => Walk::Adaptive(AdaptiveWalk {
+                h,
+                coarse: Dda::clipped(&h.coarse, ray, inv_dir, t_min, t_max),
+                brick: 0,
+                mid_grid: UniformGrid {
+                    origin: Vec3::ZERO,
+                    cell: Vec3::splat(((1 << FINE_LOG2) * FINE_PER_MID) as f32),
+                    res: IVec3::splat(MID),
+                },
+                mid: Dda::EMPTY,
+                mid_cell: IVec3::ZERO,
+                fine: Dda::EMPTY,
+                pending: None,
+            }),
+        };
+        MajorantIterator {
+            ray: *ray,
+            inv_dir,
+            cells: 0,
+            walk,
+        }
+    }
+}
+
+/// The 16³ grid of maxima over `bounds`: each cell holds the largest value a trilinear lookup in it can read.
+fn grid16(tree: &FloatTree, s: f32, bounds: Aabb) -> (UniformGrid, Vec<f32>) {
+    let grid = UniformGrid {
+        origin: bounds.min,
+        cell: bounds.extent() / GRID16_RES as f32,
+        res: IVec3::splat(GRID16_RES),
+    };
+    let mut values = vec![0.0f32; grid.cells()];
+    for r in nonzero_regions(tree) {
+        // Positions [o - 1, o + e) can read the region: raise every cell overlapping them.
+        let (o, e) = (r.origin(), r.edge());
+        let lo = ((((o - 1).as_vec3()) - grid.origin) / grid.cell)
+            .floor()
+            .as_ivec3();
+        let up = (((o + e).as_vec3() - grid.origin) / grid.cell)
+            .floor()
+            .as_ivec3();
+        grid.raise(&mut values, lo, up, r.range().1 * s);
+    }
+    (grid, values)
+}
+
+impl Hierarchy {
+    /// Builds the two-level structure. `voxel` (mean world voxel edge) only steers where refinement pays: a cell
+    /// is kept as one segment where refining would save less than [`MERGE_TAU`] of majorant optical depth per
+    /// crossing, estimated as (cell max − mean of its fine maxima) × cell edge.
+    fn build(tree: &FloatTree, s: f32, bounds: Aabb, voxel: f32) -> Self {
+        let c = 1 << COARSE_LOG2;
+        let lo = bounds.min.floor().as_ivec3().div_euclid(IVec3::splat(c));
+        let hi = (bounds.max.ceil().as_ivec3() - 1).div_euclid(IVec3::splat(c));
+        let coarse = UniformGrid {
+            origin: (lo * c).as_vec3(),
+            cell: Vec3::splat(c as f32),
+            res: hi - lo + 1,
+        };
+        let cmax = coarse_maxima(tree, s, &coarse, lo);
+        let mut cells = vec![(0.0f32, 0.0f32, NO_BRICK); coarse.cells()];
+        let mut bricks = Vec::new();
+        for (idx, &m) in cmax.iter().enumerate() {
+            if m <= 0.0 {
+                continue;
+            }
+            let base = (lo + coarse.coords(idx)) * c;
+            let fine = fine_ranges(&block_ranges(tree, s, base));
+            let (bmin, bmax, bsum) = fine
+                .iter()
+                .fold((f32::INFINITY, 0.0f32, 0.0f32), |(a, b, sum), &(mn, mx)| {
+                    (a.min(mn), b.max(mx), sum + mx)
+                });
+            let saved = (bmax - bsum / BRICK_CELLS as f32) * c as f32 * voxel;
+            cells[idx] = if bmin == bmax || saved < MERGE_TAU {
+                (bmin, bmax, NO_BRICK)
+            } else {
+                bricks.push(Brick::new(fine, voxel));
+                (bmin, bmax, (bricks.len() - 1) as u32)
+            };
+        }
+        Self {
+            coarse,
+            cells,
+            bricks,
+        }
+    }
+}
+
+/// The maximum per coarse cell (grid cell `lo` is the first): the voxels read from a coarse cell are
+/// `[cell, cell + 128]` (one beyond), so a region `[o, o + e)` raises the cells holding the integer positions
+/// `[o - 1, o + e - 1]`.
+fn coarse_maxima(tree: &FloatTree, s: f32, coarse: &UniformGrid, lo: IVec3) -> Vec<f32> {
+    let c = IVec3::splat(1 << COARSE_LOG2);
+    let mut cmax = vec![0.0f32; coarse.cells()];
+    for r in nonzero_regions(tree) {
+        let (o, e) = (r.origin(), r.edge());
+        let a = (o - 1).div_euclid(c) - lo;
+        let b = (o + e - 1).div_euclid(c) - lo;
+        coarse.raise(&mut cmax, a, b, r.range().1 * s);
+    }
+    cmax
+}
+
+/// Blocks (of 8³ voxels, a leaf's size) per edge that the fine cells of one coarse cell read: one beyond.
+const BLOCKS: i32 = BRICK + 1;
+
+/// The scaled (min, max), clamped at zero, of the 17³ leaf-sized blocks from `base`, block `(i, j, k)` at
+/// `((i · 17 + j) · 17 + k)`: the range of the leaf or tile that holds the block, else the background.
+fn block_ranges(tree: &FloatTree, s: f32, base: IVec3) -> Vec<(f32, f32)> {
+    let scaled = |(a, b): (f32, f32)| (a.max(0.0) * s, b.max(0.0) * s);
+    let bg = tree.background();
+    let mut block = vec![scaled((bg, bg)); (BLOCKS * BLOCKS * BLOCKS) as usize];
+    let last = base + ((BLOCKS << FINE_LOG2) - 1);
+    for r in tree.regions_in(base, last) {
+        let range = scaled(r.range());
+        let a = ((r.origin() - base) >> FINE_LOG2).max(IVec3::ZERO);
+        let b = ((r.origin() + (r.edge() - 1) - base) >> FINE_LOG2).min(IVec3::splat(BRICK));
+        for i in a.x..=b.x {
+            for j in a.y..=b.y {
+                for k in a.z..=b.z {
+                    block[((i * BLOCKS + j) * BLOCKS + k) as usize] = range;
+                }
+            }
+        }
+    }
+    block
+}
+
+/// The (min, max) of each fine cell of a brick, `(i · 16 + j) · 16 + k`: over the 2³ blocks it reads.
+fn fine_ranges(block: &[(f32, f32)]) -> [(f32, f32); BRICK_CELLS] {
+    let n = BRICK as usize;
+    let nb = BLOCKS as usize;
+    let bi = |i: usize, j: usize, k: usize| (i * nb + j) * nb + k;
+    let mut fine = [(0.0f32, 0.0f32); BRICK_CELLS];
+    for i in 0..n {
+        for j in 0..n {
+            for k in 0..n {
+                let (mut a, mut b) = (f32::INFINITY, 0.0f32);
+                for di in 0..=1 {
+                    for dj in 0..=1 {
+                        for dk in 0..=1 {
+                            let v = block[bi(i + di, j + dj, k + dk)];
+                            a = a.min(v.0);
+                            b = b.max(v.1);
+                        }
+                    }
+                }
+                fine[(i * n + j) * n + k] = (a, b);
+            }
+        }
+    }
+    fine
+}
+
+impl Brick {
+    /// A brick over the fine ranges `fine`, with its mid level: each mid cell's range, and whether it is walked
+    /// as one segment (uniform, or refining would save less than [`MERGE_TAU`] per crossing).
+    fn new(fine: [(f32, f32); BRICK_CELLS], voxel: f32) -> Self {
+        let n = BRICK as usize;
+        let q = FINE_PER_MID as usize;
+        let mut mid = [(f32::INFINITY, 0.0f32); MID_CELLS];
+        let mut sum = [0.0f32; MID_CELLS];
+        for i in 0..n {
+            for j in 0..n {
+                for k in 0..n {
+                    let mi = (i / q * MID as usize + j / q) * MID as usize + k / q;
+                    let (a, b) = fine[(i * n + j) * n + k];
+                    mid[mi] = (mid[mi].0.min(a), mid[mi].1.max(b));
+                    sum[mi] += b;
+                }
+            }
+        }
+        let mut flat = 0u64;
+        for (mi, &(a, b)) in mid.iter().enumerate() {
+            let saved = (b - sum[mi] / (q * q * q) as f32) * (q << FINE_LOG2) as f32 * voxel;
+            if a == b || saved < MERGE_TAU {
+                flat |= 1 << mi;
+            }
+        }
+        Self { mid, flat, fine }
+    }
+}
+
+/// The segments of non-zero majorant along a ray, in increasing `t` ([`Majorants::segments`]).
+///
+/// An external iterator in the manner of pbrt-v4's `DDAMajorantIterator` (PBRT 4th ed., §11.4.3): the DDA state
+/// of every level lives in the iterator, and each `next()` walks only as far as the next segment, so a tracker
+/// that stops early never pays for the rest of the ray.
+pub struct MajorantIterator<'a> {
+    ray: Ray,
+    inv_dir: Vec3,
+    cells: u64,
+    walk: Walk<'a>,
+}
+
+/// The traversal state of each kind of structure.
+enum Walk<'a> {
+    /// The one segment still to hand out, if any.
+    Global(Option<Segment>),
+    Grid {
+        grid: &'a UniformGrid,
+        values: &'a [f32],
+        dda: Dda,
+    },
+    Adaptive(AdaptiveWalk<'a>),
+}
+
+/// A walk through the [`MajorantKind::Adaptive`] hierarchy: a DDA per level (an empty one where the level above
+/// needs none), and the segment being extended by merging.
+struct AdaptiveWalk<'a> {
+    h: &'a Hierarchy,
+    coarse: Dda,
+    /// The brick of the current coarse cell, and its mid-level grid.
+    brick: u32,
+    mid_grid: UniformGrid,
+    mid: Dda,
+    /// The current mid cell, whose fine cells `fine` walks.
+    mid_cell: IVec3,
+    fine: Dda,
+    pending: Option<Segment>,
+}
+
+impl MajorantIterator<'_> {
+    /// The structure's cells walked so far: DDA steps at every level, empty cells included (1 for a global
+    /// bound). The traversal work, which merged segments hide.
+    pub fn cells(&self) -> u64 {
+        self.cells
+    }
+}
+
+impl Iterator for MajorantIterator<'_> {
+    type Item = Segment;
+
+    #[inline]
+    fn next(&mut self) -> Option<Segment> {
+        match &mut self.walk {
+            Walk::Global(s) => {
+                let s = s.take()?;
+                self.cells += 1;
+                Some(s)
+            }
+            Walk::Grid { grid, values, dda } => loop {
+                let (c, t0, t1) = dda.next(&mut self.cells)?;
+                let m = values[grid.index(c)];
+                if m > 0.0 {
+                    return Some(Segment {
                         t0,
                         t1,
-                        sigma_max: self.sigma_max,
-                        sigma_min: self.sigma_min,
-                    })
-                }
-                _ => ControlFlow::Continue(()),
-            },
-            Repr::Grid { grid, values } => {
-                grid.walk(ray, inv_dir, t_min, t_max, cells, |c, t0, t1| {
-                    let m = values[grid.index(c)];
-                    if m > 0.0 {
-                        f(Segment {
-                            t0,
-                            t1,
-                            sigma_max: m,
-                            sigma_min: 0.0,
-                        })
-                    } else {
-                        ControlFlow::Continue(())
-                    }
-                })
-            }
-            Repr::Adaptive(h) => {
-                let mut pending: Option<Segment> = None;
-                let mut emit = |s: Segment| -> ControlFlow<()> {
-                    if let Some(p) = &mut pending {
-                        let m = p.sigma_max.max(s.sigma_max);
-                        let extra =
-                            (m - p.sigma_max) * (p.t1 - p.t0) + (m - s.sigma_max) * (s.t1 - s.t0);
-                        // Contiguous up to round-off (a brick's entry is recomputed from its own box).
-                        let contiguous = s.t0 - p.t1 <= 1e-6 * (1.0 + s.t0.abs());
-                        if contiguous && extra < MERGE_TAU {
-                            p.t1 = s.t1;
-                            p.sigma_max = m;
-                            p.sigma_min = p.sigma_min.min(s.sigma_min);
-                            return ControlFlow::Continue(());
-                        }
-                        let done = *p;
-                        *p = s;
-                        return f(done);
-                    }
-                    pending = Some(s);
-                    ControlFlow::Continue(())
-                };
-                // Cells of the brick levels, counted apart from the walks that hold the outer counters.
-                let (mut mid_cells, mut fine_cells) = (0u64, 0u64);
-                let walked = h
-                    .coarse
-                    .walk(ray, inv_dir, t_min, t_max, cells, |c, t0, t1| {
-                        let (lo, hi, b) = h.cells[h.coarse.index(c)];
-                        if hi <= 0.0 {
-                            return ControlFlow::Continue(());
-                        }
-                        if b == NO_BRICK {
-                            return emit(Segment {
-                                t0,
-                                t1,
-                                sigma_max: hi,
-                                sigma_min: lo,
-                            });
-                        }
-                        let brick = &h.bricks[b as usize];
-                        let fine_edge = (1 << FINE_LOG2) as f32;
-                        let mid = UniformGrid {
-                            origin: h.coarse.origin + c.as_vec3() * h.coarse.cell,
-                            cell: Vec3::splat(fine_edge * FINE_PER_MID as f32),
-                            res: IVec3::splat(MID),
-                        };
-                        mid.walk_inside(ray, inv_dir, t0, t1, &mut mid_cells, |mc, ma, mb| {
-                            let mi = ((mc.x * MID + mc.y) * MID + mc.z) as usize;
-                            let (lo, hi) = brick.mid[mi];
-                            if hi <= 0.0 {
-                                return ControlFlow::Continue(());
-                            }
-                            if brick.flat >> mi & 1 != 0 {
-                                return emit(Segment {
-                                    t0: ma,
-                                    t1: mb,
-                                    sigma_max: hi,
-                                    sigma_min: lo,
-                                });
-                            }
-                            let fine = UniformGrid {
-                                origin: mid.origin + mc.as_vec3() * mid.cell,
-                                cell: Vec3::splat(fine_edge),
-                                res: IVec3::splat(FINE_PER_MID),
-                            };
-                            fine.walk_inside(ray, inv_dir, ma, mb, &mut fine_cells, |fc, a, b| {
-                                let f = mc * FINE_PER_MID + fc;
-                                let (lo, hi) =
-                                    brick.fine[((f.x * BRICK + f.y) * BRICK + f.z) as usize];
-                                if hi > 0.0 {
-                                    emit(Segment {
-                                        t0: a,
-                                        t1: b,
-                                        sigma_max: hi,
-                                        sigma_min: lo,
-                                    })
-                                } else {
-                                    ControlFlow::Continue(())
-                                }
-                            })
-                        })
+                        sigma_max: m,
+                        sigma_min: 0.0,
                     });
-                *cells += mid_cells + fine_cells;
-                walked?;
-                match pending {
-                    Some(p) => f(p),
-                    None => ControlFlow::Continue(()),
                 }
+            },
+            Walk::Adaptive(w) => w.next_merged(&self.ray, self.inv_dir, &mut self.cells),
+        }
+    }
+}
+
+impl AdaptiveWalk<'_> {
+    /// The next segment after merging: cell segments are joined while the join adds less than [`MERGE_TAU`] of
+    /// majorant optical depth.
+    fn next_merged(&mut self, ray: &Ray, inv_dir: Vec3, cells: &mut u64) -> Option<Segment> {
+        while let Some(s) = self.next_cell(ray, inv_dir, cells) {
+            let Some(p) = &mut self.pending else {
+                self.pending = Some(s);
+                continue;
+            };
+            let m = p.sigma_max.max(s.sigma_max);
+            let extra = (m - p.sigma_max) * (p.t1 - p.t0) + (m - s.sigma_max) * (s.t1 - s.t0);
+            // Contiguous up to round-off (a brick's entry is recomputed from its own box).
+            let contiguous = s.t0 - p.t1 <= 1e-6 * (1.0 + s.t0.abs());
+            if contiguous && extra < MERGE_TAU {
+                p.t1 = s.t1;
+                p.sigma_max = m;
+                p.sigma_min = p.sigma_min.min(s.sigma_min);
+            } else {
+                return self.pending.replace(s);
+            }
+        }
+        self.pending.take()
+    }
+
+    /// The next cell of non-zero majorant at the finest level the hierarchy keeps there: a coarse cell without a
+    /// brick, a flat mid cell or a fine cell.
+    fn next_cell(&mut self, ray: &Ray, inv_dir: Vec3, cells: &mut u64) -> Option<Segment> {
+        let h = self.h;
+        let segment = |t0, t1, (sigma_min, sigma_max): (f32, f32)| Segment {
+            t0,
+            t1,
+            sigma_max,
+            sigma_min,
+        };
+        loop {
+            if let Some((fc, t0, t1)) = self.fine.next(cells) {
+                let f = self.mid_cell * FINE_PER_MID + fc;
+                let range = h.bricks[self.brick as usize].fine
+                    [((f.x * BRICK + f.y) * BRICK + f.z) as usize];
+                if range.1 > 0.0 {
+                    return Some(segment(t0, t1, range));
+                }
+            } else if let Some((mc, t0, t1)) = self.mid.next(cells) {
+                let brick = &h.bricks[self.brick as usize];
+                let mi = ((mc.x * MID + mc.y) * MID + mc.z) as usize;
+                if brick.mid[mi].1 <= 0.0 {
+                    continue;
+                }
+                if brick.flat >> mi & 1 != 0 {
+                    return Some(segment(t0, t1, brick.mid[mi]));
+                }
+                let fine = UniformGrid {
+                    origin: self.mid_grid.origin + mc.as_vec3() * self.mid_grid.cell,
+                    cell: Vec3::splat((1 << FINE_LOG2) as f32),
+                    res: IVec3::splat(FINE_PER_MID),
+                };
+                self.mid_cell = mc;
+                self.fine = Dda::inside(&fine, ray, inv_dir, t0, t1);
+            } else {
+                let (c, t0, t1) = self.coarse.next(cells)?;
+                let (lo, hi, b) = h.cells[h.coarse.index(c)];
+                if hi <= 0.0 {
+                    continue;
+                }
+                if b == NO_BRICK {
+                    return Some(segment(t0, t1, (lo, hi)));
+                }
+                self.brick = b;
+                self.mid_grid.origin = h.coarse.origin + c.as_vec3() * h.coarse.cell;
+                self.mid = Dda::inside(&self.mid_grid, ray, inv_dir, t0, t1);
             }
         }
     }
@@ -609,7 +710,7 @@ impl Majorants {
 mod tests {
     use super::*;
     use crate::math::Rng;
-    use crate::volume::density::test_fields::sphere_grid;
+    use crate::volume::density::test_fields::{block_grid, sphere_grid};
 
     #[test]
     fn majorants_bound_the_trilinear_density() {
@@ -626,15 +727,14 @@ mod tests {
                 m.memory_bytes(),
                 g.memory_bytes()
             );
-            let (mut checked, mut segments) = (0, 0);
+            let mut checked = 0;
             for _ in 0..2000 {
                 // Rays in index space from outside towards random points of the bounds.
                 let target = b.min + u3(&mut rng) * b.extent();
                 let from = b.center() + (u3(&mut rng) - 0.5) * 3.0 * b.extent();
                 let ray = Ray::new(from, target - from);
                 let mut last = f32::NEG_INFINITY;
-                let _ = m.for_each_segment(&ray, 0.0, 3.0, &mut 0, |s| {
-                    segments += 1;
+                for s in m.segments(&ray, 0.0, 3.0) {
                     assert!(s.t0 >= last - 1e-5 && s.t1 >= s.t0 && s.sigma_max > 0.0);
                     last = s.t1;
                     for _ in 0..4 {
@@ -647,17 +747,12 @@ mod tests {
                         );
                         checked += 1;
                     }
-                    ControlFlow::Continue(())
-                });
+                }
             }
             assert!(checked > 4000, "{kind:?}: {checked}");
             // Empty space is skipped: points outside all segments must have zero density.
             let ray = Ray::new(b.min - 5.0, b.extent());
-            let mut covered = Vec::new();
-            let _ = m.for_each_segment(&ray, 0.0, 1.0, &mut 0, |s| {
-                covered.push((s.t0, s.t1));
-                ControlFlow::Continue(())
-            });
+            let covered: Vec<_> = m.segments(&ray, 0.0, 1.0).map(|s| (s.t0, s.t1)).collect();
             for i in 0..5000 {
                 let t = i as f32 / 5000.0;
                 if !covered.iter().any(|&(a, b)| t >= a - 1e-5 && t <= b + 1e-5) {
@@ -683,15 +778,109 @@ mod tests {
             let d = (q - p).normalize();
             let ray = Ray::new(p - d * 100.0, d);
             for (i, m) in kinds.iter().enumerate() {
-                let _ = m.for_each_segment(&ray, 0.0, 300.0, &mut 0, |s| {
+                for s in m.segments(&ray, 0.0, 300.0) {
                     total[i] += ((s.t1 - s.t0) * s.sigma_max) as f64;
-                    ControlFlow::Continue(())
-                });
+                }
             }
         }
         assert!(
             total[2] < 0.8 * total[0] && total[1] < 0.8 * total[0],
             "{total:?}"
         );
+    }
+
+    /// Checks the segments of `m` along `ray` over `[t0, t1]` against `density` sampled by brute force: in order
+    /// and not overlapping, inside `[t0, t1]`, each majorant at least the largest density sampled in its segment
+    /// (ends included), zero density in the gaps between them, and the cells counted. Returns the segments.
+    fn check_segments(
+        m: &Majorants,
+        density: &dyn Fn(Vec3) -> f32,
+        ray: &Ray,
+        (t0, t1): (f32, f32),
+    ) -> Vec<Segment> {
+        let mut it = m.segments(ray, t0, t1);
+        let segments: Vec<Segment> = it.by_ref().collect();
+        assert!(segments.is_empty() || it.cells() >= segments.len() as u64);
+        let samples = 64;
+        let mut last = t0;
+        for s in &segments {
+            assert!(
+                s.t0 >= last - 1e-5 * (1.0 + last.abs()),
+                "{s:?} starts before {last}"
+            );
+            assert!(s.t1 > s.t0 && s.t1 <= t1 && s.sigma_max > 0.0, "{s:?}");
+            // The gap before the segment is empty.
+            for i in 1..samples {
+                let t = last + (s.t0 - last) * i as f32 / samples as f32;
+                // Points within round-off of a segment's ends may read its cells.
+                if t < s.t0 - 1e-5 * (1.0 + s.t0.abs()) && t > last + 1e-5 * (1.0 + last.abs()) {
+                    assert_eq!(density(ray.at(t)), 0.0, "{:?}: gap at t = {t}", m.kind());
+                }
+            }
+            for i in 0..=samples {
+                let t = s.t0 + (s.t1 - s.t0) * i as f32 / samples as f32;
+                let d = density(ray.at(t));
+                assert!(
+                    d <= s.sigma_max * (1.0 + 1e-5),
+                    "{:?}: {d} > {s:?}",
+                    m.kind()
+                );
+                assert!(
+                    d >= s.sigma_min * (1.0 - 1e-5) - 1e-6,
+                    "{:?}: {d} < {s:?}",
+                    m.kind()
+                );
+            }
+            last = s.t1;
+        }
+        for i in 1..samples {
+            let t = last + (t1 - last) * i as f32 / samples as f32;
+            if t > last + 1e-5 * (1.0 + last.abs()) {
+                assert_eq!(density(ray.at(t)), 0.0, "{:?}: gap at t = {t}", m.kind());
+            }
+        }
+        segments
+    }
+
+    #[test]
+    fn majorant_iterator_segments_bound_the_density_and_cover_it() {
+        let g = sphere_grid(8.0);
+        let b = g.index_bounds();
+        let mut rng = Rng::new(3, 9);
+        let u3 = |rng: &mut Rng| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let density = |p: Vec3| g.density_index(p);
+        for kind in MajorantKind::ALL {
+            let m = Majorants::build(kind, &g);
+            for _ in 0..300 {
+                let target = b.min + u3(&mut rng) * b.extent();
+                let from = b.center() + (u3(&mut rng) - 0.5) * 3.0 * b.extent();
+                let ray = Ray::new(from, target - from);
+                // Whole rays, and rays that start or end inside the field.
+                check_segments(&m, &density, &ray, (0.0, 3.0));
+                check_segments(&m, &density, &ray, (0.7, 1.3));
+            }
+        }
+        // A constant block: the segments are contiguous and cover the part of the ray inside the field's bounds
+        // (the adaptive cells may reach a little beyond them).
+        let g = block_grid(24, 0.1, 0.5);
+        let b = g.index_bounds();
+        let ray = Ray::new(
+            b.min - Vec3::new(7.0, -11.3, -9.1),
+            Vec3::new(1.0, 0.05, 0.02),
+        );
+        let (enter, exit) = b.intersect(&ray, 0.0, 1000.0).unwrap();
+        for kind in MajorantKind::ALL {
+            let m = Majorants::build(kind, &g);
+            let segments = check_segments(&m, &|p| g.density_index(p), &ray, (0.0, 1000.0));
+            let (first, last) = (segments.first().unwrap(), segments.last().unwrap());
+            assert!(
+                first.t0 <= enter * (1.0 + 1e-6),
+                "{kind:?}: {first:?} {enter}"
+            );
+            assert!(last.t1 >= exit * (1.0 - 1e-6), "{kind:?}: {last:?} {exit}");
+            for w in segments.windows(2) {
+                assert!(w[1].t0 - w[0].t1 <= 1e-5 * w[1].t0, "{kind:?}: {w:?}");
+            }
+        }
     }
 }

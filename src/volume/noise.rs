@@ -6,10 +6,12 @@
 //! \[−1, 1\] to \[0, 1\].
 //!
 //! It never scatters, so it needs no collision sampling: paths and shadow rays carry its transmittance,
-//! estimated by ratio tracking (Cramer 1978; Novák, Selle, Jarosz 2014, eq. 6) with the constant majorant `d`,
-//! and Russian roulette once the running estimate falls below 0.1.
+//! estimated by the ratio tracker of [`super::tracking`] (Cramer 1978; Novák, Selle, Jarosz 2014, eq. 6) with the
+//! constant majorant `d`, Russian roulette included.
 
-use super::majorant::MajorantKind;
+use super::density::DensityField;
+use super::majorant::{MajorantKind, Majorants};
+use super::tracking::ratio_tracking;
 use super::{
     Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
     TransmittanceMethod,
@@ -106,19 +108,26 @@ pub struct NoiseMedium {
     noise: PerlinNoise,
     scale: f32,
     max_density: f32,
+    /// One global majorant, `max_density`, over all of space.
+    majorants: Majorants,
 }
 
-/// Running transmittance below which ratio tracking plays Russian roulette.
-const ROULETTE_THRESHOLD: f32 = 0.1;
+/// All of space: the noise has no bounds.
+const EVERYWHERE: Aabb = Aabb {
+    min: Vec3::splat(f32::NEG_INFINITY),
+    max: Vec3::splat(f32::INFINITY),
+};
 
 impl NoiseMedium {
     /// A medium with density `max_density · (n(scale·x) + 1)/2` per metre.
     pub fn new(name: &str, scale: f32, max_density: f32, seed: u64) -> Self {
+        let max_density = max_density.max(0.0);
         Self {
             name: name.to_owned(),
             noise: PerlinNoise::new(seed),
             scale,
-            max_density: max_density.max(0.0),
+            max_density,
+            majorants: Majorants::global(EVERYWHERE, 0.0, max_density),
         }
     }
 
@@ -127,7 +136,7 @@ impl NoiseMedium {
         self.max_density * (0.5 * (self.noise.noise(p * self.scale) + 1.0)).clamp(0.0, 1.0)
     }
 
-    /// Ratio tracking over `(0, t_max)` with the constant majorant `max_density`.
+    /// Ratio-tracked transmittance over `(0, t_max)` with the constant majorant `max_density`.
     fn ratio_track(
         &self,
         ray: &Ray,
@@ -135,33 +144,20 @@ impl NoiseMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> f32 {
-        let majorant = self.max_density;
-        if majorant <= 0.0 {
-            return 1.0;
-        }
-        counters.majorant_segments += 1;
-        let mut t = 0.0f32;
-        let mut tr = 1.0f32;
-        loop {
-            t -= (1.0 - rng.next_f32()).ln() / majorant;
-            if t >= t_max {
-                return tr;
-            }
-            counters.density_lookups += 1;
-            counters.null_collisions += 1;
-            let sigma = self.density(ray.at(t));
-            if sigma > majorant * (1.0 + 1e-5) {
-                counters.majorant_violations += 1;
-            }
-            tr *= 1.0 - sigma / majorant;
-            if tr < ROULETTE_THRESHOLD {
-                let survive = tr / ROULETTE_THRESHOLD;
-                if rng.next_f32() >= survive {
-                    return 0.0;
-                }
-                tr = ROULETTE_THRESHOLD;
-            }
-        }
+        ratio_tracking(self, &self.majorants, ray, 0.0, t_max, rng, counters)
+    }
+}
+
+/// The density in world space (its local space), for the trackers.
+impl DensityField for NoiseMedium {
+    fn density(&self, p: Vec3) -> f32 {
+        NoiseMedium::density(self, p)
+    }
+    fn bounds(&self) -> Aabb {
+        EVERYWHERE
+    }
+    fn local_bounds(&self) -> Aabb {
+        EVERYWHERE
     }
 }
 
