@@ -201,7 +201,28 @@ fn info(args: InfoArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// The largest image side `render` and `converge` accept.
+const MAX_IMAGE_SIDE: usize = 65_536;
+/// The most pixels in one frame: 8192 × 8192, whose film takes 16 GB (240 bytes a pixel).
+const MAX_IMAGE_PIXELS: usize = 1 << 26;
+
+/// Refuses image sizes whose film could not be allocated, before anything is allocated.
+fn check_image_size(width: usize, height: usize) -> Result<(), String> {
+    let pixels = width.saturating_mul(height);
+    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE || pixels > MAX_IMAGE_PIXELS {
+        return Err(format!(
+            "image {width}x{height} is too large: at most {MAX_IMAGE_SIDE} pixels a side and \
+             {MAX_IMAGE_PIXELS} pixels in all"
+        ));
+    }
+    Ok(())
+}
+
 fn converge(args: ConvergeArgs) -> Result<(), String> {
+    check_image_size(
+        args.image.width.unwrap_or(1),
+        args.image.height.unwrap_or(1),
+    )?;
     let options = nimbus::converge::ConvergeOptions {
         scene: args.scene,
         reference: args.reference,
@@ -258,13 +279,11 @@ fn render(args: RenderArgs) -> Result<(), String> {
         .height
         .unwrap_or(((width as f32 / aspect).round() as usize).max(1))
         .max(1);
+    check_image_size(width, height)?;
     let time_limit = match args.time_limit {
-        Some(t) if t.is_finite() && t >= 0.0 => Some(Duration::from_secs_f64(t)),
-        Some(t) => {
-            return Err(format!(
-                "--time-limit {t} is not a non-negative number of seconds"
-            ))
-        }
+        Some(t) => Some(Duration::try_from_secs_f64(t).map_err(|_| {
+            format!("--time-limit {t} is not a non-negative number of seconds that fits a duration")
+        })?),
         None => None,
     };
     let spp = args

@@ -1,0 +1,41 @@
+//! Hostile command-line values get a one-line error and exit code 1: never a panic (exit 101), an abort or
+//! a runaway allocation.
+
+use std::path::Path;
+use std::process::Command;
+
+fn demo_scene() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/constant_grid.gltf")
+}
+
+#[test]
+fn huge_sizes_and_durations_are_refused_with_one_line() {
+    let scene = demo_scene();
+    let out = std::env::temp_dir().join(format!("nimbus-cli-flags-{}.exr", std::process::id()));
+    let cases: [&[&str]; 5] = [
+        &["--time-limit", "1e300"],
+        &["--width", "18446744073709551615"],
+        &["--width", "4294967296", "--height", "4294967296"],
+        &["--width", "65537", "--height", "1"],
+        &["--width", "16384", "--height", "16384"],
+    ];
+    for flags in cases {
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&scene)
+            .args(flags)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{flags:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{flags:?}: {stderr}");
+        let last = stderr.lines().last().unwrap_or_default();
+        assert!(
+            last.contains("too large") || last.contains("--time-limit"),
+            "{flags:?}: {stderr}"
+        );
+    }
+    assert!(!out.exists());
+}
