@@ -2,7 +2,13 @@
 
 mod common;
 
-use nimbus::vdb::{file_info, GridInfo};
+use glam::IVec3;
+use nimbus::vdb::{file_info, FloatTree, GridInfo, Region};
+use regions_check::{active_voxels_of_regions, check_regions_in};
+
+/// The region checks the VDB unit tests use too (they need `FloatTree`, `Region` and `IVec3` in scope here).
+#[path = "support/regions.rs"]
+mod regions_check;
 
 fn close(a: f64, b: f64, rel: f64) -> bool {
     (a - b).abs() <= rel * a.abs().max(b.abs()) + 1e-300
@@ -173,10 +179,7 @@ fn accessor_agrees_with_tree_on_corpus() {
         let f = nimbus::vdb::read_file(&dir.join(name)).unwrap();
         let t = f.grids[0].tree.as_float().unwrap();
         let (lo, hi) = t.stats().bbox.unwrap();
-        let (lo, hi) = (
-            lo.max(glam::IVec3::splat(-400)),
-            hi.min(glam::IVec3::splat(400)),
-        );
+        let (lo, hi) = (lo.max(IVec3::splat(-400)), hi.min(IVec3::splat(400)));
         let size = (hi - lo).as_vec3() + 40.0;
         let mut a = t.accessor();
         let mut seed = 7u64;
@@ -246,53 +249,6 @@ fn info_json_keys_and_table() {
     );
 }
 
-/// Lists the regions of `t` in the inclusive box `[lo, hi]` and checks them against a voxel-by-voxel scan: no
-/// two overlap, each meets the box, their values and active states are the tree's, and every voxel they leave out
-/// holds the inactive background. Returns the number of active voxels found.
-fn check_regions_in(t: &nimbus::vdb::FloatTree, lo: glam::IVec3, hi: glam::IVec3) -> u64 {
-    use nimbus::vdb::Region;
-    let size = hi - lo + 1;
-    let index = |p: glam::IVec3| {
-        let q = p - lo;
-        ((q.x * size.y + q.y) * size.z + q.z) as usize
-    };
-    let mut covered = vec![false; (size.x * size.y * size.z) as usize];
-    let mut active = 0;
-    for r in t.regions_in(lo, hi) {
-        let (a, b) = (r.origin().max(lo), (r.origin() + (r.edge() - 1)).min(hi));
-        assert!(a.cmple(b).all(), "region at {} misses the box", r.origin());
-        let (rmin, rmax) = r.range();
-        for x in a.x..=b.x {
-            for y in a.y..=b.y {
-                for z in a.z..=b.z {
-                    let p = glam::IVec3::new(x, y, z);
-                    assert!(
-                        !std::mem::replace(&mut covered[index(p)], true),
-                        "overlap at {p}"
-                    );
-                    let (v, on) = match r {
-                        Region::Leaf(l) => (l.value(p), l.is_active(p)),
-                        Region::Tile(t) => (t.value, t.active),
-                    };
-                    assert_eq!(v.to_bits(), t.value(p).to_bits(), "value at {p}");
-                    assert_eq!(on, t.is_active(p), "active at {p}");
-                    assert!(rmin <= v && v <= rmax, "range at {p}");
-                    active += on as u64;
-                }
-            }
-        }
-    }
-    for (i, &c) in covered.iter().enumerate() {
-        let i = i as i32;
-        let p = lo + glam::IVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
-        if !c {
-            assert_eq!(t.value(p).to_bits(), t.background().to_bits(), "at {p}");
-            assert!(!t.is_active(p), "at {p}");
-        }
-    }
-    active
-}
-
 /// Region iteration over boxes (at the corners and the centre of the active bounding box, straddling its edges)
 /// finds exactly the active voxels and values that a voxel-by-voxel scan finds, on corpus trees with tiles at
 /// every level; and the whole tree's regions hold all its active voxels.
@@ -311,24 +267,14 @@ fn regions_in_boxes_match_a_voxel_scan_on_corpus() {
         let t = f.grids[0].tree.as_float().unwrap();
         let stats = t.stats();
         let (lo, hi) = stats.bbox.unwrap();
-        let (lo, hi) = (
-            lo.max(glam::IVec3::splat(-5000)),
-            hi.min(glam::IVec3::splat(5000)),
-        );
+        let (lo, hi) = (lo.max(IVec3::splat(-5000)), hi.min(IVec3::splat(5000)));
         let mid = (lo + hi) / 2;
         let mut found = 0;
-        for c in [lo, hi, mid, glam::IVec3::new(lo.x, hi.y, mid.z)] {
+        for c in [lo, hi, mid, IVec3::new(lo.x, hi.y, mid.z)] {
             found += check_regions_in(t, c - 19, c + 20);
         }
         assert!(found > 0, "{name}: no active voxel in the boxes");
-        let active: u64 = t
-            .regions()
-            .map(|r| match r {
-                nimbus::vdb::Region::Leaf(l) => l.active_voxels().count() as u64,
-                nimbus::vdb::Region::Tile(t) => t.active as u64 * (t.edge as u64).pow(3),
-            })
-            .sum();
-        assert_eq!(active, stats.active_voxels, "{name}");
+        assert_eq!(active_voxels_of_regions(t), stats.active_voxels, "{name}");
         eprintln!("ok {name}: {found} active voxels in the boxes");
     }
 }

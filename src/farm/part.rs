@@ -26,8 +26,8 @@ use crate::render::{
 };
 use ::exr::meta::attribute::{AttributeValue, IntegerBounds, Text};
 use ::exr::prelude::{
-    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, ImageAttributes, Layer,
-    LayerAttributes, ReadChannels, ReadLayers, SmallVec, Vec2, WritableImage,
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, ImageAttributes, Layer, LayerAttributes,
+    SmallVec, Vec2, WritableImage,
 };
 use std::collections::HashMap;
 use std::ops::Range;
@@ -306,17 +306,7 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
         path: path.to_path_buf(),
         reason,
     };
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .from_file(path)
-        .map_err(|source| OutputError::Exr {
-            path: path.to_path_buf(),
-            source,
-        })?;
+    let image = crate::output::read_flat_image(path)?;
     let [layer] = image.layer_data.as_slice() else {
         return Err(invalid(format!(
             "{} EXR parts, expected one",

@@ -86,11 +86,10 @@ fn channel(name: &str, samples: Vec<f32>) -> AnyChannel<FlatSamples> {
     }
 }
 
-/// Reads every channel of every part of the EXR at `path` (largest resolution level, no deep data),
-/// converting samples to `f32`. Channels of a named part are keyed `part_name.channel` unless the
-/// channel name already starts with that prefix. All parts must share one size.
-pub fn read_exr_layers(path: &Path) -> Result<ExrLayers, OutputError> {
-    let image = read()
+/// Reads every part, channel and attribute of the EXR at `path`, at its largest resolution level (no deep
+/// data), with the samples as stored.
+pub(crate) fn read_flat_image(path: &Path) -> Result<::exr::image::FlatImage, OutputError> {
+    read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
@@ -100,7 +99,14 @@ pub fn read_exr_layers(path: &Path) -> Result<ExrLayers, OutputError> {
         .map_err(|source| OutputError::Exr {
             path: path.to_path_buf(),
             source,
-        })?;
+        })
+}
+
+/// Reads every channel of every part of the EXR at `path` (largest resolution level, no deep data),
+/// converting samples to `f32`. Channels of a named part are keyed `part_name.channel` unless the
+/// channel name already starts with that prefix. All parts must share one size.
+pub fn read_exr_layers(path: &Path) -> Result<ExrLayers, OutputError> {
+    let image = read_flat_image(path)?;
     let invalid = |reason: String| OutputError::Invalid {
         path: path.to_path_buf(),
         reason,

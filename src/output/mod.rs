@@ -3,6 +3,7 @@
 mod exr;
 mod png;
 
+pub(crate) use self::exr::read_flat_image;
 pub use self::exr::{read_exr_layers, write_exr, ExrLayers};
 pub use self::png::{preview_path, write_png_preview};
 

@@ -940,6 +940,11 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     }
 }
 
+/// The region checks the corpus tests use too (`tests/support/regions.rs`).
+#[cfg(test)]
+#[path = "../../tests/support/regions.rs"]
+mod regions_check;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1120,53 +1125,7 @@ mod tests {
         assert_eq!(t.value(t.lowers[0].slot_origin(ls) + IVec3::splat(1)), 5.0);
     }
 
-    /// Checks [`Tree::regions_in`] over `[lo, hi]` against a voxel-by-voxel scan: the regions do not overlap, each
-    /// meets the box, their values and active states are the tree's, and every voxel they leave out holds the
-    /// inactive background. Returns the number of active voxels in the box.
-    fn check_regions_in(t: &FloatTree, lo: IVec3, hi: IVec3) -> u64 {
-        let size = hi - lo + 1;
-        let index = |p: IVec3| {
-            let q = p - lo;
-            ((q.x * size.y + q.y) * size.z + q.z) as usize
-        };
-        let mut covered = vec![false; (size.x * size.y * size.z) as usize];
-        let mut active = 0;
-        for r in t.regions_in(lo, hi) {
-            let (a, b) = (r.origin().max(lo), (r.origin() + (r.edge() - 1)).min(hi));
-            assert!(a.cmple(b).all(), "region {r:?} misses the box");
-            let (rmin, rmax) = r.range();
-            for x in a.x..=b.x {
-                for y in a.y..=b.y {
-                    for z in a.z..=b.z {
-                        let p = IVec3::new(x, y, z);
-                        assert!(
-                            !std::mem::replace(&mut covered[index(p)], true),
-                            "overlap at {p}"
-                        );
-                        let (v, on) = match r {
-                            Region::Leaf(l) => (l.value(p), l.is_active(p)),
-                            Region::Tile(t) => (t.value, t.active),
-                        };
-                        assert_eq!((v, on), (t.value(p), t.is_active(p)), "at {p}");
-                        assert!(rmin <= v && v <= rmax);
-                        active += on as u64;
-                    }
-                }
-            }
-        }
-        for x in lo.x..=hi.x {
-            for y in lo.y..=hi.y {
-                for z in lo.z..=hi.z {
-                    let p = IVec3::new(x, y, z);
-                    if !covered[index(p)] {
-                        assert_eq!(t.value(p), t.background, "at {p}");
-                        assert!(!t.is_active(p), "at {p}");
-                    }
-                }
-            }
-        }
-        active
-    }
+    use super::regions_check::{active_voxels_of_regions, check_regions_in};
 
     #[test]
     fn regions_in_a_box_match_a_voxel_scan() {
@@ -1190,14 +1149,7 @@ mod tests {
         );
         // The whole tree: every active voxel lies in some region, counted as the statistics count them.
         let s = t.stats();
-        let active: u64 = t
-            .regions()
-            .map(|r| match r {
-                Region::Leaf(l) => l.active_voxels().count() as u64,
-                Region::Tile(t) => t.active as u64 * (t.edge as u64).pow(3),
-            })
-            .sum();
-        assert_eq!(active, s.active_voxels);
+        assert_eq!(active_voxels_of_regions(&t), s.active_voxels);
         assert_eq!(s.active_voxels, 27 + 4096u64.pow(3) + 512);
         assert_eq!(s.tiles, 2);
         // Regions in a box are those of the whole tree that meet it.
