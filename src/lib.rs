@@ -92,6 +92,7 @@ pub mod farm;
 pub mod geometry;
 mod integrator;
 pub mod light;
+pub mod limits;
 pub mod material;
 pub mod math;
 pub mod output;

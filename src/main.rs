@@ -298,6 +298,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
         max_depth: args.max_depth.or(scene.max_bounces()).unwrap_or(64),
         time_limit,
         media_mis: true,
+        ..RenderSettings::default()
     };
     eprintln!(
         "nimbus: {} triangles, {} lights, {width}x{height}, {} spp{}",

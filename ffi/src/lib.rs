@@ -342,6 +342,7 @@ fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure>
         max_depth: s.max_depth,
         time_limit,
         media_mis: true,
+        ..RenderSettings::default()
     })
 }
 

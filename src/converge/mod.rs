@@ -246,6 +246,7 @@ fn settings(
         max_depth: scene.max_bounces.unwrap_or(64),
         time_limit: None,
         media_mis: method.media_mis(),
+        ..RenderSettings::default()
     }
 }
 

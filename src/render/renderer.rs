@@ -27,7 +27,7 @@ pub struct RenderSettings {
     pub spp: u32,
     /// Seed of every random stream.
     pub seed: u64,
-    /// Worker threads; 0 uses every core.
+    /// Worker threads; 0 uses every core. More than [`crate::limits::max_threads`] are capped there.
     pub threads: usize,
     /// Maximum scattering events per path.
     pub max_depth: u32,
@@ -35,6 +35,8 @@ pub struct RenderSettings {
     pub time_limit: Option<Duration>,
     /// Multiple importance sampling at medium scattering events (off: emitters are reached from inside media by light sampling alone).
     pub media_mis: bool,
+    /// The memory budget: a film larger than it is refused before it is allocated.
+    pub limits: crate::limits::Limits,
 }
 
 impl Default for RenderSettings {
@@ -48,6 +50,7 @@ impl Default for RenderSettings {
             max_depth: 64,
             time_limit: None,
             media_mis: true,
+            limits: crate::limits::Limits::default(),
         }
     }
 }

@@ -31,6 +31,9 @@ pub struct LoadOptions<'a> {
     /// VDB files given in memory by name: a volume whose `file` equals one of these names reads its bytes
     /// instead of the file system (the bundled demo).
     pub embedded: &'a [(&'a str, &'static [u8])],
+    /// The memory budget for allocations sized by the files (whole-file reads, majorant structures, decoded
+    /// textures).
+    pub limits: crate::limits::Limits,
 }
 
 impl LoadOptions<'_> {

@@ -1,0 +1,303 @@
+//! Resource limits for untrusted input: the memory budget that every allocation sized by a file or a flag is
+//! checked against before it is made, file reads with a size cap, a cap on worker threads, and a guard that runs
+//! a dependency which may panic without letting its panic message or backtrace reach the user.
+//!
+//! The budget is a value ([`Limits`]) handed to loaders ([`crate::scene::LoadOptions::limits`]) and renders
+//! ([`crate::RenderSettings::limits`]); the command line sets it with `--memory-limit`. Its default is half of
+//! the machine's physical memory.
+
+use std::cell::Cell;
+use std::fmt;
+use std::io::Read;
+use std::path::Path;
+use std::sync::Once;
+
+/// Budget used when the physical memory cannot be read (not Linux): 8 GiB.
+const FALLBACK_MEMORY_BYTES: u64 = 8 << 30;
+
+/// Largest read from a file whose size is not known in advance (a device, a pipe): 1 GiB. `/dev/zero` given as a
+/// scene, buffer or VDB file ends in a clear error after this many bytes.
+pub const MAX_STREAM_BYTES: u64 = 1 << 30;
+
+/// Worker threads allowed per core: a larger `--threads` (or [`crate::RenderSettings::threads`]) is capped.
+pub const THREADS_PER_CORE: usize = 8;
+
+/// What one load or render may allocate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Bytes that one allocation sized by a file or a flag may take: a film, a majorant structure, a decoded
+    /// texture, a file read whole.
+    pub memory_bytes: u64,
+}
+
+impl Default for Limits {
+    /// Half of the physical memory (8 GiB where it cannot be read).
+    fn default() -> Self {
+        Self {
+            memory_bytes: physical_memory_bytes().map_or(FALLBACK_MEMORY_BYTES, |m| m / 2),
+        }
+    }
+}
+
+impl Limits {
+    /// A budget of `memory_bytes`.
+    pub fn with_memory(memory_bytes: u64) -> Self {
+        Self { memory_bytes }
+    }
+
+    /// `Ok` if `bytes` fit the budget; else an error naming `what` would need them.
+    pub fn check(&self, what: impl fmt::Display, bytes: u64) -> Result<(), OverBudget> {
+        if bytes <= self.memory_bytes {
+            Ok(())
+        } else {
+            Err(OverBudget {
+                what: what.to_string(),
+                bytes,
+                budget: self.memory_bytes,
+            })
+        }
+    }
+
+    /// `Ok` if `count` items of `item_bytes` each fit the budget (an overflowing product does not).
+    pub fn check_items(
+        &self,
+        what: impl fmt::Display,
+        count: u64,
+        item_bytes: u64,
+    ) -> Result<(), OverBudget> {
+        self.check(what, count.checked_mul(item_bytes).unwrap_or(u64::MAX))
+    }
+}
+
+/// An allocation refused because it exceeds the memory budget.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OverBudget {
+    /// What would have been allocated.
+    pub what: String,
+    /// Bytes it needs (`u64::MAX` when the size overflows).
+    pub bytes: u64,
+    /// The budget in bytes.
+    pub budget: u64,
+}
+
+impl fmt::Display for OverBudget {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let needs = if self.bytes == u64::MAX {
+            "more bytes than a 64-bit size holds".to_string()
+        } else {
+            format_bytes(self.bytes)
+        };
+        write!(
+            f,
+            "{} would take {needs}, over the memory budget of {} (raise it with --memory-limit)",
+            self.what,
+            format_bytes(self.budget)
+        )
+    }
+}
+
+impl std::error::Error for OverBudget {}
+
+/// `bytes` in the largest binary unit that keeps a number ≥ 1 ("512 B", "1.5 GiB").
+pub fn format_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["KiB", "MiB", "GiB", "TiB", "PiB"];
+    if bytes < 1024 {
+        return format!("{bytes} B");
+    }
+    let mut value = bytes as f64 / 1024.0;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    format!("{value:.1} {}", UNITS[unit])
+}
+
+/// Parses a size with an optional binary suffix: `4096`, `512M`, `4G`, `1.5T` (K, M, G, T; an optional `iB` or
+/// `B` after it).
+pub fn parse_size(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let upper = t.to_ascii_uppercase();
+    let number = upper
+        .trim_end_matches("IB")
+        .trim_end_matches('B')
+        .trim_end();
+    let (digits, shift) = match number.chars().last() {
+        Some('K') => (&number[..number.len() - 1], 10),
+        Some('M') => (&number[..number.len() - 1], 20),
+        Some('G') => (&number[..number.len() - 1], 30),
+        Some('T') => (&number[..number.len() - 1], 40),
+        _ => (number, 0),
+    };
+    let value: f64 = digits
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{t}' is not a size (examples: 4096, 512M, 4G)"))?;
+    let bytes = value * (1u64 << shift) as f64;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(format!("'{t}' is not a size of at least one byte"));
+    }
+    Ok(bytes as u64)
+}
+
+/// The machine's physical memory, from `/proc/meminfo` (Linux).
+pub fn physical_memory_bytes() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// The most worker threads a render uses: [`THREADS_PER_CORE`] per core.
+pub fn max_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get()) * THREADS_PER_CORE
+}
+
+/// Reads a whole file, refusing one larger than the memory budget before reading it, and stopping a device or
+/// pipe (whose size is unknown) after [`MAX_STREAM_BYTES`] or the budget, whichever is smaller.
+pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
+    use std::io::{Error, ErrorKind};
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if meta.is_dir() {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            "is a folder, not a file",
+        ));
+    }
+    if meta.is_file() {
+        if meta.len() > limits.memory_bytes {
+            return Err(Error::new(
+                ErrorKind::InvalidData,
+                format!(
+                    "the file is {}, over the memory budget of {} (raise it with --memory-limit)",
+                    format_bytes(meta.len()),
+                    format_bytes(limits.memory_bytes)
+                ),
+            ));
+        }
+        let mut bytes = Vec::with_capacity(meta.len() as usize);
+        file.take(limits.memory_bytes).read_to_end(&mut bytes)?;
+        return Ok(bytes);
+    }
+    let cap = MAX_STREAM_BYTES.min(limits.memory_bytes);
+    let mut bytes = Vec::new();
+    file.take(cap + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > cap {
+        return Err(Error::new(
+            ErrorKind::InvalidData,
+            format!(
+                "not a regular file, and it gives more than {} (an endless device?)",
+                format_bytes(cap)
+            ),
+        ));
+    }
+    Ok(bytes)
+}
+
+thread_local! {
+    /// Set while [`catch_quietly`] runs on this thread: the panic hook then prints nothing.
+    static QUIET: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Runs `f`, which may panic inside a dependency, and returns its panic message as `Err` instead of unwinding.
+/// While `f` runs, a panic on this thread prints nothing (no message, no backtrace); panics elsewhere print as
+/// before. The first call wraps the process's panic hook with one that checks a per-thread flag.
+pub fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+    static WRAP_HOOK: Once = Once::new();
+    WRAP_HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    let was_quiet = QUIET.with(|q| q.replace(true));
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    QUIET.with(|q| q.set(was_quiet));
+    outcome.map_err(|payload| {
+        payload
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| payload.downcast_ref::<&str>().map(|s| (*s).to_owned()))
+            .unwrap_or_else(|| "a panic without a message".to_owned())
+    })
+}
+
+/// `text` as one line of printable ASCII at most `max_chars` long: line breaks become `" / "`, other control
+/// characters and non-ASCII characters become `\xNN` or `\u{...}` escapes, and a longer text is cut with `…`
+/// spelled as `...`. Error messages that quote file contents pass through this.
+pub fn one_line(text: &str, max_chars: usize) -> String {
+    let mut out = String::with_capacity(text.len().min(max_chars + 8));
+    let mut chars = text.trim_end().chars().peekable();
+    while let Some(c) = chars.next() {
+        if out.len() >= max_chars {
+            out.push_str("...");
+            break;
+        }
+        match c {
+            '\r' if chars.peek() == Some(&'\n') => {}
+            '\n' | '\r' => out.push_str(" / "),
+            '\t' => out.push(' '),
+            c if c.is_ascii_graphic() || c == ' ' => out.push(c),
+            c if (c as u32) < 0x100 => out.push_str(&format!("\\x{:02x}", c as u32)),
+            c => out.push_str(&format!("\\u{{{:x}}}", c as u32)),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_with_binary_suffixes() {
+        assert_eq!(parse_size("4096"), Ok(4096));
+        assert_eq!(parse_size("512M"), Ok(512 << 20));
+        assert_eq!(parse_size("4G"), Ok(4 << 30));
+        assert_eq!(parse_size("4GiB"), Ok(4 << 30));
+        assert_eq!(parse_size("1.5k"), Ok(1536));
+        assert!(parse_size("0").is_err());
+        assert!(parse_size("-3G").is_err());
+        assert!(parse_size("lots").is_err());
+        assert!(parse_size("1e300T").is_err());
+    }
+
+    #[test]
+    fn the_budget_refuses_overflowing_and_large_sizes() {
+        let limits = Limits::with_memory(1000);
+        assert!(limits.check("a film", 1000).is_ok());
+        let err = limits.check_items("a film", u64::MAX / 2, 16).unwrap_err();
+        assert_eq!(err.bytes, u64::MAX);
+        assert!(err.to_string().starts_with("a film would take more bytes"));
+        assert!(limits.check("x", 1001).is_err());
+    }
+
+    #[test]
+    fn one_line_escapes_and_cuts() {
+        let s = one_line("bad\0name\nline two \u{e9}", 100);
+        assert_eq!(s, "bad\\x00name / line two \\xe9");
+        let long = one_line(&"x".repeat(500), 64);
+        assert_eq!(long.len(), 67);
+        assert!(long.ends_with("..."));
+    }
+
+    #[test]
+    fn endless_devices_end_in_an_error() {
+        let path = Path::new("/dev/zero");
+        if !path.exists() {
+            return;
+        }
+        let err = read_file(path, &Limits::with_memory(1 << 20)).unwrap_err();
+        assert!(err.to_string().contains("endless device"), "{err}");
+    }
+
+    #[test]
+    fn quiet_panics_become_errors() {
+        let r: Result<(), String> = catch_quietly(|| panic!("inside a dependency"));
+        assert_eq!(r, Err("inside a dependency".to_owned()));
+        assert_eq!(catch_quietly(|| 7), Ok(7));
+    }
+}
