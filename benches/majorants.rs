@@ -226,7 +226,7 @@ fn bench_file(
             );
         }
     }
-    let (t, (chosen, estimates)) = timed(|| choose(&field));
+    let (t, (chosen, estimates)) = timed(|| choose(&field, &nimbus::limits::Limits::default()));
     println!(
         "auto ({:.1} ms pilot) picks {:?}; pilot estimates ns: {}",
         t / 1e6,

@@ -23,9 +23,9 @@ pub enum Error {
     /// A convergence study could not run.
     #[error(transparent)]
     Converge(#[from] crate::converge::ConvergeError),
-    /// The render's worker thread pool could not be started.
-    #[error("cannot start render worker threads: {0}")]
-    ThreadPool(#[from] rayon::ThreadPoolBuildError),
+    /// A render could not start: its worker threads, or a film over the memory budget.
+    #[error(transparent)]
+    Render(#[from] crate::render::RenderError),
 }
 
 /// `Result` with the crate-level [`Error`].

@@ -65,7 +65,7 @@ impl Limits {
         count: u64,
         item_bytes: u64,
     ) -> Result<(), OverBudget> {
-        self.check(what, count.checked_mul(item_bytes).unwrap_or(u64::MAX))
+        self.check(what, count.saturating_mul(item_bytes))
     }
 }
 

@@ -4,6 +4,7 @@
 use clap::{Args, Parser, Subcommand};
 use nimbus::farm::{FarmError, PartInfo};
 use nimbus::light::EnvironmentLight;
+use nimbus::limits::{one_line, Limits};
 use nimbus::math::Rgb;
 use nimbus::render::{
     CancelToken, PixelWindow, Progress, RenderRegion, RenderSettings, RenderStats, Renderer,
@@ -128,6 +129,11 @@ struct RenderArgs {
     /// Constant environment radiance r,g,b (overrides the scene's nimbus_environment).
     #[arg(long = "env-color", value_parser = parse_rgb)]
     env_color: Option<Rgb>,
+    /// Memory budget for any one allocation sized by a file or a flag (a file read whole, a majorant
+    /// structure, a decoded texture, the film), as bytes or with a K, M, G or T suffix (default: half of the
+    /// physical memory).
+    #[arg(long = "memory-limit", value_parser = nimbus::limits::parse_size)]
+    memory_limit: Option<u64>,
     /// Exposure of the PNG preview in stops.
     #[arg(long, default_value_t = 0.0)]
     exposure: f32,
@@ -182,7 +188,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(message) => {
-            eprintln!("nimbus: error: {message}");
+            eprintln!("nimbus: error: {}", one_line(&message, MAX_MESSAGE_CHARS));
             ExitCode::FAILURE
         }
     }
@@ -200,6 +206,9 @@ fn info(args: InfoArgs) -> Result<(), String> {
     }
     Ok(())
 }
+
+/// The longest error or warning line printed: messages quoting file contents are cut there.
+const MAX_MESSAGE_CHARS: usize = 1000;
 
 /// The largest image side `render` and `converge` accept.
 const MAX_IMAGE_SIDE: usize = 65_536;
@@ -243,14 +252,21 @@ fn converge(args: ConvergeArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn load_builder(scene: Option<&Path>) -> Result<SceneBuilder, String> {
+fn load_builder(scene: Option<&Path>, limits: Limits) -> Result<SceneBuilder, String> {
     match scene {
-        Some(path) => nimbus::scene::load_builder(path, &LoadOptions::default()),
+        Some(path) => nimbus::scene::load_builder(
+            path,
+            &LoadOptions {
+                limits,
+                ..LoadOptions::default()
+            },
+        ),
         None => nimbus::scene::gltf::load_slice(
             DEMO_SCENE,
             Path::new("assets/cloud.gltf"),
             &LoadOptions {
                 embedded: &[("cloud.vdb", DEMO_CLOUD)],
+                limits,
                 ..LoadOptions::default()
             },
         ),
@@ -259,13 +275,24 @@ fn load_builder(scene: Option<&Path>) -> Result<SceneBuilder, String> {
 }
 
 fn render(args: RenderArgs) -> Result<(), String> {
-    let mut builder = load_builder(args.scene.as_deref())?;
+    let limits = args
+        .memory_limit
+        .map_or_else(Limits::default, Limits::with_memory);
+    if args.image.threads > nimbus::limits::max_threads() {
+        eprintln!(
+            "nimbus: warning: --threads {} is capped at {} ({} per core)",
+            args.image.threads,
+            nimbus::limits::max_threads(),
+            nimbus::limits::THREADS_PER_CORE
+        );
+    }
+    let mut builder = load_builder(args.scene.as_deref(), limits)?;
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
     let scene: Scene = builder.build().map_err(|e| e.to_string())?;
     for w in scene.warnings() {
-        eprintln!("nimbus: warning: {w}");
+        eprintln!("nimbus: warning: {}", one_line(w, MAX_MESSAGE_CHARS));
     }
     if args.explain {
         for m in scene.media() {
@@ -298,7 +325,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
         max_depth: args.max_depth.or(scene.max_bounces()).unwrap_or(64),
         time_limit,
         media_mis: true,
-        ..RenderSettings::default()
+        limits,
     };
     eprintln!(
         "nimbus: {} triangles, {} lights, {width}x{height}, {} spp{}",

@@ -257,6 +257,13 @@ impl ParamSource for JsonParams<'_> {
         let Some(v) = self.value.get(key.name) else {
             return Ok(None);
         };
+        if let Some(x) = beyond_single_precision(v) {
+            return Err(ParamError::OutOfRange {
+                key: self.spelling(key),
+                value: format!("{x:e}"),
+                constraint: "fit single precision (magnitude at most 3.4e38)",
+            });
+        }
         let value = match key.ty {
             ParamType::Number => finite(v).map(ParamValue::Number),
             ParamType::NonNegative => finite(v).filter(|x| *x >= 0.0).map(ParamValue::Number),
@@ -280,6 +287,16 @@ impl ParamSource for JsonParams<'_> {
             ParamType::Object(_) => return Err(self.wrong_type(key)),
         };
         value.map(Some).ok_or_else(|| self.wrong_type(key))
+    }
+}
+
+/// The first number in `v` (a number or an array of them) whose magnitude no `f32` holds: such a value would
+/// become infinite where the renderer stores it, and make tracking endless.
+fn beyond_single_precision(v: &serde_json::Value) -> Option<f64> {
+    let too_large = |x: &serde_json::Value| x.as_f64().filter(|x| x.abs() > f32::MAX as f64);
+    match v {
+        serde_json::Value::Array(items) => items.iter().find_map(too_large),
+        _ => too_large(v),
     }
 }
 
@@ -381,5 +398,19 @@ mod tests {
             Some(Rgb::new(1.0, 0.0, 2.5))
         );
         assert_eq!(parse_rgb(&json!([1, -1, 2])), None);
+    }
+
+    #[test]
+    fn numbers_beyond_single_precision_are_out_of_range() {
+        // 1e308 is a finite f64 but an infinite f32: a noise max_density of 1e308 made tracking endless.
+        for v in [
+            json!({"n": 1e308, "c": 1}),
+            json!({"n": 1, "c": [1, 1e39, 1]}),
+        ] {
+            let p = JsonParams::new(&v);
+            let err = p.number(&N).and_then(|_| p.rgb(&C)).unwrap_err();
+            assert!(matches!(err, ParamError::OutOfRange { .. }), "{err}");
+            assert!(err.to_string().contains("single precision"), "{err}");
+        }
     }
 }

@@ -88,6 +88,7 @@ fn unsupported_grid_type_is_a_named_error() {
     // With skip_unsupported the grid is listed instead of failing the file.
     let opts = nimbus::vdb::ReadOptions {
         skip_unsupported: true,
+        ..Default::default()
     };
     let f = nimbus::vdb::read_bytes_with(&data, Path::new("x.vdb"), &opts).unwrap();
     assert!(f.grids.is_empty());

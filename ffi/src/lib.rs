@@ -124,9 +124,7 @@ impl From<Error> for Failure {
         let status = match e {
             Error::Scene(_) | Error::Vdb(_) => NimbusStatus::SceneError,
             Error::Output(_) | Error::Farm(_) => NimbusStatus::OutputError,
-            Error::ThreadPool(_) | Error::Region(_) | Error::Converge(_) => {
-                NimbusStatus::RenderError
-            }
+            Error::Render(_) | Error::Region(_) | Error::Converge(_) => NimbusStatus::RenderError,
         };
         Self::new(status, e.to_string())
     }

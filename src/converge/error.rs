@@ -59,7 +59,7 @@ pub enum ConvergeError {
     #[cfg(feature = "charts")]
     #[error(transparent)]
     Chart(#[from] super::ChartError),
-    /// The renderer's worker threads could not start.
-    #[error("cannot start worker threads: {0}")]
-    Threads(#[source] rayon::ThreadPoolBuildError),
+    /// A render could not start (its worker threads, or a film over the memory budget).
+    #[error(transparent)]
+    Render(#[from] crate::render::RenderError),
 }

@@ -135,7 +135,7 @@ pub fn run(
             };
             let (image, stats) = Renderer::new(settings)
                 .render(&scene, &mut |_| true)
-                .map_err(ConvergeError::Threads)?;
+                .map_err(ConvergeError::Render)?;
             let path = options.output_dir.join("reference.exr");
             crate::output::write_exr(&image, &path)?;
             log(&format!(
@@ -283,7 +283,7 @@ fn measure(
             // The next pass doubles the samples, so it takes about as long as everything so far.
             points.len() < MIN_CHECKPOINTS || 2.0 * seconds <= share
         })
-        .map_err(ConvergeError::Threads)?;
+        .map_err(ConvergeError::Render)?;
     match mismatch {
         Some(e) => Err(ConvergeError::SizeMismatch(e)),
         None => Ok(Curve { method, points }),

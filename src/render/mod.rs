@@ -15,6 +15,6 @@ pub use exact::MAX_SAMPLE_VALUE;
 pub use film::{Film, PixelSums, PixelWindow};
 pub use image::RenderImage;
 pub use renderer::{
-    peak_memory_bytes, MediumStats, Progress, RegionError, RenderRegion, RenderSettings,
-    RenderStats, Renderer,
+    peak_memory_bytes, MediumStats, Progress, RegionError, RenderError, RenderRegion,
+    RenderSettings, RenderStats, Renderer,
 };

@@ -6,7 +6,7 @@
 //! for bit, for any thread count, and any split of the render into sample ranges and windows
 //! ([`Renderer::render_region`]) adds up to the bits of the whole.
 
-use super::film::{Film, PixelWindow};
+use super::film::{Film, PixelSums, PixelWindow};
 use super::{CancelToken, RenderImage};
 use crate::integrator::{PathCounters, PathTracer, RayCounters, RendererServices};
 use crate::math::{is_finite_rgb, Rng, Vec2};
@@ -152,9 +152,20 @@ pub enum RegionError {
         /// One past the last sample.
         end: u32,
     },
+    /// The render could not start.
+    #[error(transparent)]
+    Render(#[from] RenderError),
+}
+
+/// Why a render could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
     /// The worker thread pool could not be started.
     #[error("cannot start render worker threads: {0}")]
     ThreadPool(#[from] rayon::ThreadPoolBuildError),
+    /// The film (and the image made from it) would exceed the memory budget.
+    #[error(transparent)]
+    OverBudget(#[from] crate::limits::OverBudget),
 }
 
 /// Renders scenes with fixed settings.
@@ -179,7 +190,7 @@ impl Renderer {
         &self,
         scene: &Scene,
         progress: &mut dyn FnMut(&Progress) -> bool,
-    ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
+    ) -> Result<(RenderImage, RenderStats), RenderError> {
         self.render_with_cancel(scene, progress, &CancelToken::new())
     }
 
@@ -191,7 +202,7 @@ impl Renderer {
         scene: &Scene,
         progress: &mut dyn FnMut(&Progress) -> bool,
         cancel: &CancelToken,
-    ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
+    ) -> Result<(RenderImage, RenderStats), RenderError> {
         let (film, stats) =
             self.run(scene, &self.whole(), &mut |p, _| progress(p), cancel, false)?;
         Ok((film.image(), stats))
@@ -241,7 +252,7 @@ impl Renderer {
         &self,
         scene: &Scene,
         snapshot: &mut dyn FnMut(&Progress, &Film) -> bool,
-    ) -> Result<(RenderImage, RenderStats), rayon::ThreadPoolBuildError> {
+    ) -> Result<(RenderImage, RenderStats), RenderError> {
         let (film, stats) = self.run(scene, &self.whole(), snapshot, &CancelToken::new(), true)?;
         Ok((film.image(), stats))
     }
@@ -255,10 +266,19 @@ impl Renderer {
         progress: &mut dyn FnMut(&Progress, &Film) -> bool,
         cancel: &CancelToken,
         doubling: bool,
-    ) -> Result<(Film, RenderStats), rayon::ThreadPoolBuildError> {
+    ) -> Result<(Film, RenderStats), RenderError> {
         let s = &self.settings;
+        // Per pixel: the film's exact sums, then the f32 channels of the image made from them.
+        let pixel_bytes =
+            std::mem::size_of::<PixelSums>() + 4 * super::channels::channel_names().len();
+        let (w, h) = (region.window.width() as u64, region.window.height() as u64);
+        s.limits.check_items(
+            format_args!("the film of {w}x{h} pixels"),
+            w.saturating_mul(h),
+            pixel_bytes as u64,
+        )?;
         let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(s.threads)
+            .num_threads(s.threads.min(crate::limits::max_threads()))
             .build()?;
         let threads = pool.current_num_threads();
         let start = Instant::now();

@@ -37,8 +37,10 @@ pub struct LoadOptions<'a> {
 }
 
 impl LoadOptions<'_> {
-    /// Applies the volume override, if any, to `spec`.
+    /// Gives `spec` the memory budget, then applies the volume override, if any. Every loader calls this on
+    /// each volume it declares.
     pub fn apply_volume_override(&self, spec: &mut crate::volume::VolumeSpec) {
+        spec.limits = self.limits;
         if let Some(f) = self.volume_override {
             f(spec);
         }

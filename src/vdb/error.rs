@@ -1,6 +1,15 @@
 //! Error types of the VDB reader.
 
+use crate::limits::one_line;
 use std::path::PathBuf;
+
+/// The most characters of a name or message taken from the file that an error quotes.
+const QUOTED_CHARS: usize = 64;
+
+/// `text` from the file as printable ASCII, cut to [`QUOTED_CHARS`].
+fn quoted(text: &str) -> String {
+    one_line(text, QUOTED_CHARS)
+}
 
 /// An error from reading a VDB file: the file it concerns and what went wrong.
 #[derive(Debug, thiserror::Error)]
@@ -39,7 +48,7 @@ pub enum VdbErrorKind {
     #[error("unsupported OpenVDB file version {0} (supported: 219..=224)")]
     UnsupportedVersion(u32),
     /// A grid has a value type or tree configuration this reader does not handle.
-    #[error("grid '{grid}' has unsupported type '{type_name}'")]
+    #[error("grid '{}' has unsupported type '{}'", quoted(grid), quoted(type_name))]
     UnsupportedGridType {
         /// Name of the grid.
         grid: String,
@@ -47,19 +56,19 @@ pub enum VdbErrorKind {
         type_name: String,
     },
     /// The transform uses a map this reader does not handle (e.g. a frustum map).
-    #[error("unsupported transform map '{0}'")]
+    #[error("unsupported transform map '{}'", quoted(.0))]
     UnsupportedMap(String),
     /// A feature of the format that this reader does not handle.
-    #[error("unsupported feature: {0}")]
+    #[error("unsupported feature: {}", quoted(.0))]
     Unsupported(String),
     /// A field holds an impossible value.
-    #[error("corrupt data: {0}")]
+    #[error("corrupt data: {}", one_line(.0, 4 * QUOTED_CHARS))]
     Corrupt(String),
     /// A compressed block could not be decoded.
     #[error("decompression failed: {0}")]
     Decompress(String),
     /// An error inside one grid, with the grid's name.
-    #[error("in grid '{grid}': {source}")]
+    #[error("in grid '{}': {source}", quoted(grid))]
     InGrid {
         /// Name of the grid.
         grid: String,

@@ -63,6 +63,9 @@ pub struct VdbFile {
 pub struct ReadOptions {
     /// Leave out grids of unsupported types (listing them in [`VdbFile::skipped`]) instead of failing.
     pub skip_unsupported: bool,
+    /// The memory budget: a file larger than it is refused before it is read, and a device or pipe is read
+    /// at most [`crate::limits::MAX_STREAM_BYTES`].
+    pub limits: crate::limits::Limits,
 }
 
 impl VdbFile {
@@ -208,7 +211,7 @@ pub fn read_file(path: &Path) -> Result<VdbFile, VdbError> {
 
 /// Reads a VDB file from disk with options.
 pub fn read_file_with(path: &Path, options: &ReadOptions) -> Result<VdbFile, VdbError> {
-    let bytes = std::fs::read(path).map_err(|e| VdbError {
+    let bytes = crate::limits::read_file(path, &options.limits).map_err(|e| VdbError {
         path: path.to_path_buf(),
         kind: e.into(),
     })?;

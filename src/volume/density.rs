@@ -51,7 +51,21 @@ pub struct GridDensity {
     bad_values: BadValues,
 }
 
-/// Stored values a density grid cannot use, replaced by zero when the field is built.
+/// The largest optical depth one voxel may have, along its longest edge: denser stored values are clamped to it
+/// when the field is built (and counted in [`BadValues::too_dense`]). A voxel at this limit passes
+/// e^-1000 of the light, which no film can tell from zero, while a far larger value (a corrupt 2.5e21, or a
+/// node scaled by 1e38) would give majorants so large that tracking takes practically endless steps.
+pub const MAX_VOXEL_OPTICAL_DEPTH: f32 = 1000.0;
+
+/// The largest index coordinate (in voxels, either sign) a density grid may hold data at: 2^24, beyond which
+/// single-precision index coordinates cannot tell neighbouring voxels apart.
+pub const MAX_INDEX_COORD: i32 = 1 << 24;
+
+/// The largest world coordinate (metres, either sign) the placed grid's bounds may reach.
+pub const MAX_WORLD_COORD: f64 = 1e15;
+
+/// Stored values a density grid cannot use as they are: NaN, infinite and negative ones are replaced by zero,
+/// too dense ones clamped, when the field is built.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct BadValues {
     /// NaN voxels and tiles.
@@ -60,21 +74,35 @@ pub struct BadValues {
     pub infinite: u64,
     /// Negative voxels and tiles.
     pub negative: u64,
+    /// Voxels and tiles denser than [`MAX_VOXEL_OPTICAL_DEPTH`] per voxel, clamped to it.
+    pub too_dense: u64,
 }
 
 impl BadValues {
-    /// Total number of replaced values.
+    /// Total number of replaced or clamped values.
     pub fn total(&self) -> u64 {
-        self.nan + self.infinite + self.negative
+        self.nan + self.infinite + self.negative + self.too_dense
     }
 
-    fn check(&mut self, v: &mut f32) {
+    /// Adds `other`'s counts.
+    pub fn add(&mut self, other: &BadValues) {
+        self.nan += other.nan;
+        self.infinite += other.infinite;
+        self.negative += other.negative;
+        self.too_dense += other.too_dense;
+    }
+
+    fn check(&mut self, v: &mut f32, cap: f32) {
         if v.is_nan() {
             self.nan += 1;
         } else if v.is_infinite() {
             self.infinite += 1;
         } else if *v < 0.0 {
             self.negative += 1;
+        } else if *v > cap {
+            self.too_dense += 1;
+            *v = cap;
+            return;
         } else {
             return;
         }
@@ -82,16 +110,36 @@ impl BadValues {
     }
 }
 
-/// Replaces NaN, infinite and negative values (voxels and tiles, active or not) by zero and recomputes the
-/// node ranges, so majorants stay finite. Returns what was replaced; the tree is untouched when nothing was.
-fn sanitize(tree: &FloatTree) -> Option<(FloatTree, BadValues)> {
-    if !tree.any_value(|v| !v.is_finite() || v < 0.0) {
+/// Replaces NaN, infinite and negative values (voxels and tiles, active or not) by zero, clamps values above
+/// `cap` to it, and recomputes the node ranges, so majorants stay finite and tracking takes a bounded number
+/// of steps. Returns what was changed; the tree is untouched when nothing was.
+fn sanitize(tree: &FloatTree, cap: f32) -> Option<(FloatTree, BadValues)> {
+    if !tree.any_value(|v| !v.is_finite() || v < 0.0 || v > cap) {
         return None;
     }
     let mut t = tree.clone();
     let mut counts = BadValues::default();
-    t.update_values(|v| counts.check(v));
+    t.update_values(|v| counts.check(v, cap));
     Some((t, counts))
+}
+
+/// The largest stored value a grid may keep: [`MAX_VOXEL_OPTICAL_DEPTH`] over (density scale × the longest
+/// voxel edge in metres); infinite when either is zero.
+fn density_cap(index_to_world: &DMat4, density_scale: f32) -> f32 {
+    let edge = [
+        index_to_world.x_axis,
+        index_to_world.y_axis,
+        index_to_world.z_axis,
+    ]
+    .iter()
+    .map(|a| a.truncate().length())
+    .fold(0.0f64, f64::max);
+    let per_unit = density_scale as f64 * edge;
+    if per_unit > 0.0 {
+        (MAX_VOXEL_OPTICAL_DEPTH as f64 / per_unit).min(f32::MAX as f64) as f32
+    } else {
+        f32::INFINITY
+    }
 }
 
 /// The leaves and tiles of `tree` whose values are not all zero, with the range of values a lookup inside each
@@ -116,11 +164,34 @@ impl GridDensity {
         )
     }
 
+    /// Places a scalar grid that is not an extinction (a temperature): like [`new`](Self::new) with scale 1,
+    /// but values are not clamped to [`MAX_VOXEL_OPTICAL_DEPTH`].
+    pub fn scalar(grid: &Grid, node_to_world: DMat4) -> Result<Self, DensityError> {
+        Self::build(
+            grid.tree.clone(),
+            node_to_world * grid.index_to_world,
+            1.0,
+            f32::INFINITY,
+        )
+    }
+
     /// Builds the field from a shared tree and its full index-to-world matrix (column-vector convention).
+    /// Values denser than [`MAX_VOXEL_OPTICAL_DEPTH`] per voxel are clamped to it.
     pub fn from_tree(
         tree: Arc<GridTree>,
         index_to_world: DMat4,
         density_scale: f32,
+    ) -> Result<Self, DensityError> {
+        let cap = density_cap(&index_to_world, density_scale);
+        Self::build(tree, index_to_world, density_scale, cap)
+    }
+
+    /// The field, with stored values above `cap` clamped to it.
+    fn build(
+        tree: Arc<GridTree>,
+        index_to_world: DMat4,
+        density_scale: f32,
+        cap: f32,
     ) -> Result<Self, DensityError> {
         let Some(t) = tree.as_float() else {
             return Err(DensityError::NotScalar);
@@ -131,7 +202,17 @@ impl GridDensity {
         if !(density_scale.is_finite() && density_scale >= 0.0) {
             return Err(DensityError::InvalidScale(density_scale));
         }
-        let (tree, bad_values) = match sanitize(t) {
+        let world_to_index = index_to_world.inverse();
+        if !(index_to_world.is_finite()
+            && world_to_index.is_finite()
+            && index_to_world.determinant().abs() > 0.0)
+        {
+            return Err(DensityError::Placement(
+                "the index-to-world transform (VDB transform times node matrix) is not finite and invertible"
+                    .into(),
+            ));
+        }
+        let (tree, bad_values) = match sanitize(t, cap) {
             Some((clean, counts)) => (Arc::new(GridTree::Float(clean)), counts),
             None => (tree, BadValues::default()),
         };
@@ -143,9 +224,30 @@ impl GridDensity {
         let mut b = Aabb::EMPTY;
         for r in t.regions().filter(|r| r.range().1 > 0.0) {
             let (o, e) = (r.origin(), r.edge());
+            let reach = (o - 1).abs().max((o + e).abs()).max_element();
+            if reach > MAX_INDEX_COORD {
+                return Err(DensityError::IndexRange {
+                    origin: o.to_array(),
+                });
+            }
             b = b.union(&Aabb::new((o - 1).as_vec3(), (o + e).as_vec3()));
         }
-        let world_to_index = index_to_world.inverse();
+        if !b.is_empty() {
+            let corners = (0..8).map(|i| {
+                let pick = |bit: i32, lo: f32, hi: f32| if i & bit == 0 { lo } else { hi } as f64;
+                index_to_world.transform_point3(glam::DVec3::new(
+                    pick(1, b.min.x, b.max.x),
+                    pick(2, b.min.y, b.max.y),
+                    pick(4, b.min.z, b.max.z),
+                ))
+            });
+            let reach = corners.fold(0.0f64, |m, c| m.max(c.abs().max_element()));
+            if reach.is_nan() || reach > MAX_WORLD_COORD {
+                return Err(DensityError::Placement(format!(
+                    "the placed grid reaches {reach:.3e} m from the origin, beyond the limit of {MAX_WORLD_COORD:.0e} m (check the node's scale)"
+                )));
+            }
+        }
         Ok(Self {
             tree,
             index_to_world: index_to_world.as_mat4(),

@@ -26,6 +26,15 @@ pub enum VolumeError {
         /// The grids the file has.
         available: Vec<String>,
     },
+    /// A structure built for the medium would exceed the memory budget.
+    #[error("{}: {source}", file.display())]
+    OverBudget {
+        /// The VDB file.
+        file: PathBuf,
+        /// What was refused.
+        #[source]
+        source: crate::limits::OverBudget,
+    },
     /// A grid cannot serve as a density (or temperature) field.
     #[error("{}: grid '{grid}': {source}", file.display())]
     Density {
@@ -51,4 +60,18 @@ pub enum DensityError {
     /// The density scale is negative or not finite.
     #[error("invalid density scale {0}")]
     InvalidScale(f32),
+    /// The grid holds data beyond [`super::density::MAX_INDEX_COORD`] voxels from the index origin (a corrupt
+    /// node origin, for one).
+    #[error(
+        "it holds voxels at index {origin:?}, beyond +/-{} voxels where single-precision lookups lose voxel precision",
+        super::density::MAX_INDEX_COORD
+    )]
+    IndexRange {
+        /// Origin of the first leaf or tile found out of range.
+        origin: [i32; 3],
+    },
+    /// The grid cannot be placed in the scene: its transform is not finite and invertible, or puts it beyond
+    /// [`super::density::MAX_WORLD_COORD`].
+    #[error("{0}")]
+    Placement(String),
 }

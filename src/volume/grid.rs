@@ -22,6 +22,7 @@ use super::{
     Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
     TransmittanceMethod, VolumeSpec,
 };
+use crate::limits::Limits;
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 use std::sync::Arc;
 
@@ -81,9 +82,21 @@ impl GridMedium {
         Self::with_parts(name, density, majorants, Vec::new(), albedo, g)
     }
 
-    /// Builds a medium whose majorant structure is the cheapest by the pilot of [`majorant_choice::choose`].
+    /// Builds a medium whose majorant structure is the cheapest by the pilot of [`majorant_choice::choose`],
+    /// among those that fit the default memory budget.
     pub fn with_chosen_majorants(name: &str, density: GridDensity, albedo: Rgb, g: f32) -> Self {
-        let (majorants, estimates) = majorant_choice::choose(&density);
+        Self::chosen_within(name, density, albedo, g, &Limits::default())
+    }
+
+    /// [`with_chosen_majorants`](Self::with_chosen_majorants) under the budget `limits`.
+    fn chosen_within(
+        name: &str,
+        density: GridDensity,
+        albedo: Rgb,
+        g: f32,
+        limits: &Limits,
+    ) -> Self {
+        let (majorants, estimates) = majorant_choice::choose(&density, limits);
         Self::with_parts(name, density, majorants, estimates, albedo, g)
     }
 
@@ -129,30 +142,62 @@ impl GridMedium {
     pub fn load(spec: &VolumeSpec) -> Result<Self, VolumeError> {
         let file = match spec.embedded {
             Some(bytes) => crate::vdb::read_bytes(bytes, &spec.file),
-            None => crate::vdb::read_file(&spec.file),
+            None => crate::vdb::read_file_with(
+                &spec.file,
+                &crate::vdb::ReadOptions {
+                    limits: spec.limits,
+                    ..Default::default()
+                },
+            ),
         }?;
-        let place = |name: &str, scale: f32| {
+        // `scale` None: a temperature grid, not an extinction, so never clamped as too dense.
+        let place = |name: &str, scale: Option<f32>| {
             let grid = file.grid(name).ok_or_else(|| VolumeError::GridMissing {
                 file: spec.file.clone(),
                 grid: name.to_owned(),
                 available: file.grids.iter().map(|g| g.name.clone()).collect(),
             })?;
-            GridDensity::new(grid, spec.node_to_world.as_dmat4(), scale).map_err(|source| {
-                VolumeError::Density {
-                    file: spec.file.clone(),
-                    grid: name.to_owned(),
-                    source,
-                }
+            let node_to_world = spec.node_to_world.as_dmat4();
+            match scale {
+                Some(s) => GridDensity::new(grid, node_to_world, s),
+                None => GridDensity::scalar(grid, node_to_world),
+            }
+            .map_err(|source| VolumeError::Density {
+                file: spec.file.clone(),
+                grid: name.to_owned(),
+                source,
             })
         };
-        let density = place(&spec.density_grid, spec.density_scale)?;
+        let density = place(&spec.density_grid, Some(spec.density_scale))?;
         let medium = match spec.majorant {
-            Some(kind) => Self::new(&spec.name, density, kind, spec.albedo, spec.anisotropy),
-            None => Self::with_chosen_majorants(&spec.name, density, spec.albedo, spec.anisotropy),
+            Some(kind) => {
+                let majorants =
+                    Majorants::try_build(kind, &density, &spec.limits).map_err(|source| {
+                        VolumeError::OverBudget {
+                            file: spec.file.clone(),
+                            source,
+                        }
+                    })?;
+                Self::with_parts(
+                    &spec.name,
+                    density,
+                    majorants,
+                    Vec::new(),
+                    spec.albedo,
+                    spec.anisotropy,
+                )
+            }
+            None => Self::chosen_within(
+                &spec.name,
+                density,
+                spec.albedo,
+                spec.anisotropy,
+                &spec.limits,
+            ),
         };
         let mut medium = medium.with_shadow_estimator(spec.shadow_estimator);
         if let Some(t) = &spec.temperature_grid {
-            let temperature = place(t, 1.0)?;
+            let temperature = place(t, None)?;
             medium.emission = Some(Emission {
                 temperature,
                 table: BlackbodyTable::new(),
@@ -204,18 +249,24 @@ impl Medium for GridMedium {
     fn warnings(&self) -> Vec<String> {
         let mut bad = self.density.bad_values();
         if let Some(e) = &self.emission {
-            let t = e.temperature.bad_values();
-            bad.nan += t.nan;
-            bad.infinite += t.infinite;
-            bad.negative += t.negative;
+            bad.add(&e.temperature.bad_values());
         }
-        if bad.total() == 0 {
-            return Vec::new();
+        let mut warnings = Vec::new();
+        if bad.nan + bad.infinite + bad.negative > 0 {
+            warnings.push(format!(
+                "medium '{}': {} NaN, {} infinite and {} negative grid values were replaced by zero",
+                self.name, bad.nan, bad.infinite, bad.negative
+            ));
         }
-        vec![format!(
-            "medium '{}': {} NaN, {} infinite and {} negative grid values were replaced by zero",
-            self.name, bad.nan, bad.infinite, bad.negative
-        )]
+        if bad.too_dense > 0 {
+            warnings.push(format!(
+                "medium '{}': {} grid values denser than an optical depth of {} per voxel were clamped to it",
+                self.name,
+                bad.too_dense,
+                super::density::MAX_VOXEL_OPTICAL_DEPTH
+            ));
+        }
+        warnings
     }
 
     fn is_absorbing_only(&self) -> bool {

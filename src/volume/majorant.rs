@@ -26,6 +26,7 @@
 //! `floor(x) + 1`, so a cell's bound covers every voxel its points can read, one voxel beyond the cell.
 
 use super::density::{nonzero_regions, AnalyticDensity, DensityField, GridDensity};
+use crate::limits::{Limits, OverBudget};
 use crate::math::{Aabb, Ray, Vec3};
 use crate::vdb::{floor_ivec3, FloatTree, Leaf, LowerNode};
 use glam::IVec3;
@@ -323,6 +324,46 @@ impl Majorants {
             sigma_max: global_max,
             repr,
         }
+    }
+
+    /// Bytes that a structure of `kind` over `field` allocates densely over the grid's index bounds (bricks,
+    /// which follow the data, not included): what a corrupt node origin far from the data inflates. Saturates
+    /// at `u64::MAX`.
+    pub fn dense_bytes(kind: MajorantKind, field: &GridDensity) -> u64 {
+        let bounds = field.index_bounds();
+        if bounds.is_empty() {
+            return 0;
+        }
+        match kind {
+            MajorantKind::Global => 0,
+            MajorantKind::Grid16 => (GRID16_RES as u64).pow(3) * 4,
+            MajorantKind::Adaptive => {
+                // As in `Hierarchy::build`: coarse cells of 2^COARSE_LOG2 voxels, each a (min, max, brick)
+                // entry plus the f32 maximum of `coarse_maxima`.
+                let c = 1i64 << COARSE_LOG2;
+                let cells = (0..3).try_fold(1u64, |n, axis| {
+                    let lo = (bounds.min[axis].floor() as i64).div_euclid(c);
+                    let hi = (bounds.max[axis].ceil() as i64 - 1).div_euclid(c);
+                    n.checked_mul((hi - lo + 1).max(1) as u64)
+                });
+                let entry = (std::mem::size_of::<(f32, f32, u32)>() + 4) as u64;
+                cells.and_then(|n| n.checked_mul(entry)).unwrap_or(u64::MAX)
+            }
+        }
+    }
+
+    /// [`build`](Self::build), after checking its dense part ([`dense_bytes`](Self::dense_bytes)) against the
+    /// memory budget.
+    pub fn try_build(
+        kind: MajorantKind,
+        field: &GridDensity,
+        limits: &Limits,
+    ) -> Result<Self, OverBudget> {
+        limits.check(
+            format_args!("the {} majorant structure", kind.name()),
+            Self::dense_bytes(kind, field),
+        )?;
+        Ok(Self::build(kind, field))
     }
 
     /// The kind of this structure.

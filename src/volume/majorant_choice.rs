@@ -12,11 +12,14 @@
 //! [`NS_PER_LOOKUP`] per lookup plus [`NS_PER_CELL`] per cell, constants fitted by `benches/fit_majorant_costs.py`
 //! to `cargo bench --bench majorants -- --csv` timings of five corpus grids at mean optical depths 0.1 to 100
 //! (see `docs/method_choices.md`). The pilot counts work, never time, so the choice is the same on every machine
-//! and run.
+//! and run. Structures are tried finest first, and a structure's pilot stops once its work passes
+//! [`PILOT_WORK_CAP`] times the whole pilot of the cheapest so far (it cannot win), so a density that makes one
+//! structure very slow (a single extreme voxel under the global bound) does not make the pilot slow.
 
 use super::density::{DensityField, GridDensity};
 use super::majorant::{MajorantKind, Majorants};
 use super::tracking::{ratio_tracking, sample_collision, TrackingCounters};
+use crate::limits::Limits;
 use crate::math::{Ray, Rng, Vec3};
 
 /// Rays in the pilot.
@@ -25,6 +28,14 @@ pub const PILOT_RAYS: usize = 256;
 pub const NS_PER_LOOKUP: f64 = 65.0;
 /// Fitted cost of one majorant cell walked (a DDA step and its segment), in nanoseconds of one core.
 pub const NS_PER_CELL: f64 = 27.0;
+/// A structure's pilot stops when its estimated work passes this multiple of the cheapest complete pilot.
+pub const PILOT_WORK_CAP: f64 = 4.0;
+/// The order structures are piloted in: the finest (usually cheapest) first, so the work cap bites early.
+const PILOT_ORDER: [MajorantKind; 3] = [
+    MajorantKind::Grid16,
+    MajorantKind::Adaptive,
+    MajorantKind::Global,
+];
 
 /// The pilot's figures for one majorant structure.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -37,6 +48,9 @@ pub struct MajorantEstimate {
     pub cells_per_ray: f64,
     /// Estimated nanoseconds per pilot ray.
     pub cost_ns: f64,
+    /// Pilot rays traced: fewer than [`PILOT_RAYS`] when the pilot stopped at the work cap (the figures are then
+    /// means over the rays traced, and the structure was not chosen).
+    pub rays_traced: usize,
 }
 
 /// Fixed-seed rays from the bounding sphere of `bounds` towards uniform points inside them, with unit
@@ -60,20 +74,32 @@ pub fn pilot_rays(field: &GridDensity, n: usize, seed: u64) -> (Vec<Ray>, f32) {
     (rays, 4.0 * r)
 }
 
-/// Estimates the tracking cost of `majorants` over `field` with the pilot rays.
+/// Estimated nanoseconds of the work `c` counts.
+fn work_ns(c: &TrackingCounters) -> f64 {
+    NS_PER_LOOKUP * c.density_lookups as f64 + NS_PER_CELL * c.majorant_cells as f64
+}
+
+/// Estimates the tracking cost of `majorants` over `field` with the pilot rays, stopping after the ray whose
+/// work takes the total past `max_total_ns`.
 pub fn estimate(
     field: &GridDensity,
     majorants: &Majorants,
     rays: &[Ray],
     t_max: f32,
+    max_total_ns: f64,
 ) -> MajorantEstimate {
     let mut rng = Rng::new(0x9e37, majorants.kind() as u64);
     let mut counters = TrackingCounters::default();
+    let mut traced = 0;
     for ray in rays {
         sample_collision(field, majorants, ray, 0.0, t_max, &mut rng, &mut counters);
         ratio_tracking(field, majorants, ray, 0.0, t_max, &mut rng, &mut counters);
+        traced += 1;
+        if work_ns(&counters) > max_total_ns {
+            break;
+        }
     }
-    let n = rays.len().max(1) as f64;
+    let n = traced.max(1) as f64;
     let lookups_per_ray = counters.density_lookups as f64 / n;
     let cells_per_ray = counters.majorant_cells as f64 / n;
     MajorantEstimate {
@@ -81,24 +107,37 @@ pub fn estimate(
         lookups_per_ray,
         cells_per_ray,
         cost_ns: NS_PER_LOOKUP * lookups_per_ray + NS_PER_CELL * cells_per_ray,
+        rays_traced: traced,
     }
 }
 
-/// Builds every structure over `field`, runs the pilot, and returns the cheapest with the estimates of all (in
-/// [`MajorantKind::ALL`] order). Ties go to the simpler structure.
-pub fn choose(field: &GridDensity) -> (Majorants, Vec<MajorantEstimate>) {
+/// Builds every structure over `field` that fits the memory budget (the global bound always does), runs the
+/// pilot, and returns the cheapest with the estimates of those built (in [`MajorantKind::ALL`] order). Ties go
+/// to the simpler structure (earlier in [`MajorantKind::ALL`]).
+pub fn choose(field: &GridDensity, limits: &Limits) -> (Majorants, Vec<MajorantEstimate>) {
     let (rays, t_max) = pilot_rays(field, PILOT_RAYS, 0x51ed);
+    let rank = |kind: MajorantKind| MajorantKind::ALL.iter().position(|k| *k == kind);
     let mut best: Option<(Majorants, f64)> = None;
     let mut estimates = Vec::with_capacity(MajorantKind::ALL.len());
-    for kind in MajorantKind::ALL {
-        let majorants = Majorants::build(kind, field);
-        let e = estimate(field, &majorants, &rays, t_max);
+    for kind in PILOT_ORDER {
+        let Ok(majorants) = Majorants::try_build(kind, field, limits) else {
+            continue;
+        };
+        let cap = best.as_ref().map_or(f64::INFINITY, |(_, cost)| {
+            PILOT_WORK_CAP * cost * rays.len() as f64
+        });
+        let e = estimate(field, &majorants, &rays, t_max, cap);
         estimates.push(e);
-        if best.as_ref().is_none_or(|(_, c)| e.cost_ns < *c) {
+        let wins = best.as_ref().is_none_or(|(m, cost)| {
+            e.rays_traced == rays.len()
+                && (e.cost_ns < *cost || (e.cost_ns == *cost && rank(kind) < rank(m.kind())))
+        });
+        if wins {
             best = Some((majorants, e.cost_ns));
         }
     }
-    let (majorants, _) = best.expect("MajorantKind::ALL is not empty");
+    estimates.sort_by_key(|e| rank(e.kind));
+    let (majorants, _) = best.expect("the global bound always fits the budget");
     (majorants, estimates)
 }
 
@@ -110,13 +149,22 @@ mod tests {
     #[test]
     fn thin_media_pick_the_global_bound_and_thick_ones_a_finer_structure() {
         // The same ball at two density scales: thin, tracking is dominated by traversal; thick, by lookups.
-        let (thin, thin_est) = choose(&sphere_grid(0.01));
+        let limits = Limits::default();
+        let (thin, thin_est) = choose(&sphere_grid(0.01), &limits);
         assert_eq!(thin.kind(), MajorantKind::Global, "{thin_est:?}");
-        let (thick, thick_est) = choose(&sphere_grid(50.0));
+        let (thick, thick_est) = choose(&sphere_grid(50.0), &limits);
         assert_ne!(thick.kind(), MajorantKind::Global, "{thick_est:?}");
         let cost = |es: &[MajorantEstimate], k| es.iter().find(|e| e.kind == k).unwrap().cost_ns;
         assert!(cost(&thick_est, thick.kind()) < cost(&thick_est, MajorantKind::Global));
         // Deterministic: the pilot counts work only.
-        assert_eq!(choose(&sphere_grid(50.0)).1, thick_est);
+        assert_eq!(choose(&sphere_grid(50.0), &limits).1, thick_est);
+        // A budget too small for the adaptive structure's dense part leaves it out of the pilot.
+        let adaptive = Majorants::dense_bytes(MajorantKind::Adaptive, &sphere_grid(1.0));
+        let small = Limits::with_memory(adaptive - 1);
+        let (_, estimates) = choose(&sphere_grid(50.0), &small);
+        assert!(
+            estimates.iter().all(|e| e.kind != MajorantKind::Adaptive),
+            "{estimates:?}"
+        );
     }
 }

@@ -139,8 +139,13 @@ impl fmt::Display for MediumMethod {
                         let costs: Vec<String> = estimates
                             .iter()
                             .map(|e| {
+                                let stopped = if e.rays_traced < PILOT_RAYS {
+                                    format!(", stopped after {} rays at the work cap", e.rays_traced)
+                                } else {
+                                    String::new()
+                                };
                                 format!(
-                                    "{} {:.0} ({:.1} lookups, {:.1} cells)",
+                                    "{} {:.0} ({:.1} lookups, {:.1} cells{stopped})",
                                     e.kind.name(),
                                     e.cost_ns,
                                     e.lookups_per_ray,
@@ -216,6 +221,7 @@ struct PilotEntry {
     cost_ns: f64,
     lookups_per_ray: f64,
     cells_per_ray: f64,
+    rays_traced: usize,
 }
 
 impl From<&MajorantEstimate> for PilotEntry {
@@ -225,6 +231,7 @@ impl From<&MajorantEstimate> for PilotEntry {
             cost_ns: e.cost_ns,
             lookups_per_ray: e.lookups_per_ray,
             cells_per_ray: e.cells_per_ray,
+            rays_traced: e.rays_traced,
         }
     }
 }

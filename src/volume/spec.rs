@@ -148,6 +148,9 @@ pub struct VolumeSpec {
     pub shadow_estimator: ShadowEstimator,
     /// The VDB file's bytes when they are embedded in the program (the bundled demo); otherwise `file` is read.
     pub embedded: Option<&'static [u8]>,
+    /// The memory budget for reading the VDB file and building the majorant structure (set by the loaders from
+    /// [`crate::scene::LoadOptions::limits`]).
+    pub limits: crate::limits::Limits,
 }
 
 impl VolumeSpec {
@@ -168,6 +171,7 @@ impl VolumeSpec {
             majorant: None,
             shadow_estimator: ShadowEstimator::Ratio,
             embedded: None,
+            limits: crate::limits::Limits::default(),
         }
     }
 
