@@ -372,7 +372,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     }
     let (image, stats) = renderer
         .render(&scene, &mut |p| reporter.report(p))
-        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+        .map_err(|e| e.to_string())?;
     reporter.finish();
     create_parent(&args.output)?;
     nimbus::output::write_exr(&image, &args.output).map_err(|e| e.to_string())?;

@@ -39,3 +39,33 @@ fn huge_sizes_and_durations_are_refused_with_one_line() {
     }
     assert!(!out.exists());
 }
+
+#[test]
+fn the_memory_limit_flag_bounds_files_and_films() {
+    let scene = demo_scene();
+    let out = std::env::temp_dir().join(format!("nimbus-cli-memory-{}.exr", std::process::id()));
+    // The scene's VDB (11.5 KiB) is over a 4 KiB budget; a 64×64 film (a few hundred KiB) is over 100 KiB.
+    let cases: [(&[&str], &str); 3] = [
+        (&["--memory-limit", "4K"], "memory budget"),
+        (
+            &["--memory-limit", "100K", "--width", "64", "--height", "64"],
+            "film",
+        ),
+        (&["--memory-limit", "lots"], "not a size"),
+    ];
+    for (flags, expect) in cases {
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&scene)
+            .args(flags)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{flags:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{flags:?}: {stderr}");
+        assert!(stderr.contains(expect), "{flags:?}: {stderr}");
+    }
+    assert!(!out.exists());
+}
