@@ -49,7 +49,7 @@ struct MergeArgs {
     #[arg(short = 'o', long = "output")]
     output: PathBuf,
     /// Exposure of the PNG preview in stops.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
 }
 
@@ -82,10 +82,10 @@ struct ConvergeArgs {
 #[derive(Args)]
 struct ImageArgs {
     /// Image width in pixels.
-    #[arg(long)]
+    #[arg(long, value_parser = at_least_one)]
     width: Option<usize>,
     /// Image height in pixels (default: from the camera's aspect ratio, else 3/4 of the width).
-    #[arg(long)]
+    #[arg(long, value_parser = at_least_one)]
     height: Option<usize>,
     /// Seed of the random streams.
     #[arg(long, default_value_t = 0)]
@@ -112,7 +112,7 @@ struct RenderArgs {
     #[arg(short = 'o', long = "output", default_value = "render.exr")]
     output: PathBuf,
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
     /// Image size, seed and threads.
     #[command(flatten)]
@@ -135,7 +135,7 @@ struct RenderArgs {
     #[arg(long = "memory-limit", value_parser = nimbus::limits::parse_size)]
     memory_limit: Option<u64>,
     /// Exposure of the PNG preview in stops.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
     /// Print the estimator chosen for each medium before rendering.
     #[arg(long)]
@@ -274,7 +274,40 @@ fn load_builder(scene: Option<&Path>, limits: Limits) -> Result<SceneBuilder, St
     .map_err(|e| e.to_string())
 }
 
+/// Parses a count that must be at least 1 (an image side).
+fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(0) => Err("must be at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// Checks, before anything is rendered, that `output` names an EXR in a folder that exists (or can be made)
+/// and can be written: the PNG preview goes beside it, so `-o out.png` would write the PNG over the EXR.
+fn check_output(output: &Path) -> Result<(), String> {
+    let is_exr = output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if !is_exr {
+        return Err(format!(
+            "-o {} must name an .exr file (the PNG preview is written beside it with the same stem)",
+            output.display()
+        ));
+    }
+    create_parent(output)?;
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let probe = dir.join(format!(".nimbus-write-test-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .and_then(|()| std::fs::remove_file(&probe))
+        .map_err(|e| format!("cannot write to {}: {e}", dir.display()))
+}
+
 fn render(args: RenderArgs) -> Result<(), String> {
+    check_output(&args.output)?;
     let limits = args
         .memory_limit
         .map_or_else(Limits::default, Limits::with_memory);
@@ -299,7 +332,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
             eprintln!("nimbus: medium '{}': {}", m.name(), m.method());
         }
     }
-    let width = args.image.width.unwrap_or(640).max(1);
+    let width = args.image.width.unwrap_or(640);
     let aspect = scene.camera().aspect_ratio.unwrap_or(4.0 / 3.0);
     let height = args
         .image

@@ -69,3 +69,51 @@ fn the_memory_limit_flag_bounds_files_and_films() {
     }
     assert!(!out.exists());
 }
+
+#[test]
+fn outputs_and_counts_are_checked_before_rendering() {
+    let scene = demo_scene();
+    let dir = std::env::temp_dir().join(format!("nimbus-cli-outputs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let blocker = dir.join("a-file");
+    std::fs::write(&blocker, b"").unwrap();
+    let exr = dir.join("out.exr").display().to_string();
+    let png = dir.join("out.png").display().to_string();
+    let under_file = blocker.join("out.exr").display().to_string();
+    let cases: [(&[&str], &str); 4] = [
+        (&["--spp", "0", "-o", &exr], "--spp"),
+        (&["--width", "0", "-o", &exr], "--width"),
+        (&["-o", &png], "must name an .exr"),
+        (&["-o", &under_file], "a-file"),
+    ];
+    for (flags, expect) in cases {
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&scene)
+            .args(flags)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{flags:?}: {stderr}");
+        assert!(stderr.contains(expect), "{flags:?}: {stderr}");
+        assert!(
+            !stderr.contains("triangles"),
+            "refused before loading: {stderr}"
+        );
+    }
+    assert!(!dir.join("out.exr").exists() && !dir.join("out.png").exists());
+    // A negative exposure is a value, not a flag.
+    let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .arg("render")
+        .arg(&scene)
+        .args(["--exposure", "-9", "--width", "8", "--spp", "1", "-o", &exr])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(dir.join("out.exr").exists() && dir.join("out.png").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
