@@ -852,15 +852,30 @@ mod tests {
         let mut rng = Rng::new(3, 4);
         let bvh = Bvh::build(&soup(&mut rng, 3000)).unwrap();
         let rays = [
-            (Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0)), 0.0, f32::INFINITY),
+            (
+                Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0)),
+                0.0,
+                f32::INFINITY,
+            ),
             (Ray::new(Vec3::splat(f32::NAN), Vec3::X), 0.0, f32::INFINITY),
-            (Ray::new(Vec3::new(f32::INFINITY, 0.0, 0.0), -Vec3::X), 0.0, f32::INFINITY),
-            (Ray::new(Vec3::ZERO, Vec3::new(0.0, f32::INFINITY, 0.0)), 0.0, f32::INFINITY),
+            (
+                Ray::new(Vec3::new(f32::INFINITY, 0.0, 0.0), -Vec3::X),
+                0.0,
+                f32::INFINITY,
+            ),
+            (
+                Ray::new(Vec3::ZERO, Vec3::new(0.0, f32::INFINITY, 0.0)),
+                0.0,
+                f32::INFINITY,
+            ),
             (Ray::new(Vec3::ZERO, Vec3::X), f32::NAN, f32::INFINITY),
             (Ray::new(Vec3::ZERO, Vec3::X), 0.0, f32::NAN),
         ];
         for (ray, t0, t1) in rays {
-            assert!(bvh.intersect(&ray, t0, t1).is_none(), "{ray:?} [{t0}, {t1}]");
+            assert!(
+                bvh.intersect(&ray, t0, t1).is_none(),
+                "{ray:?} [{t0}, {t1}]"
+            );
             assert!(!bvh.occluded(&ray, t0, t1), "{ray:?} [{t0}, {t1}]");
         }
     }

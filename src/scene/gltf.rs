@@ -24,6 +24,7 @@ use crate::light::{
     DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
     LUMENS_PER_WATT,
 };
+use crate::limits::one_line;
 use crate::material::{ColorSpace, Filter, Material, MipImage, Sampler, Texture, Wrap};
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
@@ -43,12 +44,51 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_specular",
 ];
 
-/// Deepest node hierarchy accepted; deeper (or cyclic) hierarchies are errors.
+/// Deepest node hierarchy accepted; deeper hierarchies are errors (cycles are refused before loading).
 const MAX_NODE_DEPTH: usize = 256;
+
+/// Longest text quoted from the file (a URI) in an error message.
+const QUOTE: usize = 120;
+
+/// Reads the bytes a buffer or image URI names: a `data:` URI decoded, else a file (a relative path, an
+/// absolute one or a `file://` URI, percent-decoded) read within the memory budget. Errors are one line.
+fn read_uri(uri: &str, base: &Path, limits: &crate::limits::Limits) -> Result<Vec<u8>, String> {
+    if uri.starts_with("data:") {
+        return gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), Some(base))
+            .map(|d| d.0)
+            .map_err(|e| one_line(&e.to_string(), QUOTE));
+    }
+    let rest = uri.strip_prefix("file://").unwrap_or(uri);
+    if rest.len() == uri.len() && uri.contains("://") {
+        return Err("only data: and file URIs are read".into());
+    }
+    let decoded = percent_decode(rest).ok_or("the URI is not valid percent-encoded UTF-8")?;
+    crate::limits::read_file(&base.join(decoded), limits)
+        .map_err(|e| one_line(&e.to_string(), QUOTE))
+}
+
+/// `%XX` escapes decoded; `None` if one is malformed or the result is not UTF-8.
+fn percent_decode(text: &str) -> Option<String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
 
 /// Loads a `.gltf` or `.glb` file.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+    let bytes = crate::limits::read_file(path, &options.limits)
+        .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
     load_slice(&bytes, path, options)
 }
 
@@ -61,6 +101,7 @@ pub fn load_slice(
     let err = |kind| SceneError::new(path, kind);
     let malformed = |m: String| err(SceneErrorKind::Malformed(m));
     let (root, blob) = parse(bytes).map_err(malformed)?;
+    super::gltf_check::check_document(&root).map_err(&err)?;
     let mut warnings = validate(&root).map_err(&err)?;
     let document = gltf::Document::from_json_without_validation(root);
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -69,15 +110,25 @@ pub fn load_slice(
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let name = match buffer.source() {
-            gltf::buffer::Source::Bin => "the GLB binary chunk".to_string(),
-            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => {
-                format!("buffer {} (data URI)", buffer.index())
+            gltf::buffer::Source::Bin => {
+                format!("buffers[{}] (the GLB binary chunk)", buffer.index())
             }
-            gltf::buffer::Source::Uri(u) => format!("buffer {} ('{u}')", buffer.index()),
+            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => {
+                format!("buffers[{}] (data URI)", buffer.index())
+            }
+            gltf::buffer::Source::Uri(u) => {
+                format!("buffers[{}] ('{}')", buffer.index(), one_line(u, QUOTE))
+            }
         };
-        let data =
-            gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(&base), &mut blob)
-                .map_err(|e| err(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?;
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
+                malformed(format!(
+                    "{name}: the file has no binary chunk (or two buffers use it)"
+                ))
+            })?,
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, &base, &options.limits)
+                .map_err(|e| err(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?,
+        };
         if data.len() < buffer.length() {
             return Err(malformed(format!(
                 "{name} holds {} bytes but declares byteLength {}",
@@ -85,7 +136,7 @@ pub fn load_slice(
                 buffer.length()
             )));
         }
-        buffers.push(data);
+        buffers.push(gltf::buffer::Data(data));
     }
     let mut loader = Loader {
         path,
@@ -308,11 +359,11 @@ impl Loader<'_> {
                 ));
                 continue;
             }
-            for (_, accessor) in primitive.attributes() {
-                self.check_accessor(&accessor, &what)?;
+            for (semantic, accessor) in primitive.attributes() {
+                self.check_accessor(&accessor, &what, Use::Attribute(&semantic))?;
             }
             if let Some(a) = primitive.indices() {
-                self.check_accessor(&a, &what)?;
+                self.check_accessor(&a, &what, Use::Indices)?;
             }
             let reader = primitive.reader(|b| self.buffers.get(b.index()).map(|d| d.0.as_slice()));
             let positions: Vec<Vec3> = reader
@@ -370,8 +421,14 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// Checks that an accessor's bytes lie inside its buffer view and the view inside its buffer.
-    fn check_accessor(&self, accessor: &gltf::Accessor, what: &str) -> Result<(), SceneError> {
+    /// Checks that an accessor holds what its use reads (element type and component type), has at least one
+    /// element, and that its bytes lie inside its buffer view and the view inside its buffer.
+    fn check_accessor(
+        &self,
+        accessor: &gltf::Accessor,
+        what: &str,
+        usage: Use,
+    ) -> Result<(), SceneError> {
         let bad = |m: String| {
             self.error(SceneErrorKind::InvalidReference(format!(
                 "{what}: accessor {}: {m}",
@@ -383,6 +440,26 @@ impl Loader<'_> {
                 "{what}: accessor {} is sparse",
                 accessor.index()
             ))));
+        }
+        use gltf::accessor::{DataType as D, Dimensions as N};
+        use gltf::Semantic as S;
+        let (dims, types): (N, &[D]) = match usage {
+            Use::Indices => (N::Scalar, &[D::U8, D::U16, D::U32]),
+            Use::Attribute(S::Positions | S::Normals) => (N::Vec3, &[D::F32]),
+            Use::Attribute(S::Tangents) => (N::Vec4, &[D::F32]),
+            Use::Attribute(S::TexCoords(0)) => (N::Vec2, &[D::F32, D::U8, D::U16]),
+            // Other attributes are not read; only their byte range is checked.
+            Use::Attribute(_) => (accessor.dimensions(), &[]),
+        };
+        let (data_type, dimensions) = (accessor.data_type(), accessor.dimensions());
+        if dimensions != dims || !(types.is_empty() || types.contains(&data_type)) {
+            return Err(bad(format!(
+                "type {dimensions:?} with componentType {data_type:?} cannot be read as {} ({dims:?} of {types:?})",
+                usage.name()
+            )));
+        }
+        if accessor.count() == 0 {
+            return Err(bad("count is 0".into()));
         }
         let Some(view) = accessor.view() else {
             return Err(bad("has no buffer view".into()));
@@ -427,6 +504,7 @@ impl Loader<'_> {
         }
         let pbr = material.pbr_metallic_roughness();
         let emissive_strength = material.emissive_strength().unwrap_or(1.0);
+        self.check_material_numbers(&material, emissive_strength)?;
         let base_color_texture = match pbr.base_color_texture() {
             Some(t) => Some(self.texture(t.texture(), ColorSpace::Srgb, t.tex_coord())?),
             None => None,
@@ -476,6 +554,87 @@ impl Loader<'_> {
         let id = self.builder.add_material(m);
         self.material_map.insert(material.index(), id);
         Ok(id)
+    }
+
+    /// Refuses a non-finite factor, or a negative emission, with an error naming the material and field.
+    fn check_material_numbers(
+        &self,
+        material: &gltf::Material,
+        emissive_strength: f32,
+    ) -> Result<(), SceneError> {
+        let pbr = material.pbr_metallic_roughness();
+        let mut fields: Vec<(&str, Vec<f32>, bool)> = vec![
+            (
+                "pbrMetallicRoughness.baseColorFactor",
+                pbr.base_color_factor().to_vec(),
+                false,
+            ),
+            (
+                "pbrMetallicRoughness.metallicFactor",
+                vec![pbr.metallic_factor()],
+                false,
+            ),
+            (
+                "pbrMetallicRoughness.roughnessFactor",
+                vec![pbr.roughness_factor()],
+                false,
+            ),
+            ("emissiveFactor", material.emissive_factor().to_vec(), true),
+            (
+                "KHR_materials_emissive_strength.emissiveStrength",
+                vec![emissive_strength],
+                true,
+            ),
+        ];
+        if let Some(t) = material.normal_texture() {
+            fields.push(("normalTexture.scale", vec![t.scale()], false));
+        }
+        if let Some(ior) = material.ior() {
+            fields.push(("KHR_materials_ior.ior", vec![ior], false));
+        }
+        if let Some(t) = material.transmission() {
+            let f = t.transmission_factor();
+            fields.push((
+                "KHR_materials_transmission.transmissionFactor",
+                vec![f],
+                false,
+            ));
+        }
+        if let Some(s) = material.specular() {
+            fields.push((
+                "KHR_materials_specular.specularFactor",
+                vec![s.specular_factor()],
+                false,
+            ));
+            let c = s.specular_color_factor().to_vec();
+            fields.push(("KHR_materials_specular.specularColorFactor", c, false));
+        }
+        if let Some(v) = material.volume() {
+            let t = v.thickness_factor();
+            fields.push(("KHR_materials_volume.thicknessFactor", vec![t], false));
+            let c = v.attenuation_color().to_vec();
+            fields.push(("KHR_materials_volume.attenuationColor", c, false));
+        }
+        let at = material.index().map_or_else(
+            || "the default material".to_owned(),
+            |i| format!("materials[{i}]"),
+        );
+        for (field, values, non_negative) in fields {
+            if let Some(v) = values
+                .iter()
+                .find(|v| !v.is_finite() || (non_negative && **v < 0.0))
+            {
+                let rule = if non_negative {
+                    "finite and >= 0"
+                } else {
+                    "finite"
+                };
+                return Err(self.error(SceneErrorKind::Malformed(format!(
+                    "{at}.{field} holds {v}; it must be {rule}"
+                ))));
+            }
+        }
+        Ok(())
     }
 
     /// The medium filling meshes with this material: `extras.nimbus_medium`, else `KHR_materials_volume` with
@@ -584,7 +743,7 @@ impl Loader<'_> {
     fn decode_image(&mut self, image: gltf::Image) -> Result<image::RgbaImage, SceneError> {
         let name = match image.source() {
             gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
-                format!("image {} ('{uri}')", image.index())
+                format!("image {} ('{}')", image.index(), one_line(uri, QUOTE))
             }
             _ => format!("image {}", image.index()),
         };
@@ -602,17 +761,38 @@ impl Loader<'_> {
                     }
                 }
             }
-            gltf::image::Source::Uri { uri, .. } => {
-                let source = gltf::buffer::Source::Uri(uri);
-                gltf::buffer::Data::from_source(source, Some(&self.base))
-                    .map_err(|e| {
-                        self.error(SceneErrorKind::InvalidReference(format!("{name}: {e}")))
-                    })?
-                    .0
-            }
+            gltf::image::Source::Uri { uri, .. } => read_uri(uri, &self.base, &self.options.limits)
+                .map_err(|e| {
+                    self.error(SceneErrorKind::InvalidReference(format!("{name}: {e}")))
+                })?,
         };
-        let decoded = image::load_from_memory(&bytes)
-            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{name}: {e}"))))?
+        let budget = self.options.limits;
+        let malformed = |e: String| {
+            self.error(SceneErrorKind::Malformed(format!(
+                "{name}: {}",
+                one_line(&e, QUOTE)
+            )))
+        };
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+            .with_guessed_format()
+            .map_err(|e| malformed(e.to_string()))?;
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(budget.memory_bytes);
+        reader.limits(limits.clone());
+        let (width, height) = reader
+            .into_dimensions()
+            .map_err(|e| malformed(e.to_string()))?;
+        // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels) stay in the budget.
+        budget
+            .check_items(&name, width as u64 * height as u64, 4 + 22)
+            .map_err(|e| malformed(e.to_string()))?;
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+            .with_guessed_format()
+            .map_err(|e| malformed(e.to_string()))?;
+        reader.limits(limits.clone());
+        let decoded = reader
+            .decode()
+            .map_err(|e| malformed(e.to_string()))?
             .to_rgba8();
         Ok(decoded)
     }
@@ -654,6 +834,24 @@ impl Loader<'_> {
             self.builder.set_environment(env);
         }
         Ok(())
+    }
+}
+
+/// What a primitive reads an accessor as.
+#[derive(Clone, Copy)]
+enum Use<'a> {
+    /// The index list.
+    Indices,
+    /// A vertex attribute.
+    Attribute(&'a gltf::Semantic),
+}
+
+impl Use<'_> {
+    fn name(&self) -> String {
+        match self {
+            Use::Indices => "indices".into(),
+            Use::Attribute(s) => s.to_string(),
+        }
     }
 }
 
