@@ -254,6 +254,29 @@ fn bad_material_numbers_are_refused() {
 }
 
 #[test]
+fn image_without_a_source_is_refused() {
+    let with_image = |image: Value| {
+        move |d: &mut Value| {
+            d["images"] = json!([image]);
+            d["textures"] = json!([{"source": 0}]);
+            d["materials"][2]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
+        }
+    };
+    hostile(with_image(json!({})), &["images[0]", "uri"]);
+    hostile(
+        with_image(json!({"bufferView": 0})),
+        &["images[0]", "mimeType"],
+    );
+    hostile(
+        |d| {
+            with_image(json!({"uri": "missing.png"}))(d);
+            d["textures"][0]["source"] = json!(1);
+        },
+        &["textures[0].source", "images"],
+    );
+}
+
+#[test]
 fn endless_buffer_file_is_a_one_line_error() {
     let Some(dir) = scene_dir() else { return };
     if !Path::new("/dev/zero").exists() {

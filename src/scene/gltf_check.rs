@@ -146,13 +146,20 @@ fn check_indices(root: &Root) -> Result<(), String> {
         )?;
     }
     for (i, image) in root.images.iter().enumerate() {
-        if let Some(v) = image.buffer_view {
-            within(
-                || format!("images[{i}].bufferView"),
-                v,
-                "bufferViews",
-                views,
-            )?;
+        match (image.buffer_view, &image.uri) {
+            (Some(v), _) => {
+                within(
+                    || format!("images[{i}].bufferView"),
+                    v,
+                    "bufferViews",
+                    views,
+                )?;
+                if image.mime_type.is_none() {
+                    return Err(format!("images[{i}] has a bufferView but no mimeType"));
+                }
+            }
+            (None, Some(_)) => {}
+            (None, None) => return Err(format!("images[{i}] has neither a uri nor a bufferView")),
         }
     }
     for (i, t) in root.textures.iter().enumerate() {
@@ -465,9 +472,9 @@ fn check_lights(root: &Root) -> Result<(), String> {
                         "{at}.spot.outerConeAngle is {outer}; it must be in (0, pi/2]"
                     ));
                 }
-                if !(inner >= 0.0 && inner < outer) {
+                if !(inner >= 0.0 && inner <= outer) {
                     return Err(format!(
-                        "{at}.spot.innerConeAngle is {inner}; it must be >= 0 and < outerConeAngle {outer}"
+                        "{at}.spot.innerConeAngle is {inner}; it must be >= 0 and <= outerConeAngle {outer}"
                     ));
                 }
             }
