@@ -106,13 +106,9 @@ fn split_glb(bytes: &[u8]) -> Option<(Value, Vec<u8>)> {
 /// A GLB container holding `json` and `bin`.
 fn join_glb(json: &Value, bin: &[u8]) -> Vec<u8> {
     let mut j = serde_json::to_vec(json).unwrap();
-    while j.len() % 4 != 0 {
-        j.push(b' ');
-    }
+    j.resize(j.len().next_multiple_of(4), b' ');
     let mut b = bin.to_vec();
-    while b.len() % 4 != 0 {
-        b.push(0);
-    }
+    b.resize(b.len().next_multiple_of(4), 0);
     let total = 12 + 8 + j.len() + 8 + b.len();
     let mut out = b"glTF".to_vec();
     for w in [2, total, j.len()] {

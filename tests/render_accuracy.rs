@@ -19,6 +19,7 @@ fn render(scene: &Scene, size: usize, spp: u32, max_depth: u32, threads: usize) 
         max_depth,
         time_limit: None,
         media_mis: true,
+        limits: Default::default(),
     };
     Renderer::new(settings)
         .render(scene, &mut |_| true)

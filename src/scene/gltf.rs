@@ -14,9 +14,13 @@
 //! are taken as W/sr and W/m² unchanged. Emission (`emissiveFactor` × `emissiveStrength`) is radiance in
 //! either case.
 //!
-//! Validation is the `gltf` crate's own, except that the extensions Nimbus implements may be listed in
-//! `extensionsRequired` (the crate rejects some of them). Accessor and index ranges are checked here before any
-//! read, so a malformed file is an error naming the element, never a panic.
+//! Hostile input: before the `gltf` crate validates or reads anything, every index field, the node forest,
+//! cameras, lights and node transforms are checked here (see `gltf_check`), since the crate panics on some
+//! of them; then the crate's validation runs, except that the extensions Nimbus implements may be listed in
+//! `extensionsRequired` (the crate rejects some of them). Each accessor's type, component type and byte range
+//! are checked before it is read, material factors when the material is built. The scene, buffer and image
+//! files are read within [`LoadOptions::limits`], and images decode under it. A malformed file is an error
+//! naming the element, never a panic.
 
 use super::{Camera, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
