@@ -363,3 +363,14 @@ fn huge_image_header_is_refused_before_allocating() {
     };
     assert_one_line(&err, &["image 0", "huge.png"]);
 }
+
+#[test]
+fn glb_header_shorter_than_itself_is_refused() {
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/demo.glb");
+    let mut bytes = std::fs::read(&demo).unwrap();
+    bytes[8..12].copy_from_slice(&4u32.to_le_bytes());
+    let Err(err) = gltf::load_slice(&bytes, &demo, &LoadOptions::default()) else {
+        panic!("a GLB whose header gives a length of 4 must not load")
+    };
+    assert_one_line(&err, &["demo.glb", "length"]);
+}

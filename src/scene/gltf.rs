@@ -170,6 +170,16 @@ type JsonParse = (gltf::json::Root, Option<Vec<u8>>);
 
 fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
     if bytes.starts_with(b"glTF") {
+        // The crate subtracts the header size from the declared length unchecked.
+        let length = bytes
+            .get(8..12)
+            .map(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]));
+        if length.is_none_or(|l| l < 12) {
+            return Err(format!(
+                "GLB container: the header's length field ({}) is shorter than the 12-byte header",
+                length.map_or_else(|| "missing".to_owned(), |l| l.to_string())
+            ));
+        }
         let mut glb =
             gltf::binary::Glb::from_slice(bytes).map_err(|e| format!("GLB container: {e}"))?;
         let root = gltf::json::deserialize::from_slice(&glb.json)
