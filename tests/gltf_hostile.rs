@@ -374,3 +374,25 @@ fn glb_header_shorter_than_itself_is_refused() {
     };
     assert_one_line(&err, &["demo.glb", "length"]);
 }
+
+#[test]
+fn non_finite_vertex_data_is_refused() {
+    let Some(dir) = scene_dir() else { return };
+    let tmp = std::env::temp_dir().join(format!("nimbus-gltf-hostile-bin-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let bin = std::fs::read(dir.join("scene.bin")).unwrap();
+    // The floor's first position (bufferView 0) and first normal (bufferView 1, at byte 48).
+    for (at, value, names) in [
+        (48, f32::NAN, ["NORMAL", "floor"]),
+        (0, f32::INFINITY, ["POSITION", "floor"]),
+    ] {
+        let mut bad = bin.clone();
+        bad[at..at + 4].copy_from_slice(&value.to_le_bytes());
+        let file = tmp.join(format!("bad{at}.bin"));
+        std::fs::write(&file, &bad).unwrap();
+        let mut doc = scene_json(&dir);
+        doc["buffers"][0]["uri"] = json!(file.to_str().unwrap());
+        let err = error_of(&dir, &doc, &names);
+        assert!(matches!(err.kind, SceneErrorKind::Malformed(_)), "{err}");
+    }
+}

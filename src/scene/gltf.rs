@@ -415,6 +415,23 @@ impl Loader<'_> {
                     "{what}: attribute counts differ from POSITION's {count}"
                 ))));
             }
+            let bad = [
+                ("POSITION", positions.iter().position(|v| !v.is_finite())),
+                ("NORMAL", normals.iter().position(|v| !v.is_finite())),
+                (
+                    "TEXCOORD_0",
+                    uvs.iter().flatten().position(|v| !v.is_finite()),
+                ),
+                (
+                    "TANGENT",
+                    tangents.iter().flatten().position(|v| !v.is_finite()),
+                ),
+            ];
+            if let Some((name, Some(i))) = bad.into_iter().find(|(_, i)| i.is_some()) {
+                return Err(self.error(SceneErrorKind::Malformed(format!(
+                    "{what}: {name}[{i}] is not finite"
+                ))));
+            }
             let indices = triangulate(&flat, mode);
             let material = self.material(primitive.material())?;
             let mut m = Mesh {
