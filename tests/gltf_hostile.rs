@@ -396,3 +396,18 @@ fn non_finite_vertex_data_is_refused() {
         assert!(matches!(err.kind, SceneErrorKind::Malformed(_)), "{err}");
     }
 }
+
+#[test]
+fn names_from_the_file_are_quoted_on_one_line() {
+    hostile(
+        |d| d["extensionsRequired"] = json!(["EXT_\nbad\u{e9}"]),
+        &["EXT_ / bad\\xe9"],
+    );
+    hostile(
+        |d| {
+            d["meshes"][0]["name"] = json!("floor\r\n\u{1b}[31mred");
+            d["accessors"][2]["count"] = json!(0);
+        },
+        &["floor / \\x1b[31mred", "accessor 2"],
+    );
+}

@@ -204,18 +204,22 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
         let required_extension = matches!(error, gltf::json::validation::Error::Unsupported)
             && path.starts_with("extensionsRequired");
         if !required_extension {
-            fatal.push(format!("{path}: {error}"));
+            fatal.push(one_line(&format!("{path}: {error}"), QUOTE));
         }
     }
     for ext in &root.extensions_required {
         if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
             return Err(SceneErrorKind::Unsupported(format!(
-                "required extension {ext}"
+                "required extension {}",
+                one_line(ext, QUOTE)
             )));
         }
     }
     if !fatal.is_empty() {
-        return Err(SceneErrorKind::Malformed(fatal.join("; ")));
+        return Err(SceneErrorKind::Malformed(one_line(
+            &fatal.join("; "),
+            4 * QUOTE,
+        )));
     }
     Ok(root
         .extensions_used
@@ -294,7 +298,7 @@ impl Loader<'_> {
         };
         let name = node
             .name()
-            .map_or_else(|| format!("node {}", node.index()), str::to_owned);
+            .map_or_else(|| format!("node {}", node.index()), |n| one_line(n, QUOTE));
         let bad = |m: String| self.error(SceneErrorKind::Malformed(format!("node '{name}': {m}")));
         let extras: serde_json::Value =
             serde_json::from_str(raw.get()).map_err(|e| bad(format!("extras: {e}")))?;
@@ -358,7 +362,7 @@ impl Loader<'_> {
     ) -> Result<(), SceneError> {
         let mesh_name = mesh
             .name()
-            .map_or_else(|| format!("mesh {}", mesh.index()), str::to_owned);
+            .map_or_else(|| format!("mesh {}", mesh.index()), |n| one_line(n, QUOTE));
         for primitive in mesh.primitives() {
             let what = format!("{mesh_name}, primitive {}", primitive.index());
             let mode = primitive.mode();
@@ -678,7 +682,7 @@ impl Loader<'_> {
         let bad = |msg: String| {
             self.error(SceneErrorKind::Malformed(format!(
                 "material '{}': {msg}",
-                m.name
+                one_line(&m.name, QUOTE)
             )))
         };
         if let Some(raw) = material.extras() {
@@ -688,7 +692,8 @@ impl Loader<'_> {
                 let medium =
                     crate::volume::parse_nimbus_medium(spec, &m.name).map_err(|source| {
                         self.error(SceneErrorKind::Volume {
-                            at: format!("material '{}': nimbus_medium", m.name).into(),
+                            at: format!("material '{}': nimbus_medium", one_line(&m.name, QUOTE))
+                                .into(),
                             source,
                         })
                     })?;
