@@ -581,7 +581,13 @@ impl Bvh {
         t_min: f32,
         t_max: f32,
     ) -> Option<TriangleHit> {
-        if self.nodes.is_empty() {
+        // A non-finite origin or direction, or a NaN interval, meets nothing. Such a ray would make every
+        // slab comparison NaN, which the slab test reads as "no constraint", so it would "hit" every slot.
+        if self.nodes.is_empty()
+            || !(ray.origin.is_finite() && ray.dir.is_finite())
+            || t_min.is_nan()
+            || t_max.is_nan()
+        {
             return None;
         }
         let r = TraversalRay::new(ray);
@@ -601,7 +607,12 @@ impl Bvh {
                 m &= m - 1;
                 self.prefetch_slot(&self.nodes[node], i);
                 let entry = ((node * 4 + i) as u32, near[i]);
-                stack[sp] = entry;
+                // `stack_needed` bounds `sp` for any ray that reaches here; a full stack is still a miss of
+                // the rest, never an overrun.
+                let Some(top) = stack.get_mut(sp) else {
+                    return best;
+                };
+                *top = entry;
                 sp += 1;
                 if !ANY_HIT {
                     // Insertion into the (at most four) entries just pushed, farthest first.
@@ -834,6 +845,39 @@ mod tests {
         assert!(bvh.bounds().is_empty());
         assert_eq!(bvh.triangle_count(), 0);
         assert!(bvh.memory_bytes() >= std::mem::size_of::<Bvh>());
+    }
+
+    #[test]
+    fn non_finite_rays_miss_without_panicking() {
+        let mut rng = Rng::new(3, 4);
+        let bvh = Bvh::build(&soup(&mut rng, 3000)).unwrap();
+        let rays = [
+            (
+                Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0)),
+                0.0,
+                f32::INFINITY,
+            ),
+            (Ray::new(Vec3::splat(f32::NAN), Vec3::X), 0.0, f32::INFINITY),
+            (
+                Ray::new(Vec3::new(f32::INFINITY, 0.0, 0.0), -Vec3::X),
+                0.0,
+                f32::INFINITY,
+            ),
+            (
+                Ray::new(Vec3::ZERO, Vec3::new(0.0, f32::INFINITY, 0.0)),
+                0.0,
+                f32::INFINITY,
+            ),
+            (Ray::new(Vec3::ZERO, Vec3::X), f32::NAN, f32::INFINITY),
+            (Ray::new(Vec3::ZERO, Vec3::X), 0.0, f32::NAN),
+        ];
+        for (ray, t0, t1) in rays {
+            assert!(
+                bvh.intersect(&ray, t0, t1).is_none(),
+                "{ray:?} [{t0}, {t1}]"
+            );
+            assert!(!bvh.occluded(&ray, t0, t1), "{ray:?} [{t0}, {t1}]");
+        }
     }
 
     #[test]

@@ -14,9 +14,13 @@
 //! are taken as W/sr and W/m² unchanged. Emission (`emissiveFactor` × `emissiveStrength`) is radiance in
 //! either case.
 //!
-//! Validation is the `gltf` crate's own, except that the extensions Nimbus implements may be listed in
-//! `extensionsRequired` (the crate rejects some of them). Accessor and index ranges are checked here before any
-//! read, so a malformed file is an error naming the element, never a panic.
+//! Hostile input: before the `gltf` crate validates or reads anything, every index field, the node forest,
+//! cameras, lights and node transforms are checked here (see `gltf_check`), since the crate panics on some
+//! of them; then the crate's validation runs, except that the extensions Nimbus implements may be listed in
+//! `extensionsRequired` (the crate rejects some of them). Each accessor's type, component type and byte range
+//! are checked before it is read, material factors when the material is built. The scene, buffer and image
+//! files are read within [`LoadOptions::limits`], and images decode under it. A malformed file is an error
+//! naming the element, never a panic.
 
 use super::{Camera, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
@@ -24,6 +28,7 @@ use crate::light::{
     DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
     LUMENS_PER_WATT,
 };
+use crate::limits::one_line;
 use crate::material::{ColorSpace, Filter, Material, MipImage, Sampler, Texture, Wrap};
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
@@ -43,12 +48,51 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_specular",
 ];
 
-/// Deepest node hierarchy accepted; deeper (or cyclic) hierarchies are errors.
+/// Deepest node hierarchy accepted; deeper hierarchies are errors (cycles are refused before loading).
 const MAX_NODE_DEPTH: usize = 256;
+
+/// Longest text quoted from the file (a URI) in an error message.
+const QUOTE: usize = 120;
+
+/// Reads the bytes a buffer or image URI names: a `data:` URI decoded, else a file (a relative path, an
+/// absolute one or a `file://` URI, percent-decoded) read within the memory budget. Errors are one line.
+fn read_uri(uri: &str, base: &Path, limits: &crate::limits::Limits) -> Result<Vec<u8>, String> {
+    if uri.starts_with("data:") {
+        return gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), Some(base))
+            .map(|d| d.0)
+            .map_err(|e| one_line(&e.to_string(), QUOTE));
+    }
+    let rest = uri.strip_prefix("file://").unwrap_or(uri);
+    if rest.len() == uri.len() && uri.contains("://") {
+        return Err("only data: and file URIs are read".into());
+    }
+    let decoded = percent_decode(rest).ok_or("the URI is not valid percent-encoded UTF-8")?;
+    crate::limits::read_file(&base.join(decoded), limits)
+        .map_err(|e| one_line(&e.to_string(), QUOTE))
+}
+
+/// `%XX` escapes decoded; `None` if one is malformed or the result is not UTF-8.
+fn percent_decode(text: &str) -> Option<String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
 
 /// Loads a `.gltf` or `.glb` file.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+    let bytes = crate::limits::read_file(path, &options.limits)
+        .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
     load_slice(&bytes, path, options)
 }
 
@@ -61,6 +105,7 @@ pub fn load_slice(
     let err = |kind| SceneError::new(path, kind);
     let malformed = |m: String| err(SceneErrorKind::Malformed(m));
     let (root, blob) = parse(bytes).map_err(malformed)?;
+    super::gltf_check::check_document(&root).map_err(&err)?;
     let mut warnings = validate(&root).map_err(&err)?;
     let document = gltf::Document::from_json_without_validation(root);
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -69,15 +114,25 @@ pub fn load_slice(
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let name = match buffer.source() {
-            gltf::buffer::Source::Bin => "the GLB binary chunk".to_string(),
-            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => {
-                format!("buffer {} (data URI)", buffer.index())
+            gltf::buffer::Source::Bin => {
+                format!("buffers[{}] (the GLB binary chunk)", buffer.index())
             }
-            gltf::buffer::Source::Uri(u) => format!("buffer {} ('{u}')", buffer.index()),
+            gltf::buffer::Source::Uri(u) if u.starts_with("data:") => {
+                format!("buffers[{}] (data URI)", buffer.index())
+            }
+            gltf::buffer::Source::Uri(u) => {
+                format!("buffers[{}] ('{}')", buffer.index(), one_line(u, QUOTE))
+            }
         };
-        let data =
-            gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(&base), &mut blob)
-                .map_err(|e| err(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?;
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
+                malformed(format!(
+                    "{name}: the file has no binary chunk (or two buffers use it)"
+                ))
+            })?,
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, &base, &options.limits)
+                .map_err(|e| err(SceneErrorKind::InvalidReference(format!("{name}: {e}"))))?,
+        };
         if data.len() < buffer.length() {
             return Err(malformed(format!(
                 "{name} holds {} bytes but declares byteLength {}",
@@ -85,7 +140,7 @@ pub fn load_slice(
                 buffer.length()
             )));
         }
-        buffers.push(data);
+        buffers.push(gltf::buffer::Data(data));
     }
     let mut loader = Loader {
         path,
@@ -115,6 +170,16 @@ type JsonParse = (gltf::json::Root, Option<Vec<u8>>);
 
 fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
     if bytes.starts_with(b"glTF") {
+        // The crate subtracts the header size from the declared length unchecked.
+        let length = bytes
+            .get(8..12)
+            .map(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]));
+        if length.is_none_or(|l| l < 12) {
+            return Err(format!(
+                "GLB container: the header's length field ({}) is shorter than the 12-byte header",
+                length.map_or_else(|| "missing".to_owned(), |l| l.to_string())
+            ));
+        }
         let mut glb =
             gltf::binary::Glb::from_slice(bytes).map_err(|e| format!("GLB container: {e}"))?;
         let root = gltf::json::deserialize::from_slice(&glb.json)
@@ -139,18 +204,22 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
         let required_extension = matches!(error, gltf::json::validation::Error::Unsupported)
             && path.starts_with("extensionsRequired");
         if !required_extension {
-            fatal.push(format!("{path}: {error}"));
+            fatal.push(one_line(&format!("{path}: {error}"), QUOTE));
         }
     }
     for ext in &root.extensions_required {
         if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
             return Err(SceneErrorKind::Unsupported(format!(
-                "required extension {ext}"
+                "required extension {}",
+                one_line(ext, QUOTE)
             )));
         }
     }
     if !fatal.is_empty() {
-        return Err(SceneErrorKind::Malformed(fatal.join("; ")));
+        return Err(SceneErrorKind::Malformed(one_line(
+            &fatal.join("; "),
+            4 * QUOTE,
+        )));
     }
     Ok(root
         .extensions_used
@@ -229,7 +298,7 @@ impl Loader<'_> {
         };
         let name = node
             .name()
-            .map_or_else(|| format!("node {}", node.index()), str::to_owned);
+            .map_or_else(|| format!("node {}", node.index()), |n| one_line(n, QUOTE));
         let bad = |m: String| self.error(SceneErrorKind::Malformed(format!("node '{name}': {m}")));
         let extras: serde_json::Value =
             serde_json::from_str(raw.get()).map_err(|e| bad(format!("extras: {e}")))?;
@@ -293,7 +362,7 @@ impl Loader<'_> {
     ) -> Result<(), SceneError> {
         let mesh_name = mesh
             .name()
-            .map_or_else(|| format!("mesh {}", mesh.index()), str::to_owned);
+            .map_or_else(|| format!("mesh {}", mesh.index()), |n| one_line(n, QUOTE));
         for primitive in mesh.primitives() {
             let what = format!("{mesh_name}, primitive {}", primitive.index());
             let mode = primitive.mode();
@@ -308,11 +377,11 @@ impl Loader<'_> {
                 ));
                 continue;
             }
-            for (_, accessor) in primitive.attributes() {
-                self.check_accessor(&accessor, &what)?;
+            for (semantic, accessor) in primitive.attributes() {
+                self.check_accessor(&accessor, &what, Use::Attribute(&semantic))?;
             }
             if let Some(a) = primitive.indices() {
-                self.check_accessor(&a, &what)?;
+                self.check_accessor(&a, &what, Use::Indices)?;
             }
             let reader = primitive.reader(|b| self.buffers.get(b.index()).map(|d| d.0.as_slice()));
             let positions: Vec<Vec3> = reader
@@ -350,6 +419,23 @@ impl Loader<'_> {
                     "{what}: attribute counts differ from POSITION's {count}"
                 ))));
             }
+            let bad = [
+                ("POSITION", positions.iter().position(|v| !v.is_finite())),
+                ("NORMAL", normals.iter().position(|v| !v.is_finite())),
+                (
+                    "TEXCOORD_0",
+                    uvs.iter().flatten().position(|v| !v.is_finite()),
+                ),
+                (
+                    "TANGENT",
+                    tangents.iter().flatten().position(|v| !v.is_finite()),
+                ),
+            ];
+            if let Some((name, Some(i))) = bad.into_iter().find(|(_, i)| i.is_some()) {
+                return Err(self.error(SceneErrorKind::Malformed(format!(
+                    "{what}: {name}[{i}] is not finite"
+                ))));
+            }
             let indices = triangulate(&flat, mode);
             let material = self.material(primitive.material())?;
             let mut m = Mesh {
@@ -370,8 +456,14 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// Checks that an accessor's bytes lie inside its buffer view and the view inside its buffer.
-    fn check_accessor(&self, accessor: &gltf::Accessor, what: &str) -> Result<(), SceneError> {
+    /// Checks that an accessor holds what its use reads (element type and component type), has at least one
+    /// element, and that its bytes lie inside its buffer view and the view inside its buffer.
+    fn check_accessor(
+        &self,
+        accessor: &gltf::Accessor,
+        what: &str,
+        usage: Use,
+    ) -> Result<(), SceneError> {
         let bad = |m: String| {
             self.error(SceneErrorKind::InvalidReference(format!(
                 "{what}: accessor {}: {m}",
@@ -383,6 +475,26 @@ impl Loader<'_> {
                 "{what}: accessor {} is sparse",
                 accessor.index()
             ))));
+        }
+        use gltf::accessor::{DataType as D, Dimensions as N};
+        use gltf::Semantic as S;
+        let (dims, types): (N, &[D]) = match usage {
+            Use::Indices => (N::Scalar, &[D::U8, D::U16, D::U32]),
+            Use::Attribute(S::Positions | S::Normals) => (N::Vec3, &[D::F32]),
+            Use::Attribute(S::Tangents) => (N::Vec4, &[D::F32]),
+            Use::Attribute(S::TexCoords(0)) => (N::Vec2, &[D::F32, D::U8, D::U16]),
+            // Other attributes are not read; only their byte range is checked.
+            Use::Attribute(_) => (accessor.dimensions(), &[]),
+        };
+        let (data_type, dimensions) = (accessor.data_type(), accessor.dimensions());
+        if dimensions != dims || !(types.is_empty() || types.contains(&data_type)) {
+            return Err(bad(format!(
+                "type {dimensions:?} with componentType {data_type:?} cannot be read as {} ({dims:?} of {types:?})",
+                usage.name()
+            )));
+        }
+        if accessor.count() == 0 {
+            return Err(bad("count is 0".into()));
         }
         let Some(view) = accessor.view() else {
             return Err(bad("has no buffer view".into()));
@@ -427,6 +539,7 @@ impl Loader<'_> {
         }
         let pbr = material.pbr_metallic_roughness();
         let emissive_strength = material.emissive_strength().unwrap_or(1.0);
+        self.check_material_numbers(&material, emissive_strength)?;
         let base_color_texture = match pbr.base_color_texture() {
             Some(t) => Some(self.texture(t.texture(), ColorSpace::Srgb, t.tex_coord())?),
             None => None,
@@ -478,6 +591,87 @@ impl Loader<'_> {
         Ok(id)
     }
 
+    /// Refuses a non-finite factor, or a negative emission, with an error naming the material and field.
+    fn check_material_numbers(
+        &self,
+        material: &gltf::Material,
+        emissive_strength: f32,
+    ) -> Result<(), SceneError> {
+        let pbr = material.pbr_metallic_roughness();
+        let mut fields: Vec<(&str, Vec<f32>, bool)> = vec![
+            (
+                "pbrMetallicRoughness.baseColorFactor",
+                pbr.base_color_factor().to_vec(),
+                false,
+            ),
+            (
+                "pbrMetallicRoughness.metallicFactor",
+                vec![pbr.metallic_factor()],
+                false,
+            ),
+            (
+                "pbrMetallicRoughness.roughnessFactor",
+                vec![pbr.roughness_factor()],
+                false,
+            ),
+            ("emissiveFactor", material.emissive_factor().to_vec(), true),
+            (
+                "KHR_materials_emissive_strength.emissiveStrength",
+                vec![emissive_strength],
+                true,
+            ),
+        ];
+        if let Some(t) = material.normal_texture() {
+            fields.push(("normalTexture.scale", vec![t.scale()], false));
+        }
+        if let Some(ior) = material.ior() {
+            fields.push(("KHR_materials_ior.ior", vec![ior], false));
+        }
+        if let Some(t) = material.transmission() {
+            let f = t.transmission_factor();
+            fields.push((
+                "KHR_materials_transmission.transmissionFactor",
+                vec![f],
+                false,
+            ));
+        }
+        if let Some(s) = material.specular() {
+            fields.push((
+                "KHR_materials_specular.specularFactor",
+                vec![s.specular_factor()],
+                false,
+            ));
+            let c = s.specular_color_factor().to_vec();
+            fields.push(("KHR_materials_specular.specularColorFactor", c, false));
+        }
+        if let Some(v) = material.volume() {
+            let t = v.thickness_factor();
+            fields.push(("KHR_materials_volume.thicknessFactor", vec![t], false));
+            let c = v.attenuation_color().to_vec();
+            fields.push(("KHR_materials_volume.attenuationColor", c, false));
+        }
+        let at = material.index().map_or_else(
+            || "the default material".to_owned(),
+            |i| format!("materials[{i}]"),
+        );
+        for (field, values, non_negative) in fields {
+            if let Some(v) = values
+                .iter()
+                .find(|v| !v.is_finite() || (non_negative && **v < 0.0))
+            {
+                let rule = if non_negative {
+                    "finite and >= 0"
+                } else {
+                    "finite"
+                };
+                return Err(self.error(SceneErrorKind::Malformed(format!(
+                    "{at}.{field} holds {v}; it must be {rule}"
+                ))));
+            }
+        }
+        Ok(())
+    }
+
     /// The medium filling meshes with this material: `extras.nimbus_medium`, else `KHR_materials_volume` with
     /// `thicknessFactor` > 0 on a transmissive material (absorption only).
     fn interior_medium(
@@ -488,7 +682,7 @@ impl Loader<'_> {
         let bad = |msg: String| {
             self.error(SceneErrorKind::Malformed(format!(
                 "material '{}': {msg}",
-                m.name
+                one_line(&m.name, QUOTE)
             )))
         };
         if let Some(raw) = material.extras() {
@@ -498,7 +692,8 @@ impl Loader<'_> {
                 let medium =
                     crate::volume::parse_nimbus_medium(spec, &m.name).map_err(|source| {
                         self.error(SceneErrorKind::Volume {
-                            at: format!("material '{}': nimbus_medium", m.name).into(),
+                            at: format!("material '{}': nimbus_medium", one_line(&m.name, QUOTE))
+                                .into(),
                             source,
                         })
                     })?;
@@ -584,7 +779,7 @@ impl Loader<'_> {
     fn decode_image(&mut self, image: gltf::Image) -> Result<image::RgbaImage, SceneError> {
         let name = match image.source() {
             gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
-                format!("image {} ('{uri}')", image.index())
+                format!("image {} ('{}')", image.index(), one_line(uri, QUOTE))
             }
             _ => format!("image {}", image.index()),
         };
@@ -602,17 +797,38 @@ impl Loader<'_> {
                     }
                 }
             }
-            gltf::image::Source::Uri { uri, .. } => {
-                let source = gltf::buffer::Source::Uri(uri);
-                gltf::buffer::Data::from_source(source, Some(&self.base))
-                    .map_err(|e| {
-                        self.error(SceneErrorKind::InvalidReference(format!("{name}: {e}")))
-                    })?
-                    .0
-            }
+            gltf::image::Source::Uri { uri, .. } => read_uri(uri, &self.base, &self.options.limits)
+                .map_err(|e| {
+                    self.error(SceneErrorKind::InvalidReference(format!("{name}: {e}")))
+                })?,
         };
-        let decoded = image::load_from_memory(&bytes)
-            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{name}: {e}"))))?
+        let budget = self.options.limits;
+        let malformed = |e: String| {
+            self.error(SceneErrorKind::Malformed(format!(
+                "{name}: {}",
+                one_line(&e, QUOTE)
+            )))
+        };
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+            .with_guessed_format()
+            .map_err(|e| malformed(e.to_string()))?;
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(budget.memory_bytes);
+        reader.limits(limits.clone());
+        let (width, height) = reader
+            .into_dimensions()
+            .map_err(|e| malformed(e.to_string()))?;
+        // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels) stay in the budget.
+        budget
+            .check_items(&name, width as u64 * height as u64, 4 + 22)
+            .map_err(|e| malformed(e.to_string()))?;
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+            .with_guessed_format()
+            .map_err(|e| malformed(e.to_string()))?;
+        reader.limits(limits.clone());
+        let decoded = reader
+            .decode()
+            .map_err(|e| malformed(e.to_string()))?
             .to_rgba8();
         Ok(decoded)
     }
@@ -654,6 +870,24 @@ impl Loader<'_> {
             self.builder.set_environment(env);
         }
         Ok(())
+    }
+}
+
+/// What a primitive reads an accessor as.
+#[derive(Clone, Copy)]
+enum Use<'a> {
+    /// The index list.
+    Indices,
+    /// A vertex attribute.
+    Attribute(&'a gltf::Semantic),
+}
+
+impl Use<'_> {
+    fn name(&self) -> String {
+        match self {
+            Use::Indices => "indices".into(),
+            Use::Attribute(s) => s.to_string(),
+        }
     }
 }
 

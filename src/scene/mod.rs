@@ -7,6 +7,7 @@ mod builder;
 mod camera;
 mod error;
 pub mod gltf;
+mod gltf_check;
 pub mod obj;
 pub mod usd;
 

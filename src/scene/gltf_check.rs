@@ -1,0 +1,490 @@
+//! Up-front checks of a parsed glTF document, run before the `gltf` crate's own validation (which indexes
+//! some arrays without checking) and before anything is read: every index field against its array, the node
+//! graph a forest, cameras and `KHR_lights_punctual` lights with their projection or cone present and their
+//! numbers in range, node transforms finite. The crate's accessors that would panic on such data (`projection()`,
+//! `kind()`, `children()`...) are then safe to call.
+
+use super::SceneErrorKind;
+use gltf::json::validation::Checked;
+use gltf::json::{Index, Root};
+use std::f32::consts::{FRAC_PI_2, PI};
+
+/// All the checks, in order: indices first (the others follow them).
+pub(super) fn check_document(root: &Root) -> Result<(), SceneErrorKind> {
+    check_indices(root).map_err(SceneErrorKind::InvalidReference)?;
+    check_forest(root).map_err(SceneErrorKind::Malformed)?;
+    check_nodes(root).map_err(SceneErrorKind::Malformed)?;
+    check_cameras(root).map_err(SceneErrorKind::Malformed)?;
+    check_lights(root).map_err(SceneErrorKind::Malformed)
+}
+
+/// `Ok` if `index` names an element of the array `array` of `len` elements; `field` names where it was read.
+fn within<T>(
+    field: impl FnOnce() -> String,
+    index: Index<T>,
+    array: &str,
+    len: usize,
+) -> Result<(), String> {
+    let i = index.value();
+    if i < len {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} is {i}, past the end of {array} ({len} entries)",
+            field()
+        ))
+    }
+}
+
+fn check_indices(root: &Root) -> Result<(), String> {
+    let accessors = root.accessors.len();
+    let views = root.buffer_views.len();
+    let nodes = root.nodes.len();
+    let textures = root.textures.len();
+    if let Some(s) = root.scene {
+        within(|| "scene".into(), s, "scenes", root.scenes.len())?;
+    }
+    for (i, scene) in root.scenes.iter().enumerate() {
+        for (j, &n) in scene.nodes.iter().enumerate() {
+            within(|| format!("scenes[{i}].nodes[{j}]"), n, "nodes", nodes)?;
+        }
+    }
+    let lights = root
+        .extensions
+        .as_ref()
+        .and_then(|e| e.khr_lights_punctual.as_ref())
+        .map_or(0, |l| l.lights.len());
+    for (i, node) in root.nodes.iter().enumerate() {
+        for (j, &c) in node.children.iter().flatten().enumerate() {
+            within(|| format!("nodes[{i}].children[{j}]"), c, "nodes", nodes)?;
+        }
+        if let Some(c) = node.camera {
+            within(
+                || format!("nodes[{i}].camera"),
+                c,
+                "cameras",
+                root.cameras.len(),
+            )?;
+        }
+        if let Some(m) = node.mesh {
+            within(
+                || format!("nodes[{i}].mesh"),
+                m,
+                "meshes",
+                root.meshes.len(),
+            )?;
+        }
+        if let Some(s) = node.skin {
+            within(|| format!("nodes[{i}].skin"), s, "skins", root.skins.len())?;
+        }
+        if let Some(l) = node
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+        {
+            let field = || format!("nodes[{i}].extensions.KHR_lights_punctual.light");
+            within(field, l.light, "KHR_lights_punctual.lights", lights)?;
+        }
+    }
+    for (i, mesh) in root.meshes.iter().enumerate() {
+        for (j, p) in mesh.primitives.iter().enumerate() {
+            let at = || format!("meshes[{i}].primitives[{j}]");
+            for (semantic, &a) in &p.attributes {
+                let name = match semantic {
+                    Checked::Valid(s) => s.to_string(),
+                    Checked::Invalid => "(invalid)".into(),
+                };
+                within(
+                    || format!("{}.attributes.{name}", at()),
+                    a,
+                    "accessors",
+                    accessors,
+                )?;
+            }
+            if let Some(a) = p.indices {
+                within(|| format!("{}.indices", at()), a, "accessors", accessors)?;
+            }
+            if let Some(m) = p.material {
+                let len = root.materials.len();
+                within(|| format!("{}.material", at()), m, "materials", len)?;
+            }
+            for (k, t) in p.targets.iter().flatten().enumerate() {
+                for a in [t.positions, t.normals, t.tangents].into_iter().flatten() {
+                    within(
+                        || format!("{}.targets[{k}]", at()),
+                        a,
+                        "accessors",
+                        accessors,
+                    )?;
+                }
+            }
+        }
+    }
+    for (i, a) in root.accessors.iter().enumerate() {
+        if let Some(v) = a.buffer_view {
+            within(
+                || format!("accessors[{i}].bufferView"),
+                v,
+                "bufferViews",
+                views,
+            )?;
+        }
+        if let Some(s) = &a.sparse {
+            let field = || format!("accessors[{i}].sparse.indices.bufferView");
+            within(field, s.indices.buffer_view, "bufferViews", views)?;
+            let field = || format!("accessors[{i}].sparse.values.bufferView");
+            within(field, s.values.buffer_view, "bufferViews", views)?;
+        }
+    }
+    for (i, v) in root.buffer_views.iter().enumerate() {
+        let len = root.buffers.len();
+        within(
+            || format!("bufferViews[{i}].buffer"),
+            v.buffer,
+            "buffers",
+            len,
+        )?;
+    }
+    for (i, image) in root.images.iter().enumerate() {
+        match (image.buffer_view, &image.uri) {
+            (Some(v), _) => {
+                within(
+                    || format!("images[{i}].bufferView"),
+                    v,
+                    "bufferViews",
+                    views,
+                )?;
+                if image.mime_type.is_none() {
+                    return Err(format!("images[{i}] has a bufferView but no mimeType"));
+                }
+            }
+            (None, Some(_)) => {}
+            (None, None) => return Err(format!("images[{i}] has neither a uri nor a bufferView")),
+        }
+    }
+    for (i, t) in root.textures.iter().enumerate() {
+        within(
+            || format!("textures[{i}].source"),
+            t.source,
+            "images",
+            root.images.len(),
+        )?;
+        if let Some(s) = t.sampler {
+            let len = root.samplers.len();
+            within(|| format!("textures[{i}].sampler"), s, "samplers", len)?;
+        }
+    }
+    for (i, m) in root.materials.iter().enumerate() {
+        let pbr = &m.pbr_metallic_roughness;
+        let mut uses = vec![
+            (
+                "pbrMetallicRoughness.baseColorTexture",
+                pbr.base_color_texture.as_ref().map(|t| t.index),
+            ),
+            (
+                "pbrMetallicRoughness.metallicRoughnessTexture",
+                pbr.metallic_roughness_texture.as_ref().map(|t| t.index),
+            ),
+            ("normalTexture", m.normal_texture.as_ref().map(|t| t.index)),
+            (
+                "occlusionTexture",
+                m.occlusion_texture.as_ref().map(|t| t.index),
+            ),
+            (
+                "emissiveTexture",
+                m.emissive_texture.as_ref().map(|t| t.index),
+            ),
+        ];
+        if let Some(e) = &m.extensions {
+            uses.push((
+                "KHR_materials_transmission.transmissionTexture",
+                e.transmission
+                    .as_ref()
+                    .and_then(|t| t.transmission_texture.as_ref().map(|t| t.index)),
+            ));
+            uses.push((
+                "KHR_materials_volume.thicknessTexture",
+                e.volume
+                    .as_ref()
+                    .and_then(|v| v.thickness_texture.as_ref().map(|t| t.index)),
+            ));
+            if let Some(s) = &e.specular {
+                uses.push((
+                    "KHR_materials_specular.specularTexture",
+                    s.specular_texture.as_ref().map(|t| t.index),
+                ));
+                uses.push((
+                    "KHR_materials_specular.specularColorTexture",
+                    s.specular_color_texture.as_ref().map(|t| t.index),
+                ));
+            }
+        }
+        for (field, t) in uses {
+            if let Some(t) = t {
+                within(
+                    || format!("materials[{i}].{field}"),
+                    t,
+                    "textures",
+                    textures,
+                )?;
+            }
+        }
+    }
+    for (i, skin) in root.skins.iter().enumerate() {
+        for (j, &n) in skin.joints.iter().enumerate() {
+            within(|| format!("skins[{i}].joints[{j}]"), n, "nodes", nodes)?;
+        }
+        if let Some(n) = skin.skeleton {
+            within(|| format!("skins[{i}].skeleton"), n, "nodes", nodes)?;
+        }
+        if let Some(a) = skin.inverse_bind_matrices {
+            let field = || format!("skins[{i}].inverseBindMatrices");
+            within(field, a, "accessors", accessors)?;
+        }
+    }
+    for (i, anim) in root.animations.iter().enumerate() {
+        for (j, s) in anim.samplers.iter().enumerate() {
+            within(
+                || format!("animations[{i}].samplers[{j}].input"),
+                s.input,
+                "accessors",
+                accessors,
+            )?;
+            within(
+                || format!("animations[{i}].samplers[{j}].output"),
+                s.output,
+                "accessors",
+                accessors,
+            )?;
+        }
+        for (j, c) in anim.channels.iter().enumerate() {
+            let len = anim.samplers.len();
+            let field = || format!("animations[{i}].channels[{j}].sampler");
+            within(field, c.sampler, &format!("animations[{i}].samplers"), len)?;
+            let field = || format!("animations[{i}].channels[{j}].target.node");
+            within(field, c.target.node, "nodes", nodes)?;
+        }
+    }
+    Ok(())
+}
+
+/// The node graph must be a forest whose roots are the scenes' nodes: no node its own child, no cycle, no
+/// node with two parents (or listed twice by one), no scene root that is also a child.
+fn check_forest(root: &Root) -> Result<(), String> {
+    let n = root.nodes.len();
+    let mut parent: Vec<Option<usize>> = vec![None; n];
+    for (i, node) in root.nodes.iter().enumerate() {
+        for c in node.children.iter().flatten() {
+            let c = c.value();
+            if c == i {
+                return Err(format!("nodes[{i}] lists itself as a child"));
+            }
+            match parent[c] {
+                Some(p) if p == i => {
+                    return Err(format!("nodes[{i}] lists nodes[{c}] twice as a child"))
+                }
+                Some(p) => {
+                    return Err(format!(
+                        "nodes[{c}] has two parents, nodes[{p}] and nodes[{i}]"
+                    ))
+                }
+                None => parent[c] = Some(i),
+            }
+        }
+    }
+    // With one parent each, following parents from any node either reaches a root or loops.
+    const UNSEEN: u8 = 0;
+    const ON_PATH: u8 = 1;
+    const REACHES_ROOT: u8 = 2;
+    let mut state = vec![UNSEEN; n];
+    for start in 0..n {
+        let mut path = Vec::new();
+        let mut at = start;
+        loop {
+            match state[at] {
+                REACHES_ROOT => break,
+                ON_PATH => {
+                    let from = path.iter().position(|&p| p == at).unwrap_or(0);
+                    let cycle: Vec<String> = path[from..]
+                        .iter()
+                        .rev()
+                        .chain(std::iter::once(&at))
+                        .map(|p| format!("nodes[{p}]"))
+                        .collect();
+                    return Err(format!(
+                        "the node hierarchy has a cycle: {}",
+                        cycle.join(" -> ")
+                    ));
+                }
+                _ => {}
+            }
+            state[at] = ON_PATH;
+            path.push(at);
+            match parent[at] {
+                Some(p) => at = p,
+                None => break,
+            }
+        }
+        for p in path {
+            state[p] = REACHES_ROOT;
+        }
+    }
+    for (s, scene) in root.scenes.iter().enumerate() {
+        let mut seen = vec![false; n];
+        for r in &scene.nodes {
+            let r = r.value();
+            if let Some(p) = parent[r] {
+                return Err(format!(
+                    "scenes[{s}] lists nodes[{r}] as a root, but it is a child of nodes[{p}]"
+                ));
+            }
+            if std::mem::replace(&mut seen[r], true) {
+                return Err(format!("scenes[{s}] lists nodes[{r}] twice"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `Err` naming `field` if any of `values` is not finite.
+fn finite(field: impl Fn() -> String, values: &[f32]) -> Result<(), String> {
+    match values.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(k) if values.len() == 1 => Err(format!("{} is {}", field(), values[k])),
+        Some(k) => Err(format!("{}[{k}] is {}", field(), values[k])),
+    }
+}
+
+fn check_nodes(root: &Root) -> Result<(), String> {
+    for (i, node) in root.nodes.iter().enumerate() {
+        if let Some(m) = &node.matrix {
+            finite(|| format!("nodes[{i}].matrix"), m)?;
+        }
+        if let Some(t) = &node.translation {
+            finite(|| format!("nodes[{i}].translation"), t)?;
+        }
+        if let Some(r) = &node.rotation {
+            finite(|| format!("nodes[{i}].rotation"), &r.0)?;
+        }
+        if let Some(s) = &node.scale {
+            finite(|| format!("nodes[{i}].scale"), s)?;
+        }
+    }
+    Ok(())
+}
+
+fn check_cameras(root: &Root) -> Result<(), String> {
+    use gltf::json::camera::Type;
+    for (i, camera) in root.cameras.iter().enumerate() {
+        let bad = |field: &str, rule: &str, value: f32| {
+            Err(format!(
+                "cameras[{i}].{field} is {value}; it must be {rule}"
+            ))
+        };
+        match camera.type_ {
+            Checked::Valid(Type::Perspective) => {
+                let Some(p) = &camera.perspective else {
+                    return Err(format!(
+                        "cameras[{i}] is of type perspective but has no 'perspective' object"
+                    ));
+                };
+                if !(p.yfov > 0.0 && p.yfov < PI) {
+                    return bad("perspective.yfov", "between 0 and pi radians", p.yfov);
+                }
+                if let Some(a) = p.aspect_ratio {
+                    if !(a.is_finite() && a > 0.0) {
+                        return bad("perspective.aspectRatio", "finite and > 0", a);
+                    }
+                }
+                if !(p.znear.is_finite() && p.znear > 0.0) {
+                    return bad("perspective.znear", "finite and > 0", p.znear);
+                }
+                if let Some(z) = p.zfar {
+                    if !(z.is_finite() && z > p.znear) {
+                        return bad("perspective.zfar", "finite and > znear", z);
+                    }
+                }
+            }
+            Checked::Valid(Type::Orthographic) => {
+                let Some(o) = &camera.orthographic else {
+                    return Err(format!(
+                        "cameras[{i}] is of type orthographic but has no 'orthographic' object"
+                    ));
+                };
+                for (field, v) in [("orthographic.xmag", o.xmag), ("orthographic.ymag", o.ymag)] {
+                    if !(v.is_finite() && v != 0.0) {
+                        return bad(field, "finite and not 0", v);
+                    }
+                }
+                if !(o.znear.is_finite() && o.znear >= 0.0) {
+                    return bad("orthographic.znear", "finite and >= 0", o.znear);
+                }
+                if !(o.zfar.is_finite() && o.zfar > o.znear) {
+                    return bad("orthographic.zfar", "finite and > znear", o.zfar);
+                }
+            }
+            Checked::Invalid => {
+                return Err(format!(
+                    "cameras[{i}].type must be \"perspective\" or \"orthographic\""
+                ))
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_lights(root: &Root) -> Result<(), String> {
+    use gltf::json::extensions::scene::khr_lights_punctual::Type;
+    let Some(lights) = root
+        .extensions
+        .as_ref()
+        .and_then(|e| e.khr_lights_punctual.as_ref())
+    else {
+        return Ok(());
+    };
+    for (i, light) in lights.lights.iter().enumerate() {
+        let at = format!("KHR_lights_punctual.lights[{i}]");
+        if light.color.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
+            return Err(format!(
+                "{at}.color is {:?}; it must be three finite numbers >= 0",
+                light.color
+            ));
+        }
+        if !(light.intensity.is_finite() && light.intensity >= 0.0) {
+            return Err(format!(
+                "{at}.intensity is {}; it must be finite and >= 0",
+                light.intensity
+            ));
+        }
+        if let Some(r) = light.range {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(format!("{at}.range is {r}; it must be finite and > 0"));
+            }
+        }
+        match light.type_ {
+            Checked::Valid(Type::Spot) => {
+                let Some(spot) = &light.spot else {
+                    return Err(format!("{at} is of type spot but has no 'spot' object"));
+                };
+                let (inner, outer) = (spot.inner_cone_angle, spot.outer_cone_angle);
+                if !(outer > 0.0 && outer <= FRAC_PI_2) {
+                    return Err(format!(
+                        "{at}.spot.outerConeAngle is {outer}; it must be in (0, pi/2]"
+                    ));
+                }
+                if !(inner >= 0.0 && inner <= outer) {
+                    return Err(format!(
+                        "{at}.spot.innerConeAngle is {inner}; it must be >= 0 and <= outerConeAngle {outer}"
+                    ));
+                }
+            }
+            Checked::Valid(_) => {}
+            Checked::Invalid => {
+                return Err(format!(
+                    "{at}.type must be \"directional\", \"point\" or \"spot\""
+                ))
+            }
+        }
+    }
+    Ok(())
+}
