@@ -8,9 +8,11 @@
 //! decoded buffer exceeds 256 × the file size, and no compressed block runs past the end of the file. Crate
 //! versions before 0.4.0 (uncompressed structural sections) are refused rather than checked.
 
+use crate::limits::{read_file, Limits};
 use openusd::ar;
 use openusd::usdc::CrateFile;
 use std::io::{self, Cursor};
+use std::path::Path;
 
 /// Checks `bytes`, a `.usdc` file, for counts that would make the reader allocate beyond the data.
 pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
@@ -88,6 +90,17 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
     // The structure is sound: let the crate reader decode it, then check every array value's length.
     let file = CrateFile::open(Cursor::new(bytes)).map_err(|e| format!("{e:#}"))?;
     file.validate().map_err(|e| format!("{e:#}"))?;
+    if let Some(deep) = file
+        .paths
+        .iter()
+        .find(|p| p.element_count() > super::layers::MAX_NESTING)
+    {
+        return Err(format!(
+            "a path nests deeper than {} levels ({} elements)",
+            super::layers::MAX_NESTING,
+            deep.element_count()
+        ));
+    }
     for field in &file.fields {
         let rep = field.value_rep;
         if !rep.is_array() || rep.is_inlined() || rep.payload() == 0 {
@@ -192,41 +205,55 @@ impl Reader<'_> {
     }
 }
 
-/// The default file-system resolver, with every binary crate layer it opens (the root layer, sublayers,
-/// references and payloads, layers inside `.usdz` packages) bounds-checked by [`check`] before `openusd`
+/// The default file-system resolver, with every layer it opens (the root layer, sublayers, references and
+/// payloads, `.usdz` packages and the layers inside them) read with the memory budget's size cap and checked by
+/// [`super::layers::check_layer`] (crate bounds via [`check`], text nesting, package entries) before `openusd`
 /// parses it. A failed check is an `InvalidData` error naming the layer, which `openusd` reports as a load or
 /// composition error.
-pub(super) struct CheckingResolver(pub(super) ar::DefaultResolver);
+pub(super) struct CheckingResolver {
+    /// The resolver that finds and opens the files.
+    pub(super) inner: ar::DefaultResolver,
+    /// The size cap of every file read.
+    pub(super) limits: Limits,
+}
 
 impl ar::Resolver for CheckingResolver {
     fn create_identifier(&self, asset_path: &str, anchor: Option<&ar::ResolvedPath>) -> String {
-        self.0.create_identifier(asset_path, anchor)
+        self.inner.create_identifier(asset_path, anchor)
     }
 
     fn resolve(&self, asset_path: &str) -> Option<ar::ResolvedPath> {
-        self.0.resolve(asset_path)
+        self.inner.resolve(asset_path)
     }
 
     fn resolve_for_new_asset(&self, asset_path: &str) -> Option<ar::ResolvedPath> {
-        self.0.resolve_for_new_asset(asset_path)
+        self.inner.resolve_for_new_asset(asset_path)
     }
 
     fn open_asset(&self, resolved_path: &ar::ResolvedPath) -> io::Result<Box<dyn ar::Asset>> {
-        let bytes = self.0.open_asset(resolved_path)?.read_all()?;
-        if bytes.starts_with(b"PXR-USDC") {
-            check(&bytes).map_err(|m| {
-                io::Error::new(io::ErrorKind::InvalidData, format!("{resolved_path}: {m}"))
-            })?;
-        }
+        let invalid =
+            |m: String| io::Error::new(io::ErrorKind::InvalidData, format!("{resolved_path}: {m}"));
+        let name = resolved_path.to_str().unwrap_or_default();
+        let bytes = if ar::is_package_relative_path(name) {
+            // A layer inside a package: check the whole package first (its entries with a size cap).
+            if let Some((package, _)) = ar::split_package_relative_path_outer(name) {
+                let outer = read_file(Path::new(&package), &self.limits)?;
+                super::layers::check_layer(&outer, &self.limits).map_err(invalid)?;
+            }
+            self.inner.open_asset(resolved_path)?.read_all()?
+        } else {
+            read_file(resolved_path, &self.limits)?
+        };
+        super::layers::check_layer(&bytes, &self.limits).map_err(invalid)?;
         Ok(Box::new(Cursor::new(bytes)))
     }
 
     fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
-        self.0.get_extension(asset_path)
+        self.inner.get_extension(asset_path)
     }
 
     fn get_asset_info(&self, asset_path: &str, resolved_path: &ar::ResolvedPath) -> ar::AssetInfo {
-        self.0.get_asset_info(asset_path, resolved_path)
+        self.inner.get_asset_info(asset_path, resolved_path)
     }
 
     fn get_modification_timestamp(
@@ -234,10 +261,11 @@ impl ar::Resolver for CheckingResolver {
         asset_path: &str,
         resolved_path: &ar::ResolvedPath,
     ) -> Option<std::time::SystemTime> {
-        self.0.get_modification_timestamp(asset_path, resolved_path)
+        self.inner
+            .get_modification_timestamp(asset_path, resolved_path)
     }
 
     fn identity(&self) -> String {
-        self.0.identity()
+        self.inner.identity()
     }
 }
