@@ -81,6 +81,7 @@ fn non_finite_and_overflowing_numbers_are_errors_with_the_line() {
         ("v 0 0 1e39", "finite"),
         ("v 0 0 -1e39", "finite"),
         ("v 1 2", "expected 3 coordinates"),
+        ("v 0 99999999999999999999 0", "beyond"),
         ("v 1 2 3 0", "w is 0"),
         ("v 1e30 0 0 1e-30", "not finite"),
         ("vt nan 0", "finite"),

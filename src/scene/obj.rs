@@ -12,6 +12,7 @@
 //! Untrusted input: the OBJ and every MTL it names are read with [`crate::limits::read_file`] (size-capped) and
 //! checked line by line before `tobj` parses them, so that what `tobj` would panic on or accept silently is an
 //! error naming the file and the line: vertices, texture coordinates and normals must be finite `f32` numbers,
+//! coordinates stay within ±1e12,
 //! a face needs three corners whose indices name existing vertices (negative indices count back from the
 //! last), a file without faces is an error, and MTL colours (`Ka`, `Kd`, `Ks`, `Ke`, `Tf`, `Kt`) are exactly
 //! three finite numbers (the `spectral` and `xyz` forms are refused), numeric keys one finite number. Line
@@ -25,6 +26,10 @@ use crate::math::{Rgb, Vec2, Vec3};
 use std::cell::{Cell, RefCell};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
+
+/// Largest vertex coordinate magnitude accepted. Far beyond any real model, and below the magnitudes (around
+/// 1e20, whose squares overflow `f32`) at which the acceleration structure's traversal breaks down.
+const MAX_COORDINATE: f32 = 1e12;
 
 /// Longest quotation from a file in an error message.
 const QUOTE_CHARS: usize = 48;
@@ -202,6 +207,12 @@ fn scan_obj(text: &str) -> Result<ObjScan, LineError> {
                 };
                 if position.iter().any(|c| !c.is_finite()) {
                     return Err(bad(n, "vertex: coordinate / weight is not finite".into()));
+                }
+                if position.iter().any(|c| c.abs() > MAX_COORDINATE) {
+                    return Err(bad(
+                        n,
+                        format!("vertex: a coordinate beyond +-{MAX_COORDINATE:e}"),
+                    ));
                 }
                 v += 1;
             }
