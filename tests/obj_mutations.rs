@@ -6,7 +6,7 @@ mod common;
 #[path = "support/hostile.rs"]
 mod hostile;
 
-use hostile::{mix, run_case, Outcome};
+use hostile::{mutate, run_case, Outcome};
 use std::path::{Path, PathBuf};
 
 /// Tokens put in place of a number or an index.
@@ -36,57 +36,6 @@ usemtl lamp\nf -3 -1 -2\n";
 const SMALL_MTL: &str = "newmtl white\nKa 0 0 0\nKd 0.8 0.8 0.8\nKs 0 0 0\nNs 10\nillum 2\n\
 newmtl shiny\nKd 0 0 0\nKs 0.9 0.9 0.9\nNs 200\nd 1\nNi 1.5\nnewmtl lamp\nKd 0 0 0\nKe 5 5 5\n";
 
-/// The byte ranges of the whitespace-separated tokens of `text`.
-fn tokens(text: &[u8]) -> Vec<(usize, usize)> {
-    let mut out = Vec::new();
-    let mut start = None;
-    for (i, b) in text.iter().enumerate() {
-        match (b.is_ascii_whitespace(), start) {
-            (false, None) => start = Some(i),
-            (true, Some(s)) => {
-                out.push((s, i));
-                start = None;
-            }
-            _ => {}
-        }
-    }
-    if let Some(s) = start {
-        out.push((s, text.len()));
-    }
-    out
-}
-
-/// The `i`-th mutation of `data`: a truncation, a byte flip, a hostile token in place of a token, or a dropped
-/// token, in turn.
-fn mutate(data: &[u8], i: u64) -> (Vec<u8>, String) {
-    let r = mix(i);
-    let spans = tokens(data);
-    match i % 4 {
-        0 => {
-            let cut = (r % data.len() as u64) as usize;
-            (data[..cut].to_vec(), format!("cut at {cut}"))
-        }
-        1 => {
-            let at = (r % data.len() as u64) as usize;
-            let mut d = data.to_vec();
-            d[at] ^= 1 << (mix(r) % 8);
-            (d, format!("bit flip at {at}"))
-        }
-        k => {
-            let (s, e) = spans[(r % spans.len() as u64) as usize];
-            let with = if k == 2 {
-                HOSTILE_TOKENS[(mix(r) % HOSTILE_TOKENS.len() as u64) as usize]
-            } else {
-                ""
-            };
-            let mut d = data[..s].to_vec();
-            d.extend_from_slice(with.as_bytes());
-            d.extend_from_slice(&data[e..]);
-            (d, format!("token at {s} replaced by '{with}'"))
-        }
-    }
-}
-
 /// Runs `cases` mutations of the OBJ (or, with `damage_mtl`, of the MTL) in `dir`, and returns how many
 /// rendered and how many were refused.
 fn sweep(
@@ -101,7 +50,7 @@ fn sweep(
     let mut counts = [0; 2];
     for i in 0..cases {
         let target = if damage_mtl { mtl } else { obj };
-        let (damaged, what) = mutate(target, seed + i);
+        let (damaged, what) = mutate(target, seed + i, HOSTILE_TOKENS);
         let (o, m) = if damage_mtl {
             (obj, &damaged[..])
         } else {

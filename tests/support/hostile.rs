@@ -12,11 +12,62 @@ use std::time::Duration;
 const HANG: Duration = Duration::from_secs(10);
 
 /// Deterministic pseudo-random sequence (SplitMix64).
-pub fn mix(i: u64) -> u64 {
+fn mix(i: u64) -> u64 {
     let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
+}
+
+/// The byte ranges of the whitespace-separated tokens of `text`.
+fn tokens(text: &[u8]) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut start = None;
+    for (i, b) in text.iter().enumerate() {
+        match (b.is_ascii_whitespace(), start) {
+            (false, None) => start = Some(i),
+            (true, Some(s)) => {
+                out.push((s, i));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        out.push((s, text.len()));
+    }
+    out
+}
+
+/// The `i`-th mutation of `data` (not empty): a truncation, a byte flip, one of `replacements` in place of a
+/// token, or a dropped token, in turn; with a description.
+pub fn mutate(data: &[u8], i: u64, replacements: &[&str]) -> (Vec<u8>, String) {
+    let r = mix(i);
+    let spans = tokens(data);
+    match i % 4 {
+        0 => {
+            let cut = (r % data.len() as u64) as usize;
+            (data[..cut].to_vec(), format!("cut at {cut}"))
+        }
+        1 => {
+            let at = (r % data.len() as u64) as usize;
+            let mut d = data.to_vec();
+            d[at] ^= 1 << (mix(r) % 8);
+            (d, format!("bit flip at {at}"))
+        }
+        k => {
+            let (s, e) = spans[(r % spans.len() as u64) as usize];
+            let with = if k == 2 {
+                replacements[(mix(r) % replacements.len() as u64) as usize]
+            } else {
+                ""
+            };
+            let mut d = data[..s].to_vec();
+            d.extend_from_slice(with.as_bytes());
+            d.extend_from_slice(&data[e..]);
+            (d, format!("token at {s} replaced by '{with}'"))
+        }
+    }
 }
 
 /// What one case ended in.

@@ -103,6 +103,9 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
     }
     for field in &file.fields {
         let rep = field.value_rep;
+        if !rep.is_array() && !rep.is_inlined() {
+            counted_vectors(bytes, rep.payload(), (rep.0 >> 48) & 0xFF)?;
+        }
         if !rep.is_array() || rep.is_inlined() || rep.payload() == 0 {
             continue;
         }
@@ -130,6 +133,44 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
                 after_code.compressed_or_table()?;
             }
         }
+    }
+    Ok(())
+}
+
+/// Checks the count-prefixed vectors of a non-array value of crate type `ty` at `payload` (the reader
+/// allocates each count before reading): token, string and path vectors and list ops hold 4-byte indices,
+/// 64-bit list ops 8 bytes, double vectors 8 and layer-offset vectors 16; reference, payload and unregistered
+/// list ops hold items of varying size, of which only the first list's count is bounded (one byte per item).
+fn counted_vectors(bytes: &[u8], payload: u64, ty: u64) -> Result<(), String> {
+    let (list_op, item) = match ty {
+        40 | 41 | 50 => (false, 4),
+        48 => (false, 8),
+        49 => (false, 16),
+        32 | 33 | 34 | 36 | 38 => (true, 4),
+        37 | 39 => (true, 8),
+        35 | 54 | 55 => (true, 0),
+        _ => return Ok(()),
+    };
+    let mut r = Reader { bytes, pos: 0 };
+    r.seek(payload)?;
+    // A list op's header byte: bit 0 says "explicit", each further bit one list that follows.
+    let lists = if list_op {
+        (r.take(1)?[0] >> 1).count_ones()
+    } else {
+        1
+    };
+    for _ in 0..lists {
+        let n = r.u64()?;
+        let room = (bytes.len() - r.pos) as u64;
+        if n.checked_mul(item.max(1)).is_none_or(|b| b > room) {
+            return Err(format!(
+                "a vector of type {ty} at offset {payload} claims {n} items"
+            ));
+        }
+        if item == 0 {
+            break;
+        }
+        r.take((n * item) as usize)?;
     }
     Ok(())
 }
