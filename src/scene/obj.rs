@@ -48,7 +48,6 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let libraries = Libraries {
         obj: path,
@@ -166,6 +165,9 @@ fn utf8(bytes: &[u8]) -> Result<&str, String> {
 
 /// How an error found while scanning a file is typed: the kind's constructor, the line, the message.
 type LineError = (fn(String) -> SceneErrorKind, usize, String);
+
+/// A face corner's error: its kind's constructor and the message.
+type CornerError = (fn(String) -> SceneErrorKind, String);
 
 fn bad(line: usize, message: String) -> LineError {
     (SceneErrorKind::Malformed, line, message)
@@ -311,10 +313,7 @@ fn numbers(line: usize, what: &str, args: &[&str]) -> Result<Vec<f32>, LineError
 
 /// Checks one face corner `v`, `v/vt`, `v//vn` or `v/vt/vn` against the counts of vertices, texture
 /// coordinates and normals declared so far.
-fn check_corner(
-    corner: &str,
-    counts: [usize; 3],
-) -> Result<(), (fn(String) -> SceneErrorKind, String)> {
+fn check_corner(corner: &str, counts: [usize; 3]) -> Result<(), CornerError> {
     const NAMES: [&str; 3] = ["vertex", "texture coordinate", "normal"];
     let parts: Vec<&str> = corner.split('/').collect();
     if parts.len() > 3 {
@@ -452,10 +451,8 @@ fn check_mtl(text: &str) -> Result<(), LineError> {
             if args.len() != 1 || args[0].parse::<u8>().is_err() {
                 return Err(bad(n, "illum: expected one integer 0 to 255".into()));
             }
-        } else if key == "newmtl" || key.starts_with("map_") || key == "bump" {
-            if args.is_empty() {
-                return Err(bad(n, format!("{key}: no name")));
-            }
+        } else if (key == "newmtl" || key.starts_with("map_") || key == "bump") && args.is_empty() {
+            return Err(bad(n, format!("{key}: no name")));
         }
     }
     Ok(())
