@@ -104,7 +104,12 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
     for field in &file.fields {
         let rep = field.value_rep;
         if !rep.is_array() && !rep.is_inlined() {
-            counted_vectors(bytes, rep.payload(), (rep.0 >> 48) & 0xFF)?;
+            let ty = (rep.0 >> 48) & 0xFF;
+            counted_vectors(bytes, rep.payload(), ty)?;
+            if ty == DICTIONARY {
+                let mut budget = Reader { bytes, pos: 0 }.limit();
+                dictionary(bytes, rep.payload(), 0, &mut budget)?;
+            }
         }
         if !rep.is_array() || rep.is_inlined() || rep.payload() == 0 {
             continue;
@@ -132,6 +137,48 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
                 };
                 after_code.compressed_or_table()?;
             }
+        }
+    }
+    Ok(())
+}
+
+/// The crate type of a dictionary value.
+const DICTIONARY: u64 = 31;
+
+/// Checks a dictionary value at `payload` the way `openusd` reads it (a count, then per entry a string index,
+/// a relative jump to the entry's value representation, read in place): `openusd` recurses once per nested
+/// dictionary and follows the jumps without checking them, so nesting deeper than
+/// [`super::layers::MAX_NESTING`], a jump outside the file, or more entries in all than the file could hold
+/// (jumps can revisit entries, even in a loop) is refused. `budget` counts down the entries visited.
+fn dictionary(bytes: &[u8], payload: u64, depth: usize, budget: &mut u64) -> Result<(), String> {
+    if depth > super::layers::MAX_NESTING {
+        return Err(format!(
+            "dictionaries nest deeper than {} levels",
+            super::layers::MAX_NESTING
+        ));
+    }
+    let mut r = Reader { bytes, pos: 0 };
+    r.seek(payload)?;
+    let n = r.u64()?;
+    if n > bytes.len() as u64 / 12 || n > *budget {
+        return Err(format!(
+            "a dictionary at offset {payload} claims {n} entries"
+        ));
+    }
+    *budget -= n;
+    for _ in 0..n {
+        r.take(4)?;
+        let at = r.pos as i64;
+        let jump = i64::from_le_bytes(r.take(8)?.try_into().unwrap_or_default());
+        let target = at
+            .checked_add(jump)
+            .filter(|t| *t >= 0)
+            .ok_or_else(|| format!("a dictionary entry at offset {at} jumps outside the file"))?;
+        r.seek(target as u64)?;
+        // A value representation: type in bits 48..56, "inlined" bit 62, payload in bits 0..48.
+        let rep = r.u64()?;
+        if (rep >> 48) & 0xFF == DICTIONARY && rep & (1 << 62) == 0 {
+            dictionary(bytes, rep & ((1 << 48) - 1), depth + 1, budget)?;
         }
     }
     Ok(())
