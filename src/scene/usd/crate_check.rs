@@ -8,9 +8,11 @@
 //! decoded buffer exceeds 256 × the file size, and no compressed block runs past the end of the file. Crate
 //! versions before 0.4.0 (uncompressed structural sections) are refused rather than checked.
 
+use crate::limits::{read_file, Limits};
 use openusd::ar;
 use openusd::usdc::CrateFile;
 use std::io::{self, Cursor};
+use std::path::Path;
 
 /// Checks `bytes`, a `.usdc` file, for counts that would make the reader allocate beyond the data.
 pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
@@ -88,8 +90,27 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
     // The structure is sound: let the crate reader decode it, then check every array value's length.
     let file = CrateFile::open(Cursor::new(bytes)).map_err(|e| format!("{e:#}"))?;
     file.validate().map_err(|e| format!("{e:#}"))?;
+    if let Some(deep) = file
+        .paths
+        .iter()
+        .find(|p| p.element_count() > super::layers::MAX_NESTING)
+    {
+        return Err(format!(
+            "a path nests deeper than {} levels ({} elements)",
+            super::layers::MAX_NESTING,
+            deep.element_count()
+        ));
+    }
     for field in &file.fields {
         let rep = field.value_rep;
+        if !rep.is_array() && !rep.is_inlined() {
+            let ty = (rep.0 >> 48) & 0xFF;
+            counted_vectors(bytes, rep.payload(), ty)?;
+            if ty == DICTIONARY {
+                let mut budget = Reader { bytes, pos: 0 }.limit();
+                dictionary(bytes, rep.payload(), 0, &mut budget)?;
+            }
+        }
         if !rep.is_array() || rep.is_inlined() || rep.payload() == 0 {
             continue;
         }
@@ -117,6 +138,86 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
                 after_code.compressed_or_table()?;
             }
         }
+    }
+    Ok(())
+}
+
+/// The crate type of a dictionary value.
+const DICTIONARY: u64 = 31;
+
+/// Checks a dictionary value at `payload` the way `openusd` reads it (a count, then per entry a string index,
+/// a relative jump to the entry's value representation, read in place): `openusd` recurses once per nested
+/// dictionary and follows the jumps without checking them, so nesting deeper than
+/// [`super::layers::MAX_NESTING`], a jump outside the file, or more entries in all than the file could hold
+/// (jumps can revisit entries, even in a loop) is refused. `budget` counts down the entries visited.
+fn dictionary(bytes: &[u8], payload: u64, depth: usize, budget: &mut u64) -> Result<(), String> {
+    if depth > super::layers::MAX_NESTING {
+        return Err(format!(
+            "dictionaries nest deeper than {} levels",
+            super::layers::MAX_NESTING
+        ));
+    }
+    let mut r = Reader { bytes, pos: 0 };
+    r.seek(payload)?;
+    let n = r.u64()?;
+    if n > bytes.len() as u64 / 12 || n > *budget {
+        return Err(format!(
+            "a dictionary at offset {payload} claims {n} entries"
+        ));
+    }
+    *budget -= n;
+    for _ in 0..n {
+        r.take(4)?;
+        let at = r.pos as i64;
+        let jump = i64::from_le_bytes(r.take(8)?.try_into().unwrap_or_default());
+        let target = at
+            .checked_add(jump)
+            .filter(|t| *t >= 0)
+            .ok_or_else(|| format!("a dictionary entry at offset {at} jumps outside the file"))?;
+        r.seek(target as u64)?;
+        // A value representation: type in bits 48..56, "inlined" bit 62, payload in bits 0..48.
+        let rep = r.u64()?;
+        if (rep >> 48) & 0xFF == DICTIONARY && rep & (1 << 62) == 0 {
+            dictionary(bytes, rep & ((1 << 48) - 1), depth + 1, budget)?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks the count-prefixed vectors of a non-array value of crate type `ty` at `payload` (the reader
+/// allocates each count before reading): token, string and path vectors and list ops hold 4-byte indices,
+/// 64-bit list ops 8 bytes, double vectors 8 and layer-offset vectors 16; reference, payload and unregistered
+/// list ops hold items of varying size, of which only the first list's count is bounded (one byte per item).
+fn counted_vectors(bytes: &[u8], payload: u64, ty: u64) -> Result<(), String> {
+    let (list_op, item) = match ty {
+        40 | 41 | 50 => (false, 4),
+        48 => (false, 8),
+        49 => (false, 16),
+        32 | 33 | 34 | 36 | 38 => (true, 4),
+        37 | 39 => (true, 8),
+        35 | 54 | 55 => (true, 0),
+        _ => return Ok(()),
+    };
+    let mut r = Reader { bytes, pos: 0 };
+    r.seek(payload)?;
+    // A list op's header byte: bit 0 says "explicit", each further bit one list that follows.
+    let lists = if list_op {
+        (r.take(1)?[0] >> 1).count_ones()
+    } else {
+        1
+    };
+    for _ in 0..lists {
+        let n = r.u64()?;
+        let room = (bytes.len() - r.pos) as u64;
+        if n.checked_mul(item.max(1)).is_none_or(|b| b > room) {
+            return Err(format!(
+                "a vector of type {ty} at offset {payload} claims {n} items"
+            ));
+        }
+        if item == 0 {
+            break;
+        }
+        r.take((n * item) as usize)?;
     }
     Ok(())
 }
@@ -192,41 +293,55 @@ impl Reader<'_> {
     }
 }
 
-/// The default file-system resolver, with every binary crate layer it opens (the root layer, sublayers,
-/// references and payloads, layers inside `.usdz` packages) bounds-checked by [`check`] before `openusd`
+/// The default file-system resolver, with every layer it opens (the root layer, sublayers, references and
+/// payloads, `.usdz` packages and the layers inside them) read with the memory budget's size cap and checked by
+/// [`super::layers::check_layer`] (crate bounds via [`check`], text nesting, package entries) before `openusd`
 /// parses it. A failed check is an `InvalidData` error naming the layer, which `openusd` reports as a load or
 /// composition error.
-pub(super) struct CheckingResolver(pub(super) ar::DefaultResolver);
+pub(super) struct CheckingResolver {
+    /// The resolver that finds and opens the files.
+    pub(super) inner: ar::DefaultResolver,
+    /// The size cap of every file read.
+    pub(super) limits: Limits,
+}
 
 impl ar::Resolver for CheckingResolver {
     fn create_identifier(&self, asset_path: &str, anchor: Option<&ar::ResolvedPath>) -> String {
-        self.0.create_identifier(asset_path, anchor)
+        self.inner.create_identifier(asset_path, anchor)
     }
 
     fn resolve(&self, asset_path: &str) -> Option<ar::ResolvedPath> {
-        self.0.resolve(asset_path)
+        self.inner.resolve(asset_path)
     }
 
     fn resolve_for_new_asset(&self, asset_path: &str) -> Option<ar::ResolvedPath> {
-        self.0.resolve_for_new_asset(asset_path)
+        self.inner.resolve_for_new_asset(asset_path)
     }
 
     fn open_asset(&self, resolved_path: &ar::ResolvedPath) -> io::Result<Box<dyn ar::Asset>> {
-        let bytes = self.0.open_asset(resolved_path)?.read_all()?;
-        if bytes.starts_with(b"PXR-USDC") {
-            check(&bytes).map_err(|m| {
-                io::Error::new(io::ErrorKind::InvalidData, format!("{resolved_path}: {m}"))
-            })?;
-        }
+        let invalid =
+            |m: String| io::Error::new(io::ErrorKind::InvalidData, format!("{resolved_path}: {m}"));
+        let name = resolved_path.to_str().unwrap_or_default();
+        let bytes = if ar::is_package_relative_path(name) {
+            // A layer inside a package: check the whole package first (its entries with a size cap).
+            if let Some((package, _)) = ar::split_package_relative_path_outer(name) {
+                let outer = read_file(Path::new(&package), &self.limits)?;
+                super::layers::check_layer(&outer, &self.limits).map_err(invalid)?;
+            }
+            self.inner.open_asset(resolved_path)?.read_all()?
+        } else {
+            read_file(resolved_path, &self.limits)?
+        };
+        super::layers::check_layer(&bytes, &self.limits).map_err(invalid)?;
         Ok(Box::new(Cursor::new(bytes)))
     }
 
     fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
-        self.0.get_extension(asset_path)
+        self.inner.get_extension(asset_path)
     }
 
     fn get_asset_info(&self, asset_path: &str, resolved_path: &ar::ResolvedPath) -> ar::AssetInfo {
-        self.0.get_asset_info(asset_path, resolved_path)
+        self.inner.get_asset_info(asset_path, resolved_path)
     }
 
     fn get_modification_timestamp(
@@ -234,10 +349,11 @@ impl ar::Resolver for CheckingResolver {
         asset_path: &str,
         resolved_path: &ar::ResolvedPath,
     ) -> Option<std::time::SystemTime> {
-        self.0.get_modification_timestamp(asset_path, resolved_path)
+        self.inner
+            .get_modification_timestamp(asset_path, resolved_path)
     }
 
     fn identity(&self) -> String {
-        self.0.identity()
+        self.inner.identity()
     }
 }

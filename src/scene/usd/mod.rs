@@ -39,10 +39,12 @@
 //!
 //! The loader is split by USD schema domain: `xform` (UsdGeomXformable ops), `geom` (meshes and primvars),
 //! `shading` (UsdShade / UsdPreviewSurface), `lux` (UsdLux), `vol` (UsdVol), with `values` converting
-//! attribute values and `crate_check` bounds-checking `.usdc` layers before openusd reads them.
+//! attribute values, `layers` checking every layer (text nesting, packages) and `crate_check` bounds-checking
+//! `.usdc` layers before openusd reads them.
 
 mod crate_check;
 mod geom;
+mod layers;
 mod lux;
 mod shading;
 mod values;
@@ -51,6 +53,7 @@ mod xform;
 
 use super::camera::Camera;
 use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
+use crate::limits::{catch_quietly, one_line, read_file, Limits};
 use crate::math::{Mat4, Rgb, Vec3};
 use crate::volume::VolumeSpec;
 use openusd::{ar, sdf, usd};
@@ -73,10 +76,17 @@ const STRUCTURAL_TYPES: &[&str] = &[
     "GeomSubset",
 ];
 
-/// Loads a USD stage and adds its volumes (see [`read`]), each passed through the options' volume override
-/// first.
+/// Stack of the thread that parses and reads a stage: `openusd` recurses once per nesting level of a layer,
+/// and [`MAX_NESTING`] levels must fit whatever the caller's stack (the main thread has 8 MiB, rayon's
+/// workers 2 MiB).
+pub const READER_STACK_BYTES: usize = 64 << 20;
+
+pub use layers::MAX_NESTING;
+
+/// Loads a USD stage and adds its volumes (see [`read_with_limits`]), each passed through the options' volume
+/// override first.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
-    let (mut builder, volumes) = read(path)?;
+    let (mut builder, volumes) = read_with_limits(path, &options.limits)?;
     for mut spec in volumes {
         options.apply_volume_override(&mut spec);
         let medium = crate::volume::load_grid_medium(&spec).map_err(|source| {
@@ -93,32 +103,53 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
     Ok(builder)
 }
 
-/// Reads a USD stage into a builder, returning the `Volume` prims as [`VolumeSpec`]s not yet added.
-///
-/// Every `.usdc` layer is bounds-checked before `openusd` parses it (see `crate_check`); `openusd` 0.6 still
-/// indexes out of bounds on some damaged `.usdc` files, and such a panic is caught here (a last resort: its
-/// message still reaches the panic hook) and returned as a malformed-file error.
+/// [`read_with_limits`] with the default memory budget.
 pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_stage(path))).unwrap_or_else(
-        |panic| {
-            let message = panic
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()))
-                .unwrap_or_default();
-            Err(SceneError::new(
-                path,
-                SceneErrorKind::ReaderPanicked {
-                    reader: "openusd",
-                    message,
-                },
-            ))
-        },
-    )
+    read_with_limits(path, &Limits::default())
 }
 
-fn read_stage(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
-    let stage = open(path)?;
+/// Reads a USD stage into a builder, returning the `Volume` prims as [`VolumeSpec`]s not yet added.
+///
+/// Every layer is read with the size cap of `limits` and checked before `openusd` parses it (see `layers`
+/// and `crate_check`): text nested deeper than [`MAX_NESTING`] levels is refused, `.usdc` counts are
+/// bounds-checked, `.usdz` entries are decompressed with a cap. The whole read runs on a thread of its own
+/// with a [`READER_STACK_BYTES`] stack. `openusd` 0.6 still indexes out of bounds on some damaged `.usdc`
+/// files: such a panic is caught without printing anything and returned as
+/// [`SceneErrorKind::ReaderPanicked`].
+pub fn read_with_limits(
+    path: &Path,
+    limits: &Limits,
+) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+    let limits = *limits;
+    let owned = path.to_path_buf();
+    let reader = std::thread::Builder::new()
+        .name("nimbus-usd".into())
+        .stack_size(READER_STACK_BYTES)
+        .spawn(move || {
+            catch_quietly(|| read_stage(&owned, &limits)).unwrap_or_else(|message| {
+                Err(SceneError::new(
+                    &owned,
+                    SceneErrorKind::ReaderPanicked {
+                        reader: "openusd",
+                        message: one_line(&message, MESSAGE_CHARS),
+                    },
+                ))
+            })
+        })
+        .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+    reader.join().unwrap_or_else(|_| {
+        Err(SceneError::new(
+            path,
+            SceneErrorKind::ReaderPanicked {
+                reader: "openusd",
+                message: "the reader thread failed".into(),
+            },
+        ))
+    })
+}
+
+fn read_stage(path: &Path, limits: &Limits) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+    let stage = open(path, limits)?;
     let mut loader = Loader {
         path,
         stage: &stage,
@@ -138,14 +169,21 @@ fn read_stage(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError
     Ok((loader.builder, loader.volumes))
 }
 
-/// Opens and composes a stage; any parse or composition error is a [`SceneError`] naming the layer.
-fn open(path: &Path) -> Result<usd::Stage, SceneError> {
-    std::fs::metadata(path).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+/// Opens and composes a stage; any parse or composition error is a [`SceneError`] naming the layer. The root
+/// layer is read and checked here first, so that an unreadable or hostile root is an error about that file.
+fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
+    let bytes =
+        read_file(path, limits).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
+    layers::check_layer(&bytes, limits).map_err(|m| malformed(path, m))?;
+    drop(bytes);
     let name = path
         .to_str()
         .ok_or_else(|| malformed(path, "the path is not valid UTF-8".into()))?;
     let stage = usd::Stage::builder()
-        .resolver(crate_check::CheckingResolver(ar::DefaultResolver::new()))
+        .resolver(crate_check::CheckingResolver {
+            inner: ar::DefaultResolver::new(),
+            limits: *limits,
+        })
         .open(name)
         .map_err(|e| malformed(path, format!("{e:#}")))?;
     composition_errors(path, &stage)?;
@@ -162,8 +200,15 @@ fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<(), SceneError>
     Err(malformed(path, format!("composition: {}", list.join("; "))))
 }
 
+/// Longest message quoted from `openusd` (its errors can quote a whole layer's text).
+const MESSAGE_CHARS: usize = 600;
+
+/// A malformed-file error, its message cut to one printable line (it may quote the file).
 fn malformed(path: &Path, message: String) -> SceneError {
-    SceneError::new(path, SceneErrorKind::Malformed(message))
+    SceneError::new(
+        path,
+        SceneErrorKind::Malformed(one_line(&message, MESSAGE_CHARS)),
+    )
 }
 
 struct Loader<'a> {
