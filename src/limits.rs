@@ -15,9 +15,9 @@ use std::sync::Once;
 /// Budget used when the physical memory cannot be read (not Linux): 8 GiB.
 const FALLBACK_MEMORY_BYTES: u64 = 8 << 30;
 
-/// Largest read from a file whose size is not known in advance (a device, a pipe): 1 GiB. `/dev/zero` given as a
-/// scene, buffer or VDB file ends in a clear error after this many bytes.
-pub const MAX_STREAM_BYTES: u64 = 1 << 30;
+/// Largest read from a file whose size is not known in advance (a device, a pipe). `/dev/zero` given as a
+/// scene, buffer or VDB file ends in a clear error after this many bytes (256 MiB).
+pub const MAX_STREAM_BYTES: u64 = 256 << 20;
 
 /// Worker threads allowed per core: a larger `--threads` (or [`crate::RenderSettings::threads`]) is capped.
 pub const THREADS_PER_CORE: usize = 8;
@@ -195,6 +195,38 @@ pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// Decodes a PNG, JPEG or other image the `image` crate reads, from bytes, refusing before decoding one whose
+/// header gives more than the budget allows at `bytes_per_texel` (what the caller keeps per texel, beyond the
+/// decoder's own buffers, which the decoder's `max_alloc` bounds). Errors are one line.
+pub fn decode_image(
+    bytes: &[u8],
+    limits: &Limits,
+    bytes_per_texel: u64,
+) -> Result<image::DynamicImage, String> {
+    let reader = || -> Result<image::ImageReader<std::io::Cursor<&[u8]>>, String> {
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?;
+        let mut decoder_limits = image::Limits::default();
+        decoder_limits.max_alloc = Some(limits.memory_bytes);
+        reader.limits(decoder_limits);
+        Ok(reader)
+    };
+    let (width, height) = reader()?
+        .into_dimensions()
+        .map_err(|e| one_line(&e.to_string(), 200))?;
+    limits
+        .check_items(
+            format_args!("the {width}x{height} image"),
+            width as u64 * height as u64,
+            bytes_per_texel,
+        )
+        .map_err(|e| e.to_string())?;
+    reader()?
+        .decode()
+        .map_err(|e| one_line(&e.to_string(), 200))
+}
+
 thread_local! {
     /// Set while [`catch_quietly`] runs on this thread: the panic hook then prints nothing.
     static QUIET: Cell<bool> = const { Cell::new(false) };
@@ -292,6 +324,22 @@ mod tests {
         }
         let err = read_file(path, &Limits::with_memory(1 << 20)).unwrap_err();
         assert!(err.to_string().contains("endless device"), "{err}");
+    }
+
+    #[test]
+    fn images_larger_than_the_budget_are_refused_before_decoding() {
+        let mut png = Vec::new();
+        image::RgbaImage::new(64, 64)
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        // 64 × 64 texels at 26 bytes are 104 KiB: within 1 MiB, not within 64 KiB.
+        assert!(decode_image(&png, &Limits::with_memory(1 << 20), 26).is_ok());
+        let err = decode_image(&png, &Limits::with_memory(64 << 10), 26).unwrap_err();
+        assert!(
+            err.contains("64x64 image") && err.contains("memory budget"),
+            "{err}"
+        );
+        assert!(decode_image(b"not an image", &Limits::default(), 26).is_err());
     }
 
     #[test]

@@ -286,4 +286,5 @@ fn mutated_scenes_never_panic_hang_or_render_nan() {
         "glTF mutations: {} load errors, {} build errors, {} rendered",
         tally[0], tally[1], tally[2]
     );
+    common::assert_sweep_peak_memory("glTF sweep");
 }

@@ -95,6 +95,7 @@ fn damaged_small_obj_and_mtl_never_panic() {
     let m = sweep(&dir, obj, mtl, true, 400, 10_000);
     eprintln!("small OBJ: {o:?} rendered/refused; MTL: {m:?}");
     assert!(o[0] > 0 && o[1] > 0 && m[1] > 0, "{o:?} {m:?}");
+    common::assert_sweep_peak_memory("OBJ sweep");
 }
 
 #[test]
@@ -116,4 +117,5 @@ fn damaged_spider_never_panics() {
     let o = sweep(&dir, &obj, &mtl, false, 150, 20_000);
     let m = sweep(&dir, &obj, &mtl, true, 80, 30_000);
     eprintln!("spider OBJ: {o:?} rendered/refused; MTL: {m:?}");
+    common::assert_sweep_peak_memory("spider sweep");
 }

@@ -164,4 +164,5 @@ fn damaged_stages_never_panic_abort_or_hang() {
         total[1] += refused;
     }
     assert!(total[1] > 0, "some damaged stages must be refused");
+    common::assert_sweep_peak_memory("USD sweep");
 }

@@ -64,6 +64,7 @@ fn truncated_and_bit_flipped_files_never_panic() {
         assert_eq!(errs, n, "{name}: every truncated file must be an error");
     }
     eprintln!("robustness: {:.2} s", t0.elapsed().as_secs_f64());
+    common::assert_sweep_peak_memory("VDB sweep");
 }
 
 #[test]

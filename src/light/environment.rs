@@ -17,7 +17,9 @@
 //! so the density is positive wherever the radiance is.
 
 use super::LightSample;
+use crate::limits::Limits;
 use crate::math::{luminance, Distribution2D, Rgb, Vec2, Vec3};
+use exr::prelude::{ReadChannels as _, ReadLayers as _};
 use std::f32::consts::PI;
 use std::path::PathBuf;
 
@@ -33,14 +35,14 @@ pub enum EnvironmentError {
         #[source]
         source: exr::error::Error,
     },
-    /// The PNG/JPEG decoder failed (missing file, malformed or unsupported image).
-    #[error("environment map {}: {source}", path.display())]
-    Image {
+    /// The file could not be read within the memory budget, or the PNG/JPEG decoder failed (malformed or
+    /// unsupported image, or one larger than the budget).
+    #[error("environment map {}: {message}", path.display())]
+    Read {
         /// The map file.
         path: PathBuf,
-        /// The decoder's error.
-        #[source]
-        source: image::ImageError,
+        /// What went wrong, as one line.
+        message: String,
     },
     /// The file decoded to no texels.
     #[error("environment map {}: the map is empty", path.display())]
@@ -126,24 +128,58 @@ impl EnvironmentMap {
         Vec2::new(if s < 0.0 { s + 1.0 } else { s }, uv.y)
     }
 
-    /// Loads an equirectangular map from an EXR (its RGB channels, linear) or a PNG/JPEG (sRGB-decoded).
-    /// The error names the file and keeps the decoder's error as its source.
-    pub fn load(path: &std::path::Path, intensity: f32) -> Result<Self, EnvironmentError> {
+    /// Loads an equirectangular map from an EXR (its RGB channels, linear) or a PNG/JPEG (sRGB-decoded),
+    /// reading the file and sizing its texels within the memory budget `limits`. The error names the file and
+    /// keeps the decoder's error as its source.
+    pub fn load(
+        path: &std::path::Path,
+        intensity: f32,
+        limits: &Limits,
+    ) -> Result<Self, EnvironmentError> {
         let is_exr = path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        let bytes = crate::limits::read_file(path, limits).map_err(|e| EnvironmentError::Read {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        // Per texel: the RGB texels and the sampling distribution's weights, about 16 bytes.
+        const TEXEL_BYTES: u64 = 16;
         let (width, height, texels) = if is_exr {
-            let image = exr::prelude::read_first_rgba_layer_from_file(
-                path,
-                |res, _| (res.width(), vec![Rgb::ZERO; res.width() * res.height()]),
-                |(w, px): &mut (usize, Vec<Rgb>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-                    px[pos.y() * *w + pos.x()] = Rgb::new(r, g, b);
-                },
-            )
-            .map_err(|source| EnvironmentError::Exr {
-                path: path.to_path_buf(),
-                source,
-            })?;
+            let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
+                .map_err(|source| EnvironmentError::Exr {
+                    path: path.to_path_buf(),
+                    source,
+                })?;
+            for header in &meta.headers {
+                let size = header.layer_size;
+                limits
+                    .check_items(
+                        format_args!("environment map {}", path.display()),
+                        size.width() as u64 * size.height() as u64,
+                        TEXEL_BYTES,
+                    )
+                    .map_err(|e| EnvironmentError::Read {
+                        path: path.to_path_buf(),
+                        message: e.to_string(),
+                    })?;
+            }
+            let image = exr::prelude::read()
+                .no_deep_data()
+                .largest_resolution_level()
+                .rgba_channels(
+                    |res, _| (res.width(), vec![Rgb::ZERO; res.width() * res.height()]),
+                    |(w, px): &mut (usize, Vec<Rgb>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                        px[pos.y() * *w + pos.x()] = Rgb::new(r, g, b);
+                    },
+                )
+                .first_valid_layer()
+                .all_attributes()
+                .from_buffered(std::io::Cursor::new(&bytes))
+                .map_err(|source| EnvironmentError::Exr {
+                    path: path.to_path_buf(),
+                    source,
+                })?;
             let size = image.layer_data.size;
             (
                 size.width(),
@@ -151,10 +187,10 @@ impl EnvironmentMap {
                 image.layer_data.channel_data.pixels.1,
             )
         } else {
-            let img = image::open(path)
-                .map_err(|source| EnvironmentError::Image {
+            let img = crate::limits::decode_image(&bytes, limits, TEXEL_BYTES)
+                .map_err(|message| EnvironmentError::Read {
                     path: path.to_path_buf(),
-                    source,
+                    message,
                 })?
                 .to_rgb32f();
             let (w, h) = (img.width() as usize, img.height() as usize);

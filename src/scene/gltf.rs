@@ -28,7 +28,7 @@ use crate::light::{
     DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
     LUMENS_PER_WATT,
 };
-use crate::limits::one_line;
+use crate::limits::{one_line, Limits};
 use crate::material::{ColorSpace, Filter, Material, MipImage, Sampler, Texture, Wrap};
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
@@ -809,26 +809,9 @@ impl Loader<'_> {
                 one_line(&e, QUOTE)
             )))
         };
-        let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
-            .with_guessed_format()
-            .map_err(|e| malformed(e.to_string()))?;
-        let mut limits = image::Limits::default();
-        limits.max_alloc = Some(budget.memory_bytes);
-        reader.limits(limits.clone());
-        let (width, height) = reader
-            .into_dimensions()
-            .map_err(|e| malformed(e.to_string()))?;
         // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels) stay in the budget.
-        budget
-            .check_items(&name, width as u64 * height as u64, 4 + 22)
-            .map_err(|e| malformed(e.to_string()))?;
-        let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
-            .with_guessed_format()
-            .map_err(|e| malformed(e.to_string()))?;
-        reader.limits(limits.clone());
-        let decoded = reader
-            .decode()
-            .map_err(|e| malformed(e.to_string()))?
+        let decoded = crate::limits::decode_image(&bytes, &budget, 4 + 22)
+            .map_err(malformed)?
             .to_rgba8();
         Ok(decoded)
     }
@@ -866,7 +849,8 @@ impl Loader<'_> {
             self.builder.max_bounces = Some(b.min(u32::MAX as u64) as u32);
         }
         if let Some(env) = value.get("nimbus_environment") {
-            let env = parse_environment(env, &self.base).map_err(|kind| self.error(kind))?;
+            let env = parse_environment(env, &self.base, &self.options.limits)
+                .map_err(|kind| self.error(kind))?;
             self.builder.set_environment(env);
         }
         Ok(())
@@ -926,6 +910,7 @@ fn sampler_of(sampler: &gltf::texture::Sampler) -> Sampler {
 pub fn parse_environment(
     value: &serde_json::Value,
     base: &Path,
+    limits: &Limits,
 ) -> Result<EnvironmentLight, SceneErrorKind> {
     let malformed = |m: &str| SceneErrorKind::Malformed(format!("nimbus_environment: {m}"));
     if let Some(c) = value.get("color") {
@@ -945,7 +930,7 @@ pub fn parse_environment(
                 as f32,
             None => 1.0,
         };
-        let map = EnvironmentMap::load(&base.join(file), intensity)?;
+        let map = EnvironmentMap::load(&base.join(file), intensity, limits)?;
         return Ok(EnvironmentLight::Map(Box::new(map)));
     }
     Err(malformed("expected 'color' or 'map'"))

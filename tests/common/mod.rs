@@ -137,3 +137,22 @@ pub fn mean_and_se(img: &nimbus::render::RenderImage, c: usize) -> (f64, f64) {
     let var: f64 = img.variance.iter().map(|v| v[c] as f64).sum();
     (mean, var.sqrt() / n)
 }
+
+/// The peak resident memory a hostile-input sweep's whole test process may reach: 2 GiB. A damaged size field
+/// that is believed (a film, a majorant grid, a buffer sized by the file) goes far beyond it.
+pub const SWEEP_PEAK_MEMORY_BYTES: u64 = 2 << 30;
+
+/// Asserts the process's peak resident memory so far is below [`SWEEP_PEAK_MEMORY_BYTES`] (where the platform
+/// reports it), and prints it.
+pub fn assert_sweep_peak_memory(sweep: &str) {
+    if let Some(peak) = nimbus::render::peak_memory_bytes() {
+        eprintln!(
+            "{sweep}: peak memory {:.0} MiB",
+            peak as f64 / (1 << 20) as f64
+        );
+        assert!(
+            peak < SWEEP_PEAK_MEMORY_BYTES,
+            "{sweep}: peak memory {peak} bytes is over the bound of {SWEEP_PEAK_MEMORY_BYTES}"
+        );
+    }
+}

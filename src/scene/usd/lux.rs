@@ -135,7 +135,7 @@ impl Loader<'_> {
                     ));
                 }
                 let scale = radiance.max_element();
-                let map = EnvironmentMap::load(&file, scale)
+                let map = EnvironmentMap::load(&file, scale, &self.limits)
                     .map_err(|e| SceneError::new(self.path, SceneErrorKind::Environment(e)))?;
                 EnvironmentLight::Map(Box::new(map))
             }

@@ -159,6 +159,7 @@ fn read_stage(path: &Path, limits: &Limits) -> Result<(SceneBuilder, Vec<VolumeS
         textures: HashMap::new(),
         unsupported: HashSet::new(),
         root: Mat4::IDENTITY,
+        limits: *limits,
     };
     loader.root = loader.stage_root()?;
     for child in loader.children(&stage.prim("/"))? {
@@ -223,6 +224,8 @@ struct Loader<'a> {
     unsupported: HashSet<String>,
     /// Stage units and up axis to Nimbus's metres and +Y up.
     root: Mat4,
+    /// The memory budget for textures and environment maps.
+    limits: Limits,
 }
 
 impl Loader<'_> {

@@ -175,8 +175,11 @@ impl Loader<'_> {
         if let Some(&id) = self.textures.get(&(file.clone(), srgb)) {
             return Ok(Some(id));
         }
-        let image = image::open(&file)
-            .map_err(|e| SceneError::new(&file, SceneErrorKind::InvalidReference(e.to_string())))?
+        let bytes = crate::limits::read_file(&file, &self.limits)
+            .map_err(|e| SceneError::new(&file, SceneErrorKind::InvalidReference(e.to_string())))?;
+        // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels).
+        let image = crate::limits::decode_image(&bytes, &self.limits, 4 + 22)
+            .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e)))?
             .to_rgba8();
         let space = if srgb {
             ColorSpace::Srgb
