@@ -30,8 +30,9 @@ pub enum SceneErrorKind {
     /// A reference inside the file points at nothing valid (accessor, buffer, image, index out of range).
     #[error("invalid reference: {0}")]
     InvalidReference(String),
-    /// A third-party reader panicked on the file (a damaged file its own checks missed); the panic was
-    /// caught and is reported here, so that callers and tests can tell it from an error the reader found.
+    /// A third-party reader panicked on the file (a damaged file its own checks missed), or did not finish
+    /// within its time limit; the panic was caught and is reported here, so that callers and tests can tell
+    /// it from an error the reader found.
     #[error("the {reader} reader failed on a damaged file: {message}")]
     ReaderPanicked {
         /// The reader (e.g. `openusd`).

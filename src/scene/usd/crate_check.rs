@@ -44,9 +44,10 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
     for _ in 0..sections {
         let name = c.take(16)?.to_vec();
         let (start, size) = (c.u64()?, c.u64()?);
-        let name = String::from_utf8_lossy(&name)
-            .trim_end_matches('\0')
-            .to_owned();
+        // The name up to its first NUL, as `openusd` reads it (bytes after the NUL do not count: a name
+        // "TOKENS\0...\x04" is the TOKENS section to the reader, so it must be to this check).
+        let name_end = name.iter().position(|&b| b == 0).unwrap_or(name.len());
+        let name = String::from_utf8_lossy(&name[..name_end]).into_owned();
         if start
             .checked_add(size)
             .is_none_or(|end| end > bytes.len() as u64)

@@ -98,7 +98,23 @@ pub(super) fn text_nesting(bytes: &[u8]) -> Result<(), String> {
                     }
                 }
             }
-            b'<' => find(i + 1, b">"),
+            b'<' => {
+                let close = find(i + 1, b">");
+                // A path literal is one token: a line break or other control byte inside means an unclosed
+                // `<`, which `openusd` reads as a path running on into the following lines (one such path
+                // made its instancing resolution run for minutes).
+                let inside = &bytes[i + 1..close.map_or(end, |c| c - 1)];
+                if close.is_some() && inside.iter().any(u8::is_ascii_control) {
+                    return Err(format!(
+                        "line {line}: the path starting '<{}' runs past the end of its line",
+                        crate::limits::one_line(
+                            &String::from_utf8_lossy(&inside[..inside.len().min(40)]),
+                            40
+                        )
+                    ));
+                }
+                close
+            }
             b'@' if bytes.get(i + 1..i + 3) == Some(b"@@".as_slice()) => find(i + 3, b"@@@"),
             b'@' => find(i + 1, b"@"),
             b'{' | b'[' | b'(' => {

@@ -81,6 +81,10 @@ const STRUCTURAL_TYPES: &[&str] = &[
 /// workers 2 MiB).
 pub const READER_STACK_BYTES: usize = 64 << 20;
 
+/// How long the reader thread may take before the load gives up with an error (the thread is then left to
+/// finish on its own): a guard against compositions that `openusd` resolves in pathological time.
+pub const READER_TIME_LIMIT: std::time::Duration = std::time::Duration::from_secs(120);
+
 pub use layers::MAX_NESTING;
 
 /// Loads a USD stage and adds its volumes (see [`read_with_limits`]), each passed through the options' volume
@@ -113,7 +117,7 @@ pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> 
 /// Every layer is read with the size cap of `limits` and checked before `openusd` parses it (see `layers`
 /// and `crate_check`): text nested deeper than [`MAX_NESTING`] levels is refused, `.usdc` counts are
 /// bounds-checked, `.usdz` entries are decompressed with a cap. The whole read runs on a thread of its own
-/// with a [`READER_STACK_BYTES`] stack. `openusd` 0.6 still indexes out of bounds on some damaged `.usdc`
+/// with a [`READER_STACK_BYTES`] stack, given up after [`READER_TIME_LIMIT`]. `openusd` 0.6 still indexes out of bounds on some damaged `.usdc`
 /// files: such a panic is caught without printing anything and returned as
 /// [`SceneErrorKind::ReaderPanicked`].
 pub fn read_with_limits(
@@ -122,11 +126,12 @@ pub fn read_with_limits(
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let limits = *limits;
     let owned = path.to_path_buf();
-    let reader = std::thread::Builder::new()
+    let (send, receive) = std::sync::mpsc::channel();
+    std::thread::Builder::new()
         .name("nimbus-usd".into())
         .stack_size(READER_STACK_BYTES)
         .spawn(move || {
-            catch_quietly(|| read_stage(&owned, &limits)).unwrap_or_else(|message| {
+            let read = catch_quietly(|| read_stage(&owned, &limits)).unwrap_or_else(|message| {
                 Err(SceneError::new(
                     &owned,
                     SceneErrorKind::ReaderPanicked {
@@ -134,15 +139,23 @@ pub fn read_with_limits(
                         message: one_line(&message, MESSAGE_CHARS),
                     },
                 ))
-            })
+            });
+            let _ = send.send(read);
         })
         .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    reader.join().unwrap_or_else(|_| {
+    receive.recv_timeout(READER_TIME_LIMIT).unwrap_or_else(|e| {
+        let message = match e {
+            std::sync::mpsc::RecvTimeoutError::Timeout => format!(
+                "did not finish reading the stage within {} s",
+                READER_TIME_LIMIT.as_secs()
+            ),
+            std::sync::mpsc::RecvTimeoutError::Disconnected => "the reader thread failed".into(),
+        };
         Err(SceneError::new(
             path,
             SceneErrorKind::ReaderPanicked {
                 reader: "openusd",
-                message: "the reader thread failed".into(),
+                message,
             },
         ))
     })
