@@ -35,13 +35,30 @@ pub enum EnvironmentError {
         #[source]
         source: exr::error::Error,
     },
-    /// The file could not be read within the memory budget, or the PNG/JPEG decoder failed (malformed or
-    /// unsupported image, or one larger than the budget).
-    #[error("environment map {}: {message}", path.display())]
-    Read {
+    /// The file could not be read (missing, unreadable, larger than the memory budget, an endless device).
+    #[error("environment map {}: {source}", path.display())]
+    Io {
         /// The map file.
         path: PathBuf,
-        /// What went wrong, as one line.
+        /// The read's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The map's texels would exceed the memory budget.
+    #[error("environment map {}: {source}", path.display())]
+    OverBudget {
+        /// The map file.
+        path: PathBuf,
+        /// What was refused.
+        #[source]
+        source: crate::limits::OverBudget,
+    },
+    /// The PNG/JPEG decoder failed (malformed or unsupported image, or one larger than the budget).
+    #[error("environment map {}: {message}", path.display())]
+    Image {
+        /// The map file.
+        path: PathBuf,
+        /// The decoder's error, as one line.
         message: String,
     },
     /// The file decoded to no texels.
@@ -139,10 +156,11 @@ impl EnvironmentMap {
         let is_exr = path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-        let bytes = crate::limits::read_file(path, limits).map_err(|e| EnvironmentError::Read {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+        let bytes =
+            crate::limits::read_file(path, limits).map_err(|source| EnvironmentError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
         // Per texel: the RGB texels and the sampling distribution's weights, about 16 bytes.
         const TEXEL_BYTES: u64 = 16;
         let (width, height, texels) = if is_exr {
@@ -159,9 +177,9 @@ impl EnvironmentMap {
                         size.width() as u64 * size.height() as u64,
                         TEXEL_BYTES,
                     )
-                    .map_err(|e| EnvironmentError::Read {
+                    .map_err(|source| EnvironmentError::OverBudget {
                         path: path.to_path_buf(),
-                        message: e.to_string(),
+                        source,
                     })?;
             }
             let image = exr::prelude::read()
@@ -188,7 +206,7 @@ impl EnvironmentMap {
             )
         } else {
             let img = crate::limits::decode_image(&bytes, limits, TEXEL_BYTES)
-                .map_err(|message| EnvironmentError::Read {
+                .map_err(|message| EnvironmentError::Image {
                     path: path.to_path_buf(),
                     message,
                 })?

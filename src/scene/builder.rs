@@ -113,4 +113,30 @@ mod tests {
         assert_eq!(scene.triangle_count(), 1);
         assert_eq!(scene.lights().len(), 2);
     }
+
+    #[test]
+    fn build_refuses_non_finite_cameras_lights_and_emission() {
+        let cases: [(&str, fn(&mut SceneBuilder)); 4] = [
+            ("camera", |b| {
+                b.set_camera(Camera::look_at(Vec3::Z, Vec3::ZERO, f32::NAN))
+            }),
+            ("camera", |b| {
+                b.set_camera(Camera::look_at(Vec3::Z, Vec3::ZERO, 4.0))
+            }),
+            ("light", |b| {
+                b.add_point_light(Vec3::Y, Rgb::splat(f32::INFINITY))
+            }),
+            ("emission", |b| {
+                let mut m = Material::lambertian("lamp", Rgb::ONE);
+                m.emission = Rgb::splat(f32::NAN);
+                b.add_material(m);
+            }),
+        ];
+        for (what, make) in cases {
+            let mut b = SceneBuilder::new();
+            make(&mut b);
+            let err = b.build().err().expect("refused");
+            assert!(err.to_string().contains(what), "{err}");
+        }
+    }
 }

@@ -198,11 +198,15 @@ impl SceneBuilder {
         &self.media
     }
 
-    /// Checks every reference between the parts: a mesh's material and vertex indices and attribute
-    /// lengths, a material's textures and interior medium.
+    /// Checks every reference between the parts (a mesh's material and vertex indices and attribute lengths, a
+    /// material's textures and interior medium) and the numbers every loader must have checked already, as a
+    /// last guard for scenes built in code: a finite camera with 0 < yfov < π, finite lights, positions and
+    /// emission.
     fn validate(&self) -> Result<(), SceneError> {
         let invalid =
             |what: String| SceneError::new(BUILDER_PATH, SceneErrorKind::InvalidReference(what));
+        let malformed =
+            |what: String| SceneError::new(BUILDER_PATH, SceneErrorKind::Malformed(what));
         for mesh in &self.meshes {
             if mesh.material as usize >= self.materials.len() {
                 return Err(invalid(format!(
@@ -229,6 +233,39 @@ impl SceneBuilder {
                 )));
             }
         }
+        if let Some(c) = &self.camera {
+            if !(c.camera_to_world.is_finite() && c.yfov > 0.0 && c.yfov < std::f32::consts::PI)
+                || c.aspect_ratio.is_some_and(|a| !(a.is_finite() && a > 0.0))
+            {
+                return Err(malformed(format!(
+                    "the camera needs a finite placement, 0 < yfov < pi and a positive aspect ratio (yfov {}, aspect ratio {:?})",
+                    c.yfov, c.aspect_ratio
+                )));
+            }
+        }
+        for (i, light) in self.lights.iter().enumerate() {
+            let finite = match light {
+                Light::Point(l) => l.position.is_finite() && l.intensity.is_finite(),
+                Light::Spot(l) => {
+                    l.position.is_finite() && l.direction.is_finite() && l.intensity.is_finite()
+                }
+                Light::Directional(l) => l.direction.is_finite() && l.irradiance.is_finite(),
+                Light::Area(_) | Light::Environment(_) => true,
+            };
+            if !finite {
+                return Err(malformed(format!(
+                    "light {i} has a non-finite position, direction or intensity"
+                )));
+            }
+        }
+        for mesh in &self.meshes {
+            if !mesh.positions.iter().all(|p| p.is_finite()) {
+                return Err(malformed(format!(
+                    "mesh '{}' has a non-finite position",
+                    mesh.name
+                )));
+            }
+        }
         for m in &self.materials {
             let textures = [
                 m.base_color_texture,
@@ -245,6 +282,12 @@ impl SceneBuilder {
                     "material '{}' uses texture {t}, but there are {} textures",
                     m.name,
                     self.textures.len()
+                )));
+            }
+            if !(m.emission.is_finite() && m.emission.min_element() >= 0.0) {
+                return Err(malformed(format!(
+                    "material '{}' has emission {:?}, not finite and non-negative",
+                    m.name, m.emission
                 )));
             }
             if let Some(i) = m.interior.filter(|&i| i as usize >= self.media.len()) {
