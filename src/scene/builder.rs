@@ -116,7 +116,9 @@ mod tests {
 
     #[test]
     fn build_refuses_non_finite_cameras_lights_and_emission() {
-        let cases: [(&str, fn(&mut SceneBuilder)); 4] = [
+        /// A scene part that `build` must refuse, and a word its error names.
+        type Case = (&'static str, fn(&mut SceneBuilder));
+        let cases: [Case; 4] = [
             ("camera", |b| {
                 b.set_camera(Camera::look_at(Vec3::Z, Vec3::ZERO, f32::NAN))
             }),
