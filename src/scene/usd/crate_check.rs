@@ -109,36 +109,10 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
             counted_vectors(bytes, rep.payload(), ty)?;
             if ty == DICTIONARY {
                 let mut budget = Reader { bytes, pos: 0 }.limit();
-                dictionary(bytes, rep.payload(), 0, &mut budget)?;
+                dictionary(bytes, rep.payload(), 0, &mut budget, version)?;
             }
         }
-        if !rep.is_array() || rep.is_inlined() || rep.payload() == 0 {
-            continue;
-        }
-        let mut a = Reader { bytes, pos: 0 };
-        a.seek(rep.payload())?;
-        if version < (0, 5, 0) {
-            a.take(4)?;
-        }
-        let n = if version < (0, 7, 0) {
-            u32::from_le_bytes(a.take(4)?.try_into().unwrap_or_default()) as u64
-        } else {
-            a.u64()?
-        };
-        if n > a.limit() {
-            return Err(format!("an array claims {n} elements"));
-        }
-        if rep.is_compressed() && n >= 4 {
-            // Compressed arrays hold an LZ4 block (integers) or a codec byte before one (floats).
-            let mut block = Reader { bytes, pos: a.pos };
-            if block.compressed().is_err() {
-                let mut after_code = Reader {
-                    bytes,
-                    pos: a.pos + 1,
-                };
-                after_code.compressed_or_table()?;
-            }
-        }
+        array_value(bytes, rep.0, version)?;
     }
     Ok(())
 }
@@ -151,7 +125,13 @@ const DICTIONARY: u64 = 31;
 /// dictionary and follows the jumps without checking them, so nesting deeper than
 /// [`super::layers::MAX_NESTING`], a jump outside the file, or more entries in all than the file could hold
 /// (jumps can revisit entries, even in a loop) is refused. `budget` counts down the entries visited.
-fn dictionary(bytes: &[u8], payload: u64, depth: usize, budget: &mut u64) -> Result<(), String> {
+fn dictionary(
+    bytes: &[u8],
+    payload: u64,
+    depth: usize,
+    budget: &mut u64,
+    version: (u8, u8, u8),
+) -> Result<(), String> {
     if depth > super::layers::MAX_NESTING {
         return Err(format!(
             "dictionaries nest deeper than {} levels",
@@ -179,7 +159,58 @@ fn dictionary(bytes: &[u8], payload: u64, depth: usize, budget: &mut u64) -> Res
         // A value representation: type in bits 48..56, "inlined" bit 62, payload in bits 0..48.
         let rep = r.u64()?;
         if (rep >> 48) & 0xFF == DICTIONARY && rep & (1 << 62) == 0 {
-            dictionary(bytes, rep & ((1 << 48) - 1), depth + 1, budget)?;
+            dictionary(bytes, rep & ((1 << 48) - 1), depth + 1, budget, version)?;
+        }
+        // An array entry is read like an array field: its count is allocated first.
+        array_value(bytes, rep, version)?;
+    }
+    Ok(())
+}
+
+/// Checks the array a value representation `rep` points at, if it is a non-inlined array: its element count
+/// must fit what the file could hold, and a compressed one must hold a whole LZ4 block (the reader allocates
+/// the count, and the block's decoded size, before reading them).
+fn array_value(bytes: &[u8], rep: u64, version: (u8, u8, u8)) -> Result<(), String> {
+    let is_array = rep & (1 << 63) != 0;
+    let is_inlined = rep & (1 << 62) != 0;
+    let is_compressed = rep & (1 << 61) != 0;
+    let payload = rep & ((1 << 48) - 1);
+    if !is_array || is_inlined || payload == 0 {
+        return Ok(());
+    }
+    let mut a = Reader { bytes, pos: 0 };
+    a.seek(payload)?;
+    if version < (0, 5, 0) {
+        a.take(4)?;
+    }
+    let n = if version < (0, 7, 0) {
+        u32::from_le_bytes(a.take(4)?.try_into().unwrap_or_default()) as u64
+    } else {
+        a.u64()?
+    };
+    if n > a.limit() {
+        return Err(format!("an array claims {n} elements"));
+    }
+    if is_compressed && n >= 4 {
+        // Compressed integer arrays hold an LZ4 block; compressed float arrays a codec byte before one (or
+        // before a lookup table). Which it is follows the element type, as the reader decides.
+        match (rep >> 48) & 0xFF {
+            3..=6 => Reader { bytes, pos: a.pos }.compressed()?,
+            ty @ 7..=9 => {
+                let mut r = Reader { bytes, pos: a.pos };
+                match r.take(1)?[0] {
+                    b'i' => r.compressed()?,
+                    b't' => {
+                        // A lookup table of elements (2, 4 or 8 bytes), then the compressed indices.
+                        let entries = u32::from_le_bytes(r.take(4)?.try_into().unwrap_or_default());
+                        let size = [2usize, 4, 8][(ty - 7) as usize];
+                        r.take((entries as usize).saturating_mul(size))?;
+                        r.compressed()?;
+                    }
+                    _ => {}
+                }
+            }
+            _ => {}
         }
     }
     Ok(())
@@ -277,20 +308,6 @@ impl Reader<'_> {
         let n = self.u64()?;
         let n = usize::try_from(n).map_err(|_| "compressed size overflows")?;
         self.take(n).map(|_| ())
-    }
-
-    /// A float array's integer-coded block, or its lookup table (a u32 size) followed by a block.
-    fn compressed_or_table(&mut self) -> Result<(), String> {
-        let start = self.pos;
-        if self.compressed().is_ok() {
-            return Ok(());
-        }
-        self.pos = start;
-        let n = u32::from_le_bytes(self.take(4)?.try_into().unwrap_or_default()) as u64;
-        if n > self.limit() {
-            return Err(format!("a lookup table of {n} entries exceeds the file"));
-        }
-        Ok(())
     }
 }
 
