@@ -280,7 +280,19 @@ impl Loader<'_> {
     }
 
     /// The composed value of attribute `name` on `prim`, if authored.
+    /// The value of attribute `name` on `prim`. A name that is not a USD property name (identifiers joined by
+    /// `:`) is an error before `openusd` sees it: names come from the file too (`xformOpOrder`), and `openusd`
+    /// resolving a malformed one (a line break inside, from a damaged string) walked path parents for minutes.
     fn value(&self, prim: &usd::Prim, name: &str) -> Result<Option<sdf::Value>, SceneError> {
+        if !is_property_name(name) {
+            return Err(self.error(
+                prim.path().as_str(),
+                format!(
+                    "'{}' is not a valid attribute name",
+                    one_line(name, MESSAGE_CHARS / 4)
+                ),
+            ));
+        }
         prim.attribute(name).get::<sdf::Value>().map_err(|e| {
             self.error(
                 &format!("{}.{name}", prim.path().as_str()),
@@ -424,5 +436,43 @@ impl Loader<'_> {
             aspect_ratio: Some(h / v),
         });
         Ok(())
+    }
+}
+
+/// True for a USD property name: identifiers (a letter or `_`, then letters, digits or `_`) joined by `:`.
+fn is_property_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.split(':').all(|part| {
+            let mut chars = part.chars();
+            chars
+                .next()
+                .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn property_names_are_namespaced_identifiers() {
+        for good in [
+            "points",
+            "xformOp:translate",
+            "xformOp:rotateXYZ:pivot",
+            "_a1",
+        ] {
+            assert!(super::is_property_name(good), "{good}");
+        }
+        for bad in [
+            "",
+            "xformOp}:translate",
+            "xformOp:tr\nx",
+            "a::b",
+            "1a",
+            "a b",
+            ":a",
+        ] {
+            assert!(!super::is_property_name(bad), "{bad:?}");
+        }
     }
 }
