@@ -207,6 +207,9 @@ fn info(args: InfoArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// Radiance of the neutral environment that lights a scene with no light of its own, as glTF viewers do.
+const DEFAULT_ENVIRONMENT_RADIANCE: f32 = 1.0;
+
 /// The longest error or warning line printed: messages quoting file contents are cut there.
 const MAX_MESSAGE_CHARS: usize = 1000;
 
@@ -322,6 +325,18 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let mut builder = load_builder(args.scene.as_deref(), limits)?;
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
+    }
+    let lit = !builder.lights().is_empty()
+        || builder.materials().iter().any(|m| m.is_emissive())
+        || builder.media().iter().any(|m| m.is_emissive());
+    if !lit {
+        builder.set_environment(EnvironmentLight::Constant(Rgb::splat(
+            DEFAULT_ENVIRONMENT_RADIANCE,
+        )));
+        eprintln!(
+            "nimbus: the scene has no light, so a uniform white environment of radiance \
+             {DEFAULT_ENVIRONMENT_RADIANCE} lights it (a nimbus_environment or --env-color 0,0,0 keeps it dark)"
+        );
     }
     let scene: Scene = builder.build().map_err(|e| e.to_string())?;
     for w in scene.warnings() {

@@ -117,3 +117,42 @@ fn outputs_and_counts_are_checked_before_rendering() {
     assert!(dir.join("out.exr").exists() && dir.join("out.png").exists());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn a_scene_without_light_gets_a_default_environment_unless_told_to_stay_dark() {
+    // A grey floor seen from above, with no light of any kind: it used to render pure black, silently.
+    let dir = std::env::temp_dir().join(format!("nimbus-cli-unlit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("floor.obj");
+    std::fs::write(
+        &obj,
+        "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 3 2\nf 1 4 3\n",
+    )
+    .unwrap();
+    let render = |flags: &[&str]| {
+        let exr = dir.join("out.exr");
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&obj)
+            .args(["--width", "16", "--spp", "4", "-o"])
+            .arg(&exr)
+            .args(flags)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert!(output.status.success(), "{stderr}");
+        let png = image::open(dir.join("out.png")).unwrap().to_luma8();
+        let mean = png.pixels().map(|p| p[0] as f64).sum::<f64>() / png.len() as f64;
+        (stderr, mean)
+    };
+    let (stderr, mean) = render(&[]);
+    assert!(stderr.contains("no light"), "{stderr}");
+    assert!(
+        mean > 20.0,
+        "the default environment lights the floor: mean {mean}"
+    );
+    let (stderr, mean) = render(&["--env-color", "0,0,0"]);
+    assert!(!stderr.contains("no light"), "{stderr}");
+    assert_eq!(mean, 0.0, "an explicit black environment keeps it dark");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -273,6 +273,10 @@ impl Medium for GridMedium {
         false
     }
 
+    fn is_emissive(&self) -> bool {
+        self.emission.as_ref().is_some_and(|e| e.scale > 0.0)
+    }
+
     fn sample_free_flight(
         &self,
         ray: &Ray,

@@ -78,6 +78,12 @@ pub trait Medium: Send + Sync {
     /// True when the medium never scatters, so paths only need its transmittance.
     fn is_absorbing_only(&self) -> bool;
 
+    /// True when the medium emits light (a grid with a blackbody temperature field), so that a scene lit only
+    /// by it is not unlit.
+    fn is_emissive(&self) -> bool {
+        false
+    }
+
     /// Proposes the distance of the next real collision in `(0, t_max)`, or `None`. `throughput` is the path's
     /// current throughput, which chromatic media use to choose the channel to sample.
     fn sample_free_flight(
