@@ -7,6 +7,7 @@
 
 mod common;
 
+use common::splitmix as mix;
 use nimbus::render::{RenderSettings, Renderer};
 use nimbus::scene::{gltf, LoadOptions};
 use serde_json::Value;
@@ -19,14 +20,6 @@ const HANG: Duration = Duration::from_secs(10);
 
 /// Mutated cases per input file.
 const CASES_PER_FILE: u64 = 80;
-
-/// Deterministic pseudo-random sequence (SplitMix64).
-fn mix(i: u64) -> u64 {
-    let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
 
 /// A stream of pseudo-random numbers from one seed.
 struct Stream(u64);

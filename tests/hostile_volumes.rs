@@ -83,6 +83,17 @@ fn one_printable_line(message: &str) -> bool {
     message.len() <= 1000 && message.bytes().all(|b| (0x20..0x7f).contains(&b))
 }
 
+/// A scene with a camera and nothing else.
+fn empty_scene() -> nimbus::Scene {
+    let mut builder = SceneBuilder::new();
+    builder.set_camera(nimbus::Camera::look_at(
+        nimbus::math::Vec3::Z,
+        nimbus::math::Vec3::ZERO,
+        0.8,
+    ));
+    builder.build().unwrap()
+}
+
 fn corpus_file(name: &str) -> Option<Vec<u8>> {
     Some(std::fs::read(common::vdb_corpus_dir()?.join(name)).unwrap())
 }
@@ -236,13 +247,7 @@ fn a_majorant_structure_over_the_budget_is_refused_or_left_out() {
 
 #[test]
 fn a_film_over_the_budget_is_refused_before_it_is_allocated() {
-    let mut builder = SceneBuilder::new();
-    builder.set_camera(nimbus::Camera::look_at(
-        nimbus::math::Vec3::Z,
-        nimbus::math::Vec3::ZERO,
-        0.8,
-    ));
-    let scene = builder.build().unwrap();
+    let scene = empty_scene();
     for (width, height) in [(100_000, 100_000), (usize::MAX, 2), (1 << 32, 1 << 32)] {
         let settings = RenderSettings {
             width,
@@ -261,13 +266,7 @@ fn a_film_over_the_budget_is_refused_before_it_is_allocated() {
 
 #[test]
 fn thread_counts_are_capped() {
-    let mut builder = SceneBuilder::new();
-    builder.set_camera(nimbus::Camera::look_at(
-        nimbus::math::Vec3::Z,
-        nimbus::math::Vec3::ZERO,
-        0.8,
-    ));
-    let scene = builder.build().unwrap();
+    let scene = empty_scene();
     let settings = RenderSettings {
         width: 4,
         height: 4,

@@ -94,10 +94,9 @@ fn sweep(source: &Path, cases: u64, seed: u64) -> [usize; 2] {
 /// A pseudo-random number for flip `k` of case `i`.
 fn hostile_mix(i: u64, k: u64) -> u64 {
     // SplitMix64's finaliser over a mix of both.
-    let mut z = i.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k.wrapping_add(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    common::splitmix_finalize(
+        i.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k.wrapping_add(0xD1B5_4A32_D192_ED03),
+    )
 }
 
 /// Repeats the text around an opening brace many times over: deep nesting, balanced or not.

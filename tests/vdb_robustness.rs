@@ -2,6 +2,7 @@
 
 mod common;
 
+use common::splitmix as mix;
 use nimbus::vdb::{read_bytes, VdbErrorKind};
 use std::path::Path;
 use std::time::Instant;
@@ -12,14 +13,6 @@ fn no_panic(bytes: &[u8], label: &str) -> bool {
         Ok(ok) => ok,
         Err(_) => panic!("reader panicked on {label}"),
     }
-}
-
-/// Deterministic pseudo-random sequence (SplitMix64).
-fn mix(i: u64) -> u64 {
-    let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 #[test]

@@ -131,7 +131,12 @@ impl UniformGrid {
     }
 
     fn cells(&self) -> usize {
-        (self.res.x * self.res.y * self.res.z) as usize
+        self.cell_count() as usize
+    }
+
+    /// The number of cells, without overflow.
+    fn cell_count(&self) -> u64 {
+        self.res.x as u64 * self.res.y as u64 * self.res.z as u64
     }
 
     /// Raises `values` of the cells `a..=b` (clamped to the grid) to at least `v`.
@@ -338,16 +343,12 @@ impl Majorants {
             MajorantKind::Global => 0,
             MajorantKind::Grid16 => (GRID16_RES as u64).pow(3) * 4,
             MajorantKind::Adaptive => {
-                // As in `Hierarchy::build`: coarse cells of 2^COARSE_LOG2 voxels, each a (min, max, brick)
-                // entry plus the f32 maximum of `coarse_maxima`.
-                let c = 1i64 << COARSE_LOG2;
-                let cells = (0..3).try_fold(1u64, |n, axis| {
-                    let lo = (bounds.min[axis].floor() as i64).div_euclid(c);
-                    let hi = (bounds.max[axis].ceil() as i64 - 1).div_euclid(c);
-                    n.checked_mul((hi - lo + 1).max(1) as u64)
-                });
+                // Each coarse cell is a (min, max, brick) entry plus the f32 maximum of `coarse_maxima`.
                 let entry = (std::mem::size_of::<(f32, f32, u32)>() + 4) as u64;
-                cells.and_then(|n| n.checked_mul(entry)).unwrap_or(u64::MAX)
+                Hierarchy::coarse_grid(bounds)
+                    .0
+                    .cell_count()
+                    .saturating_mul(entry)
             }
         }
     }
@@ -460,18 +461,26 @@ fn grid16(tree: &FloatTree, s: f32, bounds: Aabb) -> (UniformGrid, Vec<f32>) {
 }
 
 impl Hierarchy {
+    /// The coarse grid of 2^COARSE_LOG2-voxel cells over the index-space `bounds`, and the index of its first
+    /// cell.
+    fn coarse_grid(bounds: Aabb) -> (UniformGrid, IVec3) {
+        let c = 1 << COARSE_LOG2;
+        let lo = bounds.min.floor().as_ivec3().div_euclid(IVec3::splat(c));
+        let hi = (bounds.max.ceil().as_ivec3() - 1).div_euclid(IVec3::splat(c));
+        let grid = UniformGrid {
+            origin: (lo * c).as_vec3(),
+            cell: Vec3::splat(c as f32),
+            res: hi - lo + 1,
+        };
+        (grid, lo)
+    }
+
     /// Builds the two-level structure. `voxel` (mean world voxel edge) only steers where refinement pays: a cell
     /// is kept as one segment where refining would save less than [`MERGE_TAU`] of majorant optical depth per
     /// crossing, estimated as (cell max − mean of its fine maxima) × cell edge.
     fn build(tree: &FloatTree, s: f32, bounds: Aabb, voxel: f32) -> Self {
         let c = 1 << COARSE_LOG2;
-        let lo = bounds.min.floor().as_ivec3().div_euclid(IVec3::splat(c));
-        let hi = (bounds.max.ceil().as_ivec3() - 1).div_euclid(IVec3::splat(c));
-        let coarse = UniformGrid {
-            origin: (lo * c).as_vec3(),
-            cell: Vec3::splat(c as f32),
-            res: hi - lo + 1,
-        };
+        let (coarse, lo) = Self::coarse_grid(bounds);
         let cmax = coarse_maxima(tree, s, &coarse, lo);
         let mut cells = vec![(0.0f32, 0.0f32, NO_BRICK); coarse.cells()];
         let mut bricks = Vec::new();

@@ -156,3 +156,15 @@ pub fn assert_sweep_peak_memory(sweep: &str) {
         );
     }
 }
+
+/// SplitMix64's output function: a 64-bit avalanche of `z`.
+pub fn splitmix_finalize(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Value `i` of the SplitMix64 sequence: the deterministic pseudo-random numbers of the hostile-input sweeps.
+pub fn splitmix(i: u64) -> u64 {
+    splitmix_finalize(i.wrapping_add(0x9E37_79B9_7F4A_7C15))
+}

@@ -2,6 +2,7 @@
 //! sequence, and one damaged scene loaded, built and rendered on a worker thread, so that a panic is reported
 //! with the case's label and a hang is detected.
 
+use crate::common::splitmix as mix;
 use nimbus::render::{RenderSettings, Renderer};
 use nimbus::scene::{load_builder, LoadOptions};
 use std::path::PathBuf;
@@ -10,14 +11,6 @@ use std::time::Duration;
 
 /// How long one case may take before it counts as a hang (detection only: cases take milliseconds).
 const HANG: Duration = Duration::from_secs(10);
-
-/// Deterministic pseudo-random sequence (SplitMix64).
-fn mix(i: u64) -> u64 {
-    let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
 
 /// The byte ranges of the whitespace-separated tokens of `text`.
 fn tokens(text: &[u8]) -> Vec<(usize, usize)> {
