@@ -19,5 +19,5 @@ pub use dielectric::Dielectric;
 pub use gltf_pbr::{GltfPbr, PbrParams};
 pub use lambert::Lambert;
 pub use microfacet::{Ggx, DELTA_ALPHA};
-pub use surface::{Material, TextureId};
+pub use surface::{AlphaMode, Material, TextureId};
 pub use texture::{ColorSpace, Filter, MipImage, Sampler, TexCoord, Texture, Wrap};

@@ -47,6 +47,27 @@ pub struct Material {
     pub double_sided: bool,
     /// The medium filling the interior of a closed mesh with this material (index into `Scene::media`).
     pub interior: Option<u32>,
+    /// How the coverage (alpha) is used: opaque, a cut-out, or partial coverage (glTF `alphaMode`).
+    pub alpha_mode: AlphaMode,
+    /// Optional coverage texture whose first channel multiplies alpha (OBJ `map_d`); glTF takes alpha from the
+    /// base-colour texture instead.
+    pub alpha_texture: Option<TextureId>,
+}
+
+/// How a material's alpha (`base_color.w` × the base-colour texture's alpha × `alpha_texture`) covers the surface
+/// (glTF 2.0 §3.9.4 `alphaMode`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum AlphaMode {
+    /// Alpha is ignored: the surface is fully opaque.
+    #[default]
+    Opaque,
+    /// A cut-out: the surface exists where alpha ≥ `cutoff` and is absent elsewhere, for every ray.
+    Mask {
+        /// The glTF `alphaCutoff` (default 0.5).
+        cutoff: f32,
+    },
+    /// Partial coverage: a ray passes through with probability 1 − alpha (stochastic, unbiased transparency).
+    Blend,
 }
 
 impl Default for Material {
@@ -68,6 +89,8 @@ impl Default for Material {
             transmission: 0.0,
             double_sided: false,
             interior: None,
+            alpha_mode: AlphaMode::Opaque,
+            alpha_texture: None,
         }
     }
 }

@@ -29,7 +29,7 @@ use crate::light::{
     LUMENS_PER_WATT,
 };
 use crate::limits::{one_line, Limits};
-use crate::material::{ColorSpace, Filter, Material, MipImage, Sampler, Texture, Wrap};
+use crate::material::{AlphaMode, ColorSpace, Filter, Material, MipImage, Sampler, Texture, Wrap};
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
 use gltf::json::validation::Validate;
@@ -583,6 +583,8 @@ impl Loader<'_> {
                 .map_or(0.0, |t| t.transmission_factor()),
             double_sided: material.double_sided(),
             interior: None,
+            alpha_mode: AlphaMode::Opaque,
+            alpha_texture: None,
         };
         let mut m = m;
         m.interior = self.interior_medium(&material, &m)?;
