@@ -326,15 +326,12 @@ fn render(args: RenderArgs) -> Result<(), String> {
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
-    let lit = !builder.lights().is_empty()
-        || builder.materials().iter().any(|m| m.is_emissive())
-        || builder.media().iter().any(|m| m.is_emissive());
-    if !lit {
+    if !builder.has_own_lighting() {
         builder.set_environment(EnvironmentLight::Constant(Rgb::splat(
             DEFAULT_ENVIRONMENT_RADIANCE,
         )));
         eprintln!(
-            "nimbus: the scene has no light, so a uniform white environment of radiance \
+            "nimbus: the scene has no light (textured emission does not count), so a uniform white environment of radiance \
              {DEFAULT_ENVIRONMENT_RADIANCE} lights it (a nimbus_environment or --env-color 0,0,0 keeps it dark)"
         );
     }

@@ -552,20 +552,43 @@ impl Bvh {
     /// the same distance, the triangle with the lowest input index is returned, so the result equals testing
     /// every triangle in input order.
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<TriangleHit> {
-        if self.stack_needed <= STACK_SMALL {
-            self.traverse::<false, STACK_SMALL>(ray, t_min, t_max)
-        } else {
-            self.traverse::<false, STACK_MAX>(ray, t_min, t_max)
-        }
+        self.intersect_where(ray, t_min, t_max, &|_| true)
     }
 
     /// Whether any triangle is hit with `t_min <= t <= t_max` (shadow rays); stops at the first hit found.
     pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.occluded_where(ray, t_min, t_max, &|_| true)
+    }
+
+    /// As [`Self::intersect`], counting only the hits that `accept` keeps: a rejected hit (an alpha cut-out)
+    /// is passed through as if the triangle were not there.
+    pub fn intersect_where(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        accept: &impl Fn(&TriangleHit) -> bool,
+    ) -> Option<TriangleHit> {
         if self.stack_needed <= STACK_SMALL {
-            self.traverse::<true, STACK_SMALL>(ray, t_min, t_max)
+            self.traverse::<false, STACK_SMALL>(ray, t_min, t_max, accept)
+        } else {
+            self.traverse::<false, STACK_MAX>(ray, t_min, t_max, accept)
+        }
+    }
+
+    /// As [`Self::occluded`], counting only the hits that `accept` keeps.
+    pub fn occluded_where(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        accept: &impl Fn(&TriangleHit) -> bool,
+    ) -> bool {
+        if self.stack_needed <= STACK_SMALL {
+            self.traverse::<true, STACK_SMALL>(ray, t_min, t_max, accept)
                 .is_some()
         } else {
-            self.traverse::<true, STACK_MAX>(ray, t_min, t_max)
+            self.traverse::<true, STACK_MAX>(ray, t_min, t_max, accept)
                 .is_some()
         }
     }
@@ -573,13 +596,14 @@ impl Bvh {
     /// Stack-based traversal of the 4-wide tree with a stack of `STACK` entries. Stack entries name a child slot (`node·4 + slot`) and its
     /// entry distance; the hit children of a node are pushed farthest first, so the nearest is visited
     /// next, and an entry is dropped when popped if a closer hit has been found since. With `ANY_HIT` the
-    /// first hit found ends the search and children are not sorted.
+    /// first hit found ends the search and children are not sorted. Hits that `accept` rejects are skipped.
     #[inline(always)]
     fn traverse<const ANY_HIT: bool, const STACK: usize>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
+        accept: &impl Fn(&TriangleHit) -> bool,
     ) -> Option<TriangleHit> {
         // A non-finite origin or direction, or a NaN interval, meets nothing. Such a ray would make every
         // slab comparison NaN, which the slab test reads as "no constraint", so it would "hit" every slot.
@@ -647,11 +671,12 @@ impl Bvh {
                     .zip(&self.prim_ids[range])
                 {
                     if let Some((t, b1, b2)) = intersect_triangle(&r.tri, tri, t_min, best_t) {
-                        if ANY_HIT {
-                            return Some(TriangleHit { t, prim, b1, b2 });
-                        }
-                        if t < best_t || best.is_none_or(|b| prim < b.prim) {
-                            best = Some(TriangleHit { t, prim, b1, b2 });
+                        let hit = TriangleHit { t, prim, b1, b2 };
+                        if (t < best_t || best.is_none_or(|b| prim < b.prim)) && accept(&hit) {
+                            if ANY_HIT {
+                                return Some(hit);
+                            }
+                            best = Some(hit);
                             best_t = t;
                             clip = clip_of(t);
                         }

@@ -157,6 +157,19 @@ impl Material {
         Bsdf::from_gltf(&self.pbr_params(tc, textures))
     }
 
+    /// The coverage at texture coordinates `tc`: `base_color.w` × the base-colour texture's alpha × the first
+    /// channel of `alpha_texture`, in \[0, 1\]. Only [`AlphaMode::Mask`] and [`AlphaMode::Blend`] use it.
+    pub fn alpha_at(&self, tc: TexCoord, textures: &[Texture]) -> f32 {
+        let mut alpha = self.base_color.w;
+        if let Some(t) = lookup(textures, self.base_color_texture, tc) {
+            alpha *= t.w;
+        }
+        if let Some(t) = lookup(textures, self.alpha_texture, tc) {
+            alpha *= t.x;
+        }
+        alpha.clamp(0.0, 1.0)
+    }
+
     /// True when the material has a normal map.
     pub fn has_normal_map(&self) -> bool {
         self.normal_texture.is_some()

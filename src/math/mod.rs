@@ -18,7 +18,7 @@ pub use float::gamma;
 pub use frame::Frame;
 pub use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 pub use ray::Ray;
-pub use rng::Rng;
+pub use rng::{hash_to_unit, Rng};
 
 /// Linear RGB radiance, reflectance or throughput. Channels are (R, G, B) in linear Rec.709 primaries.
 pub type Rgb = Vec3;

@@ -89,6 +89,24 @@ mod tests {
     use crate::material::Material;
 
     #[test]
+    fn textured_emission_alone_does_not_light_a_scene() {
+        let mut b = SceneBuilder::new();
+        b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+        assert!(!b.has_own_lighting());
+        let mut glow = Material::lambertian("glow", Rgb::splat(0.5));
+        glow.emission = Rgb::ONE;
+        glow.emission_texture = Some(0);
+        b.add_material(glow.clone());
+        assert!(!b.has_own_lighting(), "textured emission is detail");
+        glow.emission_texture = None;
+        b.add_material(glow);
+        assert!(
+            b.has_own_lighting(),
+            "an untextured emitter is a light fixture"
+        );
+    }
+
+    #[test]
     fn add_triangle_mesh_validates_indices_and_material() {
         let mut b = SceneBuilder::new();
         let tri = vec![Vec3::ZERO, Vec3::X, Vec3::Y];

@@ -583,7 +583,7 @@ impl Loader<'_> {
                 .map_or(0.0, |t| t.transmission_factor()),
             double_sided: material.double_sided(),
             interior: None,
-            alpha_mode: AlphaMode::Opaque,
+            alpha_mode: alpha_mode(&material),
             alpha_texture: None,
         };
         let mut m = m;
@@ -625,6 +625,9 @@ impl Loader<'_> {
         ];
         if let Some(t) = material.normal_texture() {
             fields.push(("normalTexture.scale", vec![t.scale()], false));
+        }
+        if let Some(cutoff) = material.alpha_cutoff() {
+            fields.push(("alphaCutoff", vec![cutoff], true));
         }
         if let Some(ior) = material.ior() {
             fields.push(("KHR_materials_ior.ior", vec![ior], false));
@@ -961,4 +964,15 @@ fn triangulate(indices: &[u32], mode: gltf::mesh::Mode) -> Vec<[u32; 3]> {
     tris.into_iter()
         .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
         .collect()
+}
+
+/// The material's `alphaMode` and `alphaCutoff` (default 0.5), glTF 2.0 §3.9.4.
+fn alpha_mode(material: &gltf::Material) -> AlphaMode {
+    match material.alpha_mode() {
+        gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+        gltf::material::AlphaMode::Mask => AlphaMode::Mask {
+            cutoff: material.alpha_cutoff().unwrap_or(0.5),
+        },
+        gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+    }
 }

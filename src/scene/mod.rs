@@ -15,10 +15,11 @@ pub use builder::BUILDER_PATH;
 pub use camera::Camera;
 pub use error::{SceneError, SceneErrorKind};
 
+use crate::geometry::TriangleHit;
 use crate::geometry::{Bvh, Mesh, SurfacePoint};
 use crate::light::{AreaLight, EnvironmentLight, Light, LightSampler};
-use crate::material::{Material, TexCoord, Texture};
-use crate::math::{Aabb, Frame, Ray, Vec2, Vec3};
+use crate::material::{AlphaMode, Material, TexCoord, Texture};
+use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3};
 use crate::volume::Medium;
 use std::path::Path;
 use std::sync::Arc;
@@ -173,6 +174,20 @@ impl SceneBuilder {
         &self.textures
     }
 
+    /// Whether the scene lights itself: a punctual or environment light, an emitting medium, or a material
+    /// with untextured emission (a light fixture, such as a Cornell box's ceiling light). Emission that an
+    /// `emissiveTexture` modulates (the screens and lamps on an asset such as DamagedHelmet) does not count:
+    /// it is detail, which glTF viewers show under their own default environment. The CLI lights a scene for
+    /// which this is false with a neutral environment.
+    pub fn has_own_lighting(&self) -> bool {
+        !self.lights.is_empty()
+            || self
+                .materials
+                .iter()
+                .any(|m| m.is_emissive() && m.emission_texture.is_none())
+            || self.media.iter().any(|m| m.is_emissive())
+    }
+
     /// The lights added so far (area lights are made by [`build`](Self::build)).
     pub fn lights(&self) -> &[Light] {
         &self.lights
@@ -272,6 +287,7 @@ impl SceneBuilder {
                 m.metallic_roughness_texture,
                 m.normal_texture.map(|(t, _)| t),
                 m.emission_texture,
+                m.alpha_texture,
             ];
             if let Some(t) = textures
                 .into_iter()
@@ -350,7 +366,12 @@ impl SceneBuilder {
         let filled_media = (0..self.media.len() as u32)
             .filter(|&m| self.media[m as usize].fill_bounds().is_some())
             .collect();
+        let has_alpha = self
+            .materials
+            .iter()
+            .any(|m| m.alpha_mode != AlphaMode::Opaque);
         Ok(Scene {
+            has_alpha,
             media: self.media,
             filled_media,
             camera: self.camera.unwrap_or_else(|| Camera::framing(&bounds)),
@@ -408,6 +429,8 @@ pub struct Scene {
     /// Indices of the media that fill a region by position (VDB volumes), not a mesh interior.
     pub(crate) filled_media: Vec<u32>,
     bvh: Bvh,
+    /// True when some material is a cut-out or partly covering, so hits must be alpha-tested.
+    has_alpha: bool,
     prims: Vec<(u32, u32)>,
     light_of_prim: Vec<u32>,
 }
@@ -547,9 +570,45 @@ impl Scene {
         &self.media
     }
 
-    /// True when something blocks the segment `(t_min, t_max)` of `ray`.
+    /// True when something blocks the segment `(t_min, t_max)` of `ray` (alpha cut-outs and partial coverage
+    /// let it through as in [`Self::intersect`]).
     pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
-        self.bvh.occluded(ray, t_min, t_max)
+        if self.has_alpha {
+            self.bvh
+                .occluded_where(ray, t_min, t_max, &|hit| self.covers(ray, hit))
+        } else {
+            self.bvh.occluded(ray, t_min, t_max)
+        }
+    }
+
+    /// Whether a candidate hit counts, by its material's [`AlphaMode`]: opaque surfaces always do; a cut-out
+    /// where its alpha reaches the cut-off; partial coverage with probability alpha, decided by a hash of the
+    /// ray and the triangle, so a ray and its shadow rays need no generator and the estimate stays unbiased
+    /// (stochastic transparency: the expected result is alpha × the surface + (1 − alpha) × what is behind).
+    fn covers(&self, ray: &Ray, hit: &TriangleHit) -> bool {
+        let (mesh_index, tri) = self.prims[hit.prim as usize];
+        let mesh = &self.meshes[mesh_index as usize];
+        let material = &self.materials[mesh.material as usize];
+        let alpha = |m: &Material| {
+            let uv = match &mesh.uvs {
+                Some(uv) => {
+                    let [i0, i1, i2] = mesh.indices[tri as usize].map(|i| uv[i as usize]);
+                    i0 * (1.0 - hit.b1 - hit.b2) + i1 * hit.b1 + i2 * hit.b2
+                }
+                None => Vec2::ZERO,
+            };
+            m.alpha_at(TexCoord::point(uv), &self.textures)
+        };
+        match material.alpha_mode {
+            AlphaMode::Opaque => true,
+            AlphaMode::Mask { cutoff } => alpha(material) >= cutoff,
+            AlphaMode::Blend => {
+                let (o, d) = (ray.origin, ray.dir);
+                let key = [o.x, o.y, o.z, d.x, d.y, d.z].map(f32::to_bits);
+                let u = hash_to_unit(&[key[0], key[1], key[2], key[3], key[4], key[5], hit.prim]);
+                u < alpha(material)
+            }
+        }
     }
 
     /// The index in `lights` of the area light on triangle `prim`, if it emits.
@@ -567,8 +626,15 @@ impl Scene {
     }
 
     /// The closest surface hit along `ray` in `(t_min, t_max)`.
+    /// Surfaces whose material is a cut-out or partly covering are passed through where they do not cover
+    /// (see [`AlphaMode`]).
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<SurfaceHit> {
-        let hit = self.bvh.intersect(ray, t_min, t_max)?;
+        let hit = if self.has_alpha {
+            self.bvh
+                .intersect_where(ray, t_min, t_max, &|hit| self.covers(ray, hit))
+        } else {
+            self.bvh.intersect(ray, t_min, t_max)
+        }?;
         let (mesh_index, tri) = self.prims[hit.prim as usize];
         let mesh = &self.meshes[mesh_index as usize];
         let [i0, i1, i2] = mesh.indices[tri as usize].map(|i| i as usize);
