@@ -147,18 +147,13 @@ fn check(file: &str, outcome: Outcome) -> Vec<String> {
             )]
         }
         (Outcome::LoadError(e), None) => {
-            return vec![format!(
-                "load error for a file not in UNSUPPORTED: {e}"
-            )]
+            return vec![format!("load error for a file not in UNSUPPORTED: {e}")]
         }
         (Outcome::Rendered(r), _) => *r,
     };
     let mut problems = Vec::new();
     if let Some(u) = expected {
-        problems.push(format!(
-            "loads now: remove it from UNSUPPORTED ({})",
-            u.why
-        ));
+        problems.push(format!("loads now: remove it from UNSUPPORTED ({})", u.why));
     }
     if stats.nan_samples != 0 {
         problems.push(format!("{} NaN/Inf samples", stats.nan_samples));
@@ -184,7 +179,7 @@ fn check(file: &str, outcome: Outcome) -> Vec<String> {
         .sum::<f64>()
         / image.pixel_count() as f64;
     eprintln!("{file}: mean luminance {luminance:.4}");
-    if !(luminance >= MIN_MEAN_LUMINANCE) {
+    if luminance.is_nan() || luminance < MIN_MEAN_LUMINANCE {
         problems.push(format!(
             "black image: mean luminance {luminance:.5} < {MIN_MEAN_LUMINANCE}"
         ));
