@@ -106,12 +106,8 @@ fn render_file(path: &Path) -> Result<Outcome, String> {
         Ok(b) => b,
         Err(e) => return Ok(Outcome::LoadError(e.to_string())),
     };
-    // As `render` in src/main.rs: a scene with no punctual, emissive or environment light and no emitting
-    // medium gets a uniform white environment.
-    let lit = !builder.lights().is_empty()
-        || builder.materials().iter().any(|m| m.is_emissive())
-        || builder.media().iter().any(|m| m.is_emissive());
-    if !lit {
+    // As `render` in src/main.rs: a scene that does not light itself gets a uniform white environment.
+    if !builder.has_own_lighting() {
         builder.set_environment(EnvironmentLight::Constant(Rgb::splat(
             DEFAULT_ENVIRONMENT_RADIANCE,
         )));
