@@ -89,6 +89,7 @@ mod error;
 
 pub mod converge;
 pub mod farm;
+pub mod frames;
 pub mod geometry;
 mod integrator;
 pub mod light;

@@ -3,6 +3,7 @@
 
 use clap::{Args, Parser, Subcommand};
 use nimbus::farm::{FarmError, PartInfo};
+use nimbus::frames::{has_frame_token, with_frame, FrameRange};
 use nimbus::light::EnvironmentLight;
 use nimbus::limits::{one_line, Limits};
 use nimbus::math::Rgb;
@@ -108,9 +109,18 @@ struct InfoArgs {
 struct RenderArgs {
     /// Scene file; without it, the bundled demo scene is rendered.
     scene: Option<PathBuf>,
-    /// Output EXR; the PNG preview goes beside it with the same stem.
+    /// Output EXR; the PNG preview goes beside it with the same stem. With frames, a frame pattern
+    /// (`shot.####.exr`, `shot.$F4.exr`, `shot.%04d.exr`) names each frame's file.
     #[arg(short = 'o', long = "output", default_value = "render.exr")]
     output: PathBuf,
+    /// Render this frame of the shot: VDB sequences read its file, and frame patterns in -o and --stats take
+    /// its number.
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "frames")]
+    frame: Option<i64>,
+    /// Render frames A..B (both included), every STEP-th, one after the other, each to its own files.
+    #[arg(long, value_parser = FrameRange::parse, allow_hyphen_values = true,
+          conflicts_with_all = ["samples", "crop", "chunk_from_env"])]
+    frames: Option<FrameRange>,
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -255,12 +265,17 @@ fn converge(args: ConvergeArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn load_builder(scene: Option<&Path>, limits: Limits) -> Result<SceneBuilder, String> {
+fn load_builder(
+    scene: Option<&Path>,
+    limits: Limits,
+    frame: Option<i64>,
+) -> Result<SceneBuilder, String> {
     match scene {
         Some(path) => nimbus::scene::load_builder(
             path,
             &LoadOptions {
                 limits,
+                frame,
                 ..LoadOptions::default()
             },
         ),
@@ -270,6 +285,7 @@ fn load_builder(scene: Option<&Path>, limits: Limits) -> Result<SceneBuilder, St
             &LoadOptions {
                 embedded: &[("cloud.vdb", DEMO_CLOUD)],
                 limits,
+                frame,
                 ..LoadOptions::default()
             },
         ),
@@ -309,11 +325,43 @@ fn check_output(output: &Path) -> Result<(), String> {
         .map_err(|e| format!("cannot write to {}: {e}", dir.display()))
 }
 
-fn render(args: RenderArgs) -> Result<(), String> {
-    check_output(&args.output)?;
-    let limits = args
-        .memory_limit
-        .map_or_else(Limits::default, Limits::with_memory);
+/// `path` with `.####` before its extension when it holds no frame pattern (`shot.exr` → `shot.####.exr`), so
+/// that the frames of a range do not overwrite one another.
+fn with_frame_pattern(path: &Path, flag: &str) -> PathBuf {
+    if path.to_str().is_some_and(has_frame_token) {
+        return path.to_owned();
+    }
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}.####.{}", ext.to_string_lossy()),
+        None => format!("{stem}.####"),
+    };
+    let patterned = path.with_file_name(name);
+    eprintln!(
+        "nimbus: {flag} {} has no frame pattern; the frames go to {}",
+        path.display(),
+        patterned.display()
+    );
+    patterned
+}
+
+/// `path` with its frame pattern replaced by `frame` (unchanged without a frame or a pattern).
+fn frame_path(path: &Path, frame: Option<i64>) -> PathBuf {
+    match (frame, path.to_str()) {
+        (Some(f), Some(p)) => with_frame(p, f).map_or_else(|| path.to_owned(), PathBuf::from),
+        _ => path.to_owned(),
+    }
+}
+
+/// `nimbus render`: a still, one frame (`--frame`) or a range of frames (`--frames`), each loaded, rendered and
+/// written in turn (a frame's scene and grids are dropped before the next is loaded).
+fn render(mut args: RenderArgs) -> Result<(), String> {
+    let range = args.frames.or(args.frame.map(FrameRange::single));
+    if range.is_some_and(|r| r.len() > 1) {
+        args.output = with_frame_pattern(&args.output, "-o");
+        args.stats = args.stats.map(|s| with_frame_pattern(&s, "--stats"));
+    }
+    check_output(&frame_path(&args.output, range.map(|r| r.first)))?;
     if args.image.threads > nimbus::limits::max_threads() {
         eprintln!(
             "nimbus: warning: --threads {} is capped at {} ({} per core)",
@@ -322,7 +370,36 @@ fn render(args: RenderArgs) -> Result<(), String> {
             nimbus::limits::THREADS_PER_CORE
         );
     }
-    let mut builder = load_builder(args.scene.as_deref(), limits)?;
+    let mut reporter = ProgressReporter::new();
+    let Some(range) = range else {
+        return render_frame(&args, None, &mut reporter);
+    };
+    let count = range.len();
+    for (i, frame) in range.frames().enumerate() {
+        reporter.start_frame(frame, i as u64, count);
+        render_frame(&args, Some(frame), &mut reporter)?;
+    }
+    if count > 1 {
+        eprintln!(
+            "nimbus: rendered frames {range} ({count} frames) to {}",
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
+/// Loads, renders and writes one frame (`None`: a still).
+fn render_frame(
+    args: &RenderArgs,
+    frame: Option<i64>,
+    reporter: &mut ProgressReporter,
+) -> Result<(), String> {
+    let output = frame_path(&args.output, frame);
+    let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
+    let limits = args
+        .memory_limit
+        .map_or_else(Limits::default, Limits::with_memory);
+    let mut builder = load_builder(args.scene.as_deref(), limits, frame)?;
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
@@ -387,9 +464,8 @@ fn render(args: RenderArgs) -> Result<(), String> {
         ))
     );
     let renderer = Renderer::new(settings);
-    let mut reporter = ProgressReporter::new();
-    if let Some((region, output)) = part_region(&args, renderer.settings())? {
-        let hash = part_scene_hash(&args, renderer.settings())?;
+    if let Some((region, output)) = part_region(args, &output, renderer.settings())? {
+        let hash = part_scene_hash(args, frame, renderer.settings())?;
         eprintln!(
             "nimbus: part: samples {}..{} of the pixels in {}",
             region.samples.start, region.samples.end, region.window
@@ -413,25 +489,25 @@ fn render(args: RenderArgs) -> Result<(), String> {
             stats.render_seconds,
             stats.samples_per_second
         );
-        return finish_render(&stats, args.stats.as_deref());
+        return finish_render(&stats, stats_path.as_deref());
     }
     let (image, stats) = renderer
         .render(&scene, &mut |p| reporter.report(p))
         .map_err(|e| e.to_string())?;
     reporter.finish();
-    create_parent(&args.output)?;
-    nimbus::output::write_exr(&image, &args.output).map_err(|e| e.to_string())?;
-    let png = nimbus::output::preview_path(&args.output);
+    create_parent(&output)?;
+    nimbus::output::write_exr(&image, &output).map_err(|e| e.to_string())?;
+    let png = nimbus::output::preview_path(&output);
     nimbus::output::write_png_preview(&image, &png, args.exposure).map_err(|e| e.to_string())?;
     eprintln!(
         "nimbus: wrote {} and {} ({} spp in {:.2} s, {:.0} samples/s)",
-        args.output.display(),
+        output.display(),
         png.display(),
         stats.samples_per_pixel,
         stats.render_seconds,
         stats.samples_per_second
     );
-    finish_render(&stats, args.stats.as_deref())
+    finish_render(&stats, stats_path.as_deref())
 }
 
 /// Creates the folder an output file goes in (every task of an array job may race to create it).
@@ -480,6 +556,7 @@ fn warn_samples(nan_samples: u64, clamped_samples: u64) {
 /// whole render.
 fn part_region(
     args: &RenderArgs,
+    frame_output: &Path,
     settings: &RenderSettings,
 ) -> Result<Option<(RenderRegion, PathBuf)>, String> {
     if args.samples.is_none() && args.crop.is_none() && !args.chunk_from_env {
@@ -494,7 +571,7 @@ fn part_region(
             settings.width, settings.height
         ));
     }
-    let mut output = args.output.clone();
+    let mut output = frame_output.to_owned();
     let samples = match (&args.samples, args.chunks) {
         (Some(samples), _) => {
             if samples.end > settings.spp {
@@ -512,7 +589,7 @@ fn part_region(
                 "nimbus: chunk {} of {chunks} (from {})",
                 task.index, task.variable
             );
-            output = nimbus::farm::chunk_output_path(&args.output, task.index, chunks);
+            output = nimbus::farm::chunk_output_path(frame_output, task.index, chunks);
             nimbus::farm::sample_chunk(task.index, chunks, settings.spp)
                 .map_err(|e| e.to_string())?
         }
@@ -521,9 +598,13 @@ fn part_region(
     Ok(Some((RenderRegion { window, samples }, output)))
 }
 
-/// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings
-/// and the `--env-color` override.
-fn part_scene_hash(args: &RenderArgs, settings: &RenderSettings) -> Result<u64, String> {
+/// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings,
+/// the `--env-color` override and the frame (parts of different frames must not merge).
+fn part_scene_hash(
+    args: &RenderArgs,
+    frame: Option<i64>,
+    settings: &RenderSettings,
+) -> Result<u64, String> {
     let file;
     let files: Vec<&[u8]> = match &args.scene {
         Some(path) => {
@@ -535,7 +616,12 @@ fn part_scene_hash(args: &RenderArgs, settings: &RenderSettings) -> Result<u64, 
     let env: Option<Vec<u8>> = args
         .env_color
         .map(|c| c.to_array().iter().flat_map(|v| v.to_le_bytes()).collect());
-    let overrides: Vec<(&str, &[u8])> = env.iter().map(|e| ("env-color", e.as_slice())).collect();
+    let frame_bytes = frame.map(i64::to_le_bytes);
+    let overrides: Vec<(&str, &[u8])> = env
+        .iter()
+        .map(|e| ("env-color", e.as_slice()))
+        .chain(frame_bytes.iter().map(|f| ("frame", f.as_slice())))
+        .collect();
     Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
 }
 
@@ -572,6 +658,8 @@ fn merge(args: MergeArgs) -> Result<(), String> {
 struct ProgressReporter {
     bar: Option<indicatif::ProgressBar>,
     last_logged: f64,
+    /// The frame being rendered, its position in the shot and the shot's length (a still: `None`).
+    frame: Option<(i64, u64, u64)>,
 }
 
 impl ProgressReporter {
@@ -590,20 +678,38 @@ impl ProgressReporter {
         Self {
             bar,
             last_logged: -1.0,
+            frame: None,
+        }
+    }
+
+    /// Starts frame `frame`, the `index`-th of `count`: the bar then spans the whole shot, so its ETA is the
+    /// shot's.
+    fn start_frame(&mut self, frame: i64, index: u64, count: u64) {
+        self.frame = Some((frame, index, count));
+        self.last_logged = -1.0;
+        if let Some(bar) = &self.bar {
+            bar.set_length(1000 * count);
+            bar.set_position(1000 * index);
         }
     }
 
     fn report(&mut self, p: &Progress) -> bool {
+        let (done_frames, frame_label) = match self.frame {
+            Some((frame, index, count)) => {
+                (index, format!("frame {frame} ({}/{count}) ", index + 1))
+            }
+            None => (0, String::new()),
+        };
         match &self.bar {
             Some(bar) => {
-                bar.set_position((p.fraction * 1000.0) as u64);
-                bar.set_message(format!("{} spp", p.samples_done));
+                bar.set_position(1000 * done_frames + (p.fraction * 1000.0) as u64);
+                bar.set_message(format!("{frame_label}{} spp", p.samples_done));
             }
             None => {
                 if p.fraction - self.last_logged >= 0.1 || p.fraction >= 1.0 {
                     self.last_logged = p.fraction;
                     eprintln!(
-                        "nimbus: {:>3.0}% {} spp {:.1} s",
+                        "nimbus: {frame_label}{:>3.0}% {} spp {:.1} s",
                         p.fraction * 100.0,
                         p.samples_done,
                         p.elapsed_seconds
@@ -614,8 +720,12 @@ impl ProgressReporter {
         true
     }
 
+    /// Ends one render: the bar is cleared after a still or the shot's last frame.
     fn finish(&self) {
-        if let Some(bar) = &self.bar {
+        let last = self
+            .frame
+            .is_none_or(|(_, index, count)| index + 1 == count);
+        if let (Some(bar), true) = (&self.bar, last) {
             bar.finish_and_clear();
         }
     }

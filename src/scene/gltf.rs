@@ -316,9 +316,13 @@ impl Loader<'_> {
         let file = value.get("file").and_then(|f| f.as_str());
         spec.embedded = file.and_then(|f| self.options.embedded_file(f));
         self.options.apply_volume_override(&mut spec);
-        let medium = crate::volume::load_grid_medium(&spec).map_err(volume_error)?;
-        self.builder.add_medium(medium);
-        Ok(())
+        match self.builder.add_volume(&spec) {
+            Ok(_) => Ok(()),
+            Err(source) => Err(self.error(SceneErrorKind::Volume {
+                at: format!("node '{name}': nimbus_volume").into(),
+                source,
+            })),
+        }
     }
 
     fn load_light(&mut self, light: gltf::khr_lights_punctual::Light, world: &Mat4) {

@@ -36,6 +36,8 @@ pub struct LoadOptions<'a> {
     /// The memory budget for allocations sized by the files (whole-file reads, majorant structures, decoded
     /// textures).
     pub limits: crate::limits::Limits,
+    /// The shot's frame: VDB sequences read this frame's file (frame 1 when `None`).
+    pub frame: Option<i64>,
 }
 
 impl LoadOptions<'_> {
@@ -43,6 +45,7 @@ impl LoadOptions<'_> {
     /// each volume it declares.
     pub fn apply_volume_override(&self, spec: &mut crate::volume::VolumeSpec) {
         spec.limits = self.limits;
+        spec.frame = self.frame;
         if let Some(f) = self.volume_override {
             f(spec);
         }
@@ -90,20 +93,24 @@ pub struct SceneBuilder {
 }
 
 impl SceneBuilder {
-    /// Loads the VDB volume `spec` describes and adds it as a position-filled medium; returns its index.
-    /// Errors name the volume and the VDB file, with the [`crate::volume::VolumeError`] (missing file or grid,
-    /// unreadable grid) as a [`SceneErrorKind::Volume`].
-    pub fn add_volume(&mut self, spec: &crate::volume::VolumeSpec) -> Result<u32, SceneError> {
-        let medium = crate::volume::load_grid_medium(spec).map_err(|source| {
-            SceneError::new(
-                builder::BUILDER_PATH,
-                SceneErrorKind::Volume {
-                    at: format!("volume '{}'", spec.name).into(),
-                    source,
-                },
-            )
-        })?;
-        Ok(self.add_medium(medium))
+    /// Loads the VDB volume `spec` describes and adds it as a position-filled medium; returns its index, or
+    /// `None` when a sequence has no file for the frame and its `missing_frame` is `empty` (a warning says so).
+    pub fn add_volume(
+        &mut self,
+        spec: &crate::volume::VolumeSpec,
+    ) -> Result<Option<u32>, crate::volume::VolumeError> {
+        match crate::volume::load_grid_medium(spec)? {
+            Some(medium) => Ok(Some(self.add_medium(medium))),
+            None => {
+                self.warn(format!(
+                    "volume '{}': the sequence {} has no file for frame {}; the volume is empty in this frame",
+                    spec.name,
+                    spec.file.display(),
+                    spec.frame.unwrap_or(1) + spec.frame_offset
+                ));
+                Ok(None)
+            }
+        }
     }
 
     /// Adds a medium and returns its index.

@@ -26,6 +26,16 @@ pub enum VolumeError {
         /// The grids the file has.
         available: Vec<String>,
     },
+    /// A VDB sequence has no file for the frame (and `missing_frame` is `error`, or `hold` found none).
+    #[error("{}: frame {frame} of the sequence {} is missing (set missing_frame to hold or empty to go on without it)", file.display(), pattern.display())]
+    MissingFrame {
+        /// The sequence's file pattern.
+        pattern: PathBuf,
+        /// The file frame asked for (the shot frame plus `frame_offset`).
+        frame: i64,
+        /// The file looked for.
+        file: PathBuf,
+    },
     /// A structure built for the medium would exceed the memory budget.
     #[error("{}: {source}", file.display())]
     OverBudget {

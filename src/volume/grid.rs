@@ -355,7 +355,15 @@ impl Medium for GridMedium {
     }
 }
 
-/// Loads the VDB file of `spec` and builds its grid medium.
-pub fn load_grid_medium(spec: &VolumeSpec) -> Result<Arc<dyn Medium>, VolumeError> {
-    Ok(Arc::new(GridMedium::load(spec)?))
+/// Loads the VDB file of `spec` (for a sequence, the file of its frame) and builds its grid medium; `None`
+/// when a sequence has no file for the frame and `missing_frame` is `empty`.
+pub fn load_grid_medium(spec: &VolumeSpec) -> Result<Option<Arc<dyn Medium>>, VolumeError> {
+    let Some(file) = spec.frame_file()? else {
+        return Ok(None);
+    };
+    let spec = VolumeSpec {
+        file,
+        ..spec.clone()
+    };
+    Ok(Some(Arc::new(GridMedium::load(&spec)?)))
 }

@@ -26,7 +26,8 @@ const FILE: ParamKey = ParamKey {
     name: "file",
     ty: ParamType::Text,
     default: ParamDefault::Required,
-    doc: "the VDB file, relative to the scene file that names it",
+    doc: "the VDB file, relative to the scene file that names it; a sequence names its frame with `####`, \
+          `$F4` or `%04d` (`smoke.####.vdb`)",
     usd: UsdBinding::Elsewhere("`filePath` of the `field:density` asset"),
 };
 const DENSITY_GRID: ParamKey = ParamKey {
@@ -85,6 +86,22 @@ const TEMPERATURE_OFFSET: ParamKey = ParamKey {
     doc: "Kelvin added to the scaled temperature",
     usd: UsdBinding::Attribute,
 };
+const FRAME_OFFSET: ParamKey = ParamKey {
+    name: "frame_offset",
+    ty: ParamType::Number,
+    default: ParamDefault::Number(0.0),
+    doc: "a whole number added to the shot's frame to pick the sequence's file (frame 1 of the shot reads \
+          file frame 1 + frame_offset)",
+    usd: UsdBinding::Attribute,
+};
+const MISSING_FRAME: ParamKey = ParamKey {
+    name: "missing_frame",
+    ty: ParamType::Choice(MissingFrame::NAMES),
+    default: ParamDefault::Text("error"),
+    doc: "when a sequence's file for the frame is missing: `error`, `hold` (the nearest earlier frame, else \
+          the first later one) or `empty` (no volume in that frame, with a warning)",
+    usd: UsdBinding::Attribute,
+};
 const MAJORANT: ParamKey = ParamKey {
     name: "majorant",
     ty: ParamType::Choice(MAJORANT_CHOICES),
@@ -114,7 +131,38 @@ pub const VOLUME_KEYS: &[ParamKey] = &[
     TEMPERATURE_OFFSET,
     MAJORANT,
     SHADOW_ESTIMATOR,
+    FRAME_OFFSET,
+    MISSING_FRAME,
 ];
+
+/// What a VDB sequence does in a frame whose file is missing (`"missing_frame"`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MissingFrame {
+    /// The load fails, naming the missing file (the default).
+    #[default]
+    Error,
+    /// The nearest earlier frame's file is used, else the first later one.
+    Hold,
+    /// The volume is left out of that frame, with a warning.
+    Empty,
+}
+
+impl MissingFrame {
+    /// The key's names, in the order of the variants.
+    pub const NAMES: &'static [&'static str] = &["error", "hold", "empty"];
+
+    fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "error" => Some(Self::Error),
+            "hold" => Some(Self::Hold),
+            "empty" => Some(Self::Empty),
+            _ => None,
+        }
+    }
+}
+
+/// The most directory entries scanned for a held frame of a sequence.
+const MAX_SEQUENCE_ENTRIES: usize = 1 << 20;
 
 /// A VDB volume to place in the scene.
 #[derive(Clone, Debug, PartialEq)]
@@ -151,6 +199,12 @@ pub struct VolumeSpec {
     /// The memory budget for reading the VDB file and building the majorant structure (set by the loaders from
     /// [`crate::scene::LoadOptions::limits`]).
     pub limits: crate::limits::Limits,
+    /// Added to the shot's frame to choose a sequence's file.
+    pub frame_offset: i64,
+    /// What a sequence does when the frame's file is missing.
+    pub missing_frame: MissingFrame,
+    /// The shot's frame (set by the loaders from [`crate::scene::LoadOptions::frame`]); `None` reads frame 1.
+    pub frame: Option<i64>,
 }
 
 impl VolumeSpec {
@@ -172,7 +226,62 @@ impl VolumeSpec {
             shadow_estimator: ShadowEstimator::Ratio,
             embedded: None,
             limits: crate::limits::Limits::default(),
+            frame_offset: 0,
+            missing_frame: MissingFrame::Error,
+            frame: None,
         }
+    }
+
+    /// The VDB file to read for this frame: `file` itself, or for a sequence (a file name with a frame token,
+    /// see [`crate::frames`]) the file of frame `frame + frame_offset` (frame 1 without a shot frame). `None`
+    /// when that file is missing and `missing_frame` is `empty`.
+    pub fn frame_file(&self) -> Result<Option<PathBuf>, VolumeError> {
+        let pattern = match self.file.to_str() {
+            Some(p) if self.embedded.is_none() && crate::frames::has_frame_token(p) => p,
+            _ => return Ok(Some(self.file.clone())),
+        };
+        let frame = self.frame.unwrap_or(1).saturating_add(self.frame_offset);
+        let path = PathBuf::from(crate::frames::with_frame(pattern, frame).unwrap_or_default());
+        if path.is_file() {
+            return Ok(Some(path));
+        }
+        let missing = || VolumeError::MissingFrame {
+            pattern: self.file.clone(),
+            frame,
+            file: path.clone(),
+        };
+        match self.missing_frame {
+            MissingFrame::Error => Err(missing()),
+            MissingFrame::Empty => Ok(None),
+            MissingFrame::Hold => self.held_frame(frame).map(Some).ok_or_else(missing),
+        }
+    }
+
+    /// The sequence file nearest before `frame`, else the first after it, found by listing the folder.
+    fn held_frame(&self, frame: i64) -> Option<PathBuf> {
+        let dir = match self.file.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => std::path::Path::new("."),
+        };
+        let name_pattern = self.file.file_name()?.to_str()?;
+        let frames: Vec<(i64, PathBuf)> = std::fs::read_dir(dir)
+            .ok()?
+            .take(MAX_SEQUENCE_ENTRIES)
+            .filter_map(|e| {
+                let e = e.ok()?;
+                let n = crate::frames::frame_of(name_pattern, e.file_name().to_str()?)?;
+                e.path().is_file().then(|| (n, e.path()))
+            })
+            .collect();
+        let before = frames
+            .iter()
+            .filter(|(n, _)| *n <= frame)
+            .max_by_key(|(n, _)| *n);
+        let after = frames
+            .iter()
+            .filter(|(n, _)| *n > frame)
+            .min_by_key(|(n, _)| *n);
+        before.or(after).map(|(_, p)| p.clone())
     }
 
     /// Checks the parameters: albedo in \[0, 1\], |g| < 1, finite non-negative scales.
@@ -248,6 +357,19 @@ impl VolumeSpec {
         }
         if let Some(m) = params.text(&SHADOW_ESTIMATOR)? {
             self.shadow_estimator = ShadowEstimator::from_name(&m).unwrap_or(self.shadow_estimator);
+        }
+        if let Some(m) = params.text(&MISSING_FRAME)? {
+            self.missing_frame = MissingFrame::from_name(&m).unwrap_or(self.missing_frame);
+        }
+        if let Some(offset) = params.number(&FRAME_OFFSET)? {
+            if offset.fract() != 0.0 || offset.abs() > 1e9 {
+                return Err(ParamError::OutOfRange {
+                    key: FRAME_OFFSET.name.to_owned(),
+                    value: offset.to_string(),
+                    constraint: "be a whole number of frames within ±1e9",
+                });
+            }
+            self.frame_offset = offset as i64;
         }
         self.validate()
     }

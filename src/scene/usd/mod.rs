@@ -93,7 +93,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
     let (mut builder, volumes) = read_with_limits(path, &options.limits)?;
     for mut spec in volumes {
         options.apply_volume_override(&mut spec);
-        let medium = crate::volume::load_grid_medium(&spec).map_err(|source| {
+        builder.add_volume(&spec).map_err(|source| {
             SceneError::new(
                 path,
                 SceneErrorKind::Volume {
@@ -102,7 +102,6 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
                 },
             )
         })?;
-        builder.add_medium(medium);
     }
     Ok(builder)
 }

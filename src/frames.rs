@@ -1,0 +1,243 @@
+//! Frames of a shot: frame ranges (`--frames A..B[:STEP]`) and the frame-number patterns in file names that
+//! sequences use, both for outputs (`-o shot.####.exr`) and for VDB sequences (`smoke.$F4.vdb`).
+//!
+//! Three pattern spellings are understood, as the tools that write sequences spell them:
+//! - a run of `#` (Houdini, Nuke): `####` is the frame zero-padded to 4 digits;
+//! - `$F` followed by an optional width digit (Houdini): `$F4` pads to 4, `$F` does not pad;
+//! - printf's `%d` or `%0Nd` (Blender, ffmpeg): `%04d` pads to 4.
+//!
+//! A negative frame keeps its sign inside the width (`-001` for frame −1 at width 4), as Rust's `{:04}` does.
+
+use std::fmt;
+
+/// An inclusive range of frames with a step: `first`, `first + step`, … up to `last`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameRange {
+    /// The first frame.
+    pub first: i64,
+    /// The last frame (included when the step lands on it).
+    pub last: i64,
+    /// The step between frames, at least 1.
+    pub step: i64,
+}
+
+/// The most frames one range may hold: a shot of a day at 24 fps is about 2 million frames, far beyond.
+const MAX_FRAMES: i64 = 1 << 20;
+
+impl FrameRange {
+    /// A single frame.
+    pub fn single(frame: i64) -> Self {
+        Self {
+            first: frame,
+            last: frame,
+            step: 1,
+        }
+    }
+
+    /// Parses `A..B` or `A..B:STEP` (both ends included, STEP ≥ 1; A ≤ B).
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let (range, step) = match text.split_once(':') {
+            Some((r, s)) => (
+                r,
+                s.trim()
+                    .parse::<i64>()
+                    .map_err(|e| format!("step '{s}': {e}"))?,
+            ),
+            None => (text, 1),
+        };
+        let (a, b) = range
+            .split_once("..")
+            .ok_or_else(|| format!("'{text}' is not a frame range A..B[:STEP]"))?;
+        let parse = |s: &str| {
+            s.trim()
+                .parse::<i64>()
+                .map_err(|e| format!("frame '{s}': {e}"))
+        };
+        let (first, last) = (parse(a)?, parse(b)?);
+        if step < 1 {
+            return Err(format!("the step of '{text}' must be at least 1"));
+        }
+        if first > last {
+            return Err(format!(
+                "'{text}' runs backwards: the first frame must not follow the last"
+            ));
+        }
+        let range = Self { first, last, step };
+        if range.len() > MAX_FRAMES as u64 {
+            return Err(format!(
+                "'{text}' holds {} frames; at most {MAX_FRAMES} in one range",
+                range.len()
+            ));
+        }
+        Ok(range)
+    }
+
+    /// The number of frames.
+    pub fn len(&self) -> u64 {
+        ((self.last as i128 - self.first as i128) / self.step as i128 + 1) as u64
+    }
+
+    /// True when the range holds no frame (never, for a parsed range).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The frames in order.
+    pub fn frames(&self) -> impl Iterator<Item = i64> {
+        let Self { first, step, .. } = *self;
+        (0..self.len() as i64).map(move |i| first + i * step)
+    }
+}
+
+impl fmt::Display for FrameRange {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}..{}", self.first, self.last)?;
+        if self.step != 1 {
+            write!(f, ":{}", self.step)?;
+        }
+        Ok(())
+    }
+}
+
+/// Where a frame-number token sits in a file name, and how wide it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Token {
+    start: usize,
+    end: usize,
+    width: usize,
+}
+
+/// The last frame-number token in `text` (the file name's, when a folder name also holds one), if any.
+fn find_token(text: &str) -> Option<Token> {
+    let bytes = text.as_bytes();
+    let mut found = None;
+    let mut i = 0;
+    while i < bytes.len() {
+        let token = match bytes[i] {
+            b'#' => {
+                let end = i + bytes[i..].iter().take_while(|&&b| b == b'#').count();
+                Some(Token {
+                    start: i,
+                    end,
+                    width: end - i,
+                })
+            }
+            b'$' if bytes.get(i + 1) == Some(&b'F') => {
+                match bytes.get(i + 2).filter(|b| b.is_ascii_digit()) {
+                    Some(d) => Some(Token {
+                        start: i,
+                        end: i + 3,
+                        width: (d - b'0') as usize,
+                    }),
+                    None => Some(Token {
+                        start: i,
+                        end: i + 2,
+                        width: 1,
+                    }),
+                }
+            }
+            b'%' => {
+                let digits = bytes[i + 1..]
+                    .iter()
+                    .take_while(|b| b.is_ascii_digit())
+                    .count();
+                let d_at = i + 1 + digits;
+                (bytes.get(d_at) == Some(&b'd')).then(|| {
+                    let spec = &text[i + 1..d_at];
+                    Token {
+                        start: i,
+                        end: d_at + 1,
+                        width: spec.parse::<usize>().unwrap_or(1).clamp(1, 32),
+                    }
+                })
+            }
+            _ => None,
+        };
+        match token {
+            Some(t) => {
+                i = t.end;
+                found = Some(t);
+            }
+            None => i += 1,
+        }
+    }
+    found
+}
+
+/// True when `text` holds a frame-number token (`####`, `$F4`, `%04d`).
+pub fn has_frame_token(text: &str) -> bool {
+    find_token(text).is_some()
+}
+
+/// `text` with its (last) frame-number token replaced by `frame`, or `None` when it has no token.
+pub fn with_frame(text: &str, frame: i64) -> Option<String> {
+    let t = find_token(text)?;
+    Some(format!(
+        "{}{:0width$}{}",
+        &text[..t.start],
+        frame,
+        &text[t.end..],
+        width = t.width
+    ))
+}
+
+/// The frame number a file name matching `pattern` holds (`smoke.0012.vdb` for `smoke.####.vdb` gives 12), or
+/// `None` when it does not match. Any number of digits matches, so unpadded and over-wide frames are found.
+pub fn frame_of(pattern: &str, name: &str) -> Option<i64> {
+    let t = find_token(pattern)?;
+    let (prefix, suffix) = (&pattern[..t.start], &pattern[t.end..]);
+    let middle = name.strip_prefix(prefix)?.strip_suffix(suffix)?;
+    let digits = middle.strip_prefix('-').unwrap_or(middle);
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    middle.parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_parse_inclusive_with_steps() {
+        let r = FrameRange::parse("1..24").unwrap();
+        assert_eq!(r.len(), 24);
+        assert_eq!(r.frames().last(), Some(24));
+        let r = FrameRange::parse("1..10:4").unwrap();
+        assert_eq!(r.frames().collect::<Vec<_>>(), [1, 5, 9]);
+        assert_eq!(FrameRange::parse("-2..-1").unwrap().len(), 2);
+        assert_eq!(FrameRange::parse("7..7").unwrap(), FrameRange::single(7));
+        assert_eq!(FrameRange::parse("1..10:4").unwrap().to_string(), "1..10:4");
+        for bad in ["1-24", "5..1", "1..2:0", "a..b", "1..2:x", "0..9999999999"] {
+            assert!(FrameRange::parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn every_spelling_of_the_token_is_replaced() {
+        assert_eq!(with_frame("shot.####.exr", 7).unwrap(), "shot.0007.exr");
+        assert_eq!(with_frame("shot.#.exr", 12).unwrap(), "shot.12.exr");
+        assert_eq!(with_frame("smoke.$F4.vdb", 3).unwrap(), "smoke.0003.vdb");
+        assert_eq!(with_frame("smoke.$F.vdb", 3).unwrap(), "smoke.3.vdb");
+        assert_eq!(with_frame("smoke.%04d.vdb", 42).unwrap(), "smoke.0042.vdb");
+        assert_eq!(with_frame("smoke.%d.vdb", 42).unwrap(), "smoke.42.vdb");
+        assert_eq!(with_frame("smoke.####.vdb", -1).unwrap(), "smoke.-001.vdb");
+        assert_eq!(
+            with_frame("v1/smoke.####.vdb", 5).unwrap(),
+            "v1/smoke.0005.vdb"
+        );
+        assert_eq!(with_frame("plain.vdb", 5), None);
+        assert_eq!(with_frame("100%.exr", 5), None);
+        assert_eq!(with_frame("price$5.exr", 5), None);
+    }
+
+    #[test]
+    fn frame_numbers_are_read_back_from_names() {
+        assert_eq!(frame_of("smoke.####.vdb", "smoke.0012.vdb"), Some(12));
+        assert_eq!(frame_of("smoke.$F4.vdb", "smoke.12345.vdb"), Some(12345));
+        assert_eq!(frame_of("smoke.%04d.vdb", "smoke.-003.vdb"), Some(-3));
+        assert_eq!(frame_of("smoke.####.vdb", "smoke.00a2.vdb"), None);
+        assert_eq!(frame_of("smoke.####.vdb", "fire.0012.vdb"), None);
+        assert_eq!(frame_of("smoke.####.vdb", "smoke..vdb"), None);
+    }
+}
