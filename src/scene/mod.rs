@@ -7,7 +7,9 @@ mod builder;
 mod camera;
 mod error;
 pub mod gltf;
+mod gltf_accessors;
 mod gltf_check;
+mod gltf_deform;
 pub mod obj;
 pub mod usd;
 
