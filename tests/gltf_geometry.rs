@@ -11,7 +11,10 @@ use nimbus::{RenderSettings, Renderer};
 use std::path::{Path, PathBuf};
 
 fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("nimbus-gltf-geometry-{}-{name}", std::process::id()));
+    let d = std::env::temp_dir().join(format!(
+        "nimbus-gltf-geometry-{}-{name}",
+        std::process::id()
+    ));
     std::fs::create_dir_all(&d).unwrap();
     d
 }
@@ -161,7 +164,10 @@ fn sparse_quad(dir: &Path, name: &str, edit: impl Fn(&mut Doc, [usize; 6])) -> P
         r#"{{"componentType":5126,"count":4,"type":"VEC3",
         "sparse":{{"count":1,"indices":{{"bufferView":{morph_idx},"componentType":5121}},"values":{{"bufferView":{morph_val}}}}}}}"#
     ));
-    edit(&mut d, [pos_idx, pos_val, ind_idx, ind_val, uv_idx, morph_idx]);
+    edit(
+        &mut d,
+        [pos_idx, pos_val, ind_idx, ind_val, uv_idx, morph_idx],
+    );
     d.write(
         dir,
         name,
@@ -214,21 +220,26 @@ fn malformed_sparse_accessors_are_errors_naming_the_problem() {
         (
             "values-past-view",
             Box::new(|d: &mut Doc, _| {
-                d.accessors[0] = d.accessors[0].replace(r#""sparse":{"count":2"#, r#""sparse":{"count":3"#);
+                d.accessors[0] =
+                    d.accessors[0].replace(r#""sparse":{"count":2"#, r#""sparse":{"count":3"#);
             }),
             "sparse",
         ),
         (
             "count-over-accessor",
             Box::new(|d: &mut Doc, _| {
-                d.accessors[2] = d.accessors[2].replace(r#""sparse":{"count":1"#, r#""sparse":{"count":5"#);
+                d.accessors[2] =
+                    d.accessors[2].replace(r#""sparse":{"count":1"#, r#""sparse":{"count":5"#);
             }),
             "sparse.count is 5",
         ),
         (
             "huge-without-view",
             Box::new(|d: &mut Doc, _| {
-                d.accessors[2] = d.accessors[2].replace(r#""count":4,"type":"VEC2""#, r#""count":4000000000,"type":"VEC2""#);
+                d.accessors[2] = d.accessors[2].replace(
+                    r#""count":4,"type":"VEC2""#,
+                    r#""count":4000000000,"type":"VEC2""#,
+                );
             }),
             "memory budget",
         ),
@@ -259,15 +270,23 @@ fn quantized_attributes_decode_per_khr_mesh_quantization() {
     // Normals: +z as 127 (1.0) and −128 clamped to −1 on the second; each element padded to 4 bytes.
     let v = d.view(&[0, 0, 127, 0, 0, 0, 0x80, 0, 0, 0, 127, 0]);
     d.accessor(format!(r#"{{"bufferView":{v},"byteOffset":0,"componentType":5120,"normalized":true,"count":3,"type":"VEC3"}}"#));
-    let v = d.view(&i16s(&[32767, 0, 0, 32767, 0, -32768, 0, -32767, 0, 0, 32767, 32767]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5122,"normalized":true,"count":3,"type":"VEC4"}}"#));
+    let v = d.view(&i16s(&[
+        32767, 0, 0, 32767, 0, -32768, 0, -32767, 0, 0, 32767, 32767,
+    ]));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5122,"normalized":true,"count":3,"type":"VEC4"}}"#
+    ));
     let v = d.view(&u16s(&[0, 65535, 65535, 32768, 0, 0]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5123,"normalized":true,"count":3,"type":"VEC2"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5123,"normalized":true,"count":3,"type":"VEC2"}}"#
+    ));
     // Mesh 1: i8 normalized positions, i8 unnormalized texture coordinates.
     let v = d.view(&[0, 0, 0, 0, 127, 0, 0, 0, 0, 0x81, 0, 0]);
     d.accessor(format!(r#"{{"bufferView":{v},"byteOffset":0,"componentType":5120,"normalized":true,"count":3,"type":"VEC3","min":[0,-127,0],"max":[127,0,0]}}"#));
     let v = d.view(&[0, 0, 3, 0xFE, 0xF9, 7]);
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5120,"count":3,"type":"VEC2"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5120,"count":3,"type":"VEC2"}}"#
+    ));
     // Element strides of 4 bytes for the padded i8 VEC3s.
     for view in [1, 4] {
         d.views[view] = d.views[view].replace('}', r#","byteStride":4}"#);
@@ -292,19 +311,39 @@ fn quantized_attributes_decode_per_khr_mesh_quantization() {
     assert!(close(a.normals[0], Vec3::Z, 1e-6) && close(a.normals[2], Vec3::Z, 1e-6));
     assert!(close(a.normals[1], -Vec3::Z, 1e-6), "{}", a.normals[1]);
     let t = a.tangents.as_ref().unwrap();
-    assert!(close(t[0].truncate(), Vec3::X, 1e-6) && t[0].w == 1.0, "{}", t[0]);
-    assert!(close(t[1].truncate(), -Vec3::Y, 1e-6) && t[1].w == -1.0, "{}", t[1]);
-    assert!(close(t[2].truncate(), Vec3::Z, 1e-6) && t[2].w == 1.0, "{}", t[2]);
+    assert!(
+        close(t[0].truncate(), Vec3::X, 1e-6) && t[0].w == 1.0,
+        "{}",
+        t[0]
+    );
+    assert!(
+        close(t[1].truncate(), -Vec3::Y, 1e-6) && t[1].w == -1.0,
+        "{}",
+        t[1]
+    );
+    assert!(
+        close(t[2].truncate(), Vec3::Z, 1e-6) && t[2].w == 1.0,
+        "{}",
+        t[2]
+    );
     let uv = a.uvs.as_ref().unwrap();
     assert_eq!(uv[0], Vec2::new(0.0, 1.0));
     assert_eq!(uv[1], Vec2::new(1.0, 32768.0 / 65535.0));
-    let want = [Vec3::new(0.0, 0.0, 5.0), Vec3::new(1.0, 0.0, 5.0), Vec3::new(0.0, -1.0, 5.0)];
+    let want = [
+        Vec3::new(0.0, 0.0, 5.0),
+        Vec3::new(1.0, 0.0, 5.0),
+        Vec3::new(0.0, -1.0, 5.0),
+    ];
     for (p, w) in b.positions.iter().zip(want) {
         assert!(close(*p, w, 1e-6), "{p} != {w}");
     }
     assert_eq!(
         b.uvs.as_ref().unwrap(),
-        &vec![Vec2::new(0.0, 0.0), Vec2::new(3.0, -2.0), Vec2::new(-7.0, 7.0)]
+        &vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(3.0, -2.0),
+            Vec2::new(-7.0, 7.0)
+        ]
     );
 }
 
@@ -336,7 +375,11 @@ fn the_real_morph_targets_apply_their_default_weights() {
     }
     // The targets raise some vertices by up to 0.2 (their accessors' max): at weight 0.5, 0.1.
     assert!(raised > 0);
-    let top = builder.meshes().iter().flat_map(|m| &m.positions).map(|p| p.y);
+    let top = builder
+        .meshes()
+        .iter()
+        .flat_map(|m| &m.positions)
+        .map(|p| p.y);
     assert!((top.fold(f32::MIN, f32::max) - 0.1).abs() < 1e-6);
 }
 
@@ -347,14 +390,22 @@ fn node_weights_override_mesh_weights_and_move_normals() {
     let v = d.view(&f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]));
     d.accessor(format!(r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}"#));
     let v = d.view(&f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3"}}"#
+    ));
     let v = d.view(&f32s(&[0., 0., 4., 0., 0., 4., 0., 0., 4.]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3"}}"#
+    ));
     let v = d.view(&f32s(&[4., 0., 0., 4., 0., 0., 4., 0., 0.]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3"}}"#
+    ));
     // The second target's POSITION deltas are i16 (KHR_mesh_quantization), not normalized.
     let v = d.view(&i16s(&[1, 0, 0, 1, 0, 0, 1, 0, 0]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5122,"count":3,"type":"VEC3"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5122,"count":3,"type":"VEC3"}}"#
+    ));
     let path = d.write(
         &dir,
         "morph",
@@ -370,7 +421,11 @@ fn node_weights_override_mesh_weights_and_move_normals() {
         assert!(close(*p, base + shift, 1e-6), "{p}");
     }
     let n = Vec3::new(1.0, 0.0, 1.0).normalize();
-    assert!(m.normals.iter().all(|m| close(*m, n, 1e-6)), "{:?}", m.normals);
+    assert!(
+        m.normals.iter().all(|m| close(*m, n, 1e-6)),
+        "{:?}",
+        m.normals
+    );
 }
 
 /// A two-joint skin: joint A (node 1) at z = −2, joint B (node 2) its child one unit up, rotated 90° about z
@@ -381,25 +436,37 @@ fn two_joint_skin(dir: &Path) -> PathBuf {
     let v = d.view(&f32s(&[1., 1., -2., 1., 1., -2., 0., 0., -2.]));
     d.accessor(format!(r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3","min":[0,0,-2],"max":[1,1,-2]}}"#));
     let v = d.view(&f32s(&[1., 0., 0., 0., 0., 1., 0., 0., 1.]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC3"}}"#
+    ));
     // Set 0 (u8 joints): vertex 0 all on B, vertex 1 half on A, vertex 2 all on A. Set 1 (u16 joints):
     // vertex 1's other half on B.
     let v = d.view(&[1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]);
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5121,"count":3,"type":"VEC4"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5121,"count":3,"type":"VEC4"}}"#
+    ));
     let v = d.view(&f32s(&[1., 0., 0., 0., 0.5, 0., 0., 0., 1., 0., 0., 0.]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC4"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5126,"count":3,"type":"VEC4"}}"#
+    ));
     let v = d.view(&u16s(&[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5123,"count":3,"type":"VEC4"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5123,"count":3,"type":"VEC4"}}"#
+    ));
     // u8 normalized weights: 128/255 is not exactly 0.5; the weights are divided by their sum.
     let v = d.view(&[0, 0, 0, 0, 128, 0, 0, 0, 0, 0, 0, 0]);
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5121,"normalized":true,"count":3,"type":"VEC4"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5121,"normalized":true,"count":3,"type":"VEC4"}}"#
+    ));
     // Inverse bind matrices (column-major): translate(0, 0, 2) and translate(0, −1, 2).
     let ibm = [
         1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 2., 1., //
         1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., -1., 2., 1.,
     ];
     let v = d.view(&f32s(&ibm));
-    d.accessor(format!(r#"{{"bufferView":{v},"componentType":5126,"count":2,"type":"MAT4"}}"#));
+    d.accessor(format!(
+        r#"{{"bufferView":{v},"componentType":5126,"count":2,"type":"MAT4"}}"#
+    ));
     let h = std::f32::consts::FRAC_1_SQRT_2;
     d.write(
         dir,
@@ -427,7 +494,11 @@ fn a_two_joint_skin_is_posed_at_its_rest_pose() {
         * Mat4::from_translation(Vec3::Y)
         * Mat4::from_quat(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2))
         * Mat4::from_translation(Vec3::new(0.0, -1.0, 2.0));
-    assert!(close(b.transform_point3(Vec3::new(1.0, 1.0, -2.0)), Vec3::new(0.0, 2.0, -2.0), 1e-6));
+    assert!(close(
+        b.transform_point3(Vec3::new(1.0, 1.0, -2.0)),
+        Vec3::new(0.0, 2.0, -2.0),
+        1e-6
+    ));
     let on_b = (128.0 / 255.0) / (0.5 + 128.0 / 255.0);
     let want = [
         Vec3::new(0.0, 2.0, -2.0),
@@ -463,7 +534,10 @@ fn a_skin_naming_a_joint_it_lacks_is_an_error() {
         .err()
         .expect("an error");
     let text = err.to_string();
-    assert!(text.contains("skin.gltf") && text.contains("names joint 1"), "{text}");
+    assert!(
+        text.contains("skin.gltf") && text.contains("names joint 1"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -538,7 +612,10 @@ fn cell_angles(image: &nimbus::RenderImage) -> Vec<Vec<f32>> {
                     let (dx, dy) = ((r * a.cos()).round() as i32, (r * a.sin()).round() as i32);
                     let g = normal(px + dx, py + dy);
                     let m = normal(px + 32 + dx, py + dy);
-                    assert!(g.length() > 0.5 && m.length() > 0.5, "a miss at cell ({cx}, {cy})");
+                    assert!(
+                        g.length() > 0.5 && m.length() > 0.5,
+                        "a miss at cell ({cx}, {cy})"
+                    );
                     angles.push(g.angle_between(m).to_degrees());
                 }
             }
@@ -560,7 +637,10 @@ fn normal_mapped_bumps_match_the_geometric_bumps_beside_them() {
         let mean = angles.iter().sum::<f32>() / angles.len() as f32;
         let max = angles.iter().cloned().fold(0.0, f32::max);
         eprintln!("cell {i}: mean {mean:.1}°, max {max:.1}°");
-        assert!(mean < 8.0 && max < 20.0, "cell {i}: mean {mean}°, max {max}°: {angles:?}");
+        assert!(
+            mean < 8.0 && max < 20.0,
+            "cell {i}: mean {mean}°, max {max}°: {angles:?}"
+        );
     }
 }
 
@@ -590,6 +670,35 @@ fn a_normal_scale_of_zero_gives_the_flat_normal() {
     }
     let flat = |x: usize, y: usize| image.normal[image.pixel_index(x, y)];
     for (x, y) in [(55, 187), (135, 107), (215, 27)] {
-        assert!(flat(x, y).angle_between(Vec3::Z).to_degrees() < 0.5, "{}", flat(x, y));
+        assert!(
+            flat(x, y).angle_between(Vec3::Z).to_degrees() < 0.5,
+            "{}",
+            flat(x, y)
+        );
+    }
+}
+
+#[test]
+fn infinite_morph_weights_and_jointless_skins_are_errors() {
+    let dir = temp_dir("checks");
+    let path = two_joint_skin(&dir);
+    let good = std::fs::read_to_string(&path).unwrap();
+    for (from, to, needle) in [
+        (
+            r#""joints":[1,2]"#,
+            r#""joints":[]"#,
+            "skins[0] has no joints",
+        ),
+        (
+            r#""scale":[3,3,3]}"#,
+            r#""scale":[3,3,3],"weights":[1e39]}"#,
+            "nodes[3].weights",
+        ),
+    ] {
+        std::fs::write(&path, good.replace(from, to)).unwrap();
+        let err = load_builder(&path, &LoadOptions::default())
+            .err()
+            .expect("an error");
+        assert!(err.to_string().contains(needle), "{err}");
     }
 }

@@ -1,9 +1,11 @@
 //! glTF 2.0 loader (`.gltf` with external or data-URI buffers, and `.glb`), on top of the `gltf` crate.
 //!
 //! Reads the default scene's node hierarchy (TRS and matrix transforms), triangle meshes (indexed or not,
-//! strips and fans triangulated; POSITION, NORMAL, TANGENT, TEXCOORD_0), the first perspective camera met in
-//! traversal order, metallic-roughness materials with textures and the extensions listed in
-//! [`SUPPORTED_EXTENSIONS`], and `KHR_lights_punctual` lights.
+//! strips and fans triangulated; POSITION, NORMAL, TANGENT, TEXCOORD_0, sparse or not, with the component
+//! types of `KHR_mesh_quantization`; see `gltf_accessors`), morph targets at their default weights and skins at
+//! their rest pose (see `gltf_deform`), the first perspective camera met in traversal order, metallic-roughness
+//! materials with textures and the extensions listed in [`SUPPORTED_EXTENSIONS`], and `KHR_lights_punctual`
+//! lights. Normal-mapped meshes without TANGENT get MikkTSpace tangents when the scene is built.
 //!
 //! Scene `extras` read: `nimbus_environment` (see [`crate::light::EnvironmentLight`]), `max_bounces`, and
 //! `nimbus_light_units`: `"photometric"` (the default) or `"radiometric"`.
@@ -17,8 +19,9 @@
 //! Hostile input: before the `gltf` crate validates or reads anything, every index field, the node forest,
 //! cameras, lights and node transforms are checked here (see `gltf_check`), since the crate panics on some
 //! of them; then the crate's validation runs, except that the extensions Nimbus implements may be listed in
-//! `extensionsRequired` (the crate rejects some of them). Each accessor's type, component type and byte range
-//! are checked before it is read, material factors when the material is built. The scene, buffer and image
+//! `extensionsRequired` (the crate rejects some of them). Each accessor's type, component type, byte range and
+//! sparse indices are checked as it is read (by hand, not by the crate's reader), material factors when the
+//! material is built. The scene, buffer and image
 //! files are read within [`LoadOptions::limits`], and images decode under it. A malformed file is an error
 //! naming the element, never a panic.
 
@@ -416,20 +419,17 @@ impl Loader<'_> {
             let mut m = self.read_primitive(&primitive, &what)?;
             m.name = node.name().map_or_else(|| mesh_name.clone(), str::to_owned);
             let limits = &self.options.limits;
-            let deformed = gltf_deform::apply_morph_targets(
-                &mut m,
-                &primitive,
-                weights,
-                self.buffers,
-                limits,
-            )
-            .and_then(|()| match &joints {
-                Some(j) => gltf_deform::apply_skin(&mut m, &primitive, j, self.buffers, limits),
-                None => {
-                    m.transform(world);
-                    Ok(())
-                }
-            });
+            let deformed =
+                gltf_deform::apply_morph_targets(&mut m, &primitive, weights, self.buffers, limits)
+                    .and_then(|()| match &joints {
+                        Some(j) => {
+                            gltf_deform::apply_skin(&mut m, &primitive, j, self.buffers, limits)
+                        }
+                        None => {
+                            m.transform(world);
+                            Ok(())
+                        }
+                    });
             deformed.map_err(|e| self.error(SceneErrorKind::Malformed(format!("{what}: {e}"))))?;
             if m.normals.is_empty() {
                 m.generate_normals();
@@ -447,7 +447,9 @@ impl Loader<'_> {
         let (buffers, limits) = (self.buffers, &self.options.limits);
         let bad = |m: String| self.error(SceneErrorKind::InvalidReference(format!("{what}: {m}")));
         let floats = |semantic: &S, usage| match primitive.get(semantic) {
-            Some(a) => read_floats(&a, usage, buffers, limits).map(Some).map_err(bad),
+            Some(a) => read_floats(&a, usage, buffers, limits)
+                .map(Some)
+                .map_err(bad),
             None => Ok(None),
         };
         let positions: Vec<Vec3> = floats(&S::Positions, Usage::Position)?

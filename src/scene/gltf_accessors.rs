@@ -143,7 +143,9 @@ fn decoder(data_type: DataType, normalized: bool) -> fn(&[u8]) -> f32 {
         (DataType::U8, false) => |b| f32::from(b[0]),
         (DataType::U8, true) => |b| f32::from(b[0]) / 255.0,
         (DataType::I16, false) => |b| f32::from(i16::from_le_bytes([b[0], b[1]])),
-        (DataType::I16, true) => |b| (f32::from(i16::from_le_bytes([b[0], b[1]])) / 32767.0).max(-1.0),
+        (DataType::I16, true) => {
+            |b| (f32::from(i16::from_le_bytes([b[0], b[1]])) / 32767.0).max(-1.0)
+        }
         (DataType::U16, false) => |b| f32::from(u16::from_le_bytes([b[0], b[1]])),
         (DataType::U16, true) => |b| f32::from(u16::from_le_bytes([b[0], b[1]])) / 65535.0,
         (DataType::U32, _) => |b| unsigned(b) as f32,
@@ -354,10 +356,19 @@ mod tests {
         assert_eq!(d(&[0x81]), -1.0); // -127
         assert_eq!(d(&[0x80]), -1.0); // -128 clamps
         assert_eq!(decoder(DataType::U8, true)(&[255]), 1.0);
-        assert_eq!(decoder(DataType::I16, true)(&(-32768i16).to_le_bytes()), -1.0);
-        assert_eq!(decoder(DataType::I16, true)(&16384i16.to_le_bytes()), 16384.0 / 32767.0);
+        assert_eq!(
+            decoder(DataType::I16, true)(&(-32768i16).to_le_bytes()),
+            -1.0
+        );
+        assert_eq!(
+            decoder(DataType::I16, true)(&16384i16.to_le_bytes()),
+            16384.0 / 32767.0
+        );
         assert_eq!(decoder(DataType::U16, true)(&65535u16.to_le_bytes()), 1.0);
-        assert_eq!(decoder(DataType::I16, false)(&(-300i16).to_le_bytes()), -300.0);
+        assert_eq!(
+            decoder(DataType::I16, false)(&(-300i16).to_le_bytes()),
+            -300.0
+        );
         assert_eq!(decoder(DataType::U16, false)(&300u16.to_le_bytes()), 300.0);
         assert_eq!(unsigned(&70000u32.to_le_bytes()), 70000);
     }

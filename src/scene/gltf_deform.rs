@@ -46,8 +46,8 @@ pub(super) fn node_worlds(document: &gltf::Document) -> Vec<Mat4> {
         .collect()
 }
 
-/// The joint matrices of a skin: each joint's world matrix times its inverse bind matrix (identity when the
-/// skin has none).
+/// The joint matrices of a skin (at least one joint, checked by `gltf_check`): each joint's world matrix times
+/// its inverse bind matrix (identity when the skin has none).
 pub(super) fn joint_matrices(
     skin: &gltf::Skin,
     worlds: &[Mat4],
@@ -55,9 +55,6 @@ pub(super) fn joint_matrices(
     limits: &Limits,
 ) -> Result<Vec<Mat4>, String> {
     let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
-    if joints.is_empty() {
-        return Err(format!("skin {} has no joints", skin.index()));
-    }
     let inverse_binds: Vec<Mat4> = match skin.inverse_bind_matrices() {
         Some(a) => {
             let floats = read_floats(&a, Usage::InverseBindMatrices, buffers, limits)
@@ -93,7 +90,7 @@ pub(super) fn morph_weights<'a>(node: &gltf::Node<'a>, mesh: &gltf::Mesh<'a>) ->
     node.weights().or_else(|| mesh.weights()).unwrap_or(&[])
 }
 
-/// Adds `Σ weight × displacement` of the primitive's morph targets to the mesh's object-space positions,
+/// Adds `Σ weight × displacement` (the weights checked finite by `gltf_check`) of the primitive's morph targets to the mesh's object-space positions,
 /// normals (renormalized) and tangents (xyz; w kept). Targets with weight 0 are not read.
 pub(super) fn apply_morph_targets(
     mesh: &mut Mesh,
@@ -108,9 +105,6 @@ pub(super) fn apply_morph_targets(
             "{} morph weights for {targets} morph targets",
             weights.len()
         ));
-    }
-    if let Some(w) = weights.iter().find(|w| !w.is_finite()) {
-        return Err(format!("morph weight {w} is not finite"));
     }
     let count = mesh.positions.len();
     let mut normals_moved = false;
@@ -151,7 +145,10 @@ pub(super) fn apply_morph_targets(
         }
         if let Some(d) = read(target.tangents(), Usage::DirectionDelta, "TANGENT")? {
             if let Some(tangents) = &mut mesh.tangents {
-                tangents.iter_mut().zip(d).for_each(|(t, d)| *t += d.extend(0.0));
+                tangents
+                    .iter_mut()
+                    .zip(d)
+                    .for_each(|(t, d)| *t += d.extend(0.0));
             }
         }
     }
@@ -187,7 +184,11 @@ pub(super) fn apply_skin(
             _ => {
                 return Err(format!(
                     "a skinned primitive needs JOINTS_{set} and WEIGHTS_{set} together{}",
-                    if set == 0 { " (glTF 2.0 §3.7.3.1)" } else { "" }
+                    if set == 0 {
+                        " (glTF 2.0 §3.7.3.1)"
+                    } else {
+                        ""
+                    }
                 ))
             }
         };
@@ -220,13 +221,21 @@ pub(super) fn apply_skin(
         set += 1;
     }
     for (m, &t) in blend.iter_mut().zip(&total) {
-        *m = if t > 0.0 { *m * (1.0 / t) } else { Mat4::IDENTITY };
+        *m = if t > 0.0 {
+            *m * (1.0 / t)
+        } else {
+            Mat4::IDENTITY
+        };
     }
     for (p, m) in mesh.positions.iter_mut().zip(&blend) {
         *p = m.transform_point3(*p);
     }
     for (n, m) in mesh.normals.iter_mut().zip(&blend) {
-        *n = m.inverse().transpose().transform_vector3(*n).normalize_or_zero();
+        *n = m
+            .inverse()
+            .transpose()
+            .transform_vector3(*n)
+            .normalize_or_zero();
     }
     if let Some(tangents) = &mut mesh.tangents {
         for (t, m) in tangents.iter_mut().zip(&blend) {
