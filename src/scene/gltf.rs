@@ -21,9 +21,8 @@
 //! of them; then the crate's validation runs, except that the extensions Nimbus implements may be listed in
 //! `extensionsRequired` (the crate rejects some of them). Each accessor's type, component type, byte range and
 //! sparse indices are checked as it is read (by hand, not by the crate's reader), material factors when the
-//! material is built. The scene, buffer and image
-//! files are read within [`LoadOptions::limits`], and images decode under it. A malformed file is an error
-//! naming the element, never a panic.
+//! material is built. The scene, buffer and image files are read within [`LoadOptions::limits`], and images
+//! decode under it. A malformed file is an error naming the element, never a panic.
 
 use super::gltf_accessors::{check_bytes, read_floats, read_indices, Usage};
 use super::gltf_deform;
