@@ -4,6 +4,7 @@
 mod bvh;
 mod mesh;
 mod spawn;
+mod tangents;
 mod triangle;
 
 pub use bvh::{Bvh, TooManyTriangles};

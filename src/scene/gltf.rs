@@ -1,9 +1,11 @@
 //! glTF 2.0 loader (`.gltf` with external or data-URI buffers, and `.glb`), on top of the `gltf` crate.
 //!
 //! Reads the default scene's node hierarchy (TRS and matrix transforms), triangle meshes (indexed or not,
-//! strips and fans triangulated; POSITION, NORMAL, TANGENT, TEXCOORD_0), the first perspective camera met in
-//! traversal order, metallic-roughness materials with textures and the extensions listed in
-//! [`SUPPORTED_EXTENSIONS`], and `KHR_lights_punctual` lights.
+//! strips and fans triangulated; POSITION, NORMAL, TANGENT, TEXCOORD_0, sparse or not, with the component
+//! types of `KHR_mesh_quantization`; see `gltf_accessors`), morph targets at their default weights and skins at
+//! their rest pose (see `gltf_deform`), the first perspective camera met in traversal order, metallic-roughness
+//! materials with textures and the extensions listed in [`SUPPORTED_EXTENSIONS`], and `KHR_lights_punctual`
+//! lights. Normal-mapped meshes without TANGENT get MikkTSpace tangents when the scene is built.
 //!
 //! Scene `extras` read: `nimbus_environment` (see [`crate::light::EnvironmentLight`]), `max_bounces`, and
 //! `nimbus_light_units`: `"photometric"` (the default) or `"radiometric"`.
@@ -17,11 +19,13 @@
 //! Hostile input: before the `gltf` crate validates or reads anything, every index field, the node forest,
 //! cameras, lights and node transforms are checked here (see `gltf_check`), since the crate panics on some
 //! of them; then the crate's validation runs, except that the extensions Nimbus implements may be listed in
-//! `extensionsRequired` (the crate rejects some of them). Each accessor's type, component type and byte range
-//! are checked before it is read, material factors when the material is built. The scene, buffer and image
-//! files are read within [`LoadOptions::limits`], and images decode under it. A malformed file is an error
-//! naming the element, never a panic.
+//! `extensionsRequired` (the crate rejects some of them). Each accessor's type, component type, byte range and
+//! sparse indices are checked as it is read (by hand, not by the crate's reader), material factors when the
+//! material is built. The scene, buffer and image files are read within [`LoadOptions::limits`], and images
+//! decode under it. A malformed file is an error naming the element, never a panic.
 
+use super::gltf_accessors::{check_bytes, read_floats, read_indices, Usage};
+use super::gltf_deform;
 use super::{Camera, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::light::{
@@ -41,6 +45,7 @@ use std::sync::Arc;
 /// other in `extensionsUsed` a warning.
 pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
+    "KHR_mesh_quantization",
     "KHR_materials_emissive_strength",
     "KHR_materials_transmission",
     "KHR_materials_ior",
@@ -152,6 +157,9 @@ pub fn load_slice(
         material_map: HashMap::new(),
         options,
         light_unit_scale: 1.0 / LUMENS_PER_WATT,
+        document: &document,
+        node_worlds: Vec::new(),
+        skin_warned: false,
     };
     loader.builder.warnings.append(&mut warnings);
     let scene = document
@@ -240,6 +248,12 @@ struct Loader<'a> {
     options: &'a LoadOptions<'a>,
     /// Watts per unit of a `KHR_lights_punctual` intensity (1/683 photometric, 1 radiometric).
     light_unit_scale: f32,
+    /// The document, for the skins' joint nodes.
+    document: &'a gltf::Document,
+    /// Every node's world matrix, computed when the first skin is met.
+    node_worlds: Vec<Mat4>,
+    /// Whether the rest-pose warning was given.
+    skin_warned: bool,
 }
 
 impl Loader<'_> {
@@ -358,6 +372,8 @@ impl Loader<'_> {
         self.builder.lights.push(l);
     }
 
+    /// Loads a node's mesh: each triangle primitive's attributes, morphed by the default weights, then posed
+    /// by the node's skin (its rest pose) or placed by the node's world matrix.
     fn load_mesh(
         &mut self,
         node: &gltf::Node,
@@ -367,6 +383,28 @@ impl Loader<'_> {
         let mesh_name = mesh
             .name()
             .map_or_else(|| format!("mesh {}", mesh.index()), |n| one_line(n, QUOTE));
+        let weights = gltf_deform::morph_weights(node, &mesh);
+        let joints = match node.skin() {
+            Some(skin) => {
+                if !std::mem::replace(&mut self.skin_warned, true) {
+                    self.builder.warnings.push(
+                        "skinned meshes are posed at their rest pose (the joints' own node transforms); animations are not played".into(),
+                    );
+                }
+                if self.node_worlds.is_empty() {
+                    self.node_worlds = gltf_deform::node_worlds(self.document);
+                }
+                let joints = gltf_deform::joint_matrices(
+                    &skin,
+                    &self.node_worlds,
+                    self.buffers,
+                    &self.options.limits,
+                )
+                .map_err(|e| self.error(SceneErrorKind::Malformed(e)))?;
+                Some(joints)
+            }
+            None => None,
+        };
         for primitive in mesh.primitives() {
             let what = format!("{mesh_name}, primitive {}", primitive.index());
             let mode = primitive.mode();
@@ -381,160 +419,109 @@ impl Loader<'_> {
                 ));
                 continue;
             }
-            for (semantic, accessor) in primitive.attributes() {
-                self.check_accessor(&accessor, &what, Use::Attribute(&semantic))?;
-            }
-            if let Some(a) = primitive.indices() {
-                self.check_accessor(&a, &what, Use::Indices)?;
-            }
-            let reader = primitive.reader(|b| self.buffers.get(b.index()).map(|d| d.0.as_slice()));
-            let positions: Vec<Vec3> = reader
-                .read_positions()
-                .ok_or_else(|| {
-                    self.error(SceneErrorKind::Malformed(format!("{what} has no POSITION")))
-                })?
-                .map(Vec3::from)
-                .collect();
-            let count = positions.len();
-            let normals: Vec<Vec3> = reader
-                .read_normals()
-                .map(|n| n.map(Vec3::from).collect())
-                .unwrap_or_default();
-            let uvs: Option<Vec<Vec2>> = reader
-                .read_tex_coords(0)
-                .map(|t| t.into_f32().map(Vec2::from).collect());
-            let tangents: Option<Vec<Vec4>> =
-                reader.read_tangents().map(|t| t.map(Vec4::from).collect());
-            let flat: Vec<u32> = match reader.read_indices() {
-                Some(i) => i.into_u32().collect(),
-                None => (0..count as u32).collect(),
-            };
-            if let Some(bad) = flat.iter().find(|&&i| i as usize >= count) {
-                return Err(self.error(SceneErrorKind::InvalidReference(format!(
-                    "{what}: index {bad} is out of range for {count} vertices"
-                ))));
-            }
-            let same_len = |n: usize| n == count;
-            if (!normals.is_empty() && !same_len(normals.len()))
-                || uvs.as_ref().is_some_and(|u| !same_len(u.len()))
-                || tangents.as_ref().is_some_and(|t| !same_len(t.len()))
-            {
-                return Err(self.error(SceneErrorKind::Malformed(format!(
-                    "{what}: attribute counts differ from POSITION's {count}"
-                ))));
-            }
-            let bad = [
-                ("POSITION", positions.iter().position(|v| !v.is_finite())),
-                ("NORMAL", normals.iter().position(|v| !v.is_finite())),
-                (
-                    "TEXCOORD_0",
-                    uvs.iter().flatten().position(|v| !v.is_finite()),
-                ),
-                (
-                    "TANGENT",
-                    tangents.iter().flatten().position(|v| !v.is_finite()),
-                ),
-            ];
-            if let Some((name, Some(i))) = bad.into_iter().find(|(_, i)| i.is_some()) {
-                return Err(self.error(SceneErrorKind::Malformed(format!(
-                    "{what}: {name}[{i}] is not finite"
-                ))));
-            }
-            let indices = triangulate(&flat, mode);
-            let material = self.material(primitive.material())?;
-            let mut m = Mesh {
-                name: node.name().map_or_else(|| mesh_name.clone(), str::to_owned),
-                positions,
-                normals,
-                uvs,
-                tangents,
-                indices,
-                material,
-            };
+            let mut m = self.read_primitive(&primitive, &what)?;
+            m.name = node.name().map_or_else(|| mesh_name.clone(), str::to_owned);
+            let limits = &self.options.limits;
+            let deformed =
+                gltf_deform::apply_morph_targets(&mut m, &primitive, weights, self.buffers, limits)
+                    .and_then(|()| match &joints {
+                        Some(j) => {
+                            gltf_deform::apply_skin(&mut m, &primitive, j, self.buffers, limits)
+                        }
+                        None => {
+                            m.transform(world);
+                            Ok(())
+                        }
+                    });
+            deformed.map_err(|e| self.error(SceneErrorKind::Malformed(format!("{what}: {e}"))))?;
             if m.normals.is_empty() {
                 m.generate_normals();
             }
-            m.transform(world);
+            m.material = self.material(primitive.material())?;
             self.builder.add_mesh(m);
         }
         Ok(())
     }
 
-    /// Checks that an accessor holds what its use reads (element type and component type), has at least one
-    /// element, and that its bytes lie inside its buffer view and the view inside its buffer.
-    fn check_accessor(
-        &self,
-        accessor: &gltf::Accessor,
-        what: &str,
-        usage: Use,
-    ) -> Result<(), SceneError> {
-        let bad = |m: String| {
-            self.error(SceneErrorKind::InvalidReference(format!(
-                "{what}: accessor {}: {m}",
-                accessor.index()
-            )))
-        };
-        if accessor.sparse().is_some() {
-            return Err(self.error(SceneErrorKind::Unsupported(format!(
-                "{what}: accessor {} is sparse",
-                accessor.index()
-            ))));
-        }
-        use gltf::accessor::{DataType as D, Dimensions as N};
+    /// A primitive's vertices in object space: POSITION, NORMAL, TANGENT and TEXCOORD_0 (sparse or quantized
+    /// accessors decoded), its index list triangulated, every other attribute's bytes checked.
+    fn read_primitive(&self, primitive: &gltf::Primitive, what: &str) -> Result<Mesh, SceneError> {
         use gltf::Semantic as S;
-        let (dims, types): (N, &[D]) = match usage {
-            Use::Indices => (N::Scalar, &[D::U8, D::U16, D::U32]),
-            Use::Attribute(S::Positions | S::Normals) => (N::Vec3, &[D::F32]),
-            Use::Attribute(S::Tangents) => (N::Vec4, &[D::F32]),
-            Use::Attribute(S::TexCoords(0)) => (N::Vec2, &[D::F32, D::U8, D::U16]),
-            // Other attributes are not read; only their byte range is checked.
-            Use::Attribute(_) => (accessor.dimensions(), &[]),
+        let (buffers, limits) = (self.buffers, &self.options.limits);
+        let bad = |m: String| self.error(SceneErrorKind::InvalidReference(format!("{what}: {m}")));
+        let floats = |semantic: &S, usage| match primitive.get(semantic) {
+            Some(a) => read_floats(&a, usage, buffers, limits)
+                .map(Some)
+                .map_err(bad),
+            None => Ok(None),
         };
-        let (data_type, dimensions) = (accessor.data_type(), accessor.dimensions());
-        if dimensions != dims || !(types.is_empty() || types.contains(&data_type)) {
-            return Err(bad(format!(
-                "type {dimensions:?} with componentType {data_type:?} cannot be read as {} ({dims:?} of {types:?})",
-                usage.name()
-            )));
-        }
-        if accessor.count() == 0 {
-            return Err(bad("count is 0".into()));
-        }
-        let Some(view) = accessor.view() else {
-            return Err(bad("has no buffer view".into()));
-        };
-        let buffer_len = self
-            .buffers
-            .get(view.buffer().index())
-            .map_or(0, |b| b.len());
-        let view_end = view.offset().checked_add(view.length());
-        if view_end.is_none_or(|e| e > buffer_len) {
-            return Err(bad(format!(
-                "buffer view {} runs past the end of its buffer",
-                view.index()
-            )));
-        }
-        let element = accessor.size();
-        let stride = view.stride().unwrap_or(element);
-        if stride < element {
-            return Err(bad(format!(
-                "byteStride {stride} is smaller than the element size {element}"
-            )));
-        }
-        let count = accessor.count();
-        if count > 0 {
-            let end = (count - 1)
-                .checked_mul(stride)
-                .and_then(|v| v.checked_add(accessor.offset()))
-                .and_then(|v| v.checked_add(element));
-            if end.is_none_or(|e| e > view.length()) {
-                return Err(bad(format!(
-                    "{count} elements run past the end of buffer view {}",
-                    view.index()
-                )));
+        let positions: Vec<Vec3> = floats(&S::Positions, Usage::Position)?
+            .ok_or_else(|| {
+                self.error(SceneErrorKind::Malformed(format!("{what} has no POSITION")))
+            })?
+            .chunks_exact(3)
+            .map(Vec3::from_slice)
+            .collect();
+        let count = positions.len();
+        let normals: Vec<Vec3> = floats(&S::Normals, Usage::Normal)?
+            .map(|f| f.chunks_exact(3).map(Vec3::from_slice).collect())
+            .unwrap_or_default();
+        let uvs: Option<Vec<Vec2>> = floats(&S::TexCoords(0), Usage::TexCoord)?
+            .map(|f| f.chunks_exact(2).map(Vec2::from_slice).collect());
+        let tangents: Option<Vec<Vec4>> = floats(&S::Tangents, Usage::Tangent)?
+            .map(|f| f.chunks_exact(4).map(Vec4::from_slice).collect());
+        for (semantic, accessor) in primitive.attributes() {
+            if !matches!(
+                semantic,
+                S::Positions | S::Normals | S::Tangents | S::TexCoords(0)
+            ) {
+                check_bytes(&accessor, buffers, limits)
+                    .map_err(|e| bad(format!("{semantic:?}: {e}")))?;
             }
         }
-        Ok(())
+        let flat: Vec<u32> = match primitive.indices() {
+            Some(a) => read_indices(&a, buffers, limits).map_err(bad)?,
+            None => (0..count as u32).collect(),
+        };
+        if let Some(i) = flat.iter().find(|&&i| i as usize >= count) {
+            return Err(bad(format!(
+                "index {i} is out of range for {count} vertices"
+            )));
+        }
+        let same_len = |n: usize| n == count;
+        if (!normals.is_empty() && !same_len(normals.len()))
+            || uvs.as_ref().is_some_and(|u| !same_len(u.len()))
+            || tangents.as_ref().is_some_and(|t| !same_len(t.len()))
+        {
+            return Err(self.error(SceneErrorKind::Malformed(format!(
+                "{what}: attribute counts differ from POSITION's {count}"
+            ))));
+        }
+        let bad = [
+            ("POSITION", positions.iter().position(|v| !v.is_finite())),
+            ("NORMAL", normals.iter().position(|v| !v.is_finite())),
+            (
+                "TEXCOORD_0",
+                uvs.iter().flatten().position(|v| !v.is_finite()),
+            ),
+            (
+                "TANGENT",
+                tangents.iter().flatten().position(|v| !v.is_finite()),
+            ),
+        ];
+        if let Some((name, Some(i))) = bad.into_iter().find(|(_, i)| i.is_some()) {
+            return Err(self.error(SceneErrorKind::Malformed(format!(
+                "{what}: {name}[{i}] is not finite"
+            ))));
+        }
+        Ok(Mesh {
+            positions,
+            normals,
+            uvs,
+            tangents,
+            indices: triangulate(&flat, primitive.mode()),
+            ..Default::default()
+        })
     }
 
     fn material(&mut self, material: gltf::Material) -> Result<u32, SceneError> {
@@ -863,24 +850,6 @@ impl Loader<'_> {
             self.builder.set_environment(env);
         }
         Ok(())
-    }
-}
-
-/// What a primitive reads an accessor as.
-#[derive(Clone, Copy)]
-enum Use<'a> {
-    /// The index list.
-    Indices,
-    /// A vertex attribute.
-    Attribute(&'a gltf::Semantic),
-}
-
-impl Use<'_> {
-    fn name(&self) -> String {
-        match self {
-            Use::Indices => "indices".into(),
-            Use::Attribute(s) => s.to_string(),
-        }
     }
 }
 

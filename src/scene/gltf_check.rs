@@ -1,7 +1,7 @@
 //! Up-front checks of a parsed glTF document, run before the `gltf` crate's own validation (which indexes
 //! some arrays without checking) and before anything is read: every index field against its array, the node
 //! graph a forest, cameras and `KHR_lights_punctual` lights with their projection or cone present and their
-//! numbers in range, node transforms finite. The crate's accessors that would panic on such data (`projection()`,
+//! numbers in range, node transforms and morph weights finite, skins with at least one joint. The crate's accessors that would panic on such data (`projection()`,
 //! `kind()`, `children()`...) are then safe to call.
 
 use super::SceneErrorKind;
@@ -368,6 +368,19 @@ fn check_nodes(root: &Root) -> Result<(), String> {
         }
         if let Some(s) = &node.scale {
             finite(|| format!("nodes[{i}].scale"), s)?;
+        }
+        if let Some(w) = &node.weights {
+            finite(|| format!("nodes[{i}].weights"), w)?;
+        }
+    }
+    for (i, mesh) in root.meshes.iter().enumerate() {
+        if let Some(w) = &mesh.weights {
+            finite(|| format!("meshes[{i}].weights"), w)?;
+        }
+    }
+    for (i, skin) in root.skins.iter().enumerate() {
+        if skin.joints.is_empty() {
+            return Err(format!("skins[{i}] has no joints"));
         }
     }
     Ok(())

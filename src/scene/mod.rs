@@ -7,7 +7,9 @@ mod builder;
 mod camera;
 mod error;
 pub mod gltf;
+mod gltf_accessors;
 mod gltf_check;
+mod gltf_deform;
 pub mod obj;
 pub mod usd;
 
@@ -327,8 +329,17 @@ impl SceneBuilder {
     /// Builds the renderable scene: flattens the meshes into one BVH, turns emissive triangles into area
     /// lights and builds the light-selection distribution. Fails on a dangling reference (see
     /// [`SceneBuilder`]).
-    pub fn build(self) -> Result<Scene, SceneError> {
+    pub fn build(mut self) -> Result<Scene, SceneError> {
         self.validate()?;
+        // Normal maps need a tangent frame: MikkTSpace where the file gives no tangents (glTF 2.0 §3.7.2.1).
+        for mesh in &mut self.meshes {
+            if mesh.tangents.is_none()
+                && mesh.uvs.is_some()
+                && self.materials[mesh.material as usize].has_normal_map()
+            {
+                mesh.generate_tangents();
+            }
+        }
         let mut prims = Vec::new();
         let mut triangles = Vec::new();
         let mut lights = self.lights;
@@ -705,8 +716,9 @@ impl Scene {
         }
     }
 
-    /// The tangent frame at a hit: from vertex tangents when present, else from the triangle's uv gradient,
-    /// else arbitrary around the normal.
+    /// The tangent frame at a hit: from vertex tangents when present (given by the file, or MikkTSpace ones
+    /// generated for normal-mapped meshes), with the bitangent `w · cross(n, t)`; else arbitrary around the
+    /// normal.
     fn tangent_frame(&self, mesh: &Mesh, idx: [usize; 3], n: Vec3, b: Vec2) -> Frame {
         let b0 = 1.0 - b.x - b.y;
         if let Some(t) = &mesh.tangents {
@@ -722,29 +734,6 @@ impl Scene {
                 };
             }
             return frame;
-        }
-        if let Some(uv) = &mesh.uvs {
-            let (p0, p1, p2) = (
-                mesh.positions[idx[0]],
-                mesh.positions[idx[1]],
-                mesh.positions[idx[2]],
-            );
-            let (d1, d2) = (uv[idx[1]] - uv[idx[0]], uv[idx[2]] - uv[idx[0]]);
-            let det = d1.x * d2.y - d1.y * d2.x;
-            if det.abs() > 1e-12 {
-                let dpdu = ((p1 - p0) * d2.y - (p2 - p0) * d1.y) / det;
-                let dpdv = ((p2 - p0) * d1.x - (p1 - p0) * d2.x) / det;
-                let frame = Frame::from_normal_tangent(n, dpdu);
-                // glTF's v runs downward in the image; the normal map's +y follows +v's bitangent direction.
-                if frame.t.dot(dpdv) < 0.0 {
-                    return Frame {
-                        s: frame.s,
-                        t: -frame.t,
-                        n: frame.n,
-                    };
-                }
-                return frame;
-            }
         }
         Frame::from_normal(n)
     }
