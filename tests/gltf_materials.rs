@@ -147,7 +147,10 @@ fn texture_transform_rotation_and_scale_follow_the_extension_matrices() {
         t * r * Mat3::from_diagonal(Vec3::new(scale.x, scale.y, 1.0))
     };
     for (name, m) in [
-        ("Rotation", matrix(Vec2::ZERO, 0.392_699_1, Vec2::ONE)),
+        (
+            "Rotation",
+            matrix(Vec2::ZERO, std::f32::consts::FRAC_PI_8, Vec2::ONE),
+        ),
         ("Scale", matrix(Vec2::ZERO, 0.0, Vec2::splat(1.5))),
         ("All", matrix(Vec2::new(-0.2, -0.1), 0.3, Vec2::splat(1.5))),
     ] {
@@ -233,8 +236,8 @@ const QUAD: [[f32; 3]; 4] = [
 const UV0: [[f32; 2]; 4] = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
 const UV1: [[f32; 2]; 4] = [[1.0, 1.0], [0.0, 1.0], [0.0, 0.0], [1.0, 0.0]];
 
-/// A one-quad glTF (with a camera at z = 3 looking down −z unless `camera` is false) whose primitive has
-/// POSITION, TEXCOORD_0, TEXCOORD_1 and a COLOR_0 given as `(componentType, type, normalized, bytes)`, and
+/// A one-quad glTF (requiring the extensions implemented here; a camera at z = 3 looks down −z) whose primitive
+/// has POSITION, TEXCOORD_0, TEXCOORD_1 and a COLOR_0 given as `(componentType, type, normalized, bytes)`, and
 /// material 0 given as JSON; one texture (image `image`, default sampler).
 fn quad_gltf(color: (u32, &str, bool, Vec<u8>), material: &str, image: &str) -> String {
     let mut buf = Vec::new();
@@ -255,6 +258,7 @@ fn quad_gltf(color: (u32, &str, bool, Vec<u8>), material: &str, image: &str) -> 
     format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
         "extensionsUsed":["KHR_texture_transform","KHR_materials_specular","KHR_materials_clearcoat","KHR_materials_sheen","KHR_materials_unlit","KHR_materials_emissive_strength"],
+        "extensionsRequired":["KHR_texture_transform","KHR_materials_clearcoat","KHR_materials_sheen","KHR_materials_unlit"],
         "nodes":[{{"mesh":0}},{{"camera":0,"translation":[0,0,3]}}],
         "cameras":[{{"type":"perspective","perspective":{{"yfov":0.3,"znear":0.1,"aspectRatio":1.0}}}}],
         "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1,"TEXCOORD_1":2,"COLOR_0":4}},"indices":3,"material":0}}]}}],
