@@ -35,7 +35,7 @@ const QUAD: usize = 64;
 pub struct Sheen {
     /// `sheenColorFactor` × texture, linear RGB, in \[0, 1\].
     pub color: Rgb,
-    /// Distribution width α in \[[`MIN_ALPHA`], 1\].
+    /// Distribution width α, in \[0.07, 1\] (see `MIN_ALPHA`).
     pub alpha: f32,
 }
 
