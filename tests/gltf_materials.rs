@@ -691,3 +691,33 @@ fn sheen_brightens_grazing_views_of_a_black_base() {
     let black = plain.materials()[0].bsdf(&at, plain.textures());
     assert_eq!(albedo(0.15, &black), 0.0);
 }
+
+/// Bad extension data is an error naming the material and field, never a panic or a silent default.
+#[test]
+fn bad_extension_data_is_an_error_naming_the_field() {
+    let image = png_uri([[255; 4]; 4]);
+    for (material, expected) in [
+        (
+            r#"{"extensions":{"KHR_materials_clearcoat":{"clearcoatFactor":1,"clearcoatTexture":{"index":9}}}}"#,
+            "materials[0].extensions.KHR_materials_clearcoat.clearcoatTexture",
+        ),
+        (
+            r#"{"extensions":{"KHR_materials_sheen":{"sheenRoughnessFactor":"rough"}}}"#,
+            "materials[0].extensions.KHR_materials_sheen.sheenRoughnessFactor",
+        ),
+        (
+            r#"{"normalTexture":{"index":0,"extensions":{"KHR_texture_transform":{"scale":[1]}}}}"#,
+            "materials[0].normalTexture.extensions.KHR_texture_transform",
+        ),
+        (
+            r#"{"extensions":{"KHR_materials_clearcoat":{"clearcoatNormalTexture":{"index":0,"scale":"x"}}}}"#,
+            "clearcoatNormalTexture.scale",
+        ),
+    ] {
+        let path = write("bad.gltf", &quad_gltf(white_colors(), material, &image));
+        let err = load_builder(&path, &Default::default())
+            .err()
+            .unwrap_or_else(|| panic!("{material} loads"));
+        assert!(err.to_string().contains(expected), "{err}");
+    }
+}
