@@ -43,6 +43,8 @@ fn render_plane_albedo(sampler: Sampler, size: usize) -> Vec<Option<f32>> {
             Vec2::new(repeats, repeats),
             Vec2::new(repeats, 0.0),
         ]),
+        uvs1: None,
+        colors: None,
         tangents: None,
         indices: vec![[0, 1, 2], [0, 2, 3]],
         material: m,

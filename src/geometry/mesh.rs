@@ -14,6 +14,10 @@ pub struct Mesh {
     pub normals: Vec<Vec3>,
     /// Optional texture coordinates (glTF TEXCOORD_0), one per position.
     pub uvs: Option<Vec<Vec2>>,
+    /// Optional second texture-coordinate set (glTF TEXCOORD_1), one per position.
+    pub uvs1: Option<Vec<Vec2>>,
+    /// Optional linear RGBA vertex colours (glTF COLOR_0), one per position; they multiply the base colour.
+    pub colors: Option<Vec<Vec4>>,
     /// Optional tangents (xyz) with bitangent sign (w), one per position.
     pub tangents: Option<Vec<Vec4>>,
     /// Triangles as vertex indices, counter-clockwise when seen from the front.
@@ -31,6 +35,15 @@ impl Mesh {
             self.positions[b as usize],
             self.positions[c as usize],
         ]
+    }
+
+    /// Texture-coordinate set `set` (0: `uvs`, 1: `uvs1`), if the mesh has it.
+    pub fn uv_set(&self, set: usize) -> Option<&[Vec2]> {
+        match set {
+            0 => self.uvs.as_deref(),
+            1 => self.uvs1.as_deref(),
+            _ => None,
+        }
     }
 
     /// Bounds of all vertices.

@@ -212,25 +212,33 @@ impl PathTracer {
     ) -> SurfaceOutcome {
         let scene = services.scene();
         s.cone_width += self.pixel_spread * hit.t;
-        let tc = hit.tex_coord(s.cone_width, ray.dir);
+        let at = hit.shading_point(s.cone_width, ray.dir);
         let material = &scene.materials[hit.material as usize];
+        let unmapped = hit.shading;
         if material.has_normal_map() {
-            scene.apply_normal_map(&mut hit, tc);
+            scene.apply_normal_map(&mut hit, &at);
         }
         let wo_world = -ray.dir;
         if s.first_hit {
             s.first_hit = false;
             out.depth = (hit.p - ray.origin).length();
-            out.albedo = material.pbr_params(tc, &scene.textures).base_color;
+            out.albedo = material.pbr_params(&at, &scene.textures).base_color;
             out.normal = if hit.shading.n.dot(wo_world) < 0.0 {
                 -hit.shading.n
             } else {
                 hit.shading.n
             };
         }
+        // An unlit surface shows its base colour and scatters nothing (not a light: weight 1).
+        if material.unlit {
+            if hit.front_face || material.double_sided {
+                s.radiance += s.beta * material.unlit_radiance(&at, &scene.textures);
+            }
+            return SurfaceOutcome::End;
+        }
         // Light emitted by the surface toward the path.
         if hit.front_face && material.is_emissive() {
-            let le = material.emission_at(hit.point_tex_coord(), &scene.textures);
+            let le = material.emission_at(&hit.point_shading(), &scene.textures);
             let weight = match scene.area_light_of(hit.prim) {
                 Some(_) if s.prev_light_only => 0.0,
                 Some(light) if !s.prev_delta => {
@@ -240,7 +248,7 @@ impl PathTracer {
             };
             s.radiance += s.beta * le * weight;
         }
-        let bsdf = material.bsdf(tc, &scene.textures);
+        let mut bsdf = material.bsdf(&at, &scene.textures);
         if bsdf.is_index_matched() {
             s.crossings += 1;
             if s.crossings > MAX_BOUNDARY_CROSSINGS {
@@ -268,6 +276,15 @@ impl PathTracer {
         } else {
             return SurfaceOutcome::End;
         };
+        // The clear coat's normal: its own normal map, else the normal before the base's normal map.
+        if let Some(n) = material.coat_normal(&unmapped, &at, &scene.textures) {
+            let n = if frame.n.dot(hit.shading.n) < 0.0 {
+                -n
+            } else {
+                n
+            };
+            bsdf.set_coat_normal(frame.to_local(n));
+        }
         let wo = frame.to_local(wo_world);
         // Next-event estimation.
         if !bsdf.is_delta() {

@@ -135,7 +135,7 @@ impl<'a> RendererServices<'a> {
             let Some(hit) = hit else { return tr };
             let material = &scene.materials[hit.material as usize];
             if !material
-                .bsdf(hit.point_tex_coord(), &scene.textures)
+                .bsdf(&hit.point_shading(), &scene.textures)
                 .is_index_matched()
             {
                 return Rgb::ZERO;

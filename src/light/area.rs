@@ -4,7 +4,7 @@
 
 use super::LightSample;
 use crate::geometry::SurfacePoint;
-use crate::material::Texture;
+use crate::material::{TexCoord, Texture};
 use crate::math::{luminance, sampling, Rgb, Vec2, Vec3};
 
 /// One emissive triangle.
@@ -12,7 +12,8 @@ use crate::math::{luminance, sampling, Rgb, Vec2, Vec3};
 pub struct AreaLight {
     /// World-space vertices, counter-clockwise seen from the emitting side.
     pub vertices: [Vec3; 3],
-    /// Texture coordinates at the vertices (zero without a texture).
+    /// Texture coordinates at the vertices, of the set the emissive texture reads (zero without a texture);
+    /// the texture's transform is applied at lookup.
     pub uvs: [Vec2; 3],
     /// Unit geometric normal of the emitting (front) side.
     pub normal: Vec3,
@@ -61,7 +62,7 @@ impl AreaLight {
         match self.emission_texture.and_then(|t| textures.get(t as usize)) {
             Some(t) => {
                 let uv = self.uvs[0] * (1.0 - b1 - b2) + self.uvs[1] * b1 + self.uvs[2] * b2;
-                self.emission * t.sample(uv).truncate()
+                self.emission * t.lookup(t.map(TexCoord::point(uv))).truncate()
             }
             None => self.emission,
         }

@@ -1,5 +1,6 @@
 //! The glTF 2.0 metallic-roughness BRDF (glTF 2.0 specification, Appendix B) with `KHR_materials_specular`,
-//! `KHR_materials_ior` and `KHR_materials_transmission`.
+//! `KHR_materials_ior` and `KHR_materials_transmission` (the sheen and clear-coat layers over it are in
+//! [`super::Layered`]).
 //!
 //! glTF keys read (through [`PbrParams`]): `baseColorFactor`, `metallicFactor`, `roughnessFactor`
 //! (α = roughness²), `KHR_materials_ior.ior` (default 1.5), `KHR_materials_specular.specularFactor` (default 1)
@@ -40,6 +41,14 @@ pub struct PbrParams {
     pub specular_color: Rgb,
     /// `KHR_materials_transmission.transmissionFactor`. Default 0.
     pub transmission: f32,
+    /// `KHR_materials_clearcoat.clearcoatFactor` × texture. Default 0 (no coat).
+    pub clearcoat: f32,
+    /// `KHR_materials_clearcoat.clearcoatRoughnessFactor` × texture. Default 0.
+    pub clearcoat_roughness: f32,
+    /// `KHR_materials_sheen.sheenColorFactor` × texture. Default 0 (no sheen).
+    pub sheen_color: Rgb,
+    /// `KHR_materials_sheen.sheenRoughnessFactor` × texture. Default 0.
+    pub sheen_roughness: f32,
 }
 
 impl Default for PbrParams {
@@ -53,6 +62,10 @@ impl Default for PbrParams {
             specular_factor: 1.0,
             specular_color: Rgb::ONE,
             transmission: 0.0,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
+            sheen_color: Rgb::ZERO,
+            sheen_roughness: 0.0,
         }
     }
 }

@@ -5,19 +5,28 @@
 //! [`Bsdf`] for the contract with the integrator and [`PbrParams`] for the glTF parameters read.
 
 mod bsdf;
+mod clearcoat;
 mod dielectric;
 mod fresnel;
 mod gltf_pbr;
 mod lambert;
+mod layered;
 mod microfacet;
 mod sample;
+mod sheen;
 mod surface;
 mod texture;
 
 pub use bsdf::{Bsdf, BsdfSample};
+pub use clearcoat::Clearcoat;
 pub use dielectric::Dielectric;
 pub use gltf_pbr::{GltfPbr, PbrParams};
 pub use lambert::Lambert;
+pub use layered::Layered;
 pub use microfacet::{Ggx, DELTA_ALPHA};
-pub use surface::{AlphaMode, Material, TextureId};
-pub use texture::{ColorSpace, Filter, MipImage, Sampler, TexCoord, Texture, Wrap};
+pub use sheen::Sheen;
+pub use surface::{AlphaMode, ClearcoatLayer, Material, SheenLayer, TextureId};
+pub use texture::{
+    ColorSpace, Filter, MipImage, Sampler, ShadingPoint, TexCoord, Texture, UvTransform, Wrap,
+    UV_SETS,
+};

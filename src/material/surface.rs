@@ -2,14 +2,32 @@
 //! [`Bsdf`] at each hit and may own the medium of the primitive's interior (Fong et al. 2017, §4).
 //!
 //! glTF keys read: `pbrMetallicRoughness.{baseColorFactor, baseColorTexture, metallicFactor, roughnessFactor,
-//! metallicRoughnessTexture}`, `normalTexture` (+ `scale`), `emissiveFactor`, `emissiveTexture`,
-//! `doubleSided`, and the extensions `KHR_materials_emissive_strength.emissiveStrength`,
-//! `KHR_materials_specular.{specularFactor, specularColorFactor}`, `KHR_materials_transmission.transmissionFactor`,
-//! `KHR_materials_ior.ior` (default 1.5). OBJ/MTL materials are mapped onto the same fields by the OBJ loader.
+//! metallicRoughnessTexture}`, `normalTexture` (+ `scale`), `occlusionTexture` (+ `strength`),
+//! `emissiveFactor`, `emissiveTexture`, `doubleSided`, and the extensions
+//! `KHR_materials_emissive_strength.emissiveStrength` (it multiplies `emissiveFactor`, and so the emissive
+//! texture too), `KHR_materials_specular.{specularFactor, specularColorFactor}`,
+//! `KHR_materials_transmission.transmissionFactor`, `KHR_materials_ior.ior` (default 1.5), `KHR_materials_unlit`,
+//! `KHR_materials_clearcoat.{clearcoatFactor, clearcoatTexture, clearcoatRoughnessFactor,
+//! clearcoatRoughnessTexture, clearcoatNormalTexture}` and `KHR_materials_sheen.{sheenColorFactor,
+//! sheenColorTexture, sheenRoughnessFactor, sheenRoughnessTexture}`. Every texture reference may carry
+//! `texCoord` and `KHR_texture_transform` (held by the [`Texture`] it names). The mesh's vertex colour
+//! (`COLOR_0`) multiplies the base colour and its alpha. OBJ/MTL materials are mapped onto the same fields by
+//! the OBJ loader.
+//!
+//! Choices where a path tracer differs from a rasteriser:
+//! - Unlit (`KHR_materials_unlit`): the surface emits its base colour (× texture × vertex colour) toward the
+//!   viewer and scatters nothing, like an emission shader in Cycles or three.js's `MeshBasicMaterial`. It is
+//!   not a light: nothing samples it, so it lights other surfaces only through paths that hit it. One-sided
+//!   unlit surfaces are black from behind.
+//! - Occlusion (`occlusionTexture`): read and exposed by [`Material::occlusion_at`], but never applied to the
+//!   rendered image; a path tracer computes occlusion itself, and darkening by the baked map would count it
+//!   twice.
+//! - Clear coat: emission is not darkened by the coat's Fresnel (the extension darkens it), so that light
+//!   sampling and BSDF sampling see the same emitter.
 
-use super::texture::{TexCoord, Texture};
+use super::texture::{ShadingPoint, Texture};
 use super::{Bsdf, PbrParams};
-use crate::math::{Rgb, Vec3, Vec4};
+use crate::math::{Frame, Rgb, Vec3, Vec4};
 
 /// A texture reference: an index into the scene's texture list.
 pub type TextureId = u32;
@@ -31,6 +49,8 @@ pub struct Material {
     pub metallic_roughness_texture: Option<TextureId>,
     /// Optional tangent-space normal map and its scale.
     pub normal_texture: Option<(TextureId, f32)>,
+    /// Optional ambient-occlusion map (red channel) and its strength; read, never applied to the render.
+    pub occlusion_texture: Option<(TextureId, f32)>,
     /// Emitted radiance (emissive factor × emissive strength), linear RGB, front faces only.
     pub emission: Rgb,
     /// Optional sRGB emissive texture, multiplied with `emission`.
@@ -52,6 +72,41 @@ pub struct Material {
     /// Optional coverage texture whose first channel multiplies alpha (OBJ `map_d`); glTF takes alpha from the
     /// base-colour texture instead.
     pub alpha_texture: Option<TextureId>,
+    /// `KHR_materials_unlit`: the surface shows its base colour as emitted radiance and scatters nothing.
+    pub unlit: bool,
+    /// `KHR_materials_clearcoat`, when present.
+    pub clearcoat: Option<ClearcoatLayer>,
+    /// `KHR_materials_sheen`, when present.
+    pub sheen: Option<SheenLayer>,
+}
+
+/// The clear coat of a material (`KHR_materials_clearcoat`): a GGX dielectric layer of index 1.5.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ClearcoatLayer {
+    /// `clearcoatFactor` (default 0: no coat).
+    pub factor: f32,
+    /// `clearcoatTexture`: its red channel multiplies `factor`.
+    pub texture: Option<TextureId>,
+    /// `clearcoatRoughnessFactor` (perceptual, default 0).
+    pub roughness: f32,
+    /// `clearcoatRoughnessTexture`: its green channel multiplies `roughness`.
+    pub roughness_texture: Option<TextureId>,
+    /// `clearcoatNormalTexture` and its `scale`: the coat's own normal map. Without it the coat follows the
+    /// interpolated normal, not the base's normal map (as the extension specifies).
+    pub normal_texture: Option<(TextureId, f32)>,
+}
+
+/// The sheen of a material (`KHR_materials_sheen`): the "Charlie" microfiber lobe over the base.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SheenLayer {
+    /// `sheenColorFactor` (linear RGB, default 0: no sheen).
+    pub color: Rgb,
+    /// `sheenColorTexture` (sRGB): its RGB multiplies `color`.
+    pub color_texture: Option<TextureId>,
+    /// `sheenRoughnessFactor` (default 0).
+    pub roughness: f32,
+    /// `sheenRoughnessTexture`: its alpha channel multiplies `roughness`.
+    pub roughness_texture: Option<TextureId>,
 }
 
 /// How a material's alpha (`base_color.w` × the base-colour texture's alpha × `alpha_texture`) covers the surface
@@ -81,6 +136,7 @@ impl Default for Material {
             roughness: 1.0,
             metallic_roughness_texture: None,
             normal_texture: None,
+            occlusion_texture: None,
             emission: Rgb::ZERO,
             emission_texture: None,
             ior: 1.5,
@@ -91,13 +147,29 @@ impl Default for Material {
             interior: None,
             alpha_mode: AlphaMode::Opaque,
             alpha_texture: None,
+            unlit: false,
+            clearcoat: None,
+            sheen: None,
         }
     }
 }
 
-fn lookup(textures: &[Texture], id: Option<TextureId>, tc: TexCoord) -> Option<Vec4> {
+/// The value of texture `id` at `at` (through the texture's own UV set and transform).
+fn lookup(textures: &[Texture], id: Option<TextureId>, at: &ShadingPoint) -> Option<Vec4> {
     id.and_then(|i| textures.get(i as usize))
-        .map(|t| t.lookup(tc))
+        .map(|t| t.lookup_at(at))
+}
+
+/// Decodes a tangent-space normal-map texel: glTF stores `n · 0.5 + 0.5`, and `scale` multiplies x and y
+/// (glTF 2.0 §5.19.3, `normalTextureInfo.scale`). `None` when the result is not above the surface.
+fn decode_normal(t: Vec4, scale: f32) -> Option<Vec3> {
+    let n = Vec3::new(
+        (t.x * 2.0 - 1.0) * scale,
+        (t.y * 2.0 - 1.0) * scale,
+        t.z * 2.0 - 1.0,
+    )
+    .normalize_or_zero();
+    (n.z > 0.0).then_some(n)
 }
 
 impl Material {
@@ -122,24 +194,61 @@ impl Material {
         self.transmission > 0.0
     }
 
-    /// Emitted radiance at texture coordinates `tc` of a front face.
-    pub fn emission_at(&self, tc: TexCoord, textures: &[Texture]) -> Rgb {
-        match lookup(textures, self.emission_texture, tc) {
+    /// Emitted radiance at a point of a front face: `emissiveFactor` × `emissiveStrength` × the emissive
+    /// texture.
+    pub fn emission_at(&self, at: &ShadingPoint, textures: &[Texture]) -> Rgb {
+        match lookup(textures, self.emission_texture, at) {
             Some(t) => self.emission * t.truncate(),
             None => self.emission,
         }
     }
 
-    /// The BSDF parameters at texture coordinates `tc`.
-    pub fn pbr_params(&self, tc: TexCoord, textures: &[Texture]) -> PbrParams {
-        let mut base = self.base_color.truncate();
-        if let Some(t) = lookup(textures, self.base_color_texture, tc) {
-            base *= t.truncate();
+    /// The base colour and alpha at a point: `baseColorFactor` × the base-colour texture × the vertex colour
+    /// (glTF 2.0 §3.9.2: `COLOR_0` multiplies the base colour, alpha included).
+    pub fn base_color_at(&self, at: &ShadingPoint, textures: &[Texture]) -> Vec4 {
+        let mut base = self.base_color * at.color;
+        if let Some(t) = lookup(textures, self.base_color_texture, at) {
+            base *= t;
         }
+        base
+    }
+
+    /// The radiance an unlit material shows at a point: its base colour (see the module documentation).
+    pub fn unlit_radiance(&self, at: &ShadingPoint, textures: &[Texture]) -> Rgb {
+        self.base_color_at(at, textures).truncate().max(Rgb::ZERO)
+    }
+
+    /// The ambient occlusion of `occlusionTexture` at a point, `1 + strength · (texel.r − 1)` (glTF 2.0
+    /// §5.20.2), 1 without the texture. Never applied to the render (see the module documentation).
+    pub fn occlusion_at(&self, at: &ShadingPoint, textures: &[Texture]) -> f32 {
+        let Some((id, strength)) = self.occlusion_texture else {
+            return 1.0;
+        };
+        lookup(textures, Some(id), at).map_or(1.0, |t| {
+            (1.0 + strength.clamp(0.0, 1.0) * (t.x - 1.0)).clamp(0.0, 1.0)
+        })
+    }
+
+    /// The BSDF parameters at a point.
+    pub fn pbr_params(&self, at: &ShadingPoint, textures: &[Texture]) -> PbrParams {
+        let base = self.base_color_at(at, textures).truncate();
         let (mut metallic, mut roughness) = (self.metallic, self.roughness);
-        if let Some(t) = lookup(textures, self.metallic_roughness_texture, tc) {
+        if let Some(t) = lookup(textures, self.metallic_roughness_texture, at) {
             roughness *= t.y;
             metallic *= t.z;
+        }
+        let (mut clearcoat, mut clearcoat_roughness) = (0.0, 0.0);
+        if let Some(c) = &self.clearcoat {
+            clearcoat = c.factor * lookup(textures, c.texture, at).map_or(1.0, |t| t.x);
+            clearcoat_roughness =
+                c.roughness * lookup(textures, c.roughness_texture, at).map_or(1.0, |t| t.y);
+        }
+        let (mut sheen_color, mut sheen_roughness) = (Rgb::ZERO, 0.0);
+        if let Some(s) = &self.sheen {
+            sheen_color =
+                s.color * lookup(textures, s.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
+            sheen_roughness =
+                s.roughness * lookup(textures, s.roughness_texture, at).map_or(1.0, |t| t.w);
         }
         PbrParams {
             base_color: base.clamp(Vec3::ZERO, Vec3::ONE),
@@ -149,22 +258,70 @@ impl Material {
             specular_factor: self.specular_factor.clamp(0.0, 1.0),
             specular_color: self.specular_color.max(Vec3::ZERO),
             transmission: self.transmission.clamp(0.0, 1.0),
+            clearcoat: clearcoat.clamp(0.0, 1.0),
+            clearcoat_roughness: clearcoat_roughness.clamp(0.0, 1.0),
+            sheen_color: sheen_color.clamp(Rgb::ZERO, Rgb::ONE),
+            sheen_roughness: sheen_roughness.clamp(0.0, 1.0),
         }
     }
 
-    /// Creates the BSDF for a hit at texture coordinates `tc`.
-    pub fn bsdf(&self, tc: TexCoord, textures: &[Texture]) -> Bsdf {
-        Bsdf::from_gltf(&self.pbr_params(tc, textures))
+    /// Creates the BSDF for a hit at a point (a clear coat's normal is the shading normal until
+    /// [`Bsdf::set_coat_normal`] tilts it; see [`Material::coat_normal`]).
+    pub fn bsdf(&self, at: &ShadingPoint, textures: &[Texture]) -> Bsdf {
+        Bsdf::from_gltf(&self.pbr_params(at, textures))
     }
 
-    /// The coverage at texture coordinates `tc`: `base_color.w` × the base-colour texture's alpha × the first
-    /// channel of `alpha_texture`, in \[0, 1\]. Only [`AlphaMode::Mask`] and [`AlphaMode::Blend`] use it.
-    pub fn alpha_at(&self, tc: TexCoord, textures: &[Texture]) -> f32 {
-        let mut alpha = self.base_color.w;
-        if let Some(t) = lookup(textures, self.base_color_texture, tc) {
-            alpha *= t.w;
-        }
-        if let Some(t) = lookup(textures, self.alpha_texture, tc) {
+    /// The world-space normal of the clear coat, for a hit whose frame before any normal mapping is
+    /// `unmapped`: that frame's normal bent by `clearcoatNormalTexture` if there is one, else the frame's
+    /// normal itself (the coat does not follow the base's normal map). `None` without a clear coat.
+    pub fn coat_normal(
+        &self,
+        unmapped: &Frame,
+        at: &ShadingPoint,
+        textures: &[Texture],
+    ) -> Option<Vec3> {
+        let coat = self.clearcoat.as_ref()?;
+        let mapped = coat
+            .normal_texture
+            .and_then(|(id, scale)| decode_normal(lookup(textures, Some(id), at)?, scale));
+        Some(mapped.map_or(unmapped.n, |n| {
+            unmapped.to_world(n).normalize_or(unmapped.n)
+        }))
+    }
+
+    /// Every texture the material refers to.
+    pub fn texture_ids(&self) -> impl Iterator<Item = TextureId> + '_ {
+        let coat = self.clearcoat.iter().flat_map(|c| {
+            [
+                c.texture,
+                c.roughness_texture,
+                c.normal_texture.map(|t| t.0),
+            ]
+        });
+        let sheen = self
+            .sheen
+            .iter()
+            .flat_map(|s| [s.color_texture, s.roughness_texture]);
+        [
+            self.base_color_texture,
+            self.metallic_roughness_texture,
+            self.normal_texture.map(|t| t.0),
+            self.occlusion_texture.map(|t| t.0),
+            self.emission_texture,
+            self.alpha_texture,
+        ]
+        .into_iter()
+        .chain(coat)
+        .chain(sheen)
+        .flatten()
+    }
+
+    /// The coverage at a point: the alpha of [`Self::base_color_at`] (`base_color.w` × the vertex colour's ×
+    /// the base-colour texture's) × the first channel of `alpha_texture`, in \[0, 1\]. Only
+    /// [`AlphaMode::Mask`] and [`AlphaMode::Blend`] use it.
+    pub fn alpha_at(&self, at: &ShadingPoint, textures: &[Texture]) -> f32 {
+        let mut alpha = self.base_color_at(at, textures).w;
+        if let Some(t) = lookup(textures, self.alpha_texture, at) {
             alpha *= t.x;
         }
         alpha.clamp(0.0, 1.0)
@@ -175,17 +332,10 @@ impl Material {
         self.normal_texture.is_some()
     }
 
-    /// The tangent-space normal from the normal map at `tc` (z up), or `None` without a normal map.
+    /// The tangent-space normal from the normal map at a point (z up), or `None` without a normal map.
     /// glTF stores `(n * 0.5 + 0.5)`; `scale` multiplies the x and y components.
-    pub fn normal_map(&self, tc: TexCoord, textures: &[Texture]) -> Option<Vec3> {
+    pub fn normal_map(&self, at: &ShadingPoint, textures: &[Texture]) -> Option<Vec3> {
         let (id, scale) = self.normal_texture?;
-        let t = textures.get(id as usize)?.lookup(tc);
-        let n = Vec3::new(
-            (t.x * 2.0 - 1.0) * scale,
-            (t.y * 2.0 - 1.0) * scale,
-            t.z * 2.0 - 1.0,
-        );
-        let n = n.normalize_or_zero();
-        (n.z > 0.0).then_some(n)
+        decode_normal(lookup(textures, Some(id), at)?, scale)
     }
 }

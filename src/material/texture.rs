@@ -13,12 +13,84 @@
 //! of detail is λ = log₂(footprint · √(w·h)); λ ≤ 0 magnifies with `magFilter`, λ > 0 minifies with `minFilter`.
 //! The footprint comes from the ray cone at the hit (see [`crate::integrator`]).
 //!
+//! Each texture also carries its UV mapping, as pbrt-v4's image textures carry a `TextureMapping2D`: which
+//! texture-coordinate set it reads (glTF `textureInfo.texCoord`, `TEXCOORD_0` or `TEXCOORD_1`) and the
+//! `KHR_texture_transform` applied to it ([`UvTransform`]). Textures that share an image share its pixels
+//! whatever their samplers and mappings.
+//!
 //! The mip pyramid halves each dimension per level (rounding down, at least 1) with an exact box filter: every
 //! texel of a level is the area-weighted mean of the finer texels it covers, so every level keeps the image
 //! mean.
 
 use crate::math::{srgb_to_linear, Vec2, Vec4};
 use std::sync::Arc;
+
+/// The number of texture-coordinate sets a mesh may carry (glTF `TEXCOORD_0` and `TEXCOORD_1`).
+pub const UV_SETS: usize = 2;
+
+/// A `KHR_texture_transform`: texture coordinates are mapped by `uv' = T · R · S · uv` (the extension's
+/// specification, "Overview"): scaled, then rotated by `rotation` radians counter-clockwise in the image as
+/// seen (the matrix `[[cos, sin], [−sin, cos]]` on (u, v), v running down the image), then offset.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform {
+    /// `offset`: added last. Default (0, 0).
+    pub offset: Vec2,
+    /// `rotation` in radians. Default 0.
+    pub rotation: f32,
+    /// `scale`: applied first. Default (1, 1).
+    pub scale: Vec2,
+}
+
+impl Default for UvTransform {
+    /// The identity.
+    fn default() -> Self {
+        Self {
+            offset: Vec2::ZERO,
+            rotation: 0.0,
+            scale: Vec2::ONE,
+        }
+    }
+}
+
+impl UvTransform {
+    /// `T · R · S · uv`.
+    pub fn apply(&self, uv: Vec2) -> Vec2 {
+        let s = uv * self.scale;
+        let (sin, cos) = self.rotation.sin_cos();
+        Vec2::new(cos * s.x + sin * s.y, -sin * s.x + cos * s.y) + self.offset
+    }
+
+    /// How much the transform stretches lengths on average, `√|sx · sy|` (rotations and offsets keep them): a
+    /// footprint in the untransformed coordinates times this is one in the transformed coordinates.
+    pub fn footprint_scale(&self) -> f32 {
+        (self.scale.x * self.scale.y).abs().sqrt()
+    }
+
+    /// True for the identity.
+    pub fn is_identity(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// What a material reads at a surface point: the texture coordinates of each set, each with its filter
+/// footprint, and the interpolated vertex colour (glTF `COLOR_0`; white without one).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadingPoint {
+    /// Texture coordinates of `TEXCOORD_0` and `TEXCOORD_1` (zero where the mesh lacks the set).
+    pub uv: [TexCoord; UV_SETS],
+    /// Linear RGBA vertex colour.
+    pub color: Vec4,
+}
+
+impl From<TexCoord> for ShadingPoint {
+    /// `tc` for every texture-coordinate set and a white vertex colour.
+    fn from(tc: TexCoord) -> Self {
+        Self {
+            uv: [tc; UV_SETS],
+            color: Vec4::ONE,
+        }
+    }
+}
 
 /// How texture coordinates outside \[0, 1\] are mapped back into the image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -246,17 +318,60 @@ fn downsample(level: &Level) -> Level {
     }
 }
 
-/// A texture: a shared image and the sampler one glTF texture reads it with.
+/// A texture: a shared image, the sampler one glTF texture reads it with, and its UV mapping (the
+/// texture-coordinate set and transform of the `textureInfo` that refers to it).
 #[derive(Clone, Debug)]
 pub struct Texture {
     image: Arc<MipImage>,
     sampler: Sampler,
+    uv_set: usize,
+    transform: UvTransform,
 }
 
 impl Texture {
-    /// A texture reading `image` with `sampler`.
+    /// A texture reading `image` with `sampler`, from `TEXCOORD_0` untransformed.
     pub fn new(image: Arc<MipImage>, sampler: Sampler) -> Self {
-        Self { image, sampler }
+        Self {
+            image,
+            sampler,
+            uv_set: 0,
+            transform: UvTransform::default(),
+        }
+    }
+
+    /// Sets the UV mapping: the texture-coordinate set read (below [`UV_SETS`]; larger values read the last
+    /// set) and the transform applied to it.
+    pub fn with_mapping(mut self, uv_set: usize, transform: UvTransform) -> Self {
+        self.uv_set = uv_set.min(UV_SETS - 1);
+        self.transform = transform;
+        self
+    }
+
+    /// The texture-coordinate set the texture reads.
+    pub fn uv_set(&self) -> usize {
+        self.uv_set
+    }
+
+    /// The transform applied to the texture coordinates.
+    pub fn transform(&self) -> UvTransform {
+        self.transform
+    }
+
+    /// Maps texture coordinates of the texture's set through its transform; the footprint scales with it.
+    pub fn map(&self, tc: TexCoord) -> TexCoord {
+        if self.transform.is_identity() {
+            return tc;
+        }
+        TexCoord {
+            uv: self.transform.apply(tc.uv),
+            footprint: tc.footprint * self.transform.footprint_scale(),
+        }
+    }
+
+    /// The filtered value at a shading point: its texture coordinates of this texture's set, mapped (see
+    /// [`Texture::map`]), then [`Texture::lookup`].
+    pub fn lookup_at(&self, at: &ShadingPoint) -> Vec4 {
+        self.lookup(self.map(at.uv[self.uv_set]))
     }
 
     /// Builds a texture from 8-bit RGBA data, decoding colour channels per `space`, with the default sampler.
@@ -309,12 +424,14 @@ impl Texture {
         self.image.memory_bytes()
     }
 
-    /// The value at texture coordinates `uv` of the full-resolution image, with the magnification filter.
+    /// The value at texture coordinates `uv` of the full-resolution image, with the magnification filter
+    /// (`uv` is read as given: the texture's mapping is not applied).
     pub fn sample(&self, uv: Vec2) -> Vec4 {
         self.lookup(TexCoord::point(uv))
     }
 
-    /// The filtered value over the footprint `tc` (OpenGL's minification and magnification rules).
+    /// The filtered value over the footprint `tc` (OpenGL's minification and magnification rules); `tc` is
+    /// read as given (see [`Texture::lookup_at`] for the mapped lookup).
     pub fn lookup(&self, tc: TexCoord) -> Vec4 {
         let uv = tc.uv;
         if !uv.is_finite() {
@@ -527,6 +644,58 @@ mod tests {
         assert_eq!(no_mips.lookup(far).x, 0.0);
         // A huge footprint clamps to the last level.
         assert!((mip_linear.lookup(far).x - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn uv_transform_is_translation_rotation_scale_in_that_order() {
+        // The extension's three matrices (row-major in its text), composed by hand as glam column-major
+        // matrices: T · R · S.
+        let (offset, rotation, scale) = (Vec2::new(0.25, -0.5), 0.7f32, Vec2::new(1.5, 0.5));
+        let t =
+            glam::Mat3::from_cols_array(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, offset.x, offset.y, 1.0]);
+        let (sin, cos) = rotation.sin_cos();
+        let r = glam::Mat3::from_cols_array(&[cos, -sin, 0.0, sin, cos, 0.0, 0.0, 0.0, 1.0]);
+        let s = glam::Mat3::from_diagonal(glam::Vec3::new(scale.x, scale.y, 1.0));
+        let m = t * r * s;
+        let x = UvTransform {
+            offset,
+            rotation,
+            scale,
+        };
+        for uv in [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::new(0.3, 0.8)] {
+            let expected = (m * uv.extend(1.0)).truncate();
+            assert!(x.apply(uv).distance(expected) < 1e-6, "{uv}");
+        }
+        // A quarter turn takes +u to −v.
+        let quarter = UvTransform {
+            rotation: std::f32::consts::FRAC_PI_2,
+            ..Default::default()
+        };
+        assert!(quarter.apply(Vec2::X).distance(Vec2::new(0.0, -1.0)) < 1e-6);
+        assert!((x.footprint_scale() - 0.75f32.sqrt()).abs() < 1e-6);
+        // Through a texture: the mapped lookup reads the transformed point and scales the footprint.
+        let ramp: Vec<Vec4> = (0..4).map(|i| Vec4::splat(i as f32)).collect();
+        let tex = Texture::from_linear(4, 1, ramp)
+            .unwrap()
+            .with_sampler(Sampler::unfiltered(Filter::Nearest, Wrap::ClampToEdge))
+            .with_mapping(
+                1,
+                UvTransform {
+                    offset: Vec2::new(0.5, 0.0),
+                    ..Default::default()
+                },
+            );
+        let at = ShadingPoint {
+            uv: [
+                TexCoord::point(Vec2::new(0.9, 0.5)),
+                TexCoord {
+                    uv: Vec2::new(0.1, 0.5),
+                    footprint: 0.0,
+                },
+            ],
+            color: Vec4::ONE,
+        };
+        assert_eq!(tex.lookup_at(&at).x, 2.0, "set 1, offset by 0.5");
     }
 
     #[test]

@@ -1,11 +1,14 @@
 //! glTF 2.0 loader (`.gltf` with external or data-URI buffers, and `.glb`), on top of the `gltf` crate.
 //!
 //! Reads the default scene's node hierarchy (TRS and matrix transforms), triangle meshes (indexed or not,
-//! strips and fans triangulated; POSITION, NORMAL, TANGENT, TEXCOORD_0, sparse or not, with the component
-//! types of `KHR_mesh_quantization`; see `gltf_accessors`), morph targets at their default weights and skins at
-//! their rest pose (see `gltf_deform`), the first perspective camera met in traversal order, metallic-roughness
-//! materials with textures and the extensions listed in [`SUPPORTED_EXTENSIONS`], and `KHR_lights_punctual`
-//! lights. Normal-mapped meshes without TANGENT get MikkTSpace tangents when the scene is built.
+//! strips and fans triangulated; POSITION, NORMAL, TANGENT, TEXCOORD_0, TEXCOORD_1, COLOR_0, sparse or not,
+//! with the component types of `KHR_mesh_quantization`; see `gltf_accessors`), morph targets at their default
+//! weights and skins at their rest pose (see `gltf_deform`), the first perspective camera met in traversal order,
+//! metallic-roughness materials with textures and the extensions listed in [`SUPPORTED_EXTENSIONS`] (the keys
+//! read are listed in [`crate::material::Material`]), and `KHR_lights_punctual` lights. Normal-mapped meshes
+//! without TANGENT get MikkTSpace tangents when the scene is built. Every texture reference's `texCoord` (sets 0
+//! and 1) and `KHR_texture_transform` (`offset`, `rotation`, `scale`, `texCoord`) are read, for the core
+//! textures and those of the extensions alike.
 //!
 //! Scene `extras` read: `nimbus_environment` (see [`crate::light::EnvironmentLight`]), `max_bounces`, and
 //! `nimbus_light_units`: `"photometric"` (the default) or `"radiometric"`.
@@ -33,7 +36,10 @@ use crate::light::{
     LUMENS_PER_WATT,
 };
 use crate::limits::{one_line, Limits};
-use crate::material::{AlphaMode, ColorSpace, Filter, Material, MipImage, Sampler, Texture, Wrap};
+use crate::material::{
+    AlphaMode, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler, SheenLayer,
+    Texture, UvTransform, Wrap, UV_SETS,
+};
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
 use gltf::json::validation::Validate;
@@ -51,6 +57,10 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_ior",
     "KHR_materials_volume",
     "KHR_materials_specular",
+    "KHR_materials_unlit",
+    "KHR_materials_clearcoat",
+    "KHR_materials_sheen",
+    "KHR_texture_transform",
 ];
 
 /// Deepest node hierarchy accepted; deeper hierarchies are errors (cycles are refused before loading).
@@ -149,6 +159,7 @@ pub fn load_slice(
     }
     let mut loader = Loader {
         path,
+        document: &document,
         base,
         buffers: &buffers,
         builder: SceneBuilder::default(),
@@ -157,7 +168,6 @@ pub fn load_slice(
         material_map: HashMap::new(),
         options,
         light_unit_scale: 1.0 / LUMENS_PER_WATT,
-        document: &document,
         node_worlds: Vec::new(),
         skin_warned: false,
     };
@@ -239,17 +249,18 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
 
 struct Loader<'a> {
     path: &'a Path,
+    /// The document: texture references and the skins' joint nodes.
+    document: &'a gltf::Document,
     base: PathBuf,
     buffers: &'a [gltf::buffer::Data],
     builder: SceneBuilder,
-    texture_cache: HashMap<(usize, ColorSpace), u32>,
+    /// Textures made so far, by glTF texture, colour space and UV mapping (set and transform bits).
+    texture_cache: HashMap<(usize, ColorSpace, usize, [u32; 5]), u32>,
     images: HashMap<(usize, ColorSpace), Arc<MipImage>>,
     material_map: HashMap<Option<usize>, u32>,
     options: &'a LoadOptions<'a>,
     /// Watts per unit of a `KHR_lights_punctual` intensity (1/683 photometric, 1 radiometric).
     light_unit_scale: f32,
-    /// The document, for the skins' joint nodes.
-    document: &'a gltf::Document,
     /// Every node's world matrix, computed when the first skin is met.
     node_worlds: Vec<Mat4>,
     /// Whether the rest-pose warning was given.
@@ -470,10 +481,29 @@ impl Loader<'_> {
             .map(|f| f.chunks_exact(2).map(Vec2::from_slice).collect());
         let tangents: Option<Vec<Vec4>> = floats(&S::Tangents, Usage::Tangent)?
             .map(|f| f.chunks_exact(4).map(Vec4::from_slice).collect());
+        let uvs1: Option<Vec<Vec2>> = floats(&S::TexCoords(1), Usage::TexCoord)?
+            .map(|f| f.chunks_exact(2).map(Vec2::from_slice).collect());
+        let colors: Option<Vec<Vec4>> = match primitive.get(&S::Colors(0)) {
+            Some(a) if a.dimensions() == gltf::accessor::Dimensions::Vec3 => {
+                floats(&S::Colors(0), Usage::ColorRgb)?.map(|f| {
+                    f.chunks_exact(3)
+                        .map(|c| Vec3::from_slice(c).extend(1.0))
+                        .collect()
+                })
+            }
+            Some(_) => floats(&S::Colors(0), Usage::ColorRgba)?
+                .map(|f| f.chunks_exact(4).map(Vec4::from_slice).collect()),
+            None => None,
+        };
         for (semantic, accessor) in primitive.attributes() {
             if !matches!(
                 semantic,
-                S::Positions | S::Normals | S::Tangents | S::TexCoords(0)
+                S::Positions
+                    | S::Normals
+                    | S::Tangents
+                    | S::TexCoords(0)
+                    | S::TexCoords(1)
+                    | S::Colors(0)
             ) {
                 check_bytes(&accessor, buffers, limits)
                     .map_err(|e| bad(format!("{semantic:?}: {e}")))?;
@@ -491,6 +521,8 @@ impl Loader<'_> {
         let same_len = |n: usize| n == count;
         if (!normals.is_empty() && !same_len(normals.len()))
             || uvs.as_ref().is_some_and(|u| !same_len(u.len()))
+            || uvs1.as_ref().is_some_and(|u| !same_len(u.len()))
+            || colors.as_ref().is_some_and(|c| !same_len(c.len()))
             || tangents.as_ref().is_some_and(|t| !same_len(t.len()))
         {
             return Err(self.error(SceneErrorKind::Malformed(format!(
@@ -503,6 +535,14 @@ impl Loader<'_> {
             (
                 "TEXCOORD_0",
                 uvs.iter().flatten().position(|v| !v.is_finite()),
+            ),
+            (
+                "TEXCOORD_1",
+                uvs1.iter().flatten().position(|v| !v.is_finite()),
+            ),
+            (
+                "COLOR_0",
+                colors.iter().flatten().position(|v| !v.is_finite()),
             ),
             (
                 "TANGENT",
@@ -518,6 +558,8 @@ impl Loader<'_> {
             positions,
             normals,
             uvs,
+            uvs1,
+            colors,
             tangents,
             indices: triangulate(&flat, primitive.mode()),
             ..Default::default()
@@ -531,28 +573,61 @@ impl Loader<'_> {
         let pbr = material.pbr_metallic_roughness();
         let emissive_strength = material.emissive_strength().unwrap_or(1.0);
         self.check_material_numbers(&material, emissive_strength)?;
+        let at = material_path(&material);
         let base_color_texture = match pbr.base_color_texture() {
-            Some(t) => Some(self.texture(t.texture(), ColorSpace::Srgb, t.tex_coord())?),
+            Some(t) => {
+                let r =
+                    self.info_ref(&t, &format!("{at}.pbrMetallicRoughness.baseColorTexture"))?;
+                Some(self.texture_ref(&r, ColorSpace::Srgb)?)
+            }
             None => None,
         };
         let metallic_roughness_texture = match pbr.metallic_roughness_texture() {
-            Some(t) => Some(self.texture(t.texture(), ColorSpace::Linear, t.tex_coord())?),
+            Some(t) => {
+                let r = self.info_ref(
+                    &t,
+                    &format!("{at}.pbrMetallicRoughness.metallicRoughnessTexture"),
+                )?;
+                Some(self.texture_ref(&r, ColorSpace::Linear)?)
+            }
             None => None,
         };
         let normal_texture = match material.normal_texture() {
-            Some(t) => Some((
-                self.texture(t.texture(), ColorSpace::Linear, t.tex_coord())?,
-                t.scale(),
-            )),
+            Some(t) => {
+                let r = self.raw_ref(
+                    t.texture().index(),
+                    t.tex_coord(),
+                    t.extensions(),
+                    &format!("{at}.normalTexture"),
+                )?;
+                Some((self.texture_ref(&r, ColorSpace::Linear)?, t.scale()))
+            }
+            None => None,
+        };
+        let occlusion_texture = match material.occlusion_texture() {
+            Some(t) => {
+                let r = self.raw_ref(
+                    t.texture().index(),
+                    t.tex_coord(),
+                    t.extensions(),
+                    &format!("{at}.occlusionTexture"),
+                )?;
+                Some((self.texture_ref(&r, ColorSpace::Linear)?, t.strength()))
+            }
             None => None,
         };
         let emission_texture = match material.emissive_texture() {
-            Some(t) => Some(self.texture(t.texture(), ColorSpace::Srgb, t.tex_coord())?),
+            Some(t) => {
+                let r = self.info_ref(&t, &format!("{at}.emissiveTexture"))?;
+                Some(self.texture_ref(&r, ColorSpace::Srgb)?)
+            }
             None => None,
         };
         let (specular_factor, specular_color) = material.specular().map_or((1.0, Rgb::ONE), |s| {
             (s.specular_factor(), Rgb::from(s.specular_color_factor()))
         });
+        let clearcoat = self.clearcoat(&material, &at)?;
+        let sheen = self.sheen(&material, &at)?;
         let m = Material {
             name: material.name().map_or_else(
                 || format!("material {}", material.index().map_or(-1, |i| i as i64)),
@@ -564,6 +639,7 @@ impl Loader<'_> {
             roughness: pbr.roughness_factor(),
             metallic_roughness_texture,
             normal_texture,
+            occlusion_texture,
             emission: Rgb::from(material.emissive_factor()) * emissive_strength,
             emission_texture,
             ior: material.ior().unwrap_or(1.5),
@@ -576,6 +652,9 @@ impl Loader<'_> {
             interior: None,
             alpha_mode: alpha_mode(&material),
             alpha_texture: None,
+            unlit: material.unlit(),
+            clearcoat,
+            sheen,
         };
         let mut m = m;
         m.interior = self.interior_medium(&material, &m)?;
@@ -584,6 +663,246 @@ impl Loader<'_> {
         Ok(id)
     }
 
+    /// `KHR_materials_clearcoat` of a material, when present: factors checked (finite, in \[0, 1\]) and
+    /// textures read.
+    fn clearcoat(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<ClearcoatLayer>, SceneError> {
+        let at = format!("{at}.extensions.KHR_materials_clearcoat");
+        let Some(ext) = self.extension_object(material, "KHR_materials_clearcoat", &at)? else {
+            return Ok(None);
+        };
+        let factor = self.unit_number(&ext, "clearcoatFactor", 0.0, &at)?;
+        let roughness = self.unit_number(&ext, "clearcoatRoughnessFactor", 0.0, &at)?;
+        let texture = self.ext_texture(&ext, "clearcoatTexture", ColorSpace::Linear, &at)?;
+        let roughness_texture =
+            self.ext_texture(&ext, "clearcoatRoughnessTexture", ColorSpace::Linear, &at)?;
+        let normal_texture = match ext.get("clearcoatNormalTexture") {
+            Some(v) => {
+                let field = format!("{at}.clearcoatNormalTexture");
+                let scale = match v.get("scale") {
+                    Some(s) => s.as_f64().filter(|s| s.is_finite()).ok_or_else(|| {
+                        self.malformed(format!("{field}.scale must be a finite number"))
+                    })? as f32,
+                    None => 1.0,
+                };
+                let r = self.json_ref(v, &field)?;
+                Some((self.texture_ref(&r, ColorSpace::Linear)?, scale))
+            }
+            None => None,
+        };
+        Ok(Some(ClearcoatLayer {
+            factor,
+            texture,
+            roughness,
+            roughness_texture,
+            normal_texture,
+        }))
+    }
+
+    /// `KHR_materials_sheen` of a material, when present: factors checked and textures read.
+    fn sheen(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<SheenLayer>, SceneError> {
+        let at = format!("{at}.extensions.KHR_materials_sheen");
+        let Some(ext) = self.extension_object(material, "KHR_materials_sheen", &at)? else {
+            return Ok(None);
+        };
+        let color = match ext.get("sheenColorFactor") {
+            Some(v) => crate::params::parse_rgb(v)
+                .filter(|c| c.max_element() <= 1.0)
+                .ok_or_else(|| {
+                    self.malformed(format!(
+                        "{at}.sheenColorFactor must be three numbers in [0, 1]"
+                    ))
+                })?,
+            None => Rgb::ZERO,
+        };
+        let roughness = self.unit_number(&ext, "sheenRoughnessFactor", 0.0, &at)?;
+        let color_texture = self.ext_texture(&ext, "sheenColorTexture", ColorSpace::Srgb, &at)?;
+        let roughness_texture =
+            self.ext_texture(&ext, "sheenRoughnessTexture", ColorSpace::Linear, &at)?;
+        Ok(Some(SheenLayer {
+            color,
+            color_texture,
+            roughness,
+            roughness_texture,
+        }))
+    }
+
+    fn malformed(&self, message: String) -> SceneError {
+        self.error(SceneErrorKind::Malformed(one_line(&message, 4 * QUOTE)))
+    }
+
+    /// The JSON object of extension `name` on a material, if present (an error if it is not an object).
+    fn extension_object(
+        &self,
+        material: &gltf::Material,
+        name: &str,
+        at: &str,
+    ) -> Result<Option<serde_json::Map<String, serde_json::Value>>, SceneError> {
+        match material.extensions().and_then(|e| e.get(name)) {
+            None => Ok(None),
+            Some(serde_json::Value::Object(o)) => Ok(Some(o.clone())),
+            Some(_) => Err(self.malformed(format!("{at} must be an object"))),
+        }
+    }
+
+    /// A number in \[0, 1\] of an extension object, or `default` when absent.
+    fn unit_number(
+        &self,
+        ext: &serde_json::Map<String, serde_json::Value>,
+        key: &str,
+        default: f32,
+        at: &str,
+    ) -> Result<f32, SceneError> {
+        match ext.get(key) {
+            None => Ok(default),
+            Some(v) => v
+                .as_f64()
+                .filter(|v| (0.0..=1.0).contains(v))
+                .map(|v| v as f32)
+                .ok_or_else(|| self.malformed(format!("{at}.{key} must be a number in [0, 1]"))),
+        }
+    }
+
+    /// A texture of an extension object (a `textureInfo`), read into the scene, if present.
+    fn ext_texture(
+        &mut self,
+        ext: &serde_json::Map<String, serde_json::Value>,
+        key: &str,
+        space: ColorSpace,
+        at: &str,
+    ) -> Result<Option<u32>, SceneError> {
+        match ext.get(key) {
+            None => Ok(None),
+            Some(v) => {
+                let r = self.json_ref(v, &format!("{at}.{key}"))?;
+                Ok(Some(self.texture_ref(&r, space)?))
+            }
+        }
+    }
+
+    /// A `textureInfo` given as JSON: `index`, `texCoord` and `extensions.KHR_texture_transform`.
+    fn json_ref(&self, value: &serde_json::Value, at: &str) -> Result<TexRef, SceneError> {
+        let index = value
+            .get("index")
+            .and_then(|i| i.as_u64())
+            .ok_or_else(|| self.malformed(format!("{at}.index must be a texture index")))?;
+        let tex_coord = match value.get("texCoord") {
+            Some(t) => t
+                .as_u64()
+                .filter(|&t| t <= u32::MAX as u64)
+                .ok_or_else(|| {
+                    self.malformed(format!("{at}.texCoord must be a non-negative integer"))
+                })? as u32,
+            None => 0,
+        };
+        let extensions = value.get("extensions").and_then(|e| e.as_object());
+        self.raw_ref(index as usize, tex_coord, extensions, at)
+    }
+
+    /// A texture reference from its texture index, `texCoord` and raw `extensions` object.
+    fn raw_ref(
+        &self,
+        texture: usize,
+        tex_coord: u32,
+        extensions: Option<&serde_json::Map<String, serde_json::Value>>,
+        at: &str,
+    ) -> Result<TexRef, SceneError> {
+        if texture >= self.document.textures().len() {
+            return Err(self.error(SceneErrorKind::InvalidReference(format!(
+                "{at}: texture {texture} does not exist ({} textures)",
+                self.document.textures().len()
+            ))));
+        }
+        let mut r = TexRef {
+            texture,
+            tex_coord,
+            transform: UvTransform::default(),
+        };
+        if let Some(t) = extensions.and_then(|e| e.get("KHR_texture_transform")) {
+            let bad = || self.malformed(format!("{at}.extensions.KHR_texture_transform: {t}"));
+            let pair = |key: &str, default: [f32; 2]| match t.get(key) {
+                None => Some(default),
+                Some(v) => {
+                    let a = v.as_array().filter(|a| a.len() == 2)?;
+                    Some([a[0].as_f64()? as f32, a[1].as_f64()? as f32])
+                }
+            };
+            let offset = pair("offset", [0.0, 0.0]).ok_or_else(bad)?;
+            let scale = pair("scale", [1.0, 1.0]).ok_or_else(bad)?;
+            let rotation = match t.get("rotation") {
+                None => 0.0,
+                Some(v) => v.as_f64().ok_or_else(bad)? as f32,
+            };
+            if let Some(c) = t.get("texCoord") {
+                r.tex_coord = c
+                    .as_u64()
+                    .filter(|&c| c <= u32::MAX as u64)
+                    .ok_or_else(bad)? as u32;
+            }
+            r.transform = checked_transform(offset, rotation, scale).ok_or_else(bad)?;
+        }
+        Ok(r)
+    }
+
+    /// A core `textureInfo` (base colour, metallic-roughness, emissive) with its `KHR_texture_transform`.
+    fn info_ref(&self, info: &gltf::texture::Info, at: &str) -> Result<TexRef, SceneError> {
+        let mut r = self.raw_ref(info.texture().index(), info.tex_coord(), None, at)?;
+        if let Some(t) = info.texture_transform() {
+            r.transform =
+                checked_transform(t.offset(), t.rotation(), t.scale()).ok_or_else(|| {
+                    self.malformed(format!(
+                        "{at}.extensions.KHR_texture_transform holds a non-finite number"
+                    ))
+                })?;
+            if let Some(c) = t.tex_coord() {
+                r.tex_coord = c;
+            }
+        }
+        Ok(r)
+    }
+
+    /// The scene texture for a texture reference: the glTF texture's image and sampler with the reference's
+    /// UV set and transform, made once per distinct mapping.
+    fn texture_ref(&mut self, r: &TexRef, space: ColorSpace) -> Result<u32, SceneError> {
+        if r.tex_coord as usize >= UV_SETS {
+            self.builder.warnings.push(format!(
+                "texture {} uses TEXCOORD_{}; only TEXCOORD_0 and TEXCOORD_1 are read (TEXCOORD_1 used)",
+                r.texture, r.tex_coord
+            ));
+        }
+        let set = (r.tex_coord as usize).min(UV_SETS - 1);
+        let t = r.transform;
+        let bits = [
+            t.offset.x.to_bits(),
+            t.offset.y.to_bits(),
+            t.rotation.to_bits(),
+            t.scale.x.to_bits(),
+            t.scale.y.to_bits(),
+        ];
+        let key = (r.texture, space, set, bits);
+        if let Some(&id) = self.texture_cache.get(&key) {
+            return Ok(id);
+        }
+        let texture = self
+            .document
+            .textures()
+            .nth(r.texture)
+            .expect("texture index checked by raw_ref");
+        // Each glTF texture pairs an image with its own sampler; textures sharing an image share its pixels.
+        let image = self.mip_image(texture.source(), space)?;
+        let t = Texture::new(image, sampler_of(&texture.sampler())).with_mapping(set, t);
+        self.builder.textures.push(t);
+        let id = (self.builder.textures.len() - 1) as u32;
+        self.texture_cache.insert(key, id);
+        Ok(id)
+    }
     /// Refuses a non-finite factor, or a negative emission, with an error naming the material and field.
     fn check_material_numbers(
         &self,
@@ -721,31 +1040,6 @@ impl Loader<'_> {
             }
         }
         Ok(None)
-    }
-
-    fn texture(
-        &mut self,
-        texture: gltf::Texture,
-        space: ColorSpace,
-        tex_coord: u32,
-    ) -> Result<u32, SceneError> {
-        if tex_coord != 0 {
-            self.builder.warnings.push(format!(
-                "texture {} uses TEXCOORD_{tex_coord}; only TEXCOORD_0 is read",
-                texture.index()
-            ));
-        }
-        // Each glTF texture pairs an image with its own sampler; textures sharing an image share its pixels.
-        let key = (texture.index(), space);
-        if let Some(&id) = self.texture_cache.get(&key) {
-            return Ok(id);
-        }
-        let image = self.mip_image(texture.source(), space)?;
-        let t = Texture::new(image, sampler_of(&texture.sampler()));
-        self.builder.textures.push(t);
-        let id = (self.builder.textures.len() - 1) as u32;
-        self.texture_cache.insert(key, id);
-        Ok(id)
     }
 
     /// The decoded image with its mip pyramid, decoded once per colour space.
@@ -948,4 +1242,29 @@ fn alpha_mode(material: &gltf::Material) -> AlphaMode {
         },
         gltf::material::AlphaMode::Blend => AlphaMode::Blend,
     }
+}
+
+/// A texture reference (glTF `textureInfo`): the glTF texture, its texture-coordinate set and its transform.
+struct TexRef {
+    texture: usize,
+    tex_coord: u32,
+    transform: UvTransform,
+}
+
+/// A `KHR_texture_transform` from its fields, `None` if a number is not finite.
+fn checked_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> Option<UvTransform> {
+    let finite = offset.iter().chain(&scale).all(|v| v.is_finite()) && rotation.is_finite();
+    finite.then(|| UvTransform {
+        offset: Vec2::from(offset),
+        rotation,
+        scale: Vec2::from(scale),
+    })
+}
+
+/// `materials[i]` or "the default material", for messages.
+fn material_path(material: &gltf::Material) -> String {
+    material.index().map_or_else(
+        || "the default material".to_owned(),
+        |i| format!("materials[{i}]"),
+    )
 }

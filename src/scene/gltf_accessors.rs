@@ -25,6 +25,10 @@ pub(super) enum Usage {
     Tangent,
     /// TEXCOORD_n (VEC2 f32 or u8/u16 normalized; quantized: i8/u8/i16/u16, normalized or not).
     TexCoord,
+    /// COLOR_n as RGB (VEC3 f32 or u8/u16 normalized).
+    ColorRgb,
+    /// COLOR_n as RGBA (VEC4 f32 or u8/u16 normalized).
+    ColorRgba,
     /// JOINTS_n (VEC4 u8/u16).
     Joints,
     /// WEIGHTS_n (VEC4 f32 or u8/u16 normalized).
@@ -67,6 +71,8 @@ impl Usage {
             Usage::Normal => Some((Vec3, UNIT_SIGNED)),
             Usage::Tangent => Some((Vec4, UNIT_SIGNED)),
             Usage::TexCoord => Some((Vec2, QUANTIZED_ANY)),
+            Usage::ColorRgb => Some((Vec3, &[(F32, No), (U8, Yes), (U16, Yes)])),
+            Usage::ColorRgba => Some((Vec4, &[(F32, No), (U8, Yes), (U16, Yes)])),
             Usage::Joints => Some((Vec4, &[(U8, No), (U16, No)])),
             Usage::Weights => Some((Vec4, &[(F32, No), (U8, Yes), (U16, Yes)])),
             Usage::PositionDelta => Some((Vec3, &[(F32, No), (I8, Either), (I16, Either)])),

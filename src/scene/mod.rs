@@ -20,8 +20,8 @@ pub use error::{SceneError, SceneErrorKind};
 use crate::geometry::TriangleHit;
 use crate::geometry::{Bvh, Mesh, SurfacePoint};
 use crate::light::{AreaLight, EnvironmentLight, Light, LightSampler};
-use crate::material::{AlphaMode, Material, TexCoord, Texture};
-use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3};
+use crate::material::{AlphaMode, Material, ShadingPoint, TexCoord, Texture};
+use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3, Vec4};
 use crate::volume::Medium;
 use std::path::Path;
 use std::sync::Arc;
@@ -249,10 +249,12 @@ impl SceneBuilder {
             }
             let lengths_match = mesh.normals.len() == n
                 && mesh.uvs.as_ref().is_none_or(|u| u.len() == n)
+                && mesh.uvs1.as_ref().is_none_or(|u| u.len() == n)
+                && mesh.colors.as_ref().is_none_or(|c| c.len() == n)
                 && mesh.tangents.as_ref().is_none_or(|t| t.len() == n);
             if !lengths_match {
                 return Err(invalid(format!(
-                    "mesh '{}' has normals, texture coordinates or tangents not one per position",
+                    "mesh '{}' has normals, texture coordinates, colours or tangents not one per position",
                     mesh.name
                 )));
             }
@@ -291,18 +293,7 @@ impl SceneBuilder {
             }
         }
         for m in &self.materials {
-            let textures = [
-                m.base_color_texture,
-                m.metallic_roughness_texture,
-                m.normal_texture.map(|(t, _)| t),
-                m.emission_texture,
-                m.alpha_texture,
-            ];
-            if let Some(t) = textures
-                .into_iter()
-                .flatten()
-                .find(|&t| t as usize >= self.textures.len())
-            {
+            if let Some(t) = m.texture_ids().find(|&t| t as usize >= self.textures.len()) {
                 return Err(invalid(format!(
                     "material '{}' uses texture {t}, but there are {} textures",
                     m.name,
@@ -349,7 +340,12 @@ impl SceneBuilder {
                 let vertices = mesh.triangle(tri);
                 let prim = triangles.len() as u32;
                 if material.is_emissive() {
-                    let uvs = match &mesh.uvs {
+                    // The emissive texture's own UV set; its transform is applied by the light.
+                    let set = material
+                        .emission_texture
+                        .and_then(|t| self.textures.get(t as usize))
+                        .map_or(0, |t| t.uv_set());
+                    let uvs = match mesh.uv_set(set) {
                         Some(uv) => mesh.indices[tri].map(|i| uv[i as usize]),
                         None => [Vec2::ZERO; 3],
                     };
@@ -475,6 +471,12 @@ pub struct SurfaceHit {
     /// Texture-coordinate units per world unit on this triangle, √(uv area / world area): turns a footprint
     /// width in world units into one in texture coordinates (0 without texture coordinates).
     pub uv_per_world: f32,
+    /// Texture coordinates of the second set (`TEXCOORD_1`; zero without it).
+    pub uv1: Vec2,
+    /// `uv_per_world` of the second set.
+    pub uv1_per_world: f32,
+    /// Interpolated vertex colour (`COLOR_0`; white without it).
+    pub color: Vec4,
     /// Material index.
     pub material: u32,
     /// Global triangle index.
@@ -503,21 +505,41 @@ impl SurfaceHit {
     /// (the ray-cone level of detail of Akenine-Möller et al. 2021, "Improved Shader and Texture Level of
     /// Detail Using Ray Cones", JCGT 10(1), given as a width rather than as its log₂).
     pub fn tex_coord(&self, width: f32, dir: Vec3) -> TexCoord {
-        let cos = self.geometric_normal.dot(dir).abs().max(1e-3);
-        let footprint = width / cos * self.uv_per_world;
-        TexCoord {
-            uv: self.uv,
-            footprint: if footprint.is_finite() {
-                footprint
-            } else {
-                0.0
-            },
-        }
+        self.shading_point(width, dir).uv[0]
     }
 
     /// Texture coordinates with no footprint (the full-resolution image).
     pub fn point_tex_coord(&self) -> TexCoord {
         TexCoord::point(self.uv)
+    }
+
+    /// What materials read at this hit for a ray cone of world-space `width` arriving along unit `dir`: both
+    /// texture-coordinate sets with their footprints (as [`SurfaceHit::tex_coord`]) and the vertex colour.
+    pub fn shading_point(&self, width: f32, dir: Vec3) -> ShadingPoint {
+        let cos = self.geometric_normal.dot(dir).abs().max(1e-3);
+        let tc = |uv: Vec2, per_world: f32| {
+            let footprint = width / cos * per_world;
+            TexCoord {
+                uv,
+                footprint: if footprint.is_finite() {
+                    footprint
+                } else {
+                    0.0
+                },
+            }
+        };
+        ShadingPoint {
+            uv: [
+                tc(self.uv, self.uv_per_world),
+                tc(self.uv1, self.uv1_per_world),
+            ],
+            color: self.color,
+        }
+    }
+
+    /// [`SurfaceHit::shading_point`] with no footprint (the full-resolution images).
+    pub fn point_shading(&self) -> ShadingPoint {
+        self.shading_point(0.0, -self.geometric_normal)
     }
 }
 
@@ -608,14 +630,21 @@ impl Scene {
         let mesh = &self.meshes[mesh_index as usize];
         let material = &self.materials[mesh.material as usize];
         let alpha = |m: &Material| {
-            let uv = match &mesh.uvs {
-                Some(uv) => {
-                    let [i0, i1, i2] = mesh.indices[tri as usize].map(|i| uv[i as usize]);
-                    i0 * (1.0 - hit.b1 - hit.b2) + i1 * hit.b1 + i2 * hit.b2
-                }
-                None => Vec2::ZERO,
+            let idx = mesh.indices[tri as usize].map(|i| i as usize);
+            let b = [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2];
+            let uv = |set: Option<&[Vec2]>| {
+                TexCoord::point(set.map_or(Vec2::ZERO, |uv| {
+                    uv[idx[0]] * b[0] + uv[idx[1]] * b[1] + uv[idx[2]] * b[2]
+                }))
             };
-            m.alpha_at(TexCoord::point(uv), &self.textures)
+            let color = mesh.colors.as_ref().map_or(Vec4::ONE, |c| {
+                c[idx[0]] * b[0] + c[idx[1]] * b[1] + c[idx[2]] * b[2]
+            });
+            let at = ShadingPoint {
+                uv: [uv(mesh.uv_set(0)), uv(mesh.uv_set(1))],
+                color,
+            };
+            m.alpha_at(&at, &self.textures)
         };
         match material.alpha_mode {
             AlphaMode::Opaque => true,
@@ -667,19 +696,22 @@ impl Scene {
         if n == Vec3::ZERO {
             n = geometric_normal;
         }
-        let (uv, uv_per_world) = match &mesh.uvs {
-            Some(uv) => {
-                let (t0, t1, t2) = (uv[i0], uv[i1], uv[i2]);
-                let uv_area = 0.5 * (t1 - t0).perp_dot(t2 - t0).abs();
-                let world_area = 0.5 * (v1 - v0).cross(v2 - v0).length();
-                let scale = (uv_area / world_area).sqrt();
-                (
-                    t0 * b0 + t1 * b1 + t2 * b2,
-                    if scale.is_finite() { scale } else { 0.0 },
-                )
-            }
-            None => (Vec2::ZERO, 0.0),
-        };
+        let (uv1, uv1_per_world) = interpolate_uv(
+            mesh.uvs1.as_deref(),
+            [i0, i1, i2],
+            [v0, v1, v2],
+            [b0, b1, b2],
+        );
+        let color = mesh
+            .colors
+            .as_ref()
+            .map_or(Vec4::ONE, |c| c[i0] * b0 + c[i1] * b1 + c[i2] * b2);
+        let (uv, uv_per_world) = interpolate_uv(
+            mesh.uvs.as_deref(),
+            [i0, i1, i2],
+            [v0, v1, v2],
+            [b0, b1, b2],
+        );
         let mut frame = self.tangent_frame(mesh, [i0, i1, i2], n, Vec2::new(b1, b2));
         // Keep the shading normal on the geometric normal's side so that one-sided BSDFs see the front.
         if frame.n.dot(geometric_normal) < 0.0 {
@@ -694,6 +726,9 @@ impl Scene {
             front_face,
             uv,
             uv_per_world,
+            uv1,
+            uv1_per_world,
+            color,
             material: mesh.material,
             prim: hit.prim,
             barycentrics: Vec2::new(b1, b2),
@@ -702,9 +737,9 @@ impl Scene {
 
     /// Bends the hit's shading frame by its material's normal map read at `tc`, if it has one. The mapped
     /// normal stays on the geometric normal's side.
-    pub fn apply_normal_map(&self, hit: &mut SurfaceHit, tc: TexCoord) {
+    pub fn apply_normal_map(&self, hit: &mut SurfaceHit, at: &ShadingPoint) {
         let material = &self.materials[hit.material as usize];
-        let Some(mapped) = material.normal_map(tc, &self.textures) else {
+        let Some(mapped) = material.normal_map(at, &self.textures) else {
             return;
         };
         let n_mapped = hit.shading.to_world(mapped).normalize_or_zero();
@@ -737,4 +772,20 @@ impl Scene {
         }
         Frame::from_normal(n)
     }
+}
+
+/// Texture coordinates of one set at barycentrics `b` of a triangle, and the set's texture-coordinate units per
+/// world unit (see [`SurfaceHit::uv_per_world`]); zeros without the set.
+fn interpolate_uv(uvs: Option<&[Vec2]>, idx: [usize; 3], v: [Vec3; 3], b: [f32; 3]) -> (Vec2, f32) {
+    let Some(uv) = uvs else {
+        return (Vec2::ZERO, 0.0);
+    };
+    let (t0, t1, t2) = (uv[idx[0]], uv[idx[1]], uv[idx[2]]);
+    let uv_area = 0.5 * (t1 - t0).perp_dot(t2 - t0).abs();
+    let world_area = 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length();
+    let scale = (uv_area / world_area).sqrt();
+    (
+        t0 * b[0] + t1 * b[1] + t2 * b[2],
+        if scale.is_finite() { scale } else { 0.0 },
+    )
 }

@@ -125,6 +125,8 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
             positions,
             normals,
             uvs,
+            uvs1: None,
+            colors: None,
             tangents: None,
             indices: m
                 .indices

@@ -60,6 +60,8 @@ pub fn quad(corners: [Vec3; 4], material: u32) -> Mesh {
         positions: corners.to_vec(),
         normals: vec![n; 4],
         uvs: None,
+        uvs1: None,
+        colors: None,
         tangents: None,
         indices: vec![[0, 1, 2], [0, 2, 3]],
         material,
