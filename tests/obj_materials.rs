@@ -254,12 +254,17 @@ fn a_missing_texture_is_a_warning_naming_the_line_and_file() {
     write(
         &dir,
         "m.mtl",
-        "newmtl a\nKd 0.25 0.5 0.75\n\nmap_Kd C:\\Users\\someone\\absent.jpg\n",
+        "newmtl a\nKd 0.25 0.5 0.75\n\nmap_Kd C:\\Users\\someone\\absent.jpg\nnewmtl glow\nmap_Ke gone.png\n",
     );
     let b = load(&write(&dir, "s.obj", QUAD));
     let m = material_a(&b);
     assert!(m.base_color_texture.is_none());
     assert_eq!(m.base_color.truncate(), Vec3::new(0.25, 0.5, 0.75));
+    let glow = b.materials().iter().find(|m| m.name == "glow").unwrap();
+    assert!(
+        !glow.is_emissive(),
+        "a missing map_Ke must not make the surface glow"
+    );
     assert!(
         b.warnings()
             .iter()

@@ -528,6 +528,8 @@ fn convert_material(
         c.unwrap_or(if mapped { Rgb::ONE } else { Rgb::ZERO })
             .max(Rgb::ZERO)
     };
+    // A named base-colour map makes the default `Kd` 1, even when its file is missing; an emission map only when
+    // its file was read (a missing one must not make the surface glow).
     let kd = one_if_mapped(m.diffuse, m.map(MapKind::Diffuse).is_some());
     let ks = one_if_mapped(m.specular, false);
     let mut out = Material::lambertian(&m.name, kd);
@@ -544,7 +546,7 @@ fn convert_material(
             out.specular_factor = 1.0;
         }
     }
-    out.emission = one_if_mapped(m.emissive, m.map(MapKind::Emission).is_some());
+    out.emission = one_if_mapped(m.emissive, emission_map.is_some());
     out.emission_texture = emission_map.map(|(id, _)| id);
     out.normal_texture = normal_map.map(|(id, scale, _)| (id, scale));
     if let Some(ni) = m.ior.filter(|v| v.is_finite() && *v > 0.0) {
