@@ -29,17 +29,70 @@ impl Camera {
         }
     }
 
-    /// A default camera framing `bounds` from the +Z side, slightly above, with a 40° vertical field of view.
+    /// The default camera for a scene without one: a 40° vertical field of view, looking at `bounds` from the
+    /// direction in which they show the most area, and as close as fits them.
+    ///
+    /// Direction: a box of extents (a, b, c) seen along the unit direction d covers a projected area of
+    /// |dₓ|·bc + |d_y|·ac + |d_z|·ab, which is largest for d ∝ (bc, ac, ab) (Cauchy–Schwarz). So planar content
+    /// is seen face-on (a quad in the YZ plane from +X), a thin slab nearly so, a cube in a three-quarter view
+    /// from the +X, +Y, +Z octant, and an elongated box from its long side; a segment or a point, which shows
+    /// no area, is seen from the front, slightly right and above.
+    ///
+    /// Distance: the nearest at which every corner of the box lies within the field of view (with a 5 % margin)
+    /// in both directions at an aspect ratio of 1, so the bounds are fitted tightly in any image at least as wide
+    /// as it is tall (a portrait image may cut the sides).
     pub fn framing(bounds: &Aabb) -> Self {
         let yfov = 40f32.to_radians();
         if bounds.is_empty() {
             return Self::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, yfov);
         }
+        let e = bounds.extent();
+        let areas = Vec3::new(e.y * e.z, e.x * e.z, e.x * e.y);
+        let front = Vec3::new(0.35, 0.25, 1.0);
+        // Areas are relative to the largest face; the front direction only decides where they all vanish.
+        let dir = (areas / areas.max_element().max(f32::MIN_POSITIVE) + front * 1e-3).normalize();
         let center = bounds.center();
+        // Seen from (nearly) straight above or below, the image's up is −Z: the far side of the scene at the top,
+        // as when a camera in front tilts down.
+        let up = if dir.y.abs() > 0.9 { -Vec3::Z } else { Vec3::Y };
+        let world_to_camera = Mat4::look_at_rh(center + dir, center, up);
+        // Tangent of the half field of view, less a 5 % margin.
+        let tan_half = (yfov * 0.5).tan() / 1.05;
+        // The camera sits at `center + dir · distance`; a corner at camera-space (x, y, z) relative to the
+        // centre is at depth distance − z, inside the view when |x|, |y| ≤ tan_half · depth.
+        let mut distance = 0f32;
         let radius = super::bounding_radius(bounds);
-        let distance = radius / (yfov * 0.5).sin() * 1.05;
-        let dir = Vec3::new(0.0, 0.25, 1.0).normalize();
-        Self::look_at(center + dir * distance, center, yfov)
+        for i in 0..8 {
+            let corner = Vec3::new(
+                if i & 1 == 0 {
+                    bounds.min.x
+                } else {
+                    bounds.max.x
+                },
+                if i & 2 == 0 {
+                    bounds.min.y
+                } else {
+                    bounds.max.y
+                },
+                if i & 4 == 0 {
+                    bounds.min.z
+                } else {
+                    bounds.max.z
+                },
+            );
+            let q = world_to_camera.transform_vector3(corner - center);
+            // q.z is toward the camera (the camera looks down −Z).
+            let needed = q.z + q.x.abs().max(q.y.abs()) / tan_half;
+            distance = distance.max(needed);
+        }
+        // Stay outside the bounds by a hair (a point or a segment end-on needs a positive distance).
+        let distance = distance.max(radius * 1e-2);
+        let eye = center + dir * distance;
+        Self {
+            camera_to_world: Mat4::look_at_rh(eye, center, up).inverse(),
+            yfov,
+            aspect_ratio: None,
+        }
     }
 
     /// A camera-to-world matrix from a scene node's world matrix: its scale and shear removed, its rotation

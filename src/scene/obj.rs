@@ -1,27 +1,45 @@
 //! Wavefront OBJ + MTL loader (the thesis renderer's format), on top of `tobj`.
 //!
-//! MTL keys read and their mapping onto the glTF material model:
-//! - `Kd` → base colour; a material with no specular (`Ks` = 0) is exactly Lambertian;
+//! MTL keys read (see [`mtl`] for the syntax and [`maps`] for the textures) and their mapping onto the glTF
+//! material model:
+//! - `Kd` → base colour; a material with no specular (`Ks` = 0) is exactly Lambertian; `map_Kd` → the sRGB
+//!   base-colour texture, multiplied by `Kd` as the MTL specification says (`Kd` is 1 when only `map_Kd` is given);
 //! - `Ks` → a specular layer; when `Kd` is black the surface is a metal with `Ks` as its colour;
 //! - `Ns` (Phong exponent) → roughness via α = √(2 / (Ns + 2)) (Walter et al. 2007, §5.2), roughness = √α;
-//! - `Ke` → emitted radiance (an area light);
-//! - `Ni` → index of refraction, `d` < 1 → transmission 1 − d (a dielectric).
+//! - `Ke` → emitted radiance (an area light); `map_Ke` → the sRGB emission texture, multiplied by `Ke` (1 when
+//!   only `map_Ke` is given);
+//! - `map_Bump` / `bump` (with `-bm`) → a height map, converted to a tangent-space normal map; `norm` → a
+//!   tangent-space normal map (`-bm` is its scale);
+//! - `d` (or `Tr` = 1 − `d`) → coverage: with `map_d` a cut-out (glTF `MASK`, cutoff ½) whose coverage texture
+//!   is multiplied by `d`; without, `d` < 1 is partial coverage (glTF `BLEND`, alpha `d`). Only with a glass
+//!   illumination model (`illum` 4, 6, 7 or 9) does `d` < 1 make a dielectric with transmission 1 − `d` and
+//!   index `Ni` instead;
+//! - `-o` / `-s` texture options offset and scale the texture coordinates of the meshes using the material (one
+//!   transform per material: the first textured statement's, with a warning when others differ); `-clamp on`
+//!   clamps. Options Nimbus does not honour (`-blendu`, `-mm`, ...) and texture keys it does not read (`map_Ks`,
+//!   `map_Ns`, `refl`, ...) are listed in one warning per library.
 //!
 //! OBJ has no cameras or lights besides emissive faces: the default camera frames the scene.
 //!
-//! Untrusted input: the OBJ and every MTL it names are read with [`crate::limits::read_file`] (size-capped) and
-//! checked line by line before `tobj` parses them, so that what `tobj` would panic on or accept silently is an
-//! error naming the file and the line: vertices, texture coordinates and normals must be finite `f32` numbers,
-//! coordinates stay within ±1e12,
-//! a face needs three corners whose indices name existing vertices (negative indices count back from the
-//! last), a file without faces is an error, and MTL colours (`Ka`, `Kd`, `Ks`, `Ke`, `Tf`, `Kt`) are exactly
-//! three finite numbers (the `spectral` and `xyz` forms are refused), numeric keys one finite number. Line
-//! elements (`l`) are checked but not rendered. A missing MTL file is a warning, and its materials default.
+//! Text: lines that are not UTF-8 (an exporter's Latin-1 material or object names) are read as Latin-1, with a
+//! warning naming them, so that one such name does not fail the file; `usemtl` and `newmtl` names then still
+//! match each other.
+//!
+//! Untrusted input: the OBJ and every MTL and texture it names are read with [`crate::limits::read_file`]
+//! (size-capped) and checked line by line before `tobj` parses the OBJ, so that what `tobj` would panic on or
+//! accept silently is an error naming the file and the line: vertices, texture coordinates and normals must be
+//! finite `f32` numbers, coordinates stay within ±1e12, a face needs three corners whose indices name existing
+//! vertices (negative indices count back from the last), a file without faces is an error, and MTL statements
+//! are checked as [`mtl`] says. Line elements (`l`) are checked but not rendered. A missing MTL file or texture
+//! is a warning, and its materials default or stay untextured.
+
+mod maps;
+mod mtl;
 
 use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::limits::{one_line, read_file, Limits};
-use crate::material::Material;
+use crate::material::{AlphaMode, Material};
 use crate::math::{Rgb, Vec2, Vec3};
 use std::cell::{Cell, RefCell};
 use std::collections::HashSet;
@@ -39,10 +57,10 @@ const QUOTE_CHARS: usize = 48;
 pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
     let bytes = read_file(path, &options.limits)
         .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    let text = utf8(&bytes).map_err(|m| malformed(path, m))?;
-    let scan = scan_obj(text)
-        .map_err(|(kind, line, m)| SceneError::new(path, kind(format!("line {line}: {m}"))))?;
     let mut builder = SceneBuilder::default();
+    let text = text(&bytes, path, &mut builder);
+    let scan = scan_obj(&text)
+        .map_err(|(kind, line, m)| SceneError::new(path, kind(format!("line {line}: {m}"))))?;
     let tobj_options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
@@ -57,6 +75,8 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
         seen: RefCell::new(HashSet::new()),
         missing: RefCell::new(Vec::new()),
         error: RefCell::new(None),
+        materials: RefCell::new(Vec::new()),
+        warnings: RefCell::new(Vec::new()),
     };
     let result = tobj::load_obj_buf(&mut text.as_bytes(), &tobj_options, |mtl| {
         libraries.load(mtl)
@@ -64,6 +84,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
     if let Some(e) = libraries.error.into_inner() {
         return Err(e);
     }
+    builder.warnings.extend(libraries.warnings.into_inner());
     for missing in libraries.missing.into_inner() {
         builder.warnings.push(format!(
             "{}: material library {missing} not found; its materials use defaults",
@@ -77,14 +98,17 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
             scan.lines
         ));
     }
-    let (models, materials) = result.map_err(|e| malformed(path, e.to_string()))?;
-    // Missing libraries were reported above; with none found `tobj` returns their error here.
-    let materials = materials.unwrap_or_default();
-    let ids: Vec<u32> = materials
-        .iter()
-        .map(|m| builder.add_material(convert_material(m)))
-        .collect();
-    let default_material = builder.add_material(Material::lambertian("default", Rgb::splat(0.8)));
+    let (models, _) = result.map_err(|e| malformed(path, e.to_string()))?;
+    // `tobj` numbers materials in the order the libraries returned them, which is the order of this list.
+    let mut maps = maps::TextureMaps::new(&options.limits);
+    let mut converted = Vec::new();
+    for (mtl, material) in libraries.materials.into_inner() {
+        let (m, uv_transform) = convert_material(&mtl, &material, &mut maps, &mut builder)?;
+        converted.push((builder.add_material(m), uv_transform));
+    }
+    let mut default_material = Material::lambertian("default", Rgb::splat(0.8));
+    default_material.double_sided = true;
+    let default_material = builder.add_material(default_material);
     for model in models {
         let m = &model.mesh;
         let positions: Vec<Vec3> = m
@@ -101,15 +125,8 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
         } else {
             Vec::new()
         };
-        // OBJ's v runs upward; glTF's (and Nimbus's) downward from the top of the image.
-        let uvs = (m.texcoords.len() == count * 2).then(|| {
-            m.texcoords
-                .chunks_exact(2)
-                .map(|t| Vec2::new(t[0], 1.0 - t[1]))
-                .collect()
-        });
-        let material = match m.material_id {
-            Some(i) => *ids.get(i).ok_or_else(|| {
+        let (material, uv_transform) = match m.material_id {
+            Some(i) => *converted.get(i).ok_or_else(|| {
                 SceneError::new(
                     path,
                     SceneErrorKind::InvalidReference(format!(
@@ -118,8 +135,20 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
                     )),
                 )
             })?,
-            None => default_material,
+            None => (default_material, None),
         };
+        // The texture options' transform (u' = u·s + o), then the flip: OBJ's v runs upward, glTF's (and
+        // Nimbus's) downward from the top of the image.
+        let (scale, offset) = uv_transform.unwrap_or((Vec2::ONE, Vec2::ZERO));
+        let uvs = (m.texcoords.len() == count * 2).then(|| {
+            m.texcoords
+                .chunks_exact(2)
+                .map(|t| {
+                    let t = Vec2::new(t[0], t[1]) * scale + offset;
+                    Vec2::new(t.x, 1.0 - t.y)
+                })
+                .collect()
+        });
         let mut mesh = Mesh {
             name: model.name.clone(),
             positions,
@@ -154,15 +183,46 @@ fn malformed(path: &Path, message: String) -> SceneError {
     SceneError::new(path, SceneErrorKind::Malformed(message))
 }
 
-/// `bytes` as UTF-8 text, or an error naming the line of the first invalid byte.
-fn utf8(bytes: &[u8]) -> Result<&str, String> {
-    std::str::from_utf8(bytes).map_err(|e| {
-        let line = 1 + bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count();
-        format!("line {line}: not UTF-8 text")
-    })
+/// Most line numbers a warning about non-UTF-8 lines lists.
+const LISTED_LINES: usize = 5;
+
+/// `bytes` as text, line by line: UTF-8 where a line is valid UTF-8, else Latin-1 (every byte one character, so
+/// that equal byte strings stay equal and different ones different), with one warning on `builder` listing the
+/// first such lines.
+fn text(bytes: &[u8], path: &Path, builder: &mut SceneBuilder) -> String {
+    if let Ok(text) = std::str::from_utf8(bytes) {
+        return text.to_owned();
+    }
+    let mut out = String::with_capacity(bytes.len() + bytes.len() / 8);
+    let mut latin1 = Vec::new();
+    for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        if i > 0 {
+            out.push('\n');
+        }
+        match std::str::from_utf8(line) {
+            Ok(l) => out.push_str(l),
+            Err(_) => {
+                latin1.push(i + 1);
+                out.extend(line.iter().map(|&b| b as char));
+            }
+        }
+    }
+    let listed: Vec<String> = latin1
+        .iter()
+        .take(LISTED_LINES)
+        .map(|l| l.to_string())
+        .collect();
+    let more = if latin1.len() > LISTED_LINES {
+        format!(" and {} more", latin1.len() - LISTED_LINES)
+    } else {
+        String::new()
+    };
+    builder.warn(format!(
+        "{}: line {}{more} not UTF-8; read as Latin-1",
+        path.display(),
+        listed.join(", ")
+    ));
+    out
 }
 
 /// How an error found while scanning a file is typed: the kind's constructor, the line, the message.
@@ -352,8 +412,9 @@ fn check_corner(corner: &str, counts: [usize; 3]) -> Result<(), CornerError> {
     Ok(())
 }
 
-/// The MTL loader handed to `tobj`: it reads each library once, checks it, and records the first error (which
-/// `tobj` would otherwise only keep when no library loads) and the libraries that are missing.
+/// The MTL loader handed to `tobj`: it reads each library once, parses and checks it, keeps its materials (in
+/// the order `tobj` numbers them) and records the first error (which `tobj` would otherwise only keep when no
+/// library loads) and the libraries that are missing.
 struct Libraries<'a> {
     obj: &'a Path,
     limits: &'a Limits,
@@ -363,16 +424,20 @@ struct Libraries<'a> {
     seen: RefCell<HashSet<PathBuf>>,
     missing: RefCell<Vec<String>>,
     error: RefCell<Option<SceneError>>,
+    /// Every material returned to `tobj`, with its library's path.
+    materials: RefCell<Vec<(PathBuf, mtl::MtlMaterial)>>,
+    /// The libraries' warnings.
+    warnings: RefCell<Vec<String>>,
 }
 
 impl Libraries<'_> {
-    fn load(&self, mtl: &Path) -> tobj::MTLLoadResult {
+    fn load(&self, name: &Path) -> tobj::MTLLoadResult {
         let line = self.lines.get(self.next.get()).copied().unwrap_or(0);
         self.next.set(self.next.get() + 1);
         if self.error.borrow().is_some() {
             return Err(tobj::LoadError::MaterialParseError);
         }
-        let file = self.obj.parent().unwrap_or(Path::new("")).join(mtl);
+        let file = self.obj.parent().unwrap_or(Path::new("")).join(name);
         if !self.seen.borrow_mut().insert(file.clone()) {
             // Already loaded (or reported): its materials are known.
             return Ok((Vec::new(), Default::default()));
@@ -386,88 +451,92 @@ impl Libraries<'_> {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 self.missing.borrow_mut().push(format!(
                     "'{}' (line {line})",
-                    one_line(&mtl.to_string_lossy(), QUOTE_CHARS)
+                    one_line(&name.to_string_lossy(), QUOTE_CHARS)
                 ));
                 return Err(tobj::LoadError::OpenFileFailed);
             }
             Err(e) => return fail(SceneError::new(file, SceneErrorKind::Io(e))),
         };
-        let text = match utf8(&bytes) {
-            Ok(t) => t,
-            Err(m) => return fail(malformed(&file, m)),
+        let mut notes = SceneBuilder::default();
+        let text = text(&bytes, &file, &mut notes);
+        let library = match mtl::parse(&text) {
+            Ok(l) => l,
+            Err((kind, n, m)) => {
+                return fail(SceneError::new(file, kind(format!("line {n}: {m}"))))
+            }
         };
-        if let Err((kind, n, m)) = check_mtl(text) {
-            return fail(SceneError::new(file, kind(format!("line {n}: {m}"))));
+        let mut warnings = self.warnings.borrow_mut();
+        warnings.extend(notes.warnings);
+        if !library.ignored_options.is_empty() {
+            warnings.push(format!(
+                "{}: texture options {} are not supported and ignored",
+                file.display(),
+                library.ignored_options.join(", ")
+            ));
         }
-        tobj::load_mtl_buf(&mut text.as_bytes()).or_else(|e| fail(malformed(&file, e.to_string())))
+        if !library.unread_maps.is_empty() {
+            warnings.push(format!(
+                "{}: {} not read (the material model has no such texture)",
+                file.display(),
+                library.unread_maps.join(", ")
+            ));
+        }
+        // `tobj` maps `usemtl` names to these indices (a later duplicate name wins, as in `tobj`'s own parser).
+        let mut materials = self.materials.borrow_mut();
+        let mut named = Vec::new();
+        for m in library.materials {
+            named.push(tobj::Material {
+                name: m.name.clone(),
+                ..Default::default()
+            });
+            materials.push((file.clone(), m));
+        }
+        let index = named
+            .iter()
+            .enumerate()
+            .map(|(i, m)| (m.name.clone(), i))
+            .collect();
+        Ok((named, index))
     }
 }
 
-/// Checks every MTL statement `tobj` reads a value from (it panics on a colour of fewer than three numbers).
-fn check_mtl(text: &str) -> Result<(), LineError> {
-    const COLORS: [&str; 6] = ["Ka", "Kd", "Ks", "Ke", "Tf", "Kt"];
-    const SCALARS: [&str; 12] = [
-        "Ns",
-        "Ni",
-        "d",
-        "Tr",
-        "sharpness",
-        "Pr",
-        "Pm",
-        "Ps",
-        "Pc",
-        "Pcr",
-        "aniso",
-        "anisor",
-    ];
-    for (i, line) in text.lines().enumerate() {
-        let n = i + 1;
-        let trimmed = line.trim();
-        let mut words = trimmed.split_whitespace();
-        let Some(key) = words.next() else { continue };
-        let args: Vec<&str> = words.collect();
-        if COLORS.contains(&key) {
-            if let Some(form) = args.first().filter(|a| **a == "spectral" || **a == "xyz") {
-                return Err((
-                    SceneErrorKind::Unsupported,
-                    n,
-                    format!("{key}: the '{form}' colour form (only r g b is read)"),
-                ));
-            }
-            let x = numbers(n, key, &args)?;
-            if x.len() != 3 {
-                return Err(bad(
-                    n,
-                    format!("{key}: expected 3 numbers (r g b), found {}", x.len()),
-                ));
-            }
-        } else if SCALARS.contains(&key) {
-            let x = numbers(n, key, &args)?;
-            if x.len() != 1 {
-                return Err(bad(
-                    n,
-                    format!("{key}: expected 1 number, found {}", x.len()),
-                ));
-            }
-        } else if key == "illum" {
-            if args.len() != 1 || args[0].parse::<u8>().is_err() {
-                return Err(bad(n, "illum: expected one integer 0 to 255".into()));
-            }
-        } else if (key == "newmtl" || key.starts_with("map_") || key == "bump") && args.is_empty() {
-            return Err(bad(n, format!("{key}: no name")));
-        }
-    }
-    Ok(())
-}
+/// A material's texture-coordinate transform from its texture options: scale, then offset.
+type UvTransform = Option<(Vec2, Vec2)>;
 
-fn rgb(c: Option<[f32; 3]>) -> Rgb {
-    c.map_or(Rgb::ZERO, |c| Rgb::from(c).max(Rgb::ZERO))
-}
-fn convert_material(m: &tobj::Material) -> Material {
-    let kd = rgb(m.diffuse);
-    let ks = rgb(m.specular);
+/// The material of an MTL block of the library `mtl`, and the texture-coordinate transform of its textures.
+fn convert_material(
+    mtl: &Path,
+    m: &mtl::MtlMaterial,
+    maps: &mut maps::TextureMaps,
+    builder: &mut SceneBuilder,
+) -> Result<(Material, UvTransform), SceneError> {
+    use mtl::MapKind;
+    let mut texture = |kind: MapKind, builder: &mut SceneBuilder| -> Result<_, SceneError> {
+        match m.map(kind) {
+            Some(map) => Ok(maps.texture(mtl, map, builder)?.map(|id| (id, map))),
+            None => Ok(None),
+        }
+    };
+    let diffuse_map = texture(MapKind::Diffuse, builder)?;
+    let emission_map = texture(MapKind::Emission, builder)?;
+    let alpha_map = texture(MapKind::Dissolve, builder)?;
+    let normal_map = match texture(MapKind::Normal, builder)? {
+        Some((id, map)) => Some((id, map.bump_multiplier, map)),
+        // The bump multiplier is baked into the normals made from a height map.
+        None => texture(MapKind::Bump, builder)?.map(|(id, map)| (id, 1.0, map)),
+    };
+
+    let one_if_mapped = |c: Option<Rgb>, mapped: bool| {
+        c.unwrap_or(if mapped { Rgb::ONE } else { Rgb::ZERO })
+            .max(Rgb::ZERO)
+    };
+    // A named base-colour map makes the default `Kd` 1, even when its file is missing; an emission map only when
+    // its file was read (a missing one must not make the surface glow).
+    let kd = one_if_mapped(m.diffuse, m.map(MapKind::Diffuse).is_some());
+    let ks = one_if_mapped(m.specular, false);
     let mut out = Material::lambertian(&m.name, kd);
     out.double_sided = true;
+    out.base_color_texture = diffuse_map.map(|(id, _)| id);
     if ks.max_element() > 0.0 {
         let ns = m.shininess.unwrap_or(100.0).max(0.0);
         let alpha = (2.0 / (ns + 2.0)).sqrt();
@@ -479,18 +548,51 @@ fn convert_material(m: &tobj::Material) -> Material {
             out.specular_factor = 1.0;
         }
     }
-    out.emission = rgb(m.emissive);
-    if let Some(ni) = m.optical_density.filter(|v| v.is_finite() && *v > 0.0) {
+    out.emission = one_if_mapped(m.emissive, emission_map.is_some());
+    out.emission_texture = emission_map.map(|(id, _)| id);
+    out.normal_texture = normal_map.map(|(id, scale, _)| (id, scale));
+    if let Some(ni) = m.ior.filter(|v| v.is_finite() && *v > 0.0) {
         out.ior = ni;
     }
-    if let Some(d) = m.dissolve.filter(|d| *d < 1.0) {
-        out.transmission = (1.0 - d).clamp(0.0, 1.0);
+    let coverage = m.coverage();
+    let glass = matches!(m.illum, Some(4 | 6 | 7 | 9));
+    if glass && coverage < 1.0 {
+        out.transmission = 1.0 - coverage;
         out.specular_factor = 1.0;
         out.metallic = 0.0;
         out.double_sided = false;
         if kd.max_element() <= 0.0 {
             out.base_color = Rgb::ONE.extend(1.0);
         }
+    } else {
+        out.base_color.w = coverage;
+        if coverage < 1.0 {
+            out.alpha_mode = AlphaMode::Blend;
+        }
     }
-    out
+    if let Some((id, _)) = alpha_map {
+        out.alpha_texture = Some(id);
+        out.alpha_mode = AlphaMode::Mask { cutoff: 0.5 };
+    }
+
+    // One texture-coordinate transform per material (it moves the mesh's coordinates).
+    let used: Vec<&mtl::TextureMap> = [diffuse_map, emission_map, alpha_map]
+        .into_iter()
+        .flatten()
+        .map(|(_, map)| map)
+        .chain(normal_map.map(|(_, _, map)| map))
+        .collect();
+    let transform = used.first().map(|t| (t.scale, t.offset));
+    if let Some(other) = used.iter().find(|t| Some((t.scale, t.offset)) != transform) {
+        builder.warn(format!(
+            "{}: line {}: material '{}': the -o/-s options of {} differ from those of its other textures; the \
+             first ones apply to all",
+            mtl.display(),
+            other.line,
+            one_line(&m.name, QUOTE_CHARS),
+            other.key
+        ));
+    }
+    let transform = transform.filter(|&(s, o)| s != Vec2::ONE || o != Vec2::ZERO);
+    Ok((out, transform))
 }
