@@ -45,8 +45,10 @@
 mod crate_check;
 mod geom;
 mod layers;
+mod instancing;
 mod lux;
 mod shading;
+mod shapes;
 mod values;
 mod vol;
 mod xform;
@@ -124,6 +126,19 @@ pub fn read_with_limits(
     path: &Path,
     limits: &Limits,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+    read_at_time(path, limits, None)
+}
+
+/// [`read_with_limits`] at time code `time` (in the stage's time codes, not seconds: a frame at `s` seconds is
+/// time code `s × timeCodesPerSecond`), or at the stage's default time when `None`: its `startTimeCode`
+/// metadata if authored, else the earliest time sample of each attribute. Every attribute is read at that time:
+/// time samples are interpolated linearly between the bracketing samples (quaternions by slerp) and held
+/// beyond the first and last (AOUSD Core §12.5); an attribute without samples gives its default value.
+pub fn read_at_time(
+    path: &Path,
+    limits: &Limits,
+    time: Option<f64>,
+) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let limits = *limits;
     let owned = path.to_path_buf();
     let (send, receive) = std::sync::mpsc::channel();
@@ -131,7 +146,7 @@ pub fn read_with_limits(
         .name("nimbus-usd".into())
         .stack_size(READER_STACK_BYTES)
         .spawn(move || {
-            let read = catch_quietly(|| read_stage(&owned, &limits)).unwrap_or_else(|message| {
+            let read = catch_quietly(|| read_stage(&owned, &limits, time)).unwrap_or_else(|message| {
                 Err(SceneError::new(
                     &owned,
                     SceneErrorKind::ReaderPanicked {
@@ -161,7 +176,11 @@ pub fn read_with_limits(
     })
 }
 
-fn read_stage(path: &Path, limits: &Limits) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+fn read_stage(
+    path: &Path,
+    limits: &Limits,
+    time: Option<f64>,
+) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let stage = open(path, limits)?;
     let mut loader = Loader {
         path,
@@ -173,8 +192,14 @@ fn read_stage(path: &Path, limits: &Limits) -> Result<(SceneBuilder, Vec<VolumeS
         unsupported: HashSet::new(),
         root: Mat4::IDENTITY,
         limits: *limits,
+        time: usd::TimeCode::EARLIEST,
+        packages: HashMap::new(),
     };
     loader.root = loader.stage_root()?;
+    loader.time = match time {
+        Some(t) => usd::TimeCode::new(t),
+        None => loader.default_time()?,
+    };
     for child in loader.children(&stage.prim("/"))? {
         loader.visit(&child, loader.root, None, 0)?;
     }
@@ -232,13 +257,17 @@ struct Loader<'a> {
     volumes: Vec<VolumeSpec>,
     /// (material prim path, double-sided) → material index.
     materials: HashMap<(String, bool), u32>,
-    /// (resolved file, colour space is sRGB) → texture index.
-    textures: HashMap<(PathBuf, bool), u32>,
+    /// Texture file, colour space, role and scale/bias → texture index.
+    textures: HashMap<shading::TextureKey, u32>,
     unsupported: HashSet<String>,
     /// Stage units and up axis to Nimbus's metres and +Y up.
     root: Mat4,
     /// The memory budget for textures and environment maps.
     limits: Limits,
+    /// The time code every attribute is read at (see [`read_at_time`]).
+    time: usd::TimeCode,
+    /// `.usdz` packages opened for the files inside them, by package path.
+    packages: HashMap<PathBuf, layers::Package>,
 }
 
 impl Loader<'_> {
@@ -248,6 +277,17 @@ impl Loader<'_> {
 
     fn warn(&mut self, message: String) {
         self.builder.warnings.push(message);
+    }
+
+    /// The stage's default time: `startTimeCode` if authored, else the earliest sample of each attribute.
+    fn default_time(&self) -> Result<usd::TimeCode, SceneError> {
+        let start = self
+            .stage
+            .stage_metadata("startTimeCode")
+            .map_err(|e| self.error("stage metadata", format!("startTimeCode: {e:#}")))?
+            .and_then(|v| number(&v))
+            .filter(|t| t.is_finite());
+        Ok(start.map_or(usd::TimeCode::EARLIEST, usd::TimeCode::new))
     }
 
     /// The matrix from stage units and axes to Nimbus's metres and +Y up.
@@ -279,8 +319,7 @@ impl Loader<'_> {
             .map_err(|e| self.error(prim.path().as_str(), format!("{e:#}")))
     }
 
-    /// The composed value of attribute `name` on `prim`, if authored.
-    /// The value of attribute `name` on `prim`. A name that is not a USD property name (identifiers joined by
+    /// The value of attribute `name` on `prim` at the loader's time code, if authored. A name that is not a USD property name (identifiers joined by
     /// `:`) is an error before `openusd` sees it: names come from the file too (`xformOpOrder`), and `openusd`
     /// resolving a malformed one (a line break inside, from a damaged string) walked path parents for minutes.
     fn value(&self, prim: &usd::Prim, name: &str) -> Result<Option<sdf::Value>, SceneError> {
@@ -293,7 +332,9 @@ impl Loader<'_> {
                 ),
             ));
         }
-        prim.attribute(name).get::<sdf::Value>().map_err(|e| {
+        prim.attribute(name)
+            .get_at::<sdf::Value>(self.time)
+            .map_err(|e| {
             self.error(
                 &format!("{}.{name}", prim.path().as_str()),
                 format!("{e:#}"),
@@ -353,6 +394,22 @@ impl Loader<'_> {
         {
             return Ok(());
         }
+        // Only defined, non-abstract prims are drawn: a `class` (an abstract prototype for references and
+        // inherits) or a bare `over` is not (UsdPrimDefaultPredicate). Their children are skipped with them.
+        let specifier = prim
+            .specifier()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?;
+        if !matches!(specifier, Some(sdf::Specifier::Def)) {
+            return Ok(());
+        }
+        // `visibility` is inherited: an invisible prim hides its whole subtree (UsdGeomImageable).
+        if self
+            .value(prim, "visibility")?
+            .and_then(|v| token(&v))
+            .is_some_and(|v| v == "invisible")
+        {
+            return Ok(());
+        }
         let (local, reset) = self.local_transform(prim)?;
         let world = if reset { local } else { parent * local };
         if !world.is_finite() {
@@ -362,6 +419,11 @@ impl Loader<'_> {
         let kind = self.type_name(prim)?;
         match kind.as_str() {
             "Mesh" => self.mesh(prim, &world, binding.as_deref())?,
+            "Cube" | "Sphere" | "Cylinder" | "Cone" | "Capsule" | "Plane" => {
+                self.gprim(prim, &kind, &world, binding.as_deref())?
+            }
+            // The prototypes below an instancer render only as its instances.
+            "PointInstancer" => return self.point_instancer(prim, &world, binding, depth),
             "Camera" => self.camera(prim, &world)?,
             "RectLight" | "DiskLight" | "SphereLight" | "DistantLight" | "DomeLight" => {
                 self.light(prim, &kind, &world)?
@@ -400,11 +462,42 @@ impl Loader<'_> {
             .map_err(|e| self.error(&at, format!("{e:#}")))?;
         let base = stack
             .first()
-            .map(|(layer, _)| PathBuf::from(layer))
-            .and_then(|l| l.parent().map(Path::to_path_buf))
+            .map(|(layer, _)| layer_folder(layer))
             .or_else(|| self.path.parent().map(Path::to_path_buf))
             .unwrap_or_default();
         Ok(Some(base.join(file)))
+    }
+
+    /// The bytes of an asset [`Loader::asset`] resolved: a file on disk, or an entry of a `.usdz` package when
+    /// a folder of the path is a package file (the asset was named by a layer inside the package).
+    fn read_asset(&mut self, file: &Path) -> Result<Vec<u8>, String> {
+        let package = file
+            .ancestors()
+            .skip(1)
+            .find(|a| is_package_name(a) && a.is_file());
+        let Some(package) = package else {
+            return read_file(file, &self.limits).map_err(|e| e.to_string());
+        };
+        let member = file
+            .strip_prefix(package)
+            .map_err(|e| e.to_string())?
+            .to_string_lossy()
+            .into_owned();
+        if !self.packages.contains_key(package) {
+            let opened = layers::Package::open(package, &self.limits)?;
+            self.packages.insert(package.to_path_buf(), opened);
+        }
+        let limits = self.limits;
+        let opened = self
+            .packages
+            .get_mut(package)
+            .ok_or("the package was not opened")?;
+        opened.read(&member, &limits)?.ok_or_else(|| {
+            format!(
+                "the package {} holds no file '{member}'",
+                package.display()
+            )
+        })
     }
 
     fn camera(&mut self, prim: &usd::Prim, world: &Mat4) -> Result<(), SceneError> {
@@ -437,6 +530,29 @@ impl Loader<'_> {
         });
         Ok(())
     }
+}
+
+/// True for a path whose file name ends in `.usdz`.
+fn is_package_name(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("usdz"))
+}
+
+/// The folder that asset paths authored in layer `identifier` are relative to. A layer inside a package
+/// (`pkg.usdz[inner/layer.usdc]`, or the package itself as the root layer) gives a folder inside the package
+/// (`pkg.usdz/inner`), which [`Loader::read_asset`] reads from the package.
+fn layer_folder(identifier: &str) -> PathBuf {
+    if let Some(open) = identifier.find(".usdz[") {
+        let package = &identifier[..open + 5];
+        let inner = identifier[open + 6..].trim_end_matches(']');
+        let folder = Path::new(inner).parent().unwrap_or(Path::new(""));
+        return Path::new(package).join(folder);
+    }
+    let layer = Path::new(identifier);
+    if is_package_name(layer) {
+        return layer.to_path_buf();
+    }
+    layer.parent().map(Path::to_path_buf).unwrap_or_default()
 }
 
 /// True for a USD property name: identifiers (a letter or `_`, then letters, digits or `_`) joined by `:`.
