@@ -292,6 +292,30 @@ fn missing_textures_and_materialx_files_warn_and_fall_back() {
 }
 
 #[test]
+fn a_reference_to_a_materialx_document_warns_and_falls_back() {
+    let dir = temp_dir("mtlx_ref");
+    std::fs::write(
+        dir.join("look.mtlx"),
+        "<?xml version=\"1.0\"?>\n<materialx version=\"1.38\">\n\
+         <standard_surface name=\"SR_red\" type=\"surfaceshader\"/>\n</materialx>\n",
+    )
+    .unwrap();
+    let path = dir.join("stage.usda");
+    std::fs::write(
+        &path,
+        format!(
+            "#usda 1.0\ndef Mesh \"M\" {{\n {TRIANGLE}\n rel material:binding = </Looks/Red> }}\n\
+             def Scope \"Looks\" ( prepend references = @./look.mtlx@</MaterialX/Materials> ) {{}}\n"
+        ),
+    )
+    .unwrap();
+    let (b, _) = usd::read(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(b.meshes().len(), 1);
+    let w = b.warnings();
+    assert!(w.iter().any(|w| w.contains("look.mtlx") && !w.contains('\n')), "{w:?}");
+}
+
+#[test]
 fn uv_texture_scale_and_bias_apply_to_the_texture_value() {
     let dir = temp_dir("scale_bias");
     // A 1x1 linear texel (0.2, 0.4, 0.6).

@@ -204,7 +204,8 @@ fn read_stage(
         loader.visit(&child, loader.root, None, 0)?;
     }
     // References and payloads report their errors as the prims that use them are composed.
-    composition_errors(path, &stage)?;
+    let skipped = composition_errors(path, &stage)?;
+    loader.builder.warnings.extend(skipped);
     Ok((loader.builder, loader.volumes))
 }
 
@@ -225,18 +226,27 @@ fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
         })
         .open(name)
         .map_err(|e| malformed(path, format!("{e:#}")))?;
+    // Only the errors here; their warnings are collected once the whole stage is read.
     composition_errors(path, &stage)?;
     Ok(stage)
 }
 
-/// The composition errors met so far (a missing sublayer or referenced layer names it), as one error.
-fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<(), SceneError> {
-    let errors = stage.composition_errors();
-    if errors.is_empty() {
-        return Ok(());
+/// The composition errors met so far (a missing sublayer or referenced layer names it), as one error. An arc
+/// to a MaterialX document (`.mtlx`, which `openusd` cannot read as a layer) is not an error: it is returned
+/// as a warning, and the prims it would have brought fall back to defaults.
+fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, SceneError> {
+    let (materialx, errors): (Vec<String>, Vec<String>) = stage
+        .composition_errors()
+        .iter()
+        .map(|e| one_line(&e.to_string(), MESSAGE_CHARS))
+        .partition(|e| e.to_ascii_lowercase().contains(".mtlx"));
+    if !errors.is_empty() {
+        return Err(malformed(path, format!("composition: {}", errors.join("; "))));
     }
-    let list: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
-    Err(malformed(path, format!("composition: {}", list.join("; "))))
+    Ok(materialx
+        .into_iter()
+        .map(|e| format!("{e}; MaterialX documents are not read, the prims they define use defaults"))
+        .collect())
 }
 
 /// Longest message quoted from `openusd` (its errors can quote a whole layer's text).
