@@ -76,18 +76,27 @@ fn time_sampled_ops_are_read_at_the_default_time_and_interpolated() {
     // No startTimeCode: the earliest sample.
     let b = read_text("samples_earliest", &stage("upAxis = \"Y\""));
     let p = mesh(&b, "/M").positions[1];
-    assert!(close(p, corner(0.0, 1.0).transform_point3(Vec3::X), 1e-5), "{p}");
+    assert!(
+        close(p, corner(0.0, 1.0).transform_point3(Vec3::X), 1e-5),
+        "{p}"
+    );
     // startTimeCode 10: halfway, translation lerped and rotation slerped to 45°.
     let text = stage("startTimeCode = 10");
     let b = read_text("samples_start", &text);
     let p = mesh(&b, "/M").positions[1];
-    assert!(close(p, corner(45.0, 2.0).transform_point3(Vec3::X), 1e-5), "{p}");
+    assert!(
+        close(p, corner(45.0, 2.0).transform_point3(Vec3::X), 1e-5),
+        "{p}"
+    );
     // An explicit time past the last sample holds the last value.
     let path = temp_dir("samples_at").join("stage.usda");
     std::fs::write(&path, &text).unwrap();
     let (b, _) = usd::read_at_time(&path, &Limits::default(), Some(40.0)).unwrap();
     let p = mesh(&b, "/M").positions[1];
-    assert!(close(p, corner(90.0, 3.0).transform_point3(Vec3::X), 1e-5), "{p}");
+    assert!(
+        close(p, corner(90.0, 3.0).transform_point3(Vec3::X), 1e-5),
+        "{p}"
+    );
 }
 
 #[test]
@@ -138,7 +147,10 @@ fn gprims_are_tessellated_with_their_xforms_and_materials() {
     );
     let cube = mesh(&b, "/C");
     let bb = cube.bounds();
-    assert!(close(bb.min, Vec3::new(8.5, -1.5, -1.5), 1e-5) && close(bb.max, Vec3::new(11.5, 1.5, 1.5), 1e-5));
+    assert!(
+        close(bb.min, Vec3::new(8.5, -1.5, -1.5), 1e-5)
+            && close(bb.max, Vec3::new(11.5, 1.5, 1.5), 1e-5)
+    );
     let red = &b.materials()[cube.material as usize];
     assert_eq!(red.base_color.truncate(), Vec3::X);
     assert!(!red.double_sided);
@@ -188,11 +200,22 @@ fn point_instancer_flattens_its_prototypes() {
            }\n}\n",
     );
     // Four instances, one invisible; the prototypes themselves are not rendered.
-    assert_eq!(b.meshes().len(), 3, "{:?}", b.meshes().iter().map(|m| &m.name).collect::<Vec<_>>());
+    assert_eq!(
+        b.meshes().len(),
+        3,
+        "{:?}",
+        b.meshes().iter().map(|m| &m.name).collect::<Vec<_>>()
+    );
     let box0 = mesh(&b, "/I/Protos/Box[0]").bounds();
-    assert!(close(box0.min, Vec3::new(-0.5, 0.5, -0.5), 1e-5), "{box0:?}");
+    assert!(
+        close(box0.min, Vec3::new(-0.5, 0.5, -0.5), 1e-5),
+        "{box0:?}"
+    );
     let ball = mesh(&b, "/I/Protos/Ball[1]").bounds();
-    assert!(close(ball.min, Vec3::new(4.0, -1.0, -1.0), 1e-4), "{ball:?}");
+    assert!(
+        close(ball.min, Vec3::new(4.0, -1.0, -1.0), 1e-4),
+        "{ball:?}"
+    );
     // Instance 2: the prototype's own translate (0, 1, 0), then scale (1, 3, 1), then 90° about +Z, then (0, 5, 0).
     let m = Mat4::from_translation(Vec3::new(0.0, 5.0, 0.0))
         * Mat4::from_quat(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2))
@@ -200,7 +223,10 @@ fn point_instancer_flattens_its_prototypes() {
         * Mat4::from_translation(Vec3::Y);
     let box2 = mesh(&b, "/I/Protos/Box[2]");
     let want = m.transform_point3(Vec3::splat(0.5));
-    assert!(box2.positions.iter().any(|p| close(*p, want, 1e-4)), "{want}");
+    assert!(
+        box2.positions.iter().any(|p| close(*p, want, 1e-4)),
+        "{want}"
+    );
     let bb = box2.bounds();
     assert!(close(bb.min, Vec3::new(-4.5, 4.5, -0.5), 1e-4), "{bb:?}");
 }
@@ -220,9 +246,17 @@ fn native_instances_are_expanded_and_prototypes_not_drawn() {
     );
     let names: Vec<&str> = b.meshes().iter().map(|m| m.name.as_str()).collect();
     assert_eq!(b.meshes().len(), 2, "{names:?}");
-    let a = b.meshes().iter().find(|m| m.bounds().min.x > 9.0).expect("instance A");
+    let a = b
+        .meshes()
+        .iter()
+        .find(|m| m.bounds().min.x > 9.0)
+        .expect("instance A");
     assert!(close(a.bounds().max, Vec3::new(11.0, 1.0, 0.0), 1e-6));
-    let b2 = b.meshes().iter().find(|m| m.bounds().min.z > 6.0).expect("instance B");
+    let b2 = b
+        .meshes()
+        .iter()
+        .find(|m| m.bounds().min.z > 6.0)
+        .expect("instance B");
     assert!(close(b2.bounds().min, Vec3::new(0.0, 0.0, 7.0), 1e-6));
 }
 
@@ -254,8 +288,16 @@ fn geom_subsets_bind_their_faces_materials() {
     );
     assert_eq!(b.meshes().len(), 2);
     let color = |m: &Mesh| b.materials()[m.material as usize].base_color.truncate();
-    let red = b.meshes().iter().find(|m| color(m) == Vec3::X).expect("red part");
-    let blue = b.meshes().iter().find(|m| color(m) == Vec3::Z).expect("blue part");
+    let red = b
+        .meshes()
+        .iter()
+        .find(|m| color(m) == Vec3::X)
+        .expect("red part");
+    let blue = b
+        .meshes()
+        .iter()
+        .find(|m| color(m) == Vec3::Z)
+        .expect("blue part");
     assert_eq!(red.indices.len(), 2, "the quad");
     assert_eq!(blue.indices.len(), 2, "the two triangles");
     assert!(blue.bounds().min.x >= 1.0 && red.bounds().max.x <= 1.0);
@@ -281,14 +323,23 @@ fn missing_textures_and_materialx_files_warn_and_fall_back() {
     );
     let m = &b.materials()[b.meshes()[0].material as usize];
     assert_eq!(m.base_color_texture, None);
-    assert!(close(m.base_color.truncate(), Vec3::new(0.2, 0.4, 0.6), 1e-6));
+    assert!(close(
+        m.base_color.truncate(),
+        Vec3::new(0.2, 0.4, 0.6),
+        1e-6
+    ));
     assert_eq!(m.emission_texture, None);
     let w = b.warnings();
     assert!(
-        w.iter().any(|w| w.contains("/L/Mat/T") && w.contains("nowhere.png") && !w.contains('\n')),
+        w.iter()
+            .any(|w| w.contains("/L/Mat/T") && w.contains("nowhere.png") && !w.contains('\n')),
         "{w:?}"
     );
-    assert!(w.iter().any(|w| w.contains("/L/Mat/X") && w.contains("look.mtlx")), "{w:?}");
+    assert!(
+        w.iter()
+            .any(|w| w.contains("/L/Mat/X") && w.contains("look.mtlx")),
+        "{w:?}"
+    );
 }
 
 #[test]
@@ -312,7 +363,11 @@ fn a_reference_to_a_materialx_document_warns_and_falls_back() {
     let (b, _) = usd::read(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(b.meshes().len(), 1);
     let w = b.warnings();
-    assert!(w.iter().any(|w| w.contains("look.mtlx") && !w.contains('\n')), "{w:?}");
+    assert!(
+        w.iter()
+            .any(|w| w.contains("look.mtlx") && !w.contains('\n')),
+        "{w:?}"
+    );
 }
 
 #[test]
@@ -343,7 +398,10 @@ fn uv_texture_scale_and_bias_apply_to_the_texture_value() {
     let m = &b.materials()[b.meshes()[0].material as usize];
     let t = &b.textures()[m.base_color_texture.unwrap() as usize];
     let c = t.sample(Vec2::splat(0.5)).truncate();
-    assert!(close(c, Vec3::new(0.2 * 0.5 + 0.1, 0.4 * 2.0, 0.6 - 0.5), 1e-5), "{c}");
+    assert!(
+        close(c, Vec3::new(0.2 * 0.5 + 0.1, 0.4 * 2.0, 0.6 - 0.5), 1e-5),
+        "{c}"
+    );
     // The normal map: (0.2·−2 + 1, 0.4·2 − 1, 0.6 + 0.5) = (0.6, −0.2, 1.1), normalised.
     let tc = nimbus::material::TexCoord::point(Vec2::splat(0.5));
     let n = m.normal_map(tc, b.textures()).unwrap();
@@ -370,8 +428,13 @@ fn mcusd_camera_looks_at_the_scene() {
     // about Y, it looks down the diagonal toward the blocks around the origin. Angles taken by letter position
     // instead pitch it up by 45° to the sky, 90° away from the centre.
     let yfov = cam.yfov.to_degrees();
-    println!("McUsd: angle between the view axis and the bounds' centre {angle:.2}°, yfov {yfov:.1}°");
-    assert!(angle < 0.25 * yfov, "the camera looks {angle:.1}° away from the scene");
+    println!(
+        "McUsd: angle between the view axis and the bounds' centre {angle:.2}°, yfov {yfov:.1}°"
+    );
+    assert!(
+        angle < 0.25 * yfov,
+        "the camera looks {angle:.1}° away from the scene"
+    );
 }
 
 #[test]
@@ -411,7 +474,10 @@ fn normal_maps_decode_with_their_scale_and_bias() {
     let Some(dir) = realworld("NormalsTextureBiasAndScale") else {
         return;
     };
-    for file in ["NormalsTextureBiasAndScale.usda", "NormalsTextureBiasAndScale.usdz"] {
+    for file in [
+        "NormalsTextureBiasAndScale.usda",
+        "NormalsTextureBiasAndScale.usdz",
+    ] {
         let b = read_real(&dir.join(file));
         // Only the "AngledLight" is visible; the three others are authored invisible.
         assert_eq!(b.lights().len(), 1, "{file}");
@@ -419,13 +485,17 @@ fn normal_maps_decode_with_their_scale_and_bias() {
         // The README: (246, 127, 175) in the plain map decodes to (0.929, −0.004, 0.373), pointing right.
         let right = Vec3::new(246.0, 127.0, 175.0) / 255.0 * 2.0 - 1.0;
         let tilted = plain.iter().filter(|n| n.z < 0.95).count();
-        assert!(tilted > 100, "{file}: the R's slopes ({tilted} tilted texels)");
+        assert!(
+            tilted > 100,
+            "{file}: the R's slopes ({tilted} tilted texels)"
+        );
         assert!(plain.iter().any(|n| n.dot(right.normalize()) > 0.99));
         // The reversed-x (0-bias z) and reversed-y maps, decoded with their scale and bias, give the same
         // normals as the plain map: every card should look the same.
         for other in ["/RNormalsReversedX0BiasZ", "/RNormalsReversedY"] {
             let n = card_normals(&b, other);
-            let mean_dot: f32 = plain.iter().zip(&n).map(|(a, b)| a.dot(*b)).sum::<f32>() / n.len() as f32;
+            let mean_dot: f32 =
+                plain.iter().zip(&n).map(|(a, b)| a.dot(*b)).sum::<f32>() / n.len() as f32;
             let worst_tilted = plain
                 .iter()
                 .zip(&n)
@@ -434,7 +504,10 @@ fn normal_maps_decode_with_their_scale_and_bias() {
                 .fold(1.0f32, f32::min);
             println!("{file} {other}: mean dot {mean_dot:.4}, worst on slopes {worst_tilted:.3}");
             assert!(mean_dot > 0.99, "{file} {other}: mean dot {mean_dot}");
-            assert!(worst_tilted > 0.8, "{file} {other}: worst dot on the slopes {worst_tilted}");
+            assert!(
+                worst_tilted > 0.8,
+                "{file} {other}: worst dot on the slopes {worst_tilted}"
+            );
         }
     }
 }

@@ -162,7 +162,10 @@ impl Loader<'_> {
                 .map(|i| usize::try_from(i).ok().filter(|&i| i < faces).ok_or(i))
                 .collect::<Result<Vec<_>, _>>()
                 .map_err(|i| {
-                    self.error(at, format!("face index {i} is out of range ({faces} faces)"))
+                    self.error(
+                        at,
+                        format!("face index {i} is out of range ({faces} faces)"),
+                    )
                 })?;
             subsets.push((material, indices));
         }

@@ -36,8 +36,9 @@ impl Loader<'_> {
             .map_err(|e| self.error(&at, format!("prototypes: {e:#}")))?;
         let indices = self.int_array(prim, "protoIndices")?;
         let positions = match self.value(prim, "positions")? {
-            Some(v) => vec3_array(&v)
-                .ok_or_else(|| self.error(&at, "positions must be a point3f[]"))?,
+            Some(v) => {
+                vec3_array(&v).ok_or_else(|| self.error(&at, "positions must be a point3f[]"))?
+            }
             None => Vec::new(),
         };
         let n = indices.len();
@@ -63,7 +64,10 @@ impl Loader<'_> {
             }
             None => Vec::new(),
         };
-        for (name, len) in [("orientations", orientations.len()), ("scales", scales.len())] {
+        for (name, len) in [
+            ("orientations", orientations.len()),
+            ("scales", scales.len()),
+        ] {
             if len != 0 && len != n {
                 return Err(self.error(
                     &at,
@@ -73,9 +77,15 @@ impl Loader<'_> {
         }
         let ids = self.int64_array(prim, "ids")?;
         if !ids.is_empty() && ids.len() != n {
-            return Err(self.error(&at, format!("ids has {} entries for {n} protoIndices", ids.len())));
+            return Err(self.error(
+                &at,
+                format!("ids has {} entries for {n} protoIndices", ids.len()),
+            ));
         }
-        let invisible: HashSet<i64> = self.int64_array(prim, "invisibleIds")?.into_iter().collect();
+        let invisible: HashSet<i64> = self
+            .int64_array(prim, "invisibleIds")?
+            .into_iter()
+            .collect();
         // Each prototype's meshes, flattened once in the prototype's own frame (its root transform included).
         let mut flattened = Vec::with_capacity(prototypes.len());
         for proto in &prototypes {
@@ -158,7 +168,10 @@ impl Loader<'_> {
                 .iter()
                 .map(|q| Quat::from_xyzw(q.x.to_f32(), q.y.to_f32(), q.z.to_f32(), q.w.to_f32()))
                 .collect(),
-            sdf::Value::QuatfVec(q) => q.iter().map(|q| Quat::from_xyzw(q.x, q.y, q.z, q.w)).collect(),
+            sdf::Value::QuatfVec(q) => q
+                .iter()
+                .map(|q| Quat::from_xyzw(q.x, q.y, q.z, q.w))
+                .collect(),
             sdf::Value::QuatdVec(q) => q
                 .iter()
                 .map(|q| Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32))

@@ -101,7 +101,11 @@ impl Package {
 
     /// The bytes of the entry at `member` (a `/`-separated path inside the package, `.` and `..` resolved),
     /// decompressed with a cap; `Ok(None)` when the package holds no such entry.
-    pub(super) fn read(&mut self, member: &str, limits: &Limits) -> Result<Option<Vec<u8>>, String> {
+    pub(super) fn read(
+        &mut self,
+        member: &str,
+        limits: &Limits,
+    ) -> Result<Option<Vec<u8>>, String> {
         let mut parts: Vec<&str> = Vec::new();
         for part in member.split(['/', '\\']) {
             match part {

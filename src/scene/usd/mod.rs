@@ -1,6 +1,7 @@
 //! USD loader (`.usd`, `.usda`, `.usdc`, `.usdz`), on top of the `openusd` crate, which parses the three
-//! encodings and composes sublayers, references and payloads. Nimbus reads the composed stage at its default
-//! time and maps it onto the same scene model as glTF.
+//! encodings and composes sublayers, references and payloads. Nimbus reads the composed stage at one time code
+//! (see [`read_at_time`]: `startTimeCode`, else each attribute's earliest sample) and maps it onto the same scene
+//! model as glTF.
 //!
 //! Stage metadata read: `upAxis` (`"Z"` is rotated −90° about X to Nimbus's +Y up) and `metersPerUnit`
 //! (everything is scaled to metres).
@@ -8,18 +9,24 @@
 //! Prims and attributes read:
 //! - every prim: `xformOpOrder` with the ops `translate`, `pivot` (a translate), `scale`, `rotateX/Y/Z`,
 //!   `rotateXYZ`/`XZY`/`YXZ`/`YZX`/`ZXY`/`ZYX` (degrees), `orient` (quaternion) and `transform` (matrix4d),
-//!   with `!invert!` and `!resetXformStack!`, composed through the hierarchy; `active`; `material:binding`
-//!   (inherited by descendants);
+//!   with `!invert!` and `!resetXformStack!`, composed through the hierarchy; `active`, `visibility`
+//!   (`invisible` hides the subtree), the specifier (only `def` prims are drawn, not `class` or `over`);
+//!   `material:binding` (inherited by descendants);
 //! - `Mesh`: `points`, `faceVertexCounts`, `faceVertexIndices` (polygons triangulated as fans), `normals` /
 //!   `primvars:normals` and `primvars:st` (with `interpolation` vertex, varying, faceVarying, uniform or
 //!   constant, and `:indices`), `orientation` (`leftHanded` flips the winding), `doubleSided`,
-//!   `primvars:displayColor` (the diffuse colour of an unbound mesh);
+//!   `primvars:displayColor` (the diffuse colour of an unbound mesh); `GeomSubset` children of the
+//!   `materialBind` family bind materials per face;
+//! - the gprims `Cube`, `Sphere`, `Cylinder`, `Cone`, `Capsule`, `Plane`, tessellated (`usd/shapes.rs`);
+//! - `PointInstancer` (`usd/instancing.rs`) and native instances (composed by `openusd` as instance proxies),
+//!   flattened to world meshes;
 //! - `Camera` (the first one met): `focalLength`, `horizontalAperture`, `verticalAperture` (yfov from the
 //!   vertical aperture, aspect from their ratio); clipping and projection `orthographic` are ignored;
 //! - `Material` → `outputs:surface` → a `UsdPreviewSurface` `Shader` (`info:id`): `inputs:diffuseColor`,
 //!   `emissiveColor`, `metallic`, `roughness`, `opacity`, `ior`, `normal`, `useSpecularWorkflow` (see
 //!   `usd/shading.rs` for the mapping); colour and normal inputs may connect to a `UsdUVTexture`
-//!   (`inputs:file`, `inputs:sourceColorSpace`);
+//!   (`inputs:file`, read from the `.usdz` package when its layer is inside one, `inputs:sourceColorSpace`,
+//!   `inputs:scale`, `inputs:bias`); a texture that cannot be read or a `.mtlx` file is a warning;
 //! - UsdLux (`inputs:intensity`, `inputs:exposure`, `inputs:color`, `inputs:normalize`): `RectLight`
 //!   (`inputs:width`, `inputs:height`), `DiskLight` (`inputs:radius`), `SphereLight` (`inputs:radius`,
 //!   `treatAsPoint`), `DistantLight` (`inputs:angle` ignored), `DomeLight` (`inputs:texture:file`);
@@ -38,14 +45,15 @@
 //! them. Prim types Nimbus does not render are listed once each in the warnings.
 //!
 //! The loader is split by USD schema domain: `xform` (UsdGeomXformable ops), `geom` (meshes and primvars),
+//! `shapes` (intrinsic gprims), `instancing` (UsdGeomPointInstancer),
 //! `shading` (UsdShade / UsdPreviewSurface), `lux` (UsdLux), `vol` (UsdVol), with `values` converting
 //! attribute values, `layers` checking every layer (text nesting, packages) and `crate_check` bounds-checking
 //! `.usdc` layers before openusd reads them.
 
 mod crate_check;
 mod geom;
-mod layers;
 mod instancing;
+mod layers;
 mod lux;
 mod shading;
 mod shapes;
@@ -146,15 +154,16 @@ pub fn read_at_time(
         .name("nimbus-usd".into())
         .stack_size(READER_STACK_BYTES)
         .spawn(move || {
-            let read = catch_quietly(|| read_stage(&owned, &limits, time)).unwrap_or_else(|message| {
-                Err(SceneError::new(
-                    &owned,
-                    SceneErrorKind::ReaderPanicked {
-                        reader: "openusd",
-                        message: one_line(&message, MESSAGE_CHARS),
-                    },
-                ))
-            });
+            let read =
+                catch_quietly(|| read_stage(&owned, &limits, time)).unwrap_or_else(|message| {
+                    Err(SceneError::new(
+                        &owned,
+                        SceneErrorKind::ReaderPanicked {
+                            reader: "openusd",
+                            message: one_line(&message, MESSAGE_CHARS),
+                        },
+                    ))
+                });
             let _ = send.send(read);
         })
         .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
@@ -241,11 +250,16 @@ fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, Sc
         .map(|e| one_line(&e.to_string(), MESSAGE_CHARS))
         .partition(|e| e.to_ascii_lowercase().contains(".mtlx"));
     if !errors.is_empty() {
-        return Err(malformed(path, format!("composition: {}", errors.join("; "))));
+        return Err(malformed(
+            path,
+            format!("composition: {}", errors.join("; ")),
+        ));
     }
     Ok(materialx
         .into_iter()
-        .map(|e| format!("{e}; MaterialX documents are not read, the prims they define use defaults"))
+        .map(|e| {
+            format!("{e}; MaterialX documents are not read, the prims they define use defaults")
+        })
         .collect())
 }
 
@@ -345,11 +359,11 @@ impl Loader<'_> {
         prim.attribute(name)
             .get_at::<sdf::Value>(self.time)
             .map_err(|e| {
-            self.error(
-                &format!("{}.{name}", prim.path().as_str()),
-                format!("{e:#}"),
-            )
-        })
+                self.error(
+                    &format!("{}.{name}", prim.path().as_str()),
+                    format!("{e:#}"),
+                )
+            })
     }
 
     fn float(&self, prim: &usd::Prim, name: &str, default: f32) -> Result<f32, SceneError> {
@@ -502,12 +516,9 @@ impl Loader<'_> {
             .packages
             .get_mut(package)
             .ok_or("the package was not opened")?;
-        opened.read(&member, &limits)?.ok_or_else(|| {
-            format!(
-                "the package {} holds no file '{member}'",
-                package.display()
-            )
-        })
+        opened
+            .read(&member, &limits)?
+            .ok_or_else(|| format!("the package {} holds no file '{member}'", package.display()))
     }
 
     fn camera(&mut self, prim: &usd::Prim, world: &Mat4) -> Result<(), SceneError> {

@@ -270,7 +270,12 @@ impl Loader<'_> {
                 .as_raw()
                 .chunks_exact(4)
                 .map(|p| {
-                    let t = Vec4::new(decode(p[0]), decode(p[1]), decode(p[2]), p[3] as f32 / 255.0);
+                    let t = Vec4::new(
+                        decode(p[0]),
+                        decode(p[1]),
+                        decode(p[2]),
+                        p[3] as f32 / 255.0,
+                    );
                     let v = t * scale + bias;
                     match role {
                         TextureRole::Color => v,
@@ -294,15 +299,12 @@ impl Loader<'_> {
         let read = |name: &str| -> Result<Option<Vec4>, SceneError> {
             match self.value(tex, name)? {
                 None => Ok(None),
-                Some(v) => vec4(&v)
-                    .filter(|v| v.is_finite())
-                    .map(Some)
-                    .ok_or_else(|| {
-                        self.error(
-                            &format!("{}.{name}", tex.path().as_str()),
-                            "expected a float4",
-                        )
-                    }),
+                Some(v) => vec4(&v).filter(|v| v.is_finite()).map(Some).ok_or_else(|| {
+                    self.error(
+                        &format!("{}.{name}", tex.path().as_str()),
+                        "expected a float4",
+                    )
+                }),
             }
         };
         let (scale, bias) = (read("inputs:scale")?, read("inputs:bias")?);

@@ -122,12 +122,32 @@ impl Axis {
 /// An intrinsic gprim with its dimensions (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Shape {
-    Cube { size: f32 },
-    Sphere { radius: f32 },
-    Cylinder { radius: f32, height: f32, axis: Axis },
-    Cone { radius: f32, height: f32, axis: Axis },
-    Capsule { radius: f32, height: f32, axis: Axis },
-    Plane { width: f32, length: f32, axis: Axis },
+    Cube {
+        size: f32,
+    },
+    Sphere {
+        radius: f32,
+    },
+    Cylinder {
+        radius: f32,
+        height: f32,
+        axis: Axis,
+    },
+    Cone {
+        radius: f32,
+        height: f32,
+        axis: Axis,
+    },
+    Capsule {
+        radius: f32,
+        height: f32,
+        axis: Axis,
+    },
+    Plane {
+        width: f32,
+        length: f32,
+        axis: Axis,
+    },
 }
 
 /// A point of a profile revolved about +Z: radius, height, the outward normal in the (radius, height) plane,
@@ -146,7 +166,9 @@ impl Shape {
     pub(super) fn tessellate(self) -> Mesh {
         let mut mesh = match self {
             Shape::Cube { size } => cube(0.5 * size),
-            Shape::Sphere { radius } => revolve(&[arc(radius, 0.0, -FRAC_PI_2, FRAC_PI_2, RINGS, 0.0, 1.0)]),
+            Shape::Sphere { radius } => {
+                revolve(&[arc(radius, 0.0, -FRAC_PI_2, FRAC_PI_2, RINGS, 0.0, 1.0)])
+            }
             Shape::Cylinder {
                 radius,
                 height,
@@ -205,10 +227,26 @@ impl Shape {
                 let h = 0.5 * height;
                 let total = height + 2.0 * radius;
                 let t = |z: f32| (z + h + radius) / total;
-                let mut mesh = revolve(&[
-                    arc(radius, -h, -FRAC_PI_2, 0.0, RINGS / 2, t(-h - radius), t(-h)),
-                    arc(radius, h, 0.0, FRAC_PI_2, RINGS / 2, t(h), t(h + radius)),
-                ]);
+                // One strip: the bottom hemisphere's equator joins the top one's, making the cylinder between.
+                let mut profile = arc(
+                    radius,
+                    -h,
+                    -FRAC_PI_2,
+                    0.0,
+                    RINGS / 2,
+                    t(-h - radius),
+                    t(-h),
+                );
+                profile.extend(arc(
+                    radius,
+                    h,
+                    0.0,
+                    FRAC_PI_2,
+                    RINGS / 2,
+                    t(h),
+                    t(h + radius),
+                ));
+                let mut mesh = revolve(&[profile]);
                 mesh.positions.iter_mut().for_each(|p| *p = axis.from_z(*p));
                 mesh.normals.iter_mut().for_each(|n| *n = axis.from_z(*n));
                 mesh
@@ -263,7 +301,11 @@ fn revolve(strips: &[Vec<ProfilePoint>]) -> Mesh {
         for p in strip {
             for s in 0..=SEGMENTS {
                 let phi = TAU * s as f32 / SEGMENTS as f32;
-                let (sin, cos) = if s == SEGMENTS { (0.0, 1.0) } else { phi.sin_cos() };
+                let (sin, cos) = if s == SEGMENTS {
+                    (0.0, 1.0)
+                } else {
+                    phi.sin_cos()
+                };
                 mesh.positions.push(Vec3::new(p.r * cos, p.r * sin, p.z));
                 mesh.normals
                     .push(Vec3::new(p.n.x * cos, p.n.x * sin, p.n.y).normalize());
@@ -413,7 +455,12 @@ mod tests {
                 .tessellate(),
             );
             close(a, 2.0 * PI * r * h + 4.0 * PI * r * r, tol, "capsule area");
-            close(v, PI * r * r * h + 4.0 / 3.0 * PI * r * r * r, tol, "capsule volume");
+            close(
+                v,
+                PI * r * r * h + 4.0 / 3.0 * PI * r * r * r,
+                tol,
+                "capsule volume",
+            );
         }
         let cube = Shape::Cube { size: 3.0 }.tessellate();
         let b = cube.bounds();
