@@ -110,7 +110,7 @@ pub(super) enum Axis {
 
 impl Axis {
     /// The rotation taking the +Z-axis shape to this axis (a cyclic permutation of the coordinates).
-    fn from_z(self, p: Vec3) -> Vec3 {
+    fn along_axis(self, p: Vec3) -> Vec3 {
         match self {
             Axis::Z => p,
             Axis::X => Vec3::new(p.z, p.x, p.y),
@@ -186,8 +186,12 @@ impl Shape {
                     vec![side(radius, -h, 0.0), side(radius, h, 1.0)],
                     cap(radius, h, 1.0),
                 ]);
-                mesh.positions.iter_mut().for_each(|p| *p = axis.from_z(*p));
-                mesh.normals.iter_mut().for_each(|n| *n = axis.from_z(*n));
+                mesh.positions
+                    .iter_mut()
+                    .for_each(|p| *p = axis.along_axis(*p));
+                mesh.normals
+                    .iter_mut()
+                    .for_each(|n| *n = axis.along_axis(*n));
                 mesh
             }
             Shape::Cone {
@@ -215,8 +219,12 @@ impl Shape {
                         },
                     ],
                 ]);
-                mesh.positions.iter_mut().for_each(|p| *p = axis.from_z(*p));
-                mesh.normals.iter_mut().for_each(|n| *n = axis.from_z(*n));
+                mesh.positions
+                    .iter_mut()
+                    .for_each(|p| *p = axis.along_axis(*p));
+                mesh.normals
+                    .iter_mut()
+                    .for_each(|n| *n = axis.along_axis(*n));
                 mesh
             }
             Shape::Capsule {
@@ -247,8 +255,12 @@ impl Shape {
                     t(h + radius),
                 ));
                 let mut mesh = revolve(&[profile]);
-                mesh.positions.iter_mut().for_each(|p| *p = axis.from_z(*p));
-                mesh.normals.iter_mut().for_each(|n| *n = axis.from_z(*n));
+                mesh.positions
+                    .iter_mut()
+                    .for_each(|p| *p = axis.along_axis(*p));
+                mesh.normals
+                    .iter_mut()
+                    .for_each(|n| *n = axis.along_axis(*n));
                 mesh
             }
             Shape::Plane {
@@ -473,7 +485,7 @@ mod tests {
     #[test]
     fn front_faces_point_outward_and_along_the_axis() {
         for axis in [Axis::X, Axis::Y, Axis::Z] {
-            let along = axis.from_z(Vec3::Z);
+            let along = axis.along_axis(Vec3::Z);
             let m = Shape::Cylinder {
                 radius: 1.0,
                 height: 4.0,
