@@ -316,14 +316,15 @@ def Xform "X" {
     def DomeLight "D" {
         color3f inputs:color = (0.5, 0.25, 1)
     }
-    def Cube "C" {}
-    def Cube "C2" {}
+    def BasisCurves "C" {}
+    def BasisCurves "C2" {}
 }
 "#,
     );
     let (b, _) = usd::read(&p).unwrap();
     assert_eq!(b.meshes().len(), 1);
     let m = &b.meshes()[0];
+    assert_eq!(m.name, "/X/M");
     assert_eq!(m.indices.len(), 2);
     // translate (1, 0, 0) after rotateY 90: the local +X corner lands at (1, 0, -1).
     assert!(m.positions[1].distance(Vec3::new(1.0, 0.0, -1.0)) < 1e-5);
@@ -343,8 +344,12 @@ def Xform "X" {
         l,
         Light::Environment(nimbus::light::EnvironmentLight::Constant(c)) if *c == Rgb::new(0.5, 0.25, 1.0)
     )));
-    let cube_warnings = b.warnings().iter().filter(|w| w.contains("'Cube'")).count();
-    assert_eq!(cube_warnings, 1, "{:?}", b.warnings());
+    let curve_warnings = b
+        .warnings()
+        .iter()
+        .filter(|w| w.contains("'BasisCurves'"))
+        .count();
+    assert_eq!(curve_warnings, 1, "{:?}", b.warnings());
 }
 
 #[test]

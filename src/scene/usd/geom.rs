@@ -71,35 +71,105 @@ impl Loader<'_> {
             .value(prim, "doubleSided")?
             .is_some_and(|v| matches!(v, sdf::Value::Bool(true)));
         let material = self.material(prim, binding, double_sided)?;
-        // One vertex per face corner: simple, and right for every interpolation.
-        let mut mesh = Mesh {
-            name: at.clone(),
-            material,
-            ..Default::default()
-        };
-        mesh.positions = indices.iter().map(|&i| points[i as usize]).collect();
-        mesh.normals = normals.unwrap_or_default();
-        mesh.uvs = uvs.map(|st| {
+        // The material of each face: the mesh's, or that of the `materialBind` subset holding the face.
+        let mut face_material = vec![material; counts.len()];
+        for (subset, faces) in self.material_subsets(prim, counts.len())? {
+            let id = self.material(prim, Some(&subset), double_sided)?;
+            for f in faces {
+                face_material[f] = id;
+            }
+        }
+        let uvs = uvs.map(|st| {
             st.into_iter()
                 .map(|t: Vec2| Vec2::new(t.x, 1.0 - t.y))
-                .collect()
+                .collect::<Vec<_>>()
         });
-        let mut start = 0u32;
+        let normals = normals.unwrap_or_default();
+        // One mesh per material, one vertex per face corner: simple, and right for every interpolation.
+        let mut starts = Vec::with_capacity(counts.len());
+        let mut start = 0usize;
         for &c in &counts {
-            let c = c.max(0) as u32;
-            for k in 2..c {
-                let tri = [start, start + k - 1, start + k];
-                mesh.indices.push(if left_handed {
-                    [tri[0], tri[2], tri[1]]
-                } else {
-                    tri
-                });
-            }
-            start += c;
+            starts.push(start);
+            start += c.max(0) as usize;
         }
-        mesh.transform(world);
-        self.builder.add_mesh(mesh);
+        let mut groups: Vec<u32> = face_material.clone();
+        groups.sort_unstable();
+        groups.dedup();
+        for &group in &groups {
+            let mut mesh = Mesh {
+                name: at.clone(),
+                material: group,
+                uvs: uvs.as_ref().map(|_| Vec::new()),
+                ..Default::default()
+            };
+            for (f, &c) in counts.iter().enumerate() {
+                if face_material[f] != group {
+                    continue;
+                }
+                let (from, c) = (starts[f], c.max(0) as usize);
+                let base = mesh.positions.len() as u32;
+                let corners = from..from + c;
+                mesh.positions
+                    .extend(indices[corners.clone()].iter().map(|&i| points[i as usize]));
+                if !normals.is_empty() {
+                    mesh.normals.extend_from_slice(&normals[corners.clone()]);
+                }
+                if let (Some(all), Some(own)) = (&uvs, &mut mesh.uvs) {
+                    own.extend_from_slice(&all[corners]);
+                }
+                for k in 2..c as u32 {
+                    let tri = [base, base + k - 1, base + k];
+                    mesh.indices.push(if left_handed {
+                        [tri[0], tri[2], tri[1]]
+                    } else {
+                        tri
+                    });
+                }
+            }
+            mesh.transform(world);
+            self.builder.add_mesh(mesh);
+        }
         Ok(())
+    }
+
+    /// The `GeomSubset` children of a mesh with `familyName = "materialBind"` and `elementType = "face"`
+    /// that bind a material: (material path, face indices). Indices out of range are an error naming the
+    /// subset.
+    fn material_subsets(
+        &self,
+        prim: &usd::Prim,
+        faces: usize,
+    ) -> Result<Vec<(String, Vec<usize>)>, SceneError> {
+        let mut subsets = Vec::new();
+        for child in self.children(prim)? {
+            if self.type_name(&child)? != "GeomSubset" {
+                continue;
+            }
+            let family = self.value(&child, "familyName")?.and_then(|v| token(&v));
+            let element = self.value(&child, "elementType")?.and_then(|v| token(&v));
+            if family.as_deref() != Some("materialBind")
+                || element.as_deref().is_some_and(|e| e != "face")
+            {
+                continue;
+            }
+            let Some(material) = self.binding(&child)? else {
+                continue;
+            };
+            let at = child.path().as_str();
+            let indices = self
+                .int_array(&child, "indices")?
+                .into_iter()
+                .map(|i| usize::try_from(i).ok().filter(|&i| i < faces).ok_or(i))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|i| {
+                    self.error(
+                        at,
+                        format!("face index {i} is out of range ({faces} faces)"),
+                    )
+                })?;
+            subsets.push((material, indices));
+        }
+        Ok(subsets)
     }
 
     pub(super) fn int_array(&self, prim: &usd::Prim, name: &str) -> Result<Vec<i32>, SceneError> {

@@ -35,29 +35,19 @@ pub(super) fn check_layer(bytes: &[u8], limits: &Limits) -> Result<(), String> {
 fn check_package(bytes: &[u8], limits: &Limits) -> Result<(), String> {
     let mut archive = zip::ZipArchive::new(Cursor::new(bytes))
         .map_err(|e| format!("not a valid package: {e}"))?;
-    let cap = MAX_STREAM_BYTES.min(limits.memory_bytes);
     for i in 0..archive.len() {
-        let mut entry = archive
+        let name = archive
             .by_index(i)
-            .map_err(|e| format!("package entry {i}: {e}"))?;
-        let name = entry.name().to_owned();
+            .map_err(|e| format!("package entry {i}: {e}"))?
+            .name()
+            .to_owned();
         let layer = [".usda", ".usdc", ".usd"]
             .iter()
             .any(|ext| name.to_ascii_lowercase().ends_with(ext));
         if !layer {
             continue;
         }
-        let mut data = Vec::new();
-        (&mut entry)
-            .take(cap + 1)
-            .read_to_end(&mut data)
-            .map_err(|e| format!("package entry '{name}': {e}"))?;
-        if data.len() as u64 > cap {
-            return Err(format!(
-                "package entry '{name}' expands to more than {}",
-                crate::limits::format_bytes(cap)
-            ));
-        }
+        let data = read_entry(&mut archive, i, limits)?;
         let inner = if data.starts_with(b"PXR-USDC") {
             crate_check::check(&data)
         } else {
@@ -66,6 +56,72 @@ fn check_package(bytes: &[u8], limits: &Limits) -> Result<(), String> {
         inner.map_err(|m| format!("package entry '{name}': {m}"))?;
     }
     Ok(())
+}
+
+/// Decompresses entry `index` of a package with a cap of the memory budget (at most [`MAX_STREAM_BYTES`]): a
+/// zip bomb is an error, not an allocation.
+fn read_entry<R: Read + std::io::Seek>(
+    archive: &mut zip::ZipArchive<R>,
+    index: usize,
+    limits: &Limits,
+) -> Result<Vec<u8>, String> {
+    let cap = MAX_STREAM_BYTES.min(limits.memory_bytes);
+    let mut entry = archive
+        .by_index(index)
+        .map_err(|e| format!("package entry {index}: {e}"))?;
+    let name = entry.name().to_owned();
+    let mut data = Vec::new();
+    (&mut entry)
+        .take(cap + 1)
+        .read_to_end(&mut data)
+        .map_err(|e| format!("package entry '{name}': {e}"))?;
+    if data.len() as u64 > cap {
+        return Err(format!(
+            "package entry '{name}' expands to more than {}",
+            crate::limits::format_bytes(cap)
+        ));
+    }
+    Ok(data)
+}
+
+/// A `.usdz` package opened to read the files inside it (textures), USDZ spec: a zip archive whose asset paths
+/// resolve relative to the layer inside the package that names them.
+pub(super) struct Package {
+    archive: zip::ZipArchive<Cursor<Vec<u8>>>,
+}
+
+impl Package {
+    /// Opens the package at `path`, read whole with the memory budget's size cap.
+    pub(super) fn open(path: &std::path::Path, limits: &Limits) -> Result<Self, String> {
+        let bytes = crate::limits::read_file(path, limits).map_err(|e| e.to_string())?;
+        let archive = zip::ZipArchive::new(Cursor::new(bytes))
+            .map_err(|e| format!("not a valid package: {e}"))?;
+        Ok(Self { archive })
+    }
+
+    /// The bytes of the entry at `member` (a `/`-separated path inside the package, `.` and `..` resolved),
+    /// decompressed with a cap; `Ok(None)` when the package holds no such entry.
+    pub(super) fn read(
+        &mut self,
+        member: &str,
+        limits: &Limits,
+    ) -> Result<Option<Vec<u8>>, String> {
+        let mut parts: Vec<&str> = Vec::new();
+        for part in member.split(['/', '\\']) {
+            match part {
+                "" | "." => {}
+                ".." => {
+                    parts.pop();
+                }
+                p => parts.push(p),
+            }
+        }
+        let name = parts.join("/");
+        let Some(index) = self.archive.index_for_name(&name) else {
+            return Ok(None);
+        };
+        read_entry(&mut self.archive, index, limits).map(Some)
+    }
 }
 
 /// Refuses a text layer whose braces, brackets and parentheses nest deeper than [`MAX_NESTING`]. Unterminated

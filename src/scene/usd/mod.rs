@@ -1,6 +1,7 @@
 //! USD loader (`.usd`, `.usda`, `.usdc`, `.usdz`), on top of the `openusd` crate, which parses the three
-//! encodings and composes sublayers, references and payloads. Nimbus reads the composed stage at its default
-//! time and maps it onto the same scene model as glTF.
+//! encodings and composes sublayers, references and payloads. Nimbus reads the composed stage at one time code
+//! (see [`read_at_time`]: `startTimeCode`, else each attribute's earliest sample) and maps it onto the same scene
+//! model as glTF.
 //!
 //! Stage metadata read: `upAxis` (`"Z"` is rotated −90° about X to Nimbus's +Y up) and `metersPerUnit`
 //! (everything is scaled to metres).
@@ -8,18 +9,24 @@
 //! Prims and attributes read:
 //! - every prim: `xformOpOrder` with the ops `translate`, `pivot` (a translate), `scale`, `rotateX/Y/Z`,
 //!   `rotateXYZ`/`XZY`/`YXZ`/`YZX`/`ZXY`/`ZYX` (degrees), `orient` (quaternion) and `transform` (matrix4d),
-//!   with `!invert!` and `!resetXformStack!`, composed through the hierarchy; `active`; `material:binding`
-//!   (inherited by descendants);
+//!   with `!invert!` and `!resetXformStack!`, composed through the hierarchy; `active`, `visibility`
+//!   (`invisible` hides the subtree), the specifier (only `def` prims are drawn, not `class` or `over`);
+//!   `material:binding` (inherited by descendants);
 //! - `Mesh`: `points`, `faceVertexCounts`, `faceVertexIndices` (polygons triangulated as fans), `normals` /
 //!   `primvars:normals` and `primvars:st` (with `interpolation` vertex, varying, faceVarying, uniform or
 //!   constant, and `:indices`), `orientation` (`leftHanded` flips the winding), `doubleSided`,
-//!   `primvars:displayColor` (the diffuse colour of an unbound mesh);
+//!   `primvars:displayColor` (the diffuse colour of an unbound mesh); `GeomSubset` children of the
+//!   `materialBind` family bind materials per face;
+//! - the gprims `Cube`, `Sphere`, `Cylinder`, `Cone`, `Capsule`, `Plane`, tessellated (`usd/shapes.rs`);
+//! - `PointInstancer` (`usd/instancing.rs`) and native instances (composed by `openusd` as instance proxies),
+//!   flattened to world meshes;
 //! - `Camera` (the first one met): `focalLength`, `horizontalAperture`, `verticalAperture` (yfov from the
 //!   vertical aperture, aspect from their ratio); clipping and projection `orthographic` are ignored;
 //! - `Material` → `outputs:surface` → a `UsdPreviewSurface` `Shader` (`info:id`): `inputs:diffuseColor`,
 //!   `emissiveColor`, `metallic`, `roughness`, `opacity`, `ior`, `normal`, `useSpecularWorkflow` (see
 //!   `usd/shading.rs` for the mapping); colour and normal inputs may connect to a `UsdUVTexture`
-//!   (`inputs:file`, `inputs:sourceColorSpace`);
+//!   (`inputs:file`, read from the `.usdz` package when its layer is inside one, `inputs:sourceColorSpace`,
+//!   `inputs:scale`, `inputs:bias`); a texture that cannot be read or a `.mtlx` file is a warning;
 //! - UsdLux (`inputs:intensity`, `inputs:exposure`, `inputs:color`, `inputs:normalize`): `RectLight`
 //!   (`inputs:width`, `inputs:height`), `DiskLight` (`inputs:radius`), `SphereLight` (`inputs:radius`,
 //!   `treatAsPoint`), `DistantLight` (`inputs:angle` ignored), `DomeLight` (`inputs:texture:file`);
@@ -38,15 +45,18 @@
 //! them. Prim types Nimbus does not render are listed once each in the warnings.
 //!
 //! The loader is split by USD schema domain: `xform` (UsdGeomXformable ops), `geom` (meshes and primvars),
+//! `shapes` (intrinsic gprims), `instancing` (UsdGeomPointInstancer),
 //! `shading` (UsdShade / UsdPreviewSurface), `lux` (UsdLux), `vol` (UsdVol), with `values` converting
 //! attribute values, `layers` checking every layer (text nesting, packages) and `crate_check` bounds-checking
 //! `.usdc` layers before openusd reads them.
 
 mod crate_check;
 mod geom;
+mod instancing;
 mod layers;
 mod lux;
 mod shading;
+mod shapes;
 mod values;
 mod vol;
 mod xform;
@@ -123,6 +133,19 @@ pub fn read_with_limits(
     path: &Path,
     limits: &Limits,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+    read_at_time(path, limits, None)
+}
+
+/// [`read_with_limits`] at time code `time` (in the stage's time codes, not seconds: a frame at `s` seconds is
+/// time code `s × timeCodesPerSecond`), or at the stage's default time when `None`: its `startTimeCode`
+/// metadata if authored, else the earliest time sample of each attribute. Every attribute is read at that time:
+/// time samples are interpolated linearly between the bracketing samples (quaternions by slerp) and held
+/// beyond the first and last (AOUSD Core §12.5); an attribute without samples gives its default value.
+pub fn read_at_time(
+    path: &Path,
+    limits: &Limits,
+    time: Option<f64>,
+) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let limits = *limits;
     let owned = path.to_path_buf();
     let (send, receive) = std::sync::mpsc::channel();
@@ -130,15 +153,16 @@ pub fn read_with_limits(
         .name("nimbus-usd".into())
         .stack_size(READER_STACK_BYTES)
         .spawn(move || {
-            let read = catch_quietly(|| read_stage(&owned, &limits)).unwrap_or_else(|message| {
-                Err(SceneError::new(
-                    &owned,
-                    SceneErrorKind::ReaderPanicked {
-                        reader: "openusd",
-                        message: one_line(&message, MESSAGE_CHARS),
-                    },
-                ))
-            });
+            let read =
+                catch_quietly(|| read_stage(&owned, &limits, time)).unwrap_or_else(|message| {
+                    Err(SceneError::new(
+                        &owned,
+                        SceneErrorKind::ReaderPanicked {
+                            reader: "openusd",
+                            message: one_line(&message, MESSAGE_CHARS),
+                        },
+                    ))
+                });
             let _ = send.send(read);
         })
         .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
@@ -160,7 +184,11 @@ pub fn read_with_limits(
     })
 }
 
-fn read_stage(path: &Path, limits: &Limits) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+fn read_stage(
+    path: &Path,
+    limits: &Limits,
+    time: Option<f64>,
+) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let stage = open(path, limits)?;
     let mut loader = Loader {
         path,
@@ -172,13 +200,20 @@ fn read_stage(path: &Path, limits: &Limits) -> Result<(SceneBuilder, Vec<VolumeS
         unsupported: HashSet::new(),
         root: Mat4::IDENTITY,
         limits: *limits,
+        time: usd::TimeCode::EARLIEST,
+        packages: HashMap::new(),
     };
     loader.root = loader.stage_root()?;
+    loader.time = match time {
+        Some(t) => usd::TimeCode::new(t),
+        None => loader.default_time()?,
+    };
     for child in loader.children(&stage.prim("/"))? {
         loader.visit(&child, loader.root, None, 0)?;
     }
     // References and payloads report their errors as the prims that use them are composed.
-    composition_errors(path, &stage)?;
+    let skipped = composition_errors(path, &stage)?;
+    loader.builder.warnings.extend(skipped);
     Ok((loader.builder, loader.volumes))
 }
 
@@ -199,18 +234,32 @@ fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
         })
         .open(name)
         .map_err(|e| malformed(path, format!("{e:#}")))?;
+    // Only the errors here; their warnings are collected once the whole stage is read.
     composition_errors(path, &stage)?;
     Ok(stage)
 }
 
-/// The composition errors met so far (a missing sublayer or referenced layer names it), as one error.
-fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<(), SceneError> {
-    let errors = stage.composition_errors();
-    if errors.is_empty() {
-        return Ok(());
+/// The composition errors met so far (a missing sublayer or referenced layer names it), as one error. An arc
+/// to a MaterialX document (`.mtlx`, which `openusd` cannot read as a layer) is not an error: it is returned
+/// as a warning, and the prims it would have brought fall back to defaults.
+fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, SceneError> {
+    let (materialx, errors): (Vec<String>, Vec<String>) = stage
+        .composition_errors()
+        .iter()
+        .map(|e| one_line(&e.to_string(), MESSAGE_CHARS))
+        .partition(|e| e.to_ascii_lowercase().contains(".mtlx"));
+    if !errors.is_empty() {
+        return Err(malformed(
+            path,
+            format!("composition: {}", errors.join("; ")),
+        ));
     }
-    let list: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
-    Err(malformed(path, format!("composition: {}", list.join("; "))))
+    Ok(materialx
+        .into_iter()
+        .map(|e| {
+            format!("{e}; MaterialX documents are not read, the prims they define use defaults")
+        })
+        .collect())
 }
 
 /// Longest message quoted from `openusd` (its errors can quote a whole layer's text).
@@ -231,13 +280,17 @@ struct Loader<'a> {
     volumes: Vec<VolumeSpec>,
     /// (material prim path, double-sided) → material index.
     materials: HashMap<(String, bool), u32>,
-    /// (resolved file, colour space is sRGB) → texture index.
-    textures: HashMap<(PathBuf, bool), u32>,
+    /// Texture file, colour space, role and scale/bias → texture index.
+    textures: HashMap<shading::TextureKey, u32>,
     unsupported: HashSet<String>,
     /// Stage units and up axis to Nimbus's metres and +Y up.
     root: Mat4,
     /// The memory budget for textures and environment maps.
     limits: Limits,
+    /// The time code every attribute is read at (see [`read_at_time`]).
+    time: usd::TimeCode,
+    /// `.usdz` packages opened for the files inside them, by package path.
+    packages: HashMap<PathBuf, layers::Package>,
 }
 
 impl Loader<'_> {
@@ -247,6 +300,17 @@ impl Loader<'_> {
 
     fn warn(&mut self, message: String) {
         self.builder.warnings.push(message);
+    }
+
+    /// The stage's default time: `startTimeCode` if authored, else the earliest sample of each attribute.
+    fn default_time(&self) -> Result<usd::TimeCode, SceneError> {
+        let start = self
+            .stage
+            .stage_metadata("startTimeCode")
+            .map_err(|e| self.error("stage metadata", format!("startTimeCode: {e:#}")))?
+            .and_then(|v| number(&v))
+            .filter(|t| t.is_finite());
+        Ok(start.map_or(usd::TimeCode::EARLIEST, usd::TimeCode::new))
     }
 
     /// The matrix from stage units and axes to Nimbus's metres and +Y up.
@@ -278,8 +342,7 @@ impl Loader<'_> {
             .map_err(|e| self.error(prim.path().as_str(), format!("{e:#}")))
     }
 
-    /// The composed value of attribute `name` on `prim`, if authored.
-    /// The value of attribute `name` on `prim`. A name that is not a USD property name (identifiers joined by
+    /// The value of attribute `name` on `prim` at the loader's time code, if authored. A name that is not a USD property name (identifiers joined by
     /// `:`) is an error before `openusd` sees it: names come from the file too (`xformOpOrder`), and `openusd`
     /// resolving a malformed one (a line break inside, from a damaged string) walked path parents for minutes.
     fn value(&self, prim: &usd::Prim, name: &str) -> Result<Option<sdf::Value>, SceneError> {
@@ -292,12 +355,14 @@ impl Loader<'_> {
                 ),
             ));
         }
-        prim.attribute(name).get::<sdf::Value>().map_err(|e| {
-            self.error(
-                &format!("{}.{name}", prim.path().as_str()),
-                format!("{e:#}"),
-            )
-        })
+        prim.attribute(name)
+            .get_at::<sdf::Value>(self.time)
+            .map_err(|e| {
+                self.error(
+                    &format!("{}.{name}", prim.path().as_str()),
+                    format!("{e:#}"),
+                )
+            })
     }
 
     fn float(&self, prim: &usd::Prim, name: &str, default: f32) -> Result<f32, SceneError> {
@@ -352,6 +417,22 @@ impl Loader<'_> {
         {
             return Ok(());
         }
+        // Only defined, non-abstract prims are drawn: a `class` (an abstract prototype for references and
+        // inherits) or a bare `over` is not (UsdPrimDefaultPredicate). Their children are skipped with them.
+        let specifier = prim
+            .specifier()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?;
+        if !matches!(specifier, Some(sdf::Specifier::Def)) {
+            return Ok(());
+        }
+        // `visibility` is inherited: an invisible prim hides its whole subtree (UsdGeomImageable).
+        if self
+            .value(prim, "visibility")?
+            .and_then(|v| token(&v))
+            .is_some_and(|v| v == "invisible")
+        {
+            return Ok(());
+        }
         let (local, reset) = self.local_transform(prim)?;
         let world = if reset { local } else { parent * local };
         if !world.is_finite() {
@@ -361,6 +442,11 @@ impl Loader<'_> {
         let kind = self.type_name(prim)?;
         match kind.as_str() {
             "Mesh" => self.mesh(prim, &world, binding.as_deref())?,
+            "Cube" | "Sphere" | "Cylinder" | "Cone" | "Capsule" | "Plane" => {
+                self.gprim(prim, &kind, &world, binding.as_deref())?
+            }
+            // The prototypes below an instancer render only as its instances.
+            "PointInstancer" => return self.point_instancer(prim, &world, binding, depth),
             "Camera" => self.camera(prim, &world)?,
             "RectLight" | "DiskLight" | "SphereLight" | "DistantLight" | "DomeLight" => {
                 self.light(prim, &kind, &world)?
@@ -399,11 +485,39 @@ impl Loader<'_> {
             .map_err(|e| self.error(&at, format!("{e:#}")))?;
         let base = stack
             .first()
-            .map(|(layer, _)| PathBuf::from(layer))
-            .and_then(|l| l.parent().map(Path::to_path_buf))
+            .map(|(layer, _)| layer_folder(layer))
             .or_else(|| self.path.parent().map(Path::to_path_buf))
             .unwrap_or_default();
         Ok(Some(base.join(file)))
+    }
+
+    /// The bytes of an asset [`Loader::asset`] resolved: a file on disk, or an entry of a `.usdz` package when
+    /// a folder of the path is a package file (the asset was named by a layer inside the package).
+    fn read_asset(&mut self, file: &Path) -> Result<Vec<u8>, String> {
+        let package = file
+            .ancestors()
+            .skip(1)
+            .find(|a| is_package_name(a) && a.is_file());
+        let Some(package) = package else {
+            return read_file(file, &self.limits).map_err(|e| e.to_string());
+        };
+        let member = file
+            .strip_prefix(package)
+            .map_err(|e| e.to_string())?
+            .to_string_lossy()
+            .into_owned();
+        if !self.packages.contains_key(package) {
+            let opened = layers::Package::open(package, &self.limits)?;
+            self.packages.insert(package.to_path_buf(), opened);
+        }
+        let limits = self.limits;
+        let opened = self
+            .packages
+            .get_mut(package)
+            .ok_or("the package was not opened")?;
+        opened
+            .read(&member, &limits)?
+            .ok_or_else(|| format!("the package {} holds no file '{member}'", package.display()))
     }
 
     fn camera(&mut self, prim: &usd::Prim, world: &Mat4) -> Result<(), SceneError> {
@@ -436,6 +550,29 @@ impl Loader<'_> {
         });
         Ok(())
     }
+}
+
+/// True for a path whose file name ends in `.usdz`.
+fn is_package_name(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("usdz"))
+}
+
+/// The folder that asset paths authored in layer `identifier` are relative to. A layer inside a package
+/// (`pkg.usdz[inner/layer.usdc]`, or the package itself as the root layer) gives a folder inside the package
+/// (`pkg.usdz/inner`), which [`Loader::read_asset`] reads from the package.
+fn layer_folder(identifier: &str) -> PathBuf {
+    if let Some(open) = identifier.find(".usdz[") {
+        let package = &identifier[..open + 5];
+        let inner = identifier[open + 6..].trim_end_matches(']');
+        let folder = Path::new(inner).parent().unwrap_or(Path::new(""));
+        return Path::new(package).join(folder);
+    }
+    let layer = Path::new(identifier);
+    if is_package_name(layer) {
+        return layer.to_path_buf();
+    }
+    layer.parent().map(Path::to_path_buf).unwrap_or_default()
 }
 
 /// True for a USD property name: identifiers (a letter or `_`, then letters, digits or `_`) joined by `:`.

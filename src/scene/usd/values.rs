@@ -1,6 +1,6 @@
 //! Conversions from USD attribute values (`sdf::Value`) to numbers, tokens and vectors.
 
-use crate::math::{Vec2, Vec3};
+use crate::math::{Vec2, Vec3, Vec4};
 use openusd::sdf;
 
 /// A number from any scalar numeric value.
@@ -39,6 +39,21 @@ pub(super) fn vec3(v: &sdf::Value) -> Option<Vec3> {
         sdf::Value::Vec3f(a) => Some(Vec3::new(a.x, a.y, a.z)),
         sdf::Value::Vec3d(a) => Some(Vec3::new(a.x as f32, a.y as f32, a.z as f32)),
         sdf::Value::Vec3h(a) => Some(Vec3::new(a.x.to_f32(), a.y.to_f32(), a.z.to_f32())),
+        _ => None,
+    }
+}
+
+/// A four-component vector (`float4`, `double4`, `half4`).
+pub(super) fn vec4(v: &sdf::Value) -> Option<Vec4> {
+    match v {
+        sdf::Value::Vec4f(a) => Some(Vec4::new(a.x, a.y, a.z, a.w)),
+        sdf::Value::Vec4d(a) => Some(Vec4::new(a.x as f32, a.y as f32, a.z as f32, a.w as f32)),
+        sdf::Value::Vec4h(a) => Some(Vec4::new(
+            a.x.to_f32(),
+            a.y.to_f32(),
+            a.z.to_f32(),
+            a.w.to_f32(),
+        )),
         _ => None,
     }
 }

@@ -81,11 +81,17 @@ pub(super) fn xform_op(op: &str, value: &sdf::Value) -> Option<Mat4> {
             if axes.len() != 3 || !axes.chars().all(|c| matches!(c, 'X' | 'Y' | 'Z')) {
                 return None;
             }
+            // The value holds the angles by axis, (x, y, z), whatever the order; rotateABC rotates about A
+            // first, then B, then C (UsdGeomXformOp), so its matrix is R_C · R_B · R_A for column vectors.
             let angles = vec3(value)?;
-            // rotateABC rotates about A first, then B, then C.
             let mut m = Mat4::IDENTITY;
-            for (i, axis) in axes.chars().enumerate() {
-                m = rot(axis, angles[i]) * m;
+            for axis in axes.chars() {
+                let by_axis = match axis {
+                    'X' => angles.x,
+                    'Y' => angles.y,
+                    _ => angles.z,
+                };
+                m = rot(axis, by_axis) * m;
             }
             Some(m)
         }
@@ -97,15 +103,32 @@ mod tests {
     use super::*;
     use crate::math::Vec3;
 
+    /// All six three-axis orders against matrices composed by hand from single-axis rotations: rotateABC with
+    /// value (x, y, z) is R_C(angle of C) · R_B(angle of B) · R_A(angle of A), angles taken by axis.
     #[test]
-    fn rotate_xyz_applies_x_first() {
-        let v = sdf::Value::Vec3f([90.0, 90.0, 0.0].into());
-        let m = xform_op("rotateXYZ", &v).unwrap();
-        // X by 90 takes +Y to +Z, then Y by 90 takes +Z to +X.
+    fn three_axis_rotations_take_angles_by_axis() {
+        let (x, y, z) = (30.0f32, -50.0f32, 70.0f32);
+        let v = sdf::Value::Vec3f([x, y, z].into());
+        let rx = Mat4::from_rotation_x(x.to_radians());
+        let ry = Mat4::from_rotation_y(y.to_radians());
+        let rz = Mat4::from_rotation_z(z.to_radians());
+        for (op, expected) in [
+            ("rotateXYZ", rz * ry * rx),
+            ("rotateXZY", ry * rz * rx),
+            ("rotateYXZ", rz * rx * ry),
+            ("rotateYZX", rx * rz * ry),
+            ("rotateZXY", ry * rx * rz),
+            ("rotateZYX", rx * ry * rz),
+        ] {
+            let m = xform_op(op, &v).unwrap();
+            for p in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.3, -0.7, 1.1)] {
+                let (got, want) = (m.transform_point3(p), expected.transform_point3(p));
+                assert!(got.distance(want) < 1e-5, "{op}: {got} vs {want}");
+            }
+        }
+        // One worked case: rotateXYZ (90, 90, 0) takes +Y by X to +Z, then by Y to +X.
+        let m = xform_op("rotateXYZ", &sdf::Value::Vec3f([90.0, 90.0, 0.0].into())).unwrap();
         assert!(m.transform_vector3(Vec3::Y).distance(Vec3::X) < 1e-6);
-        let zyx = xform_op("rotateZYX", &v).unwrap();
-        // Y by 90 takes +Y to +Y, then X by 90 takes +Y to +Z.
-        assert!(zyx.transform_vector3(Vec3::Y).distance(Vec3::Z) < 1e-6);
         assert!(xform_op("rotateXYW", &v).is_none());
         assert!(xform_op("translate", &sdf::Value::Float(1.0)).is_none());
     }

@@ -1,0 +1,204 @@
+//! `UsdGeomPointInstancer`: each instance's prototype is flattened to world meshes, like any other mesh.
+//!
+//! Read: `prototypes` (relationship, in order), `protoIndices` (int[]), `positions` (point3f[]),
+//! `orientations` (quath[]) or `orientationsf` (quatf[]), `scales` (float3[]), `ids` (int64[]) and
+//! `invisibleIds` (int64[], matched against `ids`, else against the instance index). An instance's matrix is
+//! the prototype root's own transform, then scale, then orientation, then translation by its position
+//! (UsdGeomPointInstancer::ComputeInstanceTransformsAtTime), then the instancer's world matrix. Velocities,
+//! accelerations and angular velocities (motion) are not read.
+
+use super::values::vec3_array;
+use super::Loader;
+use crate::math::{Mat4, Quat, Vec3};
+use crate::scene::SceneError;
+use openusd::{sdf, usd};
+use std::collections::HashSet;
+
+/// Most instances one instancer may expand to world meshes (each copies its prototype's triangles).
+pub(super) const MAX_INSTANCES: usize = 1 << 20;
+
+/// Bytes an expanded triangle takes, for the memory check (three vertices of position, normal and uv).
+const BYTES_PER_TRIANGLE: u64 = 3 * (12 + 12 + 8) + 12;
+
+impl Loader<'_> {
+    /// Expands a `PointInstancer` into copies of its prototypes' meshes.
+    pub(super) fn point_instancer(
+        &mut self,
+        prim: &usd::Prim,
+        world: &Mat4,
+        binding: Option<String>,
+        depth: usize,
+    ) -> Result<(), SceneError> {
+        let at = prim.path().as_str().to_owned();
+        let prototypes = prim
+            .relationship("prototypes")
+            .targets()
+            .map_err(|e| self.error(&at, format!("prototypes: {e:#}")))?;
+        let indices = self.int_array(prim, "protoIndices")?;
+        let positions = match self.value(prim, "positions")? {
+            Some(v) => {
+                vec3_array(&v).ok_or_else(|| self.error(&at, "positions must be a point3f[]"))?
+            }
+            None => Vec::new(),
+        };
+        let n = indices.len();
+        if n > MAX_INSTANCES {
+            return Err(self.error(
+                &at,
+                format!("{n} instances; at most {MAX_INSTANCES} are expanded"),
+            ));
+        }
+        if positions.len() != n {
+            return Err(self.error(
+                &at,
+                format!(
+                    "positions has {} entries for {n} protoIndices",
+                    positions.len()
+                ),
+            ));
+        }
+        let orientations = self.orientations(prim)?;
+        let scales = match self.value(prim, "scales")? {
+            Some(v) => {
+                vec3_array(&v).ok_or_else(|| self.error(&at, "scales must be a float3[]"))?
+            }
+            None => Vec::new(),
+        };
+        for (name, len) in [
+            ("orientations", orientations.len()),
+            ("scales", scales.len()),
+        ] {
+            if len != 0 && len != n {
+                return Err(self.error(
+                    &at,
+                    format!("{name} has {len} entries for {n} protoIndices"),
+                ));
+            }
+        }
+        let ids = self.int64_array(prim, "ids")?;
+        if !ids.is_empty() && ids.len() != n {
+            return Err(self.error(
+                &at,
+                format!("ids has {} entries for {n} protoIndices", ids.len()),
+            ));
+        }
+        let invisible: HashSet<i64> = self
+            .int64_array(prim, "invisibleIds")?
+            .into_iter()
+            .collect();
+        // Each prototype's meshes, flattened once in the prototype's own frame (its root transform included).
+        let mut flattened = Vec::with_capacity(prototypes.len());
+        for proto in &prototypes {
+            let proto = self.stage.prim(proto.prim_path().as_str());
+            let (meshes, lights) = (self.builder.meshes.len(), self.builder.lights.len());
+            self.visit(&proto, Mat4::IDENTITY, binding.clone(), depth + 1)?;
+            if self.builder.lights.len() != lights {
+                self.builder.lights.truncate(lights);
+                self.warn(format!(
+                    "{at}: lights inside the prototype {} are not instanced; skipped",
+                    proto.path().as_str()
+                ));
+            }
+            flattened.push(self.builder.meshes.split_off(meshes));
+        }
+        // The expanded triangles must fit the memory budget (a vertex a corner: ~100 bytes a triangle).
+        let triangles: u64 = indices
+            .iter()
+            .filter_map(|&p| usize::try_from(p).ok().and_then(|p| flattened.get(p)))
+            .map(|meshes| meshes.iter().map(|m| m.indices.len() as u64).sum::<u64>())
+            .sum();
+        if triangles.saturating_mul(BYTES_PER_TRIANGLE) > self.limits.memory_bytes {
+            return Err(self.error(
+                &at,
+                format!(
+                    "the instances expand to {triangles} triangles, more than the memory budget of {}",
+                    crate::limits::format_bytes(self.limits.memory_bytes)
+                ),
+            ));
+        }
+        for i in 0..n {
+            let id = ids.get(i).copied().unwrap_or(i as i64);
+            if invisible.contains(&id) {
+                continue;
+            }
+            let proto = usize::try_from(indices[i])
+                .ok()
+                .and_then(|p| flattened.get(p))
+                .ok_or_else(|| {
+                    self.error(
+                        &at,
+                        format!(
+                            "protoIndices[{i}] = {} but there are {} prototypes",
+                            indices[i],
+                            prototypes.len()
+                        ),
+                    )
+                })?;
+            let instance = Mat4::from_scale_rotation_translation(
+                scales.get(i).copied().unwrap_or(Vec3::ONE),
+                orientations.get(i).copied().unwrap_or(Quat::IDENTITY),
+                positions[i],
+            );
+            let m = *world * instance;
+            if !m.is_finite() {
+                return Err(self.error(&at, format!("instance {i} has a non-finite transform")));
+            }
+            for mesh in proto {
+                let mut mesh = mesh.clone();
+                mesh.name = format!("{}[{i}]", mesh.name);
+                mesh.transform(&m);
+                self.builder.add_mesh(mesh);
+            }
+        }
+        Ok(())
+    }
+
+    /// `orientations` (quath[]) or `orientationsf` (quatf[]), normalised; empty when neither is authored.
+    fn orientations(&self, prim: &usd::Prim) -> Result<Vec<Quat>, SceneError> {
+        let at = prim.path().as_str();
+        let value = match self.value(prim, "orientations")? {
+            Some(v) => v,
+            None => match self.value(prim, "orientationsf")? {
+                Some(v) => v,
+                None => return Ok(Vec::new()),
+            },
+        };
+        let quats: Vec<Quat> = match value {
+            sdf::Value::QuathVec(q) => q
+                .iter()
+                .map(|q| Quat::from_xyzw(q.x.to_f32(), q.y.to_f32(), q.z.to_f32(), q.w.to_f32()))
+                .collect(),
+            sdf::Value::QuatfVec(q) => q
+                .iter()
+                .map(|q| Quat::from_xyzw(q.x, q.y, q.z, q.w))
+                .collect(),
+            sdf::Value::QuatdVec(q) => q
+                .iter()
+                .map(|q| Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32))
+                .collect(),
+            _ => return Err(self.error(at, "orientations must be a quath[]")),
+        };
+        quats
+            .into_iter()
+            .map(|q| {
+                let len = q.length();
+                (len.is_finite() && len > 0.0)
+                    .then(|| q / len)
+                    .ok_or_else(|| self.error(at, "an orientation is zero or not finite"))
+            })
+            .collect()
+    }
+
+    /// An `int64[]` (or `int[]`) attribute; empty when not authored.
+    fn int64_array(&self, prim: &usd::Prim, name: &str) -> Result<Vec<i64>, SceneError> {
+        match self.value(prim, name)? {
+            None => Ok(Vec::new()),
+            Some(sdf::Value::Int64Vec(v)) => Ok(v),
+            Some(sdf::Value::IntVec(v)) => Ok(v.into_iter().map(i64::from).collect()),
+            Some(_) => Err(self.error(
+                &format!("{}.{name}", prim.path().as_str()),
+                "expected an int64[]",
+            )),
+        }
+    }
+}
