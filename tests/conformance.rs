@@ -3,7 +3,8 @@
 //! asserts that
 //! - nothing panics (loading, building and rendering run on a thread of their own; a panic is a failure
 //!   naming the file);
-//! - a load error happens only for a file in [`UNSUPPORTED`], and its message names the feature listed there;
+//! - every file loads (no file there uses an extension Nimbus refuses: Draco, meshopt and KTX2/Basis, whose
+//!   refusal by name `tests/gltf_geometry.rs` checks);
 //! - no sample is NaN or infinite (the renderer's `nan_samples` counter), and every channel of the image
 //!   (beauty, albedo, normal, depth, variance) is finite;
 //! - the image is not black: its mean luminance is at least [`MIN_MEAN_LUMINANCE`].
@@ -21,37 +22,6 @@ use std::path::{Path, PathBuf};
 
 /// Scene files the loaders know by extension.
 const SCENE_EXTENSIONS: [&str; 7] = ["gltf", "glb", "obj", "usd", "usda", "usdc", "usdz"];
-
-/// A file that is expected to fail to load, with a substring its error message must contain and why.
-struct Unsupported {
-    /// The path under `realworld/`, with `/` separators.
-    file: &'static str,
-    /// A substring of the expected error text: the feature or extension the error must name.
-    error_names: &'static str,
-    /// Why the file cannot be loaded today.
-    why: &'static str,
-}
-
-/// The documented load failures. The other helpers of issue 13 are implementing each of these; a file here that
-/// loads is reported as a failure too, so that the entry is removed as soon as its feature lands and the table
-/// ends up empty.
-const UNSUPPORTED: &[Unsupported] = &[
-    Unsupported {
-        file: "gltf/SimpleSparseAccessor/SimpleSparseAccessor.gltf",
-        error_names: "sparse",
-        why: "sparse accessors (glTF 2.0 §3.6.2.3), issue 13 item 4",
-    },
-    Unsupported {
-        file: "usd/BoxAnimated/BoxAnimated.usdz",
-        error_names: "has no value",
-        why: "xform ops given only as time samples, issue 13 item 6",
-    },
-    Unsupported {
-        file: "usd/RoughnessTest/RoughnessTest.usdz",
-        error_names: "roughness-spec.png",
-        why: "textures packaged inside a .usdz, issue 13 item 6",
-    },
-];
 
 /// Image size and samples: enough to see a NaN or a black frame, small enough for a 2-core CI machine.
 const WIDTH: usize = 32;
@@ -133,24 +103,11 @@ fn render_file(path: &Path) -> Result<Outcome, String> {
 
 /// The problems with one file's outcome, if any (empty when it conforms).
 fn check(file: &str, outcome: Outcome) -> Vec<String> {
-    let expected = UNSUPPORTED.iter().find(|u| u.file == file);
-    let (image, stats) = match (outcome, expected) {
-        (Outcome::LoadError(e), Some(u)) if e.contains(u.error_names) => return Vec::new(),
-        (Outcome::LoadError(e), Some(u)) => {
-            return vec![format!(
-                "the load error does not name '{}' ({}): {e}",
-                u.error_names, u.why
-            )]
-        }
-        (Outcome::LoadError(e), None) => {
-            return vec![format!("load error for a file not in UNSUPPORTED: {e}")]
-        }
-        (Outcome::Rendered(r), _) => *r,
+    let (image, stats) = match outcome {
+        Outcome::LoadError(e) => return vec![format!("load error: {e}")],
+        Outcome::Rendered(r) => *r,
     };
     let mut problems = Vec::new();
-    if let Some(u) = expected {
-        problems.push(format!("loads now: remove it from UNSUPPORTED ({})", u.why));
-    }
     if stats.nan_samples != 0 {
         problems.push(format!("{} NaN/Inf samples", stats.nan_samples));
     }
@@ -184,7 +141,7 @@ fn check(file: &str, outcome: Outcome) -> Vec<String> {
 }
 
 #[test]
-fn every_realworld_file_loads_or_names_its_unsupported_feature_and_renders_finite_and_lit() {
+fn every_realworld_file_loads_and_renders_finite_and_lit() {
     let Some(shared) = common::shared_dir() else {
         return;
     };
@@ -200,14 +157,6 @@ fn every_realworld_file_loads_or_names_its_unsupported_feature_and_renders_finit
     }
     let files = scene_files(&dir);
     assert!(!files.is_empty(), "no scene files under {}", dir.display());
-    for u in UNSUPPORTED {
-        assert!(
-            files.iter().any(|f| f == u.file),
-            "UNSUPPORTED names {}, which is not under {}",
-            u.file,
-            dir.display()
-        );
-    }
 
     let mut failures = Vec::new();
     for file in &files {

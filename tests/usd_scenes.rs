@@ -404,7 +404,9 @@ fn uv_texture_scale_and_bias_apply_to_the_texture_value() {
     );
     // The normal map: (0.2·−2 + 1, 0.4·2 − 1, 0.6 + 0.5) = (0.6, −0.2, 1.1), normalised.
     let tc = nimbus::material::TexCoord::point(Vec2::splat(0.5));
-    let n = m.normal_map(tc, b.textures()).unwrap();
+    let n = m
+        .normal_map(&nimbus::material::ShadingPoint::from(tc), b.textures())
+        .unwrap();
     let want = Vec3::new(0.6, -0.2, 1.1).normalize();
     assert!(close(n, want, 1e-5), "{n} vs {want}");
 }
@@ -463,7 +465,10 @@ fn card_normals(b: &SceneBuilder, material: &str) -> Vec<Vec3> {
         for x in 0..64 {
             let uv = Vec2::new((x as f32 + 0.5) / 64.0, (y as f32 + 0.5) / 64.0);
             let tc = nimbus::material::TexCoord::point(uv);
-            out.push(m.normal_map(tc, b.textures()).unwrap_or(Vec3::Z));
+            out.push(
+                m.normal_map(&nimbus::material::ShadingPoint::from(tc), b.textures())
+                    .unwrap_or(Vec3::Z),
+            );
         }
     }
     out
