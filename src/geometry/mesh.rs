@@ -75,19 +75,33 @@ impl Mesh {
         }
     }
 
-    /// Replaces the normals with area-weighted face normals (for meshes without normals).
+    /// Gives a mesh without normals flat ones: every triangle gets its own three vertices (their other
+    /// attributes copied) with the face normal. glTF 2.0 §3.7.2.1 requires flat normals where NORMAL is absent,
+    /// and an OBJ without `vn` is faceted; smoothing over shared corners would bend a box's normals by up to
+    /// 55° at its edges and shade them dark.
     pub fn generate_normals(&mut self) {
-        let mut normals = vec![Vec3::ZERO; self.positions.len()];
-        for tri in 0..self.indices.len() {
-            let [a, b, c] = self.triangle(tri);
-            let face = (b - a).cross(c - a); // length is twice the area: area weighting
-            for &i in &self.indices[tri] {
-                normals[i as usize] += face;
+        fn unweld<T: Copy>(values: &mut Option<Vec<T>>, indices: &[[u32; 3]]) {
+            if let Some(v) = values {
+                *v = indices.iter().flatten().map(|&i| v[i as usize]).collect();
             }
         }
-        self.normals = normals
-            .into_iter()
-            .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
+        let indices = std::mem::take(&mut self.indices);
+        self.normals = indices
+            .iter()
+            .flat_map(|t| {
+                let [a, b, c] = t.map(|i| self.positions[i as usize]);
+                [(b - a).cross(c - a).try_normalize().unwrap_or(Vec3::Y); 3]
+            })
+            .collect();
+        let mut positions = Some(std::mem::take(&mut self.positions));
+        unweld(&mut positions, &indices);
+        self.positions = positions.unwrap_or_default();
+        unweld(&mut self.uvs, &indices);
+        unweld(&mut self.uvs1, &indices);
+        unweld(&mut self.colors, &indices);
+        unweld(&mut self.tangents, &indices);
+        self.indices = (0..indices.len() as u32)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
             .collect();
     }
 
@@ -154,6 +168,31 @@ mod tests {
         let mut m = quad();
         m.generate_normals();
         assert!(m.normals.iter().all(|n| n.distance(Vec3::Z) < 1e-6));
+    }
+
+    #[test]
+    fn generated_normals_are_flat_with_attributes_kept() {
+        // Two faces of a box sharing an edge: each keeps its own face normal along the shared edge.
+        let mut m = Mesh {
+            positions: vec![
+                Vec3::ZERO,
+                Vec3::X,
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(0.0, 0.0, -1.0),
+            ],
+            uvs: Some(vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y]),
+            indices: vec![[0, 1, 2], [1, 0, 3]],
+            ..Default::default()
+        };
+        m.generate_normals();
+        assert_eq!(m.positions.len(), 6);
+        assert_eq!(m.indices, [[0, 1, 2], [3, 4, 5]]);
+        assert!(m.normals[..3].iter().all(|n| n.distance(Vec3::Z) < 1e-6));
+        assert!(m.normals[3..]
+            .iter()
+            .all(|n| n.distance(Vec3::NEG_Y) < 1e-6));
+        assert_eq!(m.positions[3], Vec3::X);
+        assert_eq!(m.uvs.as_ref().unwrap()[5], Vec2::Y);
     }
 
     #[test]
