@@ -119,17 +119,28 @@ fn the_real_sparse_accessor_raises_its_three_vertices() {
     let mesh = &builder.meshes()[0];
     // The base view is a 7 × 2 grid of points (x = 0..6, y = 0 and 1); the sparse accessor moves the top
     // row's vertices 8, 10 and 12 (x = 1, 3, 5) up to y = 2, 3 and 4 (the model's README figure), so that the
-    // accessor's declared max, [6, 4, 0], is reached.
-    assert_eq!(mesh.positions.len(), 14);
-    for (i, p) in mesh.positions.iter().enumerate() {
-        let base = Vec3::new((i % 7) as f32, (i / 7) as f32, 0.0);
-        let want = match i {
+    // accessor's declared max, [6, 4, 0], is reached. The file has no normals, so each triangle gets its own
+    // (flat-shaded) corners: every corner must be one of the 14 expected points, and the three raised points
+    // must be used while the three base points they replace must not.
+    let expected: Vec<Vec3> = (0..14)
+        .map(|i| match i {
             8 => Vec3::new(1.0, 2.0, 0.0),
             10 => Vec3::new(3.0, 3.0, 0.0),
             12 => Vec3::new(5.0, 4.0, 0.0),
-            _ => base,
-        };
-        assert!(close(*p, want, 1e-6), "vertex {i}: {p} != {want}");
+            _ => Vec3::new((i % 7) as f32, (i / 7) as f32, 0.0),
+        })
+        .collect();
+    for p in &mesh.positions {
+        assert!(
+            expected.iter().any(|w| close(*p, *w, 1e-6)),
+            "corner {p} is not a point of the sparse grid"
+        );
+    }
+    let used = |w: Vec3| mesh.positions.iter().any(|p| close(*p, w, 1e-6));
+    for i in [8, 10, 12] {
+        assert!(used(expected[i]), "raised vertex {i} is not used");
+        let base = Vec3::new((i % 7) as f32, 1.0, 0.0);
+        assert!(!used(base), "vertex {i} kept its base position {base}");
     }
     let bounds = builder.build().unwrap().bounds();
     assert!(close(bounds.max, Vec3::new(6.0, 4.0, 0.0), 1e-6));
@@ -188,14 +199,22 @@ fn hand_built_sparse_accessors_with_and_without_a_base_view() {
         Vec3::new(1.0, 1.0, 0.0),
         Vec3::new(0.0, 3.0, 0.0),
     ];
-    assert_eq!(mesh.positions.len(), 4);
-    for (p, w) in mesh.positions.iter().zip(want) {
-        assert!(close(*p, w, 1e-6), "{p} != {w}");
+    // Without normals the triangles [0, 1, 2] and [0, 2, 3] get their own flat-shaded corners.
+    let corners = [0, 1, 2, 0, 2, 3];
+    assert_eq!(mesh.positions.len(), corners.len());
+    for (p, &c) in mesh.positions.iter().zip(&corners) {
+        assert!(close(*p, want[c], 1e-6), "{p} != {}", want[c]);
     }
-    assert_eq!(mesh.indices, vec![[0, 1, 2], [0, 2, 3]]);
+    assert_eq!(mesh.indices, vec![[0, 1, 2], [3, 4, 5]]);
     let uvs = mesh.uvs.as_ref().unwrap();
-    assert_eq!(uvs[2], Vec2::new(0.5, 0.25));
-    assert!([0, 1, 3].iter().all(|&i| uvs[i] == Vec2::ZERO));
+    for (uv, &c) in uvs.iter().zip(&corners) {
+        let w = if c == 2 {
+            Vec2::new(0.5, 0.25)
+        } else {
+            Vec2::ZERO
+        };
+        assert_eq!(*uv, w, "corner of vertex {c}");
+    }
 }
 
 #[test]
