@@ -97,6 +97,33 @@ fn time_sampled_ops_are_read_at_the_default_time_and_interpolated() {
         close(p, corner(90.0, 3.0).transform_point3(Vec3::X), 1e-5),
         "{p}"
     );
+    // A shot frame is a time code at timeCodesPerSecond / framesPerSecond per frame (both default 24): frame
+    // 10 reads time code 10 by default; at 12 time codes per second and 24 frames per second, frame 10 reads
+    // time code 5, the first sample, and frame 30 time code 15, the last.
+    for (meta, frame, deg, x) in [
+        ("upAxis = \"Y\"", 10, 45.0, 2.0),
+        (
+            "timeCodesPerSecond = 12\n framesPerSecond = 24",
+            10,
+            0.0,
+            1.0,
+        ),
+        (
+            "timeCodesPerSecond = 12\n framesPerSecond = 24",
+            30,
+            90.0,
+            3.0,
+        ),
+    ] {
+        let path = temp_dir(&format!("samples_frame_{frame}_{}", meta.len())).join("stage.usda");
+        std::fs::write(&path, stage(meta)).unwrap();
+        let (b, _) = usd::read_at_frame(&path, &Limits::default(), Some(frame)).unwrap();
+        let p = mesh(&b, "/M").positions[1];
+        assert!(
+            close(p, corner(deg, x).transform_point3(Vec3::X), 1e-5),
+            "{meta}, frame {frame}: {p}"
+        );
+    }
 }
 
 #[test]

@@ -99,8 +99,9 @@ pub use layers::MAX_NESTING;
 
 /// Loads a USD stage and adds its volumes (see [`read_with_limits`]), each passed through the options' volume
 /// override first.
+/// A shot frame ([`LoadOptions::frame`]) reads every attribute at that frame's time code (see [`read_at_frame`]).
 pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
-    let (mut builder, volumes) = read_with_limits(path, &options.limits)?;
+    let (mut builder, volumes) = read_at_frame(path, &options.limits, options.frame)?;
     for mut spec in volumes {
         options.apply_volume_override(&mut spec);
         builder.add_volume(&spec).map_err(|source| {
@@ -133,7 +134,27 @@ pub fn read_with_limits(
     path: &Path,
     limits: &Limits,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
-    read_at_time(path, limits, None)
+    read_when(path, limits, When::Default)
+}
+
+/// When a stage is read: at its default time, at a time code, or at a frame of the shot.
+#[derive(Clone, Copy)]
+enum When {
+    Default,
+    TimeCode(f64),
+    Frame(i64),
+}
+
+/// [`read_with_limits`] at frame `frame` of the shot, or at the stage's default time when `None`. A frame is
+/// a time in seconds at the stage's `framesPerSecond` (default 24), read at time code
+/// `frame × timeCodesPerSecond / framesPerSecond` (`timeCodesPerSecond` default 24): frame 12 of a stage at 24
+/// time codes and 24 frames per second reads time code 12, and of one at 48 time codes per second, 24.
+pub fn read_at_frame(
+    path: &Path,
+    limits: &Limits,
+    frame: Option<i64>,
+) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+    read_when(path, limits, frame.map_or(When::Default, When::Frame))
 }
 
 /// [`read_with_limits`] at time code `time` (in the stage's time codes, not seconds: a frame at `s` seconds is
@@ -145,6 +166,15 @@ pub fn read_at_time(
     path: &Path,
     limits: &Limits,
     time: Option<f64>,
+) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
+    read_when(path, limits, time.map_or(When::Default, When::TimeCode))
+}
+
+/// Reads the stage at `when` on a reader thread of its own (see [`read_with_limits`]).
+fn read_when(
+    path: &Path,
+    limits: &Limits,
+    time: When,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let limits = *limits;
     let owned = path.to_path_buf();
@@ -187,7 +217,7 @@ pub fn read_at_time(
 fn read_stage(
     path: &Path,
     limits: &Limits,
-    time: Option<f64>,
+    time: When,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let stage = open(path, limits)?;
     let mut loader = Loader {
@@ -205,8 +235,9 @@ fn read_stage(
     };
     loader.root = loader.stage_root()?;
     loader.time = match time {
-        Some(t) => usd::TimeCode::new(t),
-        None => loader.default_time()?,
+        When::TimeCode(t) => usd::TimeCode::new(t),
+        When::Frame(f) => usd::TimeCode::new(f as f64 * loader.time_codes_per_frame()?),
+        When::Default => loader.default_time()?,
     };
     for child in loader.children(&stage.prim("/"))? {
         loader.visit(&child, loader.root, None, 0)?;
@@ -311,6 +342,24 @@ impl Loader<'_> {
             .and_then(|v| number(&v))
             .filter(|t| t.is_finite());
         Ok(start.map_or(usd::TimeCode::EARLIEST, usd::TimeCode::new))
+    }
+
+    /// Time codes per frame of the shot: `timeCodesPerSecond / framesPerSecond` (both default 24).
+    fn time_codes_per_frame(&self) -> Result<f64, SceneError> {
+        let rate = |key: &str| -> Result<f64, SceneError> {
+            let value = self
+                .stage
+                .stage_metadata(key)
+                .map_err(|e| self.error("stage metadata", format!("{key}: {e:#}")))?
+                .and_then(|v| number(&v))
+                .unwrap_or(24.0);
+            if value.is_finite() && value > 0.0 {
+                Ok(value)
+            } else {
+                Err(self.error("stage metadata", format!("{key} {value} must be positive")))
+            }
+        };
+        Ok(rate("timeCodesPerSecond")? / rate("framesPerSecond")?)
     }
 
     /// The matrix from stage units and axes to Nimbus's metres and +Y up.
