@@ -10,6 +10,9 @@
 
 use std::fmt;
 
+/// Frames per second of a shot when neither the command line nor the scene says (film's 24).
+pub const DEFAULT_FPS: f64 = 24.0;
+
 /// An inclusive range of frames with a step: `first`, `first + step`, … up to `last`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrameRange {

@@ -121,6 +121,10 @@ struct RenderArgs {
     #[arg(long, value_parser = FrameRange::parse, allow_hyphen_values = true,
           conflicts_with_all = ["samples", "crop", "chunk_from_env"])]
     frames: Option<FrameRange>,
+    /// Frames per second of the shot, for glTF animation and USD time codes (default: a USD stage's
+    /// framesPerSecond, else 24).
+    #[arg(long, value_parser = parse_fps)]
+    fps: Option<f64>,
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -269,6 +273,7 @@ fn load_builder(
     scene: Option<&Path>,
     limits: Limits,
     frame: Option<i64>,
+    fps: Option<f64>,
 ) -> Result<SceneBuilder, String> {
     match scene {
         Some(path) => nimbus::scene::load_builder(
@@ -276,6 +281,7 @@ fn load_builder(
             &LoadOptions {
                 limits,
                 frame,
+                fps,
                 ..LoadOptions::default()
             },
         ),
@@ -286,11 +292,23 @@ fn load_builder(
                 embedded: &[("cloud.vdb", DEMO_CLOUD)],
                 limits,
                 frame,
+                fps,
                 ..LoadOptions::default()
             },
         ),
     }
     .map_err(|e| e.to_string())
+}
+
+/// Parses frames per second: a finite number above 0.
+fn parse_fps(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(f) if f.is_finite() && f > 0.0 => Ok(f),
+        Ok(f) => Err(format!(
+            "{f} must be a positive number of frames per second"
+        )),
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 /// Parses a count that must be at least 1 (an image side).
@@ -399,7 +417,7 @@ fn render_frame(
     let limits = args
         .memory_limit
         .map_or_else(Limits::default, Limits::with_memory);
-    let mut builder = load_builder(args.scene.as_deref(), limits, frame)?;
+    let mut builder = load_builder(args.scene.as_deref(), limits, frame, args.fps)?;
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
@@ -617,10 +635,12 @@ fn part_scene_hash(
         .env_color
         .map(|c| c.to_array().iter().flat_map(|v| v.to_le_bytes()).collect());
     let frame_bytes = frame.map(i64::to_le_bytes);
+    let fps_bytes = args.fps.filter(|_| frame.is_some()).map(f64::to_le_bytes);
     let overrides: Vec<(&str, &[u8])> = env
         .iter()
         .map(|e| ("env-color", e.as_slice()))
         .chain(frame_bytes.iter().map(|f| ("frame", f.as_slice())))
+        .chain(fps_bytes.iter().map(|f| ("fps", f.as_slice())))
         .collect();
     Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
 }

@@ -194,3 +194,103 @@ fn bad_frame_ranges_are_refused() {
     let (ok, stderr) = nimbus(&["render", "--frames", "1..2", "--samples", "0..1"], &dir);
     assert!(!ok && stderr.contains("--samples"), "{stderr}");
 }
+
+/// Standard base64 (for a glTF data URI).
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for i in 0..4 {
+            out.push(if i <= chunk.len() {
+                A[(n >> (18 - 6 * i) & 63) as usize] as char
+            } else {
+                '='
+            });
+        }
+    }
+    out
+}
+
+/// A triangle node and a camera node; the triangle's translation is animated LINEAR from (0, 0, 0) at 0 s to
+/// (10, 0, 0) at 1 s, and the camera's STEP from z = 5 to z = 9 at 0.5 s.
+fn animated_gltf(dir: &Path) -> PathBuf {
+    let floats: Vec<f32> = [
+        // positions (3 × vec3), offset 0
+        0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, // key times 0, 1 (offset 36)
+        0.0, 1.0, // translations (offset 44)
+        0.0, 0.0, 0.0, 10.0, 0.0, 0.0, // camera key times 0, 0.5 (offset 68)
+        0.0, 0.5, // camera translations (offset 76)
+        0.0, 0.0, 5.0, 0.0, 0.0, 9.0,
+    ]
+    .to_vec();
+    let bytes: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+        "nodes":[{{"mesh":0}},{{"camera":0,"translation":[0,0,5]}}],
+        "cameras":[{{"type":"perspective","perspective":{{"yfov":0.8,"znear":0.01}}}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{b64}"}}],
+        "bufferViews":[{{"buffer":0,"byteLength":{len}}}],
+        "accessors":[
+          {{"bufferView":0,"byteOffset":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+          {{"bufferView":0,"byteOffset":36,"componentType":5126,"count":2,"type":"SCALAR","min":[0],"max":[1]}},
+          {{"bufferView":0,"byteOffset":44,"componentType":5126,"count":2,"type":"VEC3"}},
+          {{"bufferView":0,"byteOffset":68,"componentType":5126,"count":2,"type":"SCALAR","min":[0],"max":[0.5]}},
+          {{"bufferView":0,"byteOffset":76,"componentType":5126,"count":2,"type":"VEC3"}}],
+        "animations":[{{"samplers":[{{"input":1,"output":2}},{{"input":3,"output":4,"interpolation":"STEP"}}],
+          "channels":[{{"sampler":0,"target":{{"node":0,"path":"translation"}}}},
+                      {{"sampler":1,"target":{{"node":1,"path":"translation"}}}}]}}]}}"#,
+        len = bytes.len(),
+        b64 = base64(&bytes)
+    );
+    let path = dir.join("animated.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    path
+}
+
+#[test]
+fn gltf_animations_are_sampled_at_the_frame_time() {
+    let dir = std::env::temp_dir().join(format!("nimbus-shots-{}-anim", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = animated_gltf(&dir);
+    let at = |frame: Option<i64>, fps: Option<f64>| {
+        let b = load_builder(
+            &path,
+            &LoadOptions {
+                frame,
+                fps,
+                ..LoadOptions::default()
+            },
+        )
+        .unwrap();
+        let min_x = b.meshes()[0]
+            .positions
+            .iter()
+            .map(|p| p.x)
+            .fold(f32::INFINITY, f32::min);
+        let camera_z = b.camera().unwrap().camera_to_world.w_axis.z;
+        (min_x, camera_z)
+    };
+    // A still ignores the animation: the file's own transforms.
+    assert_eq!(at(None, None), (0.0, 5.0));
+    // Frame 12 at the default 24 fps is 0.5 s: halfway along the LINEAR track, and the STEP track's second key.
+    let (x, z) = at(Some(12), None);
+    assert!((x - 5.0).abs() < 1e-5, "{x}");
+    assert_eq!(z, 9.0);
+    // Frame 6 at 24 fps (0.25 s) and at 12 fps (0.5 s); past the last key the value holds.
+    assert!((at(Some(6), None).0 - 2.5).abs() < 1e-5);
+    assert_eq!(
+        at(Some(6), None).1,
+        5.0,
+        "STEP holds the first key before 0.5 s"
+    );
+    assert!((at(Some(6), Some(12.0)).0 - 5.0).abs() < 1e-5);
+    assert!((at(Some(100), None).0 - 10.0).abs() < 1e-5);
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -28,7 +28,7 @@
 //! decode under it. A malformed file is an error naming the element, never a panic.
 
 use super::gltf_accessors::{check_bytes, read_floats, read_indices, Usage};
-use super::gltf_deform;
+use super::{gltf_animation, gltf_deform};
 use super::{Camera, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::light::{
@@ -157,7 +157,22 @@ pub fn load_slice(
         }
         buffers.push(gltf::buffer::Data(data));
     }
+    let pose = match options.frame {
+        Some(frame) if document.animations().len() > 0 => {
+            let seconds = frame as f64 / options.fps.unwrap_or(crate::frames::DEFAULT_FPS);
+            gltf_animation::pose_at(&document, &buffers, &options.limits, seconds as f32)
+                .map_err(malformed)?
+        }
+        _ => gltf_animation::Pose {
+            locals: document
+                .nodes()
+                .map(|n| Mat4::from_cols_array_2d(&n.transform().matrix()))
+                .collect(),
+            weights: vec![None; document.nodes().len()],
+        },
+    };
     let mut loader = Loader {
+        pose,
         path,
         document: &document,
         base,
@@ -249,6 +264,8 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
 
 struct Loader<'a> {
     path: &'a Path,
+    /// Every node's local matrix and animated morph weights: the file's, or at the shot's frame.
+    pose: gltf_animation::Pose,
     /// The document: texture references and the skins' joint nodes.
     document: &'a gltf::Document,
     base: PathBuf,
@@ -279,8 +296,7 @@ impl Loader<'_> {
                 node.index()
             ))));
         }
-        let local = Mat4::from_cols_array_2d(&node.transform().matrix());
-        let world = parent * local;
+        let world = parent * self.pose.locals[node.index()];
         if !world.is_finite() {
             return Err(self.error(SceneErrorKind::Malformed(format!(
                 "node {} has a non-finite transform",
@@ -394,7 +410,10 @@ impl Loader<'_> {
         let mesh_name = mesh
             .name()
             .map_or_else(|| format!("mesh {}", mesh.index()), |n| one_line(n, QUOTE));
-        let weights = gltf_deform::morph_weights(node, &mesh);
+        let weights: Vec<f32> = match &self.pose.weights[node.index()] {
+            Some(animated) => animated.clone(),
+            None => gltf_deform::morph_weights(node, &mesh).to_vec(),
+        };
         let joints = match node.skin() {
             Some(skin) => {
                 if !std::mem::replace(&mut self.skin_warned, true) {
@@ -403,7 +422,7 @@ impl Loader<'_> {
                     );
                 }
                 if self.node_worlds.is_empty() {
-                    self.node_worlds = gltf_deform::node_worlds(self.document);
+                    self.node_worlds = gltf_deform::node_worlds(self.document, &self.pose.locals);
                 }
                 let joints = gltf_deform::joint_matrices(
                     &skin,
@@ -433,17 +452,20 @@ impl Loader<'_> {
             let mut m = self.read_primitive(&primitive, &what)?;
             m.name = node.name().map_or_else(|| mesh_name.clone(), str::to_owned);
             let limits = &self.options.limits;
-            let deformed =
-                gltf_deform::apply_morph_targets(&mut m, &primitive, weights, self.buffers, limits)
-                    .and_then(|()| match &joints {
-                        Some(j) => {
-                            gltf_deform::apply_skin(&mut m, &primitive, j, self.buffers, limits)
-                        }
-                        None => {
-                            m.transform(world);
-                            Ok(())
-                        }
-                    });
+            let deformed = gltf_deform::apply_morph_targets(
+                &mut m,
+                &primitive,
+                &weights,
+                self.buffers,
+                limits,
+            )
+            .and_then(|()| match &joints {
+                Some(j) => gltf_deform::apply_skin(&mut m, &primitive, j, self.buffers, limits),
+                None => {
+                    m.transform(world);
+                    Ok(())
+                }
+            });
             deformed.map_err(|e| self.error(SceneErrorKind::Malformed(format!("{what}: {e}"))))?;
             if m.normals.is_empty() {
                 m.generate_normals();

@@ -37,6 +37,14 @@ pub(super) enum Usage {
     PositionDelta,
     /// A morph target's NORMAL or TANGENT displacement (VEC3 f32; quantized: i8/i16 normalized).
     DirectionDelta,
+    /// An animation sampler's key times (SCALAR f32).
+    KeyTimes,
+    /// Animated translations or scales (VEC3 f32).
+    KeyVec3,
+    /// Animated rotations (VEC4 f32, or i8/u8/i16/u16 normalized).
+    KeyRotation,
+    /// Animated morph weights (SCALAR f32, or i8/u8/i16/u16 normalized).
+    KeyWeights,
     /// A skin's inverseBindMatrices (MAT4 f32).
     InverseBindMatrices,
     /// An attribute Nimbus does not read: any type, only its bytes checked.
@@ -65,6 +73,8 @@ impl Usage {
             (U16, Either),
         ];
         const UNIT_SIGNED: &[(DataType, Norm)] = &[(F32, No), (I8, Yes), (I16, Yes)];
+        const KEY_NORMALIZED: &[(DataType, Norm)] =
+            &[(F32, No), (I8, Yes), (U8, Yes), (I16, Yes), (U16, Yes)];
         match self {
             Usage::Indices => Some((Scalar, &[(U8, No), (U16, No), (U32, No)])),
             Usage::Position => Some((Vec3, QUANTIZED_ANY)),
@@ -78,6 +88,10 @@ impl Usage {
             Usage::PositionDelta => Some((Vec3, &[(F32, No), (I8, Either), (I16, Either)])),
             Usage::DirectionDelta => Some((Vec3, UNIT_SIGNED)),
             Usage::InverseBindMatrices => Some((Mat4, &[(F32, No)])),
+            Usage::KeyTimes => Some((Scalar, &[(F32, No)])),
+            Usage::KeyVec3 => Some((Vec3, &[(F32, No)])),
+            Usage::KeyRotation => Some((Vec4, KEY_NORMALIZED)),
+            Usage::KeyWeights => Some((Scalar, KEY_NORMALIZED)),
             Usage::Unread => None,
         }
     }

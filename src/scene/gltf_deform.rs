@@ -9,9 +9,10 @@ use crate::geometry::Mesh;
 use crate::limits::Limits;
 use crate::math::{Mat4, Vec3};
 
-/// Every node's world matrix from its own TRS or matrix and its ancestors' (the node graph is a checked
-/// forest); nodes outside the default scene get theirs from their own ancestors too.
-pub(super) fn node_worlds(document: &gltf::Document) -> Vec<Mat4> {
+/// Every node's world matrix from its local matrix (`locals`, by node index: its own TRS or matrix, or its
+/// animated pose) and its ancestors' (the node graph is a checked forest); nodes outside the default scene get
+/// theirs from their own ancestors too.
+pub(super) fn node_worlds(document: &gltf::Document, locals: &[Mat4]) -> Vec<Mat4> {
     let n = document.nodes().len();
     let mut parent = vec![None; n];
     for node in document.nodes() {
@@ -19,10 +20,6 @@ pub(super) fn node_worlds(document: &gltf::Document) -> Vec<Mat4> {
             parent[child.index()] = Some(node.index());
         }
     }
-    let locals: Vec<Mat4> = document
-        .nodes()
-        .map(|node| Mat4::from_cols_array_2d(&node.transform().matrix()))
-        .collect();
     let mut world: Vec<Option<Mat4>> = vec![None; n];
     for start in 0..n {
         // Walk up to the first node whose world is known (or a root), then back down.

@@ -8,6 +8,7 @@ mod camera;
 mod error;
 pub mod gltf;
 mod gltf_accessors;
+mod gltf_animation;
 mod gltf_check;
 mod gltf_deform;
 pub mod obj;
@@ -38,8 +39,12 @@ pub struct LoadOptions<'a> {
     /// The memory budget for allocations sized by the files (whole-file reads, majorant structures, decoded
     /// textures).
     pub limits: crate::limits::Limits,
-    /// The shot's frame: VDB sequences read this frame's file (frame 1 when `None`).
+    /// The shot's frame: VDB sequences read this frame's file (frame 1 when `None`), glTF animations are
+    /// sampled at `frame / fps` seconds and USD stages read at the frame's time code.
     pub frame: Option<i64>,
+    /// Frames per second of the shot (`--fps`): glTF's default is [`crate::frames::DEFAULT_FPS`]; a USD stage's
+    /// own is its `framesPerSecond`.
+    pub fps: Option<f64>,
 }
 
 impl LoadOptions<'_> {

@@ -101,7 +101,11 @@ pub use layers::MAX_NESTING;
 /// override first.
 /// A shot frame ([`LoadOptions::frame`]) reads every attribute at that frame's time code (see [`read_at_frame`]).
 pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
-    let (mut builder, volumes) = read_at_frame(path, &options.limits, options.frame)?;
+    let when = match options.frame {
+        Some(frame) => When::Frame(frame, options.fps),
+        None => When::Default,
+    };
+    let (mut builder, volumes) = read_when(path, &options.limits, when)?;
     for mut spec in volumes {
         options.apply_volume_override(&mut spec);
         builder.add_volume(&spec).map_err(|source| {
@@ -142,7 +146,8 @@ pub fn read_with_limits(
 enum When {
     Default,
     TimeCode(f64),
-    Frame(i64),
+    /// A frame of the shot, at the shot's frames per second if given (else the stage's `framesPerSecond`).
+    Frame(i64, Option<f64>),
 }
 
 /// [`read_with_limits`] at frame `frame` of the shot, or at the stage's default time when `None`. A frame is
@@ -154,7 +159,11 @@ pub fn read_at_frame(
     limits: &Limits,
     frame: Option<i64>,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
-    read_when(path, limits, frame.map_or(When::Default, When::Frame))
+    read_when(
+        path,
+        limits,
+        frame.map_or(When::Default, |f| When::Frame(f, None)),
+    )
 }
 
 /// [`read_with_limits`] at time code `time` (in the stage's time codes, not seconds: a frame at `s` seconds is
@@ -236,7 +245,7 @@ fn read_stage(
     loader.root = loader.stage_root()?;
     loader.time = match time {
         When::TimeCode(t) => usd::TimeCode::new(t),
-        When::Frame(f) => usd::TimeCode::new(f as f64 * loader.time_codes_per_frame()?),
+        When::Frame(f, fps) => usd::TimeCode::new(f as f64 * loader.time_codes_per_frame(fps)?),
         When::Default => loader.default_time()?,
     };
     for child in loader.children(&stage.prim("/"))? {
@@ -344,8 +353,9 @@ impl Loader<'_> {
         Ok(start.map_or(usd::TimeCode::EARLIEST, usd::TimeCode::new))
     }
 
-    /// Time codes per frame of the shot: `timeCodesPerSecond / framesPerSecond` (both default 24).
-    fn time_codes_per_frame(&self) -> Result<f64, SceneError> {
+    /// Time codes per frame of the shot: `timeCodesPerSecond / fps`, `fps` the shot's if given, else the
+    /// stage's `framesPerSecond` (both default 24).
+    fn time_codes_per_frame(&self, fps: Option<f64>) -> Result<f64, SceneError> {
         let rate = |key: &str| -> Result<f64, SceneError> {
             let value = self
                 .stage
@@ -359,7 +369,11 @@ impl Loader<'_> {
                 Err(self.error("stage metadata", format!("{key} {value} must be positive")))
             }
         };
-        Ok(rate("timeCodesPerSecond")? / rate("framesPerSecond")?)
+        let fps = match fps {
+            Some(f) => f,
+            None => rate("framesPerSecond")?,
+        };
+        Ok(rate("timeCodesPerSecond")? / fps)
     }
 
     /// The matrix from stage units and axes to Nimbus's metres and +Y up.
