@@ -10,7 +10,7 @@ use nimbus::math::Rgb;
 use nimbus::render::{
     CancelToken, PixelWindow, Progress, RenderRegion, RenderSettings, RenderStats, Renderer,
 };
-use nimbus::scene::{LoadOptions, Scene, SceneBuilder};
+use nimbus::scene::{LoadOptions, Scene, SceneBuilder, DEFAULT_ENVIRONMENT_RADIANCE};
 use std::io::IsTerminal;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -220,9 +220,6 @@ fn info(args: InfoArgs) -> Result<(), String> {
     }
     Ok(())
 }
-
-/// Radiance of the neutral environment that lights a scene with no light of its own, as glTF viewers do.
-const DEFAULT_ENVIRONMENT_RADIANCE: f32 = 1.0;
 
 /// The longest error or warning line printed: messages quoting file contents are cut there.
 const MAX_MESSAGE_CHARS: usize = 1000;

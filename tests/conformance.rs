@@ -17,7 +17,7 @@ mod common;
 use nimbus::light::EnvironmentLight;
 use nimbus::math::{luminance, Rgb, Vec3};
 use nimbus::render::{RenderImage, RenderSettings, RenderStats, Renderer};
-use nimbus::scene::{load_builder, LoadOptions};
+use nimbus::scene::{load_builder, LoadOptions, DEFAULT_ENVIRONMENT_RADIANCE};
 use std::path::{Path, PathBuf};
 
 /// Scene files the loaders know by extension.
@@ -27,10 +27,6 @@ const SCENE_EXTENSIONS: [&str; 7] = ["gltf", "glb", "obj", "usd", "usda", "usdc"
 const WIDTH: usize = 32;
 const HEIGHT: usize = 32;
 const SPP: u32 = 2;
-
-/// Radiance of the neutral environment the CLI gives a scene with no light (`DEFAULT_ENVIRONMENT_RADIANCE` in
-/// `src/main.rs`).
-const DEFAULT_ENVIRONMENT_RADIANCE: f32 = 1.0;
 
 /// The least mean beauty luminance (Rec.709 weights) of an image that is "not black": 1% of the default
 /// environment's radiance, about 6.6 stops below a white sky.

@@ -12,27 +12,6 @@ fn temp_dir(name: &str) -> PathBuf {
     d
 }
 
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-        for i in 0..4 {
-            if i <= chunk.len() {
-                out.push(A[(n >> (18 - 6 * i) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
-
 /// One triangle's positions (3 × vec3 f32) followed by u16 indices 0,1,2 (+ padding).
 fn triangle_buffer() -> Vec<u8> {
     let mut b = Vec::new();
@@ -73,7 +52,7 @@ fn data_uri_buffer_transforms_and_camera() {
     let dir = temp_dir("datauri");
     let uri = format!(
         "data:application/octet-stream;base64,{}",
-        base64(&triangle_buffer())
+        common::base64(&triangle_buffer())
     );
     let path = write(&dir, "tri.gltf", &document(&uri, 3, ""));
     let scene = load_builder(&path, &Default::default())
@@ -341,7 +320,7 @@ fn a_missing_or_corrupt_environment_map_is_a_typed_error_naming_the_map() {
     std::fs::write(dir.join("corrupt.exr"), b"not an exr").unwrap();
     let buffer = format!(
         "data:application/octet-stream;base64,{}",
-        base64(&triangle_buffer())
+        common::base64(&triangle_buffer())
     );
     for (map, missing) in [("absent.exr", true), ("corrupt.exr", false)] {
         let scene = format!(

@@ -192,28 +192,6 @@ fn texture_transform_rotation_and_scale_follow_the_extension_matrices() {
     );
 }
 
-/// Base64 for data URIs.
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-        for i in 0..4 {
-            out.push(if i <= chunk.len() {
-                A[(n >> (18 - 6 * i) & 63) as usize] as char
-            } else {
-                '='
-            });
-        }
-    }
-    out
-}
-
 /// A 2×2 RGBA8 PNG as a data URI: texels (left to right, top to bottom) `t`.
 fn png_uri(t: [[u8; 4]; 4]) -> String {
     let mut img = image::RgbaImage::new(2, 2);
@@ -222,7 +200,7 @@ fn png_uri(t: [[u8; 4]; 4]) -> String {
     }
     let mut bytes = std::io::Cursor::new(Vec::new());
     img.write_to(&mut bytes, image::ImageFormat::Png).unwrap();
-    format!("data:image/png;base64,{}", base64(bytes.get_ref()))
+    format!("data:image/png;base64,{}", common::base64(bytes.get_ref()))
 }
 
 /// The quad of the in-memory files: (−1, −1, 0) … (1, 1, 0) facing +z, two triangles [0, 1, 2], [0, 2, 3].
@@ -274,7 +252,7 @@ fn quad_gltf(color: (u32, &str, bool, Vec<u8>), material: &str, image: &str) -> 
         "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":112}},{{"buffer":0,"byteOffset":112,"byteLength":12}},
                        {{"buffer":0,"byteOffset":{color_offset},"byteLength":{bytes}}}],
         "buffers":[{{"uri":"data:application/octet-stream;base64,{}","byteLength":{}}}]}}"#,
-        base64(&buf),
+        common::base64(&buf),
         buf.len()
     )
 }

@@ -2,6 +2,8 @@
 //! `frame_offset` and the `missing_frame` policy, and `nimbus render --frame/--frames` writing one EXR, PNG and
 //! statistics file per frame.
 
+mod common;
+
 use nimbus::math::Aabb;
 use nimbus::scene::{load_builder, LoadOptions, SceneBuilder};
 use std::path::{Path, PathBuf};
@@ -195,28 +197,6 @@ fn bad_frame_ranges_are_refused() {
     assert!(!ok && stderr.contains("--samples"), "{stderr}");
 }
 
-/// Standard base64 (for a glTF data URI).
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-        for i in 0..4 {
-            out.push(if i <= chunk.len() {
-                A[(n >> (18 - 6 * i) & 63) as usize] as char
-            } else {
-                '='
-            });
-        }
-    }
-    out
-}
-
 /// A triangle node and a camera node; the triangle's translation is animated LINEAR from (0, 0, 0) at 0 s to
 /// (10, 0, 0) at 1 s, and the camera's STEP from z = 5 to z = 9 at 0.5 s.
 fn animated_gltf(dir: &Path) -> PathBuf {
@@ -247,7 +227,7 @@ fn animated_gltf(dir: &Path) -> PathBuf {
           "channels":[{{"sampler":0,"target":{{"node":0,"path":"translation"}}}},
                       {{"sampler":1,"target":{{"node":1,"path":"translation"}}}}]}}]}}"#,
         len = bytes.len(),
-        b64 = base64(&bytes)
+        b64 = common::base64(&bytes)
     );
     let path = dir.join("animated.gltf");
     std::fs::write(&path, gltf).unwrap();

@@ -27,6 +27,10 @@ use crate::volume::Medium;
 use std::path::Path;
 use std::sync::Arc;
 
+/// Radiance of the neutral environment that lights a scene without lighting of its own (see
+/// [`SceneBuilder::has_own_lighting`]), as glTF viewers light such files: the CLI adds it.
+pub const DEFAULT_ENVIRONMENT_RADIANCE: f32 = 1.0;
+
 /// How a scene file is loaded: the same options for every format (glTF, OBJ, USD).
 #[derive(Clone, Copy, Default)]
 pub struct LoadOptions<'a> {
@@ -113,7 +117,7 @@ impl SceneBuilder {
                     "volume '{}': the sequence {} has no file for frame {}; the volume is empty in this frame",
                     spec.name,
                     spec.file.display(),
-                    spec.frame.unwrap_or(1) + spec.frame_offset
+                    spec.file_frame()
                 ));
                 Ok(None)
             }
@@ -638,13 +642,12 @@ impl Scene {
             let idx = mesh.indices[tri as usize].map(|i| i as usize);
             let b = [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2];
             let uv = |set: Option<&[Vec2]>| {
-                TexCoord::point(set.map_or(Vec2::ZERO, |uv| {
-                    uv[idx[0]] * b[0] + uv[idx[1]] * b[1] + uv[idx[2]] * b[2]
-                }))
+                TexCoord::point(set.map_or(Vec2::ZERO, |uv| at_barycentrics(uv, idx, b)))
             };
-            let color = mesh.colors.as_ref().map_or(Vec4::ONE, |c| {
-                c[idx[0]] * b[0] + c[idx[1]] * b[1] + c[idx[2]] * b[2]
-            });
+            let color = mesh
+                .colors
+                .as_deref()
+                .map_or(Vec4::ONE, |c| at_barycentrics(c, idx, b));
             let at = ShadingPoint {
                 uv: [uv(mesh.uv_set(0)), uv(mesh.uv_set(1))],
                 color,
@@ -707,10 +710,9 @@ impl Scene {
             [v0, v1, v2],
             [b0, b1, b2],
         );
-        let color = mesh
-            .colors
-            .as_ref()
-            .map_or(Vec4::ONE, |c| c[i0] * b0 + c[i1] * b1 + c[i2] * b2);
+        let color = mesh.colors.as_deref().map_or(Vec4::ONE, |c| {
+            at_barycentrics(c, [i0, i1, i2], [b0, b1, b2])
+        });
         let (uv, uv_per_world) = interpolate_uv(
             mesh.uvs.as_deref(),
             [i0, i1, i2],
@@ -790,7 +792,15 @@ fn interpolate_uv(uvs: Option<&[Vec2]>, idx: [usize; 3], v: [Vec3; 3], b: [f32; 
     let world_area = 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length();
     let scale = (uv_area / world_area).sqrt();
     (
-        t0 * b[0] + t1 * b[1] + t2 * b[2],
+        at_barycentrics(uv, idx, b),
         if scale.is_finite() { scale } else { 0.0 },
     )
+}
+
+/// A per-vertex attribute of triangle `idx` at barycentrics `b`.
+fn at_barycentrics<T>(values: &[T], idx: [usize; 3], b: [f32; 3]) -> T
+where
+    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+{
+    values[idx[0]] * b[0] + values[idx[1]] * b[1] + values[idx[2]] * b[2]
 }

@@ -232,6 +232,11 @@ impl VolumeSpec {
         }
     }
 
+    /// The sequence frame this volume reads: the shot's frame (1 without one) plus `frame_offset`.
+    pub fn file_frame(&self) -> i64 {
+        self.frame.unwrap_or(1).saturating_add(self.frame_offset)
+    }
+
     /// The VDB file to read for this frame: `file` itself, or for a sequence (a file name with a frame token,
     /// see [`crate::frames`]) the file of frame `frame + frame_offset` (frame 1 without a shot frame). `None`
     /// when that file is missing and `missing_frame` is `empty`.
@@ -240,7 +245,7 @@ impl VolumeSpec {
             Some(p) if self.embedded.is_none() && crate::frames::has_frame_token(p) => p,
             _ => return Ok(Some(self.file.clone())),
         };
-        let frame = self.frame.unwrap_or(1).saturating_add(self.frame_offset);
+        let frame = self.file_frame();
         let path = PathBuf::from(crate::frames::with_frame(pattern, frame).unwrap_or_default());
         if path.is_file() {
             return Ok(Some(path));

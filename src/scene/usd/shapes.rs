@@ -117,6 +117,14 @@ impl Axis {
             Axis::Y => Vec3::new(p.y, p.z, p.x),
         }
     }
+
+    /// `mesh`, built about +Z, turned to this axis (positions and normals).
+    fn orient(self, mut mesh: Mesh) -> Mesh {
+        for p in mesh.positions.iter_mut().chain(&mut mesh.normals) {
+            *p = self.along_axis(*p);
+        }
+        mesh
+    }
 }
 
 /// An intrinsic gprim with its dimensions (see the module docs).
@@ -181,18 +189,12 @@ impl Shape {
                     n: Vec2::X,
                     t,
                 };
-                let mut mesh = revolve(&[
+                let mesh = revolve(&[
                     cap(radius, -h, -1.0),
                     vec![side(radius, -h, 0.0), side(radius, h, 1.0)],
                     cap(radius, h, 1.0),
                 ]);
-                mesh.positions
-                    .iter_mut()
-                    .for_each(|p| *p = axis.along_axis(*p));
-                mesh.normals
-                    .iter_mut()
-                    .for_each(|n| *n = axis.along_axis(*n));
-                mesh
+                axis.orient(mesh)
             }
             Shape::Cone {
                 radius,
@@ -202,7 +204,7 @@ impl Shape {
                 let h = 0.5 * height;
                 // The side's outward normal is perpendicular to the slant (−radius, height).
                 let n = Vec2::new(height, radius).normalize();
-                let mut mesh = revolve(&[
+                let mesh = revolve(&[
                     cap(radius, -h, -1.0),
                     vec![
                         ProfilePoint {
@@ -219,13 +221,7 @@ impl Shape {
                         },
                     ],
                 ]);
-                mesh.positions
-                    .iter_mut()
-                    .for_each(|p| *p = axis.along_axis(*p));
-                mesh.normals
-                    .iter_mut()
-                    .for_each(|n| *n = axis.along_axis(*n));
-                mesh
+                axis.orient(mesh)
             }
             Shape::Capsule {
                 radius,
@@ -254,14 +250,7 @@ impl Shape {
                     t(h),
                     t(h + radius),
                 ));
-                let mut mesh = revolve(&[profile]);
-                mesh.positions
-                    .iter_mut()
-                    .for_each(|p| *p = axis.along_axis(*p));
-                mesh.normals
-                    .iter_mut()
-                    .for_each(|n| *n = axis.along_axis(*n));
-                mesh
+                axis.orient(revolve(&[profile]))
             }
             Shape::Plane {
                 width,
