@@ -102,6 +102,68 @@ impl fmt::Display for FrameRange {
     }
 }
 
+/// The shutter interval of motion blur (`--shutter OPEN,CLOSE`), in frames relative to the frame being rendered:
+/// `-0.25,0.25` keeps the shutter open for half a frame centred on it (a 180° shutter). Camera rays sample
+/// their time uniformly in it (a box shutter).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shutter {
+    /// When the shutter opens, in frames from the frame.
+    pub open: f32,
+    /// When the shutter closes, in frames from the frame; at least `open`.
+    pub close: f32,
+}
+
+/// The widest shutter accepted, in frames either side of the frame.
+const MAX_SHUTTER_FRAMES: f32 = 16.0;
+
+impl Shutter {
+    /// Parses `OPEN,CLOSE` (frames, finite, OPEN ≤ CLOSE, each within ±16 frames).
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let (a, b) = text.split_once(',').ok_or_else(|| {
+            format!("'{text}' is not a shutter OPEN,CLOSE (in frames, e.g. -0.25,0.25)")
+        })?;
+        let parse = |s: &str| {
+            let v = s
+                .trim()
+                .parse::<f32>()
+                .map_err(|e| format!("shutter time '{s}': {e}"))?;
+            if v.is_finite() && v.abs() <= MAX_SHUTTER_FRAMES {
+                Ok(v)
+            } else {
+                Err(format!(
+                    "shutter time '{s}' must be finite and within ±{MAX_SHUTTER_FRAMES} frames"
+                ))
+            }
+        };
+        let (open, close) = (parse(a)?, parse(b)?);
+        if open > close {
+            return Err(format!(
+                "the shutter opens at {open} after it closes at {close}"
+            ));
+        }
+        Ok(Self { open, close })
+    }
+
+    /// The time (frames from the frame) at fraction `u` ∈ [0, 1) of the interval.
+    pub fn time_at(&self, u: f32) -> f32 {
+        self.open + (self.close - self.open) * u
+    }
+
+    /// The instants at which moving things are sampled: `steps` (≥ 2) times evenly spaced from open to close.
+    pub fn sample_times(&self, steps: usize) -> Vec<f32> {
+        let steps = steps.max(2);
+        (0..steps)
+            .map(|i| self.time_at(i as f32 / (steps - 1) as f32))
+            .collect()
+    }
+}
+
+impl fmt::Display for Shutter {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{},{}", self.open, self.close)
+    }
+}
+
 /// Where a frame-number token sits in a file name, and how wide it is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Token {
@@ -242,5 +304,20 @@ mod tests {
         assert_eq!(frame_of("smoke.####.vdb", "smoke.00a2.vdb"), None);
         assert_eq!(frame_of("smoke.####.vdb", "fire.0012.vdb"), None);
         assert_eq!(frame_of("smoke.####.vdb", "smoke..vdb"), None);
+    }
+
+    #[test]
+    fn shutters_parse_and_spread_their_samples() {
+        let s = Shutter::parse("-0.25, 0.25").unwrap();
+        assert_eq!((s.open, s.close), (-0.25, 0.25));
+        assert_eq!(s.sample_times(3), vec![-0.25, 0.0, 0.25]);
+        assert_eq!(s.time_at(0.5), 0.0);
+        assert_eq!(
+            Shutter::parse("0,0").unwrap().sample_times(2),
+            vec![0.0, 0.0]
+        );
+        for bad in ["0.25", "0.5,-0.5", "nan,1", "0,inf", "-20,0", "a,b"] {
+            assert!(Shutter::parse(bad).is_err(), "{bad}");
+        }
     }
 }

@@ -3,7 +3,7 @@
 
 use clap::{Args, Parser, Subcommand};
 use nimbus::farm::{FarmError, PartInfo};
-use nimbus::frames::{has_frame_token, with_frame, FrameRange};
+use nimbus::frames::{has_frame_token, with_frame, FrameRange, Shutter};
 use nimbus::light::EnvironmentLight;
 use nimbus::limits::{one_line, Limits};
 use nimbus::math::Rgb;
@@ -125,6 +125,11 @@ struct RenderArgs {
     /// framesPerSecond, else 24).
     #[arg(long, value_parser = parse_fps)]
     fps: Option<f64>,
+    /// Motion blur: the shutter opens and closes at these times, in frames relative to each frame
+    /// (`-0.25,0.25` is a 180° shutter). Animated cameras and objects are blurred between their poses, and
+    /// volumes with a velocity grid move along it. Default: off (an instant).
+    #[arg(long, value_parser = Shutter::parse, allow_hyphen_values = true)]
+    shutter: Option<Shutter>,
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -271,14 +276,16 @@ fn load_builder(
     limits: Limits,
     frame: Option<i64>,
     fps: Option<f64>,
+    shutter: Option<Shutter>,
 ) -> Result<SceneBuilder, String> {
-    match scene {
+    let mut builder = match scene {
         Some(path) => nimbus::scene::load_builder(
             path,
             &LoadOptions {
                 limits,
                 frame,
                 fps,
+                shutter,
                 ..LoadOptions::default()
             },
         ),
@@ -290,11 +297,14 @@ fn load_builder(
                 limits,
                 frame,
                 fps,
+                shutter,
                 ..LoadOptions::default()
             },
         ),
     }
-    .map_err(|e| e.to_string())
+    .map_err(|e| e.to_string())?;
+    builder.set_shutter(shutter);
+    Ok(builder)
 }
 
 /// Parses frames per second: a finite number above 0.
@@ -414,7 +424,7 @@ fn render_frame(
     let limits = args
         .memory_limit
         .map_or_else(Limits::default, Limits::with_memory);
-    let mut builder = load_builder(args.scene.as_deref(), limits, frame, args.fps)?;
+    let mut builder = load_builder(args.scene.as_deref(), limits, frame, args.fps, args.shutter)?;
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
@@ -614,7 +624,8 @@ fn part_region(
 }
 
 /// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings,
-/// the `--env-color` override and the frame (parts of different frames must not merge).
+/// the `--env-color` override, the frame and the shutter (parts of different frames or shutters must not
+/// merge).
 fn part_scene_hash(
     args: &RenderArgs,
     frame: Option<i64>,
@@ -632,12 +643,22 @@ fn part_scene_hash(
         .env_color
         .map(|c| c.to_array().iter().flat_map(|v| v.to_le_bytes()).collect());
     let frame_bytes = frame.map(i64::to_le_bytes);
-    let fps_bytes = args.fps.filter(|_| frame.is_some()).map(f64::to_le_bytes);
+    let fps_bytes = args
+        .fps
+        .filter(|_| frame.is_some() || args.shutter.is_some())
+        .map(f64::to_le_bytes);
+    let shutter_bytes: Option<Vec<u8>> = args.shutter.map(|s| {
+        [s.open, s.close]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect()
+    });
     let overrides: Vec<(&str, &[u8])> = env
         .iter()
         .map(|e| ("env-color", e.as_slice()))
         .chain(frame_bytes.iter().map(|f| ("frame", f.as_slice())))
         .chain(fps_bytes.iter().map(|f| ("fps", f.as_slice())))
+        .chain(shutter_bytes.iter().map(|s| ("shutter", s.as_slice())))
         .collect();
     Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
 }

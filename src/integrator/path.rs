@@ -259,7 +259,9 @@ impl PathTracer {
                     .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
             }
             counters.rays.bounce += 1;
-            return SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir));
+            return SurfaceOutcome::Continue(
+                Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time),
+            );
         }
         if s.depth >= self.max_depth {
             return SurfaceOutcome::End;
@@ -298,7 +300,7 @@ impl PathTracer {
                     if let Some(interior) = material.interior {
                         stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
                     }
-                    let tr = services.transmittance(&segment, &stack, rng, counters);
+                    let tr = services.transmittance(&segment, ray.time, &stack, rng, counters);
                     if tr.max_element() > 0.0 {
                         let light_pdf = chosen.pmf * ls.pdf;
                         let weight = if ls.is_delta {
@@ -337,7 +339,7 @@ impl PathTracer {
             return SurfaceOutcome::End;
         }
         counters.rays.bounce += 1;
-        SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(wi_world), wi_world))
+        SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(wi_world), wi_world).at_time(ray.time))
     }
 
     /// Handles a real collision at distance `t` in medium `m`: emission, next-event estimation with MIS against
@@ -368,7 +370,7 @@ impl PathTracer {
             let phase = collision.phase.eval(wo, ls.wi);
             let segment = ls.shadow_segment(&SurfacePoint::free(p));
             if let (true, Some(segment)) = (phase > 0.0, segment) {
-                let tr = services.transmittance(&segment, &s.stack, rng, counters);
+                let tr = services.transmittance(&segment, ray.time, &s.stack, rng, counters);
                 if tr.max_element() > 0.0 {
                     let light_pdf = chosen.pmf * ls.pdf;
                     let weight = if ls.is_delta || !self.media_mis {
@@ -390,7 +392,7 @@ impl PathTracer {
             return false;
         }
         counters.rays.bounce += 1;
-        *ray = Ray::new(p, wi);
+        *ray = Ray::new(p, wi).at_time(ray.time);
         true
     }
 

@@ -105,11 +105,13 @@ impl<'a> RendererServices<'a> {
     }
 
     /// Transmittance along the shadow segment (see [`ShadowSegment`]), starting inside the interiors of
-    /// `stack`. Index-matched boundaries let it through (updating the interiors); any other surface blocks it.
-    /// Media contribute their transmittance estimates.
+    /// `stack`, at the path's `time` (frames relative to the frame, for motion blur). Index-matched boundaries
+    /// let it through (updating the interiors); any other surface blocks it. Media contribute their
+    /// transmittance estimates.
     pub fn transmittance(
         &self,
         segment: &ShadowSegment,
+        time: f32,
         stack: &MediumStack,
         rng: &mut Rng,
         counters: &mut PathCounters,
@@ -119,7 +121,7 @@ impl<'a> RendererServices<'a> {
         let mut stack = *stack;
         let dir = segment.dir;
         let end = segment.end();
-        let mut ray = Ray::new(segment.origin, dir);
+        let mut ray = Ray::new(segment.origin, dir).at_time(time);
         let mut remaining = segment.t_max;
         let mut tr = Rgb::ONE;
         for _ in 0..MAX_SHADOW_CROSSINGS {
@@ -151,7 +153,7 @@ impl<'a> RendererServices<'a> {
                     return tr;
                 }
             }
-            ray = Ray::new(next, dir);
+            ray = Ray::new(next, dir).at_time(time);
         }
         Rgb::ZERO
     }

@@ -414,7 +414,11 @@ impl Renderer {
                             (x as f32 + jitter.x) / width as f32,
                             (y as f32 + jitter.y) / height as f32,
                         );
-                        let ray = scene.camera.generate_ray(film_pos, aspect);
+                        let mut ray = scene.camera.generate_ray(film_pos, aspect);
+                        if let Some(shutter) = scene.shutter {
+                            // A box shutter: the time is uniform over the interval.
+                            ray = ray.at_time(shutter.time_at(rng.next_f32()));
+                        }
                         let result = tracer.trace(&services, ray, &mut rng, &mut counters);
                         if !is_finite_rgb(result.radiance) {
                             nans += 1;

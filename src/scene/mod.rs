@@ -49,6 +49,9 @@ pub struct LoadOptions<'a> {
     /// Frames per second of the shot (`--fps`): glTF's default is [`crate::frames::DEFAULT_FPS`]; a USD stage's
     /// own is its `framesPerSecond`.
     pub fps: Option<f64>,
+    /// The motion-blur shutter (`--shutter`), in frames relative to the frame; `None` renders an instant.
+    /// Moving things are sampled across it and media with a velocity grid are blurred over it.
+    pub shutter: Option<crate::frames::Shutter>,
 }
 
 impl LoadOptions<'_> {
@@ -57,6 +60,8 @@ impl LoadOptions<'_> {
     pub fn apply_volume_override(&self, spec: &mut crate::volume::VolumeSpec) {
         spec.limits = self.limits;
         spec.frame = self.frame;
+        spec.shutter = self.shutter;
+        spec.fps = self.fps.unwrap_or(crate::frames::DEFAULT_FPS);
         if let Some(f) = self.volume_override {
             f(spec);
         }
@@ -77,12 +82,14 @@ pub fn load_builder(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, 
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase());
-    match ext.as_deref() {
+    let mut builder = match ext.as_deref() {
         Some("gltf") | Some("glb") => gltf::load(path, options),
         Some("obj") => obj::load(path, options),
         Some("usd") | Some("usda") | Some("usdc") | Some("usdz") => usd::load(path, options),
         _ => Err(SceneError::new(path, SceneErrorKind::UnknownFormat)),
-    }
+    }?;
+    builder.set_shutter(options.shutter);
+    Ok(builder)
 }
 
 /// Everything a loader produces, before acceleration structures are built: add meshes, materials, textures,
@@ -101,6 +108,8 @@ pub struct SceneBuilder {
     warnings: Vec<String>,
     /// Mesh interiors (referenced by `Material::interior`) and position-filled volumes.
     media: Vec<Arc<dyn Medium>>,
+    /// The motion-blur shutter, in frames relative to the frame.
+    shutter: Option<crate::frames::Shutter>,
 }
 
 impl SceneBuilder {
@@ -165,6 +174,12 @@ impl SceneBuilder {
     pub fn set_environment(&mut self, env: EnvironmentLight) {
         self.lights.retain(|l| !matches!(l, Light::Environment(_)));
         self.lights.push(Light::Environment(env));
+    }
+
+    /// Sets the motion-blur shutter (frames relative to the frame): camera rays of the built scene sample
+    /// their time in it. Loaders set it from [`LoadOptions::shutter`].
+    pub fn set_shutter(&mut self, shutter: Option<crate::frames::Shutter>) {
+        self.shutter = shutter;
     }
 
     /// Sets the maximum number of bounces the scene asks for (the default of `--max-depth`).
@@ -396,6 +411,7 @@ impl SceneBuilder {
         Ok(Scene {
             has_alpha,
             media: self.media,
+            shutter: self.shutter,
             filled_media,
             camera: self.camera.unwrap_or_else(|| Camera::framing(&bounds)),
             meshes: self.meshes,
@@ -449,6 +465,8 @@ pub struct Scene {
     pub(crate) warnings: Vec<String>,
     /// Participating media.
     pub(crate) media: Vec<Arc<dyn Medium>>,
+    /// The motion-blur shutter the scene was loaded for; camera rays sample their time in it.
+    pub(crate) shutter: Option<crate::frames::Shutter>,
     /// Indices of the media that fill a region by position (VDB volumes), not a mesh interior.
     pub(crate) filled_media: Vec<u32>,
     bvh: Bvh,
@@ -597,6 +615,11 @@ impl Scene {
     /// The camera.
     pub fn camera(&self) -> &Camera {
         &self.camera
+    }
+
+    /// The motion-blur shutter the scene was loaded for (`None`: an instant).
+    pub fn shutter(&self) -> Option<crate::frames::Shutter> {
+        self.shutter
     }
 
     /// Bounds of all surfaces.

@@ -34,7 +34,7 @@ pub trait DensityField: Send + Sync {
 /// Maps a world ray to the local space of `field`, keeping the ray parameter (the direction is not renormalised).
 pub fn local_ray<F: DensityField + ?Sized>(field: &F, ray: &Ray) -> Ray {
     let m = field.world_to_local();
-    Ray::new(m.transform_point3(ray.origin), m.transform_vector3(ray.dir))
+    Ray::new(m.transform_point3(ray.origin), m.transform_vector3(ray.dir)).at_time(ray.time)
 }
 
 /// A density grid from a VDB file placed in the scene: σ_t(x) = `density_scale` · trilinear(world_to_index(x)).

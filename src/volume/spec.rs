@@ -205,6 +205,11 @@ pub struct VolumeSpec {
     pub missing_frame: MissingFrame,
     /// The shot's frame (set by the loaders from [`crate::scene::LoadOptions::frame`]); `None` reads frame 1.
     pub frame: Option<i64>,
+    /// The motion-blur shutter in frames (from [`crate::scene::LoadOptions::shutter`]): a velocity grid blurs
+    /// the medium over it.
+    pub shutter: Option<crate::frames::Shutter>,
+    /// Frames per second of the shot, converting shutter frames to the seconds velocities are given in.
+    pub fps: f64,
 }
 
 impl VolumeSpec {
@@ -229,6 +234,8 @@ impl VolumeSpec {
             frame_offset: 0,
             missing_frame: MissingFrame::Error,
             frame: None,
+            shutter: None,
+            fps: crate::frames::DEFAULT_FPS,
         }
     }
 
