@@ -68,13 +68,17 @@ class GltfBuilder:
         self.buffer = bytearray()
         self.accessors, self.views, self.meshes, self.nodes, self.materials = [], [], [], [], []
         self.cameras, self.lights = [], []
+        self.animation_channels, self.animation_samplers = [], []
         self._unit_spheres = {}      # (rings, segments) -> (POSITION, NORMAL, indices) accessor indices
 
     # ---- raw data
     def add_view(self, data, target):
         while len(self.buffer) % 4:
             self.buffer.append(0)
-        self.views.append({"buffer": 0, "byteOffset": len(self.buffer), "byteLength": len(data), "target": target})
+        view = {"buffer": 0, "byteOffset": len(self.buffer), "byteLength": len(data)}
+        if target is not None:
+            view["target"] = target
+        self.views.append(view)
         self.buffer.extend(data)
         return len(self.views) - 1
 
@@ -94,6 +98,17 @@ class GltfBuilder:
         n = self.add_accessor(normals, 3, 5126, "VEC3", 34962)
         i = self.add_accessor(indices, 1, 5125, "SCALAR", 34963)
         return p, n, i
+
+    def animate(self, node, path, times, values, interpolation="LINEAR"):
+        """a channel of the scene's one animation: `path` (translation, rotation, scale) of `node` keyed at `times`
+        (seconds) to `values` (3- or 4-vectors)"""
+        t = self.add_accessor(list(times), 1, 5126, "SCALAR", None)
+        self.accessors[t]["min"], self.accessors[t]["max"] = [min(times)], [max(times)]
+        comps = len(values[0])
+        v = self.add_accessor(values, comps, 5126, {3: "VEC3", 4: "VEC4"}[comps], None)
+        self.animation_samplers.append({"input": t, "output": v, "interpolation": interpolation})
+        self.animation_channels.append({"sampler": len(self.animation_samplers) - 1,
+                                        "target": {"node": node, "path": path}})
 
     def add_node(self, node):
         self.nodes.append(node)
@@ -272,6 +287,9 @@ class GltfBuilder:
             "bufferViews": self.views,
             "buffers": [{"byteLength": len(self.buffer)}],
         })
+        if self.animation_channels:
+            gltf["animations"] = [{"name": "shot", "channels": self.animation_channels,
+                                   "samplers": self.animation_samplers}]
         for k in ("meshes", "materials", "cameras", "accessors", "bufferViews"):
             if not gltf[k]:
                 del gltf[k]

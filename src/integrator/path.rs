@@ -358,7 +358,7 @@ impl PathTracer {
         let scene = services.scene();
         s.cone_width += self.pixel_spread * t;
         let p = ray.at(t);
-        let collision = scene.media[m as usize].collision(p);
+        let collision = scene.media[m as usize].collision(p, ray.time);
         s.radiance += s.beta * collision.emission;
         s.beta *= collision.albedo;
         if s.beta.max_element() <= 0.0 || s.depth >= self.max_depth {

@@ -11,13 +11,17 @@
 //!   with `"shadow_estimator": "residual_ratio"`.
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
 //!   added at real collisions as (σ_a/σ_t) · L_e (the collision estimator).
+//! - Motion blur: with a shutter and a velocity grid, every lookup at time τ reads the frame at x − v(x)·τ
+//!   ([`super::velocity`]), over majorants dilated for the shutter.
 
+use super::channels::{AlbedoGrids, ChannelGrid, Flame};
 use super::density::{DensityField, GridDensity};
 use super::emission::BlackbodyTable;
 use super::error::VolumeError;
 use super::majorant::{MajorantKind, Majorants};
 use super::majorant_choice::{self, MajorantEstimate};
 use super::tracking::{ratio_tracking, residual_ratio_tracking, sample_collision};
+use super::velocity::{Displaced, VelocityField};
 use super::{
     Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
     TransmittanceMethod, VolumeSpec,
@@ -62,6 +66,19 @@ struct Emission {
     temperature_offset: f32,
 }
 
+/// Places a named scalar grid of the volume's file: as an extinction with a density scale, or (`None`) as a
+/// plain scalar field.
+type PlaceGrid<'a> = dyn Fn(&str, Option<f32>) -> Result<GridDensity, VolumeError> + 'a;
+
+/// A velocity field and the factor turning a ray's time (frames) into its scaled seconds.
+struct Motion {
+    velocity: VelocityField,
+    /// `velocity_scale / fps`.
+    seconds_per_frame: f32,
+    /// The largest dilation of the majorants, in voxels along any axis (for `--explain`).
+    reach_voxels: f32,
+}
+
 /// A heterogeneous medium backed by a sparse VDB grid.
 pub struct GridMedium {
     name: String,
@@ -73,6 +90,9 @@ pub struct GridMedium {
     phase: PhaseFunction,
     shadow: ShadowEstimator,
     emission: Option<Emission>,
+    flame: Option<Flame>,
+    albedo_grids: AlbedoGrids,
+    motion: Option<Motion>,
 }
 
 impl GridMedium {
@@ -117,6 +137,9 @@ impl GridMedium {
             phase: PhaseFunction::henyey_greenstein(g),
             shadow: ShadowEstimator::Ratio,
             emission: None,
+            flame: None,
+            albedo_grids: AlbedoGrids::default(),
+            motion: None,
         }
     }
 
@@ -169,6 +192,35 @@ impl GridMedium {
             })
         };
         let density = place(&spec.density_grid, Some(spec.density_scale))?;
+        let motion = match spec.shutter {
+            Some(shutter) => Self::load_motion(spec, &file, shutter)?,
+            None => None,
+        };
+        if let Some((velocity, seconds_per_frame)) = motion {
+            let longest = shutter_extent(spec);
+            let reach = velocity.reach(longest * seconds_per_frame);
+            let kind = match spec.majorant {
+                Some(MajorantKind::Global) => MajorantKind::Global,
+                _ => MajorantKind::Grid16,
+            };
+            let majorants = Majorants::build_reaching(kind, &density, reach);
+            let mut medium = Self::with_parts(
+                &spec.name,
+                density,
+                majorants,
+                Vec::new(),
+                spec.albedo,
+                spec.anisotropy,
+            )
+            .with_shadow_estimator(spec.shadow_estimator);
+            medium.motion = Some(Motion {
+                velocity,
+                seconds_per_frame,
+                reach_voxels: reach.max_element(),
+            });
+            medium.load_channels(spec, &file, &place)?;
+            return Ok(medium);
+        }
         let medium = match spec.majorant {
             Some(kind) => {
                 let majorants =
@@ -196,18 +248,132 @@ impl GridMedium {
             ),
         };
         let mut medium = medium.with_shadow_estimator(spec.shadow_estimator);
+        medium.load_channels(spec, &file, &place)?;
+        Ok(medium)
+    }
+
+    /// Loads the channels beside density that `spec` names: temperature (blackbody emission), flame, and the
+    /// albedo and colour grids.
+    fn load_channels(
+        &mut self,
+        spec: &VolumeSpec,
+        file: &crate::vdb::VdbFile,
+        place: &PlaceGrid<'_>,
+    ) -> Result<(), VolumeError> {
         if let Some(t) = &spec.temperature_grid {
-            let temperature = place(t, None)?;
-            medium.emission = Some(Emission {
-                temperature,
+            self.emission = Some(Emission {
+                temperature: place(t, None)?,
                 table: BlackbodyTable::new(),
                 scale: spec.emission_scale,
                 temperature_scale: spec.temperature_scale,
                 temperature_offset: spec.temperature_offset,
             });
         }
-        Ok(medium)
+        let channel = |name: &str| -> Result<ChannelGrid, VolumeError> {
+            let grid = file.grid(name).ok_or_else(|| VolumeError::GridMissing {
+                file: spec.file.clone(),
+                grid: name.to_owned(),
+                available: file.grids.iter().map(|g| g.name.clone()).collect(),
+            })?;
+            ChannelGrid::new(grid, spec.node_to_world.as_dmat4()).map_err(|source| {
+                VolumeError::Density {
+                    file: spec.file.clone(),
+                    grid: name.to_owned(),
+                    source,
+                }
+            })
+        };
+        if let Some(name) = &spec.flame_grid {
+            let colour = spec
+                .flame_color
+                .unwrap_or_else(|| BlackbodyTable::new().lookup(spec.flame_temperature));
+            self.flame = Some(Flame {
+                grid: channel(name)?,
+                radiance: colour * spec.flame_scale,
+            });
+        }
+        for name in [&spec.albedo_grid, &spec.color_grid].into_iter().flatten() {
+            self.albedo_grids.factors.push(channel(name)?);
+        }
+        Ok(())
     }
+
+    /// The velocity field of a blurred volume and its seconds per shutter frame (`velocity_scale / fps`):
+    /// `velocity_grid` as one vec3 grid, else its `.x`, `.y`, `.z` scalar grids. `None` when the file has
+    /// neither and the key was left at its default (the volume does not move), or the scale is 0.
+    fn load_motion(
+        spec: &VolumeSpec,
+        file: &crate::vdb::VdbFile,
+        shutter: crate::frames::Shutter,
+    ) -> Result<Option<(VelocityField, f32)>, VolumeError> {
+        let name = spec
+            .velocity_grid
+            .as_deref()
+            .unwrap_or(DEFAULT_VELOCITY_GRID);
+        let parts = [".x", ".y", ".z"].map(|axis| file.grid(&format!("{name}{axis}")));
+        let grids: Vec<&crate::vdb::Grid> = match (file.grid(name), parts) {
+            (Some(g), _) => vec![g],
+            (None, [Some(x), Some(y), Some(z)]) => vec![x, y, z],
+            _ if spec.velocity_grid.is_none() => return Ok(None),
+            _ => {
+                return Err(VolumeError::GridMissing {
+                    file: spec.file.clone(),
+                    grid: name.to_owned(),
+                    available: file.grids.iter().map(|g| g.name.clone()).collect(),
+                })
+            }
+        };
+        let density = file
+            .grid(&spec.density_grid)
+            .ok_or_else(|| VolumeError::GridMissing {
+                file: spec.file.clone(),
+                grid: spec.density_grid.clone(),
+                available: file.grids.iter().map(|g| g.name.clone()).collect(),
+            })?;
+        let velocity =
+            VelocityField::new(&grids, density).map_err(|source| VolumeError::Density {
+                file: spec.file.clone(),
+                grid: name.to_owned(),
+                source,
+            })?;
+        let seconds_per_frame = (spec.velocity_scale as f64 / spec.fps) as f32;
+        if seconds_per_frame == 0.0 || shutter.open == shutter.close && shutter.open == 0.0 {
+            return Ok(None);
+        }
+        Ok(Some((velocity, seconds_per_frame)))
+    }
+
+    /// The density as seen by a ray at `time` frames: displaced along the velocity when the medium moves.
+    fn moved(&self, time: f32) -> Option<Displaced<'_>> {
+        let m = self.motion.as_ref()?;
+        (time != 0.0).then_some(Displaced {
+            density: &self.density,
+            velocity: &m.velocity,
+            seconds: time * m.seconds_per_frame,
+        })
+    }
+
+    /// The world point whose frame-time values reach world point `p` at `time` frames.
+    fn source_point(&self, p: Vec3, time: f32) -> Vec3 {
+        match self.moved(time) {
+            Some(d) => {
+                let index = self.density.world_to_index().transform_point3(p);
+                self.density
+                    .index_to_world()
+                    .transform_point3(d.source(index))
+            }
+            None => p,
+        }
+    }
+}
+
+/// The velocity grid read when `velocity_grid` is not given (Houdini's and Blender's name).
+pub const DEFAULT_VELOCITY_GRID: &str = "vel";
+
+/// The largest |time| of the shutter, in frames (0 without one).
+fn shutter_extent(spec: &VolumeSpec) -> f32 {
+    spec.shutter
+        .map_or(0.0, |s| s.open.abs().max(s.close.abs()))
 }
 
 impl Medium for GridMedium {
@@ -225,7 +391,11 @@ impl Medium for GridMedium {
                 ShadowEstimator::Ratio => TransmittanceMethod::RatioTracking,
                 ShadowEstimator::ResidualRatio => TransmittanceMethod::ResidualRatioTracking,
             },
-            why: if self.majorant_estimates.is_empty() {
+            why: if let Some(m) = &self.motion {
+                MethodReason::VelocityBlur {
+                    reach_voxels: m.reach_voxels,
+                }
+            } else if self.majorant_estimates.is_empty() {
                 MethodReason::Requested
             } else {
                 MethodReason::Pilot(self.majorant_estimates.clone())
@@ -240,10 +410,21 @@ impl Medium for GridMedium {
                 .emission
                 .as_ref()
                 .map_or(0, |e| e.temperature.memory_bytes())
+            + self.flame.as_ref().map_or(0, |f| f.grid.memory_bytes())
+            + self.albedo_grids.memory_bytes()
+            + self
+                .motion
+                .as_ref()
+                .map_or(0, |m| m.velocity.memory_bytes())
     }
 
     fn fill_bounds(&self) -> Option<Aabb> {
-        Some(self.density.bounds())
+        let b = self.majorants.local_bounds();
+        if b.is_empty() {
+            return Some(self.density.bounds());
+        }
+        // The majorants' bounds hold the field over the whole shutter (grown by the velocity reach).
+        Some(b.transformed(&self.density.index_to_world()))
     }
 
     fn warnings(&self) -> Vec<String> {
@@ -275,6 +456,10 @@ impl Medium for GridMedium {
 
     fn is_emissive(&self) -> bool {
         self.emission.as_ref().is_some_and(|e| e.scale > 0.0)
+            || self
+                .flame
+                .as_ref()
+                .is_some_and(|f| f.radiance.max_element() > 0.0)
     }
 
     fn sample_free_flight(
@@ -285,15 +470,20 @@ impl Medium for GridMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> Option<f32> {
-        sample_collision(
-            &self.density,
-            &self.majorants,
-            ray,
-            0.0,
-            t_max,
-            rng,
-            counters,
-        )
+        match self.moved(ray.time) {
+            Some(field) => {
+                sample_collision(&field, &self.majorants, ray, 0.0, t_max, rng, counters)
+            }
+            None => sample_collision(
+                &self.density,
+                &self.majorants,
+                ray,
+                0.0,
+                t_max,
+                rng,
+                counters,
+            ),
+        }
     }
 
     fn free_flight_weight(
@@ -309,17 +499,23 @@ impl Medium for GridMedium {
         Rgb::ONE
     }
 
-    fn collision(&self, p: Vec3) -> Collision {
-        let emission = match &self.emission {
+    fn collision(&self, p: Vec3, time: f32) -> Collision {
+        let p = self.source_point(p, time);
+        let albedo = self.albedo_grids.albedo_at(self.albedo, p);
+        let mut radiance = match &self.emission {
             Some(e) => {
                 let kelvin = e.temperature_scale * e.temperature.density(p) + e.temperature_offset;
-                (Rgb::ONE - self.albedo) * e.scale * e.table.lookup(kelvin)
+                e.scale * e.table.lookup(kelvin)
             }
             None => Rgb::ZERO,
         };
+        if let Some(f) = &self.flame {
+            radiance += f.radiance_at(p);
+        }
         Collision {
-            albedo: self.albedo,
-            emission,
+            albedo,
+            // σ_a L_e / σ_t, the collision estimator's weight of emission.
+            emission: (Rgb::ONE - albedo) * radiance,
             phase: self.phase,
         }
     }
@@ -331,25 +527,18 @@ impl Medium for GridMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> Rgb {
+        let moved = self.moved(ray.time);
+        let field: &dyn DensityField = match &moved {
+            Some(d) => d,
+            None => &self.density,
+        };
         let t = match self.shadow {
-            ShadowEstimator::Ratio => ratio_tracking(
-                &self.density,
-                &self.majorants,
-                ray,
-                0.0,
-                t_max,
-                rng,
-                counters,
-            ),
-            ShadowEstimator::ResidualRatio => residual_ratio_tracking(
-                &self.density,
-                &self.majorants,
-                ray,
-                0.0,
-                t_max,
-                rng,
-                counters,
-            ),
+            ShadowEstimator::Ratio => {
+                ratio_tracking(field, &self.majorants, ray, 0.0, t_max, rng, counters)
+            }
+            ShadowEstimator::ResidualRatio => {
+                residual_ratio_tracking(field, &self.majorants, ray, 0.0, t_max, rng, counters)
+            }
         };
         Rgb::splat(t)
     }

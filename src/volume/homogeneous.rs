@@ -208,7 +208,7 @@ impl Medium for HomogeneousMedium {
         }
     }
 
-    fn collision(&self, _p: Vec3) -> Collision {
+    fn collision(&self, _p: Vec3, _time: f32) -> Collision {
         // The weight σ_t T/p̄ multiplies by σ_t per channel, so the albedo here is σ_s/σ_t per channel and the
         // product is σ_s T/p̄, as the radiative transfer equation needs.
         let albedo = Rgb::new(
@@ -376,7 +376,7 @@ mod tests {
         for _ in 0..n {
             if let Some(t) = m.sample_free_flight(&ray, d, Rgb::ONE, &mut rng, &mut c) {
                 let w = (m.free_flight_weight(&ray, t, true, Rgb::ONE, &mut rng, &mut c)
-                    * m.collision(ray.at(t)).albedo)
+                    * m.collision(ray.at(t), 0.0).albedo)
                     .as_dvec3();
                 sum += w;
                 sum2 += w * w;

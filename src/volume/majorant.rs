@@ -310,7 +310,7 @@ impl Majorants {
         let repr = match kind {
             MajorantKind::Global => Repr::Global,
             MajorantKind::Grid16 => {
-                let (grid, values) = grid16(tree, s, bounds);
+                let (grid, values) = grid16_reaching(tree, s, bounds, Vec3::ZERO);
                 Repr::Grid { grid, values }
             }
             MajorantKind::Adaptive => {
@@ -328,6 +328,36 @@ impl Majorants {
             sigma_min: 0.0,
             sigma_max: global_max,
             repr,
+        }
+    }
+
+    /// A structure that bounds the field displaced by anything up to `reach` index units per axis: σ̄ over a
+    /// cell is the largest value a lookup within `reach` of the cell (one voxel more for trilinear reads) can
+    /// return, and the bounds grow by `reach`. Velocity motion blur looks density up at x − v·t, so these
+    /// majorants stay conservative over the shutter and delta tracking unbiased. `Global` keeps its maximum
+    /// over the grown bounds; `Grid16` and `Adaptive` give a 16³ grid over them (the adaptive hierarchy follows
+    /// the undisplaced tree). Minorants are 0.
+    pub fn build_reaching(kind: MajorantKind, field: &GridDensity, reach: Vec3) -> Self {
+        let tree = field.tree();
+        let s = field.scale();
+        let index_bounds = field.index_bounds();
+        let global_max = nonzero_regions(tree).fold(0.0f32, |m, r| m.max(r.range().1)) * s;
+        if index_bounds.is_empty() || global_max <= 0.0 {
+            return Self::global(Aabb::EMPTY, 0.0, 0.0);
+        }
+        let bounds = Aabb::new(index_bounds.min - reach, index_bounds.max + reach);
+        match kind {
+            MajorantKind::Global => Self::global(bounds, 0.0, global_max),
+            MajorantKind::Grid16 | MajorantKind::Adaptive => {
+                let (grid, values) = grid16_reaching(tree, s, bounds, reach);
+                Self {
+                    kind: MajorantKind::Grid16,
+                    bounds,
+                    sigma_min: 0.0,
+                    sigma_max: global_max,
+                    repr: Repr::Grid { grid, values },
+                }
+            }
         }
     }
 
@@ -376,6 +406,11 @@ impl Majorants {
     /// segments of constant density (`Segment::is_uniform`). The 16³ grid stores majorants only.
     pub fn stores_minorants(&self) -> bool {
         self.kind != MajorantKind::Grid16
+    }
+
+    /// The local-space box the structure covers (empty for an empty field).
+    pub fn local_bounds(&self) -> Aabb {
+        self.bounds
     }
 
     /// The largest majorant anywhere.
@@ -438,8 +473,9 @@ impl Majorants {
     }
 }
 
-/// The 16³ grid of maxima over `bounds`: each cell holds the largest value a trilinear lookup in it can read.
-fn grid16(tree: &FloatTree, s: f32, bounds: Aabb) -> (UniformGrid, Vec<f32>) {
+/// The 16³ grid of maxima over `bounds`: each cell holds the largest value a trilinear lookup within `reach`
+/// (index units per axis) of it can read.
+fn grid16_reaching(tree: &FloatTree, s: f32, bounds: Aabb, reach: Vec3) -> (UniformGrid, Vec<f32>) {
     let grid = UniformGrid {
         origin: bounds.min,
         cell: bounds.extent() / GRID16_RES as f32,
@@ -447,12 +483,13 @@ fn grid16(tree: &FloatTree, s: f32, bounds: Aabb) -> (UniformGrid, Vec<f32>) {
     };
     let mut values = vec![0.0f32; grid.cells()];
     for r in nonzero_regions(tree) {
-        // Positions [o - 1, o + e) can read the region: raise every cell overlapping them.
+        // Positions [o - 1, o + e) can read the region, and points within `reach` of them can be displaced
+        // there: raise every cell overlapping that box.
         let (o, e) = (r.origin(), r.edge());
-        let lo = ((((o - 1).as_vec3()) - grid.origin) / grid.cell)
+        let lo = ((((o - 1).as_vec3()) - reach - grid.origin) / grid.cell)
             .floor()
             .as_ivec3();
-        let up = (((o + e).as_vec3() - grid.origin) / grid.cell)
+        let up = (((o + e).as_vec3() + reach - grid.origin) / grid.cell)
             .floor()
             .as_ivec3();
         grid.raise(&mut values, lo, up, r.range().1 * s);

@@ -63,6 +63,12 @@ pub enum MethodReason {
     Requested,
     /// `auto`: the cheapest majorant structure in a fixed-seed pilot, with each structure's estimate.
     Pilot(Vec<MajorantEstimate>),
+    /// Velocity motion blur: a 16³ grid (or the global bound, if requested) dilated by the largest
+    /// displacement over the shutter.
+    VelocityBlur {
+        /// That displacement, in voxels along the widest axis.
+        reach_voxels: f32,
+    },
 }
 
 /// The method a medium uses, as reported by `--explain` and `--stats`.
@@ -159,6 +165,10 @@ impl fmt::Display for MediumMethod {
                             costs.join(", ")
                         )?;
                     }
+                    MethodReason::VelocityBlur { reach_voxels } => write!(
+                        f,
+                        " (velocity blur: majorants dilated by up to {reach_voxels:.1} voxels over the shutter)"
+                    )?,
                     _ => write!(f, " (as requested)")?,
                 }
                 if closed_form_segments {
@@ -200,6 +210,7 @@ impl serde::Serialize for MediumMethod {
             MethodReason::Forced => ("forced", &[][..]),
             MethodReason::Requested => ("requested", &[][..]),
             MethodReason::Pilot(estimates) => ("pilot", estimates.as_slice()),
+            MethodReason::VelocityBlur { .. } => ("velocity_blur", &[][..]),
         };
         let pilot: Vec<PilotEntry> = pilot.iter().map(PilotEntry::from).collect();
         let mut map = serializer.serialize_map(Some(7))?;

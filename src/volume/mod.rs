@@ -18,6 +18,7 @@
 //! - [`grid`]: VDB grids, delta tracking over subdivided majorants, ratio or residual ratio tracking for
 //!   shadow rays.
 
+pub mod channels;
 pub mod density;
 pub mod emission;
 pub mod error;
@@ -30,6 +31,7 @@ pub mod noise;
 pub mod phase;
 pub mod spec;
 pub mod tracking;
+pub mod velocity;
 
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 use crate::params::{
@@ -108,8 +110,9 @@ pub trait Medium: Send + Sync {
         counters: &mut TrackingCounters,
     ) -> Rgb;
 
-    /// Albedo, emission and phase function at a collision point.
-    fn collision(&self, p: Vec3) -> Collision;
+    /// Albedo, emission and phase function at a collision point, for a ray at `time` (frames from the frame;
+    /// a moving medium reads its values where they were at the frame).
+    fn collision(&self, p: Vec3, time: f32) -> Collision;
 
     /// An unbiased estimate of the transmittance over `(0, t_max)`.
     fn transmittance(

@@ -207,7 +207,7 @@ impl Medium for NoiseMedium {
         Rgb::splat(self.ratio_track(ray, t, rng, c))
     }
 
-    fn collision(&self, _p: Vec3) -> Collision {
+    fn collision(&self, _p: Vec3, _time: f32) -> Collision {
         Collision {
             albedo: Rgb::ZERO,
             emission: Rgb::ZERO,

@@ -102,6 +102,65 @@ const MISSING_FRAME: ParamKey = ParamKey {
           the first later one) or `empty` (no volume in that frame, with a warning)",
     usd: UsdBinding::Attribute,
 };
+const FLAME_GRID: ParamKey = ParamKey {
+    name: "flame_grid",
+    ty: ParamType::Text,
+    default: ParamDefault::Unset,
+    doc: "a scalar grid of flame intensity: L_e += flame_scale · flame · colour (emission is σ_a · L_e)",
+    usd: UsdBinding::Elsewhere("`fieldName` of the `field:flame` asset"),
+};
+const FLAME_SCALE: ParamKey = ParamKey {
+    name: "flame_scale",
+    ty: ParamType::NonNegative,
+    default: ParamDefault::Number(1.0),
+    doc: "multiplies the flame emission",
+    usd: UsdBinding::Attribute,
+};
+const FLAME_COLOR: ParamKey = ParamKey {
+    name: "flame_color",
+    ty: ParamType::GreyOrRgb,
+    default: ParamDefault::Unset,
+    doc:
+        "the flame's colour (linear RGB); without it, the normalised blackbody of flame_temperature",
+    usd: UsdBinding::Attribute,
+};
+const FLAME_TEMPERATURE: ParamKey = ParamKey {
+    name: "flame_temperature",
+    ty: ParamType::NonNegative,
+    default: ParamDefault::Number(1500.0),
+    doc: "Kelvin of the blackbody that colours the flame when flame_color is not given",
+    usd: UsdBinding::Attribute,
+};
+const COLOR_GRID: ParamKey = ParamKey {
+    name: "color_grid",
+    ty: ParamType::Text,
+    default: ParamDefault::Unset,
+    doc: "a vec3 (or scalar) colour grid, Houdini's `Cd`, multiplying the albedo",
+    usd: UsdBinding::Elsewhere("`fieldName` of the `field:Cd` asset"),
+};
+const ALBEDO_GRID: ParamKey = ParamKey {
+    name: "albedo_grid",
+    ty: ParamType::Text,
+    default: ParamDefault::Unset,
+    doc: "a scalar or vec3 grid multiplying the albedo: albedo(x) = albedo · albedo_grid · color_grid, \
+          clamped to [0, 1]",
+    usd: UsdBinding::Elsewhere("`fieldName` of the `field:albedo` asset"),
+};
+const VELOCITY_GRID: ParamKey = ParamKey {
+    name: "velocity_grid",
+    ty: ParamType::Text,
+    default: ParamDefault::Text("vel"),
+    doc: "with `--shutter`: the velocity (world units per second), a vec3 grid or the scalar grids \
+          `NAME.x/.y/.z`; the volume is blurred by looking up x − velocity_scale · v · t (none: no blur)",
+    usd: UsdBinding::Attribute,
+};
+const VELOCITY_SCALE: ParamKey = ParamKey {
+    name: "velocity_scale",
+    ty: ParamType::Number,
+    default: ParamDefault::Number(1.0),
+    doc: "multiplies the velocities (0 turns velocity blur off)",
+    usd: UsdBinding::Attribute,
+};
 const MAJORANT: ParamKey = ParamKey {
     name: "majorant",
     ty: ParamType::Choice(MAJORANT_CHOICES),
@@ -129,6 +188,14 @@ pub const VOLUME_KEYS: &[ParamKey] = &[
     EMISSION_SCALE,
     TEMPERATURE_SCALE,
     TEMPERATURE_OFFSET,
+    FLAME_GRID,
+    FLAME_SCALE,
+    FLAME_COLOR,
+    FLAME_TEMPERATURE,
+    COLOR_GRID,
+    ALBEDO_GRID,
+    VELOCITY_GRID,
+    VELOCITY_SCALE,
     MAJORANT,
     SHADOW_ESTIMATOR,
     FRAME_OFFSET,
@@ -187,6 +254,22 @@ pub struct VolumeSpec {
     pub temperature_scale: f32,
     /// Temperature offset, Kelvin.
     pub temperature_offset: f32,
+    /// Grid holding flame intensity, for flame emission.
+    pub flame_grid: Option<String>,
+    /// Flame emission multiplier.
+    pub flame_scale: f32,
+    /// The flame's colour; `None`: the blackbody of `flame_temperature`.
+    pub flame_color: Option<Rgb>,
+    /// Kelvin of the blackbody colouring the flame.
+    pub flame_temperature: f32,
+    /// Colour grid (Houdini's `Cd`) multiplying the albedo.
+    pub color_grid: Option<String>,
+    /// Albedo grid multiplying the albedo.
+    pub albedo_grid: Option<String>,
+    /// Velocity grid for motion blur; `None`: `vel` if the file has it (or `vel.x/.y/.z`).
+    pub velocity_grid: Option<String>,
+    /// Multiplier of the velocities.
+    pub velocity_scale: f32,
     /// The node's world matrix, applied after the VDB's own transform.
     pub node_to_world: Mat4,
     /// Majorant structure for tracking (`"majorant"`: `"auto"` (default; `None`, the cheapest by a pilot, see
@@ -226,6 +309,14 @@ impl VolumeSpec {
             emission_scale: 1.0,
             temperature_scale: 1.0,
             temperature_offset: 0.0,
+            flame_grid: None,
+            flame_scale: 1.0,
+            flame_color: None,
+            flame_temperature: 1500.0,
+            color_grid: None,
+            albedo_grid: None,
+            velocity_grid: None,
+            velocity_scale: 1.0,
             node_to_world,
             majorant: None,
             shadow_estimator: ShadowEstimator::Ratio,
@@ -321,6 +412,8 @@ impl VolumeSpec {
             (&DENSITY_SCALE, self.density_scale),
             (&EMISSION_SCALE, self.emission_scale),
             (&TEMPERATURE_SCALE, self.temperature_scale),
+            (&FLAME_SCALE, self.flame_scale),
+            (&FLAME_TEMPERATURE, self.flame_temperature),
         ] {
             if !v.is_finite() || v < 0.0 {
                 return Err(out_of_range(
@@ -337,6 +430,23 @@ impl VolumeSpec {
                 "be finite",
             ));
         }
+        if !self.velocity_scale.is_finite() {
+            return Err(out_of_range(
+                &VELOCITY_SCALE,
+                self.velocity_scale.to_string(),
+                "be finite",
+            ));
+        }
+        if let Some(c) = self
+            .flame_color
+            .filter(|c| !(c.is_finite() && c.min_element() >= 0.0))
+        {
+            return Err(out_of_range(
+                &FLAME_COLOR,
+                format!("{:?}", c.to_array()),
+                "be finite and non-negative",
+            ));
+        }
         Ok(())
     }
 
@@ -347,8 +457,19 @@ impl VolumeSpec {
         if let Some(g) = params.text(&DENSITY_GRID)? {
             self.density_grid = g;
         }
-        if let Some(g) = params.text(&TEMPERATURE_GRID)? {
-            self.temperature_grid = Some(g);
+        for (key, field) in [
+            (&TEMPERATURE_GRID, &mut self.temperature_grid),
+            (&FLAME_GRID, &mut self.flame_grid),
+            (&COLOR_GRID, &mut self.color_grid),
+            (&ALBEDO_GRID, &mut self.albedo_grid),
+            (&VELOCITY_GRID, &mut self.velocity_grid),
+        ] {
+            if let Some(g) = params.text(key)? {
+                *field = Some(g);
+            }
+        }
+        if let Some(c) = params.rgb(&FLAME_COLOR)? {
+            self.flame_color = Some(c);
         }
         for (key, field) in [
             (&DENSITY_SCALE, &mut self.density_scale),
@@ -356,6 +477,9 @@ impl VolumeSpec {
             (&EMISSION_SCALE, &mut self.emission_scale),
             (&TEMPERATURE_SCALE, &mut self.temperature_scale),
             (&TEMPERATURE_OFFSET, &mut self.temperature_offset),
+            (&FLAME_SCALE, &mut self.flame_scale),
+            (&FLAME_TEMPERATURE, &mut self.flame_temperature),
+            (&VELOCITY_SCALE, &mut self.velocity_scale),
         ] {
             if let Some(v) = params.number(key)? {
                 *field = v;

@@ -67,7 +67,13 @@ impl Loader<'_> {
     pub(super) fn volume(&mut self, prim: &usd::Prim, world: &Mat4) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
         let mut fields = Vec::new();
-        for name in ["field:density", "field:temperature"] {
+        for name in [
+            "field:density",
+            "field:temperature",
+            "field:flame",
+            "field:Cd",
+            "field:albedo",
+        ] {
             let targets = prim
                 .relationship(name)
                 .targets()
@@ -101,8 +107,7 @@ impl Loader<'_> {
             };
             fields.push(field);
         }
-        let (Some((file, density_grid)), temperature) = (fields[0].clone(), fields[1].clone())
-        else {
+        let Some((file, density_grid)) = fields[0].clone() else {
             self.warn(format!(
                 "{at}: Volume without a field:density relationship; skipped"
             ));
@@ -110,14 +115,22 @@ impl Loader<'_> {
         };
         let mut spec = VolumeSpec::new(&at, file.clone(), *world);
         spec.density_grid = density_grid;
-        if let Some((t_file, t_grid)) = temperature {
-            if t_file != file {
-                return Err(self.error(
-                    &at,
-                    "density and temperature fields must come from the same VDB file",
-                ));
+        let channels = [
+            &mut spec.temperature_grid,
+            &mut spec.flame_grid,
+            &mut spec.color_grid,
+            &mut spec.albedo_grid,
+        ];
+        for (field, slot) in fields[1..].iter().zip(channels) {
+            if let Some((other_file, grid)) = field {
+                if *other_file != file {
+                    return Err(self.error(
+                        &at,
+                        "every field of a Volume (density, temperature, flame, Cd, albedo) must come from the same VDB file",
+                    ));
+                }
+                *slot = Some(grid.clone());
             }
-            spec.temperature_grid = Some(t_grid);
         }
         spec.read_params(&UsdParams(prim)).map_err(|e| {
             SceneError::new(

@@ -1,0 +1,253 @@
+//! Velocity motion blur and pyro channels of grid media against closed forms.
+//!
+//! The fixture `tests/scenes/pyro_box.vdb` (made by `assets/make_shot.py`) holds a box of density 1 on voxels
+//! [0, 15]³ of 0.0625 m, so a trilinear lookup reads the trapezoid f(i) = clamp(min(i + 1, 16 − i), 0, 1) along
+//! each index axis, and a ray along z through the interior of x and y sees an optical depth of exactly
+//! density_scale × 1 m (15 voxels at 1 plus two ramps of half a voxel each). Its velocity is 2 m/s along +x
+//! everywhere (`vel`, and `v.x/v.y/v.z`), its flame 1 wherever density can be read, its `albedo` grid 0 and its
+//! `Cd` grid (1, 0.5, 0.25).
+
+use nimbus::frames::Shutter;
+use nimbus::math::{Ray, Rng, Vec3};
+use nimbus::scene::{LoadOptions, Scene};
+use nimbus::volume::TrackingCounters;
+use std::path::PathBuf;
+
+mod common;
+
+const VOXEL: f64 = 0.0625;
+const SPEED: f64 = 2.0;
+const FPS: f64 = 24.0;
+const SIGMA: f64 = 2.0;
+
+/// The trapezoid a trilinear lookup of the box reads along x at world coordinate `x` (metres).
+fn box_profile(x: f64) -> f64 {
+    let i = x / VOXEL;
+    (i + 1.0).min(16.0 - i).clamp(0.0, 1.0)
+}
+
+/// A glTF with the box's volume (extra `nimbus_volume` keys in `extra`) at the origin, in a fresh folder.
+fn scene_file(test: &str, extra: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nimbus-motion-{test}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vdb = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/pyro_box.vdb");
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+        "nodes":[{{"name":"box","extras":{{"nimbus_volume":{{"file":{:?},"density_scale":{SIGMA}{extra}}}}}}}]}}"#,
+        vdb.to_str().unwrap()
+    );
+    let path = dir.join("box.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    path
+}
+
+fn load(path: &std::path::Path, shutter: Option<Shutter>) -> Scene {
+    nimbus::scene::load_builder(
+        path,
+        &LoadOptions {
+            shutter,
+            fps: Some(FPS),
+            ..LoadOptions::default()
+        },
+    )
+    .unwrap()
+    .build()
+    .unwrap()
+}
+
+/// The time-averaged transmittance along z at world x = `x0` (y inside the box) over `shutter`: the mean over
+/// the shutter of exp(−σ · 1 m · f(x0 − scale·v·τ)), τ in seconds, by the midpoint rule with 200,000 steps.
+fn averaged_transmittance(x0: f64, shutter: Shutter, velocity_scale: f64) -> f64 {
+    let n = 200_000;
+    let (open, close) = (shutter.open as f64 / FPS, shutter.close as f64 / FPS);
+    (0..n)
+        .map(|k| {
+            let tau = open + (close - open) * (k as f64 + 0.5) / n as f64;
+            (-SIGMA * box_profile(x0 - velocity_scale * SPEED * tau)).exp()
+        })
+        .sum::<f64>()
+        / n as f64
+}
+
+/// Ratio-tracking and delta-tracking (escape) estimates of the transmittance along z at x = `x0`, with ray times
+/// uniform over the shutter: (ratio mean, its s.e., escape fraction, its s.e., majorant violations).
+fn estimates(scene: &Scene, x0: f32, shutter: Shutter, n: usize) -> (f64, f64, f64, f64, u64) {
+    let medium = &scene.media()[0];
+    let mut counters = TrackingCounters::default();
+    let (mut sum, mut sum2, mut escaped) = (0.0f64, 0.0f64, 0usize);
+    for i in 0..n {
+        let mut rng = Rng::for_sample(7, 0, i as u64);
+        let time = shutter.time_at(rng.next_f32());
+        let ray = Ray::new(Vec3::new(x0, 0.5, -1.0), Vec3::Z).at_time(time);
+        let t = medium.transmittance(&ray, 3.0, &mut rng, &mut counters).x as f64;
+        sum += t;
+        sum2 += t * t;
+        if medium
+            .sample_free_flight(&ray, 3.0, Vec3::ONE, &mut rng, &mut counters)
+            .is_none()
+        {
+            escaped += 1;
+        }
+    }
+    let nf = n as f64;
+    let mean = sum / nf;
+    let se = ((sum2 / nf - mean * mean).max(0.0) / nf).sqrt();
+    let p = escaped as f64 / nf;
+    let p_se = (p * (1.0 - p) / nf).sqrt();
+    (mean, se, p, p_se, counters.majorant_violations)
+}
+
+fn assert_blur(scene: &Scene, x0: f64, shutter: Shutter, velocity_scale: f64) {
+    let expected = averaged_transmittance(x0, shutter, velocity_scale);
+    let (mean, se, escape, escape_se, violations) = estimates(scene, x0 as f32, shutter, 20_000);
+    println!(
+        "x0 {x0} shutter {shutter}: closed form {expected:.5}, ratio tracking {mean:.5} ± {se:.5}, \
+         escape {escape:.5} ± {escape_se:.5}, violations {violations}"
+    );
+    assert!(
+        (mean - expected).abs() <= 4.0 * se + 1e-4,
+        "ratio tracking {mean} ± {se} vs {expected}"
+    );
+    assert!(
+        (escape - expected).abs() <= 4.0 * escape_se + 1e-4,
+        "delta tracking escape {escape} ± {escape_se} vs {expected}"
+    );
+    assert_eq!(violations, 0, "majorants must bound the displaced density");
+}
+
+#[test]
+fn a_box_moving_at_constant_velocity_blurs_to_the_time_averaged_transmittance() {
+    let path = scene_file("vec3", "");
+    let centred = Shutter::parse("-6,6").unwrap();
+    let scene = load(&path, Some(centred));
+    // Beyond the box's frame-time edge (x = 1 m): covered part of the shutter only.
+    assert_blur(&scene, 1.2, centred, 1.0);
+    // Inside: covered all the shutter, partly by the ramp.
+    assert_blur(&scene, 0.5, centred, 1.0);
+    // Before its left edge.
+    assert_blur(&scene, -0.4, centred, 1.0);
+    // A shutter after the frame only: the box has moved along +x, never back (the sign of the velocity).
+    let after = Shutter::parse("0,6").unwrap();
+    let scene = load(&path, Some(after));
+    assert_blur(&scene, 1.2, after, 1.0);
+    let expected = averaged_transmittance(1.2, after, 1.0);
+    let backwards = averaged_transmittance(1.2, after, -1.0);
+    assert!(
+        (expected - backwards).abs() > 0.3,
+        "the fixture must tell +v from -v"
+    );
+}
+
+#[test]
+fn velocity_components_and_scale_blur_alike() {
+    let shutter = Shutter::parse("-6,6").unwrap();
+    let scene = load(
+        &scene_file("components", r#","velocity_grid":"v""#),
+        Some(shutter),
+    );
+    assert_blur(&scene, 1.2, shutter, 1.0);
+    let scene = load(
+        &scene_file("scale", r#","velocity_scale":0.5"#),
+        Some(shutter),
+    );
+    assert_blur(&scene, 1.1, shutter, 0.5);
+}
+
+#[test]
+fn without_a_shutter_the_box_stays_at_its_frame() {
+    let path = scene_file("still", "");
+    let scene = load(&path, None);
+    let medium = &scene.media()[0];
+    let mut c = TrackingCounters::default();
+    let mut rng = Rng::for_sample(1, 0, 0);
+    for x0 in [1.2f32, -0.4] {
+        let ray = Ray::new(Vec3::new(x0, 0.5, -1.0), Vec3::Z);
+        assert_eq!(medium.transmittance(&ray, 3.0, &mut rng, &mut c).x, 1.0);
+    }
+    assert!(!medium.method().to_string().contains("velocity"));
+    // A named velocity grid the file lacks is an error, naming it.
+    let err = nimbus::scene::load_builder(
+        &scene_file("missing", r#","velocity_grid":"wind""#),
+        &LoadOptions {
+            shutter: Some(Shutter::parse("-0.5,0.5").unwrap()),
+            ..LoadOptions::default()
+        },
+    )
+    .err()
+    .expect("fails")
+    .to_string();
+    assert!(err.contains("'wind'"), "{err}");
+}
+
+#[test]
+fn explain_names_the_dilated_majorants() {
+    let scene = load(
+        &scene_file("explain", ""),
+        Some(Shutter::parse("-6,6").unwrap()),
+    );
+    let method = scene.media()[0].method().to_string();
+    // 2 m/s × 0.25 s = 0.5 m = 8 voxels.
+    assert!(method.contains("dilated by up to 8.0 voxels"), "{method}");
+}
+
+/// Renders the box (centred on the origin) seen along −z through a 0.05 rad field of view, so every ray crosses
+/// the interior: mean and s.e. per channel of the 16 pixels.
+fn render_box(extra: &str, max_depth: u32) -> [(f64, f64); 3] {
+    let dir = std::env::temp_dir().join(format!(
+        "nimbus-motion-render{max_depth}-{}-{}",
+        extra.len(),
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("box.gltf");
+    let vdb = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/pyro_box.vdb");
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+        "nodes":[{{"name":"box","translation":[-0.5,-0.5,-0.5],"extras":{{"nimbus_volume":{{"file":{:?},"density_scale":{SIGMA}{extra}}}}}}},
+        {{"name":"camera","camera":0,"translation":[0,0,3]}}],
+        "cameras":[{{"type":"perspective","perspective":{{"yfov":0.05,"znear":0.01}}}}]}}"#,
+        vdb.to_str().unwrap()
+    );
+    std::fs::write(&path, gltf).unwrap();
+    let builder = nimbus::scene::load_builder(&path, &LoadOptions::default()).unwrap();
+    let (img, stats) = common::render_square(builder, 4, 256, max_depth, 3);
+    assert_eq!(stats.nan_samples, 0);
+    [0, 1, 2].map(|c| common::mean_and_se(&img, c))
+}
+
+#[test]
+fn flame_emission_through_an_absorbing_box_matches_the_closed_form() {
+    // albedo_grid 0: a pure absorber, L = flame_scale · colour · (1 − e^−σ).
+    let colour = [1.0, 0.5, 0.25];
+    let got = render_box(
+        r#","albedo_grid":"albedo","flame_grid":"flame","flame_scale":3.0,"flame_color":[1.0,0.5,0.25]"#,
+        8,
+    );
+    let opacity = 1.0 - (-SIGMA).exp();
+    for c in 0..3 {
+        let expected = 3.0 * colour[c] * opacity;
+        let (mean, se) = got[c];
+        println!("flame channel {c}: {mean:.4} ± {se:.4}, closed form {expected:.4}");
+        assert!(
+            (mean - expected).abs() <= 4.0 * se + 2e-3 * expected,
+            "channel {c}"
+        );
+    }
+}
+
+#[test]
+fn a_colour_grid_sets_the_albedo_that_emission_leaves() {
+    // Cd = (1, 0.5, 0.25) is the albedo; with no scattering counted (max depth 0) the first collision's
+    // emission (1 − albedo) · L_e is all: L = (1 − Cd) · flame_scale · (1 − e^−σ).
+    let got = render_box(
+        r#","color_grid":"Cd","flame_grid":"flame","flame_scale":2.0,"flame_color":1.0"#,
+        0,
+    );
+    let opacity = 1.0 - (-SIGMA).exp();
+    for (c, cd) in [1.0, 0.5, 0.25].into_iter().enumerate() {
+        let expected = (1.0 - cd) * 2.0 * opacity;
+        let (mean, se) = got[c];
+        println!("Cd channel {c}: {mean:.4} ± {se:.4}, closed form {expected:.4}");
+        assert!((mean - expected).abs() <= 4.0 * se + 2e-3, "channel {c}");
+    }
+}
