@@ -7,7 +7,8 @@
                                 v.x v.y v.z  the same velocity as three FloatGrids (backgrounds 2, 0, 0)
                                 flame    FloatGrid, 1.0 on voxels [-2, 17]^3 (covers every lookup of density)
                                 albedo   FloatGrid, no voxels, background 0 (an albedo factor of 0)
-                                Cd       Vec3SGrid, (1, 0.5, 0.25) on voxels [-2, 17]^3, background (1, 1, 1)
+                                Cd       Vec3SGrid on voxels [-2, 17]^3: ((i + 2) / 19, 0.5, 0.25) at index
+                                         (i, j, k), a red ramp along x; background (1, 1, 1)
   assets/shot/shot.gltf       the animated shot over that sequence (frames 1..24 at 24 fps): the camera dollies
                               in, a red box crosses in front of the cloud, spinning, and a sun lights it
   assets/shot/cloud.NNNN.vdb  with --sequence: the bundled cloud (assets/cloud.vdb) advected over frames
@@ -87,7 +88,11 @@ def pyro_box(root):
     fill(flame, -2, 17, 1.0)
     albedo = float_grid("albedo", 0.0, BOX_VOXEL)
     cd = vec3_grid("Cd", (1.0, 1.0, 1.0), BOX_VOXEL)
-    fill(cd, -2, 17, (1.0, 0.5, 0.25))
+    acc = cd.getAccessor()
+    for i in range(-2, 18):
+        for j in range(-2, 18):
+            for k in range(-2, 18):
+                acc.setValueOn((i, j, k), ((i + 2) / 19.0, 0.5, 0.25))
     out = os.path.join(root, "tests", "scenes", "pyro_box.vdb")
     write_vdb(out, [density, vel, *parts, flame, albedo, cd], {"creator": "nimbus assets/make_shot.py"})
     print("wrote", out, os.path.getsize(out), "bytes")

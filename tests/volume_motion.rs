@@ -5,7 +5,7 @@
 //! each index axis, and a ray along z through the interior of x and y sees an optical depth of exactly
 //! density_scale × 1 m (15 voxels at 1 plus two ramps of half a voxel each). Its velocity is 2 m/s along +x
 //! everywhere (`vel`, and `v.x/v.y/v.z`), its flame 1 wherever density can be read, its `albedo` grid 0 and its
-//! `Cd` grid (1, 0.5, 0.25).
+//! `Cd` grid ((i + 2) / 19, 0.5, 0.25) at index (i, j, k): a red ramp along x.
 
 use nimbus::frames::Shutter;
 use nimbus::math::{Ray, Rng, Vec3};
@@ -237,17 +237,61 @@ fn flame_emission_through_an_absorbing_box_matches_the_closed_form() {
 
 #[test]
 fn a_colour_grid_sets_the_albedo_that_emission_leaves() {
-    // Cd = (1, 0.5, 0.25) is the albedo; with no scattering counted (max depth 0) the first collision's
-    // emission (1 − albedo) · L_e is all: L = (1 − Cd) · flame_scale · (1 − e^−σ).
+    // Cd's green and blue, 0.5 and 0.25, are the albedo there; with no scattering counted (max depth 0) the first
+    // collision's emission (1 − albedo) · L_e is all: L = (1 − Cd) · flame_scale · (1 − e^−σ).
     let got = render_box(
         r#","color_grid":"Cd","flame_grid":"flame","flame_scale":2.0,"flame_color":1.0"#,
         0,
     );
     let opacity = 1.0 - (-SIGMA).exp();
-    for (c, cd) in [1.0, 0.5, 0.25].into_iter().enumerate() {
+    for (c, cd) in [(1, 0.5), (2, 0.25)] {
         let expected = (1.0 - cd) * 2.0 * opacity;
         let (mean, se) = got[c];
         println!("Cd channel {c}: {mean:.4} ± {se:.4}, closed form {expected:.4}");
         assert!((mean - expected).abs() <= 4.0 * se + 2e-3, "channel {c}");
+    }
+}
+
+#[test]
+fn albedo_follows_the_colour_and_albedo_grids_where_the_node_places_them() {
+    // The node moves the grids by (0.3, 0, 0) and the constant albedo is 0.8: at world x the red albedo is
+    // 0.8 · ((x − 0.3)/0.0625 + 2)/19 (trilinear reads of a linear ramp are exact); green 0.8 · 0.5.
+    let dir = std::env::temp_dir().join(format!("nimbus-motion-albedo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vdb = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/pyro_box.vdb");
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+        "nodes":[{{"name":"box","translation":[0.3,0,0],"extras":{{"nimbus_volume":{{"file":{:?},
+        "albedo":0.8,"color_grid":"Cd"}}}}}}]}}"#,
+        vdb.to_str().unwrap()
+    );
+    let path = dir.join("albedo.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    let scene = load(&path, None);
+    let medium = &scene.media()[0];
+    let mut rng = Rng::for_sample(5, 0, 0);
+    for _ in 0..200 {
+        let p = Vec3::new(
+            0.3 - 0.1 + 1.15 * rng.next_f32(),
+            1.0 * rng.next_f32(),
+            1.0 * rng.next_f32(),
+        );
+        let a = medium.collision(p, 0.0).albedo;
+        let red = 0.8 * ((p.x as f64 - 0.3) / VOXEL + 2.0) / 19.0;
+        assert!((a.x as f64 - red).abs() < 1e-4, "at {p}: {} vs {red}", a.x);
+        assert!((a.y - 0.4).abs() < 1e-5 && (a.z - 0.2).abs() < 1e-5, "{a}");
+    }
+    // Blurred, the colour moves with the velocity: at 6 frames (0.25 s at 2 m/s) x reads x − 0.5 m.
+    let scene = load(&path, Some(Shutter::parse("-6,6").unwrap()));
+    let medium = &scene.media()[0];
+    for x in [0.75f32, 1.0, 1.3] {
+        let p = Vec3::new(x, 0.5, 0.5);
+        let a = medium.collision(p, 6.0).albedo;
+        let red = 0.8 * ((x as f64 - 0.5 - 0.3) / VOXEL + 2.0) / 19.0;
+        assert!(
+            (a.x as f64 - red).abs() < 1e-4,
+            "at {p}, 6 frames: {} vs {red}",
+            a.x
+        );
     }
 }
