@@ -274,3 +274,68 @@ fn gltf_animations_are_sampled_at_the_frame_time() {
     assert!((at(Some(100), None).0 - 10.0).abs() < 1e-5);
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A USD stage whose `Volume` reads a sequence through a time-sampled `filePath` (UsdVol's way of naming one),
+/// over the folder of [`sequence_scene`].
+#[test]
+fn usd_time_sampled_file_paths_read_the_frame_s_file() {
+    let (dir, _) = sequence_scene("usdvol", "");
+    // tests/usd/sequence.usdc (made by tests/usd/make_sequence_stage.py): filePath is grid.0001.vdb at time
+    // code 1 and grid.0003.vdb at 3, at 24 time codes and 24 frames per second.
+    let stage = dir.join("shot.usdc");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/usd/sequence.usdc"),
+        &stage,
+    )
+    .unwrap();
+    let first = volume_bounds(&stage, 1).unwrap();
+    let third = volume_bounds(&stage, 3).unwrap();
+    assert_ne!(first, third, "frames 1 and 3 name different files");
+    assert_eq!(volume_bounds(&dir.join("shot.gltf"), 3), Some(third));
+    // Between samples the earlier file is held (asset paths do not interpolate).
+    assert_eq!(volume_bounds(&stage, 2), Some(first));
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// USD `Volume` prims take the pyro channels as `field:flame`, `field:Cd` and `field:albedo` relationships.
+#[test]
+fn usd_volumes_read_flame_and_colour_fields() {
+    let dir = std::env::temp_dir().join(format!("nimbus-shots-{}-usdpyro", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vdb = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/pyro_box.vdb");
+    let field = |name: &str, grid: &str| {
+        format!(
+            "def OpenVDBAsset \"{name}\"\n{{\ntoken fieldName = \"{grid}\"\nasset filePath = @{}@\n}}\n",
+            vdb.display()
+        )
+    };
+    let stage = dir.join("pyro.usda");
+    std::fs::write(
+        &stage,
+        format!(
+            "#usda 1.0\ndef Volume \"Fire\"\n{{\ncustom rel field:density = </Fire/density>\n\
+             custom rel field:flame = </Fire/flame>\ncustom rel field:Cd = </Fire/Cd>\n\
+             custom float nimbus:flame_scale = 3\ncustom color3f nimbus:flame_color = (1, 0.5, 0.25)\n{}{}{}}}\n",
+            field("density", "density"),
+            field("flame", "flame"),
+            field("Cd", "Cd"),
+        ),
+    )
+    .unwrap();
+    let builder = load_frame(&stage, 1).unwrap();
+    let medium = &builder.media()[0];
+    assert!(medium.is_emissive());
+    let c = medium.collision(nimbus::math::Vec3::new(0.5, 0.5, 0.5), 0.0);
+    // Cd at x = 0.5 m (index 8): red (8 + 2)/19, green 0.5, blue 0.25; emission (1 − Cd) · 3 · (1, 0.5, 0.25).
+    let red = 10.0 / 19.0;
+    assert!((c.albedo.x - red).abs() < 1e-5 && (c.albedo.y - 0.5).abs() < 1e-6);
+    let expected = [(1.0 - red) * 3.0, 0.5 * 3.0 * 0.5, 0.75 * 3.0 * 0.25];
+    for (got, want) in c.emission.to_array().iter().zip(expected) {
+        assert!(
+            (got - want).abs() < 1e-4,
+            "{:?} vs {expected:?}",
+            c.emission
+        );
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
