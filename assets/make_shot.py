@@ -7,6 +7,7 @@
                                 v.x v.y v.z  the same velocity as three FloatGrids (backgrounds 2, 0, 0)
                                 flame    FloatGrid, 1.0 on voxels [-2, 17]^3 (covers every lookup of density)
                                 albedo   FloatGrid, no voxels, background 0 (an albedo factor of 0)
+                                rgb_density  Vec3SGrid, (1, 2, 4) on voxels [0, 15]^3: an RGB extinction
                                 Cd       Vec3SGrid on voxels [-2, 17]^3: ((i + 2) / 19, 0.5, 0.25) at index
                                          (i, j, k), a red ramp along x; background (1, 1, 1)
   assets/shot/shot.gltf       the animated shot over that sequence (frames 1..24 at 24 fps): the camera dollies
@@ -93,8 +94,11 @@ def pyro_box(root):
         for j in range(-2, 18):
             for k in range(-2, 18):
                 acc.setValueOn((i, j, k), ((i + 2) / 19.0, 0.5, 0.25))
+    rgb = vec3_grid("rgb_density", (0.0, 0.0, 0.0), BOX_VOXEL)
+    rgb.gridClass = vdb.GridClass.FOG_VOLUME
+    fill(rgb, 0, 15, (1.0, 2.0, 4.0))
     out = os.path.join(root, "tests", "scenes", "pyro_box.vdb")
-    write_vdb(out, [density, vel, *parts, flame, albedo, cd], {"creator": "nimbus assets/make_shot.py"})
+    write_vdb(out, [density, vel, *parts, flame, albedo, cd, rgb], {"creator": "nimbus assets/make_shot.py"})
     print("wrote", out, os.path.getsize(out), "bytes")
 
 

@@ -46,6 +46,30 @@ pub struct PathSample {
     pub depth: f32,
 }
 
+/// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
+/// weighted by 1/p_c, so the new throughput Σβ · e_c has the old one as its expectation (unbiased). Media whose
+/// extinction differs by channel ([`Medium::is_chromatic`](crate::volume::Medium::is_chromatic)) then track
+/// that channel alone, analog. Spectral renderers sample one wavelength per path the same way; the cost is
+/// colour noise. A path already carrying one channel is unchanged.
+fn carry_one_channel(beta: &mut Rgb, rng: &mut Rng) {
+    let carried = beta.to_array().iter().filter(|&&b| b > 0.0).count();
+    if carried <= 1 {
+        return;
+    }
+    let sum = beta.element_sum();
+    let u = rng.next_f32() * sum;
+    let channel = if u < beta.x {
+        0
+    } else if u < beta.x + beta.y {
+        1
+    } else {
+        2
+    };
+    let mut one = Rgb::ZERO;
+    one[channel] = sum;
+    *beta = one;
+}
+
 /// The path tracer and its settings.
 #[derive(Clone, Copy, Debug)]
 pub struct PathTracer {
@@ -159,6 +183,13 @@ impl PathTracer {
     ) -> Option<(f32, u32)> {
         let scene = services.scene();
         let media = services.segment_media(ray, t_surface, &s.stack);
+        if media
+            .ids()
+            .iter()
+            .any(|&m| scene.media[m as usize].is_chromatic())
+        {
+            carry_one_channel(&mut s.beta, rng);
+        }
         let mut nearest: Option<(f32, u32)> = None;
         let throughput = s.beta;
         for &m in media.ids() {

@@ -678,6 +678,60 @@ impl<T: VoxelValue> Tree<T> {
         self.finalize();
     }
 
+    /// The tree of the same topology whose every stored value (voxels, tiles, background) is `f` of this one's,
+    /// with the node ranges recomputed: one channel of a vector grid, for instance.
+    pub fn map<U: VoxelValue>(&self, f: impl Fn(T) -> U) -> Tree<U> {
+        // Node ranges are placeholders until `finalize` recomputes them from the new values.
+        fn node<T: Copy, U, const L: i32, const C: i32>(
+            n: &InternalNode<T, L, C>,
+            f: &impl Fn(T) -> U,
+        ) -> InternalNode<U, L, C> {
+            InternalNode {
+                origin: n.origin,
+                children: n.children.clone(),
+                tiles: n.tiles.iter().map(|v| f(*v)).collect(),
+                value_mask: n.value_mask.clone(),
+                min: f(n.min),
+                max: f(n.max),
+            }
+        }
+        let mut tree = Tree {
+            background: f(self.background),
+            root: Root {
+                entries: self
+                    .root
+                    .entries
+                    .iter()
+                    .map(|(k, s)| {
+                        let slot = match s {
+                            RootSlot::Tile { value, active } => RootSlot::Tile {
+                                value: f(*value),
+                                active: *active,
+                            },
+                            RootSlot::Child(c) => RootSlot::Child(*c),
+                        };
+                        (*k, slot)
+                    })
+                    .collect(),
+            },
+            uppers: self.uppers.iter().map(|n| node(n, &f)).collect(),
+            lowers: self.lowers.iter().map(|n| node(n, &f)).collect(),
+            leaves: self
+                .leaves
+                .iter()
+                .map(|l| Leaf {
+                    origin: l.origin,
+                    value_mask: l.value_mask,
+                    values: l.values.map(&f),
+                    min: f(l.min),
+                    max: f(l.max),
+                })
+                .collect(),
+        };
+        tree.finalize();
+        tree
+    }
+
     /// The value at index coordinate `p`: the stored voxel or tile value, or the background outside the tree.
     #[inline]
     pub fn value(&self, p: IVec3) -> T {

@@ -66,6 +66,23 @@ struct Emission {
     temperature_offset: f32,
 }
 
+/// Runs `$call` with `$f` bound to `$channel` (a `&GridDensity`) as a ray at `$time` sees it: displaced along
+/// the velocity when the medium moves, else as it is (static dispatch in both cases: the hot path of tracking).
+macro_rules! with_field {
+    ($medium:expr, $channel:expr, $time:expr, |$f:ident| $call:expr) => {
+        match $medium.moved($channel, $time) {
+            Some(displaced) => {
+                let $f = &displaced;
+                $call
+            }
+            None => {
+                let $f: &GridDensity = $channel;
+                $call
+            }
+        }
+    };
+}
+
 /// Places a named scalar grid of the volume's file: as an extinction with a density scale, or (`None`) as a
 /// plain scalar field.
 type PlaceGrid<'a> = dyn Fn(&str, Option<f32>) -> Result<GridDensity, VolumeError> + 'a;
@@ -93,6 +110,9 @@ pub struct GridMedium {
     flame: Option<Flame>,
     albedo_grids: AlbedoGrids,
     motion: Option<Motion>,
+    /// For an RGB (vec3) density grid, σ_t per channel; `density` is then their maximum, which the majorants
+    /// bound.
+    channels: Option<Box<[GridDensity; 3]>>,
 }
 
 impl GridMedium {
@@ -140,6 +160,7 @@ impl GridMedium {
             flame: None,
             albedo_grids: AlbedoGrids::default(),
             motion: None,
+            channels: None,
         }
     }
 
@@ -191,14 +212,30 @@ impl GridMedium {
                 source,
             })
         };
-        let density = place(&spec.density_grid, Some(spec.density_scale))?;
+        let (density, channels) = match file.grid(&spec.density_grid) {
+            Some(g) if g.tree.as_vec3().is_some() => {
+                let (max, channels) =
+                    rgb_density(g, spec).map_err(|source| VolumeError::Density {
+                        file: spec.file.clone(),
+                        grid: spec.density_grid.clone(),
+                        source,
+                    })?;
+                (max, Some(Box::new(channels)))
+            }
+            _ => (place(&spec.density_grid, Some(spec.density_scale))?, None),
+        };
         let motion = match spec.shutter {
             Some(shutter) => Self::load_motion(spec, &file, shutter)?,
             None => None,
         };
-        if let Some((velocity, seconds_per_frame)) = motion {
-            let longest = shutter_extent(spec);
-            let reach = velocity.reach(longest * seconds_per_frame);
+        if motion.is_some() || channels.is_some() {
+            // Moving or chromatic: majorants without minorants (no constant-density shortcuts, which would hold
+            // for the channels' maximum only), dilated over the shutter when the medium moves.
+            let reach = motion
+                .as_ref()
+                .map_or(Vec3::ZERO, |(velocity, seconds_per_frame)| {
+                    velocity.reach(shutter_extent(spec) * seconds_per_frame)
+                });
             let kind = match spec.majorant {
                 Some(MajorantKind::Global) => MajorantKind::Global,
                 _ => MajorantKind::Grid16,
@@ -213,12 +250,13 @@ impl GridMedium {
                 spec.anisotropy,
             )
             .with_shadow_estimator(spec.shadow_estimator);
-            medium.motion = Some(Motion {
+            medium.motion = motion.map(|(velocity, seconds_per_frame)| Motion {
                 velocity,
                 seconds_per_frame,
                 reach_voxels: reach.max_element(),
             });
             medium.load_channels(spec, &file, &place)?;
+            medium.channels = channels;
             return Ok(medium);
         }
         let medium = match spec.majorant {
@@ -249,6 +287,7 @@ impl GridMedium {
         };
         let mut medium = medium.with_shadow_estimator(spec.shadow_estimator);
         medium.load_channels(spec, &file, &place)?;
+        medium.channels = channels;
         Ok(medium)
     }
 
@@ -344,10 +383,10 @@ impl GridMedium {
     }
 
     /// The density as seen by a ray at `time` frames: displaced along the velocity when the medium moves.
-    fn moved(&self, time: f32) -> Option<Displaced<'_>> {
+    fn moved<'a>(&'a self, channel: &'a GridDensity, time: f32) -> Option<Displaced<'a>> {
         let m = self.motion.as_ref()?;
         (time != 0.0).then_some(Displaced {
-            density: &self.density,
+            density: channel,
             velocity: &m.velocity,
             seconds: time * m.seconds_per_frame,
         })
@@ -355,7 +394,7 @@ impl GridMedium {
 
     /// The world point whose frame-time values reach world point `p` at `time` frames.
     fn source_point(&self, p: Vec3, time: f32) -> Vec3 {
-        match self.moved(time) {
+        match self.moved(&self.density, time) {
             Some(d) => {
                 let index = self.density.world_to_index().transform_point3(p);
                 self.density
@@ -365,6 +404,32 @@ impl GridMedium {
             None => p,
         }
     }
+}
+
+/// The σ_t fields of an RGB density grid: their per-voxel maximum (which the majorants and the pilot use) and
+/// each channel, each `density_scale` times the grid's component, placed like a scalar density grid.
+fn rgb_density(
+    grid: &crate::vdb::Grid,
+    spec: &VolumeSpec,
+) -> Result<(GridDensity, [GridDensity; 3]), super::DensityError> {
+    let Some(tree) = grid.tree.as_vec3() else {
+        return Err(super::DensityError::NotScalar);
+    };
+    let index_to_world = spec.node_to_world.as_dmat4() * grid.index_to_world;
+    let field = |values: crate::vdb::FloatTree| {
+        GridDensity::from_tree(
+            Arc::new(crate::vdb::GridTree::Float(values)),
+            index_to_world,
+            spec.density_scale,
+        )
+    };
+    let max = field(tree.map(|v| v.max_element()))?;
+    let channels = [
+        field(tree.map(|v| v.x))?,
+        field(tree.map(|v| v.y))?,
+        field(tree.map(|v| v.z))?,
+    ];
+    Ok((max, channels))
 }
 
 /// The velocity grid read when `velocity_grid` is not given (Houdini's and Blender's name).
@@ -395,6 +460,8 @@ impl Medium for GridMedium {
                 MethodReason::VelocityBlur {
                     reach_voxels: m.reach_voxels,
                 }
+            } else if self.channels.is_some() {
+                MethodReason::ChromaticExtinction
             } else if self.majorant_estimates.is_empty() {
                 MethodReason::Requested
             } else {
@@ -454,6 +521,10 @@ impl Medium for GridMedium {
         false
     }
 
+    fn is_chromatic(&self) -> bool {
+        self.channels.is_some()
+    }
+
     fn is_emissive(&self) -> bool {
         self.emission.as_ref().is_some_and(|e| e.scale > 0.0)
             || self
@@ -466,24 +537,25 @@ impl Medium for GridMedium {
         &self,
         ray: &Ray,
         t_max: f32,
-        _throughput: Rgb,
+        throughput: Rgb,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> Option<f32> {
-        match self.moved(ray.time) {
-            Some(field) => {
-                sample_collision(&field, &self.majorants, ray, 0.0, t_max, rng, counters)
-            }
-            None => sample_collision(
-                &self.density,
-                &self.majorants,
-                ray,
-                0.0,
-                t_max,
-                rng,
-                counters,
-            ),
-        }
+        // An RGB density tracks the one channel the path carries (the integrator makes it carry one, see
+        // `Medium::is_chromatic`): delta tracking in it is analog, over the majorants of the channels' maximum.
+        let channel = match &self.channels {
+            Some(ch) => &ch[throughput.max_position()],
+            None => &self.density,
+        };
+        with_field!(self, channel, ray.time, |field| sample_collision(
+            field,
+            &self.majorants,
+            ray,
+            0.0,
+            t_max,
+            rng,
+            counters
+        ))
     }
 
     fn free_flight_weight(
@@ -527,20 +599,37 @@ impl Medium for GridMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> Rgb {
-        let moved = self.moved(ray.time);
-        let field: &dyn DensityField = match &moved {
-            Some(d) => d,
-            None => &self.density,
-        };
-        let t = match self.shadow {
-            ShadowEstimator::Ratio => {
-                ratio_tracking(field, &self.majorants, ray, 0.0, t_max, rng, counters)
-            }
+        let mut estimate = |channel: &GridDensity, rng: &mut Rng| match self.shadow {
+            ShadowEstimator::Ratio => with_field!(self, channel, ray.time, |f| ratio_tracking(
+                f,
+                &self.majorants,
+                ray,
+                0.0,
+                t_max,
+                rng,
+                counters
+            )),
             ShadowEstimator::ResidualRatio => {
-                residual_ratio_tracking(field, &self.majorants, ray, 0.0, t_max, rng, counters)
+                with_field!(self, channel, ray.time, |f| residual_ratio_tracking(
+                    f,
+                    &self.majorants,
+                    ray,
+                    0.0,
+                    t_max,
+                    rng,
+                    counters
+                ))
             }
         };
-        Rgb::splat(t)
+        match &self.channels {
+            // Each channel's own estimate (each unbiased), over the shared majorants.
+            Some(ch) => Rgb::new(
+                estimate(&ch[0], rng),
+                estimate(&ch[1], rng),
+                estimate(&ch[2], rng),
+            ),
+            None => Rgb::splat(estimate(&self.density, rng)),
+        }
     }
 }
 

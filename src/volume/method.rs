@@ -169,6 +169,10 @@ impl fmt::Display for MediumMethod {
                         f,
                         " (velocity blur: majorants dilated by up to {reach_voxels:.1} voxels over the shutter)"
                     )?,
+                    MethodReason::ChromaticExtinction => write!(
+                        f,
+                        " (RGB density: a path tracks the one channel it carries, chosen by throughput; majorants of the channels' maximum)"
+                    )?,
                     _ => write!(f, " (as requested)")?,
                 }
                 if closed_form_segments {

@@ -86,6 +86,12 @@ pub trait Medium: Send + Sync {
         false
     }
 
+    /// True when σ_t varies by channel in a way the medium cannot sample for all channels at once (an RGB
+    /// density grid): the integrator then makes the path carry one channel before the medium tracks it.
+    fn is_chromatic(&self) -> bool {
+        false
+    }
+
     /// Proposes the distance of the next real collision in `(0, t_max)`, or `None`. `throughput` is the path's
     /// current throughput, which chromatic media use to choose the channel to sample.
     fn sample_free_flight(

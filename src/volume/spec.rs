@@ -34,7 +34,7 @@ const DENSITY_GRID: ParamKey = ParamKey {
     name: "density_grid",
     ty: ParamType::Text,
     default: ParamDefault::Text("density"),
-    doc: "the grid holding density ρ",
+    doc: "the grid holding density ρ: scalar, or vec3 for an RGB extinction (σ_t per channel)",
     usd: UsdBinding::Elsewhere("`fieldName` of the `field:density` asset"),
 };
 const DENSITY_SCALE: ParamKey = ParamKey {
