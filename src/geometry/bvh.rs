@@ -94,15 +94,23 @@ impl Node {
 /// test after Woop et al. 2013, robust slab test after Williams et al. 2005 and Ize 2013).
 #[derive(Clone, Debug)]
 pub struct Bvh {
-    /// 4-wide nodes; the root is node 0.
-    nodes: Vec<Node4>,
-    /// Bounds of all triangles.
-    bounds: Aabb,
+    /// The hierarchy over the triangles' boxes.
+    tree: Tree,
     /// Triangles in leaf order.
     triangles: Vec<[Vec3; 3]>,
-    /// For each entry of `triangles`, its index in the input list.
+}
+
+/// The node hierarchy over primitive boxes and its traversal, shared by [`Bvh`] (static triangles) and
+/// [`crate::geometry::MotionBvh`] (moving ones), which differ only in what a leaf holds and how it is hit.
+#[derive(Clone, Debug)]
+pub(super) struct Tree {
+    /// 4-wide nodes; the root is node 0.
+    nodes: Vec<Node4>,
+    /// Bounds of all primitives.
+    bounds: Aabb,
+    /// For each primitive in leaf order, its index in the input list.
     prim_ids: Vec<u32>,
-    /// Number of triangles given to `build` (including those left out as non-finite).
+    /// Number of primitives given to the build (including those left out as non-finite).
     input_count: usize,
     /// The most traversal-stack entries any ray can need in this tree.
     stack_needed: usize,
@@ -110,13 +118,22 @@ pub struct Bvh {
 
 /// A triangle reference during the build: its bounds and input index.
 #[derive(Clone, Copy, Debug)]
-struct PrimRef {
+pub(super) struct PrimRef {
     min: Vec3,
     max: Vec3,
     id: u32,
 }
 
 impl PrimRef {
+    /// The reference to input primitive `id` with box `bounds`.
+    pub(super) fn new(bounds: Aabb, id: u32) -> Self {
+        Self {
+            min: bounds.min,
+            max: bounds.max,
+            id,
+        }
+    }
+
     fn centroid(&self) -> Vec3 {
         (self.min + self.max) * 0.5
     }
@@ -476,7 +493,7 @@ impl TraversalRay {
 /// A hint to bring the cache line at `p` into the cache; it never faults and has no other effect.
 #[inline(always)]
 #[allow(unsafe_code)] // the crate's one unsafe block (see SAFETY below)
-fn prefetch(p: *const i8) {
+pub(super) fn prefetch(p: *const i8) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
@@ -508,44 +525,24 @@ impl Bvh {
     /// and are left out; degenerate (zero-area) triangles are kept and never hit. An empty list gives an
     /// empty hierarchy. More than [`Bvh::MAX_TRIANGLES`] triangles is an error.
     pub fn build(triangles: &[[Vec3; 3]]) -> Result<Bvh, TooManyTriangles> {
-        if triangles.len() > Self::MAX_TRIANGLES {
-            return Err(TooManyTriangles(triangles.len()));
-        }
-        let mut refs: Vec<PrimRef> = triangles
+        let refs = triangles
             .iter()
             .enumerate()
             .filter(|(_, t)| t.iter().all(|v| v.is_finite()))
-            .map(|(i, t)| PrimRef {
-                min: t[0].min(t[1]).min(t[2]),
-                max: t[0].max(t[1]).max(t[2]),
-                id: i as u32,
+            .map(|(i, t)| {
+                PrimRef::new(
+                    Aabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])),
+                    i as u32,
+                )
             })
             .collect();
-        let (nodes, bounds): (Vec<Node4>, Aabb) = if refs.is_empty() {
-            (Vec::new(), Aabb::EMPTY)
-        } else {
-            let (root, desc) = build_parallel(&mut refs, 0, 0);
-            let mut binary = Vec::with_capacity(1 + desc.len());
-            binary.push(root.shifted(1));
-            binary.extend(desc.into_iter().map(|n| n.shifted(1)));
-            let bounds = Aabb::new(Vec3::from_array(root.min), Vec3::from_array(root.max));
-            (collapse(&binary), bounds)
-        };
-        let stack_needed = if nodes.is_empty() {
-            0
-        } else {
-            stack_needed(&nodes, 0)
-        };
-        // The object-median splits below SAH_MAX_DEPTH bound the depth, and so the stack, by construction.
-        debug_assert!(stack_needed <= STACK_MAX);
-        Ok(Bvh {
-            nodes,
-            bounds,
-            stack_needed,
-            triangles: refs.iter().map(|r| triangles[r.id as usize]).collect(),
-            prim_ids: refs.iter().map(|r| r.id).collect(),
-            input_count: triangles.len(),
-        })
+        let tree = Tree::build(refs, triangles.len())?;
+        let triangles = tree
+            .prim_ids
+            .iter()
+            .map(|&id| triangles[id as usize])
+            .collect();
+        Ok(Bvh { tree, triangles })
     }
 
     /// The closest hit with `t_min <= t <= t_max`, from either side of a triangle. Among hits at exactly
@@ -569,11 +566,7 @@ impl Bvh {
         t_max: f32,
         accept: &impl Fn(&TriangleHit) -> bool,
     ) -> Option<TriangleHit> {
-        if self.stack_needed <= STACK_SMALL {
-            self.traverse::<false, STACK_SMALL>(ray, t_min, t_max, accept)
-        } else {
-            self.traverse::<false, STACK_MAX>(ray, t_min, t_max, accept)
-        }
+        self.query::<false>(ray, t_min, t_max, accept)
     }
 
     /// As [`Self::occluded`], counting only the hits that `accept` keeps.
@@ -584,15 +577,121 @@ impl Bvh {
         t_max: f32,
         accept: &impl Fn(&TriangleHit) -> bool,
     ) -> bool {
-        if self.stack_needed <= STACK_SMALL {
-            self.traverse::<true, STACK_SMALL>(ray, t_min, t_max, accept)
-                .is_some()
-        } else {
-            self.traverse::<true, STACK_MAX>(ray, t_min, t_max, accept)
-                .is_some()
-        }
+        self.query::<true>(ray, t_min, t_max, accept).is_some()
     }
 
+    /// The tree's traversal with this hierarchy's leaves: the triangles, stored in leaf order.
+    #[inline(always)]
+    fn query<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        accept: &impl Fn(&TriangleHit) -> bool,
+    ) -> Option<TriangleHit> {
+        self.tree.query::<ANY_HIT>(
+            ray,
+            t_min,
+            t_max,
+            &|i, r, t0, t1| intersect_triangle(r, &self.triangles[i], t0, t1),
+            &|i| prefetch(&self.triangles[i] as *const [Vec3; 3] as *const i8),
+            accept,
+        )
+    }
+
+    /// Bounds of all (finite) triangles; [`Aabb::EMPTY`] for an empty hierarchy.
+    pub fn bounds(&self) -> Aabb {
+        self.tree.bounds
+    }
+
+    /// Heap and inline bytes held: nodes, reordered triangles and their input indices.
+    pub fn memory_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.tree.heap_bytes()
+            + self.triangles.capacity() * std::mem::size_of::<[Vec3; 3]>()
+    }
+
+    /// Number of triangles given to [`Bvh::build`], including any left out as non-finite.
+    pub fn triangle_count(&self) -> usize {
+        self.tree.input_count
+    }
+}
+
+impl Tree {
+    /// Builds the hierarchy over `refs`, the boxes of the primitives that can be hit among `input_count`
+    /// (see [`Bvh::build`]).
+    pub(super) fn build(
+        mut refs: Vec<PrimRef>,
+        input_count: usize,
+    ) -> Result<Tree, TooManyTriangles> {
+        if input_count > Bvh::MAX_TRIANGLES {
+            return Err(TooManyTriangles(input_count));
+        }
+        let (nodes, bounds): (Vec<Node4>, Aabb) = if refs.is_empty() {
+            (Vec::new(), Aabb::EMPTY)
+        } else {
+            let (root, desc) = build_parallel(&mut refs, 0, 0);
+            let mut binary = Vec::with_capacity(1 + desc.len());
+            binary.push(root.shifted(1));
+            binary.extend(desc.into_iter().map(|n| n.shifted(1)));
+            let bounds = Aabb::new(Vec3::from_array(root.min), Vec3::from_array(root.max));
+            (collapse(&binary), bounds)
+        };
+        let stack_needed = if nodes.is_empty() {
+            0
+        } else {
+            stack_needed(&nodes, 0)
+        };
+        // The object-median splits below SAH_MAX_DEPTH bound the depth, and so the stack, by construction.
+        debug_assert!(stack_needed <= STACK_MAX);
+        Ok(Tree {
+            nodes,
+            bounds,
+            stack_needed,
+            prim_ids: refs.iter().map(|r| r.id).collect(),
+            input_count,
+        })
+    }
+
+    /// For each primitive in leaf order, its index in the input list.
+    pub(super) fn prim_ids(&self) -> &[u32] {
+        &self.prim_ids
+    }
+
+    /// Bounds of all primitives that can be hit.
+    pub(super) fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// Number of primitives given to the build.
+    pub(super) fn input_count(&self) -> usize {
+        self.input_count
+    }
+
+    /// Heap bytes held by the nodes and the input indices.
+    pub(super) fn heap_bytes(&self) -> usize {
+        self.nodes.capacity() * std::mem::size_of::<Node4>()
+            + self.prim_ids.capacity() * std::mem::size_of::<u32>()
+    }
+
+    /// The closest (or with `ANY_HIT` the first found) hit with `t_min <= t <= t_max` that `accept` keeps;
+    /// `leaf(i, ray, t0, t1)` intersects primitive `i` of the leaf order, `prefetch_leaf(i)` starts loading it.
+    #[inline(always)]
+    pub(super) fn query<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        leaf: &impl Fn(usize, &WatertightRay, f32, f32) -> Option<(f32, f32, f32)>,
+        prefetch_leaf: &impl Fn(usize),
+        accept: &impl Fn(&TriangleHit) -> bool,
+    ) -> Option<TriangleHit> {
+        if self.stack_needed <= STACK_SMALL {
+            self.traverse::<ANY_HIT, STACK_SMALL>(ray, t_min, t_max, leaf, prefetch_leaf, accept)
+        } else {
+            self.traverse::<ANY_HIT, STACK_MAX>(ray, t_min, t_max, leaf, prefetch_leaf, accept)
+        }
+    }
     /// Stack-based traversal of the 4-wide tree with a stack of `STACK` entries. Stack entries name a child slot (`node·4 + slot`) and its
     /// entry distance; the hit children of a node are pushed farthest first, so the nearest is visited
     /// next, and an entry is dropped when popped if a closer hit has been found since. With `ANY_HIT` the
@@ -603,6 +702,8 @@ impl Bvh {
         ray: &Ray,
         t_min: f32,
         t_max: f32,
+        leaf: &impl Fn(usize, &WatertightRay, f32, f32) -> Option<(f32, f32, f32)>,
+        prefetch_leaf: &impl Fn(usize),
         accept: &impl Fn(&TriangleHit) -> bool,
     ) -> Option<TriangleHit> {
         // A non-finite origin or direction, or a NaN interval, meets nothing. Such a ray would make every
@@ -629,7 +730,7 @@ impl Bvh {
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
-                self.prefetch_slot(&self.nodes[node], i);
+                self.prefetch_slot(&self.nodes[node], i, prefetch_leaf);
                 let entry = ((node * 4 + i) as u32, near[i]);
                 // `stack_needed` bounds `sp` for any ray that reaches here; a full stack is still a miss of
                 // the rest, never an overrun.
@@ -665,12 +766,8 @@ impl Bvh {
                     node = child;
                     break;
                 }
-                let range = child..child + count;
-                for (tri, &prim) in self.triangles[range.clone()]
-                    .iter()
-                    .zip(&self.prim_ids[range])
-                {
-                    if let Some((t, b1, b2)) = intersect_triangle(&r.tri, tri, t_min, best_t) {
+                for (i, &prim) in self.prim_ids[child..child + count].iter().enumerate() {
+                    if let Some((t, b1, b2)) = leaf(child + i, &r.tri, t_min, best_t) {
                         let hit = TriangleHit { t, prim, b1, b2 };
                         if (t < best_t || best.is_none_or(|b| prim < b.prim)) && accept(&hit) {
                             if ANY_HIT {
@@ -687,40 +784,22 @@ impl Bvh {
     }
 
     /// Starts loading what visiting child `i` of `node` will read, so that the memory latency overlaps the
-    /// work on its siblings: the child's node (two cache lines) or the leaf's first triangles.
+    /// work on its siblings: the child's node (two cache lines) or the leaf's first primitive.
     #[inline(always)]
-    fn prefetch_slot(&self, node: &Node4, i: usize) {
+    fn prefetch_slot(&self, node: &Node4, i: usize, prefetch_leaf: &impl Fn(usize)) {
         let child = node.child[i] as usize;
         if node.count[i] == 0 {
             let p = &self.nodes[child] as *const Node4 as *const i8;
             prefetch(p);
             prefetch(p.wrapping_add(64));
         } else {
-            prefetch(&self.triangles[child] as *const [Vec3; 3] as *const i8);
+            prefetch_leaf(child);
         }
-    }
-
-    /// Bounds of all (finite) triangles; [`Aabb::EMPTY`] for an empty hierarchy.
-    pub fn bounds(&self) -> Aabb {
-        self.bounds
-    }
-
-    /// Heap and inline bytes held: nodes, reordered triangles and their input indices.
-    pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of::<Self>()
-            + self.nodes.capacity() * std::mem::size_of::<Node4>()
-            + self.triangles.capacity() * std::mem::size_of::<[Vec3; 3]>()
-            + self.prim_ids.capacity() * std::mem::size_of::<u32>()
-    }
-
-    /// Number of triangles given to [`Bvh::build`], including any left out as non-finite.
-    pub fn triangle_count(&self) -> usize {
-        self.input_count
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::math::sampling::uniform_sphere;
     use crate::math::Rng;
@@ -787,11 +866,11 @@ mod tests {
         tris
     }
 
-    fn random_point(rng: &mut Rng, lo: Vec3, hi: Vec3) -> Vec3 {
+    pub(in crate::geometry) fn random_point(rng: &mut Rng, lo: Vec3, hi: Vec3) -> Vec3 {
         lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())
     }
 
-    fn soup(rng: &mut Rng, n: usize) -> Vec<[Vec3; 3]> {
+    pub(in crate::geometry) fn soup(rng: &mut Rng, n: usize) -> Vec<[Vec3; 3]> {
         (0..n)
             .map(|i| {
                 let c = random_point(rng, Vec3::splat(-10.0), Vec3::splat(10.0));
@@ -809,7 +888,7 @@ mod tests {
     }
 
     /// A random ray, sometimes with zero or negative-zero direction components.
-    fn random_ray(rng: &mut Rng, lo: Vec3, hi: Vec3) -> Ray {
+    pub(in crate::geometry) fn random_ray(rng: &mut Rng, lo: Vec3, hi: Vec3) -> Ray {
         let o = random_point(rng, lo, hi);
         let mut d = uniform_sphere(rng.next_2d());
         match rng.next_u32() % 8 {
@@ -831,7 +910,7 @@ mod tests {
         Ray::new(o, d)
     }
 
-    fn random_interval(rng: &mut Rng) -> (f32, f32) {
+    pub(in crate::geometry) fn random_interval(rng: &mut Rng) -> (f32, f32) {
         match rng.next_u32() % 4 {
             0 => (0.0, f32::INFINITY),
             1 => (rng.next_f32() * 5.0, f32::INFINITY),
@@ -1078,8 +1157,8 @@ mod tests {
                 .install(|| Bvh::build(&tris).unwrap())
         };
         let (a, b) = (build_with(1), build_with(3));
-        assert!(a.nodes.len() > tris.len() / (4 * MAX_LEAF));
-        assert_eq!(a.nodes, b.nodes);
-        assert_eq!(a.prim_ids, b.prim_ids);
+        assert!(a.tree.nodes.len() > tris.len() / (4 * MAX_LEAF));
+        assert_eq!(a.tree.nodes, b.tree.nodes);
+        assert_eq!(a.tree.prim_ids, b.tree.prim_ids);
     }
 }

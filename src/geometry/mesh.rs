@@ -1,6 +1,7 @@
 //! World-space triangle meshes. Loaders flatten instances: each node's mesh is transformed to world space once,
 //! so the BVH and the integrator see one list of triangles.
 
+use super::motion::{lerp, MotionSteps, MovingTriangle};
 use crate::math::{Aabb, Mat4, Vec2, Vec3, Vec4};
 
 /// A triangle mesh in world space with per-vertex attributes.
@@ -24,6 +25,46 @@ pub struct Mesh {
     pub indices: Vec<[u32; 3]>,
     /// Index of the material in the scene.
     pub material: u32,
+    /// The mesh's world positions and normals across the shutter when it moves (transform motion blur);
+    /// `None` for a static mesh. `positions` and `normals` above stay the pose at the frame's time, which
+    /// area lights, tangents and the scene bounds use.
+    pub motion: Option<MeshMotion>,
+}
+
+/// Vertex motion steps of a moving mesh (see [`crate::geometry::MotionBvh`]): its world positions and normals
+/// at `steps.count` instants evenly spaced over the shutter, one entry per vertex of the mesh at each step
+/// (the triangles are the mesh's). Rays at time `t` see the vertices interpolated between the two steps
+/// around `t`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshMotion {
+    /// When the steps are.
+    pub steps: MotionSteps,
+    /// World positions at each step, each as long as the mesh's `positions`.
+    pub positions: Vec<Vec<Vec3>>,
+    /// Unit world normals at each step, each as long as the mesh's `normals`.
+    pub normals: Vec<Vec<Vec3>>,
+}
+
+impl MeshMotion {
+    /// Triangle `idx` at every step, for [`crate::geometry::MotionBvh::build`].
+    pub fn triangle(&self, idx: [u32; 3]) -> MovingTriangle {
+        MovingTriangle {
+            steps: self.steps,
+            vertices: self
+                .positions
+                .iter()
+                .map(|p| idx.map(|i| p[i as usize]))
+                .collect(),
+        }
+    }
+
+    /// The positions and (unnormalised) normals of the vertices `idx` at `time`: bit for bit the triangle
+    /// [`MovingTriangle::at`] gives the hierarchy.
+    pub fn at(&self, idx: [usize; 3], time: f32) -> ([Vec3; 3], [Vec3; 3]) {
+        let (i, f) = self.steps.segment(time);
+        let mix = |values: &[Vec<Vec3>]| idx.map(|v| lerp(values[i][v], values[i + 1][v], f));
+        (mix(&self.positions), mix(&self.normals))
+    }
 }
 
 impl Mesh {
@@ -68,6 +109,14 @@ impl Mesh {
                 *t = xyz.extend(t.w);
             }
         }
+        if let Some(motion) = &mut self.motion {
+            for p in motion.positions.iter_mut().flatten() {
+                *p = m.transform_point3(*p);
+            }
+            for n in motion.normals.iter_mut().flatten() {
+                *n = normal_matrix.transform_vector3(*n).normalize_or_zero();
+            }
+        }
         if m.determinant() < 0.0 {
             for tri in &mut self.indices {
                 tri.swap(1, 2);
@@ -78,21 +127,30 @@ impl Mesh {
     /// Gives a mesh without normals flat ones: every triangle gets its own three vertices (their other
     /// attributes copied) with the face normal. glTF 2.0 §3.7.2.1 requires flat normals where NORMAL is absent,
     /// and an OBJ without `vn` is faceted; smoothing over shared corners would bend a box's normals by up to
-    /// 55° at its edges and shade them dark.
+    /// 55° at its edges and shade them dark. A moving mesh's steps get their own flat normals the same way.
     pub fn generate_normals(&mut self) {
         fn unweld<T: Copy>(values: &mut Option<Vec<T>>, indices: &[[u32; 3]]) {
             if let Some(v) = values {
                 *v = indices.iter().flatten().map(|&i| v[i as usize]).collect();
             }
         }
+        fn flat(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
+            indices
+                .iter()
+                .flat_map(|t| {
+                    let [a, b, c] = t.map(|i| positions[i as usize]);
+                    [(b - a).cross(c - a).try_normalize().unwrap_or(Vec3::Y); 3]
+                })
+                .collect()
+        }
         let indices = std::mem::take(&mut self.indices);
-        self.normals = indices
-            .iter()
-            .flat_map(|t| {
-                let [a, b, c] = t.map(|i| self.positions[i as usize]);
-                [(b - a).cross(c - a).try_normalize().unwrap_or(Vec3::Y); 3]
-            })
-            .collect();
+        self.normals = flat(&self.positions, &indices);
+        if let Some(motion) = &mut self.motion {
+            motion.normals = motion.positions.iter().map(|p| flat(p, &indices)).collect();
+            for p in &mut motion.positions {
+                *p = indices.iter().flatten().map(|&i| p[i as usize]).collect();
+            }
+        }
         let mut positions = Some(std::mem::take(&mut self.positions));
         unweld(&mut positions, &indices);
         self.positions = positions.unwrap_or_default();

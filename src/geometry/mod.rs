@@ -1,13 +1,15 @@
 //! Surface geometry: world-space triangle meshes, the watertight ray–triangle test, the bounding volume
-//! hierarchy over all triangles, and the robust spawning of rays off surfaces.
+//! hierarchies over static and moving triangles, and the robust spawning of rays off surfaces.
 
 mod bvh;
 mod mesh;
+mod motion;
 mod spawn;
 mod tangents;
 mod triangle;
 
 pub use bvh::{Bvh, TooManyTriangles};
-pub use mesh::Mesh;
+pub use mesh::{Mesh, MeshMotion};
+pub use motion::{lerp, MotionBvh, MotionSteps, MovingTriangle};
 pub use spawn::{ShadowSegment, SurfacePoint};
 pub use triangle::TriangleHit;

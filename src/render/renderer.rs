@@ -16,6 +16,10 @@ use rayon::prelude::*;
 use std::ops::Range;
 use std::time::{Duration, Instant};
 
+/// Mixed into the seed of the stream that draws each camera ray's shutter time, so that it is independent of
+/// the path's own stream (the first 64 bits of π's fraction).
+const SHUTTER_STREAM: u64 = 0x243f_6a88_85a3_08d3;
+
 /// How to render.
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
@@ -414,11 +418,22 @@ impl Renderer {
                             (x as f32 + jitter.x) / width as f32,
                             (y as f32 + jitter.y) / height as f32,
                         );
-                        let mut ray = scene.camera.generate_ray(film_pos, aspect);
-                        if let Some(shutter) = scene.shutter {
-                            // A box shutter: the time is uniform over the interval.
-                            ray = ray.at_time(shutter.time_at(rng.next_f32()));
-                        }
+                        let ray = match scene.shutter {
+                            // A box shutter: the time is uniform over the interval, drawn from a stream of
+                            // its own so that the path's numbers are those of a render without a shutter
+                            // (a still scene renders bit for bit the same with one).
+                            Some(shutter) => {
+                                let u = Rng::for_sample(
+                                    s.seed ^ SHUTTER_STREAM,
+                                    pixel_index,
+                                    sample as u64,
+                                )
+                                .next_f32();
+                                let time = shutter.time_at(u);
+                                scene.camera.generate_ray_at(film_pos, aspect, time)
+                            }
+                            None => scene.camera.generate_ray(film_pos, aspect),
+                        };
                         let result = tracer.trace(&services, ray, &mut rng, &mut counters);
                         if !is_finite_rgb(result.radiance) {
                             nans += 1;

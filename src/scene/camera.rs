@@ -1,7 +1,12 @@
 //! The perspective pinhole camera (glTF `camera.perspective`: `yfov` vertical field of view, `aspectRatio`).
 //! The camera looks down its local −Z axis with +Y up, as in glTF.
+//!
+//! Camera motion blur: a camera that moves across the shutter carries its rigid poses at the motion steps
+//! ([`CameraMotion`]); a ray at time `t` starts from the pose between the two steps around `t`, its position
+//! interpolated linearly and its rotation by slerp ([`Camera::generate_ray_at`]).
 
-use crate::math::{Aabb, Mat4, Ray, Vec2, Vec3};
+use crate::geometry::MotionSteps;
+use crate::math::{Aabb, Mat4, Quat, Ray, Vec2, Vec3};
 
 /// A pinhole camera.
 #[derive(Clone, Debug, PartialEq)]
@@ -12,6 +17,50 @@ pub struct Camera {
     pub yfov: f32,
     /// Width / height from the scene file, used when the user gives only a width.
     pub aspect_ratio: Option<f32>,
+    /// The camera's poses across the shutter when it moves (camera motion blur); `None` for a still camera,
+    /// which is at `camera_to_world` at every time.
+    pub motion: Option<CameraMotion>,
+}
+
+/// A moving camera's rigid poses at its motion steps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraMotion {
+    /// When the poses are.
+    pub steps: MotionSteps,
+    /// The position and rotation of the camera-to-world transform at each step.
+    pub poses: Vec<(Vec3, Quat)>,
+}
+
+impl CameraMotion {
+    /// The poses of rigid camera-to-world matrices (see [`Camera::rigid`]) at `steps`.
+    pub fn from_matrices(steps: MotionSteps, matrices: &[Mat4]) -> Self {
+        let poses = matrices
+            .iter()
+            .map(|m| (m.w_axis.truncate(), Quat::from_mat4(m).normalize()))
+            .collect();
+        Self { steps, poses }
+    }
+
+    /// The camera-to-world matrix at `time`: the position lerped and the rotation slerped (along the shorter
+    /// arc) between the poses around it; held at the end poses outside the steps.
+    pub fn camera_to_world_at(&self, time: f32) -> Mat4 {
+        let (i, f) = self.steps.segment(time);
+        let ((p0, q0), (p1, q1)) = (self.poses[i], self.poses[i + 1]);
+        Mat4::from_rotation_translation(q0.slerp(q1, f), p0.lerp(p1, f))
+    }
+
+    /// Whether every pose is finite, and there is one per step (at least two).
+    pub fn is_valid(&self) -> bool {
+        self.steps.count >= 2
+            && self.poses.len() == self.steps.count as usize
+            && self.steps.open.is_finite()
+            && self.steps.close.is_finite()
+            && self.steps.open <= self.steps.close
+            && self
+                .poses
+                .iter()
+                .all(|(p, q)| p.is_finite() && q.is_finite() && q.length() > 0.5)
+    }
 }
 
 impl Camera {
@@ -26,6 +75,7 @@ impl Camera {
             camera_to_world: Mat4::look_at_rh(eye, target, up).inverse(),
             yfov,
             aspect_ratio: None,
+            motion: None,
         }
     }
 
@@ -92,6 +142,7 @@ impl Camera {
             camera_to_world: Mat4::look_at_rh(eye, center, up).inverse(),
             yfov,
             aspect_ratio: None,
+            motion: None,
         }
     }
 
@@ -125,14 +176,29 @@ impl Camera {
     /// The primary ray through film position `film` in \[0,1\]² ((0,0) = top-left) for an image of `aspect`
     /// = width / height.
     pub fn generate_ray(&self, film: Vec2, aspect: f32) -> Ray {
+        self.ray_from(&self.camera_to_world, film, aspect)
+    }
+
+    /// The primary ray through `film` (as [`Self::generate_ray`]) at `time` (frames from the frame): from the
+    /// camera's pose at that time when it moves ([`CameraMotion::camera_to_world_at`]), else from its one
+    /// pose; the ray carries the time.
+    pub fn generate_ray_at(&self, film: Vec2, aspect: f32, time: f32) -> Ray {
+        match &self.motion {
+            Some(m) => self.ray_from(&m.camera_to_world_at(time), film, aspect),
+            None => self.generate_ray(film, aspect),
+        }
+        .at_time(time)
+    }
+
+    /// The ray through `film` for the camera-to-world matrix `to_world`.
+    fn ray_from(&self, to_world: &Mat4, film: Vec2, aspect: f32) -> Ray {
         let tan_half = (self.yfov * 0.5).tan();
         let x = (2.0 * film.x - 1.0) * tan_half * aspect;
         let y = (1.0 - 2.0 * film.y) * tan_half;
-        let dir = self
-            .camera_to_world
+        let dir = to_world
             .transform_vector3(Vec3::new(x, y, -1.0))
             .normalize();
-        Ray::new(self.position(), dir)
+        Ray::new(to_world.transform_point3(Vec3::ZERO), dir)
     }
 }
 
@@ -153,5 +219,53 @@ mod tests {
             "top edge is +45°: {:?}",
             top.dir
         );
+    }
+
+    /// A camera translating along x from −1 to 3 over three steps while turning 90° about y: a ray at time t
+    /// starts at the lerp of the neighbouring positions and looks along the slerped rotation.
+    #[test]
+    fn a_moving_camera_interpolates_its_poses() {
+        let steps = MotionSteps {
+            open: -0.5,
+            close: 0.5,
+            count: 3,
+        };
+        let pose = |x: f32, angle: f32| {
+            Mat4::from_rotation_translation(Quat::from_rotation_y(angle), Vec3::new(x, 1.0, 2.0))
+        };
+        let quarter = std::f32::consts::FRAC_PI_2;
+        let matrices = [
+            pose(-1.0, 0.0),
+            pose(0.0, quarter * 0.5),
+            pose(3.0, quarter),
+        ];
+        let mut cam = Camera::look_at(Vec3::ZERO, -Vec3::Z, 60f32.to_radians());
+        cam.camera_to_world = matrices[1];
+        cam.motion = Some(CameraMotion::from_matrices(steps, &matrices));
+        for (time, x, angle) in [
+            (-0.5, -1.0, 0.0),
+            (-0.25, -0.5, quarter * 0.25),
+            (0.0, 0.0, quarter * 0.5),
+            (0.125, 0.75, quarter * 0.625),
+            (0.5, 3.0, quarter),
+        ] {
+            let r = cam.generate_ray_at(Vec2::splat(0.5), 1.0, time);
+            assert_eq!(r.time, time);
+            assert!(
+                r.origin.distance(Vec3::new(x, 1.0, 2.0)) < 1e-5,
+                "t = {time}: {}",
+                r.origin
+            );
+            let want = Quat::from_rotation_y(angle) * -Vec3::Z;
+            assert!(
+                r.dir.distance(want) < 1e-5,
+                "t = {time}: {} vs {want}",
+                r.dir
+            );
+        }
+        // A still camera gives its one pose at any time.
+        cam.motion = None;
+        let r = cam.generate_ray_at(Vec2::new(0.2, 0.7), 1.5, 0.4);
+        assert_eq!(r, cam.generate_ray(Vec2::new(0.2, 0.7), 1.5).at_time(0.4));
     }
 }

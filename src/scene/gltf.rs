@@ -29,8 +29,8 @@
 
 use super::gltf_accessors::{check_bytes, read_floats, read_indices, Usage};
 use super::{gltf_animation, gltf_deform};
-use super::{Camera, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
-use crate::geometry::Mesh;
+use super::{Camera, CameraMotion, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
+use crate::geometry::{Mesh, MeshMotion};
 use crate::light::{
     DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
     LUMENS_PER_WATT,
@@ -157,9 +157,13 @@ pub fn load_slice(
         }
         buffers.push(gltf::buffer::Data(data));
     }
-    let pose = match options.frame {
-        Some(frame) if document.animations().len() > 0 => {
-            let seconds = frame as f64 / options.fps.unwrap_or(crate::frames::DEFAULT_FPS);
+    // A still with a shutter is frame 1 of the shot, as VDB sequences read it.
+    let frame = options.frame.or(options.shutter.map(|_| 1));
+    let fps = options.fps.unwrap_or(crate::frames::DEFAULT_FPS);
+    let animated = document.animations().len() > 0;
+    let pose = match frame {
+        Some(frame) if animated => {
+            let seconds = frame as f64 / fps;
             gltf_animation::pose_at(&document, &buffers, &options.limits, seconds as f32)
                 .map_err(malformed)?
         }
@@ -171,8 +175,16 @@ pub fn load_slice(
             weights: vec![None; document.nodes().len()],
         },
     };
+    let motion = match (frame, options.shutter) {
+        (Some(frame), Some(shutter)) if animated => {
+            gltf_animation::shutter_poses(&document, &buffers, &options.limits, frame, fps, shutter)
+                .map_err(malformed)?
+        }
+        _ => None,
+    };
     let mut loader = Loader {
         pose,
+        motion,
         path,
         document: &document,
         base,
@@ -262,10 +274,19 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
         .collect())
 }
 
+/// How a node's mesh is posed at one instant: morph weights, then skin joint matrices or the world matrix.
+struct Deformation {
+    weights: Vec<f32>,
+    joints: Option<Vec<Mat4>>,
+    world: Mat4,
+}
+
 struct Loader<'a> {
     path: &'a Path,
     /// Every node's local matrix and animated morph weights: the file's, or at the shot's frame.
     pose: gltf_animation::Pose,
+    /// The animation at the motion steps across the shutter, when there are both.
+    motion: Option<gltf_animation::ShutterPoses>,
     /// The document: texture references and the skins' joint nodes.
     document: &'a gltf::Document,
     base: PathBuf,
@@ -309,10 +330,24 @@ impl Loader<'_> {
         if let Some(camera) = node.camera() {
             if self.builder.camera.is_none() {
                 if let gltf::camera::Projection::Perspective(p) = camera.projection() {
+                    let camera_to_world = Camera::rigid(&world);
+                    // The camera moves when its pose at some motion step differs from the frame's.
+                    let motion = self.motion.as_ref().and_then(|m| {
+                        let poses: Vec<Mat4> = m
+                            .worlds
+                            .iter()
+                            .map(|w| Camera::rigid(&w[node.index()]))
+                            .collect();
+                        poses
+                            .iter()
+                            .any(|p| *p != camera_to_world)
+                            .then(|| CameraMotion::from_matrices(m.steps, &poses))
+                    });
                     self.builder.camera = Some(Camera {
-                        camera_to_world: Camera::rigid(&world),
+                        camera_to_world,
                         yfov: p.yfov(),
                         aspect_ratio: p.aspect_ratio(),
+                        motion,
                     });
                 } else {
                     self.builder.warnings.push(format!(
@@ -399,8 +434,10 @@ impl Loader<'_> {
         self.builder.lights.push(l);
     }
 
-    /// Loads a node's mesh: each triangle primitive's attributes, morphed by the default weights, then posed
-    /// by the node's skin (its rest pose) or placed by the node's world matrix.
+    /// Loads a node's mesh: each triangle primitive's attributes, morphed by the pose's weights, then posed
+    /// by the node's skin or placed by the node's world matrix. Under a shutter, the same is done at each
+    /// motion step, and a mesh whose vertices differ at some step from the frame's gets those steps as its
+    /// motion (transform, morph and skin blur alike).
     fn load_mesh(
         &mut self,
         node: &gltf::Node,
@@ -410,29 +447,25 @@ impl Loader<'_> {
         let mesh_name = mesh
             .name()
             .map_or_else(|| format!("mesh {}", mesh.index()), |n| one_line(n, QUOTE));
-        let weights: Vec<f32> = match &self.pose.weights[node.index()] {
-            Some(animated) => animated.clone(),
-            None => gltf_deform::morph_weights(node, &mesh).to_vec(),
-        };
-        let joints = match node.skin() {
-            Some(skin) => {
-                if !std::mem::replace(&mut self.skin_warned, true) {
-                    self.builder.warnings.push(
-                        "skinned meshes are posed at their rest pose (the joints' own node transforms); animations are not played".into(),
-                    );
-                }
-                if self.node_worlds.is_empty() {
-                    self.node_worlds = gltf_deform::node_worlds(self.document, &self.pose.locals);
-                }
-                let joints = gltf_deform::joint_matrices(
-                    &skin,
-                    &self.node_worlds,
-                    self.buffers,
-                    &self.options.limits,
-                )
-                .map_err(|e| self.error(SceneErrorKind::Malformed(e)))?;
-                Some(joints)
-            }
+        if node.skin().is_some() && !std::mem::replace(&mut self.skin_warned, true) {
+            self.builder.warnings.push(
+                "skinned meshes are posed at their rest pose (the joints' own node transforms); animations are not played".into(),
+            );
+        }
+        if node.skin().is_some() && self.node_worlds.is_empty() {
+            self.node_worlds = gltf_deform::node_worlds(self.document, &self.pose.locals);
+        }
+        let frame_deform = self.deformation(node, &mesh, &self.pose, &self.node_worlds, world)?;
+        let step_deforms = match &self.motion {
+            Some(m) => Some(
+                m.poses
+                    .iter()
+                    .zip(&m.worlds)
+                    .map(|(pose, worlds)| {
+                        self.deformation(node, &mesh, pose, worlds, &worlds[node.index()])
+                    })
+                    .collect::<Result<Vec<_>, _>>()?,
+            ),
             None => None,
         };
         for primitive in mesh.primitives() {
@@ -449,31 +482,90 @@ impl Loader<'_> {
                 ));
                 continue;
             }
-            let mut m = self.read_primitive(&primitive, &what)?;
-            m.name = node.name().map_or_else(|| mesh_name.clone(), str::to_owned);
-            let limits = &self.options.limits;
-            let deformed = gltf_deform::apply_morph_targets(
-                &mut m,
-                &primitive,
-                &weights,
-                self.buffers,
-                limits,
-            )
-            .and_then(|()| match &joints {
-                Some(j) => gltf_deform::apply_skin(&mut m, &primitive, j, self.buffers, limits),
-                None => {
-                    m.transform(world);
-                    Ok(())
+            let base = self.read_primitive(&primitive, &what)?;
+            let mut m = self.deformed(&base, &primitive, &frame_deform, &what)?;
+            if let (Some(deforms), Some(motion)) = (&step_deforms, &self.motion) {
+                let mut positions = Vec::with_capacity(deforms.len());
+                let mut normals = Vec::with_capacity(deforms.len());
+                for d in deforms {
+                    let step = self.deformed(&base, &primitive, d, &what)?;
+                    if step.indices != m.indices {
+                        // A mirroring transform at some steps only (a scale through zero) flips the winding.
+                        self.builder.warnings.push(format!(
+                            "{what}: its winding flips across the shutter; not motion-blurred"
+                        ));
+                        positions.clear();
+                        break;
+                    }
+                    positions.push(step.positions);
+                    normals.push(step.normals);
                 }
-            });
-            deformed.map_err(|e| self.error(SceneErrorKind::Malformed(format!("{what}: {e}"))))?;
-            if m.normals.is_empty() {
-                m.generate_normals();
+                if positions.iter().any(|p| *p != m.positions) {
+                    m.motion = Some(MeshMotion {
+                        steps: motion.steps,
+                        positions,
+                        normals,
+                    });
+                }
             }
+            m.name = node.name().map_or_else(|| mesh_name.clone(), str::to_owned);
             m.material = self.material(primitive.material())?;
             self.builder.add_mesh(m);
         }
         Ok(())
+    }
+
+    /// What poses a node's mesh in `pose`: its morph weights, and its skin's joint matrices (from the node
+    /// `worlds` of that pose) or else its world matrix `world`.
+    fn deformation(
+        &self,
+        node: &gltf::Node,
+        mesh: &gltf::Mesh,
+        pose: &gltf_animation::Pose,
+        worlds: &[Mat4],
+        world: &Mat4,
+    ) -> Result<Deformation, SceneError> {
+        let weights: Vec<f32> = match &pose.weights[node.index()] {
+            Some(animated) => animated.clone(),
+            None => gltf_deform::morph_weights(node, mesh).to_vec(),
+        };
+        let joints = match node.skin() {
+            Some(skin) => Some(
+                gltf_deform::joint_matrices(&skin, worlds, self.buffers, &self.options.limits)
+                    .map_err(|e| self.error(SceneErrorKind::Malformed(e)))?,
+            ),
+            None => None,
+        };
+        Ok(Deformation {
+            weights,
+            joints,
+            world: *world,
+        })
+    }
+
+    /// The object-space primitive `base` morphed and posed by `d`, with flat normals where it has none.
+    fn deformed(
+        &self,
+        base: &Mesh,
+        primitive: &gltf::Primitive,
+        d: &Deformation,
+        what: &str,
+    ) -> Result<Mesh, SceneError> {
+        let mut m = base.clone();
+        let limits = &self.options.limits;
+        gltf_deform::apply_morph_targets(&mut m, primitive, &d.weights, self.buffers, limits)
+            .and_then(|()| match &d.joints {
+                Some(j) => gltf_deform::apply_skin(&mut m, primitive, j, self.buffers, limits),
+                None => {
+                    m.transform(&d.world);
+                    Ok(())
+                }
+            })
+            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{what}: {e}"))))?;
+        if m.normals.is_empty() {
+            m.generate_normals();
+        }
+        Ok(m)
     }
 
     /// A primitive's vertices in object space: POSITION, NORMAL, TANGENT and TEXCOORD_0 (sparse or quantized

@@ -5,8 +5,17 @@
 //!
 //! Accessors go through `gltf_accessors` (bounds, sparse data, normalized rotations and weights decoded);
 //! key times must be finite and strictly increasing.
+//!
+//! Motion blur samples the animation across the shutter ([`shutter_poses`]): at motion steps evenly spaced
+//! over it, `(frame + t) / fps` seconds for each step time `t`. There are [`MIN_STEPS`] steps, or more when a
+//! node turns a lot: one step for every [`MAX_STEP_ANGLE_DEGREES`] of the largest rotation any node's world
+//! matrix makes across the shutter (measured at [`PROBES`] instants), at most [`MAX_STEPS`]. Vertices are
+//! interpolated linearly between steps, so a rotation's arc is cut to chords no longer than that angle
+//! (a radius shrinks by at most 1 − cos 5° ≈ 0.4 % between steps).
 
 use super::gltf_accessors::{read_floats, Usage};
+use crate::frames::Shutter;
+use crate::geometry::MotionSteps;
 use crate::limits::Limits;
 use crate::math::{Mat4, Quat, Vec3};
 use gltf::animation::{Interpolation, Property};
@@ -99,6 +108,78 @@ pub(super) fn pose_at(
         })
         .collect();
     Ok(Pose { locals, weights })
+}
+
+/// Motion steps across a shutter: there are at least this many.
+pub(super) const MIN_STEPS: u32 = 3;
+/// Motion steps across a shutter: at most this many.
+pub(super) const MAX_STEPS: u32 = 32;
+/// The largest rotation of a node between two motion steps, when [`MAX_STEPS`] allows.
+pub(super) const MAX_STEP_ANGLE_DEGREES: f32 = 10.0;
+/// The instants over the shutter at which node rotations are measured to choose the number of steps.
+pub(super) const PROBES: usize = 9;
+
+/// The animation sampled at motion steps across the shutter: each step's pose and node world matrices.
+pub(super) struct ShutterPoses {
+    /// When the steps are (frames relative to the frame).
+    pub steps: MotionSteps,
+    /// The pose at each step.
+    pub poses: Vec<Pose>,
+    /// Every node's world matrix at each step (see `gltf_deform::node_worlds`).
+    pub worlds: Vec<Vec<Mat4>>,
+}
+
+/// Samples the animation at the motion steps of `shutter` around `frame` (see the module documentation for
+/// how many); `None` for a shutter that is an instant (or not finite).
+pub(super) fn shutter_poses(
+    document: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+    limits: &Limits,
+    frame: i64,
+    fps: f64,
+    shutter: Shutter,
+) -> Result<Option<ShutterPoses>, String> {
+    let finite = shutter.open.is_finite() && shutter.close.is_finite();
+    if !finite || shutter.open >= shutter.close {
+        return Ok(None);
+    }
+    let sample = |times: Vec<f32>| -> Result<(Vec<Pose>, Vec<Vec<Mat4>>), String> {
+        let poses = times
+            .iter()
+            .map(|&t| {
+                let seconds = (frame as f64 + t as f64) / fps;
+                pose_at(document, buffers, limits, seconds as f32)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let worlds = poses
+            .iter()
+            .map(|p| super::gltf_deform::node_worlds(document, &p.locals))
+            .collect();
+        Ok((poses, worlds))
+    };
+    let (_, probes) = sample(shutter.sample_times(PROBES))?;
+    let rotation = |m: &Mat4| Quat::from_mat4(&super::Camera::rigid(m)).normalize();
+    let turn = (0..document.nodes().len())
+        .map(|n| {
+            probes
+                .windows(2)
+                .map(|w| rotation(&w[0][n]).angle_between(rotation(&w[1][n])))
+                .filter(|a| a.is_finite())
+                .sum::<f32>()
+        })
+        .fold(0.0f32, f32::max);
+    let count = ((turn.to_degrees() / MAX_STEP_ANGLE_DEGREES).ceil() as u32 + 1)
+        .clamp(MIN_STEPS, MAX_STEPS);
+    let (poses, worlds) = sample(shutter.sample_times(count as usize))?;
+    Ok(Some(ShutterPoses {
+        steps: MotionSteps {
+            open: shutter.open,
+            close: shutter.close,
+            count,
+        },
+        poses,
+        worlds,
+    }))
 }
 
 /// The value of a sampler with `elements` floats per key at `t` (glTF 2.0 Appendix C). `values` holds one

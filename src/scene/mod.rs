@@ -15,11 +15,11 @@ pub mod obj;
 pub mod usd;
 
 pub use builder::BUILDER_PATH;
-pub use camera::Camera;
+pub use camera::{Camera, CameraMotion};
 pub use error::{SceneError, SceneErrorKind};
 
 use crate::geometry::TriangleHit;
-use crate::geometry::{Bvh, Mesh, SurfacePoint};
+use crate::geometry::{Bvh, Mesh, MotionBvh, SurfacePoint};
 use crate::light::{AreaLight, EnvironmentLight, Light, LightSampler};
 use crate::material::{AlphaMode, Material, ShadingPoint, TexCoord, Texture};
 use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3, Vec4};
@@ -44,13 +44,15 @@ pub struct LoadOptions<'a> {
     /// textures).
     pub limits: crate::limits::Limits,
     /// The shot's frame: VDB sequences read this frame's file (frame 1 when `None`), glTF animations are
-    /// sampled at `frame / fps` seconds and USD stages read at the frame's time code.
+    /// sampled at `frame / fps` seconds (not at all when `None`, unless a shutter is set: then at frame 1)
+    /// and USD stages read at the frame's time code.
     pub frame: Option<i64>,
     /// Frames per second of the shot (`--fps`): glTF's default is [`crate::frames::DEFAULT_FPS`]; a USD stage's
     /// own is its `framesPerSecond`.
     pub fps: Option<f64>,
     /// The motion-blur shutter (`--shutter`), in frames relative to the frame; `None` renders an instant.
-    /// Moving things are sampled across it and media with a velocity grid are blurred over it.
+    /// Moving things are sampled across it (glTF cameras and meshes at motion steps, see
+    /// `gltf_animation::shutter_poses`) and media with a velocity grid are blurred over it.
     pub shutter: Option<crate::frames::Shutter>,
 }
 
@@ -283,6 +285,30 @@ impl SceneBuilder {
                 )));
             }
         }
+        for mesh in &self.meshes {
+            let Some(m) = &mesh.motion else { continue };
+            let count = m.steps.count as usize;
+            let consistent = count >= 2
+                && m.steps.open.is_finite()
+                && m.steps.close.is_finite()
+                && m.steps.open <= m.steps.close
+                && m.positions.len() == count
+                && m.normals.len() == count
+                && m.positions.iter().all(|p| p.len() == mesh.positions.len())
+                && m.normals.iter().all(|n| n.len() == mesh.positions.len());
+            if !consistent {
+                return Err(invalid(format!(
+                    "mesh '{}' has motion steps that are not at least 2 finite, ordered instants with one position and normal per vertex each",
+                    mesh.name
+                )));
+            }
+            if !m.positions.iter().flatten().all(|p| p.is_finite()) {
+                return Err(malformed(format!(
+                    "mesh '{}' has a non-finite position in a motion step",
+                    mesh.name
+                )));
+            }
+        }
         if let Some(c) = &self.camera {
             if !(c.camera_to_world.is_finite() && c.yfov > 0.0 && c.yfov < std::f32::consts::PI)
                 || c.aspect_ratio.is_some_and(|a| !(a.is_finite() && a > 0.0))
@@ -291,6 +317,12 @@ impl SceneBuilder {
                     "the camera needs a finite placement, 0 < yfov < pi and a positive aspect ratio (yfov {}, aspect ratio {:?})",
                     c.yfov, c.aspect_ratio
                 )));
+            }
+            if c.motion.as_ref().is_some_and(|m| !m.is_valid()) {
+                return Err(malformed(
+                    "the camera's motion needs one finite pose per step, at least two, at ordered instants"
+                        .into(),
+                ));
             }
         }
         for (i, light) in self.lights.iter().enumerate() {
@@ -355,12 +387,35 @@ impl SceneBuilder {
                 mesh.generate_tangents();
             }
         }
+        // Emitters stay at the frame's pose: their area lights are sampled there.
+        for mesh in &mut self.meshes {
+            if mesh.motion.is_some() && self.materials[mesh.material as usize].is_emissive() {
+                mesh.motion = None;
+                self.warnings.push(format!(
+                    "mesh '{}' emits light, so it is not motion-blurred: area lights stay at the frame's pose",
+                    mesh.name
+                ));
+            }
+        }
+        // Static triangles first, in mesh order (so a scene without motion numbers them as it always did),
+        // then the moving ones.
+        let order: Vec<usize> = (0..self.meshes.len())
+            .filter(|&m| self.meshes[m].motion.is_none())
+            .chain((0..self.meshes.len()).filter(|&m| self.meshes[m].motion.is_some()))
+            .collect();
         let mut prims = Vec::new();
         let mut triangles = Vec::new();
+        let mut moving = Vec::new();
         let mut lights = self.lights;
-        for (mesh_index, mesh) in self.meshes.iter().enumerate() {
+        for mesh_index in order {
+            let mesh = &self.meshes[mesh_index];
             let material = &self.materials[mesh.material as usize];
             for tri in 0..mesh.indices.len() {
+                prims.push((mesh_index as u32, tri as u32));
+                if let Some(motion) = &mesh.motion {
+                    moving.push(motion.triangle(mesh.indices[tri]));
+                    continue;
+                }
                 let vertices = mesh.triangle(tri);
                 let prim = triangles.len() as u32;
                 if material.is_emissive() {
@@ -384,19 +439,28 @@ impl SceneBuilder {
                     }
                 }
                 triangles.push(vertices);
-                prims.push((mesh_index as u32, tri as u32));
             }
         }
-        let mut light_of_prim = vec![u32::MAX; triangles.len()];
+        let too_many = |e: crate::geometry::TooManyTriangles| {
+            SceneError::new(BUILDER_PATH, SceneErrorKind::Unsupported(e.to_string()))
+        };
+        let static_count = triangles.len() as u32;
+        let motion = if moving.is_empty() {
+            None
+        } else {
+            Some(MotionBvh::build(&moving).map_err(too_many)?)
+        };
+        let mut light_of_prim = vec![u32::MAX; prims.len()];
         for (i, l) in lights.iter().enumerate() {
             if let Light::Area(a) = l {
                 light_of_prim[a.prim as usize] = i as u32;
             }
         }
-        let bvh = Bvh::build(&triangles).map_err(|e| {
-            SceneError::new(BUILDER_PATH, SceneErrorKind::Unsupported(e.to_string()))
-        })?;
-        let bounds = bvh.bounds();
+        let bvh = Bvh::build(&triangles).map_err(too_many)?;
+        let bounds = match &motion {
+            Some(m) => bvh.bounds().union(&m.bounds()),
+            None => bvh.bounds(),
+        };
         let light_sampler = LightSampler::new(&lights, bounding_radius(&bounds));
         let environment = lights
             .iter()
@@ -421,6 +485,8 @@ impl SceneBuilder {
             light_sampler,
             environment,
             bvh,
+            motion,
+            static_count,
             prims,
             light_of_prim,
             bounds,
@@ -469,10 +535,17 @@ pub struct Scene {
     pub(crate) shutter: Option<crate::frames::Shutter>,
     /// Indices of the media that fill a region by position (VDB volumes), not a mesh interior.
     pub(crate) filled_media: Vec<u32>,
+    /// The static triangles: global triangle indices `0 .. static_count`.
     bvh: Bvh,
+    /// The moving triangles (transform motion blur), if any: global indices from `static_count` on.
+    motion: Option<MotionBvh>,
+    /// The number of static triangles.
+    static_count: u32,
     /// True when some material is a cut-out or partly covering, so hits must be alpha-tested.
     has_alpha: bool,
+    /// The mesh and triangle of each global triangle index.
     prims: Vec<(u32, u32)>,
+    /// The area light of each global triangle index (`u32::MAX`: none).
     light_of_prim: Vec<u32>,
 }
 
@@ -582,9 +655,14 @@ impl Scene {
         self.prims.len()
     }
 
-    /// Bytes held by the acceleration structure.
+    /// Bytes held by the acceleration structures (static and moving triangles).
     pub fn bvh_memory_bytes(&self) -> usize {
-        self.bvh.memory_bytes()
+        self.bvh.memory_bytes() + self.motion.as_ref().map_or(0, MotionBvh::memory_bytes)
+    }
+
+    /// Number of moving triangles (transform motion blur).
+    pub fn moving_triangle_count(&self) -> usize {
+        self.motion.as_ref().map_or(0, MotionBvh::triangle_count)
     }
 
     /// Radius of a sphere around the scene bounds.
@@ -644,12 +722,57 @@ impl Scene {
 
     /// True when something blocks the segment `(t_min, t_max)` of `ray` (alpha cut-outs and partial coverage
     /// let it through as in [`Self::intersect`]).
+    /// Moving triangles are met where they are at the ray's time.
     pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
-        if self.has_alpha {
+        let blocked = if self.has_alpha {
             self.bvh
                 .occluded_where(ray, t_min, t_max, &|hit| self.covers(ray, hit))
         } else {
             self.bvh.occluded(ray, t_min, t_max)
+        };
+        blocked
+            || self.motion.as_ref().is_some_and(|m| {
+                if self.has_alpha {
+                    m.occluded_where(ray, t_min, t_max, &|hit| {
+                        self.covers(ray, &self.moving_hit(hit))
+                    })
+                } else {
+                    m.occluded(ray, t_min, t_max)
+                }
+            })
+    }
+
+    /// A hit reported by the moving triangles' hierarchy with its global triangle index.
+    fn moving_hit(&self, hit: &TriangleHit) -> TriangleHit {
+        TriangleHit {
+            prim: hit.prim + self.static_count,
+            ..*hit
+        }
+    }
+
+    /// The closest triangle hit in `(t_min, t_max)`, static or moving (at the ray's time), alpha-tested; a
+    /// moving hit replaces a static one only when strictly closer, so ties go to the lower global index.
+    fn closest_triangle(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<TriangleHit> {
+        let hit = if self.has_alpha {
+            self.bvh
+                .intersect_where(ray, t_min, t_max, &|hit| self.covers(ray, hit))
+        } else {
+            self.bvh.intersect(ray, t_min, t_max)
+        };
+        let Some(motion) = &self.motion else {
+            return hit;
+        };
+        let limit = hit.map_or(t_max, |h| h.t);
+        let moving = if self.has_alpha {
+            motion.intersect_where(ray, t_min, limit, &|h| {
+                self.covers(ray, &self.moving_hit(h))
+            })
+        } else {
+            motion.intersect(ray, t_min, limit)
+        };
+        match moving {
+            Some(m) if hit.is_none_or(|h| m.t < h.t) => Some(self.moving_hit(&m)),
+            _ => hit,
         }
     }
 
@@ -705,25 +828,26 @@ impl Scene {
 
     /// The closest surface hit along `ray` in `(t_min, t_max)`.
     /// Surfaces whose material is a cut-out or partly covering are passed through where they do not cover
-    /// (see [`AlphaMode`]).
+    /// (see [`AlphaMode`]). A moving mesh is hit, and its hit point, normals and error bound computed, where
+    /// its vertices are at the ray's time.
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<SurfaceHit> {
-        let hit = if self.has_alpha {
-            self.bvh
-                .intersect_where(ray, t_min, t_max, &|hit| self.covers(ray, hit))
-        } else {
-            self.bvh.intersect(ray, t_min, t_max)
-        }?;
+        let hit = self.closest_triangle(ray, t_min, t_max)?;
         let (mesh_index, tri) = self.prims[hit.prim as usize];
         let mesh = &self.meshes[mesh_index as usize];
         let [i0, i1, i2] = mesh.indices[tri as usize].map(|i| i as usize);
         let (b1, b2) = (hit.b1, hit.b2);
         let b0 = 1.0 - b1 - b2;
-        let [v0, v1, v2] = [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]];
+        let ([v0, v1, v2], normals) = match &mesh.motion {
+            Some(motion) => motion.at([i0, i1, i2], ray.time),
+            None => (
+                [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]],
+                [mesh.normals[i0], mesh.normals[i1], mesh.normals[i2]],
+            ),
+        };
         let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
         let point = SurfacePoint::on_triangle([v0, v1, v2], b0, b1, b2, geometric_normal);
         let front_face = geometric_normal.dot(ray.dir) < 0.0;
-        let mut n = (mesh.normals[i0] * b0 + mesh.normals[i1] * b1 + mesh.normals[i2] * b2)
-            .normalize_or_zero();
+        let mut n = (normals[0] * b0 + normals[1] * b1 + normals[2] * b2).normalize_or_zero();
         if n == Vec3::ZERO {
             n = geometric_normal;
         }

@@ -163,6 +163,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
                 .map(|c| [c[0], c[1], c[2]])
                 .collect(),
             material,
+            motion: None,
         };
         let dropped = mesh.remove_invalid_triangles();
         if dropped > 0 {

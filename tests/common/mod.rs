@@ -65,6 +65,7 @@ pub fn quad(corners: [Vec3; 4], material: u32) -> Mesh {
         tangents: None,
         indices: vec![[0, 1, 2], [0, 2, 3]],
         material,
+        motion: None,
     }
 }
 

@@ -610,6 +610,7 @@ impl Loader<'_> {
             camera_to_world: Camera::rigid(world),
             yfov: 2.0 * (0.5 * v / focal).atan(),
             aspect_ratio: Some(h / v),
+            motion: None,
         });
         Ok(())
     }
