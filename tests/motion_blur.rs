@@ -1,4 +1,4 @@
-//! Transform motion blur (issue 17, "Shots"): glTF nodes and cameras animated across the shutter
+//! Transform motion blur (issue 17, "Shots"): glTF nodes, USD xforms and cameras animated across the shutter
 //! (`LoadOptions::shutter`, `--shutter`), checked against the closed-form share of the shutter during which a
 //! moving quad covers a fixed camera ray (or a moving camera's ray meets a fixed quad).
 //!
@@ -342,5 +342,126 @@ fn a_still_scene_renders_the_same_with_a_shutter() {
     );
     assert_eq!(a.beauty, b.beauty);
     assert_eq!(a.variance, b.variance);
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// A USD stage in the same set-up as [`write_scene`]: the quad x ∈ [`quad_x`, `quad_x` + 1] under an Xform, a
+/// black surface that reflects nothing (diffuse 0, ior 1: no Fresnel), a white dome light and a camera with a
+/// 10⁻⁴ rad field of view at x = `camera_x`, z = 5. What moves has its translate time-sampled from −48 to +48
+/// along x between time codes 0 and 24 (4 units a frame at 24 time codes and frames per second).
+fn write_usd_scene(
+    dir: &Path,
+    name: &str,
+    quad_x: f32,
+    camera_x: f32,
+    camera_moves: bool,
+) -> PathBuf {
+    let (x0, x1) = (quad_x, quad_x + 1.0);
+    let quad_translate = if camera_moves {
+        "double3 xformOp:translate = (0, 0, 0)".to_owned()
+    } else {
+        "double3 xformOp:translate.timeSamples = { 0: (-48, 0, 0), 24: (48, 0, 0) }".to_owned()
+    };
+    let camera_translate = if camera_moves {
+        format!(
+            "double3 xformOp:translate.timeSamples = {{ 0: ({}, 0, 5), 24: ({}, 0, 5) }}",
+            camera_x - 48.0,
+            camera_x + 48.0
+        )
+    } else {
+        format!("double3 xformOp:translate = ({camera_x}, 0, 5)")
+    };
+    let usda = format!(
+        r#"#usda 1.0
+(
+    timeCodesPerSecond = 24
+    framesPerSecond = 24
+    upAxis = "Y"
+    metersPerUnit = 1
+)
+def Xform "Mover"
+{{
+    {quad_translate}
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+    def Mesh "Quad"
+    {{
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [({x0}, -0.5, 0), ({x1}, -0.5, 0), ({x1}, 0.5, 0), ({x0}, 0.5, 0)]
+        rel material:binding = </Black>
+    }}
+}}
+def Material "Black"
+{{
+    token outputs:surface.connect = </Black/Surface.outputs:surface>
+    def Shader "Surface"
+    {{
+        uniform token info:id = "UsdPreviewSurface"
+        color3f inputs:diffuseColor = (0, 0, 0)
+        float inputs:ior = 1
+        token outputs:surface
+    }}
+}}
+def DomeLight "Sky"
+{{
+    color3f inputs:color = (1, 1, 1)
+    float inputs:intensity = 1
+}}
+def Camera "Camera"
+{{
+    float focalLength = 50
+    float horizontalAperture = 0.005
+    float verticalAperture = 0.005
+    {camera_translate}
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+"#
+    );
+    let path = dir.join(format!("{name}.usda"));
+    std::fs::write(&path, usda).unwrap();
+    path
+}
+
+/// USD xform time samples blur like glTF animation (the stage is read again at each motion step): the quad's
+/// analytic 1/6 of the shutter for the ray at x = −0.5, and the moving camera's 1/3 over the quad at
+/// [0.25, 1.25], as in the glTF tests above.
+#[test]
+fn usd_xforms_animated_across_the_shutter_blur_by_their_analytic_share() {
+    let dir = test_dir("usd");
+    let path = write_usd_scene(&dir, "quad", 0.0, -0.5, false);
+    let blurred = load(&path, shutter(-0.25, 0.5));
+    assert_eq!(blurred.moving_triangle_count(), 2);
+    let (fraction, se) = coverage(&blurred, 8192);
+    let expect = 1.0 / 6.0;
+    eprintln!(
+        "USD moving quad: covered {fraction:.5} ± {se:.5} of the shutter, analytic {expect:.5}"
+    );
+    assert!(
+        se > 0.0 && (fraction - expect).abs() < 4.0 * se,
+        "{fraction} ± {se} vs {expect}"
+    );
+    let still = load(&path, None);
+    assert_eq!(still.moving_triangle_count(), 0);
+    assert_eq!(coverage(&still, 64).0, 0.0);
+    // A ray over the frame pose meets the quad (which returns at most a trace of light: 1 − 4e-5).
+    let over = load(&write_usd_scene(&dir, "over", 0.0, 0.5, false), None);
+    assert!(coverage(&over, 64).0 > 0.999);
+
+    let camera = load(
+        &write_usd_scene(&dir, "camera", 0.25, 0.0, true),
+        shutter(-0.25, 0.5),
+    );
+    assert_eq!(camera.moving_triangle_count(), 0, "the quad stands still");
+    let ray = camera.camera().generate_ray_at(Vec2::splat(0.5), 1.0, 0.3);
+    assert!((ray.origin.x - 1.2).abs() < 1e-4, "{}", ray.origin);
+    let (fraction, se) = coverage(&camera, 8192);
+    let expect = 1.0 / 3.0;
+    eprintln!(
+        "USD moving camera: covered {fraction:.5} ± {se:.5} of the shutter, analytic {expect:.5}"
+    );
+    assert!(
+        se > 0.0 && (fraction - expect).abs() < 4.0 * se,
+        "{fraction} ± {se} vs {expect}"
+    );
     std::fs::remove_dir_all(dir).ok();
 }

@@ -1,7 +1,8 @@
 //! USD loader (`.usd`, `.usda`, `.usdc`, `.usdz`), on top of the `openusd` crate, which parses the three
 //! encodings and composes sublayers, references and payloads. Nimbus reads the composed stage at one time code
 //! (see [`read_at_time`]: `startTimeCode`, else each attribute's earliest sample) and maps it onto the same scene
-//! model as glTF.
+//! model as glTF. Under a motion-blur shutter it reads the stage again at each motion step and keeps what moved
+//! (`add_motion_steps`).
 //!
 //! Stage metadata read: `upAxis` (`"Z"` is rotated −90° about X to Nimbus's +Y up) and `metersPerUnit`
 //! (everything is scaled to metres).
@@ -61,8 +62,9 @@ mod values;
 mod vol;
 mod xform;
 
-use super::camera::Camera;
+use super::camera::{Camera, CameraMotion};
 use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
+use crate::geometry::{MeshMotion, MotionSteps};
 use crate::limits::{catch_quietly, one_line, read_file, Limits};
 use crate::math::{Mat4, Rgb, Vec3};
 use crate::volume::VolumeSpec;
@@ -101,11 +103,16 @@ pub use layers::MAX_NESTING;
 /// override first.
 /// A shot frame ([`LoadOptions::frame`]) reads every attribute at that frame's time code (see [`read_at_frame`]).
 pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
-    let when = match options.frame {
-        Some(frame) => When::Frame(frame, options.fps),
+    // A still with a shutter is frame 1 of the shot, as glTF files and VDB sequences read it.
+    let frame = options.frame.or(options.shutter.map(|_| 1));
+    let when = match frame {
+        Some(frame) => When::Frame(frame as f64, options.fps),
         None => When::Default,
     };
     let (mut builder, volumes) = read_when(path, &options.limits, when)?;
+    if let (Some(frame), Some(shutter)) = (frame, options.shutter) {
+        add_motion_steps(&mut builder, path, options, frame, shutter)?;
+    }
     for mut spec in volumes {
         options.apply_volume_override(&mut spec);
         builder.add_volume(&spec).map_err(|source| {
@@ -120,6 +127,75 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
     }
     Ok(builder)
 }
+
+/// Motion steps of a stage under a shutter: the stage is read again at each of [`USD_MOTION_STEPS`] times evenly
+/// spread over the shutter (frame + t), and every mesh whose points there differ from the frame's (animated
+/// xforms of it or its ancestors, time-sampled points) keeps its world positions and normals at each step, as
+/// the camera keeps its poses. The prim walk visits prims in the same order at every time, so meshes pair up by
+/// position; a stage whose meshes change across the shutter (visibility, topology) is not blurred, with a
+/// warning.
+fn add_motion_steps(
+    builder: &mut SceneBuilder,
+    path: &Path,
+    options: &LoadOptions,
+    frame: i64,
+    shutter: crate::frames::Shutter,
+) -> Result<(), SceneError> {
+    let times = shutter.sample_times(USD_MOTION_STEPS);
+    let steps = MotionSteps {
+        open: shutter.open,
+        close: shutter.close,
+        count: USD_MOTION_STEPS as u32,
+    };
+    let mut reads = Vec::with_capacity(times.len());
+    for t in times {
+        let when = When::Frame(frame as f64 + t as f64, options.fps);
+        reads.push(read_when(path, &options.limits, when)?.0);
+    }
+    let same_meshes = reads.iter().all(|r| {
+        r.meshes.len() == builder.meshes.len()
+            && r.meshes
+                .iter()
+                .zip(&builder.meshes)
+                .all(|(a, b)| a.indices == b.indices && a.positions.len() == b.positions.len())
+    });
+    if !same_meshes {
+        builder.warn(format!(
+            "{}: the stage's meshes change across the shutter (visibility or topology); not motion-blurred",
+            path.display()
+        ));
+        return Ok(());
+    }
+    for (i, mesh) in builder.meshes.iter_mut().enumerate() {
+        if reads
+            .iter()
+            .all(|r| r.meshes[i].positions == mesh.positions)
+        {
+            continue;
+        }
+        mesh.motion = Some(MeshMotion {
+            steps,
+            positions: reads
+                .iter()
+                .map(|r| r.meshes[i].positions.clone())
+                .collect(),
+            normals: reads.iter().map(|r| r.meshes[i].normals.clone()).collect(),
+        });
+    }
+    if let Some(camera) = &mut builder.camera {
+        let poses: Vec<Mat4> = reads
+            .iter()
+            .filter_map(|r| r.camera.as_ref().map(|c| c.camera_to_world))
+            .collect();
+        if poses.len() == reads.len() && poses.iter().any(|p| *p != camera.camera_to_world) {
+            camera.motion = Some(CameraMotion::from_matrices(steps, &poses));
+        }
+    }
+    Ok(())
+}
+
+/// Motion steps of a USD stage under a shutter (each one a read of the stage).
+pub const USD_MOTION_STEPS: usize = 3;
 
 /// [`read_with_limits`] with the default memory budget.
 pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
@@ -147,7 +223,7 @@ enum When {
     Default,
     TimeCode(f64),
     /// A frame of the shot, at the shot's frames per second if given (else the stage's `framesPerSecond`).
-    Frame(i64, Option<f64>),
+    Frame(f64, Option<f64>),
 }
 
 /// [`read_with_limits`] at frame `frame` of the shot, or at the stage's default time when `None`. A frame is
@@ -162,7 +238,7 @@ pub fn read_at_frame(
     read_when(
         path,
         limits,
-        frame.map_or(When::Default, |f| When::Frame(f, None)),
+        frame.map_or(When::Default, |f| When::Frame(f as f64, None)),
     )
 }
 
@@ -245,7 +321,7 @@ fn read_stage(
     loader.root = loader.stage_root()?;
     loader.time = match time {
         When::TimeCode(t) => usd::TimeCode::new(t),
-        When::Frame(f, fps) => usd::TimeCode::new(f as f64 * loader.time_codes_per_frame(fps)?),
+        When::Frame(f, fps) => usd::TimeCode::new(f * loader.time_codes_per_frame(fps)?),
         When::Default => loader.default_time()?,
     };
     for child in loader.children(&stage.prim("/"))? {
