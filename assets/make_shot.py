@@ -25,35 +25,20 @@ Needs Debian's OpenVDB Python bindings and numpy:  apt-get install -y python3-op
 Run from the repository root:  /usr/bin/python3 assets/make_shot.py [--sequence]
 """
 import os
-import re
 import sys
-import uuid
 
 import numpy as np
 import pyopenvdb as vdb
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from gltf_writer import GltfBuilder, look_rotation  # noqa: E402
+from make_cloud import write_vdb  # noqa: E402  (header UUID made deterministic)
 
-SEED = 20261202
 BOX_VOXEL = 0.0625
 FPS = 24.0
 FRAMES = range(1, 25)
 WIND = np.array([0.4, 0.0, 0.0])   # m/s
 SWIRL = 0.6                        # rad/s about +y
-
-
-def write_vdb(path, grids, metadata):
-    """vdb.write, then the header's random UUID replaced by one derived from the file name (byte-identical reruns).
-    Header: int64 magic, uint32 file version, uint32 x2 library version, uint8 has-grid-offsets, then the UUID as 36
-    ASCII characters at byte 21."""
-    vdb.write(path, grids=grids, metadata=metadata)
-    with open(path, "r+b") as f:
-        head = f.read(57)
-        if head[:8] != b" BDV\0\0\0\0" or not re.fullmatch(rb"[0-9a-f-]{36}", head[21:57]):
-            raise RuntimeError(f"{path}: unexpected OpenVDB header layout; UUID left as written")
-        f.seek(21)
-        f.write(str(uuid.uuid5(uuid.NAMESPACE_URL, f"nimbus:{os.path.basename(path)}:{SEED}")).encode())
 
 
 def float_grid(name, background, voxel):

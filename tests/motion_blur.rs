@@ -165,6 +165,17 @@ fn coverage(scene: &Scene, spp: u32) -> (f64, f64) {
     (1.0 - mean, se)
 }
 
+/// Asserts that `scene`'s one pixel is covered for the analytic share `expect` of the shutter, within 4 standard
+/// errors of 8192 samples, and prints the figures under `what`.
+fn assert_covered_share(scene: &Scene, expect: f64, what: &str) {
+    let (fraction, se) = coverage(scene, 8192);
+    eprintln!("{what}: covered {fraction:.5} ± {se:.5} of the shutter, analytic {expect:.5}");
+    assert!(
+        se > 0.0 && (fraction - expect).abs() < 4.0 * se,
+        "{what}: {fraction} ± {se} vs {expect}"
+    );
+}
+
 fn shutter(open: f32, close: f32) -> Option<Shutter> {
     Some(Shutter { open, close })
 }
@@ -187,14 +198,7 @@ fn a_translating_quad_covers_a_ray_for_its_analytic_share_of_the_shutter() {
     let path = write_scene(&dir, "quad", &setup(-0.5));
     let blurred = load(&path, shutter(-0.25, 0.5));
     assert_eq!(blurred.moving_triangle_count(), 2);
-    let spp = 8192;
-    let (fraction, se) = coverage(&blurred, spp);
-    let expect = 1.0 / 6.0;
-    eprintln!("moving quad: covered {fraction:.5} ± {se:.5} of the shutter, analytic {expect:.5}");
-    assert!(
-        se > 0.0 && (fraction - expect).abs() < 4.0 * se,
-        "{fraction} ± {se} vs {expect}"
-    );
+    assert_covered_share(&blurred, 1.0 / 6.0, "moving quad");
 
     let still = load(&path, None);
     assert_eq!(still.moving_triangle_count(), 0);
@@ -240,15 +244,7 @@ fn a_translating_camera_sees_a_fixed_quad_for_its_analytic_share_of_the_shutter(
         );
         assert_eq!(ray.time, time);
     }
-    let (fraction, se) = coverage(&blurred, 8192);
-    let expect = 1.0 / 3.0;
-    eprintln!(
-        "moving camera: saw the quad {fraction:.5} ± {se:.5} of the shutter, analytic {expect:.5}"
-    );
-    assert!(
-        se > 0.0 && (fraction - expect).abs() < 4.0 * se,
-        "{fraction} ± {se} vs {expect}"
-    );
+    assert_covered_share(&blurred, 1.0 / 3.0, "moving camera");
 
     let still = load(&path, None);
     assert!(still.camera().motion.is_none());
@@ -431,15 +427,7 @@ fn usd_xforms_animated_across_the_shutter_blur_by_their_analytic_share() {
     let path = write_usd_scene(&dir, "quad", 0.0, -0.5, false);
     let blurred = load(&path, shutter(-0.25, 0.5));
     assert_eq!(blurred.moving_triangle_count(), 2);
-    let (fraction, se) = coverage(&blurred, 8192);
-    let expect = 1.0 / 6.0;
-    eprintln!(
-        "USD moving quad: covered {fraction:.5} ± {se:.5} of the shutter, analytic {expect:.5}"
-    );
-    assert!(
-        se > 0.0 && (fraction - expect).abs() < 4.0 * se,
-        "{fraction} ± {se} vs {expect}"
-    );
+    assert_covered_share(&blurred, 1.0 / 6.0, "USD moving quad");
     let still = load(&path, None);
     assert_eq!(still.moving_triangle_count(), 0);
     assert_eq!(coverage(&still, 64).0, 0.0);
@@ -454,14 +442,6 @@ fn usd_xforms_animated_across_the_shutter_blur_by_their_analytic_share() {
     assert_eq!(camera.moving_triangle_count(), 0, "the quad stands still");
     let ray = camera.camera().generate_ray_at(Vec2::splat(0.5), 1.0, 0.3);
     assert!((ray.origin.x - 1.2).abs() < 1e-4, "{}", ray.origin);
-    let (fraction, se) = coverage(&camera, 8192);
-    let expect = 1.0 / 3.0;
-    eprintln!(
-        "USD moving camera: covered {fraction:.5} ± {se:.5} of the shutter, analytic {expect:.5}"
-    );
-    assert!(
-        se > 0.0 && (fraction - expect).abs() < 4.0 * se,
-        "{fraction} ± {se} vs {expect}"
-    );
+    assert_covered_share(&camera, 1.0 / 3.0, "USD moving camera");
     std::fs::remove_dir_all(dir).ok();
 }

@@ -228,38 +228,21 @@ impl GridMedium {
             Some(shutter) => Self::load_motion(spec, &file, shutter)?,
             None => None,
         };
-        if motion.is_some() || channels.is_some() {
+        let reach = motion
+            .as_ref()
+            .map_or(Vec3::ZERO, |(velocity, seconds_per_frame)| {
+                velocity.reach(shutter_extent(spec) * seconds_per_frame)
+            });
+        let (majorants, estimates) = match spec.majorant {
             // Moving or chromatic: majorants without minorants (no constant-density shortcuts, which would hold
             // for the channels' maximum only), dilated over the shutter when the medium moves.
-            let reach = motion
-                .as_ref()
-                .map_or(Vec3::ZERO, |(velocity, seconds_per_frame)| {
-                    velocity.reach(shutter_extent(spec) * seconds_per_frame)
-                });
-            let kind = match spec.majorant {
-                Some(MajorantKind::Global) => MajorantKind::Global,
-                _ => MajorantKind::Grid16,
-            };
-            let majorants = Majorants::build_reaching(kind, &density, reach);
-            let mut medium = Self::with_parts(
-                &spec.name,
-                density,
-                majorants,
-                Vec::new(),
-                spec.albedo,
-                spec.anisotropy,
-            )
-            .with_shadow_estimator(spec.shadow_estimator);
-            medium.motion = motion.map(|(velocity, seconds_per_frame)| Motion {
-                velocity,
-                seconds_per_frame,
-                reach_voxels: reach.max_element(),
-            });
-            medium.load_channels(spec, &file, &place)?;
-            medium.channels = channels;
-            return Ok(medium);
-        }
-        let medium = match spec.majorant {
+            kind if motion.is_some() || channels.is_some() => {
+                let kind = match kind {
+                    Some(MajorantKind::Global) => MajorantKind::Global,
+                    _ => MajorantKind::Grid16,
+                };
+                (Majorants::build_reaching(kind, &density, reach), Vec::new())
+            }
             Some(kind) => {
                 let majorants =
                     Majorants::try_build(kind, &density, &spec.limits).map_err(|source| {
@@ -268,24 +251,24 @@ impl GridMedium {
                             source,
                         }
                     })?;
-                Self::with_parts(
-                    &spec.name,
-                    density,
-                    majorants,
-                    Vec::new(),
-                    spec.albedo,
-                    spec.anisotropy,
-                )
+                (majorants, Vec::new())
             }
-            None => Self::chosen_within(
-                &spec.name,
-                density,
-                spec.albedo,
-                spec.anisotropy,
-                &spec.limits,
-            ),
+            None => majorant_choice::choose(&density, &spec.limits),
         };
-        let mut medium = medium.with_shadow_estimator(spec.shadow_estimator);
+        let mut medium = Self::with_parts(
+            &spec.name,
+            density,
+            majorants,
+            estimates,
+            spec.albedo,
+            spec.anisotropy,
+        )
+        .with_shadow_estimator(spec.shadow_estimator);
+        medium.motion = motion.map(|(velocity, seconds_per_frame)| Motion {
+            velocity,
+            seconds_per_frame,
+            reach_voxels: reach.max_element(),
+        });
         medium.load_channels(spec, &file, &place)?;
         medium.channels = channels;
         Ok(medium)
