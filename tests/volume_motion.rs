@@ -372,3 +372,47 @@ fn an_rgb_density_grid_passes_the_white_furnace() {
         );
     }
 }
+
+#[test]
+fn a_usd_stage_s_frame_rate_converts_the_shutter_to_seconds() {
+    // At 12 frames per second a shutter of ±6 frames is ±0.5 s: 2 m/s moves the box 1 m, 16 voxels (8 at 24).
+    let dir = std::env::temp_dir().join(format!("nimbus-motion-usdfps-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vdb = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/pyro_box.vdb");
+    let stage = dir.join("box.usda");
+    std::fs::write(
+        &stage,
+        format!(
+            "#usda 1.0\n(\n    framesPerSecond = 12\n    timeCodesPerSecond = 12\n)\ndef Volume \"Box\"\n{{\n\
+             custom rel field:density = </Box/density>\ndef OpenVDBAsset \"density\"\n{{\n\
+             token fieldName = \"density\"\nasset filePath = @{}@\n}}\n}}\n",
+            vdb.display()
+        ),
+    )
+    .unwrap();
+    let shutter = Some(Shutter::parse("-6,6").unwrap());
+    let at = |fps: Option<f64>| {
+        let builder = nimbus::scene::load_builder(
+            &stage,
+            &LoadOptions {
+                shutter,
+                fps,
+                ..LoadOptions::default()
+            },
+        )
+        .unwrap();
+        builder.media()[0].method().to_string()
+    };
+    assert!(
+        at(None).contains("dilated by up to 16.0 voxels"),
+        "{}",
+        at(None)
+    );
+    // --fps overrides the stage's rate.
+    assert!(
+        at(Some(24.0)).contains("dilated by up to 8.0 voxels"),
+        "{}",
+        at(Some(24.0))
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -63,7 +63,9 @@ impl LoadOptions<'_> {
         spec.limits = self.limits;
         spec.frame = self.frame;
         spec.shutter = self.shutter;
-        spec.fps = self.fps.unwrap_or(crate::frames::DEFAULT_FPS);
+        if let Some(fps) = self.fps {
+            spec.fps = fps;
+        }
         if let Some(f) = self.volume_override {
             f(spec);
         }

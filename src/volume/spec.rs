@@ -291,7 +291,8 @@ pub struct VolumeSpec {
     /// The motion-blur shutter in frames (from [`crate::scene::LoadOptions::shutter`]): a velocity grid blurs
     /// the medium over it.
     pub shutter: Option<crate::frames::Shutter>,
-    /// Frames per second of the shot, converting shutter frames to the seconds velocities are given in.
+    /// Frames per second of the shot, converting shutter frames to the seconds velocities are given in:
+    /// [`crate::scene::LoadOptions::fps`] if given, else a USD stage's `framesPerSecond`, else 24.
     pub fps: f64,
 }
 

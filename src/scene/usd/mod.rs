@@ -432,24 +432,31 @@ impl Loader<'_> {
     /// Time codes per frame of the shot: `timeCodesPerSecond / fps`, `fps` the shot's if given, else the
     /// stage's `framesPerSecond` (both default 24).
     fn time_codes_per_frame(&self, fps: Option<f64>) -> Result<f64, SceneError> {
-        let rate = |key: &str| -> Result<f64, SceneError> {
-            let value = self
-                .stage
-                .stage_metadata(key)
-                .map_err(|e| self.error("stage metadata", format!("{key}: {e:#}")))?
-                .and_then(|v| number(&v))
-                .unwrap_or(24.0);
-            if value.is_finite() && value > 0.0 {
-                Ok(value)
-            } else {
-                Err(self.error("stage metadata", format!("{key} {value} must be positive")))
-            }
-        };
         let fps = match fps {
             Some(f) => f,
-            None => rate("framesPerSecond")?,
+            None => self.frames_per_second()?,
         };
-        Ok(rate("timeCodesPerSecond")? / fps)
+        Ok(self.stage_rate("timeCodesPerSecond")? / fps)
+    }
+
+    /// The stage's `framesPerSecond` (default 24).
+    fn frames_per_second(&self) -> Result<f64, SceneError> {
+        self.stage_rate("framesPerSecond")
+    }
+
+    /// A positive rate from the stage metadata `key` (default 24).
+    fn stage_rate(&self, key: &str) -> Result<f64, SceneError> {
+        let value = self
+            .stage
+            .stage_metadata(key)
+            .map_err(|e| self.error("stage metadata", format!("{key}: {e:#}")))?
+            .and_then(|v| number(&v))
+            .unwrap_or(24.0);
+        if value.is_finite() && value > 0.0 {
+            Ok(value)
+        } else {
+            Err(self.error("stage metadata", format!("{key} {value} must be positive")))
+        }
     }
 
     /// The matrix from stage units and axes to Nimbus's metres and +Y up.

@@ -114,6 +114,8 @@ impl Loader<'_> {
             return Ok(());
         };
         let mut spec = VolumeSpec::new(&at, file.clone(), *world);
+        // Velocities are per second: a shutter's frames are seconds at the stage's rate (unless --fps).
+        spec.fps = self.frames_per_second()?;
         spec.density_grid = density_grid;
         let channels = [
             &mut spec.temperature_grid,
