@@ -445,6 +445,18 @@ fn render_frame(
         for m in scene.media() {
             eprintln!("nimbus: medium '{}': {}", m.name(), m.method());
         }
+        if let Some(shutter) = scene.shutter() {
+            eprintln!(
+                "nimbus: motion blur: shutter {} frames (box), {} moving triangles, the camera {}",
+                shutter,
+                scene.moving_triangle_count(),
+                if scene.camera().motion.is_some() {
+                    "moves"
+                } else {
+                    "stands still"
+                }
+            );
+        }
     }
     let width = args.image.width.unwrap_or(640);
     let aspect = scene.camera().aspect_ratio.unwrap_or(4.0 / 3.0);

@@ -339,3 +339,40 @@ fn usd_volumes_read_flame_and_colour_fields() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn the_cli_reports_the_shutter_in_explain_and_stats() {
+    let (dir, _) = sequence_scene("shutter", "");
+    let args = [
+        "render",
+        "shot.gltf",
+        "--shutter=-0.25,0.25",
+        "--explain",
+        "--stats",
+        "stats.json",
+        "-o",
+        "blur.exr",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "2",
+    ];
+    let (ok, stderr) = nimbus(&args, &dir);
+    assert!(ok, "{stderr}");
+    assert!(
+        stderr.contains("motion blur: shutter -0.25,0.25 frames"),
+        "{stderr}"
+    );
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["shutter"], serde_json::json!([-0.25, 0.25]));
+    assert_eq!(stats["moving_triangles"], 0);
+    assert_eq!(stats["camera_moves"], false);
+    for bad in ["0.5,-0.5", "0.25", "nan,1"] {
+        let (ok, stderr) = nimbus(&["render", &format!("--shutter={bad}")], &dir);
+        assert!(!ok && stderr.contains("shutter"), "{bad}: {stderr}");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -102,6 +102,12 @@ pub struct RenderStats {
     pub samples_per_second: f64,
     /// True when the caller cancelled the render.
     pub cancelled: bool,
+    /// The motion-blur shutter (open, close), in frames relative to the frame; `None` for an instant.
+    pub shutter: Option<[f32; 2]>,
+    /// Triangles that move over the shutter (kept at every motion step).
+    pub moving_triangles: usize,
+    /// Whether the camera moves over the shutter.
+    pub camera_moves: bool,
     /// Per-medium tracking work and the method chosen.
     pub media: Vec<MediumStats>,
 }
@@ -357,6 +363,9 @@ impl Renderer {
             samples_per_second: (done as f64 * region.window.pixel_count() as f64)
                 / seconds.max(1e-9),
             cancelled,
+            shutter: scene.shutter.map(|s| [s.open, s.close]),
+            moving_triangles: scene.moving_triangle_count(),
+            camera_moves: scene.camera.motion.is_some(),
             media: scene
                 .media
                 .iter()
