@@ -177,6 +177,22 @@ fn without_a_shutter_the_box_stays_at_its_frame() {
     .expect("fails")
     .to_string();
     assert!(err.contains("'wind'"), "{err}");
+    // A velocity scaled far beyond any simulation is refused, not tracked over endless majorants: 2 m/s × 1e6
+    // over 0.25 s is 8e6 voxels.
+    let err = nimbus::scene::load_builder(
+        &scene_file("fast", r#","velocity_scale":1e6"#),
+        &LoadOptions {
+            shutter: Some(Shutter::parse("-6,6").unwrap()),
+            ..LoadOptions::default()
+        },
+    )
+    .err()
+    .expect("fails")
+    .to_string();
+    assert!(
+        err.contains("velocity_scale") && err.contains("pyro_box.vdb"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -233,6 +233,16 @@ impl GridMedium {
             .map_or(Vec3::ZERO, |(velocity, seconds_per_frame)| {
                 velocity.reach(shutter_extent(spec) * seconds_per_frame)
             });
+        if !reach.is_finite() || reach.max_element() > MAX_REACH_VOXELS {
+            return Err(VolumeError::Density {
+                file: spec.file.clone(),
+                grid: spec.velocity_grid.clone().unwrap_or(DEFAULT_VELOCITY_GRID.into()),
+                source: super::DensityError::Placement(format!(
+                    "over the shutter the velocities move the density up to {:.3e} voxels, beyond the limit of {MAX_REACH_VOXELS} (check velocity_scale and the velocity grid's units)",
+                    reach.max_element()
+                )),
+            });
+        }
         let (majorants, estimates) = match spec.majorant {
             // Moving or chromatic: majorants without minorants (no constant-density shortcuts, which would hold
             // for the channels' maximum only), dilated over the shutter when the medium moves.
@@ -414,6 +424,11 @@ fn rgb_density(
     ];
     Ok((max, channels))
 }
+
+/// The largest displacement velocity blur may bring over the shutter, in voxels: far beyond any real simulation
+/// (a fluid crosses a few voxels a frame), while a corrupt or mis-scaled velocity would dilate the majorants over
+/// so much space that tracking took practically endless steps.
+pub const MAX_REACH_VOXELS: f32 = 65536.0;
 
 /// The velocity grid read when `velocity_grid` is not given (Houdini's and Blender's name).
 pub const DEFAULT_VELOCITY_GRID: &str = "vel";
