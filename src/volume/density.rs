@@ -11,8 +11,31 @@ use crate::vdb::{FloatTree, Grid, GridTree, Region};
 use glam::DMat4;
 use std::sync::Arc;
 
+/// Lookups of a field along one tracking walk: the state may keep what the last lookup found (a grid's tree
+/// nodes around it), since consecutive tentative collisions along a ray mostly fall in the same leaf.
+pub trait DensityLookup {
+    /// σ_t at local point `p`, exactly [`DensityField::density_local`].
+    fn density_local(&mut self, p: Vec3) -> f32;
+}
+
+/// Lookups of a closed-form field, which keep nothing between calls.
+pub struct Stateless<'a, F: ?Sized>(pub &'a F);
+
+impl<F: DensityField + ?Sized> DensityLookup for Stateless<'_, F> {
+    #[inline]
+    fn density_local(&mut self, p: Vec3) -> f32 {
+        self.0.density_local(p)
+    }
+}
+
 /// A scalar extinction field σ_t (per metre, already scaled) that tracking estimators can query.
 pub trait DensityField: Send + Sync {
+    /// The lookup state one tracking walk keeps.
+    type Lookup<'a>: DensityLookup
+    where
+        Self: 'a;
+    /// A fresh lookup state for one walk.
+    fn lookup(&self) -> Self::Lookup<'_>;
     /// World-space extinction σ_t (per metre) at world point `p`; never negative.
     fn density(&self, p: Vec3) -> f32;
     /// Conservative world bounds of the region where σ_t may be non-zero.
@@ -303,7 +326,27 @@ impl GridDensity {
     }
 }
 
+/// Lookups of a [`GridDensity`] through one tree accessor, whose cached nodes serve the next lookup.
+pub struct GridLookup<'a> {
+    accessor: crate::vdb::Accessor<'a, f32>,
+    scale: f32,
+}
+
+impl DensityLookup for GridLookup<'_> {
+    #[inline]
+    fn density_local(&mut self, p: Vec3) -> f32 {
+        (self.scale * self.accessor.sample_trilinear(p)).max(0.0)
+    }
+}
+
 impl DensityField for GridDensity {
+    type Lookup<'a> = GridLookup<'a>;
+    fn lookup(&self) -> GridLookup<'_> {
+        GridLookup {
+            accessor: self.tree().accessor(),
+            scale: self.scale,
+        }
+    }
     fn density(&self, p: Vec3) -> f32 {
         self.density_index(self.world_to_index.transform_point3(p))
     }
@@ -423,6 +466,10 @@ impl AnalyticDensity {
 }
 
 impl DensityField for AnalyticDensity {
+    type Lookup<'a> = Stateless<'a, Self>;
+    fn lookup(&self) -> Stateless<'_, Self> {
+        Stateless(self)
+    }
     fn density(&self, p: Vec3) -> f32 {
         let bounds = self.aabb();
         if !bounds.contains(p) {

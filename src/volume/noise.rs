@@ -150,6 +150,10 @@ impl NoiseMedium {
 
 /// The density in world space (its local space), for the trackers.
 impl DensityField for NoiseMedium {
+    type Lookup<'a> = super::density::Stateless<'a, Self>;
+    fn lookup(&self) -> Self::Lookup<'_> {
+        super::density::Stateless(self)
+    }
     fn density(&self, p: Vec3) -> f32 {
         NoiseMedium::density(self, p)
     }

@@ -14,7 +14,7 @@
 //! Estimating Attenuation in Participating Media"); Novák, Georgiev, Hanika, Jarosz 2018 ("Monte Carlo Methods
 //! for Volumetric Light Transport Simulation", STAR).
 
-use super::density::{local_ray, DensityField};
+use super::density::{local_ray, DensityField, DensityLookup};
 use super::majorant::{Majorants, Segment};
 use crate::math::{Ray, Rng};
 use std::ops::ControlFlow;
@@ -96,19 +96,20 @@ impl FreePath {
     }
 }
 
-/// A tentative collision: the point at parameter `t` of the local-space ray, in majorant segment `segment`.
-struct Tentative<'a, F: ?Sized> {
-    field: &'a F,
+/// A tentative collision: the point at parameter `t` of the local-space ray, in majorant segment `segment`,
+/// with the walk's lookup state.
+struct Tentative<'a, L> {
+    lookup: &'a mut L,
     ray: &'a Ray,
     t: f32,
     segment: &'a Segment,
 }
 
-impl<F: DensityField + ?Sized> Tentative<'_, F> {
+impl<L: DensityLookup> Tentative<'_, L> {
     /// The density lookup at the collision, counted and checked against the segment's majorant.
     #[inline]
-    fn density(&self, c: &mut TrackingCounters) -> f32 {
-        let sigma = self.field.density_local(self.ray.at(self.t));
+    fn density(&mut self, c: &mut TrackingCounters) -> f32 {
+        let sigma = self.lookup.density_local(self.ray.at(self.t));
         c.density_lookups += 1;
         if sigma > self.segment.sigma_max * (1.0 + VIOLATION_EPS) {
             c.majorant_violations += 1;
@@ -132,9 +133,9 @@ trait Estimator {
     /// Entering segment `s` of a ray whose world direction has length `len`.
     fn segment(&mut self, s: &Segment, len: f32, rng: &mut Rng) -> OnSegment;
     /// A tentative collision on the segment last entered; `Break` stops tracking.
-    fn collision<F: DensityField + ?Sized>(
+    fn collision<L: DensityLookup>(
         &mut self,
-        x: &Tentative<'_, F>,
+        x: &mut Tentative<'_, L>,
         rng: &mut Rng,
         c: &mut TrackingCounters,
     ) -> ControlFlow<()>;
@@ -154,6 +155,7 @@ fn track<F: DensityField + ?Sized>(
     estimator: &mut impl Estimator,
 ) {
     let lr = local_ray(field, ray);
+    let mut lookup = field.lookup();
     let len = ray.dir.length();
     let mut path = FreePath::new(rng);
     let mut segments = majorants.segments(&lr, t_min, t_max);
@@ -166,13 +168,13 @@ fn track<F: DensityField + ?Sized>(
         };
         let mut t = s.t0;
         while path.next_collision(&mut t, s.t1, rate, rng) {
-            let x = Tentative {
-                field,
+            let mut x = Tentative {
+                lookup: &mut lookup,
                 ray: &lr,
                 t,
                 segment: &s,
             };
-            if estimator.collision(&x, rng, counters).is_break() {
+            if estimator.collision(&mut x, rng, counters).is_break() {
                 break 'walk;
             }
         }
@@ -206,9 +208,9 @@ impl Estimator for Delta {
         OnSegment::Track(s.sigma_max * len)
     }
 
-    fn collision<F: DensityField + ?Sized>(
+    fn collision<L: DensityLookup>(
         &mut self,
-        x: &Tentative<'_, F>,
+        x: &mut Tentative<'_, L>,
         rng: &mut Rng,
         c: &mut TrackingCounters,
     ) -> ControlFlow<()> {
@@ -271,9 +273,9 @@ impl Estimator for Ratio {
         OnSegment::Track(s.sigma_max * len)
     }
 
-    fn collision<F: DensityField + ?Sized>(
+    fn collision<L: DensityLookup>(
         &mut self,
-        x: &Tentative<'_, F>,
+        x: &mut Tentative<'_, L>,
         rng: &mut Rng,
         c: &mut TrackingCounters,
     ) -> ControlFlow<()> {
@@ -343,9 +345,9 @@ impl Estimator for ResidualRatio {
         OnSegment::Track(self.residual_max * len)
     }
 
-    fn collision<F: DensityField + ?Sized>(
+    fn collision<L: DensityLookup>(
         &mut self,
-        x: &Tentative<'_, F>,
+        x: &mut Tentative<'_, L>,
         rng: &mut Rng,
         c: &mut TrackingCounters,
     ) -> ControlFlow<()> {

@@ -12,7 +12,7 @@
 //! the reach is Σⱼ |Mᵢⱼ| · max|vⱼ| · s · max(|open|, |close|) / fps, with M the VDB's world-to-index linear map.
 //! A lookup above its majorant would still be counted in `majorant_violations`.
 
-use super::density::{DensityField, GridDensity};
+use super::density::{DensityField, DensityLookup, GridDensity, GridLookup};
 use super::error::DensityError;
 use crate::math::{Aabb, Mat3, Mat4, Vec3};
 use crate::vdb::{Grid, GridTree};
@@ -117,17 +117,27 @@ impl VelocityField {
     }
 
     /// The displacement per second at density index point `p`, in density index units.
-    #[inline]
     pub fn index_velocity(&self, p: Vec3) -> Vec3 {
-        let q = self.density_index_to_velocity_index.transform_point3(p);
-        let v = match &self.components {
-            Components::Vector(t) => t.as_vec3().map_or(Vec3::ZERO, |t| t.sample_trilinear(q)),
-            Components::Scalars(ts) => Vec3::from_array(
-                ts.each_ref()
-                    .map(|t| t.as_float().map_or(0.0, |t| t.sample_trilinear(q))),
-            ),
+        self.lookup().index_velocity(p)
+    }
+
+    /// Lookups that keep their tree accessors between calls.
+    pub fn lookup(&self) -> VelocityLookup<'_> {
+        let accessors = match &self.components {
+            Components::Vector(t) => t.as_vec3().map(|t| VelocityAccessors::Vector(t.accessor())),
+            Components::Scalars(ts) => match ts.each_ref().map(|t| t.as_float()) {
+                [Some(x), Some(y), Some(z)] => Some(VelocityAccessors::Scalars([
+                    x.accessor(),
+                    y.accessor(),
+                    z.accessor(),
+                ])),
+                _ => None,
+            },
         };
-        self.world_to_density_index * v
+        VelocityLookup {
+            field: self,
+            accessors,
+        }
     }
 
     /// Per axis of the density's index space, the largest displacement `seconds` can bring (index units).
@@ -141,6 +151,40 @@ impl VelocityField {
             Components::Vector(t) => t.memory_bytes(),
             Components::Scalars(ts) => ts.iter().map(|t| t.memory_bytes()).sum(),
         }
+    }
+}
+
+/// Tree accessors of a velocity field's grids.
+enum VelocityAccessors<'a> {
+    Vector(crate::vdb::Accessor<'a, Vec3>),
+    Scalars([crate::vdb::Accessor<'a, f32>; 3]),
+}
+
+/// Velocity lookups along one walk (their accessors' cached nodes serve the next lookup).
+pub struct VelocityLookup<'a> {
+    field: &'a VelocityField,
+    /// `None` only for grids of the wrong type, which [`VelocityField::new`] refuses.
+    accessors: Option<VelocityAccessors<'a>>,
+}
+
+impl VelocityLookup<'_> {
+    /// The displacement per second at density index point `p`, in density index units.
+    #[inline]
+    pub fn index_velocity(&mut self, p: Vec3) -> Vec3 {
+        let q = self
+            .field
+            .density_index_to_velocity_index
+            .transform_point3(p);
+        let v = match &mut self.accessors {
+            Some(VelocityAccessors::Vector(a)) => a.sample_trilinear(q),
+            Some(VelocityAccessors::Scalars(a)) => Vec3::new(
+                a[0].sample_trilinear(q),
+                a[1].sample_trilinear(q),
+                a[2].sample_trilinear(q),
+            ),
+            None => Vec3::ZERO,
+        };
+        self.field.world_to_density_index * v
     }
 }
 
@@ -187,7 +231,33 @@ impl Displaced<'_> {
     }
 }
 
+/// Lookups of a [`Displaced`] field: the density's and the velocity's accessors.
+pub struct DisplacedLookup<'a> {
+    density: GridLookup<'a>,
+    velocity: VelocityLookup<'a>,
+    seconds: f32,
+}
+
+impl DensityLookup for DisplacedLookup<'_> {
+    #[inline]
+    fn density_local(&mut self, p: Vec3) -> f32 {
+        let source = p - self.velocity.index_velocity(p) * self.seconds;
+        self.density.density_local(source)
+    }
+}
+
 impl DensityField for Displaced<'_> {
+    type Lookup<'b>
+        = DisplacedLookup<'b>
+    where
+        Self: 'b;
+    fn lookup(&self) -> DisplacedLookup<'_> {
+        DisplacedLookup {
+            density: self.density.lookup(),
+            velocity: self.velocity.lookup(),
+            seconds: self.seconds,
+        }
+    }
     fn density(&self, p: Vec3) -> f32 {
         self.density_local(self.density.world_to_index().transform_point3(p))
     }
