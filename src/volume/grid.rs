@@ -83,6 +83,16 @@ macro_rules! with_field {
     };
 }
 
+/// The world box a grid medium fills: its majorants' box (which holds the field over the whole shutter, grown
+/// by the velocity reach), else the density's bounds. Computed once: every ray segment asks for it.
+fn world_bounds(density: &GridDensity, majorants: &Majorants) -> Aabb {
+    let b = majorants.local_bounds();
+    if b.is_empty() {
+        return density.bounds();
+    }
+    b.transformed(&density.index_to_world())
+}
+
 /// Places a named scalar grid of the volume's file: as an extinction with a density scale, or (`None`) as a
 /// plain scalar field.
 type PlaceGrid<'a> = dyn Fn(&str, Option<f32>) -> Result<GridDensity, VolumeError> + 'a;
@@ -99,6 +109,8 @@ struct Motion {
 /// A heterogeneous medium backed by a sparse VDB grid.
 pub struct GridMedium {
     name: String,
+    /// World bounds of what the medium fills ([`Medium::fill_bounds`]).
+    world_bounds: Aabb,
     density: GridDensity,
     majorants: Majorants,
     /// The pilot's estimates when the structure was chosen automatically.
@@ -150,6 +162,7 @@ impl GridMedium {
     ) -> Self {
         Self {
             name: name.to_owned(),
+            world_bounds: world_bounds(&density, &majorants),
             density,
             majorants,
             majorant_estimates,
@@ -172,6 +185,7 @@ impl GridMedium {
 
     /// Replaces the majorant structure (for benchmarks and tests of under-estimated majorants).
     pub fn with_majorants(mut self, majorants: Majorants) -> Self {
+        self.world_bounds = world_bounds(&self.density, &majorants);
         self.majorants = majorants;
         self.majorant_estimates.clear();
         self
@@ -484,12 +498,7 @@ impl Medium for GridMedium {
     }
 
     fn fill_bounds(&self) -> Option<Aabb> {
-        let b = self.majorants.local_bounds();
-        if b.is_empty() {
-            return Some(self.density.bounds());
-        }
-        // The majorants' bounds hold the field over the whole shutter (grown by the velocity reach).
-        Some(b.transformed(&self.density.index_to_world()))
+        Some(self.world_bounds)
     }
 
     fn warnings(&self) -> Vec<String> {
