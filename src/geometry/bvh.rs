@@ -806,11 +806,23 @@ pub(super) mod tests {
 
     /// Reference: every triangle in input order, keeping the first of equally close hits.
     fn brute_closest(tris: &[[Vec3; 3]], ray: &Ray, t_min: f32, t_max: f32) -> Option<TriangleHit> {
+        brute_closest_of(tris.iter().copied().map(Some), ray, t_min, t_max)
+    }
+
+    /// The closest hit among `tris` (`None`: a triangle left out) tested in order, keeping the first of equally
+    /// close hits; `prim` is the position in `tris`.
+    pub(in crate::geometry) fn brute_closest_of(
+        tris: impl Iterator<Item = Option<[Vec3; 3]>>,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<TriangleHit> {
         let r = WatertightRay::new(ray);
         let mut best: Option<TriangleHit> = None;
-        for (i, tri) in tris.iter().enumerate() {
+        for (i, tri) in tris.enumerate() {
+            let Some(tri) = tri else { continue };
             let limit = best.map_or(t_max, |b| b.t);
-            if let Some((t, b1, b2)) = intersect_triangle(&r, tri, t_min, limit) {
+            if let Some((t, b1, b2)) = intersect_triangle(&r, &tri, t_min, limit) {
                 if best.is_none_or(|b| t < b.t) {
                     best = Some(TriangleHit {
                         t,

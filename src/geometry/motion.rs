@@ -229,9 +229,10 @@ impl MotionBvh {
 
 #[cfg(test)]
 mod tests {
-    use super::super::bvh::tests::{random_interval, random_point, random_ray, soup};
+    use super::super::bvh::tests::{
+        brute_closest_of, random_interval, random_point, random_ray, soup,
+    };
     use super::*;
-    use crate::geometry::triangle::WatertightRay;
     use crate::math::sampling::uniform_sphere;
     use crate::math::Rng;
 
@@ -243,25 +244,10 @@ mod tests {
         t_min: f32,
         t_max: f32,
     ) -> Option<TriangleHit> {
-        let r = WatertightRay::new(ray);
-        let mut best: Option<TriangleHit> = None;
-        for (i, tri) in tris.iter().enumerate() {
-            if tri.bounds().is_none() {
-                continue;
-            }
-            let limit = best.map_or(t_max, |b| b.t);
-            if let Some((t, b1, b2)) = intersect_triangle(&r, &tri.at(ray.time), t_min, limit) {
-                if best.is_none_or(|b| t < b.t) {
-                    best = Some(TriangleHit {
-                        t,
-                        prim: i as u32,
-                        b1,
-                        b2,
-                    });
-                }
-            }
-        }
-        best
+        let at_time = tris
+            .iter()
+            .map(|tri| tri.bounds().map(|_| tri.at(ray.time)));
+        brute_closest_of(at_time, ray, t_min, t_max)
     }
 
     /// Random triangles moving by up to 3 units between steps (2 to 5 steps over the shutter `[-0.5, 0.5]`),

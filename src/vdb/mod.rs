@@ -134,6 +134,13 @@ impl GridTree {
             Self::Float(_) => None,
         }
     }
+    /// True when every stored value (voxels, tiles and background; every component of a vector) is finite.
+    pub fn is_finite(&self) -> bool {
+        match self {
+            Self::Float(t) => t.background().is_finite() && !t.any_value(|v| !v.is_finite()),
+            Self::Vec3(t) => t.background().is_finite() && !t.any_value(|v| !v.is_finite()),
+        }
+    }
     /// Statistics over the active values.
     pub fn stats(&self) -> TreeStats {
         match self {

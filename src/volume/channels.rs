@@ -32,11 +32,7 @@ impl ChannelGrid {
                 "the grid's transform (VDB transform times node matrix) is not invertible".into(),
             ));
         }
-        let finite = match &*grid.tree {
-            GridTree::Float(t) => !t.any_value(|v| !v.is_finite()),
-            GridTree::Vec3(t) => !t.any_value(|v| !v.is_finite()),
-        };
-        if !finite {
+        if !grid.tree.is_finite() {
             return Err(DensityError::Placement(
                 "the grid holds a NaN or infinite value".into(),
             ));

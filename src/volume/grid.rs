@@ -93,17 +93,39 @@ fn world_bounds(density: &GridDensity, majorants: &Majorants) -> Aabb {
     b.transformed(&density.index_to_world())
 }
 
-/// Places a named scalar grid of the volume's file: as an extinction with a density scale, or (`None`) as a
-/// plain scalar field.
-type PlaceGrid<'a> = dyn Fn(&str, Option<f32>) -> Result<GridDensity, VolumeError> + 'a;
+/// The error for a grid `name` that the volume's file lacks, naming the grids it has.
+fn missing_grid(file: &crate::vdb::VdbFile, spec: &VolumeSpec, name: &str) -> VolumeError {
+    VolumeError::GridMissing {
+        file: spec.file.clone(),
+        grid: name.to_owned(),
+        available: file.grids.iter().map(|g| g.name.clone()).collect(),
+    }
+}
+
+/// The grid `name` of the volume's file, or [`missing_grid`]'s error.
+fn named_grid<'f>(
+    file: &'f crate::vdb::VdbFile,
+    spec: &VolumeSpec,
+    name: &str,
+) -> Result<&'f crate::vdb::Grid, VolumeError> {
+    file.grid(name)
+        .ok_or_else(|| missing_grid(file, spec, name))
+}
+
+/// Turns a problem with grid `name` of the volume's file into an error naming both.
+fn grid_error(spec: &VolumeSpec, name: &str) -> impl FnOnce(super::DensityError) -> VolumeError {
+    let (file, grid) = (spec.file.clone(), name.to_owned());
+    move |source| VolumeError::Density { file, grid, source }
+}
 
 /// A velocity field and the factor turning a ray's time (frames) into its scaled seconds.
 struct Motion {
     velocity: VelocityField,
     /// `velocity_scale / fps`.
     seconds_per_frame: f32,
-    /// The largest dilation of the majorants, in voxels along any axis (for `--explain`).
-    reach_voxels: f32,
+    /// The majorants' dilation per axis of the density's index space: the largest displacement over the
+    /// shutter.
+    reach: Vec3,
 }
 
 /// A heterogeneous medium backed by a sparse VDB grid.
@@ -208,55 +230,25 @@ impl GridMedium {
                 },
             ),
         }?;
-        // `scale` None: a temperature grid, not an extinction, so never clamped as too dense.
-        let place = |name: &str, scale: Option<f32>| {
-            let grid = file.grid(name).ok_or_else(|| VolumeError::GridMissing {
-                file: spec.file.clone(),
-                grid: name.to_owned(),
-                available: file.grids.iter().map(|g| g.name.clone()).collect(),
-            })?;
-            let node_to_world = spec.node_to_world.as_dmat4();
-            match scale {
-                Some(s) => GridDensity::new(grid, node_to_world, s),
-                None => GridDensity::scalar(grid, node_to_world),
-            }
-            .map_err(|source| VolumeError::Density {
-                file: spec.file.clone(),
-                grid: name.to_owned(),
-                source,
-            })
-        };
-        let (density, channels) = match file.grid(&spec.density_grid) {
-            Some(g) if g.tree.as_vec3().is_some() => {
-                let (max, channels) =
-                    rgb_density(g, spec).map_err(|source| VolumeError::Density {
-                        file: spec.file.clone(),
-                        grid: spec.density_grid.clone(),
-                        source,
-                    })?;
-                (max, Some(Box::new(channels)))
-            }
-            _ => (place(&spec.density_grid, Some(spec.density_scale))?, None),
+        let density_grid = named_grid(&file, spec, &spec.density_grid)?;
+        let (density, channels) = if density_grid.tree.as_vec3().is_some() {
+            let (max, channels) =
+                rgb_density(density_grid, spec).map_err(grid_error(spec, &spec.density_grid))?;
+            (max, Some(Box::new(channels)))
+        } else {
+            let density = GridDensity::new(
+                density_grid,
+                spec.node_to_world.as_dmat4(),
+                spec.density_scale,
+            )
+            .map_err(grid_error(spec, &spec.density_grid))?;
+            (density, None)
         };
         let motion = match spec.shutter {
-            Some(shutter) => Self::load_motion(spec, &file, shutter)?,
+            Some(shutter) => Self::load_motion(spec, &file, density_grid, shutter)?,
             None => None,
         };
-        let reach = motion
-            .as_ref()
-            .map_or(Vec3::ZERO, |(velocity, seconds_per_frame)| {
-                velocity.reach(shutter_extent(spec) * seconds_per_frame)
-            });
-        if !reach.is_finite() || reach.max_element() > MAX_REACH_VOXELS {
-            return Err(VolumeError::Density {
-                file: spec.file.clone(),
-                grid: spec.velocity_grid.clone().unwrap_or(DEFAULT_VELOCITY_GRID.into()),
-                source: super::DensityError::Placement(format!(
-                    "over the shutter the velocities move the density up to {:.3e} voxels, beyond the limit of {MAX_REACH_VOXELS} (check velocity_scale and the velocity grid's units)",
-                    reach.max_element()
-                )),
-            });
-        }
+        let reach = motion.as_ref().map_or(Vec3::ZERO, |m| m.reach);
         let (majorants, estimates) = match spec.majorant {
             // Moving or chromatic: majorants without minorants (no constant-density shortcuts, which would hold
             // for the channels' maximum only), dilated over the shutter when the medium moves.
@@ -288,12 +280,8 @@ impl GridMedium {
             spec.anisotropy,
         )
         .with_shadow_estimator(spec.shadow_estimator);
-        medium.motion = motion.map(|(velocity, seconds_per_frame)| Motion {
-            velocity,
-            seconds_per_frame,
-            reach_voxels: reach.max_element(),
-        });
-        medium.load_channels(spec, &file, &place)?;
+        medium.motion = motion;
+        medium.load_channels(spec, &file)?;
         medium.channels = channels;
         Ok(medium)
     }
@@ -304,11 +292,14 @@ impl GridMedium {
         &mut self,
         spec: &VolumeSpec,
         file: &crate::vdb::VdbFile,
-        place: &PlaceGrid<'_>,
     ) -> Result<(), VolumeError> {
+        let node_to_world = spec.node_to_world.as_dmat4();
         if let Some(t) = &spec.temperature_grid {
+            // A temperature, not an extinction: never clamped as too dense.
+            let temperature = GridDensity::scalar(named_grid(file, spec, t)?, node_to_world)
+                .map_err(grid_error(spec, t))?;
             self.emission = Some(Emission {
-                temperature: place(t, None)?,
+                temperature,
                 table: BlackbodyTable::new(),
                 scale: spec.emission_scale,
                 temperature_scale: spec.temperature_scale,
@@ -316,18 +307,8 @@ impl GridMedium {
             });
         }
         let channel = |name: &str| -> Result<ChannelGrid, VolumeError> {
-            let grid = file.grid(name).ok_or_else(|| VolumeError::GridMissing {
-                file: spec.file.clone(),
-                grid: name.to_owned(),
-                available: file.grids.iter().map(|g| g.name.clone()).collect(),
-            })?;
-            ChannelGrid::new(grid, spec.node_to_world.as_dmat4()).map_err(|source| {
-                VolumeError::Density {
-                    file: spec.file.clone(),
-                    grid: name.to_owned(),
-                    source,
-                }
-            })
+            ChannelGrid::new(named_grid(file, spec, name)?, node_to_world)
+                .map_err(grid_error(spec, name))
         };
         if let Some(name) = &spec.flame_grid {
             let colour = spec
@@ -344,14 +325,17 @@ impl GridMedium {
         Ok(())
     }
 
-    /// The velocity field of a blurred volume and its seconds per shutter frame (`velocity_scale / fps`):
-    /// `velocity_grid` as one vec3 grid, else its `.x`, `.y`, `.z` scalar grids. `None` when the file has
-    /// neither and the key was left at its default (the volume does not move), or the scale is 0.
+    /// The motion of a blurred volume: the velocity field of `velocity_grid` (one vec3 grid, else its `.x`,
+    /// `.y`, `.z` scalar grids) placed with the `density` grid, its seconds per shutter frame
+    /// (`velocity_scale / fps`) and its reach over the shutter, which may not exceed [`MAX_REACH_VOXELS`].
+    /// `None` when the file has neither grid and the key was left at its default (the volume does not move),
+    /// or the scale or the shutter is 0.
     fn load_motion(
         spec: &VolumeSpec,
         file: &crate::vdb::VdbFile,
+        density: &crate::vdb::Grid,
         shutter: crate::frames::Shutter,
-    ) -> Result<Option<(VelocityField, f32)>, VolumeError> {
+    ) -> Result<Option<Motion>, VolumeError> {
         let name = spec
             .velocity_grid
             .as_deref()
@@ -361,32 +345,26 @@ impl GridMedium {
             (Some(g), _) => vec![g],
             (None, [Some(x), Some(y), Some(z)]) => vec![x, y, z],
             _ if spec.velocity_grid.is_none() => return Ok(None),
-            _ => {
-                return Err(VolumeError::GridMissing {
-                    file: spec.file.clone(),
-                    grid: name.to_owned(),
-                    available: file.grids.iter().map(|g| g.name.clone()).collect(),
-                })
-            }
+            _ => return Err(missing_grid(file, spec, name)),
         };
-        let density = file
-            .grid(&spec.density_grid)
-            .ok_or_else(|| VolumeError::GridMissing {
-                file: spec.file.clone(),
-                grid: spec.density_grid.clone(),
-                available: file.grids.iter().map(|g| g.name.clone()).collect(),
-            })?;
-        let velocity =
-            VelocityField::new(&grids, density).map_err(|source| VolumeError::Density {
-                file: spec.file.clone(),
-                grid: name.to_owned(),
-                source,
-            })?;
+        let velocity = VelocityField::new(&grids, density).map_err(grid_error(spec, name))?;
         let seconds_per_frame = (spec.velocity_scale as f64 / spec.fps) as f32;
         if seconds_per_frame == 0.0 || shutter.open == shutter.close && shutter.open == 0.0 {
             return Ok(None);
         }
-        Ok(Some((velocity, seconds_per_frame)))
+        let longest = shutter.open.abs().max(shutter.close.abs());
+        let reach = velocity.reach(longest * seconds_per_frame);
+        if !reach.is_finite() || reach.max_element() > MAX_REACH_VOXELS {
+            return Err(grid_error(spec, name)(super::DensityError::Placement(format!(
+                "over the shutter the velocities move the density up to {:.3e} voxels, beyond the limit of {MAX_REACH_VOXELS} (check velocity_scale and the velocity grid's units)",
+                reach.max_element()
+            ))));
+        }
+        Ok(Some(Motion {
+            velocity,
+            seconds_per_frame,
+            reach,
+        }))
     }
 
     /// The density as seen by a ray at `time` frames: displaced along the velocity when the medium moves.
@@ -447,12 +425,6 @@ pub const MAX_REACH_VOXELS: f32 = 65536.0;
 /// The velocity grid read when `velocity_grid` is not given (Houdini's and Blender's name).
 pub const DEFAULT_VELOCITY_GRID: &str = "vel";
 
-/// The largest |time| of the shutter, in frames (0 without one).
-fn shutter_extent(spec: &VolumeSpec) -> f32 {
-    spec.shutter
-        .map_or(0.0, |s| s.open.abs().max(s.close.abs()))
-}
-
 impl Medium for GridMedium {
     fn name(&self) -> &str {
         &self.name
@@ -470,7 +442,7 @@ impl Medium for GridMedium {
             },
             why: if let Some(m) = &self.motion {
                 MethodReason::VelocityBlur {
-                    reach_voxels: m.reach_voxels,
+                    reach_voxels: m.reach.max_element(),
                 }
             } else if self.channels.is_some() {
                 MethodReason::ChromaticExtinction

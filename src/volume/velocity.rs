@@ -15,7 +15,7 @@
 use super::density::{DensityField, DensityLookup, GridDensity, GridLookup};
 use super::error::DensityError;
 use crate::math::{Aabb, Mat3, Mat4, Vec3};
-use crate::vdb::{Grid, GridTree};
+use crate::vdb::{Grid, GridTree, Tree, VoxelValue};
 use glam::DMat4;
 use std::sync::Arc;
 
@@ -49,12 +49,7 @@ impl VelocityField {
     pub fn new(grids: &[&Grid], density_grid: &Grid) -> Result<Self, DensityError> {
         let components = match grids {
             [g] => match &*g.tree {
-                GridTree::Vec3(t) => {
-                    if t.any_value(|v| !v.is_finite()) {
-                        return Err(not_finite());
-                    }
-                    Components::Vector(g.tree.clone())
-                }
+                GridTree::Vec3(_) => Components::Vector(g.tree.clone()),
                 GridTree::Float(_) => {
                     return Err(DensityError::Placement(
                         "a velocity grid must hold vectors (or name the scalar grids vel.x, vel.y and vel.z)"
@@ -70,16 +65,10 @@ impl VelocityField {
                         ));
                     }
                 }
-                for g in [x, y, z] {
-                    match g.tree.as_float() {
-                        Some(t) if t.any_value(|v| !v.is_finite()) => return Err(not_finite()),
-                        Some(_) => {}
-                        None => {
-                            return Err(DensityError::Placement(
-                                "a velocity component grid must be scalar".into(),
-                            ))
-                        }
-                    }
+                if [x, y, z].iter().any(|g| g.tree.as_float().is_none()) {
+                    return Err(DensityError::Placement(
+                        "a velocity component grid must be scalar".into(),
+                    ));
                 }
                 Components::Scalars([x.tree.clone(), y.tree.clone(), z.tree.clone()])
             }
@@ -89,6 +78,11 @@ impl VelocityField {
                 ))
             }
         };
+        if !grids.iter().all(|g| g.tree.is_finite()) {
+            return Err(DensityError::Placement(
+                "the velocity grid holds a NaN or infinite value".into(),
+            ));
+        }
         let velocity_index_to_world = grids[0].index_to_world;
         let density_index_to_velocity_index: DMat4 =
             velocity_index_to_world.inverse() * density_grid.index_to_world;
@@ -100,11 +94,10 @@ impl VelocityField {
         }
         let world_to_density_index = world_to_density_index.as_mat3();
         let largest = match &components {
-            Components::Vector(t) => t.as_vec3().map_or(Vec3::ZERO, largest_abs_vec3),
-            Components::Scalars(ts) => Vec3::from_array(
-                ts.each_ref()
-                    .map(|t| t.as_float().map_or(0.0, largest_abs_scalar)),
-            ),
+            Components::Vector(t) => t.as_vec3().map_or(Vec3::ZERO, largest_abs),
+            Components::Scalars(ts) => {
+                Vec3::from_array(ts.each_ref().map(|t| t.as_float().map_or(0.0, largest_abs)))
+            }
         };
         let m = world_to_density_index;
         let abs = Mat3::from_cols(m.x_axis.abs(), m.y_axis.abs(), m.z_axis.abs());
@@ -188,28 +181,15 @@ impl VelocityLookup<'_> {
     }
 }
 
-fn not_finite() -> DensityError {
-    DensityError::Placement("the velocity grid holds a NaN or infinite value".into())
-}
-
-/// The largest |component| of any value a lookup can return (background included), per axis.
-fn largest_abs_vec3(t: &crate::vdb::Vec3Tree) -> Vec3 {
+/// The largest |value| (per component) a lookup can return, background included.
+fn largest_abs<T: VoxelValue>(t: &Tree<T>) -> T {
+    let abs = |v: T| v.max_of(v.neg());
     t.regions()
         .map(|r| {
             let (lo, hi) = r.range();
-            lo.abs().max(hi.abs())
+            abs(lo).max_of(abs(hi))
         })
-        .fold(t.background().abs(), Vec3::max)
-}
-
-/// The largest |value| a lookup can return (background included).
-fn largest_abs_scalar(t: &crate::vdb::FloatTree) -> f32 {
-    t.regions()
-        .map(|r| {
-            let (lo, hi) = r.range();
-            lo.abs().max(hi.abs())
-        })
-        .fold(t.background().abs(), f32::max)
+        .fold(abs(t.background()), T::max_of)
 }
 
 /// A density field seen at `seconds` from its frame: σ_t at index point p is the frame's σ_t at
