@@ -41,6 +41,24 @@ enum Command {
     Merge(MergeArgs),
 }
 
+/// `--sampler`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum SamplerArg {
+    /// Owen-scrambled, shuffled Sobol points per dimension pair.
+    Sobol,
+    /// Independent uniform random numbers (PCG32).
+    Independent,
+}
+
+/// `--volume-sampling`: the distance-sampling strategies of media (Cycles' "volume sampling" names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum VolumeSampling {
+    /// Distance sampling and, where it applies, equiangular sampling, combined by MIS.
+    Mis,
+    /// Distance sampling alone.
+    Distance,
+}
+
 #[derive(Args)]
 struct MergeArgs {
     /// Part files, in any order (e.g. parts/shot.chunk*.exr).
@@ -145,6 +163,14 @@ struct RenderArgs {
     /// Write render statistics as JSON to this file.
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// Distance sampling in media: `mis` also samples segments through constant media equiangularly toward
+    /// point and spot lights, MIS'd with distance sampling; `distance` uses distance sampling alone.
+    #[arg(long = "volume-sampling", value_enum, default_value = "mis")]
+    volume_sampling: VolumeSampling,
+    /// Where the paths' key random decisions come from: `sobol` (Owen-scrambled Sobol points, stratified per
+    /// pixel) or `independent` (uniform random numbers).
+    #[arg(long, value_enum, default_value = "sobol")]
+    sampler: SamplerArg,
     /// Constant environment radiance r,g,b (overrides the scene's nimbus_environment).
     #[arg(long = "env-color", value_parser = parse_rgb)]
     env_color: Option<Rgb>,
@@ -445,6 +471,7 @@ fn render_frame(
         for m in scene.media() {
             eprintln!("nimbus: medium '{}': {}", m.name(), m.method());
         }
+        explain_volume_sampling(&scene, args.volume_sampling);
         if let Some(shutter) = scene.shutter() {
             eprintln!(
                 "nimbus: motion blur: shutter {} frames (box), {} moving triangles, the camera {}",
@@ -484,6 +511,11 @@ fn render_frame(
         max_depth: args.max_depth.or(scene.max_bounces()).unwrap_or(64),
         time_limit,
         media_mis: true,
+        equiangular: args.volume_sampling == VolumeSampling::Mis,
+        sampler: match args.sampler {
+            SamplerArg::Sobol => nimbus::render::Sampler::Sobol,
+            SamplerArg::Independent => nimbus::render::Sampler::Independent,
+        },
         limits,
     };
     eprintln!(
@@ -558,6 +590,34 @@ fn create_parent(path: &Path) -> Result<(), String> {
 }
 
 /// Warns about biased media, dropped and clamped samples, and writes the statistics if asked.
+/// `--explain`'s line on distance sampling in media: whether segments through constant media are also
+/// sampled equiangularly toward point and spot lights, and why (not).
+fn explain_volume_sampling(scene: &Scene, sampling: VolumeSampling) {
+    let constant = scene
+        .media()
+        .iter()
+        .filter(|m| m.constant_scattering().is_some())
+        .count();
+    if constant == 0 {
+        return;
+    }
+    let points = scene
+        .lights()
+        .iter()
+        .filter(|l| l.point_position().is_some())
+        .count();
+    let choice = match (sampling, points) {
+        (VolumeSampling::Distance, _) => "distance sampling alone (--volume-sampling distance)".to_string(),
+        (_, 0) => "distance sampling alone: no point or spot light to sample toward".to_string(),
+        _ => format!(
+            "equiangular sampling toward {points} point/spot light(s), MIS'd with distance sampling \
+             (power heuristic): distance sampling alone scatters where the medium is dense, not where a \
+             small light is bright"
+        ),
+    };
+    eprintln!("nimbus: volume sampling in {constant} constant medium/media: {choice}");
+}
+
 fn finish_render(stats: &RenderStats, stats_path: Option<&Path>) -> Result<(), String> {
     for m in stats
         .media

@@ -156,3 +156,60 @@ fn a_scene_without_light_gets_a_default_environment_unless_told_to_stay_dark() {
     assert_eq!(mean, 0.0, "an explicit black environment keeps it dark");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn volume_sampling_and_sampler_flags_are_explained_and_counted() {
+    // The peer benchmark's haze: a homogeneous scattering box with a point light inside.
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/scenes/haze.gltf");
+    let dir = std::env::temp_dir().join(format!("nimbus-cli-sampling-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let render = |flags: &[&str]| {
+        let stats = dir.join("stats.json");
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&scene)
+            .args(["--width", "8", "--spp", "4", "--explain", "--stats"])
+            .arg(&stats)
+            .arg("-o")
+            .arg(dir.join("out.exr"))
+            .args(flags)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert_eq!(output.status.code(), Some(0), "{flags:?}: {stderr}");
+        let stats: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        (stderr, stats["rays"]["equiangular"].as_u64().unwrap())
+    };
+    let (stderr, equiangular) = render(&[]);
+    assert!(
+        stderr.contains("equiangular sampling toward 1 point/spot light"),
+        "{stderr}"
+    );
+    assert!(equiangular > 0);
+    let (stderr, equiangular) =
+        render(&["--volume-sampling", "distance", "--sampler", "independent"]);
+    assert!(
+        stderr.contains("distance sampling alone (--volume-sampling distance)"),
+        "{stderr}"
+    );
+    assert_eq!(equiangular, 0);
+    for bad in [
+        ["--sampler", "halton"],
+        ["--volume-sampling", "equiangular"],
+    ] {
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&scene)
+            .args(bad)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            !output.status.success() && !stderr.contains("panicked"),
+            "{bad:?}: {stderr}"
+        );
+        assert!(stderr.contains(bad[1]), "{bad:?}: {stderr}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

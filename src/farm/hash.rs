@@ -78,6 +78,8 @@ pub fn scene_hash(
     h.field(&settings.seed.to_le_bytes());
     h.field(&settings.max_depth.to_le_bytes());
     h.field(&[settings.media_mis as u8]);
+    h.field(&[settings.equiangular as u8]);
+    h.field(&[settings.sampler as u8]);
     for (name, value) in overrides {
         h.field(name.as_bytes());
         h.field(value);
@@ -158,6 +160,22 @@ mod tests {
                 &[b"scene"],
                 &RenderSettings {
                     media_mis: false,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    equiangular: false,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    sampler: crate::render::Sampler::Independent,
                     ..s.clone()
                 },
                 &[],

@@ -7,6 +7,14 @@
 //! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. Nothing
 //! here depends on which tracking method a medium uses.
 //!
+//! Point and spot lights in or near media: on a segment inside one medium of constant coefficients
+//! ([`Medium::constant_scattering`]), the direct light of a point or spot light is also estimated at a distance
+//! sampled equiangularly toward it (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path Tracing in
+//! Participating Media", §4.1), and both that estimate and next-event estimation at the free-flight collision
+//! are weighted by the power heuristic over the two distance densities ([`Medium::free_flight_pdf`] and the
+//! equiangular one). Distance sampling alone scatters where the medium is dense, not where the light is
+//! bright, and leaves fireflies around every small light in a thin medium.
+//!
 //! Texture filtering: each path carries a ray cone (Akenine-Möller et al. 2021, "Improved Shader and Texture
 //! Level of Detail Using Ray Cones", JCGT 10(1)) that starts at the camera with the spread of one pixel. Its
 //! width at a hit, projected onto the surface, is the footprint over which textures are filtered
@@ -20,13 +28,17 @@
 //!
 //! [`Medium::sample_free_flight`]: crate::volume::Medium::sample_free_flight
 //! [`Medium::free_flight_weight`]: crate::volume::Medium::free_flight_weight
+//! [`Medium::constant_scattering`]: crate::volume::Medium::constant_scattering
+//! [`Medium::free_flight_pdf`]: crate::volume::Medium::free_flight_pdf
 //! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
 
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
-use crate::math::{sampling::power_heuristic, Frame, Ray, Rgb, Rng, Vec3};
-use crate::scene::SurfaceHit;
+use crate::math::sampling::{power_heuristic, Equiangular};
+use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
+use crate::scene::{Scene, SurfaceHit};
+use crate::volume::ConstantScattering;
 
 /// Bounces after which Russian roulette may end a path.
 const ROULETTE_START: u32 = 3;
@@ -82,6 +94,25 @@ pub struct PathTracer {
     /// Spread angle of a camera ray's cone, in radians: the angle one pixel subtends
     /// ([`crate::scene::Camera::pixel_spread_angle`]). 0 reads every texture at full resolution.
     pub pixel_spread: f32,
+    /// Equiangular sampling toward point and spot lights on segments through constant media, MIS'd with
+    /// distance sampling (see the module documentation); [`PathTracer::uses_equiangular`] says whether a scene
+    /// gets it.
+    pub equiangular: bool,
+}
+
+/// A segment inside exactly one medium of constant coefficients, whose direct light from point and spot
+/// lights is estimated by both distance and equiangular sampling.
+#[derive(Clone, Copy, Debug)]
+struct ConstantSegment {
+    /// Where the segment starts and its direction (the ray's).
+    origin: Vec3,
+    dir: Vec3,
+    /// Its length: the distance to the surface that ends it.
+    length: f32,
+    /// The medium.
+    medium: u32,
+    /// The path throughput when the segment starts, as the medium's free-flight sampling saw it.
+    throughput: Rgb,
 }
 
 /// The state of a path between events.
@@ -97,6 +128,9 @@ struct PathState {
     prev_p: Vec3,
     /// Whether emitters hit next were already counted by light sampling alone (a medium event without MIS).
     prev_light_only: bool,
+    /// Whether the last scattering event was at a surface, whose next-event estimate may sample every light
+    /// ([`RendererServices::surfaces_sample_every_light`]).
+    prev_at_surface: bool,
     stack: MediumStack,
     /// Width of the ray cone where the current ray starts, in world units.
     cone_width: f32,
@@ -104,6 +138,9 @@ struct PathState {
     crossings: u32,
     /// Whether the next surface hit is the first, whose AOVs the path records.
     first_hit: bool,
+    /// The constant-medium segment that ended in the current real collision, for the MIS weight of its
+    /// next-event estimate against equiangular sampling.
+    collided_segment: Option<ConstantSegment>,
 }
 
 /// What shading a surface hit decided.
@@ -115,6 +152,17 @@ enum SurfaceOutcome {
 }
 
 impl PathTracer {
+    /// True when `scene` gets equiangular sampling: it is on, and the scene has a point or spot light and a
+    /// scattering medium of constant coefficients.
+    pub fn uses_equiangular(equiangular: bool, scene: &Scene) -> bool {
+        equiangular
+            && scene.lights().iter().any(|l| l.point_position().is_some())
+            && scene
+                .media
+                .iter()
+                .any(|m| m.constant_scattering().is_some())
+    }
+
     /// Traces one camera path: alternates [`Self::sample_segment_media`] along each segment with either
     /// [`Self::scatter_in_medium`] at a real collision or [`Self::shade_surface`] at the surface that ends it.
     pub fn trace(
@@ -134,10 +182,12 @@ impl PathTracer {
             prev_pdf: 0.0,
             prev_p: ray.origin,
             prev_light_only: false,
+            prev_at_surface: false,
             stack: MediumStack::default(),
             cone_width: 0.0,
             crossings: 0,
             first_hit: true,
+            collided_segment: None,
         };
         counters.rays.camera += 1;
         loop {
@@ -190,8 +240,12 @@ impl PathTracer {
         {
             carry_one_channel(&mut s.beta, rng);
         }
-        let mut nearest: Option<(f32, u32)> = None;
         let throughput = s.beta;
+        let constant = self.constant_segment(services, s, ray, t_surface, media.ids(), throughput);
+        if let Some((segment, coefficients)) = &constant {
+            self.sample_equiangular(services, s, ray, segment, coefficients, rng, counters);
+        }
+        let mut nearest: Option<(f32, u32)> = None;
         for &m in media.ids() {
             let medium = &scene.media[m as usize];
             let counter = &mut counters.media[m as usize];
@@ -208,7 +262,127 @@ impl PathTracer {
             let counter = &mut counters.media[m as usize];
             s.beta *= medium.free_flight_weight(ray, t_event, collided, throughput, rng, counter);
         }
+        s.collided_segment = constant
+            .map(|(segment, _)| segment)
+            .filter(|_| nearest.is_some());
         nearest
+    }
+
+    /// The segment `[0, t_surface)` of `ray` when equiangular sampling applies to it: it is on, the path may
+    /// still scatter, the segment is bounded and inside exactly one medium, and that medium scatters with
+    /// constant coefficients.
+    fn constant_segment(
+        &self,
+        services: &RendererServices,
+        s: &PathState,
+        ray: &Ray,
+        t_surface: f32,
+        media: &[u32],
+        throughput: Rgb,
+    ) -> Option<(ConstantSegment, ConstantScattering)> {
+        let &[medium] = media else { return None };
+        if !self.equiangular || s.depth >= self.max_depth || !t_surface.is_finite() {
+            return None;
+        }
+        let coefficients = services.scene().media[medium as usize].constant_scattering()?;
+        let segment = ConstantSegment {
+            origin: ray.origin,
+            dir: ray.dir,
+            length: t_surface,
+            medium,
+            throughput,
+        };
+        Some((segment, coefficients))
+    }
+
+    /// The equiangular half of the direct light on a constant-medium segment: chooses a light as next-event
+    /// estimation does and, when it is a point or spot light, samples a distance t on the segment with density
+    /// ∝ 1/r² toward it (Kulla & Fajardo 2012, eq. 8) and adds σ_s T(t) ρ(θ) L_i T_shadow / (P(light) p_e(t)),
+    /// weighted by the power heuristic against the medium's free-flight density at t. The path does not
+    /// continue from t; scattering there is the free-flight sample's job.
+    #[allow(clippy::too_many_arguments)]
+    fn sample_equiangular(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        segment: &ConstantSegment,
+        coefficients: &ConstantScattering,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) {
+        let scene = services.scene();
+        let u = rng.sample_2d();
+        let Some((index, pmf)) = services.choose_light(u.x) else {
+            return;
+        };
+        let Some(light) = scene.lights[index].point_position() else {
+            return;
+        };
+        let Some(equiangular) =
+            Equiangular::new(segment.origin, segment.dir, segment.length, light)
+        else {
+            return;
+        };
+        let (t, pdf) = equiangular.sample(u.y);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return;
+        }
+        counters.rays.equiangular += 1;
+        let p = ray.at(t);
+        let Some(chosen) = services.sample_chosen_light(index, pmf, p, rng.next_2d()) else {
+            return;
+        };
+        let ls = chosen.sample;
+        let phase = coefficients.phase.eval(-ray.dir, ls.wi);
+        let Some(shadow) = ls.shadow_segment(&SurfacePoint::free(p)) else {
+            return;
+        };
+        if phase <= 0.0 {
+            return;
+        }
+        let tr = services.transmittance(&shadow, ray.time, &s.stack, rng, counters);
+        if tr.max_element() <= 0.0 {
+            return;
+        }
+        let medium = &scene.media[segment.medium as usize];
+        let weight = power_heuristic(pdf, medium.free_flight_pdf(t, segment.throughput));
+        let transmittance = Rgb::new(
+            (-coefficients.sigma_t.x * t).exp(),
+            (-coefficients.sigma_t.y * t).exp(),
+            (-coefficients.sigma_t.z * t).exp(),
+        );
+        s.radiance += segment.throughput
+            * coefficients.sigma_s
+            * transmittance
+            * tr
+            * ls.radiance
+            * (phase * weight / (pmf * pdf));
+    }
+
+    /// The MIS weight of next-event estimation at a free-flight collision `t` along the current segment for a
+    /// light sample from light `index`: the power heuristic against equiangular sampling toward that light
+    /// when the segment had it, else 1.
+    fn equiangular_weight(
+        &self,
+        services: &RendererServices,
+        s: &PathState,
+        t: f32,
+        index: usize,
+    ) -> f32 {
+        let Some(segment) = &s.collided_segment else {
+            return 1.0;
+        };
+        let Some(light) = services.scene().lights[index].point_position() else {
+            return 1.0;
+        };
+        let pdf_equiangular = Equiangular::new(segment.origin, segment.dir, segment.length, light)
+            .map_or(0.0, |e| e.pdf(t));
+        let medium = &services.scene().media[segment.medium as usize];
+        power_heuristic(
+            medium.free_flight_pdf(t, segment.throughput),
+            pdf_equiangular,
+        )
     }
 
     /// Adds the environment's radiance for a path that escapes along `dir`, MIS-weighted against the
@@ -222,7 +396,7 @@ impl PathTracer {
         } else if s.prev_delta {
             1.0
         } else {
-            power_heuristic(s.prev_pdf, services.environment_pdf(dir))
+            power_heuristic(s.prev_pdf, services.environment_pdf(dir, s.prev_at_surface))
         };
         s.radiance += s.beta * env.radiance(dir) * weight;
     }
@@ -272,9 +446,10 @@ impl PathTracer {
             let le = material.emission_at(&hit.point_shading(), &scene.textures);
             let weight = match scene.area_light_of(hit.prim) {
                 Some(_) if s.prev_light_only => 0.0,
-                Some(light) if !s.prev_delta => {
-                    power_heuristic(s.prev_pdf, services.area_light_pdf(light, s.prev_p, hit.p))
-                }
+                Some(light) if !s.prev_delta => power_heuristic(
+                    s.prev_pdf,
+                    services.area_light_pdf(light, s.prev_p, hit.p, s.prev_at_surface),
+                ),
                 _ => 1.0,
             };
             s.radiance += s.beta * le * weight;
@@ -321,7 +496,7 @@ impl PathTracer {
         let wo = frame.to_local(wo_world);
         // Next-event estimation.
         if !bsdf.is_delta() {
-            if let Some(chosen) = services.sample_light(hit.p, rng) {
+            for chosen in services.sample_lights(hit.p, true, rng).iter() {
                 let ls = chosen.sample;
                 let wi = frame.to_local(ls.wi);
                 let f = bsdf.eval(wo, wi) * wi.z.abs();
@@ -345,7 +520,7 @@ impl PathTracer {
             }
         }
         // Continue the path by sampling the BSDF.
-        let Some(bs) = bsdf.sample(wo, rng.next_f32(), rng.next_2d()) else {
+        let Some(bs) = bsdf.sample(wo, rng.sample_1d(), rng.sample_2d()) else {
             return SurfaceOutcome::End;
         };
         if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f.max_element() <= 0.0 {
@@ -357,6 +532,7 @@ impl PathTracer {
         s.prev_pdf = bs.pdf;
         s.prev_p = hit.p;
         s.prev_light_only = false;
+        s.prev_at_surface = true;
         if let Some(interior) = material.interior {
             // Crossing the surface (refraction) enters or leaves its interior.
             let crossing = wi_world.dot(hit.geometric_normal).signum()
@@ -396,7 +572,7 @@ impl PathTracer {
             return false;
         }
         let wo = -ray.dir;
-        if let Some(chosen) = services.sample_light(p, rng) {
+        for chosen in services.sample_lights(p, false, rng).iter() {
             let ls = chosen.sample;
             let phase = collision.phase.eval(wo, ls.wi);
             let segment = ls.shadow_segment(&SurfacePoint::free(p));
@@ -404,7 +580,9 @@ impl PathTracer {
                 let tr = services.transmittance(&segment, ray.time, &s.stack, rng, counters);
                 if tr.max_element() > 0.0 {
                     let light_pdf = chosen.pmf * ls.pdf;
-                    let weight = if ls.is_delta || !self.media_mis {
+                    let weight = if ls.is_delta {
+                        self.equiangular_weight(services, s, t, chosen.index)
+                    } else if !self.media_mis {
                         1.0
                     } else {
                         power_heuristic(light_pdf, phase)
@@ -414,11 +592,12 @@ impl PathTracer {
             }
         }
         // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
-        let (wi, pdf) = collision.phase.sample(wo, rng.next_2d());
+        let (wi, pdf) = collision.phase.sample(wo, rng.sample_2d());
         s.prev_delta = false;
         s.prev_pdf = pdf;
         s.prev_p = p;
         s.prev_light_only = !self.media_mis;
+        s.prev_at_surface = false;
         if !self.next_bounce(s, rng) {
             return false;
         }

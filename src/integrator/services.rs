@@ -6,7 +6,7 @@
 use super::{MediumStack, PathCounters};
 use crate::geometry::ShadowSegment;
 use crate::light::{Light, LightSample};
-use crate::math::{Ray, Rgb, Rng, Vec3};
+use crate::math::{Ray, Rgb, Rng, Vec2, Vec3};
 use crate::scene::Scene;
 
 /// Light sampling and shadow-ray transmittance over a scene.
@@ -21,6 +21,29 @@ pub struct ChosenLight {
     pub sample: LightSample,
     /// Probability of having chosen that light.
     pub pmf: f32,
+    /// Index of the light in the scene.
+    pub index: usize,
+}
+
+/// In scenes with at most this many lights, next-event estimation at *surfaces* samples every light (one
+/// shadow ray each) instead of choosing one by power: choosing by power ignores where a light is shadowed (a
+/// floor under smoke, in the sun's shadow, lit by the sky), and at a surface the extra shadow rays cost less
+/// than the selection noise they remove. Inside media one light is still chosen by power: there every shadow
+/// ray is tracked through the medium, and measured on the peer benchmark's cloud and plume, sampling every
+/// light cost more than it saved there (see docs/performance.md).
+pub const EVERY_LIGHT_MAX: usize = 4;
+
+/// The light samples of one next-event estimate: one from every light, or one light chosen by power.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LightSamples {
+    samples: [Option<ChosenLight>; EVERY_LIGHT_MAX],
+}
+
+impl LightSamples {
+    /// The samples (lights that gave none, being dark or facing away, are skipped).
+    pub fn iter(&self) -> impl Iterator<Item = ChosenLight> + '_ {
+        self.samples.iter().flatten().copied()
+    }
 }
 
 /// Surfaces a shadow ray may pass through (index-matched boundaries) before it is considered blocked.
@@ -76,30 +99,75 @@ impl<'a> RendererServices<'a> {
         out
     }
 
-    /// Chooses a light by power and samples it as seen from `p`.
-    pub fn sample_light(&self, p: Vec3, rng: &mut Rng) -> Option<ChosenLight> {
-        let (index, pmf) = self.scene.light_sampler.sample(rng.next_f32())?;
-        let u = rng.next_2d();
-        let sample = self.scene.lights[index].sample_li(p, u, &self.scene.textures)?;
-        (sample.pdf > 0.0 && sample.radiance.max_element() > 0.0)
-            .then_some(ChosenLight { sample, pmf })
+    /// True when next-event estimates at surfaces sample every light (see [`EVERY_LIGHT_MAX`]).
+    pub fn surfaces_sample_every_light(&self) -> bool {
+        self.scene.lights.len() <= EVERY_LIGHT_MAX
     }
 
-    /// Density, in solid angle at `p`, with which [`Self::sample_light`] would have chosen the point `q` on
-    /// the area light `light`.
-    pub fn area_light_pdf(&self, light: usize, p: Vec3, q: Vec3) -> f32 {
-        match &self.scene.lights[light] {
-            Light::Area(a) => {
-                self.scene.light_sampler.pmf(light) * a.pdf_from_point(p, q).unwrap_or(0.0)
+    /// The light samples of one next-event estimate at `p`: with `every` (only when
+    /// [`Self::surfaces_sample_every_light`]), every light with probability 1; otherwise one light chosen by
+    /// power.
+    pub fn sample_lights(&self, p: Vec3, every: bool, rng: &mut Rng) -> LightSamples {
+        let mut out = LightSamples::default();
+        if every && self.surfaces_sample_every_light() {
+            for (index, slot) in out
+                .samples
+                .iter_mut()
+                .enumerate()
+                .take(self.scene.lights.len())
+            {
+                *slot = self.sample_chosen_light(index, 1.0, p, rng.sample_2d());
             }
+        } else if let Some((index, pmf)) = self.choose_light(rng.sample_1d()) {
+            out.samples[0] = self.sample_chosen_light(index, pmf, p, rng.sample_2d());
+        }
+        out
+    }
+
+    /// Probability that a next-event estimate (with `every` as given to [`Self::sample_lights`]) samples light
+    /// `index`: 1 when every light is sampled, else its probability of being chosen by power.
+    fn light_pmf(&self, index: usize, every: bool) -> f32 {
+        if every && self.surfaces_sample_every_light() {
+            1.0
+        } else {
+            self.scene.light_sampler.pmf(index)
+        }
+    }
+
+    /// Chooses a light by power from `u` ∈ [0, 1): its index and the probability of choosing it.
+    pub fn choose_light(&self, u: f32) -> Option<(usize, f32)> {
+        self.scene.light_sampler.sample(u)
+    }
+
+    /// Samples light `index` (chosen with probability `pmf`) as seen from `p`, with `u` for where on it.
+    pub fn sample_chosen_light(
+        &self,
+        index: usize,
+        pmf: f32,
+        p: Vec3,
+        u: Vec2,
+    ) -> Option<ChosenLight> {
+        let sample = self.scene.lights[index].sample_li(p, u, &self.scene.textures)?;
+        (sample.pdf > 0.0 && sample.radiance.max_element() > 0.0).then_some(ChosenLight {
+            sample,
+            pmf,
+            index,
+        })
+    }
+
+    /// Density, in solid angle at `p`, with which [`Self::sample_lights`] would have chosen the point `q` on
+    /// the area light `light`.
+    pub fn area_light_pdf(&self, light: usize, p: Vec3, q: Vec3, every: bool) -> f32 {
+        match &self.scene.lights[light] {
+            Light::Area(a) => self.light_pmf(light, every) * a.pdf_from_point(p, q).unwrap_or(0.0),
             _ => 0.0,
         }
     }
 
-    /// Density with which [`Self::sample_light`] would have chosen direction `dir` toward the environment.
-    pub fn environment_pdf(&self, dir: Vec3) -> f32 {
+    /// Density with which [`Self::sample_lights`] would have chosen direction `dir` toward the environment.
+    pub fn environment_pdf(&self, dir: Vec3, every: bool) -> f32 {
         match (self.scene.environment, self.scene.environment_light()) {
-            (Some(i), Some(env)) => self.scene.light_sampler.pmf(i) * env.pdf(dir),
+            (Some(i), Some(env)) => self.light_pmf(i, every) * env.pdf(dir),
             _ => 0.0,
         }
     }
@@ -124,6 +192,18 @@ impl<'a> RendererServices<'a> {
         let mut ray = Ray::new(segment.origin, dir).at_time(time);
         let mut remaining = segment.t_max;
         let mut tr = Rgb::ONE;
+        if !scene.has_invisible_boundaries() {
+            // Every surface blocks: one any-hit query decides visibility, and the media are tracked over the
+            // whole segment (the interiors cannot change without a boundary to cross).
+            if scene.occluded(&ray, 0.0, remaining) {
+                return Rgb::ZERO;
+            }
+            for &m in self.segment_media(&ray, remaining, &stack).ids() {
+                let medium = &scene.media[m as usize];
+                tr *= medium.transmittance(&ray, remaining, rng, &mut counters.media[m as usize]);
+            }
+            return tr;
+        }
         for _ in 0..MAX_SHADOW_CROSSINGS {
             let hit = scene.intersect(&ray, 0.0, remaining);
             let t_seg = hit.as_ref().map_or(remaining, |h| h.t);

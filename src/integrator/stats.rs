@@ -9,6 +9,9 @@ pub struct RayCounters {
     pub bounce: u64,
     /// Shadow rays for next-event estimation (one per light sample, however many surfaces it crosses).
     pub shadow: u64,
+    /// Equiangular samples of segments through constant media toward point and spot lights (each also traces
+    /// one shadow ray, counted in `shadow`).
+    pub equiangular: u64,
 }
 
 impl RayCounters {
@@ -17,6 +20,7 @@ impl RayCounters {
         self.camera += other.camera;
         self.bounce += other.bounce;
         self.shadow += other.shadow;
+        self.equiangular += other.equiangular;
     }
 
     /// All rays traced.

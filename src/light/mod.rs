@@ -90,6 +90,16 @@ impl Light {
         }
     }
 
+    /// The position of a light that shines from one point (point and spot lights), toward which segments
+    /// through media can be sampled equiangularly; `None` for every other light.
+    pub fn point_position(&self) -> Option<Vec3> {
+        match self {
+            Light::Point(l) => Some(l.position),
+            Light::Spot(l) => Some(l.position),
+            _ => None,
+        }
+    }
+
     /// True for lights that cannot be hit by a ray (delta position or direction).
     pub fn is_delta(&self) -> bool {
         matches!(

@@ -229,6 +229,13 @@ impl Material {
         })
     }
 
+    /// True when the BSDF may be an invisible boundary ([`Bsdf::is_index_matched`] at some point): full
+    /// transmission (a constant of the material) and ior 1. Conservative: the tint and roughness, which may
+    /// come from textures, are not checked.
+    pub fn may_be_index_matched(&self) -> bool {
+        self.transmission >= 1.0 && self.ior == 1.0
+    }
+
     /// The BSDF parameters at a point.
     pub fn pbr_params(&self, at: &ShadingPoint, textures: &[Texture]) -> PbrParams {
         let base = self.base_color_at(at, textures).truncate();

@@ -1,4 +1,5 @@
-//! Pearson chi-square goodness-of-fit test for direction samplers on the unit sphere (test-only).
+//! Pearson chi-square goodness-of-fit tests for direction samplers on the unit sphere, and for samplers of an
+//! interval (test-only).
 //!
 //! The sphere is cut into `N_COS × N_PHI` bins that are equal in (cos θ, φ) ∈ \[−1, 1\] × \[0, 2π), which
 //! makes them equal in solid angle. The expected count of a bin is the number of samples times the
@@ -218,6 +219,52 @@ pub(crate) fn assert_sampler_fits(
     }
     let total: f64 = expected.iter().sum();
     expected[n_bins] = (samples as f64 - total).max(0.0);
+    let p = p_value(&observed, &expected);
+    let threshold = 1.0 - (1.0 - ALPHA).powf(1.0 / FAMILY_SIZE as f64);
+    eprintln!("chi2 {name}: p = {p:.4}");
+    assert!(
+        p >= threshold,
+        "{name}: chi-square rejects the sampler (p = {p:.3e} < {threshold:.3e})"
+    );
+    p
+}
+
+/// Bins of the one-dimensional test.
+const N_INTERVAL_BINS: usize = 64;
+
+/// Draws `samples` values from `sample`, bins them over `interval` and tests them against the density `pdf`
+/// (per unit length) with Pearson's chi-square; samples outside the interval count against its missing mass.
+/// Panics, naming `name`, when the fit is rejected at the Šidák-corrected level. Returns the p-value.
+pub(crate) fn assert_interval_sampler_fits(
+    name: &str,
+    samples: usize,
+    interval: (f64, f64),
+    mut sample: impl FnMut() -> f32,
+    pdf: impl Fn(f64) -> f64,
+) -> f64 {
+    let (lo, hi) = interval;
+    let width = (hi - lo) / N_INTERVAL_BINS as f64;
+    let mut observed = vec![0.0; N_INTERVAL_BINS + 1];
+    for _ in 0..samples {
+        let x = sample() as f64;
+        let bin = ((x - lo) / width).floor();
+        if (0.0..N_INTERVAL_BINS as f64).contains(&bin) {
+            observed[bin as usize] += 1.0;
+        } else if x == hi {
+            observed[N_INTERVAL_BINS - 1] += 1.0;
+        } else {
+            observed[N_INTERVAL_BINS] += 1.0;
+        }
+    }
+    let eps = 0.02 / samples as f64;
+    let mut expected: Vec<f64> = (0..N_INTERVAL_BINS)
+        .map(|i| {
+            let a = lo + i as f64 * width;
+            integrate(&pdf, a, a + width, eps) * samples as f64
+        })
+        .collect();
+    let total: f64 = expected.iter().sum();
+    expected.push((samples as f64 - total).max(0.0));
     let p = p_value(&observed, &expected);
     let threshold = 1.0 - (1.0 - ALPHA).powf(1.0 / FAMILY_SIZE as f64);
     eprintln!("chi2 {name}: p = {p:.4}");

@@ -11,6 +11,7 @@ mod frame;
 mod ray;
 mod rng;
 pub mod sampling;
+pub mod sobol;
 
 pub use bounds::Aabb;
 pub use distribution::{Distribution1D, Distribution2D};

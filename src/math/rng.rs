@@ -1,12 +1,19 @@
+use super::sobol::SobolStream;
+
 /// PCG32 random number generator (O'Neill 2014, "PCG: A Family of Simple Fast Space-Efficient Statistically
 /// Good Algorithms for Random Number Generation", the XSH-RR output on a 64-bit LCG).
 ///
 /// The renderer seeds one generator per (seed, pixel, sample) with [`Rng::for_sample`], so an image does not
 /// depend on how pixels are split between threads.
+///
+/// A generator made by [`Rng::for_sample_sobol`] also carries the sample's low-discrepancy values
+/// ([`SobolStream`]), which [`Rng::sample_1d`] and [`Rng::sample_2d`] hand out to the path's key decisions
+/// (pixel position, light choice and position, BSDF and phase sampling); everything else draws from PCG32.
 #[derive(Clone, Debug)]
 pub struct Rng {
     state: u64,
     inc: u64,
+    sobol: Option<SobolStream>,
 }
 
 const MULTIPLIER: u64 = 6_364_136_223_846_793_005;
@@ -34,6 +41,7 @@ impl Rng {
         let mut rng = Rng {
             state: 0,
             inc: (stream << 1) | 1,
+            sobol: None,
         };
         rng.next_u32();
         rng.state = rng.state.wrapping_add(seed);
@@ -46,6 +54,31 @@ impl Rng {
         let a = mix64(seed ^ mix64(pixel_index.wrapping_add(0x9e37_79b9_7f4a_7c15)));
         let b = mix64(a ^ sample_index.wrapping_mul(0xd1b5_4a32_d192_ed03));
         Rng::new(b, mix64(b ^ pixel_index))
+    }
+
+    /// [`Rng::for_sample`] with the sample's low-discrepancy values ([`SobolStream`]) for
+    /// [`Rng::sample_1d`] and [`Rng::sample_2d`].
+    pub fn for_sample_sobol(seed: u64, pixel_index: u64, sample_index: u64) -> Self {
+        let mut rng = Rng::for_sample(seed, pixel_index, sample_index);
+        rng.sobol = Some(SobolStream::new(seed, pixel_index, sample_index));
+        rng
+    }
+
+    /// Two uniform values for one of the path's key decisions: the next low-discrepancy pair when the
+    /// generator has them, else [`Rng::next_2d`].
+    pub fn sample_2d(&mut self) -> glam::Vec2 {
+        match self.sobol.as_mut().and_then(SobolStream::next_2d) {
+            Some(u) => u,
+            None => self.next_2d(),
+        }
+    }
+
+    /// One uniform value for one of the path's key decisions (the first of a [`Rng::sample_2d`] pair).
+    pub fn sample_1d(&mut self) -> f32 {
+        match self.sobol.as_mut().and_then(SobolStream::next_1d) {
+            Some(u) => u,
+            None => self.next_f32(),
+        }
     }
 
     /// The next 32 uniformly distributed bits.

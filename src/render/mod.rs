@@ -16,5 +16,5 @@ pub use film::{Film, PixelSums, PixelWindow};
 pub use image::RenderImage;
 pub use renderer::{
     peak_memory_bytes, MediumStats, Progress, RegionError, RenderError, RenderRegion,
-    RenderSettings, RenderStats, Renderer,
+    RenderSettings, RenderStats, Renderer, Sampler,
 };

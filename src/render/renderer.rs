@@ -20,6 +20,18 @@ use std::time::{Duration, Instant};
 /// the path's own stream (the first 64 bits of π's fraction).
 const SHUTTER_STREAM: u64 = 0x243f_6a88_85a3_08d3;
 
+/// Where a path's key random decisions come from: the pixel position, the light choice and light sample, and
+/// BSDF and phase sampling. Tracking, Russian roulette and the rest always use the sample's PCG32 stream.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Sampler {
+    /// Owen-scrambled, shuffled 2-D Sobol points per dimension pair ([`crate::math::sobol`]): stratified within
+    /// each pixel, so the error falls faster than 1/√N where the integrand allows.
+    #[default]
+    Sobol,
+    /// Independent uniform values from PCG32.
+    Independent,
+}
+
 /// How to render.
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
@@ -39,6 +51,11 @@ pub struct RenderSettings {
     pub time_limit: Option<Duration>,
     /// Multiple importance sampling at medium scattering events (off: emitters are reached from inside media by light sampling alone).
     pub media_mis: bool,
+    /// Equiangular sampling toward point and spot lights on segments through constant media, MIS'd with
+    /// distance sampling (Kulla & Fajardo 2012); off: distance sampling alone.
+    pub equiangular: bool,
+    /// Where the path's key random decisions come from.
+    pub sampler: Sampler,
     /// The memory budget: a film larger than it is refused before it is allocated.
     pub limits: crate::limits::Limits,
 }
@@ -54,6 +71,8 @@ impl Default for RenderSettings {
             max_depth: 64,
             time_limit: None,
             media_mis: true,
+            equiangular: true,
+            sampler: Sampler::Sobol,
             limits: crate::limits::Limits::default(),
         }
     }
@@ -403,6 +422,7 @@ impl Renderer {
         let tracer = PathTracer {
             max_depth: s.max_depth,
             media_mis: s.media_mis,
+            equiangular: PathTracer::uses_equiangular(s.equiangular, scene),
             pixel_spread: scene.camera.pixel_spread_angle(height),
         };
         let services = RendererServices::new(scene);
@@ -420,9 +440,16 @@ impl Renderer {
                     }
                     let pixel_index = (y * width + x) as u64;
                     for sample in first..first + count {
-                        let mut rng = Rng::for_sample(s.seed, pixel_index, sample as u64);
+                        let mut rng = match s.sampler {
+                            Sampler::Sobol => {
+                                Rng::for_sample_sobol(s.seed, pixel_index, sample as u64)
+                            }
+                            Sampler::Independent => {
+                                Rng::for_sample(s.seed, pixel_index, sample as u64)
+                            }
+                        };
                         // Box filter: uniform jitter over the pixel, unweighted mean.
-                        let jitter = rng.next_2d();
+                        let jitter = rng.sample_2d();
                         let film_pos = Vec2::new(
                             (x as f32 + jitter.x) / width as f32,
                             (y as f32 + jitter.y) / height as f32,

@@ -474,8 +474,10 @@ impl SceneBuilder {
             .materials
             .iter()
             .any(|m| m.alpha_mode != AlphaMode::Opaque);
+        let has_invisible_boundaries = self.materials.iter().any(|m| m.may_be_index_matched());
         Ok(Scene {
             has_alpha,
+            has_invisible_boundaries,
             media: self.media,
             shutter: self.shutter,
             filled_media,
@@ -545,6 +547,9 @@ pub struct Scene {
     static_count: u32,
     /// True when some material is a cut-out or partly covering, so hits must be alpha-tested.
     has_alpha: bool,
+    /// True when some material may be an invisible (index-matched) boundary, which shadow rays pass through;
+    /// without one, any surface between a point and a light blocks it.
+    has_invisible_boundaries: bool,
     /// The mesh and triangle of each global triangle index.
     prims: Vec<(u32, u32)>,
     /// The area light of each global triangle index (`u32::MAX`: none).
@@ -720,6 +725,13 @@ impl Scene {
     /// The participating media, by index.
     pub fn media(&self) -> &[Arc<dyn Medium>] {
         &self.media
+    }
+
+    /// True when some material may be an invisible (index-matched) boundary that shadow rays pass through;
+    /// when false, a shadow ray is blocked by any surface hit, and one any-hit query ([`Scene::occluded`])
+    /// decides its visibility.
+    pub fn has_invisible_boundaries(&self) -> bool {
+        self.has_invisible_boundaries
     }
 
     /// True when something blocks the segment `(t_min, t_max)` of `ray` (alpha cut-outs and partial coverage

@@ -19,8 +19,8 @@
 //! measure what each choice wins: forced spectral MIS on a grey medium, or a uniform channel choice.
 
 use super::{
-    ChannelSampling, Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction,
-    TrackingCounters, TransmittanceMethod,
+    ChannelSampling, Collision, ConstantScattering, FreeFlight, Medium, MediumMethod, MethodReason,
+    PhaseFunction, TrackingCounters, TransmittanceMethod,
 };
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 
@@ -235,6 +235,27 @@ impl Medium for HomogeneousMedium {
         }
         exp_neg(self.sigma_t * t_max)
     }
+
+    fn constant_scattering(&self) -> Option<ConstantScattering> {
+        (!self.is_absorbing_only()).then_some(ConstantScattering {
+            sigma_s: self.sigma_s,
+            sigma_t: self.sigma_t,
+            phase: self.phase,
+        })
+    }
+
+    fn free_flight_pdf(&self, t: f32, throughput: Rgb) -> f32 {
+        if self.is_absorbing_only() {
+            return 0.0;
+        }
+        // σ_c exp(−σ_c t) for the one channel sampled, else the mixture p̄(t) = Σ_c w_c σ_c exp(−σ_c t).
+        let density = self.sigma_t * exp_neg(self.sigma_t * t);
+        if self.samples_single_channel() {
+            density.x
+        } else {
+            density.dot(self.channel_weights(throughput))
+        }
+    }
 }
 
 /// Channel-selection probabilities ∝ throughput (uniform when the throughput is zero or not finite).
@@ -288,6 +309,39 @@ mod tests {
                 "channel {k}: {mean} vs {truth} (se {se})"
             );
         }
+    }
+
+    #[test]
+    fn free_flight_pdf_is_the_density_of_the_sampled_collisions() {
+        // Grey (one exponential), chromatic (the throughput mixture), and grey forced to uniform channels.
+        let cases = [
+            HomogeneousMedium::new("grey", Rgb::splat(0.3), Rgb::splat(1.2), 0.0),
+            HomogeneousMedium::new("rgb", Rgb::new(0.1, 0.5, 2.0), Rgb::new(0.4, 1.0, 0.2), 0.3),
+            HomogeneousMedium::new("uniform", Rgb::splat(0.2), Rgb::splat(0.5), 0.0)
+                .with_channel_choice(ChannelChoice::Uniform),
+        ];
+        let throughput = Rgb::new(0.2, 0.5, 1.3);
+        let ray = Ray::new(Vec3::ZERO, Vec3::Z);
+        let t_max = 2.5;
+        for (i, m) in cases.iter().enumerate() {
+            let mut rng = Rng::new(17, i as u64);
+            let mut c = TrackingCounters::default();
+            crate::math::chi2::assert_interval_sampler_fits(
+                &format!("homogeneous free flight {}", m.name),
+                100_000,
+                (0.0, t_max as f64),
+                || {
+                    m.sample_free_flight(&ray, t_max, throughput, &mut rng, &mut c)
+                        .unwrap_or(f32::INFINITY)
+                },
+                |t| m.free_flight_pdf(t as f32, throughput) as f64,
+            );
+        }
+        // Nothing to sample in an absorber.
+        let absorber = HomogeneousMedium::new("a", Rgb::ONE, Rgb::ZERO, 0.0);
+        assert_eq!(absorber.free_flight_pdf(0.5, Rgb::ONE), 0.0);
+        assert!(absorber.constant_scattering().is_none());
+        assert!(cases[0].constant_scattering().is_some());
     }
 
     #[test]

@@ -55,6 +55,18 @@ pub struct Collision {
     pub phase: PhaseFunction,
 }
 
+/// The coefficients of a scattering medium that are the same everywhere, as light-driven (equiangular)
+/// sampling needs them: the transmittance over a distance t is exp(−σ_t t) in closed form.
+#[derive(Clone, Copy, Debug)]
+pub struct ConstantScattering {
+    /// Scattering coefficient per metre, per channel.
+    pub sigma_s: Rgb,
+    /// Extinction coefficient per metre, per channel.
+    pub sigma_t: Rgb,
+    /// The phase function.
+    pub phase: PhaseFunction,
+}
+
 /// A participating medium.
 pub trait Medium: Send + Sync {
     /// Name for statistics and messages (the glTF node or material).
@@ -128,6 +140,20 @@ pub trait Medium: Send + Sync {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> Rgb;
+
+    /// The medium's coefficients when they are constant and it scatters, so that the integrator can also
+    /// sample its segments toward point and spot lights (equiangular sampling); `None` (the default) for media
+    /// whose transmittance has no closed form.
+    fn constant_scattering(&self) -> Option<ConstantScattering> {
+        None
+    }
+
+    /// Density, per metre, with which [`Medium::sample_free_flight`] returns a real collision at distance `t`
+    /// for a path of `throughput`: the other strategy in the multiple importance sampling of equiangular
+    /// sampling. Only media with [`Medium::constant_scattering`] need it; the default is 0.
+    fn free_flight_pdf(&self, _t: f32, _throughput: Rgb) -> f32 {
+        0.0
+    }
 }
 
 const NO_USD: UsdBinding = UsdBinding::Elsewhere("none (glTF only)");

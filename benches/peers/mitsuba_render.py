@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Render a Nimbus-convention glTF scene with Mitsuba 3 for the peer benchmark (issue 15).
+
+    python3 benches/peers/mitsuba_render.py SCENE.gltf OUT.exr --spp N --res W [--threads T] [--seed S]
+            [--integrator volpath|volpathmis] [--passes P] [--variant llvm_ad_rgb]
+
+The translation is `../shared/tools/gltf2mitsuba.py` (imported as a module), with one addition it lacks: a material's
+`emissiveTexture` becomes a textured area emitter (radiance = emissiveFactor * texture, sRGB-decoded), so that
+scenes with textured emitters (DamagedHelmet) render the same light in both renderers.
+
+With `--passes P` > 1 the samples are split into P passes with independent seeds, and `OUT_se.exr` gets the per-pixel
+standard error of the mean from their spread (for references). Prints one `RESULT {json}` line: `render_s` is the
+time spent inside `mi.render` (JIT compilation included), `load_s` the scene translation and load.
+"""
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+TOOLS = os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared", "tools"))
+sys.path.insert(0, TOOLS)
+os.environ.setdefault("DRJIT_LIBLLVM_PATH", "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
+
+
+def textured_emitters(translator, scene):
+    """gltf2mitsuba ignores emissiveTexture; give those shapes an area emitter with the texture as radiance"""
+    g = translator.G.g
+    index = 0
+    for _, node, _ in translator.G.walk():
+        if "mesh" not in node:
+            continue
+        for k, prim in enumerate(g["meshes"][node["mesh"]]["primitives"]):
+            if prim.get("mode", 4) != 4:
+                continue
+            key = f"shape{index}_{node.get('name', '')}_{k}".replace(" ", "_")
+            index += 1
+            mat = g["materials"][prim["material"]] if "material" in prim else {}
+            if "emissiveTexture" not in mat:
+                continue
+            strength = mat.get("extensions", {}).get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1)
+            factor = np.array(mat.get("emissiveFactor", [0, 0, 0]), float) * strength
+            shape = next(v for name, v in scene.items() if name.startswith(f"shape{index - 1}_"))
+            shape["emitter"] = {"type": "area", "radiance": translator.texture(mat["emissiveTexture"], factor)}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scene")
+    ap.add_argument("out")
+    ap.add_argument("--spp", type=int, default=64)
+    ap.add_argument("--res", type=int, default=256)
+    ap.add_argument("--threads", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--passes", type=int, default=1)
+    ap.add_argument("--integrator", default="volpath", choices=["volpath", "volpathmis", "path"])
+    ap.add_argument("--variant", default="llvm_ad_rgb")
+    a = ap.parse_args()
+    t0 = time.perf_counter()
+    import drjit as dr
+    import mitsuba as mi
+    import gltf2mitsuba
+    mi.set_variant(a.variant)
+    if a.threads:
+        dr.set_thread_count(a.threads)
+    if a.spp % a.passes:
+        sys.exit("--spp must be a multiple of --passes")
+    pass_spp = a.spp // a.passes
+    translator = gltf2mitsuba.Translator(a.scene, res=a.res, spp=pass_spp, integrator=a.integrator)
+    scene_dict = translator.build()
+    textured_emitters(translator, scene_dict)
+    scene = mi.load_dict(scene_dict)
+    t1 = time.perf_counter()
+    total = total_sq = None
+    for i in range(a.passes):
+        img = np.array(mi.render(scene, spp=pass_spp, seed=a.seed * 100003 + i), dtype=np.float64)
+        total = img if total is None else total + img
+        total_sq = img * img if total_sq is None else total_sq + img * img
+    t2 = time.perf_counter()
+    mean = total / a.passes
+    os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
+    mi.Bitmap(mean.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(a.out)
+    if a.passes > 1:
+        var = np.maximum(total_sq / a.passes - mean * mean, 0.0) * a.passes / (a.passes - 1)
+        se = np.sqrt(var / a.passes).astype(np.float32)
+        mi.Bitmap(se, mi.Bitmap.PixelFormat.RGB).write(os.path.splitext(a.out)[0] + "_se.exr")
+    print("RESULT " + json.dumps({"peer": f"mitsuba-{mi.__version__}", "variant": a.variant,
+                                  "integrator": a.integrator, "threads": dr.thread_count(), "spp": a.spp,
+                                  "load_s": t1 - t0, "render_s": t2 - t1, "mean": float(mean.mean())}), flush=True)
+    sys.stdout.flush()
+    os._exit(0)   # skip Dr.Jit's slow teardown
+
+
+if __name__ == "__main__":
+    main()
