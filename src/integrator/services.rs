@@ -25,8 +25,8 @@ pub struct ChosenLight {
     pub index: usize,
 }
 
-/// In scenes with at most this many lights, next-event estimation at *surfaces* samples every light (one
-/// shadow ray each) instead of choosing one by power: choosing by power ignores where a light is shadowed (a
+/// In scenes with at most this many lights, none of them emissive triangles, next-event estimation at
+/// *surfaces* samples every light (one shadow ray each) instead of choosing one by power: choosing by power ignores where a light is shadowed (a
 /// floor under smoke, in the sun's shadow, lit by the sky), and at a surface the extra shadow rays cost less
 /// than the selection noise they remove. Inside media one light is still chosen by power: there every shadow
 /// ray is tracked through the medium, and measured on the peer benchmark's cloud and plume, sampling every
@@ -99,9 +99,12 @@ impl<'a> RendererServices<'a> {
         out
     }
 
-    /// True when next-event estimates at surfaces sample every light (see [`EVERY_LIGHT_MAX`]).
+    /// True when next-event estimates at surfaces sample every light (see [`EVERY_LIGHT_MAX`]): there are at
+    /// most that many, and none is an emissive triangle (an emitting mesh is many triangle lights, which would
+    /// each get a shadow ray; they are chosen by power).
     pub fn surfaces_sample_every_light(&self) -> bool {
-        self.scene.lights.len() <= EVERY_LIGHT_MAX
+        let lights = &self.scene.lights;
+        lights.len() <= EVERY_LIGHT_MAX && !lights.iter().any(|l| matches!(l, Light::Area(_)))
     }
 
     /// The light samples of one next-event estimate at `p`: with `every` (only when
@@ -118,8 +121,14 @@ impl<'a> RendererServices<'a> {
             {
                 *slot = self.sample_chosen_light(index, 1.0, p, rng.sample_2d());
             }
-        } else if let Some((index, pmf)) = self.choose_light(rng.sample_1d()) {
-            out.samples[0] = self.sample_chosen_light(index, pmf, p, rng.sample_2d());
+        } else {
+            // One stratified pair both chooses the light (its first value, rescaled within the light's share)
+            // and places the sample on it, so that the samples of a pixel stay stratified over a light made of
+            // many triangles.
+            let u = rng.sample_2d();
+            if let Some((index, pmf, rest)) = self.scene.light_sampler.sample_remapped(u.x) {
+                out.samples[0] = self.sample_chosen_light(index, pmf, p, Vec2::new(rest, u.y));
+            }
         }
         out
     }

@@ -29,6 +29,14 @@ impl LightSampler {
         (p > 0.0).then_some((i, p))
     }
 
+    /// Picks a light as [`Self::sample`] does, and also returns `u` rescaled to \[0, 1) within the light's share
+    /// (see [`Distribution1D::sample_discrete_remapped`]).
+    pub fn sample_remapped(&self, u: f32) -> Option<(usize, f32, f32)> {
+        let d = self.distribution.as_ref()?;
+        let (i, p, rest) = d.sample_discrete_remapped(u);
+        (p > 0.0).then_some((i, p, rest))
+    }
+
     /// Probability of picking light `index`.
     pub fn pmf(&self, index: usize) -> f32 {
         self.distribution

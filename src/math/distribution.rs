@@ -65,6 +65,20 @@ impl Distribution1D {
         (i, self.discrete_pdf(i))
     }
 
+    /// [`Self::sample_discrete`] that also returns `u` rescaled within the chosen bin's share of \[0, 1), which is
+    /// again uniform in \[0, 1) and independent of the choice: one stratified value then both picks a bin and
+    /// places a sample inside what it picked.
+    pub fn sample_discrete_remapped(&self, u: f32) -> (usize, f32, f32) {
+        let i = self.find_interval(u);
+        let pmf = self.discrete_pdf(i);
+        let rest = if pmf > 0.0 {
+            ((u - self.cdf[i]) / pmf).clamp(0.0, 1.0 - f32::EPSILON)
+        } else {
+            0.5
+        };
+        (i, pmf, rest)
+    }
+
     /// Probability of choosing bin `i` in [`Self::sample_discrete`].
     pub fn discrete_pdf(&self, i: usize) -> f32 {
         self.cdf[i + 1] - self.cdf[i]
