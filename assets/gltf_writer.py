@@ -166,6 +166,16 @@ class GltfBuilder:
         n = normalize(cross(sub(b, a), sub(d, a)))
         return self.add_mesh(name, [a, b, c, d], [n] * 4, [0, 1, 2, 0, 2, 3], material, **node_fields)
 
+    def cornell_walls(self, white, red, green):
+        """the five walls of a Cornell box spanning [-1, 1] in x and z and [0, 2] in y, open toward +z: white floor,
+        ceiling and back, red left and green right, each facing into the box"""
+        s = 1.0
+        self.quad("floor", [[-s, 0, s], [s, 0, s], [s, 0, -s], [-s, 0, -s]], white)
+        self.quad("ceiling", [[-s, 2, -s], [s, 2, -s], [s, 2, s], [-s, 2, s]], white)
+        self.quad("back", [[-s, 0, -s], [s, 0, -s], [s, 2, -s], [-s, 2, -s]], white)
+        self.quad("left", [[-s, 0, s], [-s, 0, -s], [-s, 2, -s], [-s, 2, s]], red)
+        self.quad("right", [[s, 0, -s], [s, 0, s], [s, 2, s], [s, 2, -s]], green)
+
     def quads(self, name, quad_list, material, **node_fields):
         """many quads (each: corners counter-clockwise seen from the front) in one mesh, flat normals"""
         pos, nor, idx = [], [], []

@@ -20,12 +20,7 @@ gold = b.add_material("gold", pbrMetallicRoughness={"baseColorFactor": [1.0, 0.7
                                                     "roughnessFactor": 0.3})
 glass = b.dielectric("glass", ior=1.5)
 
-s = 1.0  # the box spans [-1, 1] in x and z, [0, 2] in y
-b.quad("floor", [[-s, 0, s], [s, 0, s], [s, 0, -s], [-s, 0, -s]], white)
-b.quad("ceiling", [[-s, 2, -s], [s, 2, -s], [s, 2, s], [-s, 2, s]], white)
-b.quad("back", [[-s, 0, -s], [s, 0, -s], [s, 2, -s], [-s, 2, -s]], white)
-b.quad("left", [[-s, 0, s], [-s, 0, -s], [-s, 2, -s], [-s, 2, s]], red)
-b.quad("right", [[s, 0, -s], [s, 0, s], [s, 2, s], [s, 2, -s]], green)
+b.cornell_walls(white, red, green)  # the box spans [-1, 1] in x and z, [0, 2] in y
 l = 0.3
 b.quad("light", [[-l, 1.99, -l], [l, 1.99, -l], [l, 1.99, l], [-l, 1.99, l]], light)
 b.sphere("gold_sphere", [-0.45, 0.35, -0.3], 0.35, gold)

@@ -38,12 +38,7 @@ def cornell():
     white = b.lambert("white", [0.73, 0.73, 0.73])
     red = b.lambert("red", [0.63, 0.065, 0.05])
     green = b.lambert("green", [0.14, 0.45, 0.091])
-    s = 1.0   # the box spans [-1, 1] in x and z, [0, 2] in y
-    b.quad("floor", [[-s, 0, s], [s, 0, s], [s, 0, -s], [-s, 0, -s]], white)
-    b.quad("ceiling", [[-s, 2, -s], [s, 2, -s], [s, 2, s], [-s, 2, s]], white)
-    b.quad("back", [[-s, 0, -s], [s, 0, -s], [s, 2, -s], [-s, 2, -s]], white)
-    b.quad("left", [[-s, 0, s], [-s, 0, -s], [-s, 2, -s], [-s, 2, s]], red)
-    b.quad("right", [[s, 0, -s], [s, 0, s], [s, 2, s], [s, 2, -s]], green)
+    b.cornell_walls(white, red, green)   # the box spans [-1, 1] in x and z, [0, 2] in y
     b.box("tall_box", [-0.3, 0.0, -0.3], [0.3, 1.2, 0.3], white, translation=[-0.35, 0.0, -0.3],
           rotation=rotation_y(17))
     b.box("short_box", [-0.3, 0.0, -0.3], [0.3, 0.6, 0.3], white, translation=[0.35, 0.0, 0.35],
