@@ -41,15 +41,6 @@ enum Command {
     Merge(MergeArgs),
 }
 
-/// `--sampler`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum SamplerArg {
-    /// Owen-scrambled, shuffled Sobol points per dimension pair.
-    Sobol,
-    /// Independent uniform random numbers (PCG32).
-    Independent,
-}
-
 /// `--volume-sampling`: the distance-sampling strategies of media (Cycles' "volume sampling" names).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum VolumeSampling {
@@ -170,7 +161,7 @@ struct RenderArgs {
     /// Where the paths' key random decisions come from: `sobol` (Owen-scrambled Sobol points, stratified per
     /// pixel) or `independent` (uniform random numbers).
     #[arg(long, value_enum, default_value = "sobol")]
-    sampler: SamplerArg,
+    sampler: nimbus::render::Sampler,
     /// Constant environment radiance r,g,b (overrides the scene's nimbus_environment).
     #[arg(long = "env-color", value_parser = parse_rgb)]
     env_color: Option<Rgb>,
@@ -512,10 +503,7 @@ fn render_frame(
         time_limit,
         media_mis: true,
         equiangular: args.volume_sampling == VolumeSampling::Mis,
-        sampler: match args.sampler {
-            SamplerArg::Sobol => nimbus::render::Sampler::Sobol,
-            SamplerArg::Independent => nimbus::render::Sampler::Independent,
-        },
+        sampler: args.sampler,
         limits,
     };
     eprintln!(
@@ -589,7 +577,6 @@ fn create_parent(path: &Path) -> Result<(), String> {
     }
 }
 
-/// Warns about biased media, dropped and clamped samples, and writes the statistics if asked.
 /// `--explain`'s line on distance sampling in media: whether segments through constant media are also
 /// sampled equiangularly toward point and spot lights, and why (not).
 fn explain_volume_sampling(scene: &Scene, sampling: VolumeSampling) {
@@ -618,6 +605,7 @@ fn explain_volume_sampling(scene: &Scene, sampling: VolumeSampling) {
     eprintln!("nimbus: volume sampling in {constant} constant medium/media: {choice}");
 }
 
+/// Warns about biased media, dropped and clamped samples, and writes the statistics if asked.
 fn finish_render(stats: &RenderStats, stats_path: Option<&Path>) -> Result<(), String> {
     for m in stats
         .media

@@ -205,26 +205,19 @@ impl<'a> RendererServices<'a> {
         let end = segment.end();
         let mut ray = Ray::new(segment.origin, dir).at_time(time);
         let mut remaining = segment.t_max;
-        let mut tr = Rgb::ONE;
         if !scene.has_invisible_boundaries() {
             // Every surface blocks: one any-hit query decides visibility, and the media are tracked over the
             // whole segment (the interiors cannot change without a boundary to cross).
             if scene.occluded(&ray, 0.0, remaining) {
                 return Rgb::ZERO;
             }
-            for &m in self.segment_media(&ray, remaining, &stack).ids() {
-                let medium = &scene.media[m as usize];
-                tr *= medium.transmittance(&ray, remaining, rng, &mut counters.media[m as usize]);
-            }
-            return tr;
+            return self.through_media(Rgb::ONE, &ray, remaining, &stack, rng, counters);
         }
+        let mut tr = Rgb::ONE;
         for _ in 0..MAX_SHADOW_CROSSINGS {
             let hit = scene.intersect(&ray, 0.0, remaining);
             let t_seg = hit.as_ref().map_or(remaining, |h| h.t);
-            for &m in self.segment_media(&ray, t_seg, &stack).ids() {
-                let medium = &scene.media[m as usize];
-                tr *= medium.transmittance(&ray, t_seg, rng, &mut counters.media[m as usize]);
-            }
+            tr = self.through_media(tr, &ray, t_seg, &stack, rng, counters);
             if tr.max_element() <= 0.0 {
                 return Rgb::ZERO;
             }
@@ -250,5 +243,23 @@ impl<'a> RendererServices<'a> {
             ray = Ray::new(next, dir).at_time(time);
         }
         Rgb::ZERO
+    }
+
+    /// `tr` times the transmittance estimate of every medium over `(0, t_max)` of `ray`, inside the interiors
+    /// of `stack` (no surface in between).
+    fn through_media(
+        &self,
+        mut tr: Rgb,
+        ray: &Ray,
+        t_max: f32,
+        stack: &MediumStack,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> Rgb {
+        for &m in self.segment_media(ray, t_max, stack).ids() {
+            let medium = &self.scene.media[m as usize];
+            tr *= medium.transmittance(ray, t_max, rng, &mut counters.media[m as usize]);
+        }
+        tr
     }
 }

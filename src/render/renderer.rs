@@ -22,9 +22,11 @@ const SHUTTER_STREAM: u64 = 0x243f_6a88_85a3_08d3;
 
 /// Where a path's key random decisions come from: the pixel position, the light choice and light sample, and
 /// BSDF and phase sampling. Tracking, Russian roulette and the rest always use the sample's PCG32 stream.
+/// With the `cli` feature it is also the `--sampler` value.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Sampler {
-    /// Owen-scrambled, shuffled 2-D Sobol points per dimension pair ([`crate::math::sobol`]): stratified within
+    /// Owen-scrambled, shuffled 2-D Sobol points per dimension pair (`nimbus::math::sobol`): stratified within
     /// each pixel, so the error falls faster than 1/√N where the integrand allows.
     #[default]
     Sobol,
