@@ -5,7 +5,7 @@
 //! wall time and per second of CPU time summed over threads (steadier on a shared machine; with two
 //! threads it is per-core throughput, so the wall figure shows the scaling).
 
-use nimbus::geometry::Bvh;
+use nimbus::geometry::{Bvh, TriangleHierarchy};
 use nimbus::math::sampling::uniform_sphere;
 use nimbus::math::{Ray, Rng, Vec3};
 use rayon::prelude::*;

@@ -545,21 +545,56 @@ impl Bvh {
         Ok(Bvh { tree, triangles })
     }
 
-    /// The closest hit with `t_min <= t <= t_max`, from either side of a triangle. Among hits at exactly
-    /// the same distance, the triangle with the lowest input index is returned, so the result equals testing
-    /// every triangle in input order.
-    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<TriangleHit> {
-        self.intersect_where(ray, t_min, t_max, &|_| true)
+    /// Bounds of all (finite) triangles; [`Aabb::EMPTY`] for an empty hierarchy.
+    pub fn bounds(&self) -> Aabb {
+        self.tree.bounds
+    }
+
+    /// Heap and inline bytes held: nodes, reordered triangles and their input indices.
+    pub fn memory_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.tree.heap_bytes()
+            + self.triangles.capacity() * std::mem::size_of::<[Vec3; 3]>()
+    }
+
+    /// Number of triangles given to [`Bvh::build`], including any left out as non-finite.
+    pub fn triangle_count(&self) -> usize {
+        self.tree.input_count
+    }
+}
+
+/// The queries a triangle hierarchy answers, over one traversal ([`TriangleHierarchy::query`]) that each
+/// hierarchy supplies with its own leaves: [`Bvh`] (still triangles) and
+/// [`MotionBvh`](crate::geometry::MotionBvh) (triangles met where they are at the ray's time). Hits count from
+/// either side of a triangle. Among hits at exactly the same distance the triangle with the lowest input index
+/// is returned, so a closest hit equals testing every triangle in input order.
+pub trait TriangleHierarchy {
+    /// The traversal: with `ANY_HIT`, the first hit found that `accept` keeps; otherwise the closest such hit,
+    /// with `t_min <= t <= t_max`.
+    fn query<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        accept: &impl Fn(&TriangleHit) -> bool,
+    ) -> Option<TriangleHit>;
+
+    /// The closest hit with `t_min <= t <= t_max`.
+    #[inline(always)]
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<TriangleHit> {
+        self.query::<false>(ray, t_min, t_max, &|_| true)
     }
 
     /// Whether any triangle is hit with `t_min <= t <= t_max` (shadow rays); stops at the first hit found.
-    pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
-        self.occluded_where(ray, t_min, t_max, &|_| true)
+    #[inline(always)]
+    fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.query::<true>(ray, t_min, t_max, &|_| true).is_some()
     }
 
     /// As [`Self::intersect`], counting only the hits that `accept` keeps: a rejected hit (an alpha cut-out)
     /// is passed through as if the triangle were not there.
-    pub fn intersect_where(
+    #[inline(always)]
+    fn intersect_where(
         &self,
         ray: &Ray,
         t_min: f32,
@@ -570,7 +605,8 @@ impl Bvh {
     }
 
     /// As [`Self::occluded`], counting only the hits that `accept` keeps.
-    pub fn occluded_where(
+    #[inline(always)]
+    fn occluded_where(
         &self,
         ray: &Ray,
         t_min: f32,
@@ -579,7 +615,9 @@ impl Bvh {
     ) -> bool {
         self.query::<true>(ray, t_min, t_max, accept).is_some()
     }
+}
 
+impl TriangleHierarchy for Bvh {
     /// The tree's traversal with this hierarchy's leaves: the triangles, stored in leaf order.
     #[inline(always)]
     fn query<const ANY_HIT: bool>(
@@ -597,23 +635,6 @@ impl Bvh {
             &|i| prefetch(&self.triangles[i] as *const [Vec3; 3] as *const i8),
             accept,
         )
-    }
-
-    /// Bounds of all (finite) triangles; [`Aabb::EMPTY`] for an empty hierarchy.
-    pub fn bounds(&self) -> Aabb {
-        self.tree.bounds
-    }
-
-    /// Heap and inline bytes held: nodes, reordered triangles and their input indices.
-    pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of::<Self>()
-            + self.tree.heap_bytes()
-            + self.triangles.capacity() * std::mem::size_of::<[Vec3; 3]>()
-    }
-
-    /// Number of triangles given to [`Bvh::build`], including any left out as non-finite.
-    pub fn triangle_count(&self) -> usize {
-        self.tree.input_count
     }
 }
 

@@ -8,7 +8,7 @@ mod spawn;
 mod tangents;
 mod triangle;
 
-pub use bvh::{Bvh, TooManyTriangles};
+pub use bvh::{Bvh, TooManyTriangles, TriangleHierarchy};
 pub use mesh::{Mesh, MeshMotion};
 pub use motion::{lerp, MotionBvh, MotionSteps, MovingTriangle};
 pub use spawn::{ShadowSegment, SurfacePoint};

@@ -15,7 +15,7 @@
 //! motion-blurred geometry in a single tree; pbrt-v4's 4D boxes or Embree's linear bounds per time segment are
 //! tighter); static triangles stay in their own tree, which motion never slows down.
 
-use super::bvh::{prefetch, PrimRef, Tree};
+use super::bvh::{prefetch, PrimRef, Tree, TriangleHierarchy};
 use super::triangle::{intersect_triangle, TriangleHit};
 use super::TooManyTriangles;
 use crate::math::{gamma, Aabb, Ray, Vec3};
@@ -148,38 +148,26 @@ impl MotionBvh {
         })
     }
 
-    /// The closest hit at the ray's time with `t_min <= t <= t_max` (ties to the lowest input index).
-    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<TriangleHit> {
-        self.intersect_where(ray, t_min, t_max, &|_| true)
+    /// Bounds of all (finite) triangles over all their steps.
+    pub fn bounds(&self) -> Aabb {
+        self.tree.bounds()
     }
 
-    /// Whether any triangle is hit at the ray's time with `t_min <= t <= t_max`.
-    pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
-        self.occluded_where(ray, t_min, t_max, &|_| true)
+    /// Number of triangles given to [`MotionBvh::build`], including any left out.
+    pub fn triangle_count(&self) -> usize {
+        self.tree.input_count()
     }
 
-    /// As [`Self::intersect`], counting only the hits that `accept` keeps.
-    pub fn intersect_where(
-        &self,
-        ray: &Ray,
-        t_min: f32,
-        t_max: f32,
-        accept: &impl Fn(&TriangleHit) -> bool,
-    ) -> Option<TriangleHit> {
-        self.query::<false>(ray, t_min, t_max, accept)
+    /// Heap and inline bytes held: nodes, input indices, step timings and step vertices.
+    pub fn memory_bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.tree.heap_bytes()
+            + self.prims.capacity() * std::mem::size_of::<(MotionSteps, u32)>()
+            + self.vertices.capacity() * std::mem::size_of::<[Vec3; 3]>()
     }
+}
 
-    /// As [`Self::occluded`], counting only the hits that `accept` keeps.
-    pub fn occluded_where(
-        &self,
-        ray: &Ray,
-        t_min: f32,
-        t_max: f32,
-        accept: &impl Fn(&TriangleHit) -> bool,
-    ) -> bool {
-        self.query::<true>(ray, t_min, t_max, accept).is_some()
-    }
-
+impl TriangleHierarchy for MotionBvh {
     /// The tree's traversal with moving leaves: each triangle interpolated at the ray's time.
     fn query<const ANY_HIT: bool>(
         &self,
@@ -206,24 +194,6 @@ impl MotionBvh {
             },
             accept,
         )
-    }
-
-    /// Bounds of all (finite) triangles over all their steps.
-    pub fn bounds(&self) -> Aabb {
-        self.tree.bounds()
-    }
-
-    /// Number of triangles given to [`MotionBvh::build`], including any left out.
-    pub fn triangle_count(&self) -> usize {
-        self.tree.input_count()
-    }
-
-    /// Heap and inline bytes held: nodes, input indices, step timings and step vertices.
-    pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of::<Self>()
-            + self.tree.heap_bytes()
-            + self.prims.capacity() * std::mem::size_of::<(MotionSteps, u32)>()
-            + self.vertices.capacity() * std::mem::size_of::<[Vec3; 3]>()
     }
 }
 

@@ -19,7 +19,7 @@ pub use camera::{Camera, CameraMotion};
 pub use error::{SceneError, SceneErrorKind};
 
 use crate::geometry::TriangleHit;
-use crate::geometry::{Bvh, Mesh, MotionBvh, SurfacePoint};
+use crate::geometry::{Bvh, Mesh, MotionBvh, SurfacePoint, TriangleHierarchy};
 use crate::light::{AreaLight, EnvironmentLight, Light, LightSampler};
 use crate::material::{AlphaMode, Material, ShadingPoint, TexCoord, Texture};
 use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3, Vec4};
