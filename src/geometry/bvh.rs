@@ -47,6 +47,9 @@ const SAH_MAX_DEPTH: u32 = 64;
 const STACK_MAX: usize = 3 * (SAH_MAX_DEPTH as usize + 32) + 4;
 /// Stack size used when the tree's own bound allows it (nearly always), so each ray clears less memory.
 const STACK_SMALL: usize = 64;
+/// Stack size for shallow trees (a few hundred triangles), whose rays would spend a measurable share of their
+/// time clearing a larger stack.
+const STACK_TINY: usize = 16;
 
 /// Scale of a box's far distance. Ize 2013 shows `1 + 2γ(3)` covers the slab test's own rounding; we
 /// double it so it also covers the rounding of the triangle test's distance, so that a hit on a box's
@@ -707,7 +710,9 @@ impl Tree {
         prefetch_leaf: &impl Fn(usize),
         accept: &impl Fn(&TriangleHit) -> bool,
     ) -> Option<TriangleHit> {
-        if self.stack_needed <= STACK_SMALL {
+        if self.stack_needed <= STACK_TINY {
+            self.traverse::<ANY_HIT, STACK_TINY>(ray, t_min, t_max, leaf, prefetch_leaf, accept)
+        } else if self.stack_needed <= STACK_SMALL {
             self.traverse::<ANY_HIT, STACK_SMALL>(ray, t_min, t_max, leaf, prefetch_leaf, accept)
         } else {
             self.traverse::<ANY_HIT, STACK_MAX>(ray, t_min, t_max, leaf, prefetch_leaf, accept)

@@ -43,34 +43,37 @@ pub struct WatertightRay {
     scale_z: Vec3,
 }
 
-/// The `i`-th unit axis.
-fn axis(i: usize) -> Vec3 {
-    match i {
-        0 => Vec3::X,
-        1 => Vec3::Y,
-        _ => Vec3::Z,
-    }
-}
-
 impl WatertightRay {
     /// Precomputes the permutation (largest direction component becomes z, winding preserved) and the
     /// shear constants `Sx = dx/dz`, `Sy = dy/dz`, `Sz = 1/dz` of Woop et al. 2013.
     pub fn new(ray: &Ray) -> Self {
-        let d = ray.dir;
-        let kz = d.abs().max_position();
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
+        let d = ray.dir.to_array();
+        let a = ray.dir.abs();
+        // The largest component (the first of equal ones), then the two others in cyclic order.
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let (mut kx, mut ky) = [(1, 2), (2, 0), (0, 1)][kz];
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
         let sz = 1.0 / d[kz];
-        let sx = d[kx] * sz;
-        let sy = d[ky] * sz;
+        // Each row holds one exact 1 (or `Sz`) and the shear at `kz`, zeros elsewhere.
+        let row = |k: usize, at_k: f32, at_kz: f32| {
+            let mut r = [0.0; 3];
+            r[k] = at_k;
+            r[kz] = at_kz;
+            Vec3::from_array(r)
+        };
         Self {
             origin: ray.origin,
-            shear_x: axis(kx) - sx * axis(kz),
-            shear_y: axis(ky) - sy * axis(kz),
-            scale_z: sz * axis(kz),
+            shear_x: row(kx, 1.0, 0.0 - d[kx] * sz),
+            shear_y: row(ky, 1.0, 0.0 - d[ky] * sz),
+            scale_z: row(kz, sz, sz),
         }
     }
 }

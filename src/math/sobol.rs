@@ -115,7 +115,8 @@ pub const SOBOL_PAIRS: u32 = 48;
 #[derive(Clone, Debug)]
 pub struct SobolStream {
     pixel_key: u64,
-    sample: u32,
+    /// The sample index, bit-reversed (the unscrambled first coordinate of its Sobol point).
+    reversed_sample: u32,
     pair: u32,
 }
 
@@ -126,7 +127,7 @@ impl SobolStream {
             pixel_key: hash32(seed ^ 0x5851_f42d_4c95_7f2d) as u64
                 ^ (pixel_index << 32)
                 ^ pixel_index,
-            sample: sample_index as u32,
+            reversed_sample: (sample_index as u32).reverse_bits(),
             pair: 0,
         }
     }
@@ -148,7 +149,7 @@ impl SobolStream {
     /// half a 2-D one.
     pub fn next_1d(&mut self) -> Option<f32> {
         let key = self.next_pair_key()?;
-        let index = laine_karras(self.sample.reverse_bits(), hash32(key)).reverse_bits();
+        let index = laine_karras(self.reversed_sample, hash32(key)).reverse_bits();
         Some(to_unit(
             laine_karras(index, hash32(key ^ 0xa076_1d64_78bd_642f)).reverse_bits(),
         ))
@@ -159,7 +160,7 @@ impl SobolStream {
         let key = self.next_pair_key()?;
         // With idx = scramble(sample): x = reverse(idx), so owen(x) = reverse(LK(idx)); and
         // owen(y) = reverse(LK(reverse(y))), where reverse(y) comes from the byte tables of reverse(idx).
-        let reversed_index = laine_karras(self.sample.reverse_bits(), hash32(key));
+        let reversed_index = laine_karras(self.reversed_sample, hash32(key));
         let index = reversed_index.reverse_bits();
         let y_reversed = second_dimension_reversed(reversed_index);
         let x = laine_karras(index, hash32(key ^ 0xa076_1d64_78bd_642f)).reverse_bits();
