@@ -138,18 +138,27 @@ fn white_furnace_with_a_heterogeneous_grid() {
 
 #[test]
 fn every_majorant_structure_gives_the_same_image() {
+    // Each structure on its own segments, then with thick segments refined to voxel cells (the default): up to
+    // 5 of optical depth per voxel, above REFINE_TAU.
     let mut means = Vec::new();
-    for kind in [
-        MajorantKind::Global,
-        MajorantKind::Grid16,
-        MajorantKind::Adaptive,
-    ] {
-        let medium = GridMedium::new("ball", ball(20.0), kind, Rgb::splat(0.9), 0.0);
-        let mut b = scene_with(Arc::new(medium), 20.0, 3.0);
-        b.set_environment(EnvironmentLight::Constant(Rgb::new(1.0, 0.5, 0.25)));
-        let (img, stats) = render(b, 12, 16, 64);
-        assert_eq!(stats.media[0].counters.majorant_violations, 0, "{kind:?}");
-        means.push((kind, common::mean_and_se(&img, 0), stats.media[0].counters));
+    for refine in [false, true] {
+        for kind in [
+            MajorantKind::Global,
+            MajorantKind::Grid16,
+            MajorantKind::Adaptive,
+        ] {
+            let density = ball(80.0);
+            let majorants = Majorants::build(kind, &density).with_voxel_refinement(refine);
+            let medium = GridMedium::new("ball", density, kind, Rgb::splat(0.9), 0.0)
+                .with_majorants(majorants);
+            let mut b = scene_with(Arc::new(medium), 20.0, 3.0);
+            b.set_environment(EnvironmentLight::Constant(Rgb::new(1.0, 0.5, 0.25)));
+            let (img, stats) = render(b, 12, 16, 64);
+            let c = stats.media[0].counters;
+            assert_eq!(c.majorant_violations, 0, "{kind:?}");
+            assert_eq!(c.voxel_cells > 0, refine, "{kind:?}: {c:?}");
+            means.push(((kind, refine), common::mean_and_se(&img, 0), c));
+        }
     }
     let (_, (m0, s0), c0) = means[0];
     for (kind, (m, s), c) in &means[1..] {
@@ -324,6 +333,9 @@ fn stats_json_has_the_method_sentence_and_its_fields() {
         "free_flight",
         "channel_choice",
         "closed_form_segments",
+        "decomposition_tracking",
+        "voxel_refinement",
+        "voxel_cells",
         "majorant",
         "shadow_estimator",
         "method_reason",

@@ -220,10 +220,11 @@ fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, refe
         ),
     };
     println!(
-        "| {name} | {mean:.4} ± {se:.4} | {compared} | {} | {:.2} | {} | {} | {} | {seconds:.2} |",
+        "| {name} | {mean:.4} ± {se:.4} | {compared} | {} | {:.2} | {} | {} | {} | {} | {seconds:.2} |",
         majorants.join(", "),
         c.null_collisions as f64 / c.real_collisions.max(1) as f64,
         c.density_lookups,
+        c.voxel_cells,
         stats.nan_samples,
         c.majorant_violations,
     );
@@ -264,8 +265,8 @@ fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, refe
 
 #[test]
 fn stability_suite() {
-    println!("| case | mean ± s.e. | reference | majorant (auto) | null/real | lookups | NaN samples | violations | seconds |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| case | mean ± s.e. | reference | majorant (auto) | null/real | lookups | voxel cells | NaN samples | violations | seconds |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let eye = Vec3::new(0.0, 0.0, 3.0);
 
     // Optically very thick (density × 1000): albedo 0.9 so paths end; bounded by roulette and max depth.

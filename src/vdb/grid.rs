@@ -962,8 +962,22 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     pub fn sample_trilinear(&mut self, index_pos: Vec3) -> T {
         let p = floor_ivec3(index_pos);
         let f = index_pos - p.as_vec3();
+        let corners = self.corners(p);
+        let c00 = T::lerp(corners[0], corners[1], f.z);
+        let c01 = T::lerp(corners[2], corners[3], f.z);
+        let c10 = T::lerp(corners[4], corners[5], f.z);
+        let c11 = T::lerp(corners[6], corners[7], f.z);
+        let c0 = T::lerp(c00, c01, f.y);
+        let c1 = T::lerp(c10, c11, f.y);
+        T::lerp(c0, c1, f.x)
+    }
+
+    /// The eight voxels `p + {0, 1}³` that a trilinear lookup in the cell `[p, p + 1)³` reads, in the order
+    /// (x, y, z) = 000, 001, 010, 011, 100, 101, 110, 111.
+    #[inline]
+    pub fn corners(&mut self, p: IVec3) -> [T; 8] {
         let last = Leaf::<T>::DIM - 1;
-        let corners: [T; 8] = if (p & last).cmpne(IVec3::splat(last)).all() {
+        if (p & last).cmpne(IVec3::splat(last)).all() {
             // All eight corners lie in one leaf-sized cell: read them from the cached region directly.
             self.value(p);
             let base = Leaf::<T>::offset(p);
@@ -983,14 +997,7 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
                 v(1, 1, 0),
                 v(1, 1, 1),
             ]
-        };
-        let c00 = T::lerp(corners[0], corners[1], f.z);
-        let c01 = T::lerp(corners[2], corners[3], f.z);
-        let c10 = T::lerp(corners[4], corners[5], f.z);
-        let c11 = T::lerp(corners[6], corners[7], f.z);
-        let c0 = T::lerp(c00, c01, f.y);
-        let c1 = T::lerp(c10, c11, f.y);
-        T::lerp(c0, c1, f.x)
+        }
     }
 }
 

@@ -8,7 +8,7 @@
 use super::error::DensityError;
 use crate::math::{Aabb, Mat4, Ray, Vec3};
 use crate::vdb::{FloatTree, Grid, GridTree, Region};
-use glam::DMat4;
+use glam::{DMat4, IVec3};
 use std::sync::Arc;
 
 /// Lookups of a field along one tracking walk: the state may keep what the last lookup found (a grid's tree
@@ -16,6 +16,14 @@ use std::sync::Arc;
 pub trait DensityLookup {
     /// σ_t at local point `p`, exactly [`DensityField::density_local`].
     fn density_local(&mut self, p: Vec3) -> f32;
+
+    /// (min, max) of σ_t over the voxel cell `[cell, cell + 1)³` of local space, for fields that are trilinear
+    /// over voxels of unit edge there: the density in the cell is a convex combination of the eight voxels
+    /// `cell + {0, 1}³`, so their smallest and largest values bound it exactly. `None` for fields that are not
+    /// voxels (the default).
+    fn cell_bounds(&mut self, _cell: IVec3) -> Option<(f32, f32)> {
+        None
+    }
 }
 
 /// Lookups of a closed-form field, which keep nothing between calls.
@@ -336,6 +344,15 @@ impl DensityLookup for GridLookup<'_> {
     #[inline]
     fn density_local(&mut self, p: Vec3) -> f32 {
         (self.scale * self.accessor.sample_trilinear(p)).max(0.0)
+    }
+
+    #[inline]
+    fn cell_bounds(&mut self, cell: IVec3) -> Option<(f32, f32)> {
+        let v = self.accessor.corners(cell);
+        let (lo, hi) = v[1..]
+            .iter()
+            .fold((v[0], v[0]), |(a, b), &x| (a.min(x), b.max(x)));
+        Some(((self.scale * lo).max(0.0), (self.scale * hi).max(0.0)))
     }
 }
 

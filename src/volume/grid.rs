@@ -3,10 +3,13 @@
 //!
 //! - σ_t(x) = density_scale · ρ(x) per world metre (ρ: OpenVDB BoxSampler trilinear lookup), grey; σ_s = albedo ·
 //!   σ_t; Henyey–Greenstein phase function.
-//! - Free flights: delta tracking (Woodcock et al. 1965) over a majorant structure
+//! - Free flights: decomposition tracking (Kutz et al. 2017, §4: delta tracking, Woodcock et al. 1965, whose
+//!   tentative collisions under the segment's minorant are real without a lookup) over a majorant structure
 //!   (`"majorant": "auto" | "adaptive" | "grid16" | "global"`); `auto`, the default, picks the cheapest for this
-//!   grid at this density scale by a fixed-seed pilot ([`super::majorant_choice`]). Segments of constant
-//!   density are tracked in closed form.
+//!   grid at this density scale by a fixed-seed pilot ([`super::majorant_choice`]). Segments whose majorant
+//!   optical depth per voxel exceeds [`super::tracking::REFINE_TAU`] are walked voxel cell by voxel cell, each
+//!   bounded by its eight voxels, so the work per free flight stays flat as the density grows. Segments of
+//!   constant density are tracked in closed form.
 //! - Shadow rays: ratio tracking (Novák et al. 2014, eq. 6), or residual ratio tracking (Novák et al. 2014, §4)
 //!   with `"shadow_estimator": "residual_ratio"`.
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
@@ -20,7 +23,7 @@ use super::emission::BlackbodyTable;
 use super::error::VolumeError;
 use super::majorant::{MajorantKind, Majorants};
 use super::majorant_choice::{self, MajorantEstimate};
-use super::tracking::{ratio_tracking, residual_ratio_tracking, sample_collision};
+use super::tracking::{decomposition_tracking, ratio_tracking, residual_ratio_tracking};
 use super::velocity::{Displaced, VelocityField};
 use super::{
     Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
@@ -434,6 +437,9 @@ impl Medium for GridMedium {
         MediumMethod {
             free_flight: FreeFlight::DeltaTracking {
                 closed_form_segments: self.majorants.stores_minorants(),
+                decomposition: true,
+                // A moving medium's displaced density has no voxel cells to bound.
+                voxel_refinement: self.majorants.voxel_refinement() && self.motion.is_none(),
             },
             majorant: Some(self.majorants.kind()),
             shadow: match self.shadow {
@@ -526,7 +532,7 @@ impl Medium for GridMedium {
             Some(ch) => &ch[throughput.max_position()],
             None => &self.density,
         };
-        with_field!(self, channel, ray.time, |field| sample_collision(
+        with_field!(self, channel, ray.time, |field| decomposition_tracking(
             field,
             &self.majorants,
             ray,

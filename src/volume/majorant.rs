@@ -252,6 +252,37 @@ impl Dda {
     }
 }
 
+/// The unit cells `[c, c + 1)³` of local space that a ray crosses over `[t0, t1]`, in order: the voxel cells
+/// of a grid, each bounded by its eight voxels, for tracking that refines a thick majorant segment to voxels.
+pub(crate) struct VoxelCells {
+    origin: IVec3,
+    dda: Dda,
+}
+
+impl VoxelCells {
+    /// The cells of the local-space `ray` over `[t0, t1]` (`t0 < t1`, a majorant segment's interval).
+    pub(crate) fn new(ray: &Ray, t0: f32, t1: f32) -> Self {
+        let (a, b) = (ray.at(t0), ray.at(t1));
+        let origin = floor_ivec3(a.min(b)) - 1;
+        let grid = UniformGrid {
+            origin: origin.as_vec3(),
+            cell: Vec3::ONE,
+            res: floor_ivec3(a.max(b)) - origin + 2,
+        };
+        Self {
+            origin,
+            dda: Dda::inside(&grid, ray, ray.dir.recip(), t0, t1),
+        }
+    }
+
+    /// The next cell and its parameter interval, adding each cell stepped through to `cells`.
+    #[inline]
+    pub(crate) fn next(&mut self, cells: &mut u64) -> Option<(IVec3, f32, f32)> {
+        let (c, t0, t1) = self.dda.next(cells)?;
+        Some((self.origin + c, t0, t1))
+    }
+}
+
 /// The [`MajorantKind::Adaptive`] structure: coarse 128³ cells with optional bricks.
 #[derive(Clone, Debug)]
 struct Hierarchy {
@@ -273,6 +304,8 @@ enum Repr {
 #[derive(Clone, Debug)]
 pub struct Majorants {
     kind: MajorantKind,
+    /// Whether tracking refines thick segments to voxel cells (`tracking::REFINE_TAU`).
+    voxel_refinement: bool,
     bounds: Aabb,
     sigma_min: f32,
     sigma_max: f32,
@@ -285,6 +318,7 @@ impl Majorants {
     pub fn global(bounds: Aabb, sigma_min: f32, sigma_max: f32) -> Self {
         Self {
             kind: MajorantKind::Global,
+            voxel_refinement: true,
             bounds,
             sigma_min,
             sigma_max,
@@ -324,6 +358,7 @@ impl Majorants {
         };
         Self {
             kind,
+            voxel_refinement: true,
             bounds,
             sigma_min: 0.0,
             sigma_max: global_max,
@@ -352,6 +387,7 @@ impl Majorants {
                 let (grid, values) = grid16_reaching(tree, s, bounds, reach);
                 Self {
                     kind: MajorantKind::Grid16,
+                    voxel_refinement: true,
                     bounds,
                     sigma_min: 0.0,
                     sigma_max: global_max,
@@ -400,6 +436,20 @@ impl Majorants {
     /// The kind of this structure.
     pub fn kind(&self) -> MajorantKind {
         self.kind
+    }
+
+    /// Turns the voxel refinement of thick segments on (the default) or off. Off, tracking uses the
+    /// structure's own segments everywhere, as before the refinement existed: for benchmarks and tests that
+    /// compare the two.
+    pub fn with_voxel_refinement(mut self, on: bool) -> Self {
+        self.voxel_refinement = on;
+        self
+    }
+
+    /// True when tracking walks segments thicker than `tracking::REFINE_TAU` per voxel voxel cell by voxel
+    /// cell, on fields that bound their voxel cells (grids).
+    pub fn voxel_refinement(&self) -> bool {
+        self.voxel_refinement
     }
 
     /// True when the segments carry minorants (σ_min > 0 where the density allows), so that tracking can find

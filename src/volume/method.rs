@@ -5,6 +5,7 @@
 
 use super::majorant::MajorantKind;
 use super::majorant_choice::{MajorantEstimate, PILOT_RAYS};
+use super::tracking::REFINE_TAU;
 use serde::ser::SerializeMap;
 use std::fmt;
 
@@ -23,6 +24,12 @@ pub enum FreeFlight {
     DeltaTracking {
         /// True when the majorant structure stores minorants, so constant-density segments are found.
         closed_form_segments: bool,
+        /// True for decomposition tracking (Kutz et al. 2017, §4): tentative collisions under the segment's
+        /// minorant are real without a lookup (same distribution as delta tracking).
+        decomposition: bool,
+        /// True when segments thicker than `tracking::REFINE_TAU` per voxel are walked voxel cell by voxel cell,
+        /// each bounded by its eight voxels.
+        voxel_refinement: bool,
     },
 }
 
@@ -134,10 +141,17 @@ impl fmt::Display for MediumMethod {
             }
             FreeFlight::DeltaTracking {
                 closed_form_segments,
+                decomposition,
+                voxel_refinement,
             } => {
+                let tracking = if decomposition {
+                    "decomposition tracking (delta tracking whose collisions under the segment minorant need no lookup)"
+                } else {
+                    "delta tracking"
+                };
                 write!(
                     f,
-                    "delta tracking over {}",
+                    "{tracking} over {}",
                     self.majorant.map_or("no majorant", majorant_phrase)
                 )?;
                 match &self.why {
@@ -175,6 +189,12 @@ impl fmt::Display for MediumMethod {
                     )?,
                     _ => write!(f, " (as requested)")?,
                 }
+                if voxel_refinement {
+                    write!(
+                        f,
+                        ", refined to voxel cells (bounded by their 8 voxels) where the majorant optical depth per voxel exceeds {REFINE_TAU}"
+                    )?;
+                }
                 if closed_form_segments {
                     write!(f, ", closed form on constant-density segments")?;
                 }
@@ -200,7 +220,16 @@ impl serde::Serialize for MediumMethod {
             ),
             FreeFlight::DeltaTracking {
                 closed_form_segments,
+                ..
             } => ("delta_tracking", None, closed_form_segments),
+        };
+        let (decomposition, voxel_refinement) = match self.free_flight {
+            FreeFlight::DeltaTracking {
+                decomposition,
+                voxel_refinement,
+                ..
+            } => (decomposition, voxel_refinement),
+            _ => (false, false),
         };
         let shadow = match self.shadow {
             TransmittanceMethod::ClosedForm => "closed_form",
@@ -217,10 +246,12 @@ impl serde::Serialize for MediumMethod {
             MethodReason::VelocityBlur { .. } => ("velocity_blur", &[][..]),
         };
         let pilot: Vec<PilotEntry> = pilot.iter().map(PilotEntry::from).collect();
-        let mut map = serializer.serialize_map(Some(7))?;
+        let mut map = serializer.serialize_map(Some(9))?;
         map.serialize_entry("free_flight", free_flight)?;
         map.serialize_entry("channel_choice", &channel)?;
         map.serialize_entry("closed_form_segments", &segments)?;
+        map.serialize_entry("decomposition_tracking", &decomposition)?;
+        map.serialize_entry("voxel_refinement", &voxel_refinement)?;
         map.serialize_entry("majorant", &self.majorant.map(MajorantKind::name))?;
         map.serialize_entry("shadow_estimator", shadow)?;
         map.serialize_entry("method_reason", reason)?;
@@ -260,6 +291,8 @@ mod tests {
         let m = MediumMethod {
             free_flight: FreeFlight::DeltaTracking {
                 closed_form_segments: true,
+                decomposition: false,
+                voxel_refinement: false,
             },
             majorant: Some(MajorantKind::Global),
             shadow: TransmittanceMethod::ResidualRatioTracking,
@@ -274,8 +307,29 @@ mod tests {
         assert_eq!(
             json,
             serde_json::json!({"free_flight": "delta_tracking", "channel_choice": null,
-                "closed_form_segments": true, "majorant": "global", "shadow_estimator": "residual_ratio",
-                "method_reason": "requested", "majorant_pilot": []})
+                "closed_form_segments": true, "decomposition_tracking": false, "voxel_refinement": false,
+                "majorant": "global", "shadow_estimator": "residual_ratio", "method_reason": "requested",
+                "majorant_pilot": []})
         );
+        // Decomposition tracking with voxel refinement, as grid media use it.
+        let m = MediumMethod {
+            free_flight: FreeFlight::DeltaTracking {
+                closed_form_segments: false,
+                decomposition: true,
+                voxel_refinement: true,
+            },
+            majorant: Some(MajorantKind::Grid16),
+            shadow: TransmittanceMethod::RatioTracking,
+            why: MethodReason::Requested,
+        };
+        assert_eq!(
+            m.to_string(),
+            "decomposition tracking (delta tracking whose collisions under the segment minorant need no lookup) \
+             over a 16^3 majorant grid (as requested), refined to voxel cells (bounded by their 8 voxels) where the \
+             majorant optical depth per voxel exceeds 4; ratio tracking for shadow rays"
+        );
+        let json = serde_json::to_value(&m).unwrap();
+        assert_eq!(json["decomposition_tracking"], true);
+        assert_eq!(json["voxel_refinement"], true);
     }
 }
