@@ -162,6 +162,11 @@ struct RenderArgs {
     /// pixel) or `independent` (uniform random numbers).
     #[arg(long, value_enum, default_value = "sobol")]
     sampler: nimbus::render::Sampler,
+    /// How next-event estimation chooses a light: `power` (by emitted power), `bvh` (a light BVH, by each
+    /// light's importance at the shading point) or `auto` (the BVH for scenes with many bounded lights, such
+    /// as emissive meshes; power otherwise).
+    #[arg(long = "light-sampler", value_enum, default_value = "auto")]
+    light_sampler: nimbus::light::LightSamplerChoice,
     /// Constant environment radiance r,g,b (overrides the scene's nimbus_environment).
     #[arg(long = "env-color", value_parser = parse_rgb)]
     env_color: Option<Rgb>,
@@ -173,7 +178,7 @@ struct RenderArgs {
     /// Exposure of the PNG preview in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
-    /// Print the estimator chosen for each medium before rendering.
+    /// Print the estimator chosen for each medium, and the light sampler, before rendering.
     #[arg(long)]
     explain: bool,
     /// Render only samples START..END (END exclusive) of each pixel's --spp samples, as a part for `merge`.
@@ -463,6 +468,10 @@ fn render_frame(
             eprintln!("nimbus: medium '{}': {}", m.name(), m.method());
         }
         explain_volume_sampling(&scene, args.volume_sampling);
+        eprintln!(
+            "nimbus: light sampler: {}",
+            args.light_sampler.explain(scene.lights())
+        );
         if let Some(shutter) = scene.shutter() {
             eprintln!(
                 "nimbus: motion blur: shutter {} frames (box), {} moving triangles, the camera {}",
@@ -504,6 +513,7 @@ fn render_frame(
         media_mis: true,
         equiangular: args.volume_sampling == VolumeSampling::Mis,
         sampler: args.sampler,
+        light_sampler: args.light_sampler,
         limits,
     };
     eprintln!(

@@ -213,3 +213,46 @@ fn volume_sampling_and_sampler_flags_are_explained_and_counted() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn the_light_sampler_flag_is_explained() {
+    // The peer benchmark's Cornell box: one quad light, two emissive triangles.
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/scenes/cornell.gltf");
+    let dir = std::env::temp_dir().join(format!("nimbus-cli-lights-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let render = |flags: &[&str]| {
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&scene)
+            .args(["--width", "8", "--spp", "2", "--explain", "-o"])
+            .arg(dir.join("out.exr"))
+            .args(flags)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert_eq!(output.status.code(), Some(0), "{flags:?}: {stderr}");
+        stderr
+    };
+    let stderr = render(&[]);
+    assert!(
+        stderr.contains("light sampler: power: 2 bounded light(s), fewer than the 16"),
+        "{stderr}"
+    );
+    let stderr = render(&["--light-sampler", "bvh"]);
+    assert!(
+        stderr.contains("light sampler: light BVH over 2 bounded light(s) (--light-sampler bvh)"),
+        "{stderr}"
+    );
+    let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .arg("render")
+        .arg(&scene)
+        .args(["--light-sampler", "uniform"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        !output.status.success() && stderr.contains("uniform") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

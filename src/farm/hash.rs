@@ -4,7 +4,8 @@
 //! It is FNV-1a (64-bit; Fowler, Noll and Vo) over, in this order, each a length-prefixed field:
 //! 1. the tag `nimbus scene hash 1`;
 //! 2. the bytes of the scene file (for the bundled demo, its embedded glTF and VDB);
-//! 3. the settings that change the image: width, height, seed, max depth and media MIS, little-endian;
+//! 3. the settings that change the image: width, height, seed, max depth, media MIS, equiangular sampling,
+//!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian;
 //! 4. each scene override of the command line by name and value (`--env-color` as three `f32`).
 //!
 //! The sample count and range, the crop, the thread count and the time limit are not in it: they do not
@@ -80,6 +81,7 @@ pub fn scene_hash(
     h.field(&[settings.media_mis as u8]);
     h.field(&[settings.equiangular as u8]);
     h.field(&[settings.sampler as u8]);
+    h.field(&[settings.light_sampler as u8]);
     for (name, value) in overrides {
         h.field(name.as_bytes());
         h.field(value);
@@ -176,6 +178,14 @@ mod tests {
                 &[b"scene"],
                 &RenderSettings {
                     sampler: crate::render::Sampler::Independent,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    light_sampler: crate::light::LightSamplerChoice::Bvh,
                     ..s.clone()
                 },
                 &[],

@@ -35,6 +35,7 @@
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
+use crate::light::LightContext;
 use crate::math::sampling::{power_heuristic, Equiangular};
 use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
 use crate::scene::{Scene, SurfaceHit};
@@ -124,13 +125,12 @@ struct PathState {
     prev_delta: bool,
     /// Solid-angle density of the last sampled direction, for MIS on emitters hit next.
     prev_pdf: f32,
-    /// Where the last scattering event happened.
-    prev_p: Vec3,
+    /// Where the last scattering event happened, with its shading normal at a surface (the normal also
+    /// tells whether its next-event estimate may have sampled every light, see
+    /// [`RendererServices::surfaces_sample_every_light`]).
+    prev: LightContext,
     /// Whether emitters hit next were already counted by light sampling alone (a medium event without MIS).
     prev_light_only: bool,
-    /// Whether the last scattering event was at a surface, whose next-event estimate may sample every light
-    /// ([`RendererServices::surfaces_sample_every_light`]).
-    prev_at_surface: bool,
     stack: MediumStack,
     /// Width of the ray cone where the current ray starts, in world units.
     cone_width: f32,
@@ -180,9 +180,11 @@ impl PathTracer {
             depth: 0,
             prev_delta: true,
             prev_pdf: 0.0,
-            prev_p: ray.origin,
+            prev: LightContext {
+                p: ray.origin,
+                n: None,
+            },
             prev_light_only: false,
-            prev_at_surface: false,
             stack: MediumStack::default(),
             cone_width: 0.0,
             crossings: 0,
@@ -396,7 +398,7 @@ impl PathTracer {
         } else if s.prev_delta {
             1.0
         } else {
-            power_heuristic(s.prev_pdf, services.environment_pdf(dir, s.prev_at_surface))
+            power_heuristic(s.prev_pdf, services.environment_pdf(dir, &s.prev))
         };
         s.radiance += s.beta * env.radiance(dir) * weight;
     }
@@ -441,18 +443,20 @@ impl PathTracer {
             }
             return SurfaceOutcome::End;
         }
-        // Light emitted by the surface toward the path.
+        // Light emitted by the surface toward the path (where an emissive texture is black there is nothing
+        // to weight: the light sampler's density is not asked for).
         if hit.front_face && material.is_emissive() {
             let le = material.emission_at(&hit.point_shading(), &scene.textures);
-            let weight = match scene.area_light_of(hit.prim) {
-                Some(_) if s.prev_light_only => 0.0,
-                Some(light) if !s.prev_delta => power_heuristic(
-                    s.prev_pdf,
-                    services.area_light_pdf(light, s.prev_p, hit.p, s.prev_at_surface),
-                ),
-                _ => 1.0,
-            };
-            s.radiance += s.beta * le * weight;
+            if le.max_element() > 0.0 {
+                let weight = match scene.area_light_of(hit.prim) {
+                    Some(_) if s.prev_light_only => 0.0,
+                    Some(light) if !s.prev_delta => {
+                        power_heuristic(s.prev_pdf, services.area_light_pdf(light, &s.prev, hit.p))
+                    }
+                    _ => 1.0,
+                };
+                s.radiance += s.beta * le * weight;
+            }
         }
         let mut bsdf = material.bsdf(&at, &scene.textures);
         if bsdf.is_index_matched() {
@@ -496,7 +500,11 @@ impl PathTracer {
         let wo = frame.to_local(wo_world);
         // Next-event estimation.
         if !bsdf.is_delta() {
-            for chosen in services.sample_lights(hit.p, true, rng).iter() {
+            let ctx = LightContext {
+                p: hit.p,
+                n: Some(frame.n),
+            };
+            for chosen in services.sample_lights(&ctx, rng).iter() {
                 let ls = chosen.sample;
                 let wi = frame.to_local(ls.wi);
                 let f = bsdf.eval(wo, wi) * wi.z.abs();
@@ -530,9 +538,11 @@ impl PathTracer {
         s.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
         s.prev_delta = bs.is_delta;
         s.prev_pdf = bs.pdf;
-        s.prev_p = hit.p;
+        s.prev = LightContext {
+            p: hit.p,
+            n: Some(frame.n),
+        };
         s.prev_light_only = false;
-        s.prev_at_surface = true;
         if let Some(interior) = material.interior {
             // Crossing the surface (refraction) enters or leaves its interior.
             let crossing = wi_world.dot(hit.geometric_normal).signum()
@@ -572,7 +582,8 @@ impl PathTracer {
             return false;
         }
         let wo = -ray.dir;
-        for chosen in services.sample_lights(p, false, rng).iter() {
+        let ctx = LightContext { p, n: None };
+        for chosen in services.sample_lights(&ctx, rng).iter() {
             let ls = chosen.sample;
             let phase = collision.phase.eval(wo, ls.wi);
             let segment = ls.shadow_segment(&SurfacePoint::free(p));
@@ -595,9 +606,8 @@ impl PathTracer {
         let (wi, pdf) = collision.phase.sample(wo, rng.sample_2d());
         s.prev_delta = false;
         s.prev_pdf = pdf;
-        s.prev_p = p;
+        s.prev = ctx;
         s.prev_light_only = !self.media_mis;
-        s.prev_at_surface = false;
         if !self.next_bounce(s, rng) {
             return false;
         }

@@ -5,13 +5,16 @@
 
 use super::{MediumStack, PathCounters};
 use crate::geometry::ShadowSegment;
-use crate::light::{Light, LightSample};
+use crate::light::{Light, LightBvh, LightContext, LightSample};
 use crate::math::{Ray, Rgb, Rng, Vec2, Vec3};
 use crate::scene::Scene;
 
 /// Light sampling and shadow-ray transmittance over a scene.
 pub struct RendererServices<'a> {
     scene: &'a Scene,
+    /// The light BVH when the render chose it ([`crate::light::LightSamplerChoice`]); `None`: lights are
+    /// chosen by power.
+    light_bvh: Option<&'a LightBvh>,
 }
 
 /// A light sample chosen from all the scene's lights.
@@ -26,14 +29,14 @@ pub struct ChosenLight {
 }
 
 /// In scenes with at most this many lights, none of them emissive triangles, next-event estimation at
-/// *surfaces* samples every light (one shadow ray each) instead of choosing one by power: choosing by power ignores where a light is shadowed (a
+/// *surfaces* samples every light (one shadow ray each) instead of choosing one: choosing by power ignores where a light is shadowed (a
 /// floor under smoke, in the sun's shadow, lit by the sky), and at a surface the extra shadow rays cost less
 /// than the selection noise they remove. Inside media one light is still chosen by power: there every shadow
 /// ray is tracked through the medium, and measured on the peer benchmark's cloud and plume, sampling every
 /// light cost more than it saved there (see docs/performance.md).
 pub const EVERY_LIGHT_MAX: usize = 4;
 
-/// The light samples of one next-event estimate: one from every light, or one light chosen by power.
+/// The light samples of one next-event estimate: one from every light, or one chosen light.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LightSamples {
     samples: [Option<ChosenLight>; EVERY_LIGHT_MAX],
@@ -74,9 +77,13 @@ impl SegmentMedia {
 }
 
 impl<'a> RendererServices<'a> {
-    /// Services over `scene`.
-    pub fn new(scene: &'a Scene) -> Self {
-        Self { scene }
+    /// Services over `scene`, choosing lights through its light BVH when `light_bvh` is set, by power
+    /// otherwise.
+    pub fn new(scene: &'a Scene, light_bvh: bool) -> Self {
+        Self {
+            scene,
+            light_bvh: light_bvh.then(|| scene.light_bvh()),
+        }
     }
 
     /// The scene.
@@ -107,12 +114,19 @@ impl<'a> RendererServices<'a> {
         lights.len() <= EVERY_LIGHT_MAX && !lights.iter().any(|l| matches!(l, Light::Area(_)))
     }
 
-    /// The light samples of one next-event estimate at `p`: with `every` (only when
-    /// [`Self::surfaces_sample_every_light`]), every light with probability 1; otherwise one light chosen by
-    /// power.
-    pub fn sample_lights(&self, p: Vec3, every: bool, rng: &mut Rng) -> LightSamples {
+    /// True when a next-event estimate at `ctx` samples every light: at a surface (`ctx.n` is set) of a scene
+    /// where [`Self::surfaces_sample_every_light`].
+    fn samples_every_light(&self, ctx: &LightContext) -> bool {
+        ctx.n.is_some() && self.surfaces_sample_every_light()
+    }
+
+    /// The light samples of one next-event estimate at `ctx` (its normal set at surfaces, `None` in media):
+    /// every light with probability 1 where [`Self::samples_every_light`]; otherwise one light, chosen by the
+    /// light BVH or by power.
+    pub fn sample_lights(&self, ctx: &LightContext, rng: &mut Rng) -> LightSamples {
         let mut out = LightSamples::default();
-        if every && self.surfaces_sample_every_light() {
+        let p = ctx.p;
+        if self.samples_every_light(ctx) {
             for (index, slot) in out
                 .samples
                 .iter_mut()
@@ -124,10 +138,15 @@ impl<'a> RendererServices<'a> {
         } else {
             // For emissive triangles, one stratified pair both chooses the triangle (its first value, rescaled
             // within the triangle's share) and places the sample on it, so that the samples of a pixel stay
-            // stratified over a light made of many triangles. Other lights take a pair of their own: sharing
-            // it raised the MSE of the peer benchmark's plume (sun and sky, chosen inside the medium) by 21%.
+            // stratified over a light made of many triangles (the light BVH rescales it within the chosen
+            // child's share at every level). Other lights take a pair of their own: sharing it raised the MSE
+            // of the peer benchmark's plume (sun and sky, chosen inside the medium) by 21%.
             let u = rng.sample_2d();
-            if let Some((index, pmf, rest)) = self.scene.light_sampler.sample_remapped(u.x) {
+            let chosen = match self.light_bvh {
+                Some(bvh) => bvh.sample(ctx, u.x),
+                None => self.scene.light_sampler.sample_remapped(u.x),
+            };
+            if let Some((index, pmf, rest)) = chosen {
                 let on_light = match self.scene.lights[index] {
                     Light::Area(_) => Vec2::new(rest, u.y),
                     _ => rng.sample_2d(),
@@ -138,17 +157,22 @@ impl<'a> RendererServices<'a> {
         out
     }
 
-    /// Probability that a next-event estimate (with `every` as given to [`Self::sample_lights`]) samples light
-    /// `index`: 1 when every light is sampled, else its probability of being chosen by power.
-    fn light_pmf(&self, index: usize, every: bool) -> f32 {
-        if every && self.surfaces_sample_every_light() {
+    /// Probability that a next-event estimate at `ctx` ([`Self::sample_lights`]) samples light `index`: 1 when
+    /// every light is sampled, else its probability of being chosen there (the same product of child
+    /// probabilities the light BVH returned when it chose it, or its share of the power).
+    fn light_pmf(&self, index: usize, ctx: &LightContext) -> f32 {
+        if self.samples_every_light(ctx) {
             1.0
+        } else if let Some(bvh) = self.light_bvh {
+            bvh.pmf(index, ctx)
         } else {
             self.scene.light_sampler.pmf(index)
         }
     }
 
-    /// Chooses a light by power from `u` ∈ [0, 1): its index and the probability of choosing it.
+    /// Chooses a light by power from `u` ∈ [0, 1), whatever the render's light sampler (for equiangular
+    /// sampling along a segment, which has no one shading point): its index and the probability of choosing
+    /// it.
     pub fn choose_light(&self, u: f32) -> Option<(usize, f32)> {
         self.scene.light_sampler.sample(u)
     }
@@ -169,19 +193,22 @@ impl<'a> RendererServices<'a> {
         })
     }
 
-    /// Density, in solid angle at `p`, with which [`Self::sample_lights`] would have chosen the point `q` on
-    /// the area light `light`.
-    pub fn area_light_pdf(&self, light: usize, p: Vec3, q: Vec3, every: bool) -> f32 {
+    /// Density, in solid angle at `ctx.p`, with which [`Self::sample_lights`] at `ctx` would have chosen the
+    /// point `q` on the area light `light`.
+    pub fn area_light_pdf(&self, light: usize, ctx: &LightContext, q: Vec3) -> f32 {
         match &self.scene.lights[light] {
-            Light::Area(a) => self.light_pmf(light, every) * a.pdf_from_point(p, q).unwrap_or(0.0),
+            Light::Area(a) => {
+                self.light_pmf(light, ctx) * a.pdf_from_point(ctx.p, q).unwrap_or(0.0)
+            }
             _ => 0.0,
         }
     }
 
-    /// Density with which [`Self::sample_lights`] would have chosen direction `dir` toward the environment.
-    pub fn environment_pdf(&self, dir: Vec3, every: bool) -> f32 {
+    /// Density with which [`Self::sample_lights`] at `ctx` would have chosen direction `dir` toward the
+    /// environment.
+    pub fn environment_pdf(&self, dir: Vec3, ctx: &LightContext) -> f32 {
         match (self.scene.environment, self.scene.environment_light()) {
-            (Some(i), Some(env)) => self.light_pmf(i, every) * env.pdf(dir),
+            (Some(i), Some(env)) => self.light_pmf(i, ctx) * env.pdf(dir),
             _ => 0.0,
         }
     }
@@ -261,5 +288,142 @@ impl<'a> RendererServices<'a> {
             tr *= medium.transmittance(ray, t_max, rng, &mut counters.media[m as usize]);
         }
         tr
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::light::{Light, LightSamplerChoice};
+    use crate::material::Material;
+    use crate::math::{Rgb, Vec3};
+    use crate::render::{RenderSettings, Renderer};
+    use crate::scene::{Camera, Scene, SceneBuilder};
+    use glam::DVec3;
+
+    /// Irradiance at `p` (normal `n`) from a polygon of uniform radiance `radiance` wholly above `p`'s
+    /// horizon and unoccluded: Lambert's contour formula E = L/2 · |Σ_i Θ_i (n · ĝ_i)|, with Θ_i the angle
+    /// the edge i subtends at `p` and ĝ_i the unit normal of the plane through `p` and that edge (Lambert's
+    /// formula for polygonal sources, as in Arvo 1994, "The Irradiance Jacobian for Partially Occluded
+    /// Polyhedral Sources").
+    fn polygon_irradiance(p: DVec3, n: DVec3, vertices: &[DVec3], radiance: f64) -> f64 {
+        let sum: f64 = (0..vertices.len())
+            .map(|i| {
+                let a = (vertices[i] - p).normalize();
+                let b = (vertices[(i + 1) % vertices.len()] - p).normalize();
+                a.dot(b).clamp(-1.0, 1.0).acos() * n.dot(a.cross(b).normalize())
+            })
+            .sum();
+        0.5 * radiance * sum.abs()
+    }
+
+    /// A grey Lambertian floor under a checkerboard of 128 emissive squares (256 triangles of different
+    /// radiances) at height 2, facing down, with 32 squares facing up (away from the floor) above them; the
+    /// camera looks down at a 5 mm patch around the origin. Returns the scene and the reflected radiance at
+    /// the origin in closed form, ρ/π · Σ E_square.
+    fn checkerboard() -> (Scene, f64) {
+        let albedo = 0.5;
+        let mut b = SceneBuilder::new();
+        let floor = b.add_material(Material::lambertian("floor", Rgb::splat(albedo)));
+        let f = 20.0;
+        let quad = vec![
+            Vec3::new(-f, 0.0, -f),
+            Vec3::new(-f, 0.0, f),
+            Vec3::new(f, 0.0, f),
+            Vec3::new(f, 0.0, -f),
+        ];
+        b.add_triangle_mesh(quad, vec![[0, 1, 2], [0, 2, 3]], floor)
+            .unwrap();
+        let mut irradiance = 0.0;
+        let cell = 0.5;
+        for i in 0..16 {
+            for j in 0..16 {
+                let up = (i + j) % 2 == 1;
+                if up && (i % 4 != 1) {
+                    continue;
+                }
+                let radiance = 0.5 + ((i * 7 + j * 3) % 11) as f32;
+                let mut emitter = Material::lambertian("emitter", Rgb::ZERO);
+                emitter.emission = Rgb::splat(radiance);
+                let m = b.add_material(emitter);
+                let (x0, z0) = (-4.0 + i as f32 * cell, -4.0 + j as f32 * cell);
+                let y = if up { 2.5 } else { 2.0 };
+                let corners = vec![
+                    Vec3::new(x0, y, z0),
+                    Vec3::new(x0 + cell, y, z0),
+                    Vec3::new(x0 + cell, y, z0 + cell),
+                    Vec3::new(x0, y, z0 + cell),
+                ];
+                // Counter-clockwise seen from below (normal −Y) for the lower squares, from above for the
+                // upper ones.
+                let indices = if up {
+                    vec![[0, 2, 1], [0, 3, 2]]
+                } else {
+                    vec![[0, 1, 2], [0, 2, 3]]
+                };
+                if !up {
+                    let polygon: Vec<DVec3> = corners.iter().map(|c| c.as_dvec3()).collect();
+                    irradiance +=
+                        polygon_irradiance(DVec3::ZERO, DVec3::Y, &polygon, radiance as f64);
+                }
+                b.add_triangle_mesh(corners, indices, m).unwrap();
+            }
+        }
+        b.set_camera(Camera::look_at(Vec3::new(0.0, 0.5, 0.05), Vec3::ZERO, 0.01));
+        let scene = b.build().unwrap();
+        (scene, albedo as f64 / std::f64::consts::PI * irradiance)
+    }
+
+    /// Renders the direct light on the floor with `choice` and returns the mean over the pixels and its
+    /// standard error (from the film's per-pixel variance of the mean).
+    fn render_floor(scene: &Scene, choice: LightSamplerChoice) -> (f64, f64) {
+        let settings = RenderSettings {
+            width: 4,
+            height: 4,
+            spp: 2048,
+            seed: 17,
+            max_depth: 1,
+            light_sampler: choice,
+            ..RenderSettings::default()
+        };
+        let (image, _) = Renderer::new(settings)
+            .render(scene, &mut |_| true)
+            .unwrap();
+        let n = image.beauty.len() as f64;
+        let mean = image.beauty.iter().map(|c| c.x as f64).sum::<f64>() / n;
+        let variance = image.variance.iter().map(|v| v.x as f64).sum::<f64>() / (n * n);
+        (mean, variance.sqrt())
+    }
+
+    #[test]
+    fn both_light_samplers_match_the_closed_form_irradiance_of_many_emitters() {
+        let (scene, expected) = checkerboard();
+        assert!(
+            scene
+                .lights()
+                .iter()
+                .filter(|l| matches!(l, Light::Area(_)))
+                .count()
+                > 256,
+            "many triangle lights"
+        );
+        let (power, power_error) = render_floor(&scene, LightSamplerChoice::Power);
+        let (bvh, bvh_error) = render_floor(&scene, LightSamplerChoice::Bvh);
+        eprintln!(
+            "closed form {expected:.5}; power {power:.5} ± {power_error:.5}; bvh {bvh:.5} ± {bvh_error:.5}"
+        );
+        for (name, value, error) in [("power", power, power_error), ("bvh", bvh, bvh_error)] {
+            assert!(
+                error > 0.0 && error < 0.02 * expected,
+                "{name}: standard error {error} too large to test anything"
+            );
+            assert!(
+                (value - expected).abs() < 4.0 * error,
+                "{name}: {value} vs the closed form {expected} (standard error {error})"
+            );
+        }
+        assert!(
+            bvh_error < power_error,
+            "the light BVH should sample the near squares more: {bvh_error} vs {power_error}"
+        );
     }
 }

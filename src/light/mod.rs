@@ -1,16 +1,18 @@
 //! Lights: emissive triangles (area lights), glTF punctual lights, the environment, and the light-selection
-//! distribution by power. Every light samples incident illumination at a point ([`Light::sample_li`]) and
+//! distributions: by power, or by importance at the shading point through a light BVH. Every light samples incident illumination at a point ([`Light::sample_li`]) and
 //! gives the solid-angle density of that sampling for multiple importance sampling.
 
 mod area;
+mod bvh;
 mod environment;
 mod punctual;
 mod sampler;
 
 pub use area::AreaLight;
+pub use bvh::{LightBvh, LightContext};
 pub use environment::{EnvironmentError, EnvironmentLight, EnvironmentMap};
 pub use punctual::{DirectionalLight, PointLight, SpotLight, LUMENS_PER_WATT};
-pub use sampler::LightSampler;
+pub use sampler::{LightSampler, LightSamplerChoice, BVH_MIN_BOUNDED_LIGHTS};
 
 use crate::geometry::{ShadowSegment, SurfacePoint};
 use crate::material::Texture;

@@ -274,6 +274,30 @@ pub(crate) fn assert_interval_sampler_fits(
     assert_fits(name, &observed, &expected)
 }
 
+/// Draws `samples` indices in `0..n` from `sample` (`None`: the sampler chose nothing) and tests them against
+/// the probabilities `pmf` with Pearson's chi-square; a shortfall of the probabilities below 1 is the
+/// expected share of `None`. Panics, naming `name`, when the fit is rejected at the Šidák-corrected level.
+/// Returns the p-value.
+pub(crate) fn assert_discrete_sampler_fits(
+    name: &str,
+    samples: usize,
+    n: usize,
+    mut sample: impl FnMut() -> Option<usize>,
+    pmf: impl Fn(usize) -> f64,
+) -> f64 {
+    let mut observed = vec![0.0; n + 1];
+    for _ in 0..samples {
+        match sample() {
+            Some(i) if i < n => observed[i] += 1.0,
+            _ => observed[n] += 1.0,
+        }
+    }
+    let mut expected: Vec<f64> = (0..n).map(|i| pmf(i) * samples as f64).collect();
+    let total: f64 = expected.iter().sum();
+    expected.push((samples as f64 - total).max(0.0));
+    assert_fits(name, &observed, &expected)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -307,5 +331,19 @@ mod tests {
         let mut expected = vec![100_000.0 / (N_COS * N_PHI) as f64; N_COS * N_PHI];
         expected.push(0.0);
         assert!(p_value(&observed, &expected) < 1e-10);
+    }
+
+    #[test]
+    #[should_panic(expected = "chi-square rejects")]
+    fn the_discrete_test_rejects_a_wrong_pmf() {
+        let mut rng = Rng::new(4, 4);
+        let claimed = [0.4, 0.3, 0.2, 0.1];
+        assert_discrete_sampler_fits(
+            "uniform as if skewed",
+            20_000,
+            4,
+            || Some((rng.next_f32() * 4.0) as usize),
+            |i| claimed[i],
+        );
     }
 }

@@ -9,6 +9,7 @@
 use super::film::{Film, PixelSums, PixelWindow};
 use super::{CancelToken, RenderImage};
 use crate::integrator::{PathCounters, PathTracer, RayCounters, RendererServices};
+use crate::light::LightSamplerChoice;
 use crate::math::{is_finite_rgb, Rng, Vec2};
 use crate::scene::Scene;
 use crate::volume::{MediumMethod, TrackingCounters};
@@ -58,6 +59,8 @@ pub struct RenderSettings {
     pub equiangular: bool,
     /// Where the path's key random decisions come from.
     pub sampler: Sampler,
+    /// How next-event estimation chooses a light: by power, through the light BVH, or per scene (auto).
+    pub light_sampler: LightSamplerChoice,
     /// The memory budget: a film larger than it is refused before it is allocated.
     pub limits: crate::limits::Limits,
 }
@@ -75,6 +78,7 @@ impl Default for RenderSettings {
             media_mis: true,
             equiangular: true,
             sampler: Sampler::Sobol,
+            light_sampler: LightSamplerChoice::Auto,
             limits: crate::limits::Limits::default(),
         }
     }
@@ -427,7 +431,7 @@ impl Renderer {
             equiangular: PathTracer::uses_equiangular(s.equiangular, scene),
             pixel_spread: scene.camera.pixel_spread_angle(height),
         };
-        let services = RendererServices::new(scene);
+        let services = RendererServices::new(scene, s.light_sampler.uses_bvh(scene.lights()));
         film.pixels_mut()
             .par_chunks_mut(window.width())
             .enumerate()

@@ -20,12 +20,12 @@ pub use error::{SceneError, SceneErrorKind};
 
 use crate::geometry::TriangleHit;
 use crate::geometry::{Bvh, Mesh, MotionBvh, SurfacePoint, TriangleHierarchy};
-use crate::light::{AreaLight, EnvironmentLight, Light, LightSampler};
+use crate::light::{AreaLight, EnvironmentLight, Light, LightBvh, LightSampler};
 use crate::material::{AlphaMode, Material, ShadingPoint, TexCoord, Texture};
 use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3, Vec4};
 use crate::volume::Medium;
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Radiance of the neutral environment that lights a scene without lighting of its own (see
 /// [`SceneBuilder::has_own_lighting`]), as glTF viewers light such files: the CLI adds it.
@@ -487,6 +487,7 @@ impl SceneBuilder {
             textures: self.textures,
             lights,
             light_sampler,
+            light_bvh: OnceLock::new(),
             environment,
             bvh,
             motion,
@@ -523,6 +524,9 @@ pub struct Scene {
     pub(crate) lights: Vec<Light>,
     /// Light selection by power.
     pub(crate) light_sampler: LightSampler,
+    /// Light selection by importance at the shading point, built on first use (only renders that choose it
+    /// pay for it).
+    light_bvh: OnceLock<LightBvh>,
     /// Index of the environment light in `lights`, if any.
     pub(crate) environment: Option<usize>,
     /// The camera.
@@ -830,6 +834,13 @@ impl Scene {
     pub fn area_light_of(&self, prim: u32) -> Option<usize> {
         let l = *self.light_of_prim.get(prim as usize)?;
         (l != u32::MAX).then_some(l as usize)
+    }
+
+    /// The light BVH over the scene's lights, built on the first call.
+    pub(crate) fn light_bvh(&self) -> &LightBvh {
+        self.light_bvh.get_or_init(|| {
+            LightBvh::new(&self.lights, &self.textures, bounding_radius(&self.bounds))
+        })
     }
 
     /// The environment light, if any.
