@@ -504,7 +504,7 @@ impl PathTracer {
                 p: hit.p,
                 n: Some(frame.n),
             };
-            for chosen in services.sample_lights(&ctx, rng).iter() {
+            services.sample_lights(&ctx, rng, |chosen, rng| {
                 let ls = chosen.sample;
                 let wi = frame.to_local(ls.wi);
                 let f = bsdf.eval(wo, wi) * wi.z.abs();
@@ -525,7 +525,7 @@ impl PathTracer {
                         s.radiance += s.beta * f * tr * ls.radiance * (weight / light_pdf);
                     }
                 }
-            }
+            });
         }
         // Continue the path by sampling the BSDF.
         let Some(bs) = bsdf.sample(wo, rng.sample_1d(), rng.sample_2d()) else {
@@ -583,7 +583,7 @@ impl PathTracer {
         }
         let wo = -ray.dir;
         let ctx = LightContext { p, n: None };
-        for chosen in services.sample_lights(&ctx, rng).iter() {
+        services.sample_lights(&ctx, rng, |chosen, rng| {
             let ls = chosen.sample;
             let phase = collision.phase.eval(wo, ls.wi);
             let segment = ls.shadow_segment(&SurfacePoint::free(p));
@@ -601,7 +601,7 @@ impl PathTracer {
                     s.radiance += s.beta * tr * ls.radiance * (phase * weight / light_pdf);
                 }
             }
-        }
+        });
         // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
         let (wi, pdf) = collision.phase.sample(wo, rng.sample_2d());
         s.prev_delta = false;
