@@ -973,8 +973,9 @@ impl<'a, T: VoxelValue> Accessor<'a, T> {
     }
 
     /// The eight voxels `p + {0, 1}³` that a trilinear lookup in the cell `[p, p + 1)³` reads, in the order
-    /// (x, y, z) = 000, 001, 010, 011, 100, 101, 110, 111.
-    #[inline]
+    /// (x, y, z) = 000, 001, 010, 011, 100, 101, 110, 111. Always inlined: as a call it made every trilinear
+    /// lookup of the peer benchmark's plume 14% slower.
+    #[inline(always)]
     pub fn corners(&mut self, p: IVec3) -> [T; 8] {
         let last = Leaf::<T>::DIM - 1;
         if (p & last).cmpne(IVec3::splat(last)).all() {
