@@ -434,6 +434,10 @@ impl Renderer {
         let services = RendererServices::new(scene, s.light_sampler.uses_bvh(scene.lights()));
         film.pixels_mut()
             .par_chunks_mut(window.width())
+            // One row per task: rayon's adaptive splitting otherwise hands a thread a run of rows it cannot
+            // give up once started, and the other thread idled for ~10 ms at the end of each pass (cloud, 2
+            // threads).
+            .with_max_len(1)
             .enumerate()
             .map(|(row_index, row)| {
                 let y = window.y0 + row_index;
