@@ -21,9 +21,10 @@
 //! since a shared machine makes absolute times meaningless). Counted work is exact and machine-independent.
 //! Last, the structure `auto` picks at that scale and the pilot's estimates.
 
+mod support;
+
 use glam::{DMat4, DVec3};
 use nimbus::math::{Ray, Rng, Vec3};
-use nimbus::vdb::read_file;
 use nimbus::volume::density::GridDensity;
 use nimbus::volume::majorant::{MajorantKind, Majorants};
 use nimbus::volume::majorant_choice::{choose, pilot_rays};
@@ -128,11 +129,7 @@ fn walks(
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-    };
+    let value = |flag: &str| support::flag_value(&args, flag);
     let n_walks: usize = value("--walks").map_or(4000, |v| v.parse().expect("--walks N"));
     let rounds: usize = value("--rounds").map_or(3, |v| v.parse().expect("--rounds R"));
     let scales: Vec<f32> = value("--scales").map_or(vec![1.0, 10.0, 100.0], |v| {
@@ -148,24 +145,11 @@ fn main() {
         if only.is_some_and(|o| o != scene.name) {
             continue;
         }
-        let file = match read_file(&scene.file) {
-            Ok(f) => f,
-            Err(e) => {
-                println!("skipping {}: {e}", scene.name);
-                continue;
-            }
-        };
-        let Some(grid) = file
-            .grids
-            .iter()
-            .filter(|g| g.tree.as_float().is_some())
-            .max_by_key(|g| g.name == "density")
-        else {
-            println!("skipping {}: no scalar grid", scene.name);
+        let Some(grid) = support::scalar_grid(&scene.file) else {
             continue;
         };
         let base = scene.scale.unwrap_or_else(|| {
-            let unit = GridDensity::new(grid, scene.node, 1.0).expect("a density grid");
+            let unit = GridDensity::new(&grid, scene.node, 1.0).expect("a density grid");
             let (probe, t_max) = pilot_rays(&unit, 256, 99);
             let tau = probe
                 .iter()
@@ -175,7 +159,7 @@ fn main() {
             (1.0 / tau.max(1e-30)) as f32
         });
         for &mult in &scales {
-            let field = GridDensity::new(grid, scene.node, base * mult).expect("a density grid");
+            let field = GridDensity::new(&grid, scene.node, base * mult).expect("a density grid");
             let (rays, t_max) = pilot_rays(&field, n_walks, 7);
             let built: Vec<Majorants> = MajorantKind::ALL
                 .iter()

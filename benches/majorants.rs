@@ -14,10 +14,11 @@
 //! constants). `--chart DIR` writes `DIR/majorants.png`/`.svg`: per optical depth, each structure's and auto's time
 //! relative to the fastest structure, geometric mean over the grids.
 
+mod support;
+
 use glam::DMat4;
 use nimbus::converge::{draw_loglog_chart, LegendCorner, LogLogChart, Series};
 use nimbus::math::Rng;
-use nimbus::vdb::read_file;
 use nimbus::volume::density::GridDensity;
 use nimbus::volume::majorant::{MajorantKind, Majorants};
 use nimbus::volume::majorant_choice::{choose, pilot_rays};
@@ -70,23 +71,8 @@ fn bench_file(
     kinds: &[MajorantKind],
     csv: bool,
 ) -> Option<Case> {
-    let file = match read_file(path) {
-        Ok(f) => f,
-        Err(e) => {
-            println!("skipping {}: {e}", path.display());
-            return None;
-        }
-    };
-    let Some(grid) = file
-        .grids
-        .iter()
-        .filter(|g| g.tree.as_float().is_some())
-        .max_by_key(|g| g.name == "density")
-    else {
-        println!("skipping {}: no scalar grid", path.display());
-        return None;
-    };
-    let unit = match GridDensity::new(grid, DMat4::IDENTITY, 1.0) {
+    let grid = support::scalar_grid(path)?;
+    let unit = match GridDensity::new(&grid, DMat4::IDENTITY, 1.0) {
         Ok(g) => g,
         Err(e) => {
             println!("skipping {}: {e}", path.display());
@@ -101,7 +87,7 @@ fn bench_file(
         .sum::<f64>()
         / probe.len() as f64;
     let scale = (tau_target / mean_tau.max(1e-30)) as f32;
-    let field = GridDensity::new(grid, DMat4::IDENTITY, scale).expect("checked above");
+    let field = GridDensity::new(&grid, DMat4::IDENTITY, scale).expect("checked above");
     let (rays, t_max) = pilot_rays(&field, n_rays, 7);
     let tree = field.tree();
     println!(

@@ -21,6 +21,7 @@
 
 #[path = "../tests/common/mod.rs"]
 mod common;
+mod support;
 
 use glam::{DMat4, DVec3, IVec3};
 use nimbus::converge::{draw_loglog_chart, LegendCorner, LogLogChart, Series};
@@ -433,12 +434,7 @@ fn chromaticity(budget: Budget, out: &std::path::Path) {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-            .cloned()
-    };
+    let value = |flag: &str| support::flag_value(&args, flag).cloned();
     let quick = args.iter().any(|a| a == "--quick");
     let threads = value("--threads").and_then(|t| t.parse().ok()).unwrap_or(2);
     let out = value("--out")

@@ -279,7 +279,7 @@ impl LightBvh {
         for (i, light) in lights.iter().enumerate() {
             if let Some(b) = LightBounds::of(light, textures) {
                 items.push((i as u32, b));
-            } else if matches!(light, Light::Directional(_) | Light::Environment(_)) {
+            } else if light.is_at_infinity() {
                 let power = light.power(scene_radius);
                 if power > 0.0 && power.is_finite() {
                     membership[i] = Membership::Infinite;

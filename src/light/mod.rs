@@ -102,6 +102,12 @@ impl Light {
         }
     }
 
+    /// True for lights at infinity (directional and environment), which have no position: the light BVH
+    /// chooses them apart from the bounded lights.
+    pub fn is_at_infinity(&self) -> bool {
+        matches!(self, Light::Directional(_) | Light::Environment(_))
+    }
+
     /// True for lights that cannot be hit by a ray (delta position or direction).
     pub fn is_delta(&self) -> bool {
         matches!(

@@ -58,10 +58,7 @@ impl LightSamplerChoice {
 
 /// Lights with a position (everything but directional and environment lights).
 fn bounded_lights(lights: &[Light]) -> usize {
-    lights
-        .iter()
-        .filter(|l| !matches!(l, Light::Directional(_) | Light::Environment(_)))
-        .count()
+    lights.iter().filter(|l| !l.is_at_infinity()).count()
 }
 
 /// Chooses a light with probability proportional to its emitted power.

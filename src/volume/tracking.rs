@@ -351,20 +351,7 @@ pub fn sample_collision<F: DensityField + ?Sized>(
     rng: &mut Rng,
     counters: &mut TrackingCounters,
 ) -> Option<f32> {
-    let mut delta = Delta {
-        hit: None,
-        decompose: false,
-    };
-    track(
-        field,
-        majorants,
-        ray,
-        (t_min, t_max),
-        rng,
-        counters,
-        &mut delta,
-    );
-    delta.hit
+    first_real_collision(field, majorants, ray, (t_min, t_max), rng, counters, false)
 }
 
 /// Decomposition tracking (Kutz, Habel, Li, Novák 2017, "Spectral and Decomposition Tracking for Rendering
@@ -392,19 +379,25 @@ pub fn decomposition_tracking<F: DensityField + ?Sized>(
     rng: &mut Rng,
     counters: &mut TrackingCounters,
 ) -> Option<f32> {
+    first_real_collision(field, majorants, ray, (t_min, t_max), rng, counters, true)
+}
+
+/// The walk of [`sample_collision`] (`decompose` false) and [`decomposition_tracking`] (true): the first real
+/// collision in `interval`, if any.
+fn first_real_collision<F: DensityField + ?Sized>(
+    field: &F,
+    majorants: &Majorants,
+    ray: &Ray,
+    interval: (f32, f32),
+    rng: &mut Rng,
+    counters: &mut TrackingCounters,
+    decompose: bool,
+) -> Option<f32> {
     let mut delta = Delta {
         hit: None,
-        decompose: true,
+        decompose,
     };
-    track(
-        field,
-        majorants,
-        ray,
-        (t_min, t_max),
-        rng,
-        counters,
-        &mut delta,
-    );
+    track(field, majorants, ray, interval, rng, counters, &mut delta);
     delta.hit
 }
 
