@@ -590,19 +590,13 @@ fn create_parent(path: &Path) -> Result<(), String> {
 /// `--explain`'s line on distance sampling in media: whether segments through constant media are also
 /// sampled equiangularly toward point and spot lights, and why (not).
 fn explain_volume_sampling(scene: &Scene, sampling: VolumeSampling) {
-    let constant = scene
-        .media()
-        .iter()
-        .filter(|m| m.constant_scattering().is_some())
-        .count();
+    let nimbus::render::EquiangularTargets {
+        constant_media: constant,
+        point_lights: points,
+    } = nimbus::render::EquiangularTargets::of(scene);
     if constant == 0 {
         return;
     }
-    let points = scene
-        .lights()
-        .iter()
-        .filter(|l| l.point_position().is_some())
-        .count();
     let choice = match (sampling, points) {
         (VolumeSampling::Distance, _) => "distance sampling alone (--volume-sampling distance)".to_string(),
         (_, 0) => "distance sampling alone: no point or spot light to sample toward".to_string(),

@@ -151,16 +151,44 @@ enum SurfaceOutcome {
     End,
 }
 
-impl PathTracer {
-    /// True when `scene` gets equiangular sampling: it is on, and the scene has a point or spot light and a
-    /// scattering medium of constant coefficients.
-    pub fn uses_equiangular(equiangular: bool, scene: &Scene) -> bool {
-        equiangular
-            && scene.lights().iter().any(|l| l.point_position().is_some())
-            && scene
+/// What equiangular sampling can aim at in a scene: the media of constant scattering coefficients it samples
+/// distances in, and the point and spot lights it samples toward. It runs only where both exist.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EquiangularTargets {
+    /// Media whose scattering coefficients are constant.
+    pub constant_media: usize,
+    /// Point and spot lights.
+    pub point_lights: usize,
+}
+
+impl EquiangularTargets {
+    /// Counts the targets in `scene`.
+    pub fn of(scene: &Scene) -> Self {
+        Self {
+            constant_media: scene
                 .media
                 .iter()
-                .any(|m| m.constant_scattering().is_some())
+                .filter(|m| m.constant_scattering().is_some())
+                .count(),
+            point_lights: scene
+                .lights()
+                .iter()
+                .filter(|l| l.point_position().is_some())
+                .count(),
+        }
+    }
+
+    /// True when there is both a medium to sample in and a light to sample toward.
+    pub fn any(&self) -> bool {
+        self.constant_media > 0 && self.point_lights > 0
+    }
+}
+
+impl PathTracer {
+    /// True when `scene` gets equiangular sampling: it is on, and the scene has a point or spot light and a
+    /// scattering medium of constant coefficients ([`EquiangularTargets::any`]).
+    pub fn uses_equiangular(equiangular: bool, scene: &Scene) -> bool {
+        equiangular && EquiangularTargets::of(scene).any()
     }
 
     /// Traces one camera path: alternates [`Self::sample_segment_media`] along each segment with either

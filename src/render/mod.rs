@@ -8,7 +8,7 @@ mod film;
 mod image;
 mod renderer;
 
-pub use crate::integrator::PathSample;
+pub use crate::integrator::{EquiangularTargets, PathSample};
 pub use cancel::CancelToken;
 pub use channels::{channel_names, Layer, LayerData, LAYERS};
 pub use exact::MAX_SAMPLE_VALUE;
