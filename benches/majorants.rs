@@ -11,8 +11,8 @@
 //! transmittance, and the mean transmittance (which must agree across kinds within the printed standard errors);
 //! then auto's pick. With every kind it ends with a markdown table of auto against the fastest per case. `--csv`
 //! adds machine-readable rows, the input of `benches/fit_majorant_costs.py` (which fits the pilot's cost
-//! constants). `--chart DIR` writes `DIR/majorants.png`/`.svg`: per optical depth, each structure's and auto's time
-//! relative to the fastest structure, geometric mean over the grids.
+//! constants). `--chart DIR` writes `DIR/majorants_time_per_ray.png`/`.svg`: per optical depth, each structure's
+//! and auto's time relative to the fastest structure, geometric mean over the grids.
 
 mod support;
 
@@ -317,8 +317,8 @@ fn draw_slowdown_chart(cases: &[Case], dir: &Path) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     draw_loglog_chart(
         &chart,
-        &dir.join("majorants.png"),
-        &dir.join("majorants.svg"),
+        &dir.join("majorants_time_per_ray.png"),
+        &dir.join("majorants_time_per_ray.svg"),
     )
     .map_err(|e| e.to_string())
 }
@@ -367,7 +367,7 @@ fn main() {
         print_summary(&cases);
         if let Some(dir) = chart_dir {
             match draw_slowdown_chart(&cases, &dir) {
-                Ok(()) => println!("wrote {}/majorants.{{png,svg}}", dir.display()),
+                Ok(()) => println!("wrote {}/majorants_time_per_ray.{{png,svg}}", dir.display()),
                 Err(e) => println!("chart not written: {e}"),
             }
         }

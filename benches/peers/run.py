@@ -102,10 +102,15 @@ RENDERERS = {"nimbus": render_nimbus, "mitsuba": render_mitsuba, "cycles": rende
 REFERENCE_SPP = {"plume": 1024, "smoke-sun": 2048}
 
 
-def reference(name, scene, res, ref_spp, threads):
+def reference_path(name, scene, res, ref_spp):
+    """Where the reference of scene `name` (file `scene`) at `res` px is cached: its spp and the file's hash name it"""
     ref_spp = min(ref_spp, REFERENCE_SPP.get(name, ref_spp))
     digest = hashlib.sha1(open(scene, "rb").read()).hexdigest()[:10]
-    out = os.path.join(OUT, "reference", f"{name}_{res}_{ref_spp}_{digest}.exr")
+    return os.path.join(OUT, "reference", f"{name}_{res}_{ref_spp}_{digest}.exr"), ref_spp
+
+
+def reference(name, scene, res, ref_spp, threads):
+    out, ref_spp = reference_path(name, scene, res, ref_spp)
     if not os.path.exists(out):
         print(f"[{name}] reference: Mitsuba {ref_spp} spp ...", flush=True)
         r = render_mitsuba(scene, out, ref_spp, res, threads, seed=7, passes=16)
