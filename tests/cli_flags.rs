@@ -220,7 +220,9 @@ fn the_light_sampler_flag_is_explained() {
     };
     let stderr = render(&[]);
     assert!(
-        stderr.contains("light sampler: power: 2 bounded light(s), fewer than the 16"),
+        stderr.contains(
+            "light sampler: power: 2 bounded light(s) in 1 emitter(s), fewer than the 16"
+        ),
         "{stderr}"
     );
     let stderr = render(&["--light-sampler", "bvh"]);

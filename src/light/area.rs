@@ -28,17 +28,20 @@ pub struct AreaLight {
     pub emission_texture: Option<u32>,
     /// Global triangle index in the scene (its BVH primitive).
     pub prim: u32,
+    /// Index of the scene mesh the triangle belongs to: the triangles of one mesh make one emitter when the
+    /// light sampler is chosen ([`crate::light::LightSamplerChoice`]).
+    pub mesh: u32,
 }
 
 impl AreaLight {
-    /// Builds the light for a triangle emitting `emission` (× `emission_texture` at `uvs`, if any); `None` for
-    /// degenerate or non-emitting triangles.
+    /// Builds the light for triangle `prim` of mesh `mesh` emitting `emission` (× `emission_texture` at `uvs`,
+    /// if any); `None` for degenerate or non-emitting triangles.
     pub fn new(
         vertices: [Vec3; 3],
         uvs: [Vec2; 3],
         emission: Rgb,
         emission_texture: Option<u32>,
-        prim: u32,
+        [prim, mesh]: [u32; 2],
     ) -> Option<AreaLight> {
         let cross = (vertices[1] - vertices[0]).cross(vertices[2] - vertices[0]);
         let area = 0.5 * cross.length();
@@ -54,6 +57,7 @@ impl AreaLight {
             emission,
             emission_texture,
             prim,
+            mesh,
         })
     }
 
@@ -159,7 +163,7 @@ mod tests {
             Vec3::new(1.0, 1.0, -1.0),
             Vec3::new(-1.0, 1.0, 1.0),
         ];
-        let l = AreaLight::new(v, [Vec2::ZERO; 3], Rgb::ONE, None, 0).unwrap();
+        let l = AreaLight::new(v, [Vec2::ZERO; 3], Rgb::ONE, None, [0, 0]).unwrap();
         assert!(l.normal.distance(-Vec3::Y) < 1e-6, "normal {:?}", l.normal);
         assert!((l.area - 2.0).abs() < 1e-6);
         let s = l
@@ -196,7 +200,7 @@ mod tests {
         let image = Arc::new(MipImage::new(64, 64, texels).unwrap());
         let textures = [Texture::new(image, Sampler::default())];
         let v = [Vec3::ZERO, Vec3::X, Vec3::Z];
-        let lit = |uvs| AreaLight::new(v, uvs, Rgb::splat(2.0), Some(0), 0).unwrap();
+        let lit = |uvs| AreaLight::new(v, uvs, Rgb::splat(2.0), Some(0), [0, 0]).unwrap();
         let bright = lit([
             Vec2::new(0.6, 0.1),
             Vec2::new(0.9, 0.1),
@@ -218,7 +222,7 @@ mod tests {
             dark_power >= TEXTURED_POWER_FLOOR * power && dark_power < 0.01 * power,
             "{dark_power} vs {power}"
         );
-        let untextured = AreaLight::new(v, [Vec2::ZERO; 3], Rgb::splat(2.0), None, 0).unwrap();
+        let untextured = AreaLight::new(v, [Vec2::ZERO; 3], Rgb::splat(2.0), None, [0, 0]).unwrap();
         assert_eq!(untextured.textured_power(&textures), untextured.power());
     }
 }

@@ -534,7 +534,8 @@ mod tests {
                     let v = [0, 1, 2].map(|_| {
                         c + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * size
                     });
-                    if let Some(a) = AreaLight::new(v, [Vec2::ZERO; 3], Rgb::splat(power), None, 0)
+                    if let Some(a) =
+                        AreaLight::new(v, [Vec2::ZERO; 3], Rgb::splat(power), None, [0, 0])
                     {
                         lights.push(Light::Area(a));
                     }
@@ -599,7 +600,7 @@ mod tests {
             [Vec2::ZERO; 3],
             Rgb::ONE,
             None,
-            0,
+            [0, 0],
         )
         .unwrap();
         assert!(facing.normal.y < 0.0);

@@ -12,7 +12,7 @@ pub use area::AreaLight;
 pub use bvh::{LightBvh, LightContext};
 pub use environment::{EnvironmentError, EnvironmentLight, EnvironmentMap};
 pub use punctual::{DirectionalLight, PointLight, SpotLight, LUMENS_PER_WATT};
-pub use sampler::{LightSampler, LightSamplerChoice, BVH_MIN_BOUNDED_LIGHTS};
+pub use sampler::{LightSampler, LightSamplerChoice, BVH_MIN_BOUNDED_LIGHTS, BVH_MIN_EMITTERS};
 
 use crate::geometry::{ShadowSegment, SurfacePoint};
 use crate::material::Texture;

@@ -435,7 +435,7 @@ impl SceneBuilder {
                         uvs,
                         material.emission,
                         material.emission_texture,
-                        prim,
+                        [prim, mesh_index as u32],
                     ) {
                         lights.push(Light::Area(l));
                     }
