@@ -8,6 +8,8 @@
                                 flame    FloatGrid, 1.0 on voxels [-2, 17]^3 (covers every lookup of density)
                                 albedo   FloatGrid, no voxels, background 0 (an albedo factor of 0)
                                 rgb_density  Vec3SGrid, (1, 2, 4) on voxels [0, 15]^3: an RGB extinction
+                                rgb_strong   Vec3SGrid, (1, 10, 100) on voxels [0, 15]^3: a strongly
+                                             chromatic one
                                 Cd       Vec3SGrid on voxels [-2, 17]^3: ((i + 2) / 19, 0.5, 0.25) at index
                                          (i, j, k), a red ramp along x; background (1, 1, 1)
   assets/shot/shot.gltf       the animated shot over that sequence (frames 1..24 at 24 fps): the camera dollies
@@ -82,8 +84,12 @@ def pyro_box(root):
     rgb = vec3_grid("rgb_density", (0.0, 0.0, 0.0), BOX_VOXEL)
     rgb.gridClass = vdb.GridClass.FOG_VOLUME
     fill(rgb, 0, 15, (1.0, 2.0, 4.0))
+    strong = vec3_grid("rgb_strong", (0.0, 0.0, 0.0), BOX_VOXEL)
+    strong.gridClass = vdb.GridClass.FOG_VOLUME
+    fill(strong, 0, 15, (1.0, 10.0, 100.0))
     out = os.path.join(root, "tests", "scenes", "pyro_box.vdb")
-    write_vdb(out, [density, vel, *parts, flame, albedo, cd, rgb], {"creator": "nimbus assets/make_shot.py"})
+    write_vdb(out, [density, vel, *parts, flame, albedo, cd, rgb, strong],
+              {"creator": "nimbus assets/make_shot.py"})
     print("wrote", out, os.path.getsize(out), "bytes")
 
 

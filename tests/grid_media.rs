@@ -340,6 +340,8 @@ fn stats_json_has_the_method_sentence_and_its_fields() {
         "shadow_estimator",
         "method_reason",
         "majorant_pilot",
+        "chromatic_tracking",
+        "spectral_flights",
     ] {
         assert!(medium.get(key).is_some(), "no '{key}' in {medium}");
     }

@@ -4,8 +4,10 @@
 //! low-throughput paths after a few bounces.
 //!
 //! Media: along each segment every medium proposes its next real collision ([`Medium::sample_free_flight`]);
-//! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. Nothing
-//! here depends on which tracking method a medium uses.
+//! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. A medium
+//! alone on a segment may instead track all colour channels at once ([`Medium::spectral_free_flight`], spectral
+//! tracking of an RGB density), returning the path's new throughput. Nothing here depends on which tracking
+//! method a medium uses.
 //!
 //! Point and spot lights in or near media: on a segment inside one medium of constant coefficients
 //! ([`Medium::constant_scattering`]), the direct light of a point or spot light is also estimated at a distance
@@ -28,6 +30,7 @@
 //!
 //! [`Medium::sample_free_flight`]: crate::volume::Medium::sample_free_flight
 //! [`Medium::free_flight_weight`]: crate::volume::Medium::free_flight_weight
+//! [`Medium::spectral_free_flight`]: crate::volume::Medium::spectral_free_flight
 //! [`Medium::constant_scattering`]: crate::volume::Medium::constant_scattering
 //! [`Medium::free_flight_pdf`]: crate::volume::Medium::free_flight_pdf
 //! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
@@ -61,9 +64,9 @@ pub struct PathSample {
 
 /// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
 /// weighted by 1/p_c, so the new throughput Σβ · e_c has the old one as its expectation (unbiased). Media whose
-/// extinction differs by channel ([`Medium::is_chromatic`](crate::volume::Medium::is_chromatic)) then track
-/// that channel alone, analog. Spectral renderers sample one wavelength per path the same way; the cost is
-/// colour noise. A path already carrying one channel is unchanged.
+/// extinction differs by channel ([`Medium::is_chromatic`](crate::volume::Medium::is_chromatic)) and that do
+/// not track it spectrally on this segment then track that channel alone, analog. Spectral renderers sample one
+/// wavelength per path the same way; the cost is colour noise. A path already carrying one channel is unchanged.
 fn carry_one_channel(beta: &mut Rgb, rng: &mut Rng) {
     let carried = beta.to_array().iter().filter(|&&b| b > 0.0).count();
     if carried <= 1 {
@@ -263,6 +266,18 @@ impl PathTracer {
     ) -> Option<(f32, u32)> {
         let scene = services.scene();
         let media = services.segment_media(ray, t_surface, &s.stack);
+        // A medium alone on the segment may track all channels at once (spectral tracking): its weights are the
+        // walk's own, so the path keeps its colour.
+        if let &[m] = media.ids() {
+            let counter = &mut counters.media[m as usize];
+            if let Some(flight) =
+                scene.media[m as usize].spectral_free_flight(ray, t_surface, s.beta, rng, counter)
+            {
+                s.beta = flight.throughput;
+                s.collided_segment = None;
+                return flight.collision.map(|t| (t, m));
+            }
+        }
         if media
             .ids()
             .iter()

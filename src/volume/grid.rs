@@ -10,6 +10,11 @@
 //!   optical depth per voxel exceeds [`super::tracking::REFINE_TAU`] are walked voxel cell by voxel cell, each
 //!   bounded by its eight voxels, so the work per free flight stays flat as the density grows. Segments of
 //!   constant density are tracked in closed form.
+//! - RGB extinction (a vec3 density grid): majorants of the channels' maximum; free flights by spectral tracking
+//!   (Kutz et al. 2017, §5, history-aware collision probabilities: the path keeps all three channels), or with
+//!   `"chromatic_tracking": "one_channel"` by delta tracking of the one channel the path is made to carry. `auto`
+//!   (the default) is spectral tracking, measured 2.8× to 8.5× as efficient (README). On a segment shared with
+//!   another medium the path carries one channel either way.
 //! - Shadow rays: ratio tracking (Novák et al. 2014, eq. 6), or residual ratio tracking (Novák et al. 2014, §4)
 //!   with `"shadow_estimator": "residual_ratio"`.
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
@@ -23,11 +28,14 @@ use super::emission::BlackbodyTable;
 use super::error::VolumeError;
 use super::majorant::{MajorantKind, Majorants};
 use super::majorant_choice::{self, MajorantEstimate};
-use super::tracking::{decomposition_tracking, ratio_tracking, residual_ratio_tracking};
+use super::tracking::{
+    decomposition_tracking, ratio_tracking, residual_ratio_tracking, spectral_tracking,
+    SpectralFlight,
+};
 use super::velocity::{Displaced, VelocityField};
 use super::{
-    Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
-    TransmittanceMethod, VolumeSpec,
+    Chromatic, ChromaticTracking, Collision, FreeFlight, Medium, MediumMethod, MethodReason,
+    PhaseFunction, TrackingCounters, TransmittanceMethod, VolumeSpec,
 };
 use crate::limits::Limits;
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
@@ -150,6 +158,8 @@ pub struct GridMedium {
     /// For an RGB (vec3) density grid, σ_t per channel; `density` is then their maximum, which the majorants
     /// bound.
     channels: Option<Box<[GridDensity; 3]>>,
+    /// How free flights handle the channels of an RGB density.
+    chromatic: Chromatic,
 }
 
 impl GridMedium {
@@ -199,6 +209,10 @@ impl GridMedium {
             albedo_grids: AlbedoGrids::default(),
             motion: None,
             channels: None,
+            chromatic: Chromatic {
+                tracking: ChromaticTracking::AUTO,
+                requested: false,
+            },
         }
     }
 
@@ -214,6 +228,11 @@ impl GridMedium {
         self.majorants = majorants;
         self.majorant_estimates.clear();
         self
+    }
+
+    /// True for an RGB density whose free flights use spectral tracking (where the medium is alone on a segment).
+    fn tracks_spectrally(&self) -> bool {
+        self.channels.is_some() && self.chromatic.tracking == ChromaticTracking::Spectral
     }
 
     /// The density field.
@@ -286,6 +305,12 @@ impl GridMedium {
         medium.motion = motion;
         medium.load_channels(spec, &file)?;
         medium.channels = channels;
+        if let Some(tracking) = spec.chromatic_tracking {
+            medium.chromatic = Chromatic {
+                tracking,
+                requested: true,
+            };
+        }
         Ok(medium)
     }
 
@@ -437,9 +462,11 @@ impl Medium for GridMedium {
         MediumMethod {
             free_flight: FreeFlight::DeltaTracking {
                 closed_form_segments: self.majorants.stores_minorants(),
-                decomposition: true,
+                // Spectral tracking reads every channel at each tentative collision: no control to decompose.
+                decomposition: !self.tracks_spectrally(),
                 // A moving medium's displaced density has no voxel cells to bound.
                 voxel_refinement: self.majorants.voxel_refinement() && self.motion.is_none(),
+                chromatic: self.channels.as_ref().map(|_| self.chromatic),
             },
             majorant: Some(self.majorants.kind()),
             shadow: match self.shadow {
@@ -526,8 +553,9 @@ impl Medium for GridMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> Option<f32> {
-        // An RGB density tracks the one channel the path carries (the integrator makes it carry one, see
-        // `Medium::is_chromatic`): delta tracking in it is analog, over the majorants of the channels' maximum.
+        // An RGB density tracked here (one-channel method, or a segment shared with other media) tracks the one
+        // channel the path carries (the integrator makes it carry one, see `Medium::is_chromatic`): delta tracking
+        // in it is analog, over the majorants of the channels' maximum.
         let channel = match &self.channels {
             Some(ch) => &ch[throughput.max_position()],
             None => &self.density,
@@ -554,6 +582,48 @@ impl Medium for GridMedium {
     ) -> Rgb {
         // Delta tracking of a grey medium is analog.
         Rgb::ONE
+    }
+
+    fn spectral_free_flight(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        throughput: Rgb,
+        rng: &mut Rng,
+        counters: &mut TrackingCounters,
+    ) -> Option<SpectralFlight> {
+        if !self.tracks_spectrally() {
+            return None;
+        }
+        let channels = self.channels.as_deref()?;
+        let interval = (0.0, t_max);
+        Some(match self.moved(&self.density, ray.time) {
+            Some(max) => {
+                let [r, g, b] = channels
+                    .each_ref()
+                    .map(|density| Displaced { density, ..max });
+                spectral_tracking(
+                    &max,
+                    [&r, &g, &b],
+                    &self.majorants,
+                    ray,
+                    interval,
+                    throughput,
+                    rng,
+                    counters,
+                )
+            }
+            None => spectral_tracking(
+                &self.density,
+                channels.each_ref(),
+                &self.majorants,
+                ray,
+                interval,
+                throughput,
+                rng,
+                counters,
+            ),
+        })
     }
 
     fn collision(&self, p: Vec3, time: f32) -> Collision {

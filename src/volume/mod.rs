@@ -15,8 +15,8 @@
 //! - [`homogeneous`]: closed-form tracking, spectral MIS for chromatic extinction, no collisions at all when
 //!   absorption-only (Beer's law);
 //! - [`noise`]: the thesis's absorption-only procedural noise medium, ratio-tracked transmittance only;
-//! - [`grid`]: VDB grids, delta tracking over subdivided majorants, ratio or residual ratio tracking for
-//!   shadow rays.
+//! - [`grid`]: VDB grids, delta tracking over subdivided majorants (spectral tracking for an RGB extinction),
+//!   ratio or residual ratio tracking for shadow rays.
 
 pub mod channels;
 pub mod density;
@@ -39,10 +39,13 @@ use crate::params::{
 };
 pub use error::{DensityError, VolumeError};
 pub use grid::load_grid_medium;
-pub use method::{ChannelSampling, FreeFlight, MediumMethod, MethodReason, TransmittanceMethod};
+pub use method::{
+    ChannelSampling, Chromatic, ChromaticTracking, FreeFlight, MediumMethod, MethodReason,
+    TransmittanceMethod,
+};
 pub use phase::PhaseFunction;
 pub use spec::VolumeSpec;
-pub use tracking::TrackingCounters;
+pub use tracking::{SpectralFlight, TrackingCounters};
 
 /// What happens at a real collision inside a medium.
 #[derive(Clone, Copy, Debug)]
@@ -98,10 +101,27 @@ pub trait Medium: Send + Sync {
         false
     }
 
-    /// True when σ_t varies by channel in a way the medium cannot sample for all channels at once (an RGB
-    /// density grid): the integrator then makes the path carry one channel before the medium tracks it.
+    /// True when σ_t varies by channel in a way [`Medium::sample_free_flight`] cannot sample for all channels at
+    /// once (an RGB density grid): the integrator then makes the path carry one channel before the medium tracks
+    /// it, unless the medium is alone on the segment and tracks it spectrally ([`Medium::spectral_free_flight`]).
     fn is_chromatic(&self) -> bool {
         false
+    }
+
+    /// Spectral tracking of a segment `(0, t_max)` that this medium fills alone: the next real collision and the
+    /// path throughput that the walk's weights leave, for all channels at once; `None` when the medium does not
+    /// track spectrally (the default), and the integrator uses [`Medium::sample_free_flight`]. The weights depend
+    /// on the whole walk, not only on where it ended, which is why a segment shared with other media (whose
+    /// collision may come first) does not use it.
+    fn spectral_free_flight(
+        &self,
+        _ray: &Ray,
+        _t_max: f32,
+        _throughput: Rgb,
+        _rng: &mut Rng,
+        _counters: &mut TrackingCounters,
+    ) -> Option<SpectralFlight> {
+        None
     }
 
     /// Proposes the distance of the next real collision in `(0, t_max)`, or `None`. `throughput` is the path's

@@ -13,6 +13,7 @@
 use super::error::VolumeError;
 use super::grid::ShadowEstimator;
 use super::majorant::MajorantKind;
+use super::method::ChromaticTracking;
 use crate::math::{Mat4, Rgb};
 use crate::params::{
     JsonParams, ParamDefault, ParamError, ParamKey, ParamRead, ParamSource, ParamType, UsdBinding,
@@ -176,6 +177,18 @@ const SHADOW_ESTIMATOR: ParamKey = ParamKey {
     usd: UsdBinding::Elsewhere("not read (ratio)"),
 };
 
+/// The `"chromatic_tracking"` names: `auto`, then every [`ChromaticTracking::name`] (a test keeps them in
+/// agreement).
+const CHROMATIC_TRACKING_CHOICES: &[&str] = &["auto", "one_channel", "spectral"];
+const CHROMATIC_TRACKING: ParamKey = ParamKey {
+    name: "chromatic_tracking",
+    ty: ParamType::Choice(CHROMATIC_TRACKING_CHOICES),
+    default: ParamDefault::Text("auto"),
+    doc: "free flights through an RGB density: `spectral` tracking keeps all three channels, `one_channel` makes \
+          the path carry one; `auto` picks by the measured efficiency (see the README)",
+    usd: UsdBinding::Elsewhere("not read (auto)"),
+};
+
 /// The keys of a VDB volume declaration (glTF `extras.nimbus_volume`, USD `Volume` prims), in the README's
 /// order.
 pub const VOLUME_KEYS: &[ParamKey] = &[
@@ -198,6 +211,7 @@ pub const VOLUME_KEYS: &[ParamKey] = &[
     VELOCITY_SCALE,
     MAJORANT,
     SHADOW_ESTIMATOR,
+    CHROMATIC_TRACKING,
     FRAME_OFFSET,
     MISSING_FRAME,
 ];
@@ -277,6 +291,9 @@ pub struct VolumeSpec {
     pub majorant: Option<MajorantKind>,
     /// Shadow-ray estimator (`"shadow_estimator"`: `"ratio"` (default) or `"residual_ratio"`).
     pub shadow_estimator: ShadowEstimator,
+    /// Free flights through an RGB density (`"chromatic_tracking"`: `"auto"` (default; `None`, see
+    /// [`super::grid`]), `"one_channel"` or `"spectral"`).
+    pub chromatic_tracking: Option<ChromaticTracking>,
     /// The VDB file's bytes when they are embedded in the program (the bundled demo); otherwise `file` is read.
     pub embedded: Option<&'static [u8]>,
     /// The memory budget for reading the VDB file and building the majorant structure (set by the loaders from
@@ -321,6 +338,7 @@ impl VolumeSpec {
             node_to_world,
             majorant: None,
             shadow_estimator: ShadowEstimator::Ratio,
+            chromatic_tracking: None,
             embedded: None,
             limits: crate::limits::Limits::default(),
             frame_offset: 0,
@@ -495,6 +513,9 @@ impl VolumeSpec {
         if let Some(m) = params.text(&SHADOW_ESTIMATOR)? {
             self.shadow_estimator = ShadowEstimator::from_name(&m).unwrap_or(self.shadow_estimator);
         }
+        if let Some(m) = params.text(&CHROMATIC_TRACKING)? {
+            self.chromatic_tracking = ChromaticTracking::from_name(&m);
+        }
         if let Some(m) = params.text(&MISSING_FRAME)? {
             self.missing_frame = MissingFrame::from_name(&m).unwrap_or(self.missing_frame);
         }
@@ -594,6 +615,28 @@ mod tests {
             assert_eq!(s.shadow_estimator, ShadowEstimator::ResidualRatio);
         }
         let v = json!({"file": "a", "majorant": "grid8"});
+        let e = VolumeSpec::from_json(&v, "n", base, Mat4::IDENTITY).unwrap_err();
+        assert!(
+            matches!(e, VolumeError::Param(ParamError::UnknownChoice { .. })),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn chromatic_tracking_choices_are_the_methods_names() {
+        let names: Vec<&str> = ChromaticTracking::NAMES.to_vec();
+        assert_eq!(CHROMATIC_TRACKING_CHOICES[0], "auto");
+        assert_eq!(&CHROMATIC_TRACKING_CHOICES[1..], names.as_slice());
+        let base = std::path::Path::new("/");
+        for m in ChromaticTracking::ALL {
+            let v = json!({"file": "a", "chromatic_tracking": m.name()});
+            let s = VolumeSpec::from_json(&v, "n", base, Mat4::IDENTITY).unwrap();
+            assert_eq!(s.chromatic_tracking, Some(m));
+        }
+        let v = json!({"file": "a", "chromatic_tracking": "auto"});
+        let s = VolumeSpec::from_json(&v, "n", base, Mat4::IDENTITY).unwrap();
+        assert_eq!(s.chromatic_tracking, None);
+        let v = json!({"file": "a", "chromatic_tracking": "hero"});
         let e = VolumeSpec::from_json(&v, "n", base, Mat4::IDENTITY).unwrap_err();
         assert!(
             matches!(e, VolumeError::Param(ParamError::UnknownChoice { .. })),
