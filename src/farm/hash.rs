@@ -82,6 +82,10 @@ pub fn scene_hash(
     h.field(&[settings.equiangular as u8]);
     h.field(&[settings.sampler as u8]);
     h.field(&[settings.light_sampler as u8]);
+    // Only when off, so that the hashes of renders from before the setting existed stay the same.
+    if settings.emitter_edges == crate::render::EmitterEdgeSampling::Off {
+        h.field(b"emitter-edges off");
+    }
     for (name, value) in overrides {
         h.field(name.as_bytes());
         h.field(value);
@@ -178,6 +182,14 @@ mod tests {
                 &[b"scene"],
                 &RenderSettings {
                     sampler: crate::render::Sampler::Independent,
+                    ..s.clone()
+                },
+                &[],
+            ),
+            scene_hash(
+                &[b"scene"],
+                &RenderSettings {
+                    emitter_edges: crate::render::EmitterEdgeSampling::Off,
                     ..s.clone()
                 },
                 &[],

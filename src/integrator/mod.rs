@@ -8,6 +8,6 @@ mod services;
 mod stats;
 
 pub use medium_stack::MediumStack;
-pub use path::{EquiangularTargets, PathSample, PathTracer};
+pub use path::{EquiangularTargets, FirstEmission, PathSample, PathTracer};
 pub use services::RendererServices;
 pub use stats::{PathCounters, RayCounters};

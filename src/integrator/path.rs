@@ -141,9 +141,21 @@ struct PathState {
     crossings: u32,
     /// Whether the next surface hit is the first, whose AOVs the path records.
     first_hit: bool,
+    /// Whether the first surface hit's emission is counted.
+    first_emission: FirstEmission,
     /// The constant-medium segment that ended in the current real collision, for the MIS weight of its
     /// next-event estimate against equiangular sampling.
     collided_segment: Option<ConstantSegment>,
+}
+
+/// Whether a camera path counts the light emitted by the first surface it hits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FirstEmission {
+    /// The path counts it, like every other emitter it reaches.
+    Count,
+    /// The path leaves it out: the caller estimates it separately (emitter-edge supersampling,
+    /// [`PathTracer::first_surface_emission`]), so that the two add up to the whole.
+    Omit,
 }
 
 /// What shading a surface hit decided.
@@ -196,10 +208,12 @@ impl PathTracer {
 
     /// Traces one camera path: alternates [`Self::sample_segment_media`] along each segment with either
     /// [`Self::scatter_in_medium`] at a real collision or [`Self::shade_surface`] at the surface that ends it.
+    /// With [`FirstEmission::Omit`] the light emitted by the first surface hit is left out.
     pub fn trace(
         &self,
         services: &RendererServices,
         mut ray: Ray,
+        first_emission: FirstEmission,
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) -> PathSample {
@@ -220,6 +234,7 @@ impl PathTracer {
             cone_width: 0.0,
             crossings: 0,
             first_hit: true,
+            first_emission,
             collided_segment: None,
         };
         counters.rays.camera += 1;
@@ -248,6 +263,28 @@ impl PathTracer {
         }
         out.radiance = s.radiance;
         out
+    }
+
+    /// The light emitted toward the camera by the first surface `ray` (a camera ray) hits: the term a path
+    /// traced with [`FirstEmission::Omit`] leaves out, as [`Self::shade_surface`] counts it (front faces of
+    /// emissive, lit materials; weight 1, no scattering event before it). Only for scenes without media, where
+    /// nothing lies between the camera and that surface.
+    pub fn first_surface_emission(
+        &self,
+        services: &RendererServices,
+        ray: &Ray,
+        counters: &mut PathCounters,
+    ) -> Rgb {
+        let scene = services.scene();
+        counters.rays.emitter_edge += 1;
+        let Some(hit) = scene.intersect(ray, 0.0, f32::INFINITY) else {
+            return Rgb::ZERO;
+        };
+        let material = &scene.materials[hit.material as usize];
+        if material.unlit || !hit.front_face || !material.is_emissive() {
+            return Rgb::ZERO;
+        }
+        material.emission_at(&hit.point_shading(), &scene.textures)
     }
 
     /// Runs the media overlapping the segment `[0, t_surface)` of `ray`: every medium proposes its next real
@@ -469,6 +506,7 @@ impl PathTracer {
             scene.apply_normal_map(&mut hit, &at);
         }
         let wo_world = -ray.dir;
+        let count_emission = !s.first_hit || s.first_emission == FirstEmission::Count;
         if s.first_hit {
             s.first_hit = false;
             out.depth = (hit.p - ray.origin).length();
@@ -488,7 +526,7 @@ impl PathTracer {
         }
         // Light emitted by the surface toward the path (where an emissive texture is black there is nothing
         // to weight: the light sampler's density is not asked for).
-        if hit.front_face && material.is_emissive() {
+        if count_emission && hit.front_face && material.is_emissive() {
             let le = material.emission_at(&hit.point_shading(), &scene.textures);
             if le.max_element() > 0.0 {
                 let weight = match scene.area_light_of(hit.prim) {

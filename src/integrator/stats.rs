@@ -12,6 +12,9 @@ pub struct RayCounters {
     /// Equiangular samples of segments through constant media toward point and spot lights (each also traces
     /// one shadow ray, counted in `shadow`).
     pub equiangular: u64,
+    /// Extra camera rays of emitter-edge supersampling (`nimbus::render::EmitterEdges`), which only look for
+    /// the emission of the first surface they hit.
+    pub emitter_edge: u64,
 }
 
 impl RayCounters {
@@ -21,6 +24,7 @@ impl RayCounters {
         self.bounce += other.bounce;
         self.shadow += other.shadow;
         self.equiangular += other.equiangular;
+        self.emitter_edge += other.emitter_edge;
     }
 
     /// All rays traced.

@@ -3,6 +3,7 @@
 
 mod cancel;
 mod channels;
+mod emitter_edges;
 mod exact;
 mod film;
 mod image;
@@ -11,6 +12,10 @@ mod renderer;
 pub use crate::integrator::{EquiangularTargets, PathSample};
 pub use cancel::CancelToken;
 pub use channels::{channel_names, Layer, LayerData, LAYERS};
+pub use emitter_edges::{
+    EdgeDecision, EmitterEdgeSampling, EmitterEdges, EDGE_RAYS, MAX_EMISSIVE_TRIANGLES,
+    MAX_MARKED_SHARE,
+};
 pub use exact::MAX_SAMPLE_VALUE;
 pub use film::{Film, PixelSums, PixelWindow};
 pub use image::RenderImage;

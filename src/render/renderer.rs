@@ -6,11 +6,12 @@
 //! for bit, for any thread count, and any split of the render into sample ranges and windows
 //! ([`Renderer::render_region`]) adds up to the bits of the whole.
 
+use super::emitter_edges::{EmitterEdgeSampling, EmitterEdges, EDGE_RAYS};
 use super::film::{Film, PixelSums, PixelWindow};
 use super::{CancelToken, RenderImage};
-use crate::integrator::{PathCounters, PathTracer, RayCounters, RendererServices};
+use crate::integrator::{FirstEmission, PathCounters, PathTracer, RayCounters, RendererServices};
 use crate::light::LightSamplerChoice;
-use crate::math::{is_finite_rgb, Rng, Vec2};
+use crate::math::{is_finite_rgb, Rgb, Rng, Vec2};
 use crate::scene::Scene;
 use crate::volume::{MediumMethod, TrackingCounters};
 use rayon::prelude::*;
@@ -20,6 +21,9 @@ use std::time::{Duration, Instant};
 /// Mixed into the seed of the stream that draws each camera ray's shutter time, so that it is independent of
 /// the path's own stream (the first 64 bits of π's fraction).
 const SHUTTER_STREAM: u64 = 0x243f_6a88_85a3_08d3;
+/// Mixed into the seed of the stream that places the camera rays of emitter-edge supersampling (the next 64
+/// bits of π's fraction).
+const EDGE_STREAM: u64 = 0x1319_8a2e_0370_7344;
 
 /// Where a path's key random decisions come from: the pixel position, the light choice and light sample, and
 /// BSDF and phase sampling. Tracking, Russian roulette and the rest always use the sample's PCG32 stream.
@@ -61,6 +65,9 @@ pub struct RenderSettings {
     pub sampler: Sampler,
     /// How next-event estimation chooses a light: by power, through the light BVH, or per scene (auto).
     pub light_sampler: LightSamplerChoice,
+    /// Whether pixels that an emitter's outline crosses estimate the directly visible emission from more
+    /// camera rays ([`super::EmitterEdges`]).
+    pub emitter_edges: EmitterEdgeSampling,
     /// The memory budget: a film larger than it is refused before it is allocated.
     pub limits: crate::limits::Limits,
 }
@@ -79,6 +86,7 @@ impl Default for RenderSettings {
             equiangular: true,
             sampler: Sampler::Sobol,
             light_sampler: LightSamplerChoice::Auto,
+            emitter_edges: EmitterEdgeSampling::Auto,
             limits: crate::limits::Limits::default(),
         }
     }
@@ -135,6 +143,9 @@ pub struct RenderStats {
     pub camera_moves: bool,
     /// Per-medium tracking work and the method chosen.
     pub media: Vec<MediumStats>,
+    /// Pixels whose directly visible emission was supersampled because an emitter's outline crosses them (0
+    /// when emitter-edge supersampling is off).
+    pub emitter_edge_pixels: usize,
 }
 
 /// Statistics of one medium, as written by `--stats` under `media`.
@@ -318,6 +329,7 @@ impl Renderer {
         let threads = pool.current_num_threads();
         let start = Instant::now();
         let mut film = Film::with_window(s.width, s.height, region.window);
+        let edges = s.emitter_edges.decide(scene, s.width, s.height);
         let mut counters = PathCounters::new(scene.media.len());
         let (mut nan_samples, mut clamped_samples) = (0u64, 0u64);
         let mut done = 0u32;
@@ -333,8 +345,15 @@ impl Renderer {
             let count = pass.min(target - done);
             let pass_start = Instant::now();
             let first = region.samples.start + done;
-            let (c, nans, clamped) =
-                pool.install(|| self.render_pass(scene, &mut film, first, count, cancel));
+            let (c, nans, clamped) = pool.install(|| {
+                self.render_pass(
+                    scene,
+                    &mut film,
+                    edges.edges(),
+                    first..first + count,
+                    cancel,
+                )
+            });
             counters.add(&c);
             nan_samples += nans;
             clamped_samples += clamped;
@@ -406,18 +425,20 @@ impl Renderer {
                     }
                 })
                 .collect(),
+            emitter_edge_pixels: edges.edges().map_or(0, EmitterEdges::count),
         };
         Ok((film, stats))
     }
 
-    /// Adds samples `first..first + count` to every pixel of the film's window, skipping the pixels left once
-    /// `cancel` is cancelled. Returns the counters, the dropped NaN samples and the clamped samples.
+    /// Adds `samples` to every pixel of the film's window, skipping the pixels left once `cancel` is
+    /// cancelled; pixels that `edges` marks supersample their directly visible emission. Returns the
+    /// counters, the dropped NaN samples and the clamped samples.
     fn render_pass(
         &self,
         scene: &Scene,
         film: &mut Film,
-        first: u32,
-        count: u32,
+        edges: Option<&EmitterEdges>,
+        samples: Range<u32>,
         cancel: &CancelToken,
     ) -> (PathCounters, u64, u64) {
         let s = &self.settings;
@@ -449,38 +470,70 @@ impl Renderer {
                         break;
                     }
                     let pixel_index = (y * width + x) as u64;
-                    for sample in first..first + count {
-                        let mut rng = match s.sampler {
-                            Sampler::Sobol => {
-                                Rng::for_sample_sobol(s.seed, pixel_index, sample as u64)
-                            }
-                            Sampler::Independent => {
-                                Rng::for_sample(s.seed, pixel_index, sample as u64)
-                            }
+                    let on_edge = edges.is_some_and(|e| e.is_marked(x, y));
+                    for sample in samples.clone() {
+                        let rng_of = |seed: u64, index: u64| match s.sampler {
+                            Sampler::Sobol => Rng::for_sample_sobol(seed, pixel_index, index),
+                            Sampler::Independent => Rng::for_sample(seed, pixel_index, index),
                         };
+                        let mut rng = rng_of(s.seed, sample as u64);
+                        // A box shutter: the time is uniform over the interval, drawn from a stream of its
+                        // own so that the path's numbers are those of a render without a shutter (a still
+                        // scene renders bit for bit the same with one).
+                        let time = scene.shutter.map(|shutter| {
+                            let u = Rng::for_sample(
+                                s.seed ^ SHUTTER_STREAM,
+                                pixel_index,
+                                sample as u64,
+                            )
+                            .next_f32();
+                            shutter.time_at(u)
+                        });
                         // Box filter: uniform jitter over the pixel, unweighted mean.
-                        let jitter = rng.sample_2d();
-                        let film_pos = Vec2::new(
-                            (x as f32 + jitter.x) / width as f32,
-                            (y as f32 + jitter.y) / height as f32,
-                        );
-                        let ray = match scene.shutter {
-                            // A box shutter: the time is uniform over the interval, drawn from a stream of
-                            // its own so that the path's numbers are those of a render without a shutter
-                            // (a still scene renders bit for bit the same with one).
-                            Some(shutter) => {
-                                let u = Rng::for_sample(
-                                    s.seed ^ SHUTTER_STREAM,
-                                    pixel_index,
-                                    sample as u64,
-                                )
-                                .next_f32();
-                                let time = shutter.time_at(u);
-                                scene.camera.generate_ray_at(film_pos, aspect, time)
+                        let camera_ray = |jitter: Vec2| {
+                            let film_pos = Vec2::new(
+                                (x as f32 + jitter.x) / width as f32,
+                                (y as f32 + jitter.y) / height as f32,
+                            );
+                            match time {
+                                Some(time) => scene.camera.generate_ray_at(film_pos, aspect, time),
+                                None => scene.camera.generate_ray(film_pos, aspect),
                             }
-                            None => scene.camera.generate_ray(film_pos, aspect),
                         };
-                        let result = tracer.trace(&services, ray, &mut rng, &mut counters);
+                        let ray = camera_ray(rng.sample_2d());
+                        let result = if on_edge {
+                            // The directly visible emission from EDGE_RAYS positions of their own, the rest
+                            // of the light from the path (see `super::emitter_edges`).
+                            let emission = (0..EDGE_RAYS)
+                                .map(|k| {
+                                    let index = sample as u64 * EDGE_RAYS as u64 + k as u64;
+                                    camera_ray(rng_of(s.seed ^ EDGE_STREAM, index).sample_2d())
+                                })
+                                .fold(Rgb::ZERO, |sum, r| {
+                                    sum + tracer.first_surface_emission(
+                                        &services,
+                                        &r,
+                                        &mut counters,
+                                    )
+                                });
+                            let mut result = tracer.trace(
+                                &services,
+                                ray,
+                                FirstEmission::Omit,
+                                &mut rng,
+                                &mut counters,
+                            );
+                            result.radiance += emission / EDGE_RAYS as f32;
+                            result
+                        } else {
+                            tracer.trace(
+                                &services,
+                                ray,
+                                FirstEmission::Count,
+                                &mut rng,
+                                &mut counters,
+                            )
+                        };
                         if !is_finite_rgb(result.radiance) {
                             nans += 1;
                         } else if pixel.add(&result) {

@@ -190,6 +190,25 @@ impl Camera {
         .at_time(time)
     }
 
+    /// The film position in \[0,1\]² ((0,0) = top-left, as [`Self::generate_ray`] takes it) where the camera
+    /// sees `p_camera`, a point in camera space (see [`Self::to_camera_space`]) in front of the camera
+    /// (`z < 0`); `None` for a point on or behind the camera plane. The inverse of [`Self::generate_ray`]:
+    /// positions outside \[0,1\]² are outside the image.
+    pub fn film_position(&self, p_camera: Vec3, aspect: f32) -> Option<Vec2> {
+        if p_camera.z.is_nan() || p_camera.z >= 0.0 {
+            return None;
+        }
+        let tan_half = (self.yfov * 0.5).tan();
+        let x = p_camera.x / -p_camera.z / (tan_half * aspect);
+        let y = p_camera.y / -p_camera.z / tan_half;
+        Some(Vec2::new(0.5 * (x + 1.0), 0.5 * (1.0 - y)))
+    }
+
+    /// `p` (world space) in the still camera's space: the camera at the origin looking down −Z, +Y up.
+    pub fn to_camera_space(&self, p: Vec3) -> Vec3 {
+        self.camera_to_world.inverse().transform_point3(p)
+    }
+
     /// The ray through `film` for the camera-to-world matrix `to_world`.
     fn ray_from(&self, to_world: &Mat4, film: Vec2, aspect: f32) -> Ray {
         let tan_half = (self.yfov * 0.5).tan();
@@ -219,6 +238,25 @@ mod tests {
             "top edge is +45°: {:?}",
             top.dir
         );
+    }
+
+    /// Projecting a point seen along a camera ray gives back the film position the ray went through; points
+    /// behind the camera have none.
+    #[test]
+    fn film_position_inverts_generate_ray() {
+        let cam = Camera::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::new(0.0, 0.5, 0.0), 0.7);
+        for film in [
+            Vec2::new(0.5, 0.5),
+            Vec2::new(0.1, 0.9),
+            Vec2::new(0.97, 0.03),
+        ] {
+            let ray = cam.generate_ray(film, 1.5);
+            let p = cam.to_camera_space(ray.origin + ray.dir * 3.7);
+            let back = cam.film_position(p, 1.5).unwrap();
+            assert!(back.distance(film) < 1e-5, "{film} -> {back}");
+            let behind = cam.to_camera_space(ray.origin - ray.dir);
+            assert!(cam.film_position(behind, 1.5).is_none());
+        }
     }
 
     /// A camera translating along x from −1 to 3 over three steps while turning 90° about y: a ray at time t
