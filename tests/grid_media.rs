@@ -6,7 +6,7 @@ mod common;
 
 use glam::{DMat4, DVec3, IVec3};
 use nimbus::light::EnvironmentLight;
-use nimbus::math::{Rgb, Vec3};
+use nimbus::math::{Rgb, Rng, Vec3};
 use nimbus::render::{RenderImage, RenderStats};
 use nimbus::scene::{Camera, SceneBuilder};
 use nimbus::vdb::{GridTree, Tree};
@@ -14,6 +14,8 @@ use nimbus::volume::density::{DensityField, GridDensity};
 use nimbus::volume::grid::GridMedium;
 use nimbus::volume::homogeneous::HomogeneousMedium;
 use nimbus::volume::majorant::{MajorantKind, Majorants};
+use nimbus::volume::majorant_choice::pilot_rays;
+use nimbus::volume::tracking::{sample_collision, TrackingCounters};
 use std::sync::Arc;
 
 const VOXEL: f64 = 0.0625;
@@ -196,17 +198,10 @@ fn refined_tracking_through_the_bundled_cloud_finds_every_majorant_sound() {
     // cell, and a cell reported outside the segment by round-off read bounds the majorant never promised
     // (one false violation in these 4000 flights on the adaptive structure before the fix). Every structure
     // must bound every cell.
-    use nimbus::math::Rng;
-    use nimbus::volume::majorant_choice::pilot_rays;
-    use nimbus::volume::tracking::{sample_collision, TrackingCounters};
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cloud.vdb");
     let file = nimbus::vdb::read_file(&path).expect("the bundled cloud");
-    let grid = file
-        .grids
-        .into_iter()
-        .find(|g| g.name == "density")
-        .expect("a density grid");
-    let field = GridDensity::new(&grid, DMat4::IDENTITY, 3000.0).expect("a scalar grid");
+    let grid = file.grid("density").expect("a density grid");
+    let field = GridDensity::new(grid, DMat4::IDENTITY, 3000.0).expect("a scalar grid");
     let (rays, t_max) = pilot_rays(&field, 4000, 7);
     for kind in MajorantKind::ALL {
         let majorants = Majorants::build(kind, &field);
