@@ -10,6 +10,7 @@ use super::dielectric::Dielectric;
 use super::gltf_pbr::{GltfPbr, PbrParams};
 use super::lambert::Lambert;
 use super::layered::Layered;
+use super::lobes::{LobeClass, LobeSplit};
 pub use super::sample::BsdfSample;
 use super::sheen::Sheen;
 use crate::math::{Rgb, Vec2, Vec3};
@@ -66,6 +67,37 @@ impl Bsdf {
         }
     }
 
+    /// [`Bsdf::eval`] split by lobe class, for the light-path AOVs; `eval_split(wo, wi).total()` equals
+    /// `eval(wo, wi)` up to rounding. The rule: Lambert and the glTF diffuse base are diffuse; the specular
+    /// reflection of the metallic-roughness model (dielectric specular and metal, GGX or mirror), the clear
+    /// coat, the sheen and a dielectric interface's reflection (rough or smooth, from either side) are glossy;
+    /// a dielectric interface's refraction (rough or smooth, from either side) is transmission. Glossy light
+    /// therefore stays on `wo`'s side and transmitted light crosses the surface.
+    pub fn eval_split(&self, wo: Vec3, wi: Vec3) -> LobeSplit {
+        match self {
+            Bsdf::Lambert(b) => b.eval_split(wo, wi),
+            Bsdf::Dielectric(b) => b.eval_split(wo, wi),
+            Bsdf::Pbr(b) => b.eval_split(wo, wi),
+            Bsdf::Layered(b) => b.eval_split(wo, wi),
+        }
+    }
+
+    /// Each class's colour seen from `wo`, for the colour passes by which the light passes are divided: a
+    /// deterministic, non-negative estimate of the class's directional albedo `∫ f_k |cos θi| dωi` (plus its
+    /// delta lobes' weights), as Cycles takes a closure's weight times an albedo estimate. Exact for a Lambert
+    /// (its albedo above the surface), a mirror reflection, a mirror coat and a smooth dielectric interface;
+    /// for the glTF diffuse base and rough lobes an estimate, not the
+    /// exact albedo (see [`GltfPbr::colors`], [`Dielectric::colors`], [`Layered::colors`]). A channel is
+    /// positive wherever its class can carry energy for this `wo`, and zero where the class is absent.
+    pub fn colors(&self, wo: Vec3) -> LobeSplit {
+        match self {
+            Bsdf::Lambert(b) => b.colors(wo),
+            Bsdf::Dielectric(b) => b.colors(wo),
+            Bsdf::Pbr(b) => b.colors(wo),
+            Bsdf::Layered(b) => b.colors(wo),
+        }
+    }
+
     /// Solid-angle density with which [`Bsdf::sample`] picks `wi` through its non-delta lobes.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         match self {
@@ -87,6 +119,7 @@ impl Bsdf {
                     f: b.eval(wo, wi),
                     pdf: b.pdf(wo, wi),
                     is_delta: false,
+                    class: LobeClass::Diffuse,
                 })
             }
             Bsdf::Dielectric(b) => {
@@ -97,6 +130,7 @@ impl Bsdf {
                         f,
                         pdf,
                         is_delta: true,
+                        class: s.class,
                     }),
                     None => {
                         let pdf = b.pdf(wo, s.wi);
@@ -105,6 +139,7 @@ impl Bsdf {
                             f: b.eval(wo, s.wi),
                             pdf,
                             is_delta: false,
+                            class: s.class,
                         })
                     }
                 }
@@ -673,9 +708,8 @@ mod tests {
         }
     }
 
-    #[test]
-    fn clearcoat_and_sheen_sampling_chi2() {
-        let mut seed = 5000;
+    /// The layered configurations of the chi-square tests, over a rough half-metallic base.
+    fn layered_cases() -> Vec<(&'static str, Bsdf)> {
         let base = params(0.3, 0.5);
         let mut cases = vec![
             ("coat rough 0.3", coated(1.0, 0.3, base)),
@@ -713,7 +747,13 @@ mod tests {
         let mut tilted = coated(1.0, 0.3, base);
         tilted.set_coat_normal(Vec3::new(0.3, 0.2, 1.0).normalize());
         cases.push(("coat with a tilted normal", tilted));
-        for (name, bsdf) in &cases {
+        cases
+    }
+
+    #[test]
+    fn clearcoat_and_sheen_sampling_chi2() {
+        let mut seed = 5000;
+        for (name, bsdf) in &layered_cases() {
             assert!(matches!(bsdf, Bsdf::Layered(_)), "{name}");
             for c in [0.9, 0.4, 0.1] {
                 seed += 1;
@@ -744,6 +784,453 @@ mod tests {
             for k in 0..3 {
                 assert!(close(got[k], expected[k]), "{got} vs {expected}");
             }
+        }
+    }
+
+    /// Every configuration of the chi-square tests, with the classes of its non-delta lobes by the
+    /// classification rule, as flags in the order of [`LobeClass::ALL`].
+    fn lobe_cases() -> Vec<(String, Bsdf, [bool; 3])> {
+        let lambert = PbrParams {
+            metallic: 0.0,
+            specular_factor: 0.0,
+            ..params(0.0, 0.5)
+        };
+        let mut cases = vec![(
+            "Lambert".to_string(),
+            Bsdf::from_gltf(&lambert),
+            [true, false, false],
+        )];
+        for metallic in [0.0, 0.5, 1.0] {
+            for roughness in [0.1, 0.3, 0.7, 1.0] {
+                cases.push((
+                    format!("metallic {metallic} roughness {roughness}"),
+                    Bsdf::from_gltf(&params(metallic, roughness)),
+                    [metallic < 1.0, true, false],
+                ));
+            }
+        }
+        for roughness in [0.1, 0.3, 0.7, 1.0] {
+            let p = PbrParams {
+                transmission: 1.0,
+                ..params(0.0, roughness)
+            };
+            let name = format!("rough dielectric roughness {roughness}");
+            cases.push((name, Bsdf::from_gltf(&p), [false, true, true]));
+        }
+        let rough = PbrParams {
+            transmission: 0.5,
+            ..params(0.2, 0.5)
+        };
+        cases.push((
+            "transmission 0.5 rough".into(),
+            Bsdf::from_gltf(&rough),
+            [true; 3],
+        ));
+        // Smooth: the specular layer and the interface are delta lobes, only the diffuse base is left to eval.
+        let smooth = PbrParams {
+            transmission: 0.5,
+            ..params(0.0, 0.0)
+        };
+        let smooth_classes = [true, false, false];
+        cases.push((
+            "transmission 0.5 smooth".into(),
+            Bsdf::from_gltf(&smooth),
+            smooth_classes,
+        ));
+        for (name, bsdf) in layered_cases() {
+            let transmissive = matches!(bsdf, Bsdf::Layered(l) if l.base.transmission > 0.0);
+            cases.push((name.to_string(), bsdf, [true, true, transmissive]));
+        }
+        cases
+    }
+
+    fn flags(split: &LobeSplit) -> [bool; 3] {
+        LobeClass::ALL.map(|class| split.get(class).max_element() > 0.0)
+    }
+
+    #[test]
+    fn eval_split_adds_up_to_eval_and_follows_the_rule() {
+        let mut rng = Rng::new(61, 61);
+        for (name, bsdf, classes) in lobe_cases() {
+            let mut seen = [false; 3];
+            for _ in 0..300 {
+                let wo = sampling::uniform_sphere(rng.next_2d());
+                // A uniform direction, and a sampled one to reach the narrow lobes.
+                let mut wis = vec![sampling::uniform_sphere(rng.next_2d())];
+                wis.extend(bsdf.sample(wo, rng.next_f32(), rng.next_2d()).map(|s| s.wi));
+                for wi in wis {
+                    let (split, f) = (bsdf.eval_split(wo, wi), bsdf.eval(wo, wi));
+                    let total = split.total();
+                    for c in 0..3 {
+                        assert!(
+                            (total[c] - f[c]).abs() <= 1e-5 * f[c] + 1e-7,
+                            "{name}: {split:?} adds up to {total}, eval {f}"
+                        );
+                    }
+                    let crosses = (wo.z > 0.0) != (wi.z > 0.0);
+                    for (k, class) in LobeClass::ALL.into_iter().enumerate() {
+                        let v = split.get(class);
+                        assert!(
+                            crate::math::is_finite_rgb(v) && v.min_element() >= 0.0,
+                            "{name}: {split:?}"
+                        );
+                        if v.max_element() == 0.0 {
+                            continue;
+                        }
+                        seen[k] = true;
+                        assert!(classes[k], "{name}: {class:?} {v} for {wo} {wi}");
+                        assert_eq!(
+                            crosses,
+                            class == LobeClass::Transmission,
+                            "{name}: {class:?} {v} for {wo} {wi}"
+                        );
+                        if !classes[2] {
+                            assert!(wo.z > 0.0 && wi.z > 0.0, "{name}: opaque from below");
+                        }
+                    }
+                }
+            }
+            assert_eq!(seen, classes, "{name}: classes found");
+        }
+    }
+
+    #[test]
+    fn split_parts_carry_their_lobes_colours() {
+        // With metallic 0 the specular layer (f0 = 0.04, white specular colour) and the interface's reflection
+        // are grey, while the diffuse base and the refraction carry the base colour: a part in the wrong
+        // class shows.
+        let base = params(0.0, 0.4).base_color;
+        let cases = [
+            params(0.0, 0.4),
+            PbrParams {
+                transmission: 0.5,
+                ..params(0.0, 0.4)
+            },
+            PbrParams {
+                transmission: 1.0,
+                ..params(0.0, 0.4)
+            },
+        ];
+        let mut rng = Rng::new(62, 62);
+        for p in cases {
+            let bsdf = Bsdf::from_gltf(&p);
+            let mut found = [false; 3];
+            for _ in 0..2000 {
+                let wo = sampling::uniform_sphere(rng.next_2d());
+                let wi = sampling::uniform_sphere(rng.next_2d());
+                let split = bsdf.eval_split(wo, wi);
+                let g = split.glossy;
+                assert!(
+                    g.max_element() - g.min_element() <= 1e-6 * g.max_element(),
+                    "{split:?}"
+                );
+                for v in [split.diffuse, split.transmission] {
+                    let ratio = v / base;
+                    assert!(
+                        ratio.max_element() - ratio.min_element() <= 1e-5 * ratio.max_element()
+                    );
+                }
+                for (k, f) in flags(&split).into_iter().enumerate() {
+                    found[k] |= f;
+                }
+            }
+            let expected = [p.transmission < 1.0, true, p.transmission > 0.0];
+            assert_eq!(found, expected, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn non_delta_samples_name_a_lobe_holding_their_direction() {
+        let mut rng = Rng::new(63, 63);
+        for (name, bsdf, classes) in lobe_cases() {
+            let mut sampled = [false; 3];
+            for c in [0.8, 0.3, -0.6] {
+                let wo = dir(c);
+                for _ in 0..500 {
+                    let Some(s) = bsdf.sample(wo, rng.next_f32(), rng.next_2d()) else {
+                        continue;
+                    };
+                    if s.is_delta {
+                        continue;
+                    }
+                    // The sampled lobe holds wi, unless its direction is on the side it cannot reach: then it
+                    // can only be a GGX reflection below the horizon, which a transmissive mixture weights
+                    // as refraction.
+                    let crosses = (s.wi.z > 0.0) != (wo.z > 0.0);
+                    if crosses == (s.class == LobeClass::Transmission) {
+                        let v = bsdf.eval_split(wo, s.wi).get(s.class);
+                        assert!(
+                            v.max_element() > 0.0,
+                            "{name}: {s:?} has no value in its class"
+                        );
+                    } else {
+                        let ggx_below = s.class == LobeClass::Glossy && crosses && wo.z > 0.0;
+                        assert!(ggx_below && classes[2], "{name}: {s:?} on the wrong side");
+                    }
+                    sampled[LobeClass::ALL.iter().position(|&k| k == s.class).unwrap()] = true;
+                }
+            }
+            assert_eq!(sampled, classes, "{name}: classes sampled");
+        }
+    }
+
+    #[test]
+    fn delta_samples_belong_to_their_lobes_class() {
+        let mut rng = Rng::new(64, 64);
+        let mirror = Bsdf::from_gltf(&params(1.0, 0.0));
+        for c in [0.9, 0.3, 0.05] {
+            for _ in 0..100 {
+                let s = mirror
+                    .sample(dir(c), rng.next_f32(), rng.next_2d())
+                    .unwrap();
+                assert!(s.is_delta && s.class == LobeClass::Glossy, "{s:?}");
+            }
+        }
+        // Smooth glass: reflection glossy, refraction transmission, in Fresnel's proportions.
+        let ior = 1.5;
+        let glass = Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            ..params(0.0, 0.0)
+        });
+        for c in [0.9f32, 0.5, 0.2, -0.9, -0.8, -0.5] {
+            let wo = dir(c);
+            let eta = if c > 0.0 { ior } else { 1.0 / ior };
+            let refracted_p = 1.0 - fresnel::dielectric(c, eta) as f64;
+            let n = 100_000;
+            let mut refracted = 0;
+            for _ in 0..n {
+                let s = glass.sample(wo, rng.next_f32(), rng.next_2d()).unwrap();
+                let crosses = (s.wi.z > 0.0) != (wo.z > 0.0);
+                let expected = if crosses {
+                    refracted += 1;
+                    LobeClass::Transmission
+                } else {
+                    LobeClass::Glossy
+                };
+                assert!(s.is_delta && s.class == expected, "cos {c}: {s:?}");
+            }
+            let frac = refracted as f64 / n as f64;
+            let se = (refracted_p * (1.0 - refracted_p) / n as f64)
+                .sqrt()
+                .max(1e-9);
+            assert!(
+                (frac - refracted_p).abs() < 4.0 * se,
+                "cos {c}: refracted {frac} vs 1 − F = {refracted_p}"
+            );
+        }
+        // Inside mixtures: diffuse + mirror + glass (delta lobes of both classes), and a mirror coat.
+        let mixed = Bsdf::from_gltf(&PbrParams {
+            transmission: 0.5,
+            ..params(0.0, 0.0)
+        });
+        let mut kinds = std::collections::HashSet::new();
+        for _ in 0..2000 {
+            let wo = dir(0.6);
+            let s = mixed.sample(wo, rng.next_f32(), rng.next_2d()).unwrap();
+            let expected = match (s.is_delta, s.wi.z < 0.0) {
+                (false, _) => LobeClass::Diffuse,
+                (true, false) => LobeClass::Glossy,
+                (true, true) => LobeClass::Transmission,
+            };
+            assert_eq!(s.class, expected, "{s:?}");
+            kinds.insert((s.is_delta, s.class));
+        }
+        assert_eq!(kinds.len(), 3);
+        let coat = coated(1.0, 0.0, params(0.3, 0.5));
+        let mut coat_deltas = 0;
+        for _ in 0..2000 {
+            let s = coat.sample(dir(0.4), rng.next_f32(), rng.next_2d());
+            if let Some(s) = s.filter(|s| s.is_delta) {
+                coat_deltas += 1;
+                assert_eq!(s.class, LobeClass::Glossy);
+            }
+        }
+        assert!(coat_deltas > 100);
+    }
+
+    /// The energy each class's channels carry from `wo`, as seen by `n` uniform directions and `n` samples:
+    /// per class and channel the largest `eval_split` part, or a delta sample's `f` in its class.
+    fn energy_seen(bsdf: &Bsdf, wo: Vec3, n: usize, rng: &mut Rng) -> LobeSplit {
+        let mut seen = LobeSplit::ZERO;
+        let mut record = |split: LobeSplit| {
+            for class in LobeClass::ALL {
+                let part = seen.get_mut(class);
+                *part = part.max(split.get(class));
+            }
+        };
+        for _ in 0..n {
+            record(bsdf.eval_split(wo, sampling::uniform_sphere(rng.next_2d())));
+            match bsdf.sample(wo, rng.next_f32(), rng.next_2d()) {
+                Some(s) if s.is_delta => record(LobeSplit::only(s.class, s.f)),
+                Some(s) => record(bsdf.eval_split(wo, s.wi)),
+                None => {}
+            }
+        }
+        seen
+    }
+
+    #[test]
+    fn colors_are_positive_exactly_where_a_class_carries_energy() {
+        let mut cases = lobe_cases();
+        cases.push((
+            "mirror".into(),
+            Bsdf::from_gltf(&params(1.0, 0.0)),
+            [false; 3],
+        ));
+        let glass = PbrParams {
+            transmission: 1.0,
+            ..params(0.0, 0.0)
+        };
+        cases.push(("smooth glass".into(), Bsdf::from_gltf(&glass), [false; 3]));
+        // A metal with a black channel: seen at normal incidence, its f0 = 0 channel reflects only from
+        // tilted microfacets.
+        let black_channel = PbrParams {
+            base_color: Rgb::new(1.0, 0.5, 0.0),
+            ..params(1.0, 0.5)
+        };
+        cases.push((
+            "metal, black blue".into(),
+            Bsdf::from_gltf(&black_channel),
+            [false; 3],
+        ));
+        let mut rng = Rng::new(65, 65);
+        for (name, bsdf, _) in cases {
+            for c in [1.0, 0.9, 0.5, 0.15, -0.9, -0.5, -0.15] {
+                let wo = dir(c);
+                let colors = bsdf.colors(wo);
+                let seen = energy_seen(&bsdf, wo, 20_000, &mut rng);
+                for class in LobeClass::ALL {
+                    let (color, energy) = (colors.get(class), seen.get(class));
+                    let at = format!("{name} cos {c} {class:?}: colour {color}, energy {energy}");
+                    assert!(
+                        crate::math::is_finite_rgb(color) && color.min_element() >= 0.0,
+                        "{at}"
+                    );
+                    for k in 0..3 {
+                        assert!(energy[k] == 0.0 || color[k] > 0.0, "{at}");
+                    }
+                    if energy == Rgb::ZERO {
+                        assert_eq!(color, Rgb::ZERO, "{at}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Per class, the mean and standard error of one estimator's per-sample values.
+    #[derive(Default)]
+    struct ClassMeans {
+        sum: LobeSplit,
+        sum2: LobeSplit,
+        n: usize,
+    }
+
+    impl ClassMeans {
+        fn add(&mut self, v: LobeSplit) {
+            self.sum += v;
+            self.sum2 += LobeSplit {
+                diffuse: v.diffuse * v.diffuse,
+                glossy: v.glossy * v.glossy,
+                transmission: v.transmission * v.transmission,
+            };
+            self.n += 1;
+        }
+
+        /// Asserts that every class's mean is `expected` within 4 standard errors (and 1e-5 for exact sums).
+        fn assert_mean(&self, expected: LobeSplit, what: &str) {
+            let n = self.n as f32;
+            for class in LobeClass::ALL {
+                let mean = self.sum.get(class) / n;
+                let var = (self.sum2.get(class) / n - mean * mean).max(Rgb::ZERO);
+                let se = (var / n).powf(0.5);
+                let err = (mean - expected.get(class)).abs();
+                assert!(
+                    err.cmple(4.0 * se + 1e-5 * (1.0 + mean)).all(),
+                    "{what} {class:?}: {mean} ± {se}, colour {}",
+                    expected.get(class)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn colors_are_the_directional_albedos_where_those_are_known() {
+        let base = params(0.0, 0.0).base_color;
+        let mut rng = Rng::new(66, 66);
+        let n = 100_000;
+        // Lambert: the albedo above (∫ f_d |cos| dω by uniform-sphere Monte Carlo), nothing below.
+        let lambert = Bsdf::from_gltf(&PbrParams {
+            metallic: 0.0,
+            specular_factor: 0.0,
+            ..params(0.0, 0.5)
+        });
+        assert_eq!(lambert.colors(dir(-0.5)), LobeSplit::ZERO);
+        for c in [0.9, 0.2] {
+            let wo = dir(c);
+            assert_eq!(
+                lambert.colors(wo),
+                LobeSplit::only(LobeClass::Diffuse, base)
+            );
+            let mut means = ClassMeans::default();
+            for _ in 0..n {
+                let wi = sampling::uniform_sphere(rng.next_2d());
+                means.add(lambert.eval_split(wo, wi) * (wi.z.abs() / sampling::UNIFORM_SPHERE_PDF));
+            }
+            means.assert_mean(lambert.colors(wo), &format!("Lambert cos {c}"));
+        }
+        // Smooth glass: F glossy and tint (1 − F)/η² transmission, the mean weights of the classes' samples.
+        let glass = Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            ..params(0.0, 0.0)
+        });
+        for c in [0.9f32, 0.5, 0.2, -0.9, -0.8, -0.5] {
+            let wo = dir(c);
+            let eta = if c > 0.0 { 1.5f32 } else { 1.0 / 1.5 };
+            let f = fresnel::dielectric(c, eta);
+            let colors = glass.colors(wo);
+            assert_eq!(colors.glossy, Rgb::splat(f));
+            assert!(
+                (colors.transmission - base * (1.0 - f) / (eta * eta))
+                    .abs()
+                    .max_element()
+                    < 1e-6
+            );
+            let mut means = ClassMeans::default();
+            for _ in 0..n {
+                let s = glass.sample(wo, rng.next_f32(), rng.next_2d()).unwrap();
+                means.add(LobeSplit::only(s.class, s.f * (s.wi.z.abs() / s.pdf)));
+            }
+            means.assert_mean(colors, &format!("smooth glass cos {c}"));
+        }
+        // A mirror coat over a Lambertian base: b(wo) glossy (the delta samples' weights), (1 − b) base diffuse
+        // (uniform-sphere Monte Carlo of the diffuse part).
+        let coat = coated(
+            0.7,
+            0.0,
+            PbrParams {
+                metallic: 0.0,
+                specular_factor: 0.0,
+                ..params(0.0, 0.5)
+            },
+        );
+        for c in [0.9, 0.3] {
+            let wo = dir(c);
+            let colors = coat.colors(wo);
+            let b = 0.7 * fresnel::schlick(Rgb::splat(0.04), c).x;
+            assert!((colors.glossy - Rgb::splat(b)).abs().max_element() < 1e-6);
+            let mut means = ClassMeans::default();
+            for _ in 0..n {
+                let wi = sampling::uniform_sphere(rng.next_2d());
+                let mut v = coat.eval_split(wo, wi) * (wi.z.abs() / sampling::UNIFORM_SPHERE_PDF);
+                if let Some(s) = coat
+                    .sample(wo, rng.next_f32(), rng.next_2d())
+                    .filter(|s| s.is_delta)
+                {
+                    v += LobeSplit::only(s.class, s.f * (s.wi.z / s.pdf));
+                }
+                means.add(v);
+            }
+            means.assert_mean(colors, &format!("mirror coat cos {c}"));
         }
     }
 }

@@ -11,14 +11,17 @@
 //! it includes the factor 1/η² with η = η(wi side)/η(wo side) (Veach 1997, §5.2): camera paths only.
 
 use super::fresnel;
+use super::lobes::{LobeClass, LobeSplit};
 use super::microfacet::{Ggx, DELTA_ALPHA};
 use crate::math::{Rgb, Vec2, Vec3};
 
-/// A direction chosen by [`Dielectric::sample`]: the direction, whether it is a delta lobe and, for delta
-/// lobes only, the BSDF value and the discrete lobe probability.
+/// A direction chosen by [`Dielectric::sample`]: the direction, its lobe's class (reflection glossy,
+/// refraction transmission), whether it is a delta lobe and, for delta lobes only, the BSDF value and the
+/// discrete lobe probability.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct DielectricSample {
     pub wi: Vec3,
+    pub class: LobeClass,
     /// Delta lobes: (f, probability). Non-delta: `None`, evaluate with `eval`/`pdf`.
     pub delta: Option<(Rgb, f32)>,
 }
@@ -78,6 +81,41 @@ impl Dielectric {
         self.tint * value
     }
 
+    /// [`Dielectric::eval`] split by class: reflection (`wi` on `wo`'s side) is glossy, refraction
+    /// transmission, from either side.
+    pub fn eval_split(&self, wo: Vec3, wi: Vec3) -> LobeSplit {
+        let class = if (wo.z > 0.0) == (wi.z > 0.0) {
+            LobeClass::Glossy
+        } else {
+            LobeClass::Transmission
+        };
+        LobeSplit::only(class, self.eval(wo, wi))
+    }
+
+    /// The class colours seen from `wo` (zero when `wo` is tangent): glossy `R`, transmission
+    /// `tint (1 − R) / η²` with η = η(far side)/η(wo's side). These are the directional albedos of the
+    /// reflection and of the refraction (whose weight carries the radiance factor 1/η², see the module
+    /// documentation) when `R` is the interface's reflectance. Smooth: `R = F(|cos θo|)`, exact. Rough: an
+    /// estimate, `R = (1 − α) F(|cos θo|) + α F̄` with F̄ the hemispherical average reflectance
+    /// (`fresnel::dielectric_average`): the rougher the interface, the more microfacet angles it averages
+    /// over. `F̄ < 1` keeps the refraction's colour positive past the critical angle, where tilted microfacets
+    /// still refract. The energy that masking takes from a rough interface is left out.
+    pub fn colors(&self, wo: Vec3) -> LobeSplit {
+        if wo.z == 0.0 {
+            return LobeSplit::ZERO;
+        }
+        let (wo_up, _, eta) = orient(self.ior, wo, Vec3::Z);
+        let mut r = fresnel::dielectric(wo_up.z, eta);
+        if !self.is_smooth() {
+            r += self.alpha * (fresnel::dielectric_average(eta) - r);
+        }
+        LobeSplit {
+            glossy: Rgb::splat(r),
+            transmission: self.tint * ((1.0 - r) / (eta * eta)),
+            ..LobeSplit::ZERO
+        }
+    }
+
     /// Solid-angle density of the non-delta directions of its sampler (0 for a smooth interface):
     /// the visible-normal density times the lobe probability (F or 1 − F) times the half-vector Jacobian,
     /// `1/(4 |wo·h|)` for reflection (Walter et al. 2007, eq. 14) and `η² |wi·h| / (η wi·h + wo·h)²` for
@@ -118,6 +156,7 @@ impl Dielectric {
                 let wi = Vec3::new(-wo.x, -wo.y, wo.z);
                 return Some(DielectricSample {
                     wi,
+                    class: LobeClass::Glossy,
                     delta: Some((Rgb::splat(f / wi.z.abs()), f)),
                 });
             }
@@ -125,6 +164,7 @@ impl Dielectric {
             let value = self.tint * ((1.0 - f) / (eta * eta * wi.z.abs()));
             return Some(DielectricSample {
                 wi,
+                class: LobeClass::Transmission,
                 delta: Some((value, 1.0 - f)),
             });
         }
@@ -133,13 +173,16 @@ impl Dielectric {
         if oh <= 0.0 {
             return None;
         }
-        let wi_up = if u_lobe < fresnel::dielectric(oh, eta) {
-            Some(fresnel::reflect(wo_up, h)).filter(|w| w.z > 0.0)
+        let (wi_up, class) = if u_lobe < fresnel::dielectric(oh, eta) {
+            let wi = Some(fresnel::reflect(wo_up, h)).filter(|w| w.z > 0.0);
+            (wi, LobeClass::Glossy)
         } else {
-            fresnel::refract(wo_up, h, eta).filter(|w| w.z < 0.0)
-        }?;
+            let wi = fresnel::refract(wo_up, h, eta).filter(|w| w.z < 0.0);
+            (wi, LobeClass::Transmission)
+        };
         Some(DielectricSample {
-            wi: wi_up * sign,
+            wi: wi_up? * sign,
+            class,
             delta: None,
         })
     }

@@ -1,5 +1,6 @@
 //! Fresnel reflectance: the exact unpolarised formula for dielectric interfaces, Schlick's approximation for
-//! the glTF metallic-roughness model, and the reflection and refraction (Snell's law) of directions.
+//! the glTF metallic-roughness model, their hemispherical averages (for the light-path AOVs' colour
+//! estimates), and the reflection and refraction (Snell's law) of directions.
 
 use crate::math::{Rgb, Vec3};
 
@@ -10,6 +11,30 @@ pub fn schlick(f0: Rgb, cos_theta: f32) -> Rgb {
     let m = (1.0 - cos_theta).clamp(0.0, 1.0);
     let m2 = m * m;
     f0 + (Rgb::ONE - f0) * (m2 * m2 * m)
+}
+
+/// The cosine-weighted hemispherical average of Schlick's approximation,
+/// `F̄ = 2∫₀¹ F(μ) μ dμ = f0 + (1 − f0)/21`, since `2∫₀¹ (1 − μ)⁵ μ dμ = 2 B(2, 6) = 1/21`.
+pub fn schlick_average(f0: Rgb) -> Rgb {
+    f0 + (Rgb::ONE - f0) / 21.0
+}
+
+/// An estimate of the cosine-weighted hemispherical average `F̄ = 2∫₀¹ F(μ) μ dμ` of [`dielectric`]'s
+/// reflectance, for `eta` = η_t/η_i: from the optically thinner side (η ≥ 1) Schlick's average with
+/// `f0 = F(1) = ((η − 1)/(η + 1))²` (within 0.01 of the exact value for indices from 1.33 to 3, up to 0.05 too
+/// high as the index nears 1, where Schlick's form is poorest), from the denser side by
+/// reciprocity, `1 − η²(1 − F̄(1/η))` (the hemispherical transmittance scales by η², Veach 1997, §5.2).
+/// Always strictly between 0 and 1.
+pub fn dielectric_average(eta: f32) -> f32 {
+    let outside = |eta: f32| {
+        let r = (eta - 1.0) / (eta + 1.0);
+        schlick_average(Rgb::splat(r * r)).x
+    };
+    if eta >= 1.0 {
+        outside(eta)
+    } else {
+        1.0 - eta * eta * (1.0 - outside(1.0 / eta))
+    }
 }
 
 /// Exact unpolarised Fresnel reflectance of a dielectric interface (the Fresnel equations, Born & Wolf,
@@ -122,5 +147,45 @@ mod tests {
         }
         assert_eq!(schlick(Rgb::splat(0.04), 1.0), Rgb::splat(0.04));
         assert_eq!(schlick(Rgb::splat(0.04), 0.0), Rgb::ONE);
+    }
+
+    #[test]
+    fn schlick_average_matches_quadrature() {
+        // Midpoint rule for 2∫F(μ) μ dμ.
+        for f0 in [0.0f32, 0.04, 0.5, 1.0] {
+            let n = 10_000;
+            let sum: f64 = (0..n)
+                .map(|i| {
+                    let mu = (i as f32 + 0.5) / n as f32;
+                    (2.0 * schlick(Rgb::splat(f0), mu).x * mu) as f64
+                })
+                .sum();
+            let quadrature = sum / n as f64;
+            let average = schlick_average(Rgb::splat(f0)).x as f64;
+            assert!(
+                (average - quadrature).abs() < 1e-5,
+                "f0 {f0}: {average} vs {quadrature}"
+            );
+        }
+        // The dielectric estimate against the quadrature of the exact reflectance, from both sides.
+        for ior in [1.1f32, 1.33, 1.5, 2.0, 2.4] {
+            for eta in [ior, 1.0 / ior] {
+                let n = 10_000;
+                let sum: f64 = (0..n)
+                    .map(|i| {
+                        let mu = (i as f32 + 0.5) / n as f32;
+                        (2.0 * dielectric(mu, eta) * mu) as f64
+                    })
+                    .sum();
+                let quadrature = sum / n as f64;
+                let average = dielectric_average(eta) as f64;
+                let tolerance = if ior < 1.3 { 0.03 } else { 0.01 };
+                assert!(average > 0.0 && average < 1.0);
+                assert!(
+                    (average - quadrature).abs() < tolerance,
+                    "eta {eta}: {average} vs {quadrature}"
+                );
+            }
+        }
     }
 }

@@ -18,6 +18,7 @@
 
 use super::dielectric::Dielectric;
 use super::fresnel;
+use super::lobes::{LobeClass, LobeSplit};
 use super::microfacet::{Ggx, DELTA_ALPHA};
 use super::sample::BsdfSample;
 use crate::math::sampling::cosine_hemisphere;
@@ -176,19 +177,29 @@ impl GltfPbr {
         }
     }
 
-    /// Opaque BRDF value (non-delta part), one-sided.
-    fn eval_opaque(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    /// Opaque BRDF value (non-delta part), one-sided, as its (diffuse, specular) lobes; `None` unless both
+    /// directions are above the surface.
+    fn opaque_lobes(&self, wo: Vec3, wi: Vec3) -> Option<(Rgb, Rgb)> {
         if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Rgb::ZERO;
+            return None;
         }
         let h = (wo + wi).normalize();
         let (kd, ks) = self.fresnel_weights(wo.dot(h));
         let diffuse = kd * FRAC_1_PI * self.base_color;
         if self.specular_is_delta() {
-            return diffuse;
+            return Some((diffuse, Rgb::ZERO));
         }
         let ggx = Ggx { alpha: self.alpha };
-        diffuse + ks * (ggx.d(h) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z))
+        Some((
+            diffuse,
+            ks * (ggx.d(h) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z)),
+        ))
+    }
+
+    /// Opaque BRDF value (non-delta part), one-sided.
+    fn eval_opaque(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        self.opaque_lobes(wo, wi)
+            .map_or(Rgb::ZERO, |(diffuse, specular)| diffuse + specular)
     }
 
     /// Density of the non-delta directions of the opaque sampler: `p_d cos θi/π + (1 − p_d) D_wo(h)/(4 wo·h)`
@@ -228,6 +239,71 @@ impl GltfPbr {
         f
     }
 
+    /// [`GltfPbr::eval`] split by class: the opaque part's diffuse base is diffuse and its specular layer
+    /// glossy; the dielectric interface's reflection is glossy and its refraction transmission
+    /// ([`Dielectric::eval_split`]).
+    pub fn eval_split(&self, wo: Vec3, wi: Vec3) -> LobeSplit {
+        let t = self.transmission;
+        let mut split = match self.opaque_lobes(wo, wi) {
+            Some((diffuse, specular)) => LobeSplit {
+                diffuse: (1.0 - t) * diffuse,
+                glossy: (1.0 - t) * specular,
+                transmission: Rgb::ZERO,
+            },
+            None => LobeSplit::ZERO,
+        };
+        if t > 0.0 {
+            split += self.dielectric.eval_split(wo, wi) * t;
+        }
+        split
+    }
+
+    /// The class colours seen from `wo`: `(1 − t)` times the opaque part's plus `t` times the dielectric
+    /// interface's ([`Dielectric::colors`]). The opaque part, above the surface only, with the Fresnel
+    /// weights `kd`, `ks` of [`GltfPbr::eval`]:
+    /// - diffuse `kd(cos(θo/2)) · baseColor`, with `cos(θo/2) = √((1 + cos θo)/2)`: the weight at the half
+    ///   vector of `wo` and the normal, where the cosine-weighted diffuse directions peak (an estimate: `kd`
+    ///   varies with the half vector, and is 0 at grazing `wo·h` when `specularFactor` is 1);
+    /// - glossy, for a mirror, `ks(cos θo)`, its exact albedo; for a rough specular layer the estimate
+    ///   `ks` with each Schlick term `F(cos θo)` replaced by `(1 − α) F(cos θo) + α F̄`, where
+    ///   `F̄ = f0 + (1 − f0)/21` is Schlick's hemispherical average (`fresnel::schlick_average`): the
+    ///   rougher the lobe, the more microfacet angles it averages over. The energy lost to masking is left
+    ///   out.
+    pub fn colors(&self, wo: Vec3) -> LobeSplit {
+        let t = self.transmission;
+        let mut colors = LobeSplit::ZERO;
+        if wo.z > 0.0 && t < 1.0 {
+            colors = self.opaque_colors(wo) * (1.0 - t);
+        }
+        if t > 0.0 {
+            colors += self.dielectric.colors(wo) * t;
+        }
+        colors
+    }
+
+    /// The opaque part's colours for `wo` above the surface (see [`GltfPbr::colors`]).
+    fn opaque_colors(&self, wo: Vec3) -> LobeSplit {
+        let half_cos = (0.5 * (1.0 + wo.z)).sqrt();
+        let (kd, _) = self.fresnel_weights(half_cos);
+        let (_, mirror_ks) = self.fresnel_weights(wo.z);
+        let glossy = if self.specular_is_delta() {
+            mirror_ks
+        } else {
+            let rough = |f0: Rgb| {
+                let f = fresnel::schlick(f0, wo.z);
+                f + self.alpha * (fresnel::schlick_average(f0) - f)
+            };
+            let dielectric = 1.0 - self.metallic;
+            dielectric * self.specular_factor * rough(self.f0)
+                + self.metallic * rough(self.base_color)
+        };
+        LobeSplit {
+            diffuse: kd * self.base_color,
+            glossy,
+            transmission: Rgb::ZERO,
+        }
+    }
+
     /// Solid-angle density of the non-delta directions of [`GltfPbr::sample`], the mixture of the lobe
     /// densities with the lobe-selection probabilities.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
@@ -248,7 +324,7 @@ impl GltfPbr {
     /// probability.
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let p = self.dielectric_probability(wo);
-        let wi = if u_lobe < p {
+        let (wi, class) = if u_lobe < p {
             let s = self.dielectric.sample(wo, u_lobe / p, u)?;
             if let Some((f, prob)) = s.delta {
                 return Some(BsdfSample {
@@ -256,9 +332,10 @@ impl GltfPbr {
                     f: self.transmission * f,
                     pdf: p * prob,
                     is_delta: true,
+                    class: s.class,
                 });
             }
-            s.wi
+            (s.wi, s.class)
         } else {
             if wo.z <= 0.0 {
                 return None;
@@ -266,7 +343,7 @@ impl GltfPbr {
             let u_lobe = ((u_lobe - p) / (1.0 - p)).min(1.0 - f32::EPSILON);
             let pd = self.diffuse_probability(wo);
             if u_lobe < pd {
-                cosine_hemisphere(u)
+                (cosine_hemisphere(u), LobeClass::Diffuse)
             } else if self.specular_is_delta() {
                 let wi = Vec3::new(-wo.x, -wo.y, wo.z);
                 let (_, ks) = self.fresnel_weights(wo.z);
@@ -276,10 +353,11 @@ impl GltfPbr {
                     f,
                     pdf: (1.0 - p) * (1.0 - pd),
                     is_delta: true,
+                    class: LobeClass::Glossy,
                 });
             } else {
                 let h = Ggx { alpha: self.alpha }.sample_visible(wo, u);
-                fresnel::reflect(wo, h)
+                (fresnel::reflect(wo, h), LobeClass::Glossy)
             }
         };
         let pdf = self.pdf(wo, wi);
@@ -288,6 +366,7 @@ impl GltfPbr {
             f: self.eval(wo, wi),
             pdf,
             is_delta: false,
+            class,
         })
     }
 }

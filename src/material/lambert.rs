@@ -3,6 +3,7 @@
 //! glTF: a material with `metallicFactor` 0, `KHR_materials_specular.specularFactor` 0 and no transmission
 //! maps here; `baseColorFactor` (times its texture) is the albedo.
 
+use super::lobes::{LobeClass, LobeSplit};
 use crate::math::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use crate::math::{Rgb, Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
@@ -21,6 +22,20 @@ impl Lambert {
             return Rgb::ZERO;
         }
         self.albedo * FRAC_1_PI
+    }
+
+    /// [`Lambert::eval`], all of it diffuse.
+    pub fn eval_split(&self, wo: Vec3, wi: Vec3) -> LobeSplit {
+        LobeSplit::only(LobeClass::Diffuse, self.eval(wo, wi))
+    }
+
+    /// The class colours: the albedo as the diffuse colour for `wo` above the surface (its exact directional
+    /// albedo, `∫ albedo/π cos θi dωi = albedo`), zero from below, where the surface reflects nothing.
+    pub fn colors(&self, wo: Vec3) -> LobeSplit {
+        if wo.z <= 0.0 {
+            return LobeSplit::ZERO;
+        }
+        LobeSplit::only(LobeClass::Diffuse, self.albedo)
     }
 
     /// Cosine-weighted density `cos θi / π` when both directions are above the surface, else 0.

@@ -13,6 +13,7 @@
 
 use super::clearcoat::Clearcoat;
 use super::gltf_pbr::GltfPbr;
+use super::lobes::{LobeClass, LobeSplit};
 use super::sample::BsdfSample;
 use super::sheen::Sheen;
 use crate::math::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
@@ -99,6 +100,54 @@ impl Layered {
         f
     }
 
+    /// [`Layered::eval`] split by class: the base's classes ([`GltfPbr::eval_split`]) scaled as in `eval`; the
+    /// sheen and the coat are glossy.
+    pub fn eval_split(&self, wo: Vec3, wi: Vec3) -> LobeSplit {
+        let base = self.base.eval_split(wo, wi);
+        if wo.z <= 0.0 {
+            return base;
+        }
+        let mut split = base * self.scaling(wo, wi);
+        if let Some(s) = self.sheen {
+            split.glossy += s.eval(wo, wi);
+        }
+        if let Some(c) = self.coat {
+            let b = c.blend(wo);
+            split = split * (1.0 - b);
+            split.glossy += Rgb::splat(b * c.eval(wo, wi));
+        }
+        split
+    }
+
+    /// The class colours seen from `wo` above the surface, `(1 − b)(s · base + sheen) + b · coat` as in
+    /// `eval`, with `b` = `b(wo)` the coat's blend weight:
+    /// - the base's colours ([`GltfPbr::colors`]) times `s = 1 − max(sheenColor) E(cos θo)`, the sheen's
+    ///   scaling `1 − max(sheenColor) max(E(cos θo), E(cos θi))` at its largest, reached where
+    ///   `E(cos θi) ≤ E(cos θo)` (the mirror direction among others): exact for a mirror base, an upper
+    ///   bound otherwise;
+    /// - glossy: the sheen's albedo `sheenColor · E(cos θo)` (tabulated, [`Sheen::directional_albedo`]) and
+    ///   the coat's `b`, the exact albedo of a mirror coat; a rough coat's masking loss is left out.
+    ///
+    /// From below only the base scatters: its colours.
+    pub fn colors(&self, wo: Vec3) -> LobeSplit {
+        let base = self.base.colors(wo);
+        if wo.z <= 0.0 {
+            return base;
+        }
+        let mut colors = base;
+        if let Some(s) = self.sheen {
+            let e = s.directional_albedo(wo.z);
+            colors = colors * (1.0 - s.color.max_element() * e).max(0.0);
+            colors.glossy += s.color * e;
+        }
+        if let Some(c) = self.coat {
+            let b = c.blend(wo);
+            colors = colors * (1.0 - b);
+            colors.glossy += Rgb::splat(b);
+        }
+        colors
+    }
+
     /// Solid-angle density of the non-delta directions of [`Layered::sample`].
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let p = self.choice(wo);
@@ -119,7 +168,7 @@ impl Layered {
             return self.base.sample(wo, u_lobe, u);
         }
         let p = self.choice(wo);
-        let wi = if u_lobe < p.coat {
+        let (wi, class) = if u_lobe < p.coat {
             let c = self.coat?;
             let wi = c.sample(wo, u)?;
             if c.is_delta() {
@@ -128,15 +177,16 @@ impl Layered {
                     f: Rgb::splat(c.blend(wo) / wi.z),
                     pdf: p.coat,
                     is_delta: true,
+                    class: LobeClass::Glossy,
                 });
             }
-            wi
+            (wi, LobeClass::Glossy)
         } else if u_lobe < p.coat + p.sheen {
             let wi = cosine_hemisphere(u);
             if wi.z <= 0.0 {
                 return None;
             }
-            wi
+            (wi, LobeClass::Glossy)
         } else {
             let u_base = ((u_lobe - p.coat - p.sheen) / p.base).clamp(0.0, 1.0 - f32::EPSILON);
             let s = self.base.sample(wo, u_base, u)?;
@@ -148,7 +198,7 @@ impl Layered {
                     ..s
                 });
             }
-            s.wi
+            (s.wi, s.class)
         };
         let pdf = self.pdf(wo, wi);
         (pdf > 0.0).then(|| BsdfSample {
@@ -156,6 +206,7 @@ impl Layered {
             f: self.eval(wo, wi),
             pdf,
             is_delta: false,
+            class,
         })
     }
 }

@@ -1,6 +1,7 @@
 //! The result of sampling any BSDF lobe, shared by every lobe and by the [`super::Bsdf`] dispatch (its own
 //! module so that lobes need not import the dispatcher).
 
+use super::lobes::LobeClass;
 use crate::math::{Rgb, Vec3};
 
 /// One sampled direction.
@@ -15,4 +16,10 @@ pub struct BsdfSample {
     pub pdf: f32,
     /// True when `wi` comes from a delta lobe (no MIS, no `eval`).
     pub is_delta: bool,
+    /// The class of the lobe that produced the sample. For a delta sample the whole weight belongs to it.
+    /// For a non-delta one it is informational: `f` is the whole mixture's value, which the light-path AOVs
+    /// share by [`super::Bsdf::eval_split`] (other lobes hold the same `wi`, and the sampled lobe may hold
+    /// none of it: a glTF material's GGX reflection that falls below the horizon, where only the
+    /// transmissive part has a value).
+    pub class: LobeClass,
 }
