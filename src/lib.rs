@@ -10,8 +10,11 @@
 //! 2. Render it with a [`Renderer`] made from [`RenderSettings`]: [`Renderer::render`] reports [`Progress`]
 //!    after every pass to a callback that returns `false` to stop, and [`Renderer::render_with_cancel`] also
 //!    stops when a [`CancelToken`] is cancelled from any thread.
-//! 3. Use the [`RenderImage`] (beauty and AOV layers: albedo, normal, depth, variance) and the [`RenderStats`],
-//!    or write the image with [`write_exr`] (multi-layer EXR) and [`write_png_preview`] (8-bit sRGB).
+//! 3. Use the [`RenderImage`] (beauty and its alpha, the first-hit AOVs albedo, normal, depth and variance, and
+//!    the compositing layers [`RenderSettings::aovs`] chooses: light paths, light groups, shadow catcher,
+//!    Cryptomatte; see [`render::aovs`]) and the [`RenderStats`], or write the image with [`write_exr`]
+//!    (multi-layer EXR; [`output::write_exr_with`] for half floats and other compressions) and
+//!    [`write_png_preview`] (8-bit sRGB).
 //!
 //! A render can also be cut into parts, by sample range and crop window, rendered on a farm and merged bit for
 //! bit: see [`farm`] and [`Renderer::render_region`].

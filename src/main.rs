@@ -31,7 +31,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene (.gltf, .glb, .obj, .usd, .usda, .usdc, .usdz) to an EXR with AOV layers and a PNG preview.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Describe the grids of an OpenVDB file: counts, statistics, bounds and transform.
     Info(InfoArgs),
     /// Compare methods' error against a reference over render time: CSV, log-log chart, summary.
@@ -61,6 +61,32 @@ struct MergeArgs {
     /// Exposure of the PNG preview in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
+    /// How the EXR is stored.
+    #[command(flatten)]
+    storage: StorageArgs,
+}
+
+/// How EXR files are stored: `render` and `merge` share these.
+#[derive(Args)]
+struct StorageArgs {
+    /// Store the colour AOV layers as 16-bit half floats (`--half`), or the beauty and alpha too
+    /// (`--half=all`); depth, variance and Cryptomatte stay 32-bit.
+    #[arg(long, value_enum, num_args = 0..=1, require_equals = true, default_missing_value = "aovs",
+          default_value = "off")]
+    half: nimbus::output::HalfFloats,
+    /// EXR compression: zip (lossless, the default), piz (lossless wavelet), pxr24 (32-bit floats rounded to
+    /// 24 bits), b44 (lossy, half channels), rle, none.
+    #[arg(long, value_enum, default_value = "zip")]
+    compression: nimbus::output::ExrCompression,
+}
+
+impl StorageArgs {
+    fn options(&self) -> nimbus::output::ExrOptions {
+        nimbus::output::ExrOptions {
+            compression: self.compression,
+            half: self.half,
+        }
+    }
 }
 
 #[derive(Args)]
@@ -205,6 +231,34 @@ struct RenderArgs {
     /// Number of sample chunks of --chunk-from-env.
     #[arg(long, requires = "chunk_from_env")]
     chunks: Option<u32>,
+    /// Leave the environment seen directly out of the beauty (written to the `environment` layer): alpha is
+    /// then the coverage of everything else, to put the render over a plate.
+    #[arg(long)]
+    transparent: bool,
+    /// The layers to write beyond the beauty and alpha, comma-separated: layer names (`diffuse_direct`,
+    /// `lg_key`, `CryptoObject`...) and sets (`default`, `lightpaths`, `colors`, `lightgroups`, `cryptomatte`,
+    /// `all`, `none`). Default: `default`, plus `environment` on a transparent film, the light groups when
+    /// there are any, and `shadow_catcher` when the scene has a catcher.
+    #[arg(long, value_parser = parse_aovs)]
+    aovs: Option<nimbus::render::AovSelection>,
+    /// Print every layer `--aovs` takes (with the scene's light groups when a scene is given), then exit.
+    #[arg(long = "list-aovs")]
+    list_aovs: bool,
+    /// Light groups: `scene` (the groups the scene declares; emitters in none go to `default`), `per-light`
+    /// (one group per emitter) or `off`.
+    #[arg(long = "light-groups", value_enum, default_value = "scene")]
+    light_groups: nimbus::render::LightGroupMode,
+    /// Cryptomatte ranks per pixel (1 to 16, rounded up to even: two per layer).
+    #[arg(long = "cryptomatte-depth", default_value_t = nimbus::render::cryptomatte::DEFAULT_DEPTH)]
+    cryptomatte_depth: usize,
+    /// How the EXR is stored.
+    #[command(flatten)]
+    storage: StorageArgs,
+}
+
+/// Parses `--aovs`.
+fn parse_aovs(list: &str) -> Result<nimbus::render::AovSelection, String> {
+    nimbus::render::AovSelection::parse(list).map_err(|e| e.to_string())
 }
 
 fn parse_rgb(s: &str) -> Result<Rgb, String> {
@@ -227,7 +281,7 @@ const DEMO_CLOUD: &[u8] = include_bytes!("../assets/cloud.vdb");
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(args) => render(args),
+        Command::Render(args) => render(*args),
         Command::Info(args) => info(args),
         Command::Converge(args) => converge(args),
         Command::Merge(args) => merge(args),
@@ -409,6 +463,9 @@ fn frame_path(path: &Path, frame: Option<i64>) -> PathBuf {
 /// `nimbus render`: a still, one frame (`--frame`) or a range of frames (`--frames`), each loaded, rendered and
 /// written in turn (a frame's scene and grids are dropped before the next is loaded).
 fn render(mut args: RenderArgs) -> Result<(), String> {
+    if args.list_aovs {
+        return list_aovs(&args);
+    }
     let range = args.frames.or(args.frame.map(FrameRange::single));
     if range.is_some_and(|r| r.len() > 1) {
         args.output = with_frame_pattern(&args.output, "-o");
@@ -439,6 +496,50 @@ fn render(mut args: RenderArgs) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// `--list-aovs`: every layer `--aovs` takes, with its meaning, and the scene's light groups when a scene is
+/// given.
+fn list_aovs(args: &RenderArgs) -> Result<(), String> {
+    println!("layers (--aovs takes these names, comma-separated):");
+    for (name, meaning) in nimbus::render::aovs::layer_catalog() {
+        println!("  {name:<22} {meaning}");
+    }
+    println!("sets:");
+    for (name, meaning) in nimbus::render::aovs::AOV_SETS {
+        println!("  {name:<22} {meaning}");
+    }
+    if args.scene.is_some() {
+        let limits = args
+            .memory_limit
+            .map_or_else(Limits::default, Limits::with_memory);
+        let builder = load_builder(args.scene.as_deref(), limits, args.frame, args.fps, None)?;
+        let scene = builder.build().map_err(|e| e.to_string())?;
+        let groups = nimbus::render::LightGroups::new(&scene, args.light_groups)
+            .map_err(|e| e.to_string())?;
+        if groups.names.is_empty() {
+            println!(
+                "light groups of this scene (--light-groups {}): none",
+                light_group_mode_name(args.light_groups)
+            );
+        } else {
+            println!(
+                "light groups of this scene (--light-groups {}): {}",
+                light_group_mode_name(args.light_groups),
+                groups.names.join(", ")
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The `--light-groups` value's name.
+fn light_group_mode_name(mode: nimbus::render::LightGroupMode) -> &'static str {
+    match mode {
+        nimbus::render::LightGroupMode::Scene => "scene",
+        nimbus::render::LightGroupMode::PerLight => "per-light",
+        nimbus::render::LightGroupMode::Off => "off",
+    }
 }
 
 /// Loads, renders and writes one frame (`None`: a still).
@@ -522,6 +623,10 @@ fn render_frame(
         light_sampler: args.light_sampler,
         emitter_edges: args.emitter_edges,
         limits,
+        aovs: args.aovs.clone(),
+        transparent: args.transparent,
+        light_groups: args.light_groups,
+        cryptomatte_depth: args.cryptomatte_depth,
     };
     if args.explain {
         eprintln!(
@@ -544,8 +649,14 @@ fn render_frame(
         ))
     );
     let renderer = Renderer::new(settings);
+    let plan = renderer.layer_plan(&scene).map_err(|e| e.to_string())?;
+    if args.storage.compression == nimbus::output::ExrCompression::Pxr24
+        && !plan.cryptomatte.is_empty()
+    {
+        return Err("--compression pxr24 rounds 32-bit floats to 24 bits, which destroys Cryptomatte IDs; use zip, piz, rle or none".into());
+    }
+    let hash = part_scene_hash(args, frame, renderer.settings())?;
     if let Some((region, output)) = part_region(args, &output, renderer.settings())? {
-        let hash = part_scene_hash(args, frame, renderer.settings())?;
         eprintln!(
             "nimbus: part: samples {}..{} of the pixels in {}",
             region.samples.start, region.samples.end, region.window
@@ -559,7 +670,9 @@ fn render_frame(
             )
             .map_err(|e| e.to_string())?;
         reporter.finish();
-        let info = PartInfo::new(renderer.settings(), hash, &region, &stats);
+        let metadata = image_metadata(args, &scene, renderer.settings(), frame, hash, &stats);
+        let info =
+            PartInfo::new(renderer.settings(), hash, &region, &stats).with_metadata(metadata);
         create_parent(&output)?;
         nimbus::farm::write_part(&output, &film, &info).map_err(|e| e.to_string())?;
         eprintln!(
@@ -571,12 +684,18 @@ fn render_frame(
         );
         return finish_render(&stats, stats_path.as_deref());
     }
-    let (image, stats) = renderer
+    let (mut image, stats) = renderer
         .render(&scene, &mut |p| reporter.report(p))
         .map_err(|e| e.to_string())?;
     reporter.finish();
+    image.metadata = image_metadata(args, &scene, renderer.settings(), frame, hash, &stats);
+    image
+        .metadata
+        .nimbus
+        .insert("spp".into(), stats.samples_per_pixel.to_string());
     create_parent(&output)?;
-    nimbus::output::write_exr(&image, &output).map_err(|e| e.to_string())?;
+    nimbus::output::write_exr_with(&image, &output, &args.storage.options())
+        .map_err(|e| e.to_string())?;
     let png = nimbus::output::preview_path(&output);
     nimbus::output::write_png_preview(&image, &png, args.exposure).map_err(|e| e.to_string())?;
     eprintln!(
@@ -588,6 +707,46 @@ fn render_frame(
         stats.samples_per_second
     );
     finish_render(&stats, stats_path.as_deref())
+}
+
+/// The EXR header attributes of a render: the camera's `worldToCamera` and `worldToNDC`, and the `nimbus/` keys
+/// `spp` (of the whole render), `seed`, `scene`, `scene_hash`, `frame`, `transparent` and `render_seconds`
+/// (left out when `SOURCE_DATE_EPOCH` asks for reproducible files).
+fn image_metadata(
+    args: &RenderArgs,
+    scene: &Scene,
+    settings: &RenderSettings,
+    frame: Option<i64>,
+    hash: u64,
+    stats: &RenderStats,
+) -> nimbus::render::ImageMetadata {
+    let aspect = settings.width as f32 / settings.height.max(1) as f32;
+    let mut nimbus = std::collections::BTreeMap::new();
+    nimbus.insert("spp".to_owned(), settings.spp.to_string());
+    nimbus.insert("seed".to_owned(), settings.seed.to_string());
+    nimbus.insert(
+        "scene".to_owned(),
+        args.scene.as_ref().map_or_else(
+            || "bundled demo (assets/cloud.gltf)".into(),
+            |p| p.display().to_string(),
+        ),
+    );
+    nimbus.insert("scene_hash".to_owned(), format!("{hash:016x}"));
+    nimbus.insert("transparent".to_owned(), stats.transparent.to_string());
+    if let Some(f) = frame {
+        nimbus.insert("frame".to_owned(), f.to_string());
+    }
+    if std::env::var_os("SOURCE_DATE_EPOCH").is_none() {
+        nimbus.insert(
+            "render_seconds".to_owned(),
+            format!("{:.3}", stats.render_seconds),
+        );
+    }
+    nimbus::render::ImageMetadata {
+        world_to_camera: Some(scene.camera().exr_world_to_camera()),
+        world_to_ndc: Some(scene.camera().exr_world_to_ndc(aspect)),
+        nimbus,
+    }
 }
 
 /// Creates the folder an output file goes in (every task of an array job may race to create it).
@@ -752,7 +911,8 @@ fn merge(args: MergeArgs) -> Result<(), String> {
     }
     let merged = nimbus::farm::merge_parts(&args.parts).map_err(|e| e.to_string())?;
     create_parent(&args.output)?;
-    nimbus::output::write_exr(&merged.image, &args.output).map_err(|e| e.to_string())?;
+    nimbus::output::write_exr_with(&merged.image, &args.output, &args.storage.options())
+        .map_err(|e| e.to_string())?;
     let png = nimbus::output::preview_path(&args.output);
     nimbus::output::write_png_preview(&merged.image, &png, args.exposure)
         .map_err(|e| e.to_string())?;

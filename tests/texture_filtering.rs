@@ -49,6 +49,7 @@ fn render_plane_albedo(sampler: Sampler, size: usize) -> Vec<Option<f32>> {
         indices: vec![[0, 1, 2], [0, 2, 3]],
         material: m,
         motion: None,
+        ..Default::default()
     });
     // Eye 1 m up, looking 10° down: the lower rows are close (magnified), the upper rows far and grazing.
     b.set_camera(Camera::look_at(

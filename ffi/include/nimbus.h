@@ -75,6 +75,16 @@ typedef struct {
   uint64_t seed;
   // Wall-clock budget in seconds; 0 means none. The render stops after the pass in which it runs out.
   double time_limit_seconds;
+  // The layers to write beyond the beauty and alpha, as the CLI's `--aovs` takes them (comma-separated
+  // layer and set names: `lightpaths`, `lg_key`, `cryptomatte`...); null for the defaults (the first-hit
+  // layers, `environment` on a transparent film, light groups, `shadow_catcher`).
+  const char *aovs;
+  // Non-zero for a transparent film: the environment seen directly is left out of the beauty.
+  uint32_t transparent;
+  // Light groups: 0 the scene's declared groups, 1 one group per emitter, 2 none.
+  uint32_t light_groups;
+  // Cryptomatte ranks per pixel, 1 to 16 (0: the default, 6).
+  uint32_t cryptomatte_depth;
 } NimbusRenderSettings;
 
 // Progress callback of `nimbus_render()`, called on the rendering thread after every pass with the fraction
@@ -90,7 +100,8 @@ extern "C" {
 // succeeded. Never null. The text stays valid until the next `nimbus_*` call on this thread.
 const char *nimbus_last_error(void);
 
-// The default render settings: 640x480, 64 spp, max depth 64, every core, seed 0, no time limit.
+// The default render settings: 640x480, 64 spp, max depth 64, every core, seed 0, no time limit, the
+// default layers, an opaque film, the scene's light groups, 6 Cryptomatte ranks.
 NimbusRenderSettings nimbus_render_settings_default(void);
 
 // Loads a scene file (`.gltf`, `.glb` or `.obj`, chosen by extension) into `*out_scene`.
@@ -154,11 +165,33 @@ NimbusStatus nimbus_image_height(const NimbusImage *image, uint32_t *out_height)
 NimbusStatus nimbus_image_samples_per_pixel(const NimbusImage *image,
                                             uint32_t *out_spp);
 
+// Stores in `*out_count` the number of channels the image has (as its EXR file would list them; see
+// `nimbus_image_channel_name()`).
+//
+// # Safety
+// `image` must be null or a handle from `nimbus_render()`; `out_count` must be null or writable.
+NimbusStatus nimbus_image_channel_count(const NimbusImage *image, size_t *out_count);
+
+// Copies the name of channel `index` (0 to count − 1, sorted as the EXR file lists them: `A`, `B`, `G`,
+// `R`, `albedo.B`, ..., `diffuse_direct.R`, `lg_key.G`, `CryptoObject00.r`...) into `out` as a
+// NUL-terminated UTF-8 string. An index out of range gives `NIMBUS_STATUS_INVALID_ARGUMENT`; a buffer of
+// fewer than the name's bytes + 1 gives `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
+//
+// # Safety
+// `image` must be null or a handle from `nimbus_render()`; `out` must be null or point to `len` writable
+// bytes.
+NimbusStatus nimbus_image_channel_name(const NimbusImage *image,
+                                       size_t index,
+                                       char *out,
+                                       size_t len);
+
 // Copies channel `name` of the image into `out`, `width * height` floats, row-major from the top row.
 //
-// Channel names are the EXR file's: `R`, `G`, `B`, `A` (constant 1), `albedo.R|G|B`, `normal.X|Y|Z`,
-// `depth.Z`, `variance.R|G|B`. An unknown name gives `NIMBUS_STATUS_INVALID_ARGUMENT`; `len` (in floats)
-// below `width * height` gives `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
+// Channel names are the EXR file's (see `nimbus_image_channel_name()`): `R`, `G`, `B`, `A` (coverage),
+// `albedo.R|G|B`, `normal.X|Y|Z`, `depth.Z`, `variance.R|G|B`, and the layers the settings' `aovs` chose
+// (light paths, colours, light groups, shadow catcher, Cryptomatte). An unknown name gives
+// `NIMBUS_STATUS_INVALID_ARGUMENT`; `len` (in floats) below `width * height` gives
+// `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
 //
 // # Safety
 // `image` must be null or a handle from `nimbus_render()`; `name` must be null or a NUL-terminated string;

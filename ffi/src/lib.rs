@@ -15,7 +15,9 @@
 //! - Handles are freed with `nimbus_*_free(&handle)`, which nulls the caller's pointer, so freeing twice through
 //!   the same variable is a no-op; freeing null is a no-op.
 
-use nimbus::render::{RenderImage, RenderSettings, RenderStats, Renderer};
+use nimbus::render::{
+    AovSelection, LightGroupMode, RenderImage, RenderSettings, RenderStats, Renderer,
+};
 use nimbus::{Error, Scene};
 use std::cell::RefCell;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
@@ -84,6 +86,16 @@ pub struct NimbusRenderSettings {
     pub seed: u64,
     /// Wall-clock budget in seconds; 0 means none. The render stops after the pass in which it runs out.
     pub time_limit_seconds: f64,
+    /// The layers to write beyond the beauty and alpha, as the CLI's `--aovs` takes them (comma-separated
+    /// layer and set names: `lightpaths`, `lg_key`, `cryptomatte`...); null for the defaults (the first-hit
+    /// layers, `environment` on a transparent film, light groups, `shadow_catcher`).
+    pub aovs: *const c_char,
+    /// Non-zero for a transparent film: the environment seen directly is left out of the beauty.
+    pub transparent: u32,
+    /// Light groups: 0 the scene's declared groups, 1 one group per emitter, 2 none.
+    pub light_groups: u32,
+    /// Cryptomatte ranks per pixel, 1 to 16 (0: the default, 6).
+    pub cryptomatte_depth: u32,
 }
 
 /// Progress callback of `nimbus_render()`, called on the rendering thread after every pass with the fraction
@@ -303,7 +315,10 @@ unsafe fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
 }
 
 /// Checks C settings and converts them.
-fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure> {
+///
+/// # Safety
+/// `s.aovs` must be null or a NUL-terminated string.
+unsafe fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure> {
     let invalid = |m: String| Failure::new(NimbusStatus::InvalidArgument, m);
     if s.width == 0 || s.height == 0 || s.width > MAX_SIDE || s.height > MAX_SIDE {
         return Err(invalid(format!(
@@ -331,6 +346,22 @@ fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure>
             )))
         }
     };
+    let aovs = if s.aovs.is_null() {
+        None
+    } else {
+        let list = c_str(s.aovs, "settings.aovs")?;
+        Some(AovSelection::parse(list).map_err(|e| invalid(e.to_string()))?)
+    };
+    let light_groups = match s.light_groups {
+        0 => LightGroupMode::Scene,
+        1 => LightGroupMode::PerLight,
+        2 => LightGroupMode::Off,
+        g => {
+            return Err(invalid(format!(
+                "light_groups {g} is not 0 (scene), 1 (per light) or 2 (off)"
+            )))
+        }
+    };
     Ok(RenderSettings {
         width: s.width as usize,
         height: s.height as usize,
@@ -340,6 +371,13 @@ fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, Failure>
         max_depth: s.max_depth,
         time_limit,
         media_mis: true,
+        aovs,
+        transparent: s.transparent != 0,
+        light_groups,
+        cryptomatte_depth: match s.cryptomatte_depth {
+            0 => nimbus::render::cryptomatte::DEFAULT_DEPTH,
+            d => d as usize,
+        },
         ..RenderSettings::default()
     })
 }
@@ -351,7 +389,8 @@ pub extern "C" fn nimbus_last_error() -> *const c_char {
     LAST_ERROR.with(|e| e.borrow().as_ptr())
 }
 
-/// The default render settings: 640x480, 64 spp, max depth 64, every core, seed 0, no time limit.
+/// The default render settings: 640x480, 64 spp, max depth 64, every core, seed 0, no time limit, the
+/// default layers, an opaque film, the scene's light groups, 6 Cryptomatte ranks.
 #[no_mangle]
 pub extern "C" fn nimbus_render_settings_default() -> NimbusRenderSettings {
     let d = RenderSettings::default();
@@ -363,6 +402,10 @@ pub extern "C" fn nimbus_render_settings_default() -> NimbusRenderSettings {
         threads: d.threads as u32,
         seed: d.seed,
         time_limit_seconds: 0.0,
+        aovs: std::ptr::null(),
+        transparent: 0,
+        light_groups: 0,
+        cryptomatte_depth: d.cryptomatte_depth as u32,
     }
 }
 
@@ -502,11 +545,77 @@ pub unsafe extern "C" fn nimbus_image_samples_per_pixel(
     })
 }
 
+/// Stores in `*out_count` the number of channels the image has (as its EXR file would list them; see
+/// `nimbus_image_channel_name()`).
+///
+/// # Safety
+/// `image` must be null or a handle from `nimbus_render()`; `out_count` must be null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_channel_count(
+    image: *const NimbusImage,
+    out_count: *mut usize,
+) -> NimbusStatus {
+    call(|| {
+        let data = NimbusImage::get(image)?;
+        put(out_count, data.image.channel_names().len(), "out_count")?;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
+/// Copies the name of channel `index` (0 to count − 1, sorted as the EXR file lists them: `A`, `B`, `G`,
+/// `R`, `albedo.B`, ..., `diffuse_direct.R`, `lg_key.G`, `CryptoObject00.r`...) into `out` as a
+/// NUL-terminated UTF-8 string. An index out of range gives `NIMBUS_STATUS_INVALID_ARGUMENT`; a buffer of
+/// fewer than the name's bytes + 1 gives `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
+///
+/// # Safety
+/// `image` must be null or a handle from `nimbus_render()`; `out` must be null or point to `len` writable
+/// bytes.
+#[no_mangle]
+pub unsafe extern "C" fn nimbus_image_channel_name(
+    image: *const NimbusImage,
+    index: usize,
+    out: *mut c_char,
+    len: usize,
+) -> NimbusStatus {
+    call(|| {
+        let data = NimbusImage::get(image)?;
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        let names = data.image.channel_names();
+        let name = names.get(index).ok_or_else(|| {
+            Failure::new(
+                NimbusStatus::InvalidArgument,
+                format!(
+                    "channel index {index} is not below the count {}",
+                    names.len()
+                ),
+            )
+        })?;
+        let bytes = name.as_bytes();
+        if len < bytes.len() + 1 {
+            return Err(Failure::new(
+                NimbusStatus::BufferTooSmall,
+                format!(
+                    "buffer holds {len} bytes, channel name {name:?} needs {}",
+                    bytes.len() + 1
+                ),
+            ));
+        }
+        let out = std::slice::from_raw_parts_mut(out.cast::<u8>(), bytes.len() + 1);
+        out[..bytes.len()].copy_from_slice(bytes);
+        out[bytes.len()] = 0;
+        Ok(NimbusStatus::Ok)
+    })
+}
+
 /// Copies channel `name` of the image into `out`, `width * height` floats, row-major from the top row.
 ///
-/// Channel names are the EXR file's: `R`, `G`, `B`, `A` (constant 1), `albedo.R|G|B`, `normal.X|Y|Z`,
-/// `depth.Z`, `variance.R|G|B`. An unknown name gives `NIMBUS_STATUS_INVALID_ARGUMENT`; `len` (in floats)
-/// below `width * height` gives `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
+/// Channel names are the EXR file's (see `nimbus_image_channel_name()`): `R`, `G`, `B`, `A` (coverage),
+/// `albedo.R|G|B`, `normal.X|Y|Z`, `depth.Z`, `variance.R|G|B`, and the layers the settings' `aovs` chose
+/// (light paths, colours, light groups, shadow catcher, Cryptomatte). An unknown name gives
+/// `NIMBUS_STATUS_INVALID_ARGUMENT`; `len` (in floats) below `width * height` gives
+/// `NIMBUS_STATUS_BUFFER_TOO_SMALL` and copies nothing.
 ///
 /// # Safety
 /// `image` must be null or a handle from `nimbus_render()`; `name` must be null or a NUL-terminated string;
@@ -528,8 +637,8 @@ pub unsafe extern "C" fn nimbus_image_channel(
             Failure::new(
                 NimbusStatus::InvalidArgument,
                 format!(
-                    "unknown channel {name:?}; known: {}",
-                    nimbus::channel_names().join(", ")
+                    "unknown channel {name:?}; this image has: {}",
+                    data.image.channel_names().join(", ")
                 ),
             )
         })?;

@@ -2,7 +2,7 @@
 //! (null pointers, bad paths, bad settings, unknown channels, small buffers, freed and mistyped handles).
 
 use nimbus_c::*;
-use std::ffi::{c_int, c_void, CStr, CString};
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::path::Path;
 use std::ptr::null_mut;
 
@@ -379,4 +379,74 @@ fn errors_are_per_thread() {
     let other = std::thread::spawn(last_error).join().unwrap();
     assert_eq!(other, "");
     assert!(last_error().contains("elsewhere.glb"));
+}
+
+#[test]
+fn layers_are_chosen_listed_and_returned() {
+    unsafe {
+        let mut scene = load_demo();
+        let aovs = CString::new("lightpaths,colors,lightgroups,CryptoObject").unwrap();
+        let settings = NimbusRenderSettings {
+            aovs: aovs.as_ptr(),
+            transparent: 1,
+            light_groups: 1,
+            cryptomatte_depth: 2,
+            ..tiny_settings()
+        };
+        let mut image = null_mut();
+        let status = nimbus_render(scene, &settings, None, null_mut(), &mut image);
+        assert_eq!(status, NimbusStatus::Ok, "{}", last_error());
+        let mut count = 0usize;
+        assert_eq!(
+            nimbus_image_channel_count(image, &mut count),
+            NimbusStatus::Ok
+        );
+        // Beauty RGBA, 10 light paths, 3 colours, the one light group of demo.glb (its emissive mesh "light"),
+        // one Cryptomatte layer.
+        assert_eq!(count, 4 + 3 * (10 + 3 + 1) + 4);
+        let mut names = Vec::new();
+        let mut buf = vec![0 as c_char; 64];
+        for i in 0..count {
+            let status = nimbus_image_channel_name(image, i, buf.as_mut_ptr(), buf.len());
+            assert_eq!(status, NimbusStatus::Ok, "{}", last_error());
+            names.push(CStr::from_ptr(buf.as_ptr()).to_str().unwrap().to_owned());
+        }
+        for name in ["A", "diffuse_direct.R", "lg_light.B", "CryptoObject00.r"] {
+            assert!(names.iter().any(|n| n == name), "{name} in {names:?}");
+        }
+        let mut samples = vec![f32::NAN; 24];
+        for name in &names {
+            let name = CString::new(name.as_str()).unwrap();
+            let status = nimbus_image_channel(image, name.as_ptr(), samples.as_mut_ptr(), 24);
+            assert_eq!(status, NimbusStatus::Ok, "{}", last_error());
+            assert!(samples.iter().all(|v| v.is_finite()));
+        }
+        // Out of range, too small a buffer, a layer the image does not have, an unknown layer name.
+        assert_eq!(
+            nimbus_image_channel_name(image, count, buf.as_mut_ptr(), buf.len()),
+            NimbusStatus::InvalidArgument
+        );
+        assert_eq!(
+            nimbus_image_channel_name(image, 0, buf.as_mut_ptr(), 1),
+            NimbusStatus::BufferTooSmall
+        );
+        let albedo = CString::new("albedo.R").unwrap();
+        assert_eq!(
+            nimbus_image_channel(image, albedo.as_ptr(), samples.as_mut_ptr(), 24),
+            NimbusStatus::InvalidArgument
+        );
+        let bad = CString::new("lightpath").unwrap();
+        let settings = NimbusRenderSettings {
+            aovs: bad.as_ptr(),
+            ..tiny_settings()
+        };
+        let mut other = null_mut();
+        assert_eq!(
+            nimbus_render(scene, &settings, None, null_mut(), &mut other),
+            NimbusStatus::InvalidArgument
+        );
+        assert!(last_error().contains("lightpath"), "{}", last_error());
+        assert_eq!(nimbus_image_free(&mut image), NimbusStatus::Ok);
+        assert_eq!(nimbus_scene_free(&mut scene), NimbusStatus::Ok);
+    }
 }

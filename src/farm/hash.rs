@@ -86,6 +86,10 @@ pub fn scene_hash(
     if settings.emitter_edges == crate::render::EmitterEdgeSampling::Off {
         h.field(b"emitter-edges off");
     }
+    // A transparent film leaves the environment out of the beauty (a scene asking for one does so in its bytes).
+    if settings.transparent {
+        h.field(b"transparent");
+    }
     for (name, value) in overrides {
         h.field(name.as_bytes());
         h.field(value);

@@ -32,7 +32,12 @@ pub fn merge_parts(paths: &[PathBuf]) -> Result<Merged, FarmError> {
         .collect::<Result<Vec<_>, FarmError>>()?;
     check_parts(&infos)?;
     let first = &infos[0].1;
-    let mut film = Film::new(first.width, first.height);
+    let mut film = Film::with_plan(
+        first.width,
+        first.height,
+        PixelWindow::full(first.width, first.height),
+        std::sync::Arc::new(first.plan.clone()),
+    );
     let (mut nan_samples, mut clamped_samples) = (0, 0);
     for (path, header) in &infos {
         let (info, part) = read_part(path)?;
@@ -45,13 +50,32 @@ pub fn merge_parts(paths: &[PathBuf]) -> Result<Merged, FarmError> {
         nan_samples += info.nan_samples;
         clamped_samples += info.clamped_samples;
     }
+    let mut image = film.image();
+    image.metadata = merged_metadata(&infos);
     Ok(Merged {
-        image: film.image(),
+        image,
         spp: first.spp,
         parts: infos.len(),
         nan_samples,
         clamped_samples,
     })
+}
+
+/// The header attributes of the merged image: the first part's, with `render_seconds` the sum of every part's
+/// (when every part has one).
+fn merged_metadata(parts: &[(PathBuf, PartInfo)]) -> crate::render::ImageMetadata {
+    let mut metadata = parts[0].1.metadata.clone();
+    let seconds: Option<f64> = parts
+        .iter()
+        .map(|(_, p)| p.metadata.nimbus.get("render_seconds")?.parse::<f64>().ok())
+        .sum();
+    match seconds {
+        Some(s) => metadata
+            .nimbus
+            .insert("render_seconds".into(), format!("{s:.3}")),
+        None => metadata.nimbus.remove("render_seconds"),
+    };
+    metadata
 }
 
 /// Checks that `parts` (file and header) can merge: one render (same resolution, seed, max depth, samples
@@ -88,7 +112,25 @@ pub fn check_parts(parts: &[(PathBuf, PartInfo)]) -> Result<(), FarmError> {
 
 /// Refuses `b` when it comes from another render than `a`.
 fn check_same(a_path: &Path, a: &PartInfo, b_path: &Path, b: &PartInfo) -> Result<(), FarmError> {
-    let fields: [(&'static str, String, String); 6] = [
+    let layers = |p: &PartInfo| {
+        let kinds: Vec<&str> = p
+            .plan
+            .cryptomatte
+            .iter()
+            .map(|(k, _)| k.layer_name())
+            .collect();
+        format!("{} cryptomatte={}", p.plan.describe(), kinds.join(","))
+    };
+    if a.plan != b.plan && layers(a) == layers(b) {
+        return Err(FarmError::Mismatch {
+            first: a_path.to_path_buf(),
+            other: b_path.to_path_buf(),
+            what: "Cryptomatte manifest",
+            first_value: "one set of names".into(),
+            other_value: "another".into(),
+        });
+    }
+    let fields: [(&'static str, String, String); 7] = [
         (
             "resolution",
             format!("{}x{}", a.width, a.height),
@@ -107,6 +149,11 @@ fn check_same(a_path: &Path, a: &PartInfo, b_path: &Path, b: &PartInfo) -> Resul
             format!("{:016x}", b.scene_hash),
         ),
         ("Nimbus version", a.version.clone(), b.version.clone()),
+        (
+            "layers (--aovs, --light-groups, --cryptomatte-depth)",
+            layers(a),
+            layers(b),
+        ),
     ];
     match fields.into_iter().find(|(_, x, y)| x != y) {
         Some((what, first_value, other_value)) => Err(FarmError::Mismatch {
@@ -210,6 +257,8 @@ mod tests {
             },
             nan_samples: 0,
             clamped_samples: 0,
+            plan: crate::render::LayerPlan::default(),
+            metadata: crate::render::ImageMetadata::default(),
         }
     }
 

@@ -3,14 +3,19 @@
 //! A part is one scanline EXR part, ZIP compressed, whose data window is the crop (the whole frame without
 //! `--crop`) and whose display window is the full frame. It holds:
 //! - the float channels of an ordinary render (`R`, `G`, `B`, `A`, `albedo.*`, `normal.*`, `depth.Z`,
-//!   `variance.*`) for the part's own samples, so any EXR viewer shows it;
-//! - the exact sums of the film as 59 `uint` channels `nimbus.count`, `nimbus.sum.R.0` … (see
-//!   [`PixelSums::WORD_NAMES`]): what the merge adds;
+//!   `variance.*`, and the layers of its plan) for the part's own samples, so any EXR viewer shows it;
+//! - the exact sums of the film as `uint` channels: the core's 63 `nimbus.count`, `nimbus.sum.R.0` … (see
+//!   [`PixelSums::WORD_NAMES`]), each slot's 12 `nimbus.slot.<slot>.<R|G|B>.<0..3>` (light-path layers,
+//!   colours, light groups, shadow catcher; see [`crate::render::LayerPlan`]) and, for each Cryptomatte kind,
+//!   `nimbus.crypto.<kind>.<entry>.id`, `.w0`, `.w1` (an ID and its 64-bit coverage sum, the pixel's IDs in
+//!   ascending order, zero-filled): what the merge adds;
+//! - the image's camera attributes (`worldToCamera`, `worldToNDC`) and, as `nimbus.meta.<key>`, its
+//!   `nimbus/` attributes, which the merged image takes over;
 //! - header attributes (all text) with what a merge checks:
 //!
 //! | key | value |
 //! |---|---|
-//! | `nimbus.format` | `nimbus-part-1` |
+//! | `nimbus.format` | `nimbus-part-2` |
 //! | `nimbus.version` | the Nimbus version that rendered it |
 //! | `nimbus.scene_hash` | 16 hex digits (see [`super::hash`]) |
 //! | `nimbus.seed`, `nimbus.max_depth` | the render settings |
@@ -18,28 +23,33 @@
 //! | `nimbus.samples` | this part's samples, `START..END` (END exclusive) |
 //! | `nimbus.sample_count` | `END - START` |
 //! | `nimbus.nan_samples`, `nimbus.clamped_samples` | the part's dropped and clamped samples |
+//! | `nimbus.layers` | the layer plan: `slots=…;written=…;depth=N` |
+//! | `nimbus.crypto.<kind>.manifest`, `nimbus.crypto.<kind>.entries` | each Cryptomatte kind's manifest (JSON) and its number of entry channels |
 
 use super::FarmError;
 use crate::output::OutputError;
+use crate::render::cryptomatte::{manifest_json, parse_manifest, CryptoKind, IdCoverage};
 use crate::render::{
-    Film, PixelSums, PixelWindow, RenderImage, RenderRegion, RenderSettings, RenderStats,
+    Film, ImageMetadata, LayerPlan, PixelSums, PixelWindow, RenderImage, RenderRegion,
+    RenderSettings, RenderStats, ValueSum,
 };
 use ::exr::meta::attribute::{AttributeValue, IntegerBounds, Text};
 use ::exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Image, ImageAttributes, Layer, LayerAttributes,
-    SmallVec, Vec2, WritableImage,
+    SmallVec, Vec2,
 };
 use std::collections::HashMap;
 use std::ops::Range;
 use std::path::Path;
+use std::sync::Arc;
 
 /// The value of `nimbus.format` in a part written by this version.
-pub const PART_FORMAT: &str = "nimbus-part-1";
+pub const PART_FORMAT: &str = "nimbus-part-2";
 /// Prefix of the header keys and sum channels of a part.
 const PREFIX: &str = "nimbus.";
 
 /// What a part says about itself: everything a merge checks.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct PartInfo {
     /// Version of Nimbus that rendered it.
     pub version: String,
@@ -63,6 +73,10 @@ pub struct PartInfo {
     pub nan_samples: u64,
     /// Samples clamped into the film's range.
     pub clamped_samples: u64,
+    /// What the film keeps and writes beyond its core ([`write_part`] writes the film's own).
+    pub plan: LayerPlan,
+    /// The header attributes the merged image takes over (camera matrices, `nimbus/` keys).
+    pub metadata: ImageMetadata,
 }
 
 impl PartInfo {
@@ -87,7 +101,14 @@ impl PartInfo {
             window: region.window,
             nan_samples: stats.nan_samples,
             clamped_samples: stats.clamped_samples,
+            plan: LayerPlan::default(),
+            metadata: ImageMetadata::default(),
         }
+    }
+
+    /// This description with the header attributes the merged image is to take over.
+    pub fn with_metadata(self, metadata: ImageMetadata) -> Self {
+        Self { metadata, ..self }
     }
 
     /// The header attributes, keyed without the `nimbus.` prefix.
@@ -106,12 +127,13 @@ impl PartInfo {
             ("sample_count", self.samples.len().to_string()),
             ("nan_samples", self.nan_samples.to_string()),
             ("clamped_samples", self.clamped_samples.to_string()),
+            ("layers", self.plan.describe()),
         ]
     }
 }
 
-/// Writes `film` (a finished, uncancelled render) as the part `info` describes. The film's frame and window
-/// must be `info`'s.
+/// Writes `film` (a finished, uncancelled render) as the part `info` describes, with the film's layer plan.
+/// The film's frame and window must be `info`'s.
 pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmError> {
     let invalid = |reason: String| FarmError::Invalid {
         path: path.to_path_buf(),
@@ -134,24 +156,89 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
             info.samples.start, info.samples.end, info.spp
         )));
     }
+    let info = &PartInfo {
+        plan: film.plan().clone(),
+        ..info.clone()
+    };
     let image = film.image();
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     for (name, samples) in image.channels() {
         list.push(AnyChannel::new(name.as_str(), FlatSamples::F32(samples)));
     }
+    let mut uint = |name: String, samples: Vec<u32>| {
+        list.push(AnyChannel::new(name.as_str(), FlatSamples::U32(samples)));
+    };
     let words: Vec<[u32; PixelSums::WORDS]> = film.pixels().iter().map(|p| p.to_words()).collect();
     for (k, name) in PixelSums::WORD_NAMES.iter().enumerate() {
-        let samples = words.iter().map(|w| w[k]).collect();
-        list.push(AnyChannel::new(
-            format!("{PREFIX}{name}").as_str(),
-            FlatSamples::U32(samples),
+        uint(
+            format!("{PREFIX}{name}"),
+            words.iter().map(|w| w[k]).collect(),
+        );
+    }
+    let values = film.plan().values_per_pixel();
+    for (j, name) in slot_word_names(film.plan()).into_iter().enumerate() {
+        let (value, word) = (j / ValueSum::WORDS, j % ValueSum::WORDS);
+        let samples = film
+            .slots()
+            .chunks_exact(values.max(1))
+            .map(|pixel| pixel[value].to_words()[word])
+            .collect();
+        uint(name, samples);
+    }
+    let kinds = film.plan().cryptomatte.len();
+    let mut crypto_keys = Vec::new();
+    for (k, (kind, manifest)) in film.plan().cryptomatte.iter().enumerate() {
+        let maps: Vec<&IdCoverage> = film.crypto().iter().skip(k).step_by(kinds).collect();
+        let entries = maps.iter().map(|m| m.entries().len()).max().unwrap_or(0);
+        for e in 0..entries {
+            let entry = |f: &dyn Fn(&(u32, u64)) -> u32| -> Vec<u32> {
+                maps.iter()
+                    .map(|m| m.entries().get(e).map_or(0, f))
+                    .collect()
+            };
+            let base = format!("{PREFIX}crypto.{}.{e:03}", kind.layer_name());
+            uint(format!("{base}.id"), entry(&|p| p.0));
+            uint(format!("{base}.w0"), entry(&|p| p.1 as u32));
+            uint(format!("{base}.w1"), entry(&|p| (p.1 >> 32) as u32));
+        }
+        crypto_keys.push((
+            format!("crypto.{}.manifest", kind.layer_name()),
+            manifest_json(manifest),
+        ));
+        crypto_keys.push((
+            format!("crypto.{}.entries", kind.layer_name()),
+            entries.to_string(),
         ));
     }
     let mut attributes = LayerAttributes {
         layer_position: Vec2(to_i32(info.window.x0), to_i32(info.window.y0)),
+        world_to_camera: info.metadata.world_to_camera.map(flatten),
+        world_to_normalized_device: info.metadata.world_to_ndc.map(flatten),
         ..LayerAttributes::default()
     };
-    for (key, value) in info.keys() {
+    let cryptomatte_list = film
+        .plan()
+        .cryptomatte
+        .iter()
+        .map(|(kind, _)| kind.layer_name())
+        .collect::<Vec<_>>()
+        .join(",");
+    let keys = info
+        .keys()
+        .into_iter()
+        .map(|(k, v)| (k.to_owned(), v))
+        .chain(std::iter::once((
+            "cryptomatte".to_owned(),
+            cryptomatte_list,
+        )))
+        .chain(crypto_keys)
+        .chain(
+            info.metadata
+                .nimbus
+                .iter()
+                .map(|(k, v)| (format!("meta.{k}"), v.clone())),
+        );
+    for (key, value) in keys {
         let text = Text::new_or_none(&value)
             .ok_or_else(|| invalid(format!("{key} '{value}' is not plain text")))?;
         attributes.other.insert(
@@ -166,14 +253,31 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
         AnyChannels::sort(list),
     );
     let display = IntegerBounds::from_dimensions(Vec2(info.width, info.height));
-    Image::from_layers(ImageAttributes::new(display), vec![layer])
-        .write()
-        .to_file(path)
-        .map_err(|source| OutputError::Exr {
-            path: path.to_path_buf(),
-            source,
-        })?;
+    let image = Image::new(ImageAttributes::new(display), layer);
+    crate::output::write_sorted(&image, path)?;
     Ok(())
+}
+
+/// The `uint` channel names of a plan's slot sums, in the order of the film's values and their words.
+fn slot_word_names(plan: &LayerPlan) -> Vec<String> {
+    plan.slots
+        .iter()
+        .flat_map(|slot| {
+            ["R", "G", "B"].into_iter().flat_map(move |c| {
+                (0..ValueSum::WORDS).map(move |w| format!("{PREFIX}slot.{slot}.{c}.{w}"))
+            })
+        })
+        .collect()
+}
+
+/// A row-major 4×4 matrix as OpenEXR's `m44f` stores it.
+fn flatten(m: [[f32; 4]; 4]) -> [f32; 16] {
+    std::array::from_fn(|i| m[i / 4][i % 4])
+}
+
+/// The inverse of [`flatten`].
+fn unflatten(m: [f32; 16]) -> [[f32; 4]; 4] {
+    std::array::from_fn(|r| std::array::from_fn(|c| m[4 * r + c]))
 }
 
 /// Pixel coordinates fit `i32` for every frame the renderer can hold; saturate rather than wrap otherwise.
@@ -197,9 +301,8 @@ pub fn read_part_info(path: &Path) -> Result<PartInfo, FarmError> {
     parse_info(
         path,
         &header.shared_attributes.display_window,
-        header.own_attributes.layer_position,
+        &header.own_attributes,
         header.layer_size,
-        &header.own_attributes.other,
     )
 }
 
@@ -207,10 +310,10 @@ pub fn read_part_info(path: &Path) -> Result<PartInfo, FarmError> {
 fn parse_info(
     path: &Path,
     display: &IntegerBounds,
-    position: Vec2<i32>,
+    attributes: &LayerAttributes,
     size: Vec2<usize>,
-    other: &HashMap<Text, AttributeValue>,
 ) -> Result<PartInfo, FarmError> {
+    let (position, other) = (attributes.layer_position, &attributes.other);
     let invalid = |reason: String| FarmError::Invalid {
         path: path.to_path_buf(),
         reason,
@@ -282,7 +385,25 @@ fn parse_info(
             "samples {samples_text} (count {sample_count}) do not fit {spp} spp"
         )));
     }
+    let plan = parse_plan(other, &text, &invalid)?;
+    let metadata = ImageMetadata {
+        world_to_camera: attributes.world_to_camera.map(unflatten),
+        world_to_ndc: attributes.world_to_normalized_device.map(unflatten),
+        nimbus: other
+            .iter()
+            .filter_map(|(key, value)| {
+                let key = key.to_string();
+                let key = key.strip_prefix(&format!("{PREFIX}meta."))?.to_owned();
+                match value {
+                    AttributeValue::Text(t) => Some((key, t.to_string())),
+                    _ => None,
+                }
+            })
+            .collect(),
+    };
     Ok(PartInfo {
+        plan,
+        metadata,
         version: text("version")?,
         scene_hash,
         width,
@@ -296,6 +417,30 @@ fn parse_info(
         nan_samples: get("nan_samples")?,
         clamped_samples: get("clamped_samples")?,
     })
+}
+
+/// The layer plan of a part's header: `nimbus.layers`, and the manifest of each Cryptomatte kind it lists.
+fn parse_plan(
+    other: &HashMap<Text, AttributeValue>,
+    text: &dyn Fn(&str) -> Result<String, FarmError>,
+    invalid: &dyn Fn(String) -> FarmError,
+) -> Result<LayerPlan, FarmError> {
+    let kinds = match other.get(&Text::from(format!("{PREFIX}cryptomatte").as_str())) {
+        Some(AttributeValue::Text(t)) => t.to_string(),
+        _ => String::new(),
+    };
+    let mut cryptomatte = Vec::new();
+    for name in kinds.split(',').filter(|k| !k.is_empty()) {
+        let kind = CryptoKind::from_layer_name(name)
+            .ok_or_else(|| invalid(format!("unknown Cryptomatte kind '{name}'")))?;
+        let json = text(&format!("crypto.{name}.manifest"))?;
+        let manifest = parse_manifest(&json)
+            .ok_or_else(|| invalid(format!("the {name} manifest is not a name → ID object")))?;
+        cryptomatte.push((kind, manifest));
+    }
+    let layers = text("layers")?;
+    LayerPlan::from_description(&layers, cryptomatte)
+        .ok_or_else(|| invalid(format!("{PREFIX}layers '{layers}' is not a layer plan")))
 }
 
 /// Reads the part at `path`: its description and its film (the exact sums). Checks that every pixel holds
@@ -316,9 +461,8 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
     let info = parse_info(
         path,
         &image.attributes.display_window,
-        layer.attributes.layer_position,
+        &layer.attributes,
         layer.size,
-        &layer.attributes.other,
     )?;
     let channel = |name: &str| {
         layer
@@ -328,25 +472,42 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
             .find(|c| c.name.to_string() == name)
             .map(|c| &c.sample_data)
     };
+    let n = info.window.pixel_count();
+    let uint = |name: &str| -> Result<&Vec<u32>, FarmError> {
+        match channel(name) {
+            Some(FlatSamples::U32(v)) if v.len() == n => Ok(v),
+            Some(FlatSamples::U32(v)) => Err(invalid(format!(
+                "channel {name} holds {} samples, expected {n}",
+                v.len()
+            ))),
+            Some(_) => Err(invalid(format!("channel {name} is not uint"))),
+            None => Err(invalid(format!("no channel {name}"))),
+        }
+    };
     let words: Vec<&Vec<u32>> = PixelSums::WORD_NAMES
         .iter()
-        .map(|name| match channel(&format!("{PREFIX}{name}")) {
-            Some(FlatSamples::U32(v)) => Ok(v),
-            Some(_) => Err(invalid(format!("channel {PREFIX}{name} is not uint"))),
-            None => Err(invalid(format!("no channel {PREFIX}{name}"))),
-        })
+        .map(|name| uint(&format!("{PREFIX}{name}")))
         .collect::<Result<_, _>>()?;
-    let n = info.window.pixel_count();
-    if let Some(k) = words.iter().position(|w| w.len() != n) {
-        return Err(invalid(format!(
-            "channel {PREFIX}{} holds {} samples, expected {n}",
-            PixelSums::WORD_NAMES[k],
-            words[k].len()
-        )));
-    }
-    let mut film = Film::with_window(info.width, info.height, info.window);
+    let slot_words: Vec<&Vec<u32>> = slot_word_names(&info.plan)
+        .iter()
+        .map(|name| uint(name))
+        .collect::<Result<_, _>>()?;
+    let crypto = read_crypto(
+        &info.plan,
+        n,
+        other_text(&layer.attributes.other),
+        &uint,
+        &invalid,
+    )?;
+    let mut film = Film::with_plan(
+        info.width,
+        info.height,
+        info.window,
+        Arc::new(info.plan.clone()),
+    );
     let range = info.samples.len() as u32;
-    for (i, pixel) in film.pixels_mut().iter_mut().enumerate() {
+    let values = info.plan.values_per_pixel();
+    for i in 0..n {
         let sums = PixelSums::from_words(&std::array::from_fn(|k| words[k][i]));
         if sums.count() > range {
             let (x, y) = pixel_position(&info.window, i);
@@ -357,10 +518,73 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
                 info.samples.end
             )));
         }
-        *pixel = sums;
+        let slots: Vec<ValueSum> = (0..values)
+            .map(|v| {
+                ValueSum::from_words(std::array::from_fn(|w| {
+                    slot_words[v * ValueSum::WORDS + w][i]
+                }))
+            })
+            .collect();
+        let maps = (!crypto.is_empty()).then(|| crypto.iter().map(|k| k[i].clone()).collect());
+        film.set_pixel(i, sums, &slots, maps);
     }
     check_image(&film.image(), &info.window, &channel, &invalid)?;
     Ok((info, film))
+}
+
+/// The text header attributes of a part, by key.
+fn other_text(other: &HashMap<Text, AttributeValue>) -> HashMap<String, String> {
+    other
+        .iter()
+        .filter_map(|(k, v)| match v {
+            AttributeValue::Text(t) => Some((k.to_string(), t.to_string())),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The Cryptomatte coverage maps of a part: for each kind of the plan, one map per pixel, read from its
+/// `nimbus.crypto.<kind>.<entry>.*` channels (`nimbus.crypto.<kind>.entries` of them). An entry of ID 0 and
+/// no coverage is padding.
+fn read_crypto<'a>(
+    plan: &LayerPlan,
+    n: usize,
+    keys: HashMap<String, String>,
+    uint: &dyn Fn(&str) -> Result<&'a Vec<u32>, FarmError>,
+    invalid: &dyn Fn(String) -> FarmError,
+) -> Result<Vec<Vec<IdCoverage>>, FarmError> {
+    let mut out = Vec::new();
+    for (kind, _) in &plan.cryptomatte {
+        let name = kind.layer_name();
+        let key = format!("{PREFIX}crypto.{name}.entries");
+        let entries: usize = keys
+            .get(&key)
+            .and_then(|e| e.parse().ok())
+            .ok_or_else(|| invalid(format!("no valid {key} header key")))?;
+        if entries > crate::render::cryptomatte::MAX_PART_ENTRIES {
+            return Err(invalid(format!(
+                "{key} is {entries}, more than {}",
+                crate::render::cryptomatte::MAX_PART_ENTRIES
+            )));
+        }
+        let mut maps = vec![IdCoverage::default(); n];
+        for e in 0..entries {
+            let base = format!("{PREFIX}crypto.{name}.{e:03}");
+            let (ids, w0, w1) = (
+                uint(&format!("{base}.id"))?,
+                uint(&format!("{base}.w0"))?,
+                uint(&format!("{base}.w1"))?,
+            );
+            for (i, map) in maps.iter_mut().enumerate() {
+                let units = w0[i] as u64 | (w1[i] as u64) << 32;
+                if units > 0 {
+                    map.add_units(ids[i], units);
+                }
+            }
+        }
+        out.push(maps);
+    }
+    Ok(out)
 }
 
 /// Column and row in the frame of pixel `i` of `window`.

@@ -2,13 +2,20 @@
 //! so the BVH and the integrator see one list of triangles.
 
 use super::motion::{lerp, MotionSteps, MovingTriangle};
+use super::CompositingTags;
 use crate::math::{Aabb, Mat4, Vec2, Vec3, Vec4};
 
 /// A triangle mesh in world space with per-vertex attributes.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
-    /// Name from the scene file (node or mesh name), for messages.
+    /// Name from the scene file (node or mesh name), for messages and as its Cryptomatte object name.
     pub name: String,
+    /// The asset the mesh belongs to, as Cryptomatte's `CryptoAsset` names it: the top-level node of its glTF
+    /// hierarchy, or its USD model root; empty: the mesh's own name.
+    pub asset: String,
+    /// Its light group, holdout and shadow-catcher tags (see [`CompositingTags`]); the material's apply where
+    /// these are unset.
+    pub tags: CompositingTags,
     /// Vertex positions.
     pub positions: Vec<Vec3>,
     /// Unit vertex normals, one per position (generated from faces when the file has none).

@@ -5,6 +5,7 @@ mod bvh;
 mod mesh;
 mod motion;
 mod spawn;
+mod tags;
 mod tangents;
 mod triangle;
 
@@ -12,4 +13,5 @@ pub use bvh::{Bvh, TooManyTriangles, TriangleHierarchy};
 pub use mesh::{Mesh, MeshMotion};
 pub use motion::{lerp, MotionBvh, MotionSteps, MovingTriangle};
 pub use spawn::{ShadowSegment, SurfacePoint};
+pub use tags::CompositingTags;
 pub use triangle::TriangleHit;

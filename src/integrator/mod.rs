@@ -4,10 +4,12 @@
 
 mod medium_stack;
 mod path;
+mod record;
 mod services;
 mod stats;
 
 pub use medium_stack::MediumStack;
 pub use path::{EquiangularTargets, FirstEmission, PathSample, PathTracer};
+pub use record::{EventClass, Origin, SampleRecord};
 pub use services::RendererServices;
 pub use stats::{PathCounters, RayCounters};

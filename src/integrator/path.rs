@@ -35,10 +35,12 @@
 //! [`Medium::free_flight_pdf`]: crate::volume::Medium::free_flight_pdf
 //! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
 
+use super::record::{FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::light::LightContext;
+use crate::material::LobeSplit;
 use crate::math::sampling::{power_heuristic, Equiangular};
 use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
 use crate::scene::{Scene, SurfaceHit};
@@ -60,6 +62,8 @@ pub struct PathSample {
     pub normal: Vec3,
     /// Distance from the camera to the first visible surface (0 when the ray escapes).
     pub depth: f32,
+    /// Coverage: 1 − the camera ray's transmittance to the environment (or to a holdout), in \[0, 1\].
+    pub alpha: f32,
 }
 
 /// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
@@ -102,6 +106,11 @@ pub struct PathTracer {
     /// distance sampling (see the module documentation); [`PathTracer::uses_equiangular`] says whether a scene
     /// gets it.
     pub equiangular: bool,
+    /// A transparent film: the environment seen directly is left out of the radiance (recorded apart).
+    pub transparent: bool,
+    /// Whether the scene has holdouts or shadow catchers ([`crate::scene::SceneNames::has_mattes`]), which
+    /// camera rays must look for.
+    pub mattes: bool,
 }
 
 /// A segment inside exactly one medium of constant coefficients, whose direct light from point and spot
@@ -120,7 +129,7 @@ struct ConstantSegment {
 }
 
 /// The state of a path between events.
-struct PathState {
+struct PathState<'r> {
     radiance: Rgb,
     beta: Rgb,
     depth: u32,
@@ -146,6 +155,73 @@ struct PathState {
     /// The constant-medium segment that ended in the current real collision, for the MIS weight of its
     /// next-event estimate against equiangular sampling.
     collided_segment: Option<ConstantSegment>,
+    /// The path's first scattering event, by which its later light is classed.
+    first_event: FirstEvent,
+    /// The sample's coverage, once known.
+    coverage: Option<f32>,
+    /// The first medium the camera ray crossed: what covers the part of a sample that media weights, not
+    /// collisions, take away (spectral tracking).
+    crossed_medium: Option<u32>,
+    /// Where the contributions are recorded for the compositing layers, if they are.
+    record: Option<&'r mut SampleRecord>,
+}
+
+impl PathState<'_> {
+    /// 1 − the mean of the throughput's channels: how much of the camera ray something in front has taken,
+    /// where the path meets the environment or a holdout.
+    fn coverage_so_far(&self) -> f32 {
+        (1.0 - self.beta.element_sum() / 3.0).clamp(0.0, 1.0)
+    }
+
+    /// Decides the sample's coverage (once): `coverage` of it, covered by Cryptomatte item `item()` (asked
+    /// only when the path records).
+    fn cover(&mut self, coverage: f32, item: impl FnOnce() -> Option<u32>) {
+        if self.coverage.is_none() {
+            self.coverage = Some(coverage);
+            if let (Some(r), true) = (self.record.as_deref_mut(), coverage > 0.0) {
+                r.covered_by = item();
+            }
+        }
+    }
+
+    /// Adds light the path reached at an emitter (not sampled toward it): emission seen directly before any
+    /// scattering event, direct light after one, indirect after more. `emitter()` names the emitter; it is
+    /// asked only when the path records (so are the emitters of the other `add_*`).
+    fn add_reached(&mut self, value: Rgb, emitter: impl FnOnce() -> Option<u32>) {
+        self.radiance += value;
+        if let Some(r) = self.record.as_deref_mut() {
+            r.add(value, self.first_event, self.depth == 1, emitter());
+        }
+    }
+
+    /// Adds `value`, light estimated by next-event estimation at a surface, where `split` gives the same light
+    /// by lobe class when this is the path's first scattering event (direct light of those classes).
+    fn add_surface_sample(
+        &mut self,
+        value: Rgb,
+        split: impl FnOnce() -> LobeSplit,
+        emitter: impl FnOnce() -> Option<u32>,
+    ) {
+        self.radiance += value;
+        if let Some(r) = self.record.as_deref_mut() {
+            if self.depth == 0 {
+                r.add_split(split(), true, emitter());
+            } else {
+                r.add(value, self.first_event, false, emitter());
+            }
+        }
+    }
+
+    /// Adds light estimated by next-event (or equiangular) estimation at a point in a medium.
+    fn add_volume_sample(&mut self, value: Rgb, emitter: impl FnOnce() -> Option<u32>) {
+        self.radiance += value;
+        if let Some(r) = self.record.as_deref_mut() {
+            match self.depth {
+                0 => r.add(value, FirstEvent::Volume, true, emitter()),
+                _ => r.add(value, self.first_event, false, emitter()),
+            }
+        }
+    }
 }
 
 /// Whether a camera path counts the light emitted by the first surface it hits.
@@ -209,6 +285,7 @@ impl PathTracer {
     /// Traces one camera path: alternates [`Self::sample_segment_media`] along each segment with either
     /// [`Self::scatter_in_medium`] at a real collision or [`Self::shade_surface`] at the surface that ends it.
     /// With [`FirstEmission::Omit`] the light emitted by the first surface hit is left out.
+    #[allow(clippy::too_many_arguments)]
     pub fn trace(
         &self,
         services: &RendererServices,
@@ -216,6 +293,7 @@ impl PathTracer {
         first_emission: FirstEmission,
         rng: &mut Rng,
         counters: &mut PathCounters,
+        record: Option<&mut SampleRecord>,
     ) -> PathSample {
         let scene = services.scene();
         let mut out = PathSample::default();
@@ -236,6 +314,10 @@ impl PathTracer {
             first_hit: true,
             first_emission,
             collided_segment: None,
+            first_event: FirstEvent::None,
+            coverage: None,
+            crossed_medium: None,
+            record,
         };
         counters.rays.camera += 1;
         loop {
@@ -250,6 +332,11 @@ impl PathTracer {
                 continue;
             }
             let Some(hit) = hit else {
+                if s.depth == 0 {
+                    let medium = s.crossed_medium;
+                    let item = || medium.map(|m| scene.names().item_of_medium(m as usize));
+                    s.cover(s.coverage_so_far(), item);
+                }
                 self.add_environment(services, &mut s, ray.dir);
                 break;
             };
@@ -262,6 +349,7 @@ impl PathTracer {
             }
         }
         out.radiance = s.radiance;
+        out.alpha = s.coverage.unwrap_or(1.0);
         out
     }
 
@@ -269,22 +357,27 @@ impl PathTracer {
     /// traced with [`FirstEmission::Omit`] leaves out, as [`Self::shade_surface`] counts it (front faces of
     /// emissive, lit materials; weight 1, no scattering event before it). Only for scenes without media, where
     /// nothing lies between the camera and that surface.
+    /// Returns the emission and its emitter.
     pub fn first_surface_emission(
         &self,
         services: &RendererServices,
         ray: &Ray,
         counters: &mut PathCounters,
-    ) -> Rgb {
+    ) -> (Rgb, Option<u32>) {
         let scene = services.scene();
         counters.rays.emitter_edge += 1;
         let Some(hit) = scene.intersect(ray, 0.0, f32::INFINITY) else {
-            return Rgb::ZERO;
+            return (Rgb::ZERO, None);
         };
         let material = &scene.materials[hit.material as usize];
         if material.unlit || !hit.front_face || !material.is_emissive() {
-            return Rgb::ZERO;
+            return (Rgb::ZERO, None);
         }
-        material.emission_at(&hit.point_shading(), &scene.textures)
+        let emitter = scene.names().emitter_of_mesh(scene.mesh_of_prim(hit.prim));
+        (
+            material.emission_at(&hit.point_shading(), &scene.textures),
+            emitter,
+        )
     }
 
     /// Runs the media overlapping the segment `[0, t_surface)` of `ray`: every medium proposes its next real
@@ -303,6 +396,9 @@ impl PathTracer {
     ) -> Option<(f32, u32)> {
         let scene = services.scene();
         let media = services.segment_media(ray, t_surface, &s.stack);
+        if s.depth == 0 && s.crossed_medium.is_none() {
+            s.crossed_medium = media.ids().first().copied();
+        }
         // A medium alone on the segment may track all channels at once (spectral tracking): its weights are the
         // walk's own, so the path keeps its colour.
         if let &[m] = media.ids() {
@@ -434,12 +530,13 @@ impl PathTracer {
             (-coefficients.sigma_t.y * t).exp(),
             (-coefficients.sigma_t.z * t).exp(),
         );
-        s.radiance += segment.throughput
+        let value = segment.throughput
             * coefficients.sigma_s
             * transmittance
             * tr
             * ls.radiance
             * (phase * weight / (pmf * pdf));
+        s.add_volume_sample(value, || scene.names().emitter_of_light(index));
     }
 
     /// The MIS weight of next-event estimation at a free-flight collision `t` along the current segment for a
@@ -468,9 +565,11 @@ impl PathTracer {
     }
 
     /// Adds the environment's radiance for a path that escapes along `dir`, MIS-weighted against the
-    /// environment's light sampling.
+    /// environment's light sampling. Seen directly (no scattering event before), it is recorded as the
+    /// environment and, on a transparent film, left out of the radiance.
     fn add_environment(&self, services: &RendererServices, s: &mut PathState, dir: Vec3) {
-        let Some(env) = services.scene().environment_light() else {
+        let scene = services.scene();
+        let Some(env) = scene.environment_light() else {
             return;
         };
         let weight = if s.prev_light_only {
@@ -480,7 +579,22 @@ impl PathTracer {
         } else {
             power_heuristic(s.prev_pdf, services.environment_pdf(dir, &s.prev))
         };
-        s.radiance += s.beta * env.radiance(dir) * weight;
+        let value = s.beta * env.radiance(dir) * weight;
+        let emitter = || {
+            scene
+                .environment
+                .and_then(|i| scene.names().emitter_of_light(i))
+        };
+        if s.depth > 0 {
+            s.add_reached(value, emitter);
+            return;
+        }
+        if !self.transparent {
+            s.radiance += value;
+        }
+        if let Some(r) = s.record.as_deref_mut() {
+            r.push(value, Origin::Environment, emitter(), !self.transparent);
+        }
     }
 
     /// Shades a surface hit: records the first hit's AOVs, adds the surface's emission (MIS-weighted against
@@ -506,6 +620,12 @@ impl PathTracer {
             scene.apply_normal_map(&mut hit, &at);
         }
         let wo_world = -ray.dir;
+        let mesh = || scene.mesh_of_prim(hit.prim);
+        // Camera rays (no scattering event yet) pass through shadow catchers and are cut by holdouts.
+        let matte = self.mattes && s.depth == 0;
+        if matte && scene.names().mesh_is_shadow_catcher(mesh()) {
+            return self.pass_shadow_catcher(services, s, ray, &hit, &at, rng, counters);
+        }
         let count_emission = !s.first_hit || s.first_emission == FirstEmission::Count;
         if s.first_hit {
             s.first_hit = false;
@@ -517,10 +637,20 @@ impl PathTracer {
                 hit.shading.n
             };
         }
+        if matte && scene.names().mesh_is_holdout(mesh()) {
+            s.cover(s.coverage_so_far(), || None);
+            return SurfaceOutcome::End;
+        }
+        let item = || Some(scene.names().item_of_mesh(mesh()));
+        let emitter = || scene.names().emitter_of_mesh(mesh());
         // An unlit surface shows its base colour and scatters nothing (not a light: weight 1).
         if material.unlit {
+            if s.depth == 0 {
+                s.cover(1.0, item);
+            }
             if hit.front_face || material.double_sided {
-                s.radiance += s.beta * material.unlit_radiance(&at, &scene.textures);
+                let value = s.beta * material.unlit_radiance(&at, &scene.textures);
+                s.add_reached(value, emitter);
             }
             return SurfaceOutcome::End;
         }
@@ -536,7 +666,7 @@ impl PathTracer {
                     }
                     _ => 1.0,
                 };
-                s.radiance += s.beta * le * weight;
+                s.add_reached(s.beta * le * weight, emitter);
             }
         }
         let mut bsdf = material.bsdf(&at, &scene.textures);
@@ -553,6 +683,9 @@ impl PathTracer {
             return SurfaceOutcome::Continue(
                 Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time),
             );
+        }
+        if s.depth == 0 {
+            s.cover(1.0, item);
         }
         if s.depth >= self.max_depth {
             return SurfaceOutcome::End;
@@ -579,6 +712,11 @@ impl PathTracer {
             bsdf.set_coat_normal(frame.to_local(n));
         }
         let wo = frame.to_local(wo_world);
+        if s.depth == 0 {
+            if let Some(r) = s.record.as_deref_mut() {
+                r.colors = bsdf.colors(wo) * s.beta;
+            }
+        }
         // Next-event estimation.
         if !bsdf.is_delta() {
             let ctx = LightContext {
@@ -603,7 +741,15 @@ impl PathTracer {
                         } else {
                             power_heuristic(light_pdf, bsdf.pdf(wo, wi))
                         };
-                        s.radiance += s.beta * f * tr * ls.radiance * (weight / light_pdf);
+                        let value = s.beta * f * tr * ls.radiance * (weight / light_pdf);
+                        let beta = s.beta;
+                        let split = || {
+                            let factor =
+                                beta * tr * ls.radiance * (wi.z.abs() * weight / light_pdf);
+                            bsdf.eval_split(wo, wi) * factor
+                        };
+                        let emitter = || scene.names().emitter_of_light(chosen.index);
+                        s.add_surface_sample(value, split, emitter);
                     }
                 }
             });
@@ -614,6 +760,14 @@ impl PathTracer {
         };
         if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f.max_element() <= 0.0 {
             return SurfaceOutcome::End;
+        }
+        if s.depth == 0 && s.record.is_some() {
+            // The first event's classes share the path's later light as they share this direction's value.
+            s.first_event = FirstEvent::Surface(if bs.is_delta {
+                LobeSplit::only(bs.class, Rgb::ONE)
+            } else {
+                bsdf.eval_split(wo, bs.wi).shares()
+            });
         }
         let wi_world = frame.to_world(bs.wi);
         s.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
@@ -640,6 +794,71 @@ impl PathTracer {
         SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(wi_world), wi_world).at_time(ray.time))
     }
 
+    /// A camera ray (no scattering event yet) at a shadow catcher: the first catcher it meets records its
+    /// direct light with and without the scene's occlusion (next-event estimation alone, weight 1, both
+    /// times the throughput), when the shadow-catcher layer is written; the ray passes through, as through an
+    /// invisible boundary.
+    #[allow(clippy::too_many_arguments)]
+    fn pass_shadow_catcher(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        hit: &SurfaceHit,
+        at: &crate::material::ShadingPoint,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> SurfaceOutcome {
+        let scene = services.scene();
+        let wanted = s
+            .record
+            .as_deref()
+            .is_some_and(|r| r.shadow_catcher && r.catcher.is_none());
+        if wanted {
+            let material = &scene.materials[hit.material as usize];
+            let bsdf = material.bsdf(at, &scene.textures);
+            let frame = if hit.front_face {
+                hit.shading
+            } else {
+                Frame {
+                    s: hit.shading.s,
+                    t: -hit.shading.t,
+                    n: -hit.shading.n,
+                }
+            };
+            let wo = frame.to_local(-ray.dir);
+            let ctx = LightContext {
+                p: hit.p,
+                n: Some(frame.n),
+            };
+            let (mut lit, mut open) = (Rgb::ZERO, Rgb::ZERO);
+            let beta = s.beta;
+            services.sample_lights(&ctx, rng, |chosen, rng| {
+                let ls = chosen.sample;
+                let wi = frame.to_local(ls.wi);
+                let f = bsdf.eval(wo, wi) * wi.z.abs();
+                if f.max_element() <= 0.0 {
+                    return;
+                }
+                let unshadowed = beta * f * ls.radiance / (chosen.pmf * ls.pdf);
+                open += unshadowed;
+                if let Some(segment) = ls.shadow_segment(&hit.surface_point()) {
+                    let tr = services.transmittance(&segment, ray.time, &s.stack, rng, counters);
+                    lit += unshadowed * tr;
+                }
+            });
+            if let Some(r) = s.record.as_deref_mut() {
+                r.catcher = Some((lit, open));
+            }
+        }
+        s.crossings += 1;
+        if s.crossings > MAX_BOUNDARY_CROSSINGS {
+            return SurfaceOutcome::End;
+        }
+        counters.rays.bounce += 1;
+        SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time))
+    }
+
     /// Handles a real collision at distance `t` in medium `m`: emission, next-event estimation with MIS against
     /// phase sampling, then phase sampling to continue. Returns false when the path ends.
     #[allow(clippy::too_many_arguments)]
@@ -656,8 +875,18 @@ impl PathTracer {
         let scene = services.scene();
         s.cone_width += self.pixel_spread * t;
         let p = ray.at(t);
+        if s.depth == 0 {
+            if self.mattes && scene.names().medium_is_holdout(m as usize) {
+                s.cover(s.coverage_so_far(), || None);
+                return false;
+            }
+            s.cover(1.0, || Some(scene.names().item_of_medium(m as usize)));
+        }
         let collision = scene.media[m as usize].collision(p, ray.time);
-        s.radiance += s.beta * collision.emission;
+        if collision.emission.max_element() > 0.0 {
+            let emitter = || scene.names().emitter_of_medium(m as usize);
+            s.add_reached(s.beta * collision.emission, emitter);
+        }
         s.beta *= collision.albedo;
         if s.beta.max_element() <= 0.0 || s.depth >= self.max_depth {
             return false;
@@ -679,12 +908,16 @@ impl PathTracer {
                     } else {
                         power_heuristic(light_pdf, phase)
                     };
-                    s.radiance += s.beta * tr * ls.radiance * (phase * weight / light_pdf);
+                    let value = s.beta * tr * ls.radiance * (phase * weight / light_pdf);
+                    s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
                 }
             }
         });
         // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
         let (wi, pdf) = collision.phase.sample(wo, rng.sample_2d());
+        if s.depth == 0 {
+            s.first_event = FirstEvent::Volume;
+        }
         s.prev_delta = false;
         s.prev_pdf = pdf;
         s.prev = ctx;

@@ -27,6 +27,7 @@
 
 use super::texture::{ShadingPoint, Texture};
 use super::{Bsdf, PbrParams};
+use crate::geometry::CompositingTags;
 use crate::math::{Frame, Rgb, Vec3, Vec4};
 
 /// A texture reference: an index into the scene's texture list.
@@ -78,6 +79,9 @@ pub struct Material {
     pub clearcoat: Option<ClearcoatLayer>,
     /// `KHR_materials_sheen`, when present.
     pub sheen: Option<SheenLayer>,
+    /// Light group, holdout and shadow-catcher tags of every surface with this material (`extras`
+    /// `nimbus_light_group`, `nimbus_holdout`, `nimbus_shadow_catcher`; see [`CompositingTags`]).
+    pub tags: CompositingTags,
 }
 
 /// The clear coat of a material (`KHR_materials_clearcoat`): a GGX dielectric layer of index 1.5.
@@ -150,6 +154,7 @@ impl Default for Material {
             unlit: false,
             clearcoat: None,
             sheen: None,
+            tags: CompositingTags::default(),
         }
     }
 }

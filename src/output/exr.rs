@@ -1,21 +1,89 @@
 //! The multi-layer OpenEXR writer and a generic reader.
 //!
-//! [`write_exr`] writes one single-part scanline file, all channels 32-bit float, ZIP compressed (16 lines
-//! per block), with Nuke-style channel names in one flat, alphabetically sorted channel list: every channel
-//! of the output's channel table, [`crate::render::LAYERS`] (`R`, `G`, `B`, `A` = 1, `albedo.R`...,
-//! `normal.X`..., `depth.Z`, `variance.R`...). OpenEXR and Nuke split such names at the last `.` into layer
-//! and channel.
+//! [`write_exr`] writes one single-part scanline file with Nuke-style channel names in one flat, alphabetically
+//! sorted channel list: every channel the image writes ([`RenderImage::channel_list`]: `R`, `G`, `B`, `A`,
+//! `albedo.R`..., `diffuse_direct.R`..., `lg_key.R`..., `CryptoObject00.r`...). OpenEXR and Nuke split such
+//! names at the last `.` into layer and channel. [`ExrOptions`] choose the compression (ZIP by default, 16 lines
+//! per block) and whether colour layers are stored as half floats.
+//!
+//! The header carries:
+//! - the OpenEXR standard attributes `software` (`Nimbus <version>`), `capDate` (`YYYY:MM:DD hh:mm:ss`, UTC, with
+//!   `utcOffset` 0; from `SOURCE_DATE_EPOCH` when that is set, for reproducible files), and, when the image's
+//!   [`ImageMetadata`](crate::render::ImageMetadata) has them, `worldToCamera` and `worldToNDC`;
+//! - `nimbus/version` and the image's `nimbus/<key>` text attributes (spp, seed, render seconds, scene, scene
+//!   hash, frame);
+//! - for each Cryptomatte kind, `cryptomatte/<key>/name`, `hash`, `conversion` and `manifest` (see
+//!   [`crate::render::cryptomatte`]).
 
 use super::{validate, OutputError};
 use crate::math::Rgb;
-use crate::render::RenderImage;
+use crate::render::cryptomatte::manifest_json;
+use crate::render::{ChannelKind, RenderImage};
+use ::exr::meta::attribute::{AttributeValue, Text};
 use ::exr::prelude::{
-    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
-    ReadChannels, ReadLayers, WritableImage,
+    f16, read, AnyChannel, AnyChannels, Compression, Encoding, FlatSamples, Image, Layer,
+    LayerAttributes, LineOrder, ReadChannels, ReadLayers, WritableImage,
 };
 use ::exr::prelude::{SmallVec, Vec2};
 use std::collections::BTreeMap;
 use std::path::Path;
+
+/// The compression of an EXR file (`--compression`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum ExrCompression {
+    /// Lossless zlib, 16 lines per block (OpenEXR's ZIP).
+    #[default]
+    Zip,
+    /// Lossless wavelet (OpenEXR's PIZ): often smaller for noisy images.
+    Piz,
+    /// 32-bit floats rounded to 24 bits, then zlib: lossy for `float` channels (refused with Cryptomatte,
+    /// whose IDs are the bits of 32-bit floats).
+    Pxr24,
+    /// Lossy 4×4 blocks for half-float channels (others stored as they are).
+    B44,
+    /// Lossless run lengths.
+    Rle,
+    /// No compression.
+    None,
+}
+
+impl ExrCompression {
+    /// The `exr` crate's compression.
+    fn to_exr(self) -> Compression {
+        match self {
+            ExrCompression::Zip => Compression::ZIP16,
+            ExrCompression::Piz => Compression::PIZ,
+            ExrCompression::Pxr24 => Compression::PXR24,
+            ExrCompression::B44 => Compression::B44,
+            ExrCompression::Rle => Compression::RLE,
+            ExrCompression::None => Compression::Uncompressed,
+        }
+    }
+}
+
+/// Which channels `--half` stores as 16-bit floats.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum HalfFloats {
+    /// Every channel 32-bit.
+    #[default]
+    Off,
+    /// The colour layers beyond the beauty (albedo, normal, light paths, colours, light groups, shadow catcher);
+    /// the beauty, depth, variance and Cryptomatte stay 32-bit.
+    Aovs,
+    /// The beauty and its alpha too.
+    All,
+}
+
+/// How [`write_exr_with`] stores an image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ExrOptions {
+    /// The compression.
+    pub compression: ExrCompression,
+    /// Which channels are half floats.
+    pub half: HalfFloats,
+}
 
 /// The channels of an EXR file as 32-bit floats, keyed by full channel name (`"R"`, `"albedo.R"`, ...).
 #[derive(Clone, Debug, PartialEq)]
@@ -50,37 +118,200 @@ impl ExrLayers {
     }
 }
 
-/// Writes `image` to `path` as a single-part multi-layer scanline EXR (see the module docs for the
-/// channel names). Non-finite samples are written as they are.
+/// Writes `image` to `path` as a single-part multi-layer scanline EXR, ZIP compressed, every channel 32-bit
+/// (see the module docs for the channel names and header). Non-finite samples are written as they are.
 pub fn write_exr(image: &RenderImage, path: &Path) -> Result<(), OutputError> {
-    validate(image, path)?;
-    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = image
-        .channels()
-        .into_iter()
-        .map(|(name, samples)| channel(&name, samples))
-        .collect();
-
-    let layer = Layer::new(
-        Vec2(image.width, image.height),
-        LayerAttributes::default(),
-        Encoding::SMALL_LOSSLESS,
-        AnyChannels::sort(list),
-    );
-    Image::from_layer(layer)
-        .write()
-        .to_file(path)
-        .map_err(|source| OutputError::Exr {
-            path: path.to_path_buf(),
-            source,
-        })
+    write_exr_with(image, path, &ExrOptions::default())
 }
 
-/// A full-resolution f32 channel. `pLinear` is left off, as the OpenEXR library does by default; it only
-/// guides the lossy B44 compressors, which this writer does not use.
+/// Writes `image` to `path` as [`write_exr`] does, with the compression and half floats of `options`.
+/// `Pxr24` is refused for an image with Cryptomatte layers.
+pub fn write_exr_with(
+    image: &RenderImage,
+    path: &Path,
+    options: &ExrOptions,
+) -> Result<(), OutputError> {
+    validate(image, path)?;
+    if options.compression == ExrCompression::Pxr24 && !image.cryptomatte.is_empty() {
+        return Err(OutputError::Invalid {
+            path: path.to_path_buf(),
+            reason: "--compression pxr24 rounds 32-bit floats to 24 bits, which destroys Cryptomatte IDs; \
+                     use zip, piz, rle or none"
+                .into(),
+        });
+    }
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = image
+        .channel_list()
+        .into_iter()
+        .map(|c| {
+            let half = match c.kind {
+                ChannelKind::Beauty => options.half == HalfFloats::All,
+                ChannelKind::Color => options.half != HalfFloats::Off,
+                ChannelKind::Data => false,
+            };
+            if half {
+                let samples = c.samples.iter().map(|&v| f16::from_f32(v)).collect();
+                samples_channel(&c.name, FlatSamples::F16(samples))
+            } else {
+                channel(&c.name, c.samples)
+            }
+        })
+        .collect();
+    let encoding = Encoding {
+        compression: options.compression.to_exr(),
+        line_order: LineOrder::Increasing,
+        ..Encoding::SMALL_LOSSLESS
+    };
+    let layer = Layer::new(
+        Vec2(image.width, image.height),
+        header_attributes(image),
+        encoding,
+        AnyChannels::sort(list),
+    );
+    write_sorted(&Image::from_layer(layer), path)
+}
+
+/// Writes a single-part image to `path` with its header attributes in name order, as the OpenEXR library
+/// writes them: the `exr` crate keeps custom attributes in a hash map, whose order changes from process to
+/// process, and files of the same image must be the same bytes (a merged render is compared with a single one).
+pub(crate) fn write_sorted(
+    image: &Image<Layer<AnyChannels<FlatSamples>>>,
+    path: &Path,
+) -> Result<(), OutputError> {
+    let exr_error = |source| OutputError::Exr {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image.write().to_buffered(&mut bytes).map_err(exr_error)?;
+    let mut bytes = bytes.into_inner();
+    sort_header_attributes(&mut bytes);
+    std::fs::write(path, bytes).map_err(|e| exr_error(::exr::error::Error::from(e)))
+}
+
+/// Sorts the attributes of a single-part file's header by name, in place (the header keeps its length, so
+/// the offset table and chunks stay where they are). Files of another layout are left as they are.
+fn sort_header_attributes(bytes: &mut [u8]) {
+    // Magic number and version field; bit 12 of the version marks a multi-part file.
+    if bytes.len() < 8 || bytes[5] & 0x10 != 0 {
+        return;
+    }
+    let nul =
+        |from: usize, bytes: &[u8]| bytes[from..].iter().position(|&b| b == 0).map(|n| from + n);
+    let mut attributes: Vec<(Vec<u8>, std::ops::Range<usize>)> = Vec::new();
+    let mut at = 8;
+    loop {
+        let Some(name_end) = nul(at, bytes) else {
+            return;
+        };
+        if name_end == at {
+            break;
+        }
+        let Some(type_end) = nul(name_end + 1, bytes) else {
+            return;
+        };
+        let Some(size) = bytes.get(type_end + 1..type_end + 5) else {
+            return;
+        };
+        let size = u32::from_le_bytes([size[0], size[1], size[2], size[3]]) as usize;
+        let end = type_end + 5 + size;
+        if end > bytes.len() {
+            return;
+        }
+        attributes.push((bytes[at..name_end].to_vec(), at..end));
+        at = end;
+    }
+    let start = 8;
+    let mut sorted = attributes.clone();
+    sorted.sort_by(|a, b| a.0.cmp(&b.0));
+    let header: Vec<u8> = sorted
+        .iter()
+        .flat_map(|(_, range)| bytes[range.clone()].to_vec())
+        .collect();
+    bytes[start..at].copy_from_slice(&header);
+}
+
+/// The header attributes of `image` (see the module docs).
+fn header_attributes(image: &RenderImage) -> LayerAttributes {
+    let text = |t: &str| Text::new_or_none(t).unwrap_or_else(|| Text::from("?"));
+    let mut attributes = LayerAttributes {
+        software_name: Some(text(&format!("Nimbus {}", env!("CARGO_PKG_VERSION")))),
+        capture_date: Some(text(&capture_date())),
+        utc_offset: Some(0.0),
+        world_to_camera: image.metadata.world_to_camera.map(flatten),
+        world_to_normalized_device: image.metadata.world_to_ndc.map(flatten),
+        ..LayerAttributes::default()
+    };
+    let mut put = |key: String, value: &str| {
+        attributes
+            .other
+            .insert(text(&key), AttributeValue::Text(text(value)));
+    };
+    put("nimbus/version".into(), env!("CARGO_PKG_VERSION"));
+    for (key, value) in &image.metadata.nimbus {
+        put(format!("nimbus/{key}"), value);
+    }
+    for (kind, manifest) in &image.cryptomatte {
+        let prefix = format!("cryptomatte/{}", kind.metadata_key());
+        put(format!("{prefix}/name"), kind.layer_name());
+        put(format!("{prefix}/hash"), "MurmurHash3_32");
+        put(format!("{prefix}/conversion"), "uint32_to_float32");
+        put(format!("{prefix}/manifest"), &manifest_json(manifest));
+    }
+    attributes
+}
+
+/// A row-major 4×4 matrix as OpenEXR's `m44f` stores it.
+fn flatten(m: [[f32; 4]; 4]) -> [f32; 16] {
+    std::array::from_fn(|i| m[i / 4][i % 4])
+}
+
+/// `capDate`: `SOURCE_DATE_EPOCH` (seconds since 1970, the reproducible-builds convention) when set, else now;
+/// as `YYYY:MM:DD hh:mm:ss` in UTC.
+fn capture_date() -> String {
+    let seconds = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|s| s.trim().parse::<i64>().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs() as i64)
+        });
+    format_utc(seconds)
+}
+
+/// `YYYY:MM:DD hh:mm:ss` of `seconds` after 1970-01-01 00:00:00 UTC (the proleptic Gregorian calendar's
+/// civil date of a day count, after Hinnant's "chrono-Compatible Low-Level Date Algorithms").
+fn format_utc(seconds: i64) -> String {
+    let (days, secs) = (seconds.div_euclid(86_400), seconds.rem_euclid(86_400));
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}:{month:02}:{day:02} {:02}:{:02}:{:02}",
+        secs / 3600,
+        secs % 3600 / 60,
+        secs % 60
+    )
+}
+
+/// A full-resolution f32 channel. `pLinear` is left off, as the OpenEXR library does by default: it tells the
+/// lossy B44 compressor that the values are linear light, which it then quantises in a perceptual (log) space.
 fn channel(name: &str, samples: Vec<f32>) -> AnyChannel<FlatSamples> {
+    samples_channel(name, FlatSamples::F32(samples))
+}
+
+/// A full-resolution channel of `samples`, `pLinear` off (see [`channel`]).
+fn samples_channel(name: &str, samples: FlatSamples) -> AnyChannel<FlatSamples> {
     AnyChannel {
         name: name.into(),
-        sample_data: FlatSamples::F32(samples),
+        sample_data: samples,
         quantize_linearly: false,
         sampling: Vec2(1, 1),
     }
@@ -171,6 +402,7 @@ mod tests {
             img.normal[i] = Vec3::new(f + 20.1, f + 20.2, f + 20.3);
             img.depth[i] = f + 30.5;
             img.variance[i] = Vec3::new(f + 40.1, f + 40.2, f + 40.3);
+            img.alpha[i] = 1.0 / (1.0 + f);
         }
         img
     }
@@ -210,7 +442,7 @@ mod tests {
             assert_eq!(got, img.normal.iter().map(|n| n[c]).collect::<Vec<_>>());
         }
         assert_eq!(layers.channel("depth.Z").unwrap(), img.depth.as_slice());
-        assert!(layers.channel("A").unwrap().iter().all(|a| *a == 1.0));
+        assert_eq!(layers.channel("A").unwrap(), img.alpha.as_slice());
         std::fs::remove_file(&path).unwrap();
     }
 
@@ -243,6 +475,122 @@ mod tests {
             "EXR requires an alphabetically sorted channel list"
         );
         std::fs::remove_file(&path).unwrap();
+    }
+
+    #[test]
+    fn layers_half_floats_compressions_and_header_attributes() {
+        use crate::render::cryptomatte::{name_id, CryptoKind, Manifest};
+        use crate::render::AovLayer;
+        let mut img = distinct_image();
+        let mut light = AovLayer::rgb("diffuse_direct", 6);
+        let mut ids = AovLayer::cryptomatte("CryptoObject00", 6);
+        for i in 0..6 {
+            light.data[1][i] = 0.25 * i as f32;
+            ids.data[0][i] = f32::from_bits(name_id("crate"));
+            ids.data[1][i] = 0.5;
+        }
+        img.aovs = vec![light, ids];
+        let manifest: Manifest = [("crate".to_string(), name_id("crate"))].into();
+        img.cryptomatte = vec![(CryptoKind::Object, manifest)];
+        let m = [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [1.0, 2.0, 3.0, 1.0],
+        ];
+        img.metadata.world_to_camera = Some(m);
+        img.metadata.nimbus.insert("spp".into(), "64".into());
+        for (k, compression) in [
+            ExrCompression::Zip,
+            ExrCompression::Piz,
+            ExrCompression::B44,
+            ExrCompression::Rle,
+            ExrCompression::None,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let half = [HalfFloats::Off, HalfFloats::Aovs, HalfFloats::All][k % 3];
+            let path = temp_path(&format!("options_{k}.exr"));
+            write_exr_with(&img, &path, &ExrOptions { compression, half }).unwrap();
+            let meta = ::exr::meta::MetaData::read_from_file(&path, false).unwrap();
+            let header = &meta.headers[0];
+            assert_eq!(header.compression, compression.to_exr());
+            let sample_type = |name: &str| {
+                header
+                    .channels
+                    .list
+                    .iter()
+                    .find(|c| c.name.to_string() == name)
+                    .map(|c| c.sample_type)
+                    .unwrap()
+            };
+            use ::exr::meta::attribute::SampleType::{F16, F32};
+            let aov_type = if half == HalfFloats::Off { F32 } else { F16 };
+            let beauty_type = if half == HalfFloats::All { F16 } else { F32 };
+            assert_eq!(sample_type("R"), beauty_type, "{compression:?} {half:?}");
+            assert_eq!(sample_type("A"), beauty_type);
+            assert_eq!(sample_type("albedo.G"), aov_type);
+            assert_eq!(sample_type("diffuse_direct.G"), aov_type);
+            assert_eq!(sample_type("depth.Z"), F32);
+            assert_eq!(sample_type("variance.B"), F32);
+            assert_eq!(sample_type("CryptoObject00.r"), F32);
+            let attrs = &header.own_attributes;
+            assert!(attrs
+                .software_name
+                .as_ref()
+                .unwrap()
+                .to_string()
+                .starts_with("Nimbus "));
+            let date = attrs.capture_date.as_ref().unwrap().to_string();
+            assert_eq!(
+                (date.len(), &date[4..5], &date[13..14]),
+                (19, ":", ":"),
+                "{date}"
+            );
+            assert_eq!(attrs.world_to_camera, Some(flatten(m)));
+            let text = |key: &str| match attrs.other.get(&Text::from(key)) {
+                Some(AttributeValue::Text(t)) => t.to_string(),
+                other => panic!("{key}: {other:?}"),
+            };
+            assert_eq!(text("nimbus/spp"), "64");
+            let key = CryptoKind::Object.metadata_key();
+            assert_eq!(text(&format!("cryptomatte/{key}/name")), "CryptoObject");
+            assert_eq!(text(&format!("cryptomatte/{key}/hash")), "MurmurHash3_32");
+            assert_eq!(
+                text(&format!("cryptomatte/{key}/manifest")),
+                format!("{{\"crate\":\"{:08x}\"}}", name_id("crate"))
+            );
+            // IDs come back bit for bit, whatever the compression and half floats.
+            let layers = read_exr_layers(&path).unwrap();
+            let id = layers.channel("CryptoObject00.r").unwrap();
+            assert!(id.iter().all(|v| v.to_bits() == name_id("crate")));
+            let g = layers.channel("diffuse_direct.G").unwrap();
+            assert!(g
+                .iter()
+                .enumerate()
+                .all(|(i, &v)| (v - 0.25 * i as f32).abs() < 2e-3));
+            std::fs::remove_file(&path).unwrap();
+        }
+        let path = temp_path("pxr24.exr");
+        let options = ExrOptions {
+            compression: ExrCompression::Pxr24,
+            half: HalfFloats::Off,
+        };
+        let err = write_exr_with(&img, &path, &options).unwrap_err();
+        assert!(err.to_string().contains("Cryptomatte"), "{err}");
+        img.cryptomatte.clear();
+        img.aovs.pop();
+        write_exr_with(&img, &path, &options).unwrap();
+        std::fs::remove_file(&path).unwrap();
+    }
+
+    #[test]
+    fn capture_dates_are_utc_civil_dates() {
+        assert_eq!(format_utc(0), "1970:01:01 00:00:00");
+        assert_eq!(format_utc(951_782_400), "2000:02:29 00:00:00");
+        assert_eq!(format_utc(1_796_316_000 + 3_723), "2026:12:03 17:42:03");
+        assert_eq!(format_utc(-1), "1969:12:31 23:59:59");
     }
 
     #[test]

@@ -3,8 +3,10 @@
 mod exr;
 mod png;
 
-pub(crate) use self::exr::read_flat_image;
-pub use self::exr::{read_exr_layers, write_exr, ExrLayers};
+pub use self::exr::{
+    read_exr_layers, write_exr, write_exr_with, ExrCompression, ExrLayers, ExrOptions, HalfFloats,
+};
+pub(crate) use self::exr::{read_flat_image, write_sorted};
 pub use self::png::{preview_path, write_png_preview};
 
 use std::path::PathBuf;
@@ -58,9 +60,7 @@ fn validate(image: &crate::render::RenderImage, path: &std::path::Path) -> Resul
         .checked_mul(image.height)
         .ok_or_else(|| invalid(format!("size {}x{} overflows", image.width, image.height)))?;
     for layer in &crate::render::LAYERS {
-        let Some(len) = layer.buffer_len(image) else {
-            continue;
-        };
+        let len = layer.buffer_len(image);
         if len != n {
             let name = match layer.name {
                 "" => "beauty",
@@ -69,6 +69,14 @@ fn validate(image: &crate::render::RenderImage, path: &std::path::Path) -> Resul
             return Err(invalid(format!(
                 "{name} buffer holds {len} pixels, expected {n} for {}x{}",
                 image.width, image.height
+            )));
+        }
+    }
+    for layer in &image.aovs {
+        if let Some(len) = layer.data.iter().map(Vec::len).find(|&len| len != n) {
+            return Err(invalid(format!(
+                "layer {} holds {len} pixels, expected {n} for {}x{}",
+                layer.name, image.width, image.height
             )));
         }
     }

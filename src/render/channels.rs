@@ -1,6 +1,8 @@
 //! The output's channel table: every layer of a [`RenderImage`], its buffer and its channel names, in one
-//! place. The EXR writer, the farm's part files, the C API's channel copies and the image checks all read
-//! through it, so adding an AOV means adding its buffer to [`RenderImage`] and one row to [`LAYERS`].
+//! place. The core layers (beauty, alpha, first-hit AOVs) are the rows of [`LAYERS`]; the layers a render's
+//! plan adds (light paths, colours, light groups, shadow catcher, Cryptomatte; see [`super::aovs`]) are the
+//! image's [`RenderImage::aovs`]. The EXR writer, the farm's part files, the C API's channel copies and the
+//! image checks all read through [`RenderImage::channel_list`].
 //!
 //! Channel names follow Nuke's convention, `layer.component` (`R`, `albedo.G`, `normal.Z`, `depth.Z`...);
 //! OpenEXR and Nuke split them at the last `.` into layer and channel.
@@ -15,11 +17,21 @@ pub enum LayerData<'a> {
     Vectors(&'a [Vec3]),
     /// One component per pixel.
     Scalars(&'a [f32]),
-    /// The same value in every pixel (the beauty's alpha).
-    Constant(f32),
 }
 
-/// One layer of the output: its name, its channels' names, and its buffer.
+/// What a channel holds, which decides how `--half` may store it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChannelKind {
+    /// The beauty and its alpha (`R`, `G`, `B`, `A`): half floats only when asked for the beauty too.
+    Beauty,
+    /// A colour-like AOV (albedo, normal, light paths, colours, light groups, shadow catcher): half floats
+    /// under `--half`.
+    Color,
+    /// Data that half floats would damage (depth, variance, Cryptomatte IDs): always 32-bit floats.
+    Data,
+}
+
+/// One of the core layers of the output: its name, its channels' names, and its buffer.
 #[derive(Clone, Copy, Debug)]
 pub struct Layer {
     /// The layer's name: `""` for the beauty (whose channels are `R`, `G`, `B` and `A`), else the prefix of
@@ -29,6 +41,8 @@ pub struct Layer {
     pub components: &'static [&'static str],
     /// What the layer holds, as documented in the README and in [`RenderImage`].
     pub meaning: &'static str,
+    /// How `--half` may store it.
+    pub kind: ChannelKind,
     /// The layer's buffer in an image.
     pub data: for<'a> fn(&'a RenderImage) -> LayerData<'a>,
 }
@@ -47,98 +61,148 @@ impl Layer {
         match (self.data)(image) {
             LayerData::Vectors(v) => v.iter().map(|p| p[c]).collect(),
             LayerData::Scalars(v) => v.to_vec(),
-            LayerData::Constant(value) => vec![value; image.pixel_count()],
         }
     }
 
-    /// How many pixels the layer's buffer holds in `image` (`None` for a constant layer).
-    pub fn buffer_len(&self, image: &RenderImage) -> Option<usize> {
+    /// How many pixels the layer's buffer holds in `image`.
+    pub fn buffer_len(&self, image: &RenderImage) -> usize {
         match (self.data)(image) {
-            LayerData::Vectors(v) => Some(v.len()),
-            LayerData::Scalars(v) => Some(v.len()),
-            LayerData::Constant(_) => None,
+            LayerData::Vectors(v) => v.len(),
+            LayerData::Scalars(v) => v.len(),
         }
+    }
+
+    /// True when `image` writes this layer: the beauty and alpha always, a first-hit layer when chosen.
+    pub fn is_written(&self, image: &RenderImage) -> bool {
+        self.name.is_empty() || image.first_hit.iter().any(|f| f.name() == self.name)
     }
 }
 
-/// Every layer of a rendered image.
+/// The core layers of a rendered image: the beauty, its alpha and the first-hit layers (each written when
+/// chosen; see [`RenderImage::first_hit`]). The other layers are the image's [`RenderImage::aovs`].
 pub const LAYERS: [Layer; 6] = [
     Layer {
         name: "",
         components: &["R", "G", "B"],
-        meaning: "beauty: linear Rec.709 radiance, the mean of the pixel's samples",
+        meaning: "beauty: linear Rec.709 radiance, the mean of the pixel's samples (premultiplied by alpha)",
+        kind: ChannelKind::Beauty,
         data: |image| LayerData::Vectors(&image.beauty),
     },
     Layer {
         name: "",
         components: &["A"],
-        meaning: "alpha: 1 everywhere",
-        data: |_| LayerData::Constant(1.0),
+        meaning: "alpha: coverage, 1 − the camera ray's transmittance to the environment (holdouts cut it)",
+        kind: ChannelKind::Beauty,
+        data: |image| LayerData::Scalars(&image.alpha),
     },
     Layer {
         name: "albedo",
         components: &["R", "G", "B"],
         meaning: "albedo of the first surface hit (0 where nothing was hit)",
+        kind: ChannelKind::Color,
         data: |image| LayerData::Vectors(&image.albedo),
     },
     Layer {
         name: "normal",
         components: &["X", "Y", "Z"],
         meaning: "world-space shading normal of the first surface hit, facing the camera",
+        kind: ChannelKind::Color,
         data: |image| LayerData::Vectors(&image.normal),
     },
     Layer {
         name: "depth",
         components: &["Z"],
         meaning: "distance from the camera to the first hit (0 where nothing was hit)",
+        kind: ChannelKind::Data,
         data: |image| LayerData::Scalars(&image.depth),
     },
     Layer {
         name: "variance",
         components: &["R", "G", "B"],
         meaning: "variance of the beauty mean (its square root is the standard error)",
+        kind: ChannelKind::Data,
         data: |image| LayerData::Vectors(&image.variance),
     },
 ];
 
-/// Every channel name, sorted as an EXR file lists them (`A`, `B`, `G`, `R`, `albedo.B`, ...).
+/// The channel names of a render with the default layers (beauty, alpha and the first-hit layers), sorted as
+/// an EXR file lists them (`A`, `B`, `G`, `R`, `albedo.B`, ...). An image's own are
+/// [`RenderImage::channel_names`].
 pub fn channel_names() -> Vec<String> {
-    let mut names: Vec<String> = channels().map(|(layer, c)| layer.channel_name(c)).collect();
-    names.sort();
-    names
+    RenderImage::new(1, 1).channel_names()
 }
 
-/// Every (layer, component) pair of [`LAYERS`].
-fn channels() -> impl Iterator<Item = (&'static Layer, usize)> {
-    LAYERS
-        .iter()
-        .flat_map(|layer| (0..layer.components.len()).map(move |c| (layer, c)))
+/// One channel of an image: its full name, what it holds, and its samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    /// The full name (`R`, `albedo.G`, `lg_key.B`, `CryptoObject00.r`).
+    pub name: String,
+    /// What it holds.
+    pub kind: ChannelKind,
+    /// The samples, row-major from the top row.
+    pub samples: Vec<f32>,
 }
 
 impl RenderImage {
-    /// The samples of channel `name` (one of [`channel_names`]), row-major from the top row, or `None` for
-    /// an unknown name.
+    /// Every channel the image writes, sorted by name as an EXR file lists them.
+    pub fn channel_list(&self) -> Vec<Channel> {
+        let mut all: Vec<Channel> = LAYERS
+            .iter()
+            .filter(|l| l.is_written(self))
+            .flat_map(|layer| {
+                (0..layer.components.len()).map(move |c| Channel {
+                    name: layer.channel_name(c),
+                    kind: layer.kind,
+                    samples: layer.samples(self, c),
+                })
+            })
+            .collect();
+        for layer in &self.aovs {
+            for (c, component) in layer.components.iter().enumerate() {
+                all.push(Channel {
+                    name: format!("{}.{component}", layer.name),
+                    kind: if layer.allows_half {
+                        ChannelKind::Color
+                    } else {
+                        ChannelKind::Data
+                    },
+                    samples: layer.data[c].clone(),
+                });
+            }
+        }
+        all.sort_by(|a, b| a.name.cmp(&b.name));
+        all
+    }
+
+    /// The names of every channel the image writes, sorted as an EXR file lists them.
+    pub fn channel_names(&self) -> Vec<String> {
+        self.channel_list().into_iter().map(|c| c.name).collect()
+    }
+
+    /// The samples of channel `name` (one of [`channel_names`](Self::channel_names)), row-major from the top
+    /// row, or `None` for a channel the image does not write.
     ///
     /// ```
     /// let mut image = nimbus::RenderImage::new(2, 1);
     /// image.albedo[1].y = 0.5;
+    /// image.alpha[0] = 1.0;
     /// assert_eq!(image.channel("albedo.G"), Some(vec![0.0, 0.5]));
-    /// assert_eq!(image.channel("A"), Some(vec![1.0, 1.0]));
+    /// assert_eq!(image.channel("A"), Some(vec![1.0, 0.0]));
     /// assert_eq!(image.channel("albedo.Q"), None);
     /// ```
     pub fn channel(&self, name: &str) -> Option<Vec<f32>> {
-        channels()
-            .find(|(layer, c)| layer.channel_name(*c) == name)
-            .map(|(layer, c)| layer.samples(self, c))
+        self.channel_list()
+            .into_iter()
+            .find(|c| c.name == name)
+            .map(|c| c.samples)
     }
 
     /// Every channel with its samples, sorted by name as an EXR file lists them.
     pub fn channels(&self) -> Vec<(String, Vec<f32>)> {
-        let mut all: Vec<(String, Vec<f32>)> = channels()
-            .map(|(layer, c)| (layer.channel_name(c), layer.samples(self, c)))
-            .collect();
-        all.sort_by(|a, b| a.0.cmp(&b.0));
-        all
+        self.channel_list()
+            .into_iter()
+            .map(|c| (c.name, c.samples))
+            .collect()
     }
 }
 
@@ -152,7 +216,7 @@ mod tests {
         img.beauty[0] = Vec3::new(1.0, 2.0, 3.0);
         img.normal[0] = Vec3::new(4.0, 5.0, 6.0);
         img.depth[0] = 7.0;
-        let names = channel_names();
+        let names = img.channel_names();
         assert_eq!(names.len(), 14);
         for name in &names {
             assert_eq!(img.channel(name).map(|v| v.len()), Some(1), "{name}");

@@ -111,6 +111,12 @@ impl EmitterEdgeSampling {
         if scene.camera.motion.is_some() || scene.moving_triangle_count() > 0 {
             return EdgeDecision::Off("the camera or triangles move over the shutter".into());
         }
+        if scene.names().has_mattes() {
+            return EdgeDecision::Off(
+                "the scene has holdouts or shadow catchers, which camera rays see differently"
+                    .into(),
+            );
+        }
         EmitterEdges::find(scene, width, height)
     }
 }

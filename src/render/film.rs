@@ -1,11 +1,17 @@
-//! The film: per-pixel exact sums of the samples (see [`super::exact`]), from which the mean (beauty), the AOVs
-//! and the variance of the mean are taken. A film covers a window of the frame (the whole frame, or the crop of
-//! a tile render), and films of the same frame add up exactly, whatever samples and pixels each one holds.
+//! The film: per-pixel exact sums of the samples (see [`super::exact`]), from which the mean (beauty), the
+//! alpha, the AOVs and the variance of the mean are taken. A film covers a window of the frame (the whole frame,
+//! or the crop of a tile render), and films of the same frame add up exactly, whatever samples and pixels each
+//! one holds. Beyond its core sums a film keeps what its [`LayerPlan`] asks for: RGB slots of exact sums
+//! (light-path layers, colours, light groups, the shadow catcher) and Cryptomatte coverage maps.
 
+use super::aovs::{color_layer_name, LayerPlan, LightPath, CATCHER_LIT, CATCHER_OPEN};
+use super::cryptomatte::IdCoverage;
 use super::exact::{clamp_sample, SquareSum, ValueSum};
+use super::image::AovLayer;
 use super::RenderImage;
 use crate::integrator::PathSample;
 use crate::math::{Rgb, Vec3};
+use std::sync::Arc;
 
 /// A rectangle of pixels `[x0, x1) × [y0, y1)` in a frame, `y = 0` the top row.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -84,12 +90,13 @@ pub struct PixelSums {
     albedo: [ValueSum; 3],
     normal: [ValueSum; 3],
     depth: ValueSum,
+    alpha: ValueSum,
 }
 
 impl PixelSums {
     /// Number of 32-bit words in [`to_words`](Self::to_words): the count, then the sums of radiance,
-    /// squared radiance, albedo, normal and depth (see [`WORD_NAMES`](Self::WORD_NAMES)).
-    pub const WORDS: usize = 1 + 10 * ValueSum::WORDS + 3 * SquareSum::WORDS;
+    /// squared radiance, albedo, normal, depth and alpha (see [`WORD_NAMES`](Self::WORD_NAMES)).
+    pub const WORDS: usize = 1 + 11 * ValueSum::WORDS + 3 * SquareSum::WORDS;
 
     /// The name of each word of [`to_words`](Self::to_words): `count`, then `sum.R.0` … `sum.R.3` (radiance,
     /// little-endian words of a two's-complement integer), `sumsq.R.0` … `sumsq.R.5`, `albedo.R.0`,
@@ -110,6 +117,7 @@ impl PixelSums {
         "normal.Y.0", "normal.Y.1", "normal.Y.2", "normal.Y.3",
         "normal.Z.0", "normal.Z.1", "normal.Z.2", "normal.Z.3",
         "depth.Z.0", "depth.Z.1", "depth.Z.2", "depth.Z.3",
+        "alpha.A.0", "alpha.A.1", "alpha.A.2", "alpha.A.3",
     ];
 
     /// Adds one sample whose radiance is finite. Returns true when a value had to be clamped into the range
@@ -130,6 +138,7 @@ impl PixelSums {
             self.normal[c].add_value(take(s.normal[c]));
         }
         self.depth.add_value(take(s.depth));
+        self.alpha.add_value(take(s.alpha));
         clamped
     }
 
@@ -143,6 +152,7 @@ impl PixelSums {
             self.normal[c].add(other.normal[c]);
         }
         self.depth.add(other.depth);
+        self.alpha.add(other.alpha);
     }
 
     /// Number of samples added.
@@ -159,7 +169,8 @@ impl PixelSums {
             .chain(self.sum_sq.iter().flat_map(|s| s.to_words()))
             .chain(values(&self.albedo))
             .chain(values(&self.normal))
-            .chain(self.depth.to_words());
+            .chain(self.depth.to_words())
+            .chain(self.alpha.to_words());
         let mut out = [0; Self::WORDS];
         for (o, w) in out.iter_mut().zip(words) {
             *o = w;
@@ -182,7 +193,56 @@ impl PixelSums {
             albedo: [value(), value(), value()],
             normal: [value(), value(), value()],
             depth: value(),
+            alpha: value(),
         }
+    }
+}
+
+/// Adds a (possibly out-of-range) value to an exact sum; returns true when it had to be clamped.
+pub(crate) fn add_clamped(sum: &mut ValueSum, v: f32) -> bool {
+    let (v, clamped) = clamp_sample(v);
+    sum.add_value(v);
+    clamped
+}
+
+/// The sums of one pixel a render adds a sample to: its core sums, its slots (three values each, in the plan's
+/// order) and its Cryptomatte coverage maps (one per kind of the plan).
+pub struct FilmPixel<'a> {
+    /// The core sums.
+    pub sums: &'a mut PixelSums,
+    /// The slots' sums.
+    pub slots: &'a mut [ValueSum],
+    /// The Cryptomatte maps.
+    pub crypto: &'a mut [IdCoverage],
+}
+
+/// One row of a film's window, for parallel accumulation: the pixels' core sums, slots and Cryptomatte maps.
+pub struct FilmRow<'a> {
+    sums: &'a mut [PixelSums],
+    slots: &'a mut [ValueSum],
+    crypto: &'a mut [IdCoverage],
+    slot_values: usize,
+    kinds: usize,
+}
+
+impl<'a> FilmRow<'a> {
+    /// The pixels of the row, left to right.
+    pub fn pixels(self) -> impl Iterator<Item = FilmPixel<'a>> {
+        let (slot_values, kinds) = (self.slot_values, self.kinds);
+        let n = self.sums.len();
+        let mut slots = self.slots;
+        let mut crypto = self.crypto;
+        self.sums.iter_mut().take(n).map(move |sums| {
+            let (s, rest) = std::mem::take(&mut slots).split_at_mut(slot_values);
+            slots = rest;
+            let (c, rest) = std::mem::take(&mut crypto).split_at_mut(kinds);
+            crypto = rest;
+            FilmPixel {
+                sums,
+                slots: s,
+                crypto: c,
+            }
+        })
     }
 }
 
@@ -195,22 +255,91 @@ pub struct Film {
     pub height: usize,
     window: PixelWindow,
     pixels: Vec<PixelSums>,
+    plan: Arc<LayerPlan>,
+    /// `plan.values_per_pixel()` sums per pixel, row-major.
+    slots: Vec<ValueSum>,
+    /// `plan.cryptomatte.len()` coverage maps per pixel, row-major.
+    crypto: Vec<IdCoverage>,
 }
 
 impl Film {
-    /// An empty film of the whole `width` × `height` frame.
+    /// An empty film of the whole `width` × `height` frame, with no layers beyond the core.
     pub fn new(width: usize, height: usize) -> Self {
         Self::with_window(width, height, PixelWindow::full(width, height))
     }
 
-    /// An empty film of `window` (which should fit the frame) in a `width` × `height` frame.
+    /// An empty film of `window` (which should fit the frame) in a `width` × `height` frame, with no layers
+    /// beyond the core.
     pub fn with_window(width: usize, height: usize, window: PixelWindow) -> Self {
+        Self::with_plan(width, height, window, Arc::new(LayerPlan::default()))
+    }
+
+    /// An empty film of `window` in a `width` × `height` frame that keeps what `plan` asks for.
+    pub fn with_plan(
+        width: usize,
+        height: usize,
+        window: PixelWindow,
+        plan: Arc<LayerPlan>,
+    ) -> Self {
+        let n = window.pixel_count();
         Self {
             width,
             height,
             window,
-            pixels: vec![PixelSums::default(); window.pixel_count()],
+            pixels: vec![PixelSums::default(); n],
+            slots: vec![ValueSum::default(); n * plan.values_per_pixel()],
+            crypto: vec![IdCoverage::default(); n * plan.cryptomatte.len()],
+            plan,
         }
+    }
+
+    /// What the film keeps beyond its core sums.
+    pub fn plan(&self) -> &LayerPlan {
+        &self.plan
+    }
+
+    /// The slots' sums of the window: `plan().values_per_pixel()` per pixel, row-major.
+    pub fn slots(&self) -> &[ValueSum] {
+        &self.slots
+    }
+
+    /// The Cryptomatte maps of the window: `plan().cryptomatte.len()` per pixel, row-major.
+    pub fn crypto(&self) -> &[IdCoverage] {
+        &self.crypto
+    }
+
+    /// Pixel `i` of the window (row-major), to add samples to.
+    pub fn pixel_mut(&mut self, i: usize) -> FilmPixel<'_> {
+        let (v, k) = (self.plan.values_per_pixel(), self.plan.cryptomatte.len());
+        FilmPixel {
+            sums: &mut self.pixels[i],
+            slots: &mut self.slots[i * v..(i + 1) * v],
+            crypto: &mut self.crypto[i * k..(i + 1) * k],
+        }
+    }
+
+    /// The rows of the window, top first, for parallel accumulation.
+    pub fn rows_mut(&mut self) -> Vec<FilmRow<'_>> {
+        let w = self.window.width();
+        let (v, k) = (self.plan.values_per_pixel(), self.plan.cryptomatte.len());
+        let mut slots = self.slots.as_mut_slice();
+        let mut crypto = self.crypto.as_mut_slice();
+        self.pixels
+            .chunks_mut(w.max(1))
+            .map(|sums| {
+                let (s, rest) = std::mem::take(&mut slots).split_at_mut(w * v);
+                slots = rest;
+                let (c, rest) = std::mem::take(&mut crypto).split_at_mut(w * k);
+                crypto = rest;
+                FilmRow {
+                    sums,
+                    slots: s,
+                    crypto: c,
+                    slot_values: v,
+                    kinds: k,
+                }
+            })
+            .collect()
     }
 
     /// The pixels of the frame this film holds.
@@ -228,29 +357,58 @@ impl Film {
         &mut self.pixels
     }
 
-    /// Adds the samples of `other`, a film of the same frame whose window lies inside this one's; returns
-    /// false (and adds nothing) when it does not fit.
+    /// Adds the samples of `other`, a film of the same frame and plan whose window lies inside this one's;
+    /// returns false (and adds nothing) when it does not fit.
     pub fn merge(&mut self, other: &Film) -> bool {
         if (other.width, other.height) != (self.width, self.height)
             || !self.window.contains(&other.window)
+            || other.plan != self.plan
         {
             return false;
         }
         let (w, ow) = (self.window.width(), other.window.width());
-        for (row, src) in other.pixels.chunks_exact(ow.max(1)).enumerate() {
+        let (v, k) = (self.plan.values_per_pixel(), self.plan.cryptomatte.len());
+        for row in 0..other.window.height() {
             let y = other.window.y0 + row - self.window.y0;
-            let start = y * w + other.window.x0 - self.window.x0;
-            for (dst, src) in self.pixels[start..start + ow].iter_mut().zip(src) {
-                dst.merge(src);
+            for x in 0..ow {
+                let dst = y * w + other.window.x0 - self.window.x0 + x;
+                let src = row * ow + x;
+                self.pixels[dst].merge(&other.pixels[src]);
+                for j in 0..v {
+                    self.slots[dst * v + j].add(other.slots[src * v + j]);
+                }
+                for j in 0..k {
+                    self.crypto[dst * k + j].merge(&other.crypto[src * k + j]);
+                }
             }
         }
         true
     }
 
-    /// The image of the window: sample means for beauty and AOVs, and the variance of the mean,
-    /// `(Σx² − (Σx)²/n) / (n − 1) / n`, per channel.
+    /// Sets the sums of pixel `i` (row-major in the window) from a part file: the core sums, the slots'
+    /// sums and the Cryptomatte maps (`None` keeps what is there). Lengths must be the plan's.
+    pub fn set_pixel(
+        &mut self,
+        i: usize,
+        sums: PixelSums,
+        slots: &[ValueSum],
+        crypto: Option<Vec<IdCoverage>>,
+    ) {
+        let (v, k) = (self.plan.values_per_pixel(), self.plan.cryptomatte.len());
+        self.pixels[i] = sums;
+        self.slots[i * v..(i + 1) * v].copy_from_slice(slots);
+        if let Some(c) = crypto {
+            for (dst, src) in self.crypto[i * k..(i + 1) * k].iter_mut().zip(c) {
+                *dst = src;
+            }
+        }
+    }
+
+    /// The image of the window: sample means for beauty, alpha and AOVs, the variance of the mean,
+    /// `(Σx² − (Σx)²/n) / (n − 1) / n`, per channel, and the plan's layers (see [`super::aovs`]).
     pub fn image(&self) -> RenderImage {
         let mut img = RenderImage::new(self.window.width(), self.window.height());
+        img.first_hit.retain(|f| self.plan.writes(f.name()));
         for (i, p) in self.pixels.iter().enumerate() {
             if p.count == 0 {
                 continue;
@@ -267,6 +425,7 @@ impl Film {
             img.albedo[i] = mean(&p.albedo);
             img.normal[i] = mean(&p.normal).normalize_or_zero();
             img.depth[i] = (p.depth.to_f64() / n) as f32;
+            img.alpha[i] = (p.alpha.to_f64() / n) as f32;
             if p.count > 1 {
                 let var = |c: usize| {
                     let (s, sq) = (p.sum[c].to_f64(), p.sum_sq[c].to_f64());
@@ -275,7 +434,98 @@ impl Film {
                 img.variance[i] = Rgb::new(var(0), var(1), var(2));
             }
         }
+        img.aovs = self.layer_images();
+        img.cryptomatte = self.plan.cryptomatte.clone();
         img
+    }
+
+    /// The mean of slot `slot` in pixel `i` (zero without samples), per channel, in `f64`.
+    fn slot_mean(&self, i: usize, slot: usize) -> [f64; 3] {
+        let n = self.pixels[i].count;
+        if n == 0 {
+            return [0.0; 3];
+        }
+        let base = i * self.plan.values_per_pixel() + 3 * slot;
+        std::array::from_fn(|c| self.slots[base + c].to_f64() / n as f64)
+    }
+
+    /// The plan's written layers other than the first-hit ones, in the plan's order.
+    fn layer_images(&self) -> Vec<AovLayer> {
+        let n = self.pixels.len();
+        let mut out = Vec::new();
+        let rgb = |name: &str, value: &dyn Fn(usize) -> [f64; 3]| {
+            let mut layer = AovLayer::rgb(name, n);
+            for i in 0..n {
+                for (channel, v) in layer.data.iter_mut().zip(value(i)) {
+                    channel[i] = v as f32;
+                }
+            }
+            layer
+        };
+        for name in &self.plan.written {
+            if let Some(path) = LightPath::ALL.into_iter().find(|p| p.name() == name) {
+                let slot = self.plan.slot(name).unwrap_or(0);
+                let color = path
+                    .color()
+                    .and_then(|c| self.plan.slot(&color_layer_name(c)));
+                out.push(rgb(name, &|i| {
+                    let light = self.slot_mean(i, slot);
+                    match color {
+                        // Cycles' convention: light / colour, so that (direct + indirect) × colour is the
+                        // light; nothing where the colour is nothing.
+                        Some(c) => {
+                            let color = self.slot_mean(i, c);
+                            std::array::from_fn(|k| {
+                                if color[k] > 0.0 {
+                                    light[k] / color[k]
+                                } else {
+                                    0.0
+                                }
+                            })
+                        }
+                        None => light,
+                    }
+                }));
+            } else if name == "shadow_catcher" {
+                let (lit, open) = (
+                    self.plan.slot(CATCHER_LIT).unwrap_or(0),
+                    self.plan.slot(CATCHER_OPEN).unwrap_or(0),
+                );
+                out.push(rgb(name, &|i| {
+                    let (l, o) = (self.slot_mean(i, lit), self.slot_mean(i, open));
+                    std::array::from_fn(|k| if o[k] > 0.0 { l[k] / o[k] } else { 1.0 })
+                }));
+            } else if let Some(k) = self
+                .plan
+                .cryptomatte
+                .iter()
+                .position(|(kind, _)| kind.layer_name() == name)
+            {
+                out.extend(self.cryptomatte_layers(name, k));
+            } else if let Some(slot) = self.plan.slot(name) {
+                out.push(rgb(name, &|i| self.slot_mean(i, slot)));
+            }
+        }
+        out
+    }
+
+    /// The rank layers `<Kind>00`, `<Kind>01`, … of Cryptomatte kind `k` of the plan.
+    fn cryptomatte_layers(&self, name: &str, k: usize) -> Vec<AovLayer> {
+        let depth = self.plan.cryptomatte_depth;
+        let kinds = self.plan.cryptomatte.len();
+        let n = self.pixels.len();
+        let mut layers: Vec<AovLayer> = (0..depth / 2)
+            .map(|l| AovLayer::cryptomatte(&format!("{name}{l:02}"), n))
+            .collect();
+        for i in 0..n {
+            let ranks = self.crypto[i * kinds + k].ranks(self.pixels[i].count, depth);
+            for (r, (id, coverage)) in ranks.into_iter().enumerate() {
+                let layer = &mut layers[r / 2];
+                layer.data[2 * (r % 2)][i] = id;
+                layer.data[2 * (r % 2) + 1][i] = coverage;
+            }
+        }
+        layers
     }
 }
 
@@ -290,6 +540,7 @@ mod tests {
             albedo: Rgb::new(0.5, 0.25 * (k % 3) as f32, 1.0),
             normal: Vec3::new(0.6, -0.8, 0.0) * if k.is_multiple_of(2) { 1.0 } else { -1.0 },
             depth: 2.5 + f,
+            alpha: 0.25 * (k % 5) as f32,
         }
     }
 
@@ -404,6 +655,7 @@ mod tests {
                 albedo: Rgb::splat(0.5),
                 normal: Vec3::new(0.0, 0.0, 2.0),
                 depth: v,
+                alpha: 0.5,
             });
         }
         let img = film.image();

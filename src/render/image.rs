@@ -1,6 +1,65 @@
-//! The render output image: the beauty pass and its arbitrary output variables (AOVs).
+//! The render output image: the beauty pass, its alpha and its arbitrary output variables (AOVs).
 
+use super::aovs::FirstHit;
+use super::cryptomatte::{CryptoKind, Manifest};
 use crate::math::{Rgb, Vec3};
+use std::collections::BTreeMap;
+
+/// One layer beyond the beauty, alpha and first-hit layers (a light-path layer, a colour, a light group, the
+/// shadow catcher, a Cryptomatte rank layer), one buffer per channel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AovLayer {
+    /// The layer's name (`diffuse_direct`, `lg_key`, `CryptoObject00`).
+    pub name: String,
+    /// The channels' names within the layer (`R`, `G`, `B`; Cryptomatte's `r`, `g`, `b`, `a`).
+    pub components: &'static [&'static str],
+    /// One buffer per channel, row-major from the top row.
+    pub data: Vec<Vec<f32>>,
+    /// Whether the layer may be stored as half floats (`--half`); never for Cryptomatte, whose IDs are the
+    /// bits of 32-bit floats.
+    pub allows_half: bool,
+}
+
+impl AovLayer {
+    /// A zero-filled RGB layer of `n` pixels.
+    pub fn rgb(name: &str, n: usize) -> Self {
+        Self {
+            name: name.to_owned(),
+            components: &["R", "G", "B"],
+            data: vec![vec![0.0; n]; 3],
+            allows_half: true,
+        }
+    }
+
+    /// A zero-filled Cryptomatte rank layer of `n` pixels.
+    pub fn cryptomatte(name: &str, n: usize) -> Self {
+        Self {
+            name: name.to_owned(),
+            components: &["r", "g", "b", "a"],
+            data: vec![vec![0.0; n]; 4],
+            allows_half: false,
+        }
+    }
+
+    /// The layer's RGB pixels (for an RGB layer).
+    pub fn rgb_pixels(&self) -> Vec<Rgb> {
+        (0..self.data.first().map_or(0, Vec::len))
+            .map(|i| Rgb::new(self.data[0][i], self.data[1][i], self.data[2][i]))
+            .collect()
+    }
+}
+
+/// What the EXR header says about the render beyond its pixels: the OpenEXR standard camera attributes and
+/// Nimbus's own `nimbus/` attributes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ImageMetadata {
+    /// `worldToCamera` (see [`crate::scene::Camera::exr_world_to_camera`]).
+    pub world_to_camera: Option<[[f32; 4]; 4]>,
+    /// `worldToNDC` (see [`crate::scene::Camera::exr_world_to_ndc`]).
+    pub world_to_ndc: Option<[[f32; 4]; 4]>,
+    /// `nimbus/<key>` text attributes: `spp`, `seed`, `render_seconds`, `scene`, `scene_hash`, `frame`...
+    pub nimbus: BTreeMap<String, String>,
+}
 
 /// A rendered image with its AOVs, one value per pixel in every buffer.
 ///
@@ -15,6 +74,8 @@ use crate::math::{Rgb, Vec3};
 ///   nothing was hit (never infinity, which EXR viewers and compositors handle badly).
 /// - `variance`: per-channel estimated variance of the beauty mean, i.e. the sample variance of the
 ///   pixel's samples divided by the sample count `N`; its square root is the standard error of `beauty`.
+/// - `alpha`: coverage (see [`super::aovs`]); `aovs`: the light-path, colour, light-group, shadow-catcher and
+///   Cryptomatte layers the render's plan wrote.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderImage {
     /// Width in pixels.
@@ -31,6 +92,17 @@ pub struct RenderImage {
     pub depth: Vec<f32>,
     /// Per-channel variance of the beauty mean (sample variance / sample count).
     pub variance: Vec<Rgb>,
+    /// Coverage: the mean over the pixel's samples of 1 − the camera ray's transmittance to the environment
+    /// (see [`super::aovs`]).
+    pub alpha: Vec<f32>,
+    /// The first-hit layers written (all four by default).
+    pub first_hit: Vec<FirstHit>,
+    /// The other layers written, in order.
+    pub aovs: Vec<AovLayer>,
+    /// The Cryptomatte kinds written, with their manifests.
+    pub cryptomatte: Vec<(CryptoKind, Manifest)>,
+    /// Header attributes.
+    pub metadata: ImageMetadata,
 }
 
 impl RenderImage {
@@ -45,7 +117,17 @@ impl RenderImage {
             normal: vec![Vec3::ZERO; n],
             depth: vec![0.0; n],
             variance: vec![Rgb::ZERO; n],
+            alpha: vec![0.0; n],
+            first_hit: FirstHit::ALL.to_vec(),
+            aovs: Vec::new(),
+            cryptomatte: Vec::new(),
+            metadata: ImageMetadata::default(),
         }
+    }
+
+    /// The layer `name` of [`aovs`](Self::aovs), if written.
+    pub fn aov(&self, name: &str) -> Option<&AovLayer> {
+        self.aovs.iter().find(|l| l.name == name)
     }
 
     /// Number of pixels, `width * height`.

@@ -6,16 +6,21 @@
 //! for bit, for any thread count, and any split of the render into sample ranges and windows
 //! ([`Renderer::render_region`]) adds up to the bits of the whole.
 
+use super::aovs::{AovSelection, LayerPlan, LightGroupMode, LightGroups, PlanError};
 use super::emitter_edges::{EmitterEdgeSampling, EmitterEdges, EDGE_RAYS};
 use super::film::{Film, PixelSums, PixelWindow};
+use super::recording::LayerRecorder;
 use super::{CancelToken, RenderImage};
-use crate::integrator::{FirstEmission, PathCounters, PathTracer, RayCounters, RendererServices};
+use crate::integrator::{
+    FirstEmission, Origin, PathCounters, PathTracer, RayCounters, RendererServices, SampleRecord,
+};
 use crate::light::LightSamplerChoice;
 use crate::math::{is_finite_rgb, Rgb, Rng, Vec2};
 use crate::scene::Scene;
 use crate::volume::{MediumMethod, TrackingCounters};
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Mixed into the seed of the stream that draws each camera ray's shutter time, so that it is independent of
@@ -70,6 +75,16 @@ pub struct RenderSettings {
     pub emitter_edges: EmitterEdgeSampling,
     /// The memory budget: a film larger than it is refused before it is allocated.
     pub limits: crate::limits::Limits,
+    /// The layers written beyond the beauty and alpha; `None`: the scene's defaults
+    /// ([`AovSelection::for_scene`]).
+    pub aovs: Option<AovSelection>,
+    /// A transparent film: the environment seen directly is left out of the beauty (the `environment` layer
+    /// holds it). A scene can also ask for one ([`Scene::transparent`]).
+    pub transparent: bool,
+    /// How emitters are put in light groups.
+    pub light_groups: LightGroupMode,
+    /// Cryptomatte ranks per pixel (1 to [`super::cryptomatte::MAX_DEPTH`], rounded up to even).
+    pub cryptomatte_depth: usize,
 }
 
 impl Default for RenderSettings {
@@ -88,6 +103,10 @@ impl Default for RenderSettings {
             light_sampler: LightSamplerChoice::Auto,
             emitter_edges: EmitterEdgeSampling::Auto,
             limits: crate::limits::Limits::default(),
+            aovs: None,
+            transparent: false,
+            light_groups: LightGroupMode::Scene,
+            cryptomatte_depth: super::cryptomatte::DEFAULT_DEPTH,
         }
     }
 }
@@ -146,6 +165,13 @@ pub struct RenderStats {
     /// Pixels whose directly visible emission was supersampled because an emitter's outline crosses them (0
     /// when emitter-edge supersampling is off).
     pub emitter_edge_pixels: usize,
+    /// Whether the film was transparent (the environment seen directly left out of the beauty).
+    pub transparent: bool,
+    /// The layers written after the beauty and alpha (first-hit layers, light paths, colours, light groups,
+    /// `shadow_catcher`, Cryptomatte kinds), as named by `--aovs`.
+    pub layers: Vec<String>,
+    /// The light groups' layer names (`lg_<group>`), whether written or not.
+    pub light_groups: Vec<String>,
 }
 
 /// Statistics of one medium, as written by `--stats` under `media`.
@@ -203,6 +229,12 @@ pub enum RegionError {
     Render(#[from] RenderError),
 }
 
+impl From<PlanError> for RegionError {
+    fn from(e: PlanError) -> Self {
+        RegionError::Render(RenderError::Layers(e))
+    }
+}
+
 /// Why a render could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
@@ -212,6 +244,9 @@ pub enum RenderError {
     /// The film (and the image made from it) would exceed the memory budget.
     #[error(transparent)]
     OverBudget(#[from] crate::limits::OverBudget),
+    /// The layers asked for cannot be made (an unknown light group, too many groups).
+    #[error(transparent)]
+    Layers(#[from] PlanError),
 }
 
 /// Renders scenes with fixed settings.
@@ -228,6 +263,26 @@ impl Renderer {
     /// The settings.
     pub fn settings(&self) -> &RenderSettings {
         &self.settings
+    }
+
+    /// Whether a render of `scene` has a transparent film: the settings or the scene ask for one.
+    pub fn transparent(&self, scene: &Scene) -> bool {
+        self.settings.transparent || scene.transparent()
+    }
+
+    /// The light groups of a render of `scene`.
+    pub fn light_groups(&self, scene: &Scene) -> Result<LightGroups, PlanError> {
+        Ok(LightGroups::new(scene, self.settings.light_groups)?)
+    }
+
+    /// What a render of `scene` accumulates and writes beyond the beauty, alpha and first-hit sums.
+    pub fn layer_plan(&self, scene: &Scene) -> Result<LayerPlan, PlanError> {
+        let groups = self.light_groups(scene)?;
+        let selection = match &self.settings.aovs {
+            Some(s) => s.clone(),
+            None => AovSelection::for_scene(scene, self.transparent(scene), &groups),
+        };
+        LayerPlan::new(scene, &selection, &groups, self.settings.cryptomatte_depth)
     }
 
     /// Renders `scene`. `progress` is called after every pass; returning `false` cancels the render, which
@@ -314,9 +369,14 @@ impl Renderer {
         doubling: bool,
     ) -> Result<(Film, RenderStats), RenderError> {
         let s = &self.settings;
+        let groups = self.light_groups(scene)?;
+        let plan = Arc::new(self.layer_plan(scene)?);
+        let recorder = LayerRecorder::new(scene, &plan, &groups);
         // Per pixel: the film's exact sums, then the f32 channels of the image made from them.
-        let pixel_bytes =
-            std::mem::size_of::<PixelSums>() + 4 * super::channels::channel_names().len();
+        let pixel_bytes = std::mem::size_of::<PixelSums>()
+            + 4 * super::channels::channel_names().len()
+            + plan.film_bytes_per_pixel()
+            + 4 * (plan.values_per_pixel() + 2 * plan.cryptomatte_depth * plan.cryptomatte.len());
         let (w, h) = (region.window.width() as u64, region.window.height() as u64);
         s.limits.check_items(
             format_args!("the film of {w}x{h} pixels"),
@@ -328,7 +388,7 @@ impl Renderer {
             .build()?;
         let threads = pool.current_num_threads();
         let start = Instant::now();
-        let mut film = Film::with_window(s.width, s.height, region.window);
+        let mut film = Film::with_plan(s.width, s.height, region.window, plan.clone());
         let edges = s.emitter_edges.decide(scene, s.width, s.height);
         let mut counters = PathCounters::new(scene.media.len());
         let (mut nan_samples, mut clamped_samples) = (0u64, 0u64);
@@ -349,6 +409,7 @@ impl Renderer {
                 self.render_pass(
                     scene,
                     &mut film,
+                    &recorder,
                     edges.edges(),
                     first..first + count,
                     cancel,
@@ -426,6 +487,9 @@ impl Renderer {
                 })
                 .collect(),
             emitter_edge_pixels: edges.edges().map_or(0, EmitterEdges::count),
+            transparent: self.transparent(scene),
+            layers: plan.written.clone(),
+            light_groups: groups.names,
         };
         Ok((film, stats))
     }
@@ -437,6 +501,7 @@ impl Renderer {
         &self,
         scene: &Scene,
         film: &mut Film,
+        recorder: &LayerRecorder,
         edges: Option<&EmitterEdges>,
         samples: Range<u32>,
         cancel: &CancelToken,
@@ -451,10 +516,15 @@ impl Renderer {
             media_mis: s.media_mis,
             equiangular: PathTracer::uses_equiangular(s.equiangular, scene),
             pixel_spread: scene.camera.pixel_spread_angle(height),
+            transparent: self.transparent(scene),
+            mattes: scene.names().has_mattes(),
         };
+        let plan = film.plan().clone();
+        let records = plan.records();
+        let shadow_catcher = plan.slot(super::aovs::CATCHER_LIT).is_some();
         let services = RendererServices::new(scene, s.light_sampler.uses_bvh(scene.lights()));
-        film.pixels_mut()
-            .par_chunks_mut(window.width())
+        film.rows_mut()
+            .into_par_iter()
             // One row per task: rayon's adaptive splitting otherwise hands a thread a run of rows it cannot
             // give up once started, and the other thread idled for ~10 ms at the end of each pass (cloud, 2
             // threads).
@@ -464,7 +534,11 @@ impl Renderer {
                 let y = window.y0 + row_index;
                 let mut counters = PathCounters::new(scene.media.len());
                 let (mut nans, mut clamped) = (0u64, 0u64);
-                for (column, pixel) in row.iter_mut().enumerate() {
+                let mut record = records.then(|| SampleRecord {
+                    shadow_catcher,
+                    ..SampleRecord::default()
+                });
+                for (column, mut pixel) in row.pixels().enumerate() {
                     let x = window.x0 + column;
                     if cancel.is_cancelled() {
                         break;
@@ -501,27 +575,31 @@ impl Renderer {
                             }
                         };
                         let ray = camera_ray(rng.sample_2d());
+                        if let Some(r) = record.as_mut() {
+                            r.clear();
+                        }
                         let result = if on_edge {
                             // The directly visible emission from EDGE_RAYS positions of their own, the rest
                             // of the light from the path (see `super::emitter_edges`).
-                            let emission = (0..EDGE_RAYS)
-                                .map(|k| {
-                                    let index = sample as u64 * EDGE_RAYS as u64 + k as u64;
-                                    camera_ray(rng_of(s.seed ^ EDGE_STREAM, index).sample_2d())
-                                })
-                                .fold(Rgb::ZERO, |sum, r| {
-                                    sum + tracer.first_surface_emission(
-                                        &services,
-                                        &r,
-                                        &mut counters,
-                                    )
-                                });
+                            let mut emission = Rgb::ZERO;
+                            for k in 0..EDGE_RAYS {
+                                let index = sample as u64 * EDGE_RAYS as u64 + k as u64;
+                                let r = camera_ray(rng_of(s.seed ^ EDGE_STREAM, index).sample_2d());
+                                let (e, emitter) =
+                                    tracer.first_surface_emission(&services, &r, &mut counters);
+                                emission += e;
+                                if let (Some(rec), true) = (record.as_mut(), e.max_element() > 0.0)
+                                {
+                                    rec.push(e / EDGE_RAYS as f32, Origin::Emitted, emitter, true);
+                                }
+                            }
                             let mut result = tracer.trace(
                                 &services,
                                 ray,
                                 FirstEmission::Omit,
                                 &mut rng,
                                 &mut counters,
+                                record.as_mut(),
                             );
                             result.radiance += emission / EDGE_RAYS as f32;
                             result
@@ -532,13 +610,18 @@ impl Renderer {
                                 FirstEmission::Count,
                                 &mut rng,
                                 &mut counters,
+                                record.as_mut(),
                             )
                         };
                         if !is_finite_rgb(result.radiance) {
                             nans += 1;
-                        } else if pixel.add(&result) {
-                            clamped += 1;
+                            continue;
                         }
+                        let mut clamped_here = pixel.sums.add(&result);
+                        if let Some(r) = &record {
+                            clamped_here |= recorder.commit(r, result.alpha, &mut pixel);
+                        }
+                        clamped += clamped_here as u64;
                     }
                 }
                 (counters, nans, clamped)

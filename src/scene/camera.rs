@@ -204,6 +204,34 @@ impl Camera {
         Some(Vec2::new(0.5 * (x + 1.0), 0.5 * (1.0 - y)))
     }
 
+    /// OpenEXR's standard attribute `worldToCamera` for this (still) camera: the matrix that takes a world point
+    /// to the renderer's camera space, in OpenEXR's convention: row vectors (`[x y z 1] · M`), camera at the
+    /// origin, +x right and +y up in the image, +z the viewing direction (a left-handed space), as OpenEXR's
+    /// "Standard Attributes" define it and Nuke reads it.
+    pub fn exr_world_to_camera(&self) -> [[f32; 4]; 4] {
+        let flip_z = Mat4::from_scale(Vec3::new(1.0, 1.0, -1.0));
+        // glam's columns of the column-vector matrix are the rows of OpenEXR's row-vector one.
+        (flip_z * self.camera_to_world.inverse()).to_cols_array_2d()
+    }
+
+    /// OpenEXR's standard attribute `worldToNDC` for an image of `aspect` = width / height: with
+    /// `[X Y Z W] = [x y z 1] · M`, (X/W, Y/W) is where the world point lands on the image, (0, 0) its top-left
+    /// corner and (1, 1) its bottom-right (OpenEXR's normalised device coordinates of the display window);
+    /// Z/W is 1/depth along the view.
+    pub fn exr_world_to_ndc(&self, aspect: f32) -> [[f32; 4]; 4] {
+        let tan_y = (self.yfov * 0.5).tan();
+        let tan_x = tan_y * aspect;
+        // On OpenEXR camera space (column vectors): X = z/2 + x/(2 tan_x), Y = z/2 − y/(2 tan_y), Z = 1, W = z.
+        let projection = Mat4::from_cols_array_2d(&[
+            [0.5 / tan_x, 0.0, 0.0, 0.0],
+            [0.0, -0.5 / tan_y, 0.0, 0.0],
+            [0.5, 0.5, 0.0, 1.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ]);
+        let flip_z = Mat4::from_scale(Vec3::new(1.0, 1.0, -1.0));
+        (projection * flip_z * self.camera_to_world.inverse()).to_cols_array_2d()
+    }
+
     /// `p` (world space) in the still camera's space: the camera at the origin looking down −Z, +Y up.
     pub fn to_camera_space(&self, p: Vec3) -> Vec3 {
         self.camera_to_world.inverse().transform_point3(p)
@@ -224,6 +252,33 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exr_matrices_put_points_where_the_camera_sees_them() {
+        let cam = Camera::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::new(-0.5, 0.3, 0.0), 0.7);
+        let aspect = 1.6;
+        let row = |m: [[f32; 4]; 4], p: Vec3| -> [f32; 4] {
+            // Row vector times matrix: out[j] = Σ_i p[i] m[i][j] (m row-major).
+            let v = [p.x, p.y, p.z, 1.0];
+            std::array::from_fn(|j| (0..4).map(|i| v[i] * m[i][j]).sum())
+        };
+        for p in [
+            Vec3::new(-0.5, 0.3, 0.0),
+            Vec3::new(0.4, -0.2, 1.0),
+            Vec3::new(-1.5, 1.0, -2.0),
+        ] {
+            let film = cam.film_position(cam.to_camera_space(p), aspect).unwrap();
+            let ndc = row(cam.exr_world_to_ndc(aspect), p);
+            assert!((ndc[0] / ndc[3] - film.x).abs() < 1e-4, "{ndc:?} {film}");
+            assert!((ndc[1] / ndc[3] - film.y).abs() < 1e-4, "{ndc:?} {film}");
+            let c = row(cam.exr_world_to_camera(), p);
+            let depth = -cam.to_camera_space(p).z;
+            assert!((c[2] - depth).abs() < 1e-4 && depth > 0.0);
+        }
+        // The camera sits at the origin of its space.
+        let c = row(cam.exr_world_to_camera(), cam.position());
+        assert!(c[..3].iter().all(|v| v.abs() < 1e-5));
+    }
 
     #[test]
     fn centre_ray_looks_at_the_target_and_corners_span_the_fov() {

@@ -29,8 +29,11 @@
 
 use super::gltf_accessors::{check_bytes, read_floats, read_indices, Usage};
 use super::{gltf_animation, gltf_deform};
-use super::{Camera, CameraMotion, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
-use crate::geometry::{Mesh, MeshMotion};
+use super::{
+    Camera, CameraMotion, LightTag, LoadOptions, MediumTag, SceneBuilder, SceneError,
+    SceneErrorKind,
+};
+use crate::geometry::{CompositingTags, Mesh, MeshMotion};
 use crate::light::{
     DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
     LUMENS_PER_WATT,
@@ -205,7 +208,11 @@ pub fn load_slice(
         .ok_or_else(|| malformed("the file has no scene".into()))?;
     loader.read_light_units(scene.extras())?;
     for node in scene.nodes() {
-        loader.visit(node, Mat4::IDENTITY, 0)?;
+        let top = NodeContext {
+            tags: CompositingTags::default(),
+            asset: node_name(&node),
+        };
+        loader.visit(node, Mat4::IDENTITY, 0, &top)?;
     }
     loader.read_scene_extras(scene.extras())?;
     Ok(loader.builder)
@@ -310,7 +317,13 @@ impl Loader<'_> {
         SceneError::new(self.path, kind)
     }
 
-    fn visit(&mut self, node: gltf::Node, parent: Mat4, depth: usize) -> Result<(), SceneError> {
+    fn visit(
+        &mut self,
+        node: gltf::Node,
+        parent: Mat4,
+        depth: usize,
+        outer: &NodeContext,
+    ) -> Result<(), SceneError> {
         if depth > MAX_NODE_DEPTH {
             return Err(self.error(SceneErrorKind::Malformed(format!(
                 "node {} is nested deeper than {MAX_NODE_DEPTH} levels (a cycle?)",
@@ -324,8 +337,20 @@ impl Loader<'_> {
                 node.index()
             ))));
         }
+        let extras = self.node_extras(&node)?;
+        let context = NodeContext {
+            tags: node_tags(extras.as_ref())
+                .map_err(|m| {
+                    self.error(SceneErrorKind::Malformed(format!(
+                        "node '{}': extras: {m}",
+                        node_name(&node)
+                    )))
+                })?
+                .or(&outer.tags),
+            asset: outer.asset.clone(),
+        };
         if let Some(mesh) = node.mesh() {
-            self.load_mesh(&node, mesh, &world)?;
+            self.load_mesh(&node, mesh, &world, &context)?;
         }
         if let Some(camera) = node.camera() {
             if self.builder.camera.is_none() {
@@ -358,26 +383,46 @@ impl Loader<'_> {
             }
         }
         if let Some(light) = node.light() {
-            self.load_light(light, &world);
+            let tag = LightTag {
+                name: light.name().map_or_else(|| node_name(&node), str::to_owned),
+                light_group: context.tags.light_group.clone(),
+            };
+            self.load_light(light, &world, tag);
         }
-        self.load_volume(&node, &world)?;
+        if let Some(extras) = &extras {
+            self.load_volume(&node, extras, &world, &context)?;
+        }
         for child in node.children() {
-            self.visit(child, world, depth + 1)?;
+            self.visit(child, world, depth + 1, &context)?;
         }
         Ok(())
     }
 
-    /// A node's `extras.nimbus_volume` becomes a grid medium placed by the node's world matrix.
-    fn load_volume(&mut self, node: &gltf::Node, world: &Mat4) -> Result<(), SceneError> {
+    /// A node's `extras` as JSON, if it has any.
+    fn node_extras(&self, node: &gltf::Node) -> Result<Option<serde_json::Value>, SceneError> {
         let Some(raw) = node.extras() else {
-            return Ok(());
+            return Ok(None);
         };
+        serde_json::from_str(raw.get()).map(Some).map_err(|e| {
+            self.error(SceneErrorKind::Malformed(format!(
+                "node '{}': extras: {e}",
+                node_name(node)
+            )))
+        })
+    }
+
+    /// A node's `extras.nimbus_volume` becomes a grid medium placed by the node's world matrix, with the
+    /// node's asset and compositing tags.
+    fn load_volume(
+        &mut self,
+        node: &gltf::Node,
+        extras: &serde_json::Value,
+        world: &Mat4,
+        context: &NodeContext,
+    ) -> Result<(), SceneError> {
         let name = node
             .name()
             .map_or_else(|| format!("node {}", node.index()), |n| one_line(n, QUOTE));
-        let bad = |m: String| self.error(SceneErrorKind::Malformed(format!("node '{name}': {m}")));
-        let extras: serde_json::Value =
-            serde_json::from_str(raw.get()).map_err(|e| bad(format!("extras: {e}")))?;
         let Some(value) = extras.get("nimbus_volume") else {
             return Ok(());
         };
@@ -392,6 +437,8 @@ impl Loader<'_> {
         let file = value.get("file").and_then(|f| f.as_str());
         spec.embedded = file.and_then(|f| self.options.embedded_file(f));
         self.options.apply_volume_override(&mut spec);
+        spec.asset = context.asset.clone();
+        spec.tags = context.tags.clone();
         match self.builder.add_volume(&spec) {
             Ok(_) => Ok(()),
             Err(source) => Err(self.error(SceneErrorKind::Volume {
@@ -401,7 +448,7 @@ impl Loader<'_> {
         }
     }
 
-    fn load_light(&mut self, light: gltf::khr_lights_punctual::Light, world: &Mat4) {
+    fn load_light(&mut self, light: gltf::khr_lights_punctual::Light, world: &Mat4, tag: LightTag) {
         let color = Rgb::from(light.color()) * (light.intensity() * self.light_unit_scale);
         let position = world.transform_point3(Vec3::ZERO);
         let direction = world.transform_vector3(-Vec3::Z).normalize_or_zero();
@@ -431,7 +478,7 @@ impl Loader<'_> {
                 light.index()
             ));
         }
-        self.builder.lights.push(l);
+        self.builder.add_tagged_light(l, tag);
     }
 
     /// Loads a node's mesh: each triangle primitive's attributes, morphed by the pose's weights, then posed
@@ -443,6 +490,7 @@ impl Loader<'_> {
         node: &gltf::Node,
         mesh: gltf::Mesh,
         world: &Mat4,
+        context: &NodeContext,
     ) -> Result<(), SceneError> {
         let mesh_name = mesh
             .name()
@@ -509,6 +557,8 @@ impl Loader<'_> {
                 }
             }
             m.name = node.name().map_or_else(|| mesh_name.clone(), str::to_owned);
+            m.asset = context.asset.clone();
+            m.tags = context.tags.clone();
             m.material = self.material(primitive.material())?;
             self.builder.add_mesh(m);
         }
@@ -769,9 +819,18 @@ impl Loader<'_> {
             unlit: material.unlit(),
             clearcoat,
             sheen,
+            tags: CompositingTags::default(),
         };
         let mut m = m;
+        m.tags = self.material_tags(&material, &m.name)?;
         m.interior = self.interior_medium(&material, &m)?;
+        if let Some(interior) = m.interior {
+            let tag = MediumTag {
+                asset: String::new(),
+                tags: m.tags.clone(),
+            };
+            self.builder.set_medium_tag(interior, tag);
+        }
         let id = self.builder.add_material(m);
         self.material_map.insert(material.index(), id);
         Ok(id)
@@ -1101,6 +1160,26 @@ impl Loader<'_> {
         Ok(())
     }
 
+    /// The compositing tags in a material's `extras` (see [`node_tags`]).
+    fn material_tags(
+        &self,
+        material: &gltf::Material,
+        name: &str,
+    ) -> Result<CompositingTags, SceneError> {
+        let bad = |msg: String| {
+            self.error(SceneErrorKind::Malformed(format!(
+                "material '{}': extras: {msg}",
+                one_line(name, QUOTE)
+            )))
+        };
+        let Some(raw) = material.extras() else {
+            return Ok(CompositingTags::default());
+        };
+        let extras: serde_json::Value =
+            serde_json::from_str(raw.get()).map_err(|e| bad(e.to_string()))?;
+        node_tags(Some(&extras)).map_err(bad)
+    }
+
     /// The medium filling meshes with this material: `extras.nimbus_medium`, else `KHR_materials_volume` with
     /// `thicknessFactor` > 0 on a transmissive material (absorption only).
     fn interior_medium(
@@ -1253,9 +1332,18 @@ impl Loader<'_> {
             self.builder.max_bounces = Some(b.min(u32::MAX as u64) as u32);
         }
         if let Some(env) = value.get("nimbus_environment") {
-            let env = parse_environment(env, &self.base, &self.options.limits)
+            let (env, group) = parse_environment(env, &self.base, &self.options.limits)
                 .map_err(|kind| self.error(kind))?;
             self.builder.set_environment(env);
+            self.builder.set_environment_group(group);
+        }
+        if let Some(t) = value.get("nimbus_transparent") {
+            let t = t.as_bool().ok_or_else(|| {
+                self.error(SceneErrorKind::Malformed(
+                    "scene extras: nimbus_transparent must be true or false".into(),
+                ))
+            })?;
+            self.builder.set_transparent(t);
         }
         Ok(())
     }
@@ -1291,14 +1379,31 @@ fn sampler_of(sampler: &gltf::texture::Sampler) -> Sampler {
     }
 }
 
-/// Parses a `nimbus_environment` object: `{"color": [r,g,b]}` or `{"map": "file", "intensity": s}`; the map
-/// path is relative to `base`.
+/// Parses a `nimbus_environment` object: `{"color": [r,g,b]}` or `{"map": "file", "intensity": s}`, with an
+/// optional `"light_group": "name"`; the map path is relative to `base`. Returns the light and its group.
 pub fn parse_environment(
     value: &serde_json::Value,
     base: &Path,
     limits: &Limits,
-) -> Result<EnvironmentLight, SceneErrorKind> {
+) -> Result<(EnvironmentLight, Option<String>), SceneErrorKind> {
     let malformed = |m: &str| SceneErrorKind::Malformed(format!("nimbus_environment: {m}"));
+    let group = match value.get("light_group") {
+        None => None,
+        Some(g) => Some(
+            light_group_name(g)
+                .map_err(|m| SceneErrorKind::Malformed(format!("nimbus_environment: {m}")))?,
+        ),
+    };
+    parse_environment_light(value, base, limits, &malformed).map(|env| (env, group))
+}
+
+/// The light of a `nimbus_environment` object (see [`parse_environment`]).
+fn parse_environment_light(
+    value: &serde_json::Value,
+    base: &Path,
+    limits: &Limits,
+    malformed: &dyn Fn(&str) -> SceneErrorKind,
+) -> Result<EnvironmentLight, SceneErrorKind> {
     if let Some(c) = value.get("color") {
         let rgb = parse_rgb(c)
             .ok_or_else(|| malformed("'color' must be an array of three non-negative numbers"))?;
@@ -1320,6 +1425,51 @@ pub fn parse_environment(
         return Ok(EnvironmentLight::Map(Box::new(map)));
     }
     Err(malformed("expected 'color' or 'map'"))
+}
+
+/// What a node passes to its children: its compositing tags (its own over its parents') and the name of the
+/// top-level node above it, Cryptomatte's asset.
+struct NodeContext {
+    tags: CompositingTags,
+    asset: String,
+}
+
+/// A node's name for messages, Cryptomatte and per-light groups: its own, else its mesh's (as Blender's importer
+/// names an unnamed node), else `node <index>`.
+fn node_name(node: &gltf::Node) -> String {
+    node.name()
+        .or_else(|| node.mesh().and_then(|m| m.name()))
+        .map_or_else(|| format!("node {}", node.index()), str::to_owned)
+}
+
+/// The compositing tags in a node's or a material's `extras` (see [`CompositingTags`]): `nimbus_light_group`
+/// (a non-empty string), `nimbus_holdout` and `nimbus_shadow_catcher` (booleans). An error names the key.
+pub(crate) fn node_tags(extras: Option<&serde_json::Value>) -> Result<CompositingTags, String> {
+    let Some(extras) = extras else {
+        return Ok(CompositingTags::default());
+    };
+    let flag = |key: &str| match extras.get(key) {
+        None => Ok(false),
+        Some(v) => v
+            .as_bool()
+            .ok_or_else(|| format!("{key} must be true or false")),
+    };
+    Ok(CompositingTags {
+        light_group: match extras.get("nimbus_light_group") {
+            None => None,
+            Some(g) => Some(light_group_name(g).map_err(|m| format!("nimbus_light_group: {m}"))?),
+        },
+        holdout: flag("nimbus_holdout")?,
+        shadow_catcher: flag("nimbus_shadow_catcher")?,
+    })
+}
+
+/// A light group's name: a non-empty string of at most 64 characters.
+fn light_group_name(value: &serde_json::Value) -> Result<String, String> {
+    match value.as_str() {
+        Some(name) if !name.trim().is_empty() && name.chars().count() <= 64 => Ok(name.to_owned()),
+        _ => Err("a light group must be a non-empty string of at most 64 characters".into()),
+    }
 }
 
 /// Converts strip and fan index lists to triangle lists (glTF 2.0 §3.7.2.1); degenerate triangles are dropped.

@@ -11,12 +11,14 @@ mod gltf_accessors;
 mod gltf_animation;
 mod gltf_check;
 mod gltf_deform;
+mod names;
 pub mod obj;
 pub mod usd;
 
 pub use builder::BUILDER_PATH;
 pub use camera::{Camera, CameraMotion};
 pub use error::{SceneError, SceneErrorKind};
+pub use names::{CryptoNames, Emitter, LightTag, MediumTag, SceneNames, ENVIRONMENT_NAME};
 
 use crate::geometry::TriangleHit;
 use crate::geometry::{Bvh, Mesh, MotionBvh, SurfacePoint, TriangleHierarchy};
@@ -107,13 +109,19 @@ pub struct SceneBuilder {
     textures: Vec<Texture>,
     /// Punctual lights and the environment (area lights are added by `build`).
     lights: Vec<Light>,
+    /// The name and light group of each light in `lights`.
+    light_tags: Vec<LightTag>,
     camera: Option<Camera>,
     max_bounces: Option<u32>,
     warnings: Vec<String>,
     /// Mesh interiors (referenced by `Material::interior`) and position-filled volumes.
     media: Vec<Arc<dyn Medium>>,
+    /// The asset and compositing tags of each medium in `media`.
+    media_tags: Vec<MediumTag>,
     /// The motion-blur shutter, in frames relative to the frame.
     shutter: Option<crate::frames::Shutter>,
+    /// Whether the scene asks for a transparent film (glTF scene extras `nimbus_transparent`).
+    transparent: bool,
 }
 
 impl SceneBuilder {
@@ -124,7 +132,17 @@ impl SceneBuilder {
         spec: &crate::volume::VolumeSpec,
     ) -> Result<Option<u32>, crate::volume::VolumeError> {
         match crate::volume::load_grid_medium(spec)? {
-            Some(medium) => Ok(Some(self.add_medium(medium))),
+            Some(medium) => {
+                let index = self.add_medium(medium);
+                self.set_medium_tag(
+                    index,
+                    MediumTag {
+                        asset: spec.asset.clone(),
+                        tags: spec.tags.clone(),
+                    },
+                );
+                Ok(Some(index))
+            }
             None => {
                 self.warn(format!(
                     "volume '{}': the sequence {} has no file for frame {}; the volume is empty in this frame",
@@ -137,11 +155,21 @@ impl SceneBuilder {
         }
     }
 
-    /// Adds a medium and returns its index.
+    /// Adds a medium and returns its index. Its Cryptomatte names are its own name; see
+    /// [`set_medium_tag`](Self::set_medium_tag) for an asset and compositing tags.
     pub fn add_medium(&mut self, medium: Arc<dyn Medium>) -> u32 {
         self.warnings.extend(medium.warnings());
         self.media.push(medium);
+        self.media_tags.push(MediumTag::default());
         (self.media.len() - 1) as u32
+    }
+
+    /// Gives medium `index` (as [`add_medium`](Self::add_medium) returned it) its asset name and compositing
+    /// tags; an index that names no medium is ignored.
+    pub fn set_medium_tag(&mut self, index: u32, tag: MediumTag) {
+        if let Some(t) = self.media_tags.get_mut(index as usize) {
+            *t = tag;
+        }
     }
 
     /// Adds a material and returns its index. Its texture and medium indices must refer to textures and media
@@ -166,24 +194,84 @@ impl SceneBuilder {
         self.meshes.push(mesh);
     }
 
-    /// Adds a light (area lights come from emissive materials instead; an environment replaces any other).
+    /// Adds a light (area lights come from emissive materials instead; an environment replaces any other),
+    /// named `light<i>` in no light group.
     pub fn add_light(&mut self, light: Light) {
+        let tag = LightTag {
+            name: format!("light{}", self.lights.len()),
+            light_group: None,
+        };
+        self.add_tagged_light(light, tag);
+    }
+
+    /// Adds a light with its name (for per-light groups) and light group.
+    pub fn add_tagged_light(&mut self, light: Light, tag: LightTag) {
         match light {
-            Light::Environment(env) => self.set_environment(env),
-            other => self.lights.push(other),
+            Light::Environment(env) => {
+                self.set_environment(env);
+                self.set_environment_group(tag.light_group);
+            }
+            other => {
+                self.lights.push(other);
+                self.light_tags.push(tag);
+            }
         }
     }
 
-    /// Replaces any environment light with `env`.
+    /// Replaces any environment light with `env`, keeping the old one's light group.
     pub fn set_environment(&mut self, env: EnvironmentLight) {
-        self.lights.retain(|l| !matches!(l, Light::Environment(_)));
+        let group = self.environment_tag().and_then(|t| t.light_group.clone());
+        let old = self
+            .lights
+            .iter()
+            .position(|l| matches!(l, Light::Environment(_)));
+        if let Some(i) = old {
+            self.lights.remove(i);
+            self.light_tags.remove(i);
+        }
         self.lights.push(Light::Environment(env));
+        self.light_tags.push(LightTag {
+            name: names::ENVIRONMENT_NAME.into(),
+            light_group: group,
+        });
+    }
+
+    /// Drops the lights added after the first `count` (with their tags).
+    pub(crate) fn truncate_lights(&mut self, count: usize) {
+        self.lights.truncate(count);
+        self.light_tags.truncate(count);
+    }
+
+    /// Puts the environment light, if there is one, in light group `group` (`None`: no declared group).
+    pub fn set_environment_group(&mut self, group: Option<String>) {
+        let env = self
+            .lights
+            .iter()
+            .position(|l| matches!(l, Light::Environment(_)));
+        if let Some(i) = env {
+            self.light_tags[i].light_group = group;
+        }
+    }
+
+    /// The tag of the environment light, if there is one.
+    fn environment_tag(&self) -> Option<&LightTag> {
+        let i = self
+            .lights
+            .iter()
+            .position(|l| matches!(l, Light::Environment(_)))?;
+        self.light_tags.get(i)
     }
 
     /// Sets the motion-blur shutter (frames relative to the frame): camera rays of the built scene sample
     /// their time in it. Loaders set it from [`LoadOptions::shutter`].
     pub fn set_shutter(&mut self, shutter: Option<crate::frames::Shutter>) {
         self.shutter = shutter;
+    }
+
+    /// Sets whether the scene asks for a transparent film: the directly seen environment left out of the
+    /// beauty (the renderer's `transparent` setting; `--transparent` also turns it on).
+    pub fn set_transparent(&mut self, transparent: bool) {
+        self.transparent = transparent;
     }
 
     /// Sets the maximum number of bounces the scene asks for (the default of `--max-depth`).
@@ -475,7 +563,17 @@ impl SceneBuilder {
             .iter()
             .any(|m| m.alpha_mode != AlphaMode::Opaque);
         let has_invisible_boundaries = self.materials.iter().any(|m| m.may_be_index_matched());
+        let names = SceneNames::new(
+            &self.meshes,
+            &self.materials,
+            &lights,
+            &self.light_tags,
+            &self.media,
+            &self.media_tags,
+        );
         Ok(Scene {
+            names,
+            transparent: self.transparent,
             has_alpha,
             has_invisible_boundaries,
             media: self.media,
@@ -554,6 +652,10 @@ pub struct Scene {
     /// True when some material may be an invisible (index-matched) boundary, which shadow rays pass through;
     /// without one, any surface between a point and a light blocks it.
     has_invisible_boundaries: bool,
+    /// The emitters (for light groups), Cryptomatte names, holdouts and shadow catchers.
+    names: SceneNames,
+    /// Whether the scene file asks for a transparent film.
+    transparent: bool,
     /// The mesh and triangle of each global triangle index.
     prims: Vec<(u32, u32)>,
     /// The area light of each global triangle index (`u32::MAX`: none).
@@ -694,6 +796,21 @@ impl Scene {
     /// The textures, by index.
     pub fn textures(&self) -> &[Texture] {
         &self.textures
+    }
+
+    /// The emitters, Cryptomatte names, holdouts and shadow catchers of the scene.
+    pub fn names(&self) -> &SceneNames {
+        &self.names
+    }
+
+    /// Whether the scene file asks for a transparent film (glTF scene extras `nimbus_transparent`).
+    pub fn transparent(&self) -> bool {
+        self.transparent
+    }
+
+    /// The mesh of global triangle index `prim`.
+    pub fn mesh_of_prim(&self, prim: u32) -> usize {
+        self.prims.get(prim as usize).map_or(0, |p| p.0 as usize)
     }
 
     /// Every light, area lights included.

@@ -164,6 +164,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
                 .collect(),
             material,
             motion: None,
+            ..Mesh::default()
         };
         let dropped = mesh.remove_invalid_triangles();
         if dropped > 0 {

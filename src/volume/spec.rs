@@ -308,6 +308,11 @@ pub struct VolumeSpec {
     /// The motion-blur shutter in frames (from [`crate::scene::LoadOptions::shutter`]): a velocity grid blurs
     /// the medium over it.
     pub shutter: Option<crate::frames::Shutter>,
+    /// The asset the volume belongs to, for Cryptomatte (the top-level glTF node above it, its USD model
+    /// root); empty: the volume's own name.
+    pub asset: String,
+    /// Its light group and holdout tag, from the node's extras or the prim's attributes.
+    pub tags: crate::geometry::CompositingTags,
     /// Frames per second of the shot, converting shutter frames to the seconds velocities are given in:
     /// [`crate::scene::LoadOptions::fps`] if given, else a USD stage's `framesPerSecond`, else 24.
     pub fps: f64,
@@ -346,6 +351,8 @@ impl VolumeSpec {
             frame: None,
             shutter: None,
             fps: crate::frames::DEFAULT_FPS,
+            asset: String::new(),
+            tags: crate::geometry::CompositingTags::default(),
         }
     }
 

@@ -66,6 +66,7 @@ pub fn quad(corners: [Vec3; 4], material: u32) -> Mesh {
         indices: vec![[0, 1, 2], [0, 2, 3]],
         material,
         motion: None,
+        ..Default::default()
     }
 }
 

@@ -8,6 +8,9 @@
 # It installs nothing: without `openjd` (on the PATH, or named by $OPENJD) it skips with a message, unless
 # NIMBUS_REQUIRE_OPENJD=1 (as .ci/run sets, after installing openjd-cli in a virtual environment).
 set -euo pipefail
+# Reproducible headers (a fixed capDate, no render time), so that merged and single renders compare byte for
+# byte: the pixels always do, and with this the whole files do.
+export SOURCE_DATE_EPOCH=0
 
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 nimbus=${1:-${CARGO_TARGET_DIR:-$repo/target}/debug/nimbus}

@@ -9,6 +9,9 @@
 # without Debian's slurm-wlm and munge it skips with a message, unless NIMBUS_REQUIRE_SLURM=1 (as .ci/run
 # sets), when a missing package or a cluster that does not start fails it.
 set -euo pipefail
+# Reproducible headers (a fixed capDate, no render time), so that merged and single renders compare byte for
+# byte: the pixels always do, and with this the whole files do.
+export SOURCE_DATE_EPOCH=0
 # The daemons live in sbin, which a plain user's PATH may lack.
 PATH=$PATH:/usr/sbin:/sbin
 

@@ -8,6 +8,7 @@ references beside each scene come from `make_references.py` (Mitsuba 3, through 
 |---|---|
 | textured-emitter | an emissive panel whose emissiveTexture (NEAREST, sRGB) is a colour pattern: the texture's orientation on an emitter, light sampling of a textured emitter, and MIS with BSDF-sampled hits on it |
 | spot-cone | two KHR_lights_punctual spot lights (candela, hard cones, one tilted) over a floor and a box: cone direction, cone angle, photometric units, a spot shadow |
+| light-groups | three light groups (`nimbus_light_group` on an emissive panel's node and on a point light's node, `light_group` in `nimbus_environment`) over a finite floor and two boxes, sky visible above the horizon: each group's layer, their sum, and alpha |
 """
 import math
 import os
@@ -112,6 +113,36 @@ def spot_cone():
           {"extensionsUsed": ["KHR_lights_punctual", "KHR_materials_specular"]})
 
 
+def light_groups():
+    """Three light groups, each reachable alone by gltf2mitsuba's --only-emitters word (see make_references.py):
+    `panel` = the node `panel_light` (word panel_light), `bulb` = the node and light `bulb` (word bulb), `sky` = the
+    constant environment (word environment). No other node, material or light name contains one of those words,
+    and none of them is a substring of "environment". Units are radiometric (W/sr)."""
+    folder = os.path.join(HERE, "light-groups")
+    b = GltfBuilder()
+    floor = b.lambert("floor", [0.6, 0.6, 0.6])
+    # A finite floor: the camera sees its far edge and the sky above it (alpha 0 there).
+    b.quad("floor", [[-2.5, 0, 2.5], [2.5, 0, 2.5], [2.5, 0, -2.5], [-2.5, 0, -2.5]], floor)
+    b.box("box_tall", [-0.75, 0.0, -0.55], [-0.3, 0.8, -0.1], b.lambert("box_grey", [0.7, 0.7, 0.7]))
+    b.box("box_low", [0.2, 0.0, -0.2], [0.7, 0.35, 0.3], b.lambert("box_red", [0.75, 0.3, 0.25]))
+    # An emissive quad standing at the back right, facing the boxes and the camera (front = CCW, normal
+    # (-0.5, 0, 0.87)); its group comes from the node's extras.
+    panel = b.emitter("panel_emission", [1.0, 0.9, 0.75], 4.0)
+    c, s_, w = math.cos(math.radians(30)), math.sin(math.radians(30)), 0.35
+    x0, z0 = 0.9, -0.9
+    b.quad("panel_light", [[x0 - w * c, 0.25, z0 - w * s_], [x0 + w * c, 0.25, z0 + w * s_],
+                           [x0 + w * c, 0.95, z0 + w * s_], [x0 - w * c, 0.95, z0 - w * s_]], panel,
+           extras={"nimbus_light_group": "panel"})
+    # A point light (W/sr: the scene's units are radiometric) in front of the tall box; group on the node.
+    b.lights.append({"name": "bulb", "type": "point", "color": [0.6, 0.8, 1.0], "intensity": 2.0})
+    b.add_node({"name": "bulb", "translation": [-0.2, 0.9, 0.5], "extras": {"nimbus_light_group": "bulb"},
+                "extensions": {"KHR_lights_punctual": {"light": 0}}})
+    b.camera("camera", eye=[0.0, 1.1, 3.0], target=[0.0, 0.45, -0.3], yfov_deg=45)
+    write(b, folder, {"nimbus_environment": {"color": [0.12, 0.16, 0.24], "light_group": "sky"},
+                      "nimbus_light_units": "radiometric", "max_bounces": 8})
+
+
 if __name__ == "__main__":
     textured_emitter()
     spot_cone()
+    light_groups()

@@ -93,7 +93,7 @@ impl Loader<'_> {
             let (meshes, lights) = (self.builder.meshes.len(), self.builder.lights.len());
             self.visit(&proto, Mat4::IDENTITY, binding.clone(), depth + 1)?;
             if self.builder.lights.len() != lights {
-                self.builder.lights.truncate(lights);
+                self.builder.truncate_lights(lights);
                 self.warn(format!(
                     "{at}: lights inside the prototype {} are not instanced; skipped",
                     proto.path().as_str()
@@ -147,7 +147,7 @@ impl Loader<'_> {
                 let mut mesh = mesh.clone();
                 mesh.name = format!("{}[{i}]", mesh.name);
                 mesh.transform(&m);
-                self.builder.add_mesh(mesh);
+                self.add_mesh(mesh);
             }
         }
         Ok(())

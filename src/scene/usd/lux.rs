@@ -5,7 +5,7 @@ use crate::geometry::Mesh;
 use crate::light::{DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight};
 use crate::material::Material;
 use crate::math::{Mat3, Mat4, Quat, Rgb, Vec2, Vec3};
-use crate::scene::{SceneError, SceneErrorKind};
+use crate::scene::{LightTag, SceneError, SceneErrorKind};
 use openusd::{sdf, usd};
 
 impl Loader<'_> {
@@ -63,10 +63,17 @@ impl Loader<'_> {
                     } else {
                         std::f32::consts::PI * r * r
                     };
-                    self.builder.lights.push(Light::Point(PointLight {
-                        position: world.transform_point3(Vec3::ZERO),
-                        intensity: radiance * scale,
-                    }));
+                    let tag = LightTag {
+                        name: at.clone(),
+                        light_group: self.tags.light_group.clone(),
+                    };
+                    self.builder.add_tagged_light(
+                        Light::Point(PointLight {
+                            position: world.transform_point3(Vec3::ZERO),
+                            intensity: radiance * scale,
+                        }),
+                        tag,
+                    );
                     return Ok(());
                 }
                 Mesh::uv_sphere(Vec3::ZERO, r, 16, 32, 0)
@@ -77,12 +84,17 @@ impl Loader<'_> {
                         "{at}: DistantLight inputs:angle is ignored (a delta directional light)"
                     ));
                 }
-                self.builder
-                    .lights
-                    .push(Light::Directional(DirectionalLight {
+                let tag = LightTag {
+                    name: at.clone(),
+                    light_group: self.tags.light_group.clone(),
+                };
+                self.builder.add_tagged_light(
+                    Light::Directional(DirectionalLight {
                         direction: world.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Y),
                         irradiance: radiance,
-                    }));
+                    }),
+                    tag,
+                );
                 return Ok(());
             }
             _ => return self.dome(prim, radiance, world),
@@ -107,7 +119,7 @@ impl Loader<'_> {
         let mut material = Material::lambertian(&at, Rgb::ZERO);
         material.emission = emission;
         mesh.material = self.builder.add_material(material);
-        self.builder.add_mesh(mesh);
+        self.add_mesh(mesh);
         Ok(())
     }
 
@@ -142,6 +154,8 @@ impl Loader<'_> {
             None => EnvironmentLight::Constant(radiance),
         };
         self.builder.set_environment(env);
+        self.builder
+            .set_environment_group(self.tags.light_group.clone());
         Ok(())
     }
 }

@@ -64,7 +64,7 @@ mod xform;
 
 use super::camera::{Camera, CameraMotion};
 use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
-use crate::geometry::{MeshMotion, MotionSteps};
+use crate::geometry::{CompositingTags, Mesh, MeshMotion, MotionSteps};
 use crate::limits::{catch_quietly, one_line, read_file, Limits};
 use crate::math::{Mat4, Rgb, Vec3};
 use crate::volume::VolumeSpec;
@@ -317,6 +317,8 @@ fn read_stage(
         limits: *limits,
         time: usd::TimeCode::EARLIEST,
         packages: HashMap::new(),
+        tags: CompositingTags::default(),
+        asset: String::new(),
     };
     loader.root = loader.stage_root()?;
     loader.time = match time {
@@ -407,6 +409,11 @@ struct Loader<'a> {
     time: usd::TimeCode,
     /// `.usdz` packages opened for the files inside them, by package path.
     packages: HashMap<PathBuf, layers::Package>,
+    /// The compositing tags of the prim being visited: its own `nimbus:` attributes over its ancestors'.
+    tags: CompositingTags,
+    /// Cryptomatte's asset for the prim being visited: the nearest enclosing `component` model, else the
+    /// top-level prim.
+    asset: String,
 }
 
 impl Loader<'_> {
@@ -584,6 +591,27 @@ impl Loader<'_> {
         if !world.is_finite() {
             return Err(self.error(&at, "non-finite transform"));
         }
+        let outer = (self.tags.clone(), self.asset.clone());
+        self.tags = self.prim_tags(prim)?.or(&outer.0);
+        if depth == 0 || self.is_component(prim)? {
+            self.asset = at.clone();
+        }
+        let visited = self.visit_prim(prim, &world, binding, depth);
+        (self.tags, self.asset) = outer;
+        visited
+    }
+
+    /// Draws what `prim` is (mesh, gprim, light, camera, volume...) and visits its children; the compositing
+    /// tags and asset are already the prim's.
+    fn visit_prim(
+        &mut self,
+        prim: &usd::Prim,
+        world: &Mat4,
+        binding: Option<String>,
+        depth: usize,
+    ) -> Result<(), SceneError> {
+        let at = prim.path().as_str().to_owned();
+        let world = *world;
         let binding = self.binding(prim)?.or(binding);
         let kind = self.type_name(prim)?;
         match kind.as_str() {
@@ -611,6 +639,51 @@ impl Loader<'_> {
             self.visit(&child, world, binding.clone(), depth + 1)?;
         }
         Ok(())
+    }
+
+    /// The prim's own `nimbus:lightGroup` (string or token), `nimbus:holdout` and `nimbus:shadowCatcher`
+    /// (bool) attributes (see [`CompositingTags`]).
+    fn prim_tags(&self, prim: &usd::Prim) -> Result<CompositingTags, SceneError> {
+        let at = prim.path().as_str();
+        let flag = |name: &str| -> Result<bool, SceneError> {
+            match self.value(prim, name)? {
+                None => Ok(false),
+                Some(sdf::Value::Bool(b)) => Ok(b),
+                Some(_) => Err(self.error(&format!("{at}.{name}"), "expected a bool")),
+            }
+        };
+        let light_group = match self.value(prim, "nimbus:lightGroup")? {
+            None => None,
+            Some(v) => match token(&v) {
+                Some(name) if !name.trim().is_empty() && name.chars().count() <= 64 => Some(name),
+                _ => {
+                    return Err(self.error(
+                        &format!("{at}.nimbus:lightGroup"),
+                        "a light group must be a non-empty string of at most 64 characters",
+                    ))
+                }
+            },
+        };
+        Ok(CompositingTags {
+            light_group,
+            holdout: flag("nimbus:holdout")?,
+            shadow_catcher: flag("nimbus:shadowCatcher")?,
+        })
+    }
+
+    /// True when `prim` is a `component` model (USD's model hierarchy: an asset).
+    fn is_component(&self, prim: &usd::Prim) -> Result<bool, SceneError> {
+        let kind = prim
+            .kind()
+            .map_err(|e| self.error(prim.path().as_str(), format!("{e:#}")))?;
+        Ok(kind.is_some_and(|k| k.as_str() == "component"))
+    }
+
+    /// Adds a mesh drawn from the prim being visited, with that prim's asset and compositing tags.
+    fn add_mesh(&mut self, mut mesh: Mesh) {
+        mesh.asset = self.asset.clone();
+        mesh.tags = self.tags.clone();
+        self.builder.add_mesh(mesh);
     }
 
     /// The file an asset-valued attribute names, resolved against the layer that authored it.

@@ -143,6 +143,8 @@ impl Loader<'_> {
                 },
             )
         })?;
+        spec.asset = self.asset.clone();
+        spec.tags = self.tags.clone();
         self.volumes.push(spec);
         Ok(())
     }
