@@ -514,3 +514,32 @@ fn a_shadow_catcher_records_the_shadow_area_of_a_point_light() {
         "shadow area {area} vs 0.16"
     );
 }
+
+#[test]
+fn a_blend_surface_covers_with_its_alpha() {
+    // A BLEND quad of alpha 0.3 filling the view in front of the environment: each camera ray meets it with
+    // probability 0.3 (stochastic transparency), so the alpha is 0.3.
+    let mut b = SceneBuilder::new();
+    let mut veil = Material::lambertian("veil", Rgb::splat(0.5));
+    veil.alpha_mode = nimbus::material::AlphaMode::Blend;
+    veil.base_color.w = 0.3;
+    let veil = b.add_material(veil);
+    b.add_mesh(quad(
+        [
+            Vec3::new(-5.0, -5.0, 0.0),
+            Vec3::new(5.0, -5.0, 0.0),
+            Vec3::new(5.0, 5.0, 0.0),
+            Vec3::new(-5.0, 5.0, 0.0),
+        ],
+        veil,
+    ));
+    b.add_light(Light::Environment(EnvironmentLight::Constant(Rgb::ONE)));
+    b.set_camera(narrow_camera());
+    let scene = b.build().unwrap();
+    let spp = 64;
+    let img = render(&scene, 16, spp, 9, "none", true);
+    let alpha = mean(&img.alpha);
+    let se = (0.3f64 * 0.7 / (img.pixel_count() as f64 * spp as f64)).sqrt();
+    eprintln!("BLEND alpha 0.3: {alpha:.4} (s.e. {se:.4})");
+    assert!((alpha - 0.3).abs() < 4.0 * se, "alpha {alpha}");
+}
