@@ -770,3 +770,45 @@ fn parts_with_every_layer_merge_bit_for_bit_cryptomatte_ranks_included() {
     assert!(err.to_string().contains("(--aovs"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn parts_whose_media_chose_other_estimators_are_refused() {
+    // The same scene file and settings, but one part's medium tracks over another majorant structure (as a
+    // node whose --memory-limit rules out the cheapest structure would pick): the samples differ, so the
+    // parts must not merge. Before the estimators were in the part header this merged into a wrong image.
+    let dir = temp_dir("estimators");
+    use nimbus::volume::majorant::MajorantKind;
+    let load = |kind: MajorantKind| {
+        let force = move |spec: &mut nimbus::volume::VolumeSpec| {
+            spec.majorant = Some(kind);
+        };
+        let options = nimbus::scene::LoadOptions {
+            volume_override: Some(&force),
+            ..Default::default()
+        };
+        let mut builder = nimbus::scene::load_builder(Path::new(SCENE), &options).unwrap();
+        builder.set_environment(EnvironmentLight::Constant(Rgb::splat(1e-9)));
+        builder.build().unwrap()
+    };
+    let (a, b) = (dir.join("grid16.exr"), dir.join("global.exr"));
+    render_part(
+        &load(MajorantKind::Grid16),
+        settings(1),
+        window(0, 0, 41, 29),
+        0..6,
+        &a,
+    );
+    render_part(
+        &load(MajorantKind::Global),
+        settings(1),
+        window(0, 0, 41, 29),
+        6..12,
+        &b,
+    );
+    let err = match farm::merge_parts(&[a, b]) {
+        Ok(_) => panic!("parts whose media chose other estimators merged"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("media estimators"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -130,7 +130,7 @@ fn check_same(a_path: &Path, a: &PartInfo, b_path: &Path, b: &PartInfo) -> Resul
             other_value: "another".into(),
         });
     }
-    let fields: [(&'static str, String, String); 7] = [
+    let fields: [(&'static str, String, String); 8] = [
         (
             "resolution",
             format!("{}x{}", a.width, a.height),
@@ -153,6 +153,11 @@ fn check_same(a_path: &Path, a: &PartInfo, b_path: &Path, b: &PartInfo) -> Resul
             "layers (--aovs, --light-groups, --cryptomatte-depth)",
             layers(a),
             layers(b),
+        ),
+        (
+            "media estimators (the majorant structure chosen under each node's --memory-limit)",
+            a.estimators.clone(),
+            b.estimators.clone(),
         ),
     ];
     match fields.into_iter().find(|(_, x, y)| x != y) {
@@ -259,6 +264,7 @@ mod tests {
             clamped_samples: 0,
             plan: crate::render::LayerPlan::default(),
             metadata: crate::render::ImageMetadata::default(),
+            estimators: String::new(),
         }
     }
 

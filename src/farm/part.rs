@@ -24,6 +24,7 @@
 //! | `nimbus.sample_count` | `END - START` |
 //! | `nimbus.nan_samples`, `nimbus.clamped_samples` | the part's dropped and clamped samples |
 //! | `nimbus.layers` | the layer plan: `slots=…;written=…;depth=N` |
+//! | `nimbus.estimators` | each medium's estimator (free flights, majorant structure, shadow rays) |
 //! | `nimbus.crypto.<kind>.manifest`, `nimbus.crypto.<kind>.entries` | each Cryptomatte kind's manifest (JSON) and its number of entry channels |
 
 use super::FarmError;
@@ -77,6 +78,10 @@ pub struct PartInfo {
     pub plan: LayerPlan,
     /// The header attributes the merged image takes over (camera matrices, `nimbus/` keys).
     pub metadata: ImageMetadata,
+    /// Each medium's estimator (`name: key`, see [`crate::volume::MediumMethod::estimator_key`]), joined by
+    /// `; `: the majorant structure chosen under the memory limit changes the samples, so parts of renders that
+    /// chose differently must not merge.
+    pub estimators: String,
 }
 
 impl PartInfo {
@@ -103,6 +108,12 @@ impl PartInfo {
             clamped_samples: stats.clamped_samples,
             plan: LayerPlan::default(),
             metadata: ImageMetadata::default(),
+            estimators: stats
+                .media
+                .iter()
+                .map(|m| format!("{}: {}", m.name, m.method_details.estimator_key()))
+                .collect::<Vec<_>>()
+                .join("; "),
         }
     }
 
@@ -128,6 +139,7 @@ impl PartInfo {
             ("nan_samples", self.nan_samples.to_string()),
             ("clamped_samples", self.clamped_samples.to_string()),
             ("layers", self.plan.describe()),
+            ("estimators", self.estimators.clone()),
         ]
     }
 }
@@ -404,6 +416,7 @@ fn parse_info(
     Ok(PartInfo {
         plan,
         metadata,
+        estimators: text("estimators")?,
         version: text("version")?,
         scene_hash,
         width,

@@ -140,6 +140,18 @@ pub struct MediumMethod {
     pub why: MethodReason,
 }
 
+impl MediumMethod {
+    /// The estimator alone, without why it was chosen: two renders whose media have the same keys sample the
+    /// same random decisions, so their farm parts may merge (a memory limit that rules out a majorant
+    /// structure changes it).
+    pub fn estimator_key(&self) -> String {
+        format!(
+            "{:?} {:?} {:?}",
+            self.free_flight, self.majorant, self.shadow
+        )
+    }
+}
+
 /// How a majorant structure reads in the sentence.
 fn majorant_phrase(kind: MajorantKind) -> &'static str {
     match kind {
