@@ -421,8 +421,13 @@ fn check_output(output: &Path) -> Result<(), String> {
             output.display()
         ));
     }
-    create_parent(output)?;
-    let dir = match output.parent() {
+    check_folder_writable(output)
+}
+
+/// Makes `path`'s folder if it is missing and checks that a file can be written in it.
+fn check_folder_writable(path: &Path) -> Result<(), String> {
+    create_parent(path)?;
+    let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
@@ -430,6 +435,40 @@ fn check_output(output: &Path) -> Result<(), String> {
     std::fs::write(&probe, b"")
         .and_then(|()| std::fs::remove_file(&probe))
         .map_err(|e| format!("cannot write to {}: {e}", dir.display()))
+}
+
+/// Checks, before anything is rendered, that `--stats` names a file that is neither the EXR nor its PNG preview
+/// (the JSON would replace the image) nor a folder, in a folder that exists (or can be made) and can be written.
+fn check_stats_path(stats: &Path, output: &Path) -> Result<(), String> {
+    let preview = output.with_extension("png");
+    if same_file_name(stats, output) || same_file_name(stats, &preview) {
+        return Err(format!(
+            "--stats {} names an image this render writes; give the statistics their own file",
+            stats.display()
+        ));
+    }
+    if stats.is_dir() {
+        return Err(format!(
+            "--stats {} is a folder; name a file in it (e.g. {})",
+            stats.display(),
+            stats.join("stats.json").display()
+        ));
+    }
+    check_folder_writable(stats)
+}
+
+/// Whether two paths name the same file: equal once made absolute and their folders resolved (the files
+/// themselves need not exist yet).
+fn same_file_name(a: &Path, b: &Path) -> bool {
+    let resolve = |p: &Path| {
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_owned());
+        dir.join(p.file_name().unwrap_or_default())
+    };
+    resolve(a) == resolve(b)
 }
 
 /// `path` with `.####` before its extension when it holds no frame pattern (`shot.exr` → `shot.####.exr`), so
@@ -471,7 +510,11 @@ fn render(mut args: RenderArgs) -> Result<(), String> {
         args.output = with_frame_pattern(&args.output, "-o");
         args.stats = args.stats.map(|s| with_frame_pattern(&s, "--stats"));
     }
-    check_output(&frame_path(&args.output, range.map(|r| r.first)))?;
+    let first = range.map(|r| r.first);
+    check_output(&frame_path(&args.output, first))?;
+    if let Some(stats) = &args.stats {
+        check_stats_path(&frame_path(stats, first), &frame_path(&args.output, first))?;
+    }
     if args.image.threads > nimbus::limits::max_threads() {
         eprintln!(
             "nimbus: warning: --threads {} is capped at {} ({} per core)",
@@ -796,7 +839,8 @@ fn finish_render(stats: &RenderStats, stats_path: Option<&Path>) -> Result<(), S
     warn_samples(stats.nan_samples, stats.clamped_samples);
     if let Some(path) = stats_path {
         let json = serde_json::to_string_pretty(stats).map_err(|e| e.to_string())?;
-        std::fs::write(path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+        nimbus::output::write_atomically(path, (json + "\n").as_bytes())
+            .map_err(|e| format!("{}: {e}", path.display()))?;
     }
     Ok(())
 }

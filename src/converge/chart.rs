@@ -120,13 +120,23 @@ pub fn draw_loglog_chart(chart: &LogLogChart, png: &Path, svg: &Path) -> Result<
         draw(&root, chart).map_err(|e| ChartError::new(png, e))?;
         root.present().map_err(|e| ChartError::new(png, e))?;
     }
-    image::RgbImage::from_raw(SIZE.0, SIZE.1, rgb)
-        .ok_or_else(|| ChartError::new(png, "chart buffer size"))?
-        .save(png)
-        .map_err(|e| ChartError::new(png, e))?;
-    let root = SVGBackend::new(svg, SIZE).into_drawing_area();
-    draw(&root, chart).map_err(|e| ChartError::new(svg, e))?;
-    root.present().map_err(|e| ChartError::new(svg, e))
+    let mut encoded = Vec::new();
+    image::ImageEncoder::write_image(
+        image::codecs::png::PngEncoder::new(&mut encoded),
+        &rgb,
+        SIZE.0,
+        SIZE.1,
+        image::ExtendedColorType::Rgb8,
+    )
+    .map_err(|e| ChartError::new(png, e))?;
+    crate::output::write_atomically(png, &encoded).map_err(|e| ChartError::new(png, e))?;
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, SIZE).into_drawing_area();
+        draw(&root, chart).map_err(|e| ChartError::new(svg, e))?;
+        root.present().map_err(|e| ChartError::new(svg, e))?;
+    }
+    crate::output::write_atomically(svg, text.as_bytes()).map_err(|e| ChartError::new(svg, e))
 }
 
 fn positive(v: f64) -> bool {

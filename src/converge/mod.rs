@@ -182,7 +182,8 @@ pub fn run(
     let dir = &options.output_dir;
     let write = |name: &str, text: String| {
         let path = dir.join(name);
-        std::fs::write(&path, text).map_err(|source| ConvergeError::Write { path, source })
+        crate::output::write_atomically(&path, text.as_bytes())
+            .map_err(|source| ConvergeError::Write { path, source })
     };
     write("convergence.csv", csv(&curves))?;
     let scene_name = options.scene.display().to_string();

@@ -171,7 +171,8 @@ pub fn write_exr_with(
     write_sorted(&Image::from_layer(layer), path)
 }
 
-/// Writes a single-part image to `path` with its header attributes in name order, as the OpenEXR library
+/// Writes a single-part image to `path` (atomically, see [`super::write_atomically`]) with its header attributes
+/// in name order, as the OpenEXR library
 /// writes them: the `exr` crate keeps custom attributes in a hash map, whose order changes from process to
 /// process, and files of the same image must be the same bytes (a merged render is compared with a single one).
 pub(crate) fn write_sorted(
@@ -186,7 +187,7 @@ pub(crate) fn write_sorted(
     image.write().to_buffered(&mut bytes).map_err(exr_error)?;
     let mut bytes = bytes.into_inner();
     sort_header_attributes(&mut bytes);
-    std::fs::write(path, bytes).map_err(|e| exr_error(::exr::error::Error::from(e)))
+    super::write_atomically(path, &bytes).map_err(|e| exr_error(::exr::error::Error::from(e)))
 }
 
 /// Sorts the attributes of a single-part file's header by name, in place (the header keeps its length, so

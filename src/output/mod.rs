@@ -1,8 +1,10 @@
 //! Writing and reading rendered images: the multi-layer OpenEXR file and the 8-bit sRGB PNG preview.
 
+mod atomic;
 mod exr;
 mod png;
 
+pub use self::atomic::{temporary_path, write_atomically};
 pub use self::exr::{
     read_exr_layers, write_exr, write_exr_with, ExrCompression, ExrLayers, ExrOptions, HalfFloats,
 };

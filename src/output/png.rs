@@ -12,7 +12,8 @@ pub fn preview_path(exr_path: &Path) -> PathBuf {
 }
 
 /// Writes the beauty pass of `image` to `path` as an 8-bit RGB PNG: each linear channel is scaled by
-/// `2^exposure`, clamped to \[0, 1\], sRGB encoded and rounded. Non-finite samples (NaN, ±inf) become 0.
+/// `2^exposure`, clamped to \[0, 1\], sRGB encoded and rounded. Non-finite samples (NaN, ±inf) become 0. The file
+/// is written atomically ([`super::write_atomically`]).
 pub fn write_png_preview(
     image: &RenderImage,
     path: &Path,
@@ -34,18 +35,20 @@ pub fn write_png_preview(
         .flat_map(|c| c.to_array())
         .map(|v| encode(v, scale))
         .collect();
-    ::image::save_buffer_with_format(
-        path,
+    let png_error = |source| OutputError::Png {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut encoded = Vec::new();
+    ::image::ImageEncoder::write_image(
+        ::image::codecs::png::PngEncoder::new(&mut encoded),
         &bytes,
         width,
         height,
         ::image::ExtendedColorType::Rgb8,
-        ::image::ImageFormat::Png,
     )
-    .map_err(|source| OutputError::Png {
-        path: path.to_path_buf(),
-        source,
-    })
+    .map_err(png_error)?;
+    super::write_atomically(path, &encoded).map_err(|e| png_error(::image::ImageError::IoError(e)))
 }
 
 /// One linear channel scaled by `scale`, clamped, sRGB encoded and quantised to 8 bits; non-finite → 0.
