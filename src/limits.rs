@@ -157,6 +157,7 @@ pub fn max_threads() -> usize {
 /// pipe (whose size is unknown) after [`MAX_STREAM_BYTES`] or the budget, whichever is smaller.
 pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
     use std::io::{Error, ErrorKind};
+    refuse_pipes_and_sockets(path)?;
     let file = std::fs::File::open(path)?;
     let meta = file.metadata()?;
     if meta.is_dir() {
@@ -193,6 +194,32 @@ pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
         ));
     }
     Ok(bytes)
+}
+
+/// Refuses a named pipe (FIFO) or a socket before it is opened: opening a pipe with no writer blocks forever,
+/// and a scene, texture or grid never arrives through one. Devices (`/dev/zero`) are left to the caller's cap.
+pub fn refuse_pipes_and_sockets(path: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let kind = std::fs::metadata(path)?.file_type();
+        let what = if kind.is_fifo() {
+            "a named pipe (FIFO)"
+        } else if kind.is_socket() {
+            "a socket"
+        } else {
+            return Ok(());
+        };
+        Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("is {what}, not a file"),
+        ))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = path;
+        Ok(())
+    }
 }
 
 /// Decodes a PNG, JPEG or other image the `image` crate reads, from bytes, refusing before decoding one whose

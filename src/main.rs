@@ -298,14 +298,24 @@ fn main() -> ExitCode {
 fn info(args: InfoArgs) -> Result<(), String> {
     let info = nimbus::vdb::file_info(&args.file).map_err(|e| e.to_string())?;
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&info).map_err(|e| e.to_string())?
-        );
+        let json = serde_json::to_string_pretty(&info).map_err(|e| e.to_string())?;
+        print_stdout(&format!("{json}\n"))
     } else {
-        print!("{info}");
+        print_stdout(&info.to_string())
     }
-    Ok(())
+}
+
+/// Writes `text` to standard output. A reader that stopped reading (`nimbus info FILE | head -1`: a broken
+/// pipe) ends the output quietly, as it does for other command-line tools; any other write error is an error.
+fn print_stdout(text: &str) -> Result<(), String> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(format!("cannot write to standard output: {e}"))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// The longest error or warning line printed: messages quoting file contents are cut there.
@@ -397,6 +407,14 @@ fn parse_fps(text: &str) -> Result<f64, String> {
             "{f} must be a positive number of frames per second"
         )),
         Err(e) => Err(e.to_string()),
+    }
+}
+
+impl RenderArgs {
+    /// The resource limits of this render: `--memory-limit`, or half the physical memory.
+    fn limits(&self) -> Limits {
+        self.memory_limit
+            .map_or_else(Limits::default, Limits::with_memory)
     }
 }
 
@@ -544,36 +562,33 @@ fn render(mut args: RenderArgs) -> Result<(), String> {
 /// `--list-aovs`: every layer `--aovs` takes, with its meaning, and the scene's light groups when a scene is
 /// given.
 fn list_aovs(args: &RenderArgs) -> Result<(), String> {
-    println!("layers (--aovs takes these names, comma-separated):");
+    use std::fmt::Write;
+    let mut text = String::from("layers (--aovs takes these names, comma-separated):\n");
     for (name, meaning) in nimbus::render::aovs::layer_catalog() {
-        println!("  {name:<22} {meaning}");
+        let _ = writeln!(text, "  {name:<22} {meaning}");
     }
-    println!("sets:");
+    text.push_str("sets:\n");
     for (name, meaning) in nimbus::render::aovs::AOV_SETS {
-        println!("  {name:<22} {meaning}");
+        let _ = writeln!(text, "  {name:<22} {meaning}");
     }
     if args.scene.is_some() {
-        let limits = args
-            .memory_limit
-            .map_or_else(Limits::default, Limits::with_memory);
+        let limits = args.limits();
         let builder = load_builder(args.scene.as_deref(), limits, args.frame, args.fps, None)?;
         let scene = builder.build().map_err(|e| e.to_string())?;
         let groups = nimbus::render::LightGroups::new(&scene, args.light_groups)
             .map_err(|e| e.to_string())?;
-        if groups.names.is_empty() {
-            println!(
-                "light groups of this scene (--light-groups {}): none",
-                light_group_mode_name(args.light_groups)
-            );
+        let names = if groups.names.is_empty() {
+            "none".to_owned()
         } else {
-            println!(
-                "light groups of this scene (--light-groups {}): {}",
-                light_group_mode_name(args.light_groups),
-                groups.names.join(", ")
-            );
-        }
+            groups.names.join(", ")
+        };
+        let _ = writeln!(
+            text,
+            "light groups of this scene (--light-groups {}): {names}",
+            light_group_mode_name(args.light_groups)
+        );
     }
-    Ok(())
+    print_stdout(&text)
 }
 
 /// The `--light-groups` value's name.
@@ -593,9 +608,7 @@ fn render_frame(
 ) -> Result<(), String> {
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
-    let limits = args
-        .memory_limit
-        .map_or_else(Limits::default, Limits::with_memory);
+    let limits = args.limits();
     let mut builder = load_builder(args.scene.as_deref(), limits, frame, args.fps, args.shutter)?;
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
@@ -914,7 +927,8 @@ fn part_scene_hash(
     let file;
     let files: Vec<&[u8]> = match &args.scene {
         Some(path) => {
-            file = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+            file = nimbus::limits::read_file(path, &args.limits())
+                .map_err(|e| format!("{}: {e}", path.display()))?;
             vec![&file]
         }
         None => vec![DEMO_SCENE, DEMO_CLOUD],

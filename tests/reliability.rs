@@ -222,3 +222,152 @@ fn a_stats_path_that_is_the_image_or_a_folder_is_refused_before_the_render() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A named pipe given as any input: the scene, a buffer, a texture, a material library, a VDB, an environment
+/// map, `info`'s VDB, `merge`'s part and `converge`'s reference. Each was opened before its type was checked,
+/// and opening a pipe with no writer blocks forever (issue 36, finding 10).
+#[test]
+fn a_named_pipe_as_any_input_is_a_one_line_error_not_a_hang() {
+    let dir = temp_dir("fifo");
+    for name in [
+        "pipe.gltf",
+        "pipe.bin",
+        "pipe.png",
+        "pipe.mtl",
+        "pipe.vdb",
+        "pipe.exr",
+        "pipe.usda",
+        "pipe.obj",
+    ] {
+        let made = Command::new("mkfifo").arg(dir.join(name)).status();
+        if !made.is_ok_and(|s| s.success()) {
+            eprintln!("skipped: mkfifo is not available");
+            return;
+        }
+    }
+    // One triangle whose buffer, texture, volume or environment map is the pipe.
+    let triangle = "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA";
+    let gltf = |buffer: &str, extras: &str, material: &str| {
+        let volume = if extras.contains("vdb") {
+            r#",{"extras":{"nimbus_volume":{"file":"pipe.vdb"}}}"#
+        } else {
+            ""
+        };
+        let texture = if material.is_empty() {
+            ""
+        } else {
+            r#","materials":[{"pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}],
+            "textures":[{"source":0}],"images":[{"uri":"pipe.png"}]"#
+        };
+        let nodes = if volume.is_empty() { "[0]" } else { "[0,1]" };
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":{nodes},"extras":{{{extras}}}}}],
+            "nodes":[{{"mesh":0}}{volume}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}{material}}}]}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",
+                "min":[0,0,0],"max":[1,1,0]}}],
+            "bufferViews":[{{"buffer":0,"byteLength":36}}],
+            "buffers":[{{"byteLength":36,"uri":"{buffer}"}}]{texture}}}"#
+        )
+    };
+    let data = format!("data:application/octet-stream;base64,{triangle}");
+    let scenes = [
+        ("buffer.gltf", gltf("pipe.bin", "", "")),
+        ("plain.gltf", gltf(&data, "", "")),
+        ("texture.gltf", gltf(&data, "", r#","material":0"#)),
+        (
+            "environment.gltf",
+            gltf(&data, r#""nimbus_environment":{"map":"pipe.exr"}"#, ""),
+        ),
+        ("volume.gltf", gltf(&data, r#""vdb":1"#, "")),
+        (
+            "library.obj",
+            "mtllib pipe.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_owned(),
+        ),
+    ];
+    for (name, text) in &scenes {
+        std::fs::write(dir.join(name), text).unwrap();
+    }
+    let render = |scene: &'static str| {
+        vec![
+            "render", scene, "--width", "4", "--height", "4", "--spp", "1", "-o", "out.exr",
+        ]
+    };
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (render("pipe.gltf"), "pipe.gltf"),
+        (render("pipe.obj"), "pipe.obj"),
+        (render("pipe.usda"), "pipe.usda"),
+        (render("buffer.gltf"), "pipe.bin"),
+        (render("texture.gltf"), "pipe.png"),
+        (render("environment.gltf"), "pipe.exr"),
+        (render("volume.gltf"), "pipe.vdb"),
+        (render("library.obj"), "pipe.mtl"),
+        (vec!["info", "pipe.vdb"], "pipe.vdb"),
+        (vec!["info", "pipe.vdb", "--json"], "pipe.vdb"),
+        (vec!["merge", "pipe.exr", "-o", "merged.exr"], "pipe.exr"),
+        (
+            vec![
+                "converge",
+                "plain.gltf",
+                "--methods",
+                "default,no-media-mis",
+                "--reference",
+                "pipe.exr",
+                "-o",
+                "chart",
+            ],
+            "pipe.exr",
+        ),
+    ];
+    for (args, names) in cases {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args(&args)
+            .current_dir(&dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let start = Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            if start.elapsed() > Duration::from_secs(20) {
+                child.kill().unwrap();
+                let _ = child.wait();
+                panic!("{args:?} hung on a named pipe");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let output = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{args:?}: {stderr}");
+        let error: Vec<&str> = stderr.lines().filter(|l| l.contains("error")).collect();
+        assert_eq!(error.len(), 1, "{args:?}: {stderr}");
+        assert!(error[0].contains(names), "{args:?}: {stderr}");
+        assert!(error[0].contains("named pipe"), "{args:?}: {stderr}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `nimbus info FILE --json | head -1` panicked with "failed printing to stdout: Broken pipe" (issue 36). A reader
+/// that stops reading ends the output quietly: no panic, exit status 0.
+#[test]
+fn a_closed_standard_output_ends_the_listing_quietly() {
+    let cloud = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/cloud.vdb");
+    let cases: [&[&str]; 3] = [
+        &["info", cloud, "--json"],
+        &["info", cloud],
+        &["render", "--list-aovs"],
+    ];
+    for args in cases {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args(args)
+            .stdout(writer)
+            .stderr(Stdio::piped())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{args:?}: {stderr}");
+        assert!(stderr.is_empty(), "{args:?}: {stderr}");
+    }
+}

@@ -299,6 +299,10 @@ fn to_i32(v: usize) -> i32 {
 
 /// Reads the header of the part at `path`, without its pixels.
 pub fn read_part_info(path: &Path) -> Result<PartInfo, FarmError> {
+    crate::limits::refuse_pipes_and_sockets(path).map_err(|e| FarmError::Invalid {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })?;
     let meta =
         ::exr::meta::MetaData::read_from_file(path, false).map_err(|source| OutputError::Exr {
             path: path.to_path_buf(),

@@ -321,6 +321,10 @@ fn samples_channel(name: &str, samples: FlatSamples) -> AnyChannel<FlatSamples> 
 /// Reads every part, channel and attribute of the EXR at `path`, at its largest resolution level (no deep
 /// data), with the samples as stored.
 pub(crate) fn read_flat_image(path: &Path) -> Result<::exr::image::FlatImage, OutputError> {
+    crate::limits::refuse_pipes_and_sockets(path).map_err(|e| OutputError::Invalid {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })?;
     read()
         .no_deep_data()
         .largest_resolution_level()
