@@ -131,7 +131,7 @@ impl Shutter {
                 Ok(v)
             } else {
                 Err(format!(
-                    "shutter time '{s}' must be finite and within ±{MAX_SHUTTER_FRAMES} frames"
+                    "shutter time '{s}' must be finite and within +/-{MAX_SHUTTER_FRAMES} frames"
                 ))
             }
         };

@@ -31,13 +31,17 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene (.gltf, .glb, .obj, .usd, .usda, .usdc, .usdz) to an EXR with AOV layers and a PNG preview.
+    #[command(allow_negative_numbers = true)]
     Render(Box<RenderArgs>),
     /// Describe the grids of an OpenVDB file: counts, statistics, bounds and transform.
+    #[command(allow_negative_numbers = true)]
     Info(InfoArgs),
     /// Compare methods' error against a reference over render time: CSV, log-log chart, summary.
+    #[command(allow_negative_numbers = true)]
     Converge(ConvergeArgs),
     /// Merge parts rendered with --samples, --crop or --chunk-from-env into the image of the whole render, bit
     /// for bit; refuses parts of different renders, overlapping parts and gaps.
+    #[command(allow_negative_numbers = true)]
     Merge(MergeArgs),
 }
 
@@ -59,7 +63,7 @@ struct MergeArgs {
     #[arg(short = 'o', long = "output")]
     output: PathBuf,
     /// Exposure of the PNG preview in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = finite_number)]
     exposure: f32,
     /// How the EXR is stored.
     #[command(flatten)]
@@ -104,7 +108,7 @@ struct ConvergeArgs {
     )]
     methods: String,
     /// Render seconds over all methods, shared equally.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, value_parser = positive_seconds)]
     budget: f64,
     /// Image size, seed and threads (converge's default width: the reference's, else 96).
     #[command(flatten)]
@@ -124,10 +128,10 @@ struct ImageArgs {
     #[arg(long, value_parser = at_least_one)]
     height: Option<usize>,
     /// Seed of the random streams.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = whole_number::<u64>)]
     seed: u64,
     /// Worker threads (0: all cores).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = whole_number::<usize>)]
     threads: usize,
 }
 
@@ -207,7 +211,7 @@ struct RenderArgs {
     #[arg(long = "memory-limit", value_parser = nimbus::limits::parse_size)]
     memory_limit: Option<u64>,
     /// Exposure of the PNG preview in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = finite_number)]
     exposure: f32,
     /// Print the estimator chosen for each medium, the light sampler and emitter-edge supersampling, and why,
     /// before rendering.
@@ -279,7 +283,10 @@ const DEMO_SCENE: &[u8] = include_bytes!("../assets/cloud.gltf");
 const DEMO_CLOUD: &[u8] = include_bytes!("../assets/cloud.vdb");
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(&e),
+    };
     let result = match cli.command {
         Command::Render(args) => render(*args),
         Command::Info(args) => info(args),
@@ -303,6 +310,39 @@ fn info(args: InfoArgs) -> Result<(), String> {
     } else {
         print_stdout(&info.to_string())
     }
+}
+
+/// Prints a command-line parsing error as one line, as every other error is printed, with clap's tips
+/// (a similar flag's name) folded into it; help and version requests print as clap prints them.
+fn usage_error(error: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        error.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        let _ = error.print();
+        return if error.use_stderr() {
+            ExitCode::from(2)
+        } else {
+            ExitCode::SUCCESS
+        };
+    }
+    let rendered = error.render().to_string();
+    let mut message = String::new();
+    for line in rendered.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        if !message.is_empty() {
+            message.push_str(if line.starts_with("tip: ") { "; " } else { " " });
+        }
+        message.push_str(line.trim_start_matches("error: "));
+    }
+    message.push_str(" (--help lists the flags)");
+    eprintln!("nimbus: error: {}", one_line(&message, MAX_MESSAGE_CHARS));
+    ExitCode::from(2)
 }
 
 /// Writes `text` to standard output. A reader that stopped reading (`nimbus info FILE | head -1`: a broken
@@ -423,7 +463,29 @@ fn at_least_one(text: &str) -> Result<usize, String> {
     match text.parse::<usize>() {
         Ok(0) => Err("must be at least 1".into()),
         Ok(n) => Ok(n),
-        Err(e) => Err(e.to_string()),
+        Err(_) => Err("expected a whole number of at least 1".into()),
+    }
+}
+
+/// Parses a whole number of 0 or more (a seed, a thread count).
+fn whole_number<T: std::str::FromStr>(text: &str) -> Result<T, String> {
+    text.parse()
+        .map_err(|_| "expected a whole number of 0 or more".to_owned())
+}
+
+/// Parses a finite number (an exposure in stops).
+fn finite_number(text: &str) -> Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err("expected a finite number".into()),
+    }
+}
+
+/// Parses a positive, finite number of seconds (a time budget).
+fn positive_seconds(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err("expected a positive number of seconds".into()),
     }
 }
 
@@ -865,7 +927,7 @@ fn warn_samples(nan_samples: u64, clamped_samples: u64) {
     }
     if clamped_samples > 0 {
         eprintln!(
-            "nimbus: warning: {clamped_samples} samples had values beyond ±2^38 (2.7e11) or NaN/Inf AOVs, and were clamped"
+            "nimbus: warning: {clamped_samples} samples had values beyond +/-2^38 (2.7e11) or NaN/Inf AOVs, and were clamped"
         );
     }
 }

@@ -371,3 +371,46 @@ fn a_closed_standard_output_ends_the_listing_quietly() {
         assert!(stderr.is_empty(), "{args:?}: {stderr}");
     }
 }
+
+/// Usage errors are one line of printable ASCII naming the flag (issue 36, finding 11): negative numbers gave
+/// 4-5-line usage errors, and clap's messages and ours printed "±", which the README's promise excludes.
+#[test]
+fn usage_errors_are_one_line_of_printable_ascii() {
+    let dir = temp_dir("usage");
+    let cases: [(&[&str], &str); 10] = [
+        (&["merge"], "--output"),
+        (&["render", "--seed", "-1"], "--seed"),
+        (&["render", "--spp", "-3"], "--spp"),
+        (&["render", "--threads", "-2"], "--threads"),
+        (&["render", "--width", "-640"], "--width"),
+        (&["render", "--shutter", "0,1e12"], "--shutter"),
+        (&["render", "--exposure", "nan"], "--exposure"),
+        (&["render", "--sp", "4"], "--spp"),
+        (&["render", "--frames", "5..x"], "--frames"),
+        (
+            &["converge", "scene.gltf", "--budget", "-1", "-o", "c"],
+            "--budget",
+        ),
+    ];
+    for (args, flag) in cases {
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+        assert!(
+            stderr.trim_end().bytes().all(|b| (0x20..0x7f).contains(&b)),
+            "{args:?}: {stderr}"
+        );
+        assert!(
+            !stderr.contains("\\x"),
+            "our own text escaped: {args:?}: {stderr}"
+        );
+        assert!(stderr.contains(flag), "{args:?}: {stderr}");
+        assert!(stderr.starts_with("nimbus: error: "), "{args:?}: {stderr}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

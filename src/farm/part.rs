@@ -451,8 +451,11 @@ fn parse_plan(
         let kind = CryptoKind::from_layer_name(name)
             .ok_or_else(|| invalid(format!("unknown Cryptomatte kind '{name}'")))?;
         let json = text(&format!("crypto.{name}.manifest"))?;
-        let manifest = parse_manifest(&json)
-            .ok_or_else(|| invalid(format!("the {name} manifest is not a name → ID object")))?;
+        let manifest = parse_manifest(&json).ok_or_else(|| {
+            invalid(format!(
+                "the {name} manifest is not an object of names to IDs"
+            ))
+        })?;
         cryptomatte.push((kind, manifest));
     }
     let layers = text("layers")?;

@@ -182,7 +182,7 @@ pub(super) fn apply_skin(
                 return Err(format!(
                     "a skinned primitive needs JOINTS_{set} and WEIGHTS_{set} together{}",
                     if set == 0 {
-                        " (glTF 2.0 §3.7.3.1)"
+                        " (glTF 2.0 section 3.7.3.1)"
                     } else {
                         ""
                     }

@@ -531,7 +531,7 @@ impl VolumeSpec {
                 return Err(ParamError::OutOfRange {
                     key: FRAME_OFFSET.name.to_owned(),
                     value: offset.to_string(),
-                    constraint: "be a whole number of frames within ±1e9",
+                    constraint: "be a whole number of frames within +/-1e9",
                 });
             }
             self.frame_offset = offset as i64;
