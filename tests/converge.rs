@@ -185,3 +185,38 @@ fn converge_methods_reach_usd_volumes_and_need_a_volume() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A reference with NaN pixels gave RMSE 0 for every method (issue 36): the comparison skipped what it could not
+/// subtract. A reference must be finite everywhere; one that is not is refused, naming the file and the pixel.
+#[test]
+fn a_reference_that_is_not_finite_is_refused() {
+    let dir = std::env::temp_dir().join(format!("nimbus_converge_nan_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/constant_grid.gltf");
+    for (name, bad) in [("all-nan.exr", None), ("one-inf.exr", Some((3, 2)))] {
+        let reference = dir.join(name);
+        exr::prelude::write_rgb_file(&reference, 16, 16, |x, y| match bad {
+            None => (f32::NAN, f32::NAN, f32::NAN),
+            Some(at) if (x, y) == at => (0.5, f32::INFINITY, 0.5),
+            Some(_) => (0.5, 0.5, 0.5),
+        })
+        .unwrap();
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("converge")
+            .arg(&scene)
+            .arg("--reference")
+            .arg(&reference)
+            .args(["--methods", "default", "--budget", "0.2", "-o"])
+            .arg(dir.join("out"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{name}: {stderr}");
+        assert!(stderr.contains(name), "{name}: {stderr}");
+        let pixel = if bad.is_some() { "(3, 2)" } else { "(0, 0)" };
+        assert!(stderr.contains(pixel), "{name}: {stderr}");
+        assert!(!dir.join("out/convergence.csv").exists(), "{name}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

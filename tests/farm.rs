@@ -812,3 +812,135 @@ fn parts_whose_media_chose_other_estimators_are_refused() {
     assert!(err.contains("media estimators"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// An edit of a part file's image.
+type Forgery = fn(&mut exr::prelude::FlatImage);
+
+/// Rewrites the part at `path` with `edit` applied to its one layer, then makes its float channels agree with
+/// its sums again (as a hostile file would), taking the values the reader names in turn.
+fn forge_part(path: &Path, edit: impl FnOnce(&mut exr::prelude::FlatImage)) {
+    use exr::prelude::*;
+    let read_back = || {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .from_file(path)
+            .unwrap()
+    };
+    let mut image = read_back();
+    edit(&mut image);
+    image.write().to_file(path).unwrap();
+    for _ in 0..64 {
+        let Err(err) = farm::read_part(path) else {
+            return;
+        };
+        let err = err.to_string();
+        // "channel NAME at pixel (X, Y) is A, but its sums give B (damaged file?)"
+        let Some(rest) = err
+            .split("channel ")
+            .nth(1)
+            .filter(|_| err.contains("sums give"))
+        else {
+            return; // refused for another reason: what the caller asserts on
+        };
+        let name = rest.split(" at pixel").next().unwrap();
+        let xy: Vec<usize> = rest
+            .split(['(', ')'])
+            .nth(1)
+            .unwrap()
+            .split(", ")
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let value: f32 = rest
+            .split("sums give ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        let mut image = read_back();
+        let layer = &mut image.layer_data[0];
+        let origin = layer.attributes.layer_position;
+        let width = layer.size.x();
+        let channel = layer
+            .channel_data
+            .list
+            .iter_mut()
+            .find(|c| c.name.to_string() == name)
+            .unwrap();
+        let FlatSamples::F32(values) = &mut channel.sample_data else {
+            panic!("{name} is not float")
+        };
+        values[(xy[1] - origin.y() as usize) * width + xy[0] - origin.x() as usize] = value;
+        image.write().to_file(path).unwrap();
+    }
+    panic!("could not make {} consistent", path.display());
+}
+
+/// Two parts that each hold a sum or a count near the top of its type merged into a wrapped value: an i128
+/// value sum near 2^127 in each part, or `nimbus.nan_samples` of 2^64 - 1 (issue 36). Each part is refused:
+/// a part's dropped samples cannot exceed its pixel-samples, and sums that overflow when added are refused,
+/// naming the pixel.
+#[test]
+fn parts_whose_sums_or_counts_would_wrap_when_merged_are_refused() {
+    use exr::prelude::*;
+    let scene = scene();
+    let dir = temp_dir("wrap");
+    let halves = [dir.join("a.exr"), dir.join("b.exr")];
+    let ranges = [0..6, 6..12];
+    let whole = window(0, 0, WIDTH, HEIGHT);
+    let huge_sum = |image: &mut FlatImage| {
+        let layer = &mut image.layer_data[0];
+        for (word, value) in [
+            (0, u32::MAX),
+            (1, u32::MAX),
+            (2, u32::MAX),
+            (3, 0x7fff_ffff),
+        ] {
+            let name = format!("nimbus.sum.R.{word}");
+            let channel = layer
+                .channel_data
+                .list
+                .iter_mut()
+                .find(|c| c.name.to_string() == name)
+                .unwrap();
+            let FlatSamples::U32(words) = &mut channel.sample_data else {
+                panic!("{name}")
+            };
+            words[0] = value;
+        }
+    };
+    let huge_count = |image: &mut FlatImage| {
+        let key = Text::from("nimbus.nan_samples");
+        image.layer_data[0].attributes.other.insert(
+            key,
+            AttributeValue::Text(Text::from(u64::MAX.to_string().as_str())),
+        );
+    };
+    let edits: [(&str, Forgery); 2] = [("value sum", huge_sum), ("nan_samples", huge_count)];
+    for (what, edit) in edits {
+        for (path, samples) in halves.iter().zip(ranges.clone()) {
+            render_part(&scene, settings(2), whole, samples, path);
+            forge_part(path, edit);
+        }
+        let merged = std::panic::catch_unwind(|| farm::merge_parts(&halves));
+        let err = match merged {
+            Ok(Err(e)) => e.to_string(),
+            Ok(Ok(m)) => panic!("{what}: merged, with nan_samples {}", m.nan_samples),
+            Err(_) => panic!("{what}: the merge overflowed"),
+        };
+        // The value sums are each possible alone and overflow only when the second part is added; the count
+        // is impossible in the first part already.
+        let (file, names) = match what {
+            "value sum" => ("b.exr", "pixel (0, 0)"),
+            _ => ("a.exr", "nan_samples"),
+        };
+        assert!(err.contains(file) && err.contains(names), "{what}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -480,7 +480,7 @@ fn validate(scene: &ValidationScene) -> (Vec<String>, Vec<String>) {
         nan_samples += stats.nan_samples;
         parts.push(film.image());
         match &mut whole {
-            Some(f) => assert!(f.merge(&film)),
+            Some(f) => assert_eq!(f.merge(&film), Ok(())),
             None => whole = Some(film),
         }
     }

@@ -93,6 +93,7 @@ pub fn run(
                     layers.width, layers.height
                 )));
             }
+            check_finite(&beauty, layers.width).map_err(reference_error)?;
             let se_path = standard_error_path(path);
             let se = if se_path.is_file() {
                 let se_layers = crate::output::read_exr_layers(&se_path)?;
@@ -103,6 +104,10 @@ pub fn run(
                         path: se_path.clone(),
                         reason: "no R, G, B channels of the reference's size".into(),
                     })?;
+                check_finite(&se, layers.width).map_err(|reason| ConvergeError::Reference {
+                    path: se_path.clone(),
+                    reason,
+                })?;
                 log(&format!(
                     "{}: the reference's standard errors are subtracted from the squared errors",
                     se_path.display()
@@ -198,6 +203,23 @@ pub fn run(
         &dir.join("convergence.svg"),
     )?;
     Ok(curves)
+}
+
+/// Refuses an image with a NaN or infinite value: every error against it would be NaN, or skipped and read as 0.
+/// Names the first such pixel (x, y) and channel.
+fn check_finite(image: &[Rgb], width: usize) -> Result<(), String> {
+    for (index, pixel) in image.iter().enumerate() {
+        for (channel, value) in ["R", "G", "B"].into_iter().zip(pixel.to_array()) {
+            if !value.is_finite() {
+                return Err(format!(
+                    "pixel ({}, {}) channel {channel} is {value}; a reference must be finite everywhere",
+                    index % width.max(1),
+                    index / width.max(1)
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// `DIR/STEM_se.exr` for a reference `DIR/STEM.exr`: the per-pixel standard errors of its mean.

@@ -3,7 +3,7 @@
 
 use super::part::{read_part, read_part_info, PartInfo};
 use super::FarmError;
-use crate::render::{Film, PixelWindow, RenderImage};
+use crate::render::{Film, FilmMergeError, PixelWindow, RenderImage};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -38,15 +38,30 @@ pub fn merge_parts(paths: &[PathBuf]) -> Result<Merged, FarmError> {
         PixelWindow::full(first.width, first.height),
         std::sync::Arc::new(first.plan.clone()),
     );
-    let (mut nan_samples, mut clamped_samples) = (0, 0);
+    let (mut nan_samples, mut clamped_samples) = (0u64, 0u64);
     for (path, header) in &infos {
+        let invalid = |reason: String| FarmError::Invalid {
+            path: path.clone(),
+            reason,
+        };
         let (info, part) = read_part(path)?;
-        if info != *header || !film.merge(&part) {
-            return Err(FarmError::Invalid {
-                path: path.clone(),
-                reason: "the file changed while it was merged".into(),
-            });
+        if info != *header {
+            return Err(invalid("the file changed while it was merged".into()));
         }
+        match film.merge(&part) {
+            Ok(()) => {}
+            Err(FilmMergeError::DoesNotFit) => {
+                return Err(invalid("the file changed while it was merged".into()))
+            }
+            Err(FilmMergeError::Overflow { x, y }) => {
+                return Err(invalid(format!(
+                "pixel ({x}, {y}): its sums overflow when added to the parts before it, more than \
+                     any samples could give (a damaged or forged part)"
+            )))
+            }
+        }
+        // Each part's counts are at most its pixel-samples (checked when read), and disjoint parts hold at
+        // most the frame's, so these sums cannot wrap.
         nan_samples += info.nan_samples;
         clamped_samples += info.clamped_samples;
     }

@@ -401,6 +401,19 @@ fn parse_info(
             "samples {samples_text} (count {sample_count}) do not fit {spp} spp"
         )));
     }
+    let pixel_samples = window.pixel_count() as u64 * sample_count;
+    let nan_samples = get("nan_samples")?;
+    let clamped_samples = get("clamped_samples")?;
+    for (key, value) in [
+        ("nan_samples", nan_samples),
+        ("clamped_samples", clamped_samples),
+    ] {
+        if value > pixel_samples {
+            return Err(invalid(format!(
+                "{PREFIX}{key} {value} is more than the part's {pixel_samples} pixel-samples"
+            )));
+        }
+    }
     let plan = parse_plan(other, &text, &invalid)?;
     let metadata = ImageMetadata {
         world_to_camera: attributes.world_to_camera.map(unflatten),
@@ -431,8 +444,8 @@ fn parse_info(
         spp,
         samples,
         window,
-        nan_samples: get("nan_samples")?,
-        clamped_samples: get("clamped_samples")?,
+        nan_samples,
+        clamped_samples,
     })
 }
 

@@ -160,11 +160,23 @@ impl IdCoverage {
         }
     }
 
-    /// Adds every ID of `other`.
-    pub fn merge(&mut self, other: &IdCoverage) {
-        for &(id, units) in &other.0 {
-            self.add_units(id, units);
+    /// Adds every ID of `other`, or returns false (leaving this map as it was) where an ID's coverage would not
+    /// fit: coverage read from files is not bounded by the samples behind it.
+    #[must_use]
+    pub fn checked_merge(&mut self, other: &IdCoverage) -> bool {
+        let fits =
+            other.0.iter().all(
+                |&(id, units)| match self.0.binary_search_by_key(&id, |e| e.0) {
+                    Ok(i) => self.0[i].1.checked_add(units).is_some(),
+                    Err(_) => true,
+                },
+            );
+        if fits {
+            for &(id, units) in &other.0 {
+                self.add_units(id, units);
+            }
         }
+        fits
     }
 
     /// The (ID, coverage units) pairs, sorted by ID.
@@ -265,7 +277,7 @@ mod tests {
         c.add(d, 0.25);
         let mut other = IdCoverage::default();
         other.add(b, 1.0);
-        c.merge(&other);
+        assert!(c.checked_merge(&other));
         // 8 samples: a 3, b 1.5, d 1.25, 0.25 of one sample uncovered.
         let ranks = c.ranks(8, 4);
         assert_eq!(ranks[0], (f32::from_bits(a), 3.0 / 8.0));

@@ -14,7 +14,9 @@
 //!
 //! One sample's value is clamped to ±[`MAX_SAMPLE_VALUE`] = ±2^38 ≈ ±2.7e11 before rounding (the film counts
 //! such samples). With at most `u32::MAX` samples in a pixel a value sum stays below 2^126 and a square
-//! sum below 2^188, so neither can overflow. Turning a sum back into `f64` is one deterministic rounding.
+//! sum below 2^188, so neither can overflow. Sums read from files (farm parts) are not bounded by any samples,
+//! so they are added with `checked_add`, which refuses a total that would not fit. Turning a sum back into `f64`
+//! is one deterministic rounding.
 //!
 //! The price: 240 bytes of film per pixel instead of 112 for `f64` sums, and values below 2.3e-10 keep an
 //! absolute rather than a relative precision. Plain `f64` running sums would give the same `f32` image for
@@ -82,9 +84,17 @@ impl ValueSum {
         self.0 += round_to_i128(v as f64 * 2f64.powi(VALUE_FRACTION_BITS));
     }
 
-    /// Adds another sum; the result does not depend on the order of additions.
-    pub fn add(&mut self, other: ValueSum) {
-        self.0 += other.0;
+    /// Adds another sum (the result does not depend on the order of additions), or returns false (leaving this one as it was) where the total would not fit: sums read
+    /// from files are not bounded by the samples behind them.
+    #[must_use]
+    pub fn checked_add(&mut self, other: ValueSum) -> bool {
+        match self.0.checked_add(other.0) {
+            Some(total) => {
+                self.0 = total;
+                true
+            }
+            None => false,
+        }
     }
 
     /// The sum as `f64` (one rounding of the exact value).
@@ -155,9 +165,20 @@ impl SquareSum {
         ];
     }
 
-    /// Adds another sum; the result does not depend on the order of additions.
-    pub fn add(&mut self, other: SquareSum) {
-        self.add_parts(other.0[0] as u128 | (other.0[1] as u128) << 64, other.0[2]);
+    /// Adds another sum (the result does not depend on the order of additions), or returns false (leaving this
+    /// one as it was) where the total would not fit in 192 bits: sums read from files are not bounded by the samples behind them.
+    #[must_use]
+    pub fn checked_add(&mut self, other: SquareSum) -> bool {
+        let low = |s: &SquareSum| s.0[0] as u128 | (s.0[1] as u128) << 64;
+        let (sum, carry) = low(self).overflowing_add(low(&other));
+        let Some(high) = self.0[2]
+            .checked_add(other.0[2])
+            .and_then(|h| h.checked_add(carry as u64))
+        else {
+            return false;
+        };
+        self.0 = [sum as u64, (sum >> 64) as u64, high];
+        true
     }
 
     /// The sum as `f64` (deterministic; within one unit in the last place of the exact value).
@@ -234,8 +255,7 @@ mod tests {
         groups.reverse();
         let (mut gs, mut gq) = (ValueSum::default(), SquareSum::default());
         for (a, b) in groups {
-            gs.add(a);
-            gq.add(b);
+            assert!(gs.checked_add(a) && gq.checked_add(b));
         }
         assert_eq!((gs, gq), (s, q));
         // While float sums in different orders disagree on these values.
@@ -290,16 +310,25 @@ mod tests {
         one_s.add_value(MAX_SAMPLE_VALUE);
         one_q.add_square(MAX_SAMPLE_VALUE);
         // Doubling 32 times: the sums of 2^32 samples of the largest value.
-        s.add(one_s);
-        q.add(one_q);
+        assert!(s.checked_add(one_s) && q.checked_add(one_q));
         for _ in 0..32 {
-            s.add(s);
-            q.add(q);
+            assert!(s.checked_add(s) && q.checked_add(q));
         }
         assert_eq!(s.0, 1 << 126);
         assert_eq!(q.0, [0, 0, 1 << 60]);
+        // Sums no samples could give, as a forged file holds, are refused rather than wrapped, and left as
+        // they were.
+        let before = s;
+        assert!(!s.checked_add(s), "2^127 does not fit an i128");
+        assert_eq!(s, before);
+        for _ in 0..3 {
+            assert!(q.checked_add(q), "up to 2^191");
+        }
+        let before = q;
+        assert!(!q.checked_add(q), "2^192 does not fit");
+        assert_eq!(q, before);
         assert_eq!(s.to_f64(), 2f64.powi(38 + 32));
-        assert_eq!(q.to_f64(), 2f64.powi(76 + 32));
+        assert_eq!(q.to_f64(), 2f64.powi(76 + 32 + 3));
     }
 
     #[test]

@@ -81,6 +81,21 @@ impl std::fmt::Display for PixelWindow {
     }
 }
 
+/// Why [`Film::merge`] refused a film.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FilmMergeError {
+    /// The films are of different frames or plans, or the window does not lie inside this film's.
+    DoesNotFit,
+    /// A count or sum of pixel (x, y) (in the frame) would overflow: more samples than a film can hold, or
+    /// sums no samples could give.
+    Overflow {
+        /// Column of the pixel.
+        x: usize,
+        /// Row of the pixel.
+        y: usize,
+    },
+}
+
 /// Exact sums of one pixel's samples. Any two sets of samples of a pixel add up to the same bits in any order.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PixelSums {
@@ -142,17 +157,29 @@ impl PixelSums {
         clamped
     }
 
-    /// Adds the samples of `other` (another set of samples of the same pixel).
-    pub fn merge(&mut self, other: &PixelSums) {
-        self.count += other.count;
+    /// Adds the samples of `other` (another set of samples of the same pixel), or returns false (leaving these
+    /// sums as they were) where a count or a sum would not fit: sums read from files are not bounded by the
+    /// samples behind them.
+    #[must_use]
+    pub fn checked_merge(&mut self, other: &PixelSums) -> bool {
+        let mut total = *self;
+        let Some(count) = total.count.checked_add(other.count) else {
+            return false;
+        };
+        total.count = count;
+        let mut fits = true;
         for c in 0..3 {
-            self.sum[c].add(other.sum[c]);
-            self.sum_sq[c].add(other.sum_sq[c]);
-            self.albedo[c].add(other.albedo[c]);
-            self.normal[c].add(other.normal[c]);
+            fits &= total.sum[c].checked_add(other.sum[c]);
+            fits &= total.sum_sq[c].checked_add(other.sum_sq[c]);
+            fits &= total.albedo[c].checked_add(other.albedo[c]);
+            fits &= total.normal[c].checked_add(other.normal[c]);
         }
-        self.depth.add(other.depth);
-        self.alpha.add(other.alpha);
+        fits &= total.depth.checked_add(other.depth);
+        fits &= total.alpha.checked_add(other.alpha);
+        if fits {
+            *self = total;
+        }
+        fits
     }
 
     /// Number of samples added.
@@ -357,14 +384,15 @@ impl Film {
         &mut self.pixels
     }
 
-    /// Adds the samples of `other`, a film of the same frame and plan whose window lies inside this one's;
-    /// returns false (and adds nothing) when it does not fit.
-    pub fn merge(&mut self, other: &Film) -> bool {
+    /// Adds the samples of `other`, a film of the same frame and plan whose window lies inside this one's.
+    /// Refuses (adding nothing) a film that does not fit, and stops at the first pixel whose counts or sums
+    /// would overflow (possible only for sums read from files), leaving the pixels before it merged.
+    pub fn merge(&mut self, other: &Film) -> Result<(), FilmMergeError> {
         if (other.width, other.height) != (self.width, self.height)
             || !self.window.contains(&other.window)
             || other.plan != self.plan
         {
-            return false;
+            return Err(FilmMergeError::DoesNotFit);
         }
         let (w, ow) = (self.window.width(), other.window.width());
         let (v, k) = (self.plan.values_per_pixel(), self.plan.cryptomatte.len());
@@ -373,16 +401,22 @@ impl Film {
             for x in 0..ow {
                 let dst = y * w + other.window.x0 - self.window.x0 + x;
                 let src = row * ow + x;
-                self.pixels[dst].merge(&other.pixels[src]);
+                let mut fits = self.pixels[dst].checked_merge(&other.pixels[src]);
                 for j in 0..v {
-                    self.slots[dst * v + j].add(other.slots[src * v + j]);
+                    fits &= self.slots[dst * v + j].checked_add(other.slots[src * v + j]);
                 }
                 for j in 0..k {
-                    self.crypto[dst * k + j].merge(&other.crypto[src * k + j]);
+                    fits &= self.crypto[dst * k + j].checked_merge(&other.crypto[src * k + j]);
+                }
+                if !fits {
+                    return Err(FilmMergeError::Overflow {
+                        x: other.window.x0 + x,
+                        y: other.window.y0 + row,
+                    });
                 }
             }
         }
-        true
+        Ok(())
     }
 
     /// Sets the sums of pixel `i` (row-major in the window) from a part file: the core sums, the slots'
@@ -595,8 +629,8 @@ mod tests {
             parts[[0, 2, 1, 2, 0][k as usize % 5]].add(&sample(k));
         }
         let mut merged = parts[2];
-        merged.merge(&parts[0]);
-        merged.merge(&parts[1]);
+        assert!(merged.checked_merge(&parts[0]));
+        assert!(merged.checked_merge(&parts[1]));
         assert_eq!(merged, all);
         assert_eq!(merged.count(), 40);
         assert_eq!(PixelSums::from_words(&all.to_words()), all);
@@ -628,7 +662,7 @@ mod tests {
         let (mut first, mut second) = (Film::new(1, 1), Film::new(1, 1));
         values[..2].iter().for_each(|&v| add(&mut first, v));
         values[2..].iter().for_each(|&v| add(&mut second, v));
-        assert!(first.merge(&second));
+        assert_eq!(first.merge(&second), Ok(()));
         assert_eq!(first, whole);
         assert_eq!(first.image(), whole.image());
     }
@@ -681,7 +715,7 @@ mod tests {
         for (i, p) in tile.pixels_mut().iter_mut().enumerate() {
             p.add(&sample(i as u32));
         }
-        assert!(whole.merge(&tile));
+        assert_eq!(whole.merge(&tile), Ok(()));
         for y in 0..4 {
             for x in 0..5 {
                 let inside = (1..4).contains(&x) && (2..4).contains(&y);
@@ -692,9 +726,14 @@ mod tests {
                 }
             }
         }
-        assert!(!tile.merge(&whole), "a larger window does not fit");
-        assert!(
-            !whole.merge(&Film::new(5, 3)),
+        assert_eq!(
+            tile.merge(&whole),
+            Err(FilmMergeError::DoesNotFit),
+            "a larger window does not fit"
+        );
+        assert_eq!(
+            whole.merge(&Film::new(5, 3)),
+            Err(FilmMergeError::DoesNotFit),
             "another frame size does not fit"
         );
     }

@@ -21,7 +21,7 @@ pub use emitter_edges::{
     MAX_MARKED_SHARE,
 };
 pub use exact::{ValueSum, MAX_SAMPLE_VALUE};
-pub use film::{Film, FilmPixel, FilmRow, PixelSums, PixelWindow};
+pub use film::{Film, FilmMergeError, FilmPixel, FilmRow, PixelSums, PixelWindow};
 pub use image::{AovLayer, ImageMetadata, RenderImage};
 pub use recording::LayerRecorder;
 pub use renderer::{
