@@ -175,3 +175,56 @@ fn a_missing_material_library_is_a_warning() {
     assert_eq!(b.meshes().len(), 1);
     b.build().unwrap();
 }
+
+/// `mtllib a.mtl b.mtl` names two libraries (the OBJ format allows several on one line) but was read as one
+/// file named "a.mtl b.mtl", missing both (issue 36). Each is loaded now; a single library whose name holds a
+/// space, as Blender writes it unquoted, still loads as one file.
+#[test]
+fn several_libraries_on_one_mtllib_line_are_each_loaded() {
+    let dir = folder("mtllibs");
+    write(&dir, "a.mtl", "newmtl red\nKd 0.8 0.1 0.1\n");
+    write(&dir, "b.mtl", "newmtl blue\nKd 0.1 0.1 0.8\n");
+    write(&dir, "my lib.mtl", "newmtl green\nKd 0.1 0.8 0.1\n");
+    let faces = "usemtl red\nf 1 2 3\nusemtl blue\nf 1 3 4\n";
+    let cases = [
+        (
+            "two.obj",
+            format!("mtllib a.mtl b.mtl\n{QUAD}{faces}"),
+            vec![("red", 0.8), ("blue", 0.1)],
+        ),
+        (
+            "tabs.obj",
+            format!("mtllib a.mtl\tb.mtl \n{QUAD}{faces}"),
+            vec![("red", 0.8), ("blue", 0.1)],
+        ),
+        (
+            "spaced.obj",
+            format!("mtllib my lib.mtl\n{QUAD}usemtl green\nf 1 2 3\n"),
+            vec![("green", 0.1)],
+        ),
+    ];
+    for (name, text, expected) in cases {
+        let obj = write(&dir, name, &text);
+        let b = load_builder(&obj, &LoadOptions::default()).unwrap();
+        assert!(
+            b.warnings().iter().all(|w| !w.contains("not found")),
+            "{name}: {:?}",
+            b.warnings()
+        );
+        let used: Vec<(String, f32)> = b
+            .meshes()
+            .iter()
+            .map(|m| {
+                let material = &b.materials()[m.material as usize];
+                (material.name.clone(), material.base_color.x)
+            })
+            .collect();
+        for (material, red) in expected {
+            assert!(
+                used.iter()
+                    .any(|(n, r)| n == material && (r - red).abs() < 1e-6),
+                "{name}: {material} not used with red {red}: {used:?}"
+            );
+        }
+    }
+}

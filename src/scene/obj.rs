@@ -433,16 +433,54 @@ struct Libraries<'a> {
 }
 
 impl Libraries<'_> {
+    /// Loads the libraries of one `mtllib` line, which `tobj` hands over whole: the OBJ format allows several
+    /// names on the line, separated by spaces, but Blender writes one name unquoted, spaces and all. A name
+    /// that is a file is one library; otherwise each word is a library.
     fn load(&self, name: &Path) -> tobj::MTLLoadResult {
         let line = self.lines.get(self.next.get()).copied().unwrap_or(0);
         self.next.set(self.next.get() + 1);
         if self.error.borrow().is_some() {
             return Err(tobj::LoadError::MaterialParseError);
         }
-        let file = self.obj.parent().unwrap_or(Path::new("")).join(name);
+        let folder = self.obj.parent().unwrap_or(Path::new(""));
+        let text = name.to_string_lossy();
+        let names: Vec<&str> = if folder.join(name).is_file() {
+            vec![&*text]
+        } else {
+            text.split_whitespace().collect()
+        };
+        let mut named = Vec::new();
+        let mut any_found = false;
+        for library in names {
+            if let Some(materials) = self.load_one(folder, Path::new(library), line)? {
+                any_found = true;
+                named.extend(materials);
+            }
+        }
+        if !any_found {
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
+        // `tobj` maps `usemtl` names to these indices (a later duplicate name wins, as in `tobj`'s own parser).
+        let index = named
+            .iter()
+            .enumerate()
+            .map(|(i, m)| (m.name.clone(), i))
+            .collect();
+        Ok((named, index))
+    }
+
+    /// Loads the library `name` (relative to `folder`) of the `mtllib` on OBJ line `line`: its materials, in
+    /// order (none when it was loaded before), or `None` when it is missing (recorded as a warning).
+    fn load_one(
+        &self,
+        folder: &Path,
+        name: &Path,
+        line: usize,
+    ) -> Result<Option<Vec<tobj::Material>>, tobj::LoadError> {
+        let file = folder.join(name);
         if !self.seen.borrow_mut().insert(file.clone()) {
             // Already loaded (or reported): its materials are known.
-            return Ok((Vec::new(), Default::default()));
+            return Ok(Some(Vec::new()));
         }
         let fail = |e: SceneError| {
             *self.error.borrow_mut() = Some(e);
@@ -455,7 +493,7 @@ impl Libraries<'_> {
                     "'{}' (line {line})",
                     one_line(&name.to_string_lossy(), QUOTE_CHARS)
                 ));
-                return Err(tobj::LoadError::OpenFileFailed);
+                return Ok(None);
             }
             Err(e) => return fail(SceneError::new(file, SceneErrorKind::Io(e))),
         };
@@ -483,7 +521,6 @@ impl Libraries<'_> {
                 library.unread_maps.join(", ")
             ));
         }
-        // `tobj` maps `usemtl` names to these indices (a later duplicate name wins, as in `tobj`'s own parser).
         let mut materials = self.materials.borrow_mut();
         let mut named = Vec::new();
         for m in library.materials {
@@ -493,12 +530,7 @@ impl Libraries<'_> {
             });
             materials.push((file.clone(), m));
         }
-        let index = named
-            .iter()
-            .enumerate()
-            .map(|(i, m)| (m.name.clone(), i))
-            .collect();
-        Ok((named, index))
+        Ok(Some(named))
     }
 }
 
