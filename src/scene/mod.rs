@@ -29,6 +29,12 @@ use crate::volume::Medium;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
+/// Bytes one triangle of a scene is counted at against the memory budget: its mesh's copy (three corners of
+/// position, normal and texture coordinates, and three indices: 108 bytes) and what [`SceneBuilder::build`]
+/// makes of it (the flattened triangle, its BVH copy, build references, nodes and per-triangle tables: about
+/// 150 bytes), rounded up.
+pub const BYTES_PER_TRIANGLE: u64 = 256;
+
 /// Radiance of the neutral environment that lights a scene without lighting of its own (see
 /// [`SceneBuilder::has_own_lighting`]), as glTF viewers light such files: the CLI adds it.
 pub const DEFAULT_ENVIRONMENT_RADIANCE: f32 = 1.0;
@@ -122,9 +128,37 @@ pub struct SceneBuilder {
     shutter: Option<crate::frames::Shutter>,
     /// Whether the scene asks for a transparent film (glTF scene extras `nimbus_transparent`).
     transparent: bool,
+    /// The load's memory budget, which the scene's triangles must fit at [`BYTES_PER_TRIANGLE`].
+    limits: crate::limits::Limits,
+    /// Triangles in `meshes`.
+    triangles: u64,
 }
 
 impl SceneBuilder {
+    /// An empty builder whose triangles must fit `limits` (a default builder has the default limits).
+    pub fn with_limits(limits: crate::limits::Limits) -> Self {
+        Self {
+            limits,
+            ..Self::default()
+        }
+    }
+
+    /// `Ok` if `more` triangles beyond those added so far fit the memory budget at [`BYTES_PER_TRIANGLE`];
+    /// loaders call it before making a mesh (an instance, an expanded prototype), so that a file reusing
+    /// one mesh many times is refused before the copies are made. `what` names the mesh.
+    pub fn check_triangles(
+        &self,
+        what: impl std::fmt::Display,
+        more: u64,
+    ) -> Result<(), crate::limits::OverBudget> {
+        let total = self.triangles.saturating_add(more);
+        self.limits.check_items(
+            format_args!("{what}: the scene's {total} triangles with it"),
+            total,
+            BYTES_PER_TRIANGLE,
+        )
+    }
+
     /// Loads the VDB volume `spec` describes and adds it as a position-filled medium; returns its index, or
     /// `None` when a sequence has no file for the frame and its `missing_frame` is `empty` (a warning says so).
     pub fn add_volume(
@@ -191,7 +225,16 @@ impl SceneBuilder {
         if mesh.normals.len() != mesh.positions.len() {
             mesh.generate_normals();
         }
+        self.triangles += mesh.indices.len() as u64;
         self.meshes.push(mesh);
+    }
+
+    /// Removes and returns the meshes added after the first `at` (a USD prototype flattened for instancing).
+    pub(crate) fn split_meshes_off(&mut self, at: usize) -> Vec<Mesh> {
+        let taken = self.meshes.split_off(at);
+        let removed: u64 = taken.iter().map(|m| m.indices.len() as u64).sum();
+        self.triangles = self.triangles.saturating_sub(removed);
+        taken
     }
 
     /// Adds a light (area lights come from emissive materials instead; an environment replaces any other),
@@ -465,9 +508,18 @@ impl SceneBuilder {
 
     /// Builds the renderable scene: flattens the meshes into one BVH, turns emissive triangles into area
     /// lights and builds the light-selection distribution. Fails on a dangling reference (see
-    /// [`SceneBuilder`]).
+    /// [`SceneBuilder`]), and before allocating when the triangles do not fit the memory budget at
+    /// [`BYTES_PER_TRIANGLE`].
     pub fn build(mut self) -> Result<Scene, SceneError> {
         self.validate()?;
+        let total: u64 = self.meshes.iter().map(|m| m.indices.len() as u64).sum();
+        self.limits
+            .check_items(
+                format_args!("the scene's {total} triangles"),
+                total,
+                BYTES_PER_TRIANGLE,
+            )
+            .map_err(|e| SceneError::new(BUILDER_PATH, SceneErrorKind::OverLimit(e.to_string())))?;
         // Normal maps need a tangent frame: MikkTSpace where the file gives no tangents (glTF 2.0 §3.7.2.1).
         for mesh in &mut self.meshes {
             if mesh.tangents.is_none()

@@ -308,7 +308,7 @@ fn read_stage(
     let mut loader = Loader {
         path,
         stage: &stage,
-        builder: SceneBuilder::default(),
+        builder: SceneBuilder::with_limits(*limits),
         volumes: Vec::new(),
         materials: HashMap::new(),
         textures: HashMap::new(),
@@ -679,11 +679,21 @@ impl Loader<'_> {
         Ok(kind.is_some_and(|k| k.as_str() == "component"))
     }
 
-    /// Adds a mesh drawn from the prim being visited, with that prim's asset and compositing tags.
-    fn add_mesh(&mut self, mut mesh: Mesh) {
+    /// Adds a mesh drawn from the prim being visited, with that prim's asset and compositing tags, if its
+    /// triangles fit the memory budget with the scene's so far ([`SceneBuilder::check_triangles`]).
+    fn add_mesh(&mut self, mut mesh: Mesh) -> Result<(), SceneError> {
+        self.check_triangles(&mesh.name, mesh.indices.len() as u64)?;
         mesh.asset = self.asset.clone();
         mesh.tags = self.tags.clone();
         self.builder.add_mesh(mesh);
+        Ok(())
+    }
+
+    /// `Ok` if `more` triangles made at `at` fit the memory budget with the scene's so far.
+    fn check_triangles(&self, at: &str, more: u64) -> Result<(), SceneError> {
+        self.builder
+            .check_triangles(at, more)
+            .map_err(|e| SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string())))
     }
 
     /// The file an asset-valued attribute names, resolved against the layer that authored it.
