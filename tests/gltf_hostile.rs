@@ -906,3 +906,31 @@ fn mesh_instances_count_against_the_memory_budget() {
         &["anim.gltf", "triangles", "memory budget", "--memory-limit"],
     );
 }
+
+#[test]
+fn mesh_instance_vertices_count_against_the_memory_budget() {
+    // 200 nodes drawing one triangle indexed into 100,000 vertices with normals (so that every vertex is kept):
+    // the triangles are nothing, the vertices (6.4 MB counted a copy) pass a 64 MiB budget at the 11th instance.
+    let mut doc = Doc::new();
+    let p = doc.zeros(100_000, "VEC3");
+    let n = doc.zeros(100_000, "VEC3");
+    let i = doc.view(&[0, 0, 1, 0, 2, 0, 0, 0]);
+    let i = doc.push(
+        "accessors",
+        json!({"bufferView": i, "componentType": 5123, "count": 3, "type": "SCALAR"}),
+    );
+    let mesh = doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p, "NORMAL": n}, "indices": i}]}),
+    );
+    for _ in 0..200 {
+        doc.root(json!({"mesh": mesh}));
+    }
+    let err = load_within(doc.bytes(), still(Limits::with_memory(64 << 20)), HANG)
+        .map(|_| ())
+        .expect_err("20 million vertices must not fit 64 MiB");
+    assert_one_line(
+        &err,
+        &["anim.gltf", "vertices", "memory budget", "--memory-limit"],
+    );
+}

@@ -26,8 +26,8 @@
 //! sparse indices are checked as it is read (by hand, not by the crate's reader), material factors when the
 //! material is built. The scene, buffer and image files are read within [`LoadOptions::limits`], and images
 //! decode under it. Animation channels with a target path the crate does not know (`KHR_animation_pointer`)
-//! are removed before it parses the file, with a warning. Each mesh instance's triangles count against the
-//! memory budget before the primitive is read ([`SceneBuilder::check_triangles`]), and posing meshes (joint
+//! are removed before it parses the file, with a warning. Each mesh instance's size counts against the
+//! memory budget before the primitive is read ([`SceneBuilder::check_mesh`]), and posing meshes (joint
 //! matrices once per skin and pose, morph-target and skinned vertices) against the work it allows. A
 //! malformed file is an error naming the element, never a panic.
 
@@ -561,10 +561,13 @@ impl Loader<'_> {
                 ));
                 continue;
             }
+            let (triangles, vertices) = primitive_size(&primitive);
+            let copies = 1 + step_deforms.as_ref().map_or(0, Vec::len) as u64;
             self.builder
-                .check_triangles(
+                .check_mesh(
                     format_args!("{what} on node {}", node.index()),
-                    primitive_triangles(&primitive),
+                    triangles,
+                    vertices.saturating_mul(copies),
                 )
                 .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
             let base = self.read_primitive(&primitive, &what)?;
@@ -1573,19 +1576,20 @@ fn triangulate(indices: &[u32], mode: gltf::mesh::Mode) -> Vec<[u32; 3]> {
         .collect()
 }
 
-/// The triangles a primitive makes, from its index (or POSITION) count, before anything is read: a third of
-/// them for a triangle list, all but two for a strip or fan.
-fn primitive_triangles(primitive: &gltf::Primitive) -> u64 {
-    let corners = primitive
-        .indices()
-        .or_else(|| primitive.get(&gltf::Semantic::Positions))
+/// The triangles and vertices of a primitive, from its index and POSITION counts, before anything is read:
+/// a third of the corners for a triangle list, all but two for a strip or fan.
+fn primitive_size(primitive: &gltf::Primitive) -> (u64, u64) {
+    let vertices = primitive
+        .get(&gltf::Semantic::Positions)
         .map_or(0, |a| a.count() as u64);
-    match primitive.mode() {
+    let corners = primitive.indices().map_or(vertices, |a| a.count() as u64);
+    let triangles = match primitive.mode() {
         gltf::mesh::Mode::TriangleStrip | gltf::mesh::Mode::TriangleFan => {
             corners.saturating_sub(2)
         }
         _ => corners / 3,
-    }
+    };
+    (triangles, vertices)
 }
 
 /// The material's `alphaMode` and `alphaCutoff` (default 0.5), glTF 2.0 §3.9.4.

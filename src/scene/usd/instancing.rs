@@ -98,14 +98,19 @@ impl Loader<'_> {
             }
             flattened.push(self.builder.split_meshes_off(meshes));
         }
-        // The expanded triangles must fit the memory budget with the rest of the scene's, checked before any
-        // copy is made (each copy is checked again as it is added).
-        let triangles: u64 = indices
+        // The expanded meshes must fit the memory budget with the rest of the scene's, checked before any copy
+        // is made (each copy is checked again as it is added).
+        let (triangles, vertices) = indices
             .iter()
             .filter_map(|&p| usize::try_from(p).ok().and_then(|p| flattened.get(p)))
-            .map(|meshes| meshes.iter().map(|m| m.indices.len() as u64).sum::<u64>())
-            .sum();
-        self.check_triangles(&format!("{at}: {n} instances"), triangles)?;
+            .flatten()
+            .fold((0u64, 0u64), |(t, v), m| {
+                (
+                    t.saturating_add(m.indices.len() as u64),
+                    v.saturating_add(m.positions.len() as u64),
+                )
+            });
+        self.check_mesh(&format!("{at}: {n} instances"), triangles, vertices)?;
         for i in 0..n {
             let id = ids.get(i).copied().unwrap_or(i as i64);
             if invisible.contains(&id) {
