@@ -306,6 +306,9 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
         .collect())
 }
 
+/// Skins' joint matrices by pose (0: the frame's, k + 1: motion step k) and skin index.
+type JointCache = RefCell<HashMap<(usize, usize), Rc<[Mat4]>>>;
+
 /// How a node's mesh is posed at one instant: morph weights, then skin joint matrices or the world matrix.
 struct Deformation {
     weights: Vec<f32>,
@@ -335,8 +338,8 @@ struct Loader<'a> {
     node_worlds: Vec<Mat4>,
     /// Whether the rest-pose warning was given.
     skin_warned: bool,
-    /// Each skin's joint matrices, by pose (0: the frame's, k + 1: motion step k) and skin, computed once.
-    joints: RefCell<HashMap<(usize, usize), Rc<[Mat4]>>>,
+    /// Each skin's joint matrices, by pose and skin, computed once.
+    joints: JointCache,
     /// The load-time work of posing meshes: joint matrices, skinned vertices and morph-target vertices.
     work: WorkBudget,
 }

@@ -78,7 +78,7 @@ pub(super) fn skip_unknown_channels(json: &[u8]) -> (Option<serde_json::Value>, 
             .enumerate()
             .filter_map(|(c, channel)| {
                 let path = channel.target.as_ref()?.path.as_ref()?.as_str()?;
-                (!KNOWN_PATHS.contains(&path)).then(|| (c, path))
+                (!KNOWN_PATHS.contains(&path)).then_some((c, path))
             });
         let mut removed = Vec::new();
         for (c, path) in unknown {
