@@ -259,7 +259,7 @@ fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
 /// The document in `json`, less the animation channels the `gltf` crate cannot read (see
 /// `gltf_check::skip_unknown_channels`), and which those were.
 fn parse_json(json: &[u8]) -> Result<(gltf::json::Root, SkippedChannels), String> {
-    let (edited, skipped) = super::gltf_check::skip_unknown_channels(json);
+    let (edited, skipped) = super::gltf_check::skip_unknown_channels(json)?;
     let root = match edited {
         Some(document) => gltf::json::deserialize::from_value(document),
         None => gltf::json::deserialize::from_slice(json),

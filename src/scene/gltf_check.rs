@@ -65,11 +65,16 @@ struct ScanTarget {
 
 /// Finds the animation channels of the JSON `json` whose target path is a string the `gltf` crate does not
 /// know, and returns the document without them (`None` when there are none, or when the JSON does not parse,
-/// for the crate's parser to report), with the channels removed.
-pub(super) fn skip_unknown_channels(json: &[u8]) -> (Option<serde_json::Value>, SkippedChannels) {
+/// for the crate's parser to report), with the channels removed. A document with such channels that cannot be
+/// read whole to remove them (a string of invalid UTF-8 in a field the crate's parser would skip unread) is an
+/// error: left to the crate, the channel would reach it and panic.
+pub(super) fn skip_unknown_channels(
+    json: &[u8],
+) -> Result<(Option<serde_json::Value>, SkippedChannels), String> {
     let mut skipped = SkippedChannels::default();
+    let mut first_unknown = None;
     let Ok(scan) = serde_json::from_slice::<Scan>(json) else {
-        return (None, skipped);
+        return Ok((None, skipped));
     };
     for (a, animation) in scan.animations.iter().enumerate() {
         let unknown = animation
@@ -82,6 +87,7 @@ pub(super) fn skip_unknown_channels(json: &[u8]) -> (Option<serde_json::Value>, 
             });
         let mut removed = Vec::new();
         for (c, path) in unknown {
+            first_unknown.get_or_insert_with(|| (a, c, crate::limits::one_line(path, 60)));
             skipped.warnings.push(format!(
                 "animations[{a}].channels[{c}]: target path \"{}\" is not played (only {}; KHR_animation_pointer is not supported); its target keeps its rest pose",
                 crate::limits::one_line(path, 60),
@@ -92,11 +98,14 @@ pub(super) fn skip_unknown_channels(json: &[u8]) -> (Option<serde_json::Value>, 
         skipped.removed.push(removed);
     }
     if skipped.warnings.is_empty() {
-        return (None, skipped);
+        return Ok((None, skipped));
     }
-    let Ok(mut document) = serde_json::from_slice::<serde_json::Value>(json) else {
-        return (None, SkippedChannels::default());
-    };
+    let mut document = serde_json::from_slice::<serde_json::Value>(json).map_err(|e| {
+        let (a, c, path) = &first_unknown.expect("a warning was given for a channel");
+        format!(
+            "animations[{a}].channels[{c}]: target path \"{path}\" would be skipped, but the document cannot be read to skip it: {e}"
+        )
+    })?;
     for (a, removed) in skipped.removed.iter().enumerate() {
         if let Some(channels) = document["animations"][a]["channels"].as_array_mut() {
             for &c in removed.iter().rev() {
@@ -104,7 +113,7 @@ pub(super) fn skip_unknown_channels(json: &[u8]) -> (Option<serde_json::Value>, 
             }
         }
     }
-    (Some(document), skipped)
+    Ok((Some(document), skipped))
 }
 
 /// All the checks, in order: indices first (the others follow them).
@@ -611,7 +620,7 @@ mod tests {
             {"sampler": 0, "target": {"node": 0, "path": "translation"}},
             {"sampler": 0, "target": {"node": 0, "path": "pointer"}},
             {"sampler": 0, "target": {"node": 0, "path": "scale"}}]}]}"#;
-        let (document, skipped) = skip_unknown_channels(json);
+        let (document, skipped) = skip_unknown_channels(json).unwrap();
         let channels = document.unwrap()["animations"][0]["channels"].clone();
         assert_eq!(channels.as_array().unwrap().len(), 2);
         assert_eq!(skipped.removed, [vec![0, 2]]);
@@ -619,7 +628,23 @@ mod tests {
         assert_eq!(skipped.file_index(0, 0), 1);
         assert_eq!(skipped.file_index(0, 1), 3);
         assert_eq!(skipped.file_index(1, 0), 0);
-        let (document, skipped) = skip_unknown_channels(b"{\"asset\": {}}");
+        let (document, skipped) = skip_unknown_channels(b"{\"asset\": {}}").unwrap();
         assert!(document.is_none() && skipped.warnings.is_empty());
+    }
+
+    #[test]
+    fn an_unknown_channel_in_a_document_that_cannot_be_read_whole_is_an_error() {
+        // The sampler's unknown field holds invalid UTF-8, which the crate's parser skips unread.
+        let mut json = br#"{"animations": [{"samplers": [{"x": "AB"}], "channels": [
+            {"sampler": 0, "target": {"node": 0, "path": "rotatkon"}}]}]}"#
+            .to_vec();
+        let at = json.windows(2).position(|w| w == b"AB").unwrap();
+        json[at] = 0x8a;
+        let error = skip_unknown_channels(&json).unwrap_err();
+        assert!(
+            error.starts_with("animations[0].channels[0]: target path \"rotatkon\"")
+                && error.contains("invalid unicode"),
+            "{error}"
+        );
     }
 }
