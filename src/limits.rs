@@ -4,7 +4,8 @@
 //!
 //! The budget is a value ([`Limits`]) handed to loaders ([`crate::scene::LoadOptions::limits`]) and renders
 //! ([`crate::RenderSettings::limits`]); the command line sets it with `--memory-limit`. Its default is half of
-//! the machine's physical memory.
+//! the machine's physical memory. The same budget bounds the work a file can cause at load time (posing skins,
+//! morph targets): one step per byte ([`WorkBudget`]).
 
 use std::cell::Cell;
 use std::fmt;
@@ -67,7 +68,71 @@ impl Limits {
     ) -> Result<(), OverBudget> {
         self.check(what, count.saturating_mul(item_bytes))
     }
+
+    /// Steps of load-time work one load may take (a joint matrix, a morph-target vertex): one per byte of the
+    /// memory budget, so `--memory-limit` raises both.
+    pub fn work_steps(&self) -> u64 {
+        self.memory_bytes
+    }
 }
+
+/// The load-time work a file causes, counted as it is done and refused past [`Limits::work_steps`]: work that
+/// grows with products of counts in a file (joints × poses, morph targets × vertices × instances) rather than
+/// with the memory it fills.
+#[derive(Debug)]
+pub struct WorkBudget {
+    /// Steps counted so far.
+    used: Cell<u64>,
+    /// The most steps allowed.
+    limit: u64,
+}
+
+impl WorkBudget {
+    /// A budget of [`Limits::work_steps`], none of it used.
+    pub fn new(limits: &Limits) -> Self {
+        Self {
+            used: Cell::new(0),
+            limit: limits.work_steps(),
+        }
+    }
+
+    /// Counts `steps` more, before they are taken; an error naming `what` when the total would pass the budget.
+    pub fn spend(&self, what: impl fmt::Display, steps: u64) -> Result<(), OverWork> {
+        let total = self.used.get().saturating_add(steps);
+        if total > self.limit {
+            return Err(OverWork {
+                what: what.to_string(),
+                steps: total,
+                budget: self.limit,
+            });
+        }
+        self.used.set(total);
+        Ok(())
+    }
+}
+
+/// Load-time work refused because it would pass the work budget.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OverWork {
+    /// The work that would have been done.
+    pub what: String,
+    /// The load's steps with it.
+    pub steps: u64,
+    /// The budget in steps.
+    pub budget: u64,
+}
+
+impl fmt::Display for OverWork {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} would bring the load's work to {} steps, over the work budget of {} steps (one per byte of the memory budget; raise it with --memory-limit)",
+            self.what, self.steps, self.budget
+        )
+    }
+}
+
+impl std::error::Error for OverWork {}
 
 /// An allocation refused because it exceeds the memory budget.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -336,6 +401,20 @@ mod tests {
         assert_eq!(err.bytes, u64::MAX);
         assert!(err.to_string().starts_with("a film would take more bytes"));
         assert!(limits.check("x", 1001).is_err());
+    }
+
+    #[test]
+    fn the_work_budget_counts_every_step_and_refuses_past_it() {
+        let work = WorkBudget::new(&Limits::with_memory(100));
+        assert!(work.spend("posing", 60).is_ok());
+        let err = work.spend("more posing", 41).unwrap_err();
+        assert_eq!((err.steps, err.budget), (101, 100));
+        assert!(err.to_string().contains("--memory-limit"), "{err}");
+        assert!(
+            work.spend("the rest", 40).is_ok(),
+            "a refused step is not counted"
+        );
+        assert!(work.spend("one more", 1).is_err());
     }
 
     #[test]

@@ -67,6 +67,26 @@ fn gltf_load(data: &[u8], dir: &Path) {
     }
 }
 
+/// The `gltf_animation` target: the first byte picks the frame and the shutter, the rest is the file, loaded
+/// under a 256 MiB budget, then built.
+fn gltf_animation(data: &[u8], dir: &Path) {
+    let Some((&pick, file)) = data.split_first() else {
+        return;
+    };
+    let options = nimbus::scene::LoadOptions {
+        limits: nimbus::limits::Limits::with_memory(256 << 20),
+        frame: Some(i64::from(pick & 63)),
+        shutter: (pick & 64 != 0).then_some(nimbus::frames::Shutter {
+            open: -0.25,
+            close: 0.25,
+        }),
+        ..Default::default()
+    };
+    if let Ok(builder) = nimbus::scene::gltf::load_slice(file, &dir.join("fuzz.gltf"), &options) {
+        let _ = builder.build();
+    }
+}
+
 /// The `obj_load` target: an OBJ file (beside an MTL library `m.mtl`), then build.
 fn obj_load(data: &[u8], dir: &Path) {
     std::fs::write(
@@ -100,6 +120,7 @@ fn usd_load(data: &[u8], dir: &Path) {
 fn fuzz_findings_stay_fixed() {
     replay("vdb_read", vdb_read);
     replay("gltf_load", gltf_load);
+    replay("gltf_animation", gltf_animation);
     replay("obj_load", obj_load);
     replay("usd_load", usd_load);
 }

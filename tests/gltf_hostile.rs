@@ -4,10 +4,13 @@
 
 mod common;
 
+use nimbus::frames::Shutter;
 use nimbus::limits::Limits;
 use nimbus::scene::{gltf, LoadOptions, SceneError, SceneErrorKind};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
 /// The validation scene's folder (its `scene.bin` resolves the buffer URI), or `None` to skip.
 fn scene_dir() -> Option<PathBuf> {
@@ -409,5 +412,525 @@ fn names_from_the_file_are_quoted_on_one_line() {
             d["accessors"][2]["count"] = json!(0);
         },
         &["floor / \\x1b[31mred", "accessor 2"],
+    );
+}
+
+// Animation, skins and instancing (the outside campaign after issue 14). Each file is built here from JSON and
+// one data-URI buffer; the slow cases run on a worker thread under a time limit.
+
+/// A glTF document built in code: nodes, meshes and accessors appended, one buffer as a data URI.
+struct Doc {
+    json: Value,
+    bin: Vec<u8>,
+}
+
+impl Doc {
+    fn new() -> Self {
+        Doc {
+            json: json!({
+                "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": []}],
+                "nodes": [], "meshes": [], "accessors": [], "bufferViews": [], "animations": []
+            }),
+            bin: Vec::new(),
+        }
+    }
+
+    fn push(&mut self, array: &str, item: Value) -> usize {
+        let a = self.json[array].as_array_mut().unwrap();
+        a.push(item);
+        a.len() - 1
+    }
+
+    /// A buffer view over `bytes` (4-byte aligned).
+    fn view(&mut self, bytes: &[u8]) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        self.push(
+            "bufferViews",
+            json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}),
+        )
+    }
+
+    /// A float accessor of type `ty` holding `values`.
+    fn floats(&mut self, values: &[f32], ty: &str) -> usize {
+        let bytes: Vec<u8> = values.iter().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.view(&bytes);
+        let per = match ty {
+            "SCALAR" => 1,
+            "VEC3" => 3,
+            "VEC4" => 4,
+            _ => unreachable!(),
+        };
+        let mut accessor = json!({"bufferView": view, "componentType": 5126,
+            "count": values.len() / per, "type": ty});
+        if ty == "VEC3" {
+            let (lo, hi) = (
+                values.iter().cloned().fold(f32::MAX, f32::min),
+                values.iter().cloned().fold(f32::MIN, f32::max),
+            );
+            accessor["min"] = json!([lo, lo, lo]);
+            accessor["max"] = json!([hi, hi, hi]);
+        }
+        self.push("accessors", accessor)
+    }
+
+    /// A float accessor of `count` elements of type `ty`, all zero: sparse, without a buffer view, with one
+    /// substitution (element 0 set to zero), so a few bytes stand for any count.
+    fn zeros(&mut self, count: usize, ty: &str) -> usize {
+        let per = if ty == "VEC3" { 3 } else { 1 };
+        let indices = self.view(&0u32.to_le_bytes());
+        let values = self.view(&vec![0u8; 4 * per]);
+        let mut accessor = json!({"componentType": 5126, "count": count, "type": ty,
+            "sparse": {"count": 1, "indices": {"bufferView": indices, "componentType": 5125},
+                       "values": {"bufferView": values}}});
+        if ty == "VEC3" {
+            accessor["min"] = json!([0, 0, 0]);
+            accessor["max"] = json!([0, 0, 0]);
+        }
+        self.push("accessors", accessor)
+    }
+
+    /// A node placed in the scene.
+    fn root(&mut self, node: Value) -> usize {
+        let n = self.push("nodes", node);
+        self.json["scenes"][0]["nodes"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!(n));
+        n
+    }
+
+    /// The glTF bytes.
+    fn bytes(mut self) -> Vec<u8> {
+        self.json["buffers"] = json!([{"byteLength": self.bin.len(),
+            "uri": format!("data:application/octet-stream;base64,{}", common::base64(&self.bin))}]);
+        serde_json::to_vec(&self.json).unwrap()
+    }
+}
+
+/// One triangle (0,0,0), (1,0,0), (0,1,0) as mesh 0.
+fn triangle_mesh(doc: &mut Doc) -> usize {
+    let p = doc.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
+    doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p}}]}),
+    )
+}
+
+/// How a test loads its file: within `limits`, and with `frame` 12 (0.5 s at 24 fps, so that animations are
+/// sampled) over a shutter when `shutter` is set.
+#[derive(Clone, Copy)]
+struct Load {
+    limits: Limits,
+    frame: Option<i64>,
+    shutter: bool,
+}
+
+impl Load {
+    fn options(self) -> LoadOptions<'static> {
+        LoadOptions {
+            limits: self.limits,
+            frame: self.frame,
+            shutter: self.shutter.then_some(Shutter {
+                open: -0.25,
+                close: 0.25,
+            }),
+            ..Default::default()
+        }
+    }
+}
+
+/// Options that sample the animation at frame 12 (0.5 s at 24 fps), over a shutter when `shutter` is set.
+fn at_half_second(limits: Limits, shutter: bool) -> Load {
+    Load {
+        limits,
+        frame: Some(12),
+        shutter,
+    }
+}
+
+/// A still (no frame: animations not sampled) within `limits`.
+fn still(limits: Limits) -> Load {
+    Load {
+        limits,
+        frame: None,
+        shutter: false,
+    }
+}
+
+/// How long the slow cases may take: they took seconds to minutes before their fixes, and take well under a
+/// second now (the time is printed); the margin is for a loaded machine.
+const HANG: Duration = Duration::from_secs(5);
+
+/// Loads `bytes` as `anim.gltf` on a worker thread, failing if it takes more than `limit`.
+fn load_within(
+    bytes: Vec<u8>,
+    load: Load,
+    limit: Duration,
+) -> Result<nimbus::scene::SceneBuilder, SceneError> {
+    let (send, receive) = mpsc::channel();
+    std::thread::spawn(move || {
+        let start = Instant::now();
+        let r = gltf::load_slice(&bytes, Path::new("anim.gltf"), &load.options());
+        let _ = send.send((r, start.elapsed()));
+    });
+    let (result, took) = receive
+        .recv_timeout(limit)
+        .unwrap_or_else(|_| panic!("the load did not end within {limit:?}"));
+    eprintln!("load took {took:?}");
+    result
+}
+
+/// An animation `name` with one sampler (`input`, `output`, `interpolation`) driving `path` of `node`.
+fn animation(
+    doc: &mut Doc,
+    name: &str,
+    input: usize,
+    output: usize,
+    interpolation: &str,
+    node: usize,
+    path: &str,
+) {
+    doc.push(
+        "animations",
+        json!({"name": name,
+            "samplers": [{"input": input, "output": output, "interpolation": interpolation}],
+            "channels": [{"sampler": 0, "target": {"node": node, "path": path}}]}),
+    );
+}
+
+#[test]
+fn animation_outputs_of_the_wrong_count_are_refused() {
+    // (property, interpolation, keys, output floats, type): translation with 3 keys and 6 floats, the issue's
+    // case; a CUBICSPLINE translation with one value per key instead of three; a rotation with 2 of 3 keys.
+    let cases = [
+        ("translation", "LINEAR", 3, 6, "VEC3"),
+        ("translation", "CUBICSPLINE", 2, 6, "VEC3"),
+        ("rotation", "LINEAR", 3, 8, "VEC4"),
+        ("scale", "STEP", 2, 3, "VEC3"),
+    ];
+    for (path, interpolation, keys, floats, ty) in cases {
+        let mut doc = Doc::new();
+        let mesh = triangle_mesh(&mut doc);
+        let node = doc.root(json!({"mesh": mesh}));
+        let times: Vec<f32> = (0..keys).map(|k| k as f32).collect();
+        let input = doc.floats(&times, "SCALAR");
+        let output = doc.floats(&vec![0.5; floats], ty);
+        animation(&mut doc, "walk", input, output, interpolation, node, path);
+        let load = at_half_second(Limits::default(), false);
+        let err = gltf::load_slice(&doc.bytes(), Path::new("anim.gltf"), &load.options())
+            .map(|_| ())
+            .expect_err("a sampler output of the wrong count must not load");
+        assert_one_line(
+            &err,
+            &[
+                "anim.gltf",
+                "animations[0] 'walk'",
+                "channels[0]",
+                "samplers[0]",
+                "output",
+            ],
+        );
+    }
+}
+
+#[test]
+fn weights_animations_need_one_value_per_morph_target_and_key() {
+    let mut doc = Doc::new();
+    let (p, d) = (
+        doc.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3"),
+        doc.zeros(3, "VEC3"),
+    );
+    let mesh = doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p}, "targets": [{"POSITION": d}, {"POSITION": d}]}]}),
+    );
+    let node = doc.root(json!({"mesh": mesh}));
+    let input = doc.floats(&[0.0, 1.0], "SCALAR");
+    let output = doc.floats(&[0.0, 1.0, 0.5], "SCALAR");
+    animation(&mut doc, "blink", input, output, "LINEAR", node, "weights");
+    let load = at_half_second(Limits::default(), false);
+    let err = gltf::load_slice(&doc.bytes(), Path::new("anim.gltf"), &load.options())
+        .map(|_| ())
+        .expect_err("3 weights for 2 keys of 2 targets must not load");
+    assert_one_line(
+        &err,
+        &[
+            "animations[0] 'blink'",
+            "channels[0]",
+            "samplers[0]",
+            "2 morph targets",
+        ],
+    );
+}
+
+#[test]
+fn morph_weights_are_interpolated_linearly_even_for_four_targets() {
+    // Four targets: target 0 moves every vertex by +x, target 1 by +y. Halfway between weights [1,0,0,0] and
+    // [0,1,0,0] the weights are [0.5, 0.5, 0, 0] (glTF 2.0 §3.11: weights are lerped), not slerped (0.707 each).
+    let mut doc = Doc::new();
+    let p = doc.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
+    let dx = doc.floats(&[1.0, 0.0, 0.0].repeat(3), "VEC3");
+    let dy = doc.floats(&[0.0, 1.0, 0.0].repeat(3), "VEC3");
+    let zero = doc.zeros(3, "VEC3");
+    let mesh = doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p},
+            "targets": [{"POSITION": dx}, {"POSITION": dy}, {"POSITION": zero}, {"POSITION": zero}]}]}),
+    );
+    let node = doc.root(json!({"mesh": mesh}));
+    let input = doc.floats(&[0.0, 1.0], "SCALAR");
+    let output = doc.floats(&[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0], "SCALAR");
+    animation(&mut doc, "morph", input, output, "LINEAR", node, "weights");
+    let load = at_half_second(Limits::default(), false);
+    let b = gltf::load_slice(&doc.bytes(), Path::new("anim.gltf"), &load.options()).unwrap();
+    let first = b.meshes()[0].positions[0];
+    assert!(
+        (first.x - 0.5).abs() < 1e-5 && (first.y - 0.5).abs() < 1e-5,
+        "vertex 0 at {first}, should be (0.5, 0.5, 0)"
+    );
+}
+
+#[test]
+fn animation_pointer_channels_are_skipped_with_a_warning() {
+    // KHR_animation_pointer writes "path": "pointer" and no node (and some exporters a node too). The file loads
+    // at its rest pose for those channels, with a warning; its other channels still play.
+    for with_node in [false, true] {
+        let mut doc = Doc::new();
+        let mesh = triangle_mesh(&mut doc);
+        let moved = doc.root(json!({"mesh": mesh}));
+        let rest = doc.root(json!({"mesh": mesh, "translation": [0, 0, 5]}));
+        let input = doc.floats(&[0.0, 1.0], "SCALAR");
+        let output = doc.floats(&[0.0, 0.0, 0.0, 10.0, 0.0, 0.0], "VEC3");
+        let mut target = json!({"path": "pointer",
+            "extensions": {"KHR_animation_pointer": {"pointer": format!("/nodes/{rest}/translation")}}});
+        if with_node {
+            target["node"] = json!(rest);
+        }
+        doc.push(
+            "animations",
+            json!({"samplers": [{"input": input, "output": output}],
+                "channels": [{"sampler": 0, "target": target},
+                             {"sampler": 0, "target": {"node": moved, "path": "translation"}}]}),
+        );
+        doc.json["extensionsUsed"] = json!(["KHR_animation_pointer"]);
+        let load = at_half_second(Limits::default(), false);
+        let b = gltf::load_slice(&doc.bytes(), Path::new("anim.gltf"), &load.options())
+            .unwrap_or_else(|e| panic!("with node {with_node}: {e}"));
+        let warned = b
+            .warnings()
+            .iter()
+            .any(|w| w.contains("animations[0].channels[0]") && w.contains("pointer"));
+        assert!(warned, "{:?}", b.warnings());
+        let min_x = |m: usize| {
+            b.meshes()[m]
+                .positions
+                .iter()
+                .map(|p| p.x)
+                .fold(f32::MAX, f32::min)
+        };
+        assert!(
+            (min_x(0) - 5.0).abs() < 1e-5,
+            "the translation channel plays"
+        );
+        assert_eq!(
+            min_x(1),
+            0.0,
+            "the pointer channel's node keeps its rest pose"
+        );
+        assert_eq!(b.meshes()[1].positions[0].z, 5.0);
+    }
+}
+
+/// Times 0, 1, ..., `keys` − 1 as a dense accessor.
+fn key_times(doc: &mut Doc, keys: usize) -> usize {
+    let times: Vec<f32> = (0..keys).map(|k| k as f32).collect();
+    doc.floats(&times, "SCALAR")
+}
+
+#[test]
+fn animation_samplers_are_read_once_per_load() {
+    // 200 nodes, each with its own translation sampler, all sharing one 1,000,000-key input and one sparse
+    // output, sampled across a shutter (13 poses: the frame, 9 probes, 3 steps). Before: every pose re-read
+    // every sampler (2,600 reads of 4 million floats, seconds); read once per load, it takes milliseconds.
+    let mut doc = Doc::new();
+    let mesh = triangle_mesh(&mut doc);
+    let keys = 1_000_000;
+    let input = key_times(&mut doc, keys);
+    let output = doc.zeros(keys, "VEC3");
+    let mut samplers = Vec::new();
+    let mut channels = Vec::new();
+    for s in 0..200 {
+        let node = doc.root(json!({"mesh": mesh}));
+        samplers.push(json!({"input": input, "output": output}));
+        channels.push(json!({"sampler": s, "target": {"node": node, "path": "translation"}}));
+    }
+    doc.push(
+        "animations",
+        json!({"samplers": samplers, "channels": channels}),
+    );
+    let load = at_half_second(Limits::default(), true);
+    let b = load_within(doc.bytes(), load, HANG).unwrap();
+    assert_eq!(b.meshes().len(), 200);
+}
+
+#[test]
+fn animation_keys_count_against_the_memory_budget() {
+    // 50 samplers, each with its own 100,000-key sparse output (1.2 MB decoded): each fits a 16 MiB budget, all
+    // 50 (60 MB) do not.
+    let mut doc = Doc::new();
+    let mesh = triangle_mesh(&mut doc);
+    let keys = 100_000;
+    let input = key_times(&mut doc, keys);
+    let mut samplers = Vec::new();
+    let mut channels = Vec::new();
+    for s in 0..50 {
+        let node = doc.root(json!({"mesh": mesh}));
+        let output = doc.zeros(keys, "VEC3");
+        samplers.push(json!({"input": input, "output": output}));
+        channels.push(json!({"sampler": s, "target": {"node": node, "path": "translation"}}));
+    }
+    doc.push(
+        "animations",
+        json!({"samplers": samplers, "channels": channels}),
+    );
+    let load = at_half_second(Limits::with_memory(16 << 20), true);
+    let err = load_within(doc.bytes(), load, HANG)
+        .map(|_| ())
+        .expect_err("50 outputs of 1.2 MB each must not fit 16 MiB");
+    assert_one_line(
+        &err,
+        &["anim.gltf", "animation", "memory budget", "--memory-limit"],
+    );
+}
+
+/// A skin of `joints` joint nodes (not in the scene) over one triangle whose vertices follow joint 0, drawn by
+/// `instances` nodes.
+fn skinned_doc(joints: usize, instances: usize) -> Doc {
+    let mut doc = Doc::new();
+    let p = doc.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
+    let j = doc.view(&[0u8; 12]);
+    let j = doc.push(
+        "accessors",
+        json!({"bufferView": j, "componentType": 5121, "count": 3, "type": "VEC4"}),
+    );
+    let w = doc.floats(&[1.0, 0.0, 0.0, 0.0].repeat(3), "VEC4");
+    let mesh = doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p, "JOINTS_0": j, "WEIGHTS_0": w}}]}),
+    );
+    let first = doc.json["nodes"].as_array().unwrap().len();
+    for _ in 0..joints {
+        doc.push("nodes", json!({}));
+    }
+    doc.json["skins"] = json!([{"joints": (first..first + joints).collect::<Vec<_>>()}]);
+    for _ in 0..instances {
+        doc.root(json!({"mesh": mesh, "skin": 0}));
+    }
+    doc
+}
+
+#[test]
+fn skin_joint_matrices_are_computed_once_per_pose() {
+    // The issue's case: 8,000 nodes drawing one skin of 100,000 joints. Before: the joint matrices were
+    // recomputed for every node (8e8 matrix products, 84 s); once per skin and pose, milliseconds.
+    let doc = skinned_doc(100_000, 8_000);
+    let b = load_within(doc.bytes(), still(Limits::default()), HANG).unwrap();
+    assert_eq!(b.meshes().len(), 8_000);
+}
+
+#[test]
+fn morph_target_work_counts_against_the_budget() {
+    // One 10,000-vertex primitive (one triangle drawn) with 32 morph targets at weight 1, drawn by 100 nodes:
+    // 32 million target-vertex steps, over the work a 16 MiB budget allows (one step per byte).
+    let mut doc = Doc::new();
+    let vertices = 10_000;
+    let p = doc.zeros(vertices, "VEC3");
+    let i = doc.view(&[0, 0, 1, 0, 2, 0, 0, 0]);
+    let i = doc.push(
+        "accessors",
+        json!({"bufferView": i, "componentType": 5123, "count": 3, "type": "SCALAR"}),
+    );
+    let d = doc.zeros(vertices, "VEC3");
+    let targets: Vec<Value> = (0..32).map(|_| json!({"POSITION": d})).collect();
+    let mesh = doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p}, "indices": i, "targets": targets}],
+            "weights": vec![1.0; 32]}),
+    );
+    for _ in 0..100 {
+        doc.root(json!({"mesh": mesh}));
+    }
+    let err = load_within(doc.bytes(), still(Limits::with_memory(16 << 20)), HANG)
+        .map(|_| ())
+        .expect_err("32 million morph steps must not fit a 16 MiB budget");
+    assert_one_line(&err, &["anim.gltf", "morph", "--memory-limit"]);
+}
+
+#[test]
+fn skin_work_counts_against_the_budget() {
+    // 50,000 joints posed at the frame and at 3 motion steps (a shutter) are 200,000 joint matrices; a 128 KiB
+    // budget allows 131,072 steps, so the skin is refused (one pose alone would fit).
+    let mut doc = skinned_doc(50_000, 1);
+    let input = key_times(&mut doc, 2);
+    let output = doc.floats(&[0.0; 6], "VEC3");
+    animation(&mut doc, "sway", input, output, "LINEAR", 0, "translation");
+    let load = at_half_second(Limits::with_memory(128 << 10), true);
+    let err = load_within(doc.bytes(), load, HANG)
+        .map(|_| ())
+        .expect_err("200,000 joint matrices must not fit a 128 KiB budget");
+    assert_one_line(&err, &["anim.gltf", "skin 0", "--memory-limit"]);
+}
+
+#[test]
+fn mesh_instances_count_against_the_memory_budget() {
+    // 200 nodes drawing one 5,000-triangle mesh: each instance fits a 64 MiB budget, all 1,000,000 triangles
+    // do not. Before, every instance was copied and the scene built past the budget.
+    let mut doc = Doc::new();
+    let p = doc.zeros(15_000, "VEC3");
+    let mesh = doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p}}]}),
+    );
+    for _ in 0..200 {
+        doc.root(json!({"mesh": mesh}));
+    }
+    let err = load_within(doc.bytes(), still(Limits::with_memory(64 << 20)), HANG)
+        .map(|_| ())
+        .expect_err("1,000,000 triangles must not fit 64 MiB");
+    assert_one_line(
+        &err,
+        &["anim.gltf", "triangles", "memory budget", "--memory-limit"],
+    );
+}
+
+#[test]
+fn mesh_instance_vertices_count_against_the_memory_budget() {
+    // 200 nodes drawing one triangle indexed into 100,000 vertices with normals (so that every vertex is kept):
+    // the triangles are nothing, the vertices (6.4 MB counted a copy) pass a 64 MiB budget at the 11th instance.
+    let mut doc = Doc::new();
+    let p = doc.zeros(100_000, "VEC3");
+    let n = doc.zeros(100_000, "VEC3");
+    let i = doc.view(&[0, 0, 1, 0, 2, 0, 0, 0]);
+    let i = doc.push(
+        "accessors",
+        json!({"bufferView": i, "componentType": 5123, "count": 3, "type": "SCALAR"}),
+    );
+    let mesh = doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p, "NORMAL": n}, "indices": i}]}),
+    );
+    for _ in 0..200 {
+        doc.root(json!({"mesh": mesh}));
+    }
+    let err = load_within(doc.bytes(), still(Limits::with_memory(64 << 20)), HANG)
+        .map(|_| ())
+        .expect_err("20 million vertices must not fit 64 MiB");
+    assert_one_line(
+        &err,
+        &["anim.gltf", "vertices", "memory budget", "--memory-limit"],
     );
 }

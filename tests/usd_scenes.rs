@@ -543,3 +543,39 @@ fn normal_maps_decode_with_their_scale_and_bias() {
         }
     }
 }
+
+#[test]
+fn point_instancers_share_one_memory_budget_per_scene() {
+    // Two instancers of 2,000 one-triangle instances each: either fits a budget of 3,000 instances, both together
+    // do not. Before, each instancer was checked on its own and the stage loaded.
+    let instancer = |name: &str| {
+        let positions = vec!["(0, 0, 0)"; 2000].join(", ");
+        let indices = vec!["0"; 2000].join(", ");
+        format!(
+            "def PointInstancer \"{name}\" {{\n\
+               rel prototypes = [</{name}/Protos/Tri>]\n\
+               int[] protoIndices = [{indices}]\n\
+               point3f[] positions = [{positions}]\n\
+               def Scope \"Protos\" {{ def Mesh \"Tri\" {{ {TRIANGLE} }} }}\n\
+             }}\n"
+        )
+    };
+    let text = format!("#usda 1.0\n{}{}", instancer("A"), instancer("B"));
+    let path = temp_dir("instancer_budget").join("stage.usda");
+    std::fs::write(&path, &text).unwrap();
+    let per_instance = nimbus::scene::BYTES_PER_TRIANGLE + 3 * nimbus::scene::BYTES_PER_VERTEX;
+    let limits = Limits::with_memory(3000 * per_instance);
+    let err = usd::read_with_limits(&path, &limits)
+        .err()
+        .expect("4,000 instances must not fit the budget of 3,000");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("/B") && msg.contains("memory budget") && msg.contains("--memory-limit"),
+        "{msg}"
+    );
+    // Either instancer alone loads.
+    let one = format!("#usda 1.0\n{}", instancer("A"));
+    std::fs::write(&path, one).unwrap();
+    let (b, _) = usd::read_with_limits(&path, &limits).unwrap();
+    assert_eq!(b.meshes().len(), 2000);
+}

@@ -133,6 +133,30 @@ mod tests {
     }
 
     #[test]
+    fn build_refuses_meshes_over_the_memory_budget_before_allocating() {
+        use crate::scene::{BYTES_PER_TRIANGLE, BYTES_PER_VERTEX};
+        // Room for two triangles and four vertices.
+        let limits =
+            crate::limits::Limits::with_memory(2 * BYTES_PER_TRIANGLE + 4 * BYTES_PER_VERTEX);
+        let mut b = SceneBuilder::with_limits(limits);
+        let m = b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+        let quad = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ONE];
+        b.add_triangle_mesh(quad.clone(), vec![[0, 1, 2], [1, 3, 2]], m)
+            .unwrap();
+        assert!(b.check_mesh("one more", 1, 0).is_err());
+        assert!(b.check_mesh("one more", 0, 1).is_err());
+        b.add_triangle_mesh(quad, vec![[0, 1, 2]], m).unwrap();
+        let Err(err) = b.build() else {
+            panic!("3 triangles and 8 vertices must not fit a budget of 2 and 4")
+        };
+        let msg = err.to_string();
+        assert!(
+            msg.contains("the scene") && msg.contains("--memory-limit"),
+            "{msg}"
+        );
+    }
+
+    #[test]
     fn build_refuses_non_finite_cameras_lights_and_emission() {
         /// A scene part that `build` must refuse, and a word its error names.
         type Case = (&'static str, fn(&mut SceneBuilder));

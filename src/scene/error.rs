@@ -30,6 +30,10 @@ pub enum SceneErrorKind {
     /// A reference inside the file points at nothing valid (accessor, buffer, image, index out of range).
     #[error("invalid reference: {0}")]
     InvalidReference(String),
+    /// Loading the file would pass a limit of [`crate::limits::Limits`]: the memory budget, or the load-time
+    /// work it allows ([`crate::limits::WorkBudget`]); the message names which, and `--memory-limit`.
+    #[error("over a limit: {0}")]
+    OverLimit(String),
     /// A third-party reader panicked on the file (a damaged file its own checks missed), or did not finish
     /// within its time limit; the panic was caught and is reported here, so that callers and tests can tell
     /// it from an error the reader found.

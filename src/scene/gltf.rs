@@ -25,9 +25,14 @@
 //! `extensionsRequired` (the crate rejects some of them). Each accessor's type, component type, byte range and
 //! sparse indices are checked as it is read (by hand, not by the crate's reader), material factors when the
 //! material is built. The scene, buffer and image files are read within [`LoadOptions::limits`], and images
-//! decode under it. A malformed file is an error naming the element, never a panic.
+//! decode under it. Animation channels with a target path the crate does not know (`KHR_animation_pointer`)
+//! are removed before it parses the file, with a warning. Each mesh instance's size counts against the
+//! memory budget before the primitive is read ([`SceneBuilder::check_mesh`]), and posing meshes (joint
+//! matrices once per skin and pose, morph-target and skinned vertices) against the work it allows. A
+//! malformed file is an error naming the element, never a panic.
 
 use super::gltf_accessors::{check_bytes, read_floats, read_indices, Usage};
+use super::gltf_check::SkippedChannels;
 use super::{gltf_animation, gltf_deform};
 use super::{
     Camera, CameraMotion, LightTag, LoadOptions, MediumTag, SceneBuilder, SceneError,
@@ -38,7 +43,7 @@ use crate::light::{
     DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight, SpotLight,
     LUMENS_PER_WATT,
 };
-use crate::limits::{one_line, Limits};
+use crate::limits::{one_line, Limits, WorkBudget};
 use crate::material::{
     AlphaMode, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler, SheenLayer,
     Texture, UvTransform, Wrap, UV_SETS,
@@ -46,8 +51,10 @@ use crate::material::{
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
 use gltf::json::validation::Validate;
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use std::sync::Arc;
 
 /// The glTF extensions Nimbus implements; any other extension in `extensionsRequired` is an error, and any
@@ -122,9 +129,10 @@ pub fn load_slice(
 ) -> Result<SceneBuilder, SceneError> {
     let err = |kind| SceneError::new(path, kind);
     let malformed = |m: String| err(SceneErrorKind::Malformed(m));
-    let (root, blob) = parse(bytes).map_err(malformed)?;
+    let (root, blob, skipped) = parse(bytes).map_err(malformed)?;
     super::gltf_check::check_document(&root).map_err(&err)?;
     let mut warnings = validate(&root).map_err(&err)?;
+    warnings.extend(skipped.warnings.iter().cloned());
     let document = gltf::Document::from_json_without_validation(root);
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
 
@@ -163,12 +171,17 @@ pub fn load_slice(
     // A still with a shutter is frame 1 of the shot, as VDB sequences read it.
     let frame = options.frame.or(options.shutter.map(|_| 1));
     let fps = options.fps.unwrap_or(crate::frames::DEFAULT_FPS);
-    let animated = document.animations().len() > 0;
-    let pose = match frame {
-        Some(frame) if animated => {
-            let seconds = frame as f64 / fps;
-            gltf_animation::pose_at(&document, &buffers, &options.limits, seconds as f32)
-                .map_err(malformed)?
+    let animations = match frame {
+        Some(_) if document.animations().len() > 0 => Some(
+            gltf_animation::Animations::read(&document, &buffers, &options.limits, &skipped)
+                .map_err(&err)?,
+        ),
+        _ => None,
+    };
+    let pose = match (frame, &animations) {
+        (Some(frame), Some(animations)) => {
+            warnings.extend(animations.warnings.iter().cloned());
+            animations.pose_at(&document, (frame as f64 / fps) as f32)
         }
         _ => gltf_animation::Pose {
             locals: document
@@ -178,10 +191,9 @@ pub fn load_slice(
             weights: vec![None; document.nodes().len()],
         },
     };
-    let motion = match (frame, options.shutter) {
-        (Some(frame), Some(shutter)) if animated => {
-            gltf_animation::shutter_poses(&document, &buffers, &options.limits, frame, fps, shutter)
-                .map_err(malformed)?
+    let motion = match (frame, options.shutter, &animations) {
+        (Some(frame), Some(shutter), Some(animations)) => {
+            gltf_animation::shutter_poses(animations, &document, frame, fps, shutter)
         }
         _ => None,
     };
@@ -192,7 +204,7 @@ pub fn load_slice(
         document: &document,
         base,
         buffers: &buffers,
-        builder: SceneBuilder::default(),
+        builder: SceneBuilder::with_limits(options.limits),
         texture_cache: HashMap::new(),
         images: HashMap::new(),
         material_map: HashMap::new(),
@@ -200,6 +212,8 @@ pub fn load_slice(
         light_unit_scale: 1.0 / LUMENS_PER_WATT,
         node_worlds: Vec::new(),
         skin_warned: false,
+        joints: RefCell::new(HashMap::new()),
+        work: WorkBudget::new(&options.limits),
     };
     loader.builder.warnings.append(&mut warnings);
     let scene = document
@@ -218,7 +232,7 @@ pub fn load_slice(
     Ok(loader.builder)
 }
 
-type JsonParse = (gltf::json::Root, Option<Vec<u8>>);
+type JsonParse = (gltf::json::Root, Option<Vec<u8>>, SkippedChannels);
 
 fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
     if bytes.starts_with(b"glTF") {
@@ -234,13 +248,24 @@ fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
         }
         let mut glb =
             gltf::binary::Glb::from_slice(bytes).map_err(|e| format!("GLB container: {e}"))?;
-        let root = gltf::json::deserialize::from_slice(&glb.json)
-            .map_err(|e| format!("JSON chunk: {e}"))?;
-        Ok((root, glb.bin.take().map(|b| b.into_owned())))
+        let (root, skipped) = parse_json(&glb.json).map_err(|e| format!("JSON chunk: {e}"))?;
+        Ok((root, glb.bin.take().map(|b| b.into_owned()), skipped))
     } else {
-        let root = gltf::json::deserialize::from_slice(bytes).map_err(|e| format!("JSON: {e}"))?;
-        Ok((root, None))
+        let (root, skipped) = parse_json(bytes).map_err(|e| format!("JSON: {e}"))?;
+        Ok((root, None, skipped))
     }
+}
+
+/// The document in `json`, less the animation channels the `gltf` crate cannot read (see
+/// `gltf_check::skip_unknown_channels`), and which those were.
+fn parse_json(json: &[u8]) -> Result<(gltf::json::Root, SkippedChannels), String> {
+    let (edited, skipped) = super::gltf_check::skip_unknown_channels(json)?;
+    let root = match edited {
+        Some(document) => gltf::json::deserialize::from_value(document),
+        None => gltf::json::deserialize::from_slice(json),
+    }
+    .map_err(|e| e.to_string())?;
+    Ok((root, skipped))
 }
 
 /// Runs the `gltf` crate's validation, accepting the required extensions Nimbus implements. Returns warnings
@@ -281,10 +306,13 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
         .collect())
 }
 
+/// Skins' joint matrices by pose (0: the frame's, k + 1: motion step k) and skin index.
+type JointCache = RefCell<HashMap<(usize, usize), Rc<[Mat4]>>>;
+
 /// How a node's mesh is posed at one instant: morph weights, then skin joint matrices or the world matrix.
 struct Deformation {
     weights: Vec<f32>,
-    joints: Option<Vec<Mat4>>,
+    joints: Option<Rc<[Mat4]>>,
     world: Mat4,
 }
 
@@ -310,6 +338,10 @@ struct Loader<'a> {
     node_worlds: Vec<Mat4>,
     /// Whether the rest-pose warning was given.
     skin_warned: bool,
+    /// Each skin's joint matrices, by pose and skin, computed once.
+    joints: JointCache,
+    /// The load-time work of posing meshes: joint matrices, skinned vertices and morph-target vertices.
+    work: WorkBudget,
 }
 
 impl Loader<'_> {
@@ -503,14 +535,16 @@ impl Loader<'_> {
         if node.skin().is_some() && self.node_worlds.is_empty() {
             self.node_worlds = gltf_deform::node_worlds(self.document, &self.pose.locals);
         }
-        let frame_deform = self.deformation(node, &mesh, &self.pose, &self.node_worlds, world)?;
+        let frame_deform =
+            self.deformation(node, &mesh, &self.pose, 0, &self.node_worlds, world)?;
         let step_deforms = match &self.motion {
             Some(m) => Some(
                 m.poses
                     .iter()
                     .zip(&m.worlds)
-                    .map(|(pose, worlds)| {
-                        self.deformation(node, &mesh, pose, worlds, &worlds[node.index()])
+                    .enumerate()
+                    .map(|(k, (pose, worlds))| {
+                        self.deformation(node, &mesh, pose, k + 1, worlds, &worlds[node.index()])
                     })
                     .collect::<Result<Vec<_>, _>>()?,
             ),
@@ -530,6 +564,15 @@ impl Loader<'_> {
                 ));
                 continue;
             }
+            let (triangles, vertices) = primitive_size(&primitive);
+            let copies = 1 + step_deforms.as_ref().map_or(0, Vec::len) as u64;
+            self.builder
+                .check_mesh(
+                    format_args!("{what} on node {}", node.index()),
+                    triangles,
+                    vertices.saturating_mul(copies),
+                )
+                .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
             let base = self.read_primitive(&primitive, &what)?;
             let mut m = self.deformed(&base, &primitive, &frame_deform, &what)?;
             if let (Some(deforms), Some(motion)) = (&step_deforms, &self.motion) {
@@ -565,13 +608,15 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// What poses a node's mesh in `pose`: its morph weights, and its skin's joint matrices (from the node
-    /// `worlds` of that pose) or else its world matrix `world`.
+    /// What poses a node's mesh in `pose` (number `pose_index`: 0 the frame's, k + 1 motion step k): its morph
+    /// weights, and its skin's joint matrices (from the node `worlds` of that pose) or else its world matrix
+    /// `world`.
     fn deformation(
         &self,
         node: &gltf::Node,
         mesh: &gltf::Mesh,
         pose: &gltf_animation::Pose,
+        pose_index: usize,
         worlds: &[Mat4],
         world: &Mat4,
     ) -> Result<Deformation, SceneError> {
@@ -580,10 +625,7 @@ impl Loader<'_> {
             None => gltf_deform::morph_weights(node, mesh).to_vec(),
         };
         let joints = match node.skin() {
-            Some(skin) => Some(
-                gltf_deform::joint_matrices(&skin, worlds, self.buffers, &self.options.limits)
-                    .map_err(|e| self.error(SceneErrorKind::Malformed(e)))?,
-            ),
+            Some(skin) => Some(self.joint_matrices(&skin, pose_index, worlds)?),
             None => None,
         };
         Ok(Deformation {
@@ -593,7 +635,35 @@ impl Loader<'_> {
         })
     }
 
-    /// The object-space primitive `base` morphed and posed by `d`, with flat normals where it has none.
+    /// The joint matrices of `skin` in pose `pose_index` (see [`Self::deformation`]), computed on first use
+    /// and counted against the work budget, one step a joint.
+    fn joint_matrices(
+        &self,
+        skin: &gltf::Skin,
+        pose_index: usize,
+        worlds: &[Mat4],
+    ) -> Result<Rc<[Mat4]>, SceneError> {
+        let key = (pose_index, skin.index());
+        if let Some(joints) = self.joints.borrow().get(&key) {
+            return Ok(joints.clone());
+        }
+        let count = skin.joints().len() as u64;
+        self.work
+            .spend(
+                format_args!("skin {}: {count} joint matrices", skin.index()),
+                count,
+            )
+            .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
+        let joints: Rc<[Mat4]> =
+            gltf_deform::joint_matrices(skin, worlds, self.buffers, &self.options.limits)
+                .map_err(|e| self.error(SceneErrorKind::Malformed(e)))?
+                .into();
+        self.joints.borrow_mut().insert(key, joints.clone());
+        Ok(joints)
+    }
+
+    /// The object-space primitive `base` morphed and posed by `d`, with flat normals where it has none. The
+    /// morph targets read (one step a vertex each) and the skinned vertices count against the work budget.
     fn deformed(
         &self,
         base: &Mesh,
@@ -601,6 +671,18 @@ impl Loader<'_> {
         d: &Deformation,
         what: &str,
     ) -> Result<Mesh, SceneError> {
+        let vertices = base.positions.len() as u64;
+        let targets = d.weights.iter().filter(|&&w| w != 0.0).count() as u64;
+        let (skinned, how) = match d.joints {
+            Some(_) => (vertices, ", skinned"),
+            None => (0, ""),
+        };
+        self.work
+            .spend(
+                format_args!("{what}: posing {vertices} vertices ({targets} morph targets{how})"),
+                targets.saturating_mul(vertices).saturating_add(skinned),
+            )
+            .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
         let mut m = base.clone();
         let limits = &self.options.limits;
         gltf_deform::apply_morph_targets(&mut m, primitive, &d.weights, self.buffers, limits)
@@ -1495,6 +1577,22 @@ fn triangulate(indices: &[u32], mode: gltf::mesh::Mode) -> Vec<[u32; 3]> {
     tris.into_iter()
         .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
         .collect()
+}
+
+/// The triangles and vertices of a primitive, from its index and POSITION counts, before anything is read:
+/// a third of the corners for a triangle list, all but two for a strip or fan.
+fn primitive_size(primitive: &gltf::Primitive) -> (u64, u64) {
+    let vertices = primitive
+        .get(&gltf::Semantic::Positions)
+        .map_or(0, |a| a.count() as u64);
+    let corners = primitive.indices().map_or(vertices, |a| a.count() as u64);
+    let triangles = match primitive.mode() {
+        gltf::mesh::Mode::TriangleStrip | gltf::mesh::Mode::TriangleFan => {
+            corners.saturating_sub(2)
+        }
+        _ => corners / 3,
+    };
+    (triangles, vertices)
 }
 
 /// The material's `alphaMode` and `alphaCutoff` (default 0.5), glTF 2.0 §3.9.4.

@@ -13,7 +13,7 @@ use crate::limits::Limits;
 use gltf::accessor::{DataType, Dimensions};
 
 /// What an accessor is read as; each fixes the element type and the component types accepted.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(super) enum Usage {
     /// A primitive's index list (SCALAR u8/u16/u32).
     Indices,

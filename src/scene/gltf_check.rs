@@ -3,11 +3,118 @@
 //! graph a forest, cameras and `KHR_lights_punctual` lights with their projection or cone present and their
 //! numbers in range, node transforms and morph weights finite, skins with at least one joint. The crate's accessors that would panic on such data (`projection()`,
 //! `kind()`, `children()`...) are then safe to call.
+//!
+//! Before those, [`skip_unknown_channels`] reads the JSON for animation channels whose target path the crate
+//! does not know (`KHR_animation_pointer`'s `"pointer"`): the crate panics on such a path, and refuses the
+//! target without a `node` that the extension writes. They are removed, with a warning each.
 
 use super::SceneErrorKind;
 use gltf::json::validation::Checked;
 use gltf::json::{Index, Root};
+use serde::Deserialize;
 use std::f32::consts::{FRAC_PI_2, PI};
+
+/// The target paths the `gltf` crate reads (glTF 2.0 §3.11).
+const KNOWN_PATHS: [&str; 4] = ["translation", "rotation", "scale", "weights"];
+
+/// The animation channels that [`skip_unknown_channels`] removed, by animation, with their warnings.
+#[derive(Debug, Default)]
+pub(super) struct SkippedChannels {
+    /// For each animation, the file's indices of its removed channels, ascending.
+    pub removed: Vec<Vec<usize>>,
+    /// One warning per removed channel.
+    pub warnings: Vec<String>,
+}
+
+impl SkippedChannels {
+    /// The file's index of channel `kept` of animation `animation` as the crate numbers the channels left.
+    pub fn file_index(&self, animation: usize, kept: usize) -> usize {
+        let removed = self.removed.get(animation).map_or(&[][..], Vec::as_slice);
+        let mut index = kept;
+        for &r in removed {
+            if r <= index {
+                index += 1;
+            }
+        }
+        index
+    }
+}
+
+/// The parts of a document [`skip_unknown_channels`] reads: each channel's target path.
+#[derive(Deserialize)]
+struct Scan {
+    #[serde(default)]
+    animations: Vec<ScanAnimation>,
+}
+
+#[derive(Deserialize)]
+struct ScanAnimation {
+    #[serde(default)]
+    channels: Vec<ScanChannel>,
+}
+
+#[derive(Deserialize)]
+struct ScanChannel {
+    target: Option<ScanTarget>,
+}
+
+#[derive(Deserialize)]
+struct ScanTarget {
+    path: Option<serde_json::Value>,
+}
+
+/// Finds the animation channels of the JSON `json` whose target path is a string the `gltf` crate does not
+/// know, and returns the document without them (`None` when there are none, or when the JSON does not parse,
+/// for the crate's parser to report), with the channels removed. A document with such channels that cannot be
+/// read whole to remove them (a string of invalid UTF-8 in a field the crate's parser would skip unread) is an
+/// error: left to the crate, the channel would reach it and panic.
+pub(super) fn skip_unknown_channels(
+    json: &[u8],
+) -> Result<(Option<serde_json::Value>, SkippedChannels), String> {
+    let mut skipped = SkippedChannels::default();
+    let mut first_unknown = None;
+    let Ok(scan) = serde_json::from_slice::<Scan>(json) else {
+        return Ok((None, skipped));
+    };
+    for (a, animation) in scan.animations.iter().enumerate() {
+        let unknown = animation
+            .channels
+            .iter()
+            .enumerate()
+            .filter_map(|(c, channel)| {
+                let path = channel.target.as_ref()?.path.as_ref()?.as_str()?;
+                (!KNOWN_PATHS.contains(&path)).then_some((c, path))
+            });
+        let mut removed = Vec::new();
+        for (c, path) in unknown {
+            first_unknown.get_or_insert_with(|| (a, c, crate::limits::one_line(path, 60)));
+            skipped.warnings.push(format!(
+                "animations[{a}].channels[{c}]: target path \"{}\" is not played (only {}; KHR_animation_pointer is not supported); its target keeps its rest pose",
+                crate::limits::one_line(path, 60),
+                KNOWN_PATHS.join(", ")
+            ));
+            removed.push(c);
+        }
+        skipped.removed.push(removed);
+    }
+    if skipped.warnings.is_empty() {
+        return Ok((None, skipped));
+    }
+    let mut document = serde_json::from_slice::<serde_json::Value>(json).map_err(|e| {
+        let (a, c, path) = &first_unknown.expect("a warning was given for a channel");
+        format!(
+            "animations[{a}].channels[{c}]: target path \"{path}\" would be skipped, but the document cannot be read to skip it: {e}"
+        )
+    })?;
+    for (a, removed) in skipped.removed.iter().enumerate() {
+        if let Some(channels) = document["animations"][a]["channels"].as_array_mut() {
+            for &c in removed.iter().rev() {
+                channels.remove(c);
+            }
+        }
+    }
+    Ok((Some(document), skipped))
+}
 
 /// All the checks, in order: indices first (the others follow them).
 pub(super) fn check_document(root: &Root) -> Result<(), SceneErrorKind> {
@@ -500,4 +607,44 @@ fn check_lights(root: &Root) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_channel_paths_are_removed_and_kept_channels_keep_their_file_index() {
+        let json = br#"{"animations": [{"channels": [
+            {"sampler": 0, "target": {"path": "pointer"}},
+            {"sampler": 0, "target": {"node": 0, "path": "translation"}},
+            {"sampler": 0, "target": {"node": 0, "path": "pointer"}},
+            {"sampler": 0, "target": {"node": 0, "path": "scale"}}]}]}"#;
+        let (document, skipped) = skip_unknown_channels(json).unwrap();
+        let channels = document.unwrap()["animations"][0]["channels"].clone();
+        assert_eq!(channels.as_array().unwrap().len(), 2);
+        assert_eq!(skipped.removed, [vec![0, 2]]);
+        assert_eq!(skipped.warnings.len(), 2);
+        assert_eq!(skipped.file_index(0, 0), 1);
+        assert_eq!(skipped.file_index(0, 1), 3);
+        assert_eq!(skipped.file_index(1, 0), 0);
+        let (document, skipped) = skip_unknown_channels(b"{\"asset\": {}}").unwrap();
+        assert!(document.is_none() && skipped.warnings.is_empty());
+    }
+
+    #[test]
+    fn an_unknown_channel_in_a_document_that_cannot_be_read_whole_is_an_error() {
+        // The sampler's unknown field holds invalid UTF-8, which the crate's parser skips unread.
+        let mut json = br#"{"animations": [{"samplers": [{"x": "AB"}], "channels": [
+            {"sampler": 0, "target": {"node": 0, "path": "rotatkon"}}]}]}"#
+            .to_vec();
+        let at = json.windows(2).position(|w| w == b"AB").unwrap();
+        json[at] = 0x8a;
+        let error = skip_unknown_channels(&json).unwrap_err();
+        assert!(
+            error.starts_with("animations[0].channels[0]: target path \"rotatkon\"")
+                && error.contains("invalid unicode"),
+            "{error}"
+        );
+    }
 }

@@ -29,6 +29,32 @@ use crate::volume::Medium;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
+/// Bytes one triangle of a scene is counted at against the memory budget: its three indices and what
+/// [`SceneBuilder::build`] makes of it (the flattened triangle, its BVH copy, build references, nodes and
+/// per-triangle tables: about 150 bytes), rounded up.
+pub const BYTES_PER_TRIANGLE: u64 = 192;
+
+/// Bytes one mesh vertex is counted at against the memory budget, once for the mesh and once for each motion
+/// step: position, normal, two texture-coordinate sets and a tangent (56 bytes), rounded up.
+pub const BYTES_PER_VERTEX: u64 = 64;
+
+/// The bytes `triangles` and `vertices` are counted at ([`BYTES_PER_TRIANGLE`], [`BYTES_PER_VERTEX`]).
+fn mesh_bytes(triangles: u64, vertices: u64) -> u64 {
+    triangles
+        .saturating_mul(BYTES_PER_TRIANGLE)
+        .saturating_add(vertices.saturating_mul(BYTES_PER_VERTEX))
+}
+
+/// The triangles and vertices `mesh` is counted with: its vertices once, and again at each motion step.
+fn mesh_counts(mesh: &Mesh) -> (u64, u64) {
+    let steps = mesh.motion.as_ref().map_or(0, |m| m.positions.len() as u64);
+    let vertices = mesh.positions.len() as u64;
+    (
+        mesh.indices.len() as u64,
+        vertices.saturating_mul(1 + steps),
+    )
+}
+
 /// Radiance of the neutral environment that lights a scene without lighting of its own (see
 /// [`SceneBuilder::has_own_lighting`]), as glTF viewers light such files: the CLI adds it.
 pub const DEFAULT_ENVIRONMENT_RADIANCE: f32 = 1.0;
@@ -122,9 +148,43 @@ pub struct SceneBuilder {
     shutter: Option<crate::frames::Shutter>,
     /// Whether the scene asks for a transparent film (glTF scene extras `nimbus_transparent`).
     transparent: bool,
+    /// The load's memory budget, which the scene's meshes must fit (see [`SceneBuilder::check_mesh`]).
+    limits: crate::limits::Limits,
+    /// Triangles in `meshes`.
+    triangles: u64,
+    /// Vertices in `meshes`, counted once more for each motion step.
+    vertices: u64,
 }
 
 impl SceneBuilder {
+    /// An empty builder whose meshes must fit `limits` (a default builder has the default limits).
+    pub fn with_limits(limits: crate::limits::Limits) -> Self {
+        Self {
+            limits,
+            ..Self::default()
+        }
+    }
+
+    /// `Ok` if a mesh of `triangles` and `vertices` (counted once more per motion step) fits the memory budget
+    /// with the meshes added so far, at [`BYTES_PER_TRIANGLE`] and [`BYTES_PER_VERTEX`]. Loaders call it before
+    /// making a mesh (an instance, an expanded prototype), so that a file reusing one mesh many times is
+    /// refused before the copies are made; `what` names the mesh.
+    pub fn check_mesh(
+        &self,
+        what: impl std::fmt::Display,
+        triangles: u64,
+        vertices: u64,
+    ) -> Result<(), crate::limits::OverBudget> {
+        let triangles = self.triangles.saturating_add(triangles);
+        let vertices = self.vertices.saturating_add(vertices);
+        self.limits.check(
+            format_args!(
+                "{what}: the scene's meshes with it ({triangles} triangles, {vertices} vertices)"
+            ),
+            mesh_bytes(triangles, vertices),
+        )
+    }
+
     /// Loads the VDB volume `spec` describes and adds it as a position-filled medium; returns its index, or
     /// `None` when a sequence has no file for the frame and its `missing_frame` is `empty` (a warning says so).
     pub fn add_volume(
@@ -191,7 +251,20 @@ impl SceneBuilder {
         if mesh.normals.len() != mesh.positions.len() {
             mesh.generate_normals();
         }
+        let (triangles, vertices) = mesh_counts(&mesh);
+        self.triangles = self.triangles.saturating_add(triangles);
+        self.vertices = self.vertices.saturating_add(vertices);
         self.meshes.push(mesh);
+    }
+
+    /// Removes and returns the meshes added after the first `at` (a USD prototype flattened for instancing).
+    pub(crate) fn split_meshes_off(&mut self, at: usize) -> Vec<Mesh> {
+        let taken = self.meshes.split_off(at);
+        for (triangles, vertices) in taken.iter().map(mesh_counts) {
+            self.triangles = self.triangles.saturating_sub(triangles);
+            self.vertices = self.vertices.saturating_sub(vertices);
+        }
+        taken
     }
 
     /// Adds a light (area lights come from emissive materials instead; an environment replaces any other),
@@ -465,9 +538,23 @@ impl SceneBuilder {
 
     /// Builds the renderable scene: flattens the meshes into one BVH, turns emissive triangles into area
     /// lights and builds the light-selection distribution. Fails on a dangling reference (see
-    /// [`SceneBuilder`]).
+    /// [`SceneBuilder`]), and before allocating when the meshes do not fit the memory budget at
+    /// [`BYTES_PER_TRIANGLE`] and [`BYTES_PER_VERTEX`].
     pub fn build(mut self) -> Result<Scene, SceneError> {
         self.validate()?;
+        let (triangles, vertices) = self
+            .meshes
+            .iter()
+            .map(mesh_counts)
+            .fold((0u64, 0u64), |(t, v), (mt, mv)| {
+                (t.saturating_add(mt), v.saturating_add(mv))
+            });
+        self.limits
+            .check(
+                format_args!("the scene's meshes ({triangles} triangles, {vertices} vertices)"),
+                mesh_bytes(triangles, vertices),
+            )
+            .map_err(|e| SceneError::new(BUILDER_PATH, SceneErrorKind::OverLimit(e.to_string())))?;
         // Normal maps need a tangent frame: MikkTSpace where the file gives no tangents (glTF 2.0 §3.7.2.1).
         for mesh in &mut self.meshes {
             if mesh.tangents.is_none()

@@ -57,7 +57,7 @@ const QUOTE_CHARS: usize = 48;
 pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneError> {
     let bytes = read_file(path, &options.limits)
         .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    let mut builder = SceneBuilder::default();
+    let mut builder = SceneBuilder::with_limits(options.limits);
     let text = text(&bytes, path, &mut builder);
     let scan = scan_obj(&text)
         .map_err(|(kind, line, m)| SceneError::new(path, kind(format!("line {line}: {m}"))))?;

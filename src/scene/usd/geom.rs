@@ -127,7 +127,7 @@ impl Loader<'_> {
                 }
             }
             mesh.transform(world);
-            self.add_mesh(mesh);
+            self.add_mesh(mesh)?;
         }
         Ok(())
     }

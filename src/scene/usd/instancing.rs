@@ -17,9 +17,6 @@ use std::collections::HashSet;
 /// Most instances one instancer may expand to world meshes (each copies its prototype's triangles).
 pub(super) const MAX_INSTANCES: usize = 1 << 20;
 
-/// Bytes an expanded triangle takes, for the memory check (three vertices of position, normal and uv).
-const BYTES_PER_TRIANGLE: u64 = 3 * (12 + 12 + 8) + 12;
-
 impl Loader<'_> {
     /// Expands a `PointInstancer` into copies of its prototypes' meshes.
     pub(super) fn point_instancer(
@@ -99,23 +96,21 @@ impl Loader<'_> {
                     proto.path().as_str()
                 ));
             }
-            flattened.push(self.builder.meshes.split_off(meshes));
+            flattened.push(self.builder.split_meshes_off(meshes));
         }
-        // The expanded triangles must fit the memory budget (a vertex a corner: ~100 bytes a triangle).
-        let triangles: u64 = indices
+        // The expanded meshes must fit the memory budget with the rest of the scene's, checked before any copy
+        // is made (each copy is checked again as it is added).
+        let (triangles, vertices) = indices
             .iter()
             .filter_map(|&p| usize::try_from(p).ok().and_then(|p| flattened.get(p)))
-            .map(|meshes| meshes.iter().map(|m| m.indices.len() as u64).sum::<u64>())
-            .sum();
-        if triangles.saturating_mul(BYTES_PER_TRIANGLE) > self.limits.memory_bytes {
-            return Err(self.error(
-                &at,
-                format!(
-                    "the instances expand to {triangles} triangles, more than the memory budget of {}",
-                    crate::limits::format_bytes(self.limits.memory_bytes)
-                ),
-            ));
-        }
+            .flatten()
+            .fold((0u64, 0u64), |(t, v), m| {
+                (
+                    t.saturating_add(m.indices.len() as u64),
+                    v.saturating_add(m.positions.len() as u64),
+                )
+            });
+        self.check_mesh(&format!("{at}: {n} instances"), triangles, vertices)?;
         for i in 0..n {
             let id = ids.get(i).copied().unwrap_or(i as i64);
             if invisible.contains(&id) {
@@ -147,7 +142,7 @@ impl Loader<'_> {
                 let mut mesh = mesh.clone();
                 mesh.name = format!("{}[{i}]", mesh.name);
                 mesh.transform(&m);
-                self.add_mesh(mesh);
+                self.add_mesh(mesh)?;
             }
         }
         Ok(())

@@ -119,7 +119,7 @@ impl Loader<'_> {
         let mut material = Material::lambertian(&at, Rgb::ZERO);
         material.emission = emission;
         mesh.material = self.builder.add_material(material);
-        self.add_mesh(mesh);
+        self.add_mesh(mesh)?;
         Ok(())
     }
 

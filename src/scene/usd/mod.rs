@@ -308,7 +308,7 @@ fn read_stage(
     let mut loader = Loader {
         path,
         stage: &stage,
-        builder: SceneBuilder::default(),
+        builder: SceneBuilder::with_limits(*limits),
         volumes: Vec::new(),
         materials: HashMap::new(),
         textures: HashMap::new(),
@@ -679,11 +679,22 @@ impl Loader<'_> {
         Ok(kind.is_some_and(|k| k.as_str() == "component"))
     }
 
-    /// Adds a mesh drawn from the prim being visited, with that prim's asset and compositing tags.
-    fn add_mesh(&mut self, mut mesh: Mesh) {
+    /// Adds a mesh drawn from the prim being visited, with that prim's asset and compositing tags, if it fits
+    /// the memory budget with the scene's meshes so far ([`SceneBuilder::check_mesh`]).
+    fn add_mesh(&mut self, mut mesh: Mesh) -> Result<(), SceneError> {
+        let (triangles, vertices) = (mesh.indices.len() as u64, mesh.positions.len() as u64);
+        self.check_mesh(&mesh.name, triangles, vertices)?;
         mesh.asset = self.asset.clone();
         mesh.tags = self.tags.clone();
         self.builder.add_mesh(mesh);
+        Ok(())
+    }
+
+    /// `Ok` if `triangles` and `vertices` made at `at` fit the memory budget with the scene's meshes so far.
+    fn check_mesh(&self, at: &str, triangles: u64, vertices: u64) -> Result<(), SceneError> {
+        self.builder
+            .check_mesh(at, triangles, vertices)
+            .map_err(|e| SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string())))
     }
 
     /// The file an asset-valued attribute names, resolved against the layer that authored it.

@@ -95,7 +95,7 @@ impl Loader<'_> {
         mesh.name = at;
         mesh.material = self.material(prim, binding, double_sided)?;
         mesh.transform(world);
-        self.add_mesh(mesh);
+        self.add_mesh(mesh)?;
         Ok(())
     }
 }
