@@ -2,20 +2,24 @@
 //! file, `converge` charts.
 
 use clap::{Args, Parser, Subcommand};
+use nimbus::farm::checkpoint::{read_checkpoint, write_checkpoint};
 use nimbus::farm::{FarmError, PartInfo};
 use nimbus::frames::{has_frame_token, with_frame, FrameRange, Shutter};
 use nimbus::light::EnvironmentLight;
 use nimbus::limits::{one_line, Limits};
 use nimbus::math::Rgb;
+use nimbus::render::resume::{RegionProgress, ResumeFrom};
 use nimbus::render::{
-    CancelToken, PixelWindow, Progress, RenderRegion, RenderSettings, RenderStats, Renderer,
+    CancelToken, Film, PixelWindow, Progress, RenderImage, RenderRegion, RenderSettings,
+    RenderStats, Renderer,
 };
 use nimbus::scene::{LoadOptions, Scene, SceneBuilder, DEFAULT_ENVIRONMENT_RADIANCE};
 use std::io::IsTerminal;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Duration;
+use std::sync::atomic::{AtomicI32, Ordering};
+use std::time::{Duration, Instant};
 
 #[derive(Parser)]
 #[command(
@@ -181,6 +185,15 @@ struct RenderArgs {
     /// Render progressively for this many seconds, then write what there is.
     #[arg(long = "time-limit")]
     time_limit: Option<f64>,
+    /// Write the film's exact sums as a checkpoint (OUT.checkpoint.exr beside the output) every SECONDS, at
+    /// the end of the first pass after each interval, and when SIGTERM or SIGINT stops the render; --resume
+    /// continues from it.
+    #[arg(long, value_parser = positive_seconds, conflicts_with = "time_limit")]
+    checkpoint: Option<f64>,
+    /// Continue from the checkpoint beside the output when there is one, taking only the samples it lacks
+    /// (the image is the uninterrupted render's, bit for bit); without one, render from the first sample.
+    #[arg(long, conflicts_with = "time_limit")]
+    resume: bool,
     /// Write render statistics as JSON to this file.
     #[arg(long)]
     stats: Option<PathBuf>,
@@ -297,7 +310,12 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(message) => {
             eprintln!("nimbus: error: {}", one_line(&message, MAX_MESSAGE_CHARS));
-            ExitCode::FAILURE
+            // A render stopped by a signal ends as the signal would have ended it (130 for SIGINT, 143 for
+            // SIGTERM), after writing what it had.
+            match STOP_SIGNAL.load(Ordering::SeqCst) {
+                0 => ExitCode::FAILURE,
+                signal => ExitCode::from(128 + signal as u8),
+            }
         }
     }
 }
@@ -604,13 +622,15 @@ fn render(mut args: RenderArgs) -> Result<(), String> {
         );
     }
     let mut reporter = ProgressReporter::new();
+    let cancel = CancelToken::new();
+    stop_on_signals(cancel.clone())?;
     let Some(range) = range else {
-        return render_frame(&args, None, &mut reporter);
+        return render_frame(&args, None, &mut reporter, &cancel);
     };
     let count = range.len();
     for (i, frame) in range.frames().enumerate() {
         reporter.start_frame(frame, i as u64, count);
-        render_frame(&args, Some(frame), &mut reporter)?;
+        render_frame(&args, Some(frame), &mut reporter, &cancel)?;
     }
     if count > 1 {
         eprintln!(
@@ -667,6 +687,7 @@ fn render_frame(
     args: &RenderArgs,
     frame: Option<i64>,
     reporter: &mut ProgressReporter,
+    cancel: &CancelToken,
 ) -> Result<(), String> {
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
@@ -774,21 +795,112 @@ fn render_frame(
         return Err("--compression pxr24 rounds 32-bit floats to 24 bits, which destroys Cryptomatte IDs; use zip, piz, rle or none".into());
     }
     let hash = part_scene_hash(args, frame, renderer.settings())?;
-    if let Some((region, output)) = part_region(args, &output, renderer.settings())? {
+    let part = part_region(args, &output, renderer.settings())?;
+    let is_part = part.is_some();
+    let (region, output) = part.unwrap_or_else(|| {
+        let whole = RenderRegion {
+            window: PixelWindow::full(width, height),
+            samples: 0..spp.max(1),
+        };
+        (whole, output)
+    });
+    if is_part {
         eprintln!(
             "nimbus: part: samples {}..{} of the pixels in {}",
             region.samples.start, region.samples.end, region.window
         );
-        let (film, stats) = renderer
-            .render_region(
-                &scene,
-                &region,
-                &mut |p| reporter.report(p),
-                &CancelToken::new(),
-            )
-            .map_err(|e| e.to_string())?;
-        reporter.finish();
-        let metadata = image_metadata(args, &scene, renderer.settings(), frame, hash, &stats);
+    }
+    let checkpoint = nimbus::farm::checkpoint::checkpoint_path(&output);
+    let from = resume_from(
+        args,
+        &checkpoint,
+        &scene,
+        renderer.settings(),
+        hash,
+        &region,
+    )?;
+    let checkpoint_info = PartInfo {
+        estimators: PartInfo::estimators_of(&scene),
+        ..PartInfo::new(renderer.settings(), hash, &region, &RenderStats::default())
+    };
+    let interval = args.checkpoint.map(Duration::from_secs_f64);
+    let mut last_checkpoint = Instant::now();
+    let mut on_pass = |p: &Progress, film: &Film| {
+        let go_on = reporter.report(p);
+        let complete = region.samples.start + p.samples_done;
+        if let Some(interval) = interval.filter(|_| complete < region.samples.end) {
+            if last_checkpoint.elapsed() >= interval {
+                let info = PartInfo {
+                    nan_samples: p.nan_samples,
+                    clamped_samples: p.clamped_samples,
+                    ..checkpoint_info.clone()
+                };
+                let progress = RegionProgress::start(complete);
+                if let Err(e) = write_checkpoint(&checkpoint, film, &info, &progress) {
+                    eprintln!(
+                        "nimbus: warning: checkpoint not written: {}",
+                        one_line(&e.to_string(), MAX_MESSAGE_CHARS)
+                    );
+                }
+                last_checkpoint = Instant::now();
+            }
+        }
+        go_on
+    };
+    let (film, mut stats, progress) = renderer
+        .render_resumable(&scene, &region, from, &mut on_pass, cancel)
+        .map_err(|e| e.to_string())?;
+    reporter.finish();
+    let stop = STOP_SIGNAL.load(Ordering::SeqCst);
+    // A signal that came after the last pass stops nothing: the render is written as finished.
+    let finished = progress.complete == region.samples.end;
+    if stats.cancelled && stop != 0 && !finished {
+        let signal = signal_name(stop);
+        if progress.is_empty(region.samples.start) {
+            return Err(format!(
+                "stopped by {signal} before any sample was taken; nothing written"
+            ));
+        }
+        let complete = progress.complete - region.samples.start;
+        if args.checkpoint.is_some() || is_part {
+            let info = PartInfo {
+                nan_samples: stats.nan_samples,
+                clamped_samples: stats.clamped_samples,
+                ..checkpoint_info
+            };
+            write_checkpoint(&checkpoint, &film, &info, &progress).map_err(|e| e.to_string())?;
+            return Err(format!(
+                "stopped by {signal}: wrote checkpoint {} ({complete} of {} samples in every pixel); continue with --resume",
+                checkpoint.display(),
+                region.samples.len()
+            ));
+        }
+        stats.partial = true;
+        stats.interrupted_by = Some(signal.to_owned());
+        let mut image = film.image();
+        image.metadata = image_metadata(args, &scene, renderer.settings(), frame, hash, &stats);
+        image
+            .metadata
+            .nimbus
+            .insert("spp".into(), complete.to_string());
+        image
+            .metadata
+            .nimbus
+            .insert("partial".into(), "true".into());
+        image
+            .metadata
+            .nimbus
+            .insert("interrupted_by".into(), signal.to_owned());
+        write_image(args, &image, &output)?;
+        finish_render(&stats, stats_path.as_deref())?;
+        return Err(format!(
+            "stopped by {signal}: wrote the partial image {} ({complete} of {} samples in every pixel; nimbus/partial in its header)",
+            output.display(),
+            region.samples.len()
+        ));
+    }
+    let metadata = image_metadata(args, &scene, renderer.settings(), frame, hash, &stats);
+    if is_part {
         let info =
             PartInfo::new(renderer.settings(), hash, &region, &stats).with_metadata(metadata);
         create_parent(&output)?;
@@ -800,31 +912,156 @@ fn render_frame(
             stats.render_seconds,
             stats.samples_per_second
         );
-        return finish_render(&stats, stats_path.as_deref());
+    } else {
+        let mut image = film.image();
+        image.metadata = metadata;
+        image
+            .metadata
+            .nimbus
+            .insert("spp".into(), stats.samples_per_pixel.to_string());
+        write_image(args, &image, &output)?;
+        eprintln!(
+            "nimbus: wrote {} and {} ({} spp in {:.2} s, {:.0} samples/s)",
+            output.display(),
+            nimbus::output::preview_path(&output).display(),
+            stats.samples_per_pixel,
+            stats.render_seconds,
+            stats.samples_per_second
+        );
     }
-    let (mut image, stats) = renderer
-        .render(&scene, &mut |p| reporter.report(p))
-        .map_err(|e| e.to_string())?;
-    reporter.finish();
-    image.metadata = image_metadata(args, &scene, renderer.settings(), frame, hash, &stats);
-    image
-        .metadata
-        .nimbus
-        .insert("spp".into(), stats.samples_per_pixel.to_string());
-    create_parent(&output)?;
-    nimbus::output::write_exr_with(&image, &output, &args.storage.options())
-        .map_err(|e| e.to_string())?;
-    let png = nimbus::output::preview_path(&output);
-    nimbus::output::write_png_preview(&image, &png, args.exposure).map_err(|e| e.to_string())?;
-    eprintln!(
-        "nimbus: wrote {} and {} ({} spp in {:.2} s, {:.0} samples/s)",
-        output.display(),
-        png.display(),
-        stats.samples_per_pixel,
-        stats.render_seconds,
-        stats.samples_per_second
-    );
+    remove_checkpoint(&checkpoint)?;
     finish_render(&stats, stats_path.as_deref())
+}
+
+/// Writes the EXR `output` of `image` and its PNG preview.
+fn write_image(args: &RenderArgs, image: &RenderImage, output: &Path) -> Result<(), String> {
+    create_parent(output)?;
+    nimbus::output::write_exr_with(image, output, &args.storage.options())
+        .map_err(|e| e.to_string())?;
+    let png = nimbus::output::preview_path(output);
+    nimbus::output::write_png_preview(image, &png, args.exposure).map_err(|e| e.to_string())
+}
+
+/// With `--resume`, the checkpoint at `path` to continue from, once checked to be of this render (`None`
+/// when there is none: the render starts from its first sample).
+fn resume_from(
+    args: &RenderArgs,
+    path: &Path,
+    scene: &Scene,
+    settings: &RenderSettings,
+    hash: u64,
+    region: &RenderRegion,
+) -> Result<Option<ResumeFrom>, String> {
+    if !args.resume {
+        return Ok(None);
+    }
+    if !path.exists() {
+        eprintln!(
+            "nimbus: --resume: no checkpoint {}; rendering from the first sample",
+            path.display()
+        );
+        return Ok(None);
+    }
+    let (info, from) = read_checkpoint(path).map_err(|e| e.to_string())?;
+    let differences = [
+        (
+            "Nimbus version",
+            info.version.clone(),
+            env!("CARGO_PKG_VERSION").to_owned(),
+        ),
+        (
+            "scene hash (scene file, settings and overrides)",
+            format!("{:016x}", info.scene_hash),
+            format!("{hash:016x}"),
+        ),
+        (
+            "size",
+            format!("{}x{}", info.width, info.height),
+            format!("{}x{}", settings.width, settings.height),
+        ),
+        ("seed", info.seed.to_string(), settings.seed.to_string()),
+        (
+            "max depth",
+            info.max_depth.to_string(),
+            settings.max_depth.to_string(),
+        ),
+        ("spp", info.spp.to_string(), settings.spp.to_string()),
+        ("crop", info.window.to_string(), region.window.to_string()),
+        (
+            "first sample",
+            info.samples.start.to_string(),
+            region.samples.start.to_string(),
+        ),
+        (
+            "media estimators",
+            info.estimators.clone(),
+            PartInfo::estimators_of(scene),
+        ),
+    ];
+    if let Some((what, theirs, ours)) = differences.iter().find(|(_, a, b)| a != b) {
+        return Err(format!(
+            "checkpoint {}: its {what} '{theirs}' is not this render's '{ours}'; delete it or render without --resume",
+            path.display()
+        ));
+    }
+    eprintln!(
+        "nimbus: resuming from {}: {} of {} samples in every pixel{}",
+        path.display(),
+        from.progress.complete - region.samples.start,
+        region.samples.len(),
+        if from.progress.stopped_pass.is_some() {
+            ", and a pass stopped part way"
+        } else {
+            ""
+        }
+    );
+    Ok(Some(from))
+}
+
+/// Removes the checkpoint of a render that finished (none is no error).
+fn remove_checkpoint(path: &Path) -> Result<(), String> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(format!(
+            "{}: the render finished, but its checkpoint could not be removed: {e}",
+            path.display()
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// The signal that is stopping the render (`SIGTERM` or `SIGINT`), 0 while none has arrived.
+static STOP_SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+/// Cancels `token` on the first SIGTERM or SIGINT (kept in [`STOP_SIGNAL`]), so that the render stops after
+/// the pixels in flight and writes what it has; a second one ends the process at once, with status 128 + the
+/// signal (outputs are written atomically, so none is left torn).
+fn stop_on_signals(token: CancelToken) -> Result<(), String> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let mut signals = signal_hook::iterator::Signals::new([SIGTERM, SIGINT])
+        .map_err(|e| format!("cannot watch SIGTERM and SIGINT: {e}"))?;
+    std::thread::spawn(move || {
+        for signal in signals.forever() {
+            if STOP_SIGNAL.swap(signal, Ordering::SeqCst) != 0 {
+                eprintln!("nimbus: {} again: stopping now", signal_name(signal));
+                std::process::exit(128 + signal);
+            }
+            eprintln!(
+                "nimbus: {} received: stopping after the pixels in flight (send it again to stop at once)",
+                signal_name(signal)
+            );
+            token.cancel();
+        }
+    });
+    Ok(())
+}
+
+/// The name of a signal [`stop_on_signals`] watches.
+fn signal_name(signal: i32) -> &'static str {
+    if signal == signal_hook::consts::SIGINT {
+        "SIGINT"
+    } else {
+        "SIGTERM"
+    }
 }
 
 /// The EXR header attributes of a render: the camera's `worldToCamera` and `worldToNDC`, and the `nimbus/` keys

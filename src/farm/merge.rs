@@ -99,6 +99,12 @@ pub fn check_parts(parts: &[(PathBuf, PartInfo)]) -> Result<(), FarmError> {
     let Some((first_path, first)) = parts.first() else {
         return Err(FarmError::NoParts);
     };
+    if let Some((path, _)) = parts.iter().find(|(_, p)| p.progress.is_some()) {
+        return Err(FarmError::Invalid {
+            path: path.clone(),
+            reason: "a checkpoint of an unfinished render, not a part: finish it with nimbus render --resume".into(),
+        });
+    }
     for (path, info) in &parts[1..] {
         check_same(first_path, first, path, info)?;
     }
@@ -280,6 +286,7 @@ mod tests {
             plan: crate::render::LayerPlan::default(),
             metadata: crate::render::ImageMetadata::default(),
             estimators: String::new(),
+            progress: None,
         }
     }
 

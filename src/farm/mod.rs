@@ -17,6 +17,7 @@
 //! Frames are the outer unit of a farm: a future frame number joins the keys a part carries and a merge
 //! checks, and nothing here assumes a still beyond that.
 
+pub mod checkpoint;
 pub mod chunk;
 pub mod hash;
 pub mod merge;

@@ -26,10 +26,18 @@
 //! | `nimbus.layers` | the layer plan: `slots=…;written=…;depth=N` |
 //! | `nimbus.estimators` | each medium's estimator (free flights, majorant structure, shadow rays) |
 //! | `nimbus.crypto.<kind>.manifest`, `nimbus.crypto.<kind>.entries` | each Cryptomatte kind's manifest (JSON) and its number of entry channels |
+//!
+//! A checkpoint (`--checkpoint`, see [`super::checkpoint`]) is a part of an unfinished render: its format is
+//! `nimbus-checkpoint-1`, its `nimbus.samples` end with the most samples any pixel holds, and two keys say
+//! which pixels hold which: `nimbus.complete` (every pixel holds `START..complete`) and `nimbus.stopped_pass`
+//! (`none`, or `END;` and the pixels of each row that also hold `complete..END`, run-length coded as
+//! `PIXELSxROWS,…` from the top row). `nimbus merge` refuses checkpoints; `nimbus render --resume` reads them.
 
 use super::FarmError;
+use crate::limits::one_line;
 use crate::output::OutputError;
 use crate::render::cryptomatte::{manifest_json, parse_manifest, CryptoKind, IdCoverage};
+use crate::render::resume::{RegionProgress, StoppedPass};
 use crate::render::{
     Film, ImageMetadata, LayerPlan, PixelSums, PixelWindow, RenderImage, RenderRegion,
     RenderSettings, RenderStats, ValueSum,
@@ -46,6 +54,8 @@ use std::sync::Arc;
 
 /// The value of `nimbus.format` in a part written by this version.
 pub const PART_FORMAT: &str = "nimbus-part-2";
+/// The value of `nimbus.format` in a checkpoint written by this version.
+pub const CHECKPOINT_FORMAT: &str = "nimbus-checkpoint-1";
 /// Prefix of the header keys and sum channels of a part.
 const PREFIX: &str = "nimbus.";
 
@@ -82,6 +92,8 @@ pub struct PartInfo {
     /// `; `: the majorant structure chosen under the memory limit changes the samples, so parts of renders that
     /// chose differently must not merge.
     pub estimators: String,
+    /// For a checkpoint, which of `samples` each pixel holds; `None` for a part (every pixel holds them all).
+    pub progress: Option<RegionProgress>,
 }
 
 impl PartInfo {
@@ -114,7 +126,18 @@ impl PartInfo {
                 .map(|m| format!("{}: {}", m.name, m.method_details.estimator_key()))
                 .collect::<Vec<_>>()
                 .join("; "),
+            progress: None,
         }
+    }
+
+    /// Each medium's estimator of `scene`, as [`PartInfo::estimators`] holds them.
+    pub fn estimators_of(scene: &crate::scene::Scene) -> String {
+        scene
+            .media()
+            .iter()
+            .map(|m| format!("{}: {}", m.name(), m.method().estimator_key()))
+            .collect::<Vec<_>>()
+            .join("; ")
     }
 
     /// This description with the header attributes the merged image is to take over.
@@ -124,8 +147,12 @@ impl PartInfo {
 
     /// The header attributes, keyed without the `nimbus.` prefix.
     fn keys(&self) -> Vec<(&'static str, String)> {
-        vec![
-            ("format", PART_FORMAT.to_string()),
+        let format = match self.progress {
+            Some(_) => CHECKPOINT_FORMAT,
+            None => PART_FORMAT,
+        };
+        let mut keys = vec![
+            ("format", format.to_string()),
             ("version", self.version.clone()),
             ("scene_hash", format!("{:016x}", self.scene_hash)),
             ("seed", self.seed.to_string()),
@@ -140,7 +167,12 @@ impl PartInfo {
             ("clamped_samples", self.clamped_samples.to_string()),
             ("layers", self.plan.describe()),
             ("estimators", self.estimators.clone()),
-        ]
+        ];
+        if let Some(progress) = &self.progress {
+            keys.push(("complete", progress.complete.to_string()));
+            keys.push(("stopped_pass", format_stopped_pass(progress)));
+        }
+        keys
     }
 }
 
@@ -167,6 +199,20 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
             "samples {}..{} are not a non-empty range within {} spp",
             info.samples.start, info.samples.end, info.spp
         )));
+    }
+    if let Some(progress) = &info.progress {
+        progress
+            .fits(film, &info.samples)
+            .map_err(|e| invalid(format!("checkpoint progress: {e}")))?;
+        if progress.most_samples(info.samples.start) != info.samples.len() as u32 {
+            return Err(invalid(format!(
+                "checkpoint progress ends at {} samples, the range {}..{} at {}",
+                progress.most_samples(info.samples.start),
+                info.samples.start,
+                info.samples.end,
+                info.samples.len()
+            )));
+        }
     }
     let info = &PartInfo {
         plan: film.plan().clone(),
@@ -356,9 +402,9 @@ fn parse_info(
         })
     }
     let format = text("format")?;
-    if format != PART_FORMAT {
+    if format != PART_FORMAT && format != CHECKPOINT_FORMAT {
         return Err(invalid(format!(
-            "part format '{format}', this Nimbus reads '{PART_FORMAT}'"
+            "part format '{format}', this Nimbus reads '{PART_FORMAT}' and '{CHECKPOINT_FORMAT}'"
         )));
     }
     let hash = text("scene_hash")?;
@@ -415,6 +461,31 @@ fn parse_info(
         }
     }
     let plan = parse_plan(other, &text, &invalid)?;
+    let progress = if format == CHECKPOINT_FORMAT {
+        let complete = get("complete")?;
+        let stopped = text("stopped_pass")?;
+        let progress = parse_stopped_pass(
+            u32::try_from(complete).unwrap_or(u32::MAX),
+            &stopped,
+            window,
+        )
+        .map_err(|e| {
+            invalid(format!(
+                "{PREFIX}stopped_pass '{}': {e}",
+                one_line(&stopped, 60)
+            ))
+        })?;
+        if progress.complete < samples.start
+            || progress.most_samples(samples.start) != samples.len() as u32
+        {
+            return Err(invalid(format!(
+                "{PREFIX}complete {complete} and {PREFIX}stopped_pass do not end the samples {samples_text}"
+            )));
+        }
+        Some(progress)
+    } else {
+        None
+    };
     let metadata = ImageMetadata {
         world_to_camera: attributes.world_to_camera.map(unflatten),
         world_to_ndc: attributes.world_to_normalized_device.map(unflatten),
@@ -446,6 +517,64 @@ fn parse_info(
         window,
         nan_samples,
         clamped_samples,
+        progress,
+    })
+}
+
+/// The value of `nimbus.stopped_pass`: `none`, or `END;` and the pixels of each row run-length coded.
+fn format_stopped_pass(progress: &RegionProgress) -> String {
+    let Some(pass) = &progress.stopped_pass else {
+        return "none".into();
+    };
+    let mut runs: Vec<(u32, usize)> = Vec::new();
+    for &pixels in &pass.row_pixels {
+        match runs.last_mut() {
+            Some((p, rows)) if *p == pixels => *rows += 1,
+            _ => runs.push((pixels, 1)),
+        }
+    }
+    let runs: Vec<String> = runs.iter().map(|(p, rows)| format!("{p}x{rows}")).collect();
+    format!("{};{}", pass.end, runs.join(","))
+}
+
+/// The progress a checkpoint's `nimbus.complete` and `nimbus.stopped_pass` (`text`) give for `window`.
+fn parse_stopped_pass(
+    complete: u32,
+    text: &str,
+    window: PixelWindow,
+) -> Result<RegionProgress, String> {
+    if text == "none" {
+        return Ok(RegionProgress::start(complete));
+    }
+    let (end, runs) = text.split_once(';').ok_or("neither 'none' nor END;RUNS")?;
+    let end: u32 = end.parse().map_err(|_| "END is not a sample number")?;
+    if end <= complete {
+        return Err(format!("the pass ends at {end}, not after {complete}"));
+    }
+    let mut row_pixels = Vec::new();
+    for run in runs.split(',') {
+        let (pixels, rows) = run.split_once('x').ok_or("a run is not PIXELSxROWS")?;
+        let pixels: u32 = pixels.parse().map_err(|_| "PIXELS is not a number")?;
+        let rows: usize = rows.parse().map_err(|_| "ROWS is not a number")?;
+        if pixels as usize > window.width() || rows > window.height() - row_pixels.len() {
+            return Err(format!(
+                "the runs do not fit the {}x{} window",
+                window.width(),
+                window.height()
+            ));
+        }
+        row_pixels.extend(std::iter::repeat_n(pixels, rows));
+    }
+    if row_pixels.len() != window.height() {
+        return Err(format!(
+            "the runs cover {} rows, the window has {}",
+            row_pixels.len(),
+            window.height()
+        ));
+    }
+    Ok(RegionProgress {
+        complete,
+        stopped_pass: Some(StoppedPass { end, row_pixels }),
     })
 }
 
@@ -538,17 +667,20 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
         info.window,
         Arc::new(info.plan.clone()),
     );
-    let range = info.samples.len() as u32;
     let values = info.plan.values_per_pixel();
     for i in 0..n {
         let sums = PixelSums::from_words(&std::array::from_fn(|k| words[k][i]));
-        if sums.count() > range {
-            let (x, y) = pixel_position(&info.window, i);
+        let (x, y) = pixel_position(&info.window, i);
+        let range = match &info.progress {
+            Some(p) => p.samples_of(info.samples.start, x - info.window.x0, y - info.window.y0),
+            None => info.samples.clone(),
+        };
+        if sums.count() > range.len() as u32 {
             return Err(invalid(format!(
                 "pixel ({x}, {y}) counts {} samples, more than its range {}..{}",
                 sums.count(),
-                info.samples.start,
-                info.samples.end
+                range.start,
+                range.end
             )));
         }
         let slots: Vec<ValueSum> = (0..values)

@@ -11,6 +11,7 @@ mod film;
 mod image;
 mod recording;
 mod renderer;
+pub mod resume;
 
 pub use crate::integrator::{EquiangularTargets, PathSample};
 pub use aovs::{AovSelection, LayerPlan, LightGroupMode, LightGroups};

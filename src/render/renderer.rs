@@ -10,6 +10,7 @@ use super::aovs::{AovSelection, LayerPlan, LightGroupMode, LightGroups, PlanErro
 use super::emitter_edges::{EmitterEdgeSampling, EmitterEdges, EDGE_RAYS};
 use super::film::{Film, PixelSums, PixelWindow};
 use super::recording::LayerRecorder;
+use super::resume::{RegionProgress, ResumeFrom, StoppedPass};
 use super::{CancelToken, RenderImage};
 use crate::integrator::{
     FirstEmission, Origin, PathCounters, PathTracer, RayCounters, RendererServices, SampleRecord,
@@ -122,6 +123,10 @@ pub struct Progress {
     pub elapsed_seconds: f64,
     /// Fraction of the work or of the time budget done, in \[0, 1\].
     pub fraction: f64,
+    /// Samples dropped as NaN or infinite so far (with those of the checkpoint a render resumed from).
+    pub nan_samples: u64,
+    /// Samples clamped so far (with those of the checkpoint a render resumed from).
+    pub clamped_samples: u64,
 }
 
 /// What a render did, as written by `--stats`.
@@ -154,6 +159,14 @@ pub struct RenderStats {
     pub samples_per_second: f64,
     /// True when the caller cancelled the render.
     pub cancelled: bool,
+    /// True when the image written is of a render stopped before its samples were taken (the CLI, stopped by
+    /// SIGTERM or SIGINT without `--checkpoint`); pixels then hold `samples_per_pixel` samples or one pass more.
+    pub partial: bool,
+    /// The signal that stopped the render (`SIGTERM`, `SIGINT`), if one did.
+    pub interrupted_by: Option<String>,
+    /// Samples per pixel a resumed render found in its checkpoint (counted in `samples_per_pixel`); 0 when it
+    /// did not resume.
+    pub resumed_samples: u32,
     /// The motion-blur shutter (open, close), in frames relative to the frame; `None` for an instant.
     pub shutter: Option<[f32; 2]>,
     /// Triangles that move over the shutter (kept at every motion step).
@@ -247,6 +260,10 @@ pub enum RenderError {
     /// The layers asked for cannot be made (an unknown light group, too many groups).
     #[error(transparent)]
     Layers(#[from] PlanError),
+    /// The film to resume from is not one of this render's region (another window, other layers, or a progress
+    /// that does not fit it).
+    #[error("cannot resume: {0}")]
+    Resume(String),
 }
 
 /// Renders scenes with fixed settings.
@@ -304,8 +321,14 @@ impl Renderer {
         progress: &mut dyn FnMut(&Progress) -> bool,
         cancel: &CancelToken,
     ) -> Result<(RenderImage, RenderStats), RenderError> {
-        let (film, stats) =
-            self.run(scene, &self.whole(), &mut |p, _| progress(p), cancel, false)?;
+        let (film, stats, _) = self.run(
+            scene,
+            &self.whole(),
+            None,
+            &mut |p, _| progress(p),
+            cancel,
+            false,
+        )?;
         Ok((film.image(), stats))
     }
 
@@ -321,6 +344,25 @@ impl Renderer {
         progress: &mut dyn FnMut(&Progress) -> bool,
         cancel: &CancelToken,
     ) -> Result<(Film, RenderStats), RegionError> {
+        let (film, stats, _) =
+            self.render_resumable(scene, region, None, &mut |p, _| progress(p), cancel)?;
+        Ok((film, stats))
+    }
+
+    /// Renders `region` like [`render_region`](Self::render_region), continuing from `from` (the film and
+    /// progress of a checkpoint of the same render) when given, and returns how far the film got besides:
+    /// a render stopped by `cancel` or by `progress` (which also sees the film after every pass, where every
+    /// pixel holds the samples up to `Progress::samples_done`) can be continued from that film and progress,
+    /// and the continued render's film is the uninterrupted one, bit for bit (see [`super::resume`]). The
+    /// stats count the samples of `from` in `samples_per_pixel`, `nan_samples` and `clamped_samples`.
+    pub fn render_resumable(
+        &self,
+        scene: &Scene,
+        region: &RenderRegion,
+        from: Option<ResumeFrom>,
+        progress: &mut dyn FnMut(&Progress, &Film) -> bool,
+        cancel: &CancelToken,
+    ) -> Result<(Film, RenderStats, RegionProgress), RegionError> {
         let (width, height) = (self.settings.width, self.settings.height);
         if region.window.is_empty() || !region.window.fits(width, height) {
             return Err(RegionError::Window {
@@ -335,7 +377,7 @@ impl Renderer {
                 end: region.samples.end,
             });
         }
-        Ok(self.run(scene, region, &mut |p, _| progress(p), cancel, false)?)
+        Ok(self.run(scene, region, from, progress, cancel, false)?)
     }
 
     /// The whole frame and the samples `0..spp` (at least one).
@@ -354,20 +396,28 @@ impl Renderer {
         scene: &Scene,
         snapshot: &mut dyn FnMut(&Progress, &Film) -> bool,
     ) -> Result<(RenderImage, RenderStats), RenderError> {
-        let (film, stats) = self.run(scene, &self.whole(), snapshot, &CancelToken::new(), true)?;
+        let (film, stats, _) = self.run(
+            scene,
+            &self.whole(),
+            None,
+            snapshot,
+            &CancelToken::new(),
+            true,
+        )?;
         Ok((film.image(), stats))
     }
 
-    /// The pass loop over `region` (valid); `doubling` makes every pass as large as all the previous ones
-    /// together.
+    /// The pass loop over `region` (valid), from `from` when given; `doubling` makes every pass as large as
+    /// all the previous ones together.
     fn run(
         &self,
         scene: &Scene,
         region: &RenderRegion,
+        from: Option<ResumeFrom>,
         progress: &mut dyn FnMut(&Progress, &Film) -> bool,
         cancel: &CancelToken,
         doubling: bool,
-    ) -> Result<(Film, RenderStats), RenderError> {
+    ) -> Result<(Film, RenderStats, RegionProgress), RenderError> {
         let s = &self.settings;
         let groups = self.light_groups(scene)?;
         let plan = Arc::new(self.layer_plan(scene)?);
@@ -388,40 +438,80 @@ impl Renderer {
             .build()?;
         let threads = pool.current_num_threads();
         let start = Instant::now();
-        let mut film = Film::with_plan(s.width, s.height, region.window, plan.clone());
+        let (mut film, mut at, mut nan_samples, mut clamped_samples) = match from {
+            Some(from) => {
+                check_resume(&from, region, &plan)?;
+                (
+                    from.film,
+                    from.progress,
+                    from.nan_samples,
+                    from.clamped_samples,
+                )
+            }
+            None => (
+                Film::with_plan(s.width, s.height, region.window, plan.clone()),
+                RegionProgress::start(region.samples.start),
+                0,
+                0,
+            ),
+        };
         let edges = s.emitter_edges.decide(scene, s.width, s.height);
         let mut counters = PathCounters::new(scene.media.len());
-        let (mut nan_samples, mut clamped_samples) = (0u64, 0u64);
-        let mut done = 0u32;
         let mut cancelled = false;
         let target = region.samples.len() as u32;
+        // A pass a checkpoint stopped in is finished first, on the pixels that did not take it.
+        if let Some(stopped) = at.stopped_pass.take() {
+            if !cancel.is_cancelled() {
+                let (c, nans, clamped, rows) = pool.install(|| {
+                    self.render_pass(
+                        scene,
+                        &mut film,
+                        &recorder,
+                        edges.edges(),
+                        at.complete..stopped.end,
+                        Some(&stopped.row_pixels),
+                        cancel,
+                    )
+                });
+                counters.add(&c);
+                nan_samples += nans;
+                clamped_samples += clamped;
+                at = after_pass(at.complete, stopped.end, rows, region.window.width());
+            } else {
+                at.stopped_pass = Some(stopped);
+            }
+        }
+        let resumed_samples = at.complete - region.samples.start;
+        let mut done = at.complete - region.samples.start;
         // Pass size: about 16 passes for progress reports, 1 spp at first under a time budget.
         let mut pass = if s.time_limit.is_some() || doubling {
             1
         } else {
             target.div_ceil(16)
         };
-        while done < target && !cancel.is_cancelled() {
+        while at.stopped_pass.is_none() && done < target && !cancel.is_cancelled() {
             let count = pass.min(target - done);
             let pass_start = Instant::now();
             let first = region.samples.start + done;
-            let (c, nans, clamped) = pool.install(|| {
+            let (c, nans, clamped, rows) = pool.install(|| {
                 self.render_pass(
                     scene,
                     &mut film,
                     &recorder,
                     edges.edges(),
                     first..first + count,
+                    None,
                     cancel,
                 )
             });
             counters.add(&c);
             nan_samples += nans;
             clamped_samples += clamped;
-            if cancel.is_cancelled() {
+            at = after_pass(first, first + count, rows, region.window.width());
+            done = at.complete - region.samples.start;
+            if at.stopped_pass.is_some() {
                 break;
             }
-            done += count;
             let elapsed = start.elapsed();
             let fraction = match s.time_limit {
                 Some(limit) => (elapsed.as_secs_f64() / limit.as_secs_f64().max(1e-9))
@@ -433,6 +523,8 @@ impl Renderer {
                 samples_target: target,
                 elapsed_seconds: elapsed.as_secs_f64(),
                 fraction: fraction.min(1.0),
+                nan_samples,
+                clamped_samples,
             };
             if !progress(&report, &film) {
                 cancelled = true;
@@ -468,6 +560,9 @@ impl Renderer {
             samples_per_second: (done as f64 * region.window.pixel_count() as f64)
                 / seconds.max(1e-9),
             cancelled,
+            partial: false,
+            interrupted_by: None,
+            resumed_samples,
             shutter: scene.shutter.map(|s| [s.open, s.close]),
             moving_triangles: scene.moving_triangle_count(),
             camera_moves: scene.camera.motion.is_some(),
@@ -491,12 +586,15 @@ impl Renderer {
             layers: plan.written.clone(),
             light_groups: groups.names,
         };
-        Ok((film, stats))
+        Ok((film, stats, at))
     }
 
-    /// Adds `samples` to every pixel of the film's window, skipping the pixels left once `cancel` is
-    /// cancelled; pixels that `edges` marks supersample their directly visible emission. Returns the
-    /// counters, the dropped NaN samples and the clamped samples.
+    /// Adds `samples` to every pixel of the film's window, but the first `skip[r]` pixels of each window row
+    /// `r` (which took them already), stopping each row before its next pixel once `cancel` is cancelled;
+    /// pixels that `edges` marks supersample their directly visible emission. Returns the counters, the
+    /// dropped NaN samples, the clamped samples, and how many pixels of each row, from the left, hold the
+    /// samples (the skipped ones included).
+    #[allow(clippy::too_many_arguments)]
     fn render_pass(
         &self,
         scene: &Scene,
@@ -504,8 +602,9 @@ impl Renderer {
         recorder: &LayerRecorder,
         edges: Option<&EmitterEdges>,
         samples: Range<u32>,
+        skip: Option<&[u32]>,
         cancel: &CancelToken,
-    ) -> (PathCounters, u64, u64) {
+    ) -> (PathCounters, u64, u64, Vec<u32>) {
         let s = &self.settings;
         let (width, height) = (film.width, film.height);
         let window = film.window();
@@ -538,11 +637,14 @@ impl Renderer {
                     shadow_catcher,
                     ..SampleRecord::default()
                 });
-                for (column, mut pixel) in row.pixels().enumerate() {
+                let first_column = skip.map_or(0, |s| s[row_index] as usize);
+                let mut columns_done = first_column;
+                for (column, mut pixel) in row.pixels().enumerate().skip(first_column) {
                     let x = window.x0 + column;
                     if cancel.is_cancelled() {
                         break;
                     }
+                    columns_done = column + 1;
                     let pixel_index = (y * width + x) as u64;
                     let on_edge = edges.is_some_and(|e| e.is_marked(x, y));
                     for sample in samples.clone() {
@@ -624,16 +726,63 @@ impl Renderer {
                         clamped += clamped_here as u64;
                     }
                 }
-                (counters, nans, clamped)
+                (counters, nans, clamped, columns_done as u32)
             })
-            .reduce(
-                || (PathCounters::new(scene.media.len()), 0, 0),
-                |mut a, b| {
-                    a.0.add(&b.0);
-                    (a.0, a.1 + b.1, a.2 + b.2)
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(
+                (PathCounters::new(scene.media.len()), 0, 0, Vec::new()),
+                |(mut counters, nans, clamped, mut rows), row| {
+                    counters.add(&row.0);
+                    rows.push(row.3);
+                    (counters, nans + row.1, clamped + row.2, rows)
                 },
             )
     }
+}
+
+/// Where a film stands after a pass of the samples `first..end` over a window `width` pixels wide, in which
+/// each row took the pass in `rows[r]` of its pixels: the pass is complete when every row took it in full,
+/// else it is a stopped pass (and nothing changed when no pixel took it).
+fn after_pass(first: u32, end: u32, rows: Vec<u32>, width: usize) -> RegionProgress {
+    if rows.iter().all(|&n| n as usize == width) {
+        RegionProgress::start(end)
+    } else if rows.iter().all(|&n| n == 0) {
+        RegionProgress::start(first)
+    } else {
+        RegionProgress {
+            complete: first,
+            stopped_pass: Some(StoppedPass {
+                end,
+                row_pixels: rows,
+            }),
+        }
+    }
+}
+
+/// Checks that `from` is a film of `region` with the layers of `plan`, and that its progress fits the region.
+fn check_resume(
+    from: &ResumeFrom,
+    region: &RenderRegion,
+    plan: &LayerPlan,
+) -> Result<(), RenderError> {
+    if from.film.window() != region.window {
+        return Err(RenderError::Resume(format!(
+            "the film holds the pixels {}, the render is of {}",
+            from.film.window(),
+            region.window
+        )));
+    }
+    if from.film.plan().describe() != plan.describe() {
+        return Err(RenderError::Resume(format!(
+            "the film holds the layers '{}', the render makes '{}'",
+            from.film.plan().describe(),
+            plan.describe()
+        )));
+    }
+    from.progress
+        .fits(&from.film, &region.samples)
+        .map_err(RenderError::Resume)
 }
 
 /// Peak resident set size of this process (Linux `VmHWM`), or `None` where unknown.
