@@ -112,12 +112,12 @@ fn a_render_stopped_at_random_moments_resumes_to_the_uninterrupted_file_bit_for_
         // Kill times spread over the uninterrupted render's length on this many threads.
         let length = one_thread.as_secs_f64() / threads as f64;
         for signal in ["TERM", "KILL"] {
-            let (mut stopped, mut stopped_twice, mut resumed_from_stopped_pass) = (0, 0, 0);
+            let (mut stopped, mut stopped_in_resumed, mut resumed_from_stopped_pass) = (0, 0, 0);
             for trial in 0..trials {
                 let dir = temp_dir(&format!("{threads}-{signal}-{trial}"));
                 let flags = ["--checkpoint", "0.02", "--resume"];
                 // Every other trial is stopped twice: the second stop lands in a resumed render.
-                for _ in 0..1 + trial % 2 {
+                for stop in 0..1 + trial % 2 {
                     let after = Duration::from_secs_f64(length * (0.05 + 0.9 * times.next()));
                     let (status, stderr) =
                         run_and_stop(render(&dir, threads, &flags), signal, after);
@@ -131,7 +131,7 @@ fn a_render_stopped_at_random_moments_resumes_to_the_uninterrupted_file_bit_for_
                         "{threads} thread(s), SIG{signal} after {after:?}: {status:?}\n{stderr}"
                     );
                     stopped += 1;
-                    stopped_twice += (trial % 2 == 1) as usize;
+                    stopped_in_resumed += stop;
                     assert!(
                         !dir.join("out.exr").exists(),
                         "a render stopped with a checkpoint wrote its final image"
@@ -152,7 +152,7 @@ fn a_render_stopped_at_random_moments_resumes_to_the_uninterrupted_file_bit_for_
                 let _ = std::fs::remove_dir_all(&dir);
             }
             report.push(format!(
-                "{threads} thread(s), SIG{signal}: {trials} trials, {stopped} stops ({stopped_twice} in resumed renders), {resumed_from_stopped_pass} resumes of a pass stopped part way, every file identical"
+                "{threads} thread(s), SIG{signal}: {trials} trials, {stopped} stops ({stopped_in_resumed} of them in resumed renders), {resumed_from_stopped_pass} resumes of a pass stopped part way, every file identical"
             ));
             // Kill times span the render, so most trials must have been stopped part way.
             assert!(

@@ -116,6 +116,11 @@ fn usd_load(data: &[u8], dir: &Path) {
     }
 }
 
+#[path = "../fuzz/cli_ranges_check.rs"]
+mod cli_ranges_check;
+#[path = "../fuzz/farm_part_check.rs"]
+mod farm_part_check;
+
 #[test]
 fn fuzz_findings_stay_fixed() {
     replay("vdb_read", vdb_read);
@@ -123,4 +128,6 @@ fn fuzz_findings_stay_fixed() {
     replay("gltf_animation", gltf_animation);
     replay("obj_load", obj_load);
     replay("usd_load", usd_load);
+    replay("cli_ranges", |data, _| cli_ranges_check::run(data));
+    replay("farm_part", |data, _| farm_part_check::run(data));
 }

@@ -47,9 +47,9 @@ impl PixelWindow {
         self.y1.saturating_sub(self.y0)
     }
 
-    /// Pixels in the window.
+    /// Pixels in the window (saturating: a window that large fits no frame, and budgets refuse it).
     pub fn pixel_count(&self) -> usize {
-        self.width() * self.height()
+        self.width().saturating_mul(self.height())
     }
 
     /// True when the window holds no pixel.

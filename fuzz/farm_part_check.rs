@@ -1,0 +1,44 @@
+//! The body of the `farm_part` fuzz target, shared with its replay in `tests/fuzz_regressions.rs` so that a saved
+//! input is checked the same way in both.
+
+use nimbus::render::{Film, PixelWindow};
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+/// This process's file, in memory where `/dev/shm` exists.
+fn file() -> &'static PathBuf {
+    static FILE: OnceLock<PathBuf> = OnceLock::new();
+    FILE.get_or_init(|| {
+        let shm = std::path::Path::new("/dev/shm");
+        let base = if shm.is_dir() {
+            shm.to_path_buf()
+        } else {
+            std::env::temp_dir()
+        };
+        base.join(format!("nimbus-fuzz-part-{}.exr", std::process::id()))
+    })
+}
+
+/// Runs one input (see `fuzz_targets/farm_part.rs`).
+pub fn run(data: &[u8]) {
+    let path = file();
+    std::fs::write(path, data).unwrap();
+    let _ = nimbus::farm::read_part_info(path);
+    let _ = nimbus::farm::checkpoint::read_checkpoint(path);
+    let _ = nimbus::farm::merge_parts(&[path.clone()]);
+    let _ = nimbus::farm::merge_parts(&[path.clone(), path.clone()]);
+    if let Ok((info, film)) = nimbus::farm::read_part(path) {
+        if info.width * info.height <= 1 << 20 {
+            let mut whole = Film::with_plan(
+                info.width,
+                info.height,
+                PixelWindow::full(info.width, info.height),
+                std::sync::Arc::new(info.plan.clone()),
+            );
+            if whole.merge(&film).is_ok() {
+                let _ = whole.merge(&film);
+            }
+            let _ = whole.image();
+        }
+    }
+}
