@@ -944,3 +944,36 @@ fn parts_whose_sums_or_counts_would_wrap_when_merged_are_refused() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Sets the `name` box2i header attribute of the EXR `bytes` to (0, 0) - (`max`, `max`).
+fn patch_box(bytes: &mut [u8], name: &str, max: i32) {
+    let key = format!("{name}\0box2i\0");
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key.as_bytes())
+        .unwrap()
+        + key.len()
+        + 4;
+    for (i, v) in [0i32, 0, max, max].iter().enumerate() {
+        bytes[at + 4 * i..at + 4 * i + 4].copy_from_slice(&v.to_le_bytes());
+    }
+}
+
+#[test]
+fn a_part_whose_header_declares_a_huge_frame_is_refused_before_its_samples_are_allocated() {
+    let scene = scene();
+    let dir = temp_dir("huge-header");
+    let path = dir.join("part.exr");
+    render_part(&scene, settings(2), window(0, 0, 12, 8), 0..12, &path);
+    let mut bytes = std::fs::read(&path).unwrap();
+    // A 65536x65536 frame and data window: some 70 channels of 4 bytes are 1.2 TB of samples.
+    patch_box(&mut bytes, "displayWindow", 65535);
+    patch_box(&mut bytes, "dataWindow", 65535);
+    let huge = dir.join("huge.exr");
+    std::fs::write(&huge, &bytes).unwrap();
+    let err = farm::read_part(&huge).unwrap_err().to_string();
+    assert!(err.contains("huge.exr") && err.contains("memory"), "{err}");
+    let err = farm::merge_parts(&[huge.clone()]).unwrap_err().to_string();
+    assert!(err.contains("huge.exr"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -31,7 +31,20 @@ pub fn merge_parts(paths: &[PathBuf]) -> Result<Merged, FarmError> {
         .map(|p| Ok((p.clone(), read_part_info(p)?)))
         .collect::<Result<Vec<_>, FarmError>>()?;
     check_parts(&infos)?;
-    let first = &infos[0].1;
+    let (first_path, first) = &infos[0];
+    // The frame comes from a header: its film is checked against the memory budget before it is allocated.
+    let film_bytes =
+        std::mem::size_of::<crate::render::PixelSums>() + first.plan.film_bytes_per_pixel();
+    crate::limits::Limits::default()
+        .check_items(
+            format_args!("the merged film of {}x{} pixels", first.width, first.height),
+            first.width as u64 * first.height as u64,
+            film_bytes as u64,
+        )
+        .map_err(|e| FarmError::Invalid {
+            path: first_path.clone(),
+            reason: e.to_string(),
+        })?;
     let mut film = Film::with_plan(
         first.width,
         first.height,

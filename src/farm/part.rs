@@ -613,6 +613,8 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
         path: path.to_path_buf(),
         reason,
     };
+    // The header first: a data window outside the frame is refused before its samples are read.
+    read_part_info(path)?;
     let image = crate::output::read_flat_image(path)?;
     let [layer] = image.layer_data.as_slice() else {
         return Err(invalid(format!(

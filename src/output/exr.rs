@@ -319,12 +319,37 @@ fn samples_channel(name: &str, samples: FlatSamples) -> AnyChannel<FlatSamples> 
 }
 
 /// Reads every part, channel and attribute of the EXR at `path`, at its largest resolution level (no deep
-/// data), with the samples as stored.
+/// data), with the samples as stored. The headers are read first: samples that the data windows and channels
+/// would decode to beyond the memory budget (the default, half the physical memory) are refused before they are
+/// allocated, since a file of a few bytes can declare any size.
 pub(crate) fn read_flat_image(path: &Path) -> Result<::exr::image::FlatImage, OutputError> {
-    crate::limits::refuse_pipes_and_sockets(path).map_err(|e| OutputError::Invalid {
+    let invalid = |reason: String| OutputError::Invalid {
         path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
+        reason,
+    };
+    crate::limits::refuse_pipes_and_sockets(path).map_err(|e| invalid(e.to_string()))?;
+    let meta =
+        ::exr::meta::MetaData::read_from_file(path, false).map_err(|source| OutputError::Exr {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let mut bytes = 0u64;
+    for header in &meta.headers {
+        let pixels = (header.layer_size.x() as u64).saturating_mul(header.layer_size.y() as u64);
+        let per_pixel: u64 = header
+            .channels
+            .list
+            .iter()
+            .map(|c| c.sample_type.bytes_per_sample() as u64)
+            .sum();
+        bytes = bytes.saturating_add(pixels.saturating_mul(per_pixel));
+    }
+    crate::limits::Limits::default()
+        .check(
+            format_args!("the samples of {} EXR part(s)", meta.headers.len()),
+            bytes,
+        )
+        .map_err(|e| invalid(e.to_string()))?;
     read()
         .no_deep_data()
         .largest_resolution_level()
