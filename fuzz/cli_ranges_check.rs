@@ -12,7 +12,7 @@ pub fn run(data: &[u8]) {
     match pick % 5 {
         0 => {
             if let Ok(range) = nimbus::frames::FrameRange::parse(text) {
-                assert!(range.len() >= 1);
+                assert!(!range.is_empty());
                 let frames: Vec<i64> = range.frames().take(3).collect();
                 assert_eq!(frames.len() as u64, range.len().min(3));
                 assert_eq!(frames[0], range.first);

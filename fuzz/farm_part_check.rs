@@ -25,7 +25,7 @@ pub fn run(data: &[u8]) {
     std::fs::write(path, data).unwrap();
     let _ = nimbus::farm::read_part_info(path);
     let _ = nimbus::farm::checkpoint::read_checkpoint(path);
-    let _ = nimbus::farm::merge_parts(&[path.clone()]);
+    let _ = nimbus::farm::merge_parts(std::slice::from_ref(path));
     let _ = nimbus::farm::merge_parts(&[path.clone(), path.clone()]);
     if let Ok((info, film)) = nimbus::farm::read_part(path) {
         if info.width * info.height <= 1 << 20 {

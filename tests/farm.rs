@@ -973,7 +973,9 @@ fn a_part_whose_header_declares_a_huge_frame_is_refused_before_its_samples_are_a
     std::fs::write(&huge, &bytes).unwrap();
     let err = farm::read_part(&huge).unwrap_err().to_string();
     assert!(err.contains("huge.exr") && err.contains("memory"), "{err}");
-    let err = farm::merge_parts(&[huge.clone()]).unwrap_err().to_string();
+    let err = farm::merge_parts(std::slice::from_ref(&huge))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("huge.exr"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
