@@ -565,3 +565,34 @@ fn a_caught_openusd_panic_prints_one_line_and_no_backtrace() {
         "{stderr}"
     );
 }
+
+/// The issue's reproducer (a prim that inherits itself, with a child) and its kin: a prim that specializes itself,
+/// and two that inherit each other. `openusd` 0.6 pre-caches inherit and specialize targets recursively without
+/// remembering the ones it has seen, so composing the child overflowed the reader thread's stack, which aborts the
+/// process.
+#[test]
+fn an_inherits_cycle_with_a_child_is_an_error_not_a_stack_overflow() {
+    for (tag, text, arc) in [
+        (
+            "self",
+            "#usda 1.0\ndef Xform \"A\" (inherits = </A>) { def Xform \"C\" {} }",
+            "/A: inherits </A>",
+        ),
+        (
+            "specializes",
+            "#usda 1.0\ndef Xform \"A\" (specializes = </A>) { def Xform \"C\" {} }",
+            "/A: specializes </A>",
+        ),
+        (
+            "mutual",
+            "#usda 1.0\ndef Xform \"A\" (inherits = </B>) { def Xform \"C\" {} }\n\
+             class Xform \"B\" (inherits = </A>) {}\n",
+            "/A: inherits </B>",
+        ),
+    ] {
+        let p = temp_file(&format!("cycle_{tag}"), "usda", text.as_bytes());
+        let err = usd::read(&p).err().expect("an arc cycle is an error");
+        one_line_error(&err, arc);
+        one_line_error(&err, "composition cycle");
+    }
+}

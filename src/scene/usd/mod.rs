@@ -48,9 +48,11 @@
 //! The loader is split by USD schema domain: `xform` (UsdGeomXformable ops), `geom` (meshes and primvars),
 //! `shapes` (intrinsic gprims), `instancing` (UsdGeomPointInstancer),
 //! `shading` (UsdShade / UsdPreviewSurface), `lux` (UsdLux), `vol` (UsdVol), with `values` converting
-//! attribute values, `layers` checking every layer (text nesting, packages) and `crate_check` bounds-checking
-//! `.usdc` layers before openusd reads them.
+//! attribute values, `layers` checking every layer (text nesting, packages), `crate_check` bounds-checking
+//! `.usdc` layers before openusd reads them, and `composition` checking the arcs between them before openusd
+//! composes them.
 
+mod composition;
 mod crate_check;
 mod geom;
 mod instancing;
@@ -336,7 +338,8 @@ fn read_stage(
 }
 
 /// Opens and composes a stage; any parse or composition error is a [`SceneError`] naming the layer. The root
-/// layer is read and checked here first, so that an unreadable or hostile root is an error about that file.
+/// layer is read and checked here first, so that an unreadable or hostile root is an error about that file, and
+/// the arcs of every layer it reaches are checked before `openusd` composes them (see `composition`).
 fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
     let bytes =
         read_file(path, limits).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
@@ -345,11 +348,13 @@ fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
     let name = path
         .to_str()
         .ok_or_else(|| malformed(path, "the path is not valid UTF-8".into()))?;
+    let resolver = || crate_check::CheckingResolver {
+        inner: ar::DefaultResolver::new(),
+        limits: *limits,
+    };
+    composition::check(name, &resolver()).map_err(|m| malformed(path, m))?;
     let stage = usd::Stage::builder()
-        .resolver(crate_check::CheckingResolver {
-            inner: ar::DefaultResolver::new(),
-            limits: *limits,
-        })
+        .resolver(resolver())
         .open(name)
         .map_err(|e| malformed(path, format!("{e:#}")))?;
     // Only the errors here; their warnings are collected once the whole stage is read.

@@ -1,0 +1,586 @@
+//! A check of a stage's composition arcs before `openusd` 0.6 composes them.
+//!
+//! `openusd` pre-caches the inherit and specialize targets of a prim and of its parent recursively, without
+//! remembering the targets it has seen: a prim that inherits or specializes itself, or prims that inherit one
+//! another, make that recursion endless as soon as a child of theirs is composed, and the stack overflow aborts
+//! the process (no stack is deep enough, and an overflow cannot be caught on any thread).
+//!
+//! So before the stage is opened, every layer the root layer reaches through sublayers, references and payloads
+//! is read once (through [`CheckingResolver`], with every check and cap of the loader) and summarised: its
+//! sublayers, and for each prim its children and its arcs (those authored inside variants count whichever
+//! variant is selected). A walk over the sites composition visits (a layer stack and a prim path), from the root
+//! layer stack's pseudo-root, follows each site to its children, to the targets of its arcs, and to the inherit
+//! and specialize targets of its parent (what `openusd`'s pre-caching follows). A site met again while it is
+//! still being walked is a composition cycle, refused with one line naming the prim and the arc that closes it.
+//!
+//! The walk is iterative and visits each site once. Cycles it cannot see in the layers alone (an arc to a
+//! descendant, which composition maps onto deeper and deeper paths) are left to `openusd`, which reports them as
+//! composition errors.
+
+use super::crate_check::CheckingResolver;
+use openusd::{ar, sdf};
+use std::collections::HashMap;
+use std::io::Read;
+
+/// Checks the composition arcs of the stage whose root layer is `root` (as `openusd` is given it), reading every
+/// layer through `resolver`. Layers that cannot be read are passed over: `openusd` reports them when it opens
+/// the stage.
+pub(super) fn check(root: &str, resolver: &CheckingResolver) -> Result<(), String> {
+    let (layers, root) = Layers::load(resolver, root);
+    match root {
+        Some(root) => Walk::new(&layers).run(root),
+        None => Ok(()),
+    }
+}
+
+/// How an arc composes its target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ArcKind {
+    Inherits,
+    Specializes,
+    References,
+    Payload,
+}
+
+impl ArcKind {
+    /// The arc's name as a layer spells it.
+    fn name(self) -> &'static str {
+        match self {
+            ArcKind::Inherits => "inherits",
+            ArcKind::Specializes => "specializes",
+            ArcKind::References => "references",
+            ArcKind::Payload => "payload",
+        }
+    }
+
+    /// Inherits and specializes: the class-based arcs, which `openusd` pre-caches for the prim's children too.
+    fn is_class(self) -> bool {
+        matches!(self, ArcKind::Inherits | ArcKind::Specializes)
+    }
+}
+
+/// One composition arc authored on a prim.
+#[derive(Clone, Debug)]
+struct Arc {
+    kind: ArcKind,
+    /// The layer whose layer stack holds the target (an index into [`Layers::layers`]); `None` for an internal
+    /// arc, whose target is in the layer stack the prim is composed in.
+    layer: Option<usize>,
+    /// The target prim's path; empty for the target layer's default prim.
+    path: String,
+    /// The asset path as authored (empty for an internal arc), for messages.
+    asset: String,
+}
+
+impl Arc {
+    /// The arc as a layer spells it: `inherits </A>`, `references @a.usda@</B>`.
+    fn describe(&self) -> String {
+        let asset = if self.asset.is_empty() {
+            String::new()
+        } else {
+            format!("@{}@", self.asset)
+        };
+        let path = if self.path.is_empty() {
+            String::new()
+        } else {
+            format!("<{}>", self.path)
+        };
+        format!("{} {asset}{path}", self.kind.name())
+    }
+}
+
+/// What one prim spec contributes: its children (paths) and its arcs.
+#[derive(Default)]
+struct Prim {
+    children: Vec<String>,
+    arcs: Vec<Arc>,
+}
+
+/// What one layer contributes to composition.
+#[derive(Default)]
+struct Layer {
+    /// Its sublayers in order (indices into [`Layers::layers`]).
+    sublayers: Vec<usize>,
+    /// `/` and its `defaultPrim`, if authored.
+    default_prim: Option<String>,
+    /// The prims it authors, by path (variant selections removed), `/` holding the root prims.
+    prims: HashMap<String, Prim>,
+}
+
+/// The layers a stage reaches through sublayers, references and payloads, each read once.
+struct Layers<'a> {
+    resolver: &'a dyn ar::Resolver,
+    /// Layer index by identifier.
+    ids: HashMap<String, usize>,
+    /// Each layer's summary; `None` for a layer that cannot be read.
+    layers: Vec<Option<Layer>>,
+    /// Layers found but not read yet: (index, identifier).
+    pending: Vec<(usize, String)>,
+}
+
+impl<'a> Layers<'a> {
+    /// Reads the layer at `root` and every layer it reaches; also returns the root's index (`None` when the
+    /// root names no layer).
+    fn load(resolver: &'a dyn ar::Resolver, root: &str) -> (Self, Option<usize>) {
+        let mut layers = Self {
+            resolver,
+            ids: HashMap::new(),
+            layers: Vec::new(),
+            pending: Vec::new(),
+        };
+        let root = layers.index(root, None);
+        while let Some((index, identifier)) = layers.pending.pop() {
+            layers.layers[index] = layers.read(&identifier);
+        }
+        (layers, root)
+    }
+
+    /// The index of the layer `asset` names (relative to `anchor`), queued to be read the first time it is
+    /// named; `None` for an expression (its variables are `openusd`'s to evaluate) or an empty identifier.
+    fn index(&mut self, asset: &str, anchor: Option<&ar::ResolvedPath>) -> Option<usize> {
+        if asset.is_empty() || sdf::expr::is_expression(asset) {
+            return None;
+        }
+        let identifier = self.resolver.create_identifier(asset, anchor);
+        if identifier.is_empty() {
+            return None;
+        }
+        if let Some(&index) = self.ids.get(&identifier) {
+            return Some(index);
+        }
+        let index = self.layers.len();
+        self.layers.push(None);
+        self.ids.insert(identifier.clone(), index);
+        self.pending.push((index, identifier));
+        Some(index)
+    }
+
+    /// Reads and summarises the layer `identifier` names, as `openusd` would open it: a package opens its first
+    /// layer, and a `.usd` file is binary or text by its first bytes.
+    fn read(&mut self, identifier: &str) -> Option<Layer> {
+        let resolved = self.resolver.resolve(identifier)?;
+        let real = match sdf::LayerRegistry::find_by_extension(&extension(&resolved)) {
+            Some(format) => format.resolve_layer(self.resolver, &resolved)?,
+            None => resolved,
+        };
+        let data = self.format(&real)?.read(self.resolver, &real).ok()?;
+        Some(self.summarise(data.as_ref(), &real))
+    }
+
+    /// The file format that reads `resolved`.
+    fn format(&self, resolved: &ar::ResolvedPath) -> Option<&'static dyn sdf::FileFormat> {
+        let ext = extension(resolved);
+        if ext != "usd" {
+            return sdf::LayerRegistry::find_by_extension(&ext);
+        }
+        let mut prefix = Vec::new();
+        self.resolver
+            .open_asset(resolved)
+            .ok()?
+            .take(8)
+            .read_to_end(&mut prefix)
+            .ok()?;
+        let binary = sdf::LayerRegistry::find_by_id("usdc").filter(|f| f.matches_content(&prefix));
+        binary.or_else(|| sdf::LayerRegistry::find_by_id("usda"))
+    }
+
+    /// The sublayers, default prim, and every prim's children and arcs of a layer read from `anchor`.
+    fn summarise(&mut self, data: &dyn sdf::AbstractData, anchor: &ar::ResolvedPath) -> Layer {
+        let root = sdf::Path::abs_root();
+        let field = |path: &sdf::Path, name: &str| data.try_field(path, name).ok().flatten();
+        let sublayers = field(&root, "subLayers")
+            .and_then(|v| v.into_owned().cast::<Vec<String>>().ok())
+            .unwrap_or_default();
+        let mut layer = Layer {
+            sublayers: sublayers
+                .iter()
+                .filter_map(|s| self.index(s, Some(anchor)))
+                .collect(),
+            default_prim: field(&root, "defaultPrim")
+                .and_then(|v| v.into_owned().cast::<String>().ok())
+                .map(|name| format!("/{name}")),
+            prims: HashMap::new(),
+        };
+        for spec in data.spec_paths() {
+            let kind = data.spec_type(&spec);
+            if !matches!(kind, Some(sdf::SpecType::Prim | sdf::SpecType::Variant)) {
+                continue;
+            }
+            let path = spec.strip_all_variant_selections().as_str().to_owned();
+            if kind == Some(sdf::SpecType::Prim) {
+                let parent = parent(&path).to_owned();
+                layer
+                    .prims
+                    .entry(parent)
+                    .or_default()
+                    .children
+                    .push(path.clone());
+            }
+            let arcs = self.arcs(data, &spec, anchor);
+            layer.prims.entry(path).or_default().arcs.extend(arcs);
+        }
+        layer
+    }
+
+    /// The arcs authored on the prim or variant spec `spec`: every item its list ops add.
+    fn arcs(
+        &mut self,
+        data: &dyn sdf::AbstractData,
+        spec: &sdf::Path,
+        anchor: &ar::ResolvedPath,
+    ) -> Vec<Arc> {
+        let target = |path: &sdf::Path| {
+            if path.is_empty() {
+                String::new()
+            } else {
+                spec.make_absolute(path)
+                    .strip_all_variant_selections()
+                    .as_str()
+                    .to_owned()
+            }
+        };
+        let mut arcs = Vec::new();
+        for (name, kind) in [
+            ("inheritPaths", ArcKind::Inherits),
+            ("specializes", ArcKind::Specializes),
+            ("references", ArcKind::References),
+            ("payload", ArcKind::Payload),
+        ] {
+            let Ok(Some(value)) = data.try_field(spec, name) else {
+                continue;
+            };
+            let items: Vec<(String, String)> = match value.into_owned() {
+                sdf::Value::PathListOp(op) => {
+                    op.iter().map(|p| (String::new(), target(p))).collect()
+                }
+                sdf::Value::ReferenceListOp(op) => op
+                    .iter()
+                    .map(|r| (r.asset_path.clone(), target(&r.prim_path)))
+                    .collect(),
+                sdf::Value::PayloadListOp(op) => op
+                    .iter()
+                    .map(|p| (p.asset_path.clone(), target(&p.prim_path)))
+                    .collect(),
+                sdf::Value::Payload(p) => vec![(p.asset_path.clone(), target(&p.prim_path))],
+                _ => Vec::new(),
+            };
+            for (asset, path) in items {
+                let layer = if asset.is_empty() {
+                    None
+                } else {
+                    match self.index(&asset, Some(anchor)) {
+                        Some(index) => Some(index),
+                        None => continue,
+                    }
+                };
+                arcs.push(Arc {
+                    kind,
+                    layer,
+                    path,
+                    asset,
+                });
+            }
+        }
+        arcs
+    }
+}
+
+/// The extension of a resolved layer, lower case; for a layer inside a package, the packaged layer's.
+fn extension(resolved: &ar::ResolvedPath) -> String {
+    let text = resolved.to_string_lossy();
+    let inner = ar::split_package_relative_path_inner(&text).map(|(_, inner)| inner);
+    std::path::Path::new(inner.as_deref().unwrap_or(&text))
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default()
+}
+
+/// The parent of a prim path (`/` for a root prim).
+fn parent(path: &str) -> &str {
+    match path.rfind('/') {
+        Some(0) | None => "/",
+        Some(at) => &path[..at],
+    }
+}
+
+/// A layer stack: a root layer and the prims it and its sublayers author, merged.
+struct Stack {
+    /// The prims by path: the children of every layer, and every layer's arcs.
+    prims: HashMap<String, Prim>,
+}
+
+/// A site composition visits: a layer stack (an index into [`Walk::stacks`]) and a prim path.
+type Site = (usize, String);
+
+/// How the walk goes from one site to the next.
+#[derive(Clone, Debug)]
+enum Step {
+    /// To a child prim.
+    Child,
+    /// To the target of an arc authored on the site.
+    Arc(Arc),
+    /// To the target of a class-based arc authored on the site's parent.
+    ParentArc(Arc),
+}
+
+/// One site being walked, with the steps out of it and how many have been taken.
+struct Frame {
+    site: Site,
+    steps: Vec<(Site, Step)>,
+    taken: usize,
+}
+
+/// The walk over the sites of a stage's composition.
+struct Walk<'a> {
+    layers: &'a Layers<'a>,
+    stacks: Vec<Stack>,
+    /// Stack index by root layer.
+    stack_of: HashMap<usize, usize>,
+}
+
+impl<'a> Walk<'a> {
+    fn new(layers: &'a Layers<'a>) -> Self {
+        Self {
+            layers,
+            stacks: Vec::new(),
+            stack_of: HashMap::new(),
+        }
+    }
+
+    /// Walks every site reachable from the pseudo-root of `root`'s layer stack; a site reached again while
+    /// it is being walked is a cycle.
+    fn run(&mut self, root: usize) -> Result<(), String> {
+        let start = (self.stack(root), "/".to_owned());
+        let mut done: HashMap<Site, bool> = HashMap::from([(start.clone(), false)]);
+        let mut frames = vec![self.frame(start)];
+        while let Some(top) = frames.last_mut() {
+            let Some((site, _)) = top.steps.get(top.taken).cloned() else {
+                done.insert(top.site.clone(), true);
+                frames.pop();
+                continue;
+            };
+            top.taken += 1;
+            match done.get(&site) {
+                Some(true) => {}
+                Some(false) => return Err(cycle(&frames, &site)),
+                None => {
+                    done.insert(site.clone(), false);
+                    let frame = self.frame(site);
+                    frames.push(frame);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The frame of `site`, with its steps: its arcs' targets, its parent's class-based arcs' targets, then its
+    /// children.
+    fn frame(&mut self, site: Site) -> Frame {
+        let (stack, path) = (site.0, site.1.as_str());
+        let own = self.stacks[stack].prims.get(path);
+        let arcs: Vec<Arc> = own.map(|p| p.arcs.clone()).unwrap_or_default();
+        let children: Vec<String> = own.map(|p| p.children.clone()).unwrap_or_default();
+        let inherited: Vec<Arc> = match self.stacks[stack].prims.get(parent(path)) {
+            Some(p) if path != "/" => p
+                .arcs
+                .iter()
+                .filter(|a| a.kind.is_class())
+                .cloned()
+                .collect(),
+            _ => Vec::new(),
+        };
+        let mut steps = Vec::new();
+        for arc in arcs {
+            if let Some(target) = self.target(stack, &arc) {
+                steps.push((target, Step::Arc(arc)));
+            }
+        }
+        for arc in inherited {
+            if let Some(target) = self.target(stack, &arc) {
+                steps.push((target, Step::ParentArc(arc)));
+            }
+        }
+        steps.extend(children.into_iter().map(|c| ((stack, c), Step::Child)));
+        Frame {
+            site,
+            steps,
+            taken: 0,
+        }
+    }
+
+    /// The site an arc authored in layer stack `stack` targets; `None` for a default prim that is not authored.
+    fn target(&mut self, stack: usize, arc: &Arc) -> Option<Site> {
+        let Some(layer) = arc.layer else {
+            return Some((stack, arc.path.clone()));
+        };
+        let path = if arc.path.is_empty() {
+            self.layers.layers[layer].as_ref()?.default_prim.clone()?
+        } else {
+            arc.path.clone()
+        };
+        Some((self.stack(layer), path))
+    }
+
+    /// The index of the layer stack whose root is `layer`, merging its layers' prims the first time.
+    fn stack(&mut self, layer: usize) -> usize {
+        if let Some(&index) = self.stack_of.get(&layer) {
+            return index;
+        }
+        let mut prims: HashMap<String, Prim> = HashMap::new();
+        for member in self.members(layer) {
+            let Some(summary) = &self.layers.layers[member] else {
+                continue;
+            };
+            for (path, prim) in &summary.prims {
+                let merged = prims.entry(path.clone()).or_default();
+                merged.children.extend(prim.children.iter().cloned());
+                merged.arcs.extend(prim.arcs.iter().cloned());
+            }
+        }
+        for prim in prims.values_mut() {
+            prim.children.sort_unstable();
+            prim.children.dedup();
+        }
+        let index = self.stacks.len();
+        self.stacks.push(Stack { prims });
+        self.stack_of.insert(layer, index);
+        index
+    }
+
+    /// The distinct layers of the layer stack whose root is `layer`: it and its sublayers, nested ones too.
+    fn members(&self, layer: usize) -> Vec<usize> {
+        let mut seen = vec![layer];
+        let mut next = 0;
+        while let Some(&member) = seen.get(next) {
+            next += 1;
+            if let Some(summary) = &self.layers.layers[member] {
+                for &sub in &summary.sublayers {
+                    if !seen.contains(&sub) {
+                        seen.push(sub);
+                    }
+                }
+            }
+        }
+        seen
+    }
+}
+
+/// The error for a walk that reached `site` again while walking it: the cycle from `site` to the top frame,
+/// named by its first arc.
+fn cycle(frames: &[Frame], site: &Site) -> String {
+    let from = frames.iter().position(|f| &f.site == site).unwrap_or(0);
+    let steps: Vec<(&str, &Step, &str)> = frames[from..]
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let next = frames.get(from + i + 1).map_or(site, |n| &n.site);
+            (f.site.1.as_str(), &f.steps[f.taken - 1].1, next.1.as_str())
+        })
+        .collect();
+    let chain: Vec<String> = steps
+        .iter()
+        .map(|(at, step, next)| match step {
+            Step::Child => format!("{at} holds {next}"),
+            Step::Arc(arc) => format!("{at} {}", arc.describe()),
+            Step::ParentArc(arc) => {
+                format!("{at} is under {}, which {}", parent(at), arc.describe())
+            }
+        })
+        .collect();
+    let named = steps.iter().find_map(|(at, step, _)| match step {
+        Step::Arc(arc) => Some(format!("{at}: {}", arc.describe())),
+        Step::ParentArc(arc) => Some(format!("{}: {}", parent(at), arc.describe())),
+        Step::Child => None,
+    });
+    format!(
+        "{} is a composition cycle ({})",
+        named.unwrap_or_else(|| site.1.clone()),
+        chain.join(", ")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::limits::Limits;
+
+    /// Writes `files` (name, text) to a fresh folder and checks the stage whose root is the first.
+    fn check_files(tag: &str, files: &[(&str, &str)]) -> Result<(), String> {
+        let dir =
+            std::env::temp_dir().join(format!("nimbus_composition_{}_{tag}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        for (name, text) in files {
+            std::fs::write(dir.join(name), format!("#usda 1.0\n{text}")).unwrap();
+        }
+        let resolver = CheckingResolver {
+            inner: ar::DefaultResolver::new(),
+            limits: Limits::default(),
+        };
+        check(dir.join(files[0].0).to_str().unwrap(), &resolver)
+    }
+
+    #[test]
+    fn parents_of_prim_paths() {
+        assert_eq!(parent("/A/B/C"), "/A/B");
+        assert_eq!(parent("/A"), "/");
+        assert_eq!(parent("/"), "/");
+    }
+
+    #[test]
+    fn class_hierarchies_references_and_variants_are_no_cycles() {
+        let stage = r#"
+class "_class_Char" { def "Geom" {} }
+def "Chars" { def "Bob" (inherits = </_class_Char>) { def "Geom" {} } }
+def "Looks" {
+    def "Base" { def "Shader" {} }
+    def "Red" (specializes = </Looks/Base>) { def "Shader" {} }
+}
+def "Proto" { def "Leaf" {} }
+def "World" (variantSets = "v" references = @./asset.usda@) {
+    def "A" (references = </Proto>) {}
+    def "B" (references = </Proto>) {}
+    variantSet "v" = { "x" (references = </Proto>) {} }
+}
+"#;
+        let asset = "(\n defaultPrim = \"Asset\"\n)\ndef \"Asset\" (inherits = </_class_Char>) { def \"Geom\" {} }\n";
+        check_files("valid", &[("root.usda", stage), ("asset.usda", asset)]).unwrap();
+    }
+
+    #[test]
+    fn cycles_through_children_layers_and_parents_name_their_first_arc() {
+        let err = check_files(
+            "child",
+            &[("root.usda", "def \"A\" { def \"C\" (inherits = </A>) {} }")],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/A/C: inherits </A> is a composition cycle (/A holds /A/C, /A/C inherits </A>)"
+        );
+        let err = check_files(
+            "layers",
+            &[
+                ("a.usda", "def \"A\" (references = @./b.usda@</B>) {}"),
+                ("b.usda", "def \"B\" (payload = @./a.usda@</A>) {}"),
+            ],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/A: references @./b.usda@</B> is a composition cycle (/A references @./b.usda@</B>, \
+             /B payload @./a.usda@</A>)"
+        );
+        let err = check_files(
+            "parent",
+            &[(
+                "root.usda",
+                "def \"A\" (inherits = </B>) { def \"C\" {} }\nclass \"B\" (inherits = </A/C>) {}",
+            )],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/B: inherits </A/C> is a composition cycle (/B inherits </A/C>, /A/C is under /A, which inherits \
+             </B>)"
+        );
+    }
+}
