@@ -206,6 +206,10 @@ struct RenderArgs {
     /// physical memory).
     #[arg(long = "memory-limit", value_parser = nimbus::limits::parse_size)]
     memory_limit: Option<u64>,
+    /// Most prims a USD stage may compose: counted from its layers before composing (each prim once per arc
+    /// that brings it in) and again as the stage is read (default 1000000).
+    #[arg(long = "max-prims", value_parser = clap::value_parser!(u64).range(1..))]
+    max_prims: Option<u64>,
     /// Exposure of the PNG preview in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
@@ -254,6 +258,19 @@ struct RenderArgs {
     /// How the EXR is stored.
     #[command(flatten)]
     storage: StorageArgs,
+}
+
+impl RenderArgs {
+    /// The limits `--memory-limit` and `--max-prims` set, the defaults where they are not given.
+    fn limits(&self) -> Limits {
+        let mut limits = self
+            .memory_limit
+            .map_or_else(Limits::default, Limits::with_memory);
+        if let Some(prims) = self.max_prims {
+            limits.usd_prims = prims;
+        }
+        limits
+    }
 }
 
 /// Parses `--aovs`.
@@ -510,10 +527,13 @@ fn list_aovs(args: &RenderArgs) -> Result<(), String> {
         println!("  {name:<22} {meaning}");
     }
     if args.scene.is_some() {
-        let limits = args
-            .memory_limit
-            .map_or_else(Limits::default, Limits::with_memory);
-        let builder = load_builder(args.scene.as_deref(), limits, args.frame, args.fps, None)?;
+        let builder = load_builder(
+            args.scene.as_deref(),
+            args.limits(),
+            args.frame,
+            args.fps,
+            None,
+        )?;
         let scene = builder.build().map_err(|e| e.to_string())?;
         let groups = nimbus::render::LightGroups::new(&scene, args.light_groups)
             .map_err(|e| e.to_string())?;
@@ -550,9 +570,7 @@ fn render_frame(
 ) -> Result<(), String> {
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
-    let limits = args
-        .memory_limit
-        .map_or_else(Limits::default, Limits::with_memory);
+    let limits = args.limits();
     let mut builder = load_builder(args.scene.as_deref(), limits, frame, args.fps, args.shutter)?;
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));

@@ -596,3 +596,103 @@ fn an_inherits_cycle_with_a_child_is_an_error_not_a_stack_overflow() {
         one_line_error(&err, "composition cycle");
     }
 }
+
+/// `levels` levels of prims `L<i>`, each with two children that reference `L<i-1>`: `L<levels>` composes to
+/// 2^(levels + 1) − 1 prims from a file of a few lines per level.
+fn reference_fan_out(levels: usize) -> String {
+    let mut text = String::from("#usda 1.0\ndef Xform \"L0\" {}\n");
+    for i in 1..=levels {
+        text.push_str(&format!(
+            "def Xform \"L{i}\" {{\n    def Xform \"a\" (references = </L{p}>) {{}}\n    \
+             def Xform \"b\" (references = </L{p}>) {{}}\n}}\n",
+            p = i - 1
+        ));
+    }
+    text
+}
+
+/// 20 levels of 2 internal references make 2^20 prims at the bottom level alone; reading them all ran into the
+/// reader's 120 s limit. The prims the arcs would compose are counted before `openusd` composes them.
+#[test]
+fn a_reference_fan_out_is_refused_by_the_prim_limit() {
+    let p = temp_file("fan_out", "usda", reference_fan_out(20).as_bytes());
+    let start = std::time::Instant::now();
+    let err = usd::read(&p).err().expect("2^20 prims are refused");
+    let took = start.elapsed();
+    one_line_error(&err, "--max-prims");
+    assert!(took < std::time::Duration::from_secs(10), "took {took:?}");
+}
+
+/// Under `--max-prims` a smaller fan-out loads, and over it the command line says which flag raises the limit.
+#[test]
+fn the_max_prims_flag_sets_the_prim_limit() {
+    // L10 composes 2^12 − 3 prims; the stage, L0 to L10, 8,155.
+    let p = temp_file("fan_out_10", "usda", reference_fan_out(10).as_bytes());
+    let limits = |usd_prims| nimbus::limits::Limits {
+        usd_prims,
+        ..Default::default()
+    };
+    usd::read_with_limits(&p, &limits(8155)).unwrap_or_else(|e| panic!("{e}"));
+    let err = usd::read_with_limits(&p, &limits(8154))
+        .err()
+        .expect("over 8154 prims");
+    one_line_error(&err, "the stage composes 8155 prims");
+    let render = |flags: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&p)
+            .args(["--width", "8", "--spp", "1", "-o"])
+            .arg(p.with_extension("exr"))
+            .args(flags)
+            .output()
+            .unwrap()
+    };
+    let refused = render(&["--max-prims", "4000"]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("/L10 composes 4093 prims") && stderr.contains("--max-prims"),
+        "{stderr}"
+    );
+    let rendered = render(&["--max-prims", "10000"]);
+    assert!(
+        rendered.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rendered.stderr)
+    );
+}
+
+/// What an ancestor's arc maps onto an arc's target is not in the count made before composing (each `X<k>`
+/// inherits `/P/q`, which holds the 100 cubes of `/Base/q` through `/P`'s reference): every prim read is counted
+/// too.
+#[test]
+fn prims_an_ancestor_arc_maps_are_counted_as_the_stage_is_read() {
+    let mut text = String::from("#usda 1.0\ndef \"Base\" {\n    def \"q\" {\n");
+    for k in 0..100 {
+        text.push_str(&format!("        def Cube \"c{k}\" {{}}\n"));
+    }
+    text.push_str("    }\n}\ndef \"P\" (references = </Base>) {}\n");
+    for k in 0..10 {
+        text.push_str(&format!("def \"X{k}\" (inherits = </P/q>) {{}}\n"));
+    }
+    let p = temp_file("mapped_prims", "usda", text.as_bytes());
+    let (b, _) = usd::read(&p).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        b.meshes().len(),
+        1200,
+        "the cubes of /Base/q, /P/q and every X<k>"
+    );
+    // Counted before composing: /Base 102, /P 103, each X<k> 2 (itself and /P/q, which authors nothing).
+    let limits = nimbus::limits::Limits {
+        usd_prims: 500,
+        ..Default::default()
+    };
+    let err = usd::read_with_limits(&p, &limits)
+        .err()
+        .expect("over 500 prims");
+    one_line_error(
+        &err,
+        "the stage has more than 500 prims (raise the limit with --max-prims)",
+    );
+}

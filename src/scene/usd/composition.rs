@@ -1,4 +1,4 @@
-//! A check of a stage's composition arcs before `openusd` 0.6 composes them.
+//! A check of a stage's composition before `openusd` 0.6 composes it: arc cycles, and the prims the arcs compose.
 //!
 //! `openusd` pre-caches the inherit and specialize targets of a prim and of its parent recursively, without
 //! remembering the targets it has seen: a prim that inherits or specializes itself, or prims that inherit one
@@ -13,22 +13,35 @@
 //! and specialize targets of its parent (what `openusd`'s pre-caching follows). A site met again while it is
 //! still being walked is a composition cycle, refused with one line naming the prim and the arc that closes it.
 //!
+//! The same walk counts the prims composition would bring in, each site once per arc or parent that brings it
+//! (a site's count is itself, its children's counts and its arcs' targets' counts): a few lines of internal
+//! references that fan out level after level compose millions of prims, which `openusd` would compose one by one
+//! (and Nimbus read) for minutes. A count over [`Limits::usd_prims`] is refused before anything is composed,
+//! naming the prim and the flag that raises the limit. The count is an upper bound for what a site's own specs and
+//! arcs bring (children met through several arcs are counted each time); what an ancestor's arcs map onto a target
+//! is not in it, and is counted as the stage is read instead (see `Loader::visit`).
+//!
 //! The walk is iterative and visits each site once. Cycles it cannot see in the layers alone (an arc to a
 //! descendant, which composition maps onto deeper and deeper paths) are left to `openusd`, which reports them as
 //! composition errors.
 
 use super::crate_check::CheckingResolver;
+use crate::limits::Limits;
 use openusd::{ar, sdf};
 use std::collections::HashMap;
 use std::io::Read;
 
-/// Checks the composition arcs of the stage whose root layer is `root` (as `openusd` is given it), reading every
-/// layer through `resolver`. Layers that cannot be read are passed over: `openusd` reports them when it opens
-/// the stage.
-pub(super) fn check(root: &str, resolver: &CheckingResolver) -> Result<(), String> {
+/// Checks the composition of the stage whose root layer is `root` (as `openusd` is given it) against `limits`,
+/// reading every layer through `resolver`. Layers that cannot be read are passed over: `openusd` reports them
+/// when it opens the stage.
+pub(super) fn check(
+    root: &str,
+    resolver: &CheckingResolver,
+    limits: &Limits,
+) -> Result<(), String> {
     let (layers, root) = Layers::load(resolver, root);
     match root {
-        Some(root) => Walk::new(&layers).run(root),
+        Some(root) => Walk::new(&layers, limits).run(root),
         None => Ok(()),
     }
 }
@@ -324,11 +337,20 @@ enum Step {
     ParentArc(Arc),
 }
 
-/// One site being walked, with the steps out of it and how many have been taken.
+impl Step {
+    /// Whether the step's target is composed into the site (a child or an arc's target), and so counts in the
+    /// site's prims; a parent's arc is already counted with the parent.
+    fn counts(&self) -> bool {
+        !matches!(self, Step::ParentArc(_))
+    }
+}
+
+/// One site being walked, with the steps out of it, how many have been taken, and the prims counted so far.
 struct Frame {
     site: Site,
     steps: Vec<(Site, Step)>,
     taken: usize,
+    prims: u64,
 }
 
 /// The walk over the sites of a stage's composition.
@@ -337,41 +359,67 @@ struct Walk<'a> {
     stacks: Vec<Stack>,
     /// Stack index by root layer.
     stack_of: HashMap<usize, usize>,
+    /// The most prims the stage may compose.
+    max_prims: u64,
 }
 
 impl<'a> Walk<'a> {
-    fn new(layers: &'a Layers<'a>) -> Self {
+    fn new(layers: &'a Layers<'a>, limits: &Limits) -> Self {
         Self {
             layers,
             stacks: Vec::new(),
             stack_of: HashMap::new(),
+            max_prims: limits.usd_prims,
         }
     }
 
-    /// Walks every site reachable from the pseudo-root of `root`'s layer stack; a site reached again while
-    /// it is being walked is a cycle.
+    /// Walks every site reachable from the pseudo-root of `root`'s layer stack, counting the prims each
+    /// composes; a site reached again while it is being walked is a cycle, and a site that composes more prims
+    /// than the limit is refused.
     fn run(&mut self, root: usize) -> Result<(), String> {
         let start = (self.stack(root), "/".to_owned());
-        let mut done: HashMap<Site, bool> = HashMap::from([(start.clone(), false)]);
+        // The prims of every site walked; `None` while it is being walked.
+        let mut counted: HashMap<Site, Option<u64>> = HashMap::from([(start.clone(), None)]);
         let mut frames = vec![self.frame(start)];
         while let Some(top) = frames.last_mut() {
-            let Some((site, _)) = top.steps.get(top.taken).cloned() else {
-                done.insert(top.site.clone(), true);
+            let Some((site, step)) = top.steps.get(top.taken).cloned() else {
+                let (site, prims) = (top.site.clone(), top.prims);
                 frames.pop();
+                self.within_limit(&site, prims)?;
+                counted.insert(site, Some(prims));
+                add_to_last(&mut frames, prims);
                 continue;
             };
             top.taken += 1;
-            match done.get(&site) {
-                Some(true) => {}
-                Some(false) => return Err(cycle(&frames, &site)),
+            match counted.get(&site) {
+                Some(Some(prims)) if step.counts() => top.prims = top.prims.saturating_add(*prims),
+                Some(Some(_)) => {}
+                Some(None) => return Err(cycle(&frames, &site)),
                 None => {
-                    done.insert(site.clone(), false);
+                    counted.insert(site.clone(), None);
                     let frame = self.frame(site);
                     frames.push(frame);
                 }
             }
         }
         Ok(())
+    }
+
+    /// `Ok` when `site` composes at most the limit's prims (the pseudo-root, not a prim itself, one more).
+    fn within_limit(&self, site: &Site, prims: u64) -> Result<(), String> {
+        let (what, prims) = if site.1 == "/" {
+            ("the stage".to_owned(), prims - 1)
+        } else {
+            (site.1.clone(), prims)
+        };
+        if prims <= self.max_prims {
+            return Ok(());
+        }
+        Err(format!(
+            "{what} composes {prims} prims through its arcs and children (each counted once per arc that brings \
+             it in), over the limit of {} prims (raise it with --max-prims)",
+            self.max_prims
+        ))
     }
 
     /// The frame of `site`, with its steps: its arcs' targets, its parent's class-based arcs' targets, then its
@@ -406,6 +454,7 @@ impl<'a> Walk<'a> {
             site,
             steps,
             taken: 0,
+            prims: 1,
         }
     }
 
@@ -466,6 +515,15 @@ impl<'a> Walk<'a> {
     }
 }
 
+/// Adds the prims of a site just walked to the frame that stepped to it, if that step counts.
+fn add_to_last(frames: &mut [Frame], prims: u64) {
+    if let Some(last) = frames.last_mut() {
+        if last.steps[last.taken - 1].1.counts() {
+            last.prims = last.prims.saturating_add(prims);
+        }
+    }
+}
+
 /// The error for a walk that reached `site` again while walking it: the cycle from `site` to the top frame,
 /// named by its first arc.
 fn cycle(frames: &[Frame], site: &Site) -> String {
@@ -503,10 +561,14 @@ fn cycle(frames: &[Frame], site: &Site) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::limits::Limits;
 
     /// Writes `files` (name, text) to a fresh folder and checks the stage whose root is the first.
     fn check_files(tag: &str, files: &[(&str, &str)]) -> Result<(), String> {
+        check_with(tag, files, Limits::default())
+    }
+
+    /// [`check_files`] under `limits`.
+    fn check_with(tag: &str, files: &[(&str, &str)], limits: Limits) -> Result<(), String> {
         let dir =
             std::env::temp_dir().join(format!("nimbus_composition_{}_{tag}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
@@ -518,7 +580,7 @@ mod tests {
             inner: ar::DefaultResolver::new(),
             limits: Limits::default(),
         };
-        check(dir.join(files[0].0).to_str().unwrap(), &resolver)
+        check(dir.join(files[0].0).to_str().unwrap(), &resolver, &limits)
     }
 
     #[test]
@@ -546,6 +608,30 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
 "#;
         let asset = "(\n defaultPrim = \"Asset\"\n)\ndef \"Asset\" (inherits = </_class_Char>) { def \"Geom\" {} }\n";
         check_files("valid", &[("root.usda", stage), ("asset.usda", asset)]).unwrap();
+    }
+
+    #[test]
+    fn prims_are_counted_once_per_arc_that_brings_them_in() {
+        // L<i> holds two children that reference L<i-1>: L0, L1, L2 and L3 compose 1, 5, 13 and 29 prims.
+        let mut fan = String::from("def \"L0\" {}\n");
+        for i in 1..=3 {
+            fan.push_str(&format!(
+                "def \"L{i}\" {{ def \"a\" (references = </L{p}>) {{}} def \"b\" (references = </L{p}>) {{}} }}\n",
+                p = i - 1
+            ));
+        }
+        let limit = |usd_prims| Limits {
+            usd_prims,
+            ..Limits::default()
+        };
+        check_with("fan_48", &[("root.usda", &fan)], limit(48)).unwrap();
+        assert_eq!(
+            check_with("fan_47", &[("root.usda", &fan)], limit(47)).unwrap_err(),
+            "the stage composes 48 prims through its arcs and children (each counted once per arc that brings it \
+             in), over the limit of 47 prims (raise it with --max-prims)"
+        );
+        let err = check_with("fan_20", &[("root.usda", &fan)], limit(20)).unwrap_err();
+        assert!(err.starts_with("/L3 composes 29 prims"), "{err}");
     }
 
     #[test]

@@ -317,6 +317,7 @@ fn read_stage(
         unsupported: HashSet::new(),
         root: Mat4::IDENTITY,
         limits: *limits,
+        prims: 0,
         time: usd::TimeCode::EARLIEST,
         packages: HashMap::new(),
         tags: CompositingTags::default(),
@@ -352,7 +353,7 @@ fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
         inner: ar::DefaultResolver::new(),
         limits: *limits,
     };
-    composition::check(name, &resolver()).map_err(|m| malformed(path, m))?;
+    composition::check(name, &resolver(), limits).map_err(|m| malformed(path, m))?;
     let stage = usd::Stage::builder()
         .resolver(resolver())
         .open(name)
@@ -408,8 +409,10 @@ struct Loader<'a> {
     unsupported: HashSet<String>,
     /// Stage units and up axis to Nimbus's metres and +Y up.
     root: Mat4,
-    /// The memory budget for textures and environment maps.
+    /// The memory budget for textures and environment maps, and the most prims to read.
     limits: Limits,
+    /// Prims visited so far.
+    prims: u64,
     /// The time code every attribute is read at (see [`read_at_time`]).
     time: usd::TimeCode,
     /// `.usdz` packages opened for the files inside them, by package path.
@@ -568,6 +571,18 @@ impl Loader<'_> {
         let at = prim.path().as_str().to_owned();
         if depth > MAX_DEPTH {
             return Err(self.error(&at, format!("nested deeper than {MAX_DEPTH} levels")));
+        }
+        // The composition check counts prims before composing, but not those an ancestor's arcs map onto an
+        // arc's target: every prim composed is counted here too.
+        self.prims += 1;
+        if self.prims > self.limits.usd_prims {
+            return Err(self.error(
+                &at,
+                format!(
+                    "the stage has more than {} prims (raise the limit with --max-prims)",
+                    self.limits.usd_prims
+                ),
+            ));
         }
         if !prim
             .is_active()
