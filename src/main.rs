@@ -210,6 +210,10 @@ struct RenderArgs {
     /// that brings it in) and again as the stage is read (default 1000000).
     #[arg(long = "max-prims", value_parser = clap::value_parser!(u64).range(1..))]
     max_prims: Option<u64>,
+    /// Most layers one USD layer stack may expand to: a layer and its sublayers, nested ones included, a layer
+    /// named twice counting twice (default 1000).
+    #[arg(long = "max-sublayers", value_parser = clap::value_parser!(u64).range(1..))]
+    max_sublayers: Option<u64>,
     /// Exposure of the PNG preview in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
@@ -261,13 +265,17 @@ struct RenderArgs {
 }
 
 impl RenderArgs {
-    /// The limits `--memory-limit` and `--max-prims` set, the defaults where they are not given.
+    /// The limits `--memory-limit`, `--max-prims` and `--max-sublayers` set, the defaults where they are not
+    /// given.
     fn limits(&self) -> Limits {
         let mut limits = self
             .memory_limit
             .map_or_else(Limits::default, Limits::with_memory);
         if let Some(prims) = self.max_prims {
             limits.usd_prims = prims;
+        }
+        if let Some(entries) = self.max_sublayers {
+            limits.usd_layer_stack = entries;
         }
         limits
     }

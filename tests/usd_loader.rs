@@ -566,6 +566,14 @@ fn a_caught_openusd_panic_prints_one_line_and_no_backtrace() {
     );
 }
 
+/// A fresh, empty folder for a stage of several layers.
+fn stage_folder(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nimbus_usd_{}_{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// The reproducer (a prim that inherits itself, with a child) and its kin: a prim that specializes itself,
 /// and two that inherit each other. `openusd` 0.6 pre-caches inherit and specialize targets recursively without
 /// remembering the ones it has seen, so composing the child overflowed the reader thread's stack, which aborts the
@@ -695,4 +703,69 @@ fn prims_an_ancestor_arc_maps_are_counted_as_the_stage_is_read() {
         &err,
         "the stage has more than 500 prims (raise the limit with --max-prims)",
     );
+}
+
+/// Writes `levels` layers `d0.usda` … into `dir`, each naming the next twice as a sublayer (the last holds a
+/// cube): the layer stack of `d0` expands to 2^levels − 1 entries, 2^(levels − 1) of them the last layer.
+fn sublayer_diamond(dir: &Path, levels: usize) -> PathBuf {
+    for i in 0..levels {
+        let text = if i + 1 < levels {
+            format!(
+                "#usda 1.0\n(\n    subLayers = [@./d{n}.usda@, @./d{n}.usda@]\n)\n",
+                n = i + 1
+            )
+        } else {
+            "#usda 1.0\ndef Cube \"Leaf\" {}\n".to_owned()
+        };
+        std::fs::write(dir.join(format!("d{i}.usda")), text).unwrap();
+    }
+    dir.join("d0.usda")
+}
+
+/// 25 layers that each name the next twice expand to a layer stack of 2^24 entries, which `openusd` builds
+/// entry by entry (a hang of minutes, and gigabytes). The layer stack is counted before `openusd` opens it.
+#[test]
+fn a_sublayer_diamond_is_refused_by_the_layer_stack_limit() {
+    let root = sublayer_diamond(&stage_folder("diamond"), 25);
+    let start = std::time::Instant::now();
+    let err = usd::read(&root)
+        .err()
+        .expect("2^24 layer-stack entries are refused");
+    let took = start.elapsed();
+    one_line_error(&err, "--max-sublayers");
+    assert!(took < std::time::Duration::from_secs(10), "took {took:?}");
+}
+
+/// Sublayers named more than once are legitimate within the limit: 10 levels make 1,023 entries, over the
+/// default 1,000 and within `--max-sublayers 1023`; the leaf's prim is composed once.
+#[test]
+fn a_small_sublayer_diamond_loads_within_the_max_sublayers_flag() {
+    let root = sublayer_diamond(&stage_folder("diamond_10"), 10);
+    let err = usd::read(&root)
+        .err()
+        .expect("1023 entries, over the default limit");
+    one_line_error(&err, "expands to 1023 layers");
+    let limits = nimbus::limits::Limits {
+        usd_layer_stack: 1023,
+        ..Default::default()
+    };
+    let (b, _) = usd::read_with_limits(&root, &limits).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(b.meshes().len(), 1);
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .arg("render")
+        .arg(&root)
+        .args([
+            "--max-sublayers",
+            "1023",
+            "--width",
+            "8",
+            "--spp",
+            "1",
+            "-o",
+        ])
+        .arg(root.with_extension("exr"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
 }

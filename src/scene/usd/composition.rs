@@ -1,4 +1,5 @@
-//! A check of a stage's composition before `openusd` 0.6 composes it: arc cycles, and the prims the arcs compose.
+//! A check of a stage's composition before `openusd` 0.6 composes it: arc cycles, the prims the arcs compose, and
+//! the entries of every layer stack.
 //!
 //! `openusd` pre-caches the inherit and specialize targets of a prim and of its parent recursively, without
 //! remembering the targets it has seen: a prim that inherits or specializes itself, or prims that inherit one
@@ -21,6 +22,13 @@
 //! arcs bring (children met through several arcs are counted each time); what an ancestor's arcs map onto a target
 //! is not in it, and is counted as the stage is read instead (see `Loader::visit`).
 //!
+//! Every layer stack the walk enters (the root's, and each arc target's) is counted first as `openusd` builds it:
+//! the root layer, then each sublayer in turn with its own sublayers, a layer named twice counting twice (only a
+//! layer already on the path, a sublayer cycle, is left out). Twenty-five layers that each name the next twice
+//! make 2²⁴ entries, which `openusd` builds one by one and every prim then reads through; a stack over
+//! [`Limits::usd_layer_stack`] entries is refused before the stage is opened, naming its root layer and the flag
+//! that raises the limit.
+//!
 //! The walk is iterative and visits each site once. Cycles it cannot see in the layers alone (an arc to a
 //! descendant, which composition maps onto deeper and deeper paths) are left to `openusd`, which reports them as
 //! composition errors.
@@ -28,7 +36,7 @@
 use super::crate_check::CheckingResolver;
 use crate::limits::Limits;
 use openusd::{ar, sdf};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::io::Read;
 
 /// Checks the composition of the stage whose root layer is `root` (as `openusd` is given it) against `limits`,
@@ -127,6 +135,8 @@ struct Layers<'a> {
     ids: HashMap<String, usize>,
     /// Each layer's summary; `None` for a layer that cannot be read.
     layers: Vec<Option<Layer>>,
+    /// Each layer's identifier, for messages.
+    names: Vec<String>,
     /// Layers found but not read yet: (index, identifier).
     pending: Vec<(usize, String)>,
 }
@@ -139,6 +149,7 @@ impl<'a> Layers<'a> {
             resolver,
             ids: HashMap::new(),
             layers: Vec::new(),
+            names: Vec::new(),
             pending: Vec::new(),
         };
         let root = layers.index(root, None);
@@ -163,6 +174,7 @@ impl<'a> Layers<'a> {
         }
         let index = self.layers.len();
         self.layers.push(None);
+        self.names.push(identifier.clone());
         self.ids.insert(identifier.clone(), index);
         self.pending.push((index, identifier));
         Some(index)
@@ -361,6 +373,10 @@ struct Walk<'a> {
     stack_of: HashMap<usize, usize>,
     /// The most prims the stage may compose.
     max_prims: u64,
+    /// The most entries a layer stack may expand to.
+    max_layer_stack: u64,
+    /// The entries each layer's stack expands to, by layer, once counted.
+    entries: HashMap<usize, u64>,
 }
 
 impl<'a> Walk<'a> {
@@ -370,6 +386,8 @@ impl<'a> Walk<'a> {
             stacks: Vec::new(),
             stack_of: HashMap::new(),
             max_prims: limits.usd_prims,
+            max_layer_stack: limits.usd_layer_stack,
+            entries: HashMap::new(),
         }
     }
 
@@ -377,10 +395,10 @@ impl<'a> Walk<'a> {
     /// composes; a site reached again while it is being walked is a cycle, and a site that composes more prims
     /// than the limit is refused.
     fn run(&mut self, root: usize) -> Result<(), String> {
-        let start = (self.stack(root), "/".to_owned());
+        let start = (self.stack(root)?, "/".to_owned());
         // The prims of every site walked; `None` while it is being walked.
         let mut counted: HashMap<Site, Option<u64>> = HashMap::from([(start.clone(), None)]);
-        let mut frames = vec![self.frame(start)];
+        let mut frames = vec![self.frame(start)?];
         while let Some(top) = frames.last_mut() {
             let Some((site, step)) = top.steps.get(top.taken).cloned() else {
                 let (site, prims) = (top.site.clone(), top.prims);
@@ -397,7 +415,7 @@ impl<'a> Walk<'a> {
                 Some(None) => return Err(cycle(&frames, &site)),
                 None => {
                     counted.insert(site.clone(), None);
-                    let frame = self.frame(site);
+                    let frame = self.frame(site)?;
                     frames.push(frame);
                 }
             }
@@ -424,7 +442,7 @@ impl<'a> Walk<'a> {
 
     /// The frame of `site`, with its steps: its arcs' targets, its parent's class-based arcs' targets, then its
     /// children.
-    fn frame(&mut self, site: Site) -> Frame {
+    fn frame(&mut self, site: Site) -> Result<Frame, String> {
         let (stack, path) = (site.0, site.1.as_str());
         let own = self.stacks[stack].prims.get(path);
         let arcs: Vec<Arc> = own.map(|p| p.arcs.clone()).unwrap_or_default();
@@ -440,41 +458,56 @@ impl<'a> Walk<'a> {
         };
         let mut steps = Vec::new();
         for arc in arcs {
-            if let Some(target) = self.target(stack, &arc) {
+            if let Some(target) = self.target(stack, &arc)? {
                 steps.push((target, Step::Arc(arc)));
             }
         }
         for arc in inherited {
-            if let Some(target) = self.target(stack, &arc) {
+            if let Some(target) = self.target(stack, &arc)? {
                 steps.push((target, Step::ParentArc(arc)));
             }
         }
         steps.extend(children.into_iter().map(|c| ((stack, c), Step::Child)));
-        Frame {
+        Ok(Frame {
             site,
             steps,
             taken: 0,
             prims: 1,
-        }
+        })
     }
 
     /// The site an arc authored in layer stack `stack` targets; `None` for a default prim that is not authored.
-    fn target(&mut self, stack: usize, arc: &Arc) -> Option<Site> {
+    fn target(&mut self, stack: usize, arc: &Arc) -> Result<Option<Site>, String> {
         let Some(layer) = arc.layer else {
-            return Some((stack, arc.path.clone()));
+            return Ok(Some((stack, arc.path.clone())));
         };
         let path = if arc.path.is_empty() {
-            self.layers.layers[layer].as_ref()?.default_prim.clone()?
+            let default = self.layers.layers[layer]
+                .as_ref()
+                .and_then(|l| l.default_prim.clone());
+            let Some(default) = default else {
+                return Ok(None);
+            };
+            default
         } else {
             arc.path.clone()
         };
-        Some((self.stack(layer), path))
+        Ok(Some((self.stack(layer)?, path)))
     }
 
-    /// The index of the layer stack whose root is `layer`, merging its layers' prims the first time.
-    fn stack(&mut self, layer: usize) -> usize {
+    /// The index of the layer stack whose root is `layer`, counting its entries against the limit and merging
+    /// its layers' prims the first time.
+    fn stack(&mut self, layer: usize) -> Result<usize, String> {
         if let Some(&index) = self.stack_of.get(&layer) {
-            return index;
+            return Ok(index);
+        }
+        let entries = self.entries(layer);
+        if entries > self.max_layer_stack {
+            return Err(format!(
+                "the layer stack of {} expands to {entries} layers (a sublayer named twice counts twice), over \
+                 the limit of {} (raise it with --max-sublayers)",
+                self.layers.names[layer], self.max_layer_stack
+            ));
         }
         let mut prims: HashMap<String, Prim> = HashMap::new();
         for member in self.members(layer) {
@@ -494,24 +527,66 @@ impl<'a> Walk<'a> {
         let index = self.stacks.len();
         self.stacks.push(Stack { prims });
         self.stack_of.insert(layer, index);
-        index
+        Ok(index)
     }
 
     /// The distinct layers of the layer stack whose root is `layer`: it and its sublayers, nested ones too.
     fn members(&self, layer: usize) -> Vec<usize> {
-        let mut seen = vec![layer];
+        let mut members = vec![layer];
+        let mut seen = HashSet::from([layer]);
         let mut next = 0;
-        while let Some(&member) = seen.get(next) {
+        while let Some(&member) = members.get(next) {
             next += 1;
-            if let Some(summary) = &self.layers.layers[member] {
-                for &sub in &summary.sublayers {
-                    if !seen.contains(&sub) {
-                        seen.push(sub);
-                    }
+            for &sub in self.sublayers(member) {
+                if seen.insert(sub) {
+                    members.push(sub);
                 }
             }
         }
-        seen
+        members
+    }
+
+    /// The sublayers of `layer` (none when it cannot be read).
+    fn sublayers(&self, layer: usize) -> &'a [usize] {
+        self.layers.layers[layer]
+            .as_ref()
+            .map_or(&[][..], |l| l.sublayers.as_slice())
+    }
+
+    /// The entries the layer stack whose root is `layer` expands to, as `openusd` builds it: the layer, then each
+    /// sublayer's own entries in turn, skipping a sublayer already on the path (a cycle). Counted without
+    /// recursion, each layer once (a layer's count is kept for every stack that names it), saturating.
+    fn entries(&mut self, layer: usize) -> u64 {
+        if let Some(&known) = self.entries.get(&layer) {
+            return known;
+        }
+        // (layer, sublayers gone through, entries so far) along the path from `layer`.
+        let mut path = vec![(layer, 0usize, 1u64)];
+        let mut on_path = HashSet::from([layer]);
+        while let Some(top) = path.last_mut() {
+            let Some(&sub) = self.sublayers(top.0).get(top.1) else {
+                let (done, _, count) = *top;
+                path.pop();
+                on_path.remove(&done);
+                self.entries.insert(done, count);
+                if let Some(parent) = path.last_mut() {
+                    parent.2 = parent.2.saturating_add(count);
+                }
+                continue;
+            };
+            top.1 += 1;
+            if on_path.contains(&sub) {
+                continue;
+            }
+            match self.entries.get(&sub) {
+                Some(&known) => top.2 = top.2.saturating_add(known),
+                None => {
+                    on_path.insert(sub);
+                    path.push((sub, 0, 1));
+                }
+            }
+        }
+        self.entries[&layer]
     }
 }
 
@@ -632,6 +707,33 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
         );
         let err = check_with("fan_20", &[("root.usda", &fan)], limit(20)).unwrap_err();
         assert!(err.starts_with("/L3 composes 29 prims"), "{err}");
+    }
+
+    #[test]
+    fn layer_stacks_count_every_naming_of_a_sublayer() {
+        // a names b twice, b names c twice and a (a cycle, left out): 1 + 2 × (1 + 2) = 7 entries.
+        let files = [
+            ("a.usda", "(\n subLayers = [@./b.usda@, @./b.usda@]\n)\n"),
+            (
+                "b.usda",
+                "(\n subLayers = [@./c.usda@, @./c.usda@, @./a.usda@]\n)\n",
+            ),
+            ("c.usda", "def \"C\" {}\n"),
+        ];
+        let limit = |usd_layer_stack| Limits {
+            usd_layer_stack,
+            ..Limits::default()
+        };
+        check_with("stack_7", &files, limit(7)).unwrap();
+        let err = check_with("stack_6", &files, limit(6)).unwrap_err();
+        assert!(
+            err.starts_with("the layer stack of ")
+                && err.ends_with(
+                    "a.usda expands to 7 layers (a sublayer named twice counts twice), over the limit of 6 \
+                     (raise it with --max-sublayers)"
+                ),
+            "{err}"
+        );
     }
 
     #[test]
