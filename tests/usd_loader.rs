@@ -605,6 +605,39 @@ fn an_inherits_cycle_with_a_child_is_an_error_not_a_stack_overflow() {
     }
 }
 
+/// Cycles of `openusd`'s pre-caching that no arc cycle of the layers shows. `openusd` takes an inherit or
+/// specialize target as a path of the stage whatever layer stack authored it, and maps it through every arc of
+/// the prim's ancestors, whatever layer stack the arc targets: a target mapped onto a child of the prim that
+/// authors it (through a payload to another layer), and a target in a referenced layer that names a stage prim
+/// specializing the child of the referencing prim, each overflowed the reader thread's stack.
+#[test]
+fn pre_caching_cycles_through_other_layer_stacks_are_errors_not_stack_overflows() {
+    for (tag, root, other, arc) in [
+        (
+            "payload_map",
+            "def Xform \"A\" (specializes = </D/B> payload = @./other.usda@</D>) { def Xform \"C\" {} }",
+            "",
+            "/A: specializes </D/B>",
+        ),
+        (
+            "stage_path",
+            "def Xform \"A\" (references = @./other.usda@</X>) { def Xform \"C\" {} }\n\
+             def \"Q\" (specializes = </A/B>) {}",
+            "def \"X\" (specializes = </Q>) {}",
+            "/Q: specializes </A/B>",
+        ),
+    ] {
+        let dir = stage_folder(&format!("precache_{tag}"));
+        std::fs::write(dir.join("root.usda"), format!("#usda 1.0\n{root}\n")).unwrap();
+        std::fs::write(dir.join("other.usda"), format!("#usda 1.0\n{other}\n")).unwrap();
+        let err = usd::read(&dir.join("root.usda"))
+            .err()
+            .expect("a pre-caching cycle is an error");
+        one_line_error(&err, arc);
+        one_line_error(&err, "composition cycle");
+    }
+}
+
 /// `levels` levels of prims `L<i>`, each with two children that reference `L<i-1>`: `L<levels>` composes to
 /// 2^(levels + 1) − 1 prims from a file of a few lines per level.
 fn reference_fan_out(levels: usize) -> String {

@@ -11,8 +11,11 @@
 //! sublayers, and for each prim its children and its arcs (those authored inside variants count whichever
 //! variant is selected). A walk over the sites composition visits (a layer stack and a prim path), from the root
 //! layer stack's pseudo-root, follows each site to its children, to the targets of its arcs, and to the inherit
-//! and specialize targets of its parent (what `openusd`'s pre-caching follows). A site met again while it is
-//! still being walked is a composition cycle, refused with one line naming the prim and the arc that closes it.
+//! and specialize targets of its parent (what `openusd`'s pre-caching follows). Refused as a composition cycle,
+//! with one line naming the prim and the arc: an arc back onto, into or above a prim of the arc chain it extends
+//! (Pcp's cycle rule, which `openusd` applies to references but misses for inherits and specializes, overflowing
+//! its stack the same way), and a site met again while it is being walked, through arcs and children or through
+//! inherits and specializes alone (see `cycle_back`).
 //!
 //! The same walk counts the prims composition would bring in, each site once per arc or parent that brings it
 //! (a site's count is itself, its children's counts and its arcs' targets' counts): a few lines of internal
@@ -29,15 +32,20 @@
 //! [`Limits::usd_layer_stack`] entries is refused before the stage is opened, naming its root layer and the flag
 //! that raises the limit.
 //!
-//! The walk is iterative and visits each site once. Cycles it cannot see in the layers alone (an arc to a
-//! descendant, which composition maps onto deeper and deeper paths) are left to `openusd`, which reports them as
-//! composition errors.
+//! The walk is iterative and visits each site once. It works on layer stacks, while `openusd`'s pre-caching takes
+//! every inherit and specialize target as a path of the stage and maps it through arcs to any layer stack: a last
+//! check models that pre-caching on prim paths ([`precache`]) and refuses its cycles, which the fuzz target
+//! `usd_compose` found past the walk. Cycles neither can see in the layers alone (through paths that an
+//! ancestor's arc maps) are left to `openusd`, which reports them as composition errors.
+
+mod precache;
 
 use super::crate_check::CheckingResolver;
 use crate::limits::Limits;
 use openusd::{ar, sdf};
 use std::collections::{HashMap, HashSet};
 use std::io::Read;
+use std::rc::Rc;
 
 /// Checks the composition of the stage whose root layer is `root` (as `openusd` is given it) against `limits`,
 /// reading every layer through `resolver`. Layers that cannot be read are passed over: `openusd` reports them
@@ -49,7 +57,10 @@ pub(super) fn check(
 ) -> Result<(), String> {
     let (layers, root) = Layers::load(resolver, root);
     match root {
-        Some(root) => Walk::new(&layers, limits).run(root),
+        Some(root) => {
+            Walk::new(&layers, limits).run(root)?;
+            precache::Precache::new(&layers).check(limits.usd_prims)
+        }
         None => Ok(()),
     }
 }
@@ -357,12 +368,23 @@ impl Step {
     }
 }
 
-/// One site being walked, with the steps out of it, how many have been taken, and the prims counted so far.
+/// The steps out of a site: to the target site (an index into [`Walk::sites`]), and how.
+type Steps = Rc<[(usize, Step)]>;
+
+/// One site on the walk's path, with the steps out of it and how many have been taken.
 struct Frame {
-    site: Site,
-    steps: Vec<(Site, Step)>,
+    site: usize,
+    steps: Steps,
     taken: usize,
+    /// The prims counted so far (the counting pass).
     prims: u64,
+}
+
+impl Frame {
+    /// The step last taken out of this frame (the one to the next frame on the path).
+    fn last_step(&self) -> &(usize, Step) {
+        &self.steps[self.taken - 1]
+    }
 }
 
 /// The walk over the sites of a stage's composition.
@@ -371,6 +393,11 @@ struct Walk<'a> {
     stacks: Vec<Stack>,
     /// Stack index by root layer.
     stack_of: HashMap<usize, usize>,
+    /// Every site met, and its index.
+    sites: Vec<Site>,
+    site_ids: HashMap<Site, usize>,
+    /// The steps out of each site, once found.
+    steps: Vec<Option<Steps>>,
     /// The most prims the stage may compose.
     max_prims: u64,
     /// The most entries a layer stack may expand to.
@@ -385,37 +412,64 @@ impl<'a> Walk<'a> {
             layers,
             stacks: Vec::new(),
             stack_of: HashMap::new(),
+            sites: Vec::new(),
+            site_ids: HashMap::new(),
+            steps: Vec::new(),
             max_prims: limits.usd_prims,
             max_layer_stack: limits.usd_layer_stack,
             entries: HashMap::new(),
         }
     }
 
-    /// Walks every site reachable from the pseudo-root of `root`'s layer stack, counting the prims each
-    /// composes; a site reached again while it is being walked is a cycle, and a site that composes more prims
-    /// than the limit is refused.
+    /// Walks the composition from the pseudo-root of `root`'s layer stack: first every site once, counting the
+    /// prims each composes and finding the cycles of sites (see [`Walk::count`]), then every path of children
+    /// and arcs, as many as the prims counted, for arcs back into the chain they extend (see [`Walk::unfold`]).
     fn run(&mut self, root: usize) -> Result<(), String> {
         let start = (self.stack(root)?, "/".to_owned());
+        let start = self.site(start);
+        self.count(start)?;
+        self.unfold(start)
+    }
+
+    /// The index of `site`, interned the first time.
+    fn site(&mut self, site: Site) -> usize {
+        if let Some(&id) = self.site_ids.get(&site) {
+            return id;
+        }
+        let id = self.sites.len();
+        self.sites.push(site.clone());
+        self.site_ids.insert(site, id);
+        self.steps.push(None);
+        id
+    }
+
+    /// Walks every site reachable from `start` once, depth first, counting the prims each composes; a site
+    /// reached again on its own path closes a cycle (see [`cycle_back`]), and a site that composes more prims
+    /// than the limit is refused.
+    fn count(&mut self, start: usize) -> Result<(), String> {
         // The prims of every site walked; `None` while it is being walked.
-        let mut counted: HashMap<Site, Option<u64>> = HashMap::from([(start.clone(), None)]);
+        let mut counted: HashMap<usize, Option<u64>> = HashMap::from([(start, None)]);
         let mut frames = vec![self.frame(start)?];
         while let Some(top) = frames.last_mut() {
-            let Some((site, step)) = top.steps.get(top.taken).cloned() else {
-                let (site, prims) = (top.site.clone(), top.prims);
+            let Some((next, _)) = top.steps.get(top.taken).cloned() else {
+                let (site, prims) = (top.site, top.prims);
                 frames.pop();
-                self.within_limit(&site, prims)?;
+                self.within_limit(site, prims)?;
                 counted.insert(site, Some(prims));
                 add_to_last(&mut frames, prims);
                 continue;
             };
             top.taken += 1;
-            match counted.get(&site) {
-                Some(Some(prims)) if step.counts() => top.prims = top.prims.saturating_add(*prims),
-                Some(Some(_)) => {}
-                Some(None) => return Err(cycle(&frames, &site)),
+            match counted.get(&next) {
+                Some(Some(prims)) => add_to_last(&mut frames, *prims),
+                Some(None) => {
+                    if let Some(from) = cycle_back(&frames, next) {
+                        return Err(self.cycle(&frames, from, next));
+                    }
+                }
                 None => {
-                    counted.insert(site.clone(), None);
-                    let frame = self.frame(site)?;
+                    counted.insert(next, None);
+                    let frame = self.frame(next)?;
                     frames.push(frame);
                 }
             }
@@ -423,12 +477,58 @@ impl<'a> Walk<'a> {
         Ok(())
     }
 
+    /// Follows every path of children and arcs from `start` (the counting pass found no cycle of them, and
+    /// bounded their number by the prim limit), refusing an arc whose target is nested with (is, holds or lies
+    /// inside) a site of the arc run it extends, in the same layer stack: the frames entered through arcs, and the
+    /// prim they start from. Composing that prim would follow the arc forever: Pcp's cycle rule, which `openusd`
+    /// applies to references but misses for inherits and specializes, overflowing its stack. The counting pass
+    /// cannot see it, as it walks each site once and the run depends on the path.
+    fn unfold(&mut self, start: usize) -> Result<(), String> {
+        let mut frames = vec![self.frame(start)?];
+        // Paths the counting pass left out (a step back onto a site being walked that closes no cycle) are
+        // followed here too: bound them by the same limit.
+        let mut prims = 0u64;
+        while let Some(top) = frames.last_mut() {
+            let Some((next, step)) = top.steps.get(top.taken).cloned() else {
+                frames.pop();
+                continue;
+            };
+            top.taken += 1;
+            prims += u64::from(step.counts());
+            if prims > self.max_prims {
+                return Err(format!(
+                    "the stage composes more than {0} prims through its arcs and children (each counted once per \
+                     arc that brings it in), over the limit of {0} prims (raise it with --max-prims)",
+                    self.max_prims
+                ));
+            }
+            match step {
+                Step::ParentArc(_) => continue,
+                Step::Arc(_) => {
+                    let run = run_start(&frames)..frames.len();
+                    let target = &self.sites[next];
+                    if let Some(from) = run
+                        .into_iter()
+                        .find(|&i| nested(&self.sites[frames[i].site], target))
+                    {
+                        return Err(self.cycle(&frames, from, next));
+                    }
+                }
+                Step::Child => {}
+            }
+            let frame = self.frame(next)?;
+            frames.push(frame);
+        }
+        Ok(())
+    }
+
     /// `Ok` when `site` composes at most the limit's prims (the pseudo-root, not a prim itself, one more).
-    fn within_limit(&self, site: &Site, prims: u64) -> Result<(), String> {
-        let (what, prims) = if site.1 == "/" {
-            ("the stage".to_owned(), prims - 1)
+    fn within_limit(&self, site: usize, prims: u64) -> Result<(), String> {
+        let path = &self.sites[site].1;
+        let (what, prims) = if path == "/" {
+            ("the stage", prims - 1)
         } else {
-            (site.1.clone(), prims)
+            (path.as_str(), prims)
         };
         if prims <= self.max_prims {
             return Ok(());
@@ -440,14 +540,33 @@ impl<'a> Walk<'a> {
         ))
     }
 
-    /// The frame of `site`, with its steps: its arcs' targets, its parent's class-based arcs' targets, then its
-    /// children.
-    fn frame(&mut self, site: Site) -> Result<Frame, String> {
-        let (stack, path) = (site.0, site.1.as_str());
-        let own = self.stacks[stack].prims.get(path);
+    /// A frame for `site`, its steps found the first time.
+    fn frame(&mut self, site: usize) -> Result<Frame, String> {
+        let steps = match &self.steps[site] {
+            Some(steps) => steps.clone(),
+            None => {
+                let steps: Steps = self.find_steps(site)?.into();
+                self.steps[site] = Some(steps.clone());
+                steps
+            }
+        };
+        Ok(Frame {
+            site,
+            steps,
+            taken: 0,
+            prims: 1,
+        })
+    }
+
+    /// The steps out of `site`: its arcs' targets, its parent's class-based arcs' targets, then its children.
+    fn find_steps(&mut self, site: usize) -> Result<Vec<(usize, Step)>, String> {
+        let (stack, path) = self.sites[site].clone();
+        self.not_mapped_onto_itself(stack, &path)?;
+        let prims = &self.stacks[stack].prims;
+        let own = prims.get(&path);
         let arcs: Vec<Arc> = own.map(|p| p.arcs.clone()).unwrap_or_default();
         let children: Vec<String> = own.map(|p| p.children.clone()).unwrap_or_default();
-        let inherited: Vec<Arc> = match self.stacks[stack].prims.get(parent(path)) {
+        let inherited: Vec<Arc> = match prims.get(parent(&path)) {
             Some(p) if path != "/" => p
                 .arcs
                 .iter()
@@ -459,21 +578,60 @@ impl<'a> Walk<'a> {
         let mut steps = Vec::new();
         for arc in arcs {
             if let Some(target) = self.target(stack, &arc)? {
-                steps.push((target, Step::Arc(arc)));
+                steps.push((self.site(target), Step::Arc(arc)));
             }
         }
         for arc in inherited {
             if let Some(target) = self.target(stack, &arc)? {
-                steps.push((target, Step::ParentArc(arc)));
+                steps.push((self.site(target), Step::ParentArc(arc)));
             }
         }
-        steps.extend(children.into_iter().map(|c| ((stack, c), Step::Child)));
-        Ok(Frame {
-            site,
-            steps,
-            taken: 0,
-            prims: 1,
-        })
+        for child in children {
+            steps.push((self.site((stack, child)), Step::Child));
+        }
+        Ok(steps)
+    }
+
+    /// Refuses a class-based arc of the prim at `path` whose target lies strictly inside the target of an arc
+    /// (of any kind) of the prim or of an ancestor, in the same layer stack, and maps through it onto the prim
+    /// itself or a child of it: a prim that inherits `/X` and `/X/Y`, or references `/X` and specializes `/X/Y`, or
+    /// under one that inherits `/X`, a prim `B` that inherits `/X/B`. Such a stage composes in USD, but `openusd`
+    /// 0.6 pre-caches the mapped path, finds the same arc there again and recurses until its stack overflows.
+    fn not_mapped_onto_itself(&self, stack: usize, path: &str) -> Result<(), String> {
+        let prims = &self.stacks[stack].prims;
+        let Some(own) = prims.get(path) else {
+            return Ok(());
+        };
+        let here = |arc: &&Arc| self.in_stack(stack, arc);
+        for class in own.arcs.iter().filter(|a| a.kind.is_class()).filter(here) {
+            let mut ancestor = path;
+            while ancestor != "/" {
+                let arcs = prims.get(ancestor).map_or(&[][..], |p| p.arcs.as_slice());
+                for arc in arcs.iter().filter(here) {
+                    let Some(rest) = class.path.strip_prefix(arc.path.as_str()) else {
+                        continue;
+                    };
+                    let mapped = format!("{ancestor}{rest}");
+                    if rest.starts_with('/') && (mapped == path || parent(&mapped) == path) {
+                        return Err(format!(
+                            "{path}: {} lies inside the target of {ancestor}'s {}, which maps it onto {mapped}: \
+                             openusd 0.6 pre-caches that without end (a stack overflow), so it is refused",
+                            class.describe(),
+                            arc.describe()
+                        ));
+                    }
+                }
+                ancestor = parent(ancestor);
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether `arc`, authored in layer stack `stack`, targets that same layer stack (an internal arc, or one to
+    /// the stack's root layer).
+    fn in_stack(&self, stack: usize, arc: &Arc) -> bool {
+        arc.layer
+            .is_none_or(|layer| self.stack_of.get(&layer) == Some(&stack))
     }
 
     /// The site an arc authored in layer stack `stack` targets; `None` for a default prim that is not authored.
@@ -588,49 +746,94 @@ impl<'a> Walk<'a> {
         }
         self.entries[&layer]
     }
+
+    /// The error for a walk that closed a cycle by stepping to `site` from the top frame: the steps from frame
+    /// `from` to the top, named by the first arc among them, and where the last lands when it is not on `from`'s
+    /// site itself.
+    fn cycle(&self, frames: &[Frame], from: usize, site: usize) -> String {
+        let path = |id: usize| self.sites[id].1.as_str();
+        let steps: Vec<(&str, &Step, &str)> = frames[from..]
+            .iter()
+            .map(|f| (path(f.site), &f.last_step().1, path(f.last_step().0)))
+            .collect();
+        let chain: Vec<String> = steps
+            .iter()
+            .map(|(at, step, next)| match step {
+                Step::Child => format!("{at} holds {next}"),
+                Step::Arc(arc) => format!("{at} {}", arc.describe()),
+                Step::ParentArc(arc) => {
+                    format!("{at} is under {}, which {}", parent(at), arc.describe())
+                }
+            })
+            .collect();
+        let named = steps.iter().find_map(|(at, step, _)| match step {
+            Step::Arc(arc) => Some(format!("{at}: {}", arc.describe())),
+            Step::ParentArc(arc) => Some(format!("{}: {}", parent(at), arc.describe())),
+            Step::Child => None,
+        });
+        let (start, end) = (path(frames[from].site), path(site));
+        let lands = if inside(end, start) {
+            format!(", back inside {start}")
+        } else if inside(start, end) {
+            format!(", back above {start}")
+        } else {
+            String::new()
+        };
+        format!(
+            "{} is a composition cycle ({}{lands})",
+            named.unwrap_or_else(|| end.to_owned()),
+            chain.join(", ")
+        )
+    }
 }
 
 /// Adds the prims of a site just walked to the frame that stepped to it, if that step counts.
 fn add_to_last(frames: &mut [Frame], prims: u64) {
     if let Some(last) = frames.last_mut() {
-        if last.steps[last.taken - 1].1.counts() {
+        if last.last_step().1.counts() {
             last.prims = last.prims.saturating_add(prims);
         }
     }
 }
 
-/// The error for a walk that reached `site` again while walking it: the cycle from `site` to the top frame,
-/// named by its first arc.
-fn cycle(frames: &[Frame], site: &Site) -> String {
-    let from = frames.iter().position(|f| &f.site == site).unwrap_or(0);
-    let steps: Vec<(&str, &Step, &str)> = frames[from..]
-        .iter()
-        .enumerate()
-        .map(|(i, f)| {
-            let next = frames.get(from + i + 1).map_or(site, |n| &n.site);
-            (f.site.1.as_str(), &f.steps[f.taken - 1].1, next.1.as_str())
-        })
-        .collect();
-    let chain: Vec<String> = steps
-        .iter()
-        .map(|(at, step, next)| match step {
-            Step::Child => format!("{at} holds {next}"),
-            Step::Arc(arc) => format!("{at} {}", arc.describe()),
-            Step::ParentArc(arc) => {
-                format!("{at} is under {}, which {}", parent(at), arc.describe())
-            }
-        })
-        .collect();
-    let named = steps.iter().find_map(|(at, step, _)| match step {
-        Step::Arc(arc) => Some(format!("{at}: {}", arc.describe())),
-        Step::ParentArc(arc) => Some(format!("{}: {}", parent(at), arc.describe())),
-        Step::Child => None,
+/// Whether the step just taken from the top frame, back to `site` on the path, closes a cycle: the index of the
+/// frame it starts from if the steps around are arcs and children (the site composes an arc back onto itself or
+/// an ancestor), or inherits and specializes alone, its own or its parent's (the loop `openusd`'s pre-caching
+/// follows). Around a parent's arc and a child or a reference the site composes a target path mapped below the
+/// parent's, not the site itself, so that is no cycle.
+fn cycle_back(frames: &[Frame], site: usize) -> Option<usize> {
+    let from = frames.iter().position(|f| f.site == site)?;
+    let steps = || frames[from..].iter().map(|f| &f.last_step().1);
+    let composes = steps().all(Step::counts);
+    let precaches = steps().all(|s| match s {
+        Step::Arc(arc) | Step::ParentArc(arc) => arc.kind.is_class(),
+        Step::Child => false,
     });
-    format!(
-        "{} is a composition cycle ({})",
-        named.unwrap_or_else(|| site.1.clone()),
-        chain.join(", ")
-    )
+    (composes || precaches).then_some(from)
+}
+
+/// The first frame of the arc run that ends at the top frame: walking back while each frame was entered through
+/// an arc.
+fn run_start(frames: &[Frame]) -> usize {
+    let mut start = frames.len() - 1;
+    while start > 0 && matches!(frames[start - 1].last_step().1, Step::Arc(_)) {
+        start -= 1;
+    }
+    start
+}
+
+/// Whether two sites are nested: in one layer stack, the same prim or one inside the other (the pseudo-root,
+/// which holds everything, is nested with nothing).
+fn nested(a: &Site, b: &Site) -> bool {
+    a.0 == b.0
+        && a.1 != "/"
+        && b.1 != "/"
+        && (a.1 == b.1 || inside(&a.1, &b.1) || inside(&b.1, &a.1))
+}
+
+/// Whether prim path `inner` lies below prim path `outer`.
+fn inside(inner: &str, outer: &str) -> bool {
+    inner.len() > outer.len() && inner.starts_with(outer) && inner.as_bytes()[outer.len()] == b'/'
 }
 
 #[cfg(test)]
@@ -663,6 +866,81 @@ mod tests {
         assert_eq!(parent("/A/B/C"), "/A/B");
         assert_eq!(parent("/A"), "/");
         assert_eq!(parent("/"), "/");
+    }
+
+    #[test]
+    fn a_parents_inherit_around_a_child_or_a_reference_is_no_cycle() {
+        // /A/C composes /B/C (the parent's inherit, mapped), not /B: nothing leads back.
+        let stage = "def \"A\" (inherits = </B>) { def \"C\" {} }\nclass \"B\" { def \"X\" (references = </A/C>) {} }";
+        check_files("parent_ok", &[("root.usda", stage)]).unwrap();
+    }
+
+    #[test]
+    fn pre_caching_follows_stage_paths_across_layer_stacks() {
+        // A class inside a referenced asset, and a payload beside an inherit: targets that lead nowhere back.
+        let asset = "def \"X\" { def \"Geo\" (inherits = </X/_cls>) {} class \"_cls\" {} }";
+        let stage = "def \"A\" (references = @./asset.usda@</X>) {}\n\
+                     def \"B\" (inherits = </K> payload = @./asset.usda@</X>) { def \"C\" {} }\nclass \"K\" {}";
+        check_files(
+            "precache_ok",
+            &[("root.usda", stage), ("asset.usda", asset)],
+        )
+        .unwrap();
+        // A target of another layer stack's prim is taken as the stage's path: /Q, which specializes /A/B, whose
+        // parent /A holds the reference whose target specializes /Q again.
+        let err = check_files(
+            "precache_cycle",
+            &[
+                (
+                    "root.usda",
+                    "def \"A\" (references = @./other.usda@</X>) {}\ndef \"Q\" (specializes = </A/B>) {}",
+                ),
+                ("other.usda", "def \"X\" (specializes = </Q>) {}"),
+            ],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/Q: specializes </A/B> is a composition cycle for openusd 0.6, whose pre-caching of inherit and \
+             specialize targets would follow /Q -> /A/B -> /Q without end (a stack overflow)"
+        );
+    }
+
+    #[test]
+    fn class_targets_mapped_onto_their_own_prim_are_refused() {
+        for (tag, stage, message) in [
+            (
+                "nested",
+                "def \"A\" (inherits = [</X/Y>, </X>]) {}",
+                "/A: inherits </X/Y> lies inside the target of /A's inherits </X>, which maps it onto /A/Y",
+            ),
+            (
+                "reference",
+                "def \"A\" (references = </X> specializes = </X/Y>) {}",
+                "/A: specializes </X/Y> lies inside the target of /A's references </X>, which maps it onto /A/Y",
+            ),
+            (
+                "ancestor",
+                "def \"A\" (inherits = </X>) { def \"B\" (inherits = </X/B>) {} }",
+                "/A/B: inherits </X/B> lies inside the target of /A's inherits </X>, which maps it onto /A/B",
+            ),
+        ] {
+            let err = check_files(tag, &[("root.usda", stage)]).unwrap_err();
+            assert!(err.starts_with(message), "{err}");
+        }
+        // Mapped anywhere else, or not strictly inside, it composes (and `openusd` composes it).
+        for (tag, stage) in [
+            (
+                "grandchild",
+                "def \"A\" (references = </X> inherits = </X/Y/Z>) {}",
+            ),
+            (
+                "sibling",
+                "def \"A\" (inherits = </X>) { def \"B\" (inherits = </X/Q>) {} }",
+            ),
+            ("same", "def \"A\" (references = </X> inherits = </X>) {}"),
+        ] {
+            check_files(tag, &[("root.usda", stage)]).unwrap();
+        }
     }
 
     #[test]
@@ -759,16 +1037,27 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
              /B payload @./a.usda@</A>)"
         );
         let err = check_files(
-            "parent",
+            "inside",
             &[(
                 "root.usda",
-                "def \"A\" (inherits = </B>) { def \"C\" {} }\nclass \"B\" (inherits = </A/C>) {}",
+                "def \"A\" (references = </B>) {}\nclass \"B\" (specializes = </A/C>) {}",
             )],
         );
         assert_eq!(
             err.unwrap_err(),
-            "/B: inherits </A/C> is a composition cycle (/B inherits </A/C>, /A/C is under /A, which inherits \
-             </B>)"
+            "/A: references </B> is a composition cycle (/A references </B>, /B specializes </A/C>, back inside /A)"
+        );
+        let err = check_files(
+            "parent",
+            &[(
+                "root.usda",
+                "def \"B\" (inherits = </D/E>) { def \"C\" {} }\nclass \"D\" (inherits = </B/C>) { def \"E\" {} }",
+            )],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/D: inherits </B/C> is a composition cycle (/D/E is under /D, which inherits </B/C>, /B/C is under /B, \
+             which inherits </D/E>)"
         );
     }
 }
