@@ -223,6 +223,14 @@ struct RenderArgs {
     /// physical memory).
     #[arg(long = "memory-limit", value_parser = nimbus::limits::parse_size)]
     memory_limit: Option<u64>,
+    /// Most prims a USD stage may compose: counted from its layers before composing (each prim once per arc
+    /// that brings it in) and again as the stage is read (default 1000000).
+    #[arg(long = "max-prims", value_parser = clap::value_parser!(u64).range(1..))]
+    max_prims: Option<u64>,
+    /// Most layers one USD layer stack may expand to: a layer and its sublayers, nested ones included, a layer
+    /// named twice counting twice (default 1000).
+    #[arg(long = "max-sublayers", value_parser = clap::value_parser!(u64).range(1..))]
+    max_sublayers: Option<u64>,
     /// Exposure of the PNG preview in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = finite_number)]
     exposure: f32,
@@ -271,6 +279,23 @@ struct RenderArgs {
     /// How the EXR is stored.
     #[command(flatten)]
     storage: StorageArgs,
+}
+
+impl RenderArgs {
+    /// The limits `--memory-limit`, `--max-prims` and `--max-sublayers` set, the defaults where they are not
+    /// given.
+    fn limits(&self) -> Limits {
+        let mut limits = self
+            .memory_limit
+            .map_or_else(Limits::default, Limits::with_memory);
+        if let Some(prims) = self.max_prims {
+            limits.usd_prims = prims;
+        }
+        if let Some(entries) = self.max_sublayers {
+            limits.usd_layer_stack = entries;
+        }
+        limits
+    }
 }
 
 /// Parses `--aovs`.
@@ -465,14 +490,6 @@ fn parse_fps(text: &str) -> Result<f64, String> {
             "{f} must be a positive number of frames per second"
         )),
         Err(e) => Err(e.to_string()),
-    }
-}
-
-impl RenderArgs {
-    /// The resource limits of this render: `--memory-limit`, or half the physical memory.
-    fn limits(&self) -> Limits {
-        self.memory_limit
-            .map_or_else(Limits::default, Limits::with_memory)
     }
 }
 

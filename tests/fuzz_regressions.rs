@@ -6,6 +6,9 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::time::Duration;
 
+#[path = "../fuzz/compose_stage.rs"]
+mod compose_stage;
+
 /// The committed inputs of one fuzz target, sorted by name.
 fn regressions(target: &str) -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -130,4 +133,5 @@ fn fuzz_findings_stay_fixed() {
     replay("usd_load", usd_load);
     replay("cli_ranges", |data, _| cli_ranges_check::run(data));
     replay("farm_part", |data, _| farm_part_check::run(data));
+    replay("usd_compose", compose_stage::load);
 }

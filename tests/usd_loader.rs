@@ -565,3 +565,240 @@ fn a_caught_openusd_panic_prints_one_line_and_no_backtrace() {
         "{stderr}"
     );
 }
+
+/// A fresh, empty folder for a stage of several layers.
+fn stage_folder(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nimbus_usd_{}_{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The issue's reproducer (a prim that inherits itself, with a child) and its kin: a prim that specializes itself,
+/// and two that inherit each other. `openusd` 0.6 pre-caches inherit and specialize targets recursively without
+/// remembering the ones it has seen, so composing the child overflowed the reader thread's stack, which aborts the
+/// process.
+#[test]
+fn an_inherits_cycle_with_a_child_is_an_error_not_a_stack_overflow() {
+    for (tag, text, arc) in [
+        (
+            "self",
+            "#usda 1.0\ndef Xform \"A\" (inherits = </A>) { def Xform \"C\" {} }",
+            "/A: inherits </A>",
+        ),
+        (
+            "specializes",
+            "#usda 1.0\ndef Xform \"A\" (specializes = </A>) { def Xform \"C\" {} }",
+            "/A: specializes </A>",
+        ),
+        (
+            "mutual",
+            "#usda 1.0\ndef Xform \"A\" (inherits = </B>) { def Xform \"C\" {} }\n\
+             class Xform \"B\" (inherits = </A>) {}\n",
+            "/A: inherits </B>",
+        ),
+    ] {
+        let p = temp_file(&format!("cycle_{tag}"), "usda", text.as_bytes());
+        let err = usd::read(&p).err().expect("an arc cycle is an error");
+        one_line_error(&err, arc);
+        one_line_error(&err, "composition cycle");
+    }
+}
+
+/// Cycles of `openusd`'s pre-caching that no arc cycle of the layers shows. `openusd` takes an inherit or
+/// specialize target as a path of the stage whatever layer stack authored it, and maps it through every arc of
+/// the prim's ancestors, whatever layer stack the arc targets: a target mapped onto a child of the prim that
+/// authors it (through a payload to another layer), and a target in a referenced layer that names a stage prim
+/// specializing the child of the referencing prim, each overflowed the reader thread's stack.
+#[test]
+fn pre_caching_cycles_through_other_layer_stacks_are_errors_not_stack_overflows() {
+    for (tag, root, other, arc) in [
+        (
+            "payload_map",
+            "def Xform \"A\" (specializes = </D/B> payload = @./other.usda@</D>) { def Xform \"C\" {} }",
+            "",
+            "/A: specializes </D/B>",
+        ),
+        (
+            "stage_path",
+            "def Xform \"A\" (references = @./other.usda@</X>) { def Xform \"C\" {} }\n\
+             def \"Q\" (specializes = </A/B>) {}",
+            "def \"X\" (specializes = </Q>) {}",
+            "/Q: specializes </A/B>",
+        ),
+    ] {
+        let dir = stage_folder(&format!("precache_{tag}"));
+        std::fs::write(dir.join("root.usda"), format!("#usda 1.0\n{root}\n")).unwrap();
+        std::fs::write(dir.join("other.usda"), format!("#usda 1.0\n{other}\n")).unwrap();
+        let err = usd::read(&dir.join("root.usda"))
+            .err()
+            .expect("a pre-caching cycle is an error");
+        one_line_error(&err, arc);
+        one_line_error(&err, "composition cycle");
+    }
+}
+
+/// `levels` levels of prims `L<i>`, each with two children that reference `L<i-1>`: `L<levels>` composes to
+/// 2^(levels + 1) − 1 prims from a file of a few lines per level.
+fn reference_fan_out(levels: usize) -> String {
+    let mut text = String::from("#usda 1.0\ndef Xform \"L0\" {}\n");
+    for i in 1..=levels {
+        text.push_str(&format!(
+            "def Xform \"L{i}\" {{\n    def Xform \"a\" (references = </L{p}>) {{}}\n    \
+             def Xform \"b\" (references = </L{p}>) {{}}\n}}\n",
+            p = i - 1
+        ));
+    }
+    text
+}
+
+/// 20 levels of 2 internal references make 2^20 prims at the bottom level alone; reading them all ran into the
+/// reader's 120 s limit. The prims the arcs would compose are counted before `openusd` composes them.
+#[test]
+fn a_reference_fan_out_is_refused_by_the_prim_limit() {
+    let p = temp_file("fan_out", "usda", reference_fan_out(20).as_bytes());
+    let start = std::time::Instant::now();
+    let err = usd::read(&p).err().expect("2^20 prims are refused");
+    let took = start.elapsed();
+    one_line_error(&err, "--max-prims");
+    assert!(took < std::time::Duration::from_secs(10), "took {took:?}");
+}
+
+/// Under `--max-prims` a smaller fan-out loads, and over it the command line says which flag raises the limit.
+#[test]
+fn the_max_prims_flag_sets_the_prim_limit() {
+    // L10 composes 2^12 − 3 prims; the stage, L0 to L10, 8,155.
+    let p = temp_file("fan_out_10", "usda", reference_fan_out(10).as_bytes());
+    let limits = |usd_prims| nimbus::limits::Limits {
+        usd_prims,
+        ..Default::default()
+    };
+    usd::read_with_limits(&p, &limits(8155)).unwrap_or_else(|e| panic!("{e}"));
+    let err = usd::read_with_limits(&p, &limits(8154))
+        .err()
+        .expect("over 8154 prims");
+    one_line_error(&err, "the stage composes 8155 prims");
+    let render = |flags: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&p)
+            .args(["--width", "8", "--spp", "1", "-o"])
+            .arg(p.with_extension("exr"))
+            .args(flags)
+            .output()
+            .unwrap()
+    };
+    let refused = render(&["--max-prims", "4000"]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("/L10 composes 4093 prims") && stderr.contains("--max-prims"),
+        "{stderr}"
+    );
+    let rendered = render(&["--max-prims", "10000"]);
+    assert!(
+        rendered.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rendered.stderr)
+    );
+}
+
+/// What an ancestor's arc maps onto an arc's target is not in the count made before composing (each `X<k>`
+/// inherits `/P/q`, which holds the 100 cubes of `/Base/q` through `/P`'s reference): every prim read is counted
+/// too.
+#[test]
+fn prims_an_ancestor_arc_maps_are_counted_as_the_stage_is_read() {
+    let mut text = String::from("#usda 1.0\ndef \"Base\" {\n    def \"q\" {\n");
+    for k in 0..100 {
+        text.push_str(&format!("        def Cube \"c{k}\" {{}}\n"));
+    }
+    text.push_str("    }\n}\ndef \"P\" (references = </Base>) {}\n");
+    for k in 0..10 {
+        text.push_str(&format!("def \"X{k}\" (inherits = </P/q>) {{}}\n"));
+    }
+    let p = temp_file("mapped_prims", "usda", text.as_bytes());
+    let (b, _) = usd::read(&p).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        b.meshes().len(),
+        1200,
+        "the cubes of /Base/q, /P/q and every X<k>"
+    );
+    // Counted before composing: /Base 102, /P 103, each X<k> 2 (itself and /P/q, which authors nothing).
+    let limits = nimbus::limits::Limits {
+        usd_prims: 500,
+        ..Default::default()
+    };
+    let err = usd::read_with_limits(&p, &limits)
+        .err()
+        .expect("over 500 prims");
+    one_line_error(
+        &err,
+        "the stage has more than 500 prims (raise the limit with --max-prims)",
+    );
+}
+
+/// Writes `levels` layers `d0.usda` … into `dir`, each naming the next twice as a sublayer (the last holds a
+/// cube): the layer stack of `d0` expands to 2^levels − 1 entries, 2^(levels − 1) of them the last layer.
+fn sublayer_diamond(dir: &Path, levels: usize) -> PathBuf {
+    for i in 0..levels {
+        let text = if i + 1 < levels {
+            format!(
+                "#usda 1.0\n(\n    subLayers = [@./d{n}.usda@, @./d{n}.usda@]\n)\n",
+                n = i + 1
+            )
+        } else {
+            "#usda 1.0\ndef Cube \"Leaf\" {}\n".to_owned()
+        };
+        std::fs::write(dir.join(format!("d{i}.usda")), text).unwrap();
+    }
+    dir.join("d0.usda")
+}
+
+/// 25 layers that each name the next twice expand to a layer stack of 2^24 entries, which `openusd` builds
+/// entry by entry (a hang of minutes, and gigabytes). The layer stack is counted before `openusd` opens it.
+#[test]
+fn a_sublayer_diamond_is_refused_by_the_layer_stack_limit() {
+    let root = sublayer_diamond(&stage_folder("diamond"), 25);
+    let start = std::time::Instant::now();
+    let err = usd::read(&root)
+        .err()
+        .expect("2^24 layer-stack entries are refused");
+    let took = start.elapsed();
+    one_line_error(&err, "--max-sublayers");
+    assert!(took < std::time::Duration::from_secs(10), "took {took:?}");
+}
+
+/// Sublayers named more than once are legitimate within the limit: 10 levels make 1,023 entries, over the
+/// default 1,000 and within `--max-sublayers 1023`; the leaf's prim is composed once.
+#[test]
+fn a_small_sublayer_diamond_loads_within_the_max_sublayers_flag() {
+    let root = sublayer_diamond(&stage_folder("diamond_10"), 10);
+    let err = usd::read(&root)
+        .err()
+        .expect("1023 entries, over the default limit");
+    one_line_error(&err, "expands to 1023 layers");
+    let limits = nimbus::limits::Limits {
+        usd_layer_stack: 1023,
+        ..Default::default()
+    };
+    let (b, _) = usd::read_with_limits(&root, &limits).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(b.meshes().len(), 1);
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .arg("render")
+        .arg(&root)
+        .args([
+            "--max-sublayers",
+            "1023",
+            "--width",
+            "8",
+            "--spp",
+            "1",
+            "-o",
+        ])
+        .arg(root.with_extension("exr"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+}

@@ -48,9 +48,11 @@
 //! The loader is split by USD schema domain: `xform` (UsdGeomXformable ops), `geom` (meshes and primvars),
 //! `shapes` (intrinsic gprims), `instancing` (UsdGeomPointInstancer),
 //! `shading` (UsdShade / UsdPreviewSurface), `lux` (UsdLux), `vol` (UsdVol), with `values` converting
-//! attribute values, `layers` checking every layer (text nesting, packages) and `crate_check` bounds-checking
-//! `.usdc` layers before openusd reads them.
+//! attribute values, `layers` checking every layer (text nesting, packages), `crate_check` bounds-checking
+//! `.usdc` layers before openusd reads them, and `composition` checking the arcs between them before openusd
+//! composes them.
 
+mod composition;
 mod crate_check;
 mod geom;
 mod instancing;
@@ -315,6 +317,7 @@ fn read_stage(
         unsupported: HashSet::new(),
         root: Mat4::IDENTITY,
         limits: *limits,
+        prims: 0,
         time: usd::TimeCode::EARLIEST,
         packages: HashMap::new(),
         tags: CompositingTags::default(),
@@ -336,7 +339,8 @@ fn read_stage(
 }
 
 /// Opens and composes a stage; any parse or composition error is a [`SceneError`] naming the layer. The root
-/// layer is read and checked here first, so that an unreadable or hostile root is an error about that file.
+/// layer is read and checked here first, so that an unreadable or hostile root is an error about that file, and
+/// the arcs of every layer it reaches are checked before `openusd` composes them (see `composition`).
 fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
     let bytes =
         read_file(path, limits).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
@@ -345,11 +349,13 @@ fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
     let name = path
         .to_str()
         .ok_or_else(|| malformed(path, "the path is not valid UTF-8".into()))?;
+    let resolver = || crate_check::CheckingResolver {
+        inner: ar::DefaultResolver::new(),
+        limits: *limits,
+    };
+    composition::check(name, &resolver(), limits).map_err(|m| malformed(path, m))?;
     let stage = usd::Stage::builder()
-        .resolver(crate_check::CheckingResolver {
-            inner: ar::DefaultResolver::new(),
-            limits: *limits,
-        })
+        .resolver(resolver())
         .open(name)
         .map_err(|e| malformed(path, format!("{e:#}")))?;
     // Only the errors here; their warnings are collected once the whole stage is read.
@@ -403,8 +409,10 @@ struct Loader<'a> {
     unsupported: HashSet<String>,
     /// Stage units and up axis to Nimbus's metres and +Y up.
     root: Mat4,
-    /// The memory budget for textures and environment maps.
+    /// The memory budget for textures and environment maps, and the most prims to read.
     limits: Limits,
+    /// Prims visited so far.
+    prims: u64,
     /// The time code every attribute is read at (see [`read_at_time`]).
     time: usd::TimeCode,
     /// `.usdz` packages opened for the files inside them, by package path.
@@ -563,6 +571,18 @@ impl Loader<'_> {
         let at = prim.path().as_str().to_owned();
         if depth > MAX_DEPTH {
             return Err(self.error(&at, format!("nested deeper than {MAX_DEPTH} levels")));
+        }
+        // The composition check counts prims before composing, but not those an ancestor's arcs map onto an
+        // arc's target: every prim composed is counted here too.
+        self.prims += 1;
+        if self.prims > self.limits.usd_prims {
+            return Err(self.error(
+                &at,
+                format!(
+                    "the stage has more than {} prims (raise the limit with --max-prims)",
+                    self.limits.usd_prims
+                ),
+            ));
         }
         if !prim
             .is_active()

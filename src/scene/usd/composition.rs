@@ -1,0 +1,1063 @@
+//! A check of a stage's composition before `openusd` 0.6 composes it: arc cycles, the prims the arcs compose, and
+//! the entries of every layer stack.
+//!
+//! `openusd` pre-caches the inherit and specialize targets of a prim and of its parent recursively, without
+//! remembering the targets it has seen: a prim that inherits or specializes itself, or prims that inherit one
+//! another, make that recursion endless as soon as a child of theirs is composed, and the stack overflow aborts
+//! the process (no stack is deep enough, and an overflow cannot be caught on any thread).
+//!
+//! So before the stage is opened, every layer the root layer reaches through sublayers, references and payloads
+//! is read once (through [`CheckingResolver`], with every check and cap of the loader) and summarised: its
+//! sublayers, and for each prim its children and its arcs (those authored inside variants count whichever
+//! variant is selected). A walk over the sites composition visits (a layer stack and a prim path), from the root
+//! layer stack's pseudo-root, follows each site to its children, to the targets of its arcs, and to the inherit
+//! and specialize targets of its parent (what `openusd`'s pre-caching follows). Refused as a composition cycle,
+//! with one line naming the prim and the arc: an arc back onto, into or above a prim of the arc chain it extends
+//! (Pcp's cycle rule, which `openusd` applies to references but misses for inherits and specializes, overflowing
+//! its stack the same way), and a site met again while it is being walked, through arcs and children or through
+//! inherits and specializes alone (see `cycle_back`).
+//!
+//! The same walk counts the prims composition would bring in, each site once per arc or parent that brings it
+//! (a site's count is itself, its children's counts and its arcs' targets' counts): a few lines of internal
+//! references that fan out level after level compose millions of prims, which `openusd` would compose one by one
+//! (and Nimbus read) for minutes. A count over [`Limits::usd_prims`] is refused before anything is composed,
+//! naming the prim and the flag that raises the limit. The count is an upper bound for what a site's own specs and
+//! arcs bring (children met through several arcs are counted each time); what an ancestor's arcs map onto a target
+//! is not in it, and is counted as the stage is read instead (see `Loader::visit`).
+//!
+//! Every layer stack the walk enters (the root's, and each arc target's) is counted first as `openusd` builds it:
+//! the root layer, then each sublayer in turn with its own sublayers, a layer named twice counting twice (only a
+//! layer already on the path, a sublayer cycle, is left out). Twenty-five layers that each name the next twice
+//! make 2²⁴ entries, which `openusd` builds one by one and every prim then reads through; a stack over
+//! [`Limits::usd_layer_stack`] entries is refused before the stage is opened, naming its root layer and the flag
+//! that raises the limit.
+//!
+//! The walk is iterative and visits each site once. It works on layer stacks, while `openusd`'s pre-caching takes
+//! every inherit and specialize target as a path of the stage and maps it through arcs to any layer stack: a last
+//! check models that pre-caching on prim paths ([`precache`]) and refuses its cycles, which the fuzz target
+//! `usd_compose` found past the walk. Cycles neither can see in the layers alone (through paths that an
+//! ancestor's arc maps) are left to `openusd`, which reports them as composition errors.
+
+mod precache;
+
+use super::crate_check::CheckingResolver;
+use crate::limits::Limits;
+use openusd::{ar, sdf};
+use std::collections::{HashMap, HashSet};
+use std::io::Read;
+use std::rc::Rc;
+
+/// Checks the composition of the stage whose root layer is `root` (as `openusd` is given it) against `limits`,
+/// reading every layer through `resolver`. Layers that cannot be read are passed over: `openusd` reports them
+/// when it opens the stage.
+pub(super) fn check(
+    root: &str,
+    resolver: &CheckingResolver,
+    limits: &Limits,
+) -> Result<(), String> {
+    let (layers, root) = Layers::load(resolver, root);
+    match root {
+        Some(root) => {
+            Walk::new(&layers, limits).run(root)?;
+            precache::Precache::new(&layers).check(limits.usd_prims)
+        }
+        None => Ok(()),
+    }
+}
+
+/// How an arc composes its target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ArcKind {
+    Inherits,
+    Specializes,
+    References,
+    Payload,
+}
+
+impl ArcKind {
+    /// The arc's name as a layer spells it.
+    fn name(self) -> &'static str {
+        match self {
+            ArcKind::Inherits => "inherits",
+            ArcKind::Specializes => "specializes",
+            ArcKind::References => "references",
+            ArcKind::Payload => "payload",
+        }
+    }
+
+    /// Inherits and specializes: the class-based arcs, which `openusd` pre-caches for the prim's children too.
+    fn is_class(self) -> bool {
+        matches!(self, ArcKind::Inherits | ArcKind::Specializes)
+    }
+}
+
+/// One composition arc authored on a prim.
+#[derive(Clone, Debug)]
+struct Arc {
+    kind: ArcKind,
+    /// The layer whose layer stack holds the target (an index into [`Layers::layers`]); `None` for an internal
+    /// arc, whose target is in the layer stack the prim is composed in.
+    layer: Option<usize>,
+    /// The target prim's path; empty for the target layer's default prim.
+    path: String,
+    /// The asset path as authored (empty for an internal arc), for messages.
+    asset: String,
+}
+
+impl Arc {
+    /// The arc as a layer spells it: `inherits </A>`, `references @a.usda@</B>`.
+    fn describe(&self) -> String {
+        let asset = if self.asset.is_empty() {
+            String::new()
+        } else {
+            format!("@{}@", self.asset)
+        };
+        let path = if self.path.is_empty() {
+            String::new()
+        } else {
+            format!("<{}>", self.path)
+        };
+        format!("{} {asset}{path}", self.kind.name())
+    }
+}
+
+/// What one prim spec contributes: its children (paths) and its arcs.
+#[derive(Default)]
+struct Prim {
+    children: Vec<String>,
+    arcs: Vec<Arc>,
+}
+
+/// What one layer contributes to composition.
+#[derive(Default)]
+struct Layer {
+    /// Its sublayers in order (indices into [`Layers::layers`]).
+    sublayers: Vec<usize>,
+    /// `/` and its `defaultPrim`, if authored.
+    default_prim: Option<String>,
+    /// The prims it authors, by path (variant selections removed), `/` holding the root prims.
+    prims: HashMap<String, Prim>,
+}
+
+/// The layers a stage reaches through sublayers, references and payloads, each read once.
+struct Layers<'a> {
+    resolver: &'a dyn ar::Resolver,
+    /// Layer index by identifier.
+    ids: HashMap<String, usize>,
+    /// Each layer's summary; `None` for a layer that cannot be read.
+    layers: Vec<Option<Layer>>,
+    /// Each layer's identifier, for messages.
+    names: Vec<String>,
+    /// Layers found but not read yet: (index, identifier).
+    pending: Vec<(usize, String)>,
+}
+
+impl<'a> Layers<'a> {
+    /// Reads the layer at `root` and every layer it reaches; also returns the root's index (`None` when the
+    /// root names no layer).
+    fn load(resolver: &'a dyn ar::Resolver, root: &str) -> (Self, Option<usize>) {
+        let mut layers = Self {
+            resolver,
+            ids: HashMap::new(),
+            layers: Vec::new(),
+            names: Vec::new(),
+            pending: Vec::new(),
+        };
+        let root = layers.index(root, None);
+        while let Some((index, identifier)) = layers.pending.pop() {
+            layers.layers[index] = layers.read(&identifier);
+        }
+        (layers, root)
+    }
+
+    /// The index of the layer `asset` names (relative to `anchor`), queued to be read the first time it is
+    /// named; `None` for an expression (its variables are `openusd`'s to evaluate) or an empty identifier.
+    fn index(&mut self, asset: &str, anchor: Option<&ar::ResolvedPath>) -> Option<usize> {
+        if asset.is_empty() || sdf::expr::is_expression(asset) {
+            return None;
+        }
+        let identifier = self.resolver.create_identifier(asset, anchor);
+        if identifier.is_empty() {
+            return None;
+        }
+        if let Some(&index) = self.ids.get(&identifier) {
+            return Some(index);
+        }
+        let index = self.layers.len();
+        self.layers.push(None);
+        self.names.push(identifier.clone());
+        self.ids.insert(identifier.clone(), index);
+        self.pending.push((index, identifier));
+        Some(index)
+    }
+
+    /// Reads and summarises the layer `identifier` names, as `openusd` would open it: a package opens its first
+    /// layer, and a `.usd` file is binary or text by its first bytes.
+    fn read(&mut self, identifier: &str) -> Option<Layer> {
+        let resolved = self.resolver.resolve(identifier)?;
+        let real = match sdf::LayerRegistry::find_by_extension(&extension(&resolved)) {
+            Some(format) => format.resolve_layer(self.resolver, &resolved)?,
+            None => resolved,
+        };
+        let data = self.format(&real)?.read(self.resolver, &real).ok()?;
+        Some(self.summarise(data.as_ref(), &real))
+    }
+
+    /// The file format that reads `resolved`.
+    fn format(&self, resolved: &ar::ResolvedPath) -> Option<&'static dyn sdf::FileFormat> {
+        let ext = extension(resolved);
+        if ext != "usd" {
+            return sdf::LayerRegistry::find_by_extension(&ext);
+        }
+        let mut prefix = Vec::new();
+        self.resolver
+            .open_asset(resolved)
+            .ok()?
+            .take(8)
+            .read_to_end(&mut prefix)
+            .ok()?;
+        let binary = sdf::LayerRegistry::find_by_id("usdc").filter(|f| f.matches_content(&prefix));
+        binary.or_else(|| sdf::LayerRegistry::find_by_id("usda"))
+    }
+
+    /// The sublayers, default prim, and every prim's children and arcs of a layer read from `anchor`.
+    fn summarise(&mut self, data: &dyn sdf::AbstractData, anchor: &ar::ResolvedPath) -> Layer {
+        let root = sdf::Path::abs_root();
+        let field = |path: &sdf::Path, name: &str| data.try_field(path, name).ok().flatten();
+        let sublayers = field(&root, "subLayers")
+            .and_then(|v| v.into_owned().cast::<Vec<String>>().ok())
+            .unwrap_or_default();
+        let mut layer = Layer {
+            sublayers: sublayers
+                .iter()
+                .filter_map(|s| self.index(s, Some(anchor)))
+                .collect(),
+            default_prim: field(&root, "defaultPrim")
+                .and_then(|v| v.into_owned().cast::<String>().ok())
+                .map(|name| format!("/{name}")),
+            prims: HashMap::new(),
+        };
+        for spec in data.spec_paths() {
+            let kind = data.spec_type(&spec);
+            if !matches!(kind, Some(sdf::SpecType::Prim | sdf::SpecType::Variant)) {
+                continue;
+            }
+            let path = spec.strip_all_variant_selections().as_str().to_owned();
+            if kind == Some(sdf::SpecType::Prim) {
+                let parent = parent(&path).to_owned();
+                layer
+                    .prims
+                    .entry(parent)
+                    .or_default()
+                    .children
+                    .push(path.clone());
+            }
+            let arcs = self.arcs(data, &spec, anchor);
+            layer.prims.entry(path).or_default().arcs.extend(arcs);
+        }
+        layer
+    }
+
+    /// The arcs authored on the prim or variant spec `spec`: every item its list ops add.
+    fn arcs(
+        &mut self,
+        data: &dyn sdf::AbstractData,
+        spec: &sdf::Path,
+        anchor: &ar::ResolvedPath,
+    ) -> Vec<Arc> {
+        let target = |path: &sdf::Path| {
+            if path.is_empty() {
+                String::new()
+            } else {
+                spec.make_absolute(path)
+                    .strip_all_variant_selections()
+                    .as_str()
+                    .to_owned()
+            }
+        };
+        let mut arcs = Vec::new();
+        for (name, kind) in [
+            ("inheritPaths", ArcKind::Inherits),
+            ("specializes", ArcKind::Specializes),
+            ("references", ArcKind::References),
+            ("payload", ArcKind::Payload),
+        ] {
+            let Ok(Some(value)) = data.try_field(spec, name) else {
+                continue;
+            };
+            let items: Vec<(String, String)> = match value.into_owned() {
+                sdf::Value::PathListOp(op) => {
+                    op.iter().map(|p| (String::new(), target(p))).collect()
+                }
+                sdf::Value::ReferenceListOp(op) => op
+                    .iter()
+                    .map(|r| (r.asset_path.clone(), target(&r.prim_path)))
+                    .collect(),
+                sdf::Value::PayloadListOp(op) => op
+                    .iter()
+                    .map(|p| (p.asset_path.clone(), target(&p.prim_path)))
+                    .collect(),
+                sdf::Value::Payload(p) => vec![(p.asset_path.clone(), target(&p.prim_path))],
+                _ => Vec::new(),
+            };
+            for (asset, path) in items {
+                let layer = if asset.is_empty() {
+                    None
+                } else {
+                    match self.index(&asset, Some(anchor)) {
+                        Some(index) => Some(index),
+                        None => continue,
+                    }
+                };
+                arcs.push(Arc {
+                    kind,
+                    layer,
+                    path,
+                    asset,
+                });
+            }
+        }
+        arcs
+    }
+}
+
+/// The extension of a resolved layer, lower case; for a layer inside a package, the packaged layer's.
+fn extension(resolved: &ar::ResolvedPath) -> String {
+    let text = resolved.to_string_lossy();
+    let inner = ar::split_package_relative_path_inner(&text).map(|(_, inner)| inner);
+    std::path::Path::new(inner.as_deref().unwrap_or(&text))
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default()
+}
+
+/// The parent of a prim path (`/` for a root prim).
+fn parent(path: &str) -> &str {
+    match path.rfind('/') {
+        Some(0) | None => "/",
+        Some(at) => &path[..at],
+    }
+}
+
+/// A layer stack: a root layer and the prims it and its sublayers author, merged.
+struct Stack {
+    /// The prims by path: the children of every layer, and every layer's arcs.
+    prims: HashMap<String, Prim>,
+}
+
+/// A site composition visits: a layer stack (an index into [`Walk::stacks`]) and a prim path.
+type Site = (usize, String);
+
+/// How the walk goes from one site to the next.
+#[derive(Clone, Debug)]
+enum Step {
+    /// To a child prim.
+    Child,
+    /// To the target of an arc authored on the site.
+    Arc(Arc),
+    /// To the target of a class-based arc authored on the site's parent.
+    ParentArc(Arc),
+}
+
+impl Step {
+    /// Whether the step's target is composed into the site (a child or an arc's target), and so counts in the
+    /// site's prims; a parent's arc is already counted with the parent.
+    fn counts(&self) -> bool {
+        !matches!(self, Step::ParentArc(_))
+    }
+}
+
+/// The steps out of a site: to the target site (an index into [`Walk::sites`]), and how.
+type Steps = Rc<[(usize, Step)]>;
+
+/// One site on the walk's path, with the steps out of it and how many have been taken.
+struct Frame {
+    site: usize,
+    steps: Steps,
+    taken: usize,
+    /// The prims counted so far (the counting pass).
+    prims: u64,
+}
+
+impl Frame {
+    /// The step last taken out of this frame (the one to the next frame on the path).
+    fn last_step(&self) -> &(usize, Step) {
+        &self.steps[self.taken - 1]
+    }
+}
+
+/// The walk over the sites of a stage's composition.
+struct Walk<'a> {
+    layers: &'a Layers<'a>,
+    stacks: Vec<Stack>,
+    /// Stack index by root layer.
+    stack_of: HashMap<usize, usize>,
+    /// Every site met, and its index.
+    sites: Vec<Site>,
+    site_ids: HashMap<Site, usize>,
+    /// The steps out of each site, once found.
+    steps: Vec<Option<Steps>>,
+    /// The most prims the stage may compose.
+    max_prims: u64,
+    /// The most entries a layer stack may expand to.
+    max_layer_stack: u64,
+    /// The entries each layer's stack expands to, by layer, once counted.
+    entries: HashMap<usize, u64>,
+}
+
+impl<'a> Walk<'a> {
+    fn new(layers: &'a Layers<'a>, limits: &Limits) -> Self {
+        Self {
+            layers,
+            stacks: Vec::new(),
+            stack_of: HashMap::new(),
+            sites: Vec::new(),
+            site_ids: HashMap::new(),
+            steps: Vec::new(),
+            max_prims: limits.usd_prims,
+            max_layer_stack: limits.usd_layer_stack,
+            entries: HashMap::new(),
+        }
+    }
+
+    /// Walks the composition from the pseudo-root of `root`'s layer stack: first every site once, counting the
+    /// prims each composes and finding the cycles of sites (see [`Walk::count`]), then every path of children
+    /// and arcs, as many as the prims counted, for arcs back into the chain they extend (see [`Walk::unfold`]).
+    fn run(&mut self, root: usize) -> Result<(), String> {
+        let start = (self.stack(root)?, "/".to_owned());
+        let start = self.site(start);
+        self.count(start)?;
+        self.unfold(start)
+    }
+
+    /// The index of `site`, interned the first time.
+    fn site(&mut self, site: Site) -> usize {
+        if let Some(&id) = self.site_ids.get(&site) {
+            return id;
+        }
+        let id = self.sites.len();
+        self.sites.push(site.clone());
+        self.site_ids.insert(site, id);
+        self.steps.push(None);
+        id
+    }
+
+    /// Walks every site reachable from `start` once, depth first, counting the prims each composes; a site
+    /// reached again on its own path closes a cycle (see [`cycle_back`]), and a site that composes more prims
+    /// than the limit is refused.
+    fn count(&mut self, start: usize) -> Result<(), String> {
+        // The prims of every site walked; `None` while it is being walked.
+        let mut counted: HashMap<usize, Option<u64>> = HashMap::from([(start, None)]);
+        let mut frames = vec![self.frame(start)?];
+        while let Some(top) = frames.last_mut() {
+            let Some((next, _)) = top.steps.get(top.taken).cloned() else {
+                let (site, prims) = (top.site, top.prims);
+                frames.pop();
+                self.within_limit(site, prims)?;
+                counted.insert(site, Some(prims));
+                add_to_last(&mut frames, prims);
+                continue;
+            };
+            top.taken += 1;
+            match counted.get(&next) {
+                Some(Some(prims)) => add_to_last(&mut frames, *prims),
+                Some(None) => {
+                    if let Some(from) = cycle_back(&frames, next) {
+                        return Err(self.cycle(&frames, from, next));
+                    }
+                }
+                None => {
+                    counted.insert(next, None);
+                    let frame = self.frame(next)?;
+                    frames.push(frame);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Follows every path of children and arcs from `start` (the counting pass found no cycle of them, and
+    /// bounded their number by the prim limit), refusing an arc whose target is nested with (is, holds or lies
+    /// inside) a site of the arc run it extends, in the same layer stack: the frames entered through arcs, and the
+    /// prim they start from. Composing that prim would follow the arc forever: Pcp's cycle rule, which `openusd`
+    /// applies to references but misses for inherits and specializes, overflowing its stack. The counting pass
+    /// cannot see it, as it walks each site once and the run depends on the path.
+    fn unfold(&mut self, start: usize) -> Result<(), String> {
+        let mut frames = vec![self.frame(start)?];
+        // Paths the counting pass left out (a step back onto a site being walked that closes no cycle) are
+        // followed here too: bound them by the same limit.
+        let mut prims = 0u64;
+        while let Some(top) = frames.last_mut() {
+            let Some((next, step)) = top.steps.get(top.taken).cloned() else {
+                frames.pop();
+                continue;
+            };
+            top.taken += 1;
+            prims += u64::from(step.counts());
+            if prims > self.max_prims {
+                return Err(format!(
+                    "the stage composes more than {0} prims through its arcs and children (each counted once per \
+                     arc that brings it in), over the limit of {0} prims (raise it with --max-prims)",
+                    self.max_prims
+                ));
+            }
+            match step {
+                Step::ParentArc(_) => continue,
+                Step::Arc(_) => {
+                    let run = run_start(&frames)..frames.len();
+                    let target = &self.sites[next];
+                    if let Some(from) = run
+                        .into_iter()
+                        .find(|&i| nested(&self.sites[frames[i].site], target))
+                    {
+                        return Err(self.cycle(&frames, from, next));
+                    }
+                }
+                Step::Child => {}
+            }
+            let frame = self.frame(next)?;
+            frames.push(frame);
+        }
+        Ok(())
+    }
+
+    /// `Ok` when `site` composes at most the limit's prims (the pseudo-root, not a prim itself, one more).
+    fn within_limit(&self, site: usize, prims: u64) -> Result<(), String> {
+        let path = &self.sites[site].1;
+        let (what, prims) = if path == "/" {
+            ("the stage", prims - 1)
+        } else {
+            (path.as_str(), prims)
+        };
+        if prims <= self.max_prims {
+            return Ok(());
+        }
+        Err(format!(
+            "{what} composes {prims} prims through its arcs and children (each counted once per arc that brings \
+             it in), over the limit of {} prims (raise it with --max-prims)",
+            self.max_prims
+        ))
+    }
+
+    /// A frame for `site`, its steps found the first time.
+    fn frame(&mut self, site: usize) -> Result<Frame, String> {
+        let steps = match &self.steps[site] {
+            Some(steps) => steps.clone(),
+            None => {
+                let steps: Steps = self.find_steps(site)?.into();
+                self.steps[site] = Some(steps.clone());
+                steps
+            }
+        };
+        Ok(Frame {
+            site,
+            steps,
+            taken: 0,
+            prims: 1,
+        })
+    }
+
+    /// The steps out of `site`: its arcs' targets, its parent's class-based arcs' targets, then its children.
+    fn find_steps(&mut self, site: usize) -> Result<Vec<(usize, Step)>, String> {
+        let (stack, path) = self.sites[site].clone();
+        self.not_mapped_onto_itself(stack, &path)?;
+        let prims = &self.stacks[stack].prims;
+        let own = prims.get(&path);
+        let arcs: Vec<Arc> = own.map(|p| p.arcs.clone()).unwrap_or_default();
+        let children: Vec<String> = own.map(|p| p.children.clone()).unwrap_or_default();
+        let inherited: Vec<Arc> = match prims.get(parent(&path)) {
+            Some(p) if path != "/" => p
+                .arcs
+                .iter()
+                .filter(|a| a.kind.is_class())
+                .cloned()
+                .collect(),
+            _ => Vec::new(),
+        };
+        let mut steps = Vec::new();
+        for arc in arcs {
+            if let Some(target) = self.target(stack, &arc)? {
+                steps.push((self.site(target), Step::Arc(arc)));
+            }
+        }
+        for arc in inherited {
+            if let Some(target) = self.target(stack, &arc)? {
+                steps.push((self.site(target), Step::ParentArc(arc)));
+            }
+        }
+        for child in children {
+            steps.push((self.site((stack, child)), Step::Child));
+        }
+        Ok(steps)
+    }
+
+    /// Refuses a class-based arc of the prim at `path` whose target lies strictly inside the target of an arc
+    /// (of any kind) of the prim or of an ancestor, in the same layer stack, and maps through it onto the prim
+    /// itself or a child of it: a prim that inherits `/X` and `/X/Y`, or references `/X` and specializes `/X/Y`, or
+    /// under one that inherits `/X`, a prim `B` that inherits `/X/B`. Such a stage composes in USD, but `openusd`
+    /// 0.6 pre-caches the mapped path, finds the same arc there again and recurses until its stack overflows.
+    fn not_mapped_onto_itself(&self, stack: usize, path: &str) -> Result<(), String> {
+        let prims = &self.stacks[stack].prims;
+        let Some(own) = prims.get(path) else {
+            return Ok(());
+        };
+        let here = |arc: &&Arc| self.in_stack(stack, arc);
+        for class in own.arcs.iter().filter(|a| a.kind.is_class()).filter(here) {
+            let mut ancestor = path;
+            while ancestor != "/" {
+                let arcs = prims.get(ancestor).map_or(&[][..], |p| p.arcs.as_slice());
+                for arc in arcs.iter().filter(here) {
+                    let Some(rest) = class.path.strip_prefix(arc.path.as_str()) else {
+                        continue;
+                    };
+                    let mapped = format!("{ancestor}{rest}");
+                    if rest.starts_with('/') && (mapped == path || parent(&mapped) == path) {
+                        return Err(format!(
+                            "{path}: {} lies inside the target of {ancestor}'s {}, which maps it onto {mapped}: \
+                             openusd 0.6 pre-caches that without end (a stack overflow), so it is refused",
+                            class.describe(),
+                            arc.describe()
+                        ));
+                    }
+                }
+                ancestor = parent(ancestor);
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether `arc`, authored in layer stack `stack`, targets that same layer stack (an internal arc, or one to
+    /// the stack's root layer).
+    fn in_stack(&self, stack: usize, arc: &Arc) -> bool {
+        arc.layer
+            .is_none_or(|layer| self.stack_of.get(&layer) == Some(&stack))
+    }
+
+    /// The site an arc authored in layer stack `stack` targets; `None` for a default prim that is not authored.
+    fn target(&mut self, stack: usize, arc: &Arc) -> Result<Option<Site>, String> {
+        let Some(layer) = arc.layer else {
+            return Ok(Some((stack, arc.path.clone())));
+        };
+        let path = if arc.path.is_empty() {
+            let default = self.layers.layers[layer]
+                .as_ref()
+                .and_then(|l| l.default_prim.clone());
+            let Some(default) = default else {
+                return Ok(None);
+            };
+            default
+        } else {
+            arc.path.clone()
+        };
+        Ok(Some((self.stack(layer)?, path)))
+    }
+
+    /// The index of the layer stack whose root is `layer`, counting its entries against the limit and merging
+    /// its layers' prims the first time.
+    fn stack(&mut self, layer: usize) -> Result<usize, String> {
+        if let Some(&index) = self.stack_of.get(&layer) {
+            return Ok(index);
+        }
+        let entries = self.entries(layer);
+        if entries > self.max_layer_stack {
+            return Err(format!(
+                "the layer stack of {} expands to {entries} layers (a sublayer named twice counts twice), over \
+                 the limit of {} (raise it with --max-sublayers)",
+                self.layers.names[layer], self.max_layer_stack
+            ));
+        }
+        let mut prims: HashMap<String, Prim> = HashMap::new();
+        for member in self.members(layer) {
+            let Some(summary) = &self.layers.layers[member] else {
+                continue;
+            };
+            for (path, prim) in &summary.prims {
+                let merged = prims.entry(path.clone()).or_default();
+                merged.children.extend(prim.children.iter().cloned());
+                merged.arcs.extend(prim.arcs.iter().cloned());
+            }
+        }
+        for prim in prims.values_mut() {
+            prim.children.sort_unstable();
+            prim.children.dedup();
+        }
+        let index = self.stacks.len();
+        self.stacks.push(Stack { prims });
+        self.stack_of.insert(layer, index);
+        Ok(index)
+    }
+
+    /// The distinct layers of the layer stack whose root is `layer`: it and its sublayers, nested ones too.
+    fn members(&self, layer: usize) -> Vec<usize> {
+        let mut members = vec![layer];
+        let mut seen = HashSet::from([layer]);
+        let mut next = 0;
+        while let Some(&member) = members.get(next) {
+            next += 1;
+            for &sub in self.sublayers(member) {
+                if seen.insert(sub) {
+                    members.push(sub);
+                }
+            }
+        }
+        members
+    }
+
+    /// The sublayers of `layer` (none when it cannot be read).
+    fn sublayers(&self, layer: usize) -> &'a [usize] {
+        self.layers.layers[layer]
+            .as_ref()
+            .map_or(&[][..], |l| l.sublayers.as_slice())
+    }
+
+    /// The entries the layer stack whose root is `layer` expands to, as `openusd` builds it: the layer, then each
+    /// sublayer's own entries in turn, skipping a sublayer already on the path (a cycle). Counted without
+    /// recursion, each layer once (a layer's count is kept for every stack that names it), saturating.
+    fn entries(&mut self, layer: usize) -> u64 {
+        if let Some(&known) = self.entries.get(&layer) {
+            return known;
+        }
+        // (layer, sublayers gone through, entries so far) along the path from `layer`.
+        let mut path = vec![(layer, 0usize, 1u64)];
+        let mut on_path = HashSet::from([layer]);
+        while let Some(top) = path.last_mut() {
+            let Some(&sub) = self.sublayers(top.0).get(top.1) else {
+                let (done, _, count) = *top;
+                path.pop();
+                on_path.remove(&done);
+                self.entries.insert(done, count);
+                if let Some(parent) = path.last_mut() {
+                    parent.2 = parent.2.saturating_add(count);
+                }
+                continue;
+            };
+            top.1 += 1;
+            if on_path.contains(&sub) {
+                continue;
+            }
+            match self.entries.get(&sub) {
+                Some(&known) => top.2 = top.2.saturating_add(known),
+                None => {
+                    on_path.insert(sub);
+                    path.push((sub, 0, 1));
+                }
+            }
+        }
+        self.entries[&layer]
+    }
+
+    /// The error for a walk that closed a cycle by stepping to `site` from the top frame: the steps from frame
+    /// `from` to the top, named by the first arc among them, and where the last lands when it is not on `from`'s
+    /// site itself.
+    fn cycle(&self, frames: &[Frame], from: usize, site: usize) -> String {
+        let path = |id: usize| self.sites[id].1.as_str();
+        let steps: Vec<(&str, &Step, &str)> = frames[from..]
+            .iter()
+            .map(|f| (path(f.site), &f.last_step().1, path(f.last_step().0)))
+            .collect();
+        let chain: Vec<String> = steps
+            .iter()
+            .map(|(at, step, next)| match step {
+                Step::Child => format!("{at} holds {next}"),
+                Step::Arc(arc) => format!("{at} {}", arc.describe()),
+                Step::ParentArc(arc) => {
+                    format!("{at} is under {}, which {}", parent(at), arc.describe())
+                }
+            })
+            .collect();
+        let named = steps.iter().find_map(|(at, step, _)| match step {
+            Step::Arc(arc) => Some(format!("{at}: {}", arc.describe())),
+            Step::ParentArc(arc) => Some(format!("{}: {}", parent(at), arc.describe())),
+            Step::Child => None,
+        });
+        let (start, end) = (path(frames[from].site), path(site));
+        let lands = if inside(end, start) {
+            format!(", back inside {start}")
+        } else if inside(start, end) {
+            format!(", back above {start}")
+        } else {
+            String::new()
+        };
+        format!(
+            "{} is a composition cycle ({}{lands})",
+            named.unwrap_or_else(|| end.to_owned()),
+            chain.join(", ")
+        )
+    }
+}
+
+/// Adds the prims of a site just walked to the frame that stepped to it, if that step counts.
+fn add_to_last(frames: &mut [Frame], prims: u64) {
+    if let Some(last) = frames.last_mut() {
+        if last.last_step().1.counts() {
+            last.prims = last.prims.saturating_add(prims);
+        }
+    }
+}
+
+/// Whether the step just taken from the top frame, back to `site` on the path, closes a cycle: the index of the
+/// frame it starts from if the steps around are arcs and children (the site composes an arc back onto itself or
+/// an ancestor), or inherits and specializes alone, its own or its parent's (the loop `openusd`'s pre-caching
+/// follows). Around a parent's arc and a child or a reference the site composes a target path mapped below the
+/// parent's, not the site itself, so that is no cycle.
+fn cycle_back(frames: &[Frame], site: usize) -> Option<usize> {
+    let from = frames.iter().position(|f| f.site == site)?;
+    let steps = || frames[from..].iter().map(|f| &f.last_step().1);
+    let composes = steps().all(Step::counts);
+    let precaches = steps().all(|s| match s {
+        Step::Arc(arc) | Step::ParentArc(arc) => arc.kind.is_class(),
+        Step::Child => false,
+    });
+    (composes || precaches).then_some(from)
+}
+
+/// The first frame of the arc run that ends at the top frame: walking back while each frame was entered through
+/// an arc.
+fn run_start(frames: &[Frame]) -> usize {
+    let mut start = frames.len() - 1;
+    while start > 0 && matches!(frames[start - 1].last_step().1, Step::Arc(_)) {
+        start -= 1;
+    }
+    start
+}
+
+/// Whether two sites are nested: in one layer stack, the same prim or one inside the other (the pseudo-root,
+/// which holds everything, is nested with nothing).
+fn nested(a: &Site, b: &Site) -> bool {
+    a.0 == b.0
+        && a.1 != "/"
+        && b.1 != "/"
+        && (a.1 == b.1 || inside(&a.1, &b.1) || inside(&b.1, &a.1))
+}
+
+/// Whether prim path `inner` lies below prim path `outer`.
+fn inside(inner: &str, outer: &str) -> bool {
+    inner.len() > outer.len() && inner.starts_with(outer) && inner.as_bytes()[outer.len()] == b'/'
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Writes `files` (name, text) to a fresh folder and checks the stage whose root is the first.
+    fn check_files(tag: &str, files: &[(&str, &str)]) -> Result<(), String> {
+        check_with(tag, files, Limits::default())
+    }
+
+    /// [`check_files`] under `limits`.
+    fn check_with(tag: &str, files: &[(&str, &str)], limits: Limits) -> Result<(), String> {
+        let dir =
+            std::env::temp_dir().join(format!("nimbus_composition_{}_{tag}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        for (name, text) in files {
+            std::fs::write(dir.join(name), format!("#usda 1.0\n{text}")).unwrap();
+        }
+        let resolver = CheckingResolver {
+            inner: ar::DefaultResolver::new(),
+            limits: Limits::default(),
+        };
+        check(dir.join(files[0].0).to_str().unwrap(), &resolver, &limits)
+    }
+
+    #[test]
+    fn parents_of_prim_paths() {
+        assert_eq!(parent("/A/B/C"), "/A/B");
+        assert_eq!(parent("/A"), "/");
+        assert_eq!(parent("/"), "/");
+    }
+
+    #[test]
+    fn a_parents_inherit_around_a_child_or_a_reference_is_no_cycle() {
+        // /A/C composes /B/C (the parent's inherit, mapped), not /B: nothing leads back.
+        let stage = "def \"A\" (inherits = </B>) { def \"C\" {} }\nclass \"B\" { def \"X\" (references = </A/C>) {} }";
+        check_files("parent_ok", &[("root.usda", stage)]).unwrap();
+    }
+
+    #[test]
+    fn pre_caching_follows_stage_paths_across_layer_stacks() {
+        // A class inside a referenced asset, and a payload beside an inherit: targets that lead nowhere back.
+        let asset = "def \"X\" { def \"Geo\" (inherits = </X/_cls>) {} class \"_cls\" {} }";
+        let stage = "def \"A\" (references = @./asset.usda@</X>) {}\n\
+                     def \"B\" (inherits = </K> payload = @./asset.usda@</X>) { def \"C\" {} }\nclass \"K\" {}";
+        check_files(
+            "precache_ok",
+            &[("root.usda", stage), ("asset.usda", asset)],
+        )
+        .unwrap();
+        // A target of another layer stack's prim is taken as the stage's path: /Q, which specializes /A/B, whose
+        // parent /A holds the reference whose target specializes /Q again.
+        let err = check_files(
+            "precache_cycle",
+            &[
+                (
+                    "root.usda",
+                    "def \"A\" (references = @./other.usda@</X>) {}\ndef \"Q\" (specializes = </A/B>) {}",
+                ),
+                ("other.usda", "def \"X\" (specializes = </Q>) {}"),
+            ],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/Q: specializes </A/B> is a composition cycle for openusd 0.6, whose pre-caching of inherit and \
+             specialize targets would follow /Q -> /A/B -> /Q without end (a stack overflow)"
+        );
+    }
+
+    #[test]
+    fn class_targets_mapped_onto_their_own_prim_are_refused() {
+        for (tag, stage, message) in [
+            (
+                "nested",
+                "def \"A\" (inherits = [</X/Y>, </X>]) {}",
+                "/A: inherits </X/Y> lies inside the target of /A's inherits </X>, which maps it onto /A/Y",
+            ),
+            (
+                "reference",
+                "def \"A\" (references = </X> specializes = </X/Y>) {}",
+                "/A: specializes </X/Y> lies inside the target of /A's references </X>, which maps it onto /A/Y",
+            ),
+            (
+                "ancestor",
+                "def \"A\" (inherits = </X>) { def \"B\" (inherits = </X/B>) {} }",
+                "/A/B: inherits </X/B> lies inside the target of /A's inherits </X>, which maps it onto /A/B",
+            ),
+        ] {
+            let err = check_files(tag, &[("root.usda", stage)]).unwrap_err();
+            assert!(err.starts_with(message), "{err}");
+        }
+        // Mapped anywhere else, or not strictly inside, it composes (and `openusd` composes it).
+        for (tag, stage) in [
+            (
+                "grandchild",
+                "def \"A\" (references = </X> inherits = </X/Y/Z>) {}",
+            ),
+            (
+                "sibling",
+                "def \"A\" (inherits = </X>) { def \"B\" (inherits = </X/Q>) {} }",
+            ),
+            ("same", "def \"A\" (references = </X> inherits = </X>) {}"),
+        ] {
+            check_files(tag, &[("root.usda", stage)]).unwrap();
+        }
+    }
+
+    #[test]
+    fn class_hierarchies_references_and_variants_are_no_cycles() {
+        let stage = r#"
+class "_class_Char" { def "Geom" {} }
+def "Chars" { def "Bob" (inherits = </_class_Char>) { def "Geom" {} } }
+def "Looks" {
+    def "Base" { def "Shader" {} }
+    def "Red" (specializes = </Looks/Base>) { def "Shader" {} }
+}
+def "Proto" { def "Leaf" {} }
+def "World" (variantSets = "v" references = @./asset.usda@) {
+    def "A" (references = </Proto>) {}
+    def "B" (references = </Proto>) {}
+    variantSet "v" = { "x" (references = </Proto>) {} }
+}
+"#;
+        let asset = "(\n defaultPrim = \"Asset\"\n)\ndef \"Asset\" (inherits = </_class_Char>) { def \"Geom\" {} }\n";
+        check_files("valid", &[("root.usda", stage), ("asset.usda", asset)]).unwrap();
+    }
+
+    #[test]
+    fn prims_are_counted_once_per_arc_that_brings_them_in() {
+        // L<i> holds two children that reference L<i-1>: L0, L1, L2 and L3 compose 1, 5, 13 and 29 prims.
+        let mut fan = String::from("def \"L0\" {}\n");
+        for i in 1..=3 {
+            fan.push_str(&format!(
+                "def \"L{i}\" {{ def \"a\" (references = </L{p}>) {{}} def \"b\" (references = </L{p}>) {{}} }}\n",
+                p = i - 1
+            ));
+        }
+        let limit = |usd_prims| Limits {
+            usd_prims,
+            ..Limits::default()
+        };
+        check_with("fan_48", &[("root.usda", &fan)], limit(48)).unwrap();
+        assert_eq!(
+            check_with("fan_47", &[("root.usda", &fan)], limit(47)).unwrap_err(),
+            "the stage composes 48 prims through its arcs and children (each counted once per arc that brings it \
+             in), over the limit of 47 prims (raise it with --max-prims)"
+        );
+        let err = check_with("fan_20", &[("root.usda", &fan)], limit(20)).unwrap_err();
+        assert!(err.starts_with("/L3 composes 29 prims"), "{err}");
+    }
+
+    #[test]
+    fn layer_stacks_count_every_naming_of_a_sublayer() {
+        // a names b twice, b names c twice and a (a cycle, left out): 1 + 2 × (1 + 2) = 7 entries.
+        let files = [
+            ("a.usda", "(\n subLayers = [@./b.usda@, @./b.usda@]\n)\n"),
+            (
+                "b.usda",
+                "(\n subLayers = [@./c.usda@, @./c.usda@, @./a.usda@]\n)\n",
+            ),
+            ("c.usda", "def \"C\" {}\n"),
+        ];
+        let limit = |usd_layer_stack| Limits {
+            usd_layer_stack,
+            ..Limits::default()
+        };
+        check_with("stack_7", &files, limit(7)).unwrap();
+        let err = check_with("stack_6", &files, limit(6)).unwrap_err();
+        assert!(
+            err.starts_with("the layer stack of ")
+                && err.ends_with(
+                    "a.usda expands to 7 layers (a sublayer named twice counts twice), over the limit of 6 \
+                     (raise it with --max-sublayers)"
+                ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn cycles_through_children_layers_and_parents_name_their_first_arc() {
+        let err = check_files(
+            "child",
+            &[("root.usda", "def \"A\" { def \"C\" (inherits = </A>) {} }")],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/A/C: inherits </A> is a composition cycle (/A holds /A/C, /A/C inherits </A>)"
+        );
+        let err = check_files(
+            "layers",
+            &[
+                ("a.usda", "def \"A\" (references = @./b.usda@</B>) {}"),
+                ("b.usda", "def \"B\" (payload = @./a.usda@</A>) {}"),
+            ],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/A: references @./b.usda@</B> is a composition cycle (/A references @./b.usda@</B>, \
+             /B payload @./a.usda@</A>)"
+        );
+        let err = check_files(
+            "inside",
+            &[(
+                "root.usda",
+                "def \"A\" (references = </B>) {}\nclass \"B\" (specializes = </A/C>) {}",
+            )],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/A: references </B> is a composition cycle (/A references </B>, /B specializes </A/C>, back inside /A)"
+        );
+        let err = check_files(
+            "parent",
+            &[(
+                "root.usda",
+                "def \"B\" (inherits = </D/E>) { def \"C\" {} }\nclass \"D\" (inherits = </B/C>) { def \"E\" {} }",
+            )],
+        );
+        assert_eq!(
+            err.unwrap_err(),
+            "/D: inherits </B/C> is a composition cycle (/D/E is under /D, which inherits </B/C>, /B/C is under /B, \
+             which inherits </D/E>)"
+        );
+    }
+}

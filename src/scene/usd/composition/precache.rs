@@ -1,0 +1,278 @@
+//! The pre-caching of inherit and specialize targets that `openusd` 0.6 runs as it composes each prim
+//! (`IndexCache::precache_inherit_targets`), modelled on prim paths so that a stage on which it would recurse
+//! without end, or for exponential time, is refused before the stage is opened.
+//!
+//! For a prim `T` with parent `P`, `openusd` reads the inherit and specialize targets authored at every site of
+//! `P` (its path in its own namespace and in each namespace an arc maps onto it) and at those sites' child named
+//! like `T`. It takes each target as a path of the stage, whatever layer stack authored it, adds the target
+//! mapped through the arcs of `P`'s ancestors, composes each, and recurses into each target the same way,
+//! remembering none. A target that leads back to itself recurses until the stack overflows; targets that lead
+//! to one another in a diamond are followed once per path.
+//!
+//! The model over-approximates: every layer's prims are merged into one namespace (so a target authored in a
+//! referenced layer stack is met under the stage path it names, as `openusd` takes it), every arc anywhere maps
+//! namespaces, and variants count whichever is selected. A cycle of targets is refused as a composition cycle,
+//! and a target that leads to more targets (counted per path, as the recursion follows them) than the prim
+//! limit is refused with the prim limit's message.
+
+use super::{inside, parent, ArcKind, Layers};
+use std::collections::{HashMap, HashSet};
+use std::rc::Rc;
+
+/// The most sites of one prim the model follows through arc maps: a bound on the model's own work. Sites past
+/// it are left out (the stages the model guards against need a few).
+const MAX_SITES: usize = 4096;
+
+/// An inherit or specialize arc: the prim that authors it, its kind, its target.
+#[derive(Clone)]
+struct ClassArc {
+    at: String,
+    kind: ArcKind,
+    target: String,
+}
+
+/// The targets pre-cached for a path, each with the arc that gives it.
+type Targets = Rc<[(String, ClassArc)]>;
+
+/// A path the model is following: its targets, how many have been taken, and the targets counted so far.
+type Frame = (String, Targets, usize, u64);
+
+/// The stage's prim paths, merged over every layer read, with the arcs the pre-caching follows.
+pub(super) struct Precache {
+    /// Inherit and specialize arcs by the prim that authors them.
+    class: HashMap<String, Vec<ClassArc>>,
+    /// Every arc as a namespace map, by the prim that authors it: the target paths it maps onto that prim.
+    maps: HashMap<String, Vec<String>>,
+    /// Every authored prim path, and each mapped once through an arc: where the pre-caching starts.
+    prims: Vec<String>,
+    /// The deepest prim path authored or targeted, in path elements: sites deeper than twice this are left out.
+    depth: usize,
+    /// Each prim's sites, once found.
+    sites: HashMap<String, Vec<String>>,
+    /// Each path's targets (and the arc that gives each), once found.
+    targets: HashMap<String, Targets>,
+}
+
+/// The elements of a prim path (`/` has none).
+fn depth(path: &str) -> usize {
+    path.matches('/').count() - usize::from(path == "/")
+}
+
+/// `path` moved from under `from` to under `to`, when it is `from` or lies inside it.
+fn map(path: &str, from: &str, to: &str) -> Option<String> {
+    if path == from {
+        Some(to.to_owned())
+    } else if inside(path, from) {
+        let rest = &path[from.len()..];
+        Some(if to == "/" {
+            rest.to_owned()
+        } else {
+            format!("{to}{rest}")
+        })
+    } else {
+        None
+    }
+}
+
+/// `path` and its ancestors, the path first, `/` left out.
+fn ancestors(path: &str) -> impl Iterator<Item = &str> {
+    std::iter::successors(Some(path), |p| Some(parent(p))).take_while(|p| *p != "/")
+}
+
+impl Precache {
+    /// The model of every layer in `layers`.
+    pub(super) fn new(layers: &Layers) -> Self {
+        let mut model = Self {
+            class: HashMap::new(),
+            maps: HashMap::new(),
+            prims: Vec::new(),
+            depth: 0,
+            sites: HashMap::new(),
+            targets: HashMap::new(),
+        };
+        let mut seen = HashSet::new();
+        for layer in layers.layers.iter().flatten() {
+            for (path, prim) in &layer.prims {
+                if path != "/" && seen.insert(path.clone()) {
+                    model.prims.push(path.clone());
+                }
+                model.depth = model.depth.max(depth(path));
+                for arc in &prim.arcs {
+                    let target = match (arc.layer, arc.path.is_empty()) {
+                        (Some(layer), true) => layers.layers[layer]
+                            .as_ref()
+                            .and_then(|l| l.default_prim.clone()),
+                        (None, true) => None,
+                        (_, false) => Some(arc.path.clone()),
+                    };
+                    let Some(target) = target else { continue };
+                    model.depth = model.depth.max(depth(&target));
+                    let maps = model.maps.entry(path.clone()).or_default();
+                    if !maps.contains(&target) {
+                        maps.push(target.clone());
+                    }
+                    if arc.kind.is_class() {
+                        model.class.entry(path.clone()).or_default().push(ClassArc {
+                            at: path.clone(),
+                            kind: arc.kind,
+                            target,
+                        });
+                    }
+                }
+            }
+        }
+        // Prims composed through an arc are pre-cached too: each authored prim mapped once onto every prim
+        // whose arc targets it or an ancestor.
+        let mut mapped = Vec::new();
+        for (at, targets) in &model.maps {
+            for target in targets {
+                for prim in &model.prims {
+                    if let Some(path) = map(prim, target, at) {
+                        if seen.insert(path.clone()) {
+                            mapped.push(path);
+                        }
+                    }
+                }
+            }
+        }
+        model.prims.extend(mapped);
+        model.prims.sort_unstable();
+        model
+    }
+
+    /// Refuses a cycle of pre-cached targets, and a path from which the pre-caching follows more than
+    /// `max_prims` targets.
+    pub(super) fn check(&mut self, max_prims: u64) -> Result<(), String> {
+        if self.class.is_empty() {
+            return Ok(());
+        }
+        // The targets followed from each path, counting itself; `None` while it is being followed.
+        let mut counted: HashMap<String, Option<u64>> = HashMap::new();
+        for start in self.prims.clone() {
+            if counted.contains_key(&start) {
+                continue;
+            }
+            counted.insert(start.clone(), None);
+            // (path, its targets, how many taken, the count so far).
+            let mut frames = vec![(start.clone(), self.targets_of(&start), 0usize, 1u64)];
+            while let Some(top) = frames.last_mut() {
+                let Some((next, _)) = top.1.get(top.2).cloned() else {
+                    let (done, _, _, count) = frames.pop().expect("a frame");
+                    if count > max_prims {
+                        return Err(format!(
+                            "openusd 0.6 pre-caches more than {max_prims} inherit and specialize targets from \
+                             {done} (each once per path that leads to it), over the limit of {max_prims} prims \
+                             (raise it with --max-prims)"
+                        ));
+                    }
+                    counted.insert(done, Some(count));
+                    if let Some(parent) = frames.last_mut() {
+                        parent.3 = parent.3.saturating_add(count);
+                    }
+                    continue;
+                };
+                top.2 += 1;
+                match counted.get(&next) {
+                    Some(Some(count)) => top.3 = top.3.saturating_add(*count),
+                    Some(None) => return Err(cycle(&frames, &next)),
+                    None => {
+                        counted.insert(next.clone(), None);
+                        let targets = self.targets_of(&next);
+                        frames.push((next, targets, 0, 1));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The sites of prim `path`: itself, and the paths the arcs of it and its ancestors (in any of its sites)
+    /// map onto it, in turn.
+    fn sites_of(&mut self, path: &str) -> Vec<String> {
+        if let Some(sites) = self.sites.get(path) {
+            return sites.clone();
+        }
+        let mut sites = vec![path.to_owned()];
+        let mut seen = HashSet::from([path.to_owned()]);
+        let mut next = 0;
+        while let Some(site) = sites.get(next).cloned() {
+            next += 1;
+            for ancestor in ancestors(&site) {
+                for target in self.maps.get(ancestor).into_iter().flatten() {
+                    let Some(mapped) = map(&site, ancestor, target) else {
+                        continue;
+                    };
+                    if sites.len() < MAX_SITES
+                        && depth(&mapped) <= 2 * self.depth + 2
+                        && seen.insert(mapped.clone())
+                    {
+                        sites.push(mapped);
+                    }
+                }
+            }
+        }
+        self.sites.insert(path.to_owned(), sites.clone());
+        sites
+    }
+
+    /// The targets pre-cached for prim `path`, each with the arc that gives it: the inherit and specialize
+    /// targets authored at each site of its parent and at that site's child named like `path`, as authored and
+    /// mapped from each arc target of the sites' ancestors back onto them.
+    fn targets_of(&mut self, path: &str) -> Targets {
+        if let Some(targets) = self.targets.get(path) {
+            return targets.clone();
+        }
+        let name = &path[path.rfind('/').map_or(0, |at| at + 1)..];
+        let sites = self.sites_of(parent(path));
+        let mut targets: Vec<(String, ClassArc)> = Vec::new();
+        let mut add = |target: String, arc: &ClassArc| {
+            if !targets.iter().any(|(t, _)| *t == target) {
+                targets.push((target, arc.clone()));
+            }
+        };
+        for site in &sites {
+            let child = if site == "/" {
+                format!("/{name}")
+            } else {
+                format!("{site}/{name}")
+            };
+            for at in [site.as_str(), child.as_str()] {
+                for arc in self.class.get(at).into_iter().flatten() {
+                    add(arc.target.clone(), arc);
+                    for scope in &sites {
+                        for ancestor in ancestors(scope) {
+                            for from in self.maps.get(ancestor).into_iter().flatten() {
+                                if let Some(mapped) = map(&arc.target, from, ancestor) {
+                                    add(mapped, arc);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let targets: Targets = targets.into();
+        self.targets.insert(path.to_owned(), targets.clone());
+        targets
+    }
+}
+
+/// The error for a pre-caching that reached `path` again while following it: the targets from `path` round to
+/// it, named by the arc that first leads back.
+fn cycle(frames: &[Frame], path: &str) -> String {
+    let from = frames.iter().position(|f| f.0 == path).unwrap_or(0);
+    let chain: Vec<&str> = frames[from..]
+        .iter()
+        .map(|f| f.0.as_str())
+        .chain([path])
+        .collect();
+    let arc = &frames[from].1[frames[from].2 - 1].1;
+    format!(
+        "{}: {} <{}> is a composition cycle for openusd 0.6, whose pre-caching of inherit and specialize targets \
+         would follow {} without end (a stack overflow)",
+        arc.at,
+        arc.kind.name(),
+        arc.target,
+        chain.join(" -> ")
+    )
+}
