@@ -646,7 +646,12 @@ impl LayerPlan {
         };
         let slots = list(parts.next(), "slots=")?;
         let written = list(parts.next(), "written=")?;
-        let depth = parts.next()?.strip_prefix("depth=")?.parse().ok()?;
+        let depth: usize = parts.next()?.strip_prefix("depth=")?.parse().ok()?;
+        // Plans are made with an even depth of ranks (two per layer) up to MAX_DEPTH; a description with any
+        // other (a damaged or forged part) would index past its rank layers.
+        if depth == 0 || !depth.is_multiple_of(2) || depth > MAX_DEPTH {
+            return None;
+        }
         Some(Self {
             slots,
             written,
