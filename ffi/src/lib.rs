@@ -210,7 +210,8 @@ trait Handle: Sized {
     fn into_raw(value: Self::Value) -> *mut Self {
         let id = NEXT_HANDLE.fetch_add(16, Ordering::Relaxed);
         with_live_handles(|live| live.insert(id, Arc::new(value)));
-        id as *mut Self
+        // An id, not an address: a pointer without provenance, never dereferenced.
+        std::ptr::without_provenance_mut(id)
     }
 
     /// The failure for a pointer that is not a live handle of this type.
@@ -230,7 +231,7 @@ trait Handle: Sized {
         if p.is_null() {
             return Err(Failure::null(Self::WHAT));
         }
-        with_live_handles(|live| live.get(&(p as usize)).cloned())
+        with_live_handles(|live| live.get(&p.addr()).cloned())
             .and_then(|value| value.downcast().ok())
             .ok_or_else(Self::not_live)
     }
@@ -244,7 +245,7 @@ trait Handle: Sized {
         if slot.is_null() || (*slot).is_null() {
             return Ok(());
         }
-        let id = *slot as usize;
+        let id = (*slot).addr();
         let value = with_live_handles(|live| match live.get(&id) {
             Some(value) if (**value).is::<Self::Value>() => live.remove(&id),
             _ => None,
@@ -726,13 +727,13 @@ mod tests {
     #[test]
     fn a_handle_freed_on_another_thread_outlives_the_calls_using_it() {
         let handle = Numbers::into_raw((0..100).collect());
-        let id = handle as usize;
+        let id = handle.addr();
         let held = Numbers::get(handle).unwrap_or_else(|f| panic!("{}", f.message));
         std::thread::scope(|s| {
             for _ in 0..3 {
                 s.spawn(move || {
                     for _ in 0..20 {
-                        match Numbers::get(id as *const Numbers) {
+                        match Numbers::get(std::ptr::without_provenance(id)) {
                             Ok(value) => assert_eq!(value.iter().sum::<u64>(), 4950),
                             Err(f) => {
                                 assert_eq!(f.status, NimbusStatus::InvalidHandle);
@@ -743,7 +744,7 @@ mod tests {
                 });
             }
             s.spawn(move || {
-                let mut copy = id as *mut Numbers;
+                let mut copy = std::ptr::without_provenance_mut::<Numbers>(id);
                 assert_eq!(
                     status(unsafe { Numbers::free(&mut copy) }),
                     NimbusStatus::Ok
