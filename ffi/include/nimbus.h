@@ -15,8 +15,12 @@
  *   live handle of the expected kind (an image where a scene is expected, a stale copy of a freed handle, or
  *   any other pointer) gives NIMBUS_STATUS_INVALID_HANDLE, checked before the pointer is read.
  * - No Rust panic crosses the boundary; one is reported as NIMBUS_STATUS_PANIC.
- * - Handles may be used from any thread, but not from two threads at once while one of them frees it.
- *   Strings are UTF-8.
+ * - Threads: handles may be used from any thread, by several threads at once. A handle may be freed from
+ *   any thread at any time, even while a call on another thread uses it (a render of the scene, a read of
+ *   the image): that call finishes as if the free had come after it, the memory is released when it
+ *   returns, and calls that start after the free give NIMBUS_STATUS_INVALID_HANDLE. As for any C variable,
+ *   two threads must not free through the same pointer variable at once (free through copies instead).
+ * - Strings are UTF-8.
  */
 
 
@@ -118,6 +122,10 @@ NimbusStatus nimbus_scene_load(const char *path,
 // Frees the scene `*scene` and sets `*scene` to null. A null `scene` or `*scene` is a no-op. Images rendered
 // from the scene stay valid.
 //
+// Any thread may free the scene at any time, even while `nimbus_render()` renders it on another thread: that
+// render finishes normally and the scene's memory is released when it returns; renders that start after the
+// free give `NIMBUS_STATUS_INVALID_HANDLE`.
+//
 // # Safety
 // `scene` must be null or point to a pointer that is null or was returned by `nimbus_scene_load()`.
 NimbusStatus nimbus_scene_free(NimbusScene **scene);
@@ -128,6 +136,9 @@ NimbusStatus nimbus_scene_free(NimbusScene **scene);
 // zero the render stops, `*out_image` receives the partial image and the status is `NIMBUS_STATUS_CANCELLED`.
 // On `NIMBUS_STATUS_OK` and `NIMBUS_STATUS_CANCELLED` the caller owns `*out_image` and frees it with
 // `nimbus_image_free()`; on any other status `*out_image` is null.
+//
+// Another thread may free `scene` during the render: the render keeps the scene's value alive until it returns,
+// and its image is the one it would have made without the free.
 //
 // # Safety
 // `scene` must be null or a handle from `nimbus_scene_load()`; `settings` must be null or point to settings;
@@ -140,6 +151,10 @@ NimbusStatus nimbus_render(const NimbusScene *scene,
                            NimbusImage **out_image);
 
 // Frees the image `*image` and sets `*image` to null. A null `image` or `*image` is a no-op.
+//
+// Any thread may free the image at any time, even while a `nimbus_image_*()` call on another thread reads it:
+// that call finishes normally and the image's memory is released when it returns; calls that start after the
+// free give `NIMBUS_STATUS_INVALID_HANDLE`.
 //
 // # Safety
 // `image` must be null or point to a pointer that is null or was returned by `nimbus_render()`.

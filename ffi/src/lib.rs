@@ -10,6 +10,12 @@
 //! - A null pointer gives [`NimbusStatus::NullPointer`]; a pointer that is not a live handle of the expected
 //!   kind (freed already, another kind of handle, or never a handle) gives [`NimbusStatus::InvalidHandle`]:
 //!   every live handle is in a registry, which is checked before the pointer is read.
+//! - Handles may be used from any thread, by several threads at once, and a handle may be freed from any
+//!   thread at any time, even while a call on another thread uses it: each call holds its own reference to the
+//!   handle's value until it returns, so that call finishes as if the free had come after it (its memory is
+//!   released when the last such call returns), and every call that starts after the free gives
+//!   [`NimbusStatus::InvalidHandle`]. (As with any variable one thread writes, two threads must not free through
+//!   the same pointer variable at once; they may free through copies.)
 //! - Output handles are written only on success (and, for [`nimbus_render`], on cancellation); on any other
 //!   status they are set to null.
 //! - Handles are freed with `nimbus_*_free(&handle)`, which nulls the caller's pointer, so freeing twice through
@@ -19,10 +25,14 @@ use nimbus::render::{
     AovSelection, LightGroupMode, RenderImage, RenderSettings, RenderStats, Renderer,
 };
 use nimbus::{Error, Scene};
+use std::any::Any;
 use std::cell::RefCell;
+use std::collections::BTreeMap;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 /// The outcome of a call.
@@ -170,63 +180,38 @@ fn call(body: impl FnOnce() -> Result<NimbusStatus, Failure>) -> NimbusStatus {
     }
 }
 
-/// The kinds of handle handed to C.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum HandleKind {
-    Scene,
-    Image,
-}
+/// A live handle's value, shared: the registry holds one reference, and every call that uses the handle holds
+/// another for as long as it runs.
+type Shared = Arc<dyn Any + Send + Sync>;
 
-/// A live handle's value: a boxed value of the handle's type, owned by the registry.
-struct Entry {
-    kind: HandleKind,
-    value: *mut (),
-}
-
-// SAFETY: the values behind entries are `Scene` and `ImageData`, which are `Send + Sync`; the registry only
-// moves their addresses between threads.
-unsafe impl Send for Entry {}
-
-/// Every live handle by id, with its kind and value. The pointers handed to C are these ids, never addresses:
-/// C never dereferences them, a pointer is looked up here before every use, and ids are never reused, so a
-/// freed, foreign or mistyped handle is refused whatever the memory it once named now holds.
-static LIVE_HANDLES: std::sync::Mutex<Option<std::collections::HashMap<usize, Entry>>> =
-    std::sync::Mutex::new(None);
+/// Every live handle by id, with its value. The pointers handed to C are these ids, never addresses: C never
+/// dereferences them, a pointer is looked up here before every use, and ids are never reused, so a freed,
+/// foreign or mistyped handle is refused whatever the memory it once named now holds. A free removes the entry
+/// and drops the registry's reference; a call that looked the handle up before keeps the value alive until it
+/// returns, so a handle may be freed from any thread at any time.
+static LIVE_HANDLES: Mutex<BTreeMap<usize, Shared>> = Mutex::new(BTreeMap::new());
 
 /// The next handle id (a multiple of 16, never 0, never reused).
-static NEXT_HANDLE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(16);
+static NEXT_HANDLE: AtomicUsize = AtomicUsize::new(16);
 
 /// Runs `f` on the registry, even if a panic poisoned its lock (the map itself is always consistent).
-fn with_live_handles<R>(f: impl FnOnce(&mut std::collections::HashMap<usize, Entry>) -> R) -> R {
-    let mut guard = LIVE_HANDLES
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    f(guard.get_or_insert_with(Default::default))
+fn with_live_handles<R>(f: impl FnOnce(&mut BTreeMap<usize, Shared>) -> R) -> R {
+    f(&mut LIVE_HANDLES.lock().unwrap_or_else(PoisonError::into_inner))
 }
 
-/// An opaque handle type: an id handed to C for a value the registry owns.
+/// An opaque handle type: an id handed to C for a value the registry shares.
 trait Handle: Sized {
     /// What the handle holds.
-    type Value;
-    /// The kind of this handle type in the registry.
-    const KIND: HandleKind;
+    type Value: Any + Send + Sync;
     /// The handle's name in messages.
     const WHAT: &'static str;
 
     /// Moves `value` into the registry and returns its new handle.
     fn into_raw(value: Self::Value) -> *mut Self {
-        let id = NEXT_HANDLE.fetch_add(16, std::sync::atomic::Ordering::Relaxed);
-        let value = Box::into_raw(Box::new(value)).cast::<()>();
-        with_live_handles(|live| {
-            live.insert(
-                id,
-                Entry {
-                    kind: Self::KIND,
-                    value,
-                },
-            )
-        });
-        id as *mut Self
+        let id = NEXT_HANDLE.fetch_add(16, Ordering::Relaxed);
+        with_live_handles(|live| live.insert(id, Arc::new(value)));
+        // An id, not an address: a pointer without provenance, never dereferenced.
+        std::ptr::without_provenance_mut(id)
     }
 
     /// The failure for a pointer that is not a live handle of this type.
@@ -240,27 +225,19 @@ trait Handle: Sized {
         )
     }
 
-    /// Borrows the value of the live handle `p`.
-    ///
-    /// # Safety
-    /// The handle must not be freed while the borrow lasts (the C API's rule: a handle is not freed while
-    /// another call uses it).
-    unsafe fn get<'a>(p: *const Self) -> Result<&'a Self::Value, Failure>
-    where
-        Self: 'a,
-    {
+    /// The value of the live handle `p`, shared with the registry: it stays alive while the caller holds it,
+    /// even when another thread frees the handle meanwhile.
+    fn get(p: *const Self) -> Result<Arc<Self::Value>, Failure> {
         if p.is_null() {
             return Err(Failure::null(Self::WHAT));
         }
-        let value = with_live_handles(|live| match live.get(&(p as usize)) {
-            Some(e) if e.kind == Self::KIND => Some(e.value),
-            _ => None,
-        })
-        .ok_or_else(Self::not_live)?;
-        Ok(&*value.cast::<Self::Value>())
+        with_live_handles(|live| live.get(&p.addr()).cloned())
+            .and_then(|value| value.downcast().ok())
+            .ok_or_else(Self::not_live)
     }
 
-    /// Frees the handle `*slot` holds, if any, and nulls `*slot`.
+    /// Frees the handle `*slot` holds, if any, and nulls `*slot`. The value is dropped here unless a call on
+    /// another thread still uses it; then it is dropped when the last such call returns.
     ///
     /// # Safety
     /// `slot` must be null or point to a readable and writable pointer.
@@ -268,13 +245,14 @@ trait Handle: Sized {
         if slot.is_null() || (*slot).is_null() {
             return Ok(());
         }
-        let id = *slot as usize;
+        let id = (*slot).addr();
         let value = with_live_handles(|live| match live.get(&id) {
-            Some(e) if e.kind == Self::KIND => live.remove(&id).map(|e| e.value),
+            Some(value) if (**value).is::<Self::Value>() => live.remove(&id),
             _ => None,
         })
         .ok_or_else(Self::not_live)?;
-        drop(Box::from_raw(value.cast::<Self::Value>()));
+        // Outside the lock: dropping a scene takes a while, and other threads look handles up meanwhile.
+        drop(value);
         *slot = std::ptr::null_mut();
         Ok(())
     }
@@ -282,13 +260,11 @@ trait Handle: Sized {
 
 impl Handle for NimbusScene {
     type Value = Scene;
-    const KIND: HandleKind = HandleKind::Scene;
     const WHAT: &'static str = "scene";
 }
 
 impl Handle for NimbusImage {
     type Value = ImageData;
-    const KIND: HandleKind = HandleKind::Image;
     const WHAT: &'static str = "image";
 }
 
@@ -434,6 +410,10 @@ pub unsafe extern "C" fn nimbus_scene_load(
 /// Frees the scene `*scene` and sets `*scene` to null. A null `scene` or `*scene` is a no-op. Images rendered
 /// from the scene stay valid.
 ///
+/// Any thread may free the scene at any time, even while `nimbus_render()` renders it on another thread: that
+/// render finishes normally and the scene's memory is released when it returns; renders that start after the
+/// free give `NIMBUS_STATUS_INVALID_HANDLE`.
+///
 /// # Safety
 /// `scene` must be null or point to a pointer that is null or was returned by `nimbus_scene_load()`.
 #[no_mangle]
@@ -450,6 +430,9 @@ pub unsafe extern "C" fn nimbus_scene_free(scene: *mut *mut NimbusScene) -> Nimb
 /// zero the render stops, `*out_image` receives the partial image and the status is `NIMBUS_STATUS_CANCELLED`.
 /// On `NIMBUS_STATUS_OK` and `NIMBUS_STATUS_CANCELLED` the caller owns `*out_image` and frees it with
 /// `nimbus_image_free()`; on any other status `*out_image` is null.
+///
+/// Another thread may free `scene` during the render: the render keeps the scene's value alive until it returns,
+/// and its image is the one it would have made without the free.
 ///
 /// # Safety
 /// `scene` must be null or a handle from `nimbus_scene_load()`; `settings` must be null or point to settings;
@@ -472,7 +455,7 @@ pub unsafe extern "C" fn nimbus_render(
             Some(f) => f(p.fraction as f32, p.samples_done, user_data) != 0,
             None => true,
         };
-        let (image, stats) = renderer.render(scene, &mut report).map_err(Error::from)?;
+        let (image, stats) = renderer.render(&scene, &mut report).map_err(Error::from)?;
         let status = if stats.cancelled {
             set_last_error("the progress callback cancelled the render".into());
             NimbusStatus::Cancelled
@@ -485,6 +468,10 @@ pub unsafe extern "C" fn nimbus_render(
 }
 
 /// Frees the image `*image` and sets `*image` to null. A null `image` or `*image` is a no-op.
+///
+/// Any thread may free the image at any time, even while a `nimbus_image_*()` call on another thread reads it:
+/// that call finishes normally and the image's memory is released when it returns; calls that start after the
+/// free give `NIMBUS_STATUS_INVALID_HANDLE`.
 ///
 /// # Safety
 /// `image` must be null or point to a pointer that is null or was returned by `nimbus_render()`.
@@ -720,6 +707,59 @@ mod tests {
         );
         assert_eq!(call(|| Ok(NimbusStatus::Ok)), NimbusStatus::Ok);
         assert_eq!(last_error(), "", "success clears the message");
+    }
+
+    /// A handle type for tests of the registry alone: nothing to load or render, so Miri can run them.
+    struct Numbers;
+
+    impl Handle for Numbers {
+        type Value = Vec<u64>;
+        const WHAT: &'static str = "numbers";
+    }
+
+    fn status<T>(r: Result<T, Failure>) -> NimbusStatus {
+        r.map_or_else(|f| f.status, |_| NimbusStatus::Ok)
+    }
+
+    /// Threads look a handle up and read its value while another thread frees it: a value looked up before the
+    /// free stays whole until the last reader drops it, lookups after the free are refused, and the handle is
+    /// freed once.
+    #[test]
+    fn a_handle_freed_on_another_thread_outlives_the_calls_using_it() {
+        let handle = Numbers::into_raw((0..100).collect());
+        let id = handle.addr();
+        let held = Numbers::get(handle).unwrap_or_else(|f| panic!("{}", f.message));
+        std::thread::scope(|s| {
+            for _ in 0..3 {
+                s.spawn(move || {
+                    for _ in 0..20 {
+                        match Numbers::get(std::ptr::without_provenance(id)) {
+                            Ok(value) => assert_eq!(value.iter().sum::<u64>(), 4950),
+                            Err(f) => {
+                                assert_eq!(f.status, NimbusStatus::InvalidHandle);
+                                break;
+                            }
+                        }
+                    }
+                });
+            }
+            s.spawn(move || {
+                let mut copy = std::ptr::without_provenance_mut::<Numbers>(id);
+                assert_eq!(
+                    status(unsafe { Numbers::free(&mut copy) }),
+                    NimbusStatus::Ok
+                );
+                assert!(copy.is_null());
+            });
+        });
+        assert_eq!(held.iter().sum::<u64>(), 4950, "read after the free");
+        assert_eq!(status(Numbers::get(handle)), NimbusStatus::InvalidHandle);
+        let mut stale = handle;
+        assert_eq!(
+            status(unsafe { Numbers::free(&mut stale) }),
+            NimbusStatus::InvalidHandle
+        );
+        assert_eq!(Arc::strong_count(&held), 1, "the registry let go");
     }
 
     #[test]
