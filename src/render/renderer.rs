@@ -459,55 +459,39 @@ impl Renderer {
         let mut counters = PathCounters::new(scene.media.len());
         let mut cancelled = false;
         let target = region.samples.len() as u32;
-        // A pass a checkpoint stopped in is finished first, on the pixels that did not take it.
-        if let Some(stopped) = at.stopped_pass.take() {
-            if !cancel.is_cancelled() {
-                let (c, nans, clamped, rows) = pool.install(|| {
-                    self.render_pass(
-                        scene,
-                        &mut film,
-                        &recorder,
-                        edges.edges(),
-                        at.complete..stopped.end,
-                        Some(&stopped.row_pixels),
-                        cancel,
-                    )
-                });
-                counters.add(&c);
-                nan_samples += nans;
-                clamped_samples += clamped;
-                at = after_pass(at.complete, stopped.end, rows, region.window.width());
-            } else {
-                at.stopped_pass = Some(stopped);
-            }
-        }
         let resumed_samples = at.complete - region.samples.start;
-        let mut done = at.complete - region.samples.start;
+        let mut done = resumed_samples;
         // Pass size: about 16 passes for progress reports, 1 spp at first under a time budget.
         let mut pass = if s.time_limit.is_some() || doubling {
             1
         } else {
             target.div_ceil(16)
         };
-        while at.stopped_pass.is_none() && done < target && !cancel.is_cancelled() {
-            let count = pass.min(target - done);
+        while done < target && !cancel.is_cancelled() {
             let pass_start = Instant::now();
-            let first = region.samples.start + done;
+            let first = at.complete;
+            // A pass a checkpoint stopped in is finished first, on the pixels that did not take it.
+            let stopped = at.stopped_pass.take();
+            let (end, skip) = match &stopped {
+                Some(p) => (p.end, Some(p.row_pixels.as_slice())),
+                None => (first + pass.min(target - done), None),
+            };
+            let count = end - first;
             let (c, nans, clamped, rows) = pool.install(|| {
                 self.render_pass(
                     scene,
                     &mut film,
                     &recorder,
                     edges.edges(),
-                    first..first + count,
-                    None,
+                    first..end,
+                    skip,
                     cancel,
                 )
             });
             counters.add(&c);
             nan_samples += nans;
             clamped_samples += clamped;
-            at = after_pass(first, first + count, rows, region.window.width());
+            at = after_pass(first, end, rows, region.window.width());
             done = at.complete - region.samples.start;
             if at.stopped_pass.is_some() {
                 break;
