@@ -2,26 +2,11 @@
 //! input is checked the same way in both.
 
 use nimbus::render::{Film, PixelWindow};
-use std::path::PathBuf;
-use std::sync::OnceLock;
+use std::path::Path;
 
-/// This process's file, in memory where `/dev/shm` exists.
-fn file() -> &'static PathBuf {
-    static FILE: OnceLock<PathBuf> = OnceLock::new();
-    FILE.get_or_init(|| {
-        let shm = std::path::Path::new("/dev/shm");
-        let base = if shm.is_dir() {
-            shm.to_path_buf()
-        } else {
-            std::env::temp_dir()
-        };
-        base.join(format!("nimbus-fuzz-part-{}.exr", std::process::id()))
-    })
-}
-
-/// Runs one input (see `fuzz_targets/farm_part.rs`).
-pub fn run(data: &[u8]) {
-    let path = file();
+/// Runs one input (see `fuzz_targets/farm_part.rs`), written as a file in the folder `dir`.
+pub fn run(data: &[u8], dir: &Path) {
+    let path = &dir.join("part.exr");
     std::fs::write(path, data).unwrap();
     let _ = nimbus::farm::read_part_info(path);
     let _ = nimbus::farm::checkpoint::read_checkpoint(path);

@@ -132,6 +132,6 @@ fn fuzz_findings_stay_fixed() {
     replay("obj_load", obj_load);
     replay("usd_load", usd_load);
     replay("cli_ranges", |data, _| cli_ranges_check::run(data));
-    replay("farm_part", |data, _| farm_part_check::run(data));
+    replay("farm_part", farm_part_check::run);
     replay("usd_compose", compose_stage::load);
 }

@@ -12,5 +12,7 @@
 
 #[path = "../farm_part_check.rs"]
 mod check;
+#[path = "../scratch.rs"]
+mod scratch;
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| check::run(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| check::run(data, scratch::folder()));

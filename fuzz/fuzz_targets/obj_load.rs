@@ -6,28 +6,21 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use std::path::PathBuf;
-use std::sync::OnceLock;
 
-/// A folder of this process's own, in memory where `/dev/shm` exists, holding `m.mtl`.
-fn folder() -> &'static PathBuf {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let shm = std::path::Path::new("/dev/shm");
-        let base = if shm.is_dir() {
-            shm.to_path_buf()
-        } else {
-            std::env::temp_dir()
-        };
-        let dir = base.join(format!("nimbus_fuzz_obj_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+#[path = "../scratch.rs"]
+mod scratch;
+
+/// The scratch folder, holding the library `m.mtl` that every input names.
+fn folder() -> &'static std::path::Path {
+    static MTL: std::sync::Once = std::sync::Once::new();
+    MTL.call_once(|| {
         std::fs::write(
-            dir.join("m.mtl"),
+            scratch::folder().join("m.mtl"),
             "newmtl a\nKd 0.5 0.5 0.5\nKs 0.1 0.1 0.1\nNs 20\nnewmtl lamp\nKe 2 2 2\n",
         )
         .unwrap();
-        dir
-    })
+    });
+    scratch::folder()
 }
 
 fuzz_target!(|data: &[u8]| {
