@@ -83,6 +83,24 @@ fn run_and_stop(mut cmd: Command, signal: &str, after: Duration) -> (ExitStatus,
     )
 }
 
+/// Times an uninterrupted render in `dir` on 2 threads, then renders with `extra` and sends `signal` at a half,
+/// 30% and 15% of that time until a render is stopped before it finishes; returns that render's status and
+/// stderr.
+fn stop_part_way(dir: &Path, extra: &[&str], signal: &str) -> (ExitStatus, String) {
+    let start = Instant::now();
+    assert!(render(dir, 2, &[]).status().unwrap().success());
+    let length = start.elapsed();
+    std::fs::remove_file(dir.join("out.exr")).unwrap();
+    for fraction in [0.5, 0.3, 0.15] {
+        let (status, stderr) =
+            run_and_stop(render(dir, 2, extra), signal, length.mul_f64(fraction));
+        if !status.success() {
+            return (status, stderr);
+        }
+    }
+    panic!("every render finished before its SIG{signal}");
+}
+
 /// The exit status a stop by `signal` must give: 128 + the signal for SIGTERM and SIGINT (the CLI writes
 /// what it has and exits), death by the signal for SIGKILL.
 fn stopped_as_expected(status: ExitStatus, signal: &str) -> bool {
@@ -176,45 +194,28 @@ fn a_render_stopped_at_random_moments_resumes_to_the_uninterrupted_file_bit_for_
 fn sigterm_without_checkpoint_writes_a_partial_image_marked_so_and_fails() {
     let _alone = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = temp_dir("partial");
-    let start = Instant::now();
-    assert!(render(&dir, 2, &[]).status().unwrap().success());
-    let length = start.elapsed();
-    std::fs::remove_file(dir.join("out.exr")).unwrap();
-    let mut stopped = false;
-    for fraction in [0.5, 0.3, 0.15] {
-        let (status, stderr) = run_and_stop(
-            render(&dir, 2, &["--stats", "stats.json"]),
-            "TERM",
-            length.mul_f64(fraction),
-        );
-        if status.success() {
-            continue;
-        }
-        stopped = true;
-        assert_eq!(status.code(), Some(143), "{stderr}");
-        assert!(stderr.contains("partial image out.exr"), "{stderr}");
-        let meta = exr::meta::MetaData::read_from_file(dir.join("out.exr"), false).unwrap();
-        let text = |key: &str| match meta.headers[0]
-            .own_attributes
-            .other
-            .get(&exr::meta::attribute::Text::from(key))
-        {
-            Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
-            other => panic!("{key}: {other:?}"),
-        };
-        assert_eq!(text("nimbus/partial"), "true");
-        assert_eq!(text("nimbus/interrupted_by"), "SIGTERM");
-        let spp: u32 = text("nimbus/spp").parse().unwrap();
-        assert!(spp < 512);
-        let stats: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(dir.join("stats.json")).unwrap()).unwrap();
-        assert_eq!(stats["partial"], true);
-        assert_eq!(stats["interrupted_by"], "SIGTERM");
-        assert_eq!(stats["samples_per_pixel"], spp);
-        assert!(!dir.join("out.checkpoint.exr").exists());
-        break;
-    }
-    assert!(stopped, "every render finished before its SIGTERM");
+    let (status, stderr) = stop_part_way(&dir, &["--stats", "stats.json"], "TERM");
+    assert_eq!(status.code(), Some(143), "{stderr}");
+    assert!(stderr.contains("partial image out.exr"), "{stderr}");
+    let meta = exr::meta::MetaData::read_from_file(dir.join("out.exr"), false).unwrap();
+    let text = |key: &str| match meta.headers[0]
+        .own_attributes
+        .other
+        .get(&exr::meta::attribute::Text::from(key))
+    {
+        Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
+        other => panic!("{key}: {other:?}"),
+    };
+    assert_eq!(text("nimbus/partial"), "true");
+    assert_eq!(text("nimbus/interrupted_by"), "SIGTERM");
+    let spp: u32 = text("nimbus/spp").parse().unwrap();
+    assert!(spp < 512);
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["partial"], true);
+    assert_eq!(stats["interrupted_by"], "SIGTERM");
+    assert_eq!(stats["samples_per_pixel"], spp);
+    assert!(!dir.join("out.checkpoint.exr").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -222,23 +223,8 @@ fn sigterm_without_checkpoint_writes_a_partial_image_marked_so_and_fails() {
 fn a_checkpoint_of_another_render_is_refused_and_merge_refuses_checkpoints() {
     let _alone = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = temp_dir("mismatch");
-    let start = Instant::now();
-    assert!(render(&dir, 2, &[]).status().unwrap().success());
-    let length = start.elapsed();
-    let mut checkpoint = false;
-    for fraction in [0.5, 0.3, 0.15] {
-        let (status, _) = run_and_stop(
-            render(&dir, 2, &["--checkpoint", "0.02"]),
-            "INT",
-            length.mul_f64(fraction),
-        );
-        if !status.success() {
-            assert_eq!(status.code(), Some(130));
-            checkpoint = true;
-            break;
-        }
-    }
-    assert!(checkpoint, "every render finished before its SIGINT");
+    let (status, stderr) = stop_part_way(&dir, &["--checkpoint", "0.02"], "INT");
+    assert_eq!(status.code(), Some(130), "{stderr}");
     assert!(dir.join("out.checkpoint.exr").exists());
     let out = render(&dir, 2, &["--resume", "--seed", "7"])
         .output()
