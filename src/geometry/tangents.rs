@@ -85,14 +85,8 @@ impl Mesh {
                 Some(_) => {
                     let key = (v, t.to_array().map(f32::to_bits));
                     let copy = *copies.entry(key).or_insert_with(|| {
-                        let i = v as usize;
-                        self.positions.push(self.positions[i]);
-                        self.normals.push(self.normals[i]);
-                        if let Some(uv) = &mut self.uvs {
-                            uv.push(uv[i]);
-                        }
                         tangents.push(Some(t));
-                        (self.positions.len() - 1) as u32
+                        self.duplicate_vertex(v)
                     });
                     self.indices[face][vert] = copy;
                 }
@@ -105,6 +99,35 @@ impl Mesh {
                 .collect(),
         );
         true
+    }
+}
+
+impl Mesh {
+    /// Appends a copy of vertex `v` with every per-vertex attribute (position, normal, both UV sets, colour,
+    /// tangent and each motion step) and returns its index. Skins and morph targets are applied before a mesh
+    /// reaches the scene, so these are all the attributes a vertex has here.
+    fn duplicate_vertex(&mut self, v: u32) -> u32 {
+        fn copy<T: Copy>(values: &mut Vec<T>, i: usize) {
+            values.push(values[i]);
+        }
+        let i = v as usize;
+        copy(&mut self.positions, i);
+        copy(&mut self.normals, i);
+        for set in [&mut self.uvs, &mut self.uvs1].into_iter().flatten() {
+            copy(set, i);
+        }
+        if let Some(colors) = &mut self.colors {
+            copy(colors, i);
+        }
+        if let Some(tangents) = &mut self.tangents {
+            copy(tangents, i);
+        }
+        if let Some(motion) = &mut self.motion {
+            for step in motion.positions.iter_mut().chain(&mut motion.normals) {
+                copy(step, i);
+            }
+        }
+        (self.positions.len() - 1) as u32
     }
 }
 
@@ -144,10 +167,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_uv_seam_splits_its_vertices() {
-        // Two quads sharing the edge x = 1, the second mapped mirrored in u: the shared vertices split.
-        let mut m = Mesh {
+    /// Two quads sharing the edge x = 1, the second mapped mirrored in u: the shared vertices 1 and 2 split.
+    fn seam() -> Mesh {
+        Mesh {
             positions: vec![
                 Vec3::ZERO,
                 Vec3::X,
@@ -167,7 +189,12 @@ mod tests {
             ]),
             indices: vec![[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]],
             ..Default::default()
-        };
+        }
+    }
+
+    #[test]
+    fn a_uv_seam_splits_its_vertices() {
+        let mut m = seam();
         assert!(m.generate_tangents());
         assert_eq!(m.positions.len(), 8);
         let t = m.tangents.as_ref().unwrap();
@@ -175,6 +202,61 @@ mod tests {
             let want = if face >= 2 { -Vec3::X } else { Vec3::X };
             for &i in tri {
                 assert!(t[i as usize].truncate().distance(want) < 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn a_split_copies_every_vertex_attribute() {
+        // Issue 37: the split extended positions, normals and the first UV set only, so COLOR_0, TEXCOORD_1
+        // and the motion steps of a split vertex were read past their ends.
+        let mut m = seam();
+        let n = m.positions.len();
+        let marker = |i: usize| i as f32 + 0.5;
+        m.uvs1 = Some((0..n).map(|i| Vec2::splat(marker(i))).collect());
+        m.colors = Some((0..n).map(|i| Vec4::splat(marker(i))).collect());
+        let steps = crate::geometry::MotionSteps {
+            count: 2,
+            open: 0.0,
+            close: 1.0,
+        };
+        let moved = |dz: f32| {
+            m.positions
+                .iter()
+                .map(|p| *p + Vec3::Z * dz)
+                .collect::<Vec<_>>()
+        };
+        m.motion = Some(crate::geometry::MeshMotion {
+            steps,
+            positions: vec![moved(0.0), moved(1.0)],
+            normals: vec![m.normals.clone(), m.normals.clone()],
+        });
+        let before = m.clone();
+        assert!(m.generate_tangents());
+        let count = m.positions.len();
+        assert_eq!(count, 8);
+        assert_eq!(m.uvs1.as_ref().unwrap().len(), count);
+        assert_eq!(m.colors.as_ref().unwrap().len(), count);
+        let motion = m.motion.as_ref().unwrap();
+        assert!(motion.positions.iter().all(|p| p.len() == count));
+        assert!(motion.normals.iter().all(|p| p.len() == count));
+        // Each corner still reads the attributes of the vertex it named before the split.
+        for (tri, was) in m.indices.iter().zip(&before.indices) {
+            for (&i, &j) in tri.iter().zip(was) {
+                let (i, j) = (i as usize, j as usize);
+                assert_eq!(m.positions[i], before.positions[j]);
+                assert_eq!(
+                    m.uvs1.as_ref().unwrap()[i],
+                    before.uvs1.as_ref().unwrap()[j]
+                );
+                assert_eq!(
+                    m.colors.as_ref().unwrap()[i],
+                    before.colors.as_ref().unwrap()[j]
+                );
+                assert_eq!(
+                    motion.positions[1][i],
+                    before.motion.as_ref().unwrap().positions[1][j]
+                );
             }
         }
     }

@@ -32,6 +32,16 @@
 //! [`Limits::usd_layer_stack`] entries is refused before the stage is opened, naming its root layer and the flag
 //! that raises the limit.
 //!
+//! A site also composes what the arcs of its ancestors map onto it (Pcp's ancestral arcs): a prim `/A/B` under
+//! `/A`, which references `/X`, composes `/X/B` in the reference's layer stack. The walk steps there too, so
+//! that arcs back into the run through an ancestor are cycles (as Pixar's USD reports them), and arcs that map
+//! a prim ever deeper into its own namespace are stopped by the same rule; an ancestor whose own arc targets its
+//! namespace is refused where it is met. A class arc met below a reference is implied onto the referencing
+//! layer stack (Pcp's implied classes): landing back in the run that way is refused too. `openusd` 0.6 followed
+//! each of these for minutes (the fuzz target's slow inputs, replayed under `tests/`). The nodes of each site's
+//! prim index (each arc's target with its own arcs, once per path) are counted against the prim limit, and the
+//! sites and steps of the walk are bounded by four times it.
+//!
 //! The walk is iterative and visits each site once. It works on layer stacks, while `openusd`'s pre-caching takes
 //! every inherit and specialize target as a path of the stage and maps it through arcs to any layer stack: a last
 //! check models that pre-caching on prim paths ([`precache`]) and refuses its cycles, which the fuzz target
@@ -168,6 +178,16 @@ impl<'a> Layers<'a> {
             layers.layers[index] = layers.read(&identifier);
         }
         (layers, root)
+    }
+
+    /// The deepest prim path authored or targeted by an arc in any layer read, in path elements.
+    fn deepest_path(&self) -> usize {
+        let layers = self.layers.iter().flatten();
+        let prims = layers.flat_map(|l| &l.prims);
+        let paths = prims.flat_map(|(path, prim)| {
+            std::iter::once(path).chain(prim.arcs.iter().map(|a| &a.path))
+        });
+        paths.map(|p| precache::depth(p)).max().unwrap_or(0)
     }
 
     /// The index of the layer `asset` names (relative to `anchor`), queued to be read the first time it is
@@ -358,13 +378,29 @@ enum Step {
     Arc(Arc),
     /// To the target of a class-based arc authored on the site's parent.
     ParentArc(Arc),
+    /// To the site an arc authored on an ancestor (the `String`) maps this one onto: the target with the
+    /// site's path below the ancestor appended. Composition brings that site into this one's prim index (an
+    /// ancestral arc), so it closes cycles like an arc; its prims are counted with the ancestor's arc.
+    AncestorArc(Arc, String),
 }
 
 impl Step {
     /// Whether the step's target is composed into the site (a child or an arc's target), and so counts in the
     /// site's prims; a parent's arc is already counted with the parent.
     fn counts(&self) -> bool {
+        matches!(self, Step::Child | Step::Arc(_))
+    }
+
+    /// Whether the step composes its target into the site (a child, an arc's target, or an ancestor's arc's
+    /// target mapped onto the site): around a loop of these, the site composes itself.
+    fn composes(&self) -> bool {
         !matches!(self, Step::ParentArc(_))
+    }
+
+    /// Whether the step follows an arc to the site it composes (the site's own or an ancestor's): a run of
+    /// these that lands nested with a site it started from is Pcp's arc cycle.
+    fn follows_arc(&self) -> bool {
+        matches!(self, Step::Arc(_) | Step::AncestorArc(..))
     }
 }
 
@@ -378,6 +414,9 @@ struct Frame {
     taken: usize,
     /// The prims counted so far (the counting pass).
     prims: u64,
+    /// The nodes of the site's prim index counted so far (the counting pass): itself, and each arc's target
+    /// (its own or an ancestor's) with that target's nodes.
+    nodes: u64,
 }
 
 impl Frame {
@@ -402,6 +441,10 @@ struct Walk<'a> {
     max_prims: u64,
     /// The most entries a layer stack may expand to.
     max_layer_stack: u64,
+    /// The deepest path an ancestor's arc may map a site onto, in path elements: twice the deepest prim path
+    /// authored or targeted in any layer, plus two. Deeper sites hold no specs, and arcs that map sites ever
+    /// deeper (which `openusd` follows for exponential time) would otherwise make new ones without end.
+    max_mapped_depth: usize,
     /// The entries each layer's stack expands to, by layer, once counted.
     entries: HashMap<usize, u64>,
 }
@@ -417,6 +460,7 @@ impl<'a> Walk<'a> {
             steps: Vec::new(),
             max_prims: limits.usd_prims,
             max_layer_stack: limits.usd_layer_stack,
+            max_mapped_depth: 2 * layers.deepest_path() + 2,
             entries: HashMap::new(),
         }
     }
@@ -447,27 +491,37 @@ impl<'a> Walk<'a> {
     /// reached again on its own path closes a cycle (see [`cycle_back`]), and a site that composes more prims
     /// than the limit is refused.
     fn count(&mut self, start: usize) -> Result<(), String> {
-        // The prims of every site walked; `None` while it is being walked.
-        let mut counted: HashMap<usize, Option<u64>> = HashMap::from([(start, None)]);
+        // The prims and prim-index nodes of every site walked; `None` while it is being walked.
+        let mut counted: HashMap<usize, Option<(u64, u64)>> = HashMap::from([(start, None)]);
         let mut frames = vec![self.frame(start)?];
         while let Some(top) = frames.last_mut() {
-            let Some((next, _)) = top.steps.get(top.taken).cloned() else {
-                let (site, prims) = (top.site, top.prims);
+            let Some((next, step)) = top.steps.get(top.taken).cloned() else {
+                let (site, prims, nodes) = (top.site, top.prims, top.nodes);
                 frames.pop();
                 self.within_limit(site, prims)?;
-                counted.insert(site, Some(prims));
-                add_to_last(&mut frames, prims);
+                self.index_within_limit(site, nodes)?;
+                counted.insert(site, Some((prims, nodes)));
+                add_to_last(&mut frames, prims, nodes);
                 continue;
             };
             top.taken += 1;
             match counted.get(&next) {
-                Some(Some(prims)) => add_to_last(&mut frames, *prims),
+                Some(Some((prims, nodes))) => add_to_last(&mut frames, *prims, *nodes),
                 Some(None) => {
                     if let Some(from) = cycle_back(&frames, next) {
                         return Err(self.cycle(&frames, from, next));
                     }
                 }
                 None => {
+                    // Arcs that map a site ever deeper into a namespace they came from meet no site twice:
+                    // Pcp's rule stops them here (and `unfold` applies it to every path).
+                    if let Some(from) = step
+                        .follows_arc()
+                        .then(|| self.lands_in_run(&frames, next))
+                        .flatten()
+                    {
+                        return Err(self.cycle(&frames, from, next));
+                    }
                     counted.insert(next, None);
                     let frame = self.frame(next)?;
                     frames.push(frame);
@@ -488,12 +542,23 @@ impl<'a> Walk<'a> {
         // Paths the counting pass left out (a step back onto a site being walked that closes no cycle) are
         // followed here too: bound them by the same limit.
         let mut prims = 0u64;
+        // Every step is work, counted or not: steps to ancestors' arcs' targets are bounded with the sites.
+        let mut taken = 0u64;
+        let max_steps = self.max_prims.saturating_mul(4);
         while let Some(top) = frames.last_mut() {
             let Some((next, step)) = top.steps.get(top.taken).cloned() else {
                 frames.pop();
                 continue;
             };
             top.taken += 1;
+            taken += 1;
+            if taken > max_steps {
+                return Err(format!(
+                    "following the stage's arcs takes more than {max_steps} steps (four per prim of the limit of \
+                     {} prims; raise it with --max-prims)",
+                    self.max_prims
+                ));
+            }
             prims += u64::from(step.counts());
             if prims > self.max_prims {
                 return Err(format!(
@@ -504,14 +569,12 @@ impl<'a> Walk<'a> {
             }
             match step {
                 Step::ParentArc(_) => continue,
-                Step::Arc(_) => {
-                    let run = run_start(&frames)..frames.len();
-                    let target = &self.sites[next];
-                    if let Some(from) = run
-                        .into_iter()
-                        .find(|&i| nested(&self.sites[frames[i].site], target))
-                    {
+                Step::Arc(arc) | Step::AncestorArc(arc, _) => {
+                    if let Some(from) = self.lands_in_run(&frames, next) {
                         return Err(self.cycle(&frames, from, next));
+                    }
+                    if arc.kind.is_class() {
+                        self.implied_class_in_run(&frames, next)?;
                     }
                 }
                 Step::Child => {}
@@ -520,6 +583,90 @@ impl<'a> Walk<'a> {
             frames.push(frame);
         }
         Ok(())
+    }
+
+    /// The frame of the arc run that the step just taken from the top frame extends (the frames entered through
+    /// arcs, and the prim they start from) whose site is nested with `next` (is, holds or lies inside it, in the
+    /// same layer stack), if any: composing `next` would follow the run's arcs forever.
+    fn lands_in_run(&self, frames: &[Frame], next: usize) -> Option<usize> {
+        let target = &self.sites[next];
+        (run_start(frames)..frames.len()).find(|&i| nested(&self.sites[frames[i].site], target))
+    }
+
+    /// Refuses the class arc just followed from the top frame to `next` when Pcp's implied classes carry it
+    /// back into the run: a class arc met below a reference or payload is implied onto the referencing prim's
+    /// layer stack, its target mapped through the reference (a target inside the referenced prim moves to the
+    /// referencing prim; one outside keeps its path). When that implied target is nested with a site of the run
+    /// in that stack, the referencing prim would inherit itself or its own namespace. Pixar's USD reports that
+    /// as an arc cycle, or drops the reference when its target has no specs; `openusd` 0.6 follows it for
+    /// exponential time. Only the nearest reference of the run is modelled.
+    fn implied_class_in_run(&self, frames: &[Frame], next: usize) -> Result<(), String> {
+        let start = run_start(frames);
+        let through = (start..frames.len()).rev().find(|&i| {
+            let (target, step) = frames[i].last_step();
+            let crosses = self.sites[*target].0 != self.sites[frames[i].site].0;
+            crosses && matches!(step, Step::Arc(a) | Step::AncestorArc(a, _) if !a.kind.is_class())
+        });
+        let Some(through) = through else {
+            return Ok(());
+        };
+        let (source_stack, source) = &self.sites[frames[through].last_step().0];
+        let (stack, referencing) = &self.sites[frames[through].site];
+        let (target_stack, target) = &self.sites[next];
+        if target_stack != source_stack {
+            return Ok(());
+        }
+        let implied = if target == source || inside(target, source) {
+            format!("{referencing}{}", &target[source.len()..])
+        } else {
+            target.clone()
+        };
+        let implied_site = (*stack, implied);
+        let Some(from) =
+            (start..=through).find(|&i| nested(&self.sites[frames[i].site], &implied_site))
+        else {
+            return Ok(());
+        };
+        let describe = |frame: &Frame| {
+            let at = &self.sites[frame.site].1;
+            match &frame.last_step().1 {
+                Step::Arc(arc) => (at.clone(), format!("{at} {}", arc.describe())),
+                Step::AncestorArc(arc, ancestor) => (
+                    ancestor.clone(),
+                    format!("{at} is under {ancestor}, which {}", arc.describe()),
+                ),
+                _ => (at.clone(), at.clone()),
+            }
+        };
+        let top = frames.last().expect("a frame");
+        let (authored_at, class) = describe(top);
+        let class_arc = match &top.last_step().1 {
+            Step::Arc(arc) | Step::AncestorArc(arc, _) => arc.describe(),
+            _ => String::new(),
+        };
+        Err(format!(
+            "{authored_at}: {class_arc} is a composition cycle for openusd 0.6, which follows it for exponential \
+             time ({}, below which {class}: a class arc implied onto {referencing}'s layer stack as {}, nested \
+             with {})",
+            describe(&frames[through]).1,
+            implied_site.1,
+            self.sites[frames[from].site].1,
+        ))
+    }
+
+    /// `Ok` when the prim index of `site` holds at most as many nodes as the prim limit allows prims: the arcs a
+    /// prim composes (its own and its ancestors', each target with its own arcs, once per path that reaches it)
+    /// are the work of building its index, which Pixar's USD and `openusd` alike do node by node. A few
+    /// payloads, each reaching the next through several arcs, make millions of nodes for one prim.
+    fn index_within_limit(&self, site: usize, nodes: u64) -> Result<(), String> {
+        if nodes <= self.max_prims {
+            return Ok(());
+        }
+        Err(format!(
+            "composing {} reaches {nodes} arc targets (each arc's target with its own and its ancestors' arcs, \
+             once per path that leads to it), over the limit of {} (raise it with --max-prims)",
+            self.sites[site].1, self.max_prims
+        ))
     }
 
     /// `Ok` when `site` composes at most the limit's prims (the pseudo-root, not a prim itself, one more).
@@ -540,8 +687,17 @@ impl<'a> Walk<'a> {
         ))
     }
 
-    /// A frame for `site`, its steps found the first time.
+    /// A frame for `site`, its steps found the first time. The sites met are bounded by four times the prim
+    /// limit: arcs that map sites ever deeper would otherwise make new ones without end.
     fn frame(&mut self, site: usize) -> Result<Frame, String> {
+        let max_sites = self.max_prims.saturating_mul(4);
+        if self.sites.len() as u64 > max_sites {
+            return Err(format!(
+                "the stage's arcs map its prims onto more than {max_sites} sites (a prim in each layer stack an \
+                 arc brings in, four per prim of the limit of {} prims; raise it with --max-prims)",
+                self.max_prims
+            ));
+        }
         let steps = match &self.steps[site] {
             Some(steps) => steps.clone(),
             None => {
@@ -555,10 +711,12 @@ impl<'a> Walk<'a> {
             steps,
             taken: 0,
             prims: 1,
+            nodes: 1,
         })
     }
 
-    /// The steps out of `site`: its arcs' targets, its parent's class-based arcs' targets, then its children.
+    /// The steps out of `site`: its arcs' targets, its parent's class-based arcs' targets, its ancestors' arcs'
+    /// targets with the site mapped onto them, then its children.
     fn find_steps(&mut self, site: usize) -> Result<Vec<(usize, Step)>, String> {
         let (stack, path) = self.sites[site].clone();
         self.not_mapped_onto_itself(stack, &path)?;
@@ -584,6 +742,37 @@ impl<'a> Walk<'a> {
         for arc in inherited {
             if let Some(target) = self.target(stack, &arc)? {
                 steps.push((self.site(target), Step::ParentArc(arc)));
+            }
+        }
+        let ancestors: Vec<(String, Arc)> =
+            std::iter::successors(Some(parent(&path)), |p| Some(parent(p)))
+                .take_while(|p| *p != "/")
+                .flat_map(|ancestor| {
+                    let arcs = self.stacks[stack]
+                        .prims
+                        .get(ancestor)
+                        .map(|p| p.arcs.clone());
+                    arcs.into_iter()
+                        .flatten()
+                        .map(|arc| (ancestor.to_owned(), arc))
+                })
+                .collect();
+        for (ancestor, arc) in ancestors {
+            if let Some((target_stack, target)) = self.target(stack, &arc)? {
+                // An ancestor whose own arc lands in its own namespace is a cycle in the ancestor's index, which
+                // the walk may never visit (a reference can target the prim below it directly).
+                if nested(&(stack, ancestor.clone()), &(target_stack, target.clone())) {
+                    return Err(format!(
+                        "{ancestor}: {} is a composition cycle (it targets {ancestor}'s own namespace; met \
+                         composing {path})",
+                        arc.describe()
+                    ));
+                }
+                let mapped = format!("{target}{}", &path[ancestor.len()..]);
+                if precache::depth(&mapped) <= self.max_mapped_depth {
+                    let site = self.site((target_stack, mapped));
+                    steps.push((site, Step::AncestorArc(arc, ancestor)));
+                }
             }
         }
         for child in children {
@@ -764,11 +953,15 @@ impl<'a> Walk<'a> {
                 Step::ParentArc(arc) => {
                     format!("{at} is under {}, which {}", parent(at), arc.describe())
                 }
+                Step::AncestorArc(arc, ancestor) => {
+                    format!("{at} is under {ancestor}, which {}", arc.describe())
+                }
             })
             .collect();
         let named = steps.iter().find_map(|(at, step, _)| match step {
             Step::Arc(arc) => Some(format!("{at}: {}", arc.describe())),
             Step::ParentArc(arc) => Some(format!("{}: {}", parent(at), arc.describe())),
+            Step::AncestorArc(arc, ancestor) => Some(format!("{ancestor}: {}", arc.describe())),
             Step::Child => None,
         });
         let (start, end) = (path(frames[from].site), path(site));
@@ -787,11 +980,17 @@ impl<'a> Walk<'a> {
     }
 }
 
-/// Adds the prims of a site just walked to the frame that stepped to it, if that step counts.
-fn add_to_last(frames: &mut [Frame], prims: u64) {
+/// Adds the prims of a site just walked to the frame that stepped to it, if that step counts, and the nodes of
+/// its prim index if the step follows an arc.
+fn add_to_last(frames: &mut [Frame], prims: u64, nodes: u64) {
     if let Some(last) = frames.last_mut() {
-        if last.last_step().1.counts() {
+        let step = &last.last_step().1;
+        let (counts, follows_arc) = (step.counts(), step.follows_arc());
+        if counts {
             last.prims = last.prims.saturating_add(prims);
+        }
+        if follows_arc {
+            last.nodes = last.nodes.saturating_add(nodes);
         }
     }
 }
@@ -804,10 +1003,10 @@ fn add_to_last(frames: &mut [Frame], prims: u64) {
 fn cycle_back(frames: &[Frame], site: usize) -> Option<usize> {
     let from = frames.iter().position(|f| f.site == site)?;
     let steps = || frames[from..].iter().map(|f| &f.last_step().1);
-    let composes = steps().all(Step::counts);
+    let composes = steps().all(Step::composes);
     let precaches = steps().all(|s| match s {
         Step::Arc(arc) | Step::ParentArc(arc) => arc.kind.is_class(),
-        Step::Child => false,
+        Step::AncestorArc(..) | Step::Child => false,
     });
     (composes || precaches).then_some(from)
 }
@@ -816,7 +1015,7 @@ fn cycle_back(frames: &[Frame], site: usize) -> Option<usize> {
 /// an arc.
 fn run_start(frames: &[Frame]) -> usize {
     let mut start = frames.len() - 1;
-    while start > 0 && matches!(frames[start - 1].last_step().1, Step::Arc(_)) {
+    while start > 0 && frames[start - 1].last_step().1.follows_arc() {
         start -= 1;
     }
     start
@@ -847,6 +1046,20 @@ mod tests {
 
     /// [`check_files`] under `limits`.
     fn check_with(tag: &str, files: &[(&str, &str)], limits: Limits) -> Result<(), String> {
+        let root = write_files(tag, files);
+        check(root.to_str().unwrap(), &resolver(), &limits)
+    }
+
+    /// Only the pre-caching model's check of the stage `files` make (the walk left out).
+    fn precache_files(tag: &str, files: &[(&str, &str)]) -> Result<(), String> {
+        let root = write_files(tag, files);
+        let resolver = resolver();
+        let (layers, _) = Layers::load(&resolver, root.to_str().unwrap());
+        precache::Precache::new(&layers).check(Limits::default().usd_prims)
+    }
+
+    /// Writes `files` (name, text) to a fresh folder; returns the path of the first, the root layer.
+    fn write_files(tag: &str, files: &[(&str, &str)]) -> std::path::PathBuf {
         let dir =
             std::env::temp_dir().join(format!("nimbus_composition_{}_{tag}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
@@ -854,11 +1067,67 @@ mod tests {
         for (name, text) in files {
             std::fs::write(dir.join(name), format!("#usda 1.0\n{text}")).unwrap();
         }
-        let resolver = CheckingResolver {
+        dir.join(files[0].0)
+    }
+
+    /// The resolver the loader checks layers through, with the default limits.
+    fn resolver() -> CheckingResolver {
+        CheckingResolver {
             inner: ar::DefaultResolver::new(),
             limits: Limits::default(),
-        };
-        check(dir.join(files[0].0).to_str().unwrap(), &resolver, &limits)
+        }
+    }
+
+    /// Pixar's USD (usd-core 26.11) reports an arc cycle on this stage; `openusd` 0.6 composed it for minutes.
+    #[test]
+    fn an_ancestors_arc_back_into_the_run_is_a_cycle() {
+        let root = "(\n defaultPrim = \"A\"\n)\ndef \"A\" (references = @./a.usda@</C/C>) {}";
+        let asset = "over \"C\" (payload = @./root.usda@) { def \"C\" {} }";
+        let err =
+            check_files("ancestor_cycle", &[("root.usda", root), ("a.usda", asset)]).unwrap_err();
+        assert!(
+            err.contains("composition cycle") && err.contains("/C/C is under /C, which payload"),
+            "{err}"
+        );
+    }
+
+    /// Pixar's USD reports an arc cycle: /A composes /C/D, whose parent's reference maps it onto /A/D, and so on
+    /// ever deeper (`openusd` 0.6 never met the same site twice and ran for minutes).
+    #[test]
+    fn arcs_that_map_a_prim_ever_deeper_are_a_cycle() {
+        let root =
+            "def \"A\" (references = </C/D>) {}\ndef \"C\" (references = </A>) { def \"D\" {} }";
+        let err = check_files("deeper", &[("root.usda", root)]).unwrap_err();
+        assert!(
+            err.contains("composition cycle") && err.contains("back inside /A"),
+            "{err}"
+        );
+    }
+
+    /// A class arc below a reference is implied onto the referencing prim: here /A would inherit its own child.
+    /// Pixar's USD drops the reference (its target has no specs) with an error; `openusd` 0.6 keeps it and
+    /// composed the stage for minutes, so it is refused.
+    #[test]
+    fn a_class_implied_back_into_the_referencing_prim_is_refused() {
+        let root = "def \"A\" (references = @./l1.usda@</C/C>) { over \"C\" (references = @./l1.usda@</C/D>) {} }";
+        let asset = "over \"C\" (inherits = </A>) {}\ndef \"A\" {}";
+        let err = check_files("implied", &[("root.usda", root), ("l1.usda", asset)]).unwrap_err();
+        assert!(
+            err.contains("implied onto /A's layer stack as /A/C, nested with /A"),
+            "{err}"
+        );
+    }
+
+    /// A model's usual arcs: a reference to an asset whose prim inherits a class and whose child references a
+    /// part, and an override below the reference that inherits a class of the stage. Pixar's USD composes it
+    /// without errors.
+    #[test]
+    fn ancestral_arcs_of_an_ordinary_asset_are_no_cycle() {
+        let root = "def \"World\" {\n def \"Chair\" (references = @./chair.usda@</Chair>) {\n  over \"Leg\" \
+                    (inherits = </World/Looks/Wood>) {}\n }\n class \"Looks\" { class \"Wood\" {} }\n}";
+        let chair = "def \"Chair\" (inherits = </_class_Chair>) { def \"Leg\" (references = </Parts/Leg>) {} }\n\
+                     class \"_class_Chair\" {}\nover \"Parts\" { def \"Leg\" { def \"Foot\" {} } }";
+        check_files("ordinary", &[("root.usda", root), ("chair.usda", chair)]).unwrap();
     }
 
     #[test]
@@ -888,18 +1157,21 @@ mod tests {
         .unwrap();
         // A target of another layer stack's prim is taken as the stage's path: /Q, which specializes /A/B, whose
         // parent /A holds the reference whose target specializes /Q again.
-        let err = check_files(
-            "precache_cycle",
-            &[
-                (
-                    "root.usda",
-                    "def \"A\" (references = @./other.usda@</X>) {}\ndef \"Q\" (specializes = </A/B>) {}",
-                ),
-                ("other.usda", "def \"X\" (specializes = </Q>) {}"),
-            ],
+        // The walk refuses it too, as an implied class (see the test above); the model on its own:
+        let files = [
+            (
+                "root.usda",
+                "def \"A\" (references = @./other.usda@</X>) {}\ndef \"Q\" (specializes = </A/B>) {}",
+            ),
+            ("other.usda", "def \"X\" (specializes = </Q>) {}"),
+        ];
+        let walk = check_files("precache_cycle", &files).unwrap_err();
+        assert!(
+            walk.starts_with("/X: specializes </Q> is a composition cycle"),
+            "{walk}"
         );
         assert_eq!(
-            err.unwrap_err(),
+            precache_files("precache_model", &files).unwrap_err(),
             "/Q: specializes </A/B> is a composition cycle for openusd 0.6, whose pre-caching of inherit and \
              specialize targets would follow /Q -> /A/B -> /Q without end (a stack overflow)"
         );

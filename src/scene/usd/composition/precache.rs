@@ -54,7 +54,7 @@ pub(super) struct Precache {
 }
 
 /// The elements of a prim path (`/` has none).
-fn depth(path: &str) -> usize {
+pub(super) fn depth(path: &str) -> usize {
     path.matches('/').count() - usize::from(path == "/")
 }
 
