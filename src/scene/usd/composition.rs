@@ -66,6 +66,14 @@ pub(super) fn check(
     limits: &Limits,
 ) -> Result<(), String> {
     let (layers, root) = Layers::load(resolver, root);
+    for (layer, name) in layers.layers.iter().zip(&layers.names) {
+        if let Some(twice) = layer.as_ref().and_then(|l| l.duplicate.as_ref()) {
+            return Err(format!(
+                "{name} {twice}: Pixar's USD refuses such a layer (\"Duplicate prim\", \"Duplicate items exist \
+                 for field\")"
+            ));
+        }
+    }
     match root {
         Some(root) => {
             Walk::new(&layers, limits).run(root)?;
@@ -147,6 +155,10 @@ struct Layer {
     default_prim: Option<String>,
     /// The prims it authors, by path (variant selections removed), `/` holding the root prims.
     prims: HashMap<String, Prim>,
+    /// What the layer authors twice, if anything: a prim in one scope, or one item in one arc list. Pixar's USD
+    /// refuses such a layer ("Duplicate prim", "Duplicate items exist for field"), while `openusd` 0.6 keeps
+    /// both, which let several of the fuzz target's stages compose for minutes.
+    duplicate: Option<String>,
 }
 
 /// The layers a stage reaches through sublayers, references and payloads, each read once.
@@ -256,8 +268,12 @@ impl<'a> Layers<'a> {
                 .and_then(|v| v.into_owned().cast::<String>().ok())
                 .map(|name| format!("/{name}")),
             prims: HashMap::new(),
+            duplicate: None,
         };
         for spec in data.spec_paths() {
+            if layer.duplicate.is_none() {
+                layer.duplicate = duplicate_child(data, &spec);
+            }
             let kind = data.spec_type(&spec);
             if !matches!(kind, Some(sdf::SpecType::Prim | sdf::SpecType::Variant)) {
                 continue;
@@ -273,6 +289,14 @@ impl<'a> Layers<'a> {
                     .push(path.clone());
             }
             let arcs = self.arcs(data, &spec, anchor);
+            let twice = arcs.iter().enumerate().find(|(i, a)| {
+                arcs[..*i].iter().any(|b| {
+                    (b.kind, b.layer, &b.path, &b.asset) == (a.kind, a.layer, &a.path, &a.asset)
+                })
+            });
+            if let (None, Some((_, arc))) = (&layer.duplicate, twice) {
+                layer.duplicate = Some(format!("lists <{path}> {} twice", arc.describe()));
+            }
             layer.prims.entry(path).or_default().arcs.extend(arcs);
         }
         layer
@@ -339,6 +363,19 @@ impl<'a> Layers<'a> {
         }
         arcs
     }
+}
+
+/// The path of a child that `spec`'s `primChildren` names twice, if any.
+fn duplicate_child(data: &dyn sdf::AbstractData, spec: &sdf::Path) -> Option<String> {
+    let children = data.try_field(spec, "primChildren").ok().flatten()?;
+    let names = children.into_owned().cast::<Vec<String>>().ok()?;
+    let mut seen = HashSet::new();
+    let twice = names.into_iter().find(|name| !seen.insert(name.clone()))?;
+    let parent = spec.strip_all_variant_selections();
+    Some(match parent.as_str() {
+        "/" => format!("defines prim </{twice}> twice in one scope"),
+        p => format!("defines prim <{p}/{twice}> twice in one scope"),
+    })
 }
 
 /// The extension of a resolved layer, lower case; for a layer inside a package, the packaged layer's.
@@ -1128,6 +1165,30 @@ mod tests {
         let chair = "def \"Chair\" (inherits = </_class_Chair>) { def \"Leg\" (references = </Parts/Leg>) {} }\n\
                      class \"_class_Chair\" {}\nover \"Parts\" { def \"Leg\" { def \"Foot\" {} } }";
         check_files("ordinary", &[("root.usda", root), ("chair.usda", chair)]).unwrap();
+    }
+
+    /// Pixar's USD 26.11 refuses both layers ("Duplicate prim", "Duplicate items exist for field"); `openusd`
+    /// 0.6 kept both copies, and fuzz inputs built on them composed for minutes or overflowed its stack.
+    #[test]
+    fn a_prim_or_an_arc_authored_twice_is_refused() {
+        let prim =
+            check_files("twice_prim", &[("root.usda", "def \"A\" {}\ndef \"A\" {}")]).unwrap_err();
+        assert!(
+            prim.ends_with(
+                "root.usda defines prim </A> twice in one scope: Pixar's USD refuses such a layer \
+                                (\"Duplicate prim\", \"Duplicate items exist for field\")"
+            ),
+            "{prim}"
+        );
+        let nested = "def \"B\" { def \"C\" {}\n def \"C\" {} }";
+        let err = check_files("twice_nested", &[("root.usda", nested)]).unwrap_err();
+        assert!(err.contains("defines prim </B/C> twice"), "{err}");
+        let arcs = "def \"A\" (inherits = [</B>, </B>]) {}\nclass \"B\" {}";
+        let err = check_files("twice_arc", &[("root.usda", arcs)]).unwrap_err();
+        assert!(err.contains("lists </A> inherits </B> twice"), "{err}");
+        // The same target through two kinds of arc, or in two prims, is no duplicate.
+        let fine = "def \"A\" (inherits = </B> specializes = </B>) {}\ndef \"C\" (inherits = </B>) {}\nclass \"B\" {}";
+        check_files("twice_fine", &[("root.usda", fine)]).unwrap();
     }
 
     #[test]
