@@ -439,6 +439,41 @@ impl Step {
     fn follows_arc(&self) -> bool {
         matches!(self, Step::Arc(_) | Step::AncestorArc(..))
     }
+
+    /// The arc the step follows, if it follows one (its own, its parent's or an ancestor's).
+    fn arc(&self) -> Option<&Arc> {
+        match self {
+            Step::Arc(arc) | Step::ParentArc(arc) | Step::AncestorArc(arc, _) => Some(arc),
+            Step::Child => None,
+        }
+    }
+
+    /// The step from the site at `at` to the site at `next`, in words: `/A holds /A/B`, `/A references </X>`,
+    /// `/A/B is under /A, which references </X>`.
+    fn describe(&self, at: &str, next: &str) -> String {
+        match self {
+            Step::Child => format!("{at} holds {next}"),
+            Step::Arc(arc) => format!("{at} {}", arc.describe()),
+            Step::ParentArc(arc) => {
+                format!("{at} is under {}, which {}", parent(at), arc.describe())
+            }
+            Step::AncestorArc(arc, ancestor) => {
+                format!("{at} is under {ancestor}, which {}", arc.describe())
+            }
+        }
+    }
+
+    /// The arc the step follows from the site at `at`, named by the prim that authors it (`/A: references
+    /// </X>`); `None` for a child.
+    fn authored(&self, at: &str) -> Option<String> {
+        let by = match self {
+            Step::Child => return None,
+            Step::Arc(_) => at,
+            Step::ParentArc(_) => parent(at),
+            Step::AncestorArc(_, ancestor) => ancestor,
+        };
+        self.arc().map(|arc| format!("{by}: {}", arc.describe()))
+    }
 }
 
 /// The steps out of a site: to the target site (an index into [`Walk::sites`]), and how.
@@ -642,7 +677,7 @@ impl<'a> Walk<'a> {
         let through = (start..frames.len()).rev().find(|&i| {
             let (target, step) = frames[i].last_step();
             let crosses = self.sites[*target].0 != self.sites[frames[i].site].0;
-            crosses && matches!(step, Step::Arc(a) | Step::AncestorArc(a, _) if !a.kind.is_class())
+            crosses && step.follows_arc() && step.arc().is_some_and(|a| !a.kind.is_class())
         });
         let Some(through) = through else {
             return Ok(());
@@ -653,11 +688,7 @@ impl<'a> Walk<'a> {
         if target_stack != source_stack {
             return Ok(());
         }
-        let implied = if target == source || inside(target, source) {
-            format!("{referencing}{}", &target[source.len()..])
-        } else {
-            target.clone()
-        };
+        let implied = precache::map(target, source, referencing).unwrap_or_else(|| target.clone());
         let implied_site = (*stack, implied);
         let Some(from) =
             (start..=through).find(|&i| nested(&self.sites[frames[i].site], &implied_site))
@@ -665,27 +696,17 @@ impl<'a> Walk<'a> {
             return Ok(());
         };
         let describe = |frame: &Frame| {
-            let at = &self.sites[frame.site].1;
-            match &frame.last_step().1 {
-                Step::Arc(arc) => (at.clone(), format!("{at} {}", arc.describe())),
-                Step::AncestorArc(arc, ancestor) => (
-                    ancestor.clone(),
-                    format!("{at} is under {ancestor}, which {}", arc.describe()),
-                ),
-                _ => (at.clone(), at.clone()),
-            }
+            let (next, step) = frame.last_step();
+            step.describe(&self.sites[frame.site].1, &self.sites[*next].1)
         };
         let top = frames.last().expect("a frame");
-        let (authored_at, class) = describe(top);
-        let class_arc = match &top.last_step().1 {
-            Step::Arc(arc) | Step::AncestorArc(arc, _) => arc.describe(),
-            _ => String::new(),
-        };
+        let class_arc = top.last_step().1.authored(&self.sites[top.site].1);
         Err(format!(
-            "{authored_at}: {class_arc} is a composition cycle for openusd 0.6, which follows it for exponential \
-             time ({}, below which {class}: a class arc implied onto {referencing}'s layer stack as {}, nested \
-             with {})",
-            describe(&frames[through]).1,
+            "{} is a composition cycle for openusd 0.6, which follows it for exponential time ({}, below which \
+             {}: a class arc implied onto {referencing}'s layer stack as {}, nested with {})",
+            class_arc.unwrap_or_default(),
+            describe(&frames[through]),
+            describe(top),
             implied_site.1,
             self.sites[frames[from].site].1,
         ))
@@ -781,19 +802,18 @@ impl<'a> Walk<'a> {
                 steps.push((self.site(target), Step::ParentArc(arc)));
             }
         }
-        let ancestors: Vec<(String, Arc)> =
-            std::iter::successors(Some(parent(&path)), |p| Some(parent(p)))
-                .take_while(|p| *p != "/")
-                .flat_map(|ancestor| {
-                    let arcs = self.stacks[stack]
-                        .prims
-                        .get(ancestor)
-                        .map(|p| p.arcs.clone());
-                    arcs.into_iter()
-                        .flatten()
-                        .map(|arc| (ancestor.to_owned(), arc))
-                })
-                .collect();
+        let ancestors: Vec<(String, Arc)> = precache::ancestors(&path)
+            .skip(1)
+            .flat_map(|ancestor| {
+                let arcs = self.stacks[stack]
+                    .prims
+                    .get(ancestor)
+                    .map(|p| p.arcs.clone());
+                arcs.into_iter()
+                    .flatten()
+                    .map(|arc| (ancestor.to_owned(), arc))
+            })
+            .collect();
         for (ancestor, arc) in ancestors {
             if let Some((target_stack, target)) = self.target(stack, &arc)? {
                 // An ancestor whose own arc lands in its own namespace is a cycle in the ancestor's index, which
@@ -984,23 +1004,9 @@ impl<'a> Walk<'a> {
             .collect();
         let chain: Vec<String> = steps
             .iter()
-            .map(|(at, step, next)| match step {
-                Step::Child => format!("{at} holds {next}"),
-                Step::Arc(arc) => format!("{at} {}", arc.describe()),
-                Step::ParentArc(arc) => {
-                    format!("{at} is under {}, which {}", parent(at), arc.describe())
-                }
-                Step::AncestorArc(arc, ancestor) => {
-                    format!("{at} is under {ancestor}, which {}", arc.describe())
-                }
-            })
+            .map(|(at, step, next)| step.describe(at, next))
             .collect();
-        let named = steps.iter().find_map(|(at, step, _)| match step {
-            Step::Arc(arc) => Some(format!("{at}: {}", arc.describe())),
-            Step::ParentArc(arc) => Some(format!("{}: {}", parent(at), arc.describe())),
-            Step::AncestorArc(arc, ancestor) => Some(format!("{ancestor}: {}", arc.describe())),
-            Step::Child => None,
-        });
+        let named = steps.iter().find_map(|(at, step, _)| step.authored(at));
         let (start, end) = (path(frames[from].site), path(site));
         let lands = if inside(end, start) {
             format!(", back inside {start}")

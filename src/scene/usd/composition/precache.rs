@@ -59,7 +59,7 @@ pub(super) fn depth(path: &str) -> usize {
 }
 
 /// `path` moved from under `from` to under `to`, when it is `from` or lies inside it.
-fn map(path: &str, from: &str, to: &str) -> Option<String> {
+pub(super) fn map(path: &str, from: &str, to: &str) -> Option<String> {
     if path == from {
         Some(to.to_owned())
     } else if inside(path, from) {
@@ -75,7 +75,7 @@ fn map(path: &str, from: &str, to: &str) -> Option<String> {
 }
 
 /// `path` and its ancestors, the path first, `/` left out.
-fn ancestors(path: &str) -> impl Iterator<Item = &str> {
+pub(super) fn ancestors(path: &str) -> impl Iterator<Item = &str> {
     std::iter::successors(Some(path), |p| Some(parent(p))).take_while(|p| *p != "/")
 }
 
@@ -86,7 +86,7 @@ impl Precache {
             class: HashMap::new(),
             maps: HashMap::new(),
             prims: Vec::new(),
-            depth: 0,
+            depth: layers.deepest_path(),
             sites: HashMap::new(),
             targets: HashMap::new(),
         };
@@ -96,7 +96,6 @@ impl Precache {
                 if path != "/" && seen.insert(path.clone()) {
                     model.prims.push(path.clone());
                 }
-                model.depth = model.depth.max(depth(path));
                 for arc in &prim.arcs {
                     let target = match (arc.layer, arc.path.is_empty()) {
                         (Some(layer), true) => layers.layers[layer]
@@ -106,6 +105,7 @@ impl Precache {
                         (_, false) => Some(arc.path.clone()),
                     };
                     let Some(target) = target else { continue };
+                    // A default prim's path, which `deepest_path` does not see in the arc.
                     model.depth = model.depth.max(depth(&target));
                     let maps = model.maps.entry(path.clone()).or_default();
                     if !maps.contains(&target) {
