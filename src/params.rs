@@ -4,7 +4,7 @@
 //!
 //! A declaration (a VDB volume, a mesh's interior medium) lists its keys in a `&[ParamKey]` table: the table
 //! is what the loaders read through (glTF from a JSON object with [`JsonParams`], USD from a prim's `nimbus:`
-//! attributes) and what the README's key tables show ([`markdown_table`]; a test keeps them in agreement).
+//! attributes) and what the key tables of docs/reference.md show ([`markdown_table`]; a test keeps them in agreement).
 
 use crate::math::Rgb;
 use std::fmt;
@@ -318,7 +318,7 @@ pub fn parse_rgb(value: &serde_json::Value) -> Option<Rgb> {
     Some(Rgb::from(c))
 }
 
-/// The Markdown table of `keys` that the README shows: key, type, default, USD attribute, meaning. Keys of
+/// The Markdown table of `keys` that docs/reference.md shows: key, type, default, USD attribute, meaning. Keys of
 /// nested objects follow their parent as `parent.key`.
 pub fn markdown_table(keys: &[ParamKey]) -> String {
     let mut out =

@@ -331,7 +331,7 @@ fn volume_errors_tell_a_missing_grid_from_a_corrupt_file() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// The `--stats` JSON of a medium keeps the keys the README lists (`method` still the sentence) and adds the
+/// The `--stats` JSON of a medium keeps the keys docs/reference.md lists (`method` still the sentence) and adds the
 /// structured method keys.
 #[test]
 fn stats_json_has_the_method_sentence_and_its_fields() {

@@ -380,7 +380,7 @@ fn a_closed_standard_output_ends_the_listing_quietly() {
 }
 
 /// Usage errors are one line of printable ASCII naming the flag (issue 36, finding 11): negative numbers gave
-/// 4-5-line usage errors, and clap's messages and ours printed "±", which the README's promise excludes.
+/// 4-5-line usage errors, and clap's messages and ours printed "±", which the promise in docs/reference.md excludes.
 #[test]
 fn usage_errors_are_one_line_of_printable_ascii() {
     let dir = temp_dir("usage");

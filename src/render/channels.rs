@@ -39,7 +39,7 @@ pub struct Layer {
     pub name: &'static str,
     /// The component names, one per component of the buffer, in buffer order.
     pub components: &'static [&'static str],
-    /// What the layer holds, as documented in the README and in [`RenderImage`].
+    /// What the layer holds, as documented in `docs/reference.md` and in [`RenderImage`].
     pub meaning: &'static str,
     /// How `--half` may store it.
     pub kind: ChannelKind,
@@ -232,13 +232,13 @@ mod tests {
     }
 
     #[test]
-    fn the_readme_lists_every_layer() {
-        let readme = include_str!("../../README.md");
+    fn the_reference_lists_every_layer() {
+        let readme = include_str!("../../docs/reference.md");
         for layer in LAYERS.iter().filter(|l| !l.name.is_empty()) {
             let listed = format!("`{}.{}`", layer.name, layer.components.join("/"));
             assert!(
                 readme.contains(&listed),
-                "README's Output section lacks {listed}"
+                "docs/reference.md's Output section lacks {listed}"
             );
         }
     }

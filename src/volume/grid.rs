@@ -13,7 +13,7 @@
 //! - RGB extinction (a vec3 density grid): majorants of the channels' maximum; free flights by spectral tracking
 //!   (Kutz et al. 2017, §5, history-aware collision probabilities: the path keeps all three channels), or with
 //!   `"chromatic_tracking": "one_channel"` by delta tracking of the one channel the path is made to carry. `auto`
-//!   (the default) is spectral tracking, measured 2.8× to 8.5× as efficient (README). On a segment shared with
+//!   (the default) is spectral tracking, measured 2.8× to 8.5× as efficient (docs/reference.md). On a segment shared with
 //!   another medium the path carries one channel either way.
 //! - Shadow rays: ratio tracking (Novák et al. 2014, eq. 6), or residual ratio tracking (Novák et al. 2014, §4)
 //!   with `"shadow_estimator": "residual_ratio"`.

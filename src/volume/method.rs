@@ -54,7 +54,7 @@ impl ChromaticTracking {
     pub const NAMES: &'static [&'static str] = &["one_channel", "spectral"];
 
     /// What `"chromatic_tracking": "auto"` picks, by the efficiency measured on mildly and strongly chromatic
-    /// grids (README, "What each choice wins").
+    /// grids (docs/reference.md, "What each choice wins").
     pub const AUTO: ChromaticTracking = ChromaticTracking::Spectral;
 
     /// Why `auto` picks [`ChromaticTracking::AUTO`], as `--explain` says it.

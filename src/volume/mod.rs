@@ -230,7 +230,7 @@ const NOISE: ParamKey = ParamKey {
     usd: NO_USD,
 };
 
-/// The keys of a material's `extras.nimbus_medium` (a closed mesh's interior), in the README's order.
+/// The keys of a material's `extras.nimbus_medium` (a closed mesh's interior), in docs/reference.md's order.
 pub const MEDIUM_KEYS: &[ParamKey] = &[SIGMA_A, SIGMA_S, ANISOTROPY, NOISE];
 
 /// Parses a material's `extras.nimbus_medium` ([`MEDIUM_KEYS`]): `{"sigma_a": [r,g,b], "sigma_s": [r,g,b],

@@ -2,7 +2,7 @@
 //! `Volume` prims with `nimbus:` attributes.
 //!
 //! The keys are one table, [`VOLUME_KEYS`] (name, type, default, meaning, USD attribute): both loaders read
-//! through it ([`VolumeSpec::read_params`]) and the README's key table is generated from it (a test keeps them
+//! through it ([`VolumeSpec::read_params`]) and the key table of docs/reference.md is generated from it (a test keeps them
 //! in agreement). σ_t(x) = density_scale · ρ(x) per world metre, ρ the trilinear lookup (OpenVDB BoxSampler
 //! convention); σ_s = albedo · σ_t, σ_a = σ_t − σ_s; emission σ_a · L_e with L_e = emission_scale ·
 //! blackbody(temperature_scale · T(x) + temperature_offset), normalised RGB (pbrt-v4's convention for grid
@@ -185,11 +185,11 @@ const CHROMATIC_TRACKING: ParamKey = ParamKey {
     ty: ParamType::Choice(CHROMATIC_TRACKING_CHOICES),
     default: ParamDefault::Text("auto"),
     doc: "free flights through an RGB density: `spectral` tracking keeps all three channels, `one_channel` makes \
-          the path carry one; `auto` picks by the measured efficiency (see the README)",
+          the path carry one; `auto` picks by the measured efficiency (see docs/reference.md)",
     usd: UsdBinding::Elsewhere("not read (auto)"),
 };
 
-/// The keys of a VDB volume declaration (glTF `extras.nimbus_volume`, USD `Volume` prims), in the README's
+/// The keys of a VDB volume declaration (glTF `extras.nimbus_volume`, USD `Volume` prims), in docs/reference.md's
 /// order.
 pub const VOLUME_KEYS: &[ParamKey] = &[
     FILE,
@@ -652,9 +652,10 @@ mod tests {
     }
 
     #[test]
-    fn readme_key_tables_are_the_code_tables() {
+    fn reference_key_tables_are_the_code_tables() {
         let readme =
-            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/reference.md"))
+                .unwrap();
         for (what, keys) in [
             ("nimbus_volume", VOLUME_KEYS),
             ("nimbus_medium", super::super::MEDIUM_KEYS),
@@ -662,7 +663,7 @@ mod tests {
             let table = crate::params::markdown_table(keys);
             assert!(
                 readme.contains(&table),
-                "README's {what} key table is not the code's; it should read:\n{table}"
+                "docs/reference.md's {what} key table is not the code's; it should read:\n{table}"
             );
         }
     }
