@@ -8,6 +8,7 @@ use nimbus::frames::{has_frame_token, with_frame, FrameRange, Shutter};
 use nimbus::light::EnvironmentLight;
 use nimbus::limits::{one_line, Limits};
 use nimbus::math::Rgb;
+use nimbus::output::Exposure;
 use nimbus::render::resume::{RegionProgress, ResumeFrom};
 use nimbus::render::{
     CancelToken, Film, PixelWindow, Progress, RenderImage, RenderRegion, RenderSettings,
@@ -66,9 +67,10 @@ struct MergeArgs {
     /// Output EXR; the PNG preview goes beside it with the same stem.
     #[arg(short = 'o', long = "output")]
     output: PathBuf,
-    /// Exposure of the PNG preview in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = finite_number)]
-    exposure: f32,
+    /// Exposure of the PNG preview: `auto` (metered from the image, printed) or a number of stops (0: the
+    /// linear values as they are). The EXR is never exposed.
+    #[arg(long, default_value = "auto", allow_negative_numbers = true, value_parser = exposure_value)]
+    exposure: Exposure,
     /// How the EXR is stored.
     #[command(flatten)]
     storage: StorageArgs,
@@ -231,9 +233,10 @@ struct RenderArgs {
     /// named twice counting twice (default 1000).
     #[arg(long = "max-sublayers", value_parser = clap::value_parser!(u64).range(1..))]
     max_sublayers: Option<u64>,
-    /// Exposure of the PNG preview in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = finite_number)]
-    exposure: f32,
+    /// Exposure of the PNG preview: `auto` (metered from the image, printed) or a number of stops (0: the
+    /// linear values as they are). The EXR is never exposed.
+    #[arg(long, default_value = "auto", allow_negative_numbers = true, value_parser = exposure_value)]
+    exposure: Exposure,
     /// Print the estimator chosen for each medium, the light sampler and emitter-edge supersampling, and why,
     /// before rendering.
     #[arg(long)]
@@ -508,12 +511,42 @@ fn whole_number<T: std::str::FromStr>(text: &str) -> Result<T, String> {
         .map_err(|_| "expected a whole number of 0 or more".to_owned())
 }
 
-/// Parses a finite number (an exposure in stops).
-fn finite_number(text: &str) -> Result<f32, String> {
-    match text.parse::<f32>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        _ => Err("expected a finite number".into()),
+/// Parses `--exposure`: `auto` or a finite number of stops.
+fn exposure_value(text: &str) -> Result<Exposure, String> {
+    Exposure::parse(text).ok_or_else(|| "expected auto or a finite number of stops".into())
+}
+
+/// The preview's exposure in stops for `image`: the fixed one, or the metered one (printed). Either way, an
+/// image that is almost black before exposure gets one warning line saying so.
+fn preview_stops(exposure: Exposure, image: &RenderImage) -> f32 {
+    let metering = nimbus::output::meter(image);
+    let stops = match exposure {
+        Exposure::Stops(stops) => stops,
+        Exposure::Auto => metering.auto_stops,
+    };
+    if metering.almost_black {
+        let advice = match exposure {
+            Exposure::Auto => format!("the PNG preview is exposed by {stops:+.2} stops"),
+            Exposure::Stops(_) => format!(
+                "--exposure auto would expose the PNG preview by {:+.2} stops",
+                metering.auto_stops
+            ),
+        };
+        eprintln!(
+            "nimbus: warning: the image is almost black before exposure (fewer than {}% of its pixels reach \
+             luminance {}; log-average {:.3e}); {advice}, and the EXR keeps the linear values",
+            nimbus::output::BLACK_SHARE * 100.0,
+            nimbus::output::BLACK_LUMINANCE,
+            metering.key
+        );
+    } else if exposure == Exposure::Auto {
+        eprintln!(
+            "nimbus: preview exposure {stops:+.2} stops (auto: log-average luminance {:.3e} to middle grey; \
+             --exposure 0 shows the linear values)",
+            metering.key
+        );
     }
+    stops
 }
 
 /// Parses a positive, finite number of seconds (a time budget).
@@ -713,13 +746,27 @@ fn render_frame(
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
-    if !builder.has_own_lighting() {
+    let lighting = builder.own_lighting();
+    if !lighting.lights_the_scene() {
         builder.set_environment(EnvironmentLight::Constant(Rgb::splat(
             DEFAULT_ENVIRONMENT_RADIANCE,
         )));
+        let textured = match lighting.textured_emissive_meshes {
+            0 => String::new(),
+            n => format!(
+                " ({n} mesh(es) with textured emission glow but do not count: such emission is detail, which \
+                 glTF viewers show under their own environment)"
+            ),
+        };
         eprintln!(
-            "nimbus: the scene has no light (textured emission does not count), so a uniform white environment of radiance \
+            "nimbus: the scene has no light of its own{textured}, so a uniform white environment of radiance \
              {DEFAULT_ENVIRONMENT_RADIANCE} lights it (a nimbus_environment or --env-color 0,0,0 keeps it dark)"
+        );
+    } else if !lighting.environment {
+        eprintln!(
+            "nimbus: the scene lights itself ({}), so it gets no default environment (--env-color 1,1,1 adds the \
+             white one)",
+            lighting.describe()
         );
     }
     let scene: Scene = builder.build().map_err(|e| e.to_string())?;
@@ -791,9 +838,9 @@ fn render_frame(
         );
     }
     eprintln!(
-        "nimbus: {} triangles, {} lights, {width}x{height}, {} spp{}",
+        "nimbus: {} triangles, {}, {width}x{height}, {} spp{}",
         scene.triangle_count(),
-        scene.lights().len(),
+        nimbus::light::describe_lights(scene.lights()),
         if spp == u32::MAX {
             "unlimited".to_string()
         } else {
@@ -956,7 +1003,8 @@ fn write_image(args: &RenderArgs, image: &RenderImage, output: &Path) -> Result<
     nimbus::output::write_exr_with(image, output, &args.storage.options())
         .map_err(|e| e.to_string())?;
     let png = nimbus::output::preview_path(output);
-    nimbus::output::write_png_preview(image, &png, args.exposure).map_err(|e| e.to_string())
+    nimbus::output::write_png_preview(image, &png, preview_stops(args.exposure, image))
+        .map_err(|e| e.to_string())
 }
 
 /// With `--resume`, the checkpoint at `path` to continue from, once checked to be of this render (`None`
@@ -1288,8 +1336,12 @@ fn merge(args: MergeArgs) -> Result<(), String> {
     nimbus::output::write_exr_with(&merged.image, &args.output, &args.storage.options())
         .map_err(|e| e.to_string())?;
     let png = nimbus::output::preview_path(&args.output);
-    nimbus::output::write_png_preview(&merged.image, &png, args.exposure)
-        .map_err(|e| e.to_string())?;
+    nimbus::output::write_png_preview(
+        &merged.image,
+        &png,
+        preview_stops(args.exposure, &merged.image),
+    )
+    .map_err(|e| e.to_string())?;
     eprintln!(
         "nimbus: merged {} parts ({}x{}, {} spp) into {} and {}",
         merged.parts,

@@ -249,3 +249,82 @@ fn assert_value_refused(scene: &Path, flag: &str, value: &str) {
     );
     assert!(stderr.contains(value), "{flag} {value}: {stderr}");
 }
+
+/// A floor lit only by its file's own 3 lx sun (KHR_lights_punctual, read as 3/683 W/m²), as the Khronos sample
+/// assets light themselves: the render is about 0.001 in linear radiance. The preview used to be black with no
+/// word; now the automatic exposure lifts it, the lighting line says why no environment was added, and a fixed
+/// `--exposure 0` warns that the image is almost black.
+#[test]
+fn a_physically_dim_scene_gets_a_viewable_preview_and_says_why() {
+    let dir = std::env::temp_dir().join(format!("nimbus-cli-dim-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("dim.gltf");
+    // A 2 m grey floor (base colour 0.8, not metallic), a camera 3 m above looking down, and a directional light
+    // of 3 lx shining down.
+    let down = r#""rotation": [-0.70710678, 0, 0, 0.70710678]"#;
+    std::fs::write(
+        &scene,
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "extensionsUsed": ["KHR_lights_punctual"],
+  "extensions": {{"KHR_lights_punctual": {{"lights": [{{"type": "directional", "intensity": 3}}]}}}},
+  "scene": 0, "scenes": [{{"nodes": [0, 1, 2]}}],
+  "nodes": [{{"mesh": 0}}, {{"camera": 0, "translation": [0, 3, 0], {down}}},
+            {{"extensions": {{"KHR_lights_punctual": {{"light": 0}}}}, {down}}}],
+  "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.5, "znear": 0.1}}}}],
+  "materials": [{{"pbrMetallicRoughness": {{"baseColorFactor": [0.8, 0.8, 0.8, 1], "metallicFactor": 0}}}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "material": 0}}]}}],
+  "buffers": [{{"byteLength": 60, "uri": "data:application/octet-stream;base64,AACAvwAAAAAAAIC/AACAPwAAAAAAAIC/AACAPwAAAAAAAIA/AACAvwAAAAAAAIA/AAACAAEAAAADAAIA"}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
+  "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                  "min": [-1, 0, -1], "max": [1, 0, 1]}},
+                {{"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}}]}}"#
+        ),
+    )
+    .unwrap();
+    let render = |flags: &[&str]| {
+        let exr = dir.join("out.exr");
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(&scene)
+            .args(["--width", "16", "--height", "16", "--spp", "4", "-o"])
+            .arg(&exr)
+            .args(flags)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert!(output.status.success(), "{stderr}");
+        let png = image::open(dir.join("out.png")).unwrap().to_luma8();
+        let mean = png.pixels().map(|p| p[0] as f64).sum::<f64>() / png.len() as f64;
+        (stderr, mean)
+    };
+    let (stderr, mean) = render(&[]);
+    assert!(
+        stderr.contains("lights itself (1 punctual light)") && stderr.contains("--env-color 1,1,1"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("almost black"), "{stderr}");
+    assert!(
+        stderr.contains("2 triangles, 1 punctual light, 16x16"),
+        "{stderr}"
+    );
+    // 0.8/π · 3/683 W/m² = 1.12e-3: the key is 7.33 stops below middle grey; auto exposure brings it to one
+    // stop below (6.33 stops), sRGB code 84.
+    let stops: f64 = stderr
+        .split("exposed by ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no exposure in {stderr}"));
+    assert!((stops - 6.33).abs() < 0.05, "{stops}: {stderr}");
+    assert!(
+        (mean - 84.0).abs() < 6.0,
+        "auto exposure shows the floor: mean {mean}"
+    );
+    let (stderr, mean) = render(&["--exposure", "0"]);
+    assert!(
+        stderr.contains("almost black") && stderr.contains("--exposure auto would expose"),
+        "{stderr}"
+    );
+    assert!(mean < 10.0, "the linear preview is dark: {mean}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -52,6 +52,36 @@ impl LightSample {
     }
 }
 
+/// The lights of a scene counted by kind, in words: "36 emissive triangles, 1 punctual light, an environment"
+/// ("no lights" for none). Every message that counts lights uses it, so they agree.
+pub fn describe_lights(lights: &[Light]) -> String {
+    let triangles = lights
+        .iter()
+        .filter(|l| matches!(l, Light::Area(_)))
+        .count();
+    let environment = lights.iter().any(|l| matches!(l, Light::Environment(_)));
+    let punctual = lights.len() - triangles - usize::from(environment);
+    let count = |n: usize, one: &str, many: &str| match n {
+        1 => format!("1 {one}"),
+        _ => format!("{n} {many}"),
+    };
+    let mut parts = Vec::new();
+    if triangles > 0 {
+        parts.push(count(triangles, "emissive triangle", "emissive triangles"));
+    }
+    if punctual > 0 {
+        parts.push(count(punctual, "punctual light", "punctual lights"));
+    }
+    if environment {
+        parts.push("an environment".to_owned());
+    }
+    if parts.is_empty() {
+        "no lights".to_owned()
+    } else {
+        parts.join(", ")
+    }
+}
+
 /// One light of the scene.
 #[derive(Clone, Debug)]
 pub enum Light {

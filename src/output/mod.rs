@@ -1,10 +1,15 @@
 //! Writing and reading rendered images: the multi-layer OpenEXR file and the 8-bit sRGB PNG preview.
 
 mod atomic;
+mod exposure;
 mod exr;
 mod png;
 
 pub use self::atomic::{temporary_path, write_atomically};
+pub use self::exposure::{
+    meter, Exposure, Metering, BLACK_LUMINANCE, BLACK_SHARE, KEY_LATITUDE, MAX_AUTO_STOPS,
+    MIDDLE_GREY,
+};
 pub use self::exr::{
     read_exr_layers, write_exr, write_exr_with, ExrCompression, ExrLayers, ExrOptions, HalfFloats,
 };

@@ -91,19 +91,36 @@ mod tests {
     #[test]
     fn textured_emission_alone_does_not_light_a_scene() {
         let mut b = SceneBuilder::new();
-        b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+        let tri = || (vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]]);
+        let grey = b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+        let (p, i) = tri();
+        b.add_triangle_mesh(p, i, grey).unwrap();
         assert!(!b.has_own_lighting());
         let mut glow = Material::lambertian("glow", Rgb::splat(0.5));
         glow.emission = Rgb::ONE;
         glow.emission_texture = Some(0);
-        b.add_material(glow.clone());
+        let textured = b.add_material(glow.clone());
+        let (p, i) = tri();
+        b.add_triangle_mesh(p, i, textured).unwrap();
         assert!(!b.has_own_lighting(), "textured emission is detail");
         glow.emission_texture = None;
-        b.add_material(glow);
+        let fixture = b.add_material(glow);
+        assert!(
+            !b.has_own_lighting(),
+            "an emissive material that no mesh uses lights nothing"
+        );
+        let (p, i) = tri();
+        b.add_triangle_mesh(p, i, fixture).unwrap();
         assert!(
             b.has_own_lighting(),
             "an untextured emitter is a light fixture"
         );
+        let lighting = b.own_lighting();
+        assert_eq!(
+            (lighting.emissive_meshes, lighting.textured_emissive_meshes),
+            (1, 1)
+        );
+        assert_eq!(lighting.describe(), "1 mesh with untextured emission");
     }
 
     #[test]
