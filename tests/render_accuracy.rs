@@ -230,3 +230,66 @@ fn max_depth_zero_shows_only_emitters() {
         "the centre pixel sees only the unlit sphere"
     );
 }
+
+/// A single-sided quad seen from behind fills the view in front of an emissive square (radiance 3, facing the
+/// camera) on a black environment. glTF culls the back faces of single-sided materials, so camera rays pass
+/// through the quad: the image is the square's exact coverage, mean 3 · (0.125 / tan 20°)² = 0.3538 (the square's
+/// half side 0.5 at distance 4 against the half field of view), and only the square covers. Made double-sided,
+/// the quad hides everything and covers every pixel. Before culling, the single-sided quad rendered black and
+/// opaque.
+#[test]
+fn single_sided_back_faces_are_culled_for_camera_rays() {
+    let render_with = |double_sided: bool| {
+        let mut b = SceneBuilder::default();
+        let mut screen = Material::lambertian("screen", Rgb::splat(0.8));
+        screen.double_sided = double_sided;
+        let screen = b.add_material(screen);
+        let mut light = Material::lambertian("light", Rgb::ZERO);
+        light.emission = Rgb::splat(3.0);
+        let light = b.add_material(light);
+        // Counter-clockwise seen from −Z: the screen's front faces away from the camera at z = 4.
+        let s = 5.0;
+        b.add_mesh(common::quad(
+            [
+                Vec3::new(-s, -s, 2.0),
+                Vec3::new(-s, s, 2.0),
+                Vec3::new(s, s, 2.0),
+                Vec3::new(s, -s, 2.0),
+            ],
+            screen,
+        ));
+        b.add_mesh(common::quad(
+            [
+                Vec3::new(-0.5, -0.5, 0.0),
+                Vec3::new(0.5, -0.5, 0.0),
+                Vec3::new(0.5, 0.5, 0.0),
+                Vec3::new(-0.5, 0.5, 0.0),
+            ],
+            light,
+        ));
+        b.set_camera(Camera::look_at(
+            Vec3::new(0.0, 0.0, 4.0),
+            Vec3::ZERO,
+            40f32.to_radians(),
+        ));
+        render(&b.build().unwrap(), 32, 16, 8, 2)
+    };
+    let culled = render_with(false);
+    let fraction = (0.125 / 20f64.to_radians().tan()).powi(2);
+    for c in 0..3 {
+        let (mean, se, _) = mean_and_se(&culled, c, |_| true);
+        assert!(
+            (mean - 3.0 * fraction).abs() < 4.0 * se + 2e-3,
+            "channel {c}: {mean} vs {} (se {se})",
+            3.0 * fraction
+        );
+    }
+    let alpha = culled.alpha.iter().map(|&a| a as f64).sum::<f64>() / culled.alpha.len() as f64;
+    assert!(
+        (alpha - fraction).abs() < 0.01,
+        "alpha {alpha} vs {fraction}"
+    );
+    let hidden = render_with(true);
+    assert!(hidden.alpha.iter().all(|&a| a == 1.0));
+    assert!(hidden.beauty.iter().all(|p| p.max_element() == 0.0));
+}

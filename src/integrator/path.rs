@@ -366,18 +366,27 @@ impl PathTracer {
     ) -> (Rgb, Option<u32>) {
         let scene = services.scene();
         counters.rays.emitter_edge += 1;
-        let Some(hit) = scene.intersect(ray, 0.0, f32::INFINITY) else {
-            return (Rgb::ZERO, None);
-        };
-        let material = &scene.materials[hit.material as usize];
-        if material.unlit || !hit.front_face || !material.is_emissive() {
-            return (Rgb::ZERO, None);
+        let mut ray = *ray;
+        // Culled back faces are passed through as the path does, up to its limit of crossings.
+        for _ in 0..=MAX_BOUNDARY_CROSSINGS {
+            let Some(hit) = scene.intersect(&ray, 0.0, f32::INFINITY) else {
+                return (Rgb::ZERO, None);
+            };
+            let material = &scene.materials[hit.material as usize];
+            if !hit.front_face && material.culls_back_faces() {
+                ray = Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time);
+                continue;
+            }
+            if material.unlit || !hit.front_face || !material.is_emissive() {
+                return (Rgb::ZERO, None);
+            }
+            let emitter = scene.names().emitter_of_mesh(scene.mesh_of_prim(hit.prim));
+            return (
+                material.emission_at(&hit.point_shading(), &scene.textures),
+                emitter,
+            );
         }
-        let emitter = scene.names().emitter_of_mesh(scene.mesh_of_prim(hit.prim));
-        (
-            material.emission_at(&hit.point_shading(), &scene.textures),
-            emitter,
-        )
+        (Rgb::ZERO, None)
     }
 
     /// Runs the media overlapping the segment `[0, t_surface)` of `ray`: every medium proposes its next real
@@ -612,9 +621,21 @@ impl PathTracer {
         counters: &mut PathCounters,
     ) -> SurfaceOutcome {
         let scene = services.scene();
+        let material = &scene.materials[hit.material as usize];
+        // A single-sided material's back faces are culled (glTF 2.0 §3.9.3 `doubleSided`; UsdGeomGprim
+        // `doubleSided`): camera rays, before any scattering event, pass through them as if they were not there.
+        if s.depth == 0 && !hit.front_face && material.culls_back_faces() {
+            s.crossings += 1;
+            if s.crossings > MAX_BOUNDARY_CROSSINGS {
+                return SurfaceOutcome::End;
+            }
+            counters.rays.bounce += 1;
+            return SurfaceOutcome::Continue(
+                Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time),
+            );
+        }
         s.cone_width += self.pixel_spread * hit.t;
         let at = hit.shading_point(s.cone_width, ray.dir);
-        let material = &scene.materials[hit.material as usize];
         let unmapped = hit.shading;
         if material.has_normal_map() {
             scene.apply_normal_map(&mut hit, &at);

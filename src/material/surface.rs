@@ -64,7 +64,8 @@ pub struct Material {
     pub specular_color: Rgb,
     /// KHR_materials_transmission factor: the fraction of the dielectric base that refracts.
     pub transmission: f32,
-    /// When false the back face of an opaque surface reflects nothing.
+    /// When false, the back face of an opaque surface reflects nothing, and camera rays do not see it
+    /// ([`Self::culls_back_faces`]).
     pub double_sided: bool,
     /// The medium filling the interior of a closed mesh with this material (index into `Scene::media`).
     pub interior: Option<u32>,
@@ -187,6 +188,18 @@ impl Material {
             specular_factor: 0.0,
             ..Self::default()
         }
+    }
+
+    /// Whether camera rays pass through this material's back faces: a single-sided surface that neither
+    /// transmits, bounds a medium nor emits (glTF's back-face culling, Arnold's `sidedness` for USD's
+    /// `doubleSided = false`). A boundary or a refracting surface is seen from either side; so is an emitter,
+    /// whose back shows black as a one-sided area light does in Mitsuba 3 and Cycles (the shared validation
+    /// scene `area-light-floor` sees its light from behind).
+    pub fn culls_back_faces(&self) -> bool {
+        !self.double_sided
+            && !self.is_transmissive()
+            && self.interior.is_none()
+            && !self.is_emissive()
     }
 
     /// True when the material emits light from its front faces.
