@@ -88,3 +88,62 @@ fn a_cube_and_boxes_are_framed_tightly() {
         );
     }
 }
+
+/// A scene that is only a VDB volume (no surface, no camera), placed away from the origin: the default camera
+/// frames the volume's bounds from outside them. It used to frame the empty surface bounds, looking at the
+/// origin from (0, 0, 5), with the volume off-frame.
+#[test]
+fn a_volume_only_scene_is_framed_from_outside_the_volume() {
+    let dir = folder("volume_only");
+    let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes");
+    std::fs::copy(
+        scenes.join("constant_grid.vdb"),
+        dir.join("constant_grid.vdb"),
+    )
+    .unwrap();
+    let gltf = std::fs::read_to_string(scenes.join("constant_grid.gltf")).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&gltf).unwrap();
+    json["scenes"][0]["nodes"] = serde_json::json!([0]);
+    json["nodes"][0]["translation"] = serde_json::json!([10.0, 3.0, -7.0]);
+    let path = dir.join("volume.gltf");
+    std::fs::write(&path, json.to_string()).unwrap();
+    let scene = load_builder(&path, &LoadOptions::default())
+        .unwrap()
+        .build()
+        .unwrap();
+    let bounds = scene.bounds();
+    assert!(
+        !bounds.is_empty() && bounds.min.x > 9.0 && bounds.max.x < 11.5,
+        "the scene's bounds are the volume's: {bounds:?}"
+    );
+    let cam = scene.camera();
+    let eye = cam.position();
+    assert!(
+        !(bounds.min.cmple(eye).all() && eye.cmple(bounds.max).all()),
+        "camera at {eye} inside {bounds:?}"
+    );
+    for i in 0..8 {
+        let corner = Vec3::new(
+            if i & 1 == 0 {
+                bounds.min.x
+            } else {
+                bounds.max.x
+            },
+            if i & 2 == 0 {
+                bounds.min.y
+            } else {
+                bounds.max.y
+            },
+            if i & 4 == 0 {
+                bounds.min.z
+            } else {
+                bounds.max.z
+            },
+        );
+        let (x, y, depth) = project(cam, corner);
+        assert!(
+            depth > 0.0 && x.abs() <= 1.0 && y.abs() <= 1.0,
+            "corner {corner} at ({x}, {y}, depth {depth})"
+        );
+    }
+}

@@ -278,3 +278,65 @@ fn regions_in_boxes_match_a_voxel_scan_on_corpus() {
         eprintln!("ok {name}: {found} active voxels in the boxes");
     }
 }
+
+/// A glTF file placing grid `grid` of the corpus file `vdb` as a medium's density, loaded and built.
+fn load_as_density(
+    dir: &std::path::Path,
+    vdb: &str,
+    grid: &str,
+) -> Result<nimbus::scene::Scene, String> {
+    let folder = std::env::temp_dir().join(format!("nimbus-corpus-{grid}-{}", std::process::id()));
+    std::fs::create_dir_all(&folder).unwrap();
+    let gltf = folder.join("scene.gltf");
+    let file = dir.join(vdb);
+    std::fs::write(
+        &gltf,
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+            "nodes":[{{"name":"v","extras":{{"nimbus_volume":{{"file":{:?},"density_grid":"{grid}"}}}}}}]}}"#,
+            file.to_str().unwrap()
+        ),
+    )
+    .unwrap();
+    let scene = nimbus::scene::load_builder(&gltf, &nimbus::scene::LoadOptions::default())
+        .and_then(|b| b.build())
+        .map_err(|e| e.to_string());
+    std::fs::remove_dir_all(&folder).ok();
+    scene
+}
+
+/// A level set used as a density is refused with a message that says it is one (it used to say only that the
+/// background was not zero). OpenVDB wrote `ls_sphere` with class "level set".
+#[test]
+fn a_level_set_is_refused_as_one() {
+    let Some(dir) = common::vdb_corpus_dir() else {
+        return;
+    };
+    let err = load_as_density(&dir, "generated/a2_levelset_sphere.vdb", "ls_sphere")
+        .err()
+        .expect("a level set is no density");
+    assert!(
+        err.contains("level set") && err.contains("fog volume") && err.contains("ls_sphere"),
+        "{err}"
+    );
+}
+
+/// The vec3 grid `vel` of `g_vec3.vdb` used as RGB density: OpenVDB's Python bindings count 57,856 active
+/// voxels, all with a negative z component (and none negative in x or y). Those components are replaced by
+/// zero, and the warning says how many, as it does for a scalar grid.
+#[test]
+fn negative_components_of_an_rgb_density_grid_warn_with_their_count() {
+    let Some(dir) = common::vdb_corpus_dir() else {
+        return;
+    };
+    let scene = load_as_density(&dir, "generated/g_vec3.vdb", "vel").unwrap();
+    assert!(scene.media()[0].is_chromatic());
+    assert!(
+        scene
+            .warnings()
+            .iter()
+            .any(|w| w.contains("0 NaN, 0 infinite and 57856 negative vec3 grid components")),
+        "{:?}",
+        scene.warnings()
+    );
+}

@@ -8,8 +8,8 @@
 //! image with no coverage at all (an environment seen alone) weighs every pixel alike.
 //!
 //! The automatic exposure leaves a normally exposed image alone: it is the exposure nearest to 0 that puts the
-//! key within [`KEY_LATITUDE`] of middle grey (from one stop below it, for a low-key scene, to two above, for a
-//! high-key one such as a bright sky or snow). A render 683× too dark (a file's lux read as W/m²) is lifted
+//! key within [`KEY_RANGE`]: from one stop below middle grey, for a low-key scene, up to white, for a high-key
+//! one such as a bright sky, snow, or an object under the default white environment. A render 683× too dark (a file's lux read as W/m²) is lifted
 //! until its key is one stop below middle grey; a daylight scene already in range stays at 0 stops.
 
 use crate::math::luminance;
@@ -22,9 +22,8 @@ pub const MIDDLE_GREY: f32 = 0.18;
 /// W/m² (683×, 9.4 stops) and for an image with a sun in it, not enough to lift pure float noise into view.
 pub const MAX_AUTO_STOPS: f32 = 16.0;
 
-/// The keys the automatic exposure accepts as they are, in stops from [`MIDDLE_GREY`]: one below to two above
-/// (0.09 to 0.72).
-pub const KEY_LATITUDE: (f32, f32) = (-1.0, 2.0);
+/// The keys the automatic exposure accepts as they are: from one stop below [`MIDDLE_GREY`] to white.
+pub const KEY_RANGE: (f32, f32) = (MIDDLE_GREY * 0.5, 1.0);
 
 /// Below this luminance a pixel is "black" for [`Metering::almost_black`]: sRGB code 25 of 255, a tenth of the
 /// way to white on the preview.
@@ -66,7 +65,7 @@ pub struct Metering {
     /// The exposure in stops that maps the key to [`MIDDLE_GREY`], clamped to ±[`MAX_AUTO_STOPS`]; 0 for an
     /// image without one finite non-zero pixel.
     pub key_stops: f32,
-    /// `--exposure auto`: the exposure nearest to 0 that brings the key within [`KEY_LATITUDE`] of middle grey.
+    /// `--exposure auto`: the exposure nearest to 0 that brings the key into [`KEY_RANGE`].
     pub auto_stops: f32,
     /// Whether fewer than [`BLACK_SHARE`] of the pixels reach [`BLACK_LUMINANCE`] before exposure: the
     /// preview at 0 stops would look black.
@@ -109,9 +108,13 @@ pub fn meter(image: &RenderImage) -> Metering {
     } else {
         0.0
     };
-    // Exposure e maps the key to MIDDLE_GREY · 2^(e − key_stops): inside the latitude for e from key_stops + low
-    // to key_stops + high.
-    let auto_stops = 0f32.clamp(key_stops + KEY_LATITUDE.0, key_stops + KEY_LATITUDE.1);
+    // Exposure e maps the key to key · 2^e: into the range for e from log₂(low / key) to log₂(high / key).
+    let auto_stops = if lit && key > 0.0 {
+        let stops_to = |target: f32| (target / key).log2().clamp(-MAX_AUTO_STOPS, MAX_AUTO_STOPS);
+        0f32.clamp(stops_to(KEY_RANGE.0), stops_to(KEY_RANGE.1))
+    } else {
+        0.0
+    };
     Metering {
         key,
         key_stops,
@@ -165,7 +168,7 @@ mod tests {
         assert!(dim.almost_black);
     }
 
-    /// Auto exposure leaves keys from 0.09 to 0.72 alone and brings the others to the nearer end of that range.
+    /// Auto exposure leaves keys from 0.09 to 1 alone and brings the others to the nearer end of that range.
     #[test]
     fn auto_exposure_moves_only_keys_outside_the_latitude() {
         for (key, stops) in [
@@ -173,14 +176,15 @@ mod tests {
             (0.364, 0.0), // the bundled demo: a bright sky over a grey floor
             (0.091, 0.0),
             (0.71, 0.0),
+            (0.99, 0.0), // an object under the default white environment
             (0.18 / 683.0, 683f32.log2() - 1.0),
             (0.04, (0.09f32 / 0.04).log2()),
-            (8.0, (0.72f32 / 8.0).log2()),
+            (8.0, (1.0f32 / 8.0).log2()),
         ] {
             let m = meter(&image(&[(key, 1.0)]));
             assert!((m.auto_stops - stops).abs() < 1e-3, "key {key}: {m:?}");
             let exposed = key * m.auto_stops.exp2();
-            assert!((0.0899..=0.7201).contains(&exposed), "key {key}: {exposed}");
+            assert!((0.0899..=1.0001).contains(&exposed), "key {key}: {exposed}");
         }
     }
 

@@ -7,8 +7,7 @@ mod png;
 
 pub use self::atomic::{temporary_path, write_atomically};
 pub use self::exposure::{
-    meter, Exposure, Metering, BLACK_LUMINANCE, BLACK_SHARE, KEY_LATITUDE, MAX_AUTO_STOPS,
-    MIDDLE_GREY,
+    meter, Exposure, Metering, BLACK_LUMINANCE, BLACK_SHARE, KEY_RANGE, MAX_AUTO_STOPS, MIDDLE_GREY,
 };
 pub use self::exr::{
     read_exr_layers, write_exr, write_exr_with, ExrCompression, ExrLayers, ExrOptions, HalfFloats,

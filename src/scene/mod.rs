@@ -710,10 +710,18 @@ impl SceneBuilder {
             }
         }
         let bvh = Bvh::build(&triangles).map_err(too_many)?;
+        // Surfaces and the regions that media fill by position (a VDB placed by a node): the default camera
+        // frames both, and lights at infinity light both.
         let bounds = match &motion {
             Some(m) => bvh.bounds().union(&m.bounds()),
             None => bvh.bounds(),
         };
+        let bounds = self
+            .media
+            .iter()
+            .filter_map(|m| m.fill_bounds())
+            .filter(|b| !b.is_empty() && b.min.is_finite() && b.max.is_finite())
+            .fold(bounds, |all, b| all.union(&b));
         let light_sampler = LightSampler::new(&lights, bounding_radius(&bounds));
         let environment = lights
             .iter()
@@ -792,7 +800,7 @@ pub struct Scene {
     pub(crate) environment: Option<usize>,
     /// The camera.
     pub(crate) camera: Camera,
-    /// Bounds of all surfaces.
+    /// Bounds of all surfaces and of the regions media fill by position.
     pub(crate) bounds: Aabb,
     /// Maximum bounces requested by the scene file, if any.
     pub(crate) max_bounces: Option<u32>,
@@ -991,7 +999,7 @@ impl Scene {
         self.shutter
     }
 
-    /// Bounds of all surfaces.
+    /// Bounds of all surfaces and of the regions media fill by position (VDB volumes).
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }

@@ -64,6 +64,12 @@ pub enum DensityError {
     /// The grid holds vectors, not scalars.
     #[error("a density grid must be scalar")]
     NotScalar,
+    /// The grid is a level set: a narrow-band signed distance to a surface (negative inside), not a density.
+    #[error(
+        "it is a level set (a signed distance to a surface, negative inside), not a fog volume; convert it to a \
+         fog volume first (OpenVDB's sdfToFogVolume, Houdini's Convert VDB, Blender's Mesh to Volume)"
+    )]
+    LevelSet,
     /// The grid's background (its value outside all data) is not zero, so the medium would fill all space.
     #[error("a density grid needs a zero background, found {0}")]
     NonZeroBackground(f32),

@@ -113,14 +113,19 @@ fn missing_grid(file: &crate::vdb::VdbFile, spec: &VolumeSpec, name: &str) -> Vo
     }
 }
 
-/// The grid `name` of the volume's file, or [`missing_grid`]'s error.
+/// The grid `name` of the volume's file, or [`missing_grid`]'s error; a level set is refused as one.
 fn named_grid<'f>(
     file: &'f crate::vdb::VdbFile,
     spec: &VolumeSpec,
     name: &str,
 ) -> Result<&'f crate::vdb::Grid, VolumeError> {
-    file.grid(name)
-        .ok_or_else(|| missing_grid(file, spec, name))
+    let grid = file
+        .grid(name)
+        .ok_or_else(|| missing_grid(file, spec, name))?;
+    if grid.class == crate::vdb::GridClass::LevelSet {
+        return Err(grid_error(spec, name)(super::DensityError::LevelSet));
+    }
+    Ok(grid)
 }
 
 /// Turns a problem with grid `name` of the volume's file into an error naming both.
@@ -507,14 +512,27 @@ impl Medium for GridMedium {
     }
 
     fn warnings(&self) -> Vec<String> {
-        let mut bad = self.density.bad_values();
+        // An RGB grid's values are its components, each channel counting its own: the channels' maximum, which
+        // the majorants use, hides a negative component beside a positive one.
+        let (mut bad, values) = match &self.channels {
+            Some(channels) => (
+                channels
+                    .iter()
+                    .fold(super::density::BadValues::default(), |mut all, c| {
+                        all.add(&c.bad_values());
+                        all
+                    }),
+                "vec3 grid components",
+            ),
+            None => (self.density.bad_values(), "grid values"),
+        };
         if let Some(e) = &self.emission {
             bad.add(&e.temperature.bad_values());
         }
         let mut warnings = Vec::new();
         if bad.nan + bad.infinite + bad.negative > 0 {
             warnings.push(format!(
-                "medium '{}': {} NaN, {} infinite and {} negative grid values were replaced by zero",
+                "medium '{}': {} NaN, {} infinite and {} negative {values} were replaced by zero",
                 self.name, bad.nan, bad.infinite, bad.negative
             ));
         }
