@@ -805,3 +805,114 @@ fn a_small_sublayer_diamond_loads_within_the_max_sublayers_flag() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{stderr}");
 }
+
+/// `displayColor` of every interpolation, and a `UsdPrimvarReader_float3` on `diffuseColor`, give per-vertex
+/// base colours (`tests/usd/primvar_colors.usda`; Pixar's USD 26.11 opens it and flattens the vertex
+/// `displayColor` to the four colours below). Only the first value used to be read, so no gradient showed.
+#[test]
+fn display_colors_and_primvar_readers_colour_each_vertex() {
+    let b = read("primvar_colors.usda");
+    let mesh = |name: &str| {
+        b.meshes()
+            .iter()
+            .find(|m| m.name.ends_with(name))
+            .unwrap_or_else(|| panic!("no mesh {name}"))
+    };
+    // The colour at each triangle corner, in triangle order.
+    let rgb = |m: &nimbus::geometry::Mesh| -> Vec<[f32; 3]> {
+        let colors = m
+            .colors
+            .as_ref()
+            .unwrap_or_else(|| panic!("{}: no vertex colours", m.name));
+        m.indices
+            .iter()
+            .flatten()
+            .map(|&i| colors[i as usize].truncate().to_array())
+            .collect()
+    };
+    let white = |m: &nimbus::geometry::Mesh| {
+        let base = b.materials()[m.material as usize].base_color;
+        assert_eq!(base.truncate(), Rgb::ONE, "{}: base colour {base}", m.name);
+    };
+    // Vertex: one colour per point, each face corner taking its point's (the quad is fanned from point 0).
+    let gradient = mesh("Gradient");
+    white(gradient);
+    let (r, g, bl, w) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0; 3]);
+    assert_eq!(rgb(gradient), [r, g, bl, r, bl, w]);
+    // Uniform: one colour per face.
+    let per_face = mesh("PerFace");
+    white(per_face);
+    assert_eq!(
+        rgb(per_face),
+        [
+            [0.25, 0.5, 0.75],
+            [0.25, 0.5, 0.75],
+            [0.25, 0.5, 0.75],
+            [0.5, 0.5, 0.5],
+            [0.5, 0.5, 0.5],
+            [0.5, 0.5, 0.5]
+        ]
+    );
+    // A primvar reader of `tint` (faceVarying), and its fallback on a mesh without the primvar.
+    let read_mesh = mesh("Read");
+    white(read_mesh);
+    assert_eq!(
+        rgb(read_mesh),
+        [[0.1, 0.2, 0.3], [0.4, 0.5, 0.6], [0.7, 0.8, 0.9]]
+    );
+    let fallback = mesh("NoTint");
+    white(fallback);
+    assert_eq!(rgb(fallback), [[0.9, 0.6, 0.3]; 3]);
+}
+
+/// A `UsdTransform2d` between the st reader and the texture (`tests/usd/transform2d.usda`: rotation 90°,
+/// scale (2, 1), translation (0.25, 0)) maps texture coordinates as the UsdPreviewSurface specification says,
+/// st' = translation + R(90°)·(scale ⊙ st): st (1, 0) → (0.25, 2) and st (0, 1) → (−0.75, 0), by hand. It used
+/// to be ignored.
+#[test]
+fn a_usd_transform_2d_maps_the_texture_coordinates() {
+    let b = read("transform2d.usda");
+    let material = &b.materials()[b.meshes()[0].material as usize];
+    let texture = &b.textures()[material.base_color_texture.expect("textured") as usize];
+    // Nimbus's texture coordinates are (s, 1 − t).
+    for (st, want) in [
+        ((1.0, 0.0), (0.25, 2.0)),
+        ((0.0, 1.0), (-0.75, 0.0)),
+        ((0.0, 0.0), (0.25, 0.0)),
+    ] {
+        let uv = texture
+            .transform()
+            .apply(nimbus::math::Vec2::new(st.0, 1.0 - st.1));
+        let got = (uv.x, 1.0 - uv.y);
+        assert!(
+            (got.0 - want.0).abs() < 1e-5 && (got.1 - want.1).abs() < 1e-5,
+            "st {st:?}: {got:?} vs {want:?}"
+        );
+    }
+}
+
+/// Roughness and metallic read from the r and g channels of one `UsdUVTexture` (`tests/usd/scalar_textures.usda`:
+/// raw, scale 0.5 and bias 0.25 on r) become glTF's packed texture: G = 0.5·r + 0.25, B = g, with factors 1.
+/// The 2×2 `checker.png` is red, green / blue, white (as the `image` crate decodes it). Textured scalar inputs
+/// used to be warned about and their untextured values used.
+#[test]
+fn textured_roughness_and_metallic_are_read_per_texel() {
+    let b = read("scalar_textures.usda");
+    let material = &b.materials()[b.meshes()[0].material as usize];
+    assert_eq!((material.roughness, material.metallic), (1.0, 1.0));
+    let texture = &b.textures()[material
+        .metallic_roughness_texture
+        .expect("a metallic-roughness texture") as usize];
+    let png = image::open(stage("checker.png")).unwrap().to_rgb8();
+    for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        let p = png.get_pixel(x, y).0;
+        let (r, g) = (p[0] as f32 / 255.0, p[1] as f32 / 255.0);
+        // The texel centre; its bilinear value is the texel's own.
+        let uv = nimbus::math::Vec2::new((x as f32 + 0.5) / 2.0, (y as f32 + 0.5) / 2.0);
+        let texel = texture.sample(uv);
+        assert!(
+            (texel.y - (0.5 * r + 0.25)).abs() < 1e-5 && (texel.z - g).abs() < 1e-5,
+            "texel ({x}, {y}): {texel} for r {r}, g {g}"
+        );
+    }
+}

@@ -3,7 +3,7 @@
 use super::values::{token, vec2_array, vec3_array};
 use super::Loader;
 use crate::geometry::Mesh;
-use crate::math::{Mat4, Vec2};
+use crate::math::{Mat4, Rgb, Vec2};
 use crate::scene::SceneError;
 use openusd::{sdf, usd};
 
@@ -70,11 +70,11 @@ impl Loader<'_> {
         let double_sided = self
             .value(prim, "doubleSided")?
             .is_some_and(|v| matches!(v, sdf::Value::Bool(true)));
-        let material = self.material(prim, binding, double_sided)?;
+        let material = self.material(prim, binding, double_sided, true)?;
         // The material of each face: the mesh's, or that of the `materialBind` subset holding the face.
         let mut face_material = vec![material; counts.len()];
         for (subset, faces) in self.material_subsets(prim, counts.len())? {
-            let id = self.material(prim, Some(&subset), double_sided)?;
+            let id = self.material(prim, Some(&subset), double_sided, true)?;
             for f in faces {
                 face_material[f] = id;
             }
@@ -96,10 +96,21 @@ impl Loader<'_> {
         groups.sort_unstable();
         groups.dedup();
         for &group in &groups {
+            // A material that reads its colour from a primvar: one colour per face corner.
+            let colors = match self.primvar_color(group).cloned() {
+                Some(read) => Some(
+                    match self.primvar(prim, &[read.attribute.as_str()], "constant", vec3_array)? {
+                        Some(p) => topology.expand(p).map_err(|m| self.error(&at, m))?,
+                        None => vec![read.fallback; indices.len()],
+                    },
+                ),
+                None => None,
+            };
             let mut mesh = Mesh {
                 name: at.clone(),
                 material: group,
                 uvs: uvs.as_ref().map(|_| Vec::new()),
+                colors: colors.as_ref().map(|_| Vec::new()),
                 ..Default::default()
             };
             for (f, &c) in counts.iter().enumerate() {
@@ -113,6 +124,13 @@ impl Loader<'_> {
                     .extend(indices[corners.clone()].iter().map(|&i| points[i as usize]));
                 if !normals.is_empty() {
                     mesh.normals.extend_from_slice(&normals[corners.clone()]);
+                }
+                if let (Some(all), Some(own)) = (&colors, &mut mesh.colors) {
+                    own.extend(
+                        all[corners.clone()]
+                            .iter()
+                            .map(|c| c.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0)),
+                    );
                 }
                 if let (Some(all), Some(own)) = (&uvs, &mut mesh.uvs) {
                     own.extend_from_slice(&all[corners]);

@@ -313,7 +313,9 @@ fn read_stage(
         builder: SceneBuilder::with_limits(*limits),
         volumes: Vec::new(),
         materials: HashMap::new(),
+        primvar_colors: HashMap::new(),
         textures: HashMap::new(),
+        transformed_textures: HashMap::new(),
         unsupported: HashSet::new(),
         root: Mat4::IDENTITY,
         limits: *limits,
@@ -404,8 +406,14 @@ struct Loader<'a> {
     volumes: Vec<VolumeSpec>,
     /// (material prim path, double-sided) → material index.
     materials: HashMap<(String, bool), u32>,
+    /// Materials whose base colour a mesh primvar gives per vertex (a `UsdPrimvarReader_float3` on
+    /// `diffuseColor`, or an unbound mesh's varying `displayColor`): material index → the primvar.
+    primvar_colors: HashMap<u32, shading::PrimvarColor>,
     /// Texture file, colour space, role and scale/bias → texture index.
     textures: HashMap<shading::TextureKey, u32>,
+    /// (texture index, the bits of a `UsdTransform2d`'s offset, rotation and scale) → the texture read
+    /// through it.
+    transformed_textures: HashMap<(u32, [u32; 5]), u32>,
     unsupported: HashSet<String>,
     /// Stage units and up axis to Nimbus's metres and +Y up.
     root: Mat4,

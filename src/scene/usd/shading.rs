@@ -1,11 +1,11 @@
 //! USD shading: `material:binding`, `Material` → `UsdPreviewSurface` and `UsdUVTexture` inputs.
 
-use super::values::{number, token, vec3, vec3_array, vec4};
+use super::values::{number, token, vec2, vec3, vec3_array, vec4};
 use super::Loader;
-use crate::material::{ColorSpace, Material, Texture};
-use crate::math::{Rgb, Vec4};
+use crate::material::{ColorSpace, Material, Texture, UvTransform};
+use crate::math::{Rgb, Vec2, Vec4};
 use crate::scene::{SceneError, SceneErrorKind};
-use openusd::usd;
+use openusd::{sdf, usd};
 use std::path::PathBuf;
 
 /// What a texture feeds, which decides how its `scale` and `bias` are stored.
@@ -28,6 +28,84 @@ pub(super) struct TextureKey {
     affine: [u32; 8],
 }
 
+/// A base colour read per vertex from a mesh primvar: `primvars:NAME` times the material's base colour, or
+/// `fallback` on a mesh without it (UsdPrimvarReader's `fallback`).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct PrimvarColor {
+    /// The attribute: `primvars:` and the reader's `varname`.
+    pub(super) attribute: String,
+    /// The colour of a mesh that does not author the primvar.
+    pub(super) fallback: Rgb,
+}
+
+/// One channel of a texture feeding a scalar input, with the transform of its coordinates.
+struct ScalarMap {
+    width: usize,
+    height: usize,
+    /// Row-major values, top row first.
+    values: Vec<f32>,
+    transform: UvTransform,
+}
+
+/// Texels of a packed texture.
+struct Packed {
+    width: usize,
+    height: usize,
+    texels: Vec<Vec4>,
+}
+
+impl ScalarMap {
+    /// The nearest value at (x + ½, y + ½) of a `width` × `height` raster over the same [0, 1]² image.
+    fn at(&self, x: usize, y: usize, width: usize, height: usize) -> f32 {
+        let sx = ((x * self.width) / width).min(self.width - 1);
+        let sy = ((y * self.height) / height).min(self.height - 1);
+        self.values[sy * self.width + sx]
+    }
+
+    /// glTF's metallic-roughness layout from two maps (either may be absent, read as 1): roughness in G and
+    /// metalness in B, at the larger map's resolution (the other resampled by nearest texel).
+    fn pack(roughness: Option<&ScalarMap>, metallic: Option<&ScalarMap>) -> Packed {
+        let (width, height) = [roughness, metallic]
+            .into_iter()
+            .flatten()
+            .map(|m| (m.width, m.height))
+            .max_by_key(|&(w, h)| w * h)
+            .unwrap_or((1, 1));
+        let read = |map: Option<&ScalarMap>, x, y| map.map_or(1.0, |m| m.at(x, y, width, height));
+        let texels = (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| Vec4::new(0.0, read(roughness, x, y), read(metallic, x, y), 1.0))
+            .collect();
+        Packed {
+            width,
+            height,
+            texels,
+        }
+    }
+}
+
+/// A `UsdTransform2d` (`st' = translation + R(rotation) · (scale ⊙ st)`, rotation in degrees counter-clockwise
+/// in st space, v up; UsdPreviewSurface specification) as a transform of Nimbus's texture coordinates, which
+/// the loader flips to v down (`uv = (s, 1 − t)`). Conjugating by that flip F gives
+/// `uv' = R(−θ)·S·uv + (tx − sy·sin θ, 1 − ty − sy·cos θ)`: [`UvTransform`]'s matrix with rotation θ, its scale,
+/// and that offset.
+pub(super) fn usd_transform_2d(
+    rotation_degrees: f32,
+    scale: Vec2,
+    translation: Vec2,
+) -> UvTransform {
+    let theta = rotation_degrees.to_radians();
+    let (sin, cos) = theta.sin_cos();
+    UvTransform {
+        offset: Vec2::new(
+            translation.x - scale.y * sin,
+            1.0 - translation.y - scale.y * cos,
+        ),
+        rotation: theta,
+        scale,
+    }
+}
+
 /// UsdUVTexture's default `scale` and `bias` (UsdPreviewSurface spec, UsdUVTexture inputs).
 const IDENTITY_AFFINE: (Vec4, Vec4) = (Vec4::ONE, Vec4::ZERO);
 
@@ -48,35 +126,109 @@ impl Loader<'_> {
         Ok(targets.first().map(|p| p.prim_path().as_str().to_owned()))
     }
 
-    /// The material index for a mesh: the bound `UsdPreviewSurface`, else one from `primvars:displayColor`.
+    /// The material index for a gprim: the bound `UsdPreviewSurface`, else one from `primvars:displayColor`.
+    /// With `per_vertex` (a mesh, which reads colour primvars per face corner), a `displayColor` of more than
+    /// one value makes a white material whose colour the mesh gives per vertex ([`Self::primvar_color`]);
+    /// other gprims take its first value.
     pub(super) fn material(
         &mut self,
         prim: &usd::Prim,
         binding: Option<&str>,
         double_sided: bool,
+        per_vertex: bool,
     ) -> Result<u32, SceneError> {
         let key = match binding {
             Some(b) => b.to_owned(),
             None => {
-                let color = match self.value(prim, "primvars:displayColor")? {
-                    Some(v) => vec3(&v).or_else(|| vec3_array(&v).and_then(|c| c.first().copied())),
-                    None => None,
-                }
-                .unwrap_or(Rgb::splat(0.18));
+                let display = self.value(prim, "primvars:displayColor")?;
+                let colors = display
+                    .as_ref()
+                    .and_then(|v| vec3(v).map(|c| vec![c]).or_else(|| vec3_array(v)))
+                    .unwrap_or_default();
                 let mut m = preview_defaults(prim.path().as_str());
-                m.base_color = color.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0);
                 m.double_sided = double_sided;
-                return Ok(self.builder.add_material(m));
+                let varying = per_vertex && colors.len() > 1;
+                let color = if varying {
+                    Rgb::ONE
+                } else {
+                    colors.first().copied().unwrap_or(Rgb::splat(0.18))
+                };
+                m.base_color = color.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0);
+                let id = self.builder.add_material(m);
+                if varying {
+                    let color = PrimvarColor {
+                        attribute: "primvars:displayColor".into(),
+                        fallback: Rgb::splat(0.18),
+                    };
+                    self.primvar_colors.insert(id, color);
+                }
+                return Ok(id);
             }
         };
         if let Some(&id) = self.materials.get(&(key.clone(), double_sided)) {
             return Ok(id);
         }
-        let mut m = self.preview_surface(&key)?;
+        let (mut m, primvar_color) = self.preview_surface(&key)?;
         m.double_sided = double_sided;
         let id = self.builder.add_material(m);
         self.materials.insert((key, double_sided), id);
+        if let Some(color) = primvar_color {
+            self.primvar_colors.insert(id, color);
+        }
         Ok(id)
+    }
+
+    /// The per-vertex base colour that material `material` asks of its meshes, if any.
+    pub(super) fn primvar_color(&self, material: u32) -> Option<&PrimvarColor> {
+        self.primvar_colors.get(&material)
+    }
+
+    /// The primvar reader a shader input connects to: a `UsdPrimvarReader_float3` (or `_float4`, whose first
+    /// three components are read) gives the primvar `primvars:<varname>` and its `fallback`. Readers of other
+    /// types are reported and the input keeps its value.
+    fn primvar_reader(
+        &mut self,
+        shader: &usd::Prim,
+        name: &str,
+    ) -> Result<Option<PrimvarColor>, SceneError> {
+        let Some(reader) = self.connection(shader, name)? else {
+            return Ok(None);
+        };
+        let id = self
+            .value(&reader, "info:id")?
+            .and_then(|v| token(&v))
+            .unwrap_or_default();
+        if !id.starts_with("UsdPrimvarReader_") {
+            return Ok(None);
+        }
+        let at = reader.path().as_str().to_owned();
+        if id != "UsdPrimvarReader_float3" && id != "UsdPrimvarReader_float4" {
+            self.warn(format!(
+                "{}.{name}: {id} ({at}) is not read; the input's value is used",
+                shader.path().as_str()
+            ));
+            return Ok(None);
+        }
+        let Some(varname) = self
+            .value(&reader, "inputs:varname")?
+            .and_then(|v| token(&v))
+        else {
+            self.warn(format!(
+                "{at}: a primvar reader without inputs:varname; {}.{name}'s value is used",
+                shader.path().as_str()
+            ));
+            return Ok(None);
+        };
+        let fallback = match self.value(&reader, "inputs:fallback")? {
+            Some(v) => vec3(&v)
+                .or_else(|| vec4(&v).map(|c| c.truncate()))
+                .unwrap_or(Rgb::ZERO),
+            None => Rgb::ZERO,
+        };
+        Ok(Some(PrimvarColor {
+            attribute: format!("primvars:{varname}"),
+            fallback,
+        }))
     }
 
     /// Maps the `UsdPreviewSurface` behind material prim `path` onto a [`Material`]:
@@ -84,7 +236,10 @@ impl Loader<'_> {
     /// ior (1.5), opacity (1) → transmission 1 − opacity; glTF's default specular layer is kept
     /// (UsdPreviewSurface has no specular factor: a diffuse material with metallic 0 still has a dielectric
     /// coat of the given ior); `useSpecularWorkflow` 1 is read as metallic 0 with a warning.
-    pub(super) fn preview_surface(&mut self, path: &str) -> Result<Material, SceneError> {
+    pub(super) fn preview_surface(
+        &mut self,
+        path: &str,
+    ) -> Result<(Material, Option<PrimvarColor>), SceneError> {
         let material = self.stage.prim(path);
         let mut m = preview_defaults(path);
         let surface = material
@@ -95,7 +250,7 @@ impl Loader<'_> {
             self.warn(format!(
                 "material {path} has no outputs:surface; default surface used"
             ));
-            return Ok(m);
+            return Ok((m, None));
         };
         let shader = self.stage.prim(shader_path.as_str());
         let id = self
@@ -106,18 +261,45 @@ impl Loader<'_> {
             self.warn(format!(
                 "material {path}: shader '{id}' is not UsdPreviewSurface; default surface used"
             ));
-            return Ok(m);
+            return Ok((m, None));
         }
-        let (diffuse, diffuse_tex) =
-            self.color_input(&shader, "inputs:diffuseColor", Rgb::splat(0.18), true)?;
-        m.base_color = diffuse.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0);
-        m.base_color_texture = diffuse_tex;
+        let primvar_color = self.primvar_reader(&shader, "inputs:diffuseColor")?;
+        if primvar_color.is_some() {
+            // White, times the primvar each mesh gives per vertex.
+            m.base_color = Vec4::ONE;
+        } else {
+            let (diffuse, diffuse_tex) =
+                self.color_input(&shader, "inputs:diffuseColor", Rgb::splat(0.18), true)?;
+            m.base_color = diffuse.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0);
+            m.base_color_texture = diffuse_tex;
+        }
         let (emission, emission_tex) =
             self.color_input(&shader, "inputs:emissiveColor", Rgb::ZERO, true)?;
         m.emission = emission.max(Rgb::ZERO);
         m.emission_texture = emission_tex;
-        m.metallic = self.scalar_input(&shader, "inputs:metallic", 0.0)?;
-        m.roughness = self.scalar_input(&shader, "inputs:roughness", 0.5)?;
+        m.metallic = self.float(&shader, "inputs:metallic", 0.0)?;
+        m.roughness = self.float(&shader, "inputs:roughness", 0.5)?;
+        let roughness_map = self.scalar_texture(&shader, "inputs:roughness")?;
+        let metallic_map = self.scalar_texture(&shader, "inputs:metallic")?;
+        if roughness_map.is_some() || metallic_map.is_some() {
+            // glTF's layout: roughness in G, metalness in B, each times its factor (1 where textured).
+            let transform = roughness_map
+                .as_ref()
+                .or(metallic_map.as_ref())
+                .map_or(UvTransform::default(), |map| map.transform);
+            if roughness_map.is_some() {
+                m.roughness = 1.0;
+            }
+            if metallic_map.is_some() {
+                m.metallic = 1.0;
+            }
+            let packed = ScalarMap::pack(roughness_map.as_ref(), metallic_map.as_ref());
+            let texture = Texture::from_linear(packed.width, packed.height, packed.texels)
+                .ok_or_else(|| self.error(path, "empty metallic-roughness texture"))?;
+            self.builder.textures.push(texture);
+            let id = (self.builder.textures.len() - 1) as u32;
+            m.metallic_roughness_texture = Some(self.transformed(id, transform));
+        }
         m.ior = self.scalar_input(&shader, "inputs:ior", 1.5)?;
         m.transmission = (1.0 - self.scalar_input(&shader, "inputs:opacity", 1.0)?).clamp(0.0, 1.0);
         m.normal_texture = self
@@ -133,7 +315,7 @@ impl Loader<'_> {
                 "material {path}: useSpecularWorkflow is not supported; read as metallic 0"
             ));
         }
-        Ok(m)
+        Ok((m, primvar_color))
     }
 
     /// A scalar shader input; a texture connection is reported and its fallback value used.
@@ -232,8 +414,9 @@ impl Loader<'_> {
                 .try_into()
                 .unwrap_or_default(),
         };
+        let transform = self.st_transform(&tex)?;
         if let Some(&id) = self.textures.get(&key) {
-            return Ok(Some(id));
+            return Ok(Some(self.transformed(id, transform)));
         }
         let bytes = match self.read_asset(&file) {
             Ok(bytes) => bytes,
@@ -289,7 +472,136 @@ impl Loader<'_> {
         self.builder.textures.push(t);
         let id = (self.builder.textures.len() - 1) as u32;
         self.textures.insert(key, id);
-        Ok(Some(id))
+        Ok(Some(self.transformed(id, transform)))
+    }
+
+    /// Texture `id` read through `transform`: the same pixels under a second mapping (made once per texture
+    /// and transform), or `id` itself for the identity.
+    fn transformed(&mut self, id: u32, transform: UvTransform) -> u32 {
+        if transform.is_identity() {
+            return id;
+        }
+        let key = (
+            id,
+            [
+                transform.offset.x,
+                transform.offset.y,
+                transform.rotation,
+                transform.scale.x,
+                transform.scale.y,
+            ]
+            .map(f32::to_bits),
+        );
+        if let Some(&mapped) = self.transformed_textures.get(&key) {
+            return mapped;
+        }
+        let texture = self.builder.textures[id as usize]
+            .clone()
+            .with_mapping(0, transform);
+        self.builder.textures.push(texture);
+        let mapped = (self.builder.textures.len() - 1) as u32;
+        self.transformed_textures.insert(key, mapped);
+        mapped
+    }
+
+    /// A scalar shader input read from one channel of a `UsdUVTexture` (`outputs:r`, `g`, `b` or `a`, after
+    /// the texture's `scale` and `bias`; `sourceColorSpace` `sRGB` decodes r, g and b, anything else reads them
+    /// raw, as single channels usually are). `None` for an input without a texture; a texture that cannot be
+    /// read, or a connection to anything else, is a warning and the input keeps its value.
+    fn scalar_texture(
+        &mut self,
+        shader: &usd::Prim,
+        name: &str,
+    ) -> Result<Option<ScalarMap>, SceneError> {
+        let at = format!("{}.{name}", shader.path().as_str());
+        let targets = shader
+            .attribute(name)
+            .connections()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?;
+        let Some(target) = targets.first() else {
+            return Ok(None);
+        };
+        let tex = self.stage.prim(target.prim_path().as_str());
+        let output = target.as_str().rsplit('.').next().unwrap_or_default();
+        let channel = match output {
+            "outputs:r" => 0,
+            "outputs:g" => 1,
+            "outputs:b" => 2,
+            "outputs:a" => 3,
+            other => {
+                self.warn(format!(
+                    "{at}: connects to '{other}' of {}, not a texture channel (r, g, b, a); value used",
+                    tex.path().as_str()
+                ));
+                return Ok(None);
+            }
+        };
+        let Some(file) = self.asset(&tex, "inputs:file")? else {
+            return Ok(None);
+        };
+        let bytes = match self.read_asset(&file) {
+            Ok(bytes) => bytes,
+            Err(e) => {
+                self.warn(format!(
+                    "{at}: texture file {} cannot be read ({e}); value used",
+                    file.display()
+                ));
+                return Ok(None);
+            }
+        };
+        let srgb = self
+            .value(&tex, "inputs:sourceColorSpace")?
+            .and_then(|v| token(&v))
+            .is_some_and(|s| s == "sRGB");
+        let (scale, bias) = self.scale_bias(&tex, TextureRole::Color)?;
+        // The RGBA8 copy, the values and the packed texture's float mip pyramid.
+        let image = crate::limits::decode_image(&bytes, &self.limits, 4 + 4 + 22)
+            .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e)))?
+            .to_rgba8();
+        let values = image
+            .as_raw()
+            .chunks_exact(4)
+            .map(|p| {
+                let v = p[channel] as f32 / 255.0;
+                let v = if srgb && channel < 3 {
+                    crate::math::srgb_to_linear(v)
+                } else {
+                    v
+                };
+                (v * scale[channel] + bias[channel]).clamp(0.0, 1.0)
+            })
+            .collect();
+        Ok(Some(ScalarMap {
+            width: image.width() as usize,
+            height: image.height() as usize,
+            values,
+            transform: self.st_transform(&tex)?,
+        }))
+    }
+
+    /// The `UsdTransform2d` a `UsdUVTexture`'s `inputs:st` goes through, as a transform of Nimbus's texture
+    /// coordinates ([`usd_transform_2d`]); the identity when `st` connects straight to a primvar reader.
+    fn st_transform(&mut self, texture: &usd::Prim) -> Result<UvTransform, SceneError> {
+        let Some(node) = self.connection(texture, "inputs:st")? else {
+            return Ok(UvTransform::default());
+        };
+        let id = self
+            .value(&node, "info:id")?
+            .and_then(|v| token(&v))
+            .unwrap_or_default();
+        if id != "UsdTransform2d" {
+            return Ok(UvTransform::default());
+        }
+        let pair =
+            |v: Option<sdf::Value>, default: Vec2| v.as_ref().and_then(vec2).unwrap_or(default);
+        let rotation = self.float(&node, "inputs:rotation", 0.0)?;
+        let scale = pair(self.value(&node, "inputs:scale")?, Vec2::ONE);
+        let translation = pair(self.value(&node, "inputs:translation")?, Vec2::ZERO);
+        let at = node.path().as_str();
+        if !(rotation.is_finite() && scale.is_finite() && translation.is_finite()) {
+            return Err(self.error(at, "UsdTransform2d inputs must be finite"));
+        }
+        Ok(usd_transform_2d(rotation, scale, translation))
     }
 
     /// A `UsdUVTexture`'s `inputs:scale` and `inputs:bias` (float4; defaults 1 and 0). A normal map that
@@ -324,5 +636,42 @@ pub(super) fn preview_defaults(name: &str) -> Material {
         metallic: 0.0,
         roughness: 0.5,
         ..Material::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The transform of flipped coordinates equals UsdTransform2d applied in st space, then flipped: checked
+    /// at points and parameters drawn from a fixed sequence.
+    #[test]
+    fn usd_transform_2d_is_the_st_transform_in_flipped_coordinates() {
+        let mut rng = crate::math::Rng::new(5, 7);
+        let mut draw = |lo: f32, hi: f32| lo + (hi - lo) * rng.next_f32();
+        for _ in 0..200 {
+            let (degrees, scale, translation) = (
+                draw(-360.0, 360.0),
+                Vec2::new(draw(-3.0, 3.0), draw(-3.0, 3.0)),
+                Vec2::new(draw(-2.0, 2.0), draw(-2.0, 2.0)),
+            );
+            let st = Vec2::new(draw(-1.0, 2.0), draw(-1.0, 2.0));
+            // UsdTransform2d in st space: scale, rotate counter-clockwise, translate.
+            let (sin, cos) = degrees.to_radians().sin_cos();
+            let scaled = st * scale;
+            let usd = translation
+                + Vec2::new(
+                    cos * scaled.x - sin * scaled.y,
+                    sin * scaled.x + cos * scaled.y,
+                );
+            let ours =
+                usd_transform_2d(degrees, scale, translation).apply(Vec2::new(st.x, 1.0 - st.y));
+            let want = Vec2::new(usd.x, 1.0 - usd.y);
+            assert!(
+                ours.distance(want) < 1e-4,
+                "{degrees} {scale} {translation} {st}: {ours} vs {want}"
+            );
+        }
+        assert!(usd_transform_2d(0.0, Vec2::ONE, Vec2::ZERO).is_identity());
     }
 }

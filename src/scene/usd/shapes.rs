@@ -93,7 +93,7 @@ impl Loader<'_> {
             .is_some_and(|v| matches!(v, sdf::Value::Bool(true)));
         let mut mesh = shape.tessellate();
         mesh.name = at;
-        mesh.material = self.material(prim, binding, double_sided)?;
+        mesh.material = self.material(prim, binding, double_sided, false)?;
         mesh.transform(world);
         self.add_mesh(mesh)?;
         Ok(())

@@ -91,3 +91,13 @@ pub(super) fn vec2_array(v: &sdf::Value) -> Option<Vec<Vec2>> {
         _ => None,
     }
 }
+
+/// A 2-vector (`float2`, `double2`, `half2`).
+pub(super) fn vec2(v: &sdf::Value) -> Option<Vec2> {
+    match v {
+        sdf::Value::Vec2f(a) => Some(Vec2::new(a.x, a.y)),
+        sdf::Value::Vec2d(a) => Some(Vec2::new(a.x as f32, a.y as f32)),
+        sdf::Value::Vec2h(a) => Some(Vec2::new(a.x.to_f32(), a.y.to_f32())),
+        _ => None,
+    }
+}
