@@ -70,7 +70,7 @@ use crate::geometry::{CompositingTags, Mesh, MeshMotion, MotionSteps};
 use crate::limits::{catch_quietly, one_line, read_file, Limits};
 use crate::math::{Mat4, Rgb, Vec3};
 use crate::volume::VolumeSpec;
-use openusd::{ar, sdf, usd};
+use openusd::{ar, pcp, sdf, usd};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use values::{number, token, vec3};
@@ -365,27 +365,40 @@ fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
     Ok(stage)
 }
 
-/// The composition errors met so far (a missing sublayer or referenced layer names it), as one error. An arc
-/// to a MaterialX document (`.mtlx`, which `openusd` cannot read as a layer) is not an error: it is returned
-/// as a warning, and the prims it would have brought fall back to defaults.
+/// The composition errors met so far, as one error, and the problems that are only warnings. As usdview does,
+/// an arc whose target is missing is skipped with a warning and the rest of the stage is read: a reference or
+/// payload to a layer that does not exist, to a prim the layer does not define, or to a layer without a
+/// `defaultPrim`, and an arc to a muted layer. So is an arc to a MaterialX document (`.mtlx`, which `openusd`
+/// cannot read as a layer): the prims it would have brought fall back to defaults. Cycles, layers that exist but
+/// do not parse, and malformed arcs stay errors.
 fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, SceneError> {
-    let (materialx, errors): (Vec<String>, Vec<String>) = stage
-        .composition_errors()
-        .iter()
-        .map(|e| one_line(&e.to_string(), MESSAGE_CHARS))
-        .partition(|e| e.to_ascii_lowercase().contains(".mtlx"));
+    let mut warnings = Vec::new();
+    let mut errors = Vec::new();
+    for error in stage.composition_errors() {
+        let text = one_line(&error.to_string(), MESSAGE_CHARS);
+        if text.to_ascii_lowercase().contains(".mtlx") {
+            warnings.push(format!(
+                "{text}; MaterialX documents are not read, the prims they define use defaults"
+            ));
+            continue;
+        }
+        match error {
+            pcp::Error::UnresolvedLayer { .. }
+            | pcp::Error::UnresolvedPrimPath { .. }
+            | pcp::Error::MissingDefaultPrim { .. }
+            | pcp::Error::MutedAssetPath { .. } => {
+                warnings.push(format!("{text}; the arc is skipped, the rest of the stage is read"))
+            }
+            _ => errors.push(text),
+        }
+    }
     if !errors.is_empty() {
         return Err(malformed(
             path,
             format!("composition: {}", errors.join("; ")),
         ));
     }
-    Ok(materialx
-        .into_iter()
-        .map(|e| {
-            format!("{e}; MaterialX documents are not read, the prims they define use defaults")
-        })
-        .collect())
+    Ok(warnings)
 }
 
 /// Longest message quoted from `openusd` (its errors can quote a whole layer's text).
