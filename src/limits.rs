@@ -318,10 +318,30 @@ pub fn decode_image(
     limits: &Limits,
     bytes_per_texel: u64,
 ) -> Result<image::DynamicImage, String> {
+    decode_image_named(bytes, None, limits, bytes_per_texel)
+}
+
+/// [`decode_image`] of the file `name`: a format that has no signature to recognise it by (TGA, which USD assets
+/// use for scalar maps) is taken from the name's extension.
+pub fn decode_image_named(
+    bytes: &[u8],
+    name: Option<&Path>,
+    limits: &Limits,
+    bytes_per_texel: u64,
+) -> Result<image::DynamicImage, String> {
+    let by_extension = name
+        .and_then(|n| n.extension())
+        .and_then(image::ImageFormat::from_extension)
+        .filter(|f| *f == image::ImageFormat::Tga);
     let reader = || -> Result<image::ImageReader<std::io::Cursor<&[u8]>>, String> {
         let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| e.to_string())?;
+        if reader.format().is_none() {
+            if let Some(format) = by_extension {
+                reader.set_format(format);
+            }
+        }
         let mut decoder_limits = image::Limits::default();
         decoder_limits.max_alloc = Some(limits.memory_bytes);
         reader.limits(decoder_limits);

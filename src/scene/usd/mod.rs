@@ -386,9 +386,9 @@ fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, Sc
             pcp::Error::UnresolvedLayer { .. }
             | pcp::Error::UnresolvedPrimPath { .. }
             | pcp::Error::MissingDefaultPrim { .. }
-            | pcp::Error::MutedAssetPath { .. } => {
-                warnings.push(format!("{text}; the arc is skipped, the rest of the stage is read"))
-            }
+            | pcp::Error::MutedAssetPath { .. } => warnings.push(format!(
+                "{text}; the arc is skipped, the rest of the stage is read"
+            )),
             _ => errors.push(text),
         }
     }

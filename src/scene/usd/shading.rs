@@ -429,7 +429,7 @@ impl Loader<'_> {
             }
         };
         // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels).
-        let image = crate::limits::decode_image(&bytes, &self.limits, 4 + 22)
+        let image = crate::limits::decode_image_named(&bytes, Some(&file), &self.limits, 4 + 22)
             .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e)))?
             .to_rgba8();
         let space = if srgb {
@@ -555,9 +555,10 @@ impl Loader<'_> {
             .is_some_and(|s| s == "sRGB");
         let (scale, bias) = self.scale_bias(&tex, TextureRole::Color)?;
         // The RGBA8 copy, the values and the packed texture's float mip pyramid.
-        let image = crate::limits::decode_image(&bytes, &self.limits, 4 + 4 + 22)
-            .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e)))?
-            .to_rgba8();
+        let image =
+            crate::limits::decode_image_named(&bytes, Some(&file), &self.limits, 4 + 4 + 22)
+                .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e)))?
+                .to_rgba8();
         let values = image
             .as_raw()
             .chunks_exact(4)
