@@ -673,6 +673,8 @@ impl Renderer {
                             let mut emission = Rgb::ZERO;
                             for k in 0..EDGE_RAYS {
                                 let index = sample as u64 * EDGE_RAYS as u64 + k as u64;
+                                // `EmitterEdgeSampling::decide` keeps edges off for a thin lens; were they
+                                // on, each edge ray would take its own lens point, as camera rays do.
                                 let mut edge_rng = rng_of(s.seed ^ EDGE_STREAM, index);
                                 let jitter = edge_rng.sample_2d();
                                 let r = camera_ray(jitter, has_lens.then(|| edge_rng.sample_2d()));

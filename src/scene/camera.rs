@@ -85,7 +85,10 @@ const F_STOP: ParamKey = ParamKey {
     name: "f_stop",
     ty: ParamType::NonNegative,
     default: ParamDefault::Unset,
-    doc: "the lens's f-number N, as in Blender: aperture radius = focal length / (2 N), the focal length that of           a 36 mm sensor spanning the image's larger side (Blender's sensor fit AUTO: 0.018 m / tan(fov/2), fov           the horizontal field of view when `aspectRatio` ≥ 1 or is absent, else `yfov`); > 0, perspective cameras           only; not with `aperture_radius`",
+    doc: "the lens's f-number N, as in Blender: aperture radius = focal length / (2 N), the focal length that \
+          of a 36 mm sensor spanning the image's larger side (Blender's sensor fit AUTO: 0.018 m / tan(fov/2), \
+          fov the horizontal field of view when `aspectRatio` ≥ 1 or is absent, else `yfov`); > 0, perspective \
+          cameras only; not with `aperture_radius`",
     usd: UsdBinding::Elsewhere("`fStop` (0: no depth of field)"),
 };
 
@@ -94,7 +97,8 @@ const FOCUS_DISTANCE: ParamKey = ParamKey {
     name: "focus_distance",
     ty: ParamType::NonNegative,
     default: ParamDefault::Unset,
-    doc: "distance from the lens to the plane in focus, along the view axis, in metres (> 0); required with a           lens (`aperture_radius` > 0 or `f_stop`)",
+    doc: "distance from the lens to the plane in focus, along the view axis, in metres (> 0); required with a \
+          lens (`aperture_radius` > 0 or `f_stop`)",
     usd: UsdBinding::Elsewhere("`focusDistance`"),
 };
 
@@ -962,5 +966,17 @@ mod tests {
             cam.projection = Projection::Orthographic { half_height: h };
             assert!(!cam.is_valid(), "{h}");
         }
+    }
+
+    #[test]
+    fn the_reference_key_table_is_the_code_table() {
+        let reference =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/reference.md"))
+                .unwrap();
+        let table = crate::params::markdown_table(CAMERA_KEYS);
+        assert!(
+            reference.contains(&table),
+            "docs/reference.md's nimbus_camera key table is not the code's; it should read:\n{table}"
+        );
     }
 }
