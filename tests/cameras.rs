@@ -527,3 +527,51 @@ fn the_cli_lists_and_chooses_cameras() {
     assert!(stderr.contains("scene hash"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The part hash reads the scene file's bytes, not the layers it refers to: a lens changed in a USD sublayer
+/// must still keep parts apart, so the chosen camera's lens is hashed too.
+#[test]
+fn parts_with_different_lenses_do_not_merge() {
+    let dir = temp_dir("lens-hash");
+    write(
+        &dir,
+        "shot.usda",
+        "#usda 1.0\n(\n    subLayers = [@cam.usda@]\n)\n",
+    );
+    let camera = |f_stop: f32| {
+        format!(
+            "#usda 1.0\ndef Camera \"Cam\"\n{{\n    float fStop = {f_stop}\n    float focusDistance = 5\n}}\n"
+        )
+    };
+    let part = |samples: &str, out: &str| {
+        let (code, _, stderr) = nimbus(
+            &[
+                "render",
+                "shot.usda",
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "--spp",
+                "2",
+                "--samples",
+                samples,
+                "-o",
+                out,
+            ],
+            &dir,
+        );
+        assert_eq!(code, Some(0), "{stderr}");
+    };
+    write(&dir, "cam.usda", &camera(2.0));
+    part("0..1", "a.exr");
+    part("1..2", "b.exr");
+    write(&dir, "cam.usda", &camera(4.0));
+    part("1..2", "c.exr");
+    let (code, _, stderr) = nimbus(&["merge", "a.exr", "b.exr", "-o", "ab.exr"], &dir);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (code, _, stderr) = nimbus(&["merge", "a.exr", "c.exr", "-o", "ac.exr"], &dir);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("scene hash"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
