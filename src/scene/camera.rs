@@ -71,6 +71,10 @@ pub struct ThinLens {
 /// the image, which makes a glTF camera's `f_stop` mean what it means in Blender (see [`CAMERA_KEYS`]).
 pub const BLENDER_SENSOR_WIDTH: f32 = 0.036;
 
+/// The largest aperture radius over focus distance a lens may have: far beyond any optics (a real lens's ratio
+/// is below 1), and small enough that a lens ray's direction keeps its single-precision length.
+pub const MAX_APERTURE_OVER_FOCUS: f32 = 1e6;
+
 /// `nimbus_camera.aperture_radius`.
 const APERTURE_RADIUS: ParamKey = ParamKey {
     name: "aperture_radius",
@@ -122,7 +126,8 @@ pub enum LensError {
 
 impl ThinLens {
     /// The lens from an aperture radius and a focus distance (scene units): `None` for a radius of 0 (a
-    /// pinhole); an error for a value that is negative, not finite, or a focus distance that is not > 0.
+    /// pinhole); an error for a value that is negative, not finite, a focus distance that is not > 0, or one
+    /// below the radius over [`MAX_APERTURE_OVER_FOCUS`].
     /// `names` are the keys as the scene file spells them (radius, focus distance), for the messages.
     pub fn new(
         aperture_radius: f32,
@@ -151,6 +156,14 @@ impl ThinLens {
                 key: names[1].to_owned(),
                 value: focus_distance.to_string(),
                 constraint: "be finite and > 0",
+            }
+            .into());
+        }
+        if !(aperture_radius / focus_distance <= MAX_APERTURE_OVER_FOCUS) {
+            return Err(ParamError::OutOfRange {
+                key: names[1].to_owned(),
+                value: focus_distance.to_string(),
+                constraint: "be at least a millionth of the aperture radius",
             }
             .into());
         }
@@ -543,7 +556,9 @@ impl Camera {
 
     /// Whether the camera's numbers can make rays: a finite placement, 0 < yfov < π (perspective) or a finite
     /// half height > 0 (orthographic), a finite positive aspect ratio if any, a lens with a finite radius > 0
-    /// and a finite focus distance > 0 if any. Motion is checked by [`CameraMotion::is_valid`].
+    /// and a finite focus distance > 0 (the radius at most [`MAX_APERTURE_OVER_FOCUS`] times it) if any. Motion
+    /// is checked by
+    /// [`CameraMotion::is_valid`].
     pub fn is_valid(&self) -> bool {
         let projection = match self.projection {
             Projection::Perspective => self.yfov > 0.0 && self.yfov < std::f32::consts::PI,
@@ -556,6 +571,7 @@ impl Camera {
                 && l.aperture_radius > 0.0
                 && l.focus_distance.is_finite()
                 && l.focus_distance > 0.0
+                && l.aperture_radius / l.focus_distance <= MAX_APERTURE_OVER_FOCUS
         });
         self.camera_to_world.is_finite()
             && projection
@@ -584,11 +600,11 @@ impl Camera {
         };
         let (origin, dir) = match (self.lens, lens) {
             (Some(l), Some(u)) => {
-                // pbrt-v4 §5.2.3: the point of the plane of focus (z = −focus_distance) on the pinhole ray, seen
-                // from the sampled point of the lens disk.
-                let focus = origin + dir * l.focus_distance;
-                let on_lens = origin + (l.aperture_radius * concentric_disk(u)).extend(0.0);
-                (on_lens, focus - on_lens)
+                // pbrt-v4 §5.2.3: the point of the plane of focus (z = −focus_distance) on the pinhole ray,
+                // o + f·d, seen from the sampled point of the lens disk, o + r·p: the direction f·d − r·p,
+                // here divided by f (which does not turn it, and cannot overflow for any focus distance).
+                let offset = (l.aperture_radius * concentric_disk(u)).extend(0.0);
+                (origin + offset, dir - offset * (1.0 / l.focus_distance))
             }
             _ => (origin, dir),
         };
@@ -793,6 +809,27 @@ mod tests {
         assert!(spread > 0.09, "the samples cover the lens: {spread}");
     }
 
+    /// Extreme but valid lenses keep rays finite: a focus distance near the largest float with a field of view
+    /// near 180° and a wide image (whose pinhole direction times the focus distance overflows).
+    #[test]
+    fn extreme_lenses_give_finite_rays() {
+        let mut cam = Camera::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO, 3.1);
+        for (r, f) in [(1e-3, 3e38), (1e30, 1e24), (1e-30, 1e-30), (1e6, 1.0)] {
+            cam.lens = Some(ThinLens {
+                aperture_radius: r,
+                focus_distance: f,
+            });
+            assert!(cam.is_valid());
+            for film in [Vec2::ZERO, Vec2::ONE, Vec2::splat(0.5)] {
+                let ray = cam.sample_ray(film, Some(Vec2::new(0.9, 0.1)), 100.0, None);
+                assert!(
+                    ray.origin.is_finite() && (ray.dir.length() - 1.0).abs() < 1e-5,
+                    "{r} {f}: {ray:?}"
+                );
+            }
+        }
+    }
+
     /// A moving camera with a lens: the rays of one film position meet on the plane of focus of the pose at
     /// the ray's time.
     #[test]
@@ -942,6 +979,9 @@ mod tests {
         );
         assert!(ThinLens::new(f32::NAN, Some(1.0), ["r", "f"]).is_err());
         assert!(ThinLens::new(0.1, Some(f32::NAN), ["r", "f"]).is_err());
+        assert!(ThinLens::new(1e30, Some(1e-30), ["r", "f"]).is_err());
+        assert!(ThinLens::new(2e6, Some(1.0), ["r", "f"]).is_err());
+        assert!(ThinLens::new(1e6, Some(1.0), ["r", "f"]).unwrap().is_some());
     }
 
     /// `is_valid` refuses what would put NaN on the film: a zero or non-finite lens or orthographic extent.
