@@ -296,6 +296,20 @@ fn usd_cameras_read_fstop_focus_and_orthographic_apertures() {
         e.starts_with(&path.display().to_string()) && e.contains("/World/Persp.fStop"),
         "{e}"
     );
+    let bad = STAGE.replace(
+        "token projection = \"orthographic\"",
+        "token projection = \"orthographic\"\n        float3 xformOp:scale = (0, 0, 0)\n        uniform token[] xformOpOrder = [\"xformOp:scale\"]",
+    );
+    let path = write(&dir, "flat.usda", &bad);
+    let e = load_builder(&path, &LoadOptions::default())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.starts_with(&path.display().to_string())
+            && e.contains("/World/Top: an orthographic film 0 m high"),
+        "{e}"
+    );
     let bad = STAGE.replace("float focusDistance = 300\n        double3", "double3");
     let path = write(&dir, "nofocus.usda", &bad);
     let e = load_builder(&path, &LoadOptions::default())

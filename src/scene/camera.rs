@@ -159,7 +159,8 @@ impl ThinLens {
             }
             .into());
         }
-        if !(aperture_radius / focus_distance <= MAX_APERTURE_OVER_FOCUS) {
+        // Both are finite and > 0 here, so the ratio is a number (infinite when it overflows).
+        if aperture_radius / focus_distance > MAX_APERTURE_OVER_FOCUS {
             return Err(ParamError::OutOfRange {
                 key: names[1].to_owned(),
                 value: focus_distance.to_string(),

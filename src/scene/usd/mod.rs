@@ -805,6 +805,14 @@ impl Loader<'_> {
                 (2.0 * (0.5 * v / focal).atan(), Projection::Perspective)
             }
         };
+        if let Projection::Orthographic { half_height } = projection {
+            if !(half_height.is_finite() && half_height > 0.0) {
+                return Err(self.error(
+                    &at,
+                    format!("an orthographic film {half_height} m high (verticalAperture {v} tenths of a scene unit at the camera's scale {unit}) must be finite and > 0"),
+                ));
+            }
+        }
         if !(f_stop.is_finite() && f_stop >= 0.0) {
             return Err(self.error(&format!("{at}.fStop"), format!("{f_stop} must be ≥ 0")));
         }
