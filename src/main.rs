@@ -272,6 +272,15 @@ struct RenderArgs {
     /// Print every layer `--aovs` takes (with the scene's light groups when a scene is given), then exit.
     #[arg(long = "list-aovs")]
     list_aovs: bool,
+    /// Render from the scene's camera of this name: a glTF node name (or camera name for a node without one),
+    /// a USD prim name or prim path. Default: the first camera in the file. An unknown name is an error that
+    /// lists the scene's cameras.
+    #[arg(long)]
+    camera: Option<String>,
+    /// Print the scene's cameras (name, projection, field of view or film height, aspect ratio, lens), one per
+    /// line, then exit without rendering.
+    #[arg(long = "list-cameras")]
+    list_cameras: bool,
     /// Light groups: `scene` (the groups the scene declares; emitters in none go to `default`), `per-light`
     /// (one group per emitter) or `off`.
     #[arg(long = "light-groups", value_enum, default_value = "scene")]
@@ -653,6 +662,9 @@ fn render(mut args: RenderArgs) -> Result<(), String> {
     if args.list_aovs {
         return list_aovs(&args);
     }
+    if args.list_cameras {
+        return list_cameras(&args);
+    }
     let range = args.frames.or(args.frame.map(FrameRange::single));
     if range.is_some_and(|r| r.len() > 1) {
         args.output = with_frame_pattern(&args.output, "-o");
@@ -723,6 +735,28 @@ fn list_aovs(args: &RenderArgs) -> Result<(), String> {
     print_stdout(&text)
 }
 
+/// `--list-cameras`: the scene's cameras, one per line (tab-separated: name, projection, field of view or
+/// film height, aspect ratio, lens), the one that renders by default first; a line saying so when there are
+/// none (the default framing renders).
+fn list_cameras(args: &RenderArgs) -> Result<(), String> {
+    let builder = load_builder(
+        args.scene.as_deref(),
+        args.limits(),
+        args.frame,
+        args.fps,
+        None,
+    )?;
+    let mut text = String::new();
+    for camera in builder.cameras() {
+        text.push_str(&camera.describe());
+        text.push('\n');
+    }
+    if text.is_empty() {
+        text.push_str("the scene has no cameras: the default camera frames it\n");
+    }
+    print_stdout(&text)
+}
+
 /// The `--light-groups` value's name.
 fn light_group_mode_name(mode: nimbus::render::LightGroupMode) -> &'static str {
     match mode {
@@ -743,6 +777,15 @@ fn render_frame(
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
     let limits = args.limits();
     let mut builder = load_builder(args.scene.as_deref(), limits, frame, args.fps, args.shutter)?;
+    if let Some(name) = &args.camera {
+        builder.select_camera(name).map_err(|e| {
+            let file = args
+                .scene
+                .as_deref()
+                .unwrap_or(Path::new("assets/cloud.gltf"));
+            format!("{}: --camera: {e}", file.display())
+        })?;
+    }
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
@@ -858,7 +901,7 @@ fn render_frame(
     {
         return Err("--compression pxr24 rounds 32-bit floats to 24 bits, which destroys Cryptomatte IDs; use zip, piz, rle or none".into());
     }
-    let hash = part_scene_hash(args, frame, renderer.settings())?;
+    let hash = part_scene_hash(args, frame, renderer.settings(), scene.camera())?;
     let part = part_region(args, &output, renderer.settings())?;
     let is_part = part.is_some();
     let (region, output) = part.unwrap_or_else(|| {
@@ -1281,12 +1324,13 @@ fn part_region(
 }
 
 /// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings,
-/// the `--env-color` override, the frame and the shutter (parts of different frames or shutters must not
-/// merge).
+/// the `--env-color` override, the frame, the shutter, the `--camera` choice and the camera's lens, if it has
+/// one (parts of different frames, shutters, cameras or apertures must not merge).
 fn part_scene_hash(
     args: &RenderArgs,
     frame: Option<i64>,
     settings: &RenderSettings,
+    camera: &nimbus::scene::Camera,
 ) -> Result<u64, String> {
     let file;
     let files: Vec<&[u8]> = match &args.scene {
@@ -1311,12 +1355,21 @@ fn part_scene_hash(
             .flat_map(|v| v.to_le_bytes())
             .collect()
     });
+    // Only for a camera with a lens, so that the hashes of pinhole renders stay what they were.
+    let lens_bytes: Option<Vec<u8>> = camera.lens.map(|l| {
+        [l.aperture_radius, l.focus_distance]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect()
+    });
     let overrides: Vec<(&str, &[u8])> = env
         .iter()
         .map(|e| ("env-color", e.as_slice()))
         .chain(frame_bytes.iter().map(|f| ("frame", f.as_slice())))
         .chain(fps_bytes.iter().map(|f| ("fps", f.as_slice())))
         .chain(shutter_bytes.iter().map(|s| ("shutter", s.as_slice())))
+        .chain(args.camera.iter().map(|c| ("camera", c.as_bytes())))
+        .chain(lens_bytes.iter().map(|l| ("lens", l.as_slice())))
         .collect();
     Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
 }

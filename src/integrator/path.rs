@@ -102,6 +102,9 @@ pub struct PathTracer {
     /// Spread angle of a camera ray's cone, in radians: the angle one pixel subtends
     /// ([`crate::scene::Camera::pixel_spread_angle`]). 0 reads every texture at full resolution.
     pub pixel_spread: f32,
+    /// Width of a camera ray's cone where it starts, in scene units ([`crate::scene::Camera::pixel_width`]): 0
+    /// for a perspective camera, one pixel for an orthographic one.
+    pub pixel_width: f32,
     /// Equiangular sampling toward point and spot lights on segments through constant media, MIS'd with
     /// distance sampling (see the module documentation); [`PathTracer::uses_equiangular`] says whether a scene
     /// gets it.
@@ -309,7 +312,7 @@ impl PathTracer {
             },
             prev_light_only: false,
             stack: MediumStack::default(),
-            cone_width: 0.0,
+            cone_width: self.pixel_width,
             crossings: 0,
             first_hit: true,
             first_emission,

@@ -21,6 +21,7 @@
 //! not otherwise (`--explain`):
 //! - no participating media (emission seen through a medium depends on where the path scatters first);
 //! - no camera or triangle motion over the shutter;
+//! - no thin lens (defocus spreads an outline over pixels its pinhole projection does not mark);
 //! - at most [`MAX_EMISSIVE_TRIANGLES`] emissive triangles, and marked pixels at most
 //!   [`MAX_MARKED_SHARE`] of the image, so the extra camera rays stay a small share of the render's rays.
 //!
@@ -110,6 +111,12 @@ impl EmitterEdgeSampling {
         }
         if scene.camera.motion.is_some() || scene.moving_triangle_count() > 0 {
             return EdgeDecision::Off("the camera or triangles move over the shutter".into());
+        }
+        if scene.camera.lens.is_some() {
+            return EdgeDecision::Off(
+                "the camera has a thin lens: defocus spreads emitter outlines beyond the pixels their projection crosses"
+                    .into(),
+            );
         }
         if scene.names().has_mattes() {
             return EdgeDecision::Off(

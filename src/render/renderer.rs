@@ -599,6 +599,7 @@ impl Renderer {
             media_mis: s.media_mis,
             equiangular: PathTracer::uses_equiangular(s.equiangular, scene),
             pixel_spread: scene.camera.pixel_spread_angle(height),
+            pixel_width: scene.camera.pixel_width(height),
             transparent: self.transparent(scene),
             mattes: scene.names().has_mattes(),
         };
@@ -649,18 +650,20 @@ impl Renderer {
                             .next_f32();
                             shutter.time_at(u)
                         });
-                        // Box filter: uniform jitter over the pixel, unweighted mean.
-                        let camera_ray = |jitter: Vec2| {
+                        // Box filter: uniform jitter over the pixel, unweighted mean. A camera with a thin
+                        // lens takes the sample's next 2-D value for the point on its lens; a pinhole draws
+                        // none, so its paths keep the numbers they had before lenses existed.
+                        let camera_ray = |jitter: Vec2, lens: Option<Vec2>| {
                             let film_pos = Vec2::new(
                                 (x as f32 + jitter.x) / width as f32,
                                 (y as f32 + jitter.y) / height as f32,
                             );
-                            match time {
-                                Some(time) => scene.camera.generate_ray_at(film_pos, aspect, time),
-                                None => scene.camera.generate_ray(film_pos, aspect),
-                            }
+                            scene.camera.sample_ray(film_pos, lens, aspect, time)
                         };
-                        let ray = camera_ray(rng.sample_2d());
+                        let has_lens = scene.camera.lens.is_some();
+                        let jitter = rng.sample_2d();
+                        let lens = has_lens.then(|| rng.sample_2d());
+                        let ray = camera_ray(jitter, lens);
                         if let Some(r) = record.as_mut() {
                             r.clear();
                         }
@@ -670,7 +673,11 @@ impl Renderer {
                             let mut emission = Rgb::ZERO;
                             for k in 0..EDGE_RAYS {
                                 let index = sample as u64 * EDGE_RAYS as u64 + k as u64;
-                                let r = camera_ray(rng_of(s.seed ^ EDGE_STREAM, index).sample_2d());
+                                // `EmitterEdgeSampling::decide` keeps edges off for a thin lens; were they
+                                // on, each edge ray would take its own lens point, as camera rays do.
+                                let mut edge_rng = rng_of(s.seed ^ EDGE_STREAM, index);
+                                let jitter = edge_rng.sample_2d();
+                                let r = camera_ray(jitter, has_lens.then(|| edge_rng.sample_2d()));
                                 let (e, emitter) =
                                     tracer.first_surface_emission(&services, &r, &mut counters);
                                 emission += e;

@@ -56,6 +56,15 @@ pub enum SceneErrorKind {
         #[source]
         source: crate::volume::VolumeError,
     },
+    /// A camera's lens declaration (glTF `nimbus_camera`, USD `fStop` / `focusDistance`) is not a lens.
+    #[error("{at}: {source}")]
+    Camera {
+        /// Where the file declares it: the camera and the key (`camera 'shot': nimbus_camera`).
+        at: Box<str>,
+        /// What is wrong with it.
+        #[source]
+        source: crate::scene::LensError,
+    },
     /// The file extension names no format Nimbus reads.
     #[error("unknown scene format (expected .gltf, .glb, .obj, .usd, .usda, .usdc or .usdz)")]
     UnknownFormat,

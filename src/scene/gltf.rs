@@ -3,7 +3,9 @@
 //! Reads the default scene's node hierarchy (TRS and matrix transforms), triangle meshes (indexed or not,
 //! strips and fans triangulated; POSITION, NORMAL, TANGENT, TEXCOORD_0, TEXCOORD_1, COLOR_0, sparse or not,
 //! with the component types of `KHR_mesh_quantization`; see `gltf_accessors`), morph targets at their default
-//! weights and skins at their rest pose (see `gltf_deform`), the first perspective camera met in traversal order,
+//! weights and skins at their rest pose (see `gltf_deform`), every camera (perspective or orthographic, with the
+//! node's or the camera object's `extras.nimbus_camera` lens; the first met in traversal order renders unless
+//! another is chosen by name; see `Loader::load_camera`),
 //! metallic-roughness materials with textures and the extensions listed in [`SUPPORTED_EXTENSIONS`] (the keys
 //! read are listed in [`crate::material::Material`]), and `KHR_lights_punctual` lights. Normal-mapped meshes
 //! without TANGENT get MikkTSpace tangents when the scene is built. Every texture reference's `texCoord` (sets 0
@@ -35,8 +37,8 @@ use super::gltf_accessors::{check_bytes, read_floats, read_indices, Usage};
 use super::gltf_check::SkippedChannels;
 use super::{gltf_animation, gltf_deform};
 use super::{
-    Camera, CameraMotion, LightTag, LoadOptions, MediumTag, SceneBuilder, SceneError,
-    SceneErrorKind,
+    Camera, CameraMotion, LightTag, LoadOptions, MediumTag, NamedCamera, Projection, SceneBuilder,
+    SceneError, SceneErrorKind, ThinLens,
 };
 use crate::geometry::{CompositingTags, Mesh, MeshMotion};
 use crate::light::{
@@ -385,34 +387,7 @@ impl Loader<'_> {
             self.load_mesh(&node, mesh, &world, &context)?;
         }
         if let Some(camera) = node.camera() {
-            if self.builder.camera.is_none() {
-                if let gltf::camera::Projection::Perspective(p) = camera.projection() {
-                    let camera_to_world = Camera::rigid(&world);
-                    // The camera moves when its pose at some motion step differs from the frame's.
-                    let motion = self.motion.as_ref().and_then(|m| {
-                        let poses: Vec<Mat4> = m
-                            .worlds
-                            .iter()
-                            .map(|w| Camera::rigid(&w[node.index()]))
-                            .collect();
-                        poses
-                            .iter()
-                            .any(|p| *p != camera_to_world)
-                            .then(|| CameraMotion::from_matrices(m.steps, &poses))
-                    });
-                    self.builder.camera = Some(Camera {
-                        camera_to_world,
-                        yfov: p.yfov(),
-                        aspect_ratio: p.aspect_ratio(),
-                        motion,
-                    });
-                } else {
-                    self.builder.warnings.push(format!(
-                        "camera {} is orthographic, which is not supported; skipped",
-                        camera.index()
-                    ));
-                }
-            }
+            self.load_camera(&node, camera, &world, extras.as_ref())?;
         }
         if let Some(light) = node.light() {
             let tag = LightTag {
@@ -427,6 +402,114 @@ impl Loader<'_> {
         for child in node.children() {
             self.visit(child, world, depth + 1, &context)?;
         }
+        Ok(())
+    }
+
+    /// Adds the camera of `node` to the scene's cameras, named by the node (else by the camera object, else
+    /// `camera N` for node index N). Perspective: `yfov` and `aspectRatio`; orthographic: `ymag` is the film's
+    /// half height and `xmag / ymag` its aspect ratio (the image's own aspect ratio widens or narrows the film
+    /// around the same height, as it does a perspective camera's field of view); magnitudes are taken as
+    /// absolute values. A lens comes from `extras.nimbus_camera` ([`super::CAMERA_KEYS`]) on the node, else on
+    /// the camera object; keys it does not know are warnings.
+    fn load_camera(
+        &mut self,
+        node: &gltf::Node,
+        camera: gltf::Camera,
+        world: &Mat4,
+        node_extras: Option<&serde_json::Value>,
+    ) -> Result<(), SceneError> {
+        let name = node
+            .name()
+            .or(camera.name())
+            .map_or_else(|| format!("camera {}", node.index()), str::to_owned);
+        let (yfov, projection, aspect_ratio, focal_length) = match camera.projection() {
+            gltf::camera::Projection::Perspective(p) => (
+                p.yfov(),
+                Projection::Perspective,
+                p.aspect_ratio(),
+                Some(super::blender_focal_length(p.yfov(), p.aspect_ratio())),
+            ),
+            gltf::camera::Projection::Orthographic(o) => (
+                // Unused by an orthographic camera; a valid perspective angle keeps the numbers checkable.
+                std::f32::consts::FRAC_PI_2,
+                Projection::Orthographic {
+                    half_height: o.ymag().abs(),
+                },
+                Some(o.xmag().abs() / o.ymag().abs()),
+                None,
+            ),
+        };
+        let at = format!("camera '{}': nimbus_camera", one_line(&name, QUOTE));
+        let camera_extras = match camera.extras() {
+            Some(raw) => Some(
+                serde_json::from_str::<serde_json::Value>(raw.get())
+                    .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{at}: {e}"))))?,
+            ),
+            None => None,
+        };
+        let declared = node_extras
+            .and_then(|e| e.get("nimbus_camera"))
+            .or_else(|| camera_extras.as_ref().and_then(|e| e.get("nimbus_camera")));
+        let lens = match declared {
+            None => None,
+            Some(value) => {
+                let Some(object) = value.as_object() else {
+                    return Err(self.error(SceneErrorKind::Camera {
+                        at: at.into(),
+                        source: crate::params::ParamError::WrongType {
+                            key: "nimbus_camera".into(),
+                            expected: "an object".into(),
+                        }
+                        .into(),
+                    }));
+                };
+                for key in object.keys() {
+                    if !super::CAMERA_KEYS.iter().any(|k| k.name == key) {
+                        self.builder.warn(format!(
+                            "{at}: unknown key '{}' ignored (the keys are {})",
+                            one_line(key, QUOTE),
+                            super::CAMERA_KEYS
+                                .iter()
+                                .map(|k| k.name)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ));
+                    }
+                }
+                ThinLens::from_params(&crate::params::JsonParams::new(value), focal_length)
+                    .map_err(|source| {
+                        self.error(SceneErrorKind::Camera {
+                            at: at.clone().into(),
+                            source,
+                        })
+                    })?
+            }
+        };
+        let camera_to_world = Camera::rigid(world);
+        // The camera moves when its pose at some motion step differs from the frame's.
+        let motion = self.motion.as_ref().and_then(|m| {
+            let poses: Vec<Mat4> = m
+                .worlds
+                .iter()
+                .map(|w| Camera::rigid(&w[node.index()]))
+                .collect();
+            poses
+                .iter()
+                .any(|p| *p != camera_to_world)
+                .then(|| CameraMotion::from_matrices(m.steps, &poses))
+        });
+        self.builder.add_camera(NamedCamera {
+            name,
+            path: None,
+            camera: Camera {
+                camera_to_world,
+                yfov,
+                projection,
+                lens,
+                aspect_ratio,
+                motion,
+            },
+        });
         Ok(())
     }
 

@@ -16,7 +16,10 @@ pub mod obj;
 pub mod usd;
 
 pub use builder::BUILDER_PATH;
-pub use camera::{Camera, CameraMotion};
+pub use camera::{
+    blender_focal_length, Camera, CameraMotion, LensError, NamedCamera, Projection, ThinLens,
+    UnknownCamera, CAMERA_KEYS,
+};
 pub use error::{SceneError, SceneErrorKind};
 pub use names::{CryptoNames, Emitter, LightTag, MediumTag, SceneNames, ENVIRONMENT_NAME};
 
@@ -190,7 +193,10 @@ pub struct SceneBuilder {
     lights: Vec<Light>,
     /// The name and light group of each light in `lights`.
     light_tags: Vec<LightTag>,
+    /// The camera the scene renders from: the first of `cameras` unless one was chosen or set.
     camera: Option<Camera>,
+    /// Every camera of the scene file with its names, in the order the loader met them.
+    cameras: Vec<NamedCamera>,
     max_bounces: Option<u32>,
     warnings: Vec<String>,
     /// Mesh interiors (referenced by `Material::interior`) and position-filled volumes.
@@ -472,6 +478,42 @@ impl SceneBuilder {
         self.camera.as_ref()
     }
 
+    /// Adds a camera of the scene file with its names: the first one added becomes the camera (unless one was
+    /// set), the others can be chosen by [`select_camera`](Self::select_camera).
+    pub fn add_camera(&mut self, camera: NamedCamera) {
+        if self.camera.is_none() {
+            self.camera = Some(camera.camera.clone());
+        }
+        self.cameras.push(camera);
+    }
+
+    /// Every camera of the scene file, in the order met (glTF: the nodes' depth-first order; USD: the prims').
+    pub fn cameras(&self) -> &[NamedCamera] {
+        &self.cameras
+    }
+
+    /// Makes the camera named `name` (a glTF node or camera name, a USD prim name or path; the first match in
+    /// [`cameras`](Self::cameras)) the camera; an error listing the names when none has it.
+    pub fn select_camera(&mut self, name: &str) -> Result<(), UnknownCamera> {
+        match self.cameras.iter().find(|c| c.is_named(name)) {
+            Some(c) => {
+                self.camera = Some(c.camera.clone());
+                Ok(())
+            }
+            None => Err(UnknownCamera {
+                name: name.to_owned(),
+                available: self
+                    .cameras
+                    .iter()
+                    .map(|c| match &c.path {
+                        Some(p) if *p != c.name => format!("{} ({p})", c.name),
+                        _ => c.name.clone(),
+                    })
+                    .collect(),
+            }),
+        }
+    }
+
     /// The maximum number of bounces the scene asks for, if any.
     pub fn max_bounces(&self) -> Option<u32> {
         self.max_bounces
@@ -489,7 +531,7 @@ impl SceneBuilder {
 
     /// Checks every reference between the parts (a mesh's material and vertex indices and attribute lengths, a
     /// material's textures and interior medium) and the numbers every loader must have checked already, as a
-    /// last guard for scenes built in code: a finite camera with 0 < yfov < π, finite lights, positions and
+    /// last guard for scenes built in code: a camera that [`Camera::is_valid`], finite lights, positions and
     /// emission.
     fn validate(&self) -> Result<(), SceneError> {
         let invalid =
@@ -549,12 +591,10 @@ impl SceneBuilder {
             }
         }
         if let Some(c) = &self.camera {
-            if !(c.camera_to_world.is_finite() && c.yfov > 0.0 && c.yfov < std::f32::consts::PI)
-                || c.aspect_ratio.is_some_and(|a| !(a.is_finite() && a > 0.0))
-            {
+            if !c.is_valid() {
                 return Err(malformed(format!(
-                    "the camera needs a finite placement, 0 < yfov < pi and a positive aspect ratio (yfov {}, aspect ratio {:?})",
-                    c.yfov, c.aspect_ratio
+                    "the camera needs a finite placement, 0 < yfov < pi (perspective) or a positive half height (orthographic), a positive aspect ratio and a lens with a positive radius and focus distance (yfov {}, {:?}, aspect ratio {:?}, lens {:?})",
+                    c.yfov, c.projection, c.aspect_ratio, c.lens
                 )));
             }
             if c.motion.as_ref().is_some_and(|m| !m.is_valid()) {

@@ -31,6 +31,10 @@ The translation is ../shared/tools/gltf2mitsuba.py's, plus what it does not expr
   emissive material; `light_group` in the scene extras' `nimbus_environment`) and turned into the words that
   gltf2mitsuba's `--only-emitters` takes (the emitters' node names, `environment` for the environment); the script
   checks that those words keep exactly that group's emitters and nothing else.
+- depth of field: a camera node whose extras hold `nimbus_camera` with `aperture_radius` and `focus_distance` becomes
+  Mitsuba's `thinlens` sensor with the same two values (`fov` and `fov_axis` 'y' kept from the perspective sensor:
+  glTF's yfov is vertical; Mitsuba's focus distance, like Nimbus's, is measured along the view axis). `f_stop` is
+  not translated (it needs Nimbus's focal-length convention): a scene using it is refused here.
 - alpha: Mitsuba's volpath marks every camera ray valid (alpha 1) as soon as the scene has an environment emitter,
   so the alpha render drops the environment (alpha does not depend on lighting); the alpha of a sample is then 1
   when its camera ray hits a non-null surface or scatters in a medium, so its mean is 1 - transmittance. In a
@@ -163,6 +167,24 @@ def patch_emissive_textures(translator, d):
             raise RuntimeError(f"material {mat.get('name')}: no emitter shape found to texture")
 
 
+def patch_thin_lens(translator, d):
+    """the first camera node in walk order (the one gltf2mitsuba translates) with extras.nimbus_camera: the sensor
+    becomes a thinlens with its aperture_radius and focus_distance"""
+    g = translator.G.g
+    for _, node, _ in translator.G.walk():
+        if "camera" in node and g["cameras"][node["camera"]]["type"] == "perspective":
+            lens = node.get("extras", {}).get("nimbus_camera")
+            if lens is None:
+                return
+            if set(lens) != {"aperture_radius", "focus_distance"}:
+                raise SystemExit(f"nimbus_camera {lens}: only aperture_radius and focus_distance are translated")
+            d["sensor"]["type"] = "thinlens"
+            d["sensor"]["aperture_radius"] = float(lens["aperture_radius"])
+            d["sensor"]["focus_distance"] = float(lens["focus_distance"])
+            assert d["sensor"]["fov_axis"] == "y"
+            return
+
+
 def write_exr(path, img):
     """float32, ZIP; img HxWx3 -> R, G, B; HxW -> A"""
     import OpenEXR
@@ -194,6 +216,7 @@ def render(gltf, out, spp, pass_spp, seed, threads, bounces=None, only_emitters=
     t = g2m.Translator(gltf, RES, None, pass_spp, "volpath", bounces, only_emitters, alpha)
     d = t.build()
     patch_emissive_textures(t, d)
+    patch_thin_lens(t, d)
     if alpha:
         d.pop("environment", None)           # else volpath reports every ray valid (alpha 1 everywhere)
     scene = mi.load_dict(d)

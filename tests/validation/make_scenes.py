@@ -9,6 +9,7 @@ references beside each scene come from `make_references.py` (Mitsuba 3, through 
 | textured-emitter | an emissive panel whose emissiveTexture (NEAREST, sRGB) is a colour pattern: the texture's orientation on an emitter, light sampling of a textured emitter, and MIS with BSDF-sampled hits on it |
 | spot-cone | two KHR_lights_punctual spot lights (candela, hard cones, one tilted) over a floor and a box: cone direction, cone angle, photometric units, a spot shadow |
 | light-groups | three light groups (`nimbus_light_group` on an emissive panel's node and on a point light's node, `light_group` in `nimbus_environment`) over a finite floor and two boxes, sky visible above the horizon: each group's layer, their sum, and alpha |
+| thin-lens | depth of field: a glTF camera with `nimbus_camera` {aperture_radius, focus_distance} over a checkered floor, a sphere near, a box at the focus distance and a sphere far, under a sky and a sun: the lens disk, the focal plane and the blur of near and far things |
 """
 import math
 import os
@@ -142,7 +143,37 @@ def light_groups():
                       "nimbus_light_units": "radiometric", "max_bounces": 8})
 
 
+def thin_lens():
+    """Depth of field: the camera stands 1.1 m above a checkered floor looking slightly down the -z axis; the view
+    axis is focused at 3.5 m (the box), the near sphere (about 1.6 m away) and the far sphere (about 7 m) are
+    out of focus. With an aperture radius of 0.08 m the circle of confusion, 2 r |1/z - 1/f| radians across, is
+    about 10 pixels wide for the near sphere and 4 for the far one (a pixel is 2 tan(20 deg) / 128 = 0.0057 rad)."""
+    folder = os.path.join(HERE, "thin-lens")
+    b = GltfBuilder()
+    light, dark = b.lambert("tile_light", [0.75, 0.75, 0.7]), b.lambert("tile_dark", [0.12, 0.12, 0.15])
+    tiles = ([], [])
+    size = 0.5
+    for i in range(-5, 5):
+        for k in range(-18, 6):
+            x0, z0 = i * size, k * size
+            tiles[(i + k) % 2].append([[x0, 0, z0 + size], [x0 + size, 0, z0 + size], [x0 + size, 0, z0],
+                                       [x0, 0, z0]])
+    b.quads("floor_light", tiles[0], light)
+    b.quads("floor_dark", tiles[1], dark)
+    b.sphere("sphere_near", [-0.35, 0.25, 1.45], 0.25, b.lambert("sphere_red", [0.8, 0.2, 0.15]),
+             rings=24, segments=48)
+    b.box("box_focus", [0.05, 0.0, -0.65], [0.65, 0.6, -0.25], b.lambert("box_green", [0.25, 0.7, 0.3]))
+    b.sphere("sphere_far", [-0.9, 0.6, -3.9], 0.6, b.lambert("sphere_blue", [0.2, 0.35, 0.85]),
+             rings=24, segments=48)
+    b.directional_light("sun", [0.4, -1.0, -0.5], [1.0, 0.95, 0.85], 683.0 * 2.0)
+    node = b.camera("camera", eye=[0.0, 1.1, 3.0], target=[0.0, 0.45, -1.0], yfov_deg=40)
+    b.nodes[node]["extras"] = {"nimbus_camera": {"aperture_radius": 0.08, "focus_distance": 3.5}}
+    write(b, folder, {"nimbus_environment": {"color": [0.35, 0.42, 0.55]}, "max_bounces": 8},
+          {"extensionsUsed": ["KHR_lights_punctual"]})
+
+
 if __name__ == "__main__":
     textured_emitter()
     spot_cone()
     light_groups()
+    thin_lens()

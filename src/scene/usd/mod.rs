@@ -21,8 +21,13 @@
 //! - the gprims `Cube`, `Sphere`, `Cylinder`, `Cone`, `Capsule`, `Plane`, tessellated (`usd/shapes.rs`);
 //! - `PointInstancer` (`usd/instancing.rs`) and native instances (composed by `openusd` as instance proxies),
 //!   flattened to world meshes;
-//! - `Camera` (the first one met): `focalLength`, `horizontalAperture`, `verticalAperture` (yfov from the
-//!   vertical aperture, aspect from their ratio); clipping and projection `orthographic` are ignored;
+//! - `Camera` (every one, named by its prim name and path; the first met renders unless another is chosen):
+//!   `projection` (`perspective`: yfov from `verticalAperture` and `focalLength`; `orthographic`: a film
+//!   `horizontalAperture` by `verticalAperture` tenths of a scene unit), the aspect ratio from the apertures'
+//!   ratio, and depth of field from `fStop` (0: none) and `focusDistance`: aperture radius = focalLength / 10 /
+//!   (2 fStop) scene units (UsdGeomCamera's units: apertures and focal length in tenths of a scene unit); lengths
+//!   in metres through the camera's world scale (`metersPerUnit` and any xform scale, its x axis's); clipping
+//!   is ignored;
 //! - `Material` → `outputs:surface` → a `UsdPreviewSurface` `Shader` (`info:id`): `inputs:diffuseColor`,
 //!   `emissiveColor`, `metallic`, `roughness`, `opacity`, `ior`, `normal`, `useSpecularWorkflow` (see
 //!   `usd/shading.rs` for the mapping); colour and normal inputs may connect to a `UsdUVTexture`
@@ -64,7 +69,7 @@ mod values;
 mod vol;
 mod xform;
 
-use super::camera::{Camera, CameraMotion};
+use super::camera::{Camera, CameraMotion, NamedCamera, Projection, ThinLens};
 use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::{CompositingTags, Mesh, MeshMotion, MotionSteps};
 use crate::limits::{catch_quietly, one_line, read_file, Limits};
@@ -792,33 +797,74 @@ impl Loader<'_> {
     }
 
     fn camera(&mut self, prim: &usd::Prim, world: &Mat4) -> Result<(), SceneError> {
-        if self.builder.camera.is_some() {
-            return Ok(());
-        }
+        let at = prim.path().as_str().to_owned();
         let focal = self.float(prim, "focalLength", 50.0)?;
         let h = self.float(prim, "horizontalAperture", 20.955)?;
         let v = self.float(prim, "verticalAperture", 15.2908)?;
         if !(focal > 0.0 && h > 0.0 && v > 0.0) {
-            return Err(self.error(
-                prim.path().as_str(),
-                "focalLength and apertures must be positive",
-            ));
+            return Err(self.error(&at, "focalLength and apertures must be positive"));
         }
-        if self
-            .value(prim, "projection")?
-            .and_then(|p| token(&p))
-            .is_some_and(|p| p == "orthographic")
-        {
-            self.warn(format!(
-                "camera {}: orthographic projection is not supported; rendered as perspective",
-                prim.path().as_str()
-            ));
+        let f_stop = self.float(prim, "fStop", 0.0)?;
+        let focus = self.float(prim, "focusDistance", 0.0)?;
+        // Scene units to metres along the camera's axes (the world matrix carries metersPerUnit).
+        let unit = world.x_axis.truncate().length();
+        let (yfov, projection) = match self.value(prim, "projection")?.and_then(|p| token(&p)) {
+            Some(p) if p == "orthographic" => (
+                // Unused by an orthographic camera; a valid perspective angle keeps the numbers checkable.
+                std::f32::consts::FRAC_PI_2,
+                Projection::Orthographic {
+                    half_height: 0.05 * v * unit,
+                },
+            ),
+            other => {
+                if let Some(p) = other.filter(|p| p != "perspective") {
+                    self.warn(format!(
+                        "camera {at}: projection '{}' is neither perspective nor orthographic; rendered as perspective",
+                        one_line(&p, MESSAGE_CHARS / 4)
+                    ));
+                }
+                (2.0 * (0.5 * v / focal).atan(), Projection::Perspective)
+            }
+        };
+        if let Projection::Orthographic { half_height } = projection {
+            if !(half_height.is_finite() && half_height > 0.0) {
+                return Err(self.error(
+                    &at,
+                    format!("an orthographic film {half_height} m high (verticalAperture {v} tenths of a scene unit at the camera's scale {unit}) must be finite and > 0"),
+                ));
+            }
         }
-        self.builder.camera = Some(Camera {
-            camera_to_world: Camera::rigid(world),
-            yfov: 2.0 * (0.5 * v / focal).atan(),
-            aspect_ratio: Some(h / v),
-            motion: None,
+        if !(f_stop.is_finite() && f_stop >= 0.0) {
+            return Err(self.error(&format!("{at}.fStop"), format!("{f_stop} must be ≥ 0")));
+        }
+        let radius = if f_stop > 0.0 {
+            0.1 * focal / (2.0 * f_stop) * unit
+        } else {
+            0.0
+        };
+        let lens = ThinLens::new(radius, Some(focus * unit), ["fStop", "focusDistance"]).map_err(
+            |source| {
+                SceneError::new(
+                    self.path,
+                    SceneErrorKind::Camera {
+                        at: format!("camera {at}").into(),
+                        source,
+                    },
+                )
+            },
+        )?;
+        let name = prim.path().name().unwrap_or(&at).to_owned();
+        self.builder.add_camera(NamedCamera {
+            name,
+            path: Some(at),
+            camera: Camera {
+                camera_to_world: Camera::rigid(world),
+                yfov,
+                projection,
+                lens,
+                aspect_ratio: Some(h / v),
+                motion: None,
+            },
         });
         Ok(())
     }
