@@ -1,0 +1,528 @@
+//! Catmull-Clark subdivision of polygon meshes (Catmull & Clark 1978, "Recursively generated B-spline surfaces
+//! on arbitrary topological meshes"), with the sharp and semi-sharp creases and corners of DeRose, Kass & Truong
+//! 1998 ("Subdivision Surfaces in Character Animation", §3) in the "uniform" crease method that USD's
+//! `creaseMethod` defaults to: a sharpness s > 0 is an infinitely sharp rule while s ≥ 1, blends the smooth and
+//! sharp rules by s below 1, and decreases by one at each level.
+//!
+//! Boundaries follow USD's default `interpolateBoundary = "edgeAndCorner"`: boundary edges are infinitely sharp,
+//! and a boundary vertex of a single face is a corner. Edges shared by more than two faces (non-manifold) are
+//! sharp too. Face-varying data (texture coordinates, colours) is interpolated linearly within each face (USD's
+//! `faceVaryingLinearInterpolation = "all"`). One level turns an n-gon into n quads.
+//!
+//! The rules (DeRose et al. 1998, §3, and Catmull & Clark 1978):
+//! - face point: the average of the face's vertices;
+//! - edge point: smooth, (v₀ + v₁ + f₀ + f₁) / 4; sharp, the midpoint (v₀ + v₁) / 2;
+//! - vertex point with n incident edges, Q the average of the adjacent face points, R the average of the incident
+//!   edges' midpoints and S the vertex: smooth (fewer than two sharp edges), (Q + 2R + (n − 3)S) / n; crease (two
+//!   sharp edges to a and b), (a + 6S + b) / 8; corner (three or more sharp edges, or a corner sharpness), S.
+
+use crate::math::{Vec2, Vec3};
+use std::collections::HashMap;
+
+/// Sharpness that never decreases (USD's `SHARPNESS_INFINITE` is 10; anything from it up is infinite).
+pub const INFINITELY_SHARP: f32 = 10.0;
+
+/// A polygon mesh to subdivide: faces of any size, with optional per-face-corner data and per-face tags.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PolygonMesh {
+    /// Vertex positions.
+    pub points: Vec<Vec3>,
+    /// The number of vertices of each face (at least 3).
+    pub counts: Vec<u32>,
+    /// The faces' vertex indices, face after face, counter-clockwise seen from the front.
+    pub indices: Vec<u32>,
+    /// Texture coordinates per face corner (as `indices`), if any.
+    pub uvs: Option<Vec<Vec2>>,
+    /// Colours per face corner, if any.
+    pub colors: Option<Vec<Vec3>>,
+    /// A tag per face (its material), kept by the faces it subdivides into.
+    pub face_tags: Vec<u32>,
+    /// Edge sharpness by the edge's vertex pair (smaller index first); absent edges are smooth.
+    pub creases: HashMap<(u32, u32), f32>,
+    /// Corner sharpness by vertex; absent vertices are not corners.
+    pub corners: HashMap<u32, f32>,
+}
+
+/// Why a mesh cannot be subdivided.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SubdivisionError {
+    /// A face has fewer than 3 vertices, an index is out of range, or the attribute lengths disagree.
+    #[error("{0}")]
+    Topology(String),
+}
+
+impl PolygonMesh {
+    /// The number of faces `levels` of subdivision make: each n-gon becomes n quads, each quad then 4 per level.
+    pub fn faces_after(&self, levels: u32) -> u64 {
+        if levels == 0 {
+            return self.counts.len() as u64;
+        }
+        let corners: u64 = self.counts.iter().map(|&c| u64::from(c)).sum();
+        corners.saturating_mul(4u64.saturating_pow(levels - 1))
+    }
+
+    /// Checks the topology and the lengths of the per-corner and per-face data.
+    pub fn validate(&self) -> Result<(), SubdivisionError> {
+        let bad = |m: String| Err(SubdivisionError::Topology(m));
+        if let Some(c) = self.counts.iter().find(|&&c| c < 3) {
+            return bad(format!("a face has {c} vertices (at least 3 are needed)"));
+        }
+        let corners: usize = self.counts.iter().map(|&c| c as usize).sum();
+        if corners != self.indices.len() {
+            return bad(format!(
+                "the faces have {corners} corners but there are {} indices",
+                self.indices.len()
+            ));
+        }
+        if let Some(i) = self
+            .indices
+            .iter()
+            .find(|&&i| i as usize >= self.points.len())
+        {
+            return bad(format!(
+                "vertex index {i} is out of range ({} points)",
+                self.points.len()
+            ));
+        }
+        let corner_data = [
+            self.uvs.as_ref().map(Vec::len),
+            self.colors.as_ref().map(Vec::len),
+        ];
+        if corner_data.into_iter().flatten().any(|n| n != corners) {
+            return bad("face-varying data must have one value per face corner".into());
+        }
+        if self.face_tags.len() != self.counts.len() {
+            return bad("there must be one tag per face".into());
+        }
+        Ok(())
+    }
+
+    /// The mesh after `levels` of Catmull-Clark subdivision (all quads from the first level on).
+    pub fn subdivide(&self, levels: u32) -> Result<PolygonMesh, SubdivisionError> {
+        self.validate()?;
+        let mut mesh = self.clone();
+        for _ in 0..levels {
+            mesh = mesh.subdivide_once();
+        }
+        Ok(mesh)
+    }
+
+    /// Area-weighted vertex normals (the sum of each adjacent face's vector area, normalised), per face corner:
+    /// the smooth shading normals of the subdivided surface. A vertex whose faces cancel gets zero.
+    pub fn corner_normals(&self) -> Vec<Vec3> {
+        let mut sums = vec![Vec3::ZERO; self.points.len()];
+        for (_, corners) in self.faces() {
+            let p = |k: usize| self.points[corners[k % corners.len()] as usize];
+            // Newell's vector area of the polygon.
+            let area = (0..corners.len()).fold(Vec3::ZERO, |a, k| a + p(k).cross(p(k + 1)));
+            for &v in corners {
+                sums[v as usize] += area;
+            }
+        }
+        self.indices
+            .iter()
+            .map(|&v| sums[v as usize].normalize_or_zero())
+            .collect()
+    }
+
+    /// (face index, its vertex indices) for every face.
+    fn faces(&self) -> impl Iterator<Item = (usize, &[u32])> {
+        let mut start = 0usize;
+        self.counts.iter().enumerate().map(move |(f, &c)| {
+            let corners = &self.indices[start..start + c as usize];
+            start += c as usize;
+            (f, corners)
+        })
+    }
+
+    /// One level of subdivision.
+    fn subdivide_once(&self) -> PolygonMesh {
+        let n_points = self.points.len();
+        // Edges: vertex pair → (index, faces using it).
+        let mut edge_index: HashMap<(u32, u32), usize> = HashMap::new();
+        let mut edges: Vec<Edge> = Vec::new();
+        let mut face_points = Vec::with_capacity(self.counts.len());
+        for (f, corners) in self.faces() {
+            let centre = corners
+                .iter()
+                .fold(Vec3::ZERO, |a, &v| a + self.points[v as usize])
+                / corners.len() as f32;
+            face_points.push(centre);
+            for k in 0..corners.len() {
+                let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
+                let key = (a.min(b), a.max(b));
+                let e = *edge_index.entry(key).or_insert_with(|| {
+                    edges.push(Edge {
+                        ends: key,
+                        faces: Vec::new(),
+                        sharpness: self.creases.get(&key).copied().unwrap_or(0.0).max(0.0),
+                    });
+                    edges.len() - 1
+                });
+                edges[e].faces.push(f);
+            }
+        }
+        for e in &mut edges {
+            if e.faces.len() != 2 {
+                e.sharpness = INFINITELY_SHARP;
+            }
+        }
+        // Edge points.
+        let point = |v: u32| self.points[v as usize];
+        let edge_points: Vec<Vec3> = edges
+            .iter()
+            .map(|e| {
+                let mid = (point(e.ends.0) + point(e.ends.1)) * 0.5;
+                if e.sharpness >= 1.0 {
+                    return mid;
+                }
+                let smooth = (point(e.ends.0)
+                    + point(e.ends.1)
+                    + face_points[e.faces[0]]
+                    + face_points[e.faces[1]])
+                    * 0.25;
+                smooth.lerp(mid, e.sharpness)
+            })
+            .collect();
+        // Vertex points: gather each vertex's edges and faces.
+        let mut vertex_edges: Vec<Vec<usize>> = vec![Vec::new(); n_points];
+        for (i, e) in edges.iter().enumerate() {
+            vertex_edges[e.ends.0 as usize].push(i);
+            vertex_edges[e.ends.1 as usize].push(i);
+        }
+        let mut vertex_faces: Vec<Vec<usize>> = vec![Vec::new(); n_points];
+        for (f, corners) in self.faces() {
+            for &v in corners {
+                vertex_faces[v as usize].push(f);
+            }
+        }
+        let vertex_points: Vec<Vec3> = (0..n_points)
+            .map(|v| {
+                let s = self.points[v];
+                let incident = &vertex_edges[v];
+                let faces = &vertex_faces[v];
+                if incident.is_empty() || faces.is_empty() {
+                    return s;
+                }
+                let n = incident.len() as f32;
+                let q =
+                    faces.iter().fold(Vec3::ZERO, |a, &f| a + face_points[f]) / faces.len() as f32;
+                let r = incident.iter().fold(Vec3::ZERO, |a, &e| {
+                    a + (point(edges[e].ends.0) + point(edges[e].ends.1)) * 0.5
+                }) / n;
+                let smooth = (q + 2.0 * r + (n - 3.0) * s) / n;
+                let sharp: Vec<usize> = incident
+                    .iter()
+                    .copied()
+                    .filter(|&e| edges[e].sharpness > 0.0)
+                    .collect();
+                // USD's edgeAndCorner: a boundary vertex of one face is a corner.
+                let boundary_corner = faces.len() == 1 && sharp.len() >= 2;
+                let corner = self
+                    .corners
+                    .get(&(v as u32))
+                    .copied()
+                    .unwrap_or(0.0)
+                    .max(0.0);
+                let (rule, weight) = if corner > 0.0 || sharp.len() >= 3 || boundary_corner {
+                    let weight = if boundary_corner || sharp.len() >= 3 {
+                        1.0
+                    } else {
+                        corner
+                    };
+                    (s, weight)
+                } else if sharp.len() == 2 {
+                    let other = |e: usize| {
+                        let (a, b) = edges[e].ends;
+                        point(if a as usize == v { b } else { a })
+                    };
+                    let crease = (other(sharp[0]) + 6.0 * s + other(sharp[1])) / 8.0;
+                    let weight = (edges[sharp[0]].sharpness + edges[sharp[1]].sharpness) * 0.5;
+                    (crease, weight)
+                } else {
+                    (smooth, 0.0)
+                };
+                smooth.lerp(rule, weight.min(1.0))
+            })
+            .collect();
+        // New points: vertices, then edges, then faces.
+        let edge_base = n_points as u32;
+        let face_base = edge_base + edges.len() as u32;
+        let mut points = vertex_points;
+        points.extend(edge_points);
+        points.extend(face_points);
+        let mut out = PolygonMesh {
+            points,
+            uvs: self.uvs.as_ref().map(|_| Vec::new()),
+            colors: self.colors.as_ref().map(|_| Vec::new()),
+            ..Default::default()
+        };
+        let mut corner_start = 0usize;
+        for (f, corners) in self.faces() {
+            let c = corners.len();
+            let edge_of = |k: usize| {
+                let (a, b) = (corners[k % c], corners[(k + 1) % c]);
+                edge_base + edge_index[&(a.min(b), a.max(b))] as u32
+            };
+            for k in 0..c {
+                out.counts.push(4);
+                out.indices.extend([
+                    corners[k],
+                    edge_of(k),
+                    face_base + f as u32,
+                    edge_of(k + c - 1),
+                ]);
+                out.face_tags.push(self.face_tags[f]);
+            }
+            let range = corner_start..corner_start + c;
+            if let (Some(all), Some(own)) = (&self.uvs, &mut out.uvs) {
+                own.extend(linear_face_varying(&all[range.clone()]));
+            }
+            if let (Some(all), Some(own)) = (&self.colors, &mut out.colors) {
+                own.extend(linear_face_varying(&all[range]));
+            }
+            corner_start += c;
+        }
+        // Sharpness decreases by one a level (infinitely sharp stays so); each parent edge's two halves keep it.
+        let child = |s: f32| if s >= INFINITELY_SHARP { s } else { s - 1.0 };
+        for (e, edge) in edges.iter().enumerate() {
+            let s = child(self.creases.get(&edge.ends).copied().unwrap_or(0.0));
+            if s > 0.0 {
+                let mid = edge_base + e as u32;
+                for end in [edge.ends.0, edge.ends.1] {
+                    out.creases.insert((end.min(mid), end.max(mid)), s);
+                }
+            }
+        }
+        for (&v, &s) in &self.corners {
+            let s = child(s);
+            if s > 0.0 {
+                out.corners.insert(v, s);
+            }
+        }
+        out
+    }
+}
+
+/// An edge of the mesh being subdivided.
+struct Edge {
+    /// Its vertices, smaller index first.
+    ends: (u32, u32),
+    /// The faces that use it.
+    faces: Vec<usize>,
+    /// Its sharpness this level (infinite on boundaries and non-manifold edges).
+    sharpness: f32,
+}
+
+/// The four corners of each child quad of a face, from the face's corner values: for corner k, the value at the
+/// corner, at the next edge's midpoint, at the face centre and at the previous edge's midpoint.
+fn linear_face_varying<T>(values: &[T]) -> Vec<T>
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<f32, Output = T>,
+{
+    let c = values.len();
+    let centre = values.iter().skip(1).fold(values[0], |a, &v| a + v) * (1.0 / c as f32);
+    (0..c)
+        .flat_map(|k| {
+            let (prev, here, next) = (values[(k + c - 1) % c], values[k], values[(k + 1) % c]);
+            [here, (here + next) * 0.5, centre, (prev + here) * 0.5]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cube [−1, 1]³ as 6 quads, counter-clockwise from outside.
+    fn cube() -> PolygonMesh {
+        let points = (0..8)
+            .map(|i| {
+                Vec3::new(
+                    if i & 1 == 0 { -1.0 } else { 1.0 },
+                    if i & 2 == 0 { -1.0 } else { 1.0 },
+                    if i & 4 == 0 { -1.0 } else { 1.0 },
+                )
+            })
+            .collect();
+        PolygonMesh {
+            points,
+            counts: vec![4; 6],
+            indices: vec![
+                0, 2, 3, 1, // −z
+                4, 5, 7, 6, // +z
+                0, 1, 5, 4, // −y
+                2, 6, 7, 3, // +y
+                0, 4, 6, 2, // −x
+                1, 3, 7, 5, // +x
+            ],
+            face_tags: vec![0; 6],
+            ..Default::default()
+        }
+    }
+
+    /// One level on the cube, by hand (Catmull & Clark's rules): a corner (±1)³ moves to (±5/9)³, an edge
+    /// point lies at (±3/4, ±3/4, 0) and the like, a face point at the face centre.
+    #[test]
+    fn one_level_on_a_cube_gives_the_closed_form_points() {
+        let c = cube();
+        let s = c.subdivide(1).unwrap();
+        assert_eq!((s.points.len(), s.counts.len()), (8 + 12 + 6, 24));
+        for (i, &p) in s.points[..8].iter().enumerate() {
+            assert!(
+                p.distance(c.points[i] * (5.0 / 9.0)) < 1e-6,
+                "vertex {i}: {p}"
+            );
+        }
+        for &p in &s.points[8..20] {
+            let sorted = {
+                let mut a = p.abs().to_array();
+                a.sort_by(f32::total_cmp);
+                a
+            };
+            assert!(
+                (sorted[0]).abs() < 1e-6
+                    && (sorted[1] - 0.75).abs() < 1e-6
+                    && (sorted[2] - 0.75).abs() < 1e-6,
+                "edge point {p}"
+            );
+        }
+        for &p in &s.points[20..] {
+            assert!(
+                (p.length() - 1.0).abs() < 1e-6 && p.abs().max_element() == 1.0,
+                "face point {p}"
+            );
+        }
+        // Two levels: 96 quads, and every vertex strictly inside the cube, on the convex side.
+        let s2 = c.subdivide(2).unwrap();
+        assert_eq!(s2.faces_after(0), 96);
+        assert_eq!(c.faces_after(2), 96);
+        assert!(s2.points.iter().all(|p| p.abs().max_element() < 1.0));
+    }
+
+    /// Every edge infinitely sharp: the cube keeps its shape (each face subdivides as a bilinear patch).
+    #[test]
+    fn infinitely_sharp_edges_keep_a_cube_a_cube() {
+        let mut c = cube();
+        for (_, corners) in c.clone().faces() {
+            for k in 0..4 {
+                let (a, b) = (corners[k], corners[(k + 1) % 4]);
+                c.creases.insert((a.min(b), a.max(b)), INFINITELY_SHARP);
+            }
+        }
+        let s = c.subdivide(3).unwrap();
+        for p in &s.points {
+            // On the cube's surface: one coordinate is ±1, the others within.
+            assert!((p.abs().max_element() - 1.0).abs() < 1e-6, "{p}");
+        }
+        for (i, p) in c.points.iter().enumerate() {
+            assert!(
+                s.points[i].distance(*p) < 1e-6,
+                "corner {i} moved to {}",
+                s.points[i]
+            );
+        }
+    }
+
+    /// A semi-sharp crease of sharpness 0.5 on one cube edge puts its edge point halfway between the smooth
+    /// rule and the midpoint; sharpness 1.5 is sharp at the first level and half sharp at the second.
+    #[test]
+    fn semi_sharp_edges_blend_the_rules_and_decrease_per_level() {
+        let edge = (3, 7); // (1, 1, −1)–(1, 1, 1)
+        for (sharpness, want) in [(0.5, 0.875), (1.5, 1.0), (0.0, 0.75)] {
+            let mut c = cube();
+            c.creases.insert(edge, sharpness);
+            let s = c.subdivide(1).unwrap();
+            let p = s.points[8..20]
+                .iter()
+                .find(|p| p.z.abs() < 1e-6 && p.x > 0.0 && p.y > 0.0)
+                .unwrap();
+            assert!(
+                (p.x - want).abs() < 1e-6 && (p.y - want).abs() < 1e-6,
+                "s {sharpness}: {p}"
+            );
+            let remaining = s.creases.values().copied().collect::<Vec<_>>();
+            let expected = if sharpness > 1.0 {
+                vec![0.5, 0.5]
+            } else {
+                vec![]
+            };
+            assert_eq!(remaining, expected, "s {sharpness}");
+        }
+    }
+
+    /// A flat 3×3 grid of quads stays flat, keeps its boundary on the square (boundary edges are sharp) and
+    /// its four corners fixed (edgeAndCorner); the centre vertex of a regular flat grid does not move.
+    #[test]
+    fn a_flat_grid_stays_flat_with_fixed_corners_and_boundary() {
+        let points = (0..16)
+            .map(|i| Vec3::new((i % 4) as f32, (i / 4) as f32, 0.0))
+            .collect();
+        let mut indices = Vec::new();
+        for y in 0..3 {
+            for x in 0..3 {
+                let i = y * 4 + x;
+                indices.extend([i, i + 1, i + 5, i + 4]);
+            }
+        }
+        let uvs: Vec<Vec2> = indices
+            .iter()
+            .map(|&i| Vec2::new((i % 4) as f32, (i / 4) as f32))
+            .collect();
+        let grid = PolygonMesh {
+            points,
+            counts: vec![4; 9],
+            indices,
+            uvs: Some(uvs),
+            face_tags: (0..9).collect(),
+            ..Default::default()
+        };
+        let s = grid.subdivide(2).unwrap();
+        assert!(s.points.iter().all(|p| p.z == 0.0));
+        assert!(s
+            .points
+            .iter()
+            .all(|p| (-1e-6..=3.0 + 1e-6).contains(&p.x) && (-1e-6..=3.0 + 1e-6).contains(&p.y)));
+        for corner in [0, 3, 12, 15] {
+            assert!(s.points[corner].distance(grid.points[corner]) < 1e-6);
+        }
+        for inner in [5, 6, 9, 10] {
+            assert!(
+                s.points[inner].distance(grid.points[inner]) < 1e-5,
+                "{}",
+                s.points[inner]
+            );
+        }
+        // Cubic B-splines reproduce linear functions, so on a uniform flat grid every subdivided point is where
+        // bilinear interpolation of the cage puts it: the linearly interpolated uv (the cage's xy) equals it.
+        let uvs = s.uvs.as_ref().unwrap();
+        for (k, &v) in s.indices.iter().enumerate() {
+            let p = s.points[v as usize];
+            assert!(
+                uvs[k].distance(p.truncate()) < 1e-5,
+                "corner {k}: uv {} at {p}",
+                uvs[k]
+            );
+        }
+        assert_eq!(s.face_tags.len(), 144);
+        assert!(s.face_tags.iter().all(|&t| t < 9));
+        // Normals of a flat grid all face +z.
+        assert!(s
+            .corner_normals()
+            .iter()
+            .all(|n| n.distance(Vec3::Z) < 1e-6));
+    }
+
+    #[test]
+    fn bad_topology_is_an_error() {
+        let mut c = cube();
+        c.counts[0] = 2;
+        assert!(c.subdivide(1).is_err());
+        let mut c = cube();
+        c.indices[0] = 99;
+        assert!(c.subdivide(1).is_err());
+        let mut c = cube();
+        c.face_tags.pop();
+        assert!(c.subdivide(1).is_err());
+    }
+}
