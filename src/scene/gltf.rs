@@ -46,7 +46,7 @@ use crate::light::{
 use crate::limits::{one_line, Limits, WorkBudget};
 use crate::material::{
     AlphaMode, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler, SheenLayer,
-    Texture, UvTransform, Wrap, UV_SETS,
+    SpecularGlossiness, Texture, UvTransform, Wrap, UV_SETS,
 };
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
@@ -70,6 +70,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_unlit",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
+    "KHR_materials_pbrSpecularGlossiness",
     "KHR_texture_transform",
 ];
 
@@ -820,7 +821,10 @@ impl Loader<'_> {
         let emissive_strength = material.emissive_strength().unwrap_or(1.0);
         self.check_material_numbers(&material, emissive_strength)?;
         let at = material_path(&material);
-        let base_color_texture = match pbr.base_color_texture() {
+        // With the specular-glossiness extension, the core metallic-roughness is only its fallback: unread.
+        let specular_glossiness = self.specular_glossiness(&material, &at)?;
+        let metallic_roughness = specular_glossiness.is_none();
+        let base_color_texture = match pbr.base_color_texture().filter(|_| metallic_roughness) {
             Some(t) => {
                 let r =
                     self.info_ref(&t, &format!("{at}.pbrMetallicRoughness.baseColorTexture"))?;
@@ -828,7 +832,10 @@ impl Loader<'_> {
             }
             None => None,
         };
-        let metallic_roughness_texture = match pbr.metallic_roughness_texture() {
+        let metallic_roughness_texture = match pbr
+            .metallic_roughness_texture()
+            .filter(|_| metallic_roughness)
+        {
             Some(t) => {
                 let r = self.info_ref(
                     &t,
@@ -901,6 +908,7 @@ impl Loader<'_> {
             unlit: material.unlit(),
             clearcoat,
             sheen,
+            specular_glossiness,
             tags: CompositingTags::default(),
         };
         let mut m = m;
@@ -987,6 +995,40 @@ impl Loader<'_> {
             roughness,
             roughness_texture,
         }))
+    }
+
+    /// `KHR_materials_pbrSpecularGlossiness` of a material, when present: factors checked (finite, in
+    /// \[0, 1\]) and textures read (both sRGB colour with linear alpha, as the extension specifies).
+    fn specular_glossiness(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<SpecularGlossiness>, SceneError> {
+        let name = "KHR_materials_pbrSpecularGlossiness";
+        let at = format!("{at}.extensions.{name}");
+        let Some(ext) = self.extension_object(material, name, &at)? else {
+            return Ok(None);
+        };
+        let mut sg = SpecularGlossiness::default();
+        if let Some(v) = ext.get("diffuseFactor") {
+            let d = unit_numbers::<4>(v).ok_or_else(|| {
+                self.malformed(format!("{at}.diffuseFactor must be four numbers in [0, 1]"))
+            })?;
+            sg.diffuse = Vec4::from(d);
+        }
+        if let Some(v) = ext.get("specularFactor") {
+            let s = unit_numbers::<3>(v).ok_or_else(|| {
+                self.malformed(format!(
+                    "{at}.specularFactor must be three numbers in [0, 1]"
+                ))
+            })?;
+            sg.specular = Rgb::from(s);
+        }
+        sg.glossiness = self.unit_number(&ext, "glossinessFactor", 1.0, &at)?;
+        sg.diffuse_texture = self.ext_texture(&ext, "diffuseTexture", ColorSpace::Srgb, &at)?;
+        sg.specular_glossiness_texture =
+            self.ext_texture(&ext, "specularGlossinessTexture", ColorSpace::Srgb, &at)?;
+        Ok(Some(sg))
     }
 
     fn malformed(&self, message: String) -> SceneError {
@@ -1621,6 +1663,16 @@ fn checked_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> Option
         rotation,
         scale: Vec2::from(scale),
     })
+}
+
+/// An array of exactly `N` numbers, each in \[0, 1\]; `None` otherwise.
+fn unit_numbers<const N: usize>(value: &serde_json::Value) -> Option<[f32; N]> {
+    let a = value.as_array().filter(|a| a.len() == N)?;
+    let mut out = [0.0; N];
+    for (o, v) in out.iter_mut().zip(a) {
+        *o = v.as_f64().filter(|v| (0.0..=1.0).contains(v))? as f32;
+    }
+    Some(out)
 }
 
 /// `materials[i]` or "the default material", for messages.
