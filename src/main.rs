@@ -175,6 +175,10 @@ struct RenderArgs {
     /// volumes with a velocity grid move along it. Default: off (an instant).
     #[arg(long, value_parser = Shutter::parse, allow_hyphen_values = true)]
     shutter: Option<Shutter>,
+    /// glTF material variant (KHR_materials_variants) to render, by name: each primitive takes the material
+    /// the file maps to it. Default: every primitive's own material (a warning lists the file's variants).
+    #[arg(long, value_name = "NAME")]
+    variant: Option<String>,
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -455,6 +459,7 @@ fn load_builder(
     frame: Option<i64>,
     fps: Option<f64>,
     shutter: Option<Shutter>,
+    variant: Option<&str>,
 ) -> Result<SceneBuilder, String> {
     let mut builder = match scene {
         Some(path) => nimbus::scene::load_builder(
@@ -464,6 +469,7 @@ fn load_builder(
                 frame,
                 fps,
                 shutter,
+                variant,
                 ..LoadOptions::default()
             },
         ),
@@ -476,6 +482,7 @@ fn load_builder(
                 frame,
                 fps,
                 shutter,
+                variant,
                 ..LoadOptions::default()
             },
         ),
@@ -705,7 +712,15 @@ fn list_aovs(args: &RenderArgs) -> Result<(), String> {
     }
     if args.scene.is_some() {
         let limits = args.limits();
-        let builder = load_builder(args.scene.as_deref(), limits, args.frame, args.fps, None)?;
+        let variant = args.variant.as_deref();
+        let builder = load_builder(
+            args.scene.as_deref(),
+            limits,
+            args.frame,
+            args.fps,
+            None,
+            variant,
+        )?;
         let scene = builder.build().map_err(|e| e.to_string())?;
         let groups = nimbus::render::LightGroups::new(&scene, args.light_groups)
             .map_err(|e| e.to_string())?;
@@ -742,7 +757,14 @@ fn render_frame(
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
     let limits = args.limits();
-    let mut builder = load_builder(args.scene.as_deref(), limits, frame, args.fps, args.shutter)?;
+    let mut builder = load_builder(
+        args.scene.as_deref(),
+        limits,
+        frame,
+        args.fps,
+        args.shutter,
+        args.variant.as_deref(),
+    )?;
     if let Some(c) = args.env_color {
         builder.set_environment(EnvironmentLight::Constant(c));
     }
@@ -1281,8 +1303,8 @@ fn part_region(
 }
 
 /// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings,
-/// the `--env-color` override, the frame and the shutter (parts of different frames or shutters must not
-/// merge).
+/// the `--env-color` override, the frame, the shutter and the material variant (parts of different frames,
+/// shutters or variants must not merge).
 fn part_scene_hash(
     args: &RenderArgs,
     frame: Option<i64>,
@@ -1317,6 +1339,7 @@ fn part_scene_hash(
         .chain(frame_bytes.iter().map(|f| ("frame", f.as_slice())))
         .chain(fps_bytes.iter().map(|f| ("fps", f.as_slice())))
         .chain(shutter_bytes.iter().map(|s| ("shutter", s.as_slice())))
+        .chain(args.variant.iter().map(|v| ("variant", v.as_bytes())))
         .collect();
     Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
 }

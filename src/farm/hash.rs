@@ -6,7 +6,8 @@
 //! 2. the bytes of the scene file (for the bundled demo, its embedded glTF and VDB);
 //! 3. the settings that change the image: width, height, seed, max depth, media MIS, equiangular sampling,
 //!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian;
-//! 4. each scene override of the command line by name and value (`--env-color` as three `f32`).
+//! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
+//!    its name's UTF-8 bytes).
 //!
 //! The sample count and range, the crop, the thread count and the time limit are not in it: they do not
 //! change any one sample (parts carry the sample count and range in their own keys). Files the scene file
