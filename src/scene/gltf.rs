@@ -854,7 +854,9 @@ impl Loader<'_> {
             .and_then(|m| m.as_array())
             .ok_or_else(|| self.malformed(format!("{at}.mappings must be an array")))?;
         let materials = self.document.materials().len();
-        let mut mapped_at: Vec<Option<usize>> = vec![None; self.variant_count];
+        // The mapping that named each variant met so far: the work follows the primitive's own mappings, not
+        // the file's count of variants.
+        let mut mapped_at: HashMap<usize, usize> = HashMap::new();
         let mut chosen = None;
         for (i, mapping) in mappings.iter().enumerate() {
             let material = mapping
@@ -883,7 +885,7 @@ impl Loader<'_> {
                             self.variant_count
                         )))
                     })? as usize;
-                if let Some(first) = mapped_at[index].replace(i) {
+                if let Some(first) = mapped_at.insert(index, i) {
                     return Err(self.malformed(format!(
                         "{at}: variant {index} is mapped by mappings[{first}] and mappings[{i}]"
                     )));
