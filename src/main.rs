@@ -712,14 +712,13 @@ fn list_aovs(args: &RenderArgs) -> Result<(), String> {
     }
     if args.scene.is_some() {
         let limits = args.limits();
-        let variant = args.variant.as_deref();
         let builder = load_builder(
             args.scene.as_deref(),
             limits,
             args.frame,
             args.fps,
             None,
-            variant,
+            args.variant.as_deref(),
         )?;
         let scene = builder.build().map_err(|e| e.to_string())?;
         let groups = nimbus::render::LightGroups::new(&scene, args.light_groups)
