@@ -175,6 +175,10 @@ struct RenderArgs {
     /// volumes with a velocity grid move along it. Default: off (an instant).
     #[arg(long, value_parser = Shutter::parse, allow_hyphen_values = true)]
     shutter: Option<Shutter>,
+    /// glTF material variant (KHR_materials_variants) to render, by name: each primitive takes the material
+    /// the file maps to it. Default: every primitive's own material (a warning lists the file's variants).
+    #[arg(long, value_name = "NAME")]
+    variant: Option<String>,
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -464,6 +468,7 @@ fn load_builder(
     frame: Option<i64>,
     fps: Option<f64>,
     shutter: Option<Shutter>,
+    variant: Option<&str>,
 ) -> Result<SceneBuilder, String> {
     let mut builder = match scene {
         Some(path) => nimbus::scene::load_builder(
@@ -473,6 +478,7 @@ fn load_builder(
                 frame,
                 fps,
                 shutter,
+                variant,
                 ..LoadOptions::default()
             },
         ),
@@ -485,6 +491,7 @@ fn load_builder(
                 frame,
                 fps,
                 shutter,
+                variant,
                 ..LoadOptions::default()
             },
         ),
@@ -717,7 +724,14 @@ fn list_aovs(args: &RenderArgs) -> Result<(), String> {
     }
     if args.scene.is_some() {
         let limits = args.limits();
-        let builder = load_builder(args.scene.as_deref(), limits, args.frame, args.fps, None)?;
+        let builder = load_builder(
+            args.scene.as_deref(),
+            limits,
+            args.frame,
+            args.fps,
+            None,
+            args.variant.as_deref(),
+        )?;
         let scene = builder.build().map_err(|e| e.to_string())?;
         let groups = nimbus::render::LightGroups::new(&scene, args.light_groups)
             .map_err(|e| e.to_string())?;
@@ -745,6 +759,7 @@ fn list_cameras(args: &RenderArgs) -> Result<(), String> {
         args.frame,
         args.fps,
         None,
+        args.variant.as_deref(),
     )?;
     let mut text = String::new();
     for camera in builder.cameras() {
@@ -776,7 +791,14 @@ fn render_frame(
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
     let limits = args.limits();
-    let mut builder = load_builder(args.scene.as_deref(), limits, frame, args.fps, args.shutter)?;
+    let mut builder = load_builder(
+        args.scene.as_deref(),
+        limits,
+        frame,
+        args.fps,
+        args.shutter,
+        args.variant.as_deref(),
+    )?;
     if let Some(name) = &args.camera {
         builder.select_camera(name).map_err(|e| {
             let file = args
@@ -1324,8 +1346,9 @@ fn part_region(
 }
 
 /// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings,
-/// the `--env-color` override, the frame, the shutter, the `--camera` choice and the camera's lens, if it has
-/// one (parts of different frames, shutters, cameras or apertures must not merge).
+/// the `--env-color` override, the frame, the shutter, the material variant, the `--camera` choice and the
+/// camera's lens, if it has one (parts of different frames, shutters, variants, cameras or apertures must not
+/// merge).
 fn part_scene_hash(
     args: &RenderArgs,
     frame: Option<i64>,
@@ -1370,6 +1393,7 @@ fn part_scene_hash(
         .chain(shutter_bytes.iter().map(|s| ("shutter", s.as_slice())))
         .chain(args.camera.iter().map(|c| ("camera", c.as_bytes())))
         .chain(lens_bytes.iter().map(|l| ("lens", l.as_slice())))
+        .chain(args.variant.iter().map(|v| ("variant", v.as_bytes())))
         .collect();
     Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
 }

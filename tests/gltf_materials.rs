@@ -9,7 +9,7 @@ mod common;
 use nimbus::geometry::Mesh;
 use nimbus::light::Light;
 use nimbus::material::{ShadingPoint, TexCoord, UvTransform};
-use nimbus::math::{Mat3, Rgb, Vec2, Vec3, Vec4};
+use nimbus::math::{srgb_to_linear, Mat3, Rgb, Vec2, Vec3, Vec4};
 use nimbus::scene::{load_builder, SceneBuilder};
 use std::path::{Path, PathBuf};
 
@@ -700,5 +700,171 @@ fn bad_extension_data_is_an_error_naming_the_field() {
             .err()
             .unwrap_or_else(|| panic!("{material} loads"));
         assert!(err.to_string().contains(expected), "{err}");
+    }
+}
+
+/// `quad_gltf` with `KHR_materials_pbrSpecularGlossiness` also used and required.
+fn spec_gloss_gltf(material: &str, image: &str) -> String {
+    quad_gltf(white_colors(), material, image)
+        .replace(
+            r#""extensionsUsed":["#,
+            r#""extensionsUsed":["KHR_materials_pbrSpecularGlossiness","#,
+        )
+        .replace(
+            r#""extensionsRequired":["#,
+            r#""extensionsRequired":["KHR_materials_pbrSpecularGlossiness","#,
+        )
+}
+
+/// A file requiring KHR_materials_pbrSpecularGlossiness loads (it used to be refused), and its factors become
+/// the metallic-roughness the extension's Khronos converter gives, computed by hand (perceived brightness
+/// P(c) = √(0.299 r² + 0.587 g² + 0.114 b²), dielectric F0 0.04; see `nimbus::material::spec_gloss`).
+#[test]
+fn specular_glossiness_factors_convert_to_metallic_roughness() {
+    let image = png_uri([[255; 4]; 4]);
+    // (diffuseFactor, specularFactor, glossinessFactor) -> (base colour, metallic, roughness).
+    let cases = [
+        // Pure dielectric: specular 0.04 grey, so c = 0.04 − S = 0 and the root is m = 0; b = d · 0.96 / 0.96.
+        (
+            "[0.6,0.3,0.1,1]",
+            "[0.04,0.04,0.04]",
+            0.7,
+            [0.6, 0.3, 0.1],
+            0.0,
+            0.3,
+        ),
+        // Pure metal: black diffuse, so D = 0, the discriminant is (S − 0.08)² + 0.16 (S − 0.04) = S² and
+        // m = (S − (S − 0.08)) / 0.08 = 1; b = (s − 0) / 1 = s.
+        ("[0,0,0,1]", "[0.9,0.6,0.3]", 0.2, [0.9, 0.6, 0.3], 1.0, 0.8),
+        // Mixed: d = (0.8, 0.2, 0.2), s = 0.3 grey. P(d) = √0.2194 = 0.468402, D = 0.7 · P(d) = 0.327881,
+        // S = 0.3; b = D / 0.96 + 0.3 − 0.08 = 0.561543, c = −0.26, discriminant b² + 0.0416 = 0.356930,
+        // m = (0.597437 − 0.561543) / 0.08 = 0.448671. From the diffuse: d · 0.7 / (0.96 · 0.551329) =
+        // (1.058049, 0.264512, 0.264512); from the specular: (0.3 − 0.04 · 0.551329) / 0.448671 = 0.619490;
+        // blended by m² = 0.201305: (0.969764, 0.335971, 0.335971).
+        (
+            "[0.8,0.2,0.2,1]",
+            "[0.3,0.3,0.3]",
+            0.5,
+            [0.969764, 0.335971, 0.335971],
+            0.448671,
+            0.5,
+        ),
+    ];
+    for (diffuse, specular, gloss, base, metallic, roughness) in cases {
+        // The core metallic-roughness is the fallback for viewers without the extension: unread.
+        let material = format!(
+            r#"{{"pbrMetallicRoughness":{{"baseColorFactor":[0,0,1,1],"metallicFactor":0.5,"baseColorTexture":{{"index":0}}}},
+            "extensions":{{"KHR_materials_pbrSpecularGlossiness":{{
+            "diffuseFactor":{diffuse},"specularFactor":{specular},"glossinessFactor":{gloss}}}}}}}"#
+        );
+        let path = write("spec_gloss.gltf", &spec_gloss_gltf(&material, &image));
+        let b = load(&path);
+        no_warning_about(&b, "pbrSpecularGlossiness");
+        let m = &b.materials()[0];
+        assert_eq!(m.base_color_texture, None, "the fallback is not read");
+        let p = m.pbr_params(
+            &ShadingPoint::from(TexCoord::point(Vec2::splat(0.5))),
+            b.textures(),
+        );
+        let what = format!("{diffuse} {specular} {gloss}: {p:?}");
+        assert!(
+            (p.base_color - Vec3::from(base)).abs().max_element() < 2e-5,
+            "{what}"
+        );
+        assert!((p.metallic - metallic).abs() < 2e-5, "{what}");
+        assert!((p.roughness - roughness).abs() < 1e-6, "{what}");
+    }
+}
+
+/// Both textures are read, each through its own UV set and transform, and converted per point: the diffuse
+/// texture's sRGB colour and linear alpha, the specular-glossiness texture's sRGB specular and linear
+/// glossiness, times their factors.
+#[test]
+fn specular_glossiness_textures_convert_per_texel_through_their_own_mapping() {
+    // Texels (row-major, 2×2): the diffuse reads (0, 0) at TEXCOORD_0 (0.25, 0.25); the specular-glossiness
+    // texture reads TEXCOORD_1 = (0.75, 0.25) offset by (0, 0.5): texel (1, 1).
+    let texels = [
+        [200, 120, 40, 204],
+        [10, 10, 10, 255],
+        [0, 0, 0, 255],
+        [90, 60, 30, 128],
+    ];
+    let material = r#"{"extensions":{"KHR_materials_pbrSpecularGlossiness":{
+        "diffuseFactor":[1,0.5,1,0.8],"diffuseTexture":{"index":0},
+        "specularFactor":[1,1,0.5],"glossinessFactor":0.9,
+        "specularGlossinessTexture":{"index":0,"texCoord":1,"extensions":{"KHR_texture_transform":{"offset":[0,0.5]}}}}}}"#;
+    let path = write(
+        "spec_gloss_textured.gltf",
+        &spec_gloss_gltf(material, &png_uri(texels)),
+    );
+    let b = load(&path);
+    let m = &b.materials()[0];
+    let sg = m.specular_glossiness.expect("the extension is read");
+    let t = |id: Option<u32>| &b.textures()[id.unwrap() as usize];
+    assert_eq!(
+        (
+            t(sg.diffuse_texture).uv_set(),
+            t(sg.diffuse_texture).transform()
+        ),
+        (0, UvTransform::default())
+    );
+    let offset = UvTransform {
+        offset: Vec2::new(0.0, 0.5),
+        ..Default::default()
+    };
+    let sg_texture = t(sg.specular_glossiness_texture);
+    assert_eq!((sg_texture.uv_set(), sg_texture.transform()), (1, offset));
+    let at = ShadingPoint {
+        uv: [
+            TexCoord::point(Vec2::new(0.25, 0.25)),
+            TexCoord::point(Vec2::new(0.75, 0.25)),
+        ],
+        color: Vec4::ONE,
+    };
+    let srgb = |t: [u8; 4]| Rgb::from([t[0], t[1], t[2]].map(|v| srgb_to_linear(v as f32 / 255.0)));
+    let diffuse = Rgb::new(1.0, 0.5, 1.0) * srgb(texels[0]);
+    let specular = Rgb::new(1.0, 1.0, 0.5) * srgb(texels[3]);
+    let glossiness = 0.9 * 128.0 / 255.0;
+    let want = nimbus::material::to_metallic_roughness(diffuse, specular, glossiness);
+    let p = m.pbr_params(&at, b.textures());
+    assert!(want.metallic > 0.05 && want.metallic < 0.95, "{want:?}");
+    assert!(
+        (p.base_color - want.base_color).abs().max_element() < 1e-4
+            && (p.metallic - want.metallic).abs() < 1e-4
+            && (p.roughness - want.roughness).abs() < 1e-4,
+        "{p:?} vs {want:?}"
+    );
+    let alpha = m.base_color_at(&at, b.textures()).w;
+    assert!((alpha - 0.8 * 204.0 / 255.0).abs() < 1e-5, "alpha {alpha}");
+}
+
+/// Bad KHR_materials_pbrSpecularGlossiness values are errors naming the field.
+#[test]
+fn bad_specular_glossiness_values_are_errors_naming_the_field() {
+    let image = png_uri([[255; 4]; 4]);
+    let at = "materials[0].extensions.KHR_materials_pbrSpecularGlossiness";
+    for (ext, field) in [
+        (r#"{"diffuseFactor":[1,1,1]}"#, ".diffuseFactor"),
+        (r#"{"diffuseFactor":[1,1,1.5,1]}"#, ".diffuseFactor"),
+        (r#"{"specularFactor":[-0.1,0,0]}"#, ".specularFactor"),
+        (r#"{"glossinessFactor":"glossy"}"#, ".glossinessFactor"),
+        (r#"{"glossinessFactor":2}"#, ".glossinessFactor"),
+        (r#"{"diffuseTexture":{"index":9}}"#, ".diffuseTexture"),
+        (
+            r#"{"specularGlossinessTexture":{"index":0,"texCoord":-1}}"#,
+            ".specularGlossinessTexture.texCoord",
+        ),
+        ("[]", " must be an object"),
+    ] {
+        let material =
+            format!(r#"{{"extensions":{{"KHR_materials_pbrSpecularGlossiness":{ext}}}}}"#);
+        let path = write("bad_spec_gloss.gltf", &spec_gloss_gltf(&material, &image));
+        let err = load_builder(&path, &Default::default())
+            .err()
+            .unwrap_or_else(|| panic!("{ext} loads"));
+        assert!(
+            err.to_string().contains(&format!("{at}{field}")),
+            "{ext}: {err}"
+        );
     }
 }

@@ -6,10 +6,10 @@
 //! 2. the bytes of the scene file (for the bundled demo, its embedded glTF and VDB);
 //! 3. the settings that change the image: width, height, seed, max depth, media MIS, equiangular sampling,
 //!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian;
-//! 4. each scene override of the command line by name and value (`--env-color` as three `f32`; the CLI also
-//!    passes the frame, the shutter, the `--camera` name and, for a camera with a thin lens, its aperture
-//!    radius and focus distance as two `f32`, so that parts of different apertures refuse to merge even when
-//!    the lens comes from somewhere the scene file's bytes do not show).
+//! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
+//!    its name's UTF-8 bytes; the CLI also passes the frame, the shutter, the `--camera` name and, for a camera
+//!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
+//!    apertures refuse to merge even when the lens comes from somewhere the scene file's bytes do not show).
 //!
 //! The sample count and range, the crop, the thread count and the time limit are not in it: they do not
 //! change any one sample (parts carry the sample count and range in their own keys). Files the scene file

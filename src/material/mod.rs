@@ -15,6 +15,7 @@ mod lobes;
 mod microfacet;
 mod sample;
 mod sheen;
+pub mod spec_gloss;
 mod surface;
 mod texture;
 
@@ -27,6 +28,7 @@ pub use layered::Layered;
 pub use lobes::{LobeClass, LobeSplit};
 pub use microfacet::{Ggx, DELTA_ALPHA};
 pub use sheen::Sheen;
+pub use spec_gloss::{to_metallic_roughness, MetallicRoughness, SpecularGlossiness};
 pub use surface::{AlphaMode, ClearcoatLayer, Material, SheenLayer, TextureId};
 pub use texture::{
     ColorSpace, Filter, MipImage, Sampler, ShadingPoint, TexCoord, Texture, UvTransform, Wrap,

@@ -9,7 +9,10 @@
 //! `KHR_materials_transmission.transmissionFactor`, `KHR_materials_ior.ior` (default 1.5), `KHR_materials_unlit`,
 //! `KHR_materials_clearcoat.{clearcoatFactor, clearcoatTexture, clearcoatRoughnessFactor,
 //! clearcoatRoughnessTexture, clearcoatNormalTexture}` and `KHR_materials_sheen.{sheenColorFactor,
-//! sheenColorTexture, sheenRoughnessFactor, sheenRoughnessTexture}`. Every texture reference may carry
+//! sheenColorTexture, sheenRoughnessFactor, sheenRoughnessTexture}`, and the archived
+//! `KHR_materials_pbrSpecularGlossiness.{diffuseFactor, diffuseTexture, specularFactor, glossinessFactor,
+//! specularGlossinessTexture}`, converted where the material is shaded to the base colour, metalness and
+//! roughness it replaces (see [`super::spec_gloss`]). Every texture reference may carry
 //! `texCoord` and `KHR_texture_transform` (held by the [`Texture`] it names). The mesh's vertex colour
 //! (`COLOR_0`) multiplies the base colour and its alpha. OBJ/MTL materials are mapped onto the same fields by
 //! the OBJ loader.
@@ -25,6 +28,7 @@
 //! - Clear coat: emission is not darkened by the coat's Fresnel (the extension darkens it), so that light
 //!   sampling and BSDF sampling see the same emitter.
 
+use super::spec_gloss::{to_metallic_roughness, MetallicRoughness, SpecularGlossiness};
 use super::texture::{ShadingPoint, Texture};
 use super::{Bsdf, PbrParams};
 use crate::geometry::CompositingTags;
@@ -80,6 +84,9 @@ pub struct Material {
     pub clearcoat: Option<ClearcoatLayer>,
     /// `KHR_materials_sheen`, when present.
     pub sheen: Option<SheenLayer>,
+    /// `KHR_materials_pbrSpecularGlossiness`, when present: it replaces `base_color`, `base_color_texture`,
+    /// `metallic`, `roughness` and `metallic_roughness_texture` (converted at each shading point).
+    pub specular_glossiness: Option<SpecularGlossiness>,
     /// Light group, holdout and shadow-catcher tags of every surface with this material (`extras`
     /// `nimbus_light_group`, `nimbus_holdout`, `nimbus_shadow_catcher`; see [`CompositingTags`]).
     pub tags: CompositingTags,
@@ -155,6 +162,7 @@ impl Default for Material {
             unlit: false,
             clearcoat: None,
             sheen: None,
+            specular_glossiness: None,
             tags: CompositingTags::default(),
         }
     }
@@ -164,6 +172,29 @@ impl Default for Material {
 fn lookup(textures: &[Texture], id: Option<TextureId>, at: &ShadingPoint) -> Option<Vec4> {
     id.and_then(|i| textures.get(i as usize))
         .map(|t| t.lookup_at(at))
+}
+
+/// The metallic-roughness reading of `KHR_materials_pbrSpecularGlossiness` at a point, and its alpha: the
+/// diffuse colour (`diffuseFactor` × the vertex colour × `diffuseTexture`), the specular colour and the
+/// glossiness (factors × `specularGlossinessTexture`), converted by [`to_metallic_roughness`].
+fn spec_gloss_at(
+    sg: &SpecularGlossiness,
+    at: &ShadingPoint,
+    textures: &[Texture],
+) -> (MetallicRoughness, f32) {
+    let mut diffuse = sg.diffuse * at.color;
+    if let Some(t) = lookup(textures, sg.diffuse_texture, at) {
+        diffuse *= t;
+    }
+    let (mut specular, mut glossiness) = (sg.specular, sg.glossiness);
+    if let Some(t) = lookup(textures, sg.specular_glossiness_texture, at) {
+        specular *= t.truncate();
+        glossiness *= t.w;
+    }
+    (
+        to_metallic_roughness(diffuse.truncate(), specular, glossiness),
+        diffuse.w,
+    )
 }
 
 /// Decodes a tangent-space normal-map texel: glTF stores `n · 0.5 + 0.5`, and `scale` multiplies x and y
@@ -222,8 +253,14 @@ impl Material {
     }
 
     /// The base colour and alpha at a point: `baseColorFactor` × the base-colour texture × the vertex colour
-    /// (glTF 2.0 §3.9.2: `COLOR_0` multiplies the base colour, alpha included).
+    /// (glTF 2.0 §3.9.2: `COLOR_0` multiplies the base colour, alpha included). With
+    /// `KHR_materials_pbrSpecularGlossiness`, the converted base colour, and the diffuse alpha (× the vertex
+    /// colour's).
     pub fn base_color_at(&self, at: &ShadingPoint, textures: &[Texture]) -> Vec4 {
+        if let Some(sg) = &self.specular_glossiness {
+            let (mr, alpha) = spec_gloss_at(sg, at, textures);
+            return mr.base_color.extend(alpha);
+        }
         let mut base = self.base_color * at.color;
         if let Some(t) = lookup(textures, self.base_color_texture, at) {
             base *= t;
@@ -256,12 +293,21 @@ impl Material {
 
     /// The BSDF parameters at a point.
     pub fn pbr_params(&self, at: &ShadingPoint, textures: &[Texture]) -> PbrParams {
-        let base = self.base_color_at(at, textures).truncate();
-        let (mut metallic, mut roughness) = (self.metallic, self.roughness);
-        if let Some(t) = lookup(textures, self.metallic_roughness_texture, at) {
-            roughness *= t.y;
-            metallic *= t.z;
-        }
+        let (base, metallic, roughness) = match &self.specular_glossiness {
+            Some(sg) => {
+                let (mr, _) = spec_gloss_at(sg, at, textures);
+                (mr.base_color, mr.metallic, mr.roughness)
+            }
+            None => {
+                let base = self.base_color_at(at, textures).truncate();
+                let (mut metallic, mut roughness) = (self.metallic, self.roughness);
+                if let Some(t) = lookup(textures, self.metallic_roughness_texture, at) {
+                    roughness *= t.y;
+                    metallic *= t.z;
+                }
+                (base, metallic, roughness)
+            }
+        };
         let (mut clearcoat, mut clearcoat_roughness) = (0.0, 0.0);
         if let Some(c) = &self.clearcoat {
             clearcoat = c.factor * lookup(textures, c.texture, at).map_or(1.0, |t| t.x);
@@ -327,6 +373,10 @@ impl Material {
             .sheen
             .iter()
             .flat_map(|s| [s.color_texture, s.roughness_texture]);
+        let spec_gloss = self
+            .specular_glossiness
+            .iter()
+            .flat_map(|s| [s.diffuse_texture, s.specular_glossiness_texture]);
         [
             self.base_color_texture,
             self.metallic_roughness_texture,
@@ -338,6 +388,7 @@ impl Material {
         .into_iter()
         .chain(coat)
         .chain(sheen)
+        .chain(spec_gloss)
         .flatten()
     }
 

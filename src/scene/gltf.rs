@@ -10,7 +10,9 @@
 //! read are listed in [`crate::material::Material`]), and `KHR_lights_punctual` lights. Normal-mapped meshes
 //! without TANGENT get MikkTSpace tangents when the scene is built. Every texture reference's `texCoord` (sets 0
 //! and 1) and `KHR_texture_transform` (`offset`, `rotation`, `scale`, `texCoord`) are read, for the core
-//! textures and those of the extensions alike.
+//! textures and those of the extensions alike. `KHR_materials_variants`: a primitive takes the material its
+//! `mappings` give the variant [`LoadOptions::variant`] names, else its own; without a variant, a file that has
+//! some warns once, listing them.
 //!
 //! Scene `extras` read: `nimbus_environment` (see [`crate::light::EnvironmentLight`]), `max_bounces`, and
 //! `nimbus_light_units`: `"photometric"` (the default) or `"radiometric"`.
@@ -48,7 +50,7 @@ use crate::light::{
 use crate::limits::{one_line, Limits, WorkBudget};
 use crate::material::{
     AlphaMode, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler, SheenLayer,
-    Texture, UvTransform, Wrap, UV_SETS,
+    SpecularGlossiness, Texture, UvTransform, Wrap, UV_SETS,
 };
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
@@ -72,6 +74,8 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_unlit",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_variants",
     "KHR_texture_transform",
 ];
 
@@ -137,6 +141,15 @@ pub fn load_slice(
     warnings.extend(skipped.warnings.iter().cloned());
     let document = gltf::Document::from_json_without_validation(root);
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let variants = variant_names(&document).map_err(malformed)?;
+    let variant = choose_variant(&variants, options.variant).map_err(&err)?;
+    if options.variant.is_none() && !variants.is_empty() {
+        let names: Vec<String> = variants.iter().map(|n| one_line(n, QUOTE)).collect();
+        warnings.push(format!(
+            "the file has material variants: {} (--variant NAME chooses one)",
+            names.join(", ")
+        ));
+    }
 
     let mut blob = blob;
     let mut buffers = Vec::new();
@@ -216,6 +229,8 @@ pub fn load_slice(
         skin_warned: false,
         joints: RefCell::new(HashMap::new()),
         work: WorkBudget::new(&options.limits),
+        variant,
+        variant_count: variants.len(),
     };
     loader.builder.warnings.append(&mut warnings);
     let scene = document
@@ -344,6 +359,10 @@ struct Loader<'a> {
     joints: JointCache,
     /// The load-time work of posing meshes: joint matrices, skinned vertices and morph-target vertices.
     work: WorkBudget,
+    /// The chosen `KHR_materials_variants` variant (index into the root's `variants`), if any.
+    variant: Option<usize>,
+    /// How many variants the file declares.
+    variant_count: usize,
 }
 
 impl Loader<'_> {
@@ -685,7 +704,13 @@ impl Loader<'_> {
             m.name = node.name().map_or_else(|| mesh_name.clone(), str::to_owned);
             m.asset = context.asset.clone();
             m.tags = context.tags.clone();
-            m.material = self.material(primitive.material())?;
+            m.material = match self.variant_material(&primitive, &what)? {
+                Some(i) => {
+                    let material = self.document.materials().nth(i).expect("index checked");
+                    self.material(material)?
+                }
+                None => self.material(primitive.material())?,
+            };
             self.builder.add_mesh(m);
         }
         Ok(())
@@ -895,6 +920,67 @@ impl Loader<'_> {
         })
     }
 
+    /// The material index `KHR_materials_variants` gives the chosen variant on a primitive, if the primitive
+    /// maps it. Every mapping is checked, whichever variant is chosen: `material` must name a material, and
+    /// each of `variants` a variant of the file, at most once on the primitive (the extension's rule).
+    fn variant_material(
+        &self,
+        primitive: &gltf::Primitive,
+        what: &str,
+    ) -> Result<Option<usize>, SceneError> {
+        let Some(ext) = primitive.extension_value("KHR_materials_variants") else {
+            return Ok(None);
+        };
+        let at = format!("{what}: extensions.KHR_materials_variants");
+        let mappings = ext
+            .get("mappings")
+            .and_then(|m| m.as_array())
+            .ok_or_else(|| self.malformed(format!("{at}.mappings must be an array")))?;
+        let materials = self.document.materials().len();
+        // The mapping that named each variant met so far: the work follows the primitive's own mappings, not
+        // the file's count of variants.
+        let mut mapped_at: HashMap<usize, usize> = HashMap::new();
+        let mut chosen = None;
+        for (i, mapping) in mappings.iter().enumerate() {
+            let material = mapping
+                .get("material")
+                .and_then(|m| m.as_u64())
+                .filter(|&m| m < materials as u64)
+                .ok_or_else(|| {
+                    self.error(SceneErrorKind::InvalidReference(format!(
+                        "{at}.mappings[{i}].material must be the index of a material ({materials} materials)"
+                    )))
+                })? as usize;
+            let variants = mapping
+                .get("variants")
+                .and_then(|v| v.as_array())
+                .ok_or_else(|| {
+                    self.malformed(format!("{at}.mappings[{i}].variants must be an array"))
+                })?;
+            for v in variants {
+                let index = v
+                    .as_u64()
+                    .filter(|&v| v < self.variant_count as u64)
+                    .ok_or_else(|| {
+                        self.error(SceneErrorKind::InvalidReference(format!(
+                            "{at}.mappings[{i}].variants: {} is not the index of a variant ({} variants)",
+                            one_line(&v.to_string(), QUOTE),
+                            self.variant_count
+                        )))
+                    })? as usize;
+                if let Some(first) = mapped_at.insert(index, i) {
+                    return Err(self.malformed(format!(
+                        "{at}: variant {index} is mapped by mappings[{first}] and mappings[{i}]"
+                    )));
+                }
+                if self.variant == Some(index) {
+                    chosen = Some(material);
+                }
+            }
+        }
+        Ok(chosen)
+    }
+
     fn material(&mut self, material: gltf::Material) -> Result<u32, SceneError> {
         if let Some(&id) = self.material_map.get(&material.index()) {
             return Ok(id);
@@ -903,7 +989,10 @@ impl Loader<'_> {
         let emissive_strength = material.emissive_strength().unwrap_or(1.0);
         self.check_material_numbers(&material, emissive_strength)?;
         let at = material_path(&material);
-        let base_color_texture = match pbr.base_color_texture() {
+        // With the specular-glossiness extension, the core metallic-roughness is only its fallback: unread.
+        let specular_glossiness = self.specular_glossiness(&material, &at)?;
+        let metallic_roughness = specular_glossiness.is_none();
+        let base_color_texture = match pbr.base_color_texture().filter(|_| metallic_roughness) {
             Some(t) => {
                 let r =
                     self.info_ref(&t, &format!("{at}.pbrMetallicRoughness.baseColorTexture"))?;
@@ -911,7 +1000,10 @@ impl Loader<'_> {
             }
             None => None,
         };
-        let metallic_roughness_texture = match pbr.metallic_roughness_texture() {
+        let metallic_roughness_texture = match pbr
+            .metallic_roughness_texture()
+            .filter(|_| metallic_roughness)
+        {
             Some(t) => {
                 let r = self.info_ref(
                     &t,
@@ -984,6 +1076,7 @@ impl Loader<'_> {
             unlit: material.unlit(),
             clearcoat,
             sheen,
+            specular_glossiness,
             tags: CompositingTags::default(),
         };
         let mut m = m;
@@ -1070,6 +1163,40 @@ impl Loader<'_> {
             roughness,
             roughness_texture,
         }))
+    }
+
+    /// `KHR_materials_pbrSpecularGlossiness` of a material, when present: factors checked (finite, in
+    /// \[0, 1\]) and textures read (both sRGB colour with linear alpha, as the extension specifies).
+    fn specular_glossiness(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<SpecularGlossiness>, SceneError> {
+        let name = "KHR_materials_pbrSpecularGlossiness";
+        let at = format!("{at}.extensions.{name}");
+        let Some(ext) = self.extension_object(material, name, &at)? else {
+            return Ok(None);
+        };
+        let mut sg = SpecularGlossiness::default();
+        if let Some(v) = ext.get("diffuseFactor") {
+            let d = unit_numbers::<4>(v).ok_or_else(|| {
+                self.malformed(format!("{at}.diffuseFactor must be four numbers in [0, 1]"))
+            })?;
+            sg.diffuse = Vec4::from(d);
+        }
+        if let Some(v) = ext.get("specularFactor") {
+            let s = unit_numbers::<3>(v).ok_or_else(|| {
+                self.malformed(format!(
+                    "{at}.specularFactor must be three numbers in [0, 1]"
+                ))
+            })?;
+            sg.specular = Rgb::from(s);
+        }
+        sg.glossiness = self.unit_number(&ext, "glossinessFactor", 1.0, &at)?;
+        sg.diffuse_texture = self.ext_texture(&ext, "diffuseTexture", ColorSpace::Srgb, &at)?;
+        sg.specular_glossiness_texture =
+            self.ext_texture(&ext, "specularGlossinessTexture", ColorSpace::Srgb, &at)?;
+        Ok(Some(sg))
     }
 
     fn malformed(&self, message: String) -> SceneError {
@@ -1704,6 +1831,75 @@ fn checked_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> Option
         rotation,
         scale: Vec2::from(scale),
     })
+}
+
+/// The names of the file's `KHR_materials_variants` variants (the root extension's `variants[i].name`), in
+/// order; none without the extension. An error names a malformed entry.
+fn variant_names(document: &gltf::Document) -> Result<Vec<String>, String> {
+    let Some(ext) = document.extension_value("KHR_materials_variants") else {
+        return Ok(Vec::new());
+    };
+    let at = "extensions.KHR_materials_variants";
+    let variants = ext
+        .get("variants")
+        .and_then(|v| v.as_array())
+        .ok_or_else(|| format!("{at}.variants must be an array"))?;
+    variants
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            v.get("name")
+                .and_then(|n| n.as_str())
+                .map(str::to_owned)
+                .ok_or_else(|| format!("{at}.variants[{i}].name must be a string"))
+        })
+        .collect()
+}
+
+/// The index of the variant named `wanted` among `variants`: `None` when none is wanted; an error listing the
+/// variants when the file has no variant of that name, or several.
+fn choose_variant(
+    variants: &[String],
+    wanted: Option<&str>,
+) -> Result<Option<usize>, SceneErrorKind> {
+    let Some(wanted) = wanted else {
+        return Ok(None);
+    };
+    let list = || {
+        let names: Vec<String> = variants.iter().map(|n| one_line(n, QUOTE)).collect();
+        one_line(&names.join(", "), 8 * QUOTE)
+    };
+    let matches: Vec<usize> = (0..variants.len())
+        .filter(|&i| variants[i] == wanted)
+        .collect();
+    match matches[..] {
+        [i] => Ok(Some(i)),
+        [] if variants.is_empty() => Err(SceneErrorKind::InvalidReference(format!(
+            "material variant '{}': the file has no material variants (KHR_materials_variants)",
+            one_line(wanted, QUOTE)
+        ))),
+        [] => Err(SceneErrorKind::InvalidReference(format!(
+            "the file has no material variant '{}'; its variants are: {}",
+            one_line(wanted, QUOTE),
+            list()
+        ))),
+        _ => Err(SceneErrorKind::Malformed(format!(
+            "{} material variants are named '{}' (variants: {})",
+            matches.len(),
+            one_line(wanted, QUOTE),
+            list()
+        ))),
+    }
+}
+
+/// An array of exactly `N` numbers, each in \[0, 1\]; `None` otherwise.
+fn unit_numbers<const N: usize>(value: &serde_json::Value) -> Option<[f32; N]> {
+    let a = value.as_array().filter(|a| a.len() == N)?;
+    let mut out = [0.0; N];
+    for (o, v) in out.iter_mut().zip(a) {
+        *o = v.as_f64().filter(|v| (0.0..=1.0).contains(v))? as f32;
+    }
+    Some(out)
 }
 
 /// `materials[i]` or "the default material", for messages.

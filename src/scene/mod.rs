@@ -138,6 +138,11 @@ pub struct LoadOptions<'a> {
     /// Moving things are sampled across it (glTF cameras and meshes at motion steps, see
     /// `gltf_animation::shutter_poses`) and media with a velocity grid are blurred over it.
     pub shutter: Option<crate::frames::Shutter>,
+    /// The glTF `KHR_materials_variants` variant to load, by name (`--variant`): each primitive whose mappings
+    /// name it takes the mapped material, every other its own. `None` loads every primitive's own material,
+    /// and a file with variants warns once, listing them. A name the file does not declare is an error that
+    /// lists its variants; so is any name for OBJ and USD files, which have no material variants.
+    pub variant: Option<&'a str>,
 }
 
 impl LoadOptions<'_> {
@@ -172,6 +177,15 @@ pub fn load_builder(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, 
         .map(|e| e.to_ascii_lowercase());
     let mut builder = match ext.as_deref() {
         Some("gltf") | Some("glb") => gltf::load(path, options),
+        Some("obj" | "usd" | "usda" | "usdc" | "usdz") if options.variant.is_some() => {
+            Err(SceneError::new(
+                path,
+                SceneErrorKind::Unsupported(
+                    "material variants are read from glTF files (KHR_materials_variants) only"
+                        .into(),
+                ),
+            ))
+        }
         Some("obj") => obj::load(path, options),
         Some("usd") | Some("usda") | Some("usdc") | Some("usdz") => usd::load(path, options),
         _ => Err(SceneError::new(path, SceneErrorKind::UnknownFormat)),
