@@ -179,6 +179,11 @@ struct RenderArgs {
     /// the file maps to it. Default: every primitive's own material (a warning lists the file's variants).
     #[arg(long, value_name = "NAME")]
     variant: Option<String>,
+    /// Catmull-Clark levels of every USD mesh whose subdivisionScheme is catmullClark (USD's default), 0 for
+    /// the control cage (default: the mesh's refineLevel, else 2; at most 8).
+    #[arg(long = "subdivision-level", value_name = "N",
+          value_parser = clap::value_parser!(u32).range(0..=8))]
+    subdivision_level: Option<u32>,
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -469,6 +474,7 @@ fn load_builder(
     fps: Option<f64>,
     shutter: Option<Shutter>,
     variant: Option<&str>,
+    subdivision_level: Option<u32>,
 ) -> Result<SceneBuilder, String> {
     let mut builder = match scene {
         Some(path) => nimbus::scene::load_builder(
@@ -479,6 +485,7 @@ fn load_builder(
                 fps,
                 shutter,
                 variant,
+                subdivision_level,
                 ..LoadOptions::default()
             },
         ),
@@ -492,6 +499,7 @@ fn load_builder(
                 fps,
                 shutter,
                 variant,
+                subdivision_level,
                 ..LoadOptions::default()
             },
         ),
@@ -731,6 +739,7 @@ fn list_aovs(args: &RenderArgs) -> Result<(), String> {
             args.fps,
             None,
             args.variant.as_deref(),
+            args.subdivision_level,
         )?;
         let scene = builder.build().map_err(|e| e.to_string())?;
         let groups = nimbus::render::LightGroups::new(&scene, args.light_groups)
@@ -760,6 +769,7 @@ fn list_cameras(args: &RenderArgs) -> Result<(), String> {
         args.fps,
         None,
         args.variant.as_deref(),
+        args.subdivision_level,
     )?;
     let mut text = String::new();
     for camera in builder.cameras() {
@@ -798,6 +808,7 @@ fn render_frame(
         args.fps,
         args.shutter,
         args.variant.as_deref(),
+        args.subdivision_level,
     )?;
     if let Some(name) = &args.camera {
         builder.select_camera(name).map_err(|e| {
@@ -1378,6 +1389,7 @@ fn part_scene_hash(
             .flat_map(|v| v.to_le_bytes())
             .collect()
     });
+    let subdivision_bytes = args.subdivision_level.map(u32::to_le_bytes);
     // Only for a camera with a lens, so that the hashes of pinhole renders stay what they were.
     let lens_bytes: Option<Vec<u8>> = camera.lens.map(|l| {
         [l.aperture_radius, l.focus_distance]
@@ -1394,6 +1406,11 @@ fn part_scene_hash(
         .chain(args.camera.iter().map(|c| ("camera", c.as_bytes())))
         .chain(lens_bytes.iter().map(|l| ("lens", l.as_slice())))
         .chain(args.variant.iter().map(|v| ("variant", v.as_bytes())))
+        .chain(
+            subdivision_bytes
+                .iter()
+                .map(|l| ("subdivision-level", l.as_slice())),
+        )
         .collect();
     Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
 }

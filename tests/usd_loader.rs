@@ -315,6 +315,7 @@ def Xform "X" {
         int[] faceVertexCounts = [4]
         int[] faceVertexIndices = [0, 1, 2, 3]
         uniform token orientation = "leftHanded"
+        uniform token subdivisionScheme = "none"
         uniform bool doubleSided = 1
         texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (interpolation = "faceVarying")
     }
@@ -925,4 +926,66 @@ fn textured_roughness_and_metallic_are_read_per_texel() {
             "texel ({x}, {y}): {texel} for r {r}, g {g}"
         );
     }
+}
+
+/// A `catmullClark` cube (USD's default scheme) is subdivided: at one level its corners move from (±1)³ to
+/// (±5/9)³ (Catmull & Clark's vertex rule by hand: (Q + 2R)/3 with Q = (1/3)³ and R = (2/3)³); its
+/// `refineLevel` sets the level unless `--subdivision-level` does; level 0 is the cage; and with every edge
+/// infinitely sharp (`creaseSharpnesses` 10) the surface stays on the cube. Cages used to render faceted, and
+/// always.
+#[test]
+fn catmull_clark_meshes_are_subdivided_to_their_level() {
+    let cube = |extra: &str| {
+        format!(
+            "#usda 1.0\n(\n    upAxis = \"Y\"\n    metersPerUnit = 1\n)\n\ndef Mesh \"Cube\"\n{{\n\
+             point3f[] points = [(-1, -1, -1), (1, -1, -1), (-1, 1, -1), (1, 1, -1), (-1, -1, 1), (1, -1, 1), \
+             (-1, 1, 1), (1, 1, 1)]\n\
+             int[] faceVertexCounts = [4, 4, 4, 4, 4, 4]\n\
+             int[] faceVertexIndices = [0, 2, 3, 1, 4, 5, 7, 6, 0, 1, 5, 4, 2, 6, 7, 3, 0, 4, 6, 2, 1, 3, 7, 5]\n\
+             {extra}\n}}\n"
+        )
+    };
+    let load = |tag: &str, extra: &str, level: Option<u32>| {
+        let path = temp_file(tag, "usda", cube(extra).as_bytes());
+        let options = nimbus::scene::LoadOptions {
+            subdivision_level: level,
+            ..Default::default()
+        };
+        let b = nimbus::scene::load_builder(&path, &options).unwrap_or_else(|e| panic!("{e}"));
+        let points: Vec<Vec3> = b
+            .meshes()
+            .iter()
+            .flat_map(|m| m.positions.clone())
+            .collect();
+        let triangles: usize = b.meshes().iter().map(|m| m.indices.len()).sum();
+        (points, triangles)
+    };
+    let has = |points: &[Vec3], p: Vec3| points.iter().any(|q| q.distance(p) < 1e-5);
+    let corner = Vec3::splat(1.0);
+    let (points, triangles) = load("cc_level1", "int refineLevel = 1", None);
+    assert_eq!(triangles, 48, "24 quads");
+    assert!(has(&points, corner * (5.0 / 9.0)) && !has(&points, corner));
+    assert!(points.iter().all(|p| p.abs().max_element() <= 1.0));
+    let (_, triangles) = load("cc_default", "", None);
+    assert_eq!(triangles, 192, "the default level 2: 96 quads");
+    let (points, triangles) = load("cc_cage", "int refineLevel = 3", Some(0));
+    assert_eq!(triangles, 12, "--subdivision-level 0 is the cage");
+    assert!(has(&points, corner));
+    let creases = "int[] creaseIndices = [0, 1, 3, 2, 0, 4, 5, 7, 6, 4, 0, 4, 1, 5, 2, 6, 3, 7]\n\
+                   int[] creaseLengths = [5, 5, 2, 2, 2, 2]\n\
+                   float[] creaseSharpnesses = [10, 10, 10, 10, 10, 10]";
+    let (points, _) = load("cc_sharp", creases, Some(2));
+    assert!(has(&points, corner));
+    assert!(
+        points
+            .iter()
+            .all(|p| (p.abs().max_element() - 1.0).abs() < 1e-5),
+        "every point stays on the cube"
+    );
+    let (_, triangles) = load(
+        "cc_none",
+        "uniform token subdivisionScheme = \"none\"",
+        Some(2),
+    );
+    assert_eq!(triangles, 12);
 }

@@ -55,7 +55,8 @@ fn read_real(path: &Path) -> SceneBuilder {
 
 const TRIANGLE: &str = "point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
         int[] faceVertexCounts = [3]
-        int[] faceVertexIndices = [0, 1, 2]";
+        int[] faceVertexIndices = [0, 1, 2]
+        uniform token subdivisionScheme = \"none\"";
 
 #[test]
 fn time_sampled_ops_are_read_at_the_default_time_and_interpolated() {
@@ -265,7 +266,7 @@ fn native_instances_are_expanded_and_prototypes_not_drawn() {
         "#usda 1.0\n(upAxis = \"Y\")\n\
          class Xform \"Proto\" { def Mesh \"Tri\" {\n\
            point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n\
-           int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2] } }\n\
+           uniform token subdivisionScheme = \"none\"\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2] } }\n\
          def Xform \"A\" ( instanceable = true\n references = </Proto> ) {\n\
            double3 xformOp:translate = (10, 0, 0)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n\
          def Xform \"B\" ( instanceable = true\n references = </Proto> ) {\n\
@@ -302,7 +303,7 @@ fn geom_subsets_bind_their_faces_materials() {
             "#usda 1.0\n(upAxis = \"Y\")\n\
              def Mesh \"M\" {{\n\
                point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (2, 1, 0)]\n\
-               int[] faceVertexCounts = [4, 3, 3]\n int[] faceVertexIndices = [0, 1, 2, 3, 1, 4, 5, 1, 5, 2]\n\
+               uniform token subdivisionScheme = \"none\"\n int[] faceVertexCounts = [4, 3, 3]\n int[] faceVertexIndices = [0, 1, 2, 3, 1, 4, 5, 1, 5, 2]\n\
                rel material:binding = </Looks/Red>\n\
                def GeomSubset \"Right\" {{ uniform token elementType = \"face\"\n\
                  uniform token familyName = \"materialBind\"\n int[] indices = [1, 2]\n\
@@ -336,7 +337,7 @@ fn missing_textures_and_materialx_files_warn_and_fall_back() {
         "missing_tex",
         "#usda 1.0\n(upAxis = \"Y\")\n\
          def Mesh \"M\" {\n point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n\
-           int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2]\n\
+           uniform token subdivisionScheme = \"none\"\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2]\n\
            rel material:binding = </L/Mat> }\n\
          def Scope \"L\" { def Material \"Mat\" { token outputs:surface.connect = </L/Mat/S.outputs:surface>\n\
            def Shader \"S\" { uniform token info:id = \"UsdPreviewSurface\"\n\
@@ -407,7 +408,7 @@ fn uv_texture_scale_and_bias_apply_to_the_texture_value() {
         .unwrap();
     let text = "#usda 1.0\n(upAxis = \"Y\")\n\
          def Mesh \"M\" {\n point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n\
-           int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2]\n\
+           uniform token subdivisionScheme = \"none\"\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2]\n\
            rel material:binding = </L/Mat> }\n\
          def Scope \"L\" { def Material \"Mat\" { token outputs:surface.connect = </L/Mat/S.outputs:surface>\n\
            def Shader \"S\" { uniform token info:id = \"UsdPreviewSurface\"\n\

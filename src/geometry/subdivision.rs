@@ -264,14 +264,10 @@ impl PolygonMesh {
                 let (a, b) = (corners[k % c], corners[(k + 1) % c]);
                 edge_base + edge_index[&(a.min(b), a.max(b))] as u32
             };
-            for k in 0..c {
+            for (k, &vertex) in corners.iter().enumerate() {
                 out.counts.push(4);
-                out.indices.extend([
-                    corners[k],
-                    edge_of(k),
-                    face_base + f as u32,
-                    edge_of(k + c - 1),
-                ]);
+                out.indices
+                    .extend([vertex, edge_of(k), face_base + f as u32, edge_of(k + c - 1)]);
                 out.face_tags.push(self.face_tags[f]);
             }
             let range = corner_start..corner_start + c;

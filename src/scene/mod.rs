@@ -138,6 +138,9 @@ pub struct LoadOptions<'a> {
     /// Moving things are sampled across it (glTF cameras and meshes at motion steps, see
     /// `gltf_animation::shutter_poses`) and media with a velocity grid are blurred over it.
     pub shutter: Option<crate::frames::Shutter>,
+    /// Catmull-Clark levels of every USD mesh whose `subdivisionScheme` is `catmullClark` (`--subdivision-level`),
+    /// over the mesh's own `refineLevel`; `None`: its `refineLevel`, else 2.
+    pub subdivision_level: Option<u32>,
     /// The glTF `KHR_materials_variants` variant to load, by name (`--variant`): each primitive whose mappings
     /// name it takes the mapped material, every other its own. `None` loads every primitive's own material,
     /// and a file with variants warns once, listing them. A name the file does not declare is an error that

@@ -1,11 +1,22 @@
 //! USD geometry: `Mesh` prims (points, face topology, normals and `st` primvars with their interpolation).
 
-use super::values::{token, vec2_array, vec3_array};
+use super::values::{number, token, vec2_array, vec3_array};
 use super::Loader;
-use crate::geometry::Mesh;
+use crate::geometry::{Mesh, PolygonMesh};
 use crate::math::{Mat4, Rgb, Vec2};
 use crate::scene::SceneError;
 use openusd::{sdf, usd};
+
+/// Catmull-Clark levels of a `catmullClark` mesh that neither the command line nor the mesh's `refineLevel`
+/// sets.
+pub const DEFAULT_SUBDIVISION_LEVEL: u32 = 2;
+
+/// The most Catmull-Clark levels read (each multiplies the faces by 4).
+pub const MAX_SUBDIVISION_LEVEL: u32 = 8;
+
+/// Memory a subdivided quad takes while it is made and once it is a mesh: its points, corners, normals,
+/// texture coordinates and colours, in the subdivision and in the two triangles it becomes.
+const SUBDIVIDED_QUAD_BYTES: u64 = 320;
 
 impl Loader<'_> {
     pub(super) fn mesh(
@@ -85,54 +96,82 @@ impl Loader<'_> {
                 .collect::<Vec<_>>()
         });
         let normals = normals.unwrap_or_default();
-        // One mesh per material, one vertex per face corner: simple, and right for every interpolation.
-        let mut starts = Vec::with_capacity(counts.len());
-        let mut start = 0usize;
-        for &c in &counts {
-            starts.push(start);
-            start += c.max(0) as usize;
-        }
-        let mut groups: Vec<u32> = face_material.clone();
-        groups.sort_unstable();
-        groups.dedup();
-        for &group in &groups {
-            // A material that reads its colour from a primvar: one colour per face corner.
-            let colors = match self.primvar_color(group).cloned() {
-                Some(read) => Some(
+        // Materials that read their colour from a primvar: one colour per face corner, white on the faces of
+        // other materials (the vertex colour multiplies the base colour).
+        let mut colors: Option<Vec<Rgb>> = None;
+        let mut corner = 0usize;
+        for (f, &c) in counts.iter().enumerate() {
+            let c = c.max(0) as usize;
+            if let Some(read) = self.primvar_color(face_material[f]).cloned() {
+                let values =
                     match self.primvar(prim, &[read.attribute.as_str()], "constant", vec3_array)? {
                         Some(p) => topology.expand(p).map_err(|m| self.error(&at, m))?,
                         None => vec![read.fallback; indices.len()],
-                    },
-                ),
-                None => None,
-            };
+                    };
+                colors.get_or_insert_with(|| vec![Rgb::ONE; indices.len()])[corner..corner + c]
+                    .copy_from_slice(&values[corner..corner + c]);
+            }
+            corner += c;
+        }
+        let cage = PolygonMesh {
+            points,
+            counts: counts.iter().map(|&c| c.max(0) as u32).collect(),
+            indices: indices.iter().map(|&i| i as u32).collect(),
+            uvs,
+            colors,
+            face_tags: face_material,
+            ..Default::default()
+        };
+        let (surface, normals) = match self.subdivision(prim, &at)? {
+            Some(level) => {
+                let surface = self.subdivide(prim, &at, cage, level)?;
+                // A subdivision surface's normals are its own (authored ones apply to the cage only).
+                let normals = surface.corner_normals();
+                (surface, normals)
+            }
+            None => (cage, normals),
+        };
+        // One mesh per material, one vertex per face corner: simple, and right for every interpolation.
+        let mut starts = Vec::with_capacity(surface.counts.len());
+        let mut start = 0usize;
+        for &c in &surface.counts {
+            starts.push(start);
+            start += c as usize;
+        }
+        let mut groups: Vec<u32> = surface.face_tags.clone();
+        groups.sort_unstable();
+        groups.dedup();
+        for &group in &groups {
             let mut mesh = Mesh {
                 name: at.clone(),
                 material: group,
-                uvs: uvs.as_ref().map(|_| Vec::new()),
-                colors: colors.as_ref().map(|_| Vec::new()),
+                uvs: surface.uvs.as_ref().map(|_| Vec::new()),
+                colors: surface.colors.as_ref().map(|_| Vec::new()),
                 ..Default::default()
             };
-            for (f, &c) in counts.iter().enumerate() {
-                if face_material[f] != group {
+            for (f, &c) in surface.counts.iter().enumerate() {
+                if surface.face_tags[f] != group {
                     continue;
                 }
-                let (from, c) = (starts[f], c.max(0) as usize);
+                let (from, c) = (starts[f], c as usize);
                 let base = mesh.positions.len() as u32;
                 let corners = from..from + c;
-                mesh.positions
-                    .extend(indices[corners.clone()].iter().map(|&i| points[i as usize]));
+                mesh.positions.extend(
+                    surface.indices[corners.clone()]
+                        .iter()
+                        .map(|&i| surface.points[i as usize]),
+                );
                 if !normals.is_empty() {
                     mesh.normals.extend_from_slice(&normals[corners.clone()]);
                 }
-                if let (Some(all), Some(own)) = (&colors, &mut mesh.colors) {
+                if let (Some(all), Some(own)) = (&surface.colors, &mut mesh.colors) {
                     own.extend(
                         all[corners.clone()]
                             .iter()
                             .map(|c| c.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0)),
                     );
                 }
-                if let (Some(all), Some(own)) = (&uvs, &mut mesh.uvs) {
+                if let (Some(all), Some(own)) = (&surface.uvs, &mut mesh.uvs) {
                     own.extend_from_slice(&all[corners]);
                 }
                 for k in 2..c as u32 {
@@ -148,6 +187,134 @@ impl Loader<'_> {
             self.add_mesh(mesh)?;
         }
         Ok(())
+    }
+
+    /// The level to subdivide the mesh `prim` to, or `None` to render its control cage: none unless its
+    /// `subdivisionScheme` is `catmullClark` (USD's default); then `--subdivision-level`, else the mesh's
+    /// `refineLevel`, else [`DEFAULT_SUBDIVISION_LEVEL`] (at most [`MAX_SUBDIVISION_LEVEL`]). Schemes Nimbus
+    /// does not subdivide (`loop`) render the cage with a warning; `bilinear` is its own cage.
+    fn subdivision(&mut self, prim: &usd::Prim, at: &str) -> Result<Option<u32>, SceneError> {
+        let scheme = self
+            .value(prim, "subdivisionScheme")?
+            .and_then(|v| token(&v))
+            .unwrap_or_else(|| "catmullClark".into());
+        match scheme.as_str() {
+            "catmullClark" => {}
+            "none" | "bilinear" => return Ok(None),
+            other => {
+                self.warn(format!(
+                    "{at}: subdivisionScheme '{other}' is not supported; its control cage is rendered"
+                ));
+                return Ok(None);
+            }
+        }
+        let level = match self.subdivision_level {
+            Some(level) => level,
+            None => match self.value(prim, "refineLevel")? {
+                Some(v) => match number(&v) {
+                    Some(l) if l.is_finite() && l >= 0.0 => l as u32,
+                    _ => {
+                        return Err(
+                            self.error(at, "refineLevel must be a whole number of 0 or more")
+                        )
+                    }
+                },
+                None => DEFAULT_SUBDIVISION_LEVEL,
+            },
+        };
+        Ok((level > 0).then_some(level.min(MAX_SUBDIVISION_LEVEL)))
+    }
+
+    /// The Catmull-Clark surface of `cage` at `level`, with the mesh's creases (`creaseIndices`,
+    /// `creaseLengths`, `creaseSharpnesses`: one sharpness per crease, or one per crease edge) and corners
+    /// (`cornerIndices`, `cornerSharpnesses`). Faces of fewer than 3 vertices are left out; the faces it makes
+    /// count against the memory budget before any is made.
+    fn subdivide(
+        &mut self,
+        prim: &usd::Prim,
+        at: &str,
+        mut cage: PolygonMesh,
+        level: u32,
+    ) -> Result<PolygonMesh, SceneError> {
+        if cage.counts.iter().any(|&c| c < 3) {
+            cage = without_degenerate_faces(cage);
+        }
+        let faces = cage.faces_after(level);
+        self.limits
+            .check_items(
+                format_args!("{at}: Catmull-Clark subdivision to level {level} ({faces} quads)"),
+                faces,
+                SUBDIVIDED_QUAD_BYTES,
+            )
+            .map_err(|e| self.error(at, e.to_string()))?;
+        let points = cage.points.len();
+        let vertex = |i: i32| {
+            usize::try_from(i)
+                .ok()
+                .filter(|&i| i < points)
+                .map(|i| i as u32)
+        };
+        let crease_indices = self.int_array(prim, "creaseIndices")?;
+        let crease_lengths = self.int_array(prim, "creaseLengths")?;
+        let sharpnesses = self.float_values(prim, "creaseSharpnesses")?;
+        let per_edge = sharpnesses.len() != crease_lengths.len();
+        let (mut next, mut edge) = (0usize, 0usize);
+        for (crease, &length) in crease_lengths.iter().enumerate() {
+            let length = usize::try_from(length).unwrap_or(0);
+            let chain = crease_indices.get(next..next + length).ok_or_else(|| {
+                self.error(at, "creaseLengths sum to more than creaseIndices holds")
+            })?;
+            next += length;
+            for pair in chain.windows(2) {
+                let (Some(a), Some(b)) = (vertex(pair[0]), vertex(pair[1])) else {
+                    return Err(self.error(at, "a crease index is out of range"));
+                };
+                let sharpness = sharpnesses
+                    .get(if per_edge { edge } else { crease })
+                    .copied()
+                    .ok_or_else(|| self.error(at, "creaseSharpnesses is too short"))?;
+                edge += 1;
+                cage.creases
+                    .insert((a.min(b), a.max(b)), sharpness.max(0.0));
+            }
+        }
+        let corner_indices = self.int_array(prim, "cornerIndices")?;
+        let corner_sharpnesses = self.float_values(prim, "cornerSharpnesses")?;
+        for (k, &i) in corner_indices.iter().enumerate() {
+            let v = vertex(i).ok_or_else(|| self.error(at, "a corner index is out of range"))?;
+            let s = corner_sharpnesses
+                .get(k)
+                .copied()
+                .ok_or_else(|| self.error(at, "cornerSharpnesses is too short"))?;
+            cage.corners.insert(v, s.max(0.0));
+        }
+        if let Some(rule) = self
+            .value(prim, "interpolateBoundary")?
+            .and_then(|v| token(&v))
+        {
+            if rule != "edgeAndCorner" {
+                self.warn(format!(
+                    "{at}: interpolateBoundary '{rule}' is subdivided as edgeAndCorner"
+                ));
+            }
+        }
+        cage.subdivide(level)
+            .map_err(|e| self.error(at, e.to_string()))
+    }
+
+    /// A `float[]` attribute's values (empty when absent); non-finite values are an error naming it.
+    fn float_values(&self, prim: &usd::Prim, name: &str) -> Result<Vec<f32>, SceneError> {
+        let at = format!("{}.{name}", prim.path().as_str());
+        let values = match self.value(prim, name)? {
+            None => return Ok(Vec::new()),
+            Some(sdf::Value::FloatVec(v)) => v,
+            Some(sdf::Value::DoubleVec(v)) => v.into_iter().map(|x| x as f32).collect(),
+            Some(_) => return Err(self.error(&at, "expected a float[]")),
+        };
+        if values.iter().any(|v| !v.is_finite()) {
+            return Err(self.error(&at, "values must be finite"));
+        }
+        Ok(values)
     }
 
     /// The `GeomSubset` children of a mesh with `familyName = "materialBind"` and `elementType = "face"`
@@ -299,6 +466,35 @@ impl Topology<'_> {
             other => Err(format!("{}: unknown interpolation '{other}'", p.name)),
         }
     }
+}
+
+/// `mesh` without its faces of fewer than 3 vertices (and their face-varying data).
+fn without_degenerate_faces(mesh: PolygonMesh) -> PolygonMesh {
+    let mut out = PolygonMesh {
+        points: mesh.points,
+        uvs: mesh.uvs.as_ref().map(|_| Vec::new()),
+        colors: mesh.colors.as_ref().map(|_| Vec::new()),
+        ..Default::default()
+    };
+    let mut start = 0usize;
+    for (f, &c) in mesh.counts.iter().enumerate() {
+        let corners = start..start + c as usize;
+        start += c as usize;
+        if c < 3 {
+            continue;
+        }
+        out.counts.push(c);
+        out.face_tags.push(mesh.face_tags[f]);
+        out.indices
+            .extend_from_slice(&mesh.indices[corners.clone()]);
+        if let (Some(all), Some(own)) = (&mesh.uvs, &mut out.uvs) {
+            own.extend_from_slice(&all[corners.clone()]);
+        }
+        if let (Some(all), Some(own)) = (&mesh.colors, &mut out.colors) {
+            own.extend_from_slice(&all[corners]);
+        }
+    }
+    out
 }
 
 #[cfg(test)]

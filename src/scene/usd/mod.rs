@@ -116,7 +116,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
         Some(frame) => When::Frame(frame as f64, options.fps),
         None => When::Default,
     };
-    let (mut builder, volumes) = read_when(path, &options.limits, when)?;
+    let (mut builder, volumes) = read_when(path, &options.limits, when, options.subdivision_level)?;
     if let (Some(frame), Some(shutter)) = (frame, options.shutter) {
         add_motion_steps(&mut builder, path, options, frame, shutter)?;
     }
@@ -157,7 +157,7 @@ fn add_motion_steps(
     let mut reads = Vec::with_capacity(times.len());
     for t in times {
         let when = When::Frame(frame as f64 + t as f64, options.fps);
-        reads.push(read_when(path, &options.limits, when)?.0);
+        reads.push(read_when(path, &options.limits, when, options.subdivision_level)?.0);
     }
     let same_meshes = reads.iter().all(|r| {
         r.meshes.len() == builder.meshes.len()
@@ -221,7 +221,7 @@ pub fn read_with_limits(
     path: &Path,
     limits: &Limits,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
-    read_when(path, limits, When::Default)
+    read_when(path, limits, When::Default, None)
 }
 
 /// When a stage is read: at its default time, at a time code, or at a frame of the shot.
@@ -246,6 +246,7 @@ pub fn read_at_frame(
         path,
         limits,
         frame.map_or(When::Default, |f| When::Frame(f as f64, None)),
+        None,
     )
 }
 
@@ -259,7 +260,12 @@ pub fn read_at_time(
     limits: &Limits,
     time: Option<f64>,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
-    read_when(path, limits, time.map_or(When::Default, When::TimeCode))
+    read_when(
+        path,
+        limits,
+        time.map_or(When::Default, When::TimeCode),
+        None,
+    )
 }
 
 /// Reads the stage at `when` on a reader thread of its own (see [`read_with_limits`]).
@@ -267,6 +273,7 @@ fn read_when(
     path: &Path,
     limits: &Limits,
     time: When,
+    subdivision_level: Option<u32>,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let limits = *limits;
     let owned = path.to_path_buf();
@@ -275,8 +282,8 @@ fn read_when(
         .name("nimbus-usd".into())
         .stack_size(READER_STACK_BYTES)
         .spawn(move || {
-            let read =
-                catch_quietly(|| read_stage(&owned, &limits, time)).unwrap_or_else(|message| {
+            let read = catch_quietly(|| read_stage(&owned, &limits, time, subdivision_level))
+                .unwrap_or_else(|message| {
                     Err(SceneError::new(
                         &owned,
                         SceneErrorKind::ReaderPanicked {
@@ -310,6 +317,7 @@ fn read_stage(
     path: &Path,
     limits: &Limits,
     time: When,
+    subdivision_level: Option<u32>,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let stage = open(path, limits)?;
     let mut loader = Loader {
@@ -325,6 +333,7 @@ fn read_stage(
         root: Mat4::IDENTITY,
         limits: *limits,
         prims: 0,
+        subdivision_level,
         time: usd::TimeCode::EARLIEST,
         packages: HashMap::new(),
         tags: CompositingTags::default(),
@@ -439,6 +448,8 @@ struct Loader<'a> {
     limits: Limits,
     /// Prims visited so far.
     prims: u64,
+    /// `--subdivision-level`: the Catmull-Clark level of every `catmullClark` mesh, over its `refineLevel`.
+    subdivision_level: Option<u32>,
     /// The time code every attribute is read at (see [`read_at_time`]).
     time: usd::TimeCode,
     /// `.usdz` packages opened for the files inside them, by package path.
