@@ -989,3 +989,49 @@ fn catmull_clark_meshes_are_subdivided_to_their_level() {
     );
     assert_eq!(triangles, 12);
 }
+
+/// MaterialX `standard_surface` materials (`tests/usd/materialx.usda`; Pixar's USD 26.11 resolves each
+/// material's `mtlx` surface to its shader) are read as UsdPreviewSurface ones: constants map by hand to base
+/// colour 0.5 × (0.2, 0.4, 0.6), metallic 1, roughness 0.3, ior 1.4 and emission 2 × (1, 0.5, 0); an image node on
+/// `base_color` is its texture (times the default base weight 0.8); a node graph (a multiply) is named in a
+/// warning, its input keeping its value times 0.8, as is a `coat` that is not read.
+/// They used to fall back to grey.
+#[test]
+fn materialx_standard_surfaces_are_read() {
+    let b = read("materialx.usda");
+    let material = |mesh: &str| {
+        let m = b.meshes().iter().find(|m| m.name.ends_with(mesh)).unwrap();
+        &b.materials()[m.material as usize]
+    };
+    let constants = material("A");
+    assert!(
+        constants
+            .base_color
+            .truncate()
+            .distance(Vec3::new(0.1, 0.2, 0.3))
+            < 1e-6
+    );
+    assert_eq!(
+        (constants.metallic, constants.roughness, constants.ior),
+        (1.0, 0.3, 1.4)
+    );
+    assert!(constants.emission.distance(Vec3::new(2.0, 1.0, 0.0)) < 1e-6);
+    let textured = material("B");
+    assert!(textured.base_color_texture.is_some());
+    // The default base weight 0.8 scales the texture.
+    assert!(textured.base_color.truncate().distance(Vec3::splat(0.8)) < 1e-6);
+    let graph = material("C");
+    assert!(
+        graph
+            .base_color
+            .truncate()
+            .distance(Vec3::new(0.08, 0.16, 0.24))
+            < 1e-6
+    );
+    let warned = |what: &str| b.warnings().iter().any(|w| w.contains(what));
+    assert!(
+        warned("/Looks/Graph/Multiply") && warned("ND_multiply_color3") && warned("inputs:coat"),
+        "{:?}",
+        b.warnings()
+    );
+}

@@ -28,6 +28,9 @@ pub(super) struct TextureKey {
     affine: [u32; 8],
 }
 
+/// The `info:id` of MaterialX's Autodesk Standard Surface shader node.
+const STANDARD_SURFACE: &str = "ND_standard_surface_surfaceshader";
+
 /// A base colour read per vertex from a mesh primvar: `primvars:NAME` times the material's base colour, or
 /// `fallback` on a mesh without it (UsdPrimvarReader's `fallback`).
 #[derive(Clone, Debug, PartialEq)]
@@ -247,6 +250,16 @@ impl Loader<'_> {
             .connections()
             .map_err(|e| self.error(path, format!("{e:#}")))?;
         let Some(shader_path) = surface.first().map(|p| p.prim_path()) else {
+            let mtlx = material
+                .attribute("outputs:mtlx:surface")
+                .connections()
+                .map_err(|e| self.error(path, format!("{e:#}")))?;
+            if let Some(shader) = mtlx
+                .first()
+                .map(|p| self.stage.prim(p.prim_path().as_str()))
+            {
+                return self.standard_surface(path, &shader).map(|m| (m, None));
+            }
             self.warn(format!(
                 "material {path} has no outputs:surface; default surface used"
             ));
@@ -257,6 +270,9 @@ impl Loader<'_> {
             .value(&shader, "info:id")?
             .and_then(|v| token(&v))
             .unwrap_or_default();
+        if id == STANDARD_SURFACE {
+            return self.standard_surface(path, &shader).map(|m| (m, None));
+        }
         if id != "UsdPreviewSurface" {
             self.warn(format!(
                 "material {path}: shader '{id}' is not UsdPreviewSurface; default surface used"
@@ -316,6 +332,112 @@ impl Loader<'_> {
             ));
         }
         Ok((m, primvar_color))
+    }
+
+    /// Maps a MaterialX `standard_surface` shader (Autodesk Standard Surface 1.0.1, as MaterialX 1.38 defines
+    /// it) read as a UsdPreviewSurface would be: `base` × `base_color` → base colour, `metalness` → metallic,
+    /// `specular_roughness` → roughness, `specular_IOR` → ior, `transmission` → transmission, `emission` ×
+    /// `emission_color` → emission. `base_color` and `emission_color` may come from an image node
+    /// (`ND_image_*`, `ND_tiledimage_*`: its `file`); any other node feeding an input, and a non-zero `coat`,
+    /// `subsurface`, `sheen` or `thin_film_thickness`, is reported in a warning naming it, and the input keeps its
+    /// value.
+    fn standard_surface(&mut self, path: &str, shader: &usd::Prim) -> Result<Material, SceneError> {
+        let id = self
+            .value(shader, "info:id")?
+            .and_then(|v| token(&v))
+            .unwrap_or_default();
+        let mut m = preview_defaults(path);
+        if id != STANDARD_SURFACE {
+            self.warn(format!(
+                "material {path}: MaterialX shader '{id}' is not {STANDARD_SURFACE}; default surface used"
+            ));
+            return Ok(m);
+        }
+        // The node definition's defaults: base 0.8, base_color white.
+        let base = self.mtlx_float(shader, "inputs:base", 0.8)?;
+        let (base_color, base_texture) = self.mtlx_color(shader, "inputs:base_color", Rgb::ONE)?;
+        m.base_color = (base_color * base).clamp(Rgb::ZERO, Rgb::ONE).extend(1.0);
+        m.base_color_texture = base_texture;
+        // (A texture's texels are scaled by `base` through the base colour factor.)
+        m.metallic = self
+            .mtlx_float(shader, "inputs:metalness", 0.0)?
+            .clamp(0.0, 1.0);
+        m.roughness = self
+            .mtlx_float(shader, "inputs:specular_roughness", 0.2)?
+            .clamp(0.0, 1.0);
+        m.ior = self.mtlx_float(shader, "inputs:specular_IOR", 1.5)?;
+        m.transmission = self
+            .mtlx_float(shader, "inputs:transmission", 0.0)?
+            .clamp(0.0, 1.0);
+        let emission = self.mtlx_float(shader, "inputs:emission", 0.0)?;
+        let (emission_color, emission_texture) =
+            self.mtlx_color(shader, "inputs:emission_color", Rgb::ONE)?;
+        m.emission = (emission_color * emission).max(Rgb::ZERO);
+        m.emission_texture = emission_texture.filter(|_| emission > 0.0);
+        for unread in [
+            "inputs:coat",
+            "inputs:subsurface",
+            "inputs:sheen",
+            "inputs:thin_film_thickness",
+        ] {
+            if self.mtlx_float(shader, unread, 0.0)? > 0.0 {
+                self.warn(format!(
+                    "{}.{unread}: not read by Nimbus's standard_surface mapping; left out",
+                    shader.path().as_str()
+                ));
+            }
+        }
+        Ok(m)
+    }
+
+    /// A MaterialX colour input: an image node's texture (white), else the authored value (a warning names any
+    /// other node connected to it).
+    fn mtlx_color(
+        &mut self,
+        shader: &usd::Prim,
+        name: &str,
+        default: Rgb,
+    ) -> Result<(Rgb, Option<u32>), SceneError> {
+        if let Some(node) = self.connection(shader, name)? {
+            let id = self
+                .value(&node, "info:id")?
+                .and_then(|v| token(&v))
+                .unwrap_or_default();
+            if id.starts_with("ND_image_") || id.starts_with("ND_tiledimage_") {
+                if let Some(t) = self.texture_of(shader, name, true, TextureRole::Color)? {
+                    return Ok((Rgb::ONE, Some(t)));
+                }
+            } else {
+                self.warn_unread_node(shader, name, &node, &id);
+            }
+        }
+        Ok((self.color(shader, name, default)?, None))
+    }
+
+    /// A MaterialX float input's authored value (a warning names any node connected to it).
+    fn mtlx_float(
+        &mut self,
+        shader: &usd::Prim,
+        name: &str,
+        default: f32,
+    ) -> Result<f32, SceneError> {
+        if let Some(node) = self.connection(shader, name)? {
+            let id = self
+                .value(&node, "info:id")?
+                .and_then(|v| token(&v))
+                .unwrap_or_default();
+            self.warn_unread_node(shader, name, &node, &id);
+        }
+        self.float(shader, name, default)
+    }
+
+    /// The warning for a MaterialX node graph Nimbus does not evaluate.
+    fn warn_unread_node(&mut self, shader: &usd::Prim, name: &str, node: &usd::Prim, id: &str) {
+        self.warn(format!(
+            "{}.{name}: MaterialX node {} ('{id}') is not evaluated; the input's own value is used",
+            shader.path().as_str(),
+            node.path().as_str()
+        ));
     }
 
     /// A scalar shader input; a texture connection is reported and its fallback value used.
