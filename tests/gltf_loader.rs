@@ -348,3 +348,44 @@ fn a_missing_or_corrupt_environment_map_is_a_typed_error_naming_the_map() {
         }
     }
 }
+
+/// `EXT_mesh_gpu_instancing`: a node (at y = 1) instances its triangle three times by TRANSLATION, ROTATION and
+/// SCALE accessors. By hand, the vertex (1, 0, 0) lands at (1, 1, 0) (identity), (4, 1, 0) (scale 2, then
+/// x + 2) and (0, 2, −3) (90° about z, then z − 3). The extension used to be ignored: one triangle.
+#[test]
+fn gpu_instancing_places_every_instance() {
+    let dir = std::env::temp_dir().join(format!("nimbus-gltf-instancing-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("instanced.gltf");
+    std::fs::write(
+        &path,
+        r#"{"asset": {"version": "2.0"}, "extensionsUsed": ["EXT_mesh_gpu_instancing"],
+  "scene": 0, "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0, "translation": [0, 1, 0],
+             "extensions": {"EXT_mesh_gpu_instancing": {"attributes": {"TRANSLATION": 1, "ROTATION": 2, "SCALE": 3}}}}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+  "buffers": [{"byteLength": 156, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAAAAAAAAQAAAAAAAAAAAAAAAAAAAAAAAAEDAAAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAPMENT/zBDU/AACAPwAAgD8AAIA/AAAAQAAAAEAAAABAAACAPwAAgD8AAIA/"}],
+  "bufferViews": [{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 36},
+                  {"buffer": 0, "byteOffset": 72, "byteLength": 48}, {"buffer": 0, "byteOffset": 120, "byteLength": 36}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"},
+                {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC4"},
+                {"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC3"}]}"#,
+    )
+    .unwrap();
+    let b = load_builder(&path, &Default::default()).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(b.meshes().len(), 3, "one mesh per instance");
+    let want = [
+        nimbus::math::Vec3::new(1.0, 1.0, 0.0),
+        nimbus::math::Vec3::new(4.0, 1.0, 0.0),
+        nimbus::math::Vec3::new(0.0, 2.0, -3.0),
+    ];
+    for (mesh, want) in b.meshes().iter().zip(want) {
+        assert!(
+            mesh.positions.iter().any(|p| p.distance(want) < 1e-5),
+            "{:?} lacks {want}",
+            mesh.positions
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -52,7 +52,7 @@ use crate::material::{
     AlphaMode, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler, SheenLayer,
     SpecularGlossiness, Texture, UvTransform, Wrap, UV_SETS,
 };
-use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
+use crate::math::{Mat4, Quat, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
 use gltf::json::validation::Validate;
 use std::cell::RefCell;
@@ -77,6 +77,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_pbrSpecularGlossiness",
     "KHR_materials_variants",
     "KHR_texture_transform",
+    "EXT_mesh_gpu_instancing",
 ];
 
 /// Deepest node hierarchy accepted; deeper hierarchies are errors (cycles are refused before loading).
@@ -403,7 +404,14 @@ impl Loader<'_> {
             asset: outer.asset.clone(),
         };
         if let Some(mesh) = node.mesh() {
-            self.load_mesh(&node, mesh, &world, &context)?;
+            match self.instances(&node)? {
+                Some(instances) => {
+                    for instance in &instances {
+                        self.load_mesh(&node, mesh.clone(), &world, instance, &context)?;
+                    }
+                }
+                None => self.load_mesh(&node, mesh, &world, &Mat4::IDENTITY, &context)?,
+            }
         }
         if let Some(camera) = node.camera() {
             self.load_camera(&node, camera, &world, extras.as_ref())?;
@@ -615,17 +623,90 @@ impl Loader<'_> {
         self.builder.add_tagged_light(l, tag);
     }
 
+    /// `EXT_mesh_gpu_instancing` on `node`: one matrix per instance, T·R·S from its `TRANSLATION`, `ROTATION`
+    /// (a unit quaternion) and `SCALE` accessors (each optional, all of one count; the extension's
+    /// specification), placed in the node's frame; `None` without the extension. The instances are loaded as
+    /// copies of the mesh, each counted against the memory budget.
+    fn instances(&self, node: &gltf::Node) -> Result<Option<Vec<Mat4>>, SceneError> {
+        let Some(ext) = node.extension_value("EXT_mesh_gpu_instancing") else {
+            return Ok(None);
+        };
+        let at = format!(
+            "node '{}': extensions.EXT_mesh_gpu_instancing",
+            one_line(&node_name(node), QUOTE)
+        );
+        let attributes = ext
+            .get("attributes")
+            .and_then(|a| a.as_object())
+            .ok_or_else(|| self.malformed(format!("{at}: attributes must be an object")))?;
+        let read =
+            |key: &str, usage: Usage, components: usize| -> Result<Option<Vec<f32>>, SceneError> {
+                let Some(value) = attributes.get(key) else {
+                    return Ok(None);
+                };
+                let accessor = value
+                    .as_u64()
+                    .and_then(|i| usize::try_from(i).ok())
+                    .and_then(|i| self.document.accessors().nth(i))
+                    .ok_or_else(|| self.malformed(format!("{at}.{key}: no such accessor")))?;
+                let floats = read_floats(&accessor, usage, self.buffers, &self.options.limits)
+                    .map_err(|m| self.malformed(format!("{at}.{key}: {m}")))?;
+                if floats.len() % components != 0 || floats.iter().any(|v| !v.is_finite()) {
+                    return Err(self.malformed(format!("{at}.{key}: values must be finite")));
+                }
+                Ok(Some(floats))
+            };
+        let translation = read("TRANSLATION", Usage::KeyVec3, 3)?;
+        let rotation = read("ROTATION", Usage::KeyRotation, 4)?;
+        let scale = read("SCALE", Usage::KeyVec3, 3)?;
+        let counts = [
+            translation.as_ref().map(|t| t.len() / 3),
+            rotation.as_ref().map(|r| r.len() / 4),
+            scale.as_ref().map(|s| s.len() / 3),
+        ];
+        let mut known = counts.iter().flatten();
+        let Some(&count) = known.next() else {
+            return Err(self.malformed(format!("{at}: needs TRANSLATION, ROTATION or SCALE")));
+        };
+        if known.any(|&c| c != count) {
+            return Err(self.malformed(format!(
+                "{at}: the attributes have different counts {counts:?}"
+            )));
+        }
+        let vec3 = |v: &Option<Vec<f32>>, i: usize, default: Vec3| {
+            v.as_ref()
+                .map_or(default, |v| Vec3::from_slice(&v[3 * i..3 * i + 3]))
+        };
+        Ok(Some(
+            (0..count)
+                .map(|i| {
+                    let q = rotation.as_ref().map_or(Quat::IDENTITY, |r| {
+                        Quat::from_slice(&r[4 * i..4 * i + 4]).normalize()
+                    });
+                    Mat4::from_scale_rotation_translation(
+                        vec3(&scale, i, Vec3::ONE),
+                        if q.is_finite() { q } else { Quat::IDENTITY },
+                        vec3(&translation, i, Vec3::ZERO),
+                    )
+                })
+                .collect(),
+        ))
+    }
+
     /// Loads a node's mesh: each triangle primitive's attributes, morphed by the pose's weights, then posed
-    /// by the node's skin or placed by the node's world matrix. Under a shutter, the same is done at each
-    /// motion step, and a mesh whose vertices differ at some step from the frame's gets those steps as its
-    /// motion (transform, morph and skin blur alike).
+    /// by the node's skin or placed by the node's world matrix (times `instance`, an `EXT_mesh_gpu_instancing`
+    /// instance's own, else the identity). Under a shutter, the same is done at each motion step, and a mesh
+    /// whose vertices differ at some step from the frame's gets those steps as its motion (transform, morph
+    /// and skin blur alike).
     fn load_mesh(
         &mut self,
         node: &gltf::Node,
         mesh: gltf::Mesh,
-        world: &Mat4,
+        node_world: &Mat4,
+        instance: &Mat4,
         context: &NodeContext,
     ) -> Result<(), SceneError> {
+        let world = &(*node_world * *instance);
         let mesh_name = mesh
             .name()
             .map_or_else(|| format!("mesh {}", mesh.index()), |n| one_line(n, QUOTE));
@@ -646,7 +727,8 @@ impl Loader<'_> {
                     .zip(&m.worlds)
                     .enumerate()
                     .map(|(k, (pose, worlds))| {
-                        self.deformation(node, &mesh, pose, k + 1, worlds, &worlds[node.index()])
+                        let world = worlds[node.index()] * *instance;
+                        self.deformation(node, &mesh, pose, k + 1, worlds, &world)
                     })
                     .collect::<Result<Vec<_>, _>>()?,
             ),
