@@ -381,6 +381,7 @@ def Xform "Mover"
     uniform token[] xformOpOrder = ["xformOp:translate"]
     def Mesh "Quad"
     {{
+        uniform token subdivisionScheme = "none"
         int[] faceVertexCounts = [4]
         int[] faceVertexIndices = [0, 1, 2, 3]
         point3f[] points = [({x0}, -0.5, 0), ({x1}, -0.5, 0), ({x1}, 0.5, 0), ({x0}, 0.5, 0)]
