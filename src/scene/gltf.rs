@@ -47,8 +47,8 @@ use crate::light::{
 };
 use crate::limits::{one_line, Limits, WorkBudget};
 use crate::material::{
-    AlphaMode, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler, SheenLayer,
-    Texture, UvTransform, Wrap, UV_SETS,
+    AlphaMode, Anisotropy, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler,
+    SheenLayer, Texture, UvTransform, Wrap, UV_SETS,
 };
 use crate::math::{Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
@@ -72,6 +72,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_unlit",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
+    "KHR_materials_anisotropy",
     "KHR_texture_transform",
 ];
 
@@ -957,6 +958,7 @@ impl Loader<'_> {
         });
         let clearcoat = self.clearcoat(&material, &at)?;
         let sheen = self.sheen(&material, &at)?;
+        let anisotropy = self.anisotropy(&material, &at)?;
         let m = Material {
             name: material.name().map_or_else(
                 || format!("material {}", material.index().map_or(-1, |i| i as i64)),
@@ -984,6 +986,7 @@ impl Loader<'_> {
             unlit: material.unlit(),
             clearcoat,
             sheen,
+            anisotropy,
             tags: CompositingTags::default(),
         };
         let mut m = m;
@@ -1069,6 +1072,38 @@ impl Loader<'_> {
             color_texture,
             roughness,
             roughness_texture,
+        }))
+    }
+
+    /// `KHR_materials_anisotropy` of a material, when present: `anisotropyStrength` in \[0, 1\] (default 0),
+    /// `anisotropyRotation` a finite number of radians (default 0), `anisotropyTexture` read as linear data.
+    fn anisotropy(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<Anisotropy>, SceneError> {
+        let at = format!("{at}.extensions.KHR_materials_anisotropy");
+        let Some(ext) = self.extension_object(material, "KHR_materials_anisotropy", &at)? else {
+            return Ok(None);
+        };
+        let strength = self.unit_number(&ext, "anisotropyStrength", 0.0, &at)?;
+        let rotation = match ext.get("anisotropyRotation") {
+            None => 0.0,
+            Some(v) => v
+                .as_f64()
+                .map(|r| r as f32)
+                .filter(|r| r.is_finite())
+                .ok_or_else(|| {
+                    self.malformed(format!(
+                        "{at}.anisotropyRotation must be a finite number (radians)"
+                    ))
+                })?,
+        };
+        let texture = self.ext_texture(&ext, "anisotropyTexture", ColorSpace::Linear, &at)?;
+        Ok(Some(Anisotropy {
+            strength,
+            rotation,
+            texture,
         }))
     }
 
