@@ -15,7 +15,7 @@
 //!
 //! `KHR_materials_anisotropy` makes the specular reflection (dielectric specular and metal) an anisotropic GGX:
 //! with `s` the strength and α = roughness², the width along the anisotropy direction is
-//! `α_t = mix(α, 1, s²)` and across it `α_b = α` (the extension's "Implementation" section), the anisotropy
+//! `α_t = mix(α, 1, s²)` and across it `α_b = α` (the formulas of the extension's specification), the anisotropy
 //! direction being [`PbrParams::anisotropy_direction`] in the shading frame's tangent plane. The transmissive
 //! interface, the clear coat and the colour estimates keep the isotropic α.
 //!
@@ -157,13 +157,13 @@ impl GltfPbr {
 
     /// A shading-frame direction in the anisotropy frame: rotated by −φ about the normal so that the
     /// anisotropy direction becomes x. The identity, exactly, for the direction `(1, 0)`.
-    fn to_anisotropy_frame(&self, v: Vec3) -> Vec3 {
+    fn anisotropy_local(&self, v: Vec3) -> Vec3 {
         let (c, s) = (self.anisotropy_direction.x, self.anisotropy_direction.y);
         Vec3::new(c * v.x + s * v.y, c * v.y - s * v.x, v.z)
     }
 
-    /// The inverse of [`GltfPbr::to_anisotropy_frame`].
-    fn from_anisotropy_frame(&self, v: Vec3) -> Vec3 {
+    /// The inverse of [`GltfPbr::anisotropy_local`].
+    fn shading_local(&self, v: Vec3) -> Vec3 {
         let (c, s) = (self.anisotropy_direction.x, self.anisotropy_direction.y);
         Vec3::new(c * v.x - s * v.y, s * v.x + c * v.y, v.z)
     }
@@ -228,8 +228,8 @@ impl GltfPbr {
             return Some((diffuse, Rgb::ZERO));
         }
         let ggx = self.specular;
-        let (o, i) = (self.to_anisotropy_frame(wo), self.to_anisotropy_frame(wi));
-        let m = self.to_anisotropy_frame(h);
+        let (o, i) = (self.anisotropy_local(wo), self.anisotropy_local(wi));
+        let m = self.anisotropy_local(h);
         Some((
             diffuse,
             ks * (ggx.d(m) * ggx.g2(o, i) / (4.0 * wo.z * wi.z)),
@@ -252,7 +252,7 @@ impl GltfPbr {
         let mut pdf = pd * wi.z * FRAC_1_PI;
         if !self.specular_is_delta() && pd < 1.0 {
             let h = (wo + wi).normalize();
-            let (o, m) = (self.to_anisotropy_frame(wo), self.to_anisotropy_frame(h));
+            let (o, m) = (self.anisotropy_local(wo), self.anisotropy_local(h));
             pdf += (1.0 - pd) * self.specular.pdf_visible(o, m) / (4.0 * wo.dot(h));
         }
         pdf
@@ -397,8 +397,8 @@ impl GltfPbr {
                     class: LobeClass::Glossy,
                 });
             } else {
-                let o = self.to_anisotropy_frame(wo);
-                let h = self.from_anisotropy_frame(self.specular.sample_visible(o, u));
+                let o = self.anisotropy_local(wo);
+                let h = self.shading_local(self.specular.sample_visible(o, u));
                 (fresnel::reflect(wo, h), LobeClass::Glossy)
             }
         };
@@ -414,7 +414,7 @@ impl GltfPbr {
 }
 
 /// The specular GGX and the unit anisotropy direction for isotropic width `alpha` and the anisotropy of `p`
-/// (`KHR_materials_anisotropy`, "Implementation": `α_t = mix(α, 1, s²)`, `α_b = α`). Without anisotropy, or
+/// (`KHR_materials_anisotropy`'s specification: `α_t = mix(α, 1, s²)`, `α_b = α`). Without anisotropy, or
 /// when even `α_t` is below [`DELTA_ALPHA`] (a mirror), `(α, α)` along `(1, 0)`; otherwise `α_b` is kept at
 /// least [`DELTA_ALPHA`] so that the distribution stays a function (roughness 0 with anisotropy is a
 /// one-dimensional streak).

@@ -30,10 +30,10 @@ impl Ggx {
         }
     }
 
-    /// Normal distribution `D(m) = 1 / (π αx αy (mx²/αx² + my²/αy² + mz²)²)` (Heitz 2014, "Understanding the
-    /// Masking-Shadowing Function in Microfacet-Based BRDFs", JCGT 3(2), eq. 85; for αx = αy it is Walter et
-    /// al. 2007, "Microfacet Models for Refraction through Rough Surfaces", eq. 33), in this form to keep
-    /// precision for small α. Zero for `m.z <= 0`.
+    /// Normal distribution `D(m) = 1 / (π αx αy (mx²/αx² + my²/αy² + mz²)²)` (the anisotropic GGX of Heitz
+    /// 2014, "Understanding the Masking-Shadowing Function in Microfacet-Based BRDFs", JCGT 3(2); for αx = αy it
+    /// is Walter et al. 2007, "Microfacet Models for Refraction through Rough Surfaces", eq. 33), in this form to
+    /// keep precision for small α. Zero for `m.z <= 0`.
     pub fn d(&self, m: Vec3) -> f32 {
         if m.z <= 0.0 {
             return 0.0;
@@ -44,8 +44,8 @@ impl Ggx {
     }
 
     /// Smith's auxiliary function for GGX, `Λ(ω) = (−1 + √(1 + α(φ)² tan²θ)) / 2` with
-    /// `α(φ)² tan²θ = (αx² ωx² + αy² ωy²) / ωz²` (Heitz 2014, eqs. 80 and 86: the isotropic Λ with the width of
-    /// the distribution projected on ω's azimuth).
+    /// `α(φ)² tan²θ = (αx² ωx² + αy² ωy²) / ωz²` (Heitz 2014: the GGX Λ of an anisotropic distribution is the
+    /// isotropic one with the roughness projected on ω's azimuth, `α(φ)² = cos²φ αx² + sin²φ αy²`).
     pub fn lambda(&self, w: Vec3) -> f32 {
         let (ax, ay) = (self.alpha_x, self.alpha_y);
         let s2 = ax * ax * w.x * w.x + ay * ay * w.y * w.y;
@@ -79,9 +79,9 @@ impl Ggx {
     }
 
     /// Samples a microfacet normal from the distribution of visible normals for `wo` (`wo.z > 0`), exactly, by
-    /// the method of Heitz 2018 (JCGT 7(4), listing 1): stretch `wo` by (αx, αy) to the α = 1 configuration
-    /// (§3, eq. 1 of the stretch), sample the projected hemisphere as a disk warped toward its visible half
-    /// (§4), lift to the hemisphere and unstretch (the inverse stretch, normalised).
+    /// the method of Heitz 2018 (JCGT 7(4), its sampling routine): stretch `wo` by (αx, αy) to the α = 1
+    /// configuration, sample the projected hemisphere as a disk warped toward its visible half, lift to the
+    /// hemisphere and unstretch the normal (scale by (αx, αy, 1), normalise).
     pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
         let (ax, ay) = (self.alpha_x, self.alpha_y);
         let vh = Vec3::new(ax * wo.x, ay * wo.y, wo.z).normalize();
@@ -250,8 +250,8 @@ mod tests {
 
     #[test]
     fn anisotropic_distribution_is_normalised_and_its_projected_area_is_cos_theta_o() {
-        // ∫ D(m) cos θm dm = 1 (Heitz 2014, eq. 4) and ∫ G1(wo) max(0, wo·m) D(m) dm = cos θo (eq. 7: the
-        // projected area of the visible microsurface is that of the macrosurface), by deterministic quadrature.
+        // ∫ D(m) cos θm dm = 1 and ∫ G1(wo) max(0, wo·m) D(m) dm = cos θo (Heitz 2014: the projected areas of
+        // the microsurface and of its visible part are those of the macrosurface), by deterministic quadrature.
         for (ggx, wo) in anisotropic_cases() {
             let norm = hemisphere_integral(&ggx, 4096, 512, |m| (ggx.d(m) * m.z) as f64);
             let g1 = ggx.g1(wo) as f64;
@@ -273,7 +273,7 @@ mod tests {
     #[test]
     fn isotropic_widths_give_the_isotropic_formulas() {
         // With αx = αy the anisotropic D and Λ are the isotropic closed forms (Walter et al. 2007, eq. 33;
-        // Heitz 2014, eq. 86) at every azimuth.
+        // Heitz 2014's GGX Λ) at every azimuth.
         let a = 0.3f32;
         let ggx = Ggx::isotropic(a);
         for (theta, phi) in [(0.2f32, 0.0f32), (0.7, 1.0), (1.3, -2.5)] {

@@ -197,7 +197,7 @@ fn decode_normal(t: Vec4, scale: f32) -> Option<Vec3> {
 
 impl Anisotropy {
     /// The strength and the direction in tangent space at a point whose anisotropy texel is `texel`
-    /// (`KHR_materials_anisotropy`, "Anisotropy" and "Implementation"): the direction is the texel's RG mapped
+    /// (`KHR_materials_anisotropy`'s specification and its property descriptions): the direction is the texel's RG mapped
     /// to \[−1, 1\] (`(1, 0)` without a texture, or where the texel's direction is zero) and normalised, then
     /// rotated counter-clockwise by `rotation`; the strength is `strength` × the texel's B, in \[0, 1\].
     pub fn at(&self, texel: Option<Vec4>) -> (f32, Vec2) {
