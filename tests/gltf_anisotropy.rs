@@ -164,6 +164,30 @@ fn the_extension_is_read_with_its_texture_and_the_mesh_gets_tangents() {
 }
 
 #[test]
+fn a_mesh_without_texture_coordinates_warns_that_its_direction_is_arbitrary() {
+    let text = plane_gltf(
+        &metal(r#"{"anisotropyStrength":0.5}"#),
+        &png_uri([255; 4]),
+        Vec3::Z,
+    )
+    .replace(r#","TEXCOORD_0":2"#, "");
+    let path = write("no-uv.gltf", &text);
+    let scene = load_builder(&path, &Default::default())
+        .unwrap()
+        .build()
+        .unwrap();
+    assert!(scene.meshes()[0].tangents.is_none());
+    assert!(
+        scene
+            .warnings()
+            .iter()
+            .any(|w| w.contains("neither tangents nor texture coordinates")),
+        "{:?}",
+        scene.warnings()
+    );
+}
+
+#[test]
 fn defaults_and_bad_values() {
     // An empty extension object is strength 0: exactly the isotropic BSDF.
     let b = load("empty.gltf", &metal("{}"), [255; 4]);

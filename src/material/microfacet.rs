@@ -44,8 +44,8 @@ impl Ggx {
     }
 
     /// Smith's auxiliary function for GGX, `Λ(ω) = (−1 + √(1 + α(φ)² tan²θ)) / 2` with
-    /// `α(φ)² tan²θ = (αx² ωx² + αy² ωy²) / ωz²` (Heitz 2014: the GGX Λ of an anisotropic distribution is the
-    /// isotropic one with the roughness projected on ω's azimuth, `α(φ)² = cos²φ αx² + sin²φ αy²`).
+    /// `α(φ)² tan²θ = (αx² ωx² + αy² ωy²) / ωz²` (Heitz 2014: the GGX Λ of an anisotropic distribution is
+    /// the isotropic one with the roughness projected on ω's azimuth, `α(φ)² = cos²φ αx² + sin²φ αy²`).
     pub fn lambda(&self, w: Vec3) -> f32 {
         let (ax, ay) = (self.alpha_x, self.alpha_y);
         let s2 = ax * ax * w.x * w.x + ay * ay * w.y * w.y;

@@ -10,10 +10,10 @@
 //! `KHR_materials_clearcoat.{clearcoatFactor, clearcoatTexture, clearcoatRoughnessFactor,
 //! clearcoatRoughnessTexture, clearcoatNormalTexture}` and `KHR_materials_sheen.{sheenColorFactor,
 //! sheenColorTexture, sheenRoughnessFactor, sheenRoughnessTexture}` and
-//! `KHR_materials_anisotropy.{anisotropyStrength, anisotropyRotation, anisotropyTexture}`. Every texture reference may carry
-//! `texCoord` and `KHR_texture_transform` (held by the [`Texture`] it names). The mesh's vertex colour
-//! (`COLOR_0`) multiplies the base colour and its alpha. OBJ/MTL materials are mapped onto the same fields by
-//! the OBJ loader.
+//! `KHR_materials_anisotropy.{anisotropyStrength, anisotropyRotation, anisotropyTexture}`. Every texture
+//! reference may carry `texCoord` and `KHR_texture_transform` (held by the [`Texture`] it names). The mesh's
+//! vertex colour (`COLOR_0`) multiplies the base colour and its alpha. OBJ/MTL materials are mapped onto the
+//! same fields by the OBJ loader.
 //!
 //! Choices where a path tracer differs from a rasteriser:
 //! - Unlit (`KHR_materials_unlit`): the surface emits its base colour (× texture × vertex colour) toward the
@@ -197,9 +197,10 @@ fn decode_normal(t: Vec4, scale: f32) -> Option<Vec3> {
 
 impl Anisotropy {
     /// The strength and the direction in tangent space at a point whose anisotropy texel is `texel`
-    /// (`KHR_materials_anisotropy`'s specification and its property descriptions): the direction is the texel's RG mapped
-    /// to \[−1, 1\] (`(1, 0)` without a texture, or where the texel's direction is zero) and normalised, then
-    /// rotated counter-clockwise by `rotation`; the strength is `strength` × the texel's B, in \[0, 1\].
+    /// (`KHR_materials_anisotropy`'s specification and its property descriptions): the direction is the
+    /// texel's RG mapped to \[−1, 1\] (`(1, 0)` without a texture, or where the texel's direction is zero) and
+    /// normalised, then rotated counter-clockwise by `rotation`; the strength is `strength` × the texel's B, in
+    /// \[0, 1\].
     pub fn at(&self, texel: Option<Vec4>) -> (f32, Vec2) {
         let (direction, scale) = texel.map_or((Vec2::X, 1.0), |t| {
             let d = Vec2::new(2.0 * t.x - 1.0, 2.0 * t.y - 1.0);
@@ -402,10 +403,16 @@ impl Material {
         self.normal_texture.is_some()
     }
 
-    /// True when the material's shading needs a tangent frame: a normal map, or anisotropy
-    /// (`KHR_materials_anisotropy` directions are given in tangent space).
+    /// True when the material's specular reflection can be anisotropic (`KHR_materials_anisotropy` with a
+    /// positive strength; a texture only scales it down).
+    pub fn is_anisotropic(&self) -> bool {
+        self.anisotropy.is_some_and(|a| a.strength > 0.0)
+    }
+
+    /// True when the material's shading needs a tangent frame: a normal map, or anisotropy (its directions are
+    /// given in tangent space).
     pub fn needs_tangents(&self) -> bool {
-        self.has_normal_map() || self.anisotropy.is_some_and(|a| a.strength > 0.0)
+        self.has_normal_map() || self.is_anisotropic()
     }
 
     /// The tangent-space normal from the normal map at a point (z up), or `None` without a normal map.

@@ -679,7 +679,7 @@ impl SceneBuilder {
             if mesh.tangents.is_none() && material.needs_tangents() {
                 if mesh.uvs.is_some() {
                     mesh.generate_tangents();
-                } else if material.anisotropy.is_some() {
+                } else if material.is_anisotropic() {
                     self.warnings.push(format!(
                         "mesh '{}' has an anisotropic material but neither tangents nor texture coordinates: \
                          its anisotropy direction is arbitrary",
