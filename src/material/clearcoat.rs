@@ -88,7 +88,7 @@ impl Clearcoat {
             return 0.0;
         };
         let h = (o + i).normalize();
-        let ggx = Ggx { alpha: self.alpha };
+        let ggx = Ggx::isotropic(self.alpha);
         ggx.d(h) * ggx.g2(o, i) / (4.0 * o.z * wi.z)
     }
 
@@ -102,7 +102,7 @@ impl Clearcoat {
             return 0.0;
         };
         let h = (o + i).normalize();
-        Ggx { alpha: self.alpha }.pdf_visible(o, h) / (4.0 * o.dot(h))
+        Ggx::isotropic(self.alpha).pdf_visible(o, h) / (4.0 * o.dot(h))
     }
 
     /// Samples a reflected direction: a visible GGX normal, or the coat normal itself for a mirror coat.
@@ -116,7 +116,7 @@ impl Clearcoat {
         let h = if self.is_delta() {
             Vec3::Z
         } else {
-            Ggx { alpha: self.alpha }.sample_visible(o, u)
+            Ggx::isotropic(self.alpha).sample_visible(o, u)
         };
         let i = reflect(o, h);
         let wi = frame.to_world(i);

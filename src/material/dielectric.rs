@@ -64,7 +64,7 @@ impl Dielectric {
             return Rgb::ZERO;
         }
         let (wo, wi, eta) = orient(self.ior, wo, wi);
-        let ggx = Ggx { alpha: self.alpha };
+        let ggx = Ggx::isotropic(self.alpha);
         if wi.z > 0.0 {
             let h = (wo + wi).normalize();
             let f = fresnel::dielectric(wo.dot(h), eta);
@@ -125,7 +125,7 @@ impl Dielectric {
             return 0.0;
         }
         let (wo, wi, eta) = orient(self.ior, wo, wi);
-        let ggx = Ggx { alpha: self.alpha };
+        let ggx = Ggx::isotropic(self.alpha);
         if wi.z > 0.0 {
             let h = (wo + wi).normalize();
             let oh = wo.dot(h);
@@ -168,7 +168,7 @@ impl Dielectric {
                 delta: Some((value, 1.0 - f)),
             });
         }
-        let h = Ggx { alpha: self.alpha }.sample_visible(wo_up, u);
+        let h = Ggx::isotropic(self.alpha).sample_visible(wo_up, u);
         let oh = wo_up.dot(h);
         if oh <= 0.0 {
             return None;

@@ -13,6 +13,12 @@
 //! - `specular = D G2 / (4 |wo.z| |wi.z|)`, GGX with the height-correlated Smith G2, or a delta mirror when α is
 //!   below [`DELTA_ALPHA`].
 //!
+//! `KHR_materials_anisotropy` makes the specular reflection (dielectric specular and metal) an anisotropic GGX:
+//! with `s` the strength and α = roughness², the width along the anisotropy direction is
+//! `α_t = mix(α, 1, s²)` and across it `α_b = α` (the formulas of the extension's specification), the anisotropy
+//! direction being [`PbrParams::anisotropy_direction`] in the shading frame's tangent plane. The transmissive
+//! interface, the clear coat and the colour estimates keep the isotropic α.
+//!
 //! The transmissive part is a [`Dielectric`] interface tinted by the base colour. Metals do not transmit, so the
 //! BSDF is `(1 − t)·opaque + t·dielectric` with `t = transmission · (1 − metallic)`.
 
@@ -50,6 +56,14 @@ pub struct PbrParams {
     pub sheen_color: Rgb,
     /// `KHR_materials_sheen.sheenRoughnessFactor` × texture. Default 0.
     pub sheen_roughness: f32,
+    /// `KHR_materials_anisotropy.anisotropyStrength` × the anisotropy texture's blue channel, in \[0, 1\].
+    /// Default 0 (isotropic).
+    pub anisotropy_strength: f32,
+    /// The anisotropy direction in the shading frame's tangent plane, `(cos, sin)` of its angle from the
+    /// tangent toward the bitangent: the texture's RG direction (or `(1, 0)`) rotated counter-clockwise by
+    /// `anisotropyRotation`. Need not be unit length; a zero or non-finite direction means the tangent.
+    /// Default `(1, 0)`.
+    pub anisotropy_direction: Vec2,
 }
 
 impl Default for PbrParams {
@@ -67,6 +81,8 @@ impl Default for PbrParams {
             clearcoat_roughness: 0.0,
             sheen_color: Rgb::ZERO,
             sheen_roughness: 0.0,
+            anisotropy_strength: 0.0,
+            anisotropy_direction: Vec2::X,
         }
     }
 }
@@ -83,8 +99,14 @@ pub struct GltfPbr {
     pub specular_factor: f32,
     /// Dielectric f0: `min(((ior − 1)/(ior + 1))² · specularColor, 1)`.
     pub f0: Rgb,
-    /// GGX α of the specular lobes.
+    /// Isotropic GGX α = roughness²: the transmissive interface's, and the colour estimates'.
     pub alpha: f32,
+    /// The GGX of the specular reflection lobes in the anisotropy frame (x along the anisotropy direction):
+    /// `(α_t, α_b)` of `KHR_materials_anisotropy`, `(α, α)` without anisotropy.
+    pub specular: Ggx,
+    /// Unit anisotropy direction `(cos φ, sin φ)` in the shading frame's tangent plane; `(1, 0)` without
+    /// anisotropy.
+    pub anisotropy_direction: Vec2,
     /// Effective transmission weight `transmission · (1 − metallic)`, in \[0, 1).
     pub transmission: f32,
     /// The transmissive interface (ior, α, tint = base colour).
@@ -110,12 +132,15 @@ impl GltfPbr {
         let alpha = roughness * roughness;
         let r = (ior - 1.0) / (ior + 1.0);
         let base_color = p.base_color.max(Rgb::ZERO);
+        let (specular, anisotropy_direction) = anisotropic_specular(alpha, p);
         Self {
             base_color,
             metallic,
             specular_factor: p.specular_factor.clamp(0.0, 1.0),
             f0: (r * r * p.specular_color.max(Rgb::ZERO)).min(Rgb::ONE),
             alpha,
+            specular,
+            anisotropy_direction,
             transmission: p.transmission.clamp(0.0, 1.0) * (1.0 - metallic),
             dielectric: Dielectric {
                 ior,
@@ -125,9 +150,22 @@ impl GltfPbr {
         }
     }
 
-    /// True when the specular lobes are delta mirrors.
+    /// True when the specular lobes are delta mirrors (`α_t ≥ α_b`, so the wider width decides).
     fn specular_is_delta(&self) -> bool {
-        self.alpha < DELTA_ALPHA
+        self.specular.alpha_x < DELTA_ALPHA
+    }
+
+    /// A shading-frame direction in the anisotropy frame: rotated by −φ about the normal so that the
+    /// anisotropy direction becomes x. The identity, exactly, for the direction `(1, 0)`.
+    fn anisotropy_local(&self, v: Vec3) -> Vec3 {
+        let (c, s) = (self.anisotropy_direction.x, self.anisotropy_direction.y);
+        Vec3::new(c * v.x + s * v.y, c * v.y - s * v.x, v.z)
+    }
+
+    /// The inverse of [`GltfPbr::anisotropy_local`].
+    fn shading_local(&self, v: Vec3) -> Vec3 {
+        let (c, s) = (self.anisotropy_direction.x, self.anisotropy_direction.y);
+        Vec3::new(c * v.x - s * v.y, s * v.x + c * v.y, v.z)
     }
 
     /// True when the diffuse lobe can be non-zero.
@@ -189,10 +227,12 @@ impl GltfPbr {
         if self.specular_is_delta() {
             return Some((diffuse, Rgb::ZERO));
         }
-        let ggx = Ggx { alpha: self.alpha };
+        let ggx = self.specular;
+        let (o, i) = (self.anisotropy_local(wo), self.anisotropy_local(wi));
+        let m = self.anisotropy_local(h);
         Some((
             diffuse,
-            ks * (ggx.d(h) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z)),
+            ks * (ggx.d(m) * ggx.g2(o, i) / (4.0 * wo.z * wi.z)),
         ))
     }
 
@@ -212,7 +252,8 @@ impl GltfPbr {
         let mut pdf = pd * wi.z * FRAC_1_PI;
         if !self.specular_is_delta() && pd < 1.0 {
             let h = (wo + wi).normalize();
-            pdf += (1.0 - pd) * Ggx { alpha: self.alpha }.pdf_visible(wo, h) / (4.0 * wo.dot(h));
+            let (o, m) = (self.anisotropy_local(wo), self.anisotropy_local(h));
+            pdf += (1.0 - pd) * self.specular.pdf_visible(o, m) / (4.0 * wo.dot(h));
         }
         pdf
     }
@@ -356,7 +397,8 @@ impl GltfPbr {
                     class: LobeClass::Glossy,
                 });
             } else {
-                let h = Ggx { alpha: self.alpha }.sample_visible(wo, u);
+                let o = self.anisotropy_local(wo);
+                let h = self.shading_local(self.specular.sample_visible(o, u));
                 (fresnel::reflect(wo, h), LobeClass::Glossy)
             }
         };
@@ -369,4 +411,35 @@ impl GltfPbr {
             class,
         })
     }
+}
+
+/// The specular GGX and the unit anisotropy direction for isotropic width `alpha` and the anisotropy of `p`
+/// (`KHR_materials_anisotropy`'s specification: `α_t = mix(α, 1, s²)`, `α_b = α`). Without anisotropy, or
+/// when even `α_t` is below [`DELTA_ALPHA`] (a mirror), `(α, α)` along `(1, 0)`; otherwise `α_b` is kept at
+/// least [`DELTA_ALPHA`] so that the distribution stays a function (roughness 0 with anisotropy is a
+/// one-dimensional streak).
+fn anisotropic_specular(alpha: f32, p: &PbrParams) -> (Ggx, Vec2) {
+    let strength = if p.anisotropy_strength.is_nan() {
+        0.0
+    } else {
+        p.anisotropy_strength.clamp(0.0, 1.0)
+    };
+    let alpha_t = alpha + (1.0 - alpha) * strength * strength;
+    let direction = p.anisotropy_direction;
+    let length = direction.length();
+    if strength <= 0.0 || alpha_t < DELTA_ALPHA {
+        return (Ggx::isotropic(alpha), Vec2::X);
+    }
+    let direction = if length.is_finite() && length > 0.0 {
+        direction / length
+    } else {
+        Vec2::X
+    };
+    (
+        Ggx {
+            alpha_x: alpha_t,
+            alpha_y: alpha.max(DELTA_ALPHA),
+        },
+        direction,
+    )
 }

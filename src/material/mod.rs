@@ -29,7 +29,7 @@ pub use lobes::{LobeClass, LobeSplit};
 pub use microfacet::{Ggx, DELTA_ALPHA};
 pub use sheen::Sheen;
 pub use spec_gloss::{to_metallic_roughness, MetallicRoughness, SpecularGlossiness};
-pub use surface::{AlphaMode, ClearcoatLayer, Material, SheenLayer, TextureId};
+pub use surface::{AlphaMode, Anisotropy, ClearcoatLayer, Material, SheenLayer, TextureId};
 pub use texture::{
     ColorSpace, Filter, MipImage, Sampler, ShadingPoint, TexCoord, Texture, UvTransform, Wrap,
     UV_SETS,

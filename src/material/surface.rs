@@ -9,7 +9,8 @@
 //! `KHR_materials_transmission.transmissionFactor`, `KHR_materials_ior.ior` (default 1.5), `KHR_materials_unlit`,
 //! `KHR_materials_clearcoat.{clearcoatFactor, clearcoatTexture, clearcoatRoughnessFactor,
 //! clearcoatRoughnessTexture, clearcoatNormalTexture}` and `KHR_materials_sheen.{sheenColorFactor,
-//! sheenColorTexture, sheenRoughnessFactor, sheenRoughnessTexture}`, and the archived
+//! sheenColorTexture, sheenRoughnessFactor, sheenRoughnessTexture}`,
+//! `KHR_materials_anisotropy.{anisotropyStrength, anisotropyRotation, anisotropyTexture}`, and the archived
 //! `KHR_materials_pbrSpecularGlossiness.{diffuseFactor, diffuseTexture, specularFactor, glossinessFactor,
 //! specularGlossinessTexture}`, converted where the material is shaded to the base colour, metalness and
 //! roughness it replaces (see [`super::spec_gloss`]). Every texture reference may carry
@@ -32,7 +33,7 @@ use super::spec_gloss::{to_metallic_roughness, MetallicRoughness, SpecularGlossi
 use super::texture::{ShadingPoint, Texture};
 use super::{Bsdf, PbrParams};
 use crate::geometry::CompositingTags;
-use crate::math::{Frame, Rgb, Vec3, Vec4};
+use crate::math::{Frame, Rgb, Vec2, Vec3, Vec4};
 
 /// A texture reference: an index into the scene's texture list.
 pub type TextureId = u32;
@@ -87,6 +88,8 @@ pub struct Material {
     /// `KHR_materials_pbrSpecularGlossiness`, when present: it replaces `base_color`, `base_color_texture`,
     /// `metallic`, `roughness` and `metallic_roughness_texture` (converted at each shading point).
     pub specular_glossiness: Option<SpecularGlossiness>,
+    /// `KHR_materials_anisotropy`, when present.
+    pub anisotropy: Option<Anisotropy>,
     /// Light group, holdout and shadow-catcher tags of every surface with this material (`extras`
     /// `nimbus_light_group`, `nimbus_holdout`, `nimbus_shadow_catcher`; see [`CompositingTags`]).
     pub tags: CompositingTags,
@@ -119,6 +122,19 @@ pub struct SheenLayer {
     pub roughness: f32,
     /// `sheenRoughnessTexture`: its alpha channel multiplies `roughness`.
     pub roughness_texture: Option<TextureId>,
+}
+
+/// The anisotropy of a material's specular reflection (`KHR_materials_anisotropy`): the strength and the
+/// direction, in the tangent frame, along which the GGX width grows (see [`super::GltfPbr`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Anisotropy {
+    /// `anisotropyStrength`, in \[0, 1\] (default 0: isotropic).
+    pub strength: f32,
+    /// `anisotropyRotation`: radians counter-clockwise from the tangent toward the bitangent (default 0).
+    pub rotation: f32,
+    /// `anisotropyTexture` (linear): RG the direction in tangent space, encoded `[0, 1] → [−1, 1]`, before the
+    /// rotation; B multiplies `strength`.
+    pub texture: Option<TextureId>,
 }
 
 /// How a material's alpha (`base_color.w` × the base-colour texture's alpha × `alpha_texture`) covers the surface
@@ -163,6 +179,7 @@ impl Default for Material {
             clearcoat: None,
             sheen: None,
             specular_glossiness: None,
+            anisotropy: None,
             tags: CompositingTags::default(),
         }
     }
@@ -207,6 +224,27 @@ fn decode_normal(t: Vec4, scale: f32) -> Option<Vec3> {
     )
     .normalize_or_zero();
     (n.z > 0.0).then_some(n)
+}
+
+impl Anisotropy {
+    /// The strength and the direction in tangent space at a point whose anisotropy texel is `texel`
+    /// (`KHR_materials_anisotropy`'s specification and its property descriptions): the direction is the
+    /// texel's RG mapped to \[−1, 1\] (`(1, 0)` without a texture, or where the texel's direction is zero) and
+    /// normalised, then rotated counter-clockwise by `rotation`; the strength is `strength` × the texel's B, in
+    /// \[0, 1\].
+    pub fn at(&self, texel: Option<Vec4>) -> (f32, Vec2) {
+        let (direction, scale) = texel.map_or((Vec2::X, 1.0), |t| {
+            let d = Vec2::new(2.0 * t.x - 1.0, 2.0 * t.y - 1.0);
+            (d.try_normalize().unwrap_or(Vec2::X), t.z)
+        });
+        let (sin, cos) = self.rotation.sin_cos();
+        let rotated = Vec2::new(
+            cos * direction.x - sin * direction.y,
+            sin * direction.x + cos * direction.y,
+        );
+        let strength = (self.strength * scale).clamp(0.0, 1.0);
+        (if strength.is_nan() { 0.0 } else { strength }, rotated)
+    }
 }
 
 impl Material {
@@ -321,6 +359,10 @@ impl Material {
             sheen_roughness =
                 s.roughness * lookup(textures, s.roughness_texture, at).map_or(1.0, |t| t.w);
         }
+        let (anisotropy_strength, anisotropy_direction) = self
+            .anisotropy
+            .as_ref()
+            .map_or((0.0, Vec2::X), |a| a.at(lookup(textures, a.texture, at)));
         PbrParams {
             base_color: base.clamp(Vec3::ZERO, Vec3::ONE),
             metallic: metallic.clamp(0.0, 1.0),
@@ -333,6 +375,8 @@ impl Material {
             clearcoat_roughness: clearcoat_roughness.clamp(0.0, 1.0),
             sheen_color: sheen_color.clamp(Rgb::ZERO, Rgb::ONE),
             sheen_roughness: sheen_roughness.clamp(0.0, 1.0),
+            anisotropy_strength,
+            anisotropy_direction,
         }
     }
 
@@ -377,6 +421,7 @@ impl Material {
             .specular_glossiness
             .iter()
             .flat_map(|s| [s.diffuse_texture, s.specular_glossiness_texture]);
+        let anisotropy = self.anisotropy.iter().map(|a| a.texture);
         [
             self.base_color_texture,
             self.metallic_roughness_texture,
@@ -389,6 +434,7 @@ impl Material {
         .chain(coat)
         .chain(sheen)
         .chain(spec_gloss)
+        .chain(anisotropy)
         .flatten()
     }
 
@@ -406,6 +452,18 @@ impl Material {
     /// True when the material has a normal map.
     pub fn has_normal_map(&self) -> bool {
         self.normal_texture.is_some()
+    }
+
+    /// True when the material's specular reflection can be anisotropic (`KHR_materials_anisotropy` with a
+    /// positive strength; a texture only scales it down).
+    pub fn is_anisotropic(&self) -> bool {
+        self.anisotropy.is_some_and(|a| a.strength > 0.0)
+    }
+
+    /// True when the material's shading needs a tangent frame: a normal map, or anisotropy (its directions are
+    /// given in tangent space).
+    pub fn needs_tangents(&self) -> bool {
+        self.has_normal_map() || self.is_anisotropic()
     }
 
     /// The tangent-space normal from the normal map at a point (z up), or `None` without a normal map.

@@ -49,8 +49,8 @@ use crate::light::{
 };
 use crate::limits::{one_line, Limits, WorkBudget};
 use crate::material::{
-    AlphaMode, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler, SheenLayer,
-    SpecularGlossiness, Texture, UvTransform, Wrap, UV_SETS,
+    AlphaMode, Anisotropy, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler,
+    SheenLayer, SpecularGlossiness, Texture, UvTransform, Wrap, UV_SETS,
 };
 use crate::math::{Mat4, Quat, Rgb, Vec2, Vec3, Vec4};
 use crate::params::parse_rgb;
@@ -76,6 +76,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_sheen",
     "KHR_materials_pbrSpecularGlossiness",
     "KHR_materials_variants",
+    "KHR_materials_anisotropy",
     "KHR_texture_transform",
     "EXT_mesh_gpu_instancing",
 ];
@@ -1131,6 +1132,7 @@ impl Loader<'_> {
         });
         let clearcoat = self.clearcoat(&material, &at)?;
         let sheen = self.sheen(&material, &at)?;
+        let anisotropy = self.anisotropy(&material, &at)?;
         let m = Material {
             name: material.name().map_or_else(
                 || format!("material {}", material.index().map_or(-1, |i| i as i64)),
@@ -1159,6 +1161,7 @@ impl Loader<'_> {
             clearcoat,
             sheen,
             specular_glossiness,
+            anisotropy,
             tags: CompositingTags::default(),
         };
         let mut m = m;
@@ -1279,6 +1282,38 @@ impl Loader<'_> {
         sg.specular_glossiness_texture =
             self.ext_texture(&ext, "specularGlossinessTexture", ColorSpace::Srgb, &at)?;
         Ok(Some(sg))
+    }
+
+    /// `KHR_materials_anisotropy` of a material, when present: `anisotropyStrength` in \[0, 1\] (default 0),
+    /// `anisotropyRotation` a finite number of radians (default 0), `anisotropyTexture` read as linear data.
+    fn anisotropy(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<Anisotropy>, SceneError> {
+        let at = format!("{at}.extensions.KHR_materials_anisotropy");
+        let Some(ext) = self.extension_object(material, "KHR_materials_anisotropy", &at)? else {
+            return Ok(None);
+        };
+        let strength = self.unit_number(&ext, "anisotropyStrength", 0.0, &at)?;
+        let rotation = match ext.get("anisotropyRotation") {
+            None => 0.0,
+            Some(v) => v
+                .as_f64()
+                .map(|r| r as f32)
+                .filter(|r| r.is_finite())
+                .ok_or_else(|| {
+                    self.malformed(format!(
+                        "{at}.anisotropyRotation must be a finite number (radians)"
+                    ))
+                })?,
+        };
+        let texture = self.ext_texture(&ext, "anisotropyTexture", ColorSpace::Linear, &at)?;
+        Ok(Some(Anisotropy {
+            strength,
+            rotation,
+            texture,
+        }))
     }
 
     fn malformed(&self, message: String) -> SceneError {

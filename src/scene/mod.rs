@@ -688,13 +688,21 @@ impl SceneBuilder {
                 mesh_bytes(triangles, vertices),
             )
             .map_err(|e| SceneError::new(BUILDER_PATH, SceneErrorKind::OverLimit(e.to_string())))?;
-        // Normal maps need a tangent frame: MikkTSpace where the file gives no tangents (glTF 2.0 §3.7.2.1).
+        // Normal maps and anisotropy need a tangent frame: MikkTSpace where the file gives no tangents (glTF 2.0
+        // §3.7.2.1). Without texture coordinates there is none to build, and anisotropy follows an arbitrary
+        // direction.
         for mesh in &mut self.meshes {
-            if mesh.tangents.is_none()
-                && mesh.uvs.is_some()
-                && self.materials[mesh.material as usize].has_normal_map()
-            {
-                mesh.generate_tangents();
+            let material = &self.materials[mesh.material as usize];
+            if mesh.tangents.is_none() && material.needs_tangents() {
+                if mesh.uvs.is_some() {
+                    mesh.generate_tangents();
+                } else if material.is_anisotropic() {
+                    self.warnings.push(format!(
+                        "mesh '{}' has an anisotropic material but neither tangents nor texture coordinates: \
+                         its anisotropy direction is arbitrary",
+                        mesh.name
+                    ));
+                }
             }
         }
         // Emitters stay at the frame's pose: their area lights are sampled there.
@@ -1268,7 +1276,13 @@ impl Scene {
         };
         let n_mapped = hit.shading.to_world(mapped).normalize_or_zero();
         if n_mapped != Vec3::ZERO {
+            // Keep the frame's handedness (a mirrored uv mapping's bitangent sign), which anisotropy
+            // directions given in tangent space depend on.
+            let mirrored = hit.shading.t.dot(hit.shading.n.cross(hit.shading.s)) < 0.0;
             hit.shading = Frame::from_normal_tangent(n_mapped, hit.shading.s);
+            if mirrored {
+                hit.shading.t = -hit.shading.t;
+            }
             if hit.shading.n.dot(hit.geometric_normal) < 0.0 {
                 hit.shading = Frame::from_normal(hit.geometric_normal);
             }
