@@ -776,6 +776,27 @@ fn specular_glossiness_factors_convert_to_metallic_roughness() {
     }
 }
 
+/// The specular-glossiness model's dielectric F0 is 0.04: `KHR_materials_ior` and `KHR_materials_specular`,
+/// which its specification excludes beside it, are not read (ior 1.5, specular 1), with a warning. They used to
+/// be applied on top of the conversion.
+#[test]
+fn specular_glossiness_ignores_ior_and_specular() {
+    let image = png_uri([[255; 4]; 4]);
+    let material = r#"{"extensions":{"KHR_materials_pbrSpecularGlossiness":{"diffuseFactor":[0.5,0.5,0.5,1]},
+        "KHR_materials_ior":{"ior":2.0},"KHR_materials_specular":{"specularFactor":0.25}}}"#;
+    let path = write("spec_gloss_ior.gltf", &spec_gloss_gltf(material, &image));
+    let b = load(&path);
+    let m = &b.materials()[0];
+    assert_eq!((m.ior, m.specular_factor), (1.5, 1.0));
+    assert!(
+        b.warnings()
+            .iter()
+            .any(|w| w.contains("KHR_materials_ior") && w.contains("not read")),
+        "{:?}",
+        b.warnings()
+    );
+}
+
 /// Both textures are read, each through its own UV set and transform, and converted per point: the diffuse
 /// texture's sRGB colour and linear alpha, the specular-glossiness texture's sRGB specular and linear
 /// glossiness, times their factors.

@@ -1127,9 +1127,21 @@ impl Loader<'_> {
             }
             None => None,
         };
-        let (specular_factor, specular_color) = material.specular().map_or((1.0, Rgb::ONE), |s| {
-            (s.specular_factor(), Rgb::from(s.specular_color_factor()))
-        });
+        // The specular-glossiness model fixes the dielectric F0 at 0.04 (ior 1.5, full specular): the ior and
+        // specular extensions, which its specification excludes beside it, are not read.
+        let fixed_f0 = specular_glossiness.is_some();
+        if fixed_f0 && (material.ior().is_some() || material.specular().is_some()) {
+            self.builder.warnings.push(format!(
+                "{at}: KHR_materials_ior and KHR_materials_specular are not read beside \
+                 KHR_materials_pbrSpecularGlossiness (its dielectric F0 is 0.04)"
+            ));
+        }
+        let (specular_factor, specular_color) = material
+            .specular()
+            .filter(|_| !fixed_f0)
+            .map_or((1.0, Rgb::ONE), |s| {
+                (s.specular_factor(), Rgb::from(s.specular_color_factor()))
+            });
         let clearcoat = self.clearcoat(&material, &at)?;
         let sheen = self.sheen(&material, &at)?;
         let anisotropy = self.anisotropy(&material, &at)?;
@@ -1147,7 +1159,7 @@ impl Loader<'_> {
             occlusion_texture,
             emission: Rgb::from(material.emissive_factor()) * emissive_strength,
             emission_texture,
-            ior: material.ior().unwrap_or(1.5),
+            ior: material.ior().filter(|_| !fixed_f0).unwrap_or(1.5),
             specular_factor,
             specular_color,
             transmission: material
