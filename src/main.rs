@@ -467,40 +467,30 @@ fn converge(args: ConvergeArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// Loads the scene of `args` (the bundled demo without one) at `frame` under `shutter`, with the file options
+/// the flags give (memory limit, frames per second, material variant, subdivision level).
 fn load_builder(
-    scene: Option<&Path>,
-    limits: Limits,
+    args: &RenderArgs,
     frame: Option<i64>,
-    fps: Option<f64>,
     shutter: Option<Shutter>,
-    variant: Option<&str>,
-    subdivision_level: Option<u32>,
 ) -> Result<SceneBuilder, String> {
-    let mut builder = match scene {
-        Some(path) => nimbus::scene::load_builder(
-            path,
-            &LoadOptions {
-                limits,
-                frame,
-                fps,
-                shutter,
-                variant,
-                subdivision_level,
-                ..LoadOptions::default()
-            },
-        ),
+    let options = LoadOptions {
+        limits: args.limits(),
+        frame,
+        fps: args.fps,
+        shutter,
+        variant: args.variant.as_deref(),
+        subdivision_level: args.subdivision_level,
+        ..LoadOptions::default()
+    };
+    let mut builder = match &args.scene {
+        Some(path) => nimbus::scene::load_builder(path, &options),
         None => nimbus::scene::gltf::load_slice(
             DEMO_SCENE,
             Path::new("assets/cloud.gltf"),
             &LoadOptions {
                 embedded: &[("cloud.vdb", DEMO_CLOUD)],
-                limits,
-                frame,
-                fps,
-                shutter,
-                variant,
-                subdivision_level,
-                ..LoadOptions::default()
+                ..options
             },
         ),
     }
@@ -731,16 +721,7 @@ fn list_aovs(args: &RenderArgs) -> Result<(), String> {
         let _ = writeln!(text, "  {name:<22} {meaning}");
     }
     if args.scene.is_some() {
-        let limits = args.limits();
-        let builder = load_builder(
-            args.scene.as_deref(),
-            limits,
-            args.frame,
-            args.fps,
-            None,
-            args.variant.as_deref(),
-            args.subdivision_level,
-        )?;
+        let builder = load_builder(args, args.frame, None)?;
         let scene = builder.build().map_err(|e| e.to_string())?;
         let groups = nimbus::render::LightGroups::new(&scene, args.light_groups)
             .map_err(|e| e.to_string())?;
@@ -762,15 +743,7 @@ fn list_aovs(args: &RenderArgs) -> Result<(), String> {
 /// film height, aspect ratio, lens), the one that renders by default first; a line saying so when there are
 /// none (the default framing renders).
 fn list_cameras(args: &RenderArgs) -> Result<(), String> {
-    let builder = load_builder(
-        args.scene.as_deref(),
-        args.limits(),
-        args.frame,
-        args.fps,
-        None,
-        args.variant.as_deref(),
-        args.subdivision_level,
-    )?;
+    let builder = load_builder(args, args.frame, None)?;
     let mut text = String::new();
     for camera in builder.cameras() {
         text.push_str(&camera.describe());
@@ -801,15 +774,7 @@ fn render_frame(
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
     let limits = args.limits();
-    let mut builder = load_builder(
-        args.scene.as_deref(),
-        limits,
-        frame,
-        args.fps,
-        args.shutter,
-        args.variant.as_deref(),
-        args.subdivision_level,
-    )?;
+    let mut builder = load_builder(args, frame, args.shutter)?;
     if let Some(name) = &args.camera {
         builder.select_camera(name).map_err(|e| {
             let file = args
