@@ -65,12 +65,7 @@ fn a_cube_and_boxes_are_framed_tightly() {
         let bounds = Aabb::new(min, max);
         let cam = Camera::framing(&bounds);
         let mut widest = 0f32;
-        for i in 0..8 {
-            let corner = Vec3::new(
-                if i & 1 == 0 { min.x } else { max.x },
-                if i & 2 == 0 { min.y } else { max.y },
-                if i & 4 == 0 { min.z } else { max.z },
-            );
+        for corner in bounds.corners() {
             let (x, y, depth) = project(&cam, corner);
             assert!(
                 depth > 0.0,
@@ -122,24 +117,7 @@ fn a_volume_only_scene_is_framed_from_outside_the_volume() {
         !(bounds.min.cmple(eye).all() && eye.cmple(bounds.max).all()),
         "camera at {eye} inside {bounds:?}"
     );
-    for i in 0..8 {
-        let corner = Vec3::new(
-            if i & 1 == 0 {
-                bounds.min.x
-            } else {
-                bounds.max.x
-            },
-            if i & 2 == 0 {
-                bounds.min.y
-            } else {
-                bounds.max.y
-            },
-            if i & 4 == 0 {
-                bounds.min.z
-            } else {
-                bounds.max.z
-            },
-        );
+    for corner in bounds.corners() {
         let (x, y, depth) = project(cam, corner);
         assert!(
             depth > 0.0 && x.abs() <= 1.0 && y.abs() <= 1.0,

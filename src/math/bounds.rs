@@ -80,18 +80,22 @@ impl Aabb {
         (t0 <= t1).then_some((t0, t1))
     }
 
-    /// The box's eight corners transformed by `m`, re-bounded.
-    pub fn transformed(&self, m: &glam::Mat4) -> Aabb {
-        let mut out = Aabb::EMPTY;
-        for i in 0..8 {
-            let c = Vec3::new(
+    /// The box's eight corners: corner `i` takes `max` on the axes whose bit (x 1, y 2, z 4) `i` sets.
+    pub fn corners(&self) -> [Vec3; 8] {
+        std::array::from_fn(|i| {
+            Vec3::new(
                 if i & 1 == 0 { self.min.x } else { self.max.x },
                 if i & 2 == 0 { self.min.y } else { self.max.y },
                 if i & 4 == 0 { self.min.z } else { self.max.z },
-            );
-            out = out.extend(m.transform_point3(c));
-        }
-        out
+            )
+        })
+    }
+
+    /// The box's eight corners transformed by `m`, re-bounded.
+    pub fn transformed(&self, m: &glam::Mat4) -> Aabb {
+        self.corners()
+            .iter()
+            .fold(Aabb::EMPTY, |out, &c| out.extend(m.transform_point3(c)))
     }
 }
 

@@ -369,24 +369,7 @@ impl Camera {
         // centre is at depth distance − z, inside the view when |x|, |y| ≤ tan_half · depth.
         let mut distance = 0f32;
         let radius = super::bounding_radius(bounds);
-        for i in 0..8 {
-            let corner = Vec3::new(
-                if i & 1 == 0 {
-                    bounds.min.x
-                } else {
-                    bounds.max.x
-                },
-                if i & 2 == 0 {
-                    bounds.min.y
-                } else {
-                    bounds.max.y
-                },
-                if i & 4 == 0 {
-                    bounds.min.z
-                } else {
-                    bounds.max.z
-                },
-            );
+        for corner in bounds.corners() {
             let q = world_to_camera.transform_vector3(corner - center);
             // q.z is toward the camera (the camera looks down −Z).
             let needed = q.z + q.x.abs().max(q.y.abs()) / tan_half;
