@@ -61,16 +61,16 @@ pub fn describe_lights(lights: &[Light]) -> String {
         .count();
     let environment = lights.iter().any(|l| matches!(l, Light::Environment(_)));
     let punctual = lights.len() - triangles - usize::from(environment);
-    let count = |n: usize, one: &str, many: &str| match n {
-        1 => format!("1 {one}"),
-        _ => format!("{n} {many}"),
-    };
     let mut parts = Vec::new();
     if triangles > 0 {
-        parts.push(count(triangles, "emissive triangle", "emissive triangles"));
+        parts.push(counted(
+            triangles,
+            "emissive triangle",
+            "emissive triangles",
+        ));
     }
     if punctual > 0 {
-        parts.push(count(punctual, "punctual light", "punctual lights"));
+        parts.push(counted(punctual, "punctual light", "punctual lights"));
     }
     if environment {
         parts.push("an environment".to_owned());
@@ -79,6 +79,14 @@ pub fn describe_lights(lights: &[Light]) -> String {
         "no lights".to_owned()
     } else {
         parts.join(", ")
+    }
+}
+
+/// `n` things in words: "1 punctual light" (`one`) or "3 punctual lights" (`many`).
+pub(crate) fn counted(n: usize, one: &str, many: &str) -> String {
+    match n {
+        1 => format!("1 {one}"),
+        _ => format!("{n} {many}"),
     }
 }
 

@@ -86,10 +86,7 @@ impl OwnLighting {
 
     /// The sources that count, in words ("2 punctual lights, 1 emissive mesh"); empty when there is none.
     pub fn describe(&self) -> String {
-        let count = |n: usize, one: &str, many: &str| match n {
-            1 => format!("1 {one}"),
-            _ => format!("{n} {many}"),
-        };
+        let count = crate::light::counted;
         let mut parts = Vec::new();
         if self.punctual > 0 {
             parts.push(count(self.punctual, "punctual light", "punctual lights"));
