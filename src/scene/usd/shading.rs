@@ -197,10 +197,7 @@ impl Loader<'_> {
         let Some(reader) = self.connection(shader, name)? else {
             return Ok(None);
         };
-        let id = self
-            .value(&reader, "info:id")?
-            .and_then(|v| token(&v))
-            .unwrap_or_default();
+        let id = self.shader_id(&reader)?;
         if !id.starts_with("UsdPrimvarReader_") {
             return Ok(None);
         }
@@ -266,10 +263,7 @@ impl Loader<'_> {
             return Ok((m, None));
         };
         let shader = self.stage.prim(shader_path.as_str());
-        let id = self
-            .value(&shader, "info:id")?
-            .and_then(|v| token(&v))
-            .unwrap_or_default();
+        let id = self.shader_id(&shader)?;
         if id == STANDARD_SURFACE {
             return self.standard_surface(path, &shader).map(|m| (m, None));
         }
@@ -342,10 +336,7 @@ impl Loader<'_> {
     /// `subsurface`, `sheen` or `thin_film_thickness`, is reported in a warning naming it, and the input keeps its
     /// value.
     fn standard_surface(&mut self, path: &str, shader: &usd::Prim) -> Result<Material, SceneError> {
-        let id = self
-            .value(shader, "info:id")?
-            .and_then(|v| token(&v))
-            .unwrap_or_default();
+        let id = self.shader_id(shader)?;
         let mut m = preview_defaults(path);
         if id != STANDARD_SURFACE {
             self.warn(format!(
@@ -399,10 +390,7 @@ impl Loader<'_> {
         default: Rgb,
     ) -> Result<(Rgb, Option<u32>), SceneError> {
         if let Some(node) = self.connection(shader, name)? {
-            let id = self
-                .value(&node, "info:id")?
-                .and_then(|v| token(&v))
-                .unwrap_or_default();
+            let id = self.shader_id(&node)?;
             if id.starts_with("ND_image_") || id.starts_with("ND_tiledimage_") {
                 if let Some(t) = self.texture_of(shader, name, true, TextureRole::Color)? {
                     return Ok((Rgb::ONE, Some(t)));
@@ -422,10 +410,7 @@ impl Loader<'_> {
         default: f32,
     ) -> Result<f32, SceneError> {
         if let Some(node) = self.connection(shader, name)? {
-            let id = self
-                .value(&node, "info:id")?
-                .and_then(|v| token(&v))
-                .unwrap_or_default();
+            let id = self.shader_id(&node)?;
             self.warn_unread_node(shader, name, &node, &id);
         }
         self.float(shader, name, default)
@@ -468,6 +453,14 @@ impl Loader<'_> {
             Some(t) => Ok((Rgb::ONE, Some(t))),
             None => Ok((self.color(shader, name, default)?, None)),
         }
+    }
+
+    /// A shader prim's `info:id` (empty when it has none).
+    fn shader_id(&self, shader: &usd::Prim) -> Result<String, SceneError> {
+        Ok(self
+            .value(shader, "info:id")?
+            .and_then(|v| token(&v))
+            .unwrap_or_default())
     }
 
     /// The prim an input connects to, if any.
@@ -708,10 +701,7 @@ impl Loader<'_> {
         let Some(node) = self.connection(texture, "inputs:st")? else {
             return Ok(UvTransform::default());
         };
-        let id = self
-            .value(&node, "info:id")?
-            .and_then(|v| token(&v))
-            .unwrap_or_default();
+        let id = self.shader_id(&node)?;
         if id != "UsdTransform2d" {
             return Ok(UvTransform::default());
         }
