@@ -118,6 +118,25 @@ fn outputs_and_counts_are_checked_before_rendering() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// Renders `scene` at `size` with 4 spp and `flags` into `dir/out.exr`: the stderr, and the mean grey level of
+/// the PNG preview (0 to 255).
+fn render_preview(scene: &Path, dir: &Path, size: &[&str], flags: &[&str]) -> (String, f64) {
+    let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .arg("render")
+        .arg(scene)
+        .args(size)
+        .args(["--spp", "4", "-o"])
+        .arg(dir.join("out.exr"))
+        .args(flags)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(output.status.success(), "{stderr}");
+    let png = image::open(dir.join("out.png")).unwrap().to_luma8();
+    let mean = png.pixels().map(|p| p[0] as f64).sum::<f64>() / png.len() as f64;
+    (stderr, mean)
+}
+
 #[test]
 fn a_scene_without_light_gets_a_default_environment_unless_told_to_stay_dark() {
     // A grey floor seen from above, with no light of any kind: it used to render pure black, silently.
@@ -129,22 +148,7 @@ fn a_scene_without_light_gets_a_default_environment_unless_told_to_stay_dark() {
         "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 3 2\nf 1 4 3\n",
     )
     .unwrap();
-    let render = |flags: &[&str]| {
-        let exr = dir.join("out.exr");
-        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-            .arg("render")
-            .arg(&obj)
-            .args(["--width", "16", "--spp", "4", "-o"])
-            .arg(&exr)
-            .args(flags)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
-        assert!(output.status.success(), "{stderr}");
-        let png = image::open(dir.join("out.png")).unwrap().to_luma8();
-        let mean = png.pixels().map(|p| p[0] as f64).sum::<f64>() / png.len() as f64;
-        (stderr, mean)
-    };
+    let render = |flags: &[&str]| render_preview(&obj, &dir, &["--width", "16"], flags);
     let (stderr, mean) = render(&[]);
     assert!(stderr.contains("no light"), "{stderr}");
     assert!(
@@ -281,22 +285,8 @@ fn a_physically_dim_scene_gets_a_viewable_preview_and_says_why() {
         ),
     )
     .unwrap();
-    let render = |flags: &[&str]| {
-        let exr = dir.join("out.exr");
-        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-            .arg("render")
-            .arg(&scene)
-            .args(["--width", "16", "--height", "16", "--spp", "4", "-o"])
-            .arg(&exr)
-            .args(flags)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
-        assert!(output.status.success(), "{stderr}");
-        let png = image::open(dir.join("out.png")).unwrap().to_luma8();
-        let mean = png.pixels().map(|p| p[0] as f64).sum::<f64>() / png.len() as f64;
-        (stderr, mean)
-    };
+    let render =
+        |flags: &[&str]| render_preview(&scene, &dir, &["--width", "16", "--height", "16"], flags);
     let (stderr, mean) = render(&[]);
     assert!(
         stderr.contains("lights itself (1 punctual light)") && stderr.contains("--env-color 1,1,1"),
