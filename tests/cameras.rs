@@ -471,6 +471,36 @@ fn emitter_edges_stay_off_for_a_thin_lens() {
     }
 }
 
+/// Renders samples `samples` (of 2) of `scene_and_flags` (the scene, then any flags) at 8² in `dir`, as the
+/// part `out`.
+fn render_part(dir: &Path, scene_and_flags: &[&str], samples: &str, out: &str) {
+    let mut args = vec!["render"];
+    args.extend_from_slice(scene_and_flags);
+    args.extend([
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "2",
+        "--samples",
+        samples,
+        "-o",
+        out,
+    ]);
+    let (code, _, stderr) = nimbus(&args, dir);
+    assert_eq!(code, Some(0), "{stderr}");
+}
+
+/// In `dir`, the parts `a.exr` and `b.exr` merge, and `a.exr` and `c.exr` are refused for their scene hash.
+fn assert_only_a_and_b_merge(dir: &Path) {
+    let (code, _, stderr) = nimbus(&["merge", "a.exr", "b.exr", "-o", "ab.exr"], dir);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (code, _, stderr) = nimbus(&["merge", "a.exr", "c.exr", "-o", "ac.exr"], dir);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("scene hash"), "{stderr}");
+}
+
 /// Runs `nimbus` with `args` in `dir`; returns the exit code, stdout and stderr.
 fn nimbus(args: &[&str], dir: &Path) -> (Option<i32>, String, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
@@ -509,36 +539,10 @@ fn the_cli_lists_and_chooses_cameras() {
         "nimbus: error: cams.gltf: --camera: no camera named 'nope'; the scene's cameras: wide, top, camera 2"
     );
     // Parts from different cameras (or apertures) do not merge; parts from the same one do.
-    let part = |camera: &str, samples: &str, out: &str| {
-        let (code, _, stderr) = nimbus(
-            &[
-                "render",
-                "cams.gltf",
-                "--camera",
-                camera,
-                "--width",
-                "8",
-                "--height",
-                "8",
-                "--spp",
-                "2",
-                "--samples",
-                samples,
-                "-o",
-                out,
-            ],
-            &dir,
-        );
-        assert_eq!(code, Some(0), "{stderr}");
-    };
-    part("top", "0..1", "a.exr");
-    part("top", "1..2", "b.exr");
-    part("wide", "1..2", "c.exr");
-    let (code, _, stderr) = nimbus(&["merge", "a.exr", "b.exr", "-o", "ab.exr"], &dir);
-    assert_eq!(code, Some(0), "{stderr}");
-    let (code, _, stderr) = nimbus(&["merge", "a.exr", "c.exr", "-o", "ac.exr"], &dir);
-    assert_eq!(code, Some(1));
-    assert!(stderr.contains("scene hash"), "{stderr}");
+    render_part(&dir, &["cams.gltf", "--camera", "top"], "0..1", "a.exr");
+    render_part(&dir, &["cams.gltf", "--camera", "top"], "1..2", "b.exr");
+    render_part(&dir, &["cams.gltf", "--camera", "wide"], "1..2", "c.exr");
+    assert_only_a_and_b_merge(&dir);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -557,35 +561,11 @@ fn parts_with_different_lenses_do_not_merge() {
             "#usda 1.0\ndef Camera \"Cam\"\n{{\n    float fStop = {f_stop}\n    float focusDistance = 5\n}}\n"
         )
     };
-    let part = |samples: &str, out: &str| {
-        let (code, _, stderr) = nimbus(
-            &[
-                "render",
-                "shot.usda",
-                "--width",
-                "8",
-                "--height",
-                "8",
-                "--spp",
-                "2",
-                "--samples",
-                samples,
-                "-o",
-                out,
-            ],
-            &dir,
-        );
-        assert_eq!(code, Some(0), "{stderr}");
-    };
     write(&dir, "cam.usda", &camera(2.0));
-    part("0..1", "a.exr");
-    part("1..2", "b.exr");
+    render_part(&dir, &["shot.usda"], "0..1", "a.exr");
+    render_part(&dir, &["shot.usda"], "1..2", "b.exr");
     write(&dir, "cam.usda", &camera(4.0));
-    part("1..2", "c.exr");
-    let (code, _, stderr) = nimbus(&["merge", "a.exr", "b.exr", "-o", "ab.exr"], &dir);
-    assert_eq!(code, Some(0), "{stderr}");
-    let (code, _, stderr) = nimbus(&["merge", "a.exr", "c.exr", "-o", "ac.exr"], &dir);
-    assert_eq!(code, Some(1), "{stderr}");
-    assert!(stderr.contains("scene hash"), "{stderr}");
+    render_part(&dir, &["shot.usda"], "1..2", "c.exr");
+    assert_only_a_and_b_merge(&dir);
     std::fs::remove_dir_all(&dir).unwrap();
 }
