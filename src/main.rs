@@ -184,6 +184,10 @@ struct RenderArgs {
     #[arg(long = "subdivision-level", value_name = "N",
           value_parser = clap::value_parser!(u32).range(0..=8))]
     subdivision_level: Option<u32>,
+    /// Refuse scene-file keys Nimbus does not know (a misspelt nimbus_volume key, an unknown nimbus_* extras key
+    /// or USD nimbus: attribute) instead of warning and ignoring them.
+    #[arg(long)]
+    strict: bool,
     /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
@@ -481,6 +485,7 @@ fn load_builder(
         shutter,
         variant: args.variant.as_deref(),
         subdivision_level: args.subdivision_level,
+        strict: args.strict,
         ..LoadOptions::default()
     };
     let mut builder = match &args.scene {

@@ -318,6 +318,111 @@ pub fn parse_rgb(value: &serde_json::Value) -> Option<Rgb> {
     Some(Rgb::from(c))
 }
 
+/// A key a scene file gives that no table declares (a misspelt `"densty_scale"`): the renderer would ignore
+/// it, so the loaders warn, or refuse it under `--strict`, as pbrt-v4 reports unused parameters.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnknownKey {
+    /// The key as the file spells it (`noise.sead` for a nested object's key).
+    pub key: String,
+    /// The declared key closest to it, when one is close enough to be a likely misspelling.
+    pub closest: Option<String>,
+}
+
+impl UnknownKey {
+    /// The suggestion that follows the message: ` (did you mean 'density_scale'?)`, or nothing.
+    pub fn hint(&self) -> String {
+        self.closest
+            .as_ref()
+            .map_or_else(String::new, |c| format!(" (did you mean '{c}'?)"))
+    }
+}
+
+impl fmt::Display for UnknownKey {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "unknown key '{}'", self.key)
+    }
+}
+
+/// The keys of the JSON object `value` that start with `prefix` and are not among `names` (the `nimbus_*` keys
+/// of an `extras` object, which also holds other tools' keys), in alphabetical order.
+pub fn unknown_json_names(
+    value: &serde_json::Value,
+    names: &[&'static str],
+    prefix: &str,
+) -> Vec<UnknownKey> {
+    let Some(object) = value.as_object() else {
+        return Vec::new();
+    };
+    object
+        .keys()
+        .filter(|key| key.starts_with(prefix) && !names.contains(&key.as_str()))
+        .map(|key| UnknownKey {
+            key: key.clone(),
+            closest: closest_name(key, names.iter().copied()).map(str::to_owned),
+        })
+        .collect()
+}
+
+/// The keys of the JSON object `value` that `keys` does not declare, nested objects' keys included (a value
+/// that is not an object has none), in alphabetical order.
+pub fn unknown_json_keys(value: &serde_json::Value, keys: &[ParamKey]) -> Vec<UnknownKey> {
+    let mut found = Vec::new();
+    collect_unknown(value, keys, "", &mut found);
+    found
+}
+
+fn collect_unknown(
+    value: &serde_json::Value,
+    keys: &[ParamKey],
+    prefix: &str,
+    found: &mut Vec<UnknownKey>,
+) {
+    let Some(object) = value.as_object() else {
+        return;
+    };
+    for (name, v) in object {
+        match keys.iter().find(|k| k.name == name) {
+            Some(ParamKey {
+                ty: ParamType::Object(inner),
+                ..
+            }) => collect_unknown(v, inner, &format!("{prefix}{name}."), found),
+            Some(_) => {}
+            None => found.push(UnknownKey {
+                key: format!("{prefix}{name}"),
+                closest: closest_name(name, keys.iter().map(|k| k.name)).map(str::to_owned),
+            }),
+        }
+    }
+}
+
+/// The name among `names` closest to `given` in edit distance, if within a third of its length (at least 1,
+/// at most 3 edits): a likely misspelling rather than another word.
+pub fn closest_name<'n>(given: &str, names: impl IntoIterator<Item = &'n str>) -> Option<&'n str> {
+    let allowed = (given.chars().count() / 3).clamp(1, 3);
+    names
+        .into_iter()
+        .map(|name| (edit_distance(given, name), name))
+        .filter(|&(d, _)| d <= allowed)
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, name)| name)
+}
+
+/// The Levenshtein distance between `a` and `b` (insertions, deletions and substitutions of characters).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let substitution = diagonal + usize::from(ca != cb);
+            diagonal = row[j + 1];
+            row[j + 1] = substitution.min(row[j] + 1).min(diagonal + 1);
+        }
+    }
+    row[b.len()]
+}
+
 /// The Markdown table of `keys` that docs/reference.md shows: key, type, default, USD attribute, meaning. Keys of
 /// nested objects follow their parent as `parent.key`.
 pub fn markdown_table(keys: &[ParamKey]) -> String {
@@ -398,6 +503,47 @@ mod tests {
             Some(Rgb::new(1.0, 0.0, 2.5))
         );
         assert_eq!(parse_rgb(&json!([1, -1, 2])), None);
+    }
+
+    #[test]
+    fn unknown_keys_are_found_with_the_closest_known_key() {
+        const NESTED: ParamKey = ParamKey {
+            name: "noise",
+            ty: ParamType::Object(&[N, K]),
+            default: ParamDefault::Unset,
+            doc: "",
+            usd: UsdBinding::Attribute,
+        };
+        let keys = [N, C, NESTED];
+        let v = json!({"n": 1, "cc": 2, "zebra": 3, "noise": {"k": "a", "kk": 1}});
+        let found = unknown_json_keys(&v, &keys);
+        let shown: Vec<String> = found.iter().map(|k| format!("{k}{}", k.hint())).collect();
+        assert_eq!(
+            shown,
+            [
+                "unknown key 'cc' (did you mean 'c'?)",
+                "unknown key 'noise.kk' (did you mean 'k'?)",
+                "unknown key 'zebra'",
+            ]
+        );
+        let extras = json!({"nimbus_volme": {}, "nimbus_volume": {}, "blender_prop": 1});
+        let found = unknown_json_names(&extras, &["nimbus_volume", "nimbus_camera"], "nimbus_");
+        assert_eq!(
+            found,
+            [UnknownKey {
+                key: "nimbus_volme".into(),
+                closest: Some("nimbus_volume".into())
+            }]
+        );
+        assert!(unknown_json_keys(&json!({"n": 1}), &keys).is_empty());
+        assert_eq!(edit_distance("densty_scale", "density_scale"), 1);
+        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(
+            closest_name("densty_scale", ["density_scale", "density_grid"]),
+            Some("density_scale")
+        );
+        assert_eq!(closest_name("colour", ["map", "intensity"]), None);
     }
 
     #[test]

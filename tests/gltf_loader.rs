@@ -389,3 +389,71 @@ fn gpu_instancing_places_every_instance() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A triangle document whose scene, node and material `extras` hold misspelt `nimbus_*` keys and keys inside
+/// `nimbus_environment` and `nimbus_medium`, beside another tool's key (`blender_prop`), which stays quiet.
+fn misspelt_keys_document() -> String {
+    let buffer = common::base64(&triangle_buffer());
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,
+        "scenes":[{{"nodes":[0],"extras":{{"blender_prop":1,"nimbus_enviroment":{{"color":[1,1,1]}},
+                   "nimbus_environment":{{"color":[1,1,1],"intensty":2}}}}}}],
+        "nodes":[{{"mesh":0,"extras":{{"nimbus_holdot":true,"blender_prop":2}}}}],
+        "materials":[{{"name":"fog","extras":{{"nimbus_medium":{{"sigma_a":[1,1,1],"sigma_z":[1,1,1]}}}}}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1,"material":0}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+                     {{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":8}}],
+        "buffers":[{{"uri":"data:application/octet-stream;base64,{buffer}","byteLength":44}}]}}"#
+    )
+}
+
+/// Keys the renderer ignores are warnings naming the key, where it is and the closest known key; `--strict`
+/// (`LoadOptions::strict`) refuses them. Before, all of them were silently ignored (issue 35).
+#[test]
+fn unknown_nimbus_keys_are_warned_with_the_closest_key_or_refused_when_strict() {
+    let json = misspelt_keys_document();
+    let path = Path::new("misspelt.gltf");
+    let builder = gltf::load_slice(json.as_bytes(), path, &Default::default()).unwrap();
+    let warnings = builder.warnings().join("\n");
+    for expected in [
+        "scene extras: unknown key 'nimbus_enviroment' ignored (did you mean 'nimbus_environment'?)",
+        "scene extras: nimbus_environment: unknown key 'intensty' ignored (did you mean 'intensity'?)",
+        "node 'node 0': extras: unknown key 'nimbus_holdot' ignored (did you mean 'nimbus_holdout'?)",
+        "material 'fog': nimbus_medium: unknown key 'sigma_z' ignored (did you mean 'sigma_a'?)",
+    ] {
+        assert!(warnings.contains(expected), "missing {expected:?} in:\n{warnings}");
+    }
+    assert!(!warnings.contains("blender_prop"), "{warnings}");
+
+    let strict = nimbus::scene::LoadOptions {
+        strict: true,
+        ..Default::default()
+    };
+    let Err(err) = gltf::load_slice(json.as_bytes(), path, &strict) else {
+        panic!("--strict loaded a file with unknown keys")
+    };
+    assert!(matches!(err.kind, SceneErrorKind::UnknownKey(_)), "{err}");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("misspelt.gltf") && msg.contains("nimbus_holdot") && msg.contains("--strict"),
+        "{msg}"
+    );
+
+    // A misspelt volume key is refused before the VDB file is looked for.
+    let volume = json.replace(
+        r#""nimbus_holdot":true"#,
+        r#""nimbus_volume":{"file":"absent.vdb","densty_scale":2}"#,
+    );
+    let volume = volume.replace(r#""nimbus_enviroment":{"color":[1,1,1]},"#, "");
+    let volume = volume.replace(r#","intensty":2"#, "");
+    let volume = volume.replace(r#","sigma_z":[1,1,1]"#, "");
+    let Err(err) = gltf::load_slice(volume.as_bytes(), path, &strict) else {
+        panic!("--strict loaded a misspelt volume key")
+    };
+    assert!(
+        err.to_string()
+            .contains("nimbus_volume: unknown key 'densty_scale' (did you mean 'density_scale'?)"),
+        "{err}"
+    );
+}

@@ -1035,3 +1035,39 @@ fn materialx_standard_surfaces_are_read() {
         b.warnings()
     );
 }
+
+/// `nimbus:` attributes that no table declares are warnings naming the closest known attribute, and errors
+/// under `--strict`; the Volume's own keys count only on a Volume (issue 35: they were silently ignored).
+#[test]
+fn unknown_nimbus_attributes_are_warned_or_refused_when_strict() {
+    let text = std::fs::read_to_string(stage("volume.usda")).unwrap();
+    let text = text
+        .replace("nimbus:density_scale", "nimbus:densty_scale")
+        .replace(
+            "def Xform \"World\"\n{",
+            "def Xform \"World\"\n{\n    custom bool nimbus:holdot = true\n    custom float nimbus:anisotropy = 0.5",
+        );
+    let dir = std::env::temp_dir().join(format!("nimbus-usd-keys-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("misspelt.usda");
+    std::fs::write(&path, text).unwrap();
+    let (builder, volumes) = usd::read(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(volumes.len(), 1);
+    let warnings = builder.warnings().join("\n");
+    for expected in [
+        "/World: unknown key 'nimbus:holdot' ignored (did you mean 'nimbus:holdout'?)",
+        "/World: unknown key 'nimbus:anisotropy' ignored",
+        "/World/Cloud: unknown key 'nimbus:densty_scale' ignored (did you mean 'nimbus:density_scale'?)",
+    ] {
+        assert!(warnings.contains(expected), "missing {expected:?} in:\n{warnings}");
+    }
+    assert!(!warnings.contains("'nimbus:albedo'"), "{warnings}");
+    let strict = nimbus::scene::LoadOptions {
+        strict: true,
+        ..Default::default()
+    };
+    let Err(err) = nimbus::scene::load_builder(&path, &strict) else {
+        panic!("--strict loaded a stage with unknown nimbus: attributes")
+    };
+    assert!(matches!(err.kind, SceneErrorKind::UnknownKey(_)), "{err}");
+}

@@ -131,6 +131,22 @@ impl Mesh {
         }
     }
 
+    /// Whether every index refers to a position, and every vertex attribute (texture coordinates, colours,
+    /// tangents) and motion step has one value per position: what [`Mesh::generate_normals`] needs to run.
+    pub fn indices_fit_attributes(&self) -> bool {
+        let n = self.positions.len();
+        let fits = |len: Option<usize>| len.is_none_or(|len| len == n);
+        self.indices.iter().flatten().all(|&i| (i as usize) < n)
+            && fits(self.uvs.as_ref().map(Vec::len))
+            && fits(self.uvs1.as_ref().map(Vec::len))
+            && fits(self.colors.as_ref().map(Vec::len))
+            && fits(self.tangents.as_ref().map(Vec::len))
+            && self
+                .motion
+                .as_ref()
+                .is_none_or(|m| m.positions.iter().all(|p| p.len() == n))
+    }
+
     /// Gives a mesh without normals flat ones: every triangle gets its own three vertices (their other
     /// attributes copied) with the face normal. glTF 2.0 §3.7.2.1 requires flat normals where NORMAL is absent,
     /// and an OBJ without `vn` is faceted; smoothing over shared corners would bend a box's normals by up to

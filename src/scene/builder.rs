@@ -149,6 +149,55 @@ mod tests {
         assert_eq!(scene.lights().len(), 2);
     }
 
+    /// Meshes handed to `add_mesh` without normals get them from their faces; a dangling index must reach
+    /// `build`'s typed error, not panic while the normals are generated (issue 35).
+    #[test]
+    fn add_mesh_with_a_dangling_index_is_an_error_at_build_not_a_panic() {
+        use crate::geometry::{MeshMotion, MotionSteps};
+        use crate::math::Vec2;
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let dangling = Mesh {
+            name: "dangling".into(),
+            positions: positions.clone(),
+            indices: vec![[0, 1, 7]],
+            ..Mesh::default()
+        };
+        let short_step = Mesh {
+            name: "short step".into(),
+            positions: positions.clone(),
+            indices: vec![[0, 1, 2]],
+            motion: Some(MeshMotion {
+                steps: MotionSteps {
+                    count: 2,
+                    open: 0.0,
+                    close: 1.0,
+                },
+                positions: vec![positions.clone(), positions[..2].to_vec()],
+                normals: Vec::new(),
+            }),
+            ..Mesh::default()
+        };
+        let short_uvs = Mesh {
+            name: "short uvs".into(),
+            positions: positions.clone(),
+            uvs: Some(vec![Vec2::ZERO]),
+            indices: vec![[0, 1, 2]],
+            ..Mesh::default()
+        };
+        let cases = [
+            (dangling, "vertex index 7"),
+            (short_step, "motion steps"),
+            (short_uvs, "texture coordinates"),
+        ];
+        for (mesh, names) in cases {
+            let mut b = SceneBuilder::new();
+            b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+            b.add_mesh(mesh);
+            let err = b.build().err().expect("refused");
+            assert!(err.to_string().contains(names), "{err}");
+        }
+    }
+
     #[test]
     fn build_refuses_meshes_over_the_memory_budget_before_allocating() {
         use crate::scene::{BYTES_PER_TRIANGLE, BYTES_PER_VERTEX};

@@ -30,6 +30,9 @@ pub enum SceneErrorKind {
     /// A reference inside the file points at nothing valid (accessor, buffer, image, index out of range).
     #[error("invalid reference: {0}")]
     InvalidReference(String),
+    /// A key the renderer does not know, refused under `--strict` ([`super::LoadOptions::strict`]).
+    #[error("{0} (--strict refuses keys the renderer would ignore)")]
+    UnknownKey(String),
     /// Loading the file would pass a limit of [`crate::limits::Limits`]: the memory budget, or the load-time
     /// work it allows ([`crate::limits::WorkBudget`]); the message names which, and `--memory-limit`.
     #[error("over a limit: {0}")]

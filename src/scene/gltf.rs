@@ -53,7 +53,7 @@ use crate::material::{
     SheenLayer, SpecularGlossiness, Texture, UvTransform, Wrap, UV_SETS,
 };
 use crate::math::{Mat4, Quat, Rgb, Vec2, Vec3, Vec4};
-use crate::params::parse_rgb;
+use crate::params::{parse_rgb, unknown_json_keys, unknown_json_names, UnknownKey};
 use gltf::json::validation::Validate;
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -372,6 +372,12 @@ impl Loader<'_> {
         SceneError::new(self.path, kind)
     }
 
+    /// Warns about (or under `--strict` refuses) the keys at `at` that the loader ignores.
+    fn unknown_keys(&mut self, at: &str, unknown: &[UnknownKey]) -> Result<(), SceneError> {
+        super::report_unknown_keys(&mut self.builder, self.options.strict, at, unknown)
+            .map_err(|kind| self.error(kind))
+    }
+
     fn visit(
         &mut self,
         node: gltf::Node,
@@ -393,6 +399,10 @@ impl Loader<'_> {
             ))));
         }
         let extras = self.node_extras(&node)?;
+        if let Some(extras) = &extras {
+            let at = format!("node '{}': extras", one_line(&node_name(&node), QUOTE));
+            self.unknown_keys(&at, &unknown_json_names(extras, NODE_EXTRAS, "nimbus_"))?;
+        }
         let context = NodeContext {
             tags: node_tags(extras.as_ref())
                 .map_err(|m| {
@@ -481,7 +491,7 @@ impl Loader<'_> {
         let lens = match declared {
             None => None,
             Some(value) => {
-                let Some(object) = value.as_object() else {
+                if !value.is_object() {
                     return Err(self.error(SceneErrorKind::Camera {
                         at: at.into(),
                         source: crate::params::ParamError::WrongType {
@@ -490,20 +500,8 @@ impl Loader<'_> {
                         }
                         .into(),
                     }));
-                };
-                for key in object.keys() {
-                    if !super::CAMERA_KEYS.iter().any(|k| k.name == key) {
-                        self.builder.warn(format!(
-                            "{at}: unknown key '{}' ignored (the keys are {})",
-                            one_line(key, QUOTE),
-                            super::CAMERA_KEYS
-                                .iter()
-                                .map(|k| k.name)
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        ));
-                    }
                 }
+                self.unknown_keys(&at, &unknown_json_keys(value, super::CAMERA_KEYS))?;
                 ThinLens::from_params(&crate::params::JsonParams::new(value), focal_length)
                     .map_err(|source| {
                         self.error(SceneErrorKind::Camera {
@@ -577,6 +575,8 @@ impl Loader<'_> {
         };
         let mut spec = crate::volume::VolumeSpec::from_json(value, &name, &self.base, *world)
             .map_err(volume_error)?;
+        let unknown = unknown_json_keys(value, crate::volume::spec::VOLUME_KEYS);
+        self.unknown_keys(&format!("node '{name}': nimbus_volume"), &unknown)?;
         let file = value.get("file").and_then(|f| f.as_str());
         spec.embedded = file.and_then(|f| self.options.embedded_file(f));
         self.options.apply_volume_override(&mut spec);
@@ -1608,16 +1608,25 @@ impl Loader<'_> {
         material: &gltf::Material,
         m: &Material,
     ) -> Result<Option<u32>, SceneError> {
+        let path = self.path;
         let bad = |msg: String| {
-            self.error(SceneErrorKind::Malformed(format!(
-                "material '{}': {msg}",
-                one_line(&m.name, QUOTE)
-            )))
+            SceneError::new(
+                path,
+                SceneErrorKind::Malformed(format!(
+                    "material '{}': {msg}",
+                    one_line(&m.name, QUOTE)
+                )),
+            )
         };
         if let Some(raw) = material.extras() {
             let extras: serde_json::Value =
                 serde_json::from_str(raw.get()).map_err(|e| bad(format!("extras: {e}")))?;
+            let at = format!("material '{}'", one_line(&m.name, QUOTE));
+            let unknown = unknown_json_names(&extras, MATERIAL_EXTRAS, "nimbus_");
+            self.unknown_keys(&format!("{at}: extras"), &unknown)?;
             if let Some(spec) = extras.get("nimbus_medium") {
+                let unknown = unknown_json_keys(spec, crate::volume::MEDIUM_KEYS);
+                self.unknown_keys(&format!("{at}: nimbus_medium"), &unknown)?;
                 let medium =
                     crate::volume::parse_nimbus_medium(spec, &m.name).map_err(|source| {
                         self.error(SceneErrorKind::Volume {
@@ -1744,6 +1753,14 @@ impl Loader<'_> {
         let Some(raw) = extras else { return Ok(()) };
         let value: serde_json::Value = serde_json::from_str(raw.get())
             .map_err(|e| self.error(SceneErrorKind::Malformed(format!("scene extras: {e}"))))?;
+        self.unknown_keys(
+            "scene extras",
+            &unknown_json_names(&value, SCENE_EXTRAS, "nimbus_"),
+        )?;
+        if let Some(env) = value.get("nimbus_environment") {
+            let unknown = unknown_json_names(env, ENVIRONMENT_KEYS, "");
+            self.unknown_keys("scene extras: nimbus_environment", &unknown)?;
+        }
         if let Some(b) = value.get("max_bounces") {
             let b = b.as_u64().ok_or_else(|| {
                 self.error(SceneErrorKind::Malformed(
@@ -1799,6 +1816,33 @@ fn sampler_of(sampler: &gltf::texture::Sampler) -> Sampler {
         mip,
     }
 }
+
+/// The `nimbus_*` keys a scene's `extras` may hold (its other keys belong to other tools).
+const SCENE_EXTRAS: &[&str] = &[
+    "nimbus_environment",
+    "nimbus_transparent",
+    "nimbus_light_units",
+];
+
+/// The `nimbus_*` keys a node's `extras` may hold.
+const NODE_EXTRAS: &[&str] = &[
+    "nimbus_volume",
+    "nimbus_camera",
+    "nimbus_light_group",
+    "nimbus_holdout",
+    "nimbus_shadow_catcher",
+];
+
+/// The `nimbus_*` keys a material's `extras` may hold.
+const MATERIAL_EXTRAS: &[&str] = &[
+    "nimbus_medium",
+    "nimbus_light_group",
+    "nimbus_holdout",
+    "nimbus_shadow_catcher",
+];
+
+/// The keys of a `nimbus_environment` object.
+const ENVIRONMENT_KEYS: &[&str] = &["color", "map", "intensity", "light_group"];
 
 /// Parses a `nimbus_environment` object: `{"color": [r,g,b]}` or `{"map": "file", "intensity": s}`, with an
 /// optional `"light_group": "name"`; the map path is relative to `base`. Returns the light and its group.

@@ -112,6 +112,26 @@ impl OwnLighting {
     }
 }
 
+/// Reports the keys in `unknown`, found at `at` (`node 'smoke': nimbus_volume`), which the loader will ignore:
+/// one warning each, or when `strict` ([`LoadOptions::strict`]) an error naming the first.
+pub(crate) fn report_unknown_keys(
+    builder: &mut SceneBuilder,
+    strict: bool,
+    at: &str,
+    unknown: &[crate::params::UnknownKey],
+) -> Result<(), SceneErrorKind> {
+    let shown = |key: &crate::params::UnknownKey, verb: &str| {
+        crate::limits::one_line(&format!("{at}: {key}{verb}{}", key.hint()), 300)
+    };
+    if let (true, Some(first)) = (strict, unknown.first()) {
+        return Err(SceneErrorKind::UnknownKey(shown(first, "")));
+    }
+    for key in unknown {
+        builder.warn(shown(key, " ignored"));
+    }
+    Ok(())
+}
+
 /// How a scene file is loaded: the same options for every format (glTF, OBJ, USD).
 #[derive(Clone, Copy, Default)]
 pub struct LoadOptions<'a> {
@@ -143,6 +163,10 @@ pub struct LoadOptions<'a> {
     /// and a file with variants warns once, listing them. A name the file does not declare is an error that
     /// lists its variants; so is any name for OBJ and USD files, which have no material variants.
     pub variant: Option<&'a str>,
+    /// Refuse scene-file keys the renderer does not know (`--strict`): a `nimbus_*` extras key, a key inside a
+    /// `nimbus_volume`, `nimbus_medium`, `nimbus_camera` or `nimbus_environment` object, or a USD `nimbus:`
+    /// attribute that no table declares. Without it each is a warning naming the closest known key.
+    pub strict: bool,
 }
 
 impl LoadOptions<'_> {
@@ -321,7 +345,9 @@ impl SceneBuilder {
     /// Adds a world-space mesh, generating normals when it has none. Its material index must refer to a
     /// material added by the time the scene is built.
     pub fn add_mesh(&mut self, mut mesh: Mesh) {
-        if mesh.normals.len() != mesh.positions.len() {
+        // A mesh whose indices, attributes or motion steps do not fit its positions keeps its normals as given,
+        // and `build` names the problem: generating normals would index past the end of one of them.
+        if mesh.normals.len() != mesh.positions.len() && mesh.indices_fit_attributes() {
             mesh.generate_normals();
         }
         let (triangles, vertices) = mesh_counts(&mesh);
@@ -568,17 +594,6 @@ impl SceneBuilder {
                     mesh.name
                 )));
             }
-            let lengths_match = mesh.normals.len() == n
-                && mesh.uvs.as_ref().is_none_or(|u| u.len() == n)
-                && mesh.uvs1.as_ref().is_none_or(|u| u.len() == n)
-                && mesh.colors.as_ref().is_none_or(|c| c.len() == n)
-                && mesh.tangents.as_ref().is_none_or(|t| t.len() == n);
-            if !lengths_match {
-                return Err(invalid(format!(
-                    "mesh '{}' has normals, texture coordinates, colours or tangents not one per position",
-                    mesh.name
-                )));
-            }
         }
         for mesh in &self.meshes {
             let Some(m) = &mesh.motion else { continue };
@@ -600,6 +615,22 @@ impl SceneBuilder {
             if !m.positions.iter().flatten().all(|p| p.is_finite()) {
                 return Err(malformed(format!(
                     "mesh '{}' has a non-finite position in a motion step",
+                    mesh.name
+                )));
+            }
+        }
+        // After the motion steps, so that a short step is named as such rather than as the normals that could
+        // not be generated for it.
+        for mesh in &self.meshes {
+            let n = mesh.positions.len();
+            let lengths_match = mesh.normals.len() == n
+                && mesh.uvs.as_ref().is_none_or(|u| u.len() == n)
+                && mesh.uvs1.as_ref().is_none_or(|u| u.len() == n)
+                && mesh.colors.as_ref().is_none_or(|c| c.len() == n)
+                && mesh.tangents.as_ref().is_none_or(|t| t.len() == n);
+            if !lengths_match {
+                return Err(invalid(format!(
+                    "mesh '{}' has normals, texture coordinates, colours or tangents not one per position",
                     mesh.name
                 )));
             }

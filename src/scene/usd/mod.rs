@@ -70,10 +70,12 @@ mod vol;
 mod xform;
 
 use super::camera::{Camera, CameraMotion, NamedCamera, Projection, ThinLens};
-use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
+use super::{report_unknown_keys, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::{CompositingTags, Mesh, MeshMotion, MotionSteps};
 use crate::limits::{catch_quietly, one_line, read_file, Limits};
 use crate::math::{Mat4, Rgb, Vec3};
+use crate::params::{closest_name, UnknownKey, UsdBinding};
+use crate::volume::spec::VOLUME_KEYS;
 use crate::volume::VolumeSpec;
 use openusd::{ar, pcp, sdf, usd};
 use std::collections::{HashMap, HashSet};
@@ -116,7 +118,13 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
         Some(frame) => When::Frame(frame as f64, options.fps),
         None => When::Default,
     };
-    let (mut builder, volumes) = read_when(path, &options.limits, when, options.subdivision_level)?;
+    let (mut builder, volumes) = read_when(
+        path,
+        &options.limits,
+        when,
+        options.subdivision_level,
+        options.strict,
+    )?;
     if let (Some(frame), Some(shutter)) = (frame, options.shutter) {
         add_motion_steps(&mut builder, path, options, frame, shutter)?;
     }
@@ -157,7 +165,16 @@ fn add_motion_steps(
     let mut reads = Vec::with_capacity(times.len());
     for t in times {
         let when = When::Frame(frame as f64 + t as f64, options.fps);
-        reads.push(read_when(path, &options.limits, when, options.subdivision_level)?.0);
+        reads.push(
+            read_when(
+                path,
+                &options.limits,
+                when,
+                options.subdivision_level,
+                options.strict,
+            )?
+            .0,
+        );
     }
     let same_meshes = reads.iter().all(|r| {
         r.meshes.len() == builder.meshes.len()
@@ -221,7 +238,7 @@ pub fn read_with_limits(
     path: &Path,
     limits: &Limits,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
-    read_when(path, limits, When::Default, None)
+    read_when(path, limits, When::Default, None, false)
 }
 
 /// When a stage is read: at its default time, at a time code, or at a frame of the shot.
@@ -247,6 +264,7 @@ pub fn read_at_frame(
         limits,
         frame.map_or(When::Default, |f| When::Frame(f as f64, None)),
         None,
+        false,
     )
 }
 
@@ -265,15 +283,18 @@ pub fn read_at_time(
         limits,
         time.map_or(When::Default, When::TimeCode),
         None,
+        false,
     )
 }
 
-/// Reads the stage at `when` on a reader thread of its own (see [`read_with_limits`]).
+/// Reads the stage at `when` on a reader thread of its own (see [`read_with_limits`]); `strict` refuses
+/// `nimbus:` attributes that no table declares ([`LoadOptions::strict`]).
 fn read_when(
     path: &Path,
     limits: &Limits,
     time: When,
     subdivision_level: Option<u32>,
+    strict: bool,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let limits = *limits;
     let owned = path.to_path_buf();
@@ -282,16 +303,17 @@ fn read_when(
         .name("nimbus-usd".into())
         .stack_size(READER_STACK_BYTES)
         .spawn(move || {
-            let read = catch_quietly(|| read_stage(&owned, &limits, time, subdivision_level))
-                .unwrap_or_else(|message| {
-                    Err(SceneError::new(
-                        &owned,
-                        SceneErrorKind::ReaderPanicked {
-                            reader: "openusd",
-                            message: one_line(&message, MESSAGE_CHARS),
-                        },
-                    ))
-                });
+            let read =
+                catch_quietly(|| read_stage(&owned, &limits, time, subdivision_level, strict))
+                    .unwrap_or_else(|message| {
+                        Err(SceneError::new(
+                            &owned,
+                            SceneErrorKind::ReaderPanicked {
+                                reader: "openusd",
+                                message: one_line(&message, MESSAGE_CHARS),
+                            },
+                        ))
+                    });
             let _ = send.send(read);
         })
         .map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
@@ -318,6 +340,7 @@ fn read_stage(
     limits: &Limits,
     time: When,
     subdivision_level: Option<u32>,
+    strict: bool,
 ) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     let stage = open(path, limits)?;
     let mut loader = Loader {
@@ -334,6 +357,7 @@ fn read_stage(
         limits: *limits,
         prims: 0,
         subdivision_level,
+        strict,
         time: usd::TimeCode::EARLIEST,
         packages: HashMap::new(),
         tags: CompositingTags::default(),
@@ -450,6 +474,8 @@ struct Loader<'a> {
     prims: u64,
     /// `--subdivision-level`: the Catmull-Clark level of every `catmullClark` mesh, over its `refineLevel`.
     subdivision_level: Option<u32>,
+    /// `--strict`: unknown `nimbus:` attributes are errors, not warnings.
+    strict: bool,
     /// The time code every attribute is read at (see [`read_at_time`]).
     time: usd::TimeCode,
     /// `.usdz` packages opened for the files inside them, by package path.
@@ -460,6 +486,9 @@ struct Loader<'a> {
     /// top-level prim.
     asset: String,
 }
+
+/// The `nimbus:` attributes of the compositing tags, which any prim may hold (without the namespace).
+const TAG_ATTRIBUTES: &[&str] = &["lightGroup", "holdout", "shadowCatcher"];
 
 impl Loader<'_> {
     fn error(&self, at: &str, message: impl std::fmt::Display) -> SceneError {
@@ -649,6 +678,7 @@ impl Loader<'_> {
             return Err(self.error(&at, "non-finite transform"));
         }
         let outer = (self.tags.clone(), self.asset.clone());
+        self.check_nimbus_attributes(prim)?;
         self.tags = self.prim_tags(prim)?.or(&outer.0);
         if depth == 0 || self.is_component(prim)? {
             self.asset = at.clone();
@@ -696,6 +726,40 @@ impl Loader<'_> {
             self.visit(&child, world, binding.clone(), depth + 1)?;
         }
         Ok(())
+    }
+
+    /// Warns about (or under `--strict` refuses) the prim's `nimbus:` attributes that the loader ignores: any
+    /// but the compositing tags, and on a `Volume` the attributes of [`VOLUME_KEYS`].
+    fn check_nimbus_attributes(&mut self, prim: &usd::Prim) -> Result<(), SceneError> {
+        let at = prim.path().as_str().to_owned();
+        let names = prim
+            .property_names()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?;
+        let volume = prim
+            .type_name()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?
+            .is_some_and(|t| t.as_str() == "Volume");
+        let known: Vec<&'static str> = TAG_ATTRIBUTES
+            .iter()
+            .copied()
+            .chain(
+                VOLUME_KEYS
+                    .iter()
+                    .filter(|k| volume && k.usd == UsdBinding::Attribute)
+                    .map(|k| k.name),
+            )
+            .collect();
+        let unknown: Vec<UnknownKey> = names
+            .iter()
+            .filter_map(|name| name.as_str().strip_prefix("nimbus:"))
+            .filter(|name| !known.contains(name))
+            .map(|name| UnknownKey {
+                key: format!("nimbus:{name}"),
+                closest: closest_name(name, known.iter().copied()).map(|c| format!("nimbus:{c}")),
+            })
+            .collect();
+        report_unknown_keys(&mut self.builder, self.strict, &at, &unknown)
+            .map_err(|kind| SceneError::new(self.path, kind))
     }
 
     /// The prim's own `nimbus:lightGroup` (string or token), `nimbus:holdout` and `nimbus:shadowCatcher`
