@@ -11,7 +11,9 @@
 //!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
 //!    apertures refuse to merge even when the lens comes from somewhere the scene file's bytes do not show).
 //!
-//! The sample count and range, the crop, the thread count and the time limit are not in it: they do not
+//! `scene_hash` names every field of [`RenderSettings`], so a new setting does not compile until it is hashed or
+//! said to leave the samples unchanged. The sample count and range, the crop, the thread count and the time
+//! limit are not in it: they do not
 //! change any one sample (parts carry the sample count and range in their own keys). Files the scene file
 //! refers to (buffers, textures, VDB grids, USD layers) are not read: the hash catches a different or edited
 //! scene file, not an edited texture beside an unchanged one. FNV-1a is specified byte by byte, so the hash
@@ -77,20 +79,45 @@ pub fn scene_hash(
     for file in scene_files {
         h.field(file);
     }
-    h.field(&(settings.width as u64).to_le_bytes());
-    h.field(&(settings.height as u64).to_le_bytes());
-    h.field(&settings.seed.to_le_bytes());
-    h.field(&settings.max_depth.to_le_bytes());
-    h.field(&[settings.media_mis as u8]);
-    h.field(&[settings.equiangular as u8]);
-    h.field(&[settings.sampler as u8]);
-    h.field(&[settings.light_sampler as u8]);
+    // Every field of the settings is named here, so a new one does not compile until it is either hashed or
+    // said to leave every sample unchanged: the hash cannot forget a setting.
+    let RenderSettings {
+        width,
+        height,
+        seed,
+        max_depth,
+        media_mis,
+        equiangular,
+        sampler,
+        light_sampler,
+        emitter_edges,
+        transparent,
+        // How many samples, and on how many threads for how long: parts carry their sample counts and ranges.
+        spp: _,
+        threads: _,
+        time_limit: _,
+        // Which layers are written: a merge compares the parts' layer lists, and the beauty does not change.
+        aovs: _,
+        light_groups: _,
+        cryptomatte_depth: _,
+        // The memory budget: the estimators it chooses travel in the part (`nimbus.estimators`) and are
+        // compared by the merge, since the default budget depends on the machine.
+        limits: _,
+    } = settings;
+    h.field(&(*width as u64).to_le_bytes());
+    h.field(&(*height as u64).to_le_bytes());
+    h.field(&seed.to_le_bytes());
+    h.field(&max_depth.to_le_bytes());
+    h.field(&[*media_mis as u8]);
+    h.field(&[*equiangular as u8]);
+    h.field(&[*sampler as u8]);
+    h.field(&[*light_sampler as u8]);
     // Only when off, so that the hashes of renders from before the setting existed stay the same.
-    if settings.emitter_edges == crate::render::EmitterEdgeSampling::Off {
+    if *emitter_edges == crate::render::EmitterEdgeSampling::Off {
         h.field(b"emitter-edges off");
     }
     // A transparent film leaves the environment out of the beauty (a scene asking for one does so in its bytes).
-    if settings.transparent {
+    if *transparent {
         h.field(b"transparent");
     }
     for (name, value) in overrides {
@@ -134,83 +161,31 @@ mod tests {
             ..s.clone()
         };
         assert_eq!(base, scene_hash(&[b"scene"], &not_in_hash, &[]));
-        let changed = [
+        let changes: [fn(&mut RenderSettings); 10] = [
+            |s| s.width += 1,
+            |s| s.height -= 1,
+            |s| s.seed = 1,
+            |s| s.max_depth = 3,
+            |s| s.media_mis = !s.media_mis,
+            |s| s.equiangular = !s.equiangular,
+            |s| s.sampler = crate::render::Sampler::Independent,
+            |s| s.light_sampler = crate::light::LightSamplerChoice::Bvh,
+            |s| s.emitter_edges = crate::render::EmitterEdgeSampling::Off,
+            |s| s.transparent = !s.transparent,
+        ];
+        let mut changed: Vec<u64> = changes
+            .iter()
+            .map(|change| {
+                let mut t = s.clone();
+                change(&mut t);
+                scene_hash(&[b"scene"], &t, &[])
+            })
+            .collect();
+        changed.extend([
             scene_hash(&[b"scene!"], &s, &[]),
             scene_hash(&[b"sce", b"ne"], &s, &[]),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    width: 65,
-                    ..s.clone()
-                },
-                &[],
-            ),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    height: 47,
-                    ..s.clone()
-                },
-                &[],
-            ),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    seed: 1,
-                    ..s.clone()
-                },
-                &[],
-            ),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    max_depth: 3,
-                    ..s.clone()
-                },
-                &[],
-            ),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    media_mis: false,
-                    ..s.clone()
-                },
-                &[],
-            ),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    equiangular: false,
-                    ..s.clone()
-                },
-                &[],
-            ),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    sampler: crate::render::Sampler::Independent,
-                    ..s.clone()
-                },
-                &[],
-            ),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    emitter_edges: crate::render::EmitterEdgeSampling::Off,
-                    ..s.clone()
-                },
-                &[],
-            ),
-            scene_hash(
-                &[b"scene"],
-                &RenderSettings {
-                    light_sampler: crate::light::LightSamplerChoice::Bvh,
-                    ..s.clone()
-                },
-                &[],
-            ),
             scene_hash(&[b"scene"], &s, &[("env-color", &[0, 0, 0])]),
-        ];
+        ]);
         for (i, h) in changed.iter().enumerate() {
             assert_ne!(*h, base, "change {i}");
         }
