@@ -115,3 +115,8 @@ pub use render::{
 };
 pub use scene::{Camera, Scene, SceneBuilder, SceneError};
 pub use vdb::VdbError;
+
+/// The Rust examples of `docs/embedding.md`, compiled as doctests so that the guide cannot drift from the API.
+#[cfg(doctest)]
+#[doc = include_str!("../docs/embedding.md")]
+pub struct EmbeddingGuide;

@@ -3,7 +3,7 @@
  *
  *   render SCENE [WIDTH HEIGHT SPP [OUTPUT.exr]]
  *
- * Loads SCENE (.gltf, .glb or .obj), renders it (default 16x16 at 1 spp), checks that every beauty sample is
+ * Loads SCENE (.gltf, .glb, .obj or a USD stage), renders it (default 16x16 at 1 spp), checks that every beauty sample is
  * finite and that some are non-zero, and, given OUTPUT.exr, writes the EXR and a PNG preview beside it.
  * Exits 0 on success, 1 on any failure (with the library's message on stderr).
  *

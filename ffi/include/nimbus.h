@@ -108,7 +108,7 @@ const char *nimbus_last_error(void);
 // default layers, an opaque film, the scene's light groups, 6 Cryptomatte ranks.
 NimbusRenderSettings nimbus_render_settings_default(void);
 
-// Loads a scene file (`.gltf`, `.glb` or `.obj`, chosen by extension) into `*out_scene`.
+// Loads a scene file (`.gltf`, `.glb`, `.obj`, `.usd`, `.usda`, `.usdc` or `.usdz`, chosen by extension) into `*out_scene`.
 //
 // On failure `*out_scene` is set to null, the status is `NIMBUS_STATUS_SCENE_ERROR` (or another) and
 // `nimbus_last_error()` names the file and what is wrong.

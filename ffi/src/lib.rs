@@ -385,7 +385,7 @@ pub extern "C" fn nimbus_render_settings_default() -> NimbusRenderSettings {
     }
 }
 
-/// Loads a scene file (`.gltf`, `.glb` or `.obj`, chosen by extension) into `*out_scene`.
+/// Loads a scene file (`.gltf`, `.glb`, `.obj`, `.usd`, `.usda`, `.usdc` or `.usdz`, chosen by extension) into `*out_scene`.
 ///
 /// On failure `*out_scene` is set to null, the status is `NIMBUS_STATUS_SCENE_ERROR` (or another) and
 /// `nimbus_last_error()` names the file and what is wrong.
