@@ -5,7 +5,8 @@
 //! too-low majorant is biased by construction: its rows assert that the bias is detected (violations counted),
 //! not agreement.
 //!
-//! `cargo test --test stability -- --nocapture` prints the table that `docs/stability.md` records.
+//! `cargo test --test stability -- --nocapture --test-threads 1` prints the table that `docs/stability.md`
+//! records; each case is a test of its own.
 
 mod common;
 
@@ -181,6 +182,11 @@ fn global_majorant_reference(case: impl Fn(Option<MajorantKind>) -> Case, spp: u
 
 /// Prints a table row and asserts it; the noisiest channel is printed.
 fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, reference: Reference) {
+    static HEADER: std::sync::Once = std::sync::Once::new();
+    HEADER.call_once(|| {
+        println!("| case | mean ± s.e. | reference | majorant (auto) | null/real | lookups | voxel cells | NaN samples | violations | seconds |");
+        println!("|---|---|---|---|---|---|---|---|---|---|");
+    });
     let (mean, se) = mean_and_se(img);
     let c = stats
         .media
@@ -263,12 +269,16 @@ fn report(name: &str, img: &RenderImage, stats: &RenderStats, seconds: f64, refe
     }
 }
 
-#[test]
-fn stability_suite() {
-    println!("| case | mean ± s.e. | reference | majorant (auto) | null/real | lookups | voxel cells | NaN samples | violations | seconds |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
-    let eye = Vec3::new(0.0, 0.0, 3.0);
+/// Where most cases' camera stands: 3 m in front of the volume's centre.
+const EYE: Vec3 = Vec3::new(0.0, 0.0, 3.0);
 
+// One test per case, so that one failing case does not hide the others. Each prints its row of the table
+// (`cargo test --test stability -- --nocapture --test-threads 1` prints them in order, under the header that
+// `report` prints once).
+
+#[test]
+fn optically_thick_media_finish_and_match_the_global_majorant() {
+    let eye = EYE;
     // Optically very thick (density × 1000): albedo 0.9 so paths end; bounded by roulette and max depth.
     let thick = |kind| Case {
         max_depth: 64,
@@ -291,7 +301,11 @@ fn stability_suite() {
         s,
         global_majorant_reference(thick, 4),
     );
+}
 
+#[test]
+fn very_thin_media_hold_the_furnace() {
+    let eye = EYE;
     // Very thin (× 0.001): the furnace holds.
     let (img, stats, s) = run(
         furnace(
@@ -311,7 +325,11 @@ fn stability_suite() {
         s,
         Reference::ClosedForm(1.0),
     );
+}
 
+#[test]
+fn extreme_henyey_greenstein_anisotropy_holds_the_furnace() {
+    let eye = EYE;
     // Henyey–Greenstein g = ±0.99.
     for g in [0.99f32, -0.99] {
         let (img, stats, s) = run(
@@ -329,7 +347,10 @@ fn stability_suite() {
             Reference::ClosedForm(1.0),
         );
     }
+}
 
+#[test]
+fn strongly_chromatic_extinction_holds_the_furnace() {
     // Strongly chromatic extinction, σ_t R:G:B = 1:10:100 (optical depths 1, 10 and 100 across the box): a
     // homogeneous medium, tracked with spectral MIS, the channel chosen by path throughput.
     let chromatic = HomogeneousMedium::new("chromatic", Rgb::ZERO, Rgb::new(0.5, 5.0, 50.0), 0.0);
@@ -351,7 +372,11 @@ fn stability_suite() {
         s,
         Reference::ClosedForm(1.0),
     );
+}
 
+#[test]
+fn a_too_low_majorant_is_detected() {
+    let eye = EYE;
     // A deliberately too-low majorant (global, at ½ and ⅒ of the grid's maximum). Lookups above it are counted,
     // never clamped: delta tracking accepts every tentative collision there and ratio tracking's weights
     // 1 − σ/σ̄ turn negative, so the estimate is biased and nothing is compared with it. What is asserted is
@@ -390,7 +415,11 @@ fn stability_suite() {
             Reference::BiasDetected(reference_mean, reference_se),
         );
     }
+}
 
+#[test]
+fn an_empty_grid_costs_no_lookups() {
+    let eye = EYE;
     // An empty (all-zero) grid: nothing to track.
     let zeros = (0..8).map(|i| (IVec3::new(i, 0, 0), 0.0)).collect();
     let (img, stats, s) = run(
@@ -402,7 +431,10 @@ fn stability_suite() {
         stats.media[0].counters.density_lookups, 0,
         "empty space costs no lookups"
     );
+}
 
+#[test]
+fn a_single_voxel_grid_holds_the_furnace() {
     // A single-voxel grid, dense: the trilinear footprint of one voxel.
     let one = vec![(IVec3::ZERO, 1.0)];
     let (img, stats, s) = run(
@@ -413,7 +445,11 @@ fn stability_suite() {
         16,
     );
     report("single voxel", &img, &stats, s, Reference::ClosedForm(1.0));
+}
 
+#[test]
+fn nan_inf_and_negative_voxels_are_replaced_and_warned() {
+    let eye = EYE;
     // NaN, Inf and negative voxels: the reader keeps them; the medium must neither crash nor write NaN.
     let mut bad = ball_voxels(IVec3::ZERO);
     bad.push((IVec3::new(0, 0, 0), f32::NAN));
@@ -441,7 +477,10 @@ fn stability_suite() {
         s,
         Reference::ClosedForm(1.0),
     );
+}
 
+#[test]
+fn a_camera_inside_a_volume_holds_the_furnace() {
     // The camera inside a volume (position-filled media need no boundary to enter).
     let (img, stats, s) = run(
         furnace(
@@ -457,7 +496,11 @@ fn stability_suite() {
         s,
         Reference::ClosedForm(1.0),
     );
+}
 
+#[test]
+fn a_light_inside_a_volume_matches_the_global_majorant() {
+    let eye = EYE;
     // A light inside a volume (no environment): finite, and light does reach the camera.
     let inside = |kind| Case {
         media: vec![medium_with(
@@ -484,7 +527,11 @@ fn stability_suite() {
         s,
         global_majorant_reference(inside, 16),
     );
+}
 
+#[test]
+fn two_overlapping_volumes_hold_the_furnace() {
+    let eye = EYE;
     // Two overlapping volumes: the furnace holds for their sum.
     let a = medium(grid(ball_voxels(IVec3::ZERO), VOXEL, 10.0), 1.0, 0.0);
     let b = medium(
@@ -500,7 +547,11 @@ fn stability_suite() {
         s,
         Reference::ClosedForm(1.0),
     );
+}
 
+#[test]
+fn a_volume_far_larger_than_the_scene_holds_the_furnace() {
+    let eye = EYE;
     // A volume much larger than the scene: a thin 1.6 km ball around the camera.
     let (img, stats, s) = run(
         furnace(
