@@ -19,7 +19,7 @@ use std::io::IsTerminal;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::time::{Duration, Instant};
 
 #[derive(Parser)]
@@ -779,6 +779,7 @@ fn render_frame(
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
     let limits = args.limits();
+    let loading = LoadingPhase::start();
     let mut builder = load_builder(args, frame, args.shutter)?;
     if let Some(name) = &args.camera {
         builder.select_camera(name).map_err(|e| {
@@ -816,6 +817,7 @@ fn render_frame(
         );
     }
     let scene: Scene = builder.build().map_err(|e| e.to_string())?;
+    drop(loading);
     for w in scene.warnings() {
         eprintln!("nimbus: warning: {}", one_line(w, MAX_MESSAGE_CHARS));
     }
@@ -1143,6 +1145,27 @@ fn remove_checkpoint(path: &Path) -> Result<(), String> {
 /// The signal that is stopping the render (`SIGTERM` or `SIGINT`), 0 while none has arrived.
 static STOP_SIGNAL: AtomicI32 = AtomicI32::new(0);
 
+/// True while a frame's scene is being loaded and built: no sample has been taken for it and nothing is being
+/// written, so a signal then ends the process at once instead of after the load (which a large USD stage can
+/// make longer than a scheduler's grace period, Slurm's `KillWait` of 30 s).
+static LOADING: AtomicBool = AtomicBool::new(false);
+
+/// Marks the loading of a frame's scene (see [`LOADING`]) until dropped.
+struct LoadingPhase;
+
+impl LoadingPhase {
+    fn start() -> Self {
+        LOADING.store(true, Ordering::SeqCst);
+        LoadingPhase
+    }
+}
+
+impl Drop for LoadingPhase {
+    fn drop(&mut self) {
+        LOADING.store(false, Ordering::SeqCst);
+    }
+}
+
 /// Cancels `token` on the first SIGTERM or SIGINT (kept in [`STOP_SIGNAL`]), so that the render stops after
 /// the pixels in flight and writes what it has; a second one ends the process at once, with status 128 + the
 /// signal (outputs are written atomically, so none is left torn).
@@ -1154,6 +1177,13 @@ fn stop_on_signals(token: CancelToken) -> Result<(), String> {
         for signal in signals.forever() {
             if STOP_SIGNAL.swap(signal, Ordering::SeqCst) != 0 {
                 eprintln!("nimbus: {} again: stopping now", signal_name(signal));
+                std::process::exit(128 + signal);
+            }
+            if LOADING.load(Ordering::SeqCst) {
+                eprintln!(
+                    "nimbus: {} received while loading the scene: stopping now; nothing of this frame was written",
+                    signal_name(signal)
+                );
                 std::process::exit(128 + signal);
             }
             eprintln!(

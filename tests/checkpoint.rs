@@ -249,3 +249,93 @@ fn a_checkpoint_of_another_render_is_refused_and_merge_refuses_checkpoints() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Writes a glTF grid of `n × n` quads (2n² triangles) with its buffer beside it: a scene whose loading and
+/// BVH build take a while, and whose render at a few pixels does not.
+fn large_grid_scene(dir: &Path, n: u32) -> PathBuf {
+    let mut buffer = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            for c in [i as f32 / n as f32, j as f32 / n as f32, 0.0] {
+                buffer.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    let positions = buffer.len();
+    let row = n + 1;
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * row + i;
+            for index in [a, a + 1, a + row, a + 1, a + row + 1, a + row] {
+                buffer.extend_from_slice(&index.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(dir.join("grid.bin"), &buffer).unwrap();
+    let vertices = row * row;
+    let indices = 6 * n * n;
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+        "nodes":[{{"mesh":0}},{{"camera":0,"translation":[0.5,0.5,2]}}],
+        "cameras":[{{"type":"perspective","perspective":{{"yfov":0.8,"znear":0.1}}}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":{vertices},"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+                     {{"bufferView":1,"componentType":5125,"count":{indices},"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{positions}}},
+                       {{"buffer":0,"byteOffset":{positions},"byteLength":{}}}],
+        "buffers":[{{"uri":"grid.bin","byteLength":{}}}]}}"#,
+        buffer.len() - positions,
+        buffer.len()
+    );
+    let path = dir.join("grid.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    path
+}
+
+/// A signal while the scene loads ends the process at once: nothing of the frame exists to be written, and a
+/// long load (a large USD stage) would otherwise outlast a scheduler's grace period before it stops. Before,
+/// the signal only cancelled the render, which began after the whole load and BVH build.
+#[test]
+fn a_signal_while_the_scene_loads_stops_the_process_at_once() {
+    let _alone = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = temp_dir("loading");
+    let scene = large_grid_scene(&dir, 1200);
+    let render = || {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_nimbus"));
+        cmd.arg("render")
+            .arg(&scene)
+            .args([
+                "--width", "4", "--height", "4", "--spp", "1", "-o", "out.exr",
+            ])
+            .current_dir(&dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        cmd
+    };
+    let start = Instant::now();
+    let out = render().output().unwrap();
+    let length = start.elapsed();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        length > Duration::from_millis(1000),
+        "the load must take a while for the test to mean anything: {length:?}"
+    );
+    std::fs::remove_file(dir.join("out.exr")).unwrap();
+    let signal_at = length.mul_f64(0.3);
+    let start = Instant::now();
+    let (status, stderr) = run_and_stop(render(), "TERM", signal_at);
+    let after_signal = start.elapsed().saturating_sub(signal_at);
+    assert_eq!(status.code(), Some(143), "{stderr}");
+    assert!(stderr.contains("while loading the scene"), "{stderr}");
+    assert!(!dir.join("out.exr").exists());
+    // The rest of the load took 70% of the uninterrupted run; stopping at once takes a few milliseconds.
+    assert!(
+        after_signal < length.mul_f64(0.25),
+        "exited {after_signal:?} after the signal; the whole run takes {length:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
