@@ -1071,3 +1071,39 @@ fn unknown_nimbus_attributes_are_warned_or_refused_when_strict() {
     };
     assert!(matches!(err.kind, SceneErrorKind::UnknownKey(_)), "{err}");
 }
+
+/// A sublayer that does not exist is skipped with a warning and the rest of the stage is read, as Pixar's USD
+/// does ("Could not load sublayer ... skipping"); before, it refused the whole stage (issue 37).
+#[test]
+fn a_missing_sublayer_is_a_warning_and_the_rest_of_the_stage_loads() {
+    let dir = std::env::temp_dir().join(format!("nimbus-usd-sublayer-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let triangle = |name: &str, z: f32| {
+        format!(
+            "def Mesh \"{name}\"\n{{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    \
+             point3f[] points = [(0, 0, {z}), (1, 0, {z}), (0, 1, {z})]\n    uniform token subdivisionScheme = \"none\"\n}}\n"
+        )
+    };
+    std::fs::write(
+        dir.join("root.usda"),
+        format!(
+            "#usda 1.0\n(\n    subLayers = [@missing.usda@, @present.usda@]\n)\n{}",
+            triangle("Root", 0.0)
+        ),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("present.usda"),
+        format!("#usda 1.0\n{}", triangle("FromSublayer", 1.0)),
+    )
+    .unwrap();
+    let (builder, _) = usd::read(&dir.join("root.usda")).unwrap_or_else(|e| panic!("{e}"));
+    let mut names: Vec<&str> = builder.meshes().iter().map(|m| m.name.as_str()).collect();
+    names.sort_unstable();
+    assert_eq!(names, ["/FromSublayer", "/Root"]);
+    let warnings = builder.warnings().join("\n");
+    assert!(
+        warnings.contains("missing.usda") && warnings.contains("skipped"),
+        "{warnings}"
+    );
+}

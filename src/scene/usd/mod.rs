@@ -404,8 +404,8 @@ fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
 }
 
 /// The composition errors met so far, as one error, and the problems that are only warnings. As usdview does,
-/// an arc whose target is missing is skipped with a warning and the rest of the stage is read: a reference or
-/// payload to a layer that does not exist, to a prim the layer does not define, or to a layer without a
+/// an arc whose target is missing is skipped with a warning and the rest of the stage is read: a sublayer, a
+/// reference or a payload naming a layer that does not exist, to a prim the layer does not define, or to a layer without a
 /// `defaultPrim`, and an arc to a muted layer. So is an arc to a MaterialX document (`.mtlx`, which `openusd`
 /// cannot read as a layer): the prims it would have brought fall back to defaults. Cycles, layers that exist but
 /// do not parse, and malformed arcs stay errors.
@@ -422,6 +422,7 @@ fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, Sc
         }
         match error {
             pcp::Error::UnresolvedLayer { .. }
+            | pcp::Error::UnresolvedSublayer { .. }
             | pcp::Error::UnresolvedPrimPath { .. }
             | pcp::Error::MissingDefaultPrim { .. }
             | pcp::Error::MutedAssetPath { .. } => warnings.push(format!(
