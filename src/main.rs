@@ -9,6 +9,7 @@ use nimbus::light::EnvironmentLight;
 use nimbus::limits::{one_line, Limits};
 use nimbus::math::Rgb;
 use nimbus::output::Exposure;
+use nimbus::params::Choice;
 use nimbus::render::resume::{RegionProgress, ResumeFrom};
 use nimbus::render::{
     CancelToken, Film, PixelWindow, Progress, RenderImage, RenderRegion, RenderSettings,
@@ -50,6 +51,14 @@ enum Command {
     Merge(MergeArgs),
 }
 
+/// The value parser of a library option chosen by name ([`nimbus::params::Choice`]): its names are the
+/// possible values that help and errors list.
+fn choice<T: Choice + Clone + Send + Sync>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(T::CHOICES.iter().map(|(name, _)| *name))
+        .try_map(|name| T::from_name(&name).ok_or_else(|| format!("unknown value '{name}'")))
+}
+
 /// `--volume-sampling`: the distance-sampling strategies of media (Cycles' "volume sampling" names).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum VolumeSampling {
@@ -81,12 +90,12 @@ struct MergeArgs {
 struct StorageArgs {
     /// Store the colour AOV layers as 16-bit half floats (`--half`), or the beauty and alpha too
     /// (`--half=all`); depth, variance and Cryptomatte stay 32-bit.
-    #[arg(long, value_enum, num_args = 0..=1, require_equals = true, default_missing_value = "aovs",
-          default_value = "off")]
+    #[arg(long, value_parser = choice::<nimbus::output::HalfFloats>(), num_args = 0..=1, require_equals = true,
+          default_missing_value = "aovs", default_value = "off")]
     half: nimbus::output::HalfFloats,
     /// EXR compression: zip (lossless, the default), piz (lossless wavelet), pxr24 (32-bit floats rounded to
     /// 24 bits), b44 (lossy, half channels), rle, none.
-    #[arg(long, value_enum, default_value = "zip")]
+    #[arg(long, value_parser = choice::<nimbus::output::ExrCompression>(), default_value = "zip")]
     compression: nimbus::output::ExrCompression,
 }
 
@@ -218,17 +227,19 @@ struct RenderArgs {
     volume_sampling: VolumeSampling,
     /// Where the paths' key random decisions come from: `sobol` (Owen-scrambled Sobol points, stratified per
     /// pixel) or `independent` (uniform random numbers).
-    #[arg(long, value_enum, default_value = "sobol")]
+    #[arg(long, value_parser = choice::<nimbus::render::Sampler>(), default_value = "sobol")]
     sampler: nimbus::render::Sampler,
     /// How next-event estimation chooses a light: `power` (by emitted power), `bvh` (a light BVH, by each
     /// light's importance at the shading point) or `auto` (the BVH for scenes with many bounded lights, such
     /// as emissive meshes; power otherwise).
-    #[arg(long = "light-sampler", value_enum, default_value = "auto")]
+    #[arg(long = "light-sampler", value_parser = choice::<nimbus::light::LightSamplerChoice>(),
+          default_value = "auto")]
     light_sampler: nimbus::light::LightSamplerChoice,
     /// Pixels that an emitter's outline crosses: `auto` estimates their directly visible emission from 16
     /// camera rays per sample where the scene allows it (no media, no motion, outlines on at most 2% of the
     /// image); `off` takes one camera ray per sample everywhere.
-    #[arg(long = "emitter-edges", value_enum, default_value = "auto")]
+    #[arg(long = "emitter-edges", value_parser = choice::<nimbus::render::EmitterEdgeSampling>(),
+          default_value = "auto")]
     emitter_edges: nimbus::render::EmitterEdgeSampling,
     /// Constant environment radiance r,g,b (overrides the scene's nimbus_environment).
     #[arg(long = "env-color", value_parser = parse_rgb)]
@@ -296,7 +307,8 @@ struct RenderArgs {
     list_cameras: bool,
     /// Light groups: `scene` (the groups the scene declares; emitters in none go to `default`), `per-light`
     /// (one group per emitter) or `off`.
-    #[arg(long = "light-groups", value_enum, default_value = "scene")]
+    #[arg(long = "light-groups", value_parser = choice::<nimbus::render::LightGroupMode>(),
+          default_value = "scene")]
     light_groups: nimbus::render::LightGroupMode,
     /// Cryptomatte ranks per pixel (1 to 16, rounded up to even: two per layer).
     #[arg(long = "cryptomatte-depth", default_value_t = nimbus::render::cryptomatte::DEFAULT_DEPTH)]

@@ -423,6 +423,30 @@ fn edit_distance(a: &str, b: &str) -> usize {
     row[b.len()]
 }
 
+/// An option chosen by name (`--sampler sobol`, `--light-groups per-light`): its values and the names the
+/// command line, the C API and scene files spell them with. Library enums implement it instead of depending on a
+/// command-line parser; the CLI builds its value parsers from [`Choice::CHOICES`].
+pub trait Choice: Copy + PartialEq + Sized + 'static {
+    /// Every value with its name, in the order help texts list them.
+    const CHOICES: &'static [(&'static str, Self)];
+
+    /// The value named `name`, if any.
+    fn from_name(name: &str) -> Option<Self> {
+        Self::CHOICES
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, value)| value)
+    }
+
+    /// The value's name.
+    fn name(self) -> &'static str {
+        Self::CHOICES
+            .iter()
+            .find(|(_, value)| *value == self)
+            .map_or("", |(n, _)| n)
+    }
+}
+
 /// The Markdown table of `keys` that docs/reference.md shows: key, type, default, USD attribute, meaning. Keys of
 /// nested objects follow their parent as `parent.key`.
 pub fn markdown_table(keys: &[ParamKey]) -> String {
@@ -544,6 +568,27 @@ mod tests {
             Some("density_scale")
         );
         assert_eq!(closest_name("colour", ["map", "intensity"]), None);
+    }
+
+    /// Every option's names are distinct and read back to their values, and the names the CLI and its
+    /// documentation have always used are kept (they were clap's kebab-case names of the variants).
+    #[test]
+    fn choices_round_trip_by_name() {
+        fn check<T: Choice + std::fmt::Debug>(expected: &[&str]) {
+            let names: Vec<&str> = T::CHOICES.iter().map(|(n, _)| *n).collect();
+            assert_eq!(names, expected);
+            for &(name, value) in T::CHOICES {
+                assert_eq!(T::from_name(name), Some(value));
+                assert_eq!(value.name(), name);
+            }
+            assert_eq!(T::from_name("no-such-name"), None);
+        }
+        check::<crate::render::Sampler>(&["sobol", "independent"]);
+        check::<crate::render::EmitterEdgeSampling>(&["auto", "off"]);
+        check::<crate::render::LightGroupMode>(&["scene", "per-light", "off"]);
+        check::<crate::light::LightSamplerChoice>(&["auto", "power", "bvh"]);
+        check::<crate::output::ExrCompression>(&["zip", "piz", "pxr24", "b44", "rle", "none"]);
+        check::<crate::output::HalfFloats>(&["off", "aovs", "all"]);
     }
 
     #[test]

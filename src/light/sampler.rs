@@ -22,7 +22,6 @@ pub const BVH_MIN_EMITTERS: usize = 3;
 
 /// Which light-selection distribution next-event estimation uses (`--light-sampler`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum LightSamplerChoice {
     /// The BVH where a scene has at least [`BVH_MIN_BOUNDED_LIGHTS`] bounded lights or at least
     /// [`BVH_MIN_EMITTERS`] separate emitters, the power sampler otherwise.
@@ -32,6 +31,14 @@ pub enum LightSamplerChoice {
     Power,
     /// The light BVH ([`LightBvh`](super::LightBvh)): bounded lights by their importance at the shading point.
     Bvh,
+}
+
+impl crate::params::Choice for LightSamplerChoice {
+    const CHOICES: &'static [(&'static str, Self)] = &[
+        ("auto", Self::Auto),
+        ("power", Self::Power),
+        ("bvh", Self::Bvh),
+    ];
 }
 
 impl LightSamplerChoice {

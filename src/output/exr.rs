@@ -30,7 +30,6 @@ use std::path::Path;
 
 /// The compression of an EXR file (`--compression`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum ExrCompression {
     /// Lossless zlib, 16 lines per block (OpenEXR's ZIP).
     #[default]
@@ -46,6 +45,17 @@ pub enum ExrCompression {
     Rle,
     /// No compression.
     None,
+}
+
+impl crate::params::Choice for ExrCompression {
+    const CHOICES: &'static [(&'static str, Self)] = &[
+        ("zip", Self::Zip),
+        ("piz", Self::Piz),
+        ("pxr24", Self::Pxr24),
+        ("b44", Self::B44),
+        ("rle", Self::Rle),
+        ("none", Self::None),
+    ];
 }
 
 impl ExrCompression {
@@ -64,7 +74,6 @@ impl ExrCompression {
 
 /// Which channels `--half` stores as 16-bit floats.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum HalfFloats {
     /// Every channel 32-bit.
     #[default]
@@ -74,6 +83,11 @@ pub enum HalfFloats {
     Aovs,
     /// The beauty and its alpha too.
     All,
+}
+
+impl crate::params::Choice for HalfFloats {
+    const CHOICES: &'static [(&'static str, Self)] =
+        &[("off", Self::Off), ("aovs", Self::Aovs), ("all", Self::All)];
 }
 
 /// How [`write_exr_with`] stores an image.

@@ -278,7 +278,6 @@ impl AovSelection {
 
 /// How emitters are put in light groups (`--light-groups`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum LightGroupMode {
     /// The groups the scene declares (`nimbus_light_group`, `nimbus:lightGroup`); emitters in none go to
     /// `default`. No group layer when the scene declares none.
@@ -289,6 +288,14 @@ pub enum LightGroupMode {
     PerLight,
     /// No light groups.
     Off,
+}
+
+impl crate::params::Choice for LightGroupMode {
+    const CHOICES: &'static [(&'static str, Self)] = &[
+        ("scene", Self::Scene),
+        ("per-light", Self::PerLight),
+        ("off", Self::Off),
+    ];
 }
 
 /// The most light groups a render writes: each is a layer of 3 channels and 48 bytes of film per pixel.

@@ -46,16 +46,19 @@ const STEPS_PER_PIXEL: f32 = 4.0;
 /// Camera-space depth at which edges are clipped in front of the camera.
 const NEAR: f32 = 1e-4;
 
-/// Whether to supersample the outlines of directly visible emitters. With the `cli` feature it is also the
-/// `--emitter-edges` value.
+/// Whether to supersample the outlines of directly visible emitters. It is the `--emitter-edges` value, by its
+/// [`Choice`](crate::params::Choice) name.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum EmitterEdgeSampling {
     /// Where the scene allows it exactly and cheaply (see the module documentation).
     #[default]
     Auto,
     /// Never: every pixel takes one camera ray per sample.
     Off,
+}
+
+impl crate::params::Choice for EmitterEdgeSampling {
+    const CHOICES: &'static [(&'static str, Self)] = &[("auto", Self::Auto), ("off", Self::Off)];
 }
 
 /// The pixels of a frame that an emitter's outline crosses.

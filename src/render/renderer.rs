@@ -33,9 +33,8 @@ const EDGE_STREAM: u64 = 0x1319_8a2e_0370_7344;
 
 /// Where a path's key random decisions come from: the pixel position, the light choice and light sample, and
 /// BSDF and phase sampling. Tracking, Russian roulette and the rest always use the sample's PCG32 stream.
-/// With the `cli` feature it is also the `--sampler` value.
+/// It is the `--sampler` value, by its [`Choice`](crate::params::Choice) name.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Sampler {
     /// Owen-scrambled, shuffled 2-D Sobol points per dimension pair (`nimbus::math::sobol`): stratified within
     /// each pixel, so the error falls faster than 1/√N where the integrand allows.
@@ -43,6 +42,11 @@ pub enum Sampler {
     Sobol,
     /// Independent uniform values from PCG32.
     Independent,
+}
+
+impl crate::params::Choice for Sampler {
+    const CHOICES: &'static [(&'static str, Self)] =
+        &[("sobol", Self::Sobol), ("independent", Self::Independent)];
 }
 
 /// How to render.
