@@ -27,6 +27,71 @@ pub struct FrameRange {
 /// The most frames one range may hold: a shot of a day at 24 fps is about 2 million frames, far beyond.
 const MAX_FRAMES: i64 = 1 << 20;
 
+/// Why a `--frames` value is not a frame range.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FrameRangeError {
+    /// Not of the form `A..B[:STEP]`.
+    #[error("'{0}' is not a frame range A..B[:STEP]")]
+    NotARange(String),
+    /// An end that is not a whole number.
+    #[error("frame '{text}': {source}")]
+    BadFrame {
+        /// The end as given.
+        text: String,
+        /// Why it does not parse.
+        source: std::num::ParseIntError,
+    },
+    /// A step that is not a whole number.
+    #[error("step '{text}': {source}")]
+    BadStep {
+        /// The step as given.
+        text: String,
+        /// Why it does not parse.
+        source: std::num::ParseIntError,
+    },
+    /// A step below 1.
+    #[error("the step of '{0}' must be at least 1")]
+    StepBelowOne(String),
+    /// The first frame follows the last.
+    #[error("'{0}' runs backwards: the first frame must not follow the last")]
+    Backwards(String),
+    /// More frames than one range may hold.
+    #[error("'{text}' holds {frames} frames; at most {MAX_FRAMES} in one range")]
+    TooMany {
+        /// The range as given.
+        text: String,
+        /// How many frames it holds.
+        frames: u64,
+    },
+}
+
+/// Why a `--shutter` value is not a shutter interval.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ShutterError {
+    /// Not of the form `OPEN,CLOSE`.
+    #[error("'{0}' is not a shutter OPEN,CLOSE (in frames, e.g. -0.25,0.25)")]
+    NotAShutter(String),
+    /// A time that is not a number.
+    #[error("shutter time '{text}': {source}")]
+    BadTime {
+        /// The time as given.
+        text: String,
+        /// Why it does not parse.
+        source: std::num::ParseFloatError,
+    },
+    /// A time that is not finite or lies beyond ±16 frames.
+    #[error("shutter time '{0}' must be finite and within +/-{MAX_SHUTTER_FRAMES} frames")]
+    OutOfRange(String),
+    /// The shutter opens after it closes.
+    #[error("the shutter opens at {open} after it closes at {close}")]
+    Reversed {
+        /// When it opens.
+        open: f32,
+        /// When it closes.
+        close: f32,
+    },
+}
+
 impl FrameRange {
     /// A single frame.
     pub fn single(frame: i64) -> Self {
@@ -38,39 +103,43 @@ impl FrameRange {
     }
 
     /// Parses `A..B` or `A..B:STEP` (both ends included, STEP ≥ 1; A ≤ B).
-    pub fn parse(text: &str) -> Result<Self, String> {
+    pub fn parse(text: &str) -> Result<Self, FrameRangeError> {
         let (range, step) = match text.split_once(':') {
             Some((r, s)) => (
                 r,
                 s.trim()
                     .parse::<i64>()
-                    .map_err(|e| format!("step '{s}': {e}"))?,
+                    .map_err(|source| FrameRangeError::BadStep {
+                        text: s.to_owned(),
+                        source,
+                    })?,
             ),
             None => (text, 1),
         };
         let (a, b) = range
             .split_once("..")
-            .ok_or_else(|| format!("'{text}' is not a frame range A..B[:STEP]"))?;
+            .ok_or_else(|| FrameRangeError::NotARange(text.to_owned()))?;
         let parse = |s: &str| {
             s.trim()
                 .parse::<i64>()
-                .map_err(|e| format!("frame '{s}': {e}"))
+                .map_err(|source| FrameRangeError::BadFrame {
+                    text: s.to_owned(),
+                    source,
+                })
         };
         let (first, last) = (parse(a)?, parse(b)?);
         if step < 1 {
-            return Err(format!("the step of '{text}' must be at least 1"));
+            return Err(FrameRangeError::StepBelowOne(text.to_owned()));
         }
         if first > last {
-            return Err(format!(
-                "'{text}' runs backwards: the first frame must not follow the last"
-            ));
+            return Err(FrameRangeError::Backwards(text.to_owned()));
         }
         let range = Self { first, last, step };
         if range.len() > MAX_FRAMES as u64 {
-            return Err(format!(
-                "'{text}' holds {} frames; at most {MAX_FRAMES} in one range",
-                range.len()
-            ));
+            return Err(FrameRangeError::TooMany {
+                text: text.to_owned(),
+                frames: range.len(),
+            });
         }
         Ok(range)
     }
@@ -118,28 +187,27 @@ const MAX_SHUTTER_FRAMES: f32 = 16.0;
 
 impl Shutter {
     /// Parses `OPEN,CLOSE` (frames, finite, OPEN ≤ CLOSE, each within ±16 frames).
-    pub fn parse(text: &str) -> Result<Self, String> {
-        let (a, b) = text.split_once(',').ok_or_else(|| {
-            format!("'{text}' is not a shutter OPEN,CLOSE (in frames, e.g. -0.25,0.25)")
-        })?;
+    pub fn parse(text: &str) -> Result<Self, ShutterError> {
+        let (a, b) = text
+            .split_once(',')
+            .ok_or_else(|| ShutterError::NotAShutter(text.to_owned()))?;
         let parse = |s: &str| {
             let v = s
                 .trim()
                 .parse::<f32>()
-                .map_err(|e| format!("shutter time '{s}': {e}"))?;
+                .map_err(|source| ShutterError::BadTime {
+                    text: s.to_owned(),
+                    source,
+                })?;
             if v.is_finite() && v.abs() <= MAX_SHUTTER_FRAMES {
                 Ok(v)
             } else {
-                Err(format!(
-                    "shutter time '{s}' must be finite and within +/-{MAX_SHUTTER_FRAMES} frames"
-                ))
+                Err(ShutterError::OutOfRange(s.to_owned()))
             }
         };
         let (open, close) = (parse(a)?, parse(b)?);
         if open > close {
-            return Err(format!(
-                "the shutter opens at {open} after it closes at {close}"
-            ));
+            return Err(ShutterError::Reversed { open, close });
         }
         Ok(Self { open, close })
     }
@@ -294,6 +362,33 @@ mod tests {
         assert_eq!(with_frame("plain.vdb", 5), None);
         assert_eq!(with_frame("100%.exr", 5), None);
         assert_eq!(with_frame("price$5.exr", 5), None);
+    }
+
+    #[test]
+    fn parse_errors_say_what_is_wrong() {
+        assert_eq!(
+            FrameRange::parse("5..1"),
+            Err(FrameRangeError::Backwards("5..1".into()))
+        );
+        assert_eq!(
+            FrameRange::parse("1..5:0"),
+            Err(FrameRangeError::StepBelowOne("1..5:0".into()))
+        );
+        assert!(matches!(
+            FrameRange::parse("1..x"),
+            Err(FrameRangeError::BadFrame { text, .. }) if text == "x"
+        ));
+        assert_eq!(
+            Shutter::parse("0.5,0"),
+            Err(ShutterError::Reversed {
+                open: 0.5,
+                close: 0.0
+            })
+        );
+        assert_eq!(
+            Shutter::parse("0,17").unwrap_err().to_string(),
+            "shutter time '17' must be finite and within +/-16 frames"
+        );
     }
 
     #[test]

@@ -197,9 +197,20 @@ pub fn format_bytes(bytes: u64) -> String {
     format!("{value:.1} {}", UNITS[unit])
 }
 
+/// Why a `--memory-limit` value is not a size.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SizeError {
+    /// Not a number with an optional K, M, G or T suffix.
+    #[error("'{0}' is not a size (examples: 4096, 512M, 4G)")]
+    NotASize(String),
+    /// Below one byte, or too large for 64 bits.
+    #[error("'{0}' is not a size of at least one byte")]
+    BelowOneByte(String),
+}
+
 /// Parses a size with an optional binary suffix: `4096`, `512M`, `4G`, `1.5T` (K, M, G, T; an optional `iB` or
 /// `B` after it).
-pub fn parse_size(text: &str) -> Result<u64, String> {
+pub fn parse_size(text: &str) -> Result<u64, SizeError> {
     let t = text.trim();
     let upper = t.to_ascii_uppercase();
     let number = upper
@@ -216,10 +227,10 @@ pub fn parse_size(text: &str) -> Result<u64, String> {
     let value: f64 = digits
         .trim()
         .parse()
-        .map_err(|_| format!("'{t}' is not a size (examples: 4096, 512M, 4G)"))?;
+        .map_err(|_| SizeError::NotASize(t.to_owned()))?;
     let bytes = value * (1u64 << shift) as f64;
     if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
-        return Err(format!("'{t}' is not a size of at least one byte"));
+        return Err(SizeError::BelowOneByte(t.to_owned()));
     }
     Ok(bytes as u64)
 }
