@@ -1107,3 +1107,52 @@ fn a_missing_sublayer_is_a_warning_and_the_rest_of_the_stage_loads() {
         "{warnings}"
     );
 }
+
+/// `subdivisionScheme = "loop"` subdivides a triangle mesh by Loop's rules (before, its cage was rendered with a
+/// warning): one level on the octahedron puts its vertices at 132/256 of themselves and its edge points at 3/8 of
+/// their ends' sum (Loop 1987). A loop mesh of quads keeps its cage, with a warning.
+#[test]
+fn loop_subdivision_meshes_are_subdivided() {
+    let dir = std::env::temp_dir().join(format!("nimbus-usd-loop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let stage = r#"#usda 1.0
+def Mesh "Octahedron"
+{
+    int[] faceVertexCounts = [3, 3, 3, 3, 3, 3, 3, 3]
+    int[] faceVertexIndices = [0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5]
+    point3f[] points = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+    uniform token subdivisionScheme = "loop"
+    int refineLevel = 1
+}
+def Mesh "Quad"
+{
+    int[] faceVertexCounts = [4]
+    int[] faceVertexIndices = [0, 1, 2, 3]
+    point3f[] points = [(0, 0, 3), (1, 0, 3), (1, 1, 3), (0, 1, 3)]
+    uniform token subdivisionScheme = "loop"
+}
+"#;
+    let path = dir.join("loop.usda");
+    std::fs::write(&path, stage).unwrap();
+    let (builder, _) = usd::read(&path).unwrap_or_else(|e| panic!("{e}"));
+    let octahedron = builder
+        .meshes()
+        .iter()
+        .find(|m| m.name == "/Octahedron")
+        .expect("octahedron");
+    assert_eq!(octahedron.indices.len(), 32);
+    let has = |q: Vec3| octahedron.positions.iter().any(|p| p.distance(q) < 1e-5);
+    assert!(has(Vec3::new(132.0 / 256.0, 0.0, 0.0)), "a vertex point");
+    assert!(has(Vec3::new(0.375, 0.375, 0.0)), "an edge point");
+    let quad = builder
+        .meshes()
+        .iter()
+        .find(|m| m.name == "/Quad")
+        .expect("quad");
+    assert_eq!(quad.indices.len(), 2, "the quad's cage, as two triangles");
+    let warnings = builder.warnings().join("\n");
+    assert!(
+        warnings.contains("/Quad") && warnings.contains("needs triangles"),
+        "{warnings}"
+    );
+}

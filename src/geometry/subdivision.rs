@@ -43,6 +43,25 @@ pub struct PolygonMesh {
     pub corners: HashMap<u32, f32>,
 }
 
+/// A subdivision scheme (USD's `subdivisionScheme`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scheme {
+    /// Catmull-Clark (any polygons; quads from the first level on).
+    CatmullClark,
+    /// Loop (Loop 1987, "Smooth Subdivision Surfaces Based on Triangles"): triangles only, each becoming four.
+    Loop,
+}
+
+impl Scheme {
+    /// The scheme's name in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scheme::CatmullClark => "Catmull-Clark",
+            Scheme::Loop => "Loop",
+        }
+    }
+}
+
 /// Why a mesh cannot be subdivided.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum SubdivisionError {
@@ -99,12 +118,39 @@ impl PolygonMesh {
 
     /// The mesh after `levels` of Catmull-Clark subdivision (all quads from the first level on).
     pub fn subdivide(&self, levels: u32) -> Result<PolygonMesh, SubdivisionError> {
+        self.subdivide_with(Scheme::CatmullClark, levels)
+    }
+
+    /// The mesh after `levels` of subdivision by `scheme`. Loop subdivision needs a mesh of triangles.
+    pub fn subdivide_with(
+        &self,
+        scheme: Scheme,
+        levels: u32,
+    ) -> Result<PolygonMesh, SubdivisionError> {
         self.validate()?;
+        if scheme == Scheme::Loop {
+            if let Some((f, &c)) = self.counts.iter().enumerate().find(|&(_, &c)| c != 3) {
+                return Err(SubdivisionError::Topology(format!(
+                    "Loop subdivision needs triangles, but face {f} has {c} vertices"
+                )));
+            }
+        }
         let mut mesh = self.clone();
         for _ in 0..levels {
-            mesh = mesh.subdivide_once();
+            mesh = match scheme {
+                Scheme::CatmullClark => mesh.subdivide_once(),
+                Scheme::Loop => mesh.loop_once(),
+            };
         }
         Ok(mesh)
+    }
+
+    /// The number of faces `levels` of subdivision by `scheme` make.
+    pub fn faces_after_with(&self, scheme: Scheme, levels: u32) -> u64 {
+        match scheme {
+            Scheme::CatmullClark => self.faces_after(levels),
+            Scheme::Loop => (self.counts.len() as u64).saturating_mul(4u64.saturating_pow(levels)),
+        }
     }
 
     /// Area-weighted vertex normals (the sum of each adjacent face's vector area, normalised), per face corner:
@@ -138,35 +184,16 @@ impl PolygonMesh {
     /// One level of subdivision.
     fn subdivide_once(&self) -> PolygonMesh {
         let n_points = self.points.len();
-        // Edges: vertex pair → (index, faces using it).
-        let mut edge_index: HashMap<(u32, u32), usize> = HashMap::new();
-        let mut edges: Vec<Edge> = Vec::new();
-        let mut face_points = Vec::with_capacity(self.counts.len());
-        for (f, corners) in self.faces() {
-            let centre = corners
-                .iter()
-                .fold(Vec3::ZERO, |a, &v| a + self.points[v as usize])
-                / corners.len() as f32;
-            face_points.push(centre);
-            for k in 0..corners.len() {
-                let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
-                let key = (a.min(b), a.max(b));
-                let e = *edge_index.entry(key).or_insert_with(|| {
-                    edges.push(Edge {
-                        ends: key,
-                        faces: Vec::new(),
-                        sharpness: self.creases.get(&key).copied().unwrap_or(0.0).max(0.0),
-                    });
-                    edges.len() - 1
-                });
-                edges[e].faces.push(f);
-            }
-        }
-        for e in &mut edges {
-            if e.faces.len() != 2 {
-                e.sharpness = INFINITELY_SHARP;
-            }
-        }
+        let face_points: Vec<Vec3> = self
+            .faces()
+            .map(|(_, corners)| {
+                corners
+                    .iter()
+                    .fold(Vec3::ZERO, |a, &v| a + self.points[v as usize])
+                    / corners.len() as f32
+            })
+            .collect();
+        let (edge_index, edges) = self.edge_table();
         // Edge points.
         let point = |v: u32| self.points[v as usize];
         let edge_points: Vec<Vec3> = edges
@@ -185,17 +212,7 @@ impl PolygonMesh {
             })
             .collect();
         // Vertex points: gather each vertex's edges and faces.
-        let mut vertex_edges: Vec<Vec<usize>> = vec![Vec::new(); n_points];
-        for (i, e) in edges.iter().enumerate() {
-            vertex_edges[e.ends.0 as usize].push(i);
-            vertex_edges[e.ends.1 as usize].push(i);
-        }
-        let mut vertex_faces: Vec<Vec<usize>> = vec![Vec::new(); n_points];
-        for (f, corners) in self.faces() {
-            for &v in corners {
-                vertex_faces[v as usize].push(f);
-            }
-        }
+        let (vertex_edges, vertex_faces) = self.incidence(&edges);
         let vertex_points: Vec<Vec3> = (0..n_points)
             .map(|v| {
                 let s = self.points[v];
@@ -211,38 +228,7 @@ impl PolygonMesh {
                     a + (point(edges[e].ends.0) + point(edges[e].ends.1)) * 0.5
                 }) / n;
                 let smooth = (q + 2.0 * r + (n - 3.0) * s) / n;
-                let sharp: Vec<usize> = incident
-                    .iter()
-                    .copied()
-                    .filter(|&e| edges[e].sharpness > 0.0)
-                    .collect();
-                // USD's edgeAndCorner: a boundary vertex of one face is a corner.
-                let boundary_corner = faces.len() == 1 && sharp.len() >= 2;
-                let corner = self
-                    .corners
-                    .get(&(v as u32))
-                    .copied()
-                    .unwrap_or(0.0)
-                    .max(0.0);
-                let (rule, weight) = if corner > 0.0 || sharp.len() >= 3 || boundary_corner {
-                    let weight = if boundary_corner || sharp.len() >= 3 {
-                        1.0
-                    } else {
-                        corner
-                    };
-                    (s, weight)
-                } else if sharp.len() == 2 {
-                    let other = |e: usize| {
-                        let (a, b) = edges[e].ends;
-                        point(if a as usize == v { b } else { a })
-                    };
-                    let crease = (other(sharp[0]) + 6.0 * s + other(sharp[1])) / 8.0;
-                    let weight = (edges[sharp[0]].sharpness + edges[sharp[1]].sharpness) * 0.5;
-                    (crease, weight)
-                } else {
-                    (smooth, 0.0)
-                };
-                smooth.lerp(rule, weight.min(1.0))
+                self.sharpened_vertex(v, smooth, incident, faces.len(), &edges)
             })
             .collect();
         // New points: vertices, then edges, then faces.
@@ -279,7 +265,186 @@ impl PolygonMesh {
             }
             corner_start += c;
         }
-        // Sharpness decreases by one a level (infinitely sharp stays so); each parent edge's two halves keep it.
+        self.child_creases(&edges, edge_base, &mut out);
+        out
+    }
+
+    /// One level of Loop subdivision (Loop 1987) of a mesh of triangles, with the same sharp and semi-sharp
+    /// rules as Catmull-Clark's (DeRose et al. 1998): each triangle becomes four, its corners' vertex points and
+    /// its edges' edge points.
+    /// - edge point: smooth, 3/8 (v₀ + v₁) + 1/8 (o₀ + o₁) with o the vertices opposite the edge; sharp, the
+    ///   midpoint;
+    /// - vertex point with n neighbours: smooth, (1 − nβ) S + β Σ neighbours with
+    ///   β = (5/8 − (3/8 + cos(2π/n)/4)²) / n (Loop 1987, §3.2); crease and corner as Catmull-Clark's.
+    fn loop_once(&self) -> PolygonMesh {
+        let n_points = self.points.len();
+        let (edge_index, edges) = self.edge_table();
+        let point = |v: u32| self.points[v as usize];
+        let triangles: Vec<&[u32]> = self.faces().map(|(_, corners)| corners).collect();
+        let opposite = |f: usize, e: &Edge| {
+            triangles[f]
+                .iter()
+                .copied()
+                .find(|&v| v != e.ends.0 && v != e.ends.1)
+                .map_or(Vec3::ZERO, point)
+        };
+        let edge_points: Vec<Vec3> = edges
+            .iter()
+            .map(|e| {
+                let mid = (point(e.ends.0) + point(e.ends.1)) * 0.5;
+                if e.sharpness >= 1.0 {
+                    return mid;
+                }
+                let smooth = (point(e.ends.0) + point(e.ends.1)) * 0.375
+                    + (opposite(e.faces[0], e) + opposite(e.faces[1], e)) * 0.125;
+                smooth.lerp(mid, e.sharpness)
+            })
+            .collect();
+        let (vertex_edges, vertex_faces) = self.incidence(&edges);
+        let vertex_points: Vec<Vec3> = (0..n_points)
+            .map(|v| {
+                let s = self.points[v];
+                let incident = &vertex_edges[v];
+                if incident.is_empty() || vertex_faces[v].is_empty() {
+                    return s;
+                }
+                let n = incident.len() as f32;
+                let neighbours = incident.iter().fold(Vec3::ZERO, |a, &e| {
+                    let (x, y) = edges[e].ends;
+                    a + point(if x as usize == v { y } else { x })
+                });
+                let c = 0.375 + 0.25 * (std::f32::consts::TAU / n).cos();
+                let beta = (0.625 - c * c) / n;
+                let smooth = s * (1.0 - n * beta) + neighbours * beta;
+                self.sharpened_vertex(v, smooth, incident, vertex_faces[v].len(), &edges)
+            })
+            .collect();
+        let edge_base = n_points as u32;
+        let mut points = vertex_points;
+        points.extend(edge_points);
+        let mut out = PolygonMesh {
+            points,
+            uvs: self.uvs.as_ref().map(|_| Vec::new()),
+            colors: self.colors.as_ref().map(|_| Vec::new()),
+            ..Default::default()
+        };
+        for (f, corners) in triangles.iter().enumerate() {
+            let mid = |k: usize| {
+                let (a, b) = (corners[k], corners[(k + 1) % 3]);
+                edge_base + edge_index[&(a.min(b), a.max(b))] as u32
+            };
+            let [a, b, c] = [corners[0], corners[1], corners[2]];
+            let [ab, bc, ca] = [mid(0), mid(1), mid(2)];
+            for child in [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]] {
+                out.counts.push(3);
+                out.indices.extend(child);
+                out.face_tags.push(self.face_tags[f]);
+            }
+            let range = 3 * f..3 * f + 3;
+            if let (Some(all), Some(own)) = (&self.uvs, &mut out.uvs) {
+                own.extend(linear_face_varying_triangle(&all[range.clone()]));
+            }
+            if let (Some(all), Some(own)) = (&self.colors, &mut out.colors) {
+                own.extend(linear_face_varying_triangle(&all[range]));
+            }
+        }
+        self.child_creases(&edges, edge_base, &mut out);
+        out
+    }
+
+    /// The mesh's edges, each with the faces that use it and its sharpness this level (infinite on boundaries and
+    /// non-manifold edges), and the index of each by its vertex pair (smaller index first).
+    fn edge_table(&self) -> (HashMap<(u32, u32), usize>, Vec<Edge>) {
+        let mut edge_index: HashMap<(u32, u32), usize> = HashMap::new();
+        let mut edges: Vec<Edge> = Vec::new();
+        for (f, corners) in self.faces() {
+            for k in 0..corners.len() {
+                let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
+                let key = (a.min(b), a.max(b));
+                let e = *edge_index.entry(key).or_insert_with(|| {
+                    edges.push(Edge {
+                        ends: key,
+                        faces: Vec::new(),
+                        sharpness: self.creases.get(&key).copied().unwrap_or(0.0).max(0.0),
+                    });
+                    edges.len() - 1
+                });
+                edges[e].faces.push(f);
+            }
+        }
+        for e in &mut edges {
+            if e.faces.len() != 2 {
+                e.sharpness = INFINITELY_SHARP;
+            }
+        }
+        (edge_index, edges)
+    }
+
+    /// Each vertex's incident edges and faces.
+    fn incidence(&self, edges: &[Edge]) -> (Vec<Vec<usize>>, Vec<Vec<usize>>) {
+        let mut vertex_edges: Vec<Vec<usize>> = vec![Vec::new(); self.points.len()];
+        for (i, e) in edges.iter().enumerate() {
+            vertex_edges[e.ends.0 as usize].push(i);
+            vertex_edges[e.ends.1 as usize].push(i);
+        }
+        let mut vertex_faces: Vec<Vec<usize>> = vec![Vec::new(); self.points.len()];
+        for (f, corners) in self.faces() {
+            for &v in corners {
+                vertex_faces[v as usize].push(f);
+            }
+        }
+        (vertex_edges, vertex_faces)
+    }
+
+    /// The vertex point of `v` from its scheme's `smooth` point and the sharp rules (DeRose et al. 1998, §3):
+    /// a corner (a corner sharpness, three or more sharp edges, or USD's edgeAndCorner boundary vertex of one
+    /// face) stays put; two sharp edges to a and b make the crease point (a + 6S + b)/8; a semi-sharp rule is
+    /// blended with the smooth point by its sharpness.
+    fn sharpened_vertex(
+        &self,
+        v: usize,
+        smooth: Vec3,
+        incident: &[usize],
+        face_count: usize,
+        edges: &[Edge],
+    ) -> Vec3 {
+        let s = self.points[v];
+        let sharp: Vec<usize> = incident
+            .iter()
+            .copied()
+            .filter(|&e| edges[e].sharpness > 0.0)
+            .collect();
+        let boundary_corner = face_count == 1 && sharp.len() >= 2;
+        let corner = self
+            .corners
+            .get(&(v as u32))
+            .copied()
+            .unwrap_or(0.0)
+            .max(0.0);
+        let (rule, weight) = if corner > 0.0 || sharp.len() >= 3 || boundary_corner {
+            let weight = if boundary_corner || sharp.len() >= 3 {
+                1.0
+            } else {
+                corner
+            };
+            (s, weight)
+        } else if sharp.len() == 2 {
+            let other = |e: usize| {
+                let (a, b) = edges[e].ends;
+                self.points[if a as usize == v { b } else { a } as usize]
+            };
+            let crease = (other(sharp[0]) + 6.0 * s + other(sharp[1])) / 8.0;
+            let weight = (edges[sharp[0]].sharpness + edges[sharp[1]].sharpness) * 0.5;
+            (crease, weight)
+        } else {
+            (smooth, 0.0)
+        };
+        smooth.lerp(rule, weight.min(1.0))
+    }
+
+    /// The next level's creases and corners: sharpness decreases by one a level (infinitely sharp stays so),
+    /// and each parent edge's two halves (to its edge point, numbered `edge_base + edge`) keep it.
+    fn child_creases(&self, edges: &[Edge], edge_base: u32, out: &mut PolygonMesh) {
         let child = |s: f32| if s >= INFINITELY_SHARP { s } else { s - 1.0 };
         for (e, edge) in edges.iter().enumerate() {
             let s = child(self.creases.get(&edge.ends).copied().unwrap_or(0.0));
@@ -296,7 +461,6 @@ impl PolygonMesh {
                 out.corners.insert(v, s);
             }
         }
-        out
     }
 }
 
@@ -324,6 +488,17 @@ where
             [here, (here + next) * 0.5, centre, (prev + here) * 0.5]
         })
         .collect()
+}
+
+/// The three corners of each of a triangle's four Loop children, from its corner values (in the order
+/// [`PolygonMesh::loop_once`] makes the children: the three at the corners, then the middle one).
+fn linear_face_varying_triangle<T>(values: &[T]) -> Vec<T>
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<f32, Output = T>,
+{
+    let [a, b, c] = [values[0], values[1], values[2]];
+    let [ab, bc, ca] = [(a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5];
+    vec![a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca]
 }
 
 #[cfg(test)]
@@ -520,5 +695,113 @@ mod tests {
         let mut c = cube();
         c.face_tags.pop();
         assert!(c.subdivide(1).is_err());
+    }
+
+    /// The regular octahedron (vertices ±x, ±y, ±z), counter-clockwise from outside.
+    fn octahedron() -> PolygonMesh {
+        let points = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
+        let (px, nx, py, ny, pz, nz) = (0, 1, 2, 3, 4, 5);
+        let indices = vec![
+            px, py, pz, py, nx, pz, nx, ny, pz, ny, px, pz, //
+            py, px, nz, nx, py, nz, ny, nx, nz, px, ny, nz,
+        ];
+        PolygonMesh {
+            points,
+            counts: vec![3; 8],
+            indices,
+            face_tags: vec![0; 8],
+            ..Default::default()
+        }
+    }
+
+    /// One Loop level on the octahedron, by hand (Loop 1987): every vertex has n = 4 neighbours summing to zero,
+    /// so it moves to (1 − 4β) with β = (5/8 − (3/8)²)/4 = 31/256, that is to 132/256 of itself; an edge point
+    /// is 3/8 of the edge's end sum (its two opposite vertices cancel).
+    #[test]
+    fn one_loop_level_on_an_octahedron_gives_the_closed_form_points() {
+        let o = octahedron();
+        let s = o.subdivide_with(Scheme::Loop, 1).unwrap();
+        assert_eq!((s.points.len(), s.counts.len()), (6 + 12, 32));
+        assert_eq!(o.faces_after_with(Scheme::Loop, 3), 8 * 64);
+        for (i, &p) in s.points[..6].iter().enumerate() {
+            assert!(
+                p.distance(o.points[i] * (132.0 / 256.0)) < 1e-6,
+                "vertex {i}: {p}"
+            );
+        }
+        for &p in &s.points[6..] {
+            let mut a = p.abs().to_array();
+            a.sort_by(f32::total_cmp);
+            assert!(
+                a[0].abs() < 1e-6 && (a[1] - 0.375).abs() < 1e-6 && (a[2] - 0.375).abs() < 1e-6,
+                "edge point {p}"
+            );
+        }
+        // Faces keep facing outwards, and two more levels shrink every point inside the octahedron's hull.
+        let s3 = o.subdivide_with(Scheme::Loop, 3).unwrap();
+        assert_eq!(s3.counts.len(), 8 * 64);
+        assert!(s3.points.iter().all(|p| p.abs().element_sum() < 1.0));
+        let normals = s3.corner_normals();
+        for (k, &v) in s3.indices.iter().enumerate() {
+            assert!(normals[k].dot(s3.points[v as usize]) > 0.0, "corner {k}");
+        }
+    }
+
+    /// A flat triangulated square stays flat under Loop's rules; its boundary is sharp, so points on it stay on
+    /// it, and corners marked infinitely sharp stay put; face-varying values interpolate linearly.
+    #[test]
+    fn a_flat_triangle_grid_stays_flat_with_a_sharp_boundary() {
+        let uv = |x: f32, y: f32| Vec2::new(x, y);
+        let mut square = PolygonMesh {
+            points: vec![
+                Vec3::ZERO,
+                Vec3::X,
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::Y,
+                Vec3::new(0.5, 0.5, 0.0),
+            ],
+            counts: vec![3; 4],
+            indices: vec![0, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0, 4],
+            uvs: Some(vec![
+                uv(0.0, 0.0),
+                uv(1.0, 0.0),
+                uv(0.5, 0.5),
+                uv(1.0, 0.0),
+                uv(1.0, 1.0),
+                uv(0.5, 0.5),
+                uv(1.0, 1.0),
+                uv(0.0, 1.0),
+                uv(0.5, 0.5),
+                uv(0.0, 1.0),
+                uv(0.0, 0.0),
+                uv(0.5, 0.5),
+            ]),
+            face_tags: vec![0, 1, 2, 3],
+            ..Default::default()
+        };
+        for v in 0..4 {
+            square.corners.insert(v, INFINITELY_SHARP);
+        }
+        let s = square.subdivide_with(Scheme::Loop, 2).unwrap();
+        assert!(s.points.iter().all(|p| p.z.abs() < 1e-6));
+        for i in 0..4 {
+            assert!(s.points[i].distance(square.points[i]) < 1e-6, "corner {i}");
+        }
+        assert!(s
+            .points
+            .iter()
+            .all(|p| p.x > -1e-6 && p.y > -1e-6 && p.x < 1.0 + 1e-6 && p.y < 1.0 + 1e-6));
+        // Level 1: face 0's first child is (corner 0, the midpoint toward 1, the midpoint toward the centre).
+        let one = square.subdivide_with(Scheme::Loop, 1).unwrap();
+        let uvs = one.uvs.unwrap();
+        assert_eq!(&uvs[..3], &[uv(0.0, 0.0), uv(0.5, 0.0), uv(0.25, 0.25)]);
+        assert_eq!(&uvs[9..12], &[uv(0.5, 0.0), uv(0.75, 0.25), uv(0.25, 0.25)]);
+        assert_eq!(s.face_tags.iter().filter(|&&t| t == 2).count(), 16);
+    }
+
+    #[test]
+    fn loop_subdivision_refuses_polygons_other_than_triangles() {
+        let err = cube().subdivide_with(Scheme::Loop, 1).unwrap_err();
+        assert!(err.to_string().contains("face 0 has 4 vertices"), "{err}");
     }
 }

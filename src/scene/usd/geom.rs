@@ -2,7 +2,7 @@
 
 use super::values::{number, token, vec2_array, vec3_array};
 use super::Loader;
-use crate::geometry::{Mesh, PolygonMesh};
+use crate::geometry::{Mesh, PolygonMesh, Scheme};
 use crate::math::{Mat4, Rgb, Vec2};
 use crate::scene::SceneError;
 use openusd::{sdf, usd};
@@ -122,9 +122,9 @@ impl Loader<'_> {
             face_tags: face_material,
             ..Default::default()
         };
-        let (surface, normals) = match self.subdivision(prim, &at)? {
-            Some(level) => {
-                let surface = self.subdivide(prim, &at, cage, level)?;
+        let (surface, normals) = match self.subdivision(prim, &at, &cage)? {
+            Some((scheme, level)) => {
+                let surface = self.subdivide(prim, &at, cage, scheme, level)?;
                 // A subdivision surface's normals are its own (authored ones apply to the cage only).
                 let normals = surface.corner_normals();
                 (surface, normals)
@@ -189,17 +189,31 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// The level to subdivide the mesh `prim` to, or `None` to render its control cage: none unless its
-    /// `subdivisionScheme` is `catmullClark` (USD's default); then `--subdivision-level`, else the mesh's
-    /// `refineLevel`, else [`DEFAULT_SUBDIVISION_LEVEL`] (at most [`MAX_SUBDIVISION_LEVEL`]). Schemes Nimbus
-    /// does not subdivide (`loop`) render the cage with a warning; `bilinear` is its own cage.
-    fn subdivision(&mut self, prim: &usd::Prim, at: &str) -> Result<Option<u32>, SceneError> {
-        let scheme = self
+    /// The scheme and level to subdivide the mesh `prim` to, or `None` to render its control cage: none unless
+    /// its `subdivisionScheme` is `catmullClark` (USD's default) or `loop`; then `--subdivision-level`, else
+    /// the mesh's `refineLevel`, else [`DEFAULT_SUBDIVISION_LEVEL`] (at most [`MAX_SUBDIVISION_LEVEL`]).
+    /// `bilinear` is its own cage; a `loop` mesh with faces other than triangles (which Loop's rules do not
+    /// cover) and an unknown scheme render the cage with a warning.
+    fn subdivision(
+        &mut self,
+        prim: &usd::Prim,
+        at: &str,
+        cage: &PolygonMesh,
+    ) -> Result<Option<(Scheme, u32)>, SceneError> {
+        let name = self
             .value(prim, "subdivisionScheme")?
             .and_then(|v| token(&v))
             .unwrap_or_else(|| "catmullClark".into());
-        match scheme.as_str() {
-            "catmullClark" => {}
+        let scheme = match name.as_str() {
+            "catmullClark" => Scheme::CatmullClark,
+            "loop" if cage.counts.iter().all(|&c| c == 3) => Scheme::Loop,
+            "loop" => {
+                self.warn(format!(
+                    "{at}: subdivisionScheme 'loop' needs triangles, and the mesh has other polygons; its \
+                     control cage is rendered"
+                ));
+                return Ok(None);
+            }
             "none" | "bilinear" => return Ok(None),
             other => {
                 self.warn(format!(
@@ -207,7 +221,7 @@ impl Loader<'_> {
                 ));
                 return Ok(None);
             }
-        }
+        };
         let level = match self.subdivision_level {
             Some(level) => level,
             None => match self.value(prim, "refineLevel")? {
@@ -222,7 +236,7 @@ impl Loader<'_> {
                 None => DEFAULT_SUBDIVISION_LEVEL,
             },
         };
-        Ok((level > 0).then_some(level.min(MAX_SUBDIVISION_LEVEL)))
+        Ok((level > 0).then_some((scheme, level.min(MAX_SUBDIVISION_LEVEL))))
     }
 
     /// The Catmull-Clark surface of `cage` at `level`, with the mesh's creases (`creaseIndices`,
@@ -234,15 +248,19 @@ impl Loader<'_> {
         prim: &usd::Prim,
         at: &str,
         mut cage: PolygonMesh,
+        scheme: Scheme,
         level: u32,
     ) -> Result<PolygonMesh, SceneError> {
         if cage.counts.iter().any(|&c| c < 3) {
             cage = without_degenerate_faces(cage);
         }
-        let faces = cage.faces_after(level);
+        let faces = cage.faces_after_with(scheme, level);
         self.limits
             .check_items(
-                format_args!("{at}: Catmull-Clark subdivision to level {level} ({faces} quads)"),
+                format_args!(
+                    "{at}: {} subdivision to level {level} ({faces} faces)",
+                    scheme.name()
+                ),
                 faces,
                 SUBDIVIDED_QUAD_BYTES,
             )
@@ -298,7 +316,7 @@ impl Loader<'_> {
                 ));
             }
         }
-        cage.subdivide(level)
+        cage.subdivide_with(scheme, level)
             .map_err(|e| self.error(at, e.to_string()))
     }
 
