@@ -69,12 +69,14 @@ pub struct PathSample {
 /// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
 /// weighted by 1/p_c, so the new throughput Σβ · e_c has the old one as its expectation (unbiased). Media whose
 /// extinction differs by channel ([`Medium::is_chromatic`](crate::volume::Medium::is_chromatic)) and that do
-/// not track it spectrally on this segment then track that channel alone, analog. Spectral renderers sample one
-/// wavelength per path the same way; the cost is colour noise. A path already carrying one channel is unchanged.
-fn carry_one_channel(beta: &mut Rgb, rng: &mut Rng) {
+/// not track it spectrally on this segment then track that channel alone, analog; so does a dispersive surface
+/// (`KHR_materials_dispersion`), which refracts with the index of the channel returned. Spectral renderers
+/// sample one wavelength per path the same way; the cost is colour noise. A path already carrying one channel
+/// is unchanged and that channel returned (the green one for a path that carries nothing).
+fn carry_one_channel(beta: &mut Rgb, rng: &mut Rng) -> usize {
     let carried = beta.to_array().iter().filter(|&&b| b > 0.0).count();
     if carried <= 1 {
-        return;
+        return beta.to_array().iter().position(|&b| b > 0.0).unwrap_or(1);
     }
     let sum = beta.element_sum();
     let u = rng.next_f32() * sum;
@@ -88,6 +90,7 @@ fn carry_one_channel(beta: &mut Rgb, rng: &mut Rng) {
     let mut one = Rgb::ZERO;
     one[channel] = sum;
     *beta = one;
+    channel
 }
 
 /// The path tracer and its settings.
@@ -714,10 +717,11 @@ impl PathTracer {
         if s.depth >= self.max_depth {
             return SurfaceOutcome::End;
         }
-        // Orient the shading frame: one-sided surfaces reflect nothing from behind.
+        // Orient the shading frame: one-sided surfaces reflect nothing from behind; a refracting interface keeps
+        // its orientation (its inside is below); a diffusely transmitting thin wall scatters alike on both faces.
         let frame = if hit.front_face || material.is_transmissive() {
             hit.shading
-        } else if material.double_sided {
+        } else if material.double_sided || material.transmits_diffusely() {
             Frame {
                 s: hit.shading.s,
                 t: -hit.shading.t,
@@ -726,6 +730,13 @@ impl PathTracer {
         } else {
             return SurfaceOutcome::End;
         };
+        // A dispersive surface: the path goes on in one colour channel, refracted with that channel's index (the
+        // first hit's colours are seen with the throughput before the choice).
+        let seen_beta = s.beta;
+        if material.is_dispersive() {
+            let channel = carry_one_channel(&mut s.beta, rng);
+            bsdf = material.bsdf_in_channel(&at, &scene.textures, channel);
+        }
         // The clear coat's normal: its own normal map, else the normal before the base's normal map.
         if let Some(n) = material.coat_normal(&unmapped, &at, &scene.textures) {
             let n = if frame.n.dot(hit.shading.n) < 0.0 {
@@ -738,7 +749,7 @@ impl PathTracer {
         let wo = frame.to_local(wo_world);
         if s.depth == 0 {
             if let Some(r) = s.record.as_deref_mut() {
-                r.colors = bsdf.colors(wo) * s.beta;
+                r.colors = bsdf.colors(wo) * seen_beta;
             }
         }
         // Next-event estimation.

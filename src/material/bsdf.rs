@@ -1,9 +1,9 @@
 //! The BSDF handed to the integrator: an enum over the scattering models, built from glTF parameters.
 //!
 //! Contract: every direction is in the local shading frame (z = shading normal), unit length, and both `wo`
-//! and `wi` point away from the surface. Opaque lobes are one-sided (zero unless `wo.z > 0` and `wi.z > 0`);
-//! the integrator flips the frame for double-sided materials hit from behind. The sample weight is
-//! `f |wi.z| / pdf`.
+//! and `wi` point away from the surface. Opaque lobes are one-sided (zero unless `wo.z > 0`, and
+//! `wi.z > 0` but for a diffuse transmission); the integrator flips the frame for double-sided materials and
+//! diffusely transmitting thin walls hit from behind. The sample weight is `f |wi.z| / pdf`.
 
 use super::clearcoat::Clearcoat;
 use super::dielectric::Dielectric;
@@ -30,7 +30,7 @@ pub enum Bsdf {
 
 impl Bsdf {
     /// Maps glTF 2.0 material parameters (spec Appendix B and the extensions of [`PbrParams`]) to a BSDF:
-    /// metallic 0, specular 0 and no transmission give exactly [`Lambert`]; transmission 1 with metallic 0
+    /// metallic 0, specular 0 and no transmission (specular or diffuse) give exactly [`Lambert`]; transmission 1 with metallic 0
     /// gives a pure [`Dielectric`] tinted by the base colour; everything else (mirrors included: metallic 1 and
     /// roughness 0) the [`GltfPbr`] mixture; a non-zero clear coat or sheen puts it under those layers
     /// ([`Layered`]).
@@ -44,7 +44,12 @@ impl Bsdf {
                 coat: coat.then(|| Clearcoat::new(p.clearcoat, p.clearcoat_roughness)),
             });
         }
-        if p.metallic <= 0.0 && p.specular_factor <= 0.0 && p.transmission <= 0.0 {
+        let diffuse_transmission = p.diffuse_transmission > 0.0;
+        if p.metallic <= 0.0
+            && p.specular_factor <= 0.0
+            && p.transmission <= 0.0
+            && !diffuse_transmission
+        {
             return Bsdf::Lambert(Lambert {
                 albedo: p.base_color.max(Rgb::ZERO),
             });
@@ -71,7 +76,8 @@ impl Bsdf {
     /// `eval(wo, wi)` up to rounding. The rule: Lambert and the glTF diffuse base are diffuse; the specular
     /// reflection of the metallic-roughness model (dielectric specular and metal, GGX or mirror), the clear
     /// coat, the sheen and a dielectric interface's reflection (rough or smooth, from either side) are glossy;
-    /// a dielectric interface's refraction (rough or smooth, from either side) is transmission. Glossy light
+    /// a dielectric interface's refraction (rough or smooth, from either side) and the diffuse transmission of
+    /// `KHR_materials_diffuse_transmission` are transmission. Glossy light
     /// therefore stays on `wo`'s side and transmitted light crosses the surface.
     pub fn eval_split(&self, wo: Vec3, wi: Vec3) -> LobeSplit {
         match self {
@@ -675,6 +681,13 @@ mod tests {
                     Vec2::ZERO,
                     Vec2::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5),
                 ][(rng.next_u32() % 3) as usize],
+                diffuse_transmission: [0.0, 1.0, rng.next_f32()][(rng.next_u32() % 3) as usize],
+                diffuse_transmission_color: Rgb::new(rng.next_f32(), 1.0, 0.0),
+                iridescence: [0.0, 1.0, rng.next_f32()][(rng.next_u32() % 3) as usize],
+                iridescence_ior: [1.0, 1.3, 1.0 + 2.0 * rng.next_f32()]
+                    [(rng.next_u32() % 3) as usize],
+                iridescence_thickness: [0.0, 400.0, 2000.0 * rng.next_f32()]
+                    [(rng.next_u32() % 3) as usize],
             };
             let mut bsdf = Bsdf::from_gltf(&p);
             if rng.next_f32() < 0.3 {
@@ -930,7 +943,244 @@ mod tests {
             let transmissive = matches!(bsdf, Bsdf::Layered(l) if l.base.transmission > 0.0);
             cases.push((name.to_string(), bsdf, [true, true, transmissive]));
         }
+        // KHR_materials_diffuse_transmission: a Lambertian lobe through the surface, in the transmission
+        // class; with dt = 1 no diffuse reflection is left.
+        for (dt, roughness, classes) in [
+            (0.6, 0.5, [true; 3]),
+            (1.0, 0.3, [false, true, true]),
+            (0.4, 0.0, [true, false, true]),
+        ] {
+            let p = diffuse_transmitter(dt, Rgb::new(0.9, 0.5, 0.2), params(0.0, roughness));
+            let name = format!("diffuse transmission {dt} roughness {roughness}");
+            cases.push((name, Bsdf::from_gltf(&p), classes));
+        }
+        let sheen = PbrParams {
+            sheen_color: Rgb::splat(0.5),
+            clearcoat: 0.5,
+            clearcoat_roughness: 0.3,
+            ..diffuse_transmitter(0.5, Rgb::ONE, params(0.0, 0.5))
+        };
+        cases.push((
+            "diffuse transmission under sheen and coat".into(),
+            Bsdf::from_gltf(&sheen),
+            [true; 3],
+        ));
         cases
+    }
+
+    /// `base` with `KHR_materials_diffuse_transmission` factor `dt` and colour `color`.
+    fn diffuse_transmitter(dt: f32, color: Rgb, base: PbrParams) -> PbrParams {
+        PbrParams {
+            diffuse_transmission: dt,
+            diffuse_transmission_color: color,
+            ..base
+        }
+    }
+
+    /// Mean and standard error of `n` Monte Carlo estimates of `∫ f |cos θi| dωi` (channel `c`) from `wo`,
+    /// by uniform sphere directions (independent of the BSDF's sampler).
+    fn albedo_uniform(bsdf: &Bsdf, wo: Vec3, c: usize, n: usize, rng: &mut Rng) -> (f64, f64) {
+        let (mut s, mut s2) = (0.0f64, 0.0f64);
+        for _ in 0..n {
+            let wi = sampling::uniform_sphere(rng.next_2d());
+            let v = (bsdf.eval(wo, wi)[c] * wi.z.abs() / sampling::UNIFORM_SPHERE_PDF) as f64;
+            s += v;
+            s2 += v * v;
+        }
+        let mean = s / n as f64;
+        (mean, ((s2 / n as f64 - mean * mean) / n as f64).sqrt())
+    }
+
+    #[test]
+    fn diffuse_transmission_white_furnace() {
+        let mut rng = Rng::new(70, 70);
+        let white = PbrParams {
+            metallic: 0.0,
+            specular_factor: 0.0,
+            ..params(0.0, 0.5)
+        };
+        for dt in [1.0, 0.4] {
+            let bsdf = Bsdf::from_gltf(&diffuse_transmitter(
+                dt,
+                Rgb::ONE,
+                PbrParams {
+                    base_color: Rgb::ONE,
+                    ..white
+                },
+            ));
+            assert!(matches!(bsdf, Bsdf::Pbr(_)), "{bsdf:?}");
+            for c in [0.95, 0.5, 0.1] {
+                let wo = dir(c);
+                // Reflected and transmitted halves, and their sum: (1 − dt) + dt = 1 in the furnace.
+                let (total, se) = albedo_uniform(&bsdf, wo, 0, 400_000, &mut rng);
+                println!("diffuse transmission {dt} cos {c}: furnace {total:.5} ± {se:.5}");
+                assert!(
+                    (total - 1.0).abs() < 4.0 * se,
+                    "dt {dt} cos {c}: {total} ± {se}"
+                );
+                let split = bsdf.colors(wo);
+                assert_eq!(split.transmission, Rgb::splat(dt), "cos {c}");
+                assert_eq!(split.diffuse, Rgb::splat(1.0 - dt), "cos {c}");
+                // The sampler's weights f |cos| / pdf are exactly 1 (a perfect importance sampler).
+                for _ in 0..100 {
+                    let s = bsdf.sample(wo, rng.next_f32(), rng.next_2d()).unwrap();
+                    let w = s.f.x * s.wi.z.abs() / s.pdf;
+                    assert!((w - 1.0).abs() < 1e-5, "weight {w}");
+                }
+            }
+        }
+        // With the specular layer on, diffuse transmission of a white colour only moves light from one side
+        // to the other: the total albedo is the one without it (within the two estimates' errors), which the
+        // glTF mixture itself does not keep at 1 (its diffuse weight uses Fresnel at wo·h, not an albedo).
+        let specular = PbrParams {
+            base_color: Rgb::ONE,
+            ..params(0.0, 0.4)
+        };
+        let plain = Bsdf::from_gltf(&specular);
+        let translucent = Bsdf::from_gltf(&diffuse_transmitter(0.7, Rgb::ONE, specular));
+        for c in [0.9, 0.3] {
+            let (a, sa) = albedo_uniform(&plain, dir(c), 0, 400_000, &mut Rng::new(71, 71));
+            let (b, sb) = albedo_uniform(&translucent, dir(c), 0, 400_000, &mut Rng::new(72, 72));
+            println!("specular white cos {c}: {a:.5} ± {sa:.5} without, {b:.5} ± {sb:.5} with");
+            assert!(
+                (a - b).abs() < 4.0 * (sa * sa + sb * sb).sqrt(),
+                "{a} vs {b}"
+            );
+        }
+    }
+
+    #[test]
+    fn diffuse_transmission_chi2() {
+        let cases = [
+            (0.6, 0.5, 0.0, 0.95),
+            (0.6, 0.5, 0.0, 0.3),
+            (1.0, 0.2, 0.0, 0.6),
+            (0.3, 0.7, 0.4, 0.5),
+            (0.8, 0.0, 0.0, 0.7),
+        ];
+        for (k, (dt, roughness, metallic, c)) in cases.into_iter().enumerate() {
+            let p = diffuse_transmitter(dt, Rgb::new(0.3, 0.9, 0.6), params(metallic, roughness));
+            let bsdf = Bsdf::from_gltf(&p);
+            let name = format!(
+                "diffuse transmission {dt} roughness {roughness} metallic {metallic} cos {c}"
+            );
+            chi2_bsdf(&name, &bsdf, dir(c), 4000 + k as u64);
+        }
+    }
+
+    #[test]
+    fn diffuse_transmission_is_reciprocal_through_the_wall() {
+        // Seen from the other face the integrator turns the frame over (s kept, t and n negated): the value
+        // for light crossing one way equals the value for light crossing back.
+        let over = |v: Vec3| Vec3::new(v.x, -v.y, -v.z);
+        let mut rng = Rng::new(73, 73);
+        let p = diffuse_transmitter(0.6, Rgb::new(0.9, 0.4, 0.1), params(0.2, 0.4));
+        let bsdf = Bsdf::from_gltf(&p);
+        for _ in 0..2000 {
+            let wo = sampling::cosine_hemisphere(rng.next_2d());
+            let wi = sampling::cosine_hemisphere(rng.next_2d());
+            for (a, b) in [
+                (bsdf.eval(wo, wi), bsdf.eval(wi, wo)),
+                (bsdf.eval(wo, -wi), bsdf.eval(over(-wi), over(wo))),
+            ] {
+                assert!(a.max_element() > 0.0);
+                for c in 0..3 {
+                    assert!(
+                        (a[c] - b[c]).abs() <= 1e-4 * a[c].max(b[c]) + 1e-7,
+                        "{a} vs {b}"
+                    );
+                }
+            }
+        }
+        // The transmitted value is dt · c_dt/π times the Fresnel weight at the mirrored half vector.
+        let Bsdf::Pbr(pbr) = bsdf else { panic!() };
+        let (wo, wi) = (dir(0.8), -dir(0.5));
+        let h = (wo + Vec3::new(wi.x, wi.y, -wi.z)).normalize();
+        let kd = (1.0 - 0.2) * (1.0 - fresnel::schlick(pbr.f0, wo.dot(h)).max_element());
+        let expected = kd * 0.6 * Rgb::new(0.9, 0.4, 0.1) * FRAC_1_PI * (1.0 - pbr.transmission);
+        assert!((bsdf.eval(wo, wi) - expected).abs().max_element() < 1e-6);
+    }
+
+    #[test]
+    fn zero_diffuse_transmission_and_iridescence_change_nothing() {
+        for p in [
+            params(0.0, 0.5),
+            params(0.5, 0.2),
+            params(1.0, 0.0),
+            PbrParams {
+                transmission: 0.5,
+                ..params(0.0, 0.3)
+            },
+        ] {
+            let plain = Bsdf::from_gltf(&p);
+            let zero = Bsdf::from_gltf(&PbrParams {
+                diffuse_transmission: 0.0,
+                diffuse_transmission_color: Rgb::new(0.1, 0.2, 0.3),
+                iridescence: 0.0,
+                iridescence_ior: 1.8,
+                iridescence_thickness: 250.0,
+                ..p
+            });
+            let thin = Bsdf::from_gltf(&PbrParams {
+                iridescence: 1.0,
+                iridescence_thickness: 0.0,
+                ..p
+            });
+            assert_eq!(plain, zero);
+            assert_eq!(plain, thin);
+        }
+        let lambert = PbrParams {
+            metallic: 0.0,
+            specular_factor: 0.0,
+            ..params(0.0, 0.5)
+        };
+        assert!(matches!(Bsdf::from_gltf(&lambert), Bsdf::Lambert(_)));
+        let translucent = diffuse_transmitter(0.5, Rgb::ONE, lambert);
+        assert!(matches!(Bsdf::from_gltf(&translucent), Bsdf::Pbr(_)));
+    }
+
+    #[test]
+    fn an_iridescent_mirror_reflects_the_thin_film_reflectance() {
+        // A smooth metal under a film of weight 1: its delta sample's weight f |cos| / pdf is the film's
+        // Airy reflectance over the substrate whose F0 is the base colour, per channel at its wavelength.
+        let base = Rgb::new(0.9, 0.6, 0.3);
+        for (ior, d) in [(1.3f32, 400.0f32), (1.8, 250.0), (2.0, 120.0)] {
+            let bsdf = Bsdf::from_gltf(&PbrParams {
+                iridescence: 1.0,
+                iridescence_ior: ior,
+                iridescence_thickness: d,
+                ..params(1.0, 0.0)
+            });
+            for c in [1.0f32, 0.6, 0.2] {
+                let s = bsdf.sample(dir(c), 0.5, Vec2::splat(0.5)).unwrap();
+                assert!(s.is_delta);
+                let w = s.f * s.wi.z / s.pdf;
+                for k in 0..3 {
+                    let expected = crate::material::airy_reflectance(
+                        c,
+                        ior,
+                        crate::material::substrate_ior(base[k]),
+                        d,
+                        crate::math::RGB_WAVELENGTHS_NM[k],
+                    );
+                    assert!((w[k] - expected).abs() < 1e-5, "{w} vs {expected}");
+                }
+            }
+        }
+        // Half weight: halfway between Schlick's term and the film's.
+        let half = Bsdf::from_gltf(&PbrParams {
+            iridescence: 0.5,
+            ..params(1.0, 0.0)
+        });
+        let s = half.sample(dir(0.7), 0.5, Vec2::splat(0.5)).unwrap();
+        let w = s.f * s.wi.z / s.pdf;
+        let film = crate::material::ThinFilm::new(1.0, 1.3, 400.0).unwrap();
+        let schlick = fresnel::schlick(base, 0.7);
+        let expected = 0.5 * (schlick + film.reflectance(0.7, base));
+        assert!(
+            (w - expected).abs().max_element() < 1e-5,
+            "{w} vs {expected}"
+        );
     }
 
     fn flags(split: &LobeSplit) -> [bool; 3] {
@@ -1042,20 +1292,19 @@ mod tests {
                     if s.is_delta {
                         continue;
                     }
-                    // The sampled lobe holds wi, unless its direction is on the side it cannot reach: then it
-                    // can only be a GGX reflection below the horizon, which a transmissive mixture weights
-                    // as refraction.
+                    // The sampled lobe holds wi, on the side it reaches (a GGX reflection below the horizon
+                    // is rejected, not handed to the transmissive lobes).
                     let crosses = (s.wi.z > 0.0) != (wo.z > 0.0);
-                    if crosses == (s.class == LobeClass::Transmission) {
-                        let v = bsdf.eval_split(wo, s.wi).get(s.class);
-                        assert!(
-                            v.max_element() > 0.0,
-                            "{name}: {s:?} has no value in its class"
-                        );
-                    } else {
-                        let ggx_below = s.class == LobeClass::Glossy && crosses && wo.z > 0.0;
-                        assert!(ggx_below && classes[2], "{name}: {s:?} on the wrong side");
-                    }
+                    assert_eq!(
+                        crosses,
+                        s.class == LobeClass::Transmission,
+                        "{name}: {s:?} on the wrong side"
+                    );
+                    let v = bsdf.eval_split(wo, s.wi).get(s.class);
+                    assert!(
+                        v.max_element() > 0.0,
+                        "{name}: {s:?} has no value in its class"
+                    );
                     sampled[LobeClass::ALL.iter().position(|&k| k == s.class).unwrap()] = true;
                 }
             }

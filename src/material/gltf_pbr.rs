@@ -21,12 +21,28 @@
 //!
 //! The transmissive part is a [`Dielectric`] interface tinted by the base colour. Metals do not transmit, so the
 //! BSDF is `(1 − t)·opaque + t·dielectric` with `t = transmission · (1 − metallic)`.
+//!
+//! `KHR_materials_diffuse_transmission` (`diffuseTransmissionFactor` × `diffuseTransmissionTexture` (A) = `dt`,
+//! `diffuseTransmissionColorFactor` × `diffuseTransmissionColorTexture` (RGB) = `c_dt`) replaces the diffuse
+//! base of `dielectric_brdf` by `mix(diffuse_brdf(baseColor), diffuse_btdf(c_dt), dt)` (the extension's
+//! normative `dielectric_brdf`): `(1 − dt)·baseColor/π` toward `wo`'s hemisphere and a Lambertian
+//! transmission `dt·c_dt/π` into the opposite one, both under the same Fresnel weight `kd`. For the
+//! transmitted pair `kd` is taken at the half vector of `wo` and `wi` mirrored through the surface
+//! (`(wi.x, wi.y, −wi.z)`), which keeps the lobe reciprocal; the specular layer is unchanged, and
+//! `KHR_materials_transmission` overrides it as the extension says (its weight `t` scales the whole opaque
+//! part). Like the rest of the opaque part the lobe scatters only light arriving from above (`wo.z > 0`):
+//! the integrator turns the frame of a thin-walled surface toward the arriving light.
+//!
+//! `KHR_materials_iridescence` replaces both Schlick terms (dielectric `F_d`, metal `F_m`) by
+//! `mix(F, R_film, weight)`, the reflectance of a thin film over the specular layer ([`ThinFilm`]); `kd`
+//! follows, since it is computed from `F_d`.
 
 use super::dielectric::Dielectric;
 use super::fresnel;
 use super::lobes::{LobeClass, LobeSplit};
 use super::microfacet::{Ggx, DELTA_ALPHA};
 use super::sample::BsdfSample;
+use super::thin_film::ThinFilm;
 use crate::math::sampling::cosine_hemisphere;
 use crate::math::{Rgb, Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
@@ -64,6 +80,19 @@ pub struct PbrParams {
     /// `anisotropyRotation`. Need not be unit length; a zero or non-finite direction means the tangent.
     /// Default `(1, 0)`.
     pub anisotropy_direction: Vec2,
+    /// `KHR_materials_diffuse_transmission.diffuseTransmissionFactor` × the texture's alpha, in \[0, 1\]: the
+    /// share of the diffuse base that is transmitted. Default 0.
+    pub diffuse_transmission: f32,
+    /// `diffuseTransmissionColorFactor` × `diffuseTransmissionColorTexture`, linear RGB. Default 1.
+    pub diffuse_transmission_color: Rgb,
+    /// `KHR_materials_iridescence.iridescenceFactor` × the texture's red channel, in \[0, 1\]. Default 0 (no
+    /// film).
+    pub iridescence: f32,
+    /// `iridescenceIor`: the film's index. Default 1.3.
+    pub iridescence_ior: f32,
+    /// The film's thickness in nanometres: `mix(iridescenceThicknessMinimum, iridescenceThicknessMaximum,
+    /// texture G)`, the maximum without the texture. Default 400.
+    pub iridescence_thickness: f32,
 }
 
 impl Default for PbrParams {
@@ -83,6 +112,11 @@ impl Default for PbrParams {
             sheen_roughness: 0.0,
             anisotropy_strength: 0.0,
             anisotropy_direction: Vec2::X,
+            diffuse_transmission: 0.0,
+            diffuse_transmission_color: Rgb::ONE,
+            iridescence: 0.0,
+            iridescence_ior: 1.3,
+            iridescence_thickness: 400.0,
         }
     }
 }
@@ -111,6 +145,12 @@ pub struct GltfPbr {
     pub transmission: f32,
     /// The transmissive interface (ior, α, tint = base colour).
     pub dielectric: Dielectric,
+    /// The share `dt` of the diffuse base transmitted (`KHR_materials_diffuse_transmission`), in \[0, 1\].
+    pub diffuse_transmission: f32,
+    /// The colour `c_dt` of the diffuse transmission.
+    pub diffuse_transmission_color: Rgb,
+    /// The thin film over the specular layer (`KHR_materials_iridescence`), if any.
+    pub film: Option<ThinFilm>,
 }
 
 /// Largest channel of a colour.
@@ -147,6 +187,42 @@ impl GltfPbr {
                 alpha,
                 tint: base_color,
             },
+            diffuse_transmission: if p.diffuse_transmission.is_nan() {
+                0.0
+            } else {
+                p.diffuse_transmission.clamp(0.0, 1.0)
+            },
+            diffuse_transmission_color: if p.diffuse_transmission > 0.0 {
+                p.diffuse_transmission_color.max(Rgb::ZERO)
+            } else {
+                Rgb::ONE
+            },
+            film: ThinFilm::new(p.iridescence, p.iridescence_ior, p.iridescence_thickness),
+        }
+    }
+
+    /// The diffuse reflection albedo `(1 − dt)·baseColor` and transmission albedo `dt·c_dt` of the diffuse base
+    /// (before the Fresnel weight `kd`).
+    fn diffuse_albedos(&self) -> (Rgb, Rgb) {
+        let dt = self.diffuse_transmission;
+        (
+            (1.0 - dt) * self.base_color,
+            dt * self.diffuse_transmission_color,
+        )
+    }
+
+    /// Probability that a sample of the diffuse base is transmitted: the transmission's share of the two
+    /// albedos' means (0 without diffuse transmission).
+    fn diffuse_transmission_probability(&self) -> f32 {
+        if self.diffuse_transmission <= 0.0 {
+            return 0.0;
+        }
+        let (reflected, transmitted) = self.diffuse_albedos();
+        let (r, t) = (mean(reflected), mean(transmitted));
+        if r + t > 0.0 {
+            t / (r + t)
+        } else {
+            0.0
         }
     }
 
@@ -168,9 +244,15 @@ impl GltfPbr {
         Vec3::new(c * v.x - s * v.y, s * v.x + c * v.y, v.z)
     }
 
-    /// True when the diffuse lobe can be non-zero.
+    /// True when the diffuse base (reflection or transmission) can be non-zero.
     fn has_diffuse(&self) -> bool {
-        self.metallic < 1.0 && self.transmission < 1.0 && max_component(self.base_color) > 0.0
+        let (reflected, transmitted) = self.diffuse_albedos();
+        let albedo = if self.diffuse_transmission > 0.0 {
+            max_component(reflected).max(max_component(transmitted))
+        } else {
+            max_component(self.base_color)
+        };
+        self.metallic < 1.0 && self.transmission < 1.0 && albedo > 0.0
     }
 
     /// True when the specular reflection lobe can be non-zero.
@@ -188,8 +270,12 @@ impl GltfPbr {
     /// `(1 − metallic)(1 − s·max(F_d))`, and the colour of the specular layer, `(1 − metallic) s F_d + metallic F_m`
     /// (glTF 2.0 Appendix B `fresnel_mix` and `conductor_fresnel`, with KHR_materials_specular).
     fn fresnel_weights(&self, cos: f32) -> (f32, Rgb) {
-        let f_d = fresnel::schlick(self.f0, cos);
-        let f_m = fresnel::schlick(self.base_color, cos);
+        let mut f_d = fresnel::schlick(self.f0, cos);
+        let mut f_m = fresnel::schlick(self.base_color, cos);
+        if let Some(film) = self.film {
+            f_d = film.fresnel(f_d, cos, self.f0);
+            f_m = film.fresnel(f_m, cos, self.base_color);
+        }
         let dielectric = 1.0 - self.metallic;
         let kd = dielectric * (1.0 - self.specular_factor * max_component(f_d));
         let ks = dielectric * self.specular_factor * f_d + self.metallic * f_m;
@@ -204,7 +290,12 @@ impl GltfPbr {
             (false, _) => 0.0,
             (true, true) => {
                 let (kd, ks) = self.fresnel_weights(wo.z);
-                let wd = kd * mean(self.base_color);
+                let wd = if self.diffuse_transmission > 0.0 {
+                    let (reflected, transmitted) = self.diffuse_albedos();
+                    kd * (mean(reflected) + mean(transmitted))
+                } else {
+                    kd * mean(self.base_color)
+                };
                 let ws = mean(ks);
                 if wd + ws > 0.0 {
                     (wd / (wd + ws)).clamp(0.05, 0.95)
@@ -215,17 +306,27 @@ impl GltfPbr {
         }
     }
 
-    /// Opaque BRDF value (non-delta part), one-sided, as its (diffuse, specular) lobes; `None` unless both
-    /// directions are above the surface.
-    fn opaque_lobes(&self, wo: Vec3, wi: Vec3) -> Option<(Rgb, Rgb)> {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
+    /// Opaque BSDF value (non-delta part), one-sided, as its (diffuse reflection, specular, diffuse
+    /// transmission) lobes; `None` unless `wo` is above the surface and `wi` above it, or below it with
+    /// diffuse transmission.
+    fn opaque_lobes(&self, wo: Vec3, wi: Vec3) -> Option<(Rgb, Rgb, Rgb)> {
+        if wo.z <= 0.0 || wi.z == 0.0 {
             return None;
+        }
+        let (reflected, transmitted) = self.diffuse_albedos();
+        if wi.z < 0.0 {
+            if self.diffuse_transmission <= 0.0 {
+                return None;
+            }
+            let h = (wo + Vec3::new(wi.x, wi.y, -wi.z)).normalize();
+            let (kd, _) = self.fresnel_weights(wo.dot(h));
+            return Some((Rgb::ZERO, Rgb::ZERO, kd * FRAC_1_PI * transmitted));
         }
         let h = (wo + wi).normalize();
         let (kd, ks) = self.fresnel_weights(wo.dot(h));
-        let diffuse = kd * FRAC_1_PI * self.base_color;
+        let diffuse = kd * FRAC_1_PI * reflected;
         if self.specular_is_delta() {
-            return Some((diffuse, Rgb::ZERO));
+            return Some((diffuse, Rgb::ZERO, Rgb::ZERO));
         }
         let ggx = self.specular;
         let (o, i) = (self.anisotropy_local(wo), self.anisotropy_local(wi));
@@ -233,23 +334,32 @@ impl GltfPbr {
         Some((
             diffuse,
             ks * (ggx.d(m) * ggx.g2(o, i) / (4.0 * wo.z * wi.z)),
+            Rgb::ZERO,
         ))
     }
 
-    /// Opaque BRDF value (non-delta part), one-sided.
+    /// Opaque BSDF value (non-delta part), one-sided.
     fn eval_opaque(&self, wo: Vec3, wi: Vec3) -> Rgb {
         self.opaque_lobes(wo, wi)
-            .map_or(Rgb::ZERO, |(diffuse, specular)| diffuse + specular)
+            .map_or(Rgb::ZERO, |(diffuse, specular, transmitted)| {
+                diffuse + specular + transmitted
+            })
     }
 
-    /// Density of the non-delta directions of the opaque sampler: `p_d cos θi/π + (1 − p_d) D_wo(h)/(4 wo·h)`
-    /// (visible normals, Heitz 2018, with the reflection Jacobian of Walter et al. 2007, eq. 14).
+    /// Density of the non-delta directions of the opaque sampler: `p_d (1 − q) cos θi/π + (1 − p_d)
+    /// D_wo(h)/(4 wo·h)` above the surface (visible normals, Heitz 2018, with the reflection Jacobian of Walter
+    /// et al. 2007, eq. 14) and `p_d q |cos θi|/π` below it, `q` the diffuse transmission's share of the diffuse
+    /// samples.
     fn pdf_opaque(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
+        if wo.z <= 0.0 || wi.z == 0.0 {
             return 0.0;
         }
         let pd = self.diffuse_probability(wo);
-        let mut pdf = pd * wi.z * FRAC_1_PI;
+        let q = self.diffuse_transmission_probability();
+        if wi.z < 0.0 {
+            return pd * q * -wi.z * FRAC_1_PI;
+        }
+        let mut pdf = pd * (1.0 - q) * wi.z * FRAC_1_PI;
         if !self.specular_is_delta() && pd < 1.0 {
             let h = (wo + wi).normalize();
             let (o, m) = (self.anisotropy_local(wo), self.anisotropy_local(h));
@@ -280,16 +390,16 @@ impl GltfPbr {
         f
     }
 
-    /// [`GltfPbr::eval`] split by class: the opaque part's diffuse base is diffuse and its specular layer
-    /// glossy; the dielectric interface's reflection is glossy and its refraction transmission
+    /// [`GltfPbr::eval`] split by class: the opaque part's diffuse reflection is diffuse, its diffuse
+    /// transmission transmission and its specular layer glossy; the dielectric interface's reflection is glossy and its refraction transmission
     /// ([`Dielectric::eval_split`]).
     pub fn eval_split(&self, wo: Vec3, wi: Vec3) -> LobeSplit {
         let t = self.transmission;
         let mut split = match self.opaque_lobes(wo, wi) {
-            Some((diffuse, specular)) => LobeSplit {
+            Some((diffuse, specular, transmitted)) => LobeSplit {
                 diffuse: (1.0 - t) * diffuse,
                 glossy: (1.0 - t) * specular,
-                transmission: Rgb::ZERO,
+                transmission: (1.0 - t) * transmitted,
             },
             None => LobeSplit::ZERO,
         };
@@ -302,7 +412,8 @@ impl GltfPbr {
     /// The class colours seen from `wo`: `(1 − t)` times the opaque part's plus `t` times the dielectric
     /// interface's ([`Dielectric::colors`]). The opaque part, above the surface only, with the Fresnel
     /// weights `kd`, `ks` of [`GltfPbr::eval`]:
-    /// - diffuse `kd(cos(θo/2)) · baseColor`, with `cos(θo/2) = √((1 + cos θo)/2)`: the weight at the half
+    /// - diffuse `kd(cos(θo/2)) · (1 − dt) · baseColor` and transmission `kd(cos(θo/2)) · dt · c_dt` (the diffuse
+    ///   reflection and transmission of `KHR_materials_diffuse_transmission`), with `cos(θo/2) = √((1 + cos θo)/2)`: the weight at the half
     ///   vector of `wo` and the normal, where the cosine-weighted diffuse directions peak (an estimate: `kd`
     ///   varies with the half vector, and is 0 at grazing `wo·h` when `specularFactor` is 1);
     /// - glossy, for a mirror, `ks(cos θo)`, its exact albedo; for a rough specular layer the estimate
@@ -338,10 +449,11 @@ impl GltfPbr {
             dielectric * self.specular_factor * rough(self.f0)
                 + self.metallic * rough(self.base_color)
         };
+        let (reflected, transmitted) = self.diffuse_albedos();
         LobeSplit {
-            diffuse: kd * self.base_color,
+            diffuse: kd * reflected,
             glossy,
-            transmission: Rgb::ZERO,
+            transmission: kd * transmitted,
         }
     }
 
@@ -384,7 +496,12 @@ impl GltfPbr {
             let u_lobe = ((u_lobe - p) / (1.0 - p)).min(1.0 - f32::EPSILON);
             let pd = self.diffuse_probability(wo);
             if u_lobe < pd {
-                (cosine_hemisphere(u), LobeClass::Diffuse)
+                let wi = cosine_hemisphere(u);
+                if u_lobe < pd * self.diffuse_transmission_probability() {
+                    (Vec3::new(wi.x, wi.y, -wi.z), LobeClass::Transmission)
+                } else {
+                    (wi, LobeClass::Diffuse)
+                }
             } else if self.specular_is_delta() {
                 let wi = Vec3::new(-wo.x, -wo.y, wo.z);
                 let (_, ks) = self.fresnel_weights(wo.z);
@@ -399,7 +516,14 @@ impl GltfPbr {
             } else {
                 let o = self.anisotropy_local(wo);
                 let h = self.shading_local(self.specular.sample_visible(o, u));
-                (fresnel::reflect(wo, h), LobeClass::Glossy)
+                let wi = fresnel::reflect(wo, h);
+                // A reflection below the horizon is no sample of the reflection lobe: `pdf` does not count
+                // it, so keeping it where another lobe has a value there (the diffuse transmission, the
+                // dielectric's refraction) would weight it by the wrong density.
+                if wi.z <= 0.0 {
+                    return None;
+                }
+                (wi, LobeClass::Glossy)
             }
         };
         let pdf = self.pdf(wo, wi);

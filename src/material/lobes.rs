@@ -6,11 +6,12 @@
 //! - **glossy**: the GGX or mirror specular reflection of the metallic-roughness model (its dielectric
 //!   specular and its metal), the clear coat, the sheen, and the reflection of a dielectric interface, rough or
 //!   smooth (in the transmissive part of [`super::GltfPbr`] and in a pure [`super::Dielectric`]);
-//! - **transmission**: the refraction of a dielectric interface, rough or smooth.
+//! - **transmission**: the refraction of a dielectric interface, rough or smooth, and the Lambertian diffuse
+//!   transmission of `KHR_materials_diffuse_transmission`.
 //!
 //! Seen from below a transmissive surface (`wo.z < 0`, inside the solid) the same rule applies: internal
 //! reflection is glossy, refraction transmission. So a dielectric's glossy light always leaves on `wo`'s side and
-//! its transmission on the other side; the opaque lobes only reflect.
+//! its transmission on the other side; the other lobes of the opaque part reflect.
 //!
 //! How the integrator uses it: at the first surface hit, [`super::Bsdf::eval_split`] splits next-event
 //! estimation by class; a non-delta sampled direction splits the light found further along the path by each
@@ -30,7 +31,8 @@ pub enum LobeClass {
     /// GGX or mirror), the clear coat, the sheen, and a dielectric interface's reflection (rough or smooth,
     /// from either side).
     Glossy,
-    /// Refraction through a dielectric interface (rough or smooth, from either side).
+    /// Refraction through a dielectric interface (rough or smooth, from either side), and the diffuse
+    /// transmission of `KHR_materials_diffuse_transmission`.
     Transmission,
 }
 

@@ -18,6 +18,7 @@ mod sheen;
 pub mod spec_gloss;
 mod surface;
 mod texture;
+mod thin_film;
 
 pub use bsdf::{Bsdf, BsdfSample};
 pub use clearcoat::Clearcoat;
@@ -29,8 +30,12 @@ pub use lobes::{LobeClass, LobeSplit};
 pub use microfacet::{Ggx, DELTA_ALPHA};
 pub use sheen::Sheen;
 pub use spec_gloss::{to_metallic_roughness, MetallicRoughness, SpecularGlossiness};
-pub use surface::{AlphaMode, Anisotropy, ClearcoatLayer, Material, SheenLayer, TextureId};
+pub use surface::{
+    AlphaMode, Anisotropy, ClearcoatLayer, DiffuseTransmission, Iridescence, Material, SheenLayer,
+    TextureId,
+};
 pub use texture::{
     ColorSpace, Filter, MipImage, Sampler, ShadingPoint, TexCoord, Texture, UvTransform, Wrap,
     UV_SETS,
 };
+pub use thin_film::{airy_reflectance, substrate_ior, ThinFilm};

@@ -18,8 +18,8 @@ pub struct BsdfSample {
     pub is_delta: bool,
     /// The class of the lobe that produced the sample. For a delta sample the whole weight belongs to it.
     /// For a non-delta one it is informational: `f` is the whole mixture's value, which the light-path AOVs
-    /// share by [`super::Bsdf::eval_split`] (other lobes hold the same `wi`, and the sampled lobe may hold
-    /// none of it: a glTF material's GGX reflection that falls below the horizon, where only the
-    /// transmissive part has a value).
+    /// share by [`super::Bsdf::eval_split`] (other lobes hold the same `wi`). The sampled lobe always holds
+    /// `wi`: a glTF material's GGX reflection that falls below the horizon is rejected, not kept where only
+    /// a transmissive lobe has a value.
     pub class: LobeClass,
 }

@@ -10,7 +10,13 @@
 //! `KHR_materials_clearcoat.{clearcoatFactor, clearcoatTexture, clearcoatRoughnessFactor,
 //! clearcoatRoughnessTexture, clearcoatNormalTexture}` and `KHR_materials_sheen.{sheenColorFactor,
 //! sheenColorTexture, sheenRoughnessFactor, sheenRoughnessTexture}`,
-//! `KHR_materials_anisotropy.{anisotropyStrength, anisotropyRotation, anisotropyTexture}`, and the archived
+//! `KHR_materials_anisotropy.{anisotropyStrength, anisotropyRotation, anisotropyTexture}`,
+//! `KHR_materials_diffuse_transmission.{diffuseTransmissionFactor, diffuseTransmissionTexture (A),
+//! diffuseTransmissionColorFactor, diffuseTransmissionColorTexture (sRGB RGB)}` (see [`super::GltfPbr`]),
+//! `KHR_materials_dispersion.dispersion` (read beside `KHR_materials_volume` only; see
+//! [`Material::dispersed_ior`]), `KHR_materials_iridescence.{iridescenceFactor, iridescenceTexture (R),
+//! iridescenceIor, iridescenceThicknessMinimum, iridescenceThicknessMaximum, iridescenceThicknessTexture (G)}`
+//! (see [`super::ThinFilm`]), and the archived
 //! `KHR_materials_pbrSpecularGlossiness.{diffuseFactor, diffuseTexture, specularFactor, glossinessFactor,
 //! specularGlossinessTexture}`, converted where the material is shaded to the base colour, metalness and
 //! roughness it replaces (see [`super::spec_gloss`]). Every texture reference may carry
@@ -28,6 +34,12 @@
 //!   twice.
 //! - Clear coat: emission is not darkened by the coat's Fresnel (the extension darkens it), so that light
 //!   sampling and BSDF sampling see the same emitter.
+//! - Diffuse transmission without `KHR_materials_volume` is a thin wall: both faces scatter alike (the
+//!   integrator turns the shading frame toward the arriving light, as for a double-sided material), and a
+//!   single-sided one is not culled. Beside a volume the transmitted light enters the mesh's interior medium.
+//! - Dispersion: the path carries one colour channel from a dispersive surface on, chosen with probability
+//!   proportional to its throughput (hero-wavelength sampling with RGB channels as the wavelengths), and the
+//!   surface refracts with that channel's index.
 
 use super::spec_gloss::{to_metallic_roughness, MetallicRoughness, SpecularGlossiness};
 use super::texture::{ShadingPoint, Texture};
@@ -90,6 +102,14 @@ pub struct Material {
     pub specular_glossiness: Option<SpecularGlossiness>,
     /// `KHR_materials_anisotropy`, when present.
     pub anisotropy: Option<Anisotropy>,
+    /// `KHR_materials_diffuse_transmission`, when present.
+    pub diffuse_transmission: Option<DiffuseTransmission>,
+    /// `KHR_materials_iridescence`, when present.
+    pub iridescence: Option<Iridescence>,
+    /// `KHR_materials_dispersion.dispersion`, `20/V` for the Abbe number V (0: no dispersion). Only a
+    /// transmissive material disperses ([`Self::is_dispersive`]); the glTF loader reads it beside
+    /// `KHR_materials_volume` only, as the extension requires.
+    pub dispersion: f32,
     /// Light group, holdout and shadow-catcher tags of every surface with this material (`extras`
     /// `nimbus_light_group`, `nimbus_holdout`, `nimbus_shadow_catcher`; see [`CompositingTags`]).
     pub tags: CompositingTags,
@@ -137,6 +157,63 @@ pub struct Anisotropy {
     pub texture: Option<TextureId>,
 }
 
+/// The diffuse transmission of a material (`KHR_materials_diffuse_transmission`): the share of the diffuse base
+/// that a Lambertian lobe transmits to the other side, and its colour (see [`super::GltfPbr`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiffuseTransmission {
+    /// `diffuseTransmissionFactor`, in \[0, 1\] (default 0: none).
+    pub factor: f32,
+    /// `diffuseTransmissionTexture` (linear): its alpha channel multiplies `factor`.
+    pub texture: Option<TextureId>,
+    /// `diffuseTransmissionColorFactor` (linear RGB, default 1).
+    pub color: Rgb,
+    /// `diffuseTransmissionColorTexture` (sRGB): its RGB multiplies `color`.
+    pub color_texture: Option<TextureId>,
+}
+
+impl Default for DiffuseTransmission {
+    /// The extension's defaults: factor 0, white.
+    fn default() -> Self {
+        Self {
+            factor: 0.0,
+            texture: None,
+            color: Rgb::ONE,
+            color_texture: None,
+        }
+    }
+}
+
+/// The thin film over a material's specular layer (`KHR_materials_iridescence`; see [`super::ThinFilm`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Iridescence {
+    /// `iridescenceFactor`, in \[0, 1\] (default 0: no film).
+    pub factor: f32,
+    /// `iridescenceTexture` (linear): its red channel multiplies `factor`.
+    pub texture: Option<TextureId>,
+    /// `iridescenceIor`: the film's index (default 1.3).
+    pub ior: f32,
+    /// `iridescenceThicknessMinimum` in nanometres (default 100).
+    pub thickness_min: f32,
+    /// `iridescenceThicknessMaximum` in nanometres (default 400): the thickness without a texture.
+    pub thickness_max: f32,
+    /// `iridescenceThicknessTexture` (linear): its green channel blends from the minimum to the maximum.
+    pub thickness_texture: Option<TextureId>,
+}
+
+impl Default for Iridescence {
+    /// The extension's defaults.
+    fn default() -> Self {
+        Self {
+            factor: 0.0,
+            texture: None,
+            ior: 1.3,
+            thickness_min: 100.0,
+            thickness_max: 400.0,
+            thickness_texture: None,
+        }
+    }
+}
+
 /// How a material's alpha (`base_color.w` × the base-colour texture's alpha × `alpha_texture`) covers the surface
 /// (glTF 2.0 §3.9.4 `alphaMode`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -180,6 +257,9 @@ impl Default for Material {
             sheen: None,
             specular_glossiness: None,
             anisotropy: None,
+            diffuse_transmission: None,
+            iridescence: None,
+            dispersion: 0.0,
             tags: CompositingTags::default(),
         }
     }
@@ -260,13 +340,14 @@ impl Material {
     }
 
     /// Whether camera rays pass through this material's back faces: a single-sided surface that neither
-    /// transmits, bounds a medium nor emits (glTF's back-face culling, Arnold's `sidedness` for USD's
+    /// transmits (specularly or diffusely), bounds a medium nor emits (glTF's back-face culling, Arnold's `sidedness` for USD's
     /// `doubleSided = false`). A boundary or a refracting surface is seen from either side; so is an emitter,
     /// whose back shows black as a one-sided area light does in Mitsuba 3 and Cycles (the shared validation
     /// scene `area-light-floor` sees its light from behind).
     pub fn culls_back_faces(&self) -> bool {
         !self.double_sided
             && !self.is_transmissive()
+            && !self.transmits_diffusely()
             && self.interior.is_none()
             && !self.is_emissive()
     }
@@ -276,9 +357,36 @@ impl Material {
         self.emission.max_element() > 0.0
     }
 
-    /// True when light can pass through the surface (the BSDF has a transmission lobe).
+    /// True when light can pass through the surface by refraction (the BSDF has a dielectric interface).
     pub fn is_transmissive(&self) -> bool {
         self.transmission > 0.0
+    }
+
+    /// True when the BSDF can have a diffuse transmission lobe (`KHR_materials_diffuse_transmission` with a
+    /// positive factor; a texture only scales it down).
+    pub fn transmits_diffusely(&self) -> bool {
+        self.diffuse_transmission.is_some_and(|d| d.factor > 0.0)
+    }
+
+    /// True when the index of refraction depends on the colour channel: a positive dispersion on a refracting
+    /// material.
+    pub fn is_dispersive(&self) -> bool {
+        self.dispersion > 0.0 && self.is_transmissive()
+    }
+
+    /// The index of refraction in colour channel `channel` (0, 1, 2 for R, G, B) at its wavelength λ
+    /// ([`crate::math::RGB_WAVELENGTHS_NM`]): Cauchy's equation fitted to the Abbe number, as
+    /// `KHR_materials_dispersion` specifies, `n(λ) = max(n_d + (n_d − 1)/V · (523655/λ² − 1.5168), 1)` with λ in
+    /// nm, `n_d = ior` the index at the Fraunhofer d line (587.56 nm) and `V = 20/dispersion`. Without
+    /// dispersion, `ior` unchanged.
+    pub fn dispersed_ior(&self, channel: usize) -> f32 {
+        if !self.is_dispersive() {
+            return self.ior;
+        }
+        let lambda = crate::math::RGB_WAVELENGTHS_NM[channel.min(2)];
+        let n_d = self.ior;
+        let cauchy = 523655.0 / (lambda * lambda) - 1.5168;
+        (n_d + (n_d - 1.0) * self.dispersion / 20.0 * cauchy).max(1.0)
     }
 
     /// Emitted radiance at a point of a front face: `emissiveFactor` × `emissiveStrength` × the emissive
@@ -359,6 +467,18 @@ impl Material {
             sheen_roughness =
                 s.roughness * lookup(textures, s.roughness_texture, at).map_or(1.0, |t| t.w);
         }
+        let (mut diffuse_transmission, mut diffuse_transmission_color) = (0.0, Rgb::ONE);
+        if let Some(d) = &self.diffuse_transmission {
+            diffuse_transmission = d.factor * lookup(textures, d.texture, at).map_or(1.0, |t| t.w);
+            diffuse_transmission_color =
+                d.color * lookup(textures, d.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
+        }
+        let film = self.iridescence.unwrap_or_default();
+        let iridescence = film.factor * lookup(textures, film.texture, at).map_or(1.0, |t| t.x);
+        let iridescence_thickness = match lookup(textures, film.thickness_texture, at) {
+            Some(t) => film.thickness_min + (film.thickness_max - film.thickness_min) * t.y,
+            None => film.thickness_max,
+        };
         let (anisotropy_strength, anisotropy_direction) = self
             .anisotropy
             .as_ref()
@@ -377,6 +497,11 @@ impl Material {
             sheen_roughness: sheen_roughness.clamp(0.0, 1.0),
             anisotropy_strength,
             anisotropy_direction,
+            diffuse_transmission: diffuse_transmission.clamp(0.0, 1.0),
+            diffuse_transmission_color: diffuse_transmission_color.max(Rgb::ZERO),
+            iridescence: iridescence.clamp(0.0, 1.0),
+            iridescence_ior: film.ior,
+            iridescence_thickness: iridescence_thickness.max(0.0),
         }
     }
 
@@ -384,6 +509,15 @@ impl Material {
     /// [`Bsdf::set_coat_normal`] tilts it; see [`Material::coat_normal`]).
     pub fn bsdf(&self, at: &ShadingPoint, textures: &[Texture]) -> Bsdf {
         Bsdf::from_gltf(&self.pbr_params(at, textures))
+    }
+
+    /// [`Material::bsdf`] for a path that carries colour channel `channel` alone: the refraction index is
+    /// that channel's ([`Material::dispersed_ior`]). The same BSDF as [`Material::bsdf`] without dispersion.
+    pub fn bsdf_in_channel(&self, at: &ShadingPoint, textures: &[Texture], channel: usize) -> Bsdf {
+        Bsdf::from_gltf(&PbrParams {
+            ior: self.dispersed_ior(channel),
+            ..self.pbr_params(at, textures)
+        })
     }
 
     /// The world-space normal of the clear coat, for a hit whose frame before any normal mapping is
@@ -422,6 +556,14 @@ impl Material {
             .iter()
             .flat_map(|s| [s.diffuse_texture, s.specular_glossiness_texture]);
         let anisotropy = self.anisotropy.iter().map(|a| a.texture);
+        let diffuse_transmission = self
+            .diffuse_transmission
+            .iter()
+            .flat_map(|d| [d.texture, d.color_texture]);
+        let iridescence = self
+            .iridescence
+            .iter()
+            .flat_map(|i| [i.texture, i.thickness_texture]);
         [
             self.base_color_texture,
             self.metallic_roughness_texture,
@@ -435,6 +577,8 @@ impl Material {
         .chain(sheen)
         .chain(spec_gloss)
         .chain(anisotropy)
+        .chain(diffuse_transmission)
+        .chain(iridescence)
         .flatten()
     }
 
@@ -471,5 +615,110 @@ impl Material {
     pub fn normal_map(&self, at: &ShadingPoint, textures: &[Texture]) -> Option<Vec3> {
         let (id, scale) = self.normal_texture?;
         decode_normal(lookup(textures, Some(id), at)?, scale)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::TexCoord;
+    use crate::math::RGB_WAVELENGTHS_NM;
+
+    fn glass(dispersion: f32) -> Material {
+        Material {
+            base_color: Vec4::ONE,
+            metallic: 0.0,
+            roughness: 0.0,
+            transmission: 1.0,
+            ior: 1.5,
+            dispersion,
+            ..Material::default()
+        }
+    }
+
+    #[test]
+    fn dispersion_refracts_each_channel_by_snell_with_the_cauchy_index() {
+        let at = ShadingPoint::from(TexCoord::point(Vec2::splat(0.5)));
+        // Abbe number V = 20 / dispersion; Cauchy's fit through n_d at the d line (587.56 nm).
+        let mut worst = 0.0f64;
+        for (dispersion, n_d) in [(1.0f32, 1.5f32), (0.4, 1.7), (2.5, 1.33)] {
+            let m = Material {
+                ior: n_d,
+                ..glass(dispersion)
+            };
+            let abbe = 20.0 / dispersion as f64;
+            let mut previous = 0.0;
+            for (c, &lambda) in RGB_WAVELENGTHS_NM.iter().enumerate() {
+                let lambda = lambda as f64;
+                let n_d = n_d as f64;
+                let n =
+                    (n_d + (n_d - 1.0) / abbe * (523655.0 / (lambda * lambda) - 1.5168)).max(1.0);
+                assert!((m.dispersed_ior(c) as f64 - n).abs() < 1e-6);
+                assert!(n > previous, "shorter wavelengths bend more");
+                previous = n;
+                let Bsdf::Dielectric(d) = m.bsdf_in_channel(&at, &[], c) else {
+                    panic!("smooth glass");
+                };
+                for theta_deg in [10.0f64, 35.0, 60.0, 80.0] {
+                    let theta = theta_deg.to_radians();
+                    let wo = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
+                    // u_lobe near 1: the refracted branch.
+                    let s = d.sample(wo, 0.999_999, Vec2::splat(0.5)).unwrap();
+                    assert!(s.wi.z < 0.0);
+                    let refracted = (s.wi.x.hypot(s.wi.y) as f64).asin();
+                    let snell = (theta.sin() / n).asin();
+                    worst = worst.max((refracted - snell).abs());
+                    assert!((refracted - snell).abs() < 2e-6, "{refracted} vs {snell}");
+                    assert!(s.wi.x <= 0.0, "the far side of the normal");
+                }
+            }
+        }
+        println!("dispersion: worst |refraction − Snell| = {worst:.2e} rad");
+        // At the d line the index is n_d itself.
+        let n_at_d = 1.5 + 0.5 / 20.0 * (523655.0 / (587.56f64 * 587.56) - 1.5168);
+        assert!((n_at_d - 1.5).abs() < 1e-4);
+    }
+
+    #[test]
+    fn no_dispersion_is_the_same_bsdf_in_every_channel() {
+        let at = ShadingPoint::from(TexCoord::point(Vec2::splat(0.5)));
+        let m = glass(0.0);
+        assert!(!m.is_dispersive());
+        for c in 0..3 {
+            assert_eq!(m.dispersed_ior(c).to_bits(), m.ior.to_bits());
+            assert_eq!(m.bsdf_in_channel(&at, &[], c), m.bsdf(&at, &[]));
+        }
+        // An opaque material does not disperse, whatever its dispersion.
+        let opaque = Material {
+            transmission: 0.0,
+            ..glass(1.0)
+        };
+        assert!(!opaque.is_dispersive());
+        assert_eq!(opaque.dispersed_ior(2), opaque.ior);
+    }
+
+    #[test]
+    fn diffuse_transmission_keeps_back_faces_and_reads_its_textures() {
+        let mut m = Material::lambertian("leaf", Rgb::ONE);
+        assert!(m.culls_back_faces());
+        m.diffuse_transmission = Some(DiffuseTransmission {
+            factor: 0.5,
+            color: Rgb::new(1.0, 0.5, 0.25),
+            ..Default::default()
+        });
+        assert!(m.transmits_diffusely() && !m.culls_back_faces() && !m.is_transmissive());
+        let at = ShadingPoint::from(TexCoord::point(Vec2::splat(0.5)));
+        let p = m.pbr_params(&at, &[]);
+        assert_eq!(p.diffuse_transmission, 0.5);
+        assert_eq!(p.diffuse_transmission_color, Rgb::new(1.0, 0.5, 0.25));
+        m.iridescence = Some(Iridescence {
+            factor: 0.7,
+            ..Default::default()
+        });
+        let p = m.pbr_params(&at, &[]);
+        assert_eq!(
+            (p.iridescence, p.iridescence_ior, p.iridescence_thickness),
+            (0.7, 1.3, 400.0)
+        );
     }
 }

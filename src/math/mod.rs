@@ -24,6 +24,13 @@ pub use rng::{hash_to_unit, Rng};
 /// Linear RGB radiance, reflectance or throughput. Channels are (R, G, B) in linear Rec.709 primaries.
 pub type Rgb = Vec3;
 
+/// The wavelength, in nanometres, at which the spectrally dependent materials evaluate each RGB channel (the
+/// dispersion of `KHR_materials_dispersion` and the thin-film interference of `KHR_materials_iridescence`):
+/// the dominant wavelengths of the Rec.709/sRGB primaries seen against the D65 white point (CIE 1931
+/// chromaticity diagram: the line from D65 through each primary meets the spectral locus at about 611.3 nm,
+/// 549.1 nm and 464.3 nm).
+pub const RGB_WAVELENGTHS_NM: [f32; 3] = [611.3, 549.1, 464.3];
+
 /// Relative luminance of a linear Rec.709 colour (ITU-R BT.709 weights).
 pub fn luminance(c: Rgb) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z

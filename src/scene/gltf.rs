@@ -49,8 +49,9 @@ use crate::light::{
 };
 use crate::limits::{one_line, Limits, WorkBudget};
 use crate::material::{
-    AlphaMode, Anisotropy, ClearcoatLayer, ColorSpace, Filter, Material, MipImage, Sampler,
-    SheenLayer, SpecularGlossiness, Texture, UvTransform, Wrap, UV_SETS,
+    AlphaMode, Anisotropy, ClearcoatLayer, ColorSpace, DiffuseTransmission, Filter, Iridescence,
+    Material, MipImage, Sampler, SheenLayer, SpecularGlossiness, Texture, UvTransform, Wrap,
+    UV_SETS,
 };
 use crate::math::{Mat4, Quat, Rgb, Vec2, Vec3, Vec4};
 use crate::params::{parse_rgb, unknown_json_keys, unknown_json_names, UnknownKey};
@@ -77,6 +78,9 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_pbrSpecularGlossiness",
     "KHR_materials_variants",
     "KHR_materials_anisotropy",
+    "KHR_materials_diffuse_transmission",
+    "KHR_materials_dispersion",
+    "KHR_materials_iridescence",
     "KHR_texture_transform",
     "EXT_mesh_gpu_instancing",
 ];
@@ -1145,6 +1149,9 @@ impl Loader<'_> {
         let clearcoat = self.clearcoat(&material, &at)?;
         let sheen = self.sheen(&material, &at)?;
         let anisotropy = self.anisotropy(&material, &at)?;
+        let diffuse_transmission = self.diffuse_transmission(&material, &at)?;
+        let iridescence = self.iridescence(&material, &at)?;
+        let dispersion = self.dispersion(&material, &at)?;
         let m = Material {
             name: material.name().map_or_else(
                 || format!("material {}", material.index().map_or(-1, |i| i as i64)),
@@ -1174,6 +1181,9 @@ impl Loader<'_> {
             sheen,
             specular_glossiness,
             anisotropy,
+            diffuse_transmission,
+            iridescence,
+            dispersion,
             tags: CompositingTags::default(),
         };
         let mut m = m;
@@ -1326,6 +1336,118 @@ impl Loader<'_> {
             rotation,
             texture,
         }))
+    }
+
+    /// `KHR_materials_diffuse_transmission` of a material, when present: `diffuseTransmissionFactor` in
+    /// \[0, 1\] (default 0), `diffuseTransmissionColorFactor` three numbers in \[0, 1\] (default white),
+    /// `diffuseTransmissionTexture` read as linear data (its alpha is used), `diffuseTransmissionColorTexture`
+    /// as sRGB colour.
+    fn diffuse_transmission(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<DiffuseTransmission>, SceneError> {
+        let name = "KHR_materials_diffuse_transmission";
+        let at = format!("{at}.extensions.{name}");
+        let Some(ext) = self.extension_object(material, name, &at)? else {
+            return Ok(None);
+        };
+        let factor = self.unit_number(&ext, "diffuseTransmissionFactor", 0.0, &at)?;
+        let color = match ext.get("diffuseTransmissionColorFactor") {
+            Some(v) => Rgb::from(unit_numbers::<3>(v).ok_or_else(|| {
+                self.malformed(format!(
+                    "{at}.diffuseTransmissionColorFactor must be three numbers in [0, 1]"
+                ))
+            })?),
+            None => Rgb::ONE,
+        };
+        let texture =
+            self.ext_texture(&ext, "diffuseTransmissionTexture", ColorSpace::Linear, &at)?;
+        let color_texture = self.ext_texture(
+            &ext,
+            "diffuseTransmissionColorTexture",
+            ColorSpace::Srgb,
+            &at,
+        )?;
+        Ok(Some(DiffuseTransmission {
+            factor,
+            texture,
+            color,
+            color_texture,
+        }))
+    }
+
+    /// `KHR_materials_iridescence` of a material, when present: `iridescenceFactor` in \[0, 1\] (default 0),
+    /// `iridescenceIor` a finite number ≥ 1 (default 1.3), `iridescenceThicknessMinimum` and
+    /// `iridescenceThicknessMaximum` finite numbers ≥ 0 of nanometres (defaults 100 and 400), the textures read
+    /// as linear data.
+    fn iridescence(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<Option<Iridescence>, SceneError> {
+        let name = "KHR_materials_iridescence";
+        let at = format!("{at}.extensions.{name}");
+        let Some(ext) = self.extension_object(material, name, &at)? else {
+            return Ok(None);
+        };
+        let defaults = Iridescence::default();
+        let number = |key: &str, default: f32, min: f32| match ext.get(key) {
+            None => Ok(default),
+            Some(v) => v
+                .as_f64()
+                .map(|v| v as f32)
+                .filter(|v| v.is_finite() && *v >= min)
+                .ok_or_else(|| {
+                    self.malformed(format!("{at}.{key} must be a finite number >= {min}"))
+                }),
+        };
+        let ior = number("iridescenceIor", defaults.ior, 1.0)?;
+        let thickness_min = number("iridescenceThicknessMinimum", defaults.thickness_min, 0.0)?;
+        let thickness_max = number("iridescenceThicknessMaximum", defaults.thickness_max, 0.0)?;
+        let factor = self.unit_number(&ext, "iridescenceFactor", 0.0, &at)?;
+        let texture = self.ext_texture(&ext, "iridescenceTexture", ColorSpace::Linear, &at)?;
+        let thickness_texture =
+            self.ext_texture(&ext, "iridescenceThicknessTexture", ColorSpace::Linear, &at)?;
+        Ok(Some(Iridescence {
+            factor,
+            texture,
+            ior,
+            thickness_min,
+            thickness_max,
+            thickness_texture,
+        }))
+    }
+
+    /// `KHR_materials_dispersion.dispersion` of a material (a finite number ≥ 0, default 0). It applies to the
+    /// volume of a `KHR_materials_volume` material only (the extension's rule): without one, or with a thin
+    /// wall (`thicknessFactor` 0), a warning says it is ignored and the result is 0.
+    fn dispersion(&mut self, material: &gltf::Material, at: &str) -> Result<f32, SceneError> {
+        let name = "KHR_materials_dispersion";
+        let at = format!("{at}.extensions.{name}");
+        let Some(ext) = self.extension_object(material, name, &at)? else {
+            return Ok(0.0);
+        };
+        let dispersion = match ext.get("dispersion") {
+            None => 0.0,
+            Some(v) => v
+                .as_f64()
+                .map(|v| v as f32)
+                .filter(|v| v.is_finite() && *v >= 0.0)
+                .ok_or_else(|| {
+                    self.malformed(format!("{at}.dispersion must be a finite number >= 0"))
+                })?,
+        };
+        let volume = material
+            .volume()
+            .is_some_and(|v| v.thickness_factor() > 0.0);
+        if dispersion > 0.0 && !volume {
+            self.builder.warnings.push(format!(
+                "{at}: dispersion needs KHR_materials_volume with thicknessFactor > 0 and is ignored"
+            ));
+            return Ok(0.0);
+        }
+        Ok(dispersion)
     }
 
     fn malformed(&self, message: String) -> SceneError {
@@ -1602,7 +1724,7 @@ impl Loader<'_> {
     }
 
     /// The medium filling meshes with this material: `extras.nimbus_medium`, else `KHR_materials_volume` with
-    /// `thicknessFactor` > 0 on a transmissive material (absorption only).
+    /// `thicknessFactor` > 0 on a material that transmits, specularly or diffusely (absorption only).
     fn interior_medium(
         &mut self,
         material: &gltf::Material,
@@ -1639,7 +1761,8 @@ impl Loader<'_> {
             }
         }
         if let Some(volume) = material.volume() {
-            if volume.thickness_factor() > 0.0 && m.transmission > 0.0 {
+            if volume.thickness_factor() > 0.0 && (m.transmission > 0.0 || m.transmits_diffusely())
+            {
                 let distance = volume.attenuation_distance();
                 let color = Rgb::from(volume.attenuation_color());
                 if distance.is_nan() || distance <= 0.0 || color.min_element() <= 0.0 {

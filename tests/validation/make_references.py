@@ -35,6 +35,12 @@ The translation is ../shared/tools/gltf2mitsuba.py's, plus what it does not expr
   Mitsuba's `thinlens` sensor with the same two values (`fov` and `fov_axis` 'y' kept from the perspective sensor:
   glTF's yfov is vertical; Mitsuba's focus distance, like Nimbus's, is measured along the view axis). `f_stop` is
   not translated (it needs Nimbus's focal-length convention): a scene using it is refused here.
+- diffuse transmission (KHR_materials_diffuse_transmission, on a material that gltf2mitsuba reads as Lambertian:
+  metallic 0, specularFactor 0, no textures): Mitsuba 3 has no plain diffuse transmitter, but its `principledthin`
+  with `diff_trans` 2 (all of its diffuse transmitted), `eta` 1.0001 (no specular) and `roughness` 1 is exactly a
+  Lambertian transmission of its `base_color` (checked here, at several angles, before rendering). The material
+  becomes `blendbsdf` (weight diffuseTransmissionFactor) of `twosided(diffuse(baseColor))` and that transmitter
+  (base_color diffuseTransmissionColorFactor): both faces scatter alike, as Nimbus's thin wall does.
 - alpha: Mitsuba's volpath marks every camera ray valid (alpha 1) as soon as the scene has an environment emitter,
   so the alpha render drops the environment (alpha does not depend on lighting); the alpha of a sample is then 1
   when its camera ray hits a non-null surface or scatters in a medium, so its mean is 1 - transmittance. In a
@@ -185,6 +191,63 @@ def patch_thin_lens(translator, d):
             return
 
 
+def thin_diffuse_transmitter(color):
+    """Mitsuba's principledthin reduced to a Lambertian transmission of `color` (see the module docstring)"""
+    return {"type": "principledthin", "base_color": {"type": "rgb", "value": list(color)}, "diff_trans": 2.0,
+            "eta": 1.0001, "roughness": 1.0}
+
+
+def check_thin_diffuse_transmitter():
+    """f(wi, wo) |cos| = color/pi |cos| across the surface and 0 on the same side, at several angles"""
+    import math
+    import mitsuba as mi
+    color = [0.9, 0.5, 0.2]
+    bsdf = mi.load_dict(thin_diffuse_transmitter(color))
+    si = mi.SurfaceInteraction3f()
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+    for ti in (0.0, 0.7, 1.4):
+        si.wi = mi.Vector3f(math.sin(ti), 0, math.cos(ti))
+        for to, phi in ((0.0, 0.0), (0.6, 1.0), (1.2, 2.5), (1.5, 0.3)):
+            for side in (-1, 1):
+                wo = mi.Vector3f(math.sin(to) * math.cos(phi), math.sin(to) * math.sin(phi), side * math.cos(to))
+                f = np.array(bsdf.eval(mi.BSDFContext(), si, wo), float).reshape(-1)[:3] / math.cos(to)
+                want = np.array(color) / math.pi if side < 0 else np.zeros(3)
+                if np.abs(f - want).max() > 1e-4:
+                    raise SystemExit(f"principledthin is not a Lambertian transmitter at {ti}, {to}, {side}: {f}")
+
+
+def patch_diffuse_transmission(translator, d):
+    g = translator.G.g
+    for mi_index, mat in enumerate(g.get("materials", [])):
+        ext = mat.get("extensions", {}).get("KHR_materials_diffuse_transmission")
+        if ext is None:
+            continue
+        pbr = mat.get("pbrMetallicRoughness", {})
+        lambert = pbr.get("metallicFactor", 1.0) == 0.0 and \
+            mat.get("extensions", {}).get("KHR_materials_specular", {}).get("specularFactor", 1.0) == 0.0
+        if not lambert or "baseColorTexture" in pbr or "diffuseTransmissionTexture" in ext \
+                or "diffuseTransmissionColorTexture" in ext:
+            raise SystemExit(f"material {mat.get('name')}: diffuse transmission is translated on an untextured "
+                             "Lambertian material only")
+        base = pbr.get("baseColorFactor", [1, 1, 1, 1])[:3]
+        meshes = [i for i, m in enumerate(g["meshes"]) if any(p.get("material") == mi_index for p in m["primitives"])]
+        names = [n.get("name", "") for n in g["nodes"] if n.get("mesh") in meshes]
+        patched = 0
+        for key, shape in d.items():
+            if isinstance(shape, dict) and "bsdf" in shape and any(f"_{n}_" in key for n in names):
+                shape["bsdf"] = {
+                    "type": "blendbsdf",
+                    "weight": float(ext.get("diffuseTransmissionFactor", 0.0)),
+                    "reflection": {"type": "twosided",
+                                   "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": base}}},
+                    "transmission": thin_diffuse_transmitter(ext.get("diffuseTransmissionColorFactor", [1, 1, 1])),
+                }
+                patched += 1
+        if not patched:
+            raise RuntimeError(f"material {mat.get('name')}: no shape found")
+        check_thin_diffuse_transmitter()
+
+
 def write_exr(path, img):
     """float32, ZIP; img HxWx3 -> R, G, B; HxW -> A"""
     import OpenEXR
@@ -217,6 +280,7 @@ def render(gltf, out, spp, pass_spp, seed, threads, bounces=None, only_emitters=
     d = t.build()
     patch_emissive_textures(t, d)
     patch_thin_lens(t, d)
+    patch_diffuse_transmission(t, d)
     if alpha:
         d.pop("environment", None)           # else volpath reports every ray valid (alpha 1 everywhere)
     scene = mi.load_dict(d)

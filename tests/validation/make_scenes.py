@@ -10,6 +10,7 @@ references beside each scene come from `make_references.py` (Mitsuba 3, through 
 | spot-cone | two KHR_lights_punctual spot lights (candela, hard cones, one tilted) over a floor and a box: cone direction, cone angle, photometric units, a spot shadow |
 | light-groups | three light groups (`nimbus_light_group` on an emissive panel's node and on a point light's node, `light_group` in `nimbus_environment`) over a finite floor and two boxes, sky visible above the horizon: each group's layer, their sum, and alpha |
 | thin-lens | depth of field: a glTF camera with `nimbus_camera` {aperture_radius, focus_distance} over a checkered floor, a sphere near, a box at the focus distance and a sphere far, under a sky and a sun: the lens disk, the focal plane and the blur of near and far things |
+| diffuse-transmission | a single-sided leaf with KHR_materials_diffuse_transmission (factor 0.6, a colour of its own) lit from behind by a sun over a floor under a dim sky: the Lambertian transmission seen through the leaf, its glow on the floor in its shadow, both faces scattering alike |
 """
 import math
 import os
@@ -172,8 +173,37 @@ def thin_lens():
           {"extensionsUsed": ["KHR_lights_punctual"]})
 
 
+def diffuse_transmission():
+    """A leaf (a single-sided quad tilted 37 degrees toward the camera, normal (0, 0.8, 0.6)) with
+    KHR_materials_diffuse_transmission: diffuse reflection (1 - 0.6) x green, Lambertian transmission 0.6 x yellow,
+    no specular layer (specularFactor 0). The sun shines along (0.25, -0.4, 1), onto the leaf's back and toward
+    the camera, so the camera sees the transmitted light; the leaf's shadow on the floor, in front of it, is lit
+    by the light it transmits."""
+    folder = os.path.join(HERE, "diffuse-transmission")
+    b = GltfBuilder()
+    floor = b.lambert("floor", [0.7, 0.7, 0.7])
+    b.quad("floor", [[-2.5, 0, 2.5], [2.5, 0, 2.5], [2.5, 0, -2.5], [-2.5, 0, -2.5]], floor)
+    leaf = b.add_material("leaf", pbrMetallicRoughness={"baseColorFactor": [0.25, 0.6, 0.2, 1.0],
+                                                         "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                          extensions={"KHR_materials_specular": {"specularFactor": 0.0},
+                                      "KHR_materials_diffuse_transmission": {
+                                          "diffuseTransmissionFactor": 0.6,
+                                          "diffuseTransmissionColorFactor": [0.9, 0.85, 0.3]}})
+    c, a = [0.0, 0.55, 0.0], 0.45
+    u, v = [1.0, 0.0, 0.0], [0.0, 0.6, -0.8]          # u x v = (0, 0.8, 0.6), the leaf's front normal
+    corner = [[c[i] + su * a * u[i] + sv * a * v[i] for i in range(3)]
+              for su, sv in [(-1, -1), (1, -1), (1, 1), (-1, 1)]]
+    b.quad("leaf", corner, leaf)
+    b.directional_light("sun", [0.25, -0.4, 1.0], [1.0, 0.95, 0.85], 683.0 * 3.0)
+    b.camera("camera", eye=[0.0, 1.6, 2.8], target=[0.0, 0.35, 0.0], yfov_deg=45)
+    write(b, folder, {"nimbus_environment": {"color": [0.08, 0.1, 0.14]}, "max_bounces": 8},
+          {"extensionsUsed": ["KHR_lights_punctual", "KHR_materials_specular",
+                              "KHR_materials_diffuse_transmission"]})
+
+
 if __name__ == "__main__":
     textured_emitter()
     spot_cone()
     light_groups()
     thin_lens()
+    diffuse_transmission()
