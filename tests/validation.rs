@@ -559,7 +559,13 @@ const SHARED_SCENES: &[&str] = &[
     "smoke-sun",
     "textures",
 ];
-const LOCAL_SCENES: &[&str] = &["light-groups", "spot-cone", "textured-emitter", "thin-lens"];
+const LOCAL_SCENES: &[&str] = &[
+    "diffuse-transmission",
+    "light-groups",
+    "spot-cone",
+    "textured-emitter",
+    "thin-lens",
+];
 
 /// The folders holding validation scenes: `tests/validation`, and `../shared/validation` when it is there.
 fn scene_roots() -> Vec<PathBuf> {
@@ -623,6 +629,7 @@ validation_tests! {
     scattering_box => "scattering-box",
     smoke_sun => "smoke-sun",
     textures => "textures",
+    diffuse_transmission => "diffuse-transmission",
     light_groups => "light-groups",
     spot_cone => "spot-cone",
     textured_emitter => "textured-emitter",
