@@ -400,26 +400,90 @@ fn to_over(entries: &[Entry]) -> Vec<Entry> {
         .collect()
 }
 
-/// Merges adjacent deep samples by "over" until at most `max` remain, least merged alpha first (see the
-/// module docs).
-fn merge_down(samples: &mut Vec<Entry>, max: usize) {
-    while samples.len() > max {
-        let merged_alpha = |i: usize| 1.0 - (1.0 - samples[i].alpha) * (1.0 - samples[i + 1].alpha);
-        let mut best = 0;
-        for i in 1..samples.len() - 1 {
-            if merged_alpha(i) < merged_alpha(best) {
-                best = i;
-            }
-        }
-        let (front, back) = (samples[best], samples[best + 1]);
-        samples[best] = Entry {
-            near: front.near,
-            far: back.far.max(front.far),
-            color: std::array::from_fn(|c| front.color[c] + (1.0 - front.alpha) * back.color[c]),
-            alpha: merged_alpha(best),
-        };
-        samples.remove(best + 1);
+/// Two adjacent deep samples as one, by "over": from the front one's depth to the back one's.
+fn over(front: &Entry, back: &Entry) -> Entry {
+    Entry {
+        near: front.near,
+        far: back.far.max(front.far),
+        color: std::array::from_fn(|c| front.color[c] + (1.0 - front.alpha) * back.color[c]),
+        alpha: merged_alpha(front, back),
     }
+}
+
+/// The alpha of two samples merged by "over".
+fn merged_alpha(front: &Entry, back: &Entry) -> f64 {
+    1.0 - (1.0 - front.alpha) * (1.0 - back.alpha)
+}
+
+/// A candidate merge in [`merge_down`]'s heap: the merged alpha of the pair that starts at sample `front`,
+/// valid while both samples keep the versions it saw. Ordered so that the heap's top is the least alpha, the
+/// front-most pair on a tie.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Candidate {
+    alpha: f64,
+    front: usize,
+    versions: (u32, u32),
+}
+
+impl Eq for Candidate {}
+
+impl Ord for Candidate {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        other
+            .alpha
+            .total_cmp(&self.alpha)
+            .then(other.front.cmp(&self.front))
+    }
+}
+
+impl PartialOrd for Candidate {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// Merges adjacent deep samples by "over" until at most `max` remain, least merged alpha first, the front-most
+/// pair on a tie (see the module docs): a heap of candidate pairs over a linked list, O(n log n).
+fn merge_down(samples: &mut Vec<Entry>, max: usize) {
+    let n = samples.len();
+    if n <= max {
+        return;
+    }
+    let mut next: Vec<usize> = (1..=n).collect();
+    let mut prev: Vec<Option<usize>> = (0..n).map(|i| i.checked_sub(1)).collect();
+    let mut alive = vec![true; n];
+    let mut version = vec![0u32; n];
+    let mut heap = std::collections::BinaryHeap::new();
+    let candidate = |samples: &[Entry], version: &[u32], front: usize, back: usize| Candidate {
+        alpha: merged_alpha(&samples[front], &samples[back]),
+        front,
+        versions: (version[front], version[back]),
+    };
+    for i in 0..n - 1 {
+        heap.push(candidate(samples, &version, i, i + 1));
+    }
+    let mut count = n;
+    while count > max {
+        let Some(c) = heap.pop() else { break };
+        let (i, j) = (c.front, next[c.front]);
+        if !alive[i] || j >= n || c.versions != (version[i], version[j]) {
+            continue;
+        }
+        samples[i] = over(&samples[i], &samples[j]);
+        alive[j] = false;
+        version[i] += 1;
+        next[i] = next[j];
+        if next[i] < n {
+            prev[next[i]] = Some(i);
+            heap.push(candidate(samples, &version, i, next[i]));
+        }
+        if let Some(p) = prev[i] {
+            heap.push(candidate(samples, &version, p, i));
+        }
+        count -= 1;
+    }
+    let mut kept = alive.iter();
+    samples.retain(|_| *kept.next().unwrap_or(&false));
 }
 
 /// Flattens one pixel's deep samples (sorted front to back) by "over": its colour and alpha.
@@ -597,6 +661,50 @@ mod tests {
         }
         assert!(b.checked_merge(&a));
         assert_eq!(b.samples(200, 8), whole.samples(200, 8));
+    }
+
+    #[test]
+    fn the_heap_merges_as_the_plain_rule_does() {
+        // The rule spelt out: merge the least-alpha adjacent pair (front-most on a tie) until `max` remain.
+        fn plain(mut s: Vec<Entry>, max: usize) -> Vec<Entry> {
+            while s.len() > max {
+                let best = (0..s.len() - 1)
+                    .min_by(|&a, &b| {
+                        merged_alpha(&s[a], &s[a + 1]).total_cmp(&merged_alpha(&s[b], &s[b + 1]))
+                    })
+                    .unwrap();
+                s[best] = over(&s[best], &s[best + 1]);
+                s.remove(best + 1);
+            }
+            s
+        }
+        let mut state = 12345u64;
+        let mut random = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f64 / (1u64 << 24) as f64
+        };
+        for n in [1, 2, 7, 40, 200] {
+            let entries: Vec<Entry> = (0..n)
+                .map(|k| Entry {
+                    near: k as f64,
+                    far: k as f64 + 0.5,
+                    color: [random(), random(), random()],
+                    // Some ties: alphas on a coarse grid.
+                    alpha: (random() * 8.0).floor() / 8.0,
+                })
+                .collect();
+            for max in [1, 3, 32] {
+                let mut heap = entries.clone();
+                merge_down(&mut heap, max);
+                assert_eq!(
+                    heap,
+                    plain(entries.clone(), max),
+                    "{n} samples down to {max}"
+                );
+            }
+        }
     }
 
     #[test]
