@@ -1,5 +1,7 @@
 //! Deep output (`--deep`, OpenEXR 2.0 deep scanline), proven by other people's readers and by a closed form:
 //! - OpenEXR's `exrheader` and `exrinfo --strict` read the deep file's header;
+//! - PyPI's `OpenEXR` module (OpenEXR's own Python binding) reads back every sample of a written deep image, bit
+//!   for bit, both uncompressed and ZIPS;
 //! - OpenImageIO's `oiiotool --flatten` of the deep file equals the flat EXR's beauty and alpha within 1e-4
 //!   relative, with and without merging down to a few samples per pixel (it reads every chunk: a wrong offset,
 //!   count table or channel order shows here);
@@ -7,8 +9,9 @@
 //!   split at the plane by OpenEXR's rule) keeps the alpha `1 - exp(-sigma_t d / cos)` in front of the plane,
 //!   within a tolerance from the binomial variance of the fixed-seed estimate.
 //!
-//! The tools come from Debian's `openexr` and `openimageio-tools`; a check whose tool is missing is skipped,
-//! unless `NIMBUS_REQUIRE_TOOLS=1` (CI), which makes it fail.
+//! The tools come from Debian's `openexr` and `openimageio-tools`, the Python module from PyPI (`$NIMBUS_PYTHON`,
+//! CI's virtual environment, else `python3`); a check whose tool is missing is skipped, unless
+//! `NIMBUS_REQUIRE_TOOLS=1` (CI), which makes it fail.
 
 use nimbus::render::{DeepImage, RenderSettings, Renderer};
 use nimbus::scene::Scene;
@@ -357,6 +360,68 @@ fn oiiotool_holds_out_the_slab_by_a_plane_as_the_closed_form() {
         .map(|&a| a as f64)
         .collect();
     check_holdout(&alpha, "oiiotool --deepholdout");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Prints every pixel's samples of a deep EXR as JSON: per pixel, a list of [Z, ZBack, A, R, G, B].
+const READ_DEEP: &str = r#"
+import json, sys, OpenEXR
+part = OpenEXR.File(sys.argv[1]).parts[0]
+assert part.type() == OpenEXR.deepscanline, part.type()
+rgba, z, back = (part.channels[n].pixels for n in ("RGBA", "Z", "ZBack"))
+pixels = []
+for y in range(rgba.shape[0]):
+    for x in range(rgba.shape[1]):
+        c = rgba[y][x]
+        n = 0 if c is None else len(c)
+        pixels.append([[float(z[y][x][i]), float(back[y][x][i]), float(c[i][3]), float(c[i][0]),
+                        float(c[i][1]), float(c[i][2])] for i in range(n)])
+print(json.dumps(pixels))
+"#;
+
+#[test]
+fn openexrs_python_module_reads_back_every_sample() {
+    let python = std::env::var("NIMBUS_PYTHON").unwrap_or_else(|_| "python3".into());
+    let has_module = Command::new(&python)
+        .args(["-c", "import OpenEXR"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_module {
+        assert!(
+            std::env::var("NIMBUS_REQUIRE_TOOLS").as_deref() != Ok("1"),
+            "{python} cannot import OpenEXR and NIMBUS_REQUIRE_TOOLS=1"
+        );
+        eprintln!("SKIP: {python} cannot import OpenEXR (pip install OpenEXR)");
+        return;
+    }
+    let dir = temp_dir("python");
+    let (_, deep) = render_deep(&slab_scene(&dir, true), 5);
+    for (name, compression) in [
+        ("none.deep.exr", nimbus::output::DeepCompression::None),
+        ("zips.deep.exr", nimbus::output::DeepCompression::Zips),
+    ] {
+        let path = dir.join(name);
+        nimbus::output::write_deep_exr(&deep, &path, compression, &Default::default()).unwrap();
+        let out = Command::new(&python)
+            .args(["-c", READ_DEEP, path.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let pixels: Vec<Vec<[f32; 6]>> = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(pixels.len(), SIZE * SIZE);
+        for (i, read) in pixels.iter().enumerate() {
+            let ours: Vec<[f32; 6]> = deep
+                .pixel(i)
+                .iter()
+                .map(|s| [s.z, s.z_back, s.a, s.rgb[0], s.rgb[1], s.rgb[2]])
+                .collect();
+            assert_eq!(read, &ours, "{name}: pixel {i}");
+        }
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
