@@ -5,7 +5,8 @@
 //!
 //! **Depth.** `Z` and `ZBack` are distances along the camera's view axis (the camera-space depth, OpenEXR's
 //! convention for deep `Z`), not along the ray: a camera ray's distance `t` becomes `t · cos θ`, θ the angle
-//! between the ray and the view axis. For an orthographic camera `Z` is `t`.
+//! between the ray and the view axis (for a moving camera, the axis at the sample's time). For an orthographic
+//! camera `Z` is `t`.
 //!
 //! **What a sample is made of.** Each camera path is put in one *bin* of its pixel by the event along the
 //! camera ray that decided its coverage (the path's alpha):

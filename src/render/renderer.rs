@@ -619,13 +619,15 @@ impl Renderer {
         let deep = film.deep_samples().is_some();
         let records = plan.records() || deep;
         let shadow_catcher = plan.slot(super::aovs::CATCHER_LIT).is_some();
-        // Deep depths are along the view axis: a camera ray's distance times its cosine to the axis.
-        let view_axis = -scene
-            .camera
-            .camera_to_world
-            .z_axis
-            .truncate()
-            .normalize_or_zero();
+        // Deep depths are along the view axis (at the sample's time, for a moving camera): a camera ray's
+        // distance times its cosine to the axis.
+        let view_axis = |time: Option<f32>| {
+            let to_world = match (&scene.camera.motion, time) {
+                (Some(m), Some(t)) => m.camera_to_world_at(t),
+                _ => scene.camera.camera_to_world,
+            };
+            -to_world.z_axis.truncate().normalize_or_zero()
+        };
         let services = RendererServices::new(scene, s.light_sampler.uses_bvh(scene.lights()));
         film.rows_mut()
             .into_par_iter()
@@ -735,7 +737,7 @@ impl Renderer {
                         if let Some(r) = &record {
                             clamped_here |= recorder.commit(r, result.alpha, &mut pixel);
                             if let Some(d) = pixel.deep.as_deref_mut() {
-                                let cos = ray.dir.normalize_or_zero().dot(view_axis);
+                                let cos = ray.dir.normalize_or_zero().dot(view_axis(time));
                                 d.add(r, result.radiance, result.alpha, cos);
                             }
                         }
