@@ -303,8 +303,8 @@ struct RenderArgs {
     /// uncompressed with --compression none. Whole frames only (not with farm parts or checkpoints).
     #[arg(long)]
     deep: bool,
-    /// The most deep samples per pixel (1 to 65536): more are merged front to back by "over", least visible
-    /// pair first, which keeps the flattened pixel.
+    /// The most deep samples per pixel (1 to 65536): more are merged by "over", the pair whose merge changes
+    /// the holdout curve least first, which keeps the flattened pixel.
     #[arg(long = "deep-samples", value_name = "N", requires = "deep",
           default_value_t = nimbus::render::deep::DEFAULT_MAX_SAMPLES as u32,
           value_parser = clap::value_parser!(u32).range(1..=65536))]

@@ -43,11 +43,16 @@
 //! additive colour and coverage shared by length, so that samples never overlap; the partition of the paths'
 //! light stays a partition, so the flattened result is unchanged.
 //!
-//! **At most N samples.** While a pixel has more than `--deep-samples N` samples, the adjacent pair whose merged
-//! alpha `1 − (1 − A_1)(1 − A_2)` is least (the least visible; the front-most pair on a tie) becomes one sample
-//! from the front one's `Z` to the back one's `ZBack`, with that alpha and colour `C_1 + (1 − A_1) C_2`: that is
-//! "over", so the flattened pixel stays the same (up to float rounding). Two adjacent intervals of one
-//! homogeneous medium merge into an interval of the same density, so holdouts inside it stay exact.
+//! **At most N samples.** While a pixel has more than `--deep-samples N` samples, the adjacent pair whose merge
+//! changes the pixel's holdout curve least ([`merge_cost`]: the transmittance a holdout at each depth would see,
+//! sampled through both samples, times the transmittance in front; the front-most pair on a tie) becomes one
+//! sample from the front one's `Z` to the back one's `ZBack`, with alpha `1 − (1 − A_1)(1 − A_2)` and colour
+//! `C_1 + (1 − A_1) C_2`: that is "over", so the flattened pixel stays the same (up to float rounding). Two
+//! touching intervals of one density cost nothing, so a homogeneous medium merges first and holdouts inside it
+//! stay exact; a surface point, an opaque sample or the background far behind merge last.
+//!
+//! **Bounded bins.** A pixel keeps at most [`max_bins`] surface and medium bins (twice `N`): beyond, its buckets
+//! double in depth and the bins in one bucket are added up (exactly, and whatever the order of the samples).
 //!
 //! The emission of emitter-edge supersampling (scenes without media) goes to the bin of the sample's path.
 
@@ -84,7 +89,8 @@ enum BinKind {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Bin {
     kind: BinKind,
-    /// The depth bucket (0 for the passed and background bins, of which a pixel has one each).
+    /// The depth bucket at the pixel's level (0 for the passed and background bins, of which a pixel has one
+    /// each).
     bucket: i32,
     /// Paths in the bin (for the mean depth of a surface bin).
     count: u32,
@@ -92,15 +98,21 @@ struct Bin {
     alpha: ValueSum,
     /// Sum of the depths of a surface bin's paths.
     depth: ValueSum,
-    /// Nearest and farthest depth, as `f32` bits (non-negative floats order as their bits).
+    /// Nearest and farthest depth, as `f32` bits (non-negative floats order as their bits): of the media
+    /// crossed for a medium bin, else of the bin's events.
     near: u32,
     far: u32,
+    /// Nearest and farthest depth of a medium bin's collisions, as `f32` bits.
+    first: u32,
+    last: u32,
 }
 
 /// The deep bins of one pixel, sorted by kind and bucket.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct DeepPixel {
     bins: Vec<Bin>,
+    /// How many times the depth buckets were doubled to keep the bins within [`max_bins`].
+    level: u8,
 }
 
 /// One deep sample: its depth interval along the view axis and its alpha and premultiplied colour.
@@ -116,15 +128,49 @@ pub struct DeepSample {
     pub rgb: [f32; 3],
 }
 
-/// The bucket of depth `z` and its bounds.
-fn bucket(z: f32) -> (i32, f32, f32) {
-    let k = (z.max(MIN_DEPTH).log2() * BUCKETS_PER_OCTAVE).floor() as i32;
-    (k, bucket_start(k), bucket_start(k + 1))
+/// The most bins (surface and medium) a pixel keeps for images of at most `max_samples` deep samples a pixel:
+/// twice that, and at least 4. Beyond it, the pixel's depth buckets are doubled (its level goes up by one) and
+/// the bins that fall in one bucket are added up, until they fit. The sums stay exact and the result does not
+/// depend on the order of the samples: the level is the least one at which all the pixel's paths fit.
+pub fn max_bins(max_samples: usize) -> usize {
+    (2 * max_samples).max(4)
 }
 
-/// The depth where bucket `k` starts.
-fn bucket_start(k: i32) -> f32 {
-    (k as f32 / BUCKETS_PER_OCTAVE).exp2()
+/// The most times a pixel's buckets are doubled (then one bucket spans every depth).
+const MAX_LEVEL: u8 = 24;
+
+/// The bucket of depth `z` at `level`.
+fn bucket(z: f32, level: u8) -> i32 {
+    ((z.max(MIN_DEPTH).log2() * BUCKETS_PER_OCTAVE).floor() as i32) >> level
+}
+
+/// The depth where bucket `k` of `level` starts.
+fn bucket_start(k: i32, level: u8) -> f32 {
+    ((k as f64 * (1u64 << level) as f64) / BUCKETS_PER_OCTAVE as f64).exp2() as f32
+}
+
+impl Bin {
+    /// Adds `other`'s paths (of the same kind and bucket) to this bin; false where a sum would overflow.
+    #[must_use]
+    fn absorb(&mut self, other: &Bin) -> bool {
+        let mut fits = match self.count.checked_add(other.count) {
+            Some(count) => {
+                self.count = count;
+                true
+            }
+            None => false,
+        };
+        for c in 0..3 {
+            fits &= self.color[c].checked_add(other.color[c]);
+        }
+        fits &= self.alpha.checked_add(other.alpha);
+        fits &= self.depth.checked_add(other.depth);
+        self.near = self.near.min(other.near);
+        self.far = self.far.max(other.far);
+        self.first = self.first.min(other.first);
+        self.last = self.last.max(other.last);
+        fits
+    }
 }
 
 /// Adds `v` to an exact sum, clamped as the film clamps sample values.
@@ -152,6 +198,8 @@ impl DeepPixel {
                         depth: ValueSum::default(),
                         near: near.to_bits(),
                         far: far.to_bits(),
+                        first: f32::MAX.to_bits(),
+                        last: 0,
                     },
                 );
                 i
@@ -165,8 +213,22 @@ impl DeepPixel {
 
     /// Adds one camera path: its record (the event that decided its coverage, the span of media its camera ray
     /// crossed and its contributions), its finite `radiance` and `alpha` as the film took them, and `cos`, the
-    /// cosine between its camera ray and the view axis (distances times `cos` are depths).
-    pub fn add(&mut self, record: &SampleRecord, radiance: Rgb, alpha: f32, cos: f32) {
+    /// cosine between its camera ray and the view axis (distances times `cos` are depths); keeps at most
+    /// `max_bins` surface and medium bins ([`max_bins`]).
+    pub fn add(
+        &mut self,
+        record: &SampleRecord,
+        radiance: Rgb,
+        alpha: f32,
+        cos: f32,
+        max_bins: usize,
+    ) {
+        self.add_path(record, radiance, alpha, cos);
+        self.coarsen(max_bins);
+    }
+
+    /// [`Self::add`] before the bins are kept within their number.
+    fn add_path(&mut self, record: &SampleRecord, radiance: Rgb, alpha: f32, cos: f32) {
         let depth = |t: f32| (t * cos).clamp(0.0, FAR);
         let span = record.media_span.map(|(a, b)| (depth(a), depth(b)));
         let put = |bin: &mut Bin, color: Rgb, alpha: f32| {
@@ -179,18 +241,17 @@ impl DeepPixel {
         match record.camera_event {
             Some(CameraEvent::Surface(t)) => {
                 let z = depth(t);
-                let bin = self.bin(BinKind::Surface, bucket(z).0, z, z);
+                let bin = self.bin(BinKind::Surface, bucket(z, self.level), z, z);
                 add(&mut bin.depth, z);
                 put(bin, radiance, alpha);
             }
             Some(CameraEvent::Collision(t)) => {
                 let z = depth(t);
-                let (k, mut near, mut far) = bucket(z);
-                if let Some((a, b)) = span {
-                    near = near.max(a).min(z);
-                    far = far.min(b).max(z);
-                }
-                put(self.bin(BinKind::Medium, k, near, far), radiance, alpha);
+                let (near, far) = span.unwrap_or((0.0, FAR));
+                let bin = self.bin(BinKind::Medium, bucket(z, self.level), near, far);
+                bin.first = bin.first.min(z.to_bits());
+                bin.last = bin.last.max(z.to_bits());
+                put(bin, radiance, alpha);
             }
             ended => {
                 let end = match ended {
@@ -217,24 +278,57 @@ impl DeepPixel {
         }
     }
 
-    /// Adds the bins of `other`, another set of samples of the same pixel (exact, in any order). Returns false
-    /// (with the pixel's bins partly merged) where a count or sum would overflow, which no samples can make.
+    /// Doubles the depth buckets until at most `max_bins` surface and medium bins remain (see [`max_bins`]).
+    fn coarsen(&mut self, max_bins: usize) {
+        let binned = |p: &Self| {
+            p.bins
+                .iter()
+                .filter(|b| matches!(b.kind, BinKind::Surface | BinKind::Medium))
+                .count()
+        };
+        while binned(self) > max_bins && self.level < MAX_LEVEL {
+            self.raise_to(self.level + 1);
+        }
+    }
+
+    /// Takes the bins to the coarser `level`, adding up those that fall in one bucket.
+    fn raise_to(&mut self, level: u8) {
+        let shift = level.saturating_sub(self.level);
+        if shift == 0 {
+            return;
+        }
+        self.level = level;
+        let mut bins: Vec<Bin> = Vec::with_capacity(self.bins.len());
+        for mut b in self.bins.drain(..) {
+            if matches!(b.kind, BinKind::Surface | BinKind::Medium) {
+                b.bucket >>= shift;
+            }
+            match bins.last_mut() {
+                // Shifting keeps the order, so bins of one new bucket are neighbours; no samples can overflow
+                // the sums of one pixel.
+                Some(last) if (last.kind, last.bucket) == (b.kind, b.bucket) => {
+                    let _ = last.absorb(&b);
+                }
+                _ => bins.push(b),
+            }
+        }
+        self.bins = bins;
+    }
+
+    /// Adds the bins of `other`, another set of samples of the same pixel (exact, in any order: the result is
+    /// the bins of all the samples), keeping at most `max_bins`. Returns false (with the pixel's bins partly
+    /// merged) where a count or sum would overflow, which no samples can make.
     #[must_use]
-    pub fn checked_merge(&mut self, other: &DeepPixel) -> bool {
+    pub fn checked_merge(&mut self, other: &DeepPixel, max_bins: usize) -> bool {
+        self.raise_to(other.level);
+        let mut other = other.clone();
+        other.raise_to(self.level);
         let mut fits = true;
         for o in &other.bins {
             let (near, far) = (f32::from_bits(o.near), f32::from_bits(o.far));
-            let b = self.bin(o.kind, o.bucket, near, far);
-            match b.count.checked_add(o.count) {
-                Some(count) => b.count = count,
-                None => fits = false,
-            }
-            for c in 0..3 {
-                fits &= b.color[c].checked_add(o.color[c]);
-            }
-            fits &= b.alpha.checked_add(o.alpha);
-            fits &= b.depth.checked_add(o.depth);
+            fits &= self.bin(o.kind, o.bucket, near, far).absorb(o);
         }
+        self.coarsen(max_bins);
         fits
     }
 
@@ -283,7 +377,18 @@ impl DeepPixel {
                     points.push(e);
                 }
                 BinKind::Background => points.push(e),
-                BinKind::Medium => intervals.push((b.bucket, e)),
+                BinKind::Medium => {
+                    // The bucket, clipped to the media crossed, and covering every collision.
+                    let (first, last) = (
+                        f32::from_bits(b.first) as f64,
+                        f32::from_bits(b.last) as f64,
+                    );
+                    let start = bucket_start(b.bucket, self.level) as f64;
+                    let end = bucket_start(b.bucket + 1, self.level) as f64;
+                    e.near = start.max(e.near).min(first);
+                    e.far = end.min(e.far).max(last);
+                    intervals.push((b.bucket, e));
+                }
                 BinKind::Passed => passed = Some(e),
             }
         }
@@ -292,10 +397,12 @@ impl DeepPixel {
             if length <= 0.0 {
                 points.push(p);
             } else {
-                let (mut k, ..) = bucket(p.near as f32);
+                let mut k = bucket(p.near as f32, self.level);
                 let mut start = p.near;
                 while start < p.far {
-                    let end = (bucket_start(k + 1) as f64).min(p.far).max(start);
+                    let end = (bucket_start(k + 1, self.level) as f64)
+                        .min(p.far)
+                        .max(start);
                     let share = (end - start) / length;
                     let piece = Entry {
                         near: start,
@@ -416,12 +523,43 @@ fn merged_alpha(front: &Entry, back: &Entry) -> f64 {
     1.0 - (1.0 - front.alpha) * (1.0 - back.alpha)
 }
 
-/// A candidate merge in [`merge_down`]'s heap: the merged alpha of the pair that starts at sample `front`,
-/// valid while both samples keep the versions it saw. Ordered so that the heap's top is the least alpha, the
+/// How much merging the adjacent samples `front` and `back`, behind `transmittance`, changes the pixel's
+/// holdout curve: the transmittance that a holdout at each depth would see, with an interval's alpha spread
+/// uniformly over it (OpenEXR's rule) and a point's taken at its depth. The largest change, at nine depths
+/// through each of the two samples, times `transmittance`. Two touching intervals of one density cost
+/// nothing; a point spread into an interval, an opaque sample spread over a transparent one, or a sample
+/// stretched over a gap (to the background at [`FAR`]) cost up to their alpha.
+fn merge_cost(front: &Entry, back: &Entry, transmittance: f64) -> f64 {
+    let merged = over(front, back);
+    // The transmittance through `s` to depth `z`, relative to what is in front of it.
+    let through = |s: &Entry, z: f64| {
+        if s.near == s.far {
+            if z >= s.near {
+                1.0 - s.alpha
+            } else {
+                1.0
+            }
+        } else {
+            (1.0 - s.alpha).powf(((z - s.near) / (s.far - s.near)).clamp(0.0, 1.0))
+        }
+    };
+    let mut change = 0.0f64;
+    for s in [front, back] {
+        for k in 0..=8 {
+            let z = s.near + (s.far - s.near) * k as f64 / 8.0;
+            let original = through(front, z) * through(back, z);
+            change = change.max((original - through(&merged, z)).abs());
+        }
+    }
+    transmittance * change
+}
+
+/// A candidate merge in [`merge_down`]'s heap: the [`merge_cost`] of the pair that starts at sample `front`,
+/// valid while both samples keep the versions it saw. Ordered so that the heap's top is the least cost, the
 /// front-most pair on a tie.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Candidate {
-    alpha: f64,
+    cost: f64,
     front: usize,
     versions: (u32, u32),
 }
@@ -431,8 +569,8 @@ impl Eq for Candidate {}
 impl Ord for Candidate {
     fn cmp(&self, other: &Self) -> std::cmp::Ordering {
         other
-            .alpha
-            .total_cmp(&self.alpha)
+            .cost
+            .total_cmp(&self.cost)
             .then(other.front.cmp(&self.front))
     }
 }
@@ -443,20 +581,29 @@ impl PartialOrd for Candidate {
     }
 }
 
-/// Merges adjacent deep samples by "over" until at most `max` remain, least merged alpha first, the front-most
-/// pair on a tie (see the module docs): a heap of candidate pairs over a linked list, O(n log n).
+/// Merges adjacent deep samples by "over" until at most `max` remain, least [`merge_cost`] first, the
+/// front-most pair on a tie (see the module docs): a heap of candidate pairs over a linked list, O(n log n).
+/// The transmittance in front of a sample does not change as samples merge ("over" keeps the product).
 fn merge_down(samples: &mut Vec<Entry>, max: usize) {
     let n = samples.len();
     if n <= max {
         return;
     }
+    let in_front: Vec<f64> = samples
+        .iter()
+        .scan(1.0, |t, s| {
+            let before = *t;
+            *t *= 1.0 - s.alpha;
+            Some(before)
+        })
+        .collect();
     let mut next: Vec<usize> = (1..=n).collect();
     let mut prev: Vec<Option<usize>> = (0..n).map(|i| i.checked_sub(1)).collect();
     let mut alive = vec![true; n];
     let mut version = vec![0u32; n];
     let mut heap = std::collections::BinaryHeap::new();
     let candidate = |samples: &[Entry], version: &[u32], front: usize, back: usize| Candidate {
-        alpha: merged_alpha(&samples[front], &samples[back]),
+        cost: merge_cost(&samples[front], &samples[back], in_front[front]),
         front,
         versions: (version[front], version[back]),
     };
@@ -589,7 +736,7 @@ mod tests {
         let paths = mixed_paths();
         let mut pixel = DeepPixel::default();
         for (r, c, a) in &paths {
-            pixel.add(r, *c, *a, 1.0);
+            pixel.add(r, *c, *a, 1.0, 1000);
         }
         let (want, want_alpha) = flat(&paths);
         for max in [1, 2, 5, 32, 1000] {
@@ -619,36 +766,55 @@ mod tests {
 
     #[test]
     fn a_homogeneous_slab_keeps_its_exponential_profile() {
-        // Collisions at the quantiles of an exponential with sigma_t = 0.5 over a slab [1, 9]: the alpha in
-        // front of depth 5 must be 1 - exp(-0.5 * 4) after merging down to 4 samples.
+        // Collisions at the quantiles of an exponential with sigma_t = 0.5 over a slab [1, 9], the rest seeing
+        // the environment behind: held out at depths 3, 5 and 7, the alpha in front must be 1 - exp(-0.5 (d - 1))
+        // however few samples the pixel is merged down to (the background is never stretched over the slab),
+        // and with bins coarsened (a cap of 4).
         let (sigma, n) = (0.5f64, 20000);
-        let mut pixel = DeepPixel::default();
+        let (mut pixel, mut coarse) = (DeepPixel::default(), DeepPixel::default());
         for k in 0..n {
             let u = (k as f64 + 0.5) / n as f64;
             let t = 1.0 - (1.0 - u).ln() / sigma;
-            let r = if t < 9.0 {
+            let mut r = if t < 9.0 {
                 record(CameraEvent::Collision(t as f32), Some((1.0, 9.0)))
             } else {
                 record(CameraEvent::Ended(f32::INFINITY), Some((1.0, 9.0)))
             };
-            pixel.add(&r, Rgb::ZERO, (t < 9.0) as u32 as f32, 1.0);
+            r.push(Rgb::splat(0.5), Origin::Environment, None, true);
+            let radiance = if t < 9.0 {
+                Rgb::splat(0.1)
+            } else {
+                Rgb::splat(0.5)
+            };
+            pixel.add(&r, radiance, (t < 9.0) as u32 as f32, 1.0, 1000);
+            coarse.add(&r, radiance, (t < 9.0) as u32 as f32, 1.0, 4);
         }
-        for max in [4, 32] {
+        for (pixel, max) in [
+            (&pixel, 2),
+            (&pixel, 4),
+            (&pixel, 32),
+            (&coarse, 2),
+            (&coarse, 32),
+        ] {
             let samples = pixel.samples(n, max);
             check_tidy(&samples);
-            let mut transmittance = 1.0f64;
-            for s in &samples {
-                let f =
-                    ((5.0 - s.z as f64) / (s.z_back as f64 - s.z as f64).max(1e-9)).clamp(0.0, 1.0);
-                transmittance *= (1.0 - s.a as f64).powf(f);
+            for depth in [3.0, 5.0, 7.0] {
+                let mut transmittance = 1.0f64;
+                for s in &samples {
+                    let length = (s.z_back as f64 - s.z as f64).max(1e-9);
+                    let f = ((depth - s.z as f64) / length).clamp(0.0, 1.0);
+                    transmittance *= (1.0 - s.a as f64).powf(f);
+                }
+                let want = 1.0 - (-sigma * (depth - 1.0)).exp();
+                assert!(
+                    ((1.0 - transmittance) - want).abs() < 2e-3,
+                    "{max} samples, level {}, depth {depth}: {} {want}",
+                    pixel.level,
+                    1.0 - transmittance
+                );
             }
-            let want = 1.0 - (-sigma * 4.0).exp();
-            assert!(
-                ((1.0 - transmittance) - want).abs() < 2e-3,
-                "{max}: {} {want}",
-                1.0 - transmittance
-            );
         }
+        assert!(coarse.level > 0);
     }
 
     #[test]
@@ -657,25 +823,29 @@ mod tests {
         let mut whole = DeepPixel::default();
         let (mut a, mut b) = (DeepPixel::default(), DeepPixel::default());
         for (k, (r, c, al)) in paths.iter().enumerate() {
-            whole.add(r, *c, *al, 0.9);
-            if k % 3 == 0 { &mut a } else { &mut b }.add(r, *c, *al, 0.9);
+            whole.add(r, *c, *al, 0.9, 1000);
+            if k % 3 == 0 { &mut a } else { &mut b }.add(r, *c, *al, 0.9, 1000);
         }
-        assert!(b.checked_merge(&a));
+        assert!(b.checked_merge(&a, 1000));
         assert_eq!(b.samples(200, 8), whole.samples(200, 8));
     }
 
     #[test]
     fn the_heap_merges_as_the_plain_rule_does() {
-        // The rule spelt out: merge the least-alpha adjacent pair (front-most on a tie) until `max` remain.
+        // The rule spelt out: merge the least-cost adjacent pair (front-most on a tie) until `max` remain.
         fn plain(mut s: Vec<Entry>, max: usize) -> Vec<Entry> {
+            // The transmittance in front of each sample, as the samples first were.
+            let mut in_front: Vec<f64> = (0..s.len())
+                .map(|i| s[..i].iter().fold(1.0, |t, e| t * (1.0 - e.alpha)))
+                .collect();
             while s.len() > max {
+                let cost = |i: usize| merge_cost(&s[i], &s[i + 1], in_front[i]);
                 let best = (0..s.len() - 1)
-                    .min_by(|&a, &b| {
-                        merged_alpha(&s[a], &s[a + 1]).total_cmp(&merged_alpha(&s[b], &s[b + 1]))
-                    })
+                    .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
                     .unwrap();
                 s[best] = over(&s[best], &s[best + 1]);
                 s.remove(best + 1);
+                in_front.remove(best + 1);
             }
             s
         }
@@ -716,7 +886,51 @@ mod tests {
             Rgb::ONE,
             1.0,
             0.5,
+            4,
         );
         assert_eq!(pixel.samples(1, 4)[0].z, 5.0);
+    }
+
+    #[test]
+    fn bins_beyond_the_cap_coarsen_exactly_and_in_any_order() {
+        let paths = mixed_paths();
+        let (want, want_alpha) = flat(&paths);
+        let bins = |p: &DeepPixel| {
+            p.bins
+                .iter()
+                .filter(|b| matches!(b.kind, BinKind::Surface | BinKind::Medium))
+                .count()
+        };
+        let mut forward = DeepPixel::default();
+        let mut backward = DeepPixel::default();
+        let (mut front, mut back) = (DeepPixel::default(), DeepPixel::default());
+        for (k, (r, c, a)) in paths.iter().enumerate() {
+            forward.add(r, *c, *a, 1.0, 4);
+            if k < 50 { &mut front } else { &mut back }.add(r, *c, *a, 1.0, 4);
+        }
+        for (r, c, a) in paths.iter().rev() {
+            backward.add(r, *c, *a, 1.0, 4);
+        }
+        assert!(
+            forward.level > 0 && bins(&forward) <= 4,
+            "{}",
+            forward.level
+        );
+        assert_eq!(
+            forward, backward,
+            "the order of the samples does not matter"
+        );
+        assert!(back.checked_merge(&front, 4));
+        assert_eq!(back, forward, "nor a split into parts");
+        let samples = forward.samples(paths.len() as u32, 32);
+        check_tidy(&samples);
+        let (got, alpha) = flatten(&samples);
+        for c in 0..3 {
+            assert!(
+                (got[c] - want[c]).abs() <= 1e-5 * want[c].abs(),
+                "{got} {want}"
+            );
+        }
+        assert!((alpha - want_alpha).abs() <= 1e-6);
     }
 }

@@ -450,7 +450,7 @@ impl Film {
                     fits &= self.crypto[dst * k + j].checked_merge(&other.crypto[src * k + j]);
                 }
                 if let (Some(d), Some(o)) = (self.deep.get_mut(dst), other.deep.get(src)) {
-                    fits &= d.checked_merge(o);
+                    fits &= d.checked_merge(o, super::deep::max_bins(self.deep_samples));
                 }
                 if !fits {
                     return Err(FilmMergeError::Overflow {

@@ -617,6 +617,7 @@ impl Renderer {
         };
         let plan = film.plan().clone();
         let deep = film.deep_samples().is_some();
+        let max_bins = film.deep_samples().map_or(0, super::deep::max_bins);
         let records = plan.records() || deep;
         let shadow_catcher = plan.slot(super::aovs::CATCHER_LIT).is_some();
         // Deep depths are along the view axis (at the sample's time, for a moving camera): a camera ray's
@@ -738,7 +739,7 @@ impl Renderer {
                             clamped_here |= recorder.commit(r, result.alpha, &mut pixel);
                             if let Some(d) = pixel.deep.as_deref_mut() {
                                 let cos = ray.dir.normalize_or_zero().dot(view_axis(time));
-                                d.add(r, result.radiance, result.alpha, cos);
+                                d.add(r, result.radiance, result.alpha, cos, max_bins);
                             }
                         }
                         clamped += clamped_here as u64;
