@@ -313,6 +313,18 @@ struct RenderArgs {
     /// Cryptomatte ranks per pixel (1 to 16, rounded up to even: two per layer).
     #[arg(long = "cryptomatte-depth", default_value_t = nimbus::render::cryptomatte::DEFAULT_DEPTH)]
     cryptomatte_depth: usize,
+    /// Also write deep samples (OpenEXR 2.0 deep scanline) to OUT.deep.exr beside the EXR: per pixel, surfaces
+    /// as point samples and media as depth intervals, each with Z and ZBack (depth along the view axis), A and
+    /// premultiplied R, G, B, all 32-bit floats; they flatten to the EXR's beauty and alpha. Stored ZIPS, or
+    /// uncompressed with --compression none. Whole frames only (not with farm parts or checkpoints).
+    #[arg(long)]
+    deep: bool,
+    /// The most deep samples per pixel (1 to 65536): more are merged by "over", the pair whose merge changes
+    /// the holdout curve least first, which keeps the flattened pixel.
+    #[arg(long = "deep-samples", value_name = "N", requires = "deep",
+          default_value_t = nimbus::render::deep::DEFAULT_MAX_SAMPLES as u32,
+          value_parser = clap::value_parser!(u32).range(1..=65536))]
+    deep_samples: u32,
     /// How the EXR is stored.
     #[command(flatten)]
     storage: StorageArgs,
@@ -788,6 +800,18 @@ fn render_frame(
     reporter: &mut ProgressReporter,
     cancel: &CancelToken,
 ) -> Result<(), String> {
+    if args.deep
+        && (args.samples.is_some()
+            || args.crop.is_some()
+            || args.chunk_from_env
+            || args.checkpoint.is_some()
+            || args.resume)
+    {
+        return Err("--deep renders whole frames only: deep samples are merged per pixel down to --deep-samples, \
+                    which farm parts and checkpoints (exact sums) do not carry; drop --samples, --crop, \
+                    --chunk-from-env, --checkpoint and --resume"
+            .into());
+    }
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
     let limits = args.limits();
@@ -890,6 +914,7 @@ fn render_frame(
         transparent: args.transparent,
         light_groups: args.light_groups,
         cryptomatte_depth: args.cryptomatte_depth,
+        deep_samples: args.deep.then_some(args.deep_samples as usize),
     };
     if args.explain {
         eprintln!(
@@ -1064,7 +1089,23 @@ fn write_image(args: &RenderArgs, image: &RenderImage, output: &Path) -> Result<
         .map_err(|e| e.to_string())?;
     let png = nimbus::output::preview_path(output);
     nimbus::output::write_png_preview(image, &png, preview_stops(args.exposure, image))
-        .map_err(|e| e.to_string())
+        .map_err(|e| e.to_string())?;
+    if let Some(deep) = &image.deep {
+        let path = nimbus::output::deep_path(output);
+        let compression = match args.storage.compression {
+            nimbus::output::ExrCompression::None => nimbus::output::DeepCompression::None,
+            _ => nimbus::output::DeepCompression::Zips,
+        };
+        nimbus::output::write_deep_exr(deep, &path, compression, &image.metadata)
+            .map_err(|e| e.to_string())?;
+        eprintln!(
+            "nimbus: wrote {} ({} deep samples, at most {} in a pixel)",
+            path.display(),
+            deep.samples.len(),
+            deep.most_samples()
+        );
+    }
+    Ok(())
 }
 
 /// With `--resume`, the checkpoint at `path` to continue from, once checked to be of this render (`None`

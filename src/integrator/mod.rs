@@ -10,6 +10,6 @@ mod stats;
 
 pub use medium_stack::MediumStack;
 pub use path::{EquiangularTargets, FirstEmission, PathSample, PathTracer};
-pub use record::{EventClass, Origin, SampleRecord};
+pub use record::{CameraEvent, EventClass, Origin, SampleRecord};
 pub use services::RendererServices;
 pub use stats::{PathCounters, RayCounters};

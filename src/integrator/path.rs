@@ -35,7 +35,7 @@
 //! [`Medium::free_flight_pdf`]: crate::volume::Medium::free_flight_pdf
 //! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
 
-use super::record::{FirstEvent, Origin, SampleRecord};
+use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
@@ -170,6 +170,10 @@ struct PathState<'r> {
     crossed_medium: Option<u32>,
     /// Where the contributions are recorded for the compositing layers, if they are.
     record: Option<&'r mut SampleRecord>,
+    /// The distance along the camera ray where the current ray starts, while the path is still on it (it
+    /// passes through culled back faces, shadow catchers and index-matched boundaries): what deep output
+    /// measures depths by.
+    camera_t: f32,
 }
 
 impl PathState<'_> {
@@ -179,13 +183,25 @@ impl PathState<'_> {
         (1.0 - self.beta.element_sum() / 3.0).clamp(0.0, 1.0)
     }
 
-    /// Decides the sample's coverage (once): `coverage` of it, covered by Cryptomatte item `item()` (asked
-    /// only when the path records).
-    fn cover(&mut self, coverage: f32, item: impl FnOnce() -> Option<u32>) {
+    /// Decides the sample's coverage (once): `coverage` of it, decided by `event` at distance `t` along the
+    /// current ray (for deep output), covered by Cryptomatte item `item()` (asked only when the path records).
+    fn cover(
+        &mut self,
+        coverage: f32,
+        event: fn(f32) -> CameraEvent,
+        t: f32,
+        item: impl FnOnce() -> Option<u32>,
+    ) {
         if self.coverage.is_none() {
             self.coverage = Some(coverage);
-            if let (Some(r), true) = (self.record.as_deref_mut(), coverage > 0.0) {
-                r.covered_by = item();
+            let camera_t = self.camera_t;
+            if let Some(r) = self.record.as_deref_mut() {
+                if r.deep {
+                    r.camera_event = Some(event(camera_t + t));
+                }
+                if coverage > 0.0 {
+                    r.covered_by = item();
+                }
             }
         }
     }
@@ -324,6 +340,7 @@ impl PathTracer {
             coverage: None,
             crossed_medium: None,
             record,
+            camera_t: 0.0,
         };
         counters.rays.camera += 1;
         loop {
@@ -341,7 +358,7 @@ impl PathTracer {
                 if s.depth == 0 {
                     let medium = s.crossed_medium;
                     let item = || medium.map(|m| scene.names().item_of_medium(m as usize));
-                    s.cover(s.coverage_so_far(), item);
+                    s.cover(s.coverage_so_far(), CameraEvent::Ended, f32::INFINITY, item);
                 }
                 self.add_environment(services, &mut s, ray.dir);
                 break;
@@ -349,8 +366,14 @@ impl PathTracer {
             if s.beta.max_element() <= 0.0 {
                 break;
             }
+            let t_hit = hit.t;
             match self.shade_surface(services, &mut s, &ray, hit, &mut out, rng, counters) {
-                SurfaceOutcome::Continue(next) => ray = next,
+                SurfaceOutcome::Continue(next) => {
+                    if s.depth == 0 {
+                        s.camera_t += t_hit;
+                    }
+                    ray = next;
+                }
                 SurfaceOutcome::End => break,
             }
         }
@@ -413,6 +436,19 @@ impl PathTracer {
         let media = services.segment_media(ray, t_surface, &s.stack);
         if s.depth == 0 && s.crossed_medium.is_none() {
             s.crossed_medium = media.ids().first().copied();
+        }
+        if let (0, Some(r)) = (s.depth, s.record.as_deref_mut().filter(|r| r.deep)) {
+            // Deep output: where the camera ray crosses media.
+            for &m in media.ids() {
+                let (near, far) = match scene.media[m as usize].fill_bounds() {
+                    Some(bounds) => match bounds.intersect(ray, 0.0, t_surface) {
+                        Some(range) => range,
+                        None => continue,
+                    },
+                    None => (0.0, t_surface),
+                };
+                r.cross_media(s.camera_t + near, s.camera_t + far.min(t_surface));
+            }
         }
         // A medium alone on the segment may track all channels at once (spectral tracking): its weights are the
         // walk's own, so the path keeps its colour.
@@ -665,7 +701,7 @@ impl PathTracer {
             };
         }
         if matte && scene.names().mesh_is_holdout(mesh()) {
-            s.cover(s.coverage_so_far(), || None);
+            s.cover(s.coverage_so_far(), CameraEvent::Ended, hit.t, || None);
             return SurfaceOutcome::End;
         }
         let item = || Some(scene.names().item_of_mesh(mesh()));
@@ -673,7 +709,7 @@ impl PathTracer {
         // An unlit surface shows its base colour and scatters nothing (not a light: weight 1).
         if material.unlit {
             if s.depth == 0 {
-                s.cover(1.0, item);
+                s.cover(1.0, CameraEvent::Surface, hit.t, item);
             }
             if hit.front_face || material.double_sided {
                 let value = s.beta * material.unlit_radiance(&at, &scene.textures);
@@ -712,7 +748,7 @@ impl PathTracer {
             );
         }
         if s.depth == 0 {
-            s.cover(1.0, item);
+            s.cover(1.0, CameraEvent::Surface, hit.t, item);
         }
         if s.depth >= self.max_depth {
             return SurfaceOutcome::End;
@@ -912,10 +948,12 @@ impl PathTracer {
         let p = ray.at(t);
         if s.depth == 0 {
             if self.mattes && scene.names().medium_is_holdout(m as usize) {
-                s.cover(s.coverage_so_far(), || None);
+                s.cover(s.coverage_so_far(), CameraEvent::Ended, t, || None);
                 return false;
             }
-            s.cover(1.0, || Some(scene.names().item_of_medium(m as usize)));
+            s.cover(1.0, CameraEvent::Collision, t, || {
+                Some(scene.names().item_of_medium(m as usize))
+            });
         }
         let collision = scene.media[m as usize].collision(p, ray.time);
         if collision.emission.max_element() > 0.0 {

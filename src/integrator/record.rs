@@ -57,6 +57,19 @@ pub enum FirstEvent {
     Volume,
 }
 
+/// What decided a camera path's coverage (its alpha), at a distance along the camera ray: what deep output
+/// bins the path by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CameraEvent {
+    /// An opaque surface (coverage 1).
+    Surface(f32),
+    /// A real collision in a medium (coverage 1).
+    Collision(f32),
+    /// The end of the camera ray with neither: it escaped (an infinite distance) or a holdout cut it; the
+    /// coverage is what media in front took.
+    Ended(f32),
+}
+
 /// Everything a camera sample records for the compositing layers; reused from sample to sample.
 #[derive(Clone, Debug, Default)]
 pub struct SampleRecord {
@@ -72,15 +85,34 @@ pub struct SampleRecord {
     /// At the first shadow catcher the camera ray passed through: its direct light with the scene's occlusion
     /// and without, times the path throughput.
     pub catcher: Option<(Rgb, Rgb)>,
+    /// Whether deep output is wanted: the camera event and media span are recorded.
+    pub deep: bool,
+    /// What decided the sample's coverage, when deep output is wanted.
+    pub camera_event: Option<CameraEvent>,
+    /// The distances along the camera ray, nearest and farthest, between which it crossed media (before the
+    /// camera event), when deep output is wanted.
+    pub media_span: Option<(f32, f32)>,
 }
 
 impl SampleRecord {
-    /// A record for the next sample (keeps the allocation and the `shadow_catcher` choice).
+    /// A record for the next sample (keeps the allocation and the `shadow_catcher` and `deep` choices).
     pub fn clear(&mut self) {
         self.contributions.clear();
         self.colors = LobeSplit::default();
         self.covered_by = None;
         self.catcher = None;
+        self.camera_event = None;
+        self.media_span = None;
+    }
+
+    /// Widens the media span to `[near, far]` (camera-ray distances), when deep output is wanted.
+    pub(super) fn cross_media(&mut self, near: f32, far: f32) {
+        if self.deep && near < far {
+            self.media_span = Some(match self.media_span {
+                Some((a, b)) => (a.min(near), b.max(far)),
+                None => (near, far),
+            });
+        }
     }
 
     /// Records `value` from `origin`, split between the classes of the path's first event for light that

@@ -1,11 +1,14 @@
-//! Writing and reading rendered images: the multi-layer OpenEXR file and the 8-bit sRGB PNG preview.
+//! Writing and reading rendered images: the multi-layer OpenEXR file, the deep scanline OpenEXR file and the
+//! 8-bit sRGB PNG preview.
 
 mod atomic;
+mod deep;
 mod exposure;
 mod exr;
 mod png;
 
 pub use self::atomic::{temporary_path, write_atomically};
+pub use self::deep::{deep_path, encode_deep_exr, write_deep_exr, DeepCompression, DEEP_CHANNELS};
 pub use self::exposure::{
     meter, Exposure, Metering, BLACK_LUMINANCE, BLACK_SHARE, KEY_RANGE, MAX_AUTO_STOPS, MIDDLE_GREY,
 };

@@ -2,10 +2,12 @@
 //! alpha, the AOVs and the variance of the mean are taken. A film covers a window of the frame (the whole frame,
 //! or the crop of a tile render), and films of the same frame add up exactly, whatever samples and pixels each
 //! one holds. Beyond its core sums a film keeps what its [`LayerPlan`] asks for: RGB slots of exact sums
-//! (light-path layers, colours, light groups, the shadow catcher) and Cryptomatte coverage maps.
+//! (light-path layers, colours, light groups, the shadow catcher) and Cryptomatte coverage maps; and, when deep
+//! output is on, each pixel's deep bins ([`super::deep`]).
 
 use super::aovs::{color_layer_name, LayerPlan, LightPath, CATCHER_LIT, CATCHER_OPEN};
 use super::cryptomatte::IdCoverage;
+use super::deep::{DeepImage, DeepPixel};
 use super::exact::{clamp_sample, SquareSum, ValueSum};
 use super::image::AovLayer;
 use super::RenderImage;
@@ -233,7 +235,7 @@ pub(crate) fn add_clamped(sum: &mut ValueSum, v: f32) -> bool {
 }
 
 /// The sums of one pixel a render adds a sample to: its core sums, its slots (three values each, in the plan's
-/// order) and its Cryptomatte coverage maps (one per kind of the plan).
+/// order), its Cryptomatte coverage maps (one per kind of the plan) and its deep bins (with deep output).
 pub struct FilmPixel<'a> {
     /// The core sums.
     pub sums: &'a mut PixelSums,
@@ -241,6 +243,8 @@ pub struct FilmPixel<'a> {
     pub slots: &'a mut [ValueSum],
     /// The Cryptomatte maps.
     pub crypto: &'a mut [IdCoverage],
+    /// The deep bins, when the film keeps them.
+    pub deep: Option<&'a mut DeepPixel>,
 }
 
 /// One row of a film's window, for parallel accumulation: the pixels' core sums, slots and Cryptomatte maps.
@@ -248,6 +252,8 @@ pub struct FilmRow<'a> {
     sums: &'a mut [PixelSums],
     slots: &'a mut [ValueSum],
     crypto: &'a mut [IdCoverage],
+    /// The row's deep bins (empty without deep output).
+    deep: &'a mut [DeepPixel],
     slot_values: usize,
     kinds: usize,
 }
@@ -259,15 +265,24 @@ impl<'a> FilmRow<'a> {
         let n = self.sums.len();
         let mut slots = self.slots;
         let mut crypto = self.crypto;
+        let mut deep = self.deep;
         self.sums.iter_mut().take(n).map(move |sums| {
             let (s, rest) = std::mem::take(&mut slots).split_at_mut(slot_values);
             slots = rest;
             let (c, rest) = std::mem::take(&mut crypto).split_at_mut(kinds);
             crypto = rest;
+            let d = match std::mem::take(&mut deep).split_first_mut() {
+                Some((d, rest)) => {
+                    deep = rest;
+                    Some(d)
+                }
+                None => None,
+            };
             FilmPixel {
                 sums,
                 slots: s,
                 crypto: c,
+                deep: d,
             }
         })
     }
@@ -287,6 +302,10 @@ pub struct Film {
     slots: Vec<ValueSum>,
     /// `plan.cryptomatte.len()` coverage maps per pixel, row-major.
     crypto: Vec<IdCoverage>,
+    /// Each pixel's deep bins, row-major; empty without deep output.
+    deep: Vec<DeepPixel>,
+    /// The most deep samples per pixel of the image (0 without deep output).
+    deep_samples: usize,
 }
 
 impl Film {
@@ -317,7 +336,21 @@ impl Film {
             slots: vec![ValueSum::default(); n * plan.values_per_pixel()],
             crypto: vec![IdCoverage::default(); n * plan.cryptomatte.len()],
             plan,
+            deep: Vec::new(),
+            deep_samples: 0,
         }
+    }
+
+    /// Makes the film keep deep bins (empty so far), for an image with at most `max_samples` (at least 1) deep
+    /// samples per pixel ([`super::deep`]). A film keeps them only from the samples added after this.
+    pub fn enable_deep(&mut self, max_samples: usize) {
+        self.deep = vec![DeepPixel::default(); self.pixels.len()];
+        self.deep_samples = max_samples.max(1);
+    }
+
+    /// The most deep samples per pixel, when the film keeps deep bins.
+    pub fn deep_samples(&self) -> Option<usize> {
+        (self.deep_samples > 0).then_some(self.deep_samples)
     }
 
     /// What the film keeps beyond its core sums.
@@ -342,6 +375,7 @@ impl Film {
             sums: &mut self.pixels[i],
             slots: &mut self.slots[i * v..(i + 1) * v],
             crypto: &mut self.crypto[i * k..(i + 1) * k],
+            deep: self.deep.get_mut(i),
         }
     }
 
@@ -351,6 +385,8 @@ impl Film {
         let (v, k) = (self.plan.values_per_pixel(), self.plan.cryptomatte.len());
         let mut slots = self.slots.as_mut_slice();
         let mut crypto = self.crypto.as_mut_slice();
+        let mut deep = self.deep.as_mut_slice();
+        let deep_width = if deep.is_empty() { 0 } else { w };
         self.pixels
             .chunks_mut(w.max(1))
             .map(|sums| {
@@ -358,10 +394,13 @@ impl Film {
                 slots = rest;
                 let (c, rest) = std::mem::take(&mut crypto).split_at_mut(w * k);
                 crypto = rest;
+                let (d, rest) = std::mem::take(&mut deep).split_at_mut(deep_width);
+                deep = rest;
                 FilmRow {
                     sums,
                     slots: s,
                     crypto: c,
+                    deep: d,
                     slot_values: v,
                     kinds: k,
                 }
@@ -384,13 +423,15 @@ impl Film {
         &mut self.pixels
     }
 
-    /// Adds the samples of `other`, a film of the same frame and plan whose window lies inside this one's.
+    /// Adds the samples of `other`, a film of the same frame and plan (and deep output, or none) whose window
+    /// lies inside this one's.
     /// Refuses (adding nothing) a film that does not fit, and stops at the first pixel whose counts or sums
     /// would overflow (possible only for sums read from files), leaving the pixels before it merged.
     pub fn merge(&mut self, other: &Film) -> Result<(), FilmMergeError> {
         if (other.width, other.height) != (self.width, self.height)
             || !self.window.contains(&other.window)
             || other.plan != self.plan
+            || other.deep_samples != self.deep_samples
         {
             return Err(FilmMergeError::DoesNotFit);
         }
@@ -407,6 +448,9 @@ impl Film {
                 }
                 for j in 0..k {
                     fits &= self.crypto[dst * k + j].checked_merge(&other.crypto[src * k + j]);
+                }
+                if let (Some(d), Some(o)) = (self.deep.get_mut(dst), other.deep.get(src)) {
+                    fits &= d.checked_merge(o, super::deep::max_bins(self.deep_samples));
                 }
                 if !fits {
                     return Err(FilmMergeError::Overflow {
@@ -470,7 +514,25 @@ impl Film {
         }
         img.aovs = self.layer_images();
         img.cryptomatte = self.plan.cryptomatte.clone();
+        img.deep = self.deep_image();
         img
+    }
+
+    /// The deep image of the window, when the film keeps deep bins.
+    fn deep_image(&self) -> Option<DeepImage> {
+        let max_samples = self.deep_samples()?;
+        let mut image = DeepImage {
+            width: self.window.width(),
+            height: self.window.height(),
+            max_samples,
+            offsets: vec![0],
+            samples: Vec::new(),
+        };
+        for (p, d) in self.pixels.iter().zip(&self.deep) {
+            image.samples.extend(d.samples(p.count, max_samples));
+            image.offsets.push(image.samples.len());
+        }
+        Some(image)
     }
 
     /// The mean of slot `slot` in pixel `i` (zero without samples), per channel, in `f64`.

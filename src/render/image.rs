@@ -103,6 +103,8 @@ pub struct RenderImage {
     pub cryptomatte: Vec<(CryptoKind, Manifest)>,
     /// Header attributes.
     pub metadata: ImageMetadata,
+    /// The deep samples, when deep output is on.
+    pub deep: Option<super::deep::DeepImage>,
 }
 
 impl RenderImage {
@@ -122,6 +124,7 @@ impl RenderImage {
             aovs: Vec::new(),
             cryptomatte: Vec::new(),
             metadata: ImageMetadata::default(),
+            deep: None,
         }
     }
 

@@ -90,6 +90,9 @@ pub struct RenderSettings {
     pub light_groups: LightGroupMode,
     /// Cryptomatte ranks per pixel (1 to [`super::cryptomatte::MAX_DEPTH`], rounded up to even).
     pub cryptomatte_depth: usize,
+    /// Deep output ([`super::deep`]): the most deep samples per pixel (`--deep-samples`), or `None` for none.
+    /// It changes no estimate: the flat image is the same with it or without.
+    pub deep_samples: Option<usize>,
 }
 
 impl Default for RenderSettings {
@@ -112,6 +115,7 @@ impl Default for RenderSettings {
             transparent: false,
             light_groups: LightGroupMode::Scene,
             cryptomatte_depth: super::cryptomatte::DEFAULT_DEPTH,
+            deep_samples: None,
         }
     }
 }
@@ -430,7 +434,9 @@ impl Renderer {
         let pixel_bytes = std::mem::size_of::<PixelSums>()
             + 4 * super::channels::channel_names().len()
             + plan.film_bytes_per_pixel()
-            + 4 * (plan.values_per_pixel() + 2 * plan.cryptomatte_depth * plan.cryptomatte.len());
+            + 4 * (plan.values_per_pixel() + 2 * plan.cryptomatte_depth * plan.cryptomatte.len())
+            // Deep bins grow with the depths a pixel's paths reach; counted here at one per pixel.
+            + s.deep_samples.map_or(0, |_| 128);
         let (w, h) = (region.window.width() as u64, region.window.height() as u64);
         s.limits.check_items(
             format_args!("the film of {w}x{h} pixels"),
@@ -445,6 +451,11 @@ impl Renderer {
         let (mut film, mut at, mut nan_samples, mut clamped_samples) = match from {
             Some(from) => {
                 check_resume(&from, region, &plan)?;
+                if from.film.deep_samples() != s.deep_samples {
+                    return Err(RenderError::Resume(
+                        "the film to resume from has other deep output settings".into(),
+                    ));
+                }
                 (
                     from.film,
                     from.progress,
@@ -452,12 +463,13 @@ impl Renderer {
                     from.clamped_samples,
                 )
             }
-            None => (
-                Film::with_plan(s.width, s.height, region.window, plan.clone()),
-                RegionProgress::start(region.samples.start),
-                0,
-                0,
-            ),
+            None => {
+                let mut film = Film::with_plan(s.width, s.height, region.window, plan.clone());
+                if let Some(max) = s.deep_samples {
+                    film.enable_deep(max);
+                }
+                (film, RegionProgress::start(region.samples.start), 0, 0)
+            }
         };
         let edges = s.emitter_edges.decide(scene, s.width, s.height);
         let mut counters = PathCounters::new(scene.media.len());
@@ -608,8 +620,19 @@ impl Renderer {
             mattes: scene.names().has_mattes(),
         };
         let plan = film.plan().clone();
-        let records = plan.records();
+        let deep = film.deep_samples().is_some();
+        let max_bins = film.deep_samples().map_or(0, super::deep::max_bins);
+        let records = plan.records() || deep;
         let shadow_catcher = plan.slot(super::aovs::CATCHER_LIT).is_some();
+        // Deep depths are along the view axis (at the sample's time, for a moving camera): a camera ray's
+        // distance times its cosine to the axis.
+        let view_axis = |time: Option<f32>| {
+            let to_world = match (&scene.camera.motion, time) {
+                (Some(m), Some(t)) => m.camera_to_world_at(t),
+                _ => scene.camera.camera_to_world,
+            };
+            -to_world.z_axis.truncate().normalize_or_zero()
+        };
         let services = RendererServices::new(scene, s.light_sampler.uses_bvh(scene.lights()));
         film.rows_mut()
             .into_par_iter()
@@ -624,6 +647,7 @@ impl Renderer {
                 let (mut nans, mut clamped) = (0u64, 0u64);
                 let mut record = records.then(|| SampleRecord {
                     shadow_catcher,
+                    deep,
                     ..SampleRecord::default()
                 });
                 let first_column = skip.map_or(0, |s| s[row_index] as usize);
@@ -717,6 +741,10 @@ impl Renderer {
                         let mut clamped_here = pixel.sums.add(&result);
                         if let Some(r) = &record {
                             clamped_here |= recorder.commit(r, result.alpha, &mut pixel);
+                            if let Some(d) = pixel.deep.as_deref_mut() {
+                                let cos = ray.dir.normalize_or_zero().dot(view_axis(time));
+                                d.add(r, result.radiance, result.alpha, cos, max_bins);
+                            }
                         }
                         clamped += clamped_here as u64;
                     }
