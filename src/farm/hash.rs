@@ -100,6 +100,8 @@ pub fn scene_hash(
         aovs: _,
         light_groups: _,
         cryptomatte_depth: _,
+        // Deep output: it leaves the flat image as it is, and a deep render is never split into parts.
+        deep_samples: _,
         // The memory budget: the estimators it chooses travel in the part (`nimbus.estimators`) and are
         // compared by the merge, since the default budget depends on the machine.
         limits: _,
