@@ -91,6 +91,8 @@
 mod error;
 
 pub mod converge;
+#[cfg(feature = "denoise")]
+pub mod denoise;
 pub mod farm;
 pub mod frames;
 pub mod geometry;

@@ -49,6 +49,25 @@ enum Command {
     /// for bit; refuses parts of different renders, overlapping parts and gaps.
     #[command(allow_negative_numbers = true)]
     Merge(MergeArgs),
+    /// Denoise a merged frame with Intel Open Image Denoise (beauty guided by its albedo and normal layers):
+    /// writes the EXR with a `denoised` layer added and its PNG preview. Needs a build with the `denoise`
+    /// feature.
+    #[command(allow_negative_numbers = true)]
+    Denoise(DenoiseArgs),
+}
+
+#[derive(Args)]
+struct DenoiseArgs {
+    /// The frame's EXR, as `nimbus render` or `nimbus merge` wrote it (beauty, albedo and normal layers).
+    input: PathBuf,
+    /// Output EXR (may be the input, which is then replaced atomically); the PNG preview of the denoised
+    /// image goes beside it with the same stem.
+    #[arg(short = 'o', long = "output")]
+    output: PathBuf,
+    /// Exposure of the PNG preview: `auto` (metered from the image, printed) or a number of stops (0: the
+    /// linear values as they are). The EXR is never exposed.
+    #[arg(long, default_value = "auto", allow_negative_numbers = true, value_parser = exposure_value)]
+    exposure: Exposure,
 }
 
 /// The value parser of a library option chosen by name ([`nimbus::params::Choice`]): its names are the
@@ -325,6 +344,17 @@ struct RenderArgs {
           default_value_t = nimbus::render::deep::DEFAULT_MAX_SAMPLES as u32,
           value_parser = clap::value_parser!(u32).range(1..=65536))]
     deep_samples: u32,
+    /// Denoise the finished frame with Intel Open Image Denoise, guided by the albedo and normal layers: the
+    /// EXR gains a `denoised` layer beside the raw beauty, and the PNG preview shows the denoised image. Needs a
+    /// build with the `denoise` feature; refused for a farm part (denoise the merged frame with `nimbus
+    /// denoise`).
+    #[arg(long)]
+    denoise: bool,
+    /// Rewrite the PNG preview every SECONDS while the render runs (at the end of the first pass after each
+    /// interval), atomically; denoised in a build with the `denoise` feature. Not for a farm part.
+    #[arg(long = "preview-every", value_name = "SECONDS", value_parser = positive_seconds,
+          conflicts_with_all = ["samples", "crop", "chunk_from_env"])]
+    preview_every: Option<f64>,
     /// How the EXR is stored.
     #[command(flatten)]
     storage: StorageArgs,
@@ -379,6 +409,7 @@ fn main() -> ExitCode {
         Command::Info(args) => info(args),
         Command::Converge(args) => converge(args),
         Command::Merge(args) => merge(args),
+        Command::Denoise(args) => denoise(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -699,6 +730,16 @@ fn render(mut args: RenderArgs) -> Result<(), String> {
     if args.list_cameras {
         return list_cameras(&args);
     }
+    if args.denoise && (args.samples.is_some() || args.crop.is_some() || args.chunk_from_env) {
+        return Err("--denoise is refused for a farm part (--samples, --crop, --chunk-from-env): denoising runs \
+                    after the merge, on the whole frame (the filter reads each pixel's neighbours); run `nimbus \
+                    denoise` on the merged EXR"
+            .into());
+    }
+    #[cfg(not(feature = "denoise"))]
+    if args.denoise {
+        return Err(DENOISE_BUILD.into());
+    }
     let range = args.frames.or(args.frame.map(FrameRange::single));
     if range.is_some_and(|r| r.len() > 1) {
         args.output = with_frame_pattern(&args.output, "-o");
@@ -974,9 +1015,23 @@ fn render_frame(
     };
     let interval = args.checkpoint.map(Duration::from_secs_f64);
     let mut last_checkpoint = Instant::now();
+    let preview_every = args.preview_every.map(Duration::from_secs_f64);
+    let mut last_preview = Instant::now();
+    let preview = nimbus::output::preview_path(&output);
     let mut on_pass = |p: &Progress, film: &Film| {
         let go_on = reporter.report(p);
         let complete = region.samples.start + p.samples_done;
+        if let Some(every) = preview_every.filter(|_| complete < region.samples.end) {
+            if last_preview.elapsed() >= every {
+                if let Err(e) = write_progress_preview(args, &film.image(), &preview) {
+                    eprintln!(
+                        "nimbus: warning: preview not written: {}",
+                        one_line(&e, MAX_MESSAGE_CHARS)
+                    );
+                }
+                last_preview = Instant::now();
+            }
+        }
         if let Some(interval) = interval.filter(|_| complete < region.samples.end) {
             if last_checkpoint.elapsed() >= interval {
                 let info = PartInfo {
@@ -1082,14 +1137,10 @@ fn render_frame(
     finish_render(&stats, stats_path.as_deref())
 }
 
-/// Writes the EXR `output` of `image` and its PNG preview.
+/// Writes the EXR `output` of `image`, its PNG preview and, with `--deep`, its deep EXR.
 fn write_image(args: &RenderArgs, image: &RenderImage, output: &Path) -> Result<(), String> {
     create_parent(output)?;
-    nimbus::output::write_exr_with(image, output, &args.storage.options())
-        .map_err(|e| e.to_string())?;
-    let png = nimbus::output::preview_path(output);
-    nimbus::output::write_png_preview(image, &png, preview_stops(args.exposure, image))
-        .map_err(|e| e.to_string())?;
+    write_flat_image(args, image, output)?;
     if let Some(deep) = &image.deep {
         let path = nimbus::output::deep_path(output);
         let compression = match args.storage.compression {
@@ -1106,6 +1157,97 @@ fn write_image(args: &RenderArgs, image: &RenderImage, output: &Path) -> Result<
         );
     }
     Ok(())
+}
+
+/// Writes the EXR `output` of `image` and its PNG preview; with `--denoise`, the EXR gains the `denoised`
+/// layer and the preview shows it.
+fn write_flat_image(args: &RenderArgs, image: &RenderImage, output: &Path) -> Result<(), String> {
+    let png = nimbus::output::preview_path(output);
+    #[cfg(feature = "denoise")]
+    if args.denoise {
+        let start = Instant::now();
+        let pixels = nimbus::denoise::denoise_image(image).map_err(|e| e.to_string())?;
+        eprintln!(
+            "nimbus: denoised {}x{} in {:.2} s (Open Image Denoise, guided by albedo and normal)",
+            image.width,
+            image.height,
+            start.elapsed().as_secs_f64()
+        );
+        let mut with_layer = image.clone();
+        with_layer
+            .aovs
+            .push(nimbus::denoise::denoised_layer(&pixels));
+        nimbus::output::write_exr_with(&with_layer, output, &args.storage.options())
+            .map_err(|e| e.to_string())?;
+        let preview =
+            nimbus::denoise::preview_image(image.width, image.height, pixels, &image.alpha);
+        return nimbus::output::write_png_preview(
+            &preview,
+            &png,
+            preview_stops(args.exposure, &preview),
+        )
+        .map_err(|e| e.to_string());
+    }
+    nimbus::output::write_exr_with(image, output, &args.storage.options())
+        .map_err(|e| e.to_string())?;
+    nimbus::output::write_png_preview(image, &png, preview_stops(args.exposure, image))
+        .map_err(|e| e.to_string())
+}
+
+/// `--preview-every`: the PNG preview of the render so far at `png`, denoised in a build with the `denoise`
+/// feature, exposed quietly (the fixed stops, or auto's metering without a line each time).
+fn write_progress_preview(
+    args: &RenderArgs,
+    image: &RenderImage,
+    png: &Path,
+) -> Result<(), String> {
+    #[cfg(feature = "denoise")]
+    let image = &nimbus::denoise::preview_image(
+        image.width,
+        image.height,
+        nimbus::denoise::denoise_image(image).map_err(|e| e.to_string())?,
+        &image.alpha,
+    );
+    let stops = match args.exposure {
+        Exposure::Stops(stops) => stops,
+        Exposure::Auto => nimbus::output::meter(image).auto_stops,
+    };
+    nimbus::output::write_png_preview(image, png, stops).map_err(|e| e.to_string())
+}
+
+/// How to get a build that denoises: the refusal of `--denoise` and `nimbus denoise` without the feature.
+#[cfg(not(feature = "denoise"))]
+const DENOISE_BUILD: &str = "this nimbus was built without the `denoise` feature: build it with `cargo build \
+     --release --features denoise` and OIDN_DIR pointing at Open Image Denoise 2.x (see docs/denoising.md)";
+
+/// `nimbus denoise IN.exr -o OUT.exr`: the merged frame with its `denoised` layer added, and the denoised PNG
+/// preview.
+#[cfg(feature = "denoise")]
+fn denoise(args: DenoiseArgs) -> Result<(), String> {
+    check_output(&args.output)?;
+    create_parent(&args.output)?;
+    let start = Instant::now();
+    let frame =
+        nimbus::denoise::denoise_exr(&args.input, &args.output).map_err(|e| e.to_string())?;
+    let png = nimbus::output::preview_path(&args.output);
+    nimbus::output::write_png_preview(&frame, &png, preview_stops(args.exposure, &frame))
+        .map_err(|e| e.to_string())?;
+    eprintln!(
+        "nimbus: denoised {} ({}x{}) in {:.2} s into {} and {}",
+        args.input.display(),
+        frame.width,
+        frame.height,
+        start.elapsed().as_secs_f64(),
+        args.output.display(),
+        png.display()
+    );
+    Ok(())
+}
+
+/// `nimbus denoise` in a build without the `denoise` feature: refused, saying how to build one with it.
+#[cfg(not(feature = "denoise"))]
+fn denoise(_args: DenoiseArgs) -> Result<(), String> {
+    Err(DENOISE_BUILD.into())
 }
 
 /// With `--resume`, the checkpoint at `path` to continue from, once checked to be of this render (`None`

@@ -56,11 +56,14 @@ const MAX_BOUNDARY_CROSSINGS: u32 = 256;
 pub struct PathSample {
     /// Radiance carried to the camera.
     pub radiance: Rgb,
-    /// Albedo of the first visible surface (zero when the ray escapes).
+    /// Albedo of the first visible surface, or the scattering albedo σ_s/σ_t at the camera ray's first real
+    /// collision in a medium (zero when the ray escapes).
     pub albedo: Rgb,
-    /// World-space shading normal of the first visible surface, facing the camera.
+    /// World-space shading normal of the first visible surface, facing the camera; at a first collision in a
+    /// medium, the direction back to the camera.
     pub normal: Vec3,
-    /// Distance from the camera to the first visible surface (0 when the ray escapes).
+    /// Distance from the camera to the first visible surface or first real collision in a medium (0 when the
+    /// ray escapes).
     pub depth: f32,
     /// Coverage: 1 − the camera ray's transmittance to the environment (or to a holdout), in \[0, 1\].
     pub alpha: f32,
@@ -154,8 +157,11 @@ struct PathState<'r> {
     cone_width: f32,
     /// Invisible (index-matched) boundaries crossed so far.
     crossings: u32,
-    /// Whether the next surface hit is the first, whose AOVs the path records.
+    /// Whether the next surface hit is the first (whose emission `first_emission` decides).
     first_hit: bool,
+    /// Whether the first-hit AOVs (albedo, normal, depth) are still to be recorded: at the first surface hit
+    /// or, before it, the camera ray's first real collision in a medium.
+    aovs_pending: bool,
     /// Whether the first surface hit's emission is counted.
     first_emission: FirstEmission,
     /// The constant-medium segment that ended in the current real collision, for the MIS weight of its
@@ -334,6 +340,7 @@ impl PathTracer {
             cone_width: self.pixel_width,
             crossings: 0,
             first_hit: true,
+            aovs_pending: true,
             first_emission,
             collided_segment: None,
             first_event: FirstEvent::None,
@@ -349,6 +356,16 @@ impl PathTracer {
             if let Some((t, m)) =
                 self.sample_segment_media(services, &mut s, &ray, t_surface, rng, counters)
             {
+                if s.aovs_pending && s.depth == 0 {
+                    // The camera ray's first real collision: what a denoiser's auxiliary images see of a
+                    // medium (as Cycles writes it): its scattering albedo there, and the way back to the camera.
+                    s.aovs_pending = false;
+                    out.albedo = scene.media[m as usize]
+                        .collision(ray.at(t), ray.time)
+                        .albedo;
+                    out.normal = -ray.dir;
+                    out.depth = t;
+                }
                 if !self.scatter_in_medium(services, &mut s, &mut ray, t, m, rng, counters) {
                     break;
                 }
@@ -690,17 +707,22 @@ impl PathTracer {
             return self.pass_shadow_catcher(services, s, ray, &hit, &at, rng, counters);
         }
         let count_emission = !s.first_hit || s.first_emission == FirstEmission::Count;
-        if s.first_hit {
-            s.first_hit = false;
-            out.depth = (hit.p - ray.origin).length();
-            out.albedo = material.pbr_params(&at, &scene.textures).base_color;
-            out.normal = if hit.shading.n.dot(wo_world) < 0.0 {
-                -hit.shading.n
-            } else {
-                hit.shading.n
-            };
-        }
+        s.first_hit = false;
+        // The first-hit AOVs of a visible surface (an invisible, index-matched boundary records none: the
+        // camera ray goes on to what lies behind it, a medium's first collision or another surface).
+        let record_aovs = |s: &mut PathState, out: &mut PathSample| {
+            if std::mem::take(&mut s.aovs_pending) {
+                out.depth = (hit.p - ray.origin).length();
+                out.albedo = material.pbr_params(&at, &scene.textures).base_color;
+                out.normal = if hit.shading.n.dot(wo_world) < 0.0 {
+                    -hit.shading.n
+                } else {
+                    hit.shading.n
+                };
+            }
+        };
         if matte && scene.names().mesh_is_holdout(mesh()) {
+            record_aovs(s, out);
             s.cover(s.coverage_so_far(), CameraEvent::Ended, hit.t, || None);
             return SurfaceOutcome::End;
         }
@@ -708,6 +730,7 @@ impl PathTracer {
         let emitter = || scene.names().emitter_of_mesh(mesh());
         // An unlit surface shows its base colour and scatters nothing (not a light: weight 1).
         if material.unlit {
+            record_aovs(s, out);
             if s.depth == 0 {
                 s.cover(1.0, CameraEvent::Surface, hit.t, item);
             }
@@ -747,6 +770,7 @@ impl PathTracer {
                 Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time),
             );
         }
+        record_aovs(s, out);
         if s.depth == 0 {
             s.cover(1.0, CameraEvent::Surface, hit.t, item);
         }

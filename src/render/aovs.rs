@@ -405,9 +405,9 @@ pub fn layer_catalog() -> Vec<(String, &'static str)> {
     let mut out: Vec<(String, &'static str)> = vec![
         ("R, G, B".into(), "beauty: linear Rec.709 radiance, premultiplied by alpha"),
         ("A".into(), "alpha: coverage, 1 − the camera ray's transmittance to the environment, averaged over the pixel's samples (holdouts cut it)"),
-        ("albedo".into(), "albedo of the first surface hit (0 where nothing was hit)"),
-        ("normal".into(), "world-space shading normal of the first surface hit, facing the camera"),
-        ("depth".into(), "distance from the camera to the first hit (0 where nothing was hit)"),
+        ("albedo".into(), "albedo of the first surface hit, or the scattering albedo at the first collision in a medium (0 where nothing was hit)"),
+        ("normal".into(), "world-space shading normal of the first surface hit, facing the camera (at a first collision in a medium: the direction to the camera)"),
+        ("depth".into(), "distance from the camera to the first hit or collision in a medium (0 where nothing was hit)"),
         ("variance".into(), "variance of the beauty mean (its square root is the standard error)"),
     ];
     let light_path_meaning = |p: LightPath| {

@@ -98,21 +98,23 @@ pub const LAYERS: [Layer; 6] = [
     Layer {
         name: "albedo",
         components: &["R", "G", "B"],
-        meaning: "albedo of the first surface hit (0 where nothing was hit)",
+        meaning: "albedo of the first surface hit, or the scattering albedo at the first collision in a medium \
+                  (0 where nothing was hit)",
         kind: ChannelKind::Color,
         data: |image| LayerData::Vectors(&image.albedo),
     },
     Layer {
         name: "normal",
         components: &["X", "Y", "Z"],
-        meaning: "world-space shading normal of the first surface hit, facing the camera",
+        meaning: "world-space shading normal of the first surface hit, facing the camera (at a first collision \
+                  in a medium: the direction to the camera)",
         kind: ChannelKind::Color,
         data: |image| LayerData::Vectors(&image.normal),
     },
     Layer {
         name: "depth",
         components: &["Z"],
-        meaning: "distance from the camera to the first hit (0 where nothing was hit)",
+        meaning: "distance from the camera to the first hit or collision in a medium (0 where nothing was hit)",
         kind: ChannelKind::Data,
         data: |image| LayerData::Scalars(&image.depth),
     },
