@@ -6,10 +6,11 @@
 //! `denoised` layer (`denoised.R/G/B`), written beside the raw beauty, which stays. Denoising runs on a whole
 //! frame, after a farm's merge, never on a part: the filter looks at each pixel's neighbours.
 //!
-//! The auxiliary images are passed as they are (noisy, the mean of the pixel's samples), in OIDN's default mode
-//! for noisy auxiliaries (`cleanAux` off). OIDN's prefiltering of the albedo and normal (one `RT` filter over each
-//! alone, then `cleanAux` on) is not used: the `oidn` crate 2.5 cannot run a filter without a colour image, and
-//! sets `cleanAux` under a name OIDN does not know (`clean_aux`), and this crate keeps `unsafe` out of its code.
+//! The auxiliary images are the means of the pixels' samples, so they are noisy too. As OIDN's documentation
+//! recommends for the highest quality, each is first denoised alone by an `RT` filter (prefiltering), and the
+//! beauty is then filtered with `cleanAux` on. The `oidn` crate 2.5's safe wrapper cannot do either (it always
+//! binds a colour image, and sets `cleanAux` under a name OIDN does not know, `clean_aux`), so the filters are
+//! run through OIDN's C API in the small [`oidn_c`] module, the one place this crate allows `unsafe`.
 //! `docs/denoising.md` has the measurements.
 //!
 //! A denoised image is never evidence of accuracy: the validation suite measures the raw beauty.
@@ -82,15 +83,33 @@ pub fn denoise(
     // The crate panics where OIDN cannot allocate a buffer: taken as an error, never a crash.
     crate::limits::catch_quietly(|| {
         let device = oidn::Device::cpu().map_err(|e| e.to_string())?;
-        let mut filter = oidn::RayTracing::try_new(&device).map_err(|e| e.to_string())?;
-        filter
-            .image_dimensions(width, height)
-            .albedo_normal(&albedo, &normal)
-            .hdr(true);
-        filter
-            .filter(&color, &mut output)
-            .map_err(|e| e.to_string())?;
-        device.get_error().map_err(|e| e.to_string())
+        let mut clean_albedo = vec![0.0f32; 3 * n];
+        oidn_c::run_rt_filter(
+            &device,
+            (width, height),
+            &[(c"albedo", &albedo)],
+            &[],
+            &mut clean_albedo,
+        )?;
+        let mut clean_normal = vec![0.0f32; 3 * n];
+        oidn_c::run_rt_filter(
+            &device,
+            (width, height),
+            &[(c"normal", &normal)],
+            &[],
+            &mut clean_normal,
+        )?;
+        oidn_c::run_rt_filter(
+            &device,
+            (width, height),
+            &[
+                (c"color", &color),
+                (c"albedo", &clean_albedo),
+                (c"normal", &clean_normal),
+            ],
+            &[(c"hdr", true), (c"cleanAux", true)],
+            &mut output,
+        )
     })
     .map_err(DenoiseError::Oidn)?
     .map_err(DenoiseError::Oidn)?;
@@ -195,4 +214,76 @@ pub fn denoise_exr(input: &Path, output: &Path) -> Result<RenderImage, DenoiseEr
     };
     write_sorted(&image, output)?;
     Ok(preview_image(width, height, denoised, &alpha))
+}
+
+/// OIDN's `RT` filter through its C API (the `oidn` crate's `sys` bindings), for what the crate's safe wrapper
+/// cannot do: a filter over an auxiliary image alone, and the `cleanAux` parameter.
+#[allow(unsafe_code)]
+mod oidn_c {
+    use oidn::sys::{
+        oidnCommitFilter, oidnExecuteFilter, oidnNewFilter, oidnReleaseFilter, oidnSetFilterBool,
+        oidnSetSharedFilterImage, OIDNFormat_OIDN_FORMAT_FLOAT3,
+    };
+    use std::ffi::{c_void, CStr};
+
+    /// Runs one `RT` filter on `device` over the float3 images `inputs` (OIDN's image name and the pixels, row
+    /// by row), with the boolean parameters `flags`, into `output`. Every buffer must hold width × height × 3
+    /// floats; OIDN's error, if any, is returned.
+    pub(super) fn run_rt_filter(
+        device: &oidn::Device,
+        (width, height): (usize, usize),
+        inputs: &[(&CStr, &[f32])],
+        flags: &[(&CStr, bool)],
+        output: &mut [f32],
+    ) -> Result<(), String> {
+        let len = width * height * 3;
+        if output.len() != len || inputs.iter().any(|(_, pixels)| pixels.len() != len) {
+            return Err(format!("an image is not {width}x{height} float3 pixels"));
+        }
+        // SAFETY: `device.raw()` stays valid while `device` is borrowed here. The filter is created, used and
+        // released within this block. Each shared image points into a slice checked above to hold exactly
+        // width × height × 3 floats, which outlives the synchronous `oidnExecuteFilter`; OIDN only reads the
+        // inputs (the C API takes every shared image as `void *`) and writes only `output`, which we borrow
+        // mutably. Names and parameter names are NUL-terminated C strings.
+        unsafe {
+            let filter = oidnNewFilter(device.raw(), c"RT".as_ptr());
+            if filter.is_null() {
+                return device
+                    .get_error()
+                    .map_err(|e| e.to_string())
+                    .and(Err("no RT filter".into()));
+            }
+            for (name, pixels) in inputs {
+                oidnSetSharedFilterImage(
+                    filter,
+                    name.as_ptr(),
+                    pixels.as_ptr() as *mut c_void,
+                    OIDNFormat_OIDN_FORMAT_FLOAT3,
+                    width,
+                    height,
+                    0,
+                    0,
+                    0,
+                );
+            }
+            oidnSetSharedFilterImage(
+                filter,
+                c"output".as_ptr(),
+                output.as_mut_ptr() as *mut c_void,
+                OIDNFormat_OIDN_FORMAT_FLOAT3,
+                width,
+                height,
+                0,
+                0,
+                0,
+            );
+            for (name, value) in flags {
+                oidnSetFilterBool(filter, name.as_ptr(), *value);
+            }
+            oidnCommitFilter(filter);
+            oidnExecuteFilter(filter);
+            oidnReleaseFilter(filter);
+        }
+        device.get_error().map_err(|e| e.to_string())
+    }
 }
