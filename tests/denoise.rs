@@ -292,3 +292,52 @@ fn preview_every_rewrites_the_png_while_the_render_runs() {
     assert!(!part.status.success());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The denoised layer equals, bit for bit, what OIDN's own Python bindings (PyPI's pyoidn) make of the same
+/// beauty, albedo and normal with OIDN's documented prefiltering (an RT filter over each auxiliary alone, then
+/// the beauty with `cleanAux`), and differs from OIDN's noisy-auxiliary mode: an independent check of the C API
+/// calls in `src/denoise.rs`. Needs `NIMBUS_OIDN_PYTHON`, a Python with pyoidn, numpy and OpenEXR (`.ci/run` sets
+/// it; under `NIMBUS_REQUIRE_TOOLS=1` its absence fails).
+#[test]
+fn the_denoised_layer_is_oidns_prefiltered_pipeline_bit_for_bit() {
+    if !cfg!(feature = "denoise") {
+        println!("skipped: built without the `denoise` feature");
+        return;
+    }
+    let Ok(python) = std::env::var("NIMBUS_OIDN_PYTHON") else {
+        assert!(
+            std::env::var("NIMBUS_REQUIRE_TOOLS").as_deref() != Ok("1"),
+            "NIMBUS_OIDN_PYTHON (a Python with pyoidn, numpy and OpenEXR) is required"
+        );
+        println!("skipped: NIMBUS_OIDN_PYTHON is not set");
+        return;
+    };
+    let dir = folder("pyoidn");
+    let exr = dir.join("demo.exr");
+    render_demo(&exr, 16, &["--denoise"]);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/denoise/pyoidn_check.py");
+    let out = Command::new(python)
+        .arg(&script)
+        .arg(&exr)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let figures: Vec<f64> = text
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    assert_eq!(figures.len(), 2, "{text}");
+    assert_eq!(
+        figures[0], 0.0,
+        "differs from pyoidn's prefiltered pipeline: {text}"
+    );
+    assert!(
+        figures[1] > 1e-3,
+        "equal to the noisy-auxiliary mode: {text}"
+    );
+}
