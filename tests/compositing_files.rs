@@ -5,8 +5,10 @@
 //! The tools come from Debian's `openexr` and `openimageio-tools`; a test whose tool is missing is skipped,
 //! unless `NIMBUS_REQUIRE_TOOLS=1` (CI), which makes it fail.
 
+mod common;
+
+use common::{run_nimbus, run_tool};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// The bundled demo scene.
 fn demo() -> PathBuf {
@@ -19,42 +21,6 @@ fn temp_dir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// Runs the `nimbus` binary in `dir`; returns success, stdout and stderr.
-fn nimbus(args: &[&str], dir: &Path) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// Runs `tool` with `args`, or `None` when it is not installed (a failure under `NIMBUS_REQUIRE_TOOLS=1`).
-fn tool(tool: &str, args: &[&str]) -> Option<String> {
-    match Command::new(tool).args(args).output() {
-        Ok(out) => {
-            assert!(
-                out.status.success(),
-                "{tool} {args:?} failed: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            Some(String::from_utf8_lossy(&out.stdout).into_owned())
-        }
-        Err(_) => {
-            assert!(
-                std::env::var("NIMBUS_REQUIRE_TOOLS").as_deref() != Ok("1"),
-                "{tool} is not installed and NIMBUS_REQUIRE_TOOLS=1"
-            );
-            eprintln!("SKIP: {tool} is not installed (Debian openexr, openimageio-tools)");
-            None
-        }
-    }
 }
 
 /// The header attributes every render carries.
@@ -100,13 +66,13 @@ fn every_layer_and_attribute_reads_back_in_exrheader_and_oiiotool() {
         let mut args: Vec<&str> = base.to_vec();
         args.extend(extra);
         args.extend(["--stats", "stats.json", "-o", file]);
-        let (ok, _, err) = nimbus(&args, &dir);
+        let (ok, _, err) = run_nimbus(&args, &dir);
         assert!(ok, "{err}");
         let path = dir.join(file);
         let layers = nimbus::output::read_exr_layers(&path).unwrap();
         let names: Vec<&String> = layers.channels.keys().collect();
         assert_eq!(names.len(), 98, "{names:?}");
-        if let Some(header) = tool("exrheader", &[path.to_str().unwrap()]) {
+        if let Some(header) = run_tool("exrheader", &[path.to_str().unwrap()], Path::new(".")) {
             for name in &names {
                 assert!(
                     header.contains(&format!("    {name}, ")),
@@ -129,7 +95,11 @@ fn every_layer_and_attribute_reads_back_in_exrheader_and_oiiotool() {
             };
             assert_eq!(half, expected_half, "{file}: half channels");
         }
-        if let Some(info) = tool("oiiotool", &["--info", "-v", path.to_str().unwrap()]) {
+        if let Some(info) = run_tool(
+            "oiiotool",
+            &["--info", "-v", path.to_str().unwrap()],
+            Path::new("."),
+        ) {
             assert!(info.contains("98 channel"), "{info}");
             for name in &names {
                 assert!(info.contains(name.as_str()), "oiiotool {file} lacks {name}");
@@ -160,7 +130,7 @@ fn every_layer_and_attribute_reads_back_in_exrheader_and_oiiotool() {
 #[test]
 fn aov_choices_are_listed_and_checked() {
     let dir = temp_dir("list");
-    let (ok, out, err) = nimbus(&["render", "--list-aovs"], &dir);
+    let (ok, out, err) = run_nimbus(&["render", "--list-aovs"], &dir);
     assert!(ok, "{err}");
     for name in [
         "diffuse_direct",
@@ -176,7 +146,7 @@ fn aov_choices_are_listed_and_checked() {
     }
     let scene = demo();
     let scene = scene.to_str().unwrap();
-    let (ok, out, _) = nimbus(
+    let (ok, out, _) = run_nimbus(
         &[
             "render",
             scene,
@@ -188,12 +158,12 @@ fn aov_choices_are_listed_and_checked() {
     );
     assert!(ok && out.contains("lg_environment"), "{out}");
     // A layer that does not exist, and a light group the scene does not have, are refused in one line.
-    let (ok, _, err) = nimbus(&["render", scene, "--aovs", "difuse_direct"], &dir);
+    let (ok, _, err) = run_nimbus(&["render", scene, "--aovs", "difuse_direct"], &dir);
     assert!(
         !ok && err.contains("unknown layer 'difuse_direct'"),
         "{err}"
     );
-    let (ok, _, err) = nimbus(
+    let (ok, _, err) = run_nimbus(
         &[
             "render", scene, "--spp", "1", "--width", "8", "--aovs", "lg_key",
         ],
@@ -203,7 +173,7 @@ fn aov_choices_are_listed_and_checked() {
         !ok && err.contains("lg_key") && err.contains("none"),
         "{err}"
     );
-    let (ok, _, err) = nimbus(
+    let (ok, _, err) = run_nimbus(
         &[
             "render",
             scene,

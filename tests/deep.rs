@@ -13,6 +13,9 @@
 //! CI's virtual environment, else `python3`); a check whose tool is missing is skipped, unless
 //! `NIMBUS_REQUIRE_TOOLS=1` (CI), which makes it fail.
 
+mod common;
+
+use common::{run_nimbus, run_tool};
 use nimbus::render::{DeepImage, RenderSettings, Renderer};
 use nimbus::scene::Scene;
 use std::path::{Path, PathBuf};
@@ -178,43 +181,6 @@ fn deep_samples_are_tidy_and_hold_out_a_slab_as_the_closed_form() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Runs the `nimbus` binary in `dir`; returns success and stderr.
-fn nimbus(args: &[&str], dir: &Path) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// Runs `tool` with `args` in `dir`, or `None` when it is not installed (a failure under
-/// `NIMBUS_REQUIRE_TOOLS=1`).
-fn tool(tool: &str, args: &[&str], dir: &Path) -> Option<String> {
-    match Command::new(tool).args(args).current_dir(dir).output() {
-        Ok(out) => {
-            assert!(
-                out.status.success(),
-                "{tool} {args:?} failed: {}{}",
-                String::from_utf8_lossy(&out.stdout),
-                String::from_utf8_lossy(&out.stderr)
-            );
-            Some(String::from_utf8_lossy(&out.stdout).into_owned())
-        }
-        Err(_) => {
-            assert!(
-                std::env::var("NIMBUS_REQUIRE_TOOLS").as_deref() != Ok("1"),
-                "{tool} is not installed and NIMBUS_REQUIRE_TOOLS=1"
-            );
-            eprintln!("SKIP: {tool} is not installed (Debian openexr, openimageio-tools)");
-            None
-        }
-    }
-}
-
 /// The R, G, B and A channels of the EXR at `path`.
 fn rgba(path: &Path) -> [Vec<f32>; 4] {
     let layers = nimbus::output::read_exr_layers(path).unwrap();
@@ -252,12 +218,12 @@ fn deep_files_read_in_openexr_and_flatten_in_oiiotool_to_the_flat_image() {
             out,
         ];
         args.extend(extra);
-        let (ok, err) = nimbus(&args, &dir);
+        let (ok, _, err) = run_nimbus(&args, &dir);
         assert!(ok, "{err}");
         let deep = nimbus::output::deep_path(Path::new(out));
         let deep = deep.to_str().unwrap();
         assert!(err.contains(&format!("wrote {deep}")), "{err}");
-        if let Some(header) = tool("exrheader", &[deep], &dir) {
+        if let Some(header) = run_tool("exrheader", &[deep], &dir) {
             assert!(header.contains("flags 0x800"), "{header}");
             assert!(
                 header.contains("type (type string): \"deepscanline\""),
@@ -267,7 +233,7 @@ fn deep_files_read_in_openexr_and_flatten_in_oiiotool_to_the_flat_image() {
                 assert!(header.contains(&format!("    {channel}, 32-bit floating-point")));
             }
         }
-        if let Some(info) = tool("exrinfo", &["--strict", "-v", deep], &dir) {
+        if let Some(info) = run_tool("exrinfo", &["--strict", "-v", deep], &dir) {
             assert!(
                 info.contains("deepscanline") && info.contains("maxSamplesPerPixel"),
                 "{info}"
@@ -277,7 +243,7 @@ fn deep_files_read_in_openexr_and_flatten_in_oiiotool_to_the_flat_image() {
             }
         }
         let flat = format!("{out}.flat.exr");
-        if tool("oiiotool", &[deep, "--flatten", "-o", &flat], &dir).is_none() {
+        if run_tool("oiiotool", &[deep, "--flatten", "-o", &flat], &dir).is_none() {
             continue;
         }
         let (want, got) = (rgba(&dir.join(out)), rgba(&dir.join(&flat)));
@@ -303,7 +269,7 @@ fn oiiotool_holds_out_the_slab_by_a_plane_as_the_closed_form() {
     let dir = temp_dir("holdout");
     let scene = slab_scene(&dir, false);
     let (size, spp) = (SIZE.to_string(), SPP.to_string());
-    let (ok, err) = nimbus(
+    let (ok, _, err) = run_nimbus(
         &[
             "render",
             scene.to_str().unwrap(),
@@ -325,7 +291,7 @@ fn oiiotool_holds_out_the_slab_by_a_plane_as_the_closed_form() {
     // The holdout: an opaque deep plane at depth PLANE in every pixel.
     let pattern = format!("constant:color=0,0,0,1,{PLANE}");
     let resolution = format!("{SIZE}x{SIZE}");
-    let made = tool(
+    let made = run_tool(
         "oiiotool",
         &[
             "--pattern",
@@ -343,7 +309,7 @@ fn oiiotool_holds_out_the_slab_by_a_plane_as_the_closed_form() {
     if made.is_none() {
         return;
     }
-    tool(
+    run_tool(
         "oiiotool",
         &[
             "slab.deep.exr",
@@ -436,7 +402,7 @@ fn farm_parts_and_checkpoints_refuse_deep_output_in_one_line() {
     ] {
         let mut args = vec!["render", "--width", "8", "--spp", "4", "--deep"];
         args.extend(extra);
-        let (ok, err) = nimbus(&args, &dir);
+        let (ok, _, err) = run_nimbus(&args, &dir);
         assert!(!ok, "{extra:?}");
         assert!(
             err.contains("--deep renders whole frames only") && err.trim().lines().count() == 1,
@@ -448,7 +414,7 @@ fn farm_parts_and_checkpoints_refuse_deep_output_in_one_line() {
         "nothing written"
     );
     // --deep-samples needs --deep.
-    let (ok, err) = nimbus(&["render", "--deep-samples", "4"], &dir);
+    let (ok, _, err) = run_nimbus(&["render", "--deep-samples", "4"], &dir);
     assert!(!ok && err.contains("--deep"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

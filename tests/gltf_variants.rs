@@ -6,7 +6,6 @@ mod common;
 
 use nimbus::scene::{load_builder, LoadOptions, SceneBuilder};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// A quad (−1, −1, 0) … (1, 1, 0) facing a camera at z = 3 that it fills, with unlit material 0 (blue, its
 /// own), 1 (red) and 2 (green); the root declares variants "red" and "green", and the primitive maps them to
@@ -164,19 +163,6 @@ fn unknown_variants_and_bad_mappings_are_errors() {
     std::fs::remove_dir_all(&d).ok();
 }
 
-/// Runs `nimbus` in `dir`; returns success and stderr.
-fn nimbus(args: &[&str], dir: &Path) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
 #[test]
 fn render_variant_picks_the_colour_and_the_default_warns_once() {
     let d = dir("cli");
@@ -196,7 +182,7 @@ fn render_variant_picks_the_colour_and_the_default_warns_once() {
             "out.exr",
         ];
         args.extend(extra);
-        let (ok, err) = nimbus(&args, &d);
+        let (ok, _, err) = common::run_nimbus(&args, &d);
         assert!(ok, "{err}");
         let png = image::open(d.join("out.png")).unwrap().to_rgb8();
         let mut mean = [0.0; 3];
@@ -222,7 +208,7 @@ fn render_variant_picks_the_colour_and_the_default_warns_once() {
     );
     let warning = format!("nimbus: warning: {WARNING}");
     assert_eq!(err.lines().filter(|l| *l == warning).count(), 1, "{err}");
-    let (ok, err) = nimbus(
+    let (ok, _, err) = common::run_nimbus(
         &[
             "render",
             "variants.gltf",
@@ -260,15 +246,15 @@ fn parts_of_different_variants_refuse_to_merge() {
             "-o",
             out,
         ];
-        let (ok, err) = nimbus(&args, &d);
+        let (ok, _, err) = common::run_nimbus(&args, &d);
         assert!(ok, "{err}");
     };
     part("red", "0..2", "a.exr");
     part("red", "2..4", "b.exr");
     part("green", "2..4", "c.exr");
-    let (ok, err) = nimbus(&["merge", "a.exr", "b.exr", "-o", "ab.exr"], &d);
+    let (ok, _, err) = common::run_nimbus(&["merge", "a.exr", "b.exr", "-o", "ab.exr"], &d);
     assert!(ok, "{err}");
-    let (ok, err) = nimbus(&["merge", "a.exr", "c.exr", "-o", "ac.exr"], &d);
+    let (ok, _, err) = common::run_nimbus(&["merge", "a.exr", "c.exr", "-o", "ac.exr"], &d);
     assert!(!ok, "parts of different variants merged");
     assert!(err.contains("scene hash"), "{err}");
     std::fs::remove_dir_all(&d).ok();

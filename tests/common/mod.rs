@@ -2,7 +2,7 @@
 
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The shared test-data folder: `$NIMBUS_SHARED_DIR` if set, else `$CARGO_MANIFEST_DIR/../shared`.
 ///
@@ -193,4 +193,47 @@ pub fn base64(bytes: &[u8]) -> String {
         }
     }
     out
+}
+
+/// Runs the `nimbus` binary with `args` in `dir`; returns whether it succeeded, its stdout and its stderr.
+pub fn run_nimbus(args: &[&str], dir: &Path) -> (bool, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Runs an independent reader (OpenEXR's `exrheader` or `exrinfo`, OpenImageIO's `oiiotool`) with `args` in
+/// `dir` and returns its stdout; a run that fails fails the test. `None` when the tool is not installed, which
+/// fails the test under `NIMBUS_REQUIRE_TOOLS=1` (`.ci/run` installs them).
+pub fn run_tool(tool: &str, args: &[&str], dir: &Path) -> Option<String> {
+    match std::process::Command::new(tool)
+        .args(args)
+        .current_dir(dir)
+        .output()
+    {
+        Ok(out) => {
+            assert!(
+                out.status.success(),
+                "{tool} {args:?} failed: {}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            Some(String::from_utf8_lossy(&out.stdout).into_owned())
+        }
+        Err(_) => {
+            assert!(
+                std::env::var("NIMBUS_REQUIRE_TOOLS").as_deref() != Ok("1"),
+                "{tool} is not installed and NIMBUS_REQUIRE_TOOLS=1"
+            );
+            eprintln!("SKIP: {tool} is not installed (Debian openexr, openimageio-tools)");
+            None
+        }
+    }
 }
