@@ -9,9 +9,9 @@ against the Mitsuba 3 reference. The spp a raw render needs to match the denoise
 curve (log-log interpolation between the measured spp; beyond 1024, extrapolated as 1/spp).
 
 With --pyoidn SITE_PACKAGES (where PyPI's pyoidn is installed), each denoised frame is also denoised by pyoidn's
-direct bindings twice: as Nimbus does it (noisy auxiliaries, cleanAux off: a check of the Rust path) and with OIDN's
-clean-aux prefiltering (an RT filter over the albedo alone and over the normal alone, then cleanAux on), which the
-`oidn` crate 2.5 cannot express; this measures what that prefiltering would add.
+direct bindings twice: with noisy auxiliaries (cleanAux off, what Nimbus did before its prefiltering was added) and
+with OIDN's clean-aux prefiltering (an RT filter over the albedo alone and over the normal alone, then cleanAux
+on), which is what Nimbus does now (tests/denoise.rs checks the two agree bit for bit).
 
 With --old-nimbus (a build from before media wrote first-collision albedo and normal auxiliaries), the scenes with
 media are also rendered by it (same seed, so the same beauty: checked) and denoised by `nimbus denoise`, which
