@@ -547,26 +547,6 @@ fn row(name: &str, spp: u32, cmp: &Comparison, seconds: f64, failures: &mut Vec<
     )
 }
 
-/// The validation scenes with their own tests: the shared suite (`../shared/validation`) and this repository's
-/// (`tests/validation`).
-const SHARED_SCENES: &[&str] = &[
-    "area-light-floor",
-    "glass-sphere",
-    "mirror-closeup",
-    "point-in-medium",
-    "punctual-lights",
-    "scattering-box",
-    "smoke-sun",
-    "textures",
-];
-const LOCAL_SCENES: &[&str] = &[
-    "diffuse-transmission",
-    "light-groups",
-    "spot-cone",
-    "textured-emitter",
-    "thin-lens",
-];
-
 /// The folders holding validation scenes: `tests/validation`, and `../shared/validation` when it is there.
 fn scene_roots() -> Vec<PathBuf> {
     let mut roots = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/validation")];
@@ -606,66 +586,76 @@ fn validate_scene(name: &str) {
     );
 }
 
-/// One test per validation scene, so that one failing scene does not hide the others.
+/// One test per validation scene, so that one failing scene does not hide the others; the lists of the shared
+/// suite's scenes (`../shared/validation`) and this repository's (`tests/validation`) are made from the same names.
 macro_rules! validation_tests {
-    ($($test:ident => $scene:literal,)*) => {
+    (shared: {$($shared:ident => $shared_scene:literal,)*} local: {$($local:ident => $local_scene:literal,)*}) => {
         $(
             #[test]
-            fn $test() {
-                validate_scene($scene);
+            fn $shared() {
+                validate_scene($shared_scene);
             }
         )*
-        /// Every scene the tests above name, in the order of the macro.
-        const TESTED_SCENES: &[&str] = &[$($scene),*];
+        $(
+            #[test]
+            fn $local() {
+                validate_scene($local_scene);
+            }
+        )*
+        /// The scenes of `../shared/validation` that have a test.
+        const SHARED_SCENES: &[&str] = &[$($shared_scene),*];
+        /// The scenes of `tests/validation` that have a test.
+        const LOCAL_SCENES: &[&str] = &[$($local_scene),*];
     };
 }
 
 validation_tests! {
-    area_light_floor => "area-light-floor",
-    glass_sphere => "glass-sphere",
-    mirror_closeup => "mirror-closeup",
-    point_in_medium => "point-in-medium",
-    punctual_lights => "punctual-lights",
-    scattering_box => "scattering-box",
-    smoke_sun => "smoke-sun",
-    textures => "textures",
-    diffuse_transmission => "diffuse-transmission",
-    light_groups => "light-groups",
-    spot_cone => "spot-cone",
-    textured_emitter => "textured-emitter",
-    thin_lens => "thin-lens",
+    shared: {
+        area_light_floor => "area-light-floor",
+        glass_sphere => "glass-sphere",
+        mirror_closeup => "mirror-closeup",
+        point_in_medium => "point-in-medium",
+        punctual_lights => "punctual-lights",
+        scattering_box => "scattering-box",
+        smoke_sun => "smoke-sun",
+        textures => "textures",
+    }
+    local: {
+        diffuse_transmission => "diffuse-transmission",
+        light_groups => "light-groups",
+        spot_cone => "spot-cone",
+        textured_emitter => "textured-emitter",
+        thin_lens => "thin-lens",
+    }
+}
+
+/// The names of the scene folders under `root`, sorted.
+fn sorted_scene_names(root: &Path) -> Vec<String> {
+    let mut names: Vec<String> = scenes_in(root).into_iter().map(|s| s.name).collect();
+    names.sort_unstable();
+    names
+}
+
+/// `names`, sorted, as owned strings.
+fn sorted(names: &[&str]) -> Vec<String> {
+    let mut names: Vec<String> = names.iter().map(|n| n.to_string()).collect();
+    names.sort_unstable();
+    names
 }
 
 /// A scene folder added without its test (or a test whose folder is gone) fails here.
 #[test]
 fn every_validation_scene_on_disk_has_its_own_test() {
-    let mut listed: Vec<&str> = SHARED_SCENES.iter().chain(LOCAL_SCENES).copied().collect();
-    let mut tested = TESTED_SCENES.to_vec();
-    listed.sort_unstable();
-    tested.sort_unstable();
     assert_eq!(
-        listed, tested,
-        "SHARED_SCENES and LOCAL_SCENES are the tested scenes"
+        sorted_scene_names(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/validation")),
+        sorted(LOCAL_SCENES),
+        "tests/validation's scene folders"
     );
-    let local: Vec<String> =
-        scenes_in(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/validation"))
-            .into_iter()
-            .map(|s| s.name)
-            .collect();
-    let mut local: Vec<&str> = local.iter().map(String::as_str).collect();
-    local.sort_unstable();
-    let mut expected = LOCAL_SCENES.to_vec();
-    expected.sort_unstable();
-    assert_eq!(local, expected, "tests/validation's scene folders");
     if let Some(shared) = common::shared_dir() {
-        let found: Vec<String> = scenes_in(&shared.join("validation"))
-            .into_iter()
-            .map(|s| s.name)
-            .collect();
-        let mut found: Vec<&str> = found.iter().map(String::as_str).collect();
-        found.sort_unstable();
-        let mut expected = SHARED_SCENES.to_vec();
-        expected.sort_unstable();
-        assert_eq!(found, expected, "../shared/validation's scene folders");
+        assert_eq!(
+            sorted_scene_names(&shared.join("validation")),
+            sorted(SHARED_SCENES),
+            "../shared/validation's scene folders"
+        );
     }
 }
