@@ -361,6 +361,11 @@ struct RenderArgs {
 }
 
 impl RenderArgs {
+    /// Whether this render is a farm part (`--samples`, `--crop`, `--chunk-from-env`) rather than a whole image.
+    fn is_part(&self) -> bool {
+        self.samples.is_some() || self.crop.is_some() || self.chunk_from_env
+    }
+
     /// The limits `--memory-limit`, `--max-prims` and `--max-sublayers` set, the defaults where they are not
     /// given.
     fn limits(&self) -> Limits {
@@ -730,7 +735,7 @@ fn render(mut args: RenderArgs) -> Result<(), String> {
     if args.list_cameras {
         return list_cameras(&args);
     }
-    if args.denoise && (args.samples.is_some() || args.crop.is_some() || args.chunk_from_env) {
+    if args.denoise && args.is_part() {
         return Err("--denoise is refused for a farm part (--samples, --crop, --chunk-from-env): denoising runs \
                     after the merge, on the whole frame (the filter reads each pixel's neighbours); run `nimbus \
                     denoise` on the merged EXR"
@@ -739,6 +744,12 @@ fn render(mut args: RenderArgs) -> Result<(), String> {
     #[cfg(not(feature = "denoise"))]
     if args.denoise {
         return Err(DENOISE_BUILD.into());
+    }
+    if args.deep && (args.is_part() || args.checkpoint.is_some() || args.resume) {
+        return Err("--deep renders whole frames only: deep samples are merged per pixel down to --deep-samples, \
+                    which farm parts and checkpoints (exact sums) do not carry; drop --samples, --crop, \
+                    --chunk-from-env, --checkpoint and --resume"
+            .into());
     }
     let range = args.frames.or(args.frame.map(FrameRange::single));
     if range.is_some_and(|r| r.len() > 1) {
@@ -841,18 +852,6 @@ fn render_frame(
     reporter: &mut ProgressReporter,
     cancel: &CancelToken,
 ) -> Result<(), String> {
-    if args.deep
-        && (args.samples.is_some()
-            || args.crop.is_some()
-            || args.chunk_from_env
-            || args.checkpoint.is_some()
-            || args.resume)
-    {
-        return Err("--deep renders whole frames only: deep samples are merged per pixel down to --deep-samples, \
-                    which farm parts and checkpoints (exact sums) do not carry; drop --samples, --crop, \
-                    --chunk-from-env, --checkpoint and --resume"
-            .into());
-    }
     let output = frame_path(&args.output, frame);
     let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
     let limits = args.limits();
@@ -1512,7 +1511,7 @@ fn part_region(
     frame_output: &Path,
     settings: &RenderSettings,
 ) -> Result<Option<(RenderRegion, PathBuf)>, String> {
-    if args.samples.is_none() && args.crop.is_none() && !args.chunk_from_env {
+    if !args.is_part() {
         return Ok(None);
     }
     let window = args
