@@ -40,6 +40,27 @@ fn render_demo(out: &Path, spp: u32, flags: &[&str]) {
     );
 }
 
+/// Asserts that the command behind `output` (`what`, for the message) failed with one line of stderr that
+/// contains `reason`.
+fn assert_refused_in_one_line(output: &std::process::Output, reason: &str, what: &str) {
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{what}");
+    assert!(
+        stderr.contains(reason) && stderr.lines().count() == 1,
+        "{what}: {stderr}"
+    );
+}
+
+/// Asserts that the refused commands left `dir` empty, then removes it.
+fn assert_nothing_written(dir: &Path) {
+    assert_eq!(
+        std::fs::read_dir(dir).unwrap().count(),
+        0,
+        "nothing written"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
 /// Relative MSE, the mean over pixels and channels of (x − ref)² / (ref² + 0.01).
 fn rel_mse(x: &[f32], reference: &[f32]) -> f64 {
     assert_eq!(x.len(), reference.len());
@@ -186,19 +207,13 @@ fn denoise_is_refused_for_a_farm_part_with_the_reason() {
             .env("NIMBUS_TASK_INDEX", "0")
             .output()
             .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(!output.status.success(), "{flags:?}");
-        assert!(
-            stderr.contains("denoising runs after the merge") && stderr.lines().count() == 1,
-            "{flags:?}: {stderr}"
+        assert_refused_in_one_line(
+            &output,
+            "denoising runs after the merge",
+            &format!("{flags:?}"),
         );
     }
-    assert_eq!(
-        std::fs::read_dir(&dir).unwrap().count(),
-        0,
-        "nothing written"
-    );
-    std::fs::remove_dir_all(&dir).unwrap();
+    assert_nothing_written(&dir);
 }
 
 #[test]
@@ -220,20 +235,10 @@ fn without_the_feature_denoising_is_refused_with_how_to_build_it() {
         .arg(dir.join("d.exr"))
         .output()
         .unwrap();
-    for output in [render, denoise] {
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(!output.status.success());
-        assert!(
-            stderr.contains("--features denoise") && stderr.lines().count() == 1,
-            "{stderr}"
-        );
+    for (output, what) in [(render, "render"), (denoise, "denoise")] {
+        assert_refused_in_one_line(&output, "--features denoise", what);
     }
-    assert_eq!(
-        std::fs::read_dir(&dir).unwrap().count(),
-        0,
-        "nothing written"
-    );
-    std::fs::remove_dir_all(&dir).unwrap();
+    assert_nothing_written(&dir);
 }
 
 #[test]
