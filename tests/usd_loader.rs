@@ -3,7 +3,7 @@
 //! from glTF.
 
 use nimbus::light::Light;
-use nimbus::math::{Rgb, Vec3};
+use nimbus::math::{Rgb, Vec2, Vec3};
 use nimbus::render::{RenderImage, RenderSettings, Renderer};
 use nimbus::scene::{usd, Scene, SceneBuilder, SceneErrorKind};
 use std::path::{Path, PathBuf};
@@ -988,6 +988,64 @@ fn catmull_clark_meshes_are_subdivided_to_their_level() {
         Some(2),
     );
     assert_eq!(triangles, 12);
+}
+
+/// Texture coordinates of a subdivision surface follow `faceVaryingLinearInterpolation`. On an open 2×1 grid whose
+/// `st` is each point's (x, y) with no seam, USD's default `cornersPlus1` subdivides them exactly as the points
+/// are (the boundary's corners pinned, its edges sharp, like `edgeAndCorner`'s points), so every corner's UV is
+/// its position's (x, y); `all` interpolates them linearly within each cage face, which the unevenly spaced
+/// grid's smoothed points leave. They used to be linear always. `creaseMethod = "chaikin"` is read with no
+/// warning, `interpolateBoundary = "none"` with one naming it.
+#[test]
+fn face_varying_interpolation_and_crease_method_are_read() {
+    let grid = |extra: &str| {
+        format!(
+            "#usda 1.0\n(\n    upAxis = \"Y\"\n    metersPerUnit = 1\n)\n\ndef Mesh \"Grid\"\n{{\n\
+             point3f[] points = [(0, 0, 0), (1, 0, 0), (3, 0, 0), (0, 1, 0), (1, 1, 0), (3, 1, 0)]\n\
+             int[] faceVertexCounts = [4, 4]\n\
+             int[] faceVertexIndices = [0, 1, 4, 3, 1, 2, 5, 4]\n\
+             texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1), (1, 0), (3, 0), (3, 1), (1, 1)] (\n\
+                 interpolation = \"faceVarying\"\n)\n\
+             int refineLevel = 2\n{extra}\n}}\n"
+        )
+    };
+    let load = |tag: &str, extra: &str| {
+        let path = temp_file(tag, "usda", grid(extra).as_bytes());
+        let b = nimbus::scene::load_builder(&path, &Default::default())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let off_by: f32 = b
+            .meshes()
+            .iter()
+            .flat_map(|m| {
+                let uvs = m.uvs.clone().expect("the grid has UVs");
+                m.positions
+                    .iter()
+                    .zip(uvs)
+                    // Nimbus keeps glTF's texture space, v down: USD's st (s, t) is (s, 1 − t).
+                    .map(|(p, uv)| p.truncate().distance(Vec2::new(uv.x, 1.0 - uv.y)))
+                    .collect::<Vec<_>>()
+            })
+            .fold(0.0, f32::max);
+        (off_by, b.warnings().to_vec())
+    };
+    let (off_by, warnings) = load("fv_default", "");
+    assert!(off_by < 1e-5, "UVs follow the points: {off_by}");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let (off_by, _) = load(
+        "fv_all",
+        "uniform token faceVaryingLinearInterpolation = \"all\"",
+    );
+    assert!(off_by > 0.02, "linear UVs stay behind the points: {off_by}");
+    let (off_by, warnings) = load("fv_chaikin", "uniform token creaseMethod = \"chaikin\"");
+    assert!(
+        off_by < 1e-5 && warnings.is_empty(),
+        "{off_by} {warnings:?}"
+    );
+    let (_, warnings) = load("fv_none", "uniform token interpolateBoundary = \"none\"");
+    assert!(
+        warnings.len() == 1 && warnings[0].contains("interpolateBoundary 'none'"),
+        "{warnings:?}"
+    );
 }
 
 /// MaterialX `standard_surface` materials (`tests/usd/materialx.usda`; Pixar's USD 26.11 resolves each

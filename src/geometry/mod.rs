@@ -14,6 +14,9 @@ pub use bvh::{Bvh, TooManyTriangles, TriangleHierarchy};
 pub use mesh::{Mesh, MeshMotion};
 pub use motion::{lerp, MotionBvh, MotionSteps, MovingTriangle};
 pub use spawn::{ShadowSegment, SurfacePoint};
-pub use subdivision::{PolygonMesh, Scheme, SubdivisionError, INFINITELY_SHARP};
+pub use subdivision::{
+    BoundaryRule, CreaseMethod, FaceVaryingRule, PolygonMesh, Scheme, SubdivisionError,
+    SubdivisionRules, INFINITELY_SHARP,
+};
 pub use tags::CompositingTags;
 pub use triangle::TriangleHit;

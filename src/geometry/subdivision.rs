@@ -4,10 +4,24 @@
 //! `creaseMethod` defaults to: a sharpness s > 0 is an infinitely sharp rule while s ≥ 1, blends the smooth and
 //! sharp rules by s below 1, and decreases by one at each level.
 //!
-//! Boundaries follow USD's default `interpolateBoundary = "edgeAndCorner"`: boundary edges are infinitely sharp,
-//! and a boundary vertex of a single face is a corner. Edges shared by more than two faces (non-manifold) are
-//! sharp too. Face-varying data (texture coordinates, colours) is interpolated linearly within each face (USD's
-//! `faceVaryingLinearInterpolation = "all"`). One level turns an n-gon into n quads.
+//! The rules USD's `UsdGeomMesh` names, with its defaults ([`SubdivisionRules`]):
+//! - `interpolateBoundary`: boundary edges are infinitely sharp; with `edgeAndCorner` (the default) a boundary
+//!   vertex of a single face is also a corner, with `edgeOnly` it follows the crease rule. Edges shared by more
+//!   than two faces (non-manifold) are sharp too.
+//! - `creaseMethod`: `uniform` (the default) decreases a sharpness by one a level; `chaikin` first blends each
+//!   half edge's sharpness with the other sharp edges at its end (3/4 its own, 1/4 their mean), so that a crease
+//!   of varying sharpness decays smoothly along its length.
+//! - `faceVaryingLinearInterpolation`: face-varying data (texture coordinates, colours) is subdivided as a mesh of
+//!   its own, whose vertices are the distinct values at each vertex: a UV seam is a boundary of that mesh. From
+//!   `none` (smooth everywhere, seams as smooth boundary curves) through `cornersOnly`, `cornersPlus1` (the
+//!   default: also pins every value where three or more UV islands meet), `cornersPlus2` (also pins seam ends
+//!   inside the mesh and concave island corners) and `boundaries` (every seam value pinned) to `all` (linear in
+//!   each face). The mesh's creases and corners hold for its face-varying data too.
+//!
+//! Where a sharpness decays to zero between two levels, the vertex point blends the parent level's rule with the
+//! child level's by the decaying sharpnesses (at most 1 each, averaged), as OpenSubdiv, which USD renderers
+//! subdivide with, does. `subdivision_reference.rs` checks every rule against `opensubdiv-rs`, a port of it. One
+//! level turns an n-gon into n quads.
 //!
 //! The rules (DeRose et al. 1998, §3, and Catmull & Clark 1978):
 //! - face point: the average of the face's vertices;
@@ -41,6 +55,61 @@ pub struct PolygonMesh {
     pub creases: HashMap<(u32, u32), f32>,
     /// Corner sharpness by vertex; absent vertices are not corners.
     pub corners: HashMap<u32, f32>,
+    /// How boundaries, creases and face-varying data subdivide.
+    pub rules: SubdivisionRules,
+}
+
+/// How a mesh's boundaries subdivide (USD's `interpolateBoundary`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BoundaryRule {
+    /// Boundary edges are sharp and a boundary vertex of a single face is a corner (`edgeAndCorner`, USD's
+    /// default).
+    #[default]
+    EdgeAndCorner,
+    /// Boundary edges are sharp; boundary vertices follow the crease rule (`edgeOnly`).
+    EdgeOnly,
+}
+
+/// How semi-sharp creases decay from level to level (USD's `creaseMethod`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CreaseMethod {
+    /// Each level subtracts one (`uniform`, USD's default).
+    #[default]
+    Uniform,
+    /// Each half edge blends 3/4 of its sharpness with 1/4 of the mean of the other sharp edges at its end, then
+    /// subtracts one (`chaikin`).
+    Chaikin,
+}
+
+/// How face-varying data subdivides (USD's `faceVaryingLinearInterpolation`); each rule pins more values than
+/// the one before it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FaceVaryingRule {
+    /// Smooth everywhere; seams subdivide as smooth boundary curves (`none`).
+    None,
+    /// Values of a single face at a vertex (island corners) are pinned (`cornersOnly`).
+    CornersOnly,
+    /// Also every value at a vertex where three or more values meet (`cornersPlus1`, USD's default).
+    #[default]
+    CornersPlus1,
+    /// Also a seam's end inside the mesh, and both values of a vertex where one of two is an island corner
+    /// (`cornersPlus2`).
+    CornersPlus2,
+    /// Every value on a seam or boundary is pinned (`boundaries`).
+    Boundaries,
+    /// Linear within each face (`all`).
+    All,
+}
+
+/// The subdivision rules of one mesh; the default is USD's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SubdivisionRules {
+    /// `interpolateBoundary`.
+    pub boundary: BoundaryRule,
+    /// `creaseMethod`.
+    pub crease_method: CreaseMethod,
+    /// `faceVaryingLinearInterpolation`.
+    pub face_varying: FaceVaryingRule,
 }
 
 /// A subdivision scheme (USD's `subdivisionScheme`).
@@ -138,8 +207,8 @@ impl PolygonMesh {
         let mut mesh = self.clone();
         for _ in 0..levels {
             mesh = match scheme {
-                Scheme::CatmullClark => mesh.subdivide_once(),
-                Scheme::Loop => mesh.loop_once(),
+                Scheme::CatmullClark => mesh.subdivide_once(None),
+                Scheme::Loop => mesh.loop_once(None),
             };
         }
         Ok(mesh)
@@ -182,7 +251,11 @@ impl PolygonMesh {
     }
 
     /// One level of subdivision.
-    fn subdivide_once(&self) -> PolygonMesh {
+    ///
+    /// `around`, given for a face-varying value mesh, holds for each value the sharpness of the edges at its
+    /// vertex in the mesh the values belong to: Chaikin's rule averages over those, not over the value mesh's
+    /// seams.
+    fn subdivide_once(&self, around: Option<&[Vec<f32>]>) -> PolygonMesh {
         let n_points = self.points.len();
         let face_points: Vec<Vec3> = self
             .faces()
@@ -228,7 +301,7 @@ impl PolygonMesh {
                     a + (point(edges[e].ends.0) + point(edges[e].ends.1)) * 0.5
                 }) / n;
                 let smooth = (q + 2.0 * r + (n - 3.0) * s) / n;
-                self.sharpened_vertex(v, smooth, incident, faces.len(), &edges)
+                self.sharpened_vertex(v, smooth, incident, faces.len(), &edges, around)
             })
             .collect();
         // New points: vertices, then edges, then faces.
@@ -239,11 +312,9 @@ impl PolygonMesh {
         points.extend(face_points);
         let mut out = PolygonMesh {
             points,
-            uvs: self.uvs.as_ref().map(|_| Vec::new()),
-            colors: self.colors.as_ref().map(|_| Vec::new()),
+            rules: self.rules,
             ..Default::default()
         };
-        let mut corner_start = 0usize;
         for (f, corners) in self.faces() {
             let c = corners.len();
             let edge_of = |k: usize| {
@@ -256,16 +327,9 @@ impl PolygonMesh {
                     .extend([vertex, edge_of(k), face_base + f as u32, edge_of(k + c - 1)]);
                 out.face_tags.push(self.face_tags[f]);
             }
-            let range = corner_start..corner_start + c;
-            if let (Some(all), Some(own)) = (&self.uvs, &mut out.uvs) {
-                own.extend(linear_face_varying(&all[range.clone()]));
-            }
-            if let (Some(all), Some(own)) = (&self.colors, &mut out.colors) {
-                own.extend(linear_face_varying(&all[range]));
-            }
-            corner_start += c;
         }
-        self.child_creases(&edges, edge_base, &mut out);
+        self.child_face_varying_into(Scheme::CatmullClark, &edges, &vertex_edges, &mut out);
+        self.child_creases(&edges, &vertex_edges, edge_base, &mut out);
         out
     }
 
@@ -276,7 +340,9 @@ impl PolygonMesh {
     ///   midpoint;
     /// - vertex point with n neighbours: smooth, (1 − nβ) S + β Σ neighbours with
     ///   β = (5/8 − (3/8 + cos(2π/n)/4)²) / n (Loop 1987, §3.2); crease and corner as Catmull-Clark's.
-    fn loop_once(&self) -> PolygonMesh {
+    ///
+    /// `around` as in [`Self::subdivide_once`].
+    fn loop_once(&self, around: Option<&[Vec<f32>]>) -> PolygonMesh {
         let n_points = self.points.len();
         let (edge_index, edges) = self.edge_table();
         let point = |v: u32| self.points[v as usize];
@@ -316,7 +382,7 @@ impl PolygonMesh {
                 let c = 0.375 + 0.25 * (std::f32::consts::TAU / n).cos();
                 let beta = (0.625 - c * c) / n;
                 let smooth = s * (1.0 - n * beta) + neighbours * beta;
-                self.sharpened_vertex(v, smooth, incident, vertex_faces[v].len(), &edges)
+                self.sharpened_vertex(v, smooth, incident, vertex_faces[v].len(), &edges, around)
             })
             .collect();
         let edge_base = n_points as u32;
@@ -324,8 +390,7 @@ impl PolygonMesh {
         points.extend(edge_points);
         let mut out = PolygonMesh {
             points,
-            uvs: self.uvs.as_ref().map(|_| Vec::new()),
-            colors: self.colors.as_ref().map(|_| Vec::new()),
+            rules: self.rules,
             ..Default::default()
         };
         for (f, corners) in triangles.iter().enumerate() {
@@ -340,15 +405,9 @@ impl PolygonMesh {
                 out.indices.extend(child);
                 out.face_tags.push(self.face_tags[f]);
             }
-            let range = 3 * f..3 * f + 3;
-            if let (Some(all), Some(own)) = (&self.uvs, &mut out.uvs) {
-                own.extend(linear_face_varying_triangle(&all[range.clone()]));
-            }
-            if let (Some(all), Some(own)) = (&self.colors, &mut out.colors) {
-                own.extend(linear_face_varying_triangle(&all[range]));
-            }
         }
-        self.child_creases(&edges, edge_base, &mut out);
+        self.child_face_varying_into(Scheme::Loop, &edges, &vertex_edges, &mut out);
+        self.child_creases(&edges, &vertex_edges, edge_base, &mut out);
         out
     }
 
@@ -396,10 +455,11 @@ impl PolygonMesh {
         (vertex_edges, vertex_faces)
     }
 
-    /// The vertex point of `v` from its scheme's `smooth` point and the sharp rules (DeRose et al. 1998, §3):
-    /// a corner (a corner sharpness, three or more sharp edges, or USD's edgeAndCorner boundary vertex of one
-    /// face) stays put; two sharp edges to a and b make the crease point (a + 6S + b)/8; a semi-sharp rule is
-    /// blended with the smooth point by its sharpness.
+    /// The vertex point of `v` from its scheme's `smooth` point and the sharp rules (DeRose et al. 1998, §3): a
+    /// corner (a corner sharpness, three or more sharp edges, or with `edgeAndCorner` a boundary vertex of one
+    /// face) stays put; two sharp edges to a and b make the crease point (a + 6S + b)/8; otherwise the smooth
+    /// point. Where the rule this level differs from the next level's (a sharpness decays to zero), the two are
+    /// blended by [`transition_weight`].
     fn sharpened_vertex(
         &self,
         v: usize,
@@ -407,60 +467,339 @@ impl PolygonMesh {
         incident: &[usize],
         face_count: usize,
         edges: &[Edge],
+        around: Option<&[Vec<f32>]>,
     ) -> Vec3 {
         let s = self.points[v];
-        let sharp: Vec<usize> = incident
-            .iter()
-            .copied()
-            .filter(|&e| edges[e].sharpness > 0.0)
-            .collect();
-        let boundary_corner = face_count == 1 && sharp.len() >= 2;
-        let corner = self
+        let mut corner = self
             .corners
             .get(&(v as u32))
             .copied()
             .unwrap_or(0.0)
             .max(0.0);
-        let (rule, weight) = if corner > 0.0 || sharp.len() >= 3 || boundary_corner {
-            let weight = if boundary_corner || sharp.len() >= 3 {
-                1.0
-            } else {
-                corner
-            };
-            (s, weight)
-        } else if sharp.len() == 2 {
-            let other = |e: usize| {
-                let (a, b) = edges[e].ends;
-                self.points[if a as usize == v { b } else { a } as usize]
-            };
-            let crease = (other(sharp[0]) + 6.0 * s + other(sharp[1])) / 8.0;
-            let weight = (edges[sharp[0]].sharpness + edges[sharp[1]].sharpness) * 0.5;
-            (crease, weight)
-        } else {
-            (smooth, 0.0)
+        if self.rules.boundary == BoundaryRule::EdgeAndCorner && face_count == 1 {
+            corner = INFINITELY_SHARP;
+        }
+        let parent: Vec<f32> = incident.iter().map(|&e| edges[e].sharpness).collect();
+        let around = around.map_or(&parent[..], |around| &around[v]);
+        let child: Vec<f32> = parent
+            .iter()
+            .map(|&sharpness| self.rules.crease_method.child_sharpness(sharpness, around))
+            .collect();
+        let child_corner = decremented(corner);
+        let point = |sharpnesses: &[f32], corner: f32| match VertexRule::of(corner, sharpnesses) {
+            VertexRule::Smooth => smooth,
+            VertexRule::Corner => s,
+            VertexRule::Crease(i, j) => {
+                let other = |k: usize| {
+                    let (a, b) = edges[incident[k]].ends;
+                    self.points[if a as usize == v { b } else { a } as usize]
+                };
+                (other(i) + 6.0 * s + other(j)) / 8.0
+            }
         };
-        smooth.lerp(rule, weight.min(1.0))
+        let (this_level, next_level) = (point(&parent, corner), point(&child, child_corner));
+        if VertexRule::of(corner, &parent) == VertexRule::of(child_corner, &child) {
+            return this_level;
+        }
+        let weight = transition_weight(corner, child_corner, &parent, &child);
+        next_level.lerp(this_level, weight)
     }
 
-    /// The next level's creases and corners: sharpness decreases by one a level (infinitely sharp stays so),
-    /// and each parent edge's two halves (to its edge point, numbered `edge_base + edge`) keep it.
-    fn child_creases(&self, edges: &[Edge], edge_base: u32, out: &mut PolygonMesh) {
-        let child = |s: f32| if s >= INFINITELY_SHARP { s } else { s - 1.0 };
+    /// The next level's creases and corners (`out`'s): each parent edge's two halves (to its edge point, numbered
+    /// `edge_base + edge`) take the sharpness the crease method gives them at their own end; corner sharpness
+    /// decreases by one a level. Infinitely sharp stays so.
+    fn child_creases(
+        &self,
+        edges: &[Edge],
+        vertex_edges: &[Vec<usize>],
+        edge_base: u32,
+        out: &mut PolygonMesh,
+    ) {
         for (e, edge) in edges.iter().enumerate() {
-            let s = child(self.creases.get(&edge.ends).copied().unwrap_or(0.0));
-            if s > 0.0 {
-                let mid = edge_base + e as u32;
-                for end in [edge.ends.0, edge.ends.1] {
+            let sharpness = self.creases.get(&edge.ends).copied().unwrap_or(0.0);
+            if sharpness <= 0.0 {
+                continue;
+            }
+            let mid = edge_base + e as u32;
+            for end in [edge.ends.0, edge.ends.1] {
+                let around: Vec<f32> = vertex_edges[end as usize]
+                    .iter()
+                    .map(|&i| edges[i].sharpness)
+                    .collect();
+                let s = self.rules.crease_method.child_sharpness(sharpness, &around);
+                if s > 0.0 {
                     out.creases.insert((end.min(mid), end.max(mid)), s);
                 }
             }
         }
         for (&v, &s) in &self.corners {
-            let s = child(s);
+            let s = decremented(s);
             if s > 0.0 {
                 out.corners.insert(v, s);
             }
         }
+    }
+
+    /// Sets `out`'s UVs and colours (its faces made by one level of `scheme` on this mesh, whose `edges` meet
+    /// at each vertex as `vertex_edges` says) from this mesh's.
+    fn child_face_varying_into(
+        &self,
+        scheme: Scheme,
+        edges: &[Edge],
+        vertex_edges: &[Vec<usize>],
+        out: &mut PolygonMesh,
+    ) {
+        let around: Vec<Vec<f32>> = vertex_edges
+            .iter()
+            .map(|incident| incident.iter().map(|&e| edges[e].sharpness).collect())
+            .collect();
+        out.uvs = self.uvs.as_ref().map(|uvs| {
+            let values: Vec<Vec3> = uvs.iter().map(|uv| uv.extend(0.0)).collect();
+            let child = self.child_face_varying(&values, scheme, &around);
+            child.into_iter().map(Vec3::truncate).collect()
+        });
+        out.colors = self
+            .colors
+            .as_ref()
+            .map(|colors| self.child_face_varying(colors, scheme, &around));
+    }
+
+    /// The child corners' face-varying `values` (one per face corner of this mesh, in `scheme`'s child order):
+    /// linear within each face under [`FaceVaryingRule::All`], else one level of `scheme` on
+    /// [`Self::value_mesh`], with Chaikin's rule averaging over this mesh's edge sharpness `around` each vertex.
+    fn child_face_varying(
+        &self,
+        values: &[Vec3],
+        scheme: Scheme,
+        around: &[Vec<f32>],
+    ) -> Vec<Vec3> {
+        if self.rules.face_varying == FaceVaryingRule::All {
+            let mut start = 0usize;
+            let mut out = Vec::with_capacity(values.len() * 4);
+            for &c in &self.counts {
+                let face = &values[start..start + c as usize];
+                out.extend(match scheme {
+                    Scheme::CatmullClark => linear_face_varying(face),
+                    Scheme::Loop => linear_face_varying_triangle(face),
+                });
+                start += c as usize;
+            }
+            return out;
+        }
+        let (mesh, vertex_of) = self.value_mesh(values);
+        let around: Vec<Vec<f32>> = vertex_of
+            .iter()
+            .map(|&v| around[v as usize].clone())
+            .collect();
+        let child = match scheme {
+            Scheme::CatmullClark => mesh.subdivide_once(Some(&around)),
+            Scheme::Loop => mesh.loop_once(Some(&around)),
+        };
+        child
+            .indices
+            .iter()
+            .map(|&i| child.points[i as usize])
+            .collect()
+    }
+
+    /// Face-varying `values` (one per face corner) as a mesh of their own: a vertex per distinct value at each
+    /// vertex, so that a seam is a boundary. It keeps the faces, the creases and corners of this mesh, and its
+    /// face-varying rule becomes sharpness: a boundary rule (corners pinned unless the rule is `none`) and
+    /// infinitely sharp values where the rule pins them.
+    ///
+    /// Returns the mesh and the vertex of each of its values.
+    fn value_mesh(&self, values: &[Vec3]) -> (PolygonMesh, Vec<u32>) {
+        let mut id_of: HashMap<(u32, [u32; 3]), u32> = HashMap::new();
+        let (mut points, mut vertex_of) = (Vec::new(), Vec::new());
+        let indices: Vec<u32> = self
+            .indices
+            .iter()
+            .zip(values)
+            .map(|(&v, value)| {
+                *id_of
+                    .entry((v, value.to_array().map(f32::to_bits)))
+                    .or_insert_with(|| {
+                        points.push(*value);
+                        vertex_of.push(v);
+                        points.len() as u32 - 1
+                    })
+            })
+            .collect();
+        let rule = self.rules.face_varying;
+        let mut mesh = PolygonMesh {
+            points,
+            counts: self.counts.clone(),
+            indices,
+            face_tags: vec![0; self.counts.len()],
+            rules: SubdivisionRules {
+                boundary: match rule {
+                    FaceVaryingRule::None | FaceVaryingRule::All => BoundaryRule::EdgeOnly,
+                    _ => BoundaryRule::EdgeAndCorner,
+                },
+                crease_method: self.rules.crease_method,
+                face_varying: FaceVaryingRule::All,
+            },
+            ..Default::default()
+        };
+        let (_, value_edges) = mesh.edge_table();
+        for edge in &value_edges {
+            let (a, b) = (
+                vertex_of[edge.ends.0 as usize],
+                vertex_of[edge.ends.1 as usize],
+            );
+            if let Some(&s) = self.creases.get(&(a.min(b), a.max(b))) {
+                mesh.creases.insert(edge.ends, s);
+            }
+        }
+        // The mesh's corners hold for its values, and so does `edgeAndCorner`'s corner at a vertex of one face
+        // (which matters under `none`, whose own boundary rule leaves island corners smooth).
+        let mut faces_at = vec![0usize; self.points.len()];
+        for &v in &self.indices {
+            faces_at[v as usize] += 1;
+        }
+        for (value, &v) in vertex_of.iter().enumerate() {
+            let boundary_corner =
+                self.rules.boundary == BoundaryRule::EdgeAndCorner && faces_at[v as usize] == 1;
+            let sharpness = if boundary_corner {
+                Some(INFINITELY_SHARP)
+            } else {
+                self.corners.get(&v).copied()
+            };
+            if let Some(s) = sharpness {
+                mesh.corners.insert(value as u32, s);
+            }
+        }
+        for value in self.pinned_values(rule, &mesh, &value_edges, &vertex_of) {
+            mesh.corners.insert(value, INFINITELY_SHARP);
+        }
+        (mesh, vertex_of)
+    }
+
+    /// The values of `value_mesh` (whose edges are `value_edges`, and whose value i lies at vertex
+    /// `vertex_of[i]`) that face-varying `rule` pins beyond its boundary rule: where three or more values meet
+    /// (`cornersPlus1` and `cornersPlus2`); a seam's end inside the mesh and both values of a vertex where one of
+    /// two spans a single face (`cornersPlus2`); every value on a seam or boundary (`boundaries`).
+    fn pinned_values(
+        &self,
+        rule: FaceVaryingRule,
+        value_mesh: &PolygonMesh,
+        value_edges: &[Edge],
+        vertex_of: &[u32],
+    ) -> Vec<u32> {
+        let on_boundary = |edges: &[Edge], n: usize| {
+            let mut boundary = vec![false; n];
+            for edge in edges.iter().filter(|e| e.faces.len() != 2) {
+                boundary[edge.ends.0 as usize] = true;
+                boundary[edge.ends.1 as usize] = true;
+            }
+            boundary
+        };
+        let value_on_boundary = on_boundary(value_edges, value_mesh.points.len());
+        match rule {
+            FaceVaryingRule::Boundaries => {
+                return (0..value_mesh.points.len() as u32)
+                    .filter(|&i| value_on_boundary[i as usize])
+                    .collect()
+            }
+            FaceVaryingRule::CornersPlus1 | FaceVaryingRule::CornersPlus2 => {}
+            _ => return Vec::new(),
+        }
+        // Each vertex's values, with the number of faces each spans there.
+        let mut at_vertex: Vec<Vec<(u32, usize)>> = vec![Vec::new(); self.points.len()];
+        for &value in &value_mesh.indices {
+            let values = &mut at_vertex[vertex_of[value as usize] as usize];
+            match values.iter_mut().find(|(v, _)| *v == value) {
+                Some((_, span)) => *span += 1,
+                None => values.push((value, 1)),
+            }
+        }
+        let vertex_on_boundary = on_boundary(&self.edge_table().1, self.points.len());
+        let plus2 = rule == FaceVaryingRule::CornersPlus2;
+        let mut pinned = Vec::new();
+        for (v, values) in at_vertex.iter().enumerate() {
+            let junction = values.len() > 2;
+            let seam_end = plus2
+                && values.len() == 1
+                && !vertex_on_boundary[v]
+                && value_on_boundary[values[0].0 as usize];
+            let concave = plus2 && values.len() == 2 && values.iter().any(|&(_, span)| span == 1);
+            if junction || seam_end || concave {
+                pinned.extend(values.iter().map(|&(value, _)| value));
+            }
+        }
+        pinned
+    }
+}
+
+/// A sharpness one level down: infinitely sharp stays so, others lose one, down to zero.
+fn decremented(sharpness: f32) -> f32 {
+    if sharpness >= INFINITELY_SHARP {
+        sharpness
+    } else {
+        (sharpness - 1.0).max(0.0)
+    }
+}
+
+impl CreaseMethod {
+    /// The sharpness of an edge's half at one of its ends, from the edge's `sharpness` and the sharpness of
+    /// every edge at that end (`around`, the edge itself included).
+    fn child_sharpness(self, sharpness: f32, around: &[f32]) -> f32 {
+        if self == CreaseMethod::Uniform || around.len() < 2 || sharpness <= 0.0 {
+            return decremented(sharpness);
+        }
+        if sharpness >= INFINITELY_SHARP {
+            return sharpness;
+        }
+        // The other sharp edges' mean (the edge itself taken out once).
+        let (sum, count) = around
+            .iter()
+            .filter(|&&s| s > 0.0)
+            .fold((-sharpness, -1i32), |(sum, n), &s| (sum + s, n + 1));
+        let blended = if count > 0 {
+            0.75 * sharpness + 0.25 * sum / count as f32
+        } else {
+            sharpness
+        };
+        (blended - 1.0).max(0.0)
+    }
+}
+
+/// Which rule places a vertex point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum VertexRule {
+    /// The scheme's smooth rule (also a dart: one sharp edge).
+    Smooth,
+    /// The crease rule along the two sharp edges at these positions in the vertex's edge list.
+    Crease(usize, usize),
+    /// The vertex stays put.
+    Corner,
+}
+
+impl VertexRule {
+    /// The rule of a vertex of `corner` sharpness whose edges have `sharpnesses`.
+    fn of(corner: f32, sharpnesses: &[f32]) -> VertexRule {
+        let mut sharp = sharpnesses.iter().enumerate().filter(|(_, &s)| s > 0.0);
+        match (corner > 0.0, sharp.next(), sharp.next(), sharp.next()) {
+            (true, ..) | (_, Some(_), Some(_), Some(_)) => VertexRule::Corner,
+            (_, Some((i, _)), Some((j, _)), None) => VertexRule::Crease(i, j),
+            _ => VertexRule::Smooth,
+        }
+    }
+}
+
+/// The weight of this level's rule against the next level's where they differ: the mean of the sharpnesses
+/// (each at most 1) of the corner and edges that decay to zero between the two levels (DeRose et al. 1998, §3's
+/// fractional sharpness, as OpenSubdiv averages it over several at once).
+fn transition_weight(corner: f32, child_corner: f32, parent: &[f32], child: &[f32]) -> f32 {
+    let decaying = std::iter::once((corner, child_corner))
+        .chain(parent.iter().copied().zip(child.iter().copied()))
+        .filter(|&(s, c)| s > 0.0 && c <= 0.0)
+        .map(|(s, _)| s.min(1.0));
+    let (sum, n) = decaying.fold((0.0, 0), |(sum, n), s| (sum + s, n + 1));
+    if n == 0 {
+        1.0
+    } else {
+        sum / n as f32
     }
 }
 
@@ -502,11 +841,15 @@ where
 }
 
 #[cfg(test)]
+#[path = "subdivision_reference.rs"]
+mod opensubdiv_reference;
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
     /// The cube [−1, 1]³ as 6 quads, counter-clockwise from outside.
-    fn cube() -> PolygonMesh {
+    pub(super) fn cube() -> PolygonMesh {
         let points = (0..8)
             .map(|i| {
                 Vec3::new(
@@ -698,7 +1041,7 @@ mod tests {
     }
 
     /// The regular octahedron (vertices ±x, ±y, ±z), counter-clockwise from outside.
-    fn octahedron() -> PolygonMesh {
+    pub(super) fn octahedron() -> PolygonMesh {
         let points = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
         let (px, nx, py, ny, pz, nz) = (0, 1, 2, 3, 4, 5);
         let indices = vec![
@@ -791,7 +1134,18 @@ mod tests {
             .points
             .iter()
             .all(|p| p.x > -1e-6 && p.y > -1e-6 && p.x < 1.0 + 1e-6 && p.y < 1.0 + 1e-6));
-        // Level 1: face 0's first child is (corner 0, the midpoint toward 1, the midpoint toward the centre).
+        // The UVs are the points' x and y with no seam, so under USD's default face-varying rule they are
+        // subdivided as the points are.
+        let uvs = s.uvs.as_ref().unwrap();
+        for (k, &v) in s.indices.iter().enumerate() {
+            assert!(
+                uvs[k].distance(s.points[v as usize].truncate()) < 1e-6,
+                "corner {k}"
+            );
+        }
+        // Linear face-varying interpolation: face 0's first child is (corner 0, the midpoint toward 1, the
+        // midpoint toward the centre).
+        square.rules.face_varying = FaceVaryingRule::All;
         let one = square.subdivide_with(Scheme::Loop, 1).unwrap();
         let uvs = one.uvs.unwrap();
         assert_eq!(&uvs[..3], &[uv(0.0, 0.0), uv(0.5, 0.0), uv(0.25, 0.25)]);

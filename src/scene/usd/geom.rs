@@ -2,7 +2,9 @@
 
 use super::values::{number, token, vec2_array, vec3_array};
 use super::Loader;
-use crate::geometry::{Mesh, PolygonMesh, Scheme};
+use crate::geometry::{
+    BoundaryRule, CreaseMethod, FaceVaryingRule, Mesh, PolygonMesh, Scheme, SubdivisionRules,
+};
 use crate::math::{Mat4, Rgb, Vec2};
 use crate::scene::SceneError;
 use openusd::{sdf, usd};
@@ -306,18 +308,73 @@ impl Loader<'_> {
                 .ok_or_else(|| self.error(at, "cornerSharpnesses is too short"))?;
             cage.corners.insert(v, s.max(0.0));
         }
-        if let Some(rule) = self
+        cage.rules = self.subdivision_rules(prim, at)?;
+        cage.subdivide_with(scheme, level)
+            .map_err(|e| self.error(at, e.to_string()))
+    }
+
+    /// The mesh's `interpolateBoundary`, `creaseMethod` and `faceVaryingLinearInterpolation` (USD's defaults
+    /// where absent). A value Nimbus does not subdivide by (`interpolateBoundary = "none"`, an unknown token) is
+    /// warned about and the default used; `triangleSubdivisionRule = "smooth"` is warned about.
+    fn subdivision_rules(
+        &mut self,
+        prim: &usd::Prim,
+        at: &str,
+    ) -> Result<SubdivisionRules, SceneError> {
+        let mut rules = SubdivisionRules::default();
+        if let Some(name) = self
             .value(prim, "interpolateBoundary")?
             .and_then(|v| token(&v))
         {
-            if rule != "edgeAndCorner" {
+            match name.as_str() {
+                "edgeAndCorner" => rules.boundary = BoundaryRule::EdgeAndCorner,
+                "edgeOnly" => rules.boundary = BoundaryRule::EdgeOnly,
+                other => self.warn(format!(
+                    "{at}: interpolateBoundary '{other}' is not supported; subdivided as edgeAndCorner"
+                )),
+            }
+        }
+        if let Some(name) = self.value(prim, "creaseMethod")?.and_then(|v| token(&v)) {
+            match name.as_str() {
+                "uniform" => rules.crease_method = CreaseMethod::Uniform,
+                "chaikin" => rules.crease_method = CreaseMethod::Chaikin,
+                other => self.warn(format!(
+                    "{at}: creaseMethod '{other}' is not supported; subdivided as uniform"
+                )),
+            }
+        }
+        if let Some(name) = self
+            .value(prim, "faceVaryingLinearInterpolation")?
+            .and_then(|v| token(&v))
+        {
+            rules.face_varying = match name.as_str() {
+                "none" => FaceVaryingRule::None,
+                "cornersOnly" => FaceVaryingRule::CornersOnly,
+                "cornersPlus1" => FaceVaryingRule::CornersPlus1,
+                "cornersPlus2" => FaceVaryingRule::CornersPlus2,
+                "boundaries" => FaceVaryingRule::Boundaries,
+                "all" => FaceVaryingRule::All,
+                other => {
+                    self.warn(format!(
+                        "{at}: faceVaryingLinearInterpolation '{other}' is not supported; subdivided as \
+                         cornersPlus1"
+                    ));
+                    FaceVaryingRule::CornersPlus1
+                }
+            };
+        }
+        if let Some(rule) = self
+            .value(prim, "triangleSubdivisionRule")?
+            .and_then(|v| token(&v))
+        {
+            if rule != "catmullClark" {
                 self.warn(format!(
-                    "{at}: interpolateBoundary '{rule}' is subdivided as edgeAndCorner"
+                    "{at}: triangleSubdivisionRule '{rule}' is not supported; triangles are subdivided by \
+                     Catmull-Clark's rule"
                 ));
             }
         }
-        cage.subdivide_with(scheme, level)
-            .map_err(|e| self.error(at, e.to_string()))
+        Ok(rules)
     }
 
     /// A `float[]` attribute's values (empty when absent); non-finite values are an error naming it.
