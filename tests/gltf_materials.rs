@@ -703,6 +703,46 @@ fn bad_extension_data_is_an_error_naming_the_field() {
     }
 }
 
+/// `transmissionTexture` (red), `specularTexture` (alpha) and `specularColorTexture` (sRGB RGB) multiply their
+/// factors per texel, as KHR_materials_transmission and KHR_materials_specular define them. Sampled at the
+/// centres of a 2×2 image's top texels (one plain, one bright): transmission 0.8 × 0.2 and 0.8 × 1, specular
+/// 0.5 × 0.8 and 0.5 × 0.2, specular colour (1, 0.5, 0.25) × sRGB⁻¹(0.2, 0, 0) and × 1. All three used to be
+/// ignored without a word.
+#[test]
+fn transmission_and_specular_textures_multiply_their_factors() {
+    let image = png_uri([[51, 0, 0, 204], [255, 255, 255, 51], [0; 4], [0; 4]]);
+    let material = r#"{"pbrMetallicRoughness":{"metallicFactor":0},"extensions":{
+        "KHR_materials_transmission":{"transmissionFactor":0.8,"transmissionTexture":{"index":0}},
+        "KHR_materials_specular":{"specularFactor":0.5,"specularColorFactor":[1,0.5,0.25],
+          "specularTexture":{"index":0},"specularColorTexture":{"index":0}}}}"#;
+    let text = quad_gltf(white_colors(), material, &image).replace(
+        r#""extensionsUsed":["#,
+        r#""extensionsUsed":["KHR_materials_transmission","#,
+    );
+    let b = load(&write("transmission_specular_textures.gltf", &text));
+    let m = &b.materials()[0];
+    let at = |u: f32| {
+        m.pbr_params(
+            &ShadingPoint::from(TexCoord::point(Vec2::new(u, 0.25))),
+            b.textures(),
+        )
+    };
+    let srgb_02 = ((0.2f32 + 0.055) / 1.055).powf(2.4);
+    for (u, transmission, specular, color) in [
+        (0.25, 0.16, 0.4, Vec3::new(srgb_02, 0.0, 0.0)),
+        (0.75, 0.8, 0.1, Vec3::new(1.0, 0.5, 0.25)),
+    ] {
+        let p = at(u);
+        let what = format!("u = {u}: {p:?}");
+        assert!((p.transmission - transmission).abs() < 2e-3, "{what}");
+        assert!((p.specular_factor - specular).abs() < 2e-3, "{what}");
+        assert!(
+            (p.specular_color - color).abs().max_element() < 2e-3,
+            "{what}"
+        );
+    }
+}
+
 /// `quad_gltf` with `KHR_materials_pbrSpecularGlossiness` also used and required.
 fn spec_gloss_gltf(material: &str, image: &str) -> String {
     quad_gltf(white_colors(), material, image)

@@ -81,6 +81,12 @@ pub struct Material {
     pub specular_color: Rgb,
     /// KHR_materials_transmission factor: the fraction of the dielectric base that refracts.
     pub transmission: f32,
+    /// `KHR_materials_transmission.transmissionTexture` (linear): its red channel multiplies `transmission`.
+    pub transmission_texture: Option<TextureId>,
+    /// `KHR_materials_specular.specularTexture` (linear): its alpha channel multiplies `specular_factor`.
+    pub specular_texture: Option<TextureId>,
+    /// `KHR_materials_specular.specularColorTexture` (sRGB): its RGB multiplies `specular_color`.
+    pub specular_color_texture: Option<TextureId>,
     /// When false, the back face of an opaque surface reflects nothing, and camera rays do not see it
     /// ([`Self::culls_back_faces`]).
     pub double_sided: bool,
@@ -248,6 +254,9 @@ impl Default for Material {
             specular_factor: 1.0,
             specular_color: Rgb::ONE,
             transmission: 0.0,
+            transmission_texture: None,
+            specular_texture: None,
+            specular_color_texture: None,
             double_sided: false,
             interior: None,
             alpha_mode: AlphaMode::Opaque,
@@ -473,6 +482,12 @@ impl Material {
             diffuse_transmission_color =
                 d.color * lookup(textures, d.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
         }
+        let transmission = self.transmission
+            * lookup(textures, self.transmission_texture, at).map_or(1.0, |t| t.x);
+        let specular_factor =
+            self.specular_factor * lookup(textures, self.specular_texture, at).map_or(1.0, |t| t.w);
+        let specular_color = self.specular_color
+            * lookup(textures, self.specular_color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
         let film = self.iridescence.unwrap_or_default();
         let iridescence = film.factor * lookup(textures, film.texture, at).map_or(1.0, |t| t.x);
         let iridescence_thickness = match lookup(textures, film.thickness_texture, at) {
@@ -488,9 +503,9 @@ impl Material {
             metallic: metallic.clamp(0.0, 1.0),
             roughness: roughness.clamp(0.0, 1.0),
             ior: self.ior,
-            specular_factor: self.specular_factor.clamp(0.0, 1.0),
-            specular_color: self.specular_color.max(Vec3::ZERO),
-            transmission: self.transmission.clamp(0.0, 1.0),
+            specular_factor: specular_factor.clamp(0.0, 1.0),
+            specular_color: specular_color.max(Vec3::ZERO),
+            transmission: transmission.clamp(0.0, 1.0),
             clearcoat: clearcoat.clamp(0.0, 1.0),
             clearcoat_roughness: clearcoat_roughness.clamp(0.0, 1.0),
             sheen_color: sheen_color.clamp(Rgb::ZERO, Rgb::ONE),
@@ -571,6 +586,9 @@ impl Material {
             self.occlusion_texture.map(|t| t.0),
             self.emission_texture,
             self.alpha_texture,
+            self.transmission_texture,
+            self.specular_texture,
+            self.specular_color_texture,
         ]
         .into_iter()
         .chain(coat)

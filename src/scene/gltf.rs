@@ -1140,12 +1140,27 @@ impl Loader<'_> {
                  KHR_materials_pbrSpecularGlossiness (its dielectric F0 is 0.04)"
             ));
         }
-        let (specular_factor, specular_color) = material
-            .specular()
-            .filter(|_| !fixed_f0)
-            .map_or((1.0, Rgb::ONE), |s| {
-                (s.specular_factor(), Rgb::from(s.specular_color_factor()))
-            });
+        let specular = material.specular().filter(|_| !fixed_f0);
+        let (specular_factor, specular_color) = specular.as_ref().map_or((1.0, Rgb::ONE), |s| {
+            (s.specular_factor(), Rgb::from(s.specular_color_factor()))
+        });
+        let specular_texture = self.extension_texture(
+            specular.as_ref().and_then(|s| s.specular_texture()),
+            ColorSpace::Linear,
+            &format!("{at}.extensions.KHR_materials_specular.specularTexture"),
+        )?;
+        let specular_color_texture = self.extension_texture(
+            specular.as_ref().and_then(|s| s.specular_color_texture()),
+            ColorSpace::Srgb,
+            &format!("{at}.extensions.KHR_materials_specular.specularColorTexture"),
+        )?;
+        let transmission_texture = self.extension_texture(
+            material
+                .transmission()
+                .and_then(|t| t.transmission_texture()),
+            ColorSpace::Linear,
+            &format!("{at}.extensions.KHR_materials_transmission.transmissionTexture"),
+        )?;
         let clearcoat = self.clearcoat(&material, &at)?;
         let sheen = self.sheen(&material, &at)?;
         let anisotropy = self.anisotropy(&material, &at)?;
@@ -1172,6 +1187,9 @@ impl Loader<'_> {
             transmission: material
                 .transmission()
                 .map_or(0.0, |t| t.transmission_factor()),
+            transmission_texture,
+            specular_texture,
+            specular_color_texture,
             double_sided: material.double_sided(),
             interior: None,
             alpha_mode: alpha_mode(&material),
@@ -1500,6 +1518,23 @@ impl Loader<'_> {
                 let r = self.json_ref(v, &format!("{at}.{key}"))?;
                 Ok(Some(self.texture_ref(&r, space)?))
             }
+        }
+    }
+
+    /// The texture of an extension's `textureInfo` that the `gltf` crate parsed (`at` names it in errors), if
+    /// the extension gives one.
+    fn extension_texture(
+        &mut self,
+        info: Option<gltf::texture::Info>,
+        space: ColorSpace,
+        at: &str,
+    ) -> Result<Option<u32>, SceneError> {
+        match info {
+            Some(info) => {
+                let r = self.info_ref(&info, at)?;
+                Ok(Some(self.texture_ref(&r, space)?))
+            }
+            None => Ok(None),
         }
     }
 
