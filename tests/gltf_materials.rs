@@ -743,6 +743,51 @@ fn transmission_and_specular_textures_multiply_their_factors() {
     }
 }
 
+/// The textures of `KHR_materials_iridescence` (`iridescenceTexture` red × factor; `iridescenceThicknessTexture`
+/// green between the minimum and maximum thickness) and `KHR_materials_diffuse_transmission`
+/// (`diffuseTransmissionTexture` alpha × factor; `diffuseTransmissionColorTexture` sRGB RGB × colour) are read
+/// per texel, as the extensions define them: at the same two texels as above, iridescence 0.5 × 0.2 and 0.5 × 1,
+/// thickness 100 and 400 nm, diffuse transmission 0.5 × 0.8 and 0.5 × 0.2, colour (1, 0.5, 0.25) × sRGB⁻¹(0.2,
+/// 0, 0) and × 1.
+#[test]
+fn iridescence_and_diffuse_transmission_textures_are_read_per_texel() {
+    let image = png_uri([[51, 0, 0, 204], [255, 255, 255, 51], [0; 4], [0; 4]]);
+    let material = r#"{"pbrMetallicRoughness":{"metallicFactor":0},"extensions":{
+        "KHR_materials_iridescence":{"iridescenceFactor":0.5,"iridescenceTexture":{"index":0},
+          "iridescenceThicknessMinimum":100,"iridescenceThicknessMaximum":400,
+          "iridescenceThicknessTexture":{"index":0}},
+        "KHR_materials_diffuse_transmission":{"diffuseTransmissionFactor":0.5,
+          "diffuseTransmissionTexture":{"index":0},"diffuseTransmissionColorFactor":[1,0.5,0.25],
+          "diffuseTransmissionColorTexture":{"index":0}}}}"#;
+    let text = quad_gltf(white_colors(), material, &image).replace(
+        r#""extensionsUsed":["#,
+        r#""extensionsUsed":["KHR_materials_iridescence","KHR_materials_diffuse_transmission","#,
+    );
+    let b = load(&write("iridescence_diffuse_textures.gltf", &text));
+    let m = &b.materials()[0];
+    let srgb_02 = ((0.2f32 + 0.055) / 1.055).powf(2.4);
+    for (u, iridescence, thickness, transmission, color) in [
+        (0.25, 0.1, 100.0, 0.4, Vec3::new(srgb_02, 0.0, 0.0)),
+        (0.75, 0.5, 400.0, 0.1, Vec3::new(1.0, 0.5, 0.25)),
+    ] {
+        let p = m.pbr_params(
+            &ShadingPoint::from(TexCoord::point(Vec2::new(u, 0.25))),
+            b.textures(),
+        );
+        let what = format!("u = {u}: {p:?}");
+        assert!((p.iridescence - iridescence).abs() < 2e-3, "{what}");
+        assert!((p.iridescence_thickness - thickness).abs() < 0.5, "{what}");
+        assert!(
+            (p.diffuse_transmission - transmission).abs() < 2e-3,
+            "{what}"
+        );
+        assert!(
+            (p.diffuse_transmission_color - color).abs().max_element() < 2e-3,
+            "{what}"
+        );
+    }
+}
+
 /// `quad_gltf` with `KHR_materials_pbrSpecularGlossiness` also used and required.
 fn spec_gloss_gltf(material: &str, image: &str) -> String {
     quad_gltf(white_colors(), material, image)
