@@ -318,3 +318,175 @@ fn a_physically_dim_scene_gets_a_viewable_preview_and_says_why() {
     assert!(mean < 10.0, "the linear preview is dark: {mean}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The backticked names in the section of `docs/reference.md` that starts at the heading line `heading` and ends
+/// at the next heading.
+fn documented_names(heading: &str) -> std::collections::BTreeSet<String> {
+    let reference =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/reference.md"))
+            .expect("docs/reference.md");
+    let section: String = reference
+        .lines()
+        .skip_while(|line| line.trim_end() != heading)
+        .skip(1)
+        .take_while(|line| !line.starts_with('#'))
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert!(
+        !section.is_empty(),
+        "docs/reference.md has no section {heading:?}"
+    );
+    section
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .map(str::to_owned)
+        .collect()
+}
+
+/// Every key of `value` (objects nested in objects and arrays included), with the path where it was met.
+fn json_keys(value: &serde_json::Value, at: &str, out: &mut Vec<(String, String)>) {
+    match value {
+        serde_json::Value::Object(map) => {
+            for (key, inner) in map {
+                out.push((key.clone(), at.to_owned()));
+                json_keys(inner, &format!("{at}.{key}"), out);
+            }
+        }
+        serde_json::Value::Array(items) => {
+            for item in items {
+                json_keys(item, &format!("{at}[]"), out);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// The reference tables are checked against the code: every long flag `nimbus render --help` lists has a row
+/// in docs/reference.md's flag table and every row names a real flag; every key a `--stats` file holds (a render
+/// with a grid medium, light paths and Cryptomatte, so that the media entries and layers are there) is named in
+/// the `--stats` section; every key of `nimbus info --json` in its section. A flag or key added without its
+/// documentation, or a documented one removed, fails here.
+#[test]
+fn the_reference_documents_every_flag_and_every_json_key() {
+    let dir = std::env::temp_dir().join(format!("nimbus-reference-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+
+    // Flags: the long ones of `render --help` against the table rows' first cells.
+    let help = run(&["render", "--help"]);
+    let flags: std::collections::BTreeSet<String> = help
+        .split(|c: char| c.is_whitespace() || c == ',' || c == '[' || c == '=')
+        .filter(|w| w.starts_with("--") && w.len() > 2)
+        .map(|w| {
+            w.trim_end_matches(|c: char| !c.is_ascii_alphanumeric())
+                .to_owned()
+        })
+        .filter(|w| w != "--help" && w != "--version")
+        .collect();
+    let reference =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/reference.md")).unwrap();
+    let rows: std::collections::BTreeSet<String> = reference
+        .lines()
+        .filter(|line| line.starts_with("| `-"))
+        .flat_map(|line| {
+            let first = line.split('|').nth(1).unwrap_or("").to_owned();
+            first
+                .split('`')
+                .skip(1)
+                .step_by(2)
+                .filter(|name| name.starts_with("--"))
+                .map(str::to_owned)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    assert!(flags.len() > 30, "render --help lists its flags: {flags:?}");
+    let undocumented: Vec<_> = flags.difference(&rows).collect();
+    let stale: Vec<_> = rows.difference(&flags).collect();
+    assert!(
+        undocumented.is_empty(),
+        "render flags without a row in docs/reference.md: {undocumented:?}"
+    );
+    assert!(
+        stale.is_empty(),
+        "rows of docs/reference.md no render flag has: {stale:?}"
+    );
+
+    // --stats keys.
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/scenes/constant_grid.gltf"
+    );
+    run(&[
+        "render",
+        scene,
+        "-o",
+        "stats.exr",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "2",
+        "--stats",
+        "stats.json",
+        "--aovs",
+        "default,lightpaths,cryptomatte",
+    ]);
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("stats.json")).unwrap()).unwrap();
+    assert!(
+        !stats["media"].as_array().unwrap().is_empty(),
+        "the scene has a medium"
+    );
+    let documented = documented_names("### `--stats` JSON keys");
+    let mut keys = Vec::new();
+    json_keys(&stats, "stats", &mut keys);
+    let missing: Vec<_> = keys
+        .iter()
+        .filter(|(k, _)| !documented.contains(k))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "--stats keys docs/reference.md does not name: {missing:?}"
+    );
+
+    // `info --json` keys.
+    let vdb = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/scenes/constant_grid.vdb"
+    );
+    let info: serde_json::Value = serde_json::from_str(&run(&["info", vdb, "--json"])).unwrap();
+    let documented = documented_names("### `nimbus info --json` keys");
+    // The section lists the grid keys in one braced, comma-separated span.
+    let documented: std::collections::BTreeSet<String> = documented
+        .iter()
+        .flat_map(|span| span.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')))
+        .filter(|w| !w.is_empty())
+        .map(str::to_owned)
+        .collect();
+    let mut keys = Vec::new();
+    json_keys(&info, "info", &mut keys);
+    assert!(keys.len() > 10, "{keys:?}");
+    let missing: Vec<_> = keys
+        .iter()
+        .filter(|(k, _)| !documented.contains(k))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "info --json keys docs/reference.md does not name: {missing:?}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
