@@ -248,9 +248,19 @@ pub fn max_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get()) * THREADS_PER_CORE
 }
 
-/// Reads a whole file, refusing one larger than the memory budget before reading it, and stopping a device or
-/// pipe (whose size is unknown) after [`MAX_STREAM_BYTES`] or the budget, whichever is smaller.
-pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
+/// A file opened by [`open_file`]: a regular file, to be read as the caller needs, or the whole contents of a
+/// device, read already (its size is unknown until read).
+pub enum OpenedFile {
+    /// A regular file of this many bytes, within the memory budget.
+    Regular(std::fs::File, u64),
+    /// Everything a device gave, at most [`MAX_STREAM_BYTES`] or the budget.
+    Read(Vec<u8>),
+}
+
+/// Opens a file for reading, refusing a folder, a pipe or socket, and a regular file larger than the memory
+/// budget before reading any of it; a device (whose size is unknown) is read at once, stopping after
+/// [`MAX_STREAM_BYTES`] or the budget, whichever is smaller.
+pub fn open_file(path: &Path, limits: &Limits) -> std::io::Result<OpenedFile> {
     use std::io::{Error, ErrorKind};
     refuse_pipes_and_sockets(path)?;
     let file = std::fs::File::open(path)?;
@@ -272,9 +282,7 @@ pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
                 ),
             ));
         }
-        let mut bytes = Vec::with_capacity(meta.len() as usize);
-        file.take(limits.memory_bytes).read_to_end(&mut bytes)?;
-        return Ok(bytes);
+        return Ok(OpenedFile::Regular(file, meta.len()));
     }
     let cap = MAX_STREAM_BYTES.min(limits.memory_bytes);
     let mut bytes = Vec::new();
@@ -288,7 +296,20 @@ pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
             ),
         ));
     }
-    Ok(bytes)
+    Ok(OpenedFile::Read(bytes))
+}
+
+/// Reads a whole file, with [`open_file`]'s checks: one larger than the memory budget is refused before it is
+/// read, and a device or pipe stops after [`MAX_STREAM_BYTES`] or the budget.
+pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
+    match open_file(path, limits)? {
+        OpenedFile::Regular(file, len) => {
+            let mut bytes = Vec::with_capacity(len as usize);
+            file.take(limits.memory_bytes).read_to_end(&mut bytes)?;
+            Ok(bytes)
+        }
+        OpenedFile::Read(bytes) => Ok(bytes),
+    }
 }
 
 /// Refuses a named pipe (FIFO) or a socket before it is opened: opening a pipe with no writer blocks forever,

@@ -216,13 +216,19 @@ pub fn read_file(path: &Path) -> Result<VdbFile, VdbError> {
     read_file_with(path, &ReadOptions::default())
 }
 
-/// Reads a VDB file from disk with options.
+/// Reads a VDB file from disk with options. A regular file is streamed: only the value buffer being decoded is
+/// held, never the whole file (a device is read whole first, within the budget).
 pub fn read_file_with(path: &Path, options: &ReadOptions) -> Result<VdbFile, VdbError> {
-    let bytes = crate::limits::read_file(path, &options.limits).map_err(|e| VdbError {
+    let error = |kind: VdbErrorKind| VdbError {
         path: path.to_path_buf(),
-        kind: e.into(),
-    })?;
-    read_bytes_with(&bytes, path, options)
+        kind,
+    };
+    match crate::limits::open_file(path, &options.limits).map_err(|e| error(e.into()))? {
+        crate::limits::OpenedFile::Regular(file, len) => {
+            read_impl(Reader::from_file(file, len), options).map_err(error)
+        }
+        crate::limits::OpenedFile::Read(bytes) => read_bytes_with(&bytes, path, options),
+    }
 }
 
 /// Reads a VDB file held in memory; `path_for_errors` names it in errors.
@@ -236,7 +242,7 @@ pub fn read_bytes_with(
     path_for_errors: &Path,
     options: &ReadOptions,
 ) -> Result<VdbFile, VdbError> {
-    read_impl(bytes, options).map_err(|kind| VdbError {
+    read_impl(Reader::new(bytes), options).map_err(|kind| VdbError {
         path: PathBuf::from(path_for_errors),
         kind,
     })
@@ -252,8 +258,7 @@ fn in_grid(name: &str) -> impl FnOnce(VdbErrorKind) -> VdbErrorKind + '_ {
     }
 }
 
-fn read_impl(bytes: &[u8], options: &ReadOptions) -> KResult<VdbFile> {
-    let mut r = Reader::new(bytes);
+fn read_impl(mut r: Reader<'_>, options: &ReadOptions) -> KResult<VdbFile> {
     let header = header::read_header(&mut r)?;
     let metadata = metadata::read_metadata(&mut r)?;
     if !header.has_grid_offsets {
@@ -274,7 +279,7 @@ fn read_impl(bytes: &[u8], options: &ReadOptions) -> KResult<VdbFile> {
         if d.end_pos <= r.pos() as u64 {
             return error::corrupt(format!("grid '{}' end offset points backwards", d.name));
         }
-        match read_grid(bytes, &header, &d) {
+        match read_grid(&mut r, &header, &d) {
             Err(VdbErrorKind::UnsupportedGridType { grid, type_name })
                 if options.skip_unsupported =>
             {
@@ -313,7 +318,17 @@ fn read_impl(bytes: &[u8], options: &ReadOptions) -> KResult<VdbFile> {
     })
 }
 
-fn read_grid(bytes: &[u8], header: &FileHeader, d: &GridDescriptor) -> KResult<Grid> {
+/// Reads the grid `d` describes: the bytes from its `grid_pos` to its `end_pos`, with `r`'s end limited to the
+/// latter while it does (and restored after).
+fn read_grid(r: &mut Reader<'_>, header: &FileHeader, d: &GridDescriptor) -> KResult<Grid> {
+    let end = r.limit_to(d.end_pos);
+    let grid = read_grid_within(r, header, d);
+    r.set_end(end);
+    grid
+}
+
+/// [`read_grid`] once `r` ends at the grid's end.
+fn read_grid_within(r: &mut Reader<'_>, header: &FileHeader, d: &GridDescriptor) -> KResult<Grid> {
     let (value_type, scalar) = match d.type_name.as_str() {
         "Tree_float_5_4_3" => (ValueType::Float, Scalar::F32),
         "Tree_double_5_4_3" => (ValueType::Double, Scalar::F64),
@@ -325,16 +340,14 @@ fn read_grid(bytes: &[u8], header: &FileHeader, d: &GridDescriptor) -> KResult<G
             })
         }
     };
-    let end = (d.end_pos as usize).min(bytes.len());
-    let mut r = Reader::new(&bytes[..end]);
     r.seek(d.grid_pos)?;
     let compression = if header.version >= tree_io::VERSION_NODE_MASK_COMPRESSION {
         r.u32("grid compression")?
     } else {
         header.compression
     };
-    let metadata = metadata::read_metadata(&mut r)?;
-    let transform = transform::read_transform(&mut r)?;
+    let metadata = metadata::read_metadata(r)?;
+    let transform = transform::read_transform(r)?;
     let class = GridClass::from_meta(metadata.get_str("class"));
     let (tree, background) = if !d.instance_parent.is_empty() {
         // Placeholder; replaced by the parent's tree once all grids are read.
@@ -342,11 +355,11 @@ fn read_grid(bytes: &[u8], header: &FileHeader, d: &GridDescriptor) -> KResult<G
     } else {
         let mut ctx = TreeCtx::new(header.version, compression, scalar, d.half);
         if value_type == ValueType::Vec3s {
-            let t: Vec3Tree = read_tree(&mut r, &mut ctx)?;
+            let t: Vec3Tree = read_tree(r, &mut ctx)?;
             let b = Background::Vec3(t.background.to_array());
             (GridTree::Vec3(t), b)
         } else {
-            let t: FloatTree = read_tree(&mut r, &mut ctx)?;
+            let t: FloatTree = read_tree(r, &mut ctx)?;
             let b = Background::Float(t.background);
             (GridTree::Float(t), b)
         }

@@ -1,18 +1,49 @@
-//! A bounds-checked little-endian byte reader: every read checks the remaining input first.
+//! A bounds-checked little-endian byte reader: every read checks the remaining input first. It reads from bytes
+//! in memory or streams from a file, so that reading a VDB file from disk never holds the whole file: only the
+//! value buffer being decoded (OpenVDB's own reader streams the same way).
 
 use super::error::{corrupt, KResult, VdbErrorKind};
 use glam::{DVec3, IVec3};
+use std::io::Read;
 
-/// Cursor over an in-memory byte slice.
+/// Where a [`Reader`]'s bytes come from.
+enum Source<'a> {
+    /// Bytes in memory.
+    Slice(&'a [u8]),
+    /// A file read through a buffer; `scratch` holds the bytes of the last [`Reader::take`].
+    File {
+        file: std::io::BufReader<std::fs::File>,
+        scratch: Vec<u8>,
+    },
+}
+
+/// Cursor over the bytes `0..end` of a file or an in-memory slice.
 pub(crate) struct Reader<'a> {
-    data: &'a [u8],
+    source: Source<'a>,
     pos: usize,
+    end: usize,
 }
 
 impl<'a> Reader<'a> {
     /// A reader at the start of `data`.
     pub fn new(data: &'a [u8]) -> Self {
-        Self { data, pos: 0 }
+        Self {
+            source: Source::Slice(data),
+            pos: 0,
+            end: data.len(),
+        }
+    }
+
+    /// A reader at the start of `file`, whose length is `len` bytes.
+    pub fn from_file(file: std::fs::File, len: u64) -> Self {
+        Self {
+            source: Source::File {
+                file: std::io::BufReader::with_capacity(1 << 16, file),
+                scratch: Vec::new(),
+            },
+            pos: 0,
+            end: usize::try_from(len).unwrap_or(usize::MAX),
+        }
     }
 
     /// Current byte offset.
@@ -22,16 +53,35 @@ impl<'a> Reader<'a> {
 
     /// Bytes left after the cursor.
     pub fn remaining(&self) -> usize {
-        self.data.len() - self.pos
+        self.end - self.pos
+    }
+
+    /// Moves the end of the readable bytes to `end` (never past the input's own end, nor before the cursor);
+    /// returns the end it replaced, for [`Self::set_end`] to restore.
+    pub fn limit_to(&mut self, end: u64) -> usize {
+        let old = self.end;
+        self.end = usize::try_from(end)
+            .unwrap_or(usize::MAX)
+            .clamp(self.pos, old);
+        old
+    }
+
+    /// Restores an end [`Self::limit_to`] returned.
+    pub fn set_end(&mut self, end: usize) {
+        self.end = end;
     }
 
     /// Moves the cursor to an absolute offset inside the input.
     pub fn seek(&mut self, pos: u64) -> KResult<()> {
-        if pos > self.data.len() as u64 {
+        if pos > self.end as u64 {
             return corrupt(format!(
                 "offset {pos} beyond the end of the data ({} bytes)",
-                self.data.len()
+                self.end
             ));
+        }
+        if let Source::File { file, .. } = &mut self.source {
+            // A relative seek keeps the buffer when the target lies inside it.
+            file.seek_relative(pos as i64 - self.pos as i64)?;
         }
         self.pos = pos as usize;
         Ok(())
@@ -50,12 +100,21 @@ impl<'a> Reader<'a> {
         Ok(())
     }
 
-    /// Takes the next `n` bytes.
-    pub fn take(&mut self, n: u64, what: &'static str) -> KResult<&'a [u8]> {
+    /// Takes the next `n` bytes (from a file: into a buffer the next read reuses, never more than the file
+    /// holds).
+    pub fn take(&mut self, n: u64, what: &'static str) -> KResult<&[u8]> {
         self.ensure(n, what)?;
-        let s = &self.data[self.pos..self.pos + n as usize];
-        self.pos += n as usize;
-        Ok(s)
+        let n = n as usize;
+        let start = self.pos;
+        self.pos += n;
+        match &mut self.source {
+            Source::Slice(data) => Ok(&data[start..start + n]),
+            Source::File { file, scratch } => {
+                scratch.resize(n, 0);
+                file.read_exact(scratch)?;
+                Ok(scratch)
+            }
+        }
     }
 
     fn arr<const N: usize>(&mut self, what: &'static str) -> KResult<[u8; N]> {
@@ -134,5 +193,33 @@ mod tests {
         assert_eq!(r.string("s").unwrap(), "x");
         assert!(r.u8("end").is_err());
         assert!(r.seek(6).is_err());
+    }
+
+    /// A file streams the same values as its bytes in memory, through forward and backward seeks and a limited
+    /// end, and a read past the end is refused before anything is read.
+    #[test]
+    fn a_file_reads_as_its_bytes() {
+        let data: Vec<u8> = (0..200_000u32).flat_map(|i| i.to_le_bytes()).collect();
+        let path = std::env::temp_dir().join(format!("nimbus-stream-{}.bin", std::process::id()));
+        std::fs::write(&path, &data).unwrap();
+        let file = std::fs::File::open(&path).unwrap();
+        let mut from_file = Reader::from_file(file, data.len() as u64);
+        let mut in_memory = Reader::new(&data);
+        for r in [&mut from_file, &mut in_memory] {
+            assert_eq!(r.u32("a").unwrap(), 0);
+            r.seek(4 * 150_000).unwrap();
+            assert_eq!(r.u32("b").unwrap(), 150_000);
+            r.seek(4 * 7).unwrap();
+            assert_eq!(r.u32("c").unwrap(), 7);
+            assert_eq!(r.take(8, "d").unwrap(), &[8, 0, 0, 0, 9, 0, 0, 0]);
+            let old = r.limit_to(4 * 11);
+            assert_eq!(r.u32("e").unwrap(), 10);
+            assert!(r.u32("past the limit").is_err());
+            r.set_end(old);
+            assert_eq!(r.u32("f").unwrap(), 11);
+            assert!(r.take(u64::MAX / 2, "huge").is_err());
+            assert!(r.seek(data.len() as u64 + 1).is_err());
+        }
+        std::fs::remove_file(&path).ok();
     }
 }
