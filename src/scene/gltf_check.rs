@@ -143,11 +143,20 @@ fn within<T>(
     }
 }
 
+/// Every index in the document points inside the array it names (glTF 2.0 §3.2 and the extensions' own
+/// arrays): an index past the end is an error naming the field, the index and the array's length.
 fn check_indices(root: &Root) -> Result<(), String> {
-    let accessors = root.accessors.len();
-    let views = root.buffer_views.len();
+    check_scene_and_node_indices(root)?;
+    check_mesh_indices(root)?;
+    check_buffer_and_image_indices(root)?;
+    check_texture_indices(root)?;
+    check_material_texture_indices(root)?;
+    check_skin_and_animation_indices(root)
+}
+
+/// The default scene, each scene's root nodes, and each node's children, camera, mesh, skin and light.
+fn check_scene_and_node_indices(root: &Root) -> Result<(), String> {
     let nodes = root.nodes.len();
-    let textures = root.textures.len();
     if let Some(s) = root.scene {
         within(|| "scene".into(), s, "scenes", root.scenes.len())?;
     }
@@ -193,6 +202,12 @@ fn check_indices(root: &Root) -> Result<(), String> {
             within(field, l.light, "KHR_lights_punctual.lights", lights)?;
         }
     }
+    Ok(())
+}
+
+/// Each primitive's attribute, index and morph-target accessors and its material.
+fn check_mesh_indices(root: &Root) -> Result<(), String> {
+    let accessors = root.accessors.len();
     for (i, mesh) in root.meshes.iter().enumerate() {
         for (j, p) in mesh.primitives.iter().enumerate() {
             let at = || format!("meshes[{i}].primitives[{j}]");
@@ -227,6 +242,13 @@ fn check_indices(root: &Root) -> Result<(), String> {
             }
         }
     }
+    Ok(())
+}
+
+/// Accessors' (and their sparse parts') buffer views, views' buffers, and images' buffer views (an image needs
+/// a `uri` or a `bufferView` with a `mimeType`).
+fn check_buffer_and_image_indices(root: &Root) -> Result<(), String> {
+    let views = root.buffer_views.len();
     for (i, a) in root.accessors.iter().enumerate() {
         if let Some(v) = a.buffer_view {
             within(
@@ -269,6 +291,11 @@ fn check_indices(root: &Root) -> Result<(), String> {
             (None, None) => return Err(format!("images[{i}] has neither a uri nor a bufferView")),
         }
     }
+    Ok(())
+}
+
+/// Each texture's image and sampler.
+fn check_texture_indices(root: &Root) -> Result<(), String> {
     for (i, t) in root.textures.iter().enumerate() {
         within(
             || format!("textures[{i}].source"),
@@ -281,6 +308,12 @@ fn check_indices(root: &Root) -> Result<(), String> {
             within(|| format!("textures[{i}].sampler"), s, "samplers", len)?;
         }
     }
+    Ok(())
+}
+
+/// The textures each material refers to, core and the extensions the `gltf` crate parses.
+fn check_material_texture_indices(root: &Root) -> Result<(), String> {
+    let textures = root.textures.len();
     for (i, m) in root.materials.iter().enumerate() {
         let pbr = &m.pbr_metallic_roughness;
         let mut uses = vec![
@@ -337,6 +370,13 @@ fn check_indices(root: &Root) -> Result<(), String> {
             }
         }
     }
+    Ok(())
+}
+
+/// Skins' joints, skeleton and inverse bind matrices; animations' sampler accessors and channels' samplers and
+/// target nodes.
+fn check_skin_and_animation_indices(root: &Root) -> Result<(), String> {
+    let (accessors, nodes) = (root.accessors.len(), root.nodes.len());
     for (i, skin) in root.skins.iter().enumerate() {
         for (j, &n) in skin.joints.iter().enumerate() {
             within(|| format!("skins[{i}].joints[{j}]"), n, "nodes", nodes)?;
