@@ -263,102 +263,13 @@ fn texture_statement(
             break;
         }
         let option = word.to_owned();
-        let what = format!("{key} {option}");
-        rest = after;
-        // Takes the next word, which the option needs.
-        let arg = |rest: &mut &str| -> Result<String, LineError> {
-            let (a, after) =
-                split_word(rest).ok_or_else(|| bad(n, format!("{what}: a value is missing")))?;
-            *rest = after;
-            Ok(a.to_owned())
+        let mut args = OptionWords {
+            line: n,
+            what: format!("{key} {option}"),
+            rest: after,
         };
-        let number = |a: String| -> Result<f32, LineError> { Ok(numbers(n, &what, &[&a])?[0]) };
-        let on_off = |a: String| -> Result<bool, LineError> {
-            match a.as_str() {
-                "on" => Ok(true),
-                "off" => Ok(false),
-                _ => Err(bad(
-                    n,
-                    format!(
-                        "{what}: expected on or off, found '{}'",
-                        one_line(&a, QUOTE_CHARS)
-                    ),
-                )),
-            }
-        };
-        let honoured = match option.as_str() {
-            "-bm" => {
-                map.bump_multiplier = number(arg(&mut rest)?)?;
-                true
-            }
-            "-clamp" => {
-                map.clamp = on_off(arg(&mut rest)?)?;
-                true
-            }
-            "-blendu" | "-blendv" | "-cc" => {
-                on_off(arg(&mut rest)?)?;
-                false
-            }
-            "-boost" | "-texres" => {
-                number(arg(&mut rest)?)?;
-                false
-            }
-            "-mm" => {
-                number(arg(&mut rest)?)?;
-                number(arg(&mut rest)?)?;
-                false
-            }
-            "-imfchan" => {
-                let a = arg(&mut rest)?;
-                match a.as_str() {
-                    "r" | "g" | "b" | "m" | "l" | "z" => map.channel = a.chars().next(),
-                    _ => {
-                        return Err(bad(
-                            n,
-                            format!(
-                                "{what}: expected r, g, b, m, l or z, found '{}'",
-                                one_line(&a, QUOTE_CHARS)
-                            ),
-                        ))
-                    }
-                }
-                true
-            }
-            "-type" => {
-                arg(&mut rest)?;
-                false
-            }
-            "-o" | "-s" | "-t" => {
-                // One to three numbers: u, then optionally v and w.
-                let mut values = vec![number(arg(&mut rest)?)?];
-                while values.len() < 3 {
-                    match split_word(rest) {
-                        Some((w, after)) if w.parse::<f32>().is_ok() => {
-                            values.push(number(w.to_owned())?);
-                            rest = after;
-                        }
-                        _ => break,
-                    }
-                }
-                let default = if option == "-s" { 1.0 } else { 0.0 };
-                let uv = Vec2::new(values[0], values.get(1).copied().unwrap_or(default));
-                match option.as_str() {
-                    "-o" => map.offset = uv,
-                    "-s" => map.scale = uv,
-                    _ => {}
-                }
-                option != "-t"
-            }
-            _ => {
-                return Err(bad(
-                    n,
-                    format!(
-                        "{key}: unknown texture option '{}'",
-                        one_line(&option, QUOTE_CHARS)
-                    ),
-                ))
-            }
-        };
+        let honoured = texture_option(&mut map, key, &option, &mut args)?;
+        rest = args.rest;
         if !honoured && !ignored.contains(&option) {
             ignored.push(option);
         }
@@ -369,6 +280,136 @@ fn texture_statement(
     }
     map.file = file.to_owned();
     Ok(map)
+}
+
+/// The words after a texture option on line `line`, taken as the option needs them; `what` names the option in
+/// errors.
+struct OptionWords<'a> {
+    line: usize,
+    what: String,
+    rest: &'a str,
+}
+
+impl OptionWords<'_> {
+    /// The next word, which the option needs.
+    fn word(&mut self) -> Result<String, LineError> {
+        let (word, after) = split_word(self.rest)
+            .ok_or_else(|| bad(self.line, format!("{}: a value is missing", self.what)))?;
+        self.rest = after;
+        Ok(word.to_owned())
+    }
+
+    /// `word` read as a number.
+    fn parse(&self, word: &str) -> Result<f32, LineError> {
+        Ok(numbers(self.line, &self.what, &[word])?[0])
+    }
+
+    /// The next word, a number.
+    fn number(&mut self) -> Result<f32, LineError> {
+        let word = self.word()?;
+        self.parse(&word)
+    }
+
+    /// The next word, `on` or `off`.
+    fn on_off(&mut self) -> Result<bool, LineError> {
+        match self.word()?.as_str() {
+            "on" => Ok(true),
+            "off" => Ok(false),
+            other => Err(bad(
+                self.line,
+                format!(
+                    "{}: expected on or off, found '{}'",
+                    self.what,
+                    one_line(other, QUOTE_CHARS)
+                ),
+            )),
+        }
+    }
+}
+
+/// Reads texture option `option` of statement `key` (its values from `args`) into `map`; returns whether Nimbus
+/// honours it (`-bm`, `-clamp`, `-imfchan`, `-o`, `-s`) or only checks and ignores it (`-blendu`, `-blendv`,
+/// `-cc`, `-boost`, `-texres`, `-mm`, `-type`, `-t`). An unknown option is an error.
+fn texture_option(
+    map: &mut TextureMap,
+    key: &str,
+    option: &str,
+    args: &mut OptionWords,
+) -> Result<bool, LineError> {
+    Ok(match option {
+        "-bm" => {
+            map.bump_multiplier = args.number()?;
+            true
+        }
+        "-clamp" => {
+            map.clamp = args.on_off()?;
+            true
+        }
+        "-blendu" | "-blendv" | "-cc" => {
+            args.on_off()?;
+            false
+        }
+        "-boost" | "-texres" => {
+            args.number()?;
+            false
+        }
+        "-mm" => {
+            args.number()?;
+            args.number()?;
+            false
+        }
+        "-imfchan" => {
+            let a = args.word()?;
+            match a.as_str() {
+                "r" | "g" | "b" | "m" | "l" | "z" => map.channel = a.chars().next(),
+                _ => {
+                    return Err(bad(
+                        args.line,
+                        format!(
+                            "{}: expected r, g, b, m, l or z, found '{}'",
+                            args.what,
+                            one_line(&a, QUOTE_CHARS)
+                        ),
+                    ))
+                }
+            }
+            true
+        }
+        "-type" => {
+            args.word()?;
+            false
+        }
+        "-o" | "-s" | "-t" => {
+            // One to three numbers: u, then optionally v and w.
+            let mut values = vec![args.number()?];
+            while values.len() < 3 {
+                match split_word(args.rest) {
+                    Some((w, after)) if w.parse::<f32>().is_ok() => {
+                        values.push(args.parse(w)?);
+                        args.rest = after;
+                    }
+                    _ => break,
+                }
+            }
+            let default = if option == "-s" { 1.0 } else { 0.0 };
+            let uv = Vec2::new(values[0], values.get(1).copied().unwrap_or(default));
+            match option {
+                "-o" => map.offset = uv,
+                "-s" => map.scale = uv,
+                _ => {}
+            }
+            option != "-t"
+        }
+        _ => {
+            return Err(bad(
+                args.line,
+                format!(
+                    "{key}: unknown texture option '{}'",
+                    one_line(option, QUOTE_CHARS)
+                ),
+            ))
+        }
+    })
 }
 
 #[cfg(test)]
