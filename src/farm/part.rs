@@ -380,27 +380,7 @@ fn parse_info(
         path: path.to_path_buf(),
         reason,
     };
-    let text = |key: &str| -> Result<String, FarmError> {
-        match other.get(&Text::from(format!("{PREFIX}{key}").as_str())) {
-            Some(AttributeValue::Text(t)) => Ok(t.to_string()),
-            Some(_) => Err(invalid(format!("header key {PREFIX}{key} is not text"))),
-            None => Err(invalid(format!(
-                "no {PREFIX}{key} header key (not a part: render parts with --samples, --crop or \
-                 --chunk-from-env)"
-            ))),
-        }
-    };
-    fn number<T: std::str::FromStr>(
-        key: &str,
-        value: &str,
-        invalid: &dyn Fn(String) -> FarmError,
-    ) -> Result<T, FarmError> {
-        value.parse().map_err(|_| {
-            invalid(format!(
-                "header key {PREFIX}{key} '{value}' is not a number"
-            ))
-        })
-    }
+    let text = |key: &str| header_text(other, key, &invalid);
     let format = text("format")?;
     if format != PART_FORMAT && format != CHECKPOINT_FORMAT {
         return Err(invalid(format!(
@@ -416,9 +396,65 @@ fn parse_info(
             "{PREFIX}samples '{samples_text}' is not START..END"
         ))
     })?;
-    let get = |key: &str| -> Result<u64, FarmError> { number(key, &text(key)?, &invalid) };
+    let get = |key: &str| header_number(other, key, &invalid);
     let spp = get("spp")?;
     let sample_count = get("sample_count")?;
+    let (width, height, window) = data_window(display, position, size, &invalid)?;
+    let spp = u32::try_from(spp).map_err(|_| invalid(format!("spp {spp} is too large")))?;
+    if samples.end > spp || sample_count != samples.len() as u64 {
+        return Err(invalid(format!(
+            "samples {samples_text} (count {sample_count}) do not fit {spp} spp"
+        )));
+    }
+    let pixel_samples = window.pixel_count() as u64 * sample_count;
+    let nan_samples = dropped_samples("nan_samples", get("nan_samples")?, pixel_samples, &invalid)?;
+    let clamped_samples = dropped_samples(
+        "clamped_samples",
+        get("clamped_samples")?,
+        pixel_samples,
+        &invalid,
+    )?;
+    let plan = parse_plan(other, &text, &invalid)?;
+    let progress = if format == CHECKPOINT_FORMAT {
+        let complete = get("complete")?;
+        let stopped = text("stopped_pass")?;
+        Some(checkpoint_progress(
+            (complete, &stopped),
+            (&samples, &samples_text),
+            window,
+            &invalid,
+        )?)
+    } else {
+        None
+    };
+    Ok(PartInfo {
+        plan,
+        metadata: part_metadata(attributes),
+        estimators: text("estimators")?,
+        version: text("version")?,
+        scene_hash,
+        width,
+        height,
+        seed: get("seed")?,
+        max_depth: u32::try_from(get("max_depth")?)
+            .map_err(|_| invalid("max depth is too large".into()))?,
+        spp,
+        samples,
+        window,
+        nan_samples,
+        clamped_samples,
+        progress,
+    })
+}
+
+/// The part's frame size and pixel window, from the EXR's display window (which must start at the origin) and
+/// its data window (at `position`, of `size`), which must be a non-empty window inside the frame.
+fn data_window(
+    display: &IntegerBounds,
+    position: Vec2<i32>,
+    size: Vec2<usize>,
+    invalid: &dyn Fn(String) -> FarmError,
+) -> Result<(usize, usize, PixelWindow), FarmError> {
     if display.position != Vec2(0, 0) {
         return Err(invalid(format!(
             "display window starts at {:?}, not at the origin",
@@ -441,55 +477,86 @@ fn parse_info(
             "data window {window} is empty or outside the {width}x{height} display window"
         )));
     }
-    let spp = u32::try_from(spp).map_err(|_| invalid(format!("spp {spp} is too large")))?;
-    if samples.end > spp || sample_count != samples.len() as u64 {
+    Ok((width, height, window))
+}
+
+/// The text of header key `nimbus.<key>`; a missing key says the file is not a part.
+fn header_text(
+    other: &HashMap<Text, AttributeValue>,
+    key: &str,
+    invalid: &dyn Fn(String) -> FarmError,
+) -> Result<String, FarmError> {
+    match other.get(&Text::from(format!("{PREFIX}{key}").as_str())) {
+        Some(AttributeValue::Text(t)) => Ok(t.to_string()),
+        Some(_) => Err(invalid(format!("header key {PREFIX}{key} is not text"))),
+        None => Err(invalid(format!(
+            "no {PREFIX}{key} header key (not a part: render parts with --samples, --crop or \
+             --chunk-from-env)"
+        ))),
+    }
+}
+
+/// Header key `nimbus.<key>` read as a whole number.
+fn header_number(
+    other: &HashMap<Text, AttributeValue>,
+    key: &str,
+    invalid: &dyn Fn(String) -> FarmError,
+) -> Result<u64, FarmError> {
+    let value = header_text(other, key, invalid)?;
+    value.parse().map_err(|_| {
+        invalid(format!(
+            "header key {PREFIX}{key} '{value}' is not a number"
+        ))
+    })
+}
+
+/// The count of NaN or clamped samples under header key `key`, which cannot exceed the part's pixel-samples.
+fn dropped_samples(
+    key: &str,
+    value: u64,
+    pixel_samples: u64,
+    invalid: &dyn Fn(String) -> FarmError,
+) -> Result<u64, FarmError> {
+    if value > pixel_samples {
         return Err(invalid(format!(
-            "samples {samples_text} (count {sample_count}) do not fit {spp} spp"
+            "{PREFIX}{key} {value} is more than the part's {pixel_samples} pixel-samples"
         )));
     }
-    let pixel_samples = window.pixel_count() as u64 * sample_count;
-    let nan_samples = get("nan_samples")?;
-    let clamped_samples = get("clamped_samples")?;
-    for (key, value) in [
-        ("nan_samples", nan_samples),
-        ("clamped_samples", clamped_samples),
-    ] {
-        if value > pixel_samples {
-            return Err(invalid(format!(
-                "{PREFIX}{key} {value} is more than the part's {pixel_samples} pixel-samples"
-            )));
-        }
-    }
-    let plan = parse_plan(other, &text, &invalid)?;
-    let progress = if format == CHECKPOINT_FORMAT {
-        let complete = get("complete")?;
-        let stopped = text("stopped_pass")?;
-        let progress = parse_stopped_pass(
-            u32::try_from(complete).unwrap_or(u32::MAX),
-            &stopped,
-            window,
-        )
+    Ok(value)
+}
+
+/// A checkpoint's progress, from its `nimbus.complete` and `nimbus.stopped_pass` values (`stopped`), which
+/// must end exactly the part's `samples` (written `samples_text`) in `window`.
+fn checkpoint_progress(
+    (complete, stopped): (u64, &str),
+    (samples, samples_text): (&std::ops::Range<u32>, &str),
+    window: PixelWindow,
+    invalid: &dyn Fn(String) -> FarmError,
+) -> Result<RegionProgress, FarmError> {
+    let progress = parse_stopped_pass(u32::try_from(complete).unwrap_or(u32::MAX), stopped, window)
         .map_err(|e| {
             invalid(format!(
                 "{PREFIX}stopped_pass '{}': {e}",
-                one_line(&stopped, 60)
+                one_line(stopped, 60)
             ))
         })?;
-        if progress.complete < samples.start
-            || progress.most_samples(samples.start) != samples.len() as u32
-        {
-            return Err(invalid(format!(
-                "{PREFIX}complete {complete} and {PREFIX}stopped_pass do not end the samples {samples_text}"
-            )));
-        }
-        Some(progress)
-    } else {
-        None
-    };
-    let metadata = ImageMetadata {
+    if progress.complete < samples.start
+        || progress.most_samples(samples.start) != samples.len() as u32
+    {
+        return Err(invalid(format!(
+            "{PREFIX}complete {complete} and {PREFIX}stopped_pass do not end the samples {samples_text}"
+        )));
+    }
+    Ok(progress)
+}
+
+/// The header attributes a merged image takes over: the camera matrices and the `nimbus.meta.*` text keys.
+fn part_metadata(attributes: &LayerAttributes) -> ImageMetadata {
+    ImageMetadata {
         world_to_camera: attributes.world_to_camera.map(unflatten),
         world_to_ndc: attributes.world_to_normalized_device.map(unflatten),
-        nimbus: other
+        nimbus: attributes
+            .other
             .iter()
             .filter_map(|(key, value)| {
                 let key = key.to_string();
@@ -500,25 +567,7 @@ fn parse_info(
                 }
             })
             .collect(),
-    };
-    Ok(PartInfo {
-        plan,
-        metadata,
-        estimators: text("estimators")?,
-        version: text("version")?,
-        scene_hash,
-        width,
-        height,
-        seed: get("seed")?,
-        max_depth: u32::try_from(get("max_depth")?)
-            .map_err(|_| invalid("max depth is too large".into()))?,
-        spp,
-        samples,
-        window,
-        nan_samples,
-        clamped_samples,
-        progress,
-    })
+    }
 }
 
 /// The value of `nimbus.stopped_pass`: `none`, or `END;` and the pixels of each row run-length coded.
