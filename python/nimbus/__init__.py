@@ -288,8 +288,9 @@ def load_stage(stage: Any, time: Optional[float] = None, **options: Any) -> Scen
 
     Args:
         stage: an open ``pxr.Usd.Stage``.
-        time: the time code to read animated values at (default: the stage's start time code, or its
-            default values for a stage without one).
+        time: the whole frame to read animated values at, as :func:`load`'s ``frame`` (the time code itself
+            when the stage's timeCodesPerSecond equals its framesPerSecond, as usual); default: the stage's
+            default values.
         options: as :func:`load` takes them (``frame``, ``fps``, ``camera``...).
 
     Composition errors USD reports (a missing reference, a layer that cannot be opened) do not stop the
