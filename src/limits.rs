@@ -424,6 +424,10 @@ pub fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
     })
 }
 
+/// The longest error or warning line that the CLI prints and the Python module raises: messages quoting file
+/// contents are cut there ([`one_line`]).
+pub const MAX_MESSAGE_CHARS: usize = 1000;
+
 /// `text` as one line of printable ASCII at most `max_chars` long: line breaks become `" / "`, other control
 /// characters and non-ASCII characters become `\xNN` or `\u{...}` escapes, and a longer text is cut with `…`
 /// spelled as `...`. Error messages that quote file contents pass through this.

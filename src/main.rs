@@ -6,7 +6,7 @@ use nimbus::farm::checkpoint::{read_checkpoint, write_checkpoint};
 use nimbus::farm::{FarmError, PartInfo};
 use nimbus::frames::{has_frame_token, with_frame, FrameRange, Shutter};
 use nimbus::light::EnvironmentLight;
-use nimbus::limits::{one_line, Limits};
+use nimbus::limits::{one_line, Limits, MAX_MESSAGE_CHARS};
 use nimbus::math::Rgb;
 use nimbus::output::Exposure;
 use nimbus::params::Choice;
@@ -486,9 +486,6 @@ fn print_stdout(text: &str) -> Result<(), String> {
     }
 }
 
-/// The longest error or warning line printed: messages quoting file contents are cut there.
-const MAX_MESSAGE_CHARS: usize = 1000;
-
 /// The largest image side `render` and `converge` accept.
 const MAX_IMAGE_SIDE: usize = 65_536;
 /// The most pixels in one frame: 8192 × 8192, whose film takes 16 GB (240 bytes a pixel).
@@ -870,10 +867,7 @@ fn render_frame(
         builder.set_environment(EnvironmentLight::Constant(c));
     }
     let lighting = builder.own_lighting();
-    if !lighting.lights_the_scene() {
-        builder.set_environment(EnvironmentLight::Constant(Rgb::splat(
-            DEFAULT_ENVIRONMENT_RADIANCE,
-        )));
+    if builder.light_by_default() {
         let textured = match lighting.textured_emissive_meshes {
             0 => String::new(),
             n => format!(
@@ -919,13 +913,7 @@ fn render_frame(
             );
         }
     }
-    let width = args.image.width.unwrap_or(640);
-    let aspect = scene.camera().aspect_ratio.unwrap_or(4.0 / 3.0);
-    let height = args
-        .image
-        .height
-        .unwrap_or(((width as f32 / aspect).round() as usize).max(1))
-        .max(1);
+    let (width, height) = RenderSettings::frame_size(&scene, args.image.width, args.image.height);
     check_image_size(width, height)?;
     let time_limit = match args.time_limit {
         Some(t) => Some(Duration::try_from_secs_f64(t).map_err(|_| {
@@ -942,7 +930,7 @@ fn render_frame(
         spp,
         seed: args.image.seed,
         threads: args.image.threads,
-        max_depth: args.max_depth.or(scene.max_bounces()).unwrap_or(64),
+        max_depth: RenderSettings::max_depth_for(&scene, args.max_depth),
         time_limit,
         media_mis: true,
         equiangular: args.volume_sampling == VolumeSampling::Mis,
@@ -1399,9 +1387,8 @@ fn signal_name(signal: i32) -> &'static str {
     }
 }
 
-/// The EXR header attributes of a render: the camera's `worldToCamera` and `worldToNDC`, and the `nimbus/` keys
-/// `spp` (of the whole render), `seed`, `scene`, `scene_hash`, `frame`, `transparent` and `render_seconds`
-/// (left out when `SOURCE_DATE_EPOCH` asks for reproducible files).
+/// The EXR header attributes of a render ([`nimbus::render::ImageMetadata::for_render`]), the scene named by
+/// its file or as the bundled demo.
 fn image_metadata(
     args: &RenderArgs,
     scene: &Scene,
@@ -1410,33 +1397,11 @@ fn image_metadata(
     hash: u64,
     stats: &RenderStats,
 ) -> nimbus::render::ImageMetadata {
-    let aspect = settings.width as f32 / settings.height.max(1) as f32;
-    let mut nimbus = std::collections::BTreeMap::new();
-    nimbus.insert("spp".to_owned(), settings.spp.to_string());
-    nimbus.insert("seed".to_owned(), settings.seed.to_string());
-    nimbus.insert(
-        "scene".to_owned(),
-        args.scene.as_ref().map_or_else(
-            || "bundled demo (assets/cloud.gltf)".into(),
-            |p| p.display().to_string(),
-        ),
+    let label = args.scene.as_ref().map_or_else(
+        || "bundled demo (assets/cloud.gltf)".into(),
+        |p| p.display().to_string(),
     );
-    nimbus.insert("scene_hash".to_owned(), format!("{hash:016x}"));
-    nimbus.insert("transparent".to_owned(), stats.transparent.to_string());
-    if let Some(f) = frame {
-        nimbus.insert("frame".to_owned(), f.to_string());
-    }
-    if std::env::var_os("SOURCE_DATE_EPOCH").is_none() {
-        nimbus.insert(
-            "render_seconds".to_owned(),
-            format!("{:.3}", stats.render_seconds),
-        );
-    }
-    nimbus::render::ImageMetadata {
-        world_to_camera: Some(scene.camera().exr_world_to_camera()),
-        world_to_ndc: Some(scene.camera().exr_world_to_ndc(aspect)),
-        nimbus,
-    }
+    nimbus::render::ImageMetadata::for_render(scene, settings, &label, frame, hash, stats)
 }
 
 /// Creates the folder an output file goes in (every task of an array job may race to create it).
@@ -1569,44 +1534,17 @@ fn part_scene_hash(
         }
         None => vec![DEMO_SCENE, DEMO_CLOUD],
     };
-    let env: Option<Vec<u8>> = args
-        .env_color
-        .map(|c| c.to_array().iter().flat_map(|v| v.to_le_bytes()).collect());
-    let frame_bytes = frame.map(i64::to_le_bytes);
-    let fps_bytes = args
-        .fps
-        .filter(|_| frame.is_some() || args.shutter.is_some())
-        .map(f64::to_le_bytes);
-    let shutter_bytes: Option<Vec<u8>> = args.shutter.map(|s| {
-        [s.open, s.close]
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect()
-    });
-    let subdivision_bytes = args.subdivision_level.map(u32::to_le_bytes);
-    // Only for a camera with a lens, so that the hashes of pinhole renders stay what they were.
-    let lens_bytes: Option<Vec<u8>> = camera.lens.map(|l| {
-        [l.aperture_radius, l.focus_distance]
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect()
-    });
-    let overrides: Vec<(&str, &[u8])> = env
-        .iter()
-        .map(|e| ("env-color", e.as_slice()))
-        .chain(frame_bytes.iter().map(|f| ("frame", f.as_slice())))
-        .chain(fps_bytes.iter().map(|f| ("fps", f.as_slice())))
-        .chain(shutter_bytes.iter().map(|s| ("shutter", s.as_slice())))
-        .chain(args.camera.iter().map(|c| ("camera", c.as_bytes())))
-        .chain(lens_bytes.iter().map(|l| ("lens", l.as_slice())))
-        .chain(args.variant.iter().map(|v| ("variant", v.as_bytes())))
-        .chain(
-            subdivision_bytes
-                .iter()
-                .map(|l| ("subdivision-level", l.as_slice())),
-        )
-        .collect();
-    Ok(nimbus::farm::scene_hash(&files, settings, &overrides))
+    let overrides = nimbus::farm::SceneOverrides {
+        env_color: args.env_color,
+        frame,
+        fps: args.fps,
+        shutter: args.shutter,
+        camera: args.camera.as_deref(),
+        lens: camera.lens,
+        variant: args.variant.as_deref(),
+        subdivision_level: args.subdivision_level,
+    };
+    Ok(overrides.scene_hash(&files, settings))
 }
 
 fn merge(args: MergeArgs) -> Result<(), String> {

@@ -129,6 +129,70 @@ pub fn scene_hash(
     h.finish()
 }
 
+/// What a render was loaded and lit with beyond its scene file's bytes: the overrides of item 4 of the module
+/// docs, by name. `nimbus render` and the Python module both hash through [`SceneOverrides::scene_hash`], so a
+/// part rendered by either merges with the other's.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SceneOverrides<'a> {
+    /// `--env-color`: a constant environment replacing the scene's.
+    pub env_color: Option<crate::math::Rgb>,
+    /// The shot's frame.
+    pub frame: Option<i64>,
+    /// Frames per second (hashed only with a frame or a shutter, where it changes what is loaded).
+    pub fps: Option<f64>,
+    /// The motion-blur shutter.
+    pub shutter: Option<crate::frames::Shutter>,
+    /// `--camera`: the scene camera chosen by name.
+    pub camera: Option<&'a str>,
+    /// The render camera's thin lens, if it has one (hashed only then, so that the hashes of pinhole renders
+    /// stay what they were).
+    pub lens: Option<crate::scene::ThinLens>,
+    /// The glTF material variant.
+    pub variant: Option<&'a str>,
+    /// `--subdivision-level`.
+    pub subdivision_level: Option<u32>,
+}
+
+impl SceneOverrides<'_> {
+    /// The scene hash ([`scene_hash`]) of `scene_files` rendered with `settings` under these overrides.
+    pub fn scene_hash(&self, scene_files: &[&[u8]], settings: &RenderSettings) -> u64 {
+        let floats =
+            |values: &[f32]| -> Vec<u8> { values.iter().flat_map(|v| v.to_le_bytes()).collect() };
+        let env = self.env_color.map(|c| floats(&c.to_array()));
+        let frame = self.frame.map(i64::to_le_bytes);
+        let fps = self
+            .fps
+            .filter(|_| self.frame.is_some() || self.shutter.is_some())
+            .map(f64::to_le_bytes);
+        let shutter = self.shutter.map(|s| {
+            [s.open, s.close]
+                .iter()
+                .flat_map(|v| v.to_le_bytes())
+                .collect::<Vec<u8>>()
+        });
+        let subdivision = self.subdivision_level.map(u32::to_le_bytes);
+        let lens = self
+            .lens
+            .map(|l| floats(&[l.aperture_radius, l.focus_distance]));
+        let overrides: Vec<(&str, &[u8])> = env
+            .iter()
+            .map(|e| ("env-color", e.as_slice()))
+            .chain(frame.iter().map(|f| ("frame", f.as_slice())))
+            .chain(fps.iter().map(|f| ("fps", f.as_slice())))
+            .chain(shutter.iter().map(|s| ("shutter", s.as_slice())))
+            .chain(self.camera.iter().map(|c| ("camera", c.as_bytes())))
+            .chain(lens.iter().map(|l| ("lens", l.as_slice())))
+            .chain(self.variant.iter().map(|v| ("variant", v.as_bytes())))
+            .chain(
+                subdivision
+                    .iter()
+                    .map(|l| ("subdivision-level", l.as_slice())),
+            )
+            .collect();
+        scene_hash(scene_files, settings, &overrides)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

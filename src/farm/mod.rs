@@ -24,7 +24,7 @@ pub mod merge;
 pub mod part;
 
 pub use chunk::{chunk_output_path, sample_chunk, task_index, TaskIndex, TASK_INDEX_VARIABLES};
-pub use hash::{scene_hash, SceneHasher};
+pub use hash::{scene_hash, SceneHasher, SceneOverrides};
 pub use merge::{check_parts, merge_parts, Merged};
 pub use part::{read_part, read_part_info, write_part, PartInfo};
 

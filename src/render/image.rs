@@ -61,6 +61,44 @@ pub struct ImageMetadata {
     pub nimbus: BTreeMap<String, String>,
 }
 
+impl ImageMetadata {
+    /// The header attributes of a render of `scene` with `settings`, as `nimbus render` and the Python module
+    /// write them: the camera's `worldToCamera` and `worldToNDC`, and the `nimbus/` keys `spp` (of the whole
+    /// render), `seed`, `scene` (`scene_label`: the file, or what the scene came from), `scene_hash`,
+    /// `transparent`, `frame` (when given) and `render_seconds` (left out when `SOURCE_DATE_EPOCH` asks for
+    /// reproducible files).
+    pub fn for_render(
+        scene: &crate::scene::Scene,
+        settings: &super::RenderSettings,
+        scene_label: &str,
+        frame: Option<i64>,
+        scene_hash: u64,
+        stats: &super::RenderStats,
+    ) -> Self {
+        let aspect = settings.width as f32 / settings.height.max(1) as f32;
+        let mut nimbus = BTreeMap::new();
+        nimbus.insert("spp".to_owned(), settings.spp.to_string());
+        nimbus.insert("seed".to_owned(), settings.seed.to_string());
+        nimbus.insert("scene".to_owned(), scene_label.to_owned());
+        nimbus.insert("scene_hash".to_owned(), format!("{scene_hash:016x}"));
+        nimbus.insert("transparent".to_owned(), stats.transparent.to_string());
+        if let Some(f) = frame {
+            nimbus.insert("frame".to_owned(), f.to_string());
+        }
+        if std::env::var_os("SOURCE_DATE_EPOCH").is_none() {
+            nimbus.insert(
+                "render_seconds".to_owned(),
+                format!("{:.3}", stats.render_seconds),
+            );
+        }
+        Self {
+            world_to_camera: Some(scene.camera().exr_world_to_camera()),
+            world_to_ndc: Some(scene.camera().exr_world_to_ndc(aspect)),
+            nimbus,
+        }
+    }
+}
+
 /// A rendered image with its AOVs, one value per pixel in every buffer.
 ///
 /// All buffers are row-major with `width * height` entries; row 0 is the top of the image and column 0

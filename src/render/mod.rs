@@ -29,5 +29,5 @@ pub use image::{AovLayer, ImageMetadata, RenderImage};
 pub use recording::LayerRecorder;
 pub use renderer::{
     peak_memory_bytes, MediumStats, Progress, RegionError, RenderError, RenderRegion,
-    RenderSettings, RenderStats, Renderer, Sampler,
+    RenderSettings, RenderStats, Renderer, Sampler, DEFAULT_MAX_DEPTH, DEFAULT_WIDTH,
 };

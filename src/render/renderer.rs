@@ -95,15 +95,47 @@ pub struct RenderSettings {
     pub deep_samples: Option<usize>,
 }
 
+/// The image width of a render when none is given (`nimbus render` and the Python module).
+pub const DEFAULT_WIDTH: usize = 640;
+
+/// The most scattering events per path when neither the caller nor the scene sets them.
+pub const DEFAULT_MAX_DEPTH: u32 = 64;
+
+impl RenderSettings {
+    /// The image size of a render of `scene`, as `nimbus render` and the Python module choose it: `width`, else
+    /// [`DEFAULT_WIDTH`]; `height`, else the width over the camera's aspect ratio (4:3 for a camera without
+    /// one), rounded, at least 1.
+    pub fn frame_size(
+        scene: &Scene,
+        width: Option<usize>,
+        height: Option<usize>,
+    ) -> (usize, usize) {
+        let width = width.unwrap_or(DEFAULT_WIDTH);
+        let aspect = scene.camera().aspect_ratio.unwrap_or(4.0 / 3.0);
+        let height = height
+            .unwrap_or(((width as f32 / aspect).round() as usize).max(1))
+            .max(1);
+        (width, height)
+    }
+
+    /// The maximum scattering events of a render of `scene`: `max_depth`, else the scene's own
+    /// ([`Scene::max_bounces`]), else [`DEFAULT_MAX_DEPTH`].
+    pub fn max_depth_for(scene: &Scene, max_depth: Option<u32>) -> u32 {
+        max_depth
+            .or(scene.max_bounces())
+            .unwrap_or(DEFAULT_MAX_DEPTH)
+    }
+}
+
 impl Default for RenderSettings {
     fn default() -> Self {
         Self {
-            width: 640,
+            width: DEFAULT_WIDTH,
             height: 480,
             spp: 64,
             seed: 0,
             threads: 0,
-            max_depth: 64,
+            max_depth: DEFAULT_MAX_DEPTH,
             time_limit: None,
             media_mis: true,
             equiangular: true,

@@ -86,7 +86,9 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::light::EnvironmentLight;
     use crate::material::Material;
+    use crate::scene::DEFAULT_ENVIRONMENT_RADIANCE;
 
     #[test]
     fn textured_emission_alone_does_not_light_a_scene() {
@@ -121,6 +123,26 @@ mod tests {
             (1, 1)
         );
         assert_eq!(lighting.describe(), "1 mesh with untextured emission");
+    }
+
+    #[test]
+    fn light_by_default_adds_the_white_environment_only_to_an_unlit_scene() {
+        let mut unlit = SceneBuilder::new();
+        assert!(unlit.light_by_default());
+        let env = unlit.build().unwrap();
+        match env.environment_light() {
+            Some(EnvironmentLight::Constant(c)) => {
+                assert_eq!(*c, Rgb::splat(DEFAULT_ENVIRONMENT_RADIANCE))
+            }
+            other => panic!("expected the constant default environment, got {other:?}"),
+        }
+        let mut lit = SceneBuilder::new();
+        lit.add_point_light(Vec3::Y, Rgb::ONE);
+        assert!(
+            !lit.light_by_default(),
+            "a scene that lights itself is left alone"
+        );
+        assert!(lit.build().unwrap().environment_light().is_none());
     }
 
     #[test]

@@ -27,7 +27,7 @@ use crate::geometry::TriangleHit;
 use crate::geometry::{Bvh, Mesh, MotionBvh, SurfacePoint, TriangleHierarchy};
 use crate::light::{AreaLight, EnvironmentLight, Light, LightBvh, LightSampler};
 use crate::material::{AlphaMode, Material, ShadingPoint, TexCoord, Texture};
-use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3, Vec4};
+use crate::math::{hash_to_unit, Aabb, Frame, Ray, Rgb, Vec2, Vec3, Vec4};
 use crate::volume::Medium;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
@@ -478,6 +478,19 @@ impl SceneBuilder {
     /// which this is false with a neutral environment.
     pub fn has_own_lighting(&self) -> bool {
         self.own_lighting().lights_the_scene()
+    }
+
+    /// Lights a scene without lighting of its own ([`Self::has_own_lighting`] false) as the CLI and the Python
+    /// module do: with a uniform environment of radiance [`DEFAULT_ENVIRONMENT_RADIANCE`]. Returns whether it
+    /// was added (a scene that lights itself is left as it is).
+    pub fn light_by_default(&mut self) -> bool {
+        if self.has_own_lighting() {
+            return false;
+        }
+        self.set_environment(EnvironmentLight::Constant(Rgb::splat(
+            DEFAULT_ENVIRONMENT_RADIANCE,
+        )));
+        true
     }
 
     /// The scene's own light sources by kind, as [`Self::has_own_lighting`] counts them.
