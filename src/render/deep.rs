@@ -211,20 +211,22 @@ impl DeepPixel {
         b
     }
 
-    /// Adds one camera path: its record (the event that decided its coverage, the span of media its camera ray
-    /// crossed and its contributions), its finite `radiance` and `alpha` as the film took them, and `cos`, the
-    /// cosine between its camera ray and the view axis (distances times `cos` are depths); keeps at most
-    /// `max_bins` surface and medium bins ([`max_bins`]).
-    pub fn add(
-        &mut self,
-        record: &SampleRecord,
-        radiance: Rgb,
-        alpha: f32,
-        cos: f32,
-        max_bins: usize,
-    ) {
-        self.add_path(record, radiance, alpha, cos);
-        self.coarsen(max_bins);
+    internal! {
+        /// Adds one camera path: its record (the event that decided its coverage, the span of media its camera ray
+        /// crossed and its contributions), its finite `radiance` and `alpha` as the film took them, and `cos`, the
+        /// cosine between its camera ray and the view axis (distances times `cos` are depths); keeps at most
+        /// `max_bins` surface and medium bins ([`max_bins`]).
+        pub fn add(
+            &mut self,
+            record: &SampleRecord,
+            radiance: Rgb,
+            alpha: f32,
+            cos: f32,
+            max_bins: usize,
+        ) {
+            self.add_path(record, radiance, alpha, cos);
+            self.coarsen(max_bins);
+        }
     }
 
     /// [`Self::add`] before the bins are kept within their number.

@@ -204,8 +204,13 @@ pub struct MediumStats {
     pub method: String,
     /// The same, as data: its `--stats` keys (`free_flight`, `channel_choice`, `closed_form_segments`,
     /// `majorant`, `shadow_estimator`, `method_reason`, `majorant_pilot`) sit flat beside `method`.
+    #[cfg(feature = "testing")]
     #[serde(flatten)]
     pub method_details: MediumMethod,
+    /// The same, as data (internal without the `testing` feature: `method` says it in words).
+    #[cfg(not(feature = "testing"))]
+    #[serde(flatten)]
+    pub(crate) method_details: MediumMethod,
     /// Bytes held by the medium (grids, majorants).
     pub memory_bytes: usize,
     /// Tracking counters (`density_lookups`, `real_collisions`, `null_collisions`, `majorant_segments`,

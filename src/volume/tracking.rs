@@ -348,6 +348,7 @@ impl Estimator for Delta {
 /// real collision, so optically thick media stay cheap. On a segment of constant density
 /// ([`Segment::is_uniform`]) the first tentative collision is real with probability 1, so it is taken without
 /// a lookup: closed-form free-flight sampling.
+#[cfg(any(test, feature = "testing"))]
 pub fn sample_collision<F: DensityField + ?Sized>(
     field: &F,
     majorants: &Majorants,
@@ -663,6 +664,7 @@ pub fn spectral_tracking<F: DensityField + ?Sized>(
 
 /// Deterministic reference optical depth ∫σ_t(o + t d)|d| dt over `[t0, t1]` of the world `ray`, by the
 /// composite midpoint rule with `steps` intervals (f64 accumulation). For tests and references.
+#[cfg(any(test, feature = "testing"))]
 pub fn optical_depth_quadrature<F: DensityField + ?Sized>(
     field: &F,
     ray: &Ray,
