@@ -19,6 +19,9 @@
 //! A render can also be cut into parts, by sample range and crop window, rendered on a farm and merged bit for
 //! bit: see [`farm`] and [`Renderer::render_region`].
 //!
+//! The public API is what these steps need (`docs/api.md` lists it, and `tests/public_api.txt` holds every public
+//! item); the rest of the crate is internal.
+//!
 //! Nimbus keeps no global state: scenes, renderers and images are plain values, and every render builds its own
 //! worker pool. Every fallible call returns a typed error; [`Error`] wraps them all for hosts that want one
 //! `Result` type.
