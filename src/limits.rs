@@ -5,7 +5,7 @@
 //! The budget is a value ([`Limits`]) handed to loaders ([`crate::scene::LoadOptions::limits`]) and renders
 //! ([`crate::RenderSettings::limits`]); the command line sets it with `--memory-limit`. Its default is half of
 //! the machine's physical memory. The same budget bounds the work a file can cause at load time (posing skins,
-//! morph targets): one step per byte ([`WorkBudget`]). What a USD stage may compose has limits of its own
+//! morph targets): one step per byte (`WorkBudget`). What a USD stage may compose has limits of its own
 //! ([`Limits::usd_prims`], [`Limits::usd_layer_stack`]: `--max-prims`, `--max-sublayers`).
 
 use std::cell::Cell;
@@ -48,8 +48,8 @@ pub struct Limits {
 }
 
 impl Default for Limits {
-    /// Half of the physical memory (8 GiB where it cannot be read), [`DEFAULT_USD_PRIMS`] and
-    /// [`DEFAULT_USD_LAYER_STACK`].
+    /// Half of the physical memory (8 GiB where it cannot be read), `DEFAULT_USD_PRIMS` and
+    /// `DEFAULT_USD_LAYER_STACK`.
     fn default() -> Self {
         Self::with_memory(physical_memory_bytes().map_or(FALLBACK_MEMORY_BYTES, |m| m / 2))
     }
@@ -249,7 +249,7 @@ pub fn max_threads() -> usize {
 }
 
 /// Reads a whole file, refusing one larger than the memory budget before reading it, and stopping a device or
-/// pipe (whose size is unknown) after [`MAX_STREAM_BYTES`] or the budget, whichever is smaller.
+/// pipe (whose size is unknown) after `MAX_STREAM_BYTES` or the budget, whichever is smaller.
 pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
     use std::io::{Error, ErrorKind};
     refuse_pipes_and_sockets(path)?;

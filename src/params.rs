@@ -3,8 +3,8 @@
 //! for them, and the JSON readers that glTF's `extras` and the volume declarations share.
 //!
 //! A declaration (a VDB volume, a mesh's interior medium) lists its keys in a `&[ParamKey]` table: the table
-//! is what the loaders read through (glTF from a JSON object with [`JsonParams`], USD from a prim's `nimbus:`
-//! attributes) and what the key tables of docs/reference.md show ([`markdown_table`]; a test keeps them in agreement).
+//! is what the loaders read through (glTF from a JSON object with `JsonParams`, USD from a prim's `nimbus:`
+//! attributes) and what the key tables of docs/reference.md show (`markdown_table`; a test keeps them in agreement).
 
 use crate::math::Rgb;
 use std::fmt;
@@ -130,7 +130,7 @@ pub enum ParamError {
     WrongType {
         /// The key.
         key: String,
-        /// What it must be ([`ParamType::describe`]).
+        /// What it must be (`ParamType::describe`).
         expected: String,
     },
     /// A name that is not one of the key's choices.

@@ -1,5 +1,5 @@
 //! Lights: emissive triangles (area lights), glTF punctual lights, the environment, and the light-selection
-//! distributions: by power, or by importance at the shading point through a light BVH. Every light samples incident illumination at a point ([`Light::sample_li`]) and
+//! distributions: by power, or by importance at the shading point through a light BVH. Every light samples incident illumination at a point (`Light::sample_li`) and
 //! gives the solid-angle density of that sampling for multiple importance sampling.
 
 mod area;

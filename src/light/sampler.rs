@@ -23,13 +23,13 @@ pub const BVH_MIN_EMITTERS: usize = 3;
 /// Which light-selection distribution next-event estimation uses (`--light-sampler`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LightSamplerChoice {
-    /// The BVH where a scene has at least [`BVH_MIN_BOUNDED_LIGHTS`] bounded lights or at least
-    /// [`BVH_MIN_EMITTERS`] separate emitters, the power sampler otherwise.
+    /// The BVH where a scene has at least `BVH_MIN_BOUNDED_LIGHTS` bounded lights or at least
+    /// `BVH_MIN_EMITTERS` separate emitters, the power sampler otherwise.
     #[default]
     Auto,
-    /// Every light by its power alone ([`LightSampler`]).
+    /// Every light by its power alone (`LightSampler`).
     Power,
-    /// The light BVH ([`LightBvh`](super::LightBvh)): bounded lights by their importance at the shading point.
+    /// The light BVH (`LightBvh`): bounded lights by their importance at the shading point.
     Bvh,
 }
 

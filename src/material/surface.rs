@@ -82,7 +82,7 @@ pub struct Material {
     /// KHR_materials_transmission factor: the fraction of the dielectric base that refracts.
     pub transmission: f32,
     /// When false, the back face of an opaque surface reflects nothing, and camera rays do not see it
-    /// ([`Self::culls_back_faces`]).
+    /// (`Self::culls_back_faces`).
     pub double_sided: bool,
     /// The medium filling the interior of a closed mesh with this material (index into `Scene::media`).
     pub interior: Option<u32>,
@@ -107,7 +107,7 @@ pub struct Material {
     /// `KHR_materials_iridescence`, when present.
     pub iridescence: Option<Iridescence>,
     /// `KHR_materials_dispersion.dispersion`, `20/V` for the Abbe number V (0: no dispersion). Only a
-    /// transmissive material disperses ([`Self::is_dispersive`]); the glTF loader reads it beside
+    /// transmissive material disperses (`Self::is_dispersive`); the glTF loader reads it beside
     /// `KHR_materials_volume` only, as the extension requires.
     pub dispersion: f32,
     /// Light group, holdout and shadow-catcher tags of every surface with this material (`extras`
@@ -145,7 +145,7 @@ pub struct SheenLayer {
 }
 
 /// The anisotropy of a material's specular reflection (`KHR_materials_anisotropy`): the strength and the
-/// direction, in the tangent frame, along which the GGX width grows (see [`super::GltfPbr`]).
+/// direction, in the tangent frame, along which the GGX width grows (see `super::GltfPbr`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Anisotropy {
     /// `anisotropyStrength`, in \[0, 1\] (default 0: isotropic).
@@ -158,7 +158,7 @@ pub struct Anisotropy {
 }
 
 /// The diffuse transmission of a material (`KHR_materials_diffuse_transmission`): the share of the diffuse base
-/// that a Lambertian lobe transmits to the other side, and its colour (see [`super::GltfPbr`]).
+/// that a Lambertian lobe transmits to the other side, and its colour (see `super::GltfPbr`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DiffuseTransmission {
     /// `diffuseTransmissionFactor`, in \[0, 1\] (default 0: none).
@@ -183,7 +183,7 @@ impl Default for DiffuseTransmission {
     }
 }
 
-/// The thin film over a material's specular layer (`KHR_materials_iridescence`; see [`super::ThinFilm`]).
+/// The thin film over a material's specular layer (`KHR_materials_iridescence`; see `super::ThinFilm`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Iridescence {
     /// `iridescenceFactor`, in \[0, 1\] (default 0: no film).

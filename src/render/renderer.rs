@@ -76,7 +76,7 @@ pub struct RenderSettings {
     /// How next-event estimation chooses a light: by power, through the light BVH, or per scene (auto).
     pub light_sampler: LightSamplerChoice,
     /// Whether pixels that an emitter's outline crosses estimate the directly visible emission from more
-    /// camera rays ([`super::EmitterEdges`]).
+    /// camera rays (`super::EmitterEdges`).
     pub emitter_edges: EmitterEdgeSampling,
     /// The memory budget: a film larger than it is refused before it is allocated.
     pub limits: crate::limits::Limits,
@@ -149,7 +149,7 @@ pub struct RenderStats {
     /// Samples dropped because their radiance was NaN or infinite (never written to the film).
     pub nan_samples: u64,
     /// Samples with a value (radiance or AOV) beyond ±2^38 ≈ ±2.7e11, or a NaN or infinite AOV, clamped into
-    /// the range of the film's exact sums (see [`MAX_SAMPLE_VALUE`](super::MAX_SAMPLE_VALUE)).
+    /// the range of the film's exact sums (see `MAX_SAMPLE_VALUE`).
     pub clamped_samples: u64,
     /// Peak resident memory of the process, when the platform reports it.
     pub peak_memory_bytes: Option<u64>,

@@ -134,7 +134,7 @@ pub enum LensError {
 impl ThinLens {
     /// The lens from an aperture radius and a focus distance (scene units): `None` for a radius of 0 (a
     /// pinhole); an error for a value that is negative, not finite, a focus distance that is not > 0, or one
-    /// below the radius over [`MAX_APERTURE_OVER_FOCUS`].
+    /// below the radius over `MAX_APERTURE_OVER_FOCUS`.
     /// `names` are the keys as the scene file spells them (radius, focus distance), for the messages.
     pub fn new(
         aperture_radius: f32,

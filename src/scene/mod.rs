@@ -756,7 +756,7 @@ impl SceneBuilder {
     /// Builds the renderable scene: flattens the meshes into one BVH, turns emissive triangles into area
     /// lights and builds the light-selection distribution. Fails on a dangling reference (see
     /// [`SceneBuilder`]), and before allocating when the meshes do not fit the memory budget at
-    /// [`BYTES_PER_TRIANGLE`] and [`BYTES_PER_VERTEX`].
+    /// `BYTES_PER_TRIANGLE` and `BYTES_PER_VERTEX`.
     pub fn build(mut self) -> Result<Scene, SceneError> {
         self.validate()?;
         let (triangles, vertices) = self

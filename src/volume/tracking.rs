@@ -66,10 +66,10 @@ pub struct TrackingCounters {
     /// Lookups where σ_t exceeded the segment's majorant, and voxel cells of a refined segment whose voxels
     /// exceeded it.
     pub majorant_violations: u64,
-    /// Voxel cells walked where a segment was refined to voxel bounds ([`REFINE_TAU`]): each reads the eight
+    /// Voxel cells walked where a segment was refined to voxel bounds (`REFINE_TAU`): each reads the eight
     /// voxels of its cell, about the work of one density lookup.
     pub voxel_cells: u64,
-    /// Free flights sampled by spectral tracking ([`spectral_tracking`]: all three channels of an RGB
+    /// Free flights sampled by spectral tracking (`spectral_tracking`: all three channels of an RGB
     /// extinction at once).
     pub spectral_flights: u64,
 }
