@@ -316,7 +316,7 @@ pub fn with_frame(text: &str, frame: i64) -> Option<String> {
 
 /// The frame number a file name matching `pattern` holds (`smoke.0012.vdb` for `smoke.####.vdb` gives 12), or
 /// `None` when it does not match. Any number of digits matches, so unpadded and over-wide frames are found.
-pub fn frame_of(pattern: &str, name: &str) -> Option<i64> {
+pub(crate) fn frame_of(pattern: &str, name: &str) -> Option<i64> {
     let t = find_token(pattern)?;
     let (prefix, suffix) = (&pattern[..t.start], &pattern[t.end..]);
     let middle = name.strip_prefix(prefix)?.strip_suffix(suffix)?;

@@ -19,6 +19,9 @@
 //! A render can also be cut into parts, by sample range and crop window, rendered on a farm and merged bit for
 //! bit: see [`farm`] and [`Renderer::render_region`].
 //!
+//! The public API is what these steps need (`docs/api.md` lists it, and `tests/public_api.txt` holds every public
+//! item); the rest of the crate is internal.
+//!
 //! Nimbus keeps no global state: scenes, renderers and images are plain values, and every render builds its own
 //! worker pool. Every fallible call returns a typed error; [`Error`] wraps them all for hosts that want one
 //! `Result` type.
@@ -88,6 +91,49 @@
 //! assert!(err.to_string().contains("missing.glb"));
 //! ```
 
+// With the `testing` feature internal items are `pub`, and some of them use crate-private types: the check that
+// every type in a signature can be named is for the API without the feature (CI's `--no-default-features` clippy).
+#![cfg_attr(feature = "testing", allow(unnameable_types, private_interfaces))]
+
+/// Declares internal items: `pub` with the `testing` feature, so that the crate's integration tests and benches
+/// reach them (see `nimbus::testing` when it is on), and `pub(crate)` without it, so that they are not part of the
+/// API an embedder sees. It takes any number of `pub mod NAME;` and `pub use TREE;` items, or one other item.
+macro_rules! internal {
+    () => {};
+    ($(#[$attr:meta])* pub mod $name:ident; $($rest:tt)*) => {
+        #[cfg(feature = "testing")]
+        $(#[$attr])*
+        pub mod $name;
+        #[cfg(not(feature = "testing"))]
+        $(#[$attr])*
+        pub(crate) mod $name;
+        internal! { $($rest)* }
+    };
+    ($(#[$attr:meta])* pub use $($rest:tt)*) => {
+        internal! { @use [$(#[$attr])*] [] $($rest)* }
+    };
+    (@use [$($attr:tt)*] [$($tree:tt)*] ; $($rest:tt)*) => {
+        #[cfg(feature = "testing")]
+        $($attr)*
+        pub use $($tree)*;
+        #[cfg(not(feature = "testing"))]
+        $($attr)*
+        pub(crate) use $($tree)*;
+        internal! { $($rest)* }
+    };
+    (@use [$($attr:tt)*] [$($tree:tt)*] $next:tt $($rest:tt)*) => {
+        internal! { @use [$($attr)*] [$($tree)* $next] $($rest)* }
+    };
+    ($(#[$attr:meta])* pub $($item:tt)*) => {
+        #[cfg(feature = "testing")]
+        $(#[$attr])*
+        pub $($item)*
+        #[cfg(not(feature = "testing"))]
+        $(#[$attr])*
+        pub(crate) $($item)*
+    };
+}
+
 mod error;
 
 pub mod converge;
@@ -95,7 +141,7 @@ pub mod converge;
 pub mod denoise;
 pub mod farm;
 pub mod frames;
-pub mod geometry;
+internal! { pub mod geometry; }
 mod integrator;
 pub mod light;
 pub mod limits;
@@ -105,8 +151,10 @@ pub mod output;
 pub mod params;
 pub mod render;
 pub mod scene;
+#[cfg(feature = "testing")]
+pub mod testing;
 pub mod vdb;
-pub mod volume;
+internal! { pub mod volume; }
 
 pub use error::{Error, Result};
 pub use material::Material;
@@ -115,7 +163,7 @@ pub use render::{
     channel_names, CancelToken, Progress, RenderImage, RenderRegion, RenderSettings, RenderStats,
     Renderer,
 };
-pub use scene::{Camera, Scene, SceneBuilder, SceneError};
+pub use scene::{Camera, LoadOptions, Scene, SceneBuilder, SceneError, VolumeError};
 pub use vdb::VdbError;
 
 /// The Rust examples of `docs/embedding.md`, compiled as doctests so that the guide cannot drift from the API.

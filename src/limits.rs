@@ -5,7 +5,7 @@
 //! The budget is a value ([`Limits`]) handed to loaders ([`crate::scene::LoadOptions::limits`]) and renders
 //! ([`crate::RenderSettings::limits`]); the command line sets it with `--memory-limit`. Its default is half of
 //! the machine's physical memory. The same budget bounds the work a file can cause at load time (posing skins,
-//! morph targets): one step per byte ([`WorkBudget`]). What a USD stage may compose has limits of its own
+//! morph targets): one step per byte (`WorkBudget`). What a USD stage may compose has limits of its own
 //! ([`Limits::usd_prims`], [`Limits::usd_layer_stack`]: `--max-prims`, `--max-sublayers`).
 
 use std::cell::Cell;
@@ -19,19 +19,19 @@ const FALLBACK_MEMORY_BYTES: u64 = 8 << 30;
 
 /// Largest read from a file whose size is not known in advance (a device, a pipe). `/dev/zero` given as a
 /// scene, buffer or VDB file ends in a clear error after this many bytes (256 MiB).
-pub const MAX_STREAM_BYTES: u64 = 256 << 20;
+pub(crate) const MAX_STREAM_BYTES: u64 = 256 << 20;
 
 /// Worker threads allowed per core: a larger `--threads` (or [`crate::RenderSettings::threads`]) is capped.
 pub const THREADS_PER_CORE: usize = 8;
 
 /// Prims a USD stage may compose by default ([`Limits::usd_prims`], `--max-prims`): about 40 s and 3.5 GB of
 /// reading on the 2-core development machine (100,000 prims took 4.2 s and 340 MB).
-pub const DEFAULT_USD_PRIMS: u64 = 1_000_000;
+pub(crate) const DEFAULT_USD_PRIMS: u64 = 1_000_000;
 
 /// Entries one USD layer stack may expand to by default ([`Limits::usd_layer_stack`], `--max-sublayers`): far
 /// more than the sublayers of real shots, while every prim `openusd` composes reads through each entry (a stack
 /// of 8,191 entries over 112 prims took 1.6 s to load here, one of 32,767 entries 13 s).
-pub const DEFAULT_USD_LAYER_STACK: u64 = 1000;
+pub(crate) const DEFAULT_USD_LAYER_STACK: u64 = 1000;
 
 /// What one load or render may allocate, and how much a USD stage may compose.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -48,8 +48,8 @@ pub struct Limits {
 }
 
 impl Default for Limits {
-    /// Half of the physical memory (8 GiB where it cannot be read), [`DEFAULT_USD_PRIMS`] and
-    /// [`DEFAULT_USD_LAYER_STACK`].
+    /// Half of the physical memory (8 GiB where it cannot be read), `DEFAULT_USD_PRIMS` and
+    /// `DEFAULT_USD_LAYER_STACK`.
     fn default() -> Self {
         Self::with_memory(physical_memory_bytes().map_or(FALLBACK_MEMORY_BYTES, |m| m / 2))
     }
@@ -99,7 +99,7 @@ impl Limits {
 /// grows with products of counts in a file (joints × poses, morph targets × vertices × instances) rather than
 /// with the memory it fills.
 #[derive(Debug)]
-pub struct WorkBudget {
+pub(crate) struct WorkBudget {
     /// Steps counted so far.
     used: Cell<u64>,
     /// The most steps allowed.
@@ -132,7 +132,7 @@ impl WorkBudget {
 
 /// Load-time work refused because it would pass the work budget.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct OverWork {
+pub(crate) struct OverWork {
     /// The work that would have been done.
     pub what: String,
     /// The load's steps with it.
@@ -183,7 +183,7 @@ impl fmt::Display for OverBudget {
 impl std::error::Error for OverBudget {}
 
 /// `bytes` in the largest binary unit that keeps a number ≥ 1 ("512 B", "1.5 GiB").
-pub fn format_bytes(bytes: u64) -> String {
+pub(crate) fn format_bytes(bytes: u64) -> String {
     const UNITS: [&str; 5] = ["KiB", "MiB", "GiB", "TiB", "PiB"];
     if bytes < 1024 {
         return format!("{bytes} B");
@@ -236,7 +236,7 @@ pub fn parse_size(text: &str) -> Result<u64, SizeError> {
 }
 
 /// The machine's physical memory, from `/proc/meminfo` (Linux).
-pub fn physical_memory_bytes() -> Option<u64> {
+pub(crate) fn physical_memory_bytes() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -250,7 +250,7 @@ pub fn max_threads() -> usize {
 
 /// A file opened by [`open_file`]: a regular file, to be read as the caller needs, or the whole contents of a
 /// device, read already (its size is unknown until read).
-pub enum OpenedFile {
+pub(crate) enum OpenedFile {
     /// A regular file of this many bytes, within the memory budget.
     Regular(std::fs::File, u64),
     /// Everything a device gave, at most [`MAX_STREAM_BYTES`] or the budget.
@@ -260,7 +260,7 @@ pub enum OpenedFile {
 /// Opens a file for reading, refusing a folder, a pipe or socket, and a regular file larger than the memory
 /// budget before reading any of it; a device (whose size is unknown) is read at once, stopping after
 /// [`MAX_STREAM_BYTES`] or the budget, whichever is smaller.
-pub fn open_file(path: &Path, limits: &Limits) -> std::io::Result<OpenedFile> {
+pub(crate) fn open_file(path: &Path, limits: &Limits) -> std::io::Result<OpenedFile> {
     use std::io::{Error, ErrorKind};
     refuse_pipes_and_sockets(path)?;
     let file = std::fs::File::open(path)?;
@@ -299,8 +299,8 @@ pub fn open_file(path: &Path, limits: &Limits) -> std::io::Result<OpenedFile> {
     Ok(OpenedFile::Read(bytes))
 }
 
-/// Reads a whole file, with [`open_file`]'s checks: one larger than the memory budget is refused before it is
-/// read, and a device or pipe stops after [`MAX_STREAM_BYTES`] or the budget.
+/// Reads a whole file, refusing one larger than the memory budget before reading it, and stopping a device or
+/// pipe (whose size is unknown) after `MAX_STREAM_BYTES` or the budget, whichever is smaller.
 pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
     match open_file(path, limits)? {
         OpenedFile::Regular(file, len) => {
@@ -314,7 +314,7 @@ pub fn read_file(path: &Path, limits: &Limits) -> std::io::Result<Vec<u8>> {
 
 /// Refuses a named pipe (FIFO) or a socket before it is opened: opening a pipe with no writer blocks forever,
 /// and a scene, texture or grid never arrives through one. Devices (`/dev/zero`) are left to the caller's cap.
-pub fn refuse_pipes_and_sockets(path: &Path) -> std::io::Result<()> {
+pub(crate) fn refuse_pipes_and_sockets(path: &Path) -> std::io::Result<()> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::FileTypeExt;
@@ -345,7 +345,7 @@ pub fn refuse_pipes_and_sockets(path: &Path) -> std::io::Result<()> {
 /// Decodes a PNG, JPEG or other image the `image` crate reads, from bytes, refusing before decoding one whose
 /// header gives more than the budget allows at `bytes_per_texel` (what the caller keeps per texel, beyond the
 /// decoder's own buffers, which the decoder's `max_alloc` bounds). Errors are one line.
-pub fn decode_image(
+pub(crate) fn decode_image(
     bytes: &[u8],
     limits: &Limits,
     bytes_per_texel: u64,
@@ -355,7 +355,7 @@ pub fn decode_image(
 
 /// [`decode_image`] of the file `name`: a format that has no signature to recognise it by (TGA, which USD assets
 /// use for scalar maps) is taken from the name's extension.
-pub fn decode_image_named(
+pub(crate) fn decode_image_named(
     bytes: &[u8],
     name: Option<&Path>,
     limits: &Limits,
@@ -402,7 +402,7 @@ thread_local! {
 /// Runs `f`, which may panic inside a dependency, and returns its panic message as `Err` instead of unwinding.
 /// While `f` runs, a panic on this thread prints nothing (no message, no backtrace); panics elsewhere print as
 /// before. The first call wraps the process's panic hook with one that checks a per-thread flag.
-pub fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+pub(crate) fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
     static WRAP_HOOK: Once = Once::new();
     WRAP_HOOK.call_once(|| {
         let previous = std::panic::take_hook();

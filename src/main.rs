@@ -547,7 +547,7 @@ fn load_builder(
     };
     let mut builder = match &args.scene {
         Some(path) => nimbus::scene::load_builder(path, &options),
-        None => nimbus::scene::gltf::load_slice(
+        None => nimbus::scene::load_gltf_slice(
             DEMO_SCENE,
             Path::new("assets/cloud.gltf"),
             &LoadOptions {
@@ -892,20 +892,20 @@ fn render_frame(
         eprintln!("nimbus: warning: {}", one_line(w, MAX_MESSAGE_CHARS));
     }
     if args.explain {
-        for m in scene.media() {
-            eprintln!("nimbus: medium '{}': {}", m.name(), m.method());
+        for line in scene.explain_media() {
+            eprintln!("nimbus: {line}");
         }
         explain_volume_sampling(&scene, args.volume_sampling);
         eprintln!(
             "nimbus: light sampler: {}",
-            args.light_sampler.explain(scene.lights())
+            args.light_sampler.explain(&scene)
         );
         if let Some(shutter) = scene.shutter() {
             eprintln!(
                 "nimbus: motion blur: shutter {} frames (box), {} moving triangles, the camera {}",
                 shutter,
                 scene.moving_triangle_count(),
-                if scene.camera().motion.is_some() {
+                if scene.camera().is_moving() {
                     "moves"
                 } else {
                     "stands still"
@@ -947,13 +947,13 @@ fn render_frame(
     if args.explain {
         eprintln!(
             "nimbus: emitter edges: {}",
-            args.emitter_edges.decide(&scene, width, height).explain()
+            args.emitter_edges.explain(&scene, width, height)
         );
     }
     eprintln!(
         "nimbus: {} triangles, {}, {width}x{height}, {} spp{}",
         scene.triangle_count(),
-        nimbus::light::describe_lights(scene.lights()),
+        scene.describe_lights(),
         if spp == u32::MAX {
             "unlimited".to_string()
         } else {

@@ -3,29 +3,31 @@
 //! for them, and the JSON readers that glTF's `extras` and the volume declarations share.
 //!
 //! A declaration (a VDB volume, a mesh's interior medium) lists its keys in a `&[ParamKey]` table: the table
-//! is what the loaders read through (glTF from a JSON object with [`JsonParams`], USD from a prim's `nimbus:`
-//! attributes) and what the key tables of docs/reference.md show ([`markdown_table`]; a test keeps them in agreement).
+//! is what the loaders read through (glTF from a JSON object with `JsonParams`, USD from a prim's `nimbus:`
+//! attributes) and what the key tables of docs/reference.md show (`markdown_table`; a test keeps them in agreement).
 
 use crate::math::Rgb;
 use std::fmt;
 
-/// The type of a parameter's value, and the check every loader applies when reading it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ParamType {
-    /// A finite number.
-    Number,
-    /// A finite number ≥ 0.
-    NonNegative,
-    /// Three finite numbers ≥ 0 (`[r, g, b]`; a USD `color3f`).
-    Rgb,
-    /// A number (grey) or three numbers (`[r, g, b]`).
-    GreyOrRgb,
-    /// A string (a file or grid name; a USD `string`, `token` or `asset`).
-    Text,
-    /// One of the listed names.
-    Choice(&'static [&'static str]),
-    /// A nested object with its own keys (glTF only).
-    Object(&'static [ParamKey]),
+internal! {
+    /// The type of a parameter's value, and the check every loader applies when reading it.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub enum ParamType {
+        /// A finite number.
+        Number,
+        /// A finite number ≥ 0.
+        NonNegative,
+        /// Three finite numbers ≥ 0 (`[r, g, b]`; a USD `color3f`).
+        Rgb,
+        /// A number (grey) or three numbers (`[r, g, b]`).
+        GreyOrRgb,
+        /// A string (a file or grid name; a USD `string`, `token` or `asset`).
+        Text,
+        /// One of the listed names.
+        Choice(&'static [&'static str]),
+        /// A nested object with its own keys (glTF only).
+        Object(&'static [ParamKey]),
+    }
 }
 
 impl ParamType {
@@ -43,19 +45,21 @@ impl ParamType {
     }
 }
 
-/// The default of a parameter, as the code applies it and the documentation shows it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ParamDefault {
-    /// The key must be given.
-    Required,
-    /// Absent means "none" (the feature it enables is off).
-    Unset,
-    /// A number.
-    Number(f64),
-    /// An RGB triple.
-    Rgb([f32; 3]),
-    /// A string or a choice.
-    Text(&'static str),
+internal! {
+    /// The default of a parameter, as the code applies it and the documentation shows it.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub enum ParamDefault {
+        /// The key must be given.
+        Required,
+        /// Absent means "none" (the feature it enables is off).
+        Unset,
+        /// A number.
+        Number(f64),
+        /// An RGB triple.
+        Rgb([f32; 3]),
+        /// A string or a choice.
+        Text(&'static str),
+    }
 }
 
 impl fmt::Display for ParamDefault {
@@ -70,39 +74,45 @@ impl fmt::Display for ParamDefault {
     }
 }
 
-/// Where a USD stage gives a parameter.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum UsdBinding {
-    /// The prim attribute `nimbus:<name>`.
-    Attribute,
-    /// Elsewhere in the stage (the text says where), or nowhere (USD has no such declaration).
-    Elsewhere(&'static str),
+internal! {
+    /// Where a USD stage gives a parameter.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum UsdBinding {
+        /// The prim attribute `nimbus:<name>`.
+        Attribute,
+        /// Elsewhere in the stage (the text says where), or nowhere (USD has no such declaration).
+        Elsewhere(&'static str),
+    }
 }
 
-/// One key of a parameter table.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ParamKey {
-    /// The key: glTF JSON key, and USD attribute `nimbus:<name>` where [`UsdBinding::Attribute`].
-    pub name: &'static str,
-    /// Its type.
-    pub ty: ParamType,
-    /// Its default.
-    pub default: ParamDefault,
-    /// What it means.
-    pub doc: &'static str,
-    /// Where USD gives it.
-    pub usd: UsdBinding,
+internal! {
+    /// One key of a parameter table.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct ParamKey {
+        /// The key: glTF JSON key, and USD attribute `nimbus:<name>` where [`UsdBinding::Attribute`].
+        pub name: &'static str,
+        /// Its type.
+        pub ty: ParamType,
+        /// Its default.
+        pub default: ParamDefault,
+        /// What it means.
+        pub doc: &'static str,
+        /// Where USD gives it.
+        pub usd: UsdBinding,
+    }
 }
 
-/// A value read for a key, already checked against the key's [`ParamType`].
-#[derive(Clone, Debug, PartialEq)]
-pub enum ParamValue {
-    /// [`ParamType::Number`] or [`ParamType::NonNegative`].
-    Number(f64),
-    /// [`ParamType::Rgb`] or [`ParamType::GreyOrRgb`] (a grey number is splatted).
-    Rgb(Rgb),
-    /// [`ParamType::Text`] or [`ParamType::Choice`] (one of the names).
-    Text(String),
+internal! {
+    /// A value read for a key, already checked against the key's [`ParamType`].
+    #[derive(Clone, Debug, PartialEq)]
+    pub enum ParamValue {
+        /// [`ParamType::Number`] or [`ParamType::NonNegative`].
+        Number(f64),
+        /// [`ParamType::Rgb`] or [`ParamType::GreyOrRgb`] (a grey number is splatted).
+        Rgb(Rgb),
+        /// [`ParamType::Text`] or [`ParamType::Choice`] (one of the names).
+        Text(String),
+    }
 }
 
 /// A parameter that is missing, of the wrong type, or out of range. `key` is the name as the scene file spells
@@ -120,7 +130,7 @@ pub enum ParamError {
     WrongType {
         /// The key.
         key: String,
-        /// What it must be ([`ParamType::describe`]).
+        /// What it must be (`ParamType::describe`).
         expected: String,
     },
     /// A name that is not one of the key's choices.
@@ -153,77 +163,83 @@ pub enum ParamError {
     },
 }
 
-/// Where a loader reads a table's values from: a glTF JSON object, a USD prim.
-pub trait ParamSource {
-    /// The value of `key` converted to its type, `None` when the file does not give it, or an error when it is
-    /// of the wrong type. Keys of [`ParamType::Object`] are read by the source's own means
-    /// ([`JsonParams::nested`]).
-    fn get(&self, key: &ParamKey) -> Result<Option<ParamValue>, ParamError>;
+internal! {
+    /// Where a loader reads a table's values from: a glTF JSON object, a USD prim.
+    pub trait ParamSource {
+        /// The value of `key` converted to its type, `None` when the file does not give it, or an error when it is
+        /// of the wrong type. Keys of [`ParamType::Object`] are read by the source's own means
+        /// ([`JsonParams::nested`]).
+        fn get(&self, key: &ParamKey) -> Result<Option<ParamValue>, ParamError>;
 
-    /// The name of `key` as the file spells it, for messages.
-    fn spelling(&self, key: &ParamKey) -> String {
-        key.name.to_owned()
+        /// The name of `key` as the file spells it, for messages.
+        fn spelling(&self, key: &ParamKey) -> String {
+            key.name.to_owned()
+        }
     }
 }
 
-/// Typed reads of one key through a source.
-pub trait ParamRead: ParamSource {
-    /// A number key, in double precision (seeds, values checked before rounding).
-    fn number_f64(&self, key: &ParamKey) -> Result<Option<f64>, ParamError> {
-        Ok(match self.get(key)? {
-            Some(ParamValue::Number(x)) => Some(x),
-            Some(_) => return Err(self.wrong_type(key)),
-            None => None,
-        })
-    }
+internal! {
+    /// Typed reads of one key through a source.
+    pub trait ParamRead: ParamSource {
+        /// A number key, in double precision (seeds, values checked before rounding).
+        fn number_f64(&self, key: &ParamKey) -> Result<Option<f64>, ParamError> {
+            Ok(match self.get(key)? {
+                Some(ParamValue::Number(x)) => Some(x),
+                Some(_) => return Err(self.wrong_type(key)),
+                None => None,
+            })
+        }
 
-    /// A number key.
-    fn number(&self, key: &ParamKey) -> Result<Option<f32>, ParamError> {
-        Ok(self.number_f64(key)?.map(|x| x as f32))
-    }
+        /// A number key.
+        fn number(&self, key: &ParamKey) -> Result<Option<f32>, ParamError> {
+            Ok(self.number_f64(key)?.map(|x| x as f32))
+        }
 
-    /// An RGB key (or grey number).
-    fn rgb(&self, key: &ParamKey) -> Result<Option<Rgb>, ParamError> {
-        Ok(match self.get(key)? {
-            Some(ParamValue::Rgb(c)) => Some(c),
-            Some(_) => return Err(self.wrong_type(key)),
-            None => None,
-        })
-    }
+        /// An RGB key (or grey number).
+        fn rgb(&self, key: &ParamKey) -> Result<Option<Rgb>, ParamError> {
+            Ok(match self.get(key)? {
+                Some(ParamValue::Rgb(c)) => Some(c),
+                Some(_) => return Err(self.wrong_type(key)),
+                None => None,
+            })
+        }
 
-    /// A text or choice key.
-    fn text(&self, key: &ParamKey) -> Result<Option<String>, ParamError> {
-        Ok(match self.get(key)? {
-            Some(ParamValue::Text(s)) => Some(s),
-            Some(_) => return Err(self.wrong_type(key)),
-            None => None,
-        })
-    }
+        /// A text or choice key.
+        fn text(&self, key: &ParamKey) -> Result<Option<String>, ParamError> {
+            Ok(match self.get(key)? {
+                Some(ParamValue::Text(s)) => Some(s),
+                Some(_) => return Err(self.wrong_type(key)),
+                None => None,
+            })
+        }
 
-    /// A required text key.
-    fn required_text(&self, key: &ParamKey) -> Result<String, ParamError> {
-        self.text(key)?.ok_or_else(|| ParamError::Missing {
-            key: self.spelling(key),
-        })
-    }
+        /// A required text key.
+        fn required_text(&self, key: &ParamKey) -> Result<String, ParamError> {
+            self.text(key)?.ok_or_else(|| ParamError::Missing {
+                key: self.spelling(key),
+            })
+        }
 
-    /// The error for a value that is not of `key`'s type.
-    fn wrong_type(&self, key: &ParamKey) -> ParamError {
-        ParamError::WrongType {
-            key: self.spelling(key),
-            expected: key.ty.describe(),
+        /// The error for a value that is not of `key`'s type.
+        fn wrong_type(&self, key: &ParamKey) -> ParamError {
+            ParamError::WrongType {
+                key: self.spelling(key),
+                expected: key.ty.describe(),
+            }
         }
     }
 }
 
 impl<S: ParamSource + ?Sized> ParamRead for S {}
 
-/// A glTF JSON object (`extras.nimbus_volume`, `extras.nimbus_medium`) as a parameter source.
-#[derive(Clone, Debug)]
-pub struct JsonParams<'a> {
-    value: &'a serde_json::Value,
-    /// The path of a nested object's keys in messages (`"noise."`), empty at the top.
-    prefix: String,
+internal! {
+    /// A glTF JSON object (`extras.nimbus_volume`, `extras.nimbus_medium`) as a parameter source.
+    #[derive(Clone, Debug)]
+    pub struct JsonParams<'a> {
+        value: &'a serde_json::Value,
+        /// The path of a nested object's keys in messages (`"noise."`), empty at the top.
+        prefix: String,
+    }
 }
 
 impl<'a> JsonParams<'a> {
@@ -305,27 +321,31 @@ fn finite(v: &serde_json::Value) -> Option<f64> {
     v.as_f64().filter(|x| x.is_finite())
 }
 
-/// Parses `[r, g, b]` with finite non-negative components.
-pub fn parse_rgb(value: &serde_json::Value) -> Option<Rgb> {
-    let a = value.as_array()?;
-    if a.len() != 3 {
-        return None;
+internal! {
+    /// Parses `[r, g, b]` with finite non-negative components.
+    pub fn parse_rgb(value: &serde_json::Value) -> Option<Rgb> {
+        let a = value.as_array()?;
+        if a.len() != 3 {
+            return None;
+        }
+        let mut c = [0.0f32; 3];
+        for (i, v) in a.iter().enumerate() {
+            c[i] = v.as_f64().filter(|v| v.is_finite() && *v >= 0.0)? as f32;
+        }
+        Some(Rgb::from(c))
     }
-    let mut c = [0.0f32; 3];
-    for (i, v) in a.iter().enumerate() {
-        c[i] = v.as_f64().filter(|v| v.is_finite() && *v >= 0.0)? as f32;
-    }
-    Some(Rgb::from(c))
 }
 
-/// A key a scene file gives that no table declares (a misspelt `"densty_scale"`): the renderer would ignore
-/// it, so the loaders warn, or refuse it under `--strict`, as pbrt-v4 reports unused parameters.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct UnknownKey {
-    /// The key as the file spells it (`noise.sead` for a nested object's key).
-    pub key: String,
-    /// The declared key closest to it, when one is close enough to be a likely misspelling.
-    pub closest: Option<String>,
+internal! {
+    /// A key a scene file gives that no table declares (a misspelt `"densty_scale"`): the renderer would ignore
+    /// it, so the loaders warn, or refuse it under `--strict`, as pbrt-v4 reports unused parameters.
+    #[derive(Clone, Debug, PartialEq, Eq)]
+    pub struct UnknownKey {
+        /// The key as the file spells it (`noise.sead` for a nested object's key).
+        pub key: String,
+        /// The declared key closest to it, when one is close enough to be a likely misspelling.
+        pub closest: Option<String>,
+    }
 }
 
 impl UnknownKey {
@@ -343,32 +363,36 @@ impl fmt::Display for UnknownKey {
     }
 }
 
-/// The keys of the JSON object `value` that start with `prefix` and are not among `names` (the `nimbus_*` keys
-/// of an `extras` object, which also holds other tools' keys), in alphabetical order.
-pub fn unknown_json_names(
-    value: &serde_json::Value,
-    names: &[&'static str],
-    prefix: &str,
-) -> Vec<UnknownKey> {
-    let Some(object) = value.as_object() else {
-        return Vec::new();
-    };
-    object
-        .keys()
-        .filter(|key| key.starts_with(prefix) && !names.contains(&key.as_str()))
-        .map(|key| UnknownKey {
-            key: key.clone(),
-            closest: closest_name(key, names.iter().copied()).map(str::to_owned),
-        })
-        .collect()
+internal! {
+    /// The keys of the JSON object `value` that start with `prefix` and are not among `names` (the `nimbus_*` keys
+    /// of an `extras` object, which also holds other tools' keys), in alphabetical order.
+    pub fn unknown_json_names(
+        value: &serde_json::Value,
+        names: &[&'static str],
+        prefix: &str,
+    ) -> Vec<UnknownKey> {
+        let Some(object) = value.as_object() else {
+            return Vec::new();
+        };
+        object
+            .keys()
+            .filter(|key| key.starts_with(prefix) && !names.contains(&key.as_str()))
+            .map(|key| UnknownKey {
+                key: key.clone(),
+                closest: closest_name(key, names.iter().copied()).map(str::to_owned),
+            })
+            .collect()
+    }
 }
 
-/// The keys of the JSON object `value` that `keys` does not declare, nested objects' keys included (a value
-/// that is not an object has none), in alphabetical order.
-pub fn unknown_json_keys(value: &serde_json::Value, keys: &[ParamKey]) -> Vec<UnknownKey> {
-    let mut found = Vec::new();
-    collect_unknown(value, keys, "", &mut found);
-    found
+internal! {
+    /// The keys of the JSON object `value` that `keys` does not declare, nested objects' keys included (a value
+    /// that is not an object has none), in alphabetical order.
+    pub fn unknown_json_keys(value: &serde_json::Value, keys: &[ParamKey]) -> Vec<UnknownKey> {
+        let mut found = Vec::new();
+        collect_unknown(value, keys, "", &mut found);
+        found
+    }
 }
 
 fn collect_unknown(
@@ -395,16 +419,18 @@ fn collect_unknown(
     }
 }
 
-/// The name among `names` closest to `given` in edit distance, if within a third of its length (at least 1,
-/// at most 3 edits): a likely misspelling rather than another word.
-pub fn closest_name<'n>(given: &str, names: impl IntoIterator<Item = &'n str>) -> Option<&'n str> {
-    let allowed = (given.chars().count() / 3).clamp(1, 3);
-    names
-        .into_iter()
-        .map(|name| (edit_distance(given, name), name))
-        .filter(|&(d, _)| d <= allowed)
-        .min_by_key(|&(d, _)| d)
-        .map(|(_, name)| name)
+internal! {
+    /// The name among `names` closest to `given` in edit distance, if within a third of its length (at least 1,
+    /// at most 3 edits): a likely misspelling rather than another word.
+    pub fn closest_name<'n>(given: &str, names: impl IntoIterator<Item = &'n str>) -> Option<&'n str> {
+        let allowed = (given.chars().count() / 3).clamp(1, 3);
+        names
+            .into_iter()
+            .map(|name| (edit_distance(given, name), name))
+            .filter(|&(d, _)| d <= allowed)
+            .min_by_key(|&(d, _)| d)
+            .map(|(_, name)| name)
+    }
 }
 
 /// The Levenshtein distance between `a` and `b` (insertions, deletions and substitutions of characters).
@@ -447,31 +473,34 @@ pub trait Choice: Copy + PartialEq + Sized + 'static {
     }
 }
 
-/// The Markdown table of `keys` that docs/reference.md shows: key, type, default, USD attribute, meaning. Keys of
-/// nested objects follow their parent as `parent.key`.
-pub fn markdown_table(keys: &[ParamKey]) -> String {
-    let mut out =
-        String::from("| key | value | default | USD | meaning |\n|---|---|---|---|---|\n");
-    fn rows(out: &mut String, prefix: &str, keys: &[ParamKey]) {
-        for k in keys {
-            let usd = match k.usd {
-                UsdBinding::Attribute => format!("`nimbus:{}`", k.name),
-                UsdBinding::Elsewhere(s) => s.to_owned(),
-            };
-            out.push_str(&format!(
-                "| `{prefix}{}` | {} | {} | {usd} | {} |\n",
-                k.name,
-                k.ty.describe(),
-                k.default,
-                k.doc
-            ));
-            if let ParamType::Object(inner) = k.ty {
-                rows(out, &format!("{prefix}{}.", k.name), inner);
+internal! {
+    /// The Markdown table of `keys` that docs/reference.md shows: key, type, default, USD attribute, meaning. Keys of
+    /// nested objects follow their parent as `parent.key`.
+    #[cfg(test)]
+    pub fn markdown_table(keys: &[ParamKey]) -> String {
+        let mut out =
+            String::from("| key | value | default | USD | meaning |\n|---|---|---|---|---|\n");
+        fn rows(out: &mut String, prefix: &str, keys: &[ParamKey]) {
+            for k in keys {
+                let usd = match k.usd {
+                    UsdBinding::Attribute => format!("`nimbus:{}`", k.name),
+                    UsdBinding::Elsewhere(s) => s.to_owned(),
+                };
+                out.push_str(&format!(
+                    "| `{prefix}{}` | {} | {} | {usd} | {} |\n",
+                    k.name,
+                    k.ty.describe(),
+                    k.default,
+                    k.doc
+                ));
+                if let ParamType::Object(inner) = k.ty {
+                    rows(out, &format!("{prefix}{}.", k.name), inner);
+                }
             }
         }
+        rows(&mut out, "", keys);
+        out
     }
-    rows(&mut out, "", keys);
-    out
 }
 
 #[cfg(test)]

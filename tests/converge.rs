@@ -87,7 +87,7 @@ fn load_with_method(path: &Path, method: nimbus::converge::Method) -> (nimbus::S
         method.apply_to_volume(s);
     };
     let options = nimbus::scene::LoadOptions {
-        volume_override: Some(&apply),
+        volume_override: Some(nimbus::scene::VolumeOverride::new(&apply)),
         ..Default::default()
     };
     let scene = nimbus::scene::load_builder(path, &options)

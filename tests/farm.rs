@@ -783,7 +783,7 @@ fn parts_whose_media_chose_other_estimators_are_refused() {
             spec.majorant = Some(kind);
         };
         let options = nimbus::scene::LoadOptions {
-            volume_override: Some(&force),
+            volume_override: Some(nimbus::scene::VolumeOverride::new(&force)),
             ..Default::default()
         };
         let mut builder = nimbus::scene::load_builder(Path::new(SCENE), &options).unwrap();

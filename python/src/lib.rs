@@ -203,11 +203,6 @@ fn load(
         .map_err(PyValueError::new_err)?;
     let limits = memory_limit.map_or_else(Limits::default, Limits::with_memory);
     let loaded = py.detach(|| -> Result<nimbus::Scene, String> {
-        let apply = |spec: &mut nimbus::volume::VolumeSpec| {
-            if let Some(m) = method {
-                m.apply_to_volume(spec);
-            }
-        };
         let options = LoadOptions {
             limits,
             frame,
@@ -215,7 +210,7 @@ fn load(
             variant: variant.as_deref(),
             subdivision_level,
             strict,
-            volume_override: Some(&apply),
+            volume_override: method.map(nimbus::scene::VolumeOverride::method),
             ..LoadOptions::default()
         };
         let mut builder =

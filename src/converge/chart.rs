@@ -56,12 +56,15 @@ pub struct LogLogChart {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LegendCorner {
     /// Top left.
+    #[cfg(any(test, feature = "testing"))]
     UpperLeft,
     /// Top right.
     UpperRight,
     /// Bottom left.
+    #[cfg(any(test, feature = "testing"))]
     LowerLeft,
     /// Bottom right.
+    #[cfg(any(test, feature = "testing"))]
     LowerRight,
 }
 
@@ -218,9 +221,12 @@ fn draw<DB: DrawingBackend>(
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .position(match spec.legend {
+            #[cfg(any(test, feature = "testing"))]
             LegendCorner::UpperLeft => SeriesLabelPosition::UpperLeft,
             LegendCorner::UpperRight => SeriesLabelPosition::UpperRight,
+            #[cfg(any(test, feature = "testing"))]
             LegendCorner::LowerLeft => SeriesLabelPosition::LowerLeft,
+            #[cfg(any(test, feature = "testing"))]
             LegendCorner::LowerRight => SeriesLabelPosition::LowerRight,
         })
         .draw()?;

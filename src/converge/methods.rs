@@ -65,15 +65,17 @@ impl Method {
         Ok(methods)
     }
 
-    /// Changes a VDB volume's declaration as this method requires.
-    pub fn apply_to_volume(self, spec: &mut VolumeSpec) {
-        match self {
-            Method::GlobalMajorant => spec.majorant = Some(MajorantKind::Global),
-            Method::Grid16Majorant => spec.majorant = Some(MajorantKind::Grid16),
-            Method::AdaptiveMajorant => spec.majorant = Some(MajorantKind::Adaptive),
-            Method::RatioShadow => spec.shadow_estimator = ShadowEstimator::Ratio,
-            Method::ResidualRatioShadow => spec.shadow_estimator = ShadowEstimator::ResidualRatio,
-            Method::Default | Method::NoMediaMis => {}
+    internal! {
+        /// Changes a VDB volume's declaration as this method requires.
+        pub fn apply_to_volume(self, spec: &mut VolumeSpec) {
+            match self {
+                Method::GlobalMajorant => spec.majorant = Some(MajorantKind::Global),
+                Method::Grid16Majorant => spec.majorant = Some(MajorantKind::Grid16),
+                Method::AdaptiveMajorant => spec.majorant = Some(MajorantKind::Adaptive),
+                Method::RatioShadow => spec.shadow_estimator = ShadowEstimator::Ratio,
+                Method::ResidualRatioShadow => spec.shadow_estimator = ShadowEstimator::ResidualRatio,
+                Method::Default | Method::NoMediaMis => {}
+            }
         }
     }
 

@@ -36,6 +36,7 @@ pub struct SizeMismatch {
 }
 
 /// The errors of `image` against `reference`, pixel by pixel (both the same length and order).
+#[cfg(test)]
 pub fn error_metrics(image: &[Rgb], reference: &[Rgb]) -> Result<ErrorMetrics, SizeMismatch> {
     error_metrics_against_noisy(image, reference, None)
 }

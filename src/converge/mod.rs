@@ -10,14 +10,23 @@ mod metrics;
 mod summary;
 
 #[cfg(feature = "charts")]
-pub use chart::{draw_chart, draw_loglog_chart, ChartError, LegendCorner, LogLogChart, Series};
+pub use chart::ChartError;
+#[cfg(feature = "charts")]
+internal! {
+    pub use chart::draw_chart;
+}
+#[cfg(all(feature = "charts", feature = "testing"))]
+pub use chart::{draw_loglog_chart, LegendCorner, LogLogChart, Series};
 pub use error::ConvergeError;
 pub use methods::Method;
-pub use metrics::{error_metrics, error_metrics_against_noisy, ErrorMetrics, SizeMismatch};
-pub use summary::{
-    csv, efficiency, rmse_at, summarize, summary_markdown, Checkpoint, Curve, MethodSummary,
-    CSV_HEADER,
-};
+pub use metrics::{ErrorMetrics, SizeMismatch};
+pub use summary::{Checkpoint, Curve};
+internal! {
+    pub use metrics::error_metrics_against_noisy;
+    pub use summary::{csv, summary_markdown};
+}
+#[cfg(feature = "testing")]
+pub use summary::{efficiency, rmse_at, summarize, MethodSummary, CSV_HEADER};
 
 use crate::math::Rgb;
 use crate::render::{RenderSettings, Renderer};
@@ -26,9 +35,9 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// Fewest checkpoints per method, whatever the budget.
-pub const MIN_CHECKPOINTS: usize = 6;
+pub(crate) const MIN_CHECKPOINTS: usize = 6;
 /// The reference rendered when none is given gets this many times the whole budget.
-pub const REFERENCE_BUDGET_FACTOR: f64 = 4.0;
+pub(crate) const REFERENCE_BUDGET_FACTOR: f64 = 4.0;
 /// Image width when neither `--width` nor a reference gives one.
 pub const DEFAULT_WIDTH: usize = 96;
 
@@ -223,7 +232,7 @@ fn check_finite(image: &[Rgb], width: usize) -> Result<(), String> {
 }
 
 /// `DIR/STEM_se.exr` for a reference `DIR/STEM.exr`: the per-pixel standard errors of its mean.
-pub fn standard_error_path(reference: &Path) -> PathBuf {
+pub(crate) fn standard_error_path(reference: &Path) -> PathBuf {
     let stem = reference
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -240,7 +249,7 @@ fn load(path: &Path, method: Method) -> Result<Scene, ConvergeError> {
         method.apply_to_volume(spec);
     };
     let options = LoadOptions {
-        volume_override: Some(&apply),
+        volume_override: Some(crate::scene::VolumeOverride::new(&apply)),
         ..LoadOptions::default()
     };
     let scene = crate::scene::load_builder(path, &options)?.build()?;

@@ -1,5 +1,5 @@
 //! Checkpoints of a render (`nimbus render --checkpoint SECONDS`, continued with `--resume`): the film's exact
-//! sums written as a part (format `nimbus-checkpoint-1`, see [`super::part`]) beside the output, atomically,
+//! sums written as a part (format `nimbus-checkpoint-1`, see `super::part`) beside the output, atomically,
 //! with which samples each pixel holds ([`RegionProgress`]). Because the film sums exactly and every sample is
 //! a pure function of the seed, the pixel and the sample number, a render continued from a checkpoint writes
 //! the image of an uninterrupted render, bit for bit.

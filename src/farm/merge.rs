@@ -23,7 +23,7 @@ pub struct Merged {
 }
 
 /// Merges the parts at `paths` (in any order): reads their headers, refuses parts that do not belong
-/// together or do not cover every sample of every pixel once ([`check_parts`]), then reads and adds their
+/// together or do not cover every sample of every pixel once (`check_parts`), then reads and adds their
 /// sums.
 pub fn merge_parts(paths: &[PathBuf]) -> Result<Merged, FarmError> {
     let infos = paths

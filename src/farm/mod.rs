@@ -4,28 +4,34 @@
 //! would have rendered, bit for bit.
 //!
 //! Why the merge is exact: sample `s` of pixel `i` is a pure function of the seed, `i` and `s`
-//! (`Rng::for_sample`), and the film sums samples in fixed-point integers ([`crate::render::PixelSums`]), so the
+//! (`Rng::for_sample`), and the film sums samples in fixed-point integers (`PixelSums`), so the
 //! sums of any partition of the samples add up to the same integers in any order. A part file
-//! ([`part`]) stores those integer sums beside its viewable float image, and the merge adds the integers of
+//! (`part.rs`) stores those integer sums beside its viewable float image, and the merge adds the integers of
 //! all parts and takes the image of the total with the same code as a single render.
 //!
 //! A merge refuses parts that do not belong together (different scene hash, resolution, seed, max depth,
 //! samples per pixel or Nimbus version), that overlap (a pixel sample held twice) or that leave a gap (a
 //! pixel sample held by none), with a one-line [`FarmError`] that names the files. The scene hash is
-//! described in [`hash`]; the job-index helpers of array jobs are in [`chunk`].
+//! described in `hash.rs`; the job-index helpers of array jobs are in `chunk.rs`.
 //!
 //! Frames are the outer unit of a farm: a future frame number joins the keys a part carries and a merge
 //! checks, and nothing here assumes a still beyond that.
 
 pub mod checkpoint;
-pub mod chunk;
-pub mod hash;
-pub mod merge;
-pub mod part;
+internal! {
+    pub mod chunk;
+    pub mod hash;
+    pub mod merge;
+    pub mod part;
+}
+#[cfg(feature = "testing")]
+pub use hash::SceneHasher;
+#[cfg(feature = "testing")]
+pub use merge::check_parts;
 
 pub use chunk::{chunk_output_path, sample_chunk, task_index, TaskIndex, TASK_INDEX_VARIABLES};
-pub use hash::{scene_hash, SceneHasher, SceneOverrides};
-pub use merge::{check_parts, merge_parts, Merged};
+pub use hash::{scene_hash, SceneOverrides};
+pub use merge::{merge_parts, Merged};
 pub use part::{read_part, read_part_info, write_part, PartInfo};
 
 use crate::render::PixelWindow;

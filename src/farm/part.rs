@@ -64,7 +64,7 @@ const PREFIX: &str = "nimbus.";
 pub struct PartInfo {
     /// Version of Nimbus that rendered it.
     pub version: String,
-    /// Scene hash (see [`super::hash`]).
+    /// Scene hash (see `super::hash`).
     pub scene_hash: u64,
     /// Frame width.
     pub width: usize,
@@ -88,7 +88,7 @@ pub struct PartInfo {
     pub plan: LayerPlan,
     /// The header attributes the merged image takes over (camera matrices, `nimbus/` keys).
     pub metadata: ImageMetadata,
-    /// Each medium's estimator (`name: key`, see [`crate::volume::MediumMethod::estimator_key`]), joined by
+    /// Each medium's estimator (`name: key`, see `crate::volume::MediumMethod::estimator_key`), joined by
     /// `; `: the majorant structure chosen under the memory limit changes the samples, so parts of renders that
     /// chose differently must not merge.
     pub estimators: String,

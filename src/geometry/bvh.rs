@@ -554,6 +554,7 @@ impl Bvh {
     }
 
     /// Heap and inline bytes held: nodes, reordered triangles and their input indices.
+    #[cfg(any(test, feature = "testing"))]
     pub fn memory_bytes(&self) -> usize {
         std::mem::size_of::<Self>()
             + self.tree.heap_bytes()
@@ -561,6 +562,7 @@ impl Bvh {
     }
 
     /// Number of triangles given to [`Bvh::build`], including any left out as non-finite.
+    #[cfg(any(test, feature = "testing"))]
     pub fn triangle_count(&self) -> usize {
         self.tree.input_count
     }
@@ -693,6 +695,7 @@ impl Tree {
     }
 
     /// Heap bytes held by the nodes and the input indices.
+    #[cfg(any(test, feature = "testing"))]
     pub(super) fn heap_bytes(&self) -> usize {
         self.nodes.capacity() * std::mem::size_of::<Node4>()
             + self.prim_ids.capacity() * std::mem::size_of::<u32>()

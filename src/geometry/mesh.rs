@@ -3,7 +3,9 @@
 
 use super::motion::{lerp, MotionSteps, MovingTriangle};
 use super::CompositingTags;
-use crate::math::{Aabb, Mat4, Vec2, Vec3, Vec4};
+#[cfg(any(test, feature = "testing"))]
+use crate::math::Aabb;
+use crate::math::{Mat4, Vec2, Vec3, Vec4};
 
 /// A triangle mesh in world space with per-vertex attributes.
 #[derive(Clone, Debug, Default)]
@@ -95,6 +97,7 @@ impl Mesh {
     }
 
     /// Bounds of all vertices.
+    #[cfg(any(test, feature = "testing"))]
     pub fn bounds(&self) -> Aabb {
         self.positions.iter().fold(Aabb::EMPTY, |b, p| b.extend(*p))
     }

@@ -12,11 +12,14 @@ mod triangle;
 
 pub use bvh::{Bvh, TooManyTriangles, TriangleHierarchy};
 pub use mesh::{Mesh, MeshMotion};
-pub use motion::{lerp, MotionBvh, MotionSteps, MovingTriangle};
+pub use motion::{MotionBvh, MotionSteps};
+#[cfg(feature = "testing")]
+pub use motion::{lerp, MovingTriangle};
 pub use spawn::{ShadowSegment, SurfacePoint};
 pub use subdivision::{
-    BoundaryRule, CreaseMethod, FaceVaryingRule, PolygonMesh, Scheme, SubdivisionError,
-    SubdivisionRules, INFINITELY_SHARP,
+    BoundaryRule, CreaseMethod, FaceVaryingRule, PolygonMesh, Scheme, SubdivisionRules,
 };
+#[cfg(feature = "testing")]
+pub use subdivision::{SubdivisionError, INFINITELY_SHARP};
 pub use tags::CompositingTags;
 pub use triangle::TriangleHit;

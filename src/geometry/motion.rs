@@ -70,6 +70,7 @@ pub struct MovingTriangle {
 impl MovingTriangle {
     /// The triangle at `time`, interpolated between the steps around it.
     #[inline(always)]
+    #[cfg(any(test, feature = "testing"))]
     pub fn at(&self, time: f32) -> [Vec3; 3] {
         interpolate(self.steps, &self.vertices, time)
     }
@@ -159,6 +160,7 @@ impl MotionBvh {
     }
 
     /// Heap and inline bytes held: nodes, input indices, step timings and step vertices.
+    #[cfg(any(test, feature = "testing"))]
     pub fn memory_bytes(&self) -> usize {
         std::mem::size_of::<Self>()
             + self.tree.heap_bytes()

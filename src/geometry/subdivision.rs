@@ -186,6 +186,7 @@ impl PolygonMesh {
     }
 
     /// The mesh after `levels` of Catmull-Clark subdivision (all quads from the first level on).
+    #[cfg(test)]
     pub fn subdivide(&self, levels: u32) -> Result<PolygonMesh, SubdivisionError> {
         self.subdivide_with(Scheme::CatmullClark, levels)
     }

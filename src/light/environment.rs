@@ -145,87 +145,89 @@ impl EnvironmentMap {
         Vec2::new(if s < 0.0 { s + 1.0 } else { s }, uv.y)
     }
 
-    /// Loads an equirectangular map from an EXR (its RGB channels, linear) or a PNG/JPEG (sRGB-decoded),
-    /// reading the file and sizing its texels within the memory budget `limits`. The error names the file and
-    /// keeps the decoder's error as its source.
-    pub fn load(
-        path: &std::path::Path,
-        intensity: f32,
-        limits: &Limits,
-    ) -> Result<Self, EnvironmentError> {
-        let is_exr = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-        let bytes =
-            crate::limits::read_file(path, limits).map_err(|source| EnvironmentError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
-        // Per texel: the RGB texels and the sampling distribution's weights, about 16 bytes.
-        const TEXEL_BYTES: u64 = 16;
-        let (width, height, texels) = if is_exr {
-            let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
-                .map_err(|source| EnvironmentError::Exr {
+    internal! {
+        /// Loads an equirectangular map from an EXR (its RGB channels, linear) or a PNG/JPEG (sRGB-decoded),
+        /// reading the file and sizing its texels within the memory budget `limits`. The error names the file and
+        /// keeps the decoder's error as its source.
+        pub fn load(
+            path: &std::path::Path,
+            intensity: f32,
+            limits: &Limits,
+        ) -> Result<Self, EnvironmentError> {
+            let is_exr = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+            let bytes =
+                crate::limits::read_file(path, limits).map_err(|source| EnvironmentError::Io {
                     path: path.to_path_buf(),
                     source,
                 })?;
-            for header in &meta.headers {
-                let size = header.layer_size;
-                limits
-                    .check_items(
-                        format_args!("environment map {}", path.display()),
-                        size.width() as u64 * size.height() as u64,
-                        TEXEL_BYTES,
-                    )
-                    .map_err(|source| EnvironmentError::OverBudget {
+            // Per texel: the RGB texels and the sampling distribution's weights, about 16 bytes.
+            const TEXEL_BYTES: u64 = 16;
+            let (width, height, texels) = if is_exr {
+                let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
+                    .map_err(|source| EnvironmentError::Exr {
                         path: path.to_path_buf(),
                         source,
                     })?;
-            }
-            let image = exr::prelude::read()
-                .no_deep_data()
-                .largest_resolution_level()
-                .rgba_channels(
-                    |res, _| (res.width(), vec![Rgb::ZERO; res.width() * res.height()]),
-                    |(w, px): &mut (usize, Vec<Rgb>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-                        px[pos.y() * *w + pos.x()] = Rgb::new(r, g, b);
-                    },
+                for header in &meta.headers {
+                    let size = header.layer_size;
+                    limits
+                        .check_items(
+                            format_args!("environment map {}", path.display()),
+                            size.width() as u64 * size.height() as u64,
+                            TEXEL_BYTES,
+                        )
+                        .map_err(|source| EnvironmentError::OverBudget {
+                            path: path.to_path_buf(),
+                            source,
+                        })?;
+                }
+                let image = exr::prelude::read()
+                    .no_deep_data()
+                    .largest_resolution_level()
+                    .rgba_channels(
+                        |res, _| (res.width(), vec![Rgb::ZERO; res.width() * res.height()]),
+                        |(w, px): &mut (usize, Vec<Rgb>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                            px[pos.y() * *w + pos.x()] = Rgb::new(r, g, b);
+                        },
+                    )
+                    .first_valid_layer()
+                    .all_attributes()
+                    .from_buffered(std::io::Cursor::new(&bytes))
+                    .map_err(|source| EnvironmentError::Exr {
+                        path: path.to_path_buf(),
+                        source,
+                    })?;
+                let size = image.layer_data.size;
+                (
+                    size.width(),
+                    size.height(),
+                    image.layer_data.channel_data.pixels.1,
                 )
-                .first_valid_layer()
-                .all_attributes()
-                .from_buffered(std::io::Cursor::new(&bytes))
-                .map_err(|source| EnvironmentError::Exr {
-                    path: path.to_path_buf(),
-                    source,
-                })?;
-            let size = image.layer_data.size;
-            (
-                size.width(),
-                size.height(),
-                image.layer_data.channel_data.pixels.1,
-            )
-        } else {
-            let img = crate::limits::decode_image(&bytes, limits, TEXEL_BYTES)
-                .map_err(|message| EnvironmentError::Image {
-                    path: path.to_path_buf(),
-                    message,
-                })?
-                .to_rgb32f();
-            let (w, h) = (img.width() as usize, img.height() as usize);
-            let texels = img
-                .pixels()
-                .map(|p| {
-                    Rgb::new(p[0], p[1], p[2])
-                        .to_array()
-                        .map(crate::math::srgb_to_linear)
-                        .into()
-                })
-                .collect();
-            (w, h, texels)
-        };
-        Self::new(width, height, texels, intensity).ok_or_else(|| EnvironmentError::Empty {
-            path: path.to_path_buf(),
-        })
+            } else {
+                let img = crate::limits::decode_image(&bytes, limits, TEXEL_BYTES)
+                    .map_err(|message| EnvironmentError::Image {
+                        path: path.to_path_buf(),
+                        message,
+                    })?
+                    .to_rgb32f();
+                let (w, h) = (img.width() as usize, img.height() as usize);
+                let texels = img
+                    .pixels()
+                    .map(|p| {
+                        Rgb::new(p[0], p[1], p[2])
+                            .to_array()
+                            .map(crate::math::srgb_to_linear)
+                            .into()
+                    })
+                    .collect();
+                (w, h, texels)
+            };
+            Self::new(width, height, texels, intensity).ok_or_else(|| EnvironmentError::Empty {
+                path: path.to_path_buf(),
+            })
+        }
     }
 
     /// The bilinear reconstruction at map coordinates `uv` (see the module docs for where texels sit).
@@ -245,14 +247,14 @@ impl EnvironmentMap {
 }
 
 /// The direction that map coordinates `uv` face.
-pub fn uv_to_direction(uv: Vec2) -> Vec3 {
+pub(crate) fn uv_to_direction(uv: Vec2) -> Vec3 {
     let (sin_phi, cos_phi) = (2.0 * PI * uv.x).sin_cos();
     let (sin_theta, cos_theta) = (PI * uv.y).sin_cos();
     Vec3::new(sin_phi * sin_theta, cos_theta, -cos_phi * sin_theta)
 }
 
 /// The map coordinates a unit direction falls on; the inverse of [`uv_to_direction`].
-pub fn direction_to_uv(d: Vec3) -> Vec2 {
+pub(crate) fn direction_to_uv(d: Vec3) -> Vec2 {
     // atan2 keeps θ accurate near the poles, where acos(y) loses precision in f32.
     let v = (d.x * d.x + d.z * d.z).sqrt().atan2(d.y) / PI;
     let mut u = d.x.atan2(-d.z) / (2.0 * PI);
@@ -272,16 +274,18 @@ pub enum EnvironmentLight {
 }
 
 impl EnvironmentLight {
-    /// Radiance arriving along direction `-dir`, i.e. seen when looking toward `dir`.
-    pub fn radiance(&self, dir: Vec3) -> Rgb {
-        match self {
-            EnvironmentLight::Constant(c) => *c,
-            EnvironmentLight::Map(m) => m.lookup(direction_to_uv(dir)),
+    internal! {
+        /// Radiance arriving along direction `-dir`, i.e. seen when looking toward `dir`.
+        pub fn radiance(&self, dir: Vec3) -> Rgb {
+            match self {
+                EnvironmentLight::Constant(c) => *c,
+                EnvironmentLight::Map(m) => m.lookup(direction_to_uv(dir)),
+            }
         }
     }
 
     /// Samples a direction toward the environment.
-    pub fn sample_li(&self, u: Vec2) -> Option<LightSample> {
+    pub(crate) fn sample_li(&self, u: Vec2) -> Option<LightSample> {
         let (wi, pdf) = match self {
             EnvironmentLight::Constant(_) => (
                 crate::math::sampling::uniform_sphere(u),
@@ -306,23 +310,25 @@ impl EnvironmentLight {
         })
     }
 
-    /// Solid-angle density of [`Self::sample_li`] choosing `dir`.
-    pub fn pdf(&self, dir: Vec3) -> f32 {
-        match self {
-            EnvironmentLight::Constant(_) => crate::math::sampling::UNIFORM_SPHERE_PDF,
-            EnvironmentLight::Map(m) => {
-                let uv = direction_to_uv(dir);
-                let sin_theta = (PI * uv.y).sin();
-                if sin_theta <= 0.0 {
-                    return 0.0;
+    internal! {
+        /// Solid-angle density of [`Self::sample_li`] choosing `dir`.
+        pub fn pdf(&self, dir: Vec3) -> f32 {
+            match self {
+                EnvironmentLight::Constant(_) => crate::math::sampling::UNIFORM_SPHERE_PDF,
+                EnvironmentLight::Map(m) => {
+                    let uv = direction_to_uv(dir);
+                    let sin_theta = (PI * uv.y).sin();
+                    if sin_theta <= 0.0 {
+                        return 0.0;
+                    }
+                    m.distribution.pdf(m.uv_to_patch(uv)) / (2.0 * PI * PI * sin_theta)
                 }
-                m.distribution.pdf(m.uv_to_patch(uv)) / (2.0 * PI * PI * sin_theta)
             }
         }
     }
 
     /// Mean luminance over the sphere of directions.
-    pub fn average_luminance(&self) -> f32 {
+    pub(crate) fn average_luminance(&self) -> f32 {
         match self {
             EnvironmentLight::Constant(c) => luminance(*c),
             EnvironmentLight::Map(m) => m.average_luminance,

@@ -1,5 +1,5 @@
 //! Lights: emissive triangles (area lights), glTF punctual lights, the environment, and the light-selection
-//! distributions: by power, or by importance at the shading point through a light BVH. Every light samples incident illumination at a point ([`Light::sample_li`]) and
+//! distributions: by power, or by importance at the shading point through a light BVH. Every light samples incident illumination at a point (`Light::sample_li`) and
 //! gives the solid-angle density of that sampling for multiple importance sampling.
 
 mod area;
@@ -8,11 +8,16 @@ mod environment;
 mod punctual;
 mod sampler;
 
-pub use area::AreaLight;
-pub use bvh::{LightBvh, LightContext};
 pub use environment::{EnvironmentError, EnvironmentLight, EnvironmentMap};
-pub use punctual::{DirectionalLight, PointLight, SpotLight, LUMENS_PER_WATT};
-pub use sampler::{LightSampler, LightSamplerChoice, BVH_MIN_BOUNDED_LIGHTS, BVH_MIN_EMITTERS};
+pub use sampler::LightSamplerChoice;
+internal! {
+    pub use area::AreaLight;
+    pub use bvh::{LightBvh, LightContext};
+    pub use punctual::{DirectionalLight, PointLight, SpotLight, LUMENS_PER_WATT};
+    pub use sampler::LightSampler;
+}
+#[cfg(feature = "testing")]
+pub use sampler::{BVH_MIN_BOUNDED_LIGHTS, BVH_MIN_EMITTERS};
 
 use crate::geometry::{ShadowSegment, SurfacePoint};
 use crate::material::Texture;
@@ -20,7 +25,7 @@ use crate::math::{Rgb, Vec2, Vec3};
 
 /// Incident illumination sampled from a light at a receiving point.
 #[derive(Clone, Copy, Debug)]
-pub struct LightSample {
+pub(crate) struct LightSample {
     /// Unit direction from the receiving point toward the light.
     pub wi: Vec3,
     /// Incident radiance along `wi` (for delta lights, the irradiance-producing intensity already divided by
@@ -47,6 +52,7 @@ impl LightSample {
     }
 
     /// Distance from `p` to the sampled point; infinite for lights at infinity.
+    #[cfg(test)]
     pub fn distance_from(&self, p: Vec3) -> f32 {
         self.point.map_or(f32::INFINITY, |q| q.p.distance(p))
     }
@@ -54,7 +60,7 @@ impl LightSample {
 
 /// The lights of a scene counted by kind, in words: "36 emissive triangles, 1 punctual light, an environment"
 /// ("no lights" for none). Every message that counts lights uses it, so they agree.
-pub fn describe_lights(lights: &[Light]) -> String {
+pub(crate) fn describe_lights(lights: &[Light]) -> String {
     let triangles = lights
         .iter()
         .filter(|l| matches!(l, Light::Area(_)))
@@ -90,19 +96,21 @@ pub(crate) fn counted(n: usize, one: &str, many: &str) -> String {
     }
 }
 
-/// One light of the scene.
-#[derive(Clone, Debug)]
-pub enum Light {
-    /// An emissive triangle.
-    Area(AreaLight),
-    /// KHR_lights_punctual point light.
-    Point(PointLight),
-    /// KHR_lights_punctual spot light.
-    Spot(SpotLight),
-    /// KHR_lights_punctual directional light.
-    Directional(DirectionalLight),
-    /// Light arriving from infinitely far away in every direction.
-    Environment(EnvironmentLight),
+internal! {
+    /// One light of the scene.
+    #[derive(Clone, Debug)]
+    pub enum Light {
+        /// An emissive triangle.
+        Area(AreaLight),
+        /// KHR_lights_punctual point light.
+        Point(PointLight),
+        /// KHR_lights_punctual spot light.
+        Spot(SpotLight),
+        /// KHR_lights_punctual directional light.
+        Directional(DirectionalLight),
+        /// Light arriving from infinitely far away in every direction.
+        Environment(EnvironmentLight),
+    }
 }
 
 impl Light {
@@ -147,6 +155,7 @@ impl Light {
     }
 
     /// True for lights that cannot be hit by a ray (delta position or direction).
+    #[cfg(test)]
     pub fn is_delta(&self) -> bool {
         matches!(
             self,

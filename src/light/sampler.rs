@@ -23,13 +23,13 @@ pub const BVH_MIN_EMITTERS: usize = 3;
 /// Which light-selection distribution next-event estimation uses (`--light-sampler`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LightSamplerChoice {
-    /// The BVH where a scene has at least [`BVH_MIN_BOUNDED_LIGHTS`] bounded lights or at least
-    /// [`BVH_MIN_EMITTERS`] separate emitters, the power sampler otherwise.
+    /// The BVH where a scene has at least `BVH_MIN_BOUNDED_LIGHTS` bounded lights or at least
+    /// `BVH_MIN_EMITTERS` separate emitters, the power sampler otherwise.
     #[default]
     Auto,
-    /// Every light by its power alone ([`LightSampler`]).
+    /// Every light by its power alone (`LightSampler`).
     Power,
-    /// The light BVH ([`LightBvh`](super::LightBvh)): bounded lights by their importance at the shading point.
+    /// The light BVH (`LightBvh`): bounded lights by their importance at the shading point.
     Bvh,
 }
 
@@ -43,7 +43,7 @@ impl crate::params::Choice for LightSamplerChoice {
 
 impl LightSamplerChoice {
     /// Whether a scene with `lights` uses the light BVH under this choice.
-    pub fn uses_bvh(self, lights: &[Light]) -> bool {
+    pub(crate) fn uses_bvh(self, lights: &[Light]) -> bool {
         match self {
             LightSamplerChoice::Auto => {
                 bounded_lights(lights) >= BVH_MIN_BOUNDED_LIGHTS
@@ -54,8 +54,13 @@ impl LightSamplerChoice {
         }
     }
 
-    /// The sampler this choice gives a scene with `lights`, and why, in words (for `--explain`).
-    pub fn explain(self, lights: &[Light]) -> String {
+    /// The sampler this choice gives `scene`, and why, in words (for `--explain`).
+    pub fn explain(self, scene: &crate::scene::Scene) -> String {
+        self.explain_lights(scene.lights())
+    }
+
+    /// The sampler this choice gives a scene with `lights`, and why, in words.
+    pub(crate) fn explain_lights(self, lights: &[Light]) -> String {
         let bounded = bounded_lights(lights);
         let emitters = emitters(lights);
         match (self, self.uses_bvh(lights)) {
@@ -179,7 +184,7 @@ mod tests {
         assert!(!auto.uses_bvh(&panel(BVH_MIN_BOUNDED_LIGHTS as u32 - 1)));
         assert!(auto.uses_bvh(&panel(BVH_MIN_BOUNDED_LIGHTS as u32)));
         assert!(auto
-            .explain(&panel(2))
+            .explain_lights(&panel(2))
             .contains("power: 2 bounded light(s) in 1 emitter(s)"));
         assert!(LightSamplerChoice::Bvh.uses_bvh(&panel(1)));
         assert!(!LightSamplerChoice::Power.uses_bvh(&panel(100)));

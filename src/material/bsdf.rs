@@ -166,6 +166,7 @@ impl Bsdf {
     }
 
     /// A representative colour for the albedo AOV: the base colour (the tint for a dielectric).
+    #[cfg(any(test, feature = "testing"))]
     pub fn albedo(&self) -> Rgb {
         match self {
             Bsdf::Lambert(b) => b.albedo,

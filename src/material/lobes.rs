@@ -25,7 +25,7 @@ use std::ops::{Add, AddAssign, Mul};
 /// The class a BSDF lobe's light is counted under in the light-path AOVs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum LobeClass {
-    /// Diffuse reflection: [`super::Lambert`] and the diffuse base of the glTF metallic-roughness model.
+    /// Diffuse reflection: `super::Lambert` and the diffuse base of the glTF metallic-roughness model.
     Diffuse,
     /// Specular and glossy reflection: the metallic-roughness model's specular layer (dielectric and metal,
     /// GGX or mirror), the clear coat, the sheen, and a dielectric interface's reflection (rough or smooth,

@@ -29,7 +29,7 @@
 //!   viewer and scatters nothing, like an emission shader in Cycles or three.js's `MeshBasicMaterial`. It is
 //!   not a light: nothing samples it, so it lights other surfaces only through paths that hit it. One-sided
 //!   unlit surfaces are black from behind.
-//! - Occlusion (`occlusionTexture`): read and exposed by [`Material::occlusion_at`], but never applied to the
+//! - Occlusion (`occlusionTexture`): read (kept in [`Material::occlusion_texture`]), but never applied to the
 //!   rendered image; a path tracer computes occlusion itself, and darkening by the baked map would count it
 //!   twice.
 //! - Clear coat: emission is not darkened by the coat's Fresnel (the extension darkens it), so that light
@@ -88,7 +88,7 @@ pub struct Material {
     /// `KHR_materials_specular.specularColorTexture` (sRGB): its RGB multiplies `specular_color`.
     pub specular_color_texture: Option<TextureId>,
     /// When false, the back face of an opaque surface reflects nothing, and camera rays do not see it
-    /// ([`Self::culls_back_faces`]).
+    /// (`Self::culls_back_faces`).
     pub double_sided: bool,
     /// The medium filling the interior of a closed mesh with this material (index into `Scene::media`).
     pub interior: Option<u32>,
@@ -113,7 +113,7 @@ pub struct Material {
     /// `KHR_materials_iridescence`, when present.
     pub iridescence: Option<Iridescence>,
     /// `KHR_materials_dispersion.dispersion`, `20/V` for the Abbe number V (0: no dispersion). Only a
-    /// transmissive material disperses ([`Self::is_dispersive`]); the glTF loader reads it beside
+    /// transmissive material disperses (`Self::is_dispersive`); the glTF loader reads it beside
     /// `KHR_materials_volume` only, as the extension requires.
     pub dispersion: f32,
     /// Light group, holdout and shadow-catcher tags of every surface with this material (`extras`
@@ -151,7 +151,7 @@ pub struct SheenLayer {
 }
 
 /// The anisotropy of a material's specular reflection (`KHR_materials_anisotropy`): the strength and the
-/// direction, in the tangent frame, along which the GGX width grows (see [`super::GltfPbr`]).
+/// direction, in the tangent frame, along which the GGX width grows (see `super::GltfPbr`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Anisotropy {
     /// `anisotropyStrength`, in \[0, 1\] (default 0: isotropic).
@@ -164,7 +164,7 @@ pub struct Anisotropy {
 }
 
 /// The diffuse transmission of a material (`KHR_materials_diffuse_transmission`): the share of the diffuse base
-/// that a Lambertian lobe transmits to the other side, and its colour (see [`super::GltfPbr`]).
+/// that a Lambertian lobe transmits to the other side, and its colour (see `super::GltfPbr`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DiffuseTransmission {
     /// `diffuseTransmissionFactor`, in \[0, 1\] (default 0: none).
@@ -189,7 +189,7 @@ impl Default for DiffuseTransmission {
     }
 }
 
-/// The thin film over a material's specular layer (`KHR_materials_iridescence`; see [`super::ThinFilm`]).
+/// The thin film over a material's specular layer (`KHR_materials_iridescence`; see `super::ThinFilm`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Iridescence {
     /// `iridescenceFactor`, in \[0, 1\] (default 0: no film).
@@ -316,23 +316,25 @@ fn decode_normal(t: Vec4, scale: f32) -> Option<Vec3> {
 }
 
 impl Anisotropy {
-    /// The strength and the direction in tangent space at a point whose anisotropy texel is `texel`
-    /// (`KHR_materials_anisotropy`'s specification and its property descriptions): the direction is the
-    /// texel's RG mapped to \[−1, 1\] (`(1, 0)` without a texture, or where the texel's direction is zero) and
-    /// normalised, then rotated counter-clockwise by `rotation`; the strength is `strength` × the texel's B, in
-    /// \[0, 1\].
-    pub fn at(&self, texel: Option<Vec4>) -> (f32, Vec2) {
-        let (direction, scale) = texel.map_or((Vec2::X, 1.0), |t| {
-            let d = Vec2::new(2.0 * t.x - 1.0, 2.0 * t.y - 1.0);
-            (d.try_normalize().unwrap_or(Vec2::X), t.z)
-        });
-        let (sin, cos) = self.rotation.sin_cos();
-        let rotated = Vec2::new(
-            cos * direction.x - sin * direction.y,
-            sin * direction.x + cos * direction.y,
-        );
-        let strength = (self.strength * scale).clamp(0.0, 1.0);
-        (if strength.is_nan() { 0.0 } else { strength }, rotated)
+    internal! {
+        /// The strength and the direction in tangent space at a point whose anisotropy texel is `texel`
+        /// (`KHR_materials_anisotropy`'s specification and its property descriptions): the direction is the
+        /// texel's RG mapped to \[−1, 1\] (`(1, 0)` without a texture, or where the texel's direction is zero) and
+        /// normalised, then rotated counter-clockwise by `rotation`; the strength is `strength` × the texel's B, in
+        /// \[0, 1\].
+        pub fn at(&self, texel: Option<Vec4>) -> (f32, Vec2) {
+            let (direction, scale) = texel.map_or((Vec2::X, 1.0), |t| {
+                let d = Vec2::new(2.0 * t.x - 1.0, 2.0 * t.y - 1.0);
+                (d.try_normalize().unwrap_or(Vec2::X), t.z)
+            });
+            let (sin, cos) = self.rotation.sin_cos();
+            let rotated = Vec2::new(
+                cos * direction.x - sin * direction.y,
+                sin * direction.x + cos * direction.y,
+            );
+            let strength = (self.strength * scale).clamp(0.0, 1.0);
+            (if strength.is_nan() { 0.0 } else { strength }, rotated)
+        }
     }
 }
 
@@ -353,7 +355,7 @@ impl Material {
     /// `doubleSided = false`). A boundary or a refracting surface is seen from either side; so is an emitter,
     /// whose back shows black as a one-sided area light does in Mitsuba 3 and Cycles (the shared validation
     /// scene `area-light-floor` sees its light from behind).
-    pub fn culls_back_faces(&self) -> bool {
+    pub(crate) fn culls_back_faces(&self) -> bool {
         !self.double_sided
             && !self.is_transmissive()
             && !self.transmits_diffusely()
@@ -361,26 +363,30 @@ impl Material {
             && !self.is_emissive()
     }
 
-    /// True when the material emits light from its front faces.
-    pub fn is_emissive(&self) -> bool {
-        self.emission.max_element() > 0.0
+    internal! {
+        /// True when the material emits light from its front faces.
+        pub fn is_emissive(&self) -> bool {
+            self.emission.max_element() > 0.0
+        }
     }
 
     /// True when light can pass through the surface by refraction (the BSDF has a dielectric interface).
-    pub fn is_transmissive(&self) -> bool {
+    pub(crate) fn is_transmissive(&self) -> bool {
         self.transmission > 0.0
     }
 
     /// True when the BSDF can have a diffuse transmission lobe (`KHR_materials_diffuse_transmission` with a
     /// positive factor; a texture only scales it down).
-    pub fn transmits_diffusely(&self) -> bool {
+    pub(crate) fn transmits_diffusely(&self) -> bool {
         self.diffuse_transmission.is_some_and(|d| d.factor > 0.0)
     }
 
-    /// True when the index of refraction depends on the colour channel: a positive dispersion on a refracting
-    /// material.
-    pub fn is_dispersive(&self) -> bool {
-        self.dispersion > 0.0 && self.is_transmissive()
+    internal! {
+        /// True when the index of refraction depends on the colour channel: a positive dispersion on a refracting
+        /// material.
+        pub fn is_dispersive(&self) -> bool {
+            self.dispersion > 0.0 && self.is_transmissive()
+        }
     }
 
     /// The index of refraction in colour channel `channel` (0, 1, 2 for R, G, B) at its wavelength λ
@@ -388,7 +394,7 @@ impl Material {
     /// `KHR_materials_dispersion` specifies, `n(λ) = max(n_d + (n_d − 1)/V · (523655/λ² − 1.5168), 1)` with λ in
     /// nm, `n_d = ior` the index at the Fraunhofer d line (587.56 nm) and `V = 20/dispersion`. Without
     /// dispersion, `ior` unchanged.
-    pub fn dispersed_ior(&self, channel: usize) -> f32 {
+    pub(crate) fn dispersed_ior(&self, channel: usize) -> f32 {
         if !self.is_dispersive() {
             return self.ior;
         }
@@ -398,163 +404,168 @@ impl Material {
         (n_d + (n_d - 1.0) * self.dispersion / 20.0 * cauchy).max(1.0)
     }
 
-    /// Emitted radiance at a point of a front face: `emissiveFactor` × `emissiveStrength` × the emissive
-    /// texture.
-    pub fn emission_at(&self, at: &ShadingPoint, textures: &[Texture]) -> Rgb {
-        match lookup(textures, self.emission_texture, at) {
-            Some(t) => self.emission * t.truncate(),
-            None => self.emission,
+    internal! {
+        /// Emitted radiance at a point of a front face: `emissiveFactor` × `emissiveStrength` × the emissive
+        /// texture.
+        pub fn emission_at(&self, at: &ShadingPoint, textures: &[Texture]) -> Rgb {
+            match lookup(textures, self.emission_texture, at) {
+                Some(t) => self.emission * t.truncate(),
+                None => self.emission,
+            }
         }
     }
 
-    /// The base colour and alpha at a point: `baseColorFactor` × the base-colour texture × the vertex colour
-    /// (glTF 2.0 §3.9.2: `COLOR_0` multiplies the base colour, alpha included). With
-    /// `KHR_materials_pbrSpecularGlossiness`, the converted base colour, and the diffuse alpha (× the vertex
-    /// colour's).
-    pub fn base_color_at(&self, at: &ShadingPoint, textures: &[Texture]) -> Vec4 {
-        if let Some(sg) = &self.specular_glossiness {
-            let (mr, alpha) = spec_gloss_at(sg, at, textures);
-            return mr.base_color.extend(alpha);
+    internal! {
+        /// The base colour and alpha at a point: `baseColorFactor` × the base-colour texture × the vertex colour
+        /// (glTF 2.0 §3.9.2: `COLOR_0` multiplies the base colour, alpha included). With
+        /// `KHR_materials_pbrSpecularGlossiness`, the converted base colour, and the diffuse alpha (× the vertex
+        /// colour's).
+        pub fn base_color_at(&self, at: &ShadingPoint, textures: &[Texture]) -> Vec4 {
+            if let Some(sg) = &self.specular_glossiness {
+                let (mr, alpha) = spec_gloss_at(sg, at, textures);
+                return mr.base_color.extend(alpha);
+            }
+            let mut base = self.base_color * at.color;
+            if let Some(t) = lookup(textures, self.base_color_texture, at) {
+                base *= t;
+            }
+            base
         }
-        let mut base = self.base_color * at.color;
-        if let Some(t) = lookup(textures, self.base_color_texture, at) {
-            base *= t;
-        }
-        base
     }
 
     /// The radiance an unlit material shows at a point: its base colour (see the module documentation).
-    pub fn unlit_radiance(&self, at: &ShadingPoint, textures: &[Texture]) -> Rgb {
+    pub(crate) fn unlit_radiance(&self, at: &ShadingPoint, textures: &[Texture]) -> Rgb {
         self.base_color_at(at, textures).truncate().max(Rgb::ZERO)
-    }
-
-    /// The ambient occlusion of `occlusionTexture` at a point, `1 + strength · (texel.r − 1)` (glTF 2.0
-    /// §5.20.2), 1 without the texture. Never applied to the render (see the module documentation).
-    pub fn occlusion_at(&self, at: &ShadingPoint, textures: &[Texture]) -> f32 {
-        let Some((id, strength)) = self.occlusion_texture else {
-            return 1.0;
-        };
-        lookup(textures, Some(id), at).map_or(1.0, |t| {
-            (1.0 + strength.clamp(0.0, 1.0) * (t.x - 1.0)).clamp(0.0, 1.0)
-        })
     }
 
     /// True when the BSDF may be an invisible boundary ([`Bsdf::is_index_matched`] at some point): full
     /// transmission (a constant of the material) and ior 1. Conservative: the tint and roughness, which may
     /// come from textures, are not checked.
-    pub fn may_be_index_matched(&self) -> bool {
+    pub(crate) fn may_be_index_matched(&self) -> bool {
         self.transmission >= 1.0 && self.ior == 1.0
     }
 
-    /// The BSDF parameters at a point.
-    pub fn pbr_params(&self, at: &ShadingPoint, textures: &[Texture]) -> PbrParams {
-        let (base, metallic, roughness) = match &self.specular_glossiness {
-            Some(sg) => {
-                let (mr, _) = spec_gloss_at(sg, at, textures);
-                (mr.base_color, mr.metallic, mr.roughness)
-            }
-            None => {
-                let base = self.base_color_at(at, textures).truncate();
-                let (mut metallic, mut roughness) = (self.metallic, self.roughness);
-                if let Some(t) = lookup(textures, self.metallic_roughness_texture, at) {
-                    roughness *= t.y;
-                    metallic *= t.z;
+    internal! {
+        /// The BSDF parameters at a point.
+        pub fn pbr_params(&self, at: &ShadingPoint, textures: &[Texture]) -> PbrParams {
+            let (base, metallic, roughness) = match &self.specular_glossiness {
+                Some(sg) => {
+                    let (mr, _) = spec_gloss_at(sg, at, textures);
+                    (mr.base_color, mr.metallic, mr.roughness)
                 }
-                (base, metallic, roughness)
+                None => {
+                    let base = self.base_color_at(at, textures).truncate();
+                    let (mut metallic, mut roughness) = (self.metallic, self.roughness);
+                    if let Some(t) = lookup(textures, self.metallic_roughness_texture, at) {
+                        roughness *= t.y;
+                        metallic *= t.z;
+                    }
+                    (base, metallic, roughness)
+                }
+            };
+            let (mut clearcoat, mut clearcoat_roughness) = (0.0, 0.0);
+            if let Some(c) = &self.clearcoat {
+                clearcoat = c.factor * lookup(textures, c.texture, at).map_or(1.0, |t| t.x);
+                clearcoat_roughness =
+                    c.roughness * lookup(textures, c.roughness_texture, at).map_or(1.0, |t| t.y);
             }
-        };
-        let (mut clearcoat, mut clearcoat_roughness) = (0.0, 0.0);
-        if let Some(c) = &self.clearcoat {
-            clearcoat = c.factor * lookup(textures, c.texture, at).map_or(1.0, |t| t.x);
-            clearcoat_roughness =
-                c.roughness * lookup(textures, c.roughness_texture, at).map_or(1.0, |t| t.y);
-        }
-        let (mut sheen_color, mut sheen_roughness) = (Rgb::ZERO, 0.0);
-        if let Some(s) = &self.sheen {
-            sheen_color =
-                s.color * lookup(textures, s.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
-            sheen_roughness =
-                s.roughness * lookup(textures, s.roughness_texture, at).map_or(1.0, |t| t.w);
-        }
-        let (mut diffuse_transmission, mut diffuse_transmission_color) = (0.0, Rgb::ONE);
-        if let Some(d) = &self.diffuse_transmission {
-            diffuse_transmission = d.factor * lookup(textures, d.texture, at).map_or(1.0, |t| t.w);
-            diffuse_transmission_color =
-                d.color * lookup(textures, d.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
-        }
-        let transmission = self.transmission
-            * lookup(textures, self.transmission_texture, at).map_or(1.0, |t| t.x);
-        let specular_factor =
-            self.specular_factor * lookup(textures, self.specular_texture, at).map_or(1.0, |t| t.w);
-        let specular_color = self.specular_color
-            * lookup(textures, self.specular_color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
-        let film = self.iridescence.unwrap_or_default();
-        let iridescence = film.factor * lookup(textures, film.texture, at).map_or(1.0, |t| t.x);
-        let iridescence_thickness = match lookup(textures, film.thickness_texture, at) {
-            Some(t) => film.thickness_min + (film.thickness_max - film.thickness_min) * t.y,
-            None => film.thickness_max,
-        };
-        let (anisotropy_strength, anisotropy_direction) = self
-            .anisotropy
-            .as_ref()
-            .map_or((0.0, Vec2::X), |a| a.at(lookup(textures, a.texture, at)));
-        PbrParams {
-            base_color: base.clamp(Vec3::ZERO, Vec3::ONE),
-            metallic: metallic.clamp(0.0, 1.0),
-            roughness: roughness.clamp(0.0, 1.0),
-            ior: self.ior,
-            specular_factor: specular_factor.clamp(0.0, 1.0),
-            specular_color: specular_color.max(Vec3::ZERO),
-            transmission: transmission.clamp(0.0, 1.0),
-            clearcoat: clearcoat.clamp(0.0, 1.0),
-            clearcoat_roughness: clearcoat_roughness.clamp(0.0, 1.0),
-            sheen_color: sheen_color.clamp(Rgb::ZERO, Rgb::ONE),
-            sheen_roughness: sheen_roughness.clamp(0.0, 1.0),
-            anisotropy_strength,
-            anisotropy_direction,
-            diffuse_transmission: diffuse_transmission.clamp(0.0, 1.0),
-            diffuse_transmission_color: diffuse_transmission_color.max(Rgb::ZERO),
-            iridescence: iridescence.clamp(0.0, 1.0),
-            iridescence_ior: film.ior,
-            iridescence_thickness: iridescence_thickness.max(0.0),
+            let (mut sheen_color, mut sheen_roughness) = (Rgb::ZERO, 0.0);
+            if let Some(s) = &self.sheen {
+                sheen_color =
+                    s.color * lookup(textures, s.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
+                sheen_roughness =
+                    s.roughness * lookup(textures, s.roughness_texture, at).map_or(1.0, |t| t.w);
+            }
+            let (mut diffuse_transmission, mut diffuse_transmission_color) = (0.0, Rgb::ONE);
+            if let Some(d) = &self.diffuse_transmission {
+                diffuse_transmission = d.factor * lookup(textures, d.texture, at).map_or(1.0, |t| t.w);
+                diffuse_transmission_color =
+                    d.color * lookup(textures, d.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
+            }
+            let transmission = self.transmission
+                * lookup(textures, self.transmission_texture, at).map_or(1.0, |t| t.x);
+            let specular_factor = self.specular_factor
+                * lookup(textures, self.specular_texture, at).map_or(1.0, |t| t.w);
+            let specular_color = self.specular_color
+                * lookup(textures, self.specular_color_texture, at)
+                    .map_or(Rgb::ONE, |t| t.truncate());
+            let film = self.iridescence.unwrap_or_default();
+            let iridescence = film.factor * lookup(textures, film.texture, at).map_or(1.0, |t| t.x);
+            let iridescence_thickness = match lookup(textures, film.thickness_texture, at) {
+                Some(t) => film.thickness_min + (film.thickness_max - film.thickness_min) * t.y,
+                None => film.thickness_max,
+            };
+            let (anisotropy_strength, anisotropy_direction) = self
+                .anisotropy
+                .as_ref()
+                .map_or((0.0, Vec2::X), |a| a.at(lookup(textures, a.texture, at)));
+            PbrParams {
+                base_color: base.clamp(Vec3::ZERO, Vec3::ONE),
+                metallic: metallic.clamp(0.0, 1.0),
+                roughness: roughness.clamp(0.0, 1.0),
+                ior: self.ior,
+                specular_factor: specular_factor.clamp(0.0, 1.0),
+                specular_color: specular_color.max(Vec3::ZERO),
+                transmission: transmission.clamp(0.0, 1.0),
+                clearcoat: clearcoat.clamp(0.0, 1.0),
+                clearcoat_roughness: clearcoat_roughness.clamp(0.0, 1.0),
+                sheen_color: sheen_color.clamp(Rgb::ZERO, Rgb::ONE),
+                sheen_roughness: sheen_roughness.clamp(0.0, 1.0),
+                anisotropy_strength,
+                anisotropy_direction,
+                diffuse_transmission: diffuse_transmission.clamp(0.0, 1.0),
+                diffuse_transmission_color: diffuse_transmission_color.max(Rgb::ZERO),
+                iridescence: iridescence.clamp(0.0, 1.0),
+                iridescence_ior: film.ior,
+                iridescence_thickness: iridescence_thickness.max(0.0),
+            }
         }
     }
 
-    /// Creates the BSDF for a hit at a point (a clear coat's normal is the shading normal until
-    /// [`Bsdf::set_coat_normal`] tilts it; see [`Material::coat_normal`]).
-    pub fn bsdf(&self, at: &ShadingPoint, textures: &[Texture]) -> Bsdf {
-        Bsdf::from_gltf(&self.pbr_params(at, textures))
+    internal! {
+        /// Creates the BSDF for a hit at a point (a clear coat's normal is the shading normal until
+        /// [`Bsdf::set_coat_normal`] tilts it; see [`Material::coat_normal`]).
+        pub fn bsdf(&self, at: &ShadingPoint, textures: &[Texture]) -> Bsdf {
+            Bsdf::from_gltf(&self.pbr_params(at, textures))
+        }
     }
 
     /// [`Material::bsdf`] for a path that carries colour channel `channel` alone: the refraction index is
     /// that channel's ([`Material::dispersed_ior`]). The same BSDF as [`Material::bsdf`] without dispersion.
-    pub fn bsdf_in_channel(&self, at: &ShadingPoint, textures: &[Texture], channel: usize) -> Bsdf {
+    pub(crate) fn bsdf_in_channel(
+        &self,
+        at: &ShadingPoint,
+        textures: &[Texture],
+        channel: usize,
+    ) -> Bsdf {
         Bsdf::from_gltf(&PbrParams {
             ior: self.dispersed_ior(channel),
             ..self.pbr_params(at, textures)
         })
     }
 
-    /// The world-space normal of the clear coat, for a hit whose frame before any normal mapping is
-    /// `unmapped`: that frame's normal bent by `clearcoatNormalTexture` if there is one, else the frame's
-    /// normal itself (the coat does not follow the base's normal map). `None` without a clear coat.
-    pub fn coat_normal(
-        &self,
-        unmapped: &Frame,
-        at: &ShadingPoint,
-        textures: &[Texture],
-    ) -> Option<Vec3> {
-        let coat = self.clearcoat.as_ref()?;
-        let mapped = coat
-            .normal_texture
-            .and_then(|(id, scale)| decode_normal(lookup(textures, Some(id), at)?, scale));
-        Some(mapped.map_or(unmapped.n, |n| {
-            unmapped.to_world(n).normalize_or(unmapped.n)
-        }))
+    internal! {
+        /// The world-space normal of the clear coat, for a hit whose frame before any normal mapping is
+        /// `unmapped`: that frame's normal bent by `clearcoatNormalTexture` if there is one, else the frame's
+        /// normal itself (the coat does not follow the base's normal map). `None` without a clear coat.
+        pub fn coat_normal(
+            &self,
+            unmapped: &Frame,
+            at: &ShadingPoint,
+            textures: &[Texture],
+        ) -> Option<Vec3> {
+            let coat = self.clearcoat.as_ref()?;
+            let mapped = coat
+                .normal_texture
+                .and_then(|(id, scale)| decode_normal(lookup(textures, Some(id), at)?, scale));
+            Some(mapped.map_or(unmapped.n, |n| {
+                unmapped.to_world(n).normalize_or(unmapped.n)
+            }))
+        }
     }
 
     /// Every texture the material refers to.
-    pub fn texture_ids(&self) -> impl Iterator<Item = TextureId> + '_ {
+    pub(crate) fn texture_ids(&self) -> impl Iterator<Item = TextureId> + '_ {
         let coat = self.clearcoat.iter().flat_map(|c| {
             [
                 c.texture,
@@ -603,7 +614,7 @@ impl Material {
     /// The coverage at a point: the alpha of [`Self::base_color_at`] (`base_color.w` × the vertex colour's ×
     /// the base-colour texture's) × the first channel of `alpha_texture`, in \[0, 1\]. Only
     /// [`AlphaMode::Mask`] and [`AlphaMode::Blend`] use it.
-    pub fn alpha_at(&self, at: &ShadingPoint, textures: &[Texture]) -> f32 {
+    pub(crate) fn alpha_at(&self, at: &ShadingPoint, textures: &[Texture]) -> f32 {
         let mut alpha = self.base_color_at(at, textures).w;
         if let Some(t) = lookup(textures, self.alpha_texture, at) {
             alpha *= t.x;
@@ -628,11 +639,13 @@ impl Material {
         self.has_normal_map() || self.is_anisotropic()
     }
 
-    /// The tangent-space normal from the normal map at a point (z up), or `None` without a normal map.
-    /// glTF stores `(n * 0.5 + 0.5)`; `scale` multiplies the x and y components.
-    pub fn normal_map(&self, at: &ShadingPoint, textures: &[Texture]) -> Option<Vec3> {
-        let (id, scale) = self.normal_texture?;
-        decode_normal(lookup(textures, Some(id), at)?, scale)
+    internal! {
+        /// The tangent-space normal from the normal map at a point (z up), or `None` without a normal map.
+        /// glTF stores `(n * 0.5 + 0.5)`; `scale` multiplies the x and y components.
+        pub fn normal_map(&self, at: &ShadingPoint, textures: &[Texture]) -> Option<Vec3> {
+            let (id, scale) = self.normal_texture?;
+            decode_normal(lookup(textures, Some(id), at)?, scale)
+        }
     }
 }
 

@@ -143,6 +143,7 @@ impl Default for Sampler {
 
 impl Sampler {
     /// A sampler that reads the full-resolution image with `filter` for both minification and magnification.
+    #[cfg(any(test, feature = "testing"))]
     pub fn unfiltered(filter: Filter, wrap: Wrap) -> Self {
         Self {
             wrap_s: wrap,
@@ -249,21 +250,25 @@ impl MipImage {
     }
 
     /// Width of the full-resolution image.
+    #[cfg(any(test, feature = "testing"))]
     pub fn width(&self) -> usize {
         self.levels[0].width
     }
 
     /// Height of the full-resolution image.
+    #[cfg(any(test, feature = "testing"))]
     pub fn height(&self) -> usize {
         self.levels[0].height
     }
 
     /// Number of levels, the full-resolution image included.
+    #[cfg(test)]
     pub fn level_count(&self) -> usize {
         self.levels.len()
     }
 
     /// Bytes held by the texels of every level.
+    #[cfg(any(test, feature = "testing"))]
     pub fn memory_bytes(&self) -> usize {
         self.levels
             .iter()
@@ -353,6 +358,7 @@ impl Texture {
     }
 
     /// The transform applied to the texture coordinates.
+    #[cfg(any(test, feature = "testing"))]
     pub fn transform(&self) -> UvTransform {
         self.transform
     }
@@ -394,38 +400,45 @@ impl Texture {
     }
 
     /// Sets the sampler.
+    #[cfg(any(test, feature = "testing"))]
     pub fn with_sampler(mut self, sampler: Sampler) -> Self {
         self.sampler = sampler;
         self
     }
 
     /// The sampler.
+    #[cfg(any(test, feature = "testing"))]
     pub fn sampler(&self) -> Sampler {
         self.sampler
     }
 
     /// The image.
+    #[cfg(any(test, feature = "testing"))]
     pub fn image(&self) -> &Arc<MipImage> {
         &self.image
     }
 
     /// Image width in texels.
+    #[cfg(any(test, feature = "testing"))]
     pub fn width(&self) -> usize {
         self.image.width()
     }
 
     /// Image height in texels.
+    #[cfg(any(test, feature = "testing"))]
     pub fn height(&self) -> usize {
         self.image.height()
     }
 
     /// Bytes held by the image (shared images count in full for each texture).
+    #[cfg(any(test, feature = "testing"))]
     pub fn memory_bytes(&self) -> usize {
         self.image.memory_bytes()
     }
 
     /// The value at texture coordinates `uv` of the full-resolution image, with the magnification filter
     /// (`uv` is read as given: the texture's mapping is not applied).
+    #[cfg(any(test, feature = "testing"))]
     pub fn sample(&self, uv: Vec2) -> Vec4 {
         self.lookup(TexCoord::point(uv))
     }

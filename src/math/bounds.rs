@@ -63,6 +63,7 @@ impl Aabb {
     }
 
     /// True when `p` lies inside or on the boundary.
+    #[cfg(any(test, feature = "testing"))]
     pub fn contains(&self, p: Vec3) -> bool {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
     }

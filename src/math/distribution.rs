@@ -45,11 +45,13 @@ impl Distribution1D {
     }
 
     /// Number of bins.
+    #[cfg(any(test, feature = "testing"))]
     pub fn len(&self) -> usize {
         self.func.len()
     }
 
     /// True when there are no bins (never, since `new` makes at least one).
+    #[cfg(any(test, feature = "testing"))]
     pub fn is_empty(&self) -> bool {
         self.func.is_empty()
     }

@@ -42,6 +42,7 @@ pub fn uniform_sphere(u: Vec2) -> Vec3 {
 pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
 
 /// Uniform direction in the cone of half-angle `acos(cos_max)` around +z. Density `1 / (2π (1 − cos_max))`.
+#[cfg(test)]
 pub fn uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
     let cos_theta = 1.0 - u.x * (1.0 - cos_max);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
@@ -50,6 +51,7 @@ pub fn uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
 }
 
 /// Density of [`uniform_cone`].
+#[cfg(test)]
 pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
     1.0 / (2.0 * PI * (1.0 - cos_max))
 }
@@ -126,6 +128,7 @@ impl Equiangular {
 }
 
 /// Balance heuristic for one sample from each of two strategies (Veach 1997, eq. 9.10).
+#[cfg(test)]
 pub fn balance_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
     if pdf_a <= 0.0 {
         return 0.0;

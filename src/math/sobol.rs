@@ -66,6 +66,7 @@ fn laine_karras(mut x: u32, seed: u32) -> u32 {
 }
 
 /// Owen scrambling of a 32-bit fixed-point value in base 2 (Burley 2020, listing 4).
+#[cfg(test)]
 pub fn owen_scramble(x: u32, seed: u32) -> u32 {
     laine_karras(x.reverse_bits(), seed).reverse_bits()
 }

@@ -62,10 +62,10 @@ impl Exposure {
 pub struct Metering {
     /// The coverage-weighted log-average luminance (the scene's key, L̄).
     pub key: f32,
-    /// The exposure in stops that maps the key to [`MIDDLE_GREY`], clamped to ±[`MAX_AUTO_STOPS`]; 0 for an
+    /// The exposure in stops that maps the key to `MIDDLE_GREY`, clamped to ±`MAX_AUTO_STOPS`; 0 for an
     /// image without one finite non-zero pixel.
     pub key_stops: f32,
-    /// `--exposure auto`: the exposure nearest to 0 that brings the key into [`KEY_RANGE`].
+    /// `--exposure auto`: the exposure nearest to 0 that brings the key into `KEY_RANGE`.
     pub auto_stops: f32,
     /// Whether fewer than [`BLACK_SHARE`] of the pixels reach [`BLACK_LUMINANCE`] before exposure: the
     /// preview at 0 stops would look black.

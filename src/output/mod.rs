@@ -7,14 +7,21 @@ mod exposure;
 mod exr;
 mod png;
 
-pub use self::atomic::{temporary_path, write_atomically};
-pub use self::deep::{deep_path, encode_deep_exr, write_deep_exr, DeepCompression, DEEP_CHANNELS};
-pub use self::exposure::{
-    meter, Exposure, Metering, BLACK_LUMINANCE, BLACK_SHARE, KEY_RANGE, MAX_AUTO_STOPS, MIDDLE_GREY,
-};
-pub use self::exr::{
-    read_exr_layers, write_exr, write_exr_with, ExrCompression, ExrLayers, ExrOptions, HalfFloats,
-};
+pub use self::atomic::write_atomically;
+pub use self::deep::{deep_path, write_deep_exr, DeepCompression};
+pub use self::exposure::{meter, Exposure, Metering, BLACK_LUMINANCE, BLACK_SHARE};
+pub use self::exr::{write_exr, write_exr_with, ExrCompression, ExrOptions, HalfFloats};
+internal! {
+    pub use self::exr::read_exr_layers;
+}
+#[cfg(feature = "testing")]
+pub use self::atomic::temporary_path;
+#[cfg(feature = "testing")]
+pub use self::deep::{encode_deep_exr, DEEP_CHANNELS};
+#[cfg(feature = "testing")]
+pub use self::exposure::{KEY_RANGE, MAX_AUTO_STOPS, MIDDLE_GREY};
+#[cfg(feature = "testing")]
+pub use self::exr::ExrLayers;
 pub(crate) use self::exr::{read_flat_image, write_sorted};
 pub use self::png::{preview_path, write_png_preview};
 

@@ -15,7 +15,7 @@
 //! - at a surface, the light is split between the classes in proportion to each lobe class's share of the BSDF
 //!   value, per channel (Cycles does the same), and a delta lobe gives all of it to its class;
 //! - `diffuse_color`, `glossy_color`, `transmission_color`: the classes' colours at the first surface (their
-//!   directional albedo estimates, [`crate::material::Bsdf::colors`], times the path throughput there).
+//!   directional albedo estimates, `crate::material::Bsdf::colors`, times the path throughput there).
 //!   As in Cycles, the surface light-path layers are written divided by their class's colour, so that
 //!   `(direct + indirect) × color` rebuilds the light:
 //!
@@ -306,7 +306,7 @@ pub const MAX_LIGHT_GROUPS: usize = 64;
 pub struct LightGroups {
     /// The layer names, `lg_<group>`, in the order groups were first met.
     pub names: Vec<String>,
-    /// The group of each emitter of the scene ([`crate::scene::SceneNames::emitters`]).
+    /// The group of each emitter of the scene (`crate::scene::SceneNames::emitters`).
     pub group_of_emitter: Vec<u16>,
 }
 

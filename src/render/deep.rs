@@ -21,7 +21,7 @@
 //!   covers by length.
 //!
 //! Depth buckets are [`BUCKETS_PER_OCTAVE`] per doubling of depth: bucket `k` is `[2^(k/16), 2^((k+1)/16))`, 4.4%
-//! of its depth deep. Every bin sums its paths' radiance and alpha exactly ([`ValueSum`], like the film's
+//! of its depth deep. Every bin sums its paths' radiance and alpha exactly (`ValueSum`, like the film's
 //! beauty), so bins of one pixel add up, over all of them, to the beauty and alpha sums bit for bit, in any
 //! order of the samples.
 //!
@@ -44,7 +44,7 @@
 //! light stays a partition, so the flattened result is unchanged.
 //!
 //! **At most N samples.** While a pixel has more than `--deep-samples N` samples, the adjacent pair whose merge
-//! changes the pixel's holdout curve least ([`merge_cost`]: the transmittance a holdout at each depth would see,
+//! changes the pixel's holdout curve least (`merge_cost`: the transmittance a holdout at each depth would see,
 //! sampled through both samples, times the transmittance in front; the front-most pair on a tie) becomes one
 //! sample from the front one's `Z` to the back one's `ZBack`, with alpha `1 − (1 − A_1)(1 − A_2)` and colour
 //! `C_1 + (1 − A_1) C_2`: that is "over", so the flattened pixel stays the same (up to float rounding). Two
@@ -211,20 +211,22 @@ impl DeepPixel {
         b
     }
 
-    /// Adds one camera path: its record (the event that decided its coverage, the span of media its camera ray
-    /// crossed and its contributions), its finite `radiance` and `alpha` as the film took them, and `cos`, the
-    /// cosine between its camera ray and the view axis (distances times `cos` are depths); keeps at most
-    /// `max_bins` surface and medium bins ([`max_bins`]).
-    pub fn add(
-        &mut self,
-        record: &SampleRecord,
-        radiance: Rgb,
-        alpha: f32,
-        cos: f32,
-        max_bins: usize,
-    ) {
-        self.add_path(record, radiance, alpha, cos);
-        self.coarsen(max_bins);
+    internal! {
+        /// Adds one camera path: its record (the event that decided its coverage, the span of media its camera ray
+        /// crossed and its contributions), its finite `radiance` and `alpha` as the film took them, and `cos`, the
+        /// cosine between its camera ray and the view axis (distances times `cos` are depths); keeps at most
+        /// `max_bins` surface and medium bins ([`max_bins`]).
+        pub fn add(
+            &mut self,
+            record: &SampleRecord,
+            radiance: Rgb,
+            alpha: f32,
+            cos: f32,
+            max_bins: usize,
+        ) {
+            self.add_path(record, radiance, alpha, cos);
+            self.coarsen(max_bins);
+        }
     }
 
     /// [`Self::add`] before the bins are kept within their number.

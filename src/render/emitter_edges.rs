@@ -102,32 +102,39 @@ impl EdgeDecision {
 }
 
 impl EmitterEdgeSampling {
-    /// Decides for `scene` rendered at `width` × `height`.
-    pub fn decide(self, scene: &Scene, width: usize, height: usize) -> EdgeDecision {
-        if self == EmitterEdgeSampling::Off {
-            return EdgeDecision::Off("--emitter-edges off".into());
+    /// The decision for `scene` rendered at `width` × `height`, in words (`--explain`).
+    pub fn explain(self, scene: &Scene, width: usize, height: usize) -> String {
+        self.decide(scene, width, height).explain()
+    }
+
+    internal! {
+        /// Decides for `scene` rendered at `width` × `height`.
+        pub fn decide(self, scene: &Scene, width: usize, height: usize) -> EdgeDecision {
+            if self == EmitterEdgeSampling::Off {
+                return EdgeDecision::Off("--emitter-edges off".into());
+            }
+            if !scene.media.is_empty() {
+                return EdgeDecision::Off(
+                    "the scene has participating media (emission seen through them depends on the path)".into(),
+                );
+            }
+            if scene.camera.motion.is_some() || scene.moving_triangle_count() > 0 {
+                return EdgeDecision::Off("the camera or triangles move over the shutter".into());
+            }
+            if scene.camera.lens.is_some() {
+                return EdgeDecision::Off(
+                    "the camera has a thin lens: defocus spreads emitter outlines beyond the pixels their projection crosses"
+                        .into(),
+                );
+            }
+            if scene.names().has_mattes() {
+                return EdgeDecision::Off(
+                    "the scene has holdouts or shadow catchers, which camera rays see differently"
+                        .into(),
+                );
+            }
+            EmitterEdges::find(scene, width, height)
         }
-        if !scene.media.is_empty() {
-            return EdgeDecision::Off(
-                "the scene has participating media (emission seen through them depends on the path)".into(),
-            );
-        }
-        if scene.camera.motion.is_some() || scene.moving_triangle_count() > 0 {
-            return EdgeDecision::Off("the camera or triangles move over the shutter".into());
-        }
-        if scene.camera.lens.is_some() {
-            return EdgeDecision::Off(
-                "the camera has a thin lens: defocus spreads emitter outlines beyond the pixels their projection crosses"
-                    .into(),
-            );
-        }
-        if scene.names().has_mattes() {
-            return EdgeDecision::Off(
-                "the scene has holdouts or shadow catchers, which camera rays see differently"
-                    .into(),
-            );
-        }
-        EmitterEdges::find(scene, width, height)
     }
 }
 

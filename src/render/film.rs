@@ -137,33 +137,35 @@ impl PixelSums {
         "alpha.A.0", "alpha.A.1", "alpha.A.2", "alpha.A.3",
     ];
 
-    /// Adds one sample whose radiance is finite. Returns true when a value had to be clamped into the range
-    /// of the exact sums (see the module docs on clamping).
-    pub fn add(&mut self, s: &PathSample) -> bool {
-        let mut clamped = false;
-        let mut take = |v: f32| {
-            let (v, c) = clamp_sample(v);
-            clamped |= c;
-            v
-        };
-        self.count += 1;
-        for c in 0..3 {
-            let v = take(s.radiance[c]);
-            self.sum[c].add_value(v);
-            self.sum_sq[c].add_square(v);
-            self.albedo[c].add_value(take(s.albedo[c]));
-            self.normal[c].add_value(take(s.normal[c]));
+    internal! {
+        /// Adds one sample whose radiance is finite. Returns true when a value had to be clamped into the range
+        /// of the exact sums (see the module docs on clamping).
+        pub fn add(&mut self, s: &PathSample) -> bool {
+            let mut clamped = false;
+            let mut take = |v: f32| {
+                let (v, c) = clamp_sample(v);
+                clamped |= c;
+                v
+            };
+            self.count += 1;
+            for c in 0..3 {
+                let v = take(s.radiance[c]);
+                self.sum[c].add_value(v);
+                self.sum_sq[c].add_square(v);
+                self.albedo[c].add_value(take(s.albedo[c]));
+                self.normal[c].add_value(take(s.normal[c]));
+            }
+            self.depth.add_value(take(s.depth));
+            self.alpha.add_value(take(s.alpha));
+            clamped
         }
-        self.depth.add_value(take(s.depth));
-        self.alpha.add_value(take(s.alpha));
-        clamped
     }
 
     /// Adds the samples of `other` (another set of samples of the same pixel), or returns false (leaving these
     /// sums as they were) where a count or a sum would not fit: sums read from files are not bounded by the
     /// samples behind them.
     #[must_use]
-    pub fn checked_merge(&mut self, other: &PixelSums) -> bool {
+    pub(crate) fn checked_merge(&mut self, other: &PixelSums) -> bool {
         let mut total = *self;
         let Some(count) = total.count.checked_add(other.count) else {
             return false;
@@ -184,14 +186,16 @@ impl PixelSums {
         fits
     }
 
-    /// Number of samples added.
-    pub fn count(&self) -> u32 {
-        self.count
+    internal! {
+        /// Number of samples added.
+        pub fn count(&self) -> u32 {
+            self.count
+        }
     }
 
     /// The sums as 32-bit words, in the order of [`WORD_NAMES`](Self::WORD_NAMES), for files that carry the
     /// exact state of a partial render.
-    pub fn to_words(&self) -> [u32; Self::WORDS] {
+    pub(crate) fn to_words(self) -> [u32; Self::WORDS] {
         let values = |v: &[ValueSum]| v.iter().flat_map(|s| s.to_words()).collect::<Vec<_>>();
         let words = std::iter::once(self.count)
             .chain(values(&self.sum))
@@ -208,7 +212,7 @@ impl PixelSums {
     }
 
     /// The inverse of [`to_words`](Self::to_words).
-    pub fn from_words(words: &[u32; Self::WORDS]) -> Self {
+    pub(crate) fn from_words(words: &[u32; Self::WORDS]) -> Self {
         let mut it = words[1..].iter().copied();
         let mut value = || ValueSum::from_words(std::array::from_fn(|_| it.next().unwrap_or(0)));
         let sum = [value(), value(), value()];
@@ -259,32 +263,34 @@ pub struct FilmRow<'a> {
 }
 
 impl<'a> FilmRow<'a> {
-    /// The pixels of the row, left to right.
-    pub fn pixels(self) -> impl Iterator<Item = FilmPixel<'a>> {
-        let (slot_values, kinds) = (self.slot_values, self.kinds);
-        let n = self.sums.len();
-        let mut slots = self.slots;
-        let mut crypto = self.crypto;
-        let mut deep = self.deep;
-        self.sums.iter_mut().take(n).map(move |sums| {
-            let (s, rest) = std::mem::take(&mut slots).split_at_mut(slot_values);
-            slots = rest;
-            let (c, rest) = std::mem::take(&mut crypto).split_at_mut(kinds);
-            crypto = rest;
-            let d = match std::mem::take(&mut deep).split_first_mut() {
-                Some((d, rest)) => {
-                    deep = rest;
-                    Some(d)
+    internal! {
+        /// The pixels of the row, left to right.
+        pub fn pixels(self) -> impl Iterator<Item = FilmPixel<'a>> {
+            let (slot_values, kinds) = (self.slot_values, self.kinds);
+            let n = self.sums.len();
+            let mut slots = self.slots;
+            let mut crypto = self.crypto;
+            let mut deep = self.deep;
+            self.sums.iter_mut().take(n).map(move |sums| {
+                let (s, rest) = std::mem::take(&mut slots).split_at_mut(slot_values);
+                slots = rest;
+                let (c, rest) = std::mem::take(&mut crypto).split_at_mut(kinds);
+                crypto = rest;
+                let d = match std::mem::take(&mut deep).split_first_mut() {
+                    Some((d, rest)) => {
+                        deep = rest;
+                        Some(d)
+                    }
+                    None => None,
+                };
+                FilmPixel {
+                    sums,
+                    slots: s,
+                    crypto: c,
+                    deep: d,
                 }
-                None => None,
-            };
-            FilmPixel {
-                sums,
-                slots: s,
-                crypto: c,
-                deep: d,
-            }
-        })
+            })
+        }
     }
 }
 
@@ -320,30 +326,32 @@ impl Film {
         Self::with_plan(width, height, window, Arc::new(LayerPlan::default()))
     }
 
-    /// An empty film of `window` in a `width` × `height` frame that keeps what `plan` asks for.
-    pub fn with_plan(
-        width: usize,
-        height: usize,
-        window: PixelWindow,
-        plan: Arc<LayerPlan>,
-    ) -> Self {
-        let n = window.pixel_count();
-        Self {
-            width,
-            height,
-            window,
-            pixels: vec![PixelSums::default(); n],
-            slots: vec![ValueSum::default(); n * plan.values_per_pixel()],
-            crypto: vec![IdCoverage::default(); n * plan.cryptomatte.len()],
-            plan,
-            deep: Vec::new(),
-            deep_samples: 0,
+    internal! {
+        /// An empty film of `window` in a `width` × `height` frame that keeps what `plan` asks for.
+        pub fn with_plan(
+            width: usize,
+            height: usize,
+            window: PixelWindow,
+            plan: Arc<LayerPlan>,
+        ) -> Self {
+            let n = window.pixel_count();
+            Self {
+                width,
+                height,
+                window,
+                pixels: vec![PixelSums::default(); n],
+                slots: vec![ValueSum::default(); n * plan.values_per_pixel()],
+                crypto: vec![IdCoverage::default(); n * plan.cryptomatte.len()],
+                plan,
+                deep: Vec::new(),
+                deep_samples: 0,
+            }
         }
     }
 
     /// Makes the film keep deep bins (empty so far), for an image with at most `max_samples` (at least 1) deep
     /// samples per pixel ([`super::deep`]). A film keeps them only from the samples added after this.
-    pub fn enable_deep(&mut self, max_samples: usize) {
+    pub(crate) fn enable_deep(&mut self, max_samples: usize) {
         self.deep = vec![DeepPixel::default(); self.pixels.len()];
         self.deep_samples = max_samples.max(1);
     }
@@ -353,34 +361,25 @@ impl Film {
         (self.deep_samples > 0).then_some(self.deep_samples)
     }
 
-    /// What the film keeps beyond its core sums.
-    pub fn plan(&self) -> &LayerPlan {
-        &self.plan
+    internal! {
+        /// What the film keeps beyond its core sums.
+        pub fn plan(&self) -> &LayerPlan {
+            &self.plan
+        }
     }
 
     /// The slots' sums of the window: `plan().values_per_pixel()` per pixel, row-major.
-    pub fn slots(&self) -> &[ValueSum] {
+    pub(crate) fn slots(&self) -> &[ValueSum] {
         &self.slots
     }
 
     /// The Cryptomatte maps of the window: `plan().cryptomatte.len()` per pixel, row-major.
-    pub fn crypto(&self) -> &[IdCoverage] {
+    pub(crate) fn crypto(&self) -> &[IdCoverage] {
         &self.crypto
     }
 
-    /// Pixel `i` of the window (row-major), to add samples to.
-    pub fn pixel_mut(&mut self, i: usize) -> FilmPixel<'_> {
-        let (v, k) = (self.plan.values_per_pixel(), self.plan.cryptomatte.len());
-        FilmPixel {
-            sums: &mut self.pixels[i],
-            slots: &mut self.slots[i * v..(i + 1) * v],
-            crypto: &mut self.crypto[i * k..(i + 1) * k],
-            deep: self.deep.get_mut(i),
-        }
-    }
-
     /// The rows of the window, top first, for parallel accumulation.
-    pub fn rows_mut(&mut self) -> Vec<FilmRow<'_>> {
+    pub(crate) fn rows_mut(&mut self) -> Vec<FilmRow<'_>> {
         let w = self.window.width();
         let (v, k) = (self.plan.values_per_pixel(), self.plan.cryptomatte.len());
         let mut slots = self.slots.as_mut_slice();
@@ -413,14 +412,19 @@ impl Film {
         self.window
     }
 
-    /// The pixel sums of the window, row-major.
-    pub fn pixels(&self) -> &[PixelSums] {
-        &self.pixels
+    internal! {
+        /// The pixel sums of the window, row-major.
+        pub fn pixels(&self) -> &[PixelSums] {
+            &self.pixels
+        }
     }
 
-    /// The pixel sums of the window, row-major, for parallel accumulation.
-    pub fn pixels_mut(&mut self) -> &mut [PixelSums] {
-        &mut self.pixels
+    internal! {
+        /// The pixel sums of the window, row-major, for parallel accumulation.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn pixels_mut(&mut self) -> &mut [PixelSums] {
+            &mut self.pixels
+        }
     }
 
     /// Adds the samples of `other`, a film of the same frame and plan (and deep output, or none) whose window
@@ -465,7 +469,7 @@ impl Film {
 
     /// Sets the sums of pixel `i` (row-major in the window) from a part file: the core sums, the slots'
     /// sums and the Cryptomatte maps (`None` keeps what is there). Lengths must be the plan's.
-    pub fn set_pixel(
+    pub(crate) fn set_pixel(
         &mut self,
         i: usize,
         sums: PixelSums,

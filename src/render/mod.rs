@@ -14,20 +14,36 @@ mod recording;
 mod renderer;
 pub mod resume;
 
-pub use crate::integrator::{EquiangularTargets, PathSample};
+pub use crate::integrator::{EquiangularTargets, RayCounters};
+pub use crate::volume::TrackingCounters;
 pub use aovs::{AovSelection, LayerPlan, LightGroupMode, LightGroups};
 pub use cancel::CancelToken;
 pub use channels::{channel_names, Channel, ChannelKind, Layer, LayerData, LAYERS};
 pub use deep::{DeepImage, DeepSample};
-pub use emitter_edges::{
-    EdgeDecision, EmitterEdgeSampling, EmitterEdges, EDGE_RAYS, MAX_EMISSIVE_TRIANGLES,
-    MAX_MARKED_SHARE,
-};
-pub use exact::{ValueSum, MAX_SAMPLE_VALUE};
-pub use film::{Film, FilmMergeError, FilmPixel, FilmRow, PixelSums, PixelWindow};
+#[cfg(feature = "testing")]
+pub use emitter_edges::EdgeDecision;
+pub use emitter_edges::EmitterEdgeSampling;
+pub use film::{Film, FilmMergeError, PixelWindow};
+internal! {
+    pub use film::PixelSums;
+}
 pub use image::{AovLayer, ImageMetadata, RenderImage};
+internal! {
+    pub use exact::ValueSum;
+}
+#[cfg(feature = "testing")]
+pub use crate::integrator::PathSample;
+#[cfg(feature = "testing")]
+pub use emitter_edges::{EmitterEdges, EDGE_RAYS, MAX_EMISSIVE_TRIANGLES, MAX_MARKED_SHARE};
+#[cfg(feature = "testing")]
+pub use exact::MAX_SAMPLE_VALUE;
+#[cfg(feature = "testing")]
+pub use film::{FilmPixel, FilmRow};
+#[cfg(feature = "testing")]
 pub use recording::LayerRecorder;
+#[cfg(feature = "testing")]
+pub use renderer::peak_memory_bytes;
 pub use renderer::{
-    peak_memory_bytes, MediumStats, Progress, RegionError, RenderError, RenderRegion,
-    RenderSettings, RenderStats, Renderer, Sampler, DEFAULT_MAX_DEPTH, DEFAULT_WIDTH,
+    MediumStats, Progress, RegionError, RenderError, RenderRegion, RenderSettings, RenderStats,
+    Renderer, Sampler, DEFAULT_MAX_DEPTH, DEFAULT_WIDTH,
 };

@@ -76,7 +76,7 @@ pub struct RenderSettings {
     /// How next-event estimation chooses a light: by power, through the light BVH, or per scene (auto).
     pub light_sampler: LightSamplerChoice,
     /// Whether pixels that an emitter's outline crosses estimate the directly visible emission from more
-    /// camera rays ([`super::EmitterEdges`]).
+    /// camera rays (`super::EmitterEdges`).
     pub emitter_edges: EmitterEdgeSampling,
     /// The memory budget: a film larger than it is refused before it is allocated.
     pub limits: crate::limits::Limits,
@@ -181,7 +181,7 @@ pub struct RenderStats {
     /// Samples dropped because their radiance was NaN or infinite (never written to the film).
     pub nan_samples: u64,
     /// Samples with a value (radiance or AOV) beyond ±2^38 ≈ ±2.7e11, or a NaN or infinite AOV, clamped into
-    /// the range of the film's exact sums (see [`MAX_SAMPLE_VALUE`](super::MAX_SAMPLE_VALUE)).
+    /// the range of the film's exact sums (see `MAX_SAMPLE_VALUE`).
     pub clamped_samples: u64,
     /// Peak resident memory of the process, when the platform reports it.
     pub peak_memory_bytes: Option<u64>,
@@ -236,8 +236,13 @@ pub struct MediumStats {
     pub method: String,
     /// The same, as data: its `--stats` keys (`free_flight`, `channel_choice`, `closed_form_segments`,
     /// `majorant`, `shadow_estimator`, `method_reason`, `majorant_pilot`) sit flat beside `method`.
+    #[cfg(feature = "testing")]
     #[serde(flatten)]
     pub method_details: MediumMethod,
+    /// The same, as data (internal without the `testing` feature: `method` says it in words).
+    #[cfg(not(feature = "testing"))]
+    #[serde(flatten)]
+    pub(crate) method_details: MediumMethod,
     /// Bytes held by the medium (grids, majorants).
     pub memory_bytes: usize,
     /// Tracking counters (`density_lookups`, `real_collisions`, `null_collisions`, `majorant_segments`,

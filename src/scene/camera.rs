@@ -39,8 +39,13 @@ pub struct Camera {
     /// Width / height from the scene file, used when the user gives only a width.
     pub aspect_ratio: Option<f32>,
     /// The camera's poses across the shutter when it moves (camera motion blur); `None` for a still camera,
-    /// which is at `camera_to_world` at every time.
+    /// which is at `camera_to_world` at every time. (Internal without the `testing` feature: see
+    /// [`Camera::is_moving`].)
+    #[cfg(feature = "testing")]
     pub motion: Option<CameraMotion>,
+    /// The camera's poses across the shutter when it moves.
+    #[cfg(not(feature = "testing"))]
+    pub(crate) motion: Option<CameraMotion>,
 }
 
 /// How a camera maps film positions onto rays.
@@ -69,11 +74,11 @@ pub struct ThinLens {
 
 /// The sensor width Blender's cameras default to, in metres: with sensor fit AUTO it spans the larger side of
 /// the image, which makes a glTF camera's `f_stop` mean what it means in Blender (see [`CAMERA_KEYS`]).
-pub const BLENDER_SENSOR_WIDTH: f32 = 0.036;
+pub(crate) const BLENDER_SENSOR_WIDTH: f32 = 0.036;
 
 /// The largest aperture radius over focus distance a lens may have: far beyond any optics (a real lens's ratio
 /// is below 1), and small enough that a lens ray's direction keeps its single-precision length.
-pub const MAX_APERTURE_OVER_FOCUS: f32 = 1e6;
+pub(crate) const MAX_APERTURE_OVER_FOCUS: f32 = 1e6;
 
 /// `nimbus_camera.aperture_radius`.
 const APERTURE_RADIUS: ParamKey = ParamKey {
@@ -106,9 +111,11 @@ const FOCUS_DISTANCE: ParamKey = ParamKey {
     usd: UsdBinding::Elsewhere("`focusDistance`"),
 };
 
-/// The keys of a glTF camera's `extras.nimbus_camera` (on the camera node or on the camera object; the node's
-/// wins), in docs/reference.md's order. Other keys are reported as warnings and ignored.
-pub const CAMERA_KEYS: &[ParamKey] = &[APERTURE_RADIUS, F_STOP, FOCUS_DISTANCE];
+internal! {
+    /// The keys of a glTF camera's `extras.nimbus_camera` (on the camera node or on the camera object; the node's
+    /// wins), in docs/reference.md's order. Other keys are reported as warnings and ignored.
+    pub const CAMERA_KEYS: &[ParamKey] = &[APERTURE_RADIUS, F_STOP, FOCUS_DISTANCE];
+}
 
 /// A `nimbus_camera` declaration (or a USD camera's lens attributes) that cannot be a lens.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -127,7 +134,7 @@ pub enum LensError {
 impl ThinLens {
     /// The lens from an aperture radius and a focus distance (scene units): `None` for a radius of 0 (a
     /// pinhole); an error for a value that is negative, not finite, a focus distance that is not > 0, or one
-    /// below the radius over [`MAX_APERTURE_OVER_FOCUS`].
+    /// below the radius over `MAX_APERTURE_OVER_FOCUS`.
     /// `names` are the keys as the scene file spells them (radius, focus distance), for the messages.
     pub fn new(
         aperture_radius: f32,
@@ -176,7 +183,7 @@ impl ThinLens {
 
     /// The lens of a glTF `nimbus_camera` object ([`CAMERA_KEYS`]) for a camera with `focal_length` (metres;
     /// `None` for an orthographic camera): `aperture_radius`, or `f_stop` converted as the key table says.
-    pub fn from_params(
+    pub(crate) fn from_params(
         params: &impl ParamSource,
         focal_length: Option<f32>,
     ) -> Result<Option<Self>, LensError> {
@@ -210,13 +217,15 @@ impl ThinLens {
     }
 }
 
-/// The focal length (metres) that makes a glTF perspective camera's `yfov` and `aspectRatio` those of a
-/// Blender camera with a 36 mm sensor and sensor fit AUTO: the sensor spans the larger side of the image, the
-/// horizontal one when `aspect_ratio` (width / height) is at least 1 or absent, so the focal length is
-/// `0.018 / tan(fov/2)` with `tan(fov/2) = max(aspect_ratio, 1) · tan(yfov/2)`.
-pub fn blender_focal_length(yfov: f32, aspect_ratio: Option<f32>) -> f32 {
-    let tan_large = aspect_ratio.unwrap_or(1.0).max(1.0) * (yfov * 0.5).tan();
-    0.5 * BLENDER_SENSOR_WIDTH / tan_large
+internal! {
+    /// The focal length (metres) that makes a glTF perspective camera's `yfov` and `aspectRatio` those of a
+    /// Blender camera with a 36 mm sensor and sensor fit AUTO: the sensor spans the larger side of the image, the
+    /// horizontal one when `aspect_ratio` (width / height) is at least 1 or absent, so the focal length is
+    /// `0.018 / tan(fov/2)` with `tan(fov/2) = max(aspect_ratio, 1) · tan(yfov/2)`.
+    pub fn blender_focal_length(yfov: f32, aspect_ratio: Option<f32>) -> f32 {
+        let tan_large = aspect_ratio.unwrap_or(1.0).max(1.0) * (yfov * 0.5).tan();
+        0.5 * BLENDER_SENSOR_WIDTH / tan_large
+    }
 }
 
 /// A camera of a scene file with the names it can be chosen by (`--camera`).
@@ -277,13 +286,15 @@ pub struct UnknownCamera {
     pub available: Vec<String>,
 }
 
-/// A moving camera's rigid poses at its motion steps.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CameraMotion {
-    /// When the poses are.
-    pub steps: MotionSteps,
-    /// The position and rotation of the camera-to-world transform at each step.
-    pub poses: Vec<(Vec3, Quat)>,
+internal! {
+    /// A moving camera's rigid poses at its motion steps.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct CameraMotion {
+        /// When the poses are.
+        pub steps: MotionSteps,
+        /// The position and rotation of the camera-to-world transform at each step.
+        pub poses: Vec<(Vec3, Quat)>,
+    }
 }
 
 impl CameraMotion {
@@ -305,7 +316,7 @@ impl CameraMotion {
     }
 
     /// Whether every pose is finite, and there is one per step (at least two).
-    pub fn is_valid(&self) -> bool {
+    pub(crate) fn is_valid(&self) -> bool {
         self.steps.count >= 2
             && self.poses.len() == self.steps.count as usize
             && self.steps.open.is_finite()
@@ -319,6 +330,11 @@ impl CameraMotion {
 }
 
 impl Camera {
+    /// Whether the camera moves across the shutter (camera motion blur).
+    pub fn is_moving(&self) -> bool {
+        self.motion.is_some()
+    }
+
     /// A camera at `eye` looking at `target` with +Y up.
     pub fn look_at(eye: Vec3, target: Vec3, yfov: f32) -> Self {
         let up = if (target - eye).normalize_or_zero().cross(Vec3::Y).length() < 1e-4 {
@@ -336,61 +352,63 @@ impl Camera {
         }
     }
 
-    /// The default camera for a scene without one: a 40° vertical field of view, looking at `bounds` from the
-    /// direction in which they show the most area, and as close as fits them.
-    ///
-    /// Direction: a box of extents (a, b, c) seen along the unit direction d covers a projected area of
-    /// |dₓ|·bc + |d_y|·ac + |d_z|·ab, which is largest for d ∝ (bc, ac, ab) (Cauchy–Schwarz). So planar content
-    /// is seen face-on (a quad in the YZ plane from +X), a thin slab nearly so, a cube in a three-quarter view
-    /// from the +X, +Y, +Z octant, and an elongated box from its long side; a segment or a point, which shows
-    /// no area, is seen from the front, slightly right and above.
-    ///
-    /// Distance: the nearest at which every corner of the box lies within the field of view (with a 5 % margin)
-    /// in both directions at an aspect ratio of 1, so the bounds are fitted tightly in any image at least as wide
-    /// as it is tall (a portrait image may cut the sides).
-    pub fn framing(bounds: &Aabb) -> Self {
-        let yfov = 40f32.to_radians();
-        if bounds.is_empty() {
-            return Self::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, yfov);
-        }
-        let e = bounds.extent();
-        let areas = Vec3::new(e.y * e.z, e.x * e.z, e.x * e.y);
-        let front = Vec3::new(0.35, 0.25, 1.0);
-        // Areas are relative to the largest face; the front direction only decides where they all vanish.
-        let dir = (areas / areas.max_element().max(f32::MIN_POSITIVE) + front * 1e-3).normalize();
-        let center = bounds.center();
-        // Seen from (nearly) straight above or below, the image's up is −Z: the far side of the scene at the top,
-        // as when a camera in front tilts down.
-        let up = if dir.y.abs() > 0.9 { -Vec3::Z } else { Vec3::Y };
-        let world_to_camera = Mat4::look_at_rh(center + dir, center, up);
-        // Tangent of the half field of view, less a 5 % margin.
-        let tan_half = (yfov * 0.5).tan() / 1.05;
-        // The camera sits at `center + dir · distance`; a corner at camera-space (x, y, z) relative to the
-        // centre is at depth distance − z, inside the view when |x|, |y| ≤ tan_half · depth.
-        let mut distance = 0f32;
-        let radius = super::bounding_radius(bounds);
-        for corner in bounds.corners() {
-            let q = world_to_camera.transform_vector3(corner - center);
-            // q.z is toward the camera (the camera looks down −Z).
-            let needed = q.z + q.x.abs().max(q.y.abs()) / tan_half;
-            distance = distance.max(needed);
-        }
-        // Stay outside the bounds by a hair (a point or a segment end-on needs a positive distance).
-        let distance = distance.max(radius * 1e-2);
-        let eye = center + dir * distance;
-        Self {
-            camera_to_world: Mat4::look_at_rh(eye, center, up).inverse(),
-            yfov,
-            projection: Projection::Perspective,
-            lens: None,
-            aspect_ratio: None,
-            motion: None,
+    internal! {
+        /// The default camera for a scene without one: a 40° vertical field of view, looking at `bounds` from the
+        /// direction in which they show the most area, and as close as fits them.
+        ///
+        /// Direction: a box of extents (a, b, c) seen along the unit direction d covers a projected area of
+        /// |dₓ|·bc + |d_y|·ac + |d_z|·ab, which is largest for d ∝ (bc, ac, ab) (Cauchy–Schwarz). So planar content
+        /// is seen face-on (a quad in the YZ plane from +X), a thin slab nearly so, a cube in a three-quarter view
+        /// from the +X, +Y, +Z octant, and an elongated box from its long side; a segment or a point, which shows
+        /// no area, is seen from the front, slightly right and above.
+        ///
+        /// Distance: the nearest at which every corner of the box lies within the field of view (with a 5 % margin)
+        /// in both directions at an aspect ratio of 1, so the bounds are fitted tightly in any image at least as wide
+        /// as it is tall (a portrait image may cut the sides).
+        pub fn framing(bounds: &Aabb) -> Self {
+            let yfov = 40f32.to_radians();
+            if bounds.is_empty() {
+                return Self::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, yfov);
+            }
+            let e = bounds.extent();
+            let areas = Vec3::new(e.y * e.z, e.x * e.z, e.x * e.y);
+            let front = Vec3::new(0.35, 0.25, 1.0);
+            // Areas are relative to the largest face; the front direction only decides where they all vanish.
+            let dir = (areas / areas.max_element().max(f32::MIN_POSITIVE) + front * 1e-3).normalize();
+            let center = bounds.center();
+            // Seen from (nearly) straight above or below, the image's up is −Z: the far side of the scene at the top,
+            // as when a camera in front tilts down.
+            let up = if dir.y.abs() > 0.9 { -Vec3::Z } else { Vec3::Y };
+            let world_to_camera = Mat4::look_at_rh(center + dir, center, up);
+            // Tangent of the half field of view, less a 5 % margin.
+            let tan_half = (yfov * 0.5).tan() / 1.05;
+            // The camera sits at `center + dir · distance`; a corner at camera-space (x, y, z) relative to the
+            // centre is at depth distance − z, inside the view when |x|, |y| ≤ tan_half · depth.
+            let mut distance = 0f32;
+            let radius = super::bounding_radius(bounds);
+            for corner in bounds.corners() {
+                let q = world_to_camera.transform_vector3(corner - center);
+                // q.z is toward the camera (the camera looks down −Z).
+                let needed = q.z + q.x.abs().max(q.y.abs()) / tan_half;
+                distance = distance.max(needed);
+            }
+            // Stay outside the bounds by a hair (a point or a segment end-on needs a positive distance).
+            let distance = distance.max(radius * 1e-2);
+            let eye = center + dir * distance;
+            Self {
+                camera_to_world: Mat4::look_at_rh(eye, center, up).inverse(),
+                yfov,
+                projection: Projection::Perspective,
+                lens: None,
+                aspect_ratio: None,
+                motion: None,
+            }
         }
     }
 
     /// A camera-to-world matrix from a scene node's world matrix: its scale and shear removed, its rotation
     /// (the x axis, then the y axis made orthogonal to it) and position kept.
-    pub fn rigid(m: &Mat4) -> Mat4 {
+    pub(crate) fn rigid(m: &Mat4) -> Mat4 {
         let x = m.x_axis.truncate().normalize_or(Vec3::X);
         let y0 = m.y_axis.truncate();
         let z = x.cross(y0).normalize_or(Vec3::Z);
@@ -408,7 +426,7 @@ impl Camera {
     /// Level of Detail Using Ray Cones", JCGT 10(1), §3). 0 for an orthographic camera, whose rays are parallel
     /// (its cones start [`Self::pixel_width`] wide instead). A thin lens keeps the pinhole's spread, as pbrt-v4
     /// does: the cone describes the pixel's footprint, not the defocus.
-    pub fn pixel_spread_angle(&self, height: usize) -> f32 {
+    pub(crate) fn pixel_spread_angle(&self, height: usize) -> f32 {
         if matches!(self.projection, Projection::Orthographic { .. }) {
             return 0.0;
         }
@@ -422,31 +440,37 @@ impl Camera {
 
     /// The width of a camera ray cone where it starts, in scene units: one pixel's height on an orthographic
     /// film (`2·half_height / height`), 0 for a perspective camera (its cones start at the pinhole).
-    pub fn pixel_width(&self, height: usize) -> f32 {
+    pub(crate) fn pixel_width(&self, height: usize) -> f32 {
         match self.projection {
             Projection::Perspective => 0.0,
             Projection::Orthographic { half_height } => 2.0 * half_height / height.max(1) as f32,
         }
     }
 
-    /// The primary ray through film position `film` in \[0,1\]² ((0,0) = top-left) for an image of `aspect`
-    /// = width / height, from the centre of the lens (a thin lens's centre ray is the pinhole's).
-    pub fn generate_ray(&self, film: Vec2, aspect: f32) -> Ray {
-        self.ray_from(&self.camera_to_world, film, aspect, None)
+    internal! {
+        /// The primary ray through film position `film` in \[0,1\]² ((0,0) = top-left) for an image of `aspect`
+        /// = width / height, from the centre of the lens (a thin lens's centre ray is the pinhole's).
+        #[cfg(any(test, feature = "testing"))]
+        pub fn generate_ray(&self, film: Vec2, aspect: f32) -> Ray {
+            self.ray_from(&self.camera_to_world, film, aspect, None)
+        }
     }
 
-    /// The primary ray through `film` (as [`Self::generate_ray`]) at `time` (frames from the frame): from the
-    /// camera's pose at that time when it moves ([`CameraMotion::camera_to_world_at`]), else from its one
-    /// pose; the ray carries the time.
-    pub fn generate_ray_at(&self, film: Vec2, aspect: f32, time: f32) -> Ray {
-        self.sample_ray(film, None, aspect, Some(time))
+    internal! {
+        /// The primary ray through `film` (as [`Self::generate_ray`]) at `time` (frames from the frame): from the
+        /// camera's pose at that time when it moves ([`CameraMotion::camera_to_world_at`]), else from its one
+        /// pose; the ray carries the time.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn generate_ray_at(&self, film: Vec2, aspect: f32, time: f32) -> Ray {
+            self.sample_ray(film, None, aspect, Some(time))
+        }
     }
 
     /// The primary ray of one camera sample: through `film` (as [`Self::generate_ray`]), from the lens point of
     /// the 2-D sample `lens` in \[0,1)² when the camera has a [`ThinLens`] (mapped onto the lens disk by
     /// [`concentric_disk`]; see the module documentation), at `time` when given (as [`Self::generate_ray_at`]).
     /// Without a lens, or with `lens` `None`, the ray starts at the lens centre (the pinhole).
-    pub fn sample_ray(
+    pub(crate) fn sample_ray(
         &self,
         film: Vec2,
         lens: Option<Vec2>,
@@ -470,7 +494,7 @@ impl Camera {
     /// (`z < 0`); `None` for a point on or behind the camera plane. The inverse of [`Self::generate_ray`]:
     /// positions outside \[0,1\]² are outside the image. For a thin lens this is where the point is seen through
     /// the lens centre, the centre of its circle of confusion.
-    pub fn film_position(&self, p_camera: Vec3, aspect: f32) -> Option<Vec2> {
+    pub(crate) fn film_position(&self, p_camera: Vec3, aspect: f32) -> Option<Vec2> {
         if p_camera.z.is_nan() || p_camera.z >= 0.0 {
             return None;
         }
@@ -534,7 +558,7 @@ impl Camera {
     }
 
     /// `p` (world space) in the still camera's space: the camera at the origin looking down −Z, +Y up.
-    pub fn to_camera_space(&self, p: Vec3) -> Vec3 {
+    pub(crate) fn to_camera_space(&self, p: Vec3) -> Vec3 {
         self.camera_to_world.inverse().transform_point3(p)
     }
 
@@ -543,7 +567,7 @@ impl Camera {
     /// and a finite focus distance > 0 (the radius at most [`MAX_APERTURE_OVER_FOCUS`] times it) if any. Motion
     /// is checked by
     /// [`CameraMotion::is_valid`].
-    pub fn is_valid(&self) -> bool {
+    pub(crate) fn is_valid(&self) -> bool {
         let projection = match self.projection {
             Projection::Perspective => self.yfov > 0.0 && self.yfov < std::f32::consts::PI,
             Projection::Orthographic { half_height } => {

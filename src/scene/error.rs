@@ -34,7 +34,7 @@ pub enum SceneErrorKind {
     #[error("{0} (--strict refuses keys the renderer would ignore)")]
     UnknownKey(String),
     /// Loading the file would pass a limit of [`crate::limits::Limits`]: the memory budget, or the load-time
-    /// work it allows ([`crate::limits::WorkBudget`]); the message names which, and `--memory-limit`.
+    /// work it allows (`crate::limits::WorkBudget`); the message names which, and `--memory-limit`.
     #[error("over a limit: {0}")]
     OverLimit(String),
     /// A third-party reader panicked on the file (a damaged file its own checks missed), or did not finish

@@ -6,22 +6,25 @@
 mod builder;
 mod camera;
 mod error;
-pub mod gltf;
+internal! { pub mod gltf; }
 mod gltf_accessors;
 mod gltf_animation;
 mod gltf_check;
 mod gltf_deform;
 mod names;
-pub mod obj;
-pub mod usd;
+internal! {
+    pub mod obj;
+    pub mod usd;
+    pub use builder::BUILDER_PATH;
+    pub use camera::{blender_focal_length, CameraMotion, CAMERA_KEYS};
+    pub use names::{Emitter, LightTag, MediumTag, SceneNames, ENVIRONMENT_NAME};
+}
+pub use camera::{Camera, LensError, NamedCamera, Projection, ThinLens, UnknownCamera};
+#[cfg(feature = "testing")]
+pub use names::CryptoNames;
 
-pub use builder::BUILDER_PATH;
-pub use camera::{
-    blender_focal_length, Camera, CameraMotion, LensError, NamedCamera, Projection, ThinLens,
-    UnknownCamera, CAMERA_KEYS,
-};
+pub use crate::volume::{DensityError, MissingFrame, VolumeError};
 pub use error::{SceneError, SceneErrorKind};
-pub use names::{CryptoNames, Emitter, LightTag, MediumTag, SceneNames, ENVIRONMENT_NAME};
 
 use crate::geometry::TriangleHit;
 use crate::geometry::{Bvh, Mesh, MotionBvh, SurfacePoint, TriangleHierarchy};
@@ -32,14 +35,18 @@ use crate::volume::Medium;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
-/// Bytes one triangle of a scene is counted at against the memory budget: its three indices and what
-/// [`SceneBuilder::build`] makes of it (the flattened triangle, its BVH copy, build references, nodes and
-/// per-triangle tables: about 150 bytes), rounded up.
-pub const BYTES_PER_TRIANGLE: u64 = 192;
+internal! {
+    /// Bytes one triangle of a scene is counted at against the memory budget: its three indices and what
+    /// [`SceneBuilder::build`] makes of it (the flattened triangle, its BVH copy, build references, nodes and
+    /// per-triangle tables: about 150 bytes), rounded up.
+    pub const BYTES_PER_TRIANGLE: u64 = 192;
+}
 
-/// Bytes one mesh vertex is counted at against the memory budget, once for the mesh and once for each motion
-/// step: position, normal, two texture-coordinate sets and a tangent (56 bytes), rounded up.
-pub const BYTES_PER_VERTEX: u64 = 64;
+internal! {
+    /// Bytes one mesh vertex is counted at against the memory budget, once for the mesh and once for each motion
+    /// step: position, normal, two texture-coordinate sets and a tangent (56 bytes), rounded up.
+    pub const BYTES_PER_VERTEX: u64 = 64;
+}
 
 /// The bytes `triangles` and `vertices` are counted at ([`BYTES_PER_TRIANGLE`], [`BYTES_PER_VERTEX`]).
 fn mesh_bytes(triangles: u64, vertices: u64) -> u64 {
@@ -137,7 +144,9 @@ pub(crate) fn report_unknown_keys(
 pub struct LoadOptions<'a> {
     /// Applied to every VDB volume declaration (glTF `nimbus_volume`, USD `Volume`) after it is read and before
     /// its medium is built, to compare majorant structures or shadow estimators on the same scene.
-    pub volume_override: Option<&'a dyn Fn(&mut crate::volume::VolumeSpec)>,
+    /// Only the crate itself makes one (`nimbus converge`, and its tests with the `testing` feature): volume
+    /// declarations are not part of the API.
+    pub volume_override: Option<VolumeOverride<'a>>,
     /// VDB files given in memory by name: a volume whose `file` equals one of these names reads its bytes
     /// instead of the file system (the bundled demo).
     pub embedded: &'a [(&'a str, &'static [u8])],
@@ -169,28 +178,71 @@ pub struct LoadOptions<'a> {
     pub strict: bool,
 }
 
+/// A change applied to every volume declaration a loader reads ([`LoadOptions::volume_override`]): a rendering
+/// method forced on every medium ([`VolumeOverride::method`], `nimbus converge`'s and the Python module's
+/// `volume_method`), or, inside the crate, any change to the declaration.
+#[derive(Clone, Copy)]
+pub struct VolumeOverride<'a>(Override<'a>);
+
+/// What a [`VolumeOverride`] does.
+#[derive(Clone, Copy)]
+enum Override<'a> {
+    /// Calls the function on each declaration.
+    Function(&'a dyn Fn(&mut crate::volume::VolumeSpec)),
+    /// Forces the method on each medium.
+    Method(crate::converge::Method),
+}
+
+impl<'a> VolumeOverride<'a> {
+    internal! {
+        /// The override that calls `f` on each volume declaration.
+        pub fn new(f: &'a dyn Fn(&mut crate::volume::VolumeSpec)) -> Self {
+            VolumeOverride(Override::Function(f))
+        }
+    }
+
+    /// The override that renders every medium by `method` (its free-flight estimator and majorants), as
+    /// `nimbus converge` compares them.
+    pub fn method(method: crate::converge::Method) -> Self {
+        VolumeOverride(Override::Method(method))
+    }
+}
+
 impl LoadOptions<'_> {
     /// Gives `spec` the memory budget, then applies the volume override, if any. Every loader calls this on
     /// each volume it declares.
-    pub fn apply_volume_override(&self, spec: &mut crate::volume::VolumeSpec) {
+    pub(crate) fn apply_volume_override(&self, spec: &mut crate::volume::VolumeSpec) {
         spec.limits = self.limits;
         spec.frame = self.frame;
         spec.shutter = self.shutter;
         if let Some(fps) = self.fps {
             spec.fps = fps;
         }
-        if let Some(f) = self.volume_override {
-            f(spec);
+        match self.volume_override {
+            Some(VolumeOverride(Override::Function(f))) => f(spec),
+            Some(VolumeOverride(Override::Method(m))) => m.apply_to_volume(spec),
+            None => {}
         }
     }
 
     /// The bytes of the embedded file named `file`, if there is one.
-    pub fn embedded_file(&self, file: &str) -> Option<&'static [u8]> {
+    pub(crate) fn embedded_file(&self, file: &str) -> Option<&'static [u8]> {
         self.embedded
             .iter()
             .find(|(name, _)| *name == file)
             .map(|(_, bytes)| *bytes)
     }
+}
+
+/// Reads glTF or GLB bytes into a builder, like [`load_builder`] reads a file: `path` names the file in errors
+/// and its folder resolves external URIs (the CLI's bundled demo scene, with its VDB in
+/// [`LoadOptions::embedded`]).
+pub fn load_gltf_slice(
+    bytes: &[u8],
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<SceneBuilder, SceneError> {
+    gltf::load_slice(bytes, path, options)
 }
 
 /// Reads a scene file into a builder (to be adjusted, then built), choosing the loader by extension.
@@ -255,7 +307,7 @@ pub struct SceneBuilder {
 
 impl SceneBuilder {
     /// An empty builder whose meshes must fit `limits` (a default builder has the default limits).
-    pub fn with_limits(limits: crate::limits::Limits) -> Self {
+    pub(crate) fn with_limits(limits: crate::limits::Limits) -> Self {
         Self {
             limits,
             ..Self::default()
@@ -266,7 +318,7 @@ impl SceneBuilder {
     /// with the meshes added so far, at [`BYTES_PER_TRIANGLE`] and [`BYTES_PER_VERTEX`]. Loaders call it before
     /// making a mesh (an instance, an expanded prototype), so that a file reusing one mesh many times is
     /// refused before the copies are made; `what` names the mesh.
-    pub fn check_mesh(
+    pub(crate) fn check_mesh(
         &self,
         what: impl std::fmt::Display,
         triangles: u64,
@@ -284,7 +336,7 @@ impl SceneBuilder {
 
     /// Loads the VDB volume `spec` describes and adds it as a position-filled medium; returns its index, or
     /// `None` when a sequence has no file for the frame and its `missing_frame` is `empty` (a warning says so).
-    pub fn add_volume(
+    pub(crate) fn add_volume(
         &mut self,
         spec: &crate::volume::VolumeSpec,
     ) -> Result<Option<u32>, crate::volume::VolumeError> {
@@ -312,18 +364,20 @@ impl SceneBuilder {
         }
     }
 
-    /// Adds a medium and returns its index. Its Cryptomatte names are its own name; see
-    /// [`set_medium_tag`](Self::set_medium_tag) for an asset and compositing tags.
-    pub fn add_medium(&mut self, medium: Arc<dyn Medium>) -> u32 {
-        self.warnings.extend(medium.warnings());
-        self.media.push(medium);
-        self.media_tags.push(MediumTag::default());
-        (self.media.len() - 1) as u32
+    internal! {
+        /// Adds a medium and returns its index. Its Cryptomatte names are its own name; see
+        /// [`set_medium_tag`](Self::set_medium_tag) for an asset and compositing tags.
+        pub fn add_medium(&mut self, medium: Arc<dyn Medium>) -> u32 {
+            self.warnings.extend(medium.warnings());
+            self.media.push(medium);
+            self.media_tags.push(MediumTag::default());
+            (self.media.len() - 1) as u32
+        }
     }
 
     /// Gives medium `index` (as [`add_medium`](Self::add_medium) returned it) its asset name and compositing
     /// tags; an index that names no medium is ignored.
-    pub fn set_medium_tag(&mut self, index: u32, tag: MediumTag) {
+    pub(crate) fn set_medium_tag(&mut self, index: u32, tag: MediumTag) {
         if let Some(t) = self.media_tags.get_mut(index as usize) {
             *t = tag;
         }
@@ -336,24 +390,28 @@ impl SceneBuilder {
         (self.materials.len() - 1) as u32
     }
 
-    /// Adds a texture and returns its index.
-    pub fn add_texture(&mut self, texture: Texture) -> u32 {
-        self.textures.push(texture);
-        (self.textures.len() - 1) as u32
+    internal! {
+        /// Adds a texture and returns its index.
+        pub fn add_texture(&mut self, texture: Texture) -> u32 {
+            self.textures.push(texture);
+            (self.textures.len() - 1) as u32
+        }
     }
 
-    /// Adds a world-space mesh, generating normals when it has none. Its material index must refer to a
-    /// material added by the time the scene is built.
-    pub fn add_mesh(&mut self, mut mesh: Mesh) {
-        // A mesh whose indices, attributes or motion steps do not fit its positions keeps its normals as given,
-        // and `build` names the problem: generating normals would index past the end of one of them.
-        if mesh.normals.len() != mesh.positions.len() && mesh.indices_fit_attributes() {
-            mesh.generate_normals();
+    internal! {
+        /// Adds a world-space mesh, generating normals when it has none. Its material index must refer to a
+        /// material added by the time the scene is built.
+        pub fn add_mesh(&mut self, mut mesh: Mesh) {
+            // A mesh whose indices, attributes or motion steps do not fit its positions keeps its normals as given,
+            // and `build` names the problem: generating normals would index past the end of one of them.
+            if mesh.normals.len() != mesh.positions.len() && mesh.indices_fit_attributes() {
+                mesh.generate_normals();
+            }
+            let (triangles, vertices) = mesh_counts(&mesh);
+            self.triangles = self.triangles.saturating_add(triangles);
+            self.vertices = self.vertices.saturating_add(vertices);
+            self.meshes.push(mesh);
         }
-        let (triangles, vertices) = mesh_counts(&mesh);
-        self.triangles = self.triangles.saturating_add(triangles);
-        self.vertices = self.vertices.saturating_add(vertices);
-        self.meshes.push(mesh);
     }
 
     /// Removes and returns the meshes added after the first `at` (a USD prototype flattened for instancing).
@@ -366,26 +424,30 @@ impl SceneBuilder {
         taken
     }
 
-    /// Adds a light (area lights come from emissive materials instead; an environment replaces any other),
-    /// named `light<i>` in no light group.
-    pub fn add_light(&mut self, light: Light) {
-        let tag = LightTag {
-            name: format!("light{}", self.lights.len()),
-            light_group: None,
-        };
-        self.add_tagged_light(light, tag);
+    internal! {
+        /// Adds a light (area lights come from emissive materials instead; an environment replaces any other),
+        /// named `light<i>` in no light group.
+        pub fn add_light(&mut self, light: Light) {
+            let tag = LightTag {
+                name: format!("light{}", self.lights.len()),
+                light_group: None,
+            };
+            self.add_tagged_light(light, tag);
+        }
     }
 
-    /// Adds a light with its name (for per-light groups) and light group.
-    pub fn add_tagged_light(&mut self, light: Light, tag: LightTag) {
-        match light {
-            Light::Environment(env) => {
-                self.set_environment(env);
-                self.set_environment_group(tag.light_group);
-            }
-            other => {
-                self.lights.push(other);
-                self.light_tags.push(tag);
+    internal! {
+        /// Adds a light with its name (for per-light groups) and light group.
+        pub fn add_tagged_light(&mut self, light: Light, tag: LightTag) {
+            match light {
+                Light::Environment(env) => {
+                    self.set_environment(env);
+                    self.set_environment_group(tag.light_group);
+                }
+                other => {
+                    self.lights.push(other);
+                    self.light_tags.push(tag);
+                }
             }
         }
     }
@@ -415,7 +477,7 @@ impl SceneBuilder {
     }
 
     /// Puts the environment light, if there is one, in light group `group` (`None`: no declared group).
-    pub fn set_environment_group(&mut self, group: Option<String>) {
+    pub(crate) fn set_environment_group(&mut self, group: Option<String>) {
         let env = self
             .lights
             .iter()
@@ -452,13 +514,16 @@ impl SceneBuilder {
     }
 
     /// Records a non-fatal problem met while loading.
-    pub fn warn(&mut self, message: impl Into<String>) {
+    pub(crate) fn warn(&mut self, message: impl Into<String>) {
         self.warnings.push(message.into());
     }
 
-    /// The meshes added so far.
-    pub fn meshes(&self) -> &[Mesh] {
-        &self.meshes
+    internal! {
+        /// The meshes added so far.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn meshes(&self) -> &[Mesh] {
+            &self.meshes
+        }
     }
 
     /// The materials added so far, by index.
@@ -466,9 +531,12 @@ impl SceneBuilder {
         &self.materials
     }
 
-    /// The textures added so far, by index.
-    pub fn textures(&self) -> &[Texture] {
-        &self.textures
+    internal! {
+        /// The textures added so far, by index.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn textures(&self) -> &[Texture] {
+            &self.textures
+        }
     }
 
     /// Whether the scene lights itself: a punctual or environment light, an emitting medium, or a mesh whose
@@ -521,9 +589,12 @@ impl SceneBuilder {
         }
     }
 
-    /// The lights added so far (area lights are made by [`build`](Self::build)).
-    pub fn lights(&self) -> &[Light] {
-        &self.lights
+    internal! {
+        /// The lights added so far (area lights are made by [`build`](Self::build)).
+        #[cfg(any(test, feature = "testing"))]
+        pub fn lights(&self) -> &[Light] {
+            &self.lights
+        }
     }
 
     /// The camera, if one was loaded or set; without one, [`build`](Self::build) frames the scene.
@@ -577,9 +648,12 @@ impl SceneBuilder {
         &self.warnings
     }
 
-    /// The media added so far, by index.
-    pub fn media(&self) -> &[Arc<dyn Medium>] {
-        &self.media
+    internal! {
+        /// The media added so far, by index.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn media(&self) -> &[Arc<dyn Medium>] {
+            &self.media
+        }
     }
 
     /// Checks every reference between the parts (a mesh's material and vertex indices and attribute lengths, a
@@ -713,7 +787,7 @@ impl SceneBuilder {
     /// Builds the renderable scene: flattens the meshes into one BVH, turns emissive triangles into area
     /// lights and builds the light-selection distribution. Fails on a dangling reference (see
     /// [`SceneBuilder`]), and before allocating when the meshes do not fit the memory budget at
-    /// [`BYTES_PER_TRIANGLE`] and [`BYTES_PER_VERTEX`].
+    /// `BYTES_PER_TRIANGLE` and `BYTES_PER_VERTEX`.
     pub fn build(mut self) -> Result<Scene, SceneError> {
         self.validate()?;
         let (triangles, vertices) = self
@@ -939,40 +1013,43 @@ pub struct Scene {
     light_of_prim: Vec<u32>,
 }
 
-/// Where a ray hit a surface, with everything shading needs.
-#[derive(Clone, Copy, Debug)]
-pub struct SurfaceHit {
-    /// Distance along the ray.
-    pub t: f32,
-    /// World position, interpolated from the vertices with the barycentrics.
-    pub p: Vec3,
-    /// Bound on the rounding error of each coordinate of `p` (see [`SurfacePoint`]).
-    pub p_error: Vec3,
-    /// Unit geometric normal of the front (counter-clockwise) face.
-    pub geometric_normal: Vec3,
-    /// Shading frame: the interpolated normal (normal-mapped once [`Scene::apply_normal_map`] has run), kept
-    /// on the front side of the geometric normal; the integrator flips it for back-face hits on double-sided
-    /// materials.
-    pub shading: Frame,
-    /// True when the ray arrived on the front face.
-    pub front_face: bool,
-    /// Texture coordinates.
-    pub uv: Vec2,
-    /// Texture-coordinate units per world unit on this triangle, √(uv area / world area): turns a footprint
-    /// width in world units into one in texture coordinates (0 without texture coordinates).
-    pub uv_per_world: f32,
-    /// Texture coordinates of the second set (`TEXCOORD_1`; zero without it).
-    pub uv1: Vec2,
-    /// `uv_per_world` of the second set.
-    pub uv1_per_world: f32,
-    /// Interpolated vertex colour (`COLOR_0`; white without it).
-    pub color: Vec4,
-    /// Material index.
-    pub material: u32,
-    /// Global triangle index.
-    pub prim: u32,
-    /// Barycentrics of the hit (of vertices 1 and 2).
-    pub barycentrics: Vec2,
+internal! {
+    /// Where a ray hit a surface, with everything shading needs.
+    #[derive(Clone, Copy, Debug)]
+    pub struct SurfaceHit {
+        /// Distance along the ray.
+        pub t: f32,
+        /// World position, interpolated from the vertices with the barycentrics.
+        pub p: Vec3,
+        /// Bound on the rounding error of each coordinate of `p` (see [`SurfacePoint`]).
+        pub p_error: Vec3,
+        /// Unit geometric normal of the front (counter-clockwise) face.
+        pub geometric_normal: Vec3,
+        /// Shading frame: the interpolated normal (normal-mapped once [`Scene::apply_normal_map`] has run), kept
+        /// on the front side of the geometric normal; the integrator flips it for back-face hits on double-sided
+        /// materials.
+        pub shading: Frame,
+        /// True when the ray arrived on the front face.
+        pub front_face: bool,
+        /// Texture coordinates.
+        pub uv: Vec2,
+        /// Texture-coordinate units per world unit on this triangle, √(uv area / world area): turns a footprint
+        /// width in world units into one in texture coordinates (0 without texture coordinates).
+        pub uv_per_world: f32,
+        /// Texture coordinates of the second set (`TEXCOORD_1`; zero without it).
+        pub uv1: Vec2,
+        /// `uv_per_world` of the second set.
+        pub uv1_per_world: f32,
+        /// Interpolated vertex colour (`COLOR_0`; white without it).
+        pub color: Vec4,
+        /// Material index.
+        pub material: u32,
+        /// Global triangle index.
+        pub prim: u32,
+        /// Barycentrics of the hit (of vertices 1 and 2).
+        #[cfg(any(test, feature = "testing"))]
+        pub barycentrics: Vec2,
+    }
 }
 
 impl SurfaceHit {
@@ -994,11 +1071,13 @@ impl SurfaceHit {
     /// the footprint is the cone's width projected onto the surface, `width / |n · dir|`, in texture units
     /// (the ray-cone level of detail of Akenine-Möller et al. 2021, "Improved Shader and Texture Level of
     /// Detail Using Ray Cones", JCGT 10(1), given as a width rather than as its log₂).
+    #[cfg(test)]
     pub fn tex_coord(&self, width: f32, dir: Vec3) -> TexCoord {
         self.shading_point(width, dir).uv[0]
     }
 
     /// Texture coordinates with no footprint (the full-resolution image).
+    #[cfg(test)]
     pub fn point_tex_coord(&self) -> TexCoord {
         TexCoord::point(self.uv)
     }
@@ -1045,24 +1124,25 @@ impl Scene {
         self.prims.len()
     }
 
-    /// Bytes held by the acceleration structures (static and moving triangles).
-    pub fn bvh_memory_bytes(&self) -> usize {
-        self.bvh.memory_bytes() + self.motion.as_ref().map_or(0, MotionBvh::memory_bytes)
-    }
-
     /// Number of moving triangles (transform motion blur).
     pub fn moving_triangle_count(&self) -> usize {
         self.motion.as_ref().map_or(0, MotionBvh::triangle_count)
     }
 
-    /// Radius of a sphere around the scene bounds.
-    pub fn radius(&self) -> f32 {
-        bounding_radius(&self.bounds)
+    internal! {
+        /// Radius of a sphere around the scene bounds.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn radius(&self) -> f32 {
+            bounding_radius(&self.bounds)
+        }
     }
 
-    /// The meshes, in world space.
-    pub fn meshes(&self) -> &[Mesh] {
-        &self.meshes
+    internal! {
+        /// The meshes, in world space.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn meshes(&self) -> &[Mesh] {
+            &self.meshes
+        }
     }
 
     /// The materials, by index.
@@ -1070,14 +1150,19 @@ impl Scene {
         &self.materials
     }
 
-    /// The textures, by index.
-    pub fn textures(&self) -> &[Texture] {
-        &self.textures
+    internal! {
+        /// The textures, by index.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn textures(&self) -> &[Texture] {
+            &self.textures
+        }
     }
 
-    /// The emitters, Cryptomatte names, holdouts and shadow catchers of the scene.
-    pub fn names(&self) -> &SceneNames {
-        &self.names
+    internal! {
+        /// The emitters, Cryptomatte names, holdouts and shadow catchers of the scene.
+        pub fn names(&self) -> &SceneNames {
+            &self.names
+        }
     }
 
     /// Whether the scene file asks for a transparent film (glTF scene extras `nimbus_transparent`).
@@ -1086,13 +1171,15 @@ impl Scene {
     }
 
     /// The mesh of global triangle index `prim`.
-    pub fn mesh_of_prim(&self, prim: u32) -> usize {
+    pub(crate) fn mesh_of_prim(&self, prim: u32) -> usize {
         self.prims.get(prim as usize).map_or(0, |p| p.0 as usize)
     }
 
-    /// Every light, area lights included.
-    pub fn lights(&self) -> &[Light] {
-        &self.lights
+    internal! {
+        /// Every light, area lights included.
+        pub fn lights(&self) -> &[Light] {
+            &self.lights
+        }
     }
 
     /// The camera.
@@ -1105,9 +1192,12 @@ impl Scene {
         self.shutter
     }
 
-    /// Bounds of all surfaces and of the regions media fill by position (VDB volumes).
-    pub fn bounds(&self) -> Aabb {
-        self.bounds
+    internal! {
+        /// Bounds of all surfaces and of the regions media fill by position (VDB volumes).
+        #[cfg(any(test, feature = "testing"))]
+        pub fn bounds(&self) -> Aabb {
+            self.bounds
+        }
     }
 
     /// The maximum number of bounces the scene file asks for, if any.
@@ -1120,38 +1210,56 @@ impl Scene {
         &self.warnings
     }
 
-    /// The participating media, by index.
-    pub fn media(&self) -> &[Arc<dyn Medium>] {
-        &self.media
+    /// The scene's lights counted by kind, in words: "36 emissive triangles, 1 punctual light, an environment"
+    /// ("no lights" for none).
+    pub fn describe_lights(&self) -> String {
+        crate::light::describe_lights(&self.lights)
+    }
+
+    /// One line per medium, in scene order: its name and the estimators it renders with, and why (`--explain`).
+    pub fn explain_media(&self) -> Vec<String> {
+        self.media
+            .iter()
+            .map(|m| format!("medium '{}': {}", m.name(), m.method()))
+            .collect()
+    }
+
+    internal! {
+        /// The participating media, by index.
+        pub fn media(&self) -> &[Arc<dyn Medium>] {
+            &self.media
+        }
     }
 
     /// True when some material may be an invisible (index-matched) boundary that shadow rays pass through;
     /// when false, a shadow ray is blocked by any surface hit, and one any-hit query ([`Scene::occluded`])
     /// decides its visibility.
-    pub fn has_invisible_boundaries(&self) -> bool {
+    pub(crate) fn has_invisible_boundaries(&self) -> bool {
         self.has_invisible_boundaries
     }
 
-    /// True when something blocks the segment `(t_min, t_max)` of `ray` (alpha cut-outs and partial coverage
-    /// let it through as in [`Self::intersect`]).
-    /// Moving triangles are met where they are at the ray's time.
-    pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
-        let blocked = if self.has_alpha {
-            self.bvh
-                .occluded_where(ray, t_min, t_max, &|hit| self.covers(ray, hit))
-        } else {
-            self.bvh.occluded(ray, t_min, t_max)
-        };
-        blocked
-            || self.motion.as_ref().is_some_and(|m| {
-                if self.has_alpha {
-                    m.occluded_where(ray, t_min, t_max, &|hit| {
-                        self.covers(ray, &self.moving_hit(hit))
-                    })
-                } else {
-                    m.occluded(ray, t_min, t_max)
-                }
-            })
+    internal! {
+        /// True when something blocks the segment `(t_min, t_max)` of `ray` (alpha cut-outs and partial coverage
+        /// let it through as in [`Self::intersect`]).
+        /// Moving triangles are met where they are at the ray's time.
+        pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+            let blocked = if self.has_alpha {
+                self.bvh
+                    .occluded_where(ray, t_min, t_max, &|hit| self.covers(ray, hit))
+            } else {
+                self.bvh.occluded(ray, t_min, t_max)
+            };
+            blocked
+                || self.motion.as_ref().is_some_and(|m| {
+                    if self.has_alpha {
+                        m.occluded_where(ray, t_min, t_max, &|hit| {
+                            self.covers(ray, &self.moving_hit(hit))
+                        })
+                    } else {
+                        m.occluded(ray, t_min, t_max)
+                    }
+                })
+        }
     }
 
     /// A hit reported by the moving triangles' hierarchy with its global triangle index.
@@ -1225,7 +1333,7 @@ impl Scene {
     }
 
     /// The index in `lights` of the area light on triangle `prim`, if it emits.
-    pub fn area_light_of(&self, prim: u32) -> Option<usize> {
+    pub(crate) fn area_light_of(&self, prim: u32) -> Option<usize> {
         let l = *self.light_of_prim.get(prim as usize)?;
         (l != u32::MAX).then_some(l as usize)
     }
@@ -1238,79 +1346,82 @@ impl Scene {
     }
 
     /// The environment light, if any.
-    pub fn environment_light(&self) -> Option<&EnvironmentLight> {
+    pub(crate) fn environment_light(&self) -> Option<&EnvironmentLight> {
         match self.environment.map(|i| &self.lights[i]) {
             Some(Light::Environment(e)) => Some(e),
             _ => None,
         }
     }
 
-    /// The closest surface hit along `ray` in `(t_min, t_max)`.
-    /// Surfaces whose material is a cut-out or partly covering are passed through where they do not cover
-    /// (see [`AlphaMode`]). A moving mesh is hit, and its hit point, normals and error bound computed, where
-    /// its vertices are at the ray's time.
-    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<SurfaceHit> {
-        let hit = self.closest_triangle(ray, t_min, t_max)?;
-        let (mesh_index, tri) = self.prims[hit.prim as usize];
-        let mesh = &self.meshes[mesh_index as usize];
-        let [i0, i1, i2] = mesh.indices[tri as usize].map(|i| i as usize);
-        let (b1, b2) = (hit.b1, hit.b2);
-        let b0 = 1.0 - b1 - b2;
-        let ([v0, v1, v2], normals) = match &mesh.motion {
-            Some(motion) => motion.at([i0, i1, i2], ray.time),
-            None => (
-                [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]],
-                [mesh.normals[i0], mesh.normals[i1], mesh.normals[i2]],
-            ),
-        };
-        let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
-        let point = SurfacePoint::on_triangle([v0, v1, v2], b0, b1, b2, geometric_normal);
-        let front_face = geometric_normal.dot(ray.dir) < 0.0;
-        let mut n = (normals[0] * b0 + normals[1] * b1 + normals[2] * b2).normalize_or_zero();
-        if n == Vec3::ZERO {
-            n = geometric_normal;
+    internal! {
+        /// The closest surface hit along `ray` in `(t_min, t_max)`.
+        /// Surfaces whose material is a cut-out or partly covering are passed through where they do not cover
+        /// (see [`AlphaMode`]). A moving mesh is hit, and its hit point, normals and error bound computed, where
+        /// its vertices are at the ray's time.
+        pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<SurfaceHit> {
+            let hit = self.closest_triangle(ray, t_min, t_max)?;
+            let (mesh_index, tri) = self.prims[hit.prim as usize];
+            let mesh = &self.meshes[mesh_index as usize];
+            let [i0, i1, i2] = mesh.indices[tri as usize].map(|i| i as usize);
+            let (b1, b2) = (hit.b1, hit.b2);
+            let b0 = 1.0 - b1 - b2;
+            let ([v0, v1, v2], normals) = match &mesh.motion {
+                Some(motion) => motion.at([i0, i1, i2], ray.time),
+                None => (
+                    [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]],
+                    [mesh.normals[i0], mesh.normals[i1], mesh.normals[i2]],
+                ),
+            };
+            let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
+            let point = SurfacePoint::on_triangle([v0, v1, v2], b0, b1, b2, geometric_normal);
+            let front_face = geometric_normal.dot(ray.dir) < 0.0;
+            let mut n = (normals[0] * b0 + normals[1] * b1 + normals[2] * b2).normalize_or_zero();
+            if n == Vec3::ZERO {
+                n = geometric_normal;
+            }
+            let (uv1, uv1_per_world) = interpolate_uv(
+                mesh.uvs1.as_deref(),
+                [i0, i1, i2],
+                [v0, v1, v2],
+                [b0, b1, b2],
+            );
+            let color = mesh.colors.as_deref().map_or(Vec4::ONE, |c| {
+                at_barycentrics(c, [i0, i1, i2], [b0, b1, b2])
+            });
+            let (uv, uv_per_world) = interpolate_uv(
+                mesh.uvs.as_deref(),
+                [i0, i1, i2],
+                [v0, v1, v2],
+                [b0, b1, b2],
+            );
+            let mut frame = self.tangent_frame(mesh, [i0, i1, i2], n, Vec2::new(b1, b2));
+            // Keep the shading normal on the geometric normal's side so that one-sided BSDFs see the front.
+            if frame.n.dot(geometric_normal) < 0.0 {
+                frame = Frame::from_normal(geometric_normal);
+            }
+            Some(SurfaceHit {
+                t: hit.t,
+                p: point.p,
+                p_error: point.error,
+                geometric_normal,
+                shading: frame,
+                front_face,
+                uv,
+                uv_per_world,
+                uv1,
+                uv1_per_world,
+                color,
+                material: mesh.material,
+                prim: hit.prim,
+                #[cfg(any(test, feature = "testing"))]
+                barycentrics: Vec2::new(b1, b2),
+            })
         }
-        let (uv1, uv1_per_world) = interpolate_uv(
-            mesh.uvs1.as_deref(),
-            [i0, i1, i2],
-            [v0, v1, v2],
-            [b0, b1, b2],
-        );
-        let color = mesh.colors.as_deref().map_or(Vec4::ONE, |c| {
-            at_barycentrics(c, [i0, i1, i2], [b0, b1, b2])
-        });
-        let (uv, uv_per_world) = interpolate_uv(
-            mesh.uvs.as_deref(),
-            [i0, i1, i2],
-            [v0, v1, v2],
-            [b0, b1, b2],
-        );
-        let mut frame = self.tangent_frame(mesh, [i0, i1, i2], n, Vec2::new(b1, b2));
-        // Keep the shading normal on the geometric normal's side so that one-sided BSDFs see the front.
-        if frame.n.dot(geometric_normal) < 0.0 {
-            frame = Frame::from_normal(geometric_normal);
-        }
-        Some(SurfaceHit {
-            t: hit.t,
-            p: point.p,
-            p_error: point.error,
-            geometric_normal,
-            shading: frame,
-            front_face,
-            uv,
-            uv_per_world,
-            uv1,
-            uv1_per_world,
-            color,
-            material: mesh.material,
-            prim: hit.prim,
-            barycentrics: Vec2::new(b1, b2),
-        })
     }
 
     /// Bends the hit's shading frame by its material's normal map read at `tc`, if it has one. The mapped
     /// normal stays on the geometric normal's side.
-    pub fn apply_normal_map(&self, hit: &mut SurfaceHit, at: &ShadingPoint) {
+    pub(crate) fn apply_normal_map(&self, hit: &mut SurfaceHit, at: &ShadingPoint) {
         let material = &self.materials[hit.material as usize];
         let Some(mapped) = material.normal_map(at, &self.textures) else {
             return;

@@ -85,6 +85,7 @@ fn bit(mask: &[u64], i: usize) -> bool {
     mask[i >> 6] >> (i & 63) & 1 != 0
 }
 
+#[cfg(any(test, feature = "testing"))]
 fn set_bit(mask: &mut [u64], i: usize) {
     mask[i >> 6] |= 1 << (i & 63);
 }
@@ -124,6 +125,7 @@ impl<T: Copy> Leaf<T> {
     }
 
     /// Index coordinate of voxel (0,0,0) of the leaf.
+    #[cfg(any(test, feature = "testing"))]
     pub fn origin(&self) -> IVec3 {
         self.origin
     }
@@ -134,11 +136,13 @@ impl<T: Copy> Leaf<T> {
     }
 
     /// The stored value of the voxel at index coordinate `p` (which must lie in the leaf).
+    #[cfg(any(test, feature = "testing"))]
     pub fn value(&self, p: IVec3) -> T {
         self.values[Self::offset(p)]
     }
 
     /// Whether the voxel at index coordinate `p` (which must lie in the leaf) is active.
+    #[cfg(any(test, feature = "testing"))]
     pub fn is_active(&self, p: IVec3) -> bool {
         bit(&self.value_mask, Self::offset(p))
     }
@@ -238,6 +242,7 @@ impl<T, const LOG2: i32, const CHILD_LOG2: i32> InternalNode<T, LOG2, CHILD_LOG2
 
 impl<T: VoxelValue, const LOG2: i32, const CHILD_LOG2: i32> InternalNode<T, LOG2, CHILD_LOG2> {
     /// A node at `origin` whose slots are all inactive tiles of value `fill`.
+    #[cfg(any(test, feature = "testing"))]
     pub(crate) fn new(origin: IVec3, fill: T) -> Self {
         Self::from_tiles(
             origin,
@@ -498,6 +503,7 @@ impl<T: VoxelValue> Tree<T> {
     }
 
     /// Builds a tree from active voxels (later duplicates win); inactive voxels of new leaves hold `background`.
+    #[cfg(any(test, feature = "testing"))]
     pub fn from_voxels(background: T, voxels: impl IntoIterator<Item = (IVec3, T)>) -> Self {
         let mut t = Self::new(background);
         for (p, v) in voxels {
@@ -509,6 +515,7 @@ impl<T: VoxelValue> Tree<T> {
 
     /// Sets voxel `p` to `v` and marks it active, creating nodes as needed. Call [`Self::finalize`] afterwards
     /// to refresh min/max.
+    #[cfg(any(test, feature = "testing"))]
     pub fn set_active(&mut self, p: IVec3, v: T) {
         let key = Root::<T>::key(p);
         let u = match self.root.search(key) {
@@ -563,6 +570,7 @@ impl<T: VoxelValue> Tree<T> {
         set_bit(&mut lf.value_mask, i);
     }
 
+    #[cfg(any(test, feature = "testing"))]
     fn push_upper(&mut self, origin: IVec3, fill: T) -> u32 {
         self.uppers.push(UpperNode::new(origin, fill));
         (self.uppers.len() - 1) as u32
@@ -734,6 +742,7 @@ impl<T: VoxelValue> Tree<T> {
 
     /// The value at index coordinate `p`: the stored voxel or tile value, or the background outside the tree.
     #[inline]
+    #[cfg(any(test, feature = "testing"))]
     pub fn value(&self, p: IVec3) -> T {
         match self.root.get(p) {
             None => self.background,
@@ -743,6 +752,7 @@ impl<T: VoxelValue> Tree<T> {
     }
 
     #[inline(always)]
+    #[cfg(any(test, feature = "testing"))]
     fn upper_value(&self, u: u32, p: IVec3) -> T {
         let n = &self.uppers[u as usize];
         let s = UpperNode::<T>::slot(p);
@@ -753,6 +763,7 @@ impl<T: VoxelValue> Tree<T> {
     }
 
     #[inline(always)]
+    #[cfg(any(test, feature = "testing"))]
     fn lower_value(&self, l: u32, p: IVec3) -> T {
         let n = &self.lowers[l as usize];
         let s = LowerNode::<T>::slot(p);
@@ -763,6 +774,7 @@ impl<T: VoxelValue> Tree<T> {
     }
 
     /// Whether the voxel at `p` is active (in an active leaf voxel or active tile).
+    #[cfg(any(test, feature = "testing"))]
     pub fn is_active(&self, p: IVec3) -> bool {
         match self.root.get(p) {
             None => false,

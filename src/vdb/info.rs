@@ -42,7 +42,7 @@ pub struct GridInfo {
 
 impl GridInfo {
     /// Summarises one grid.
-    pub fn from_grid(g: &Grid) -> Self {
+    pub(crate) fn from_grid(g: &Grid) -> Self {
         Self {
             name: g.name.clone(),
             value_type: match g.value_type {

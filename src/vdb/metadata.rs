@@ -59,6 +59,7 @@ impl Metadata {
     }
 
     /// An integer stored under `name` (int32 or int64), if any.
+    #[cfg(test)]
     pub fn get_int(&self, name: &str) -> Option<i64> {
         match self.get(name) {
             Some(MetaValue::Int32(v)) => Some(*v as i64),
@@ -68,6 +69,7 @@ impl Metadata {
     }
 
     /// The `vec3i` stored under `name`, if any.
+    #[cfg(test)]
     pub fn get_vec3i(&self, name: &str) -> Option<IVec3> {
         match self.get(name) {
             Some(MetaValue::Vec3i(v)) => Some(*v),

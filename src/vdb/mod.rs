@@ -5,10 +5,14 @@
 //! compression; instanced grids; the linear transforms (uniform/non-uniform scale, translation, affine, unitary).
 //! Everything else is an error that names the file (and the grid) — never a panic or a silently empty grid.
 //!
+//! The public part is what `nimbus info` prints: [`file_info`] opens a file and describes its grids.
+//!
 //! ```no_run
-//! let file = nimbus::vdb::read_file(std::path::Path::new("smoke.vdb")).unwrap();
-//! let density = file.grid("density").unwrap().tree.as_float().unwrap();
-//! let v = density.value(glam::IVec3::new(1, 2, 3));
+//! let info = nimbus::vdb::file_info(std::path::Path::new("smoke.vdb"))?;
+//! for grid in &info.grids {
+//!     println!("{} {} {} active voxels", grid.name, grid.value_type, grid.stats.active_voxels);
+//! }
+//! # Ok::<(), nimbus::VdbError>(())
 //! ```
 
 #![warn(missing_docs)]
@@ -25,16 +29,23 @@ mod transform;
 mod tree_io;
 
 pub use error::{VdbError, VdbErrorKind};
-pub use grid::{
-    floor_ivec3, Accessor, FloatTree, InternalNode, Leaf, LowerNode, Region, Root, Tile, Tree,
-    TreeStats, UpperNode, Vec3Tree, VoxelValue,
-};
-pub use header::FileHeader;
+pub use grid::TreeStats;
 pub use info::{file_info, FileInfo, GridInfo};
-pub use metadata::{MetaValue, Metadata};
+internal! {
+    pub use grid::{floor_ivec3, Accessor, FloatTree, Leaf, LowerNode, Region, Tree, Vec3Tree, VoxelValue};
+    pub use header::FileHeader;
+}
+#[cfg(feature = "testing")]
+pub use grid::{InternalNode, Root, Tile, UpperNode};
+#[cfg(feature = "testing")]
+pub use metadata::MetaValue;
+#[cfg(feature = "testing")]
+pub use metadata::Metadata;
 
 use error::KResult;
-use glam::{DMat4, DVec3, Vec3};
+#[cfg(test)]
+use glam::Vec3;
+use glam::{DMat4, DVec3};
 use header::GridDescriptor;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -42,30 +53,38 @@ use stream::Reader;
 use transform::Transform;
 use tree_io::{read_tree, Scalar, TreeCtx};
 
-/// A whole VDB file.
-#[derive(Clone, Debug)]
-pub struct VdbFile {
-    /// File format version.
-    pub version: u32,
-    /// The file header.
-    pub header: FileHeader,
-    /// File-level metadata.
-    pub metadata: Metadata,
-    /// The grids, in file order.
-    pub grids: Vec<Grid>,
-    /// Grids left out because of an unsupported type, as (name, type name); only with
-    /// [`ReadOptions::skip_unsupported`].
-    pub skipped: Vec<(String, String)>,
+internal! {
+    /// A whole VDB file.
+    #[derive(Clone, Debug)]
+    pub struct VdbFile {
+        /// File format version.
+        #[cfg(any(test, feature = "testing"))]
+        pub version: u32,
+        /// The file header.
+        #[cfg(any(test, feature = "testing"))]
+        pub header: FileHeader,
+        /// File-level metadata.
+        #[cfg(any(test, feature = "testing"))]
+        pub metadata: Metadata,
+        /// The grids, in file order.
+        pub grids: Vec<Grid>,
+        /// Grids left out because of an unsupported type, as (name, type name); only with
+        /// [`ReadOptions::skip_unsupported`].
+        #[cfg(any(test, feature = "testing"))]
+        pub skipped: Vec<(String, String)>,
+    }
 }
 
-/// Options for [`read_file_with`] / [`read_bytes_with`].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ReadOptions {
-    /// Leave out grids of unsupported types (listing them in [`VdbFile::skipped`]) instead of failing.
-    pub skip_unsupported: bool,
-    /// The memory budget: a file larger than it is refused before it is read, and a device or pipe is read
-    /// at most [`crate::limits::MAX_STREAM_BYTES`].
-    pub limits: crate::limits::Limits,
+internal! {
+    /// Options for [`read_file_with`] / [`read_bytes_with`].
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+    pub struct ReadOptions {
+        /// Leave out grids of unsupported types (listing them in [`VdbFile::skipped`]) instead of failing.
+        pub skip_unsupported: bool,
+        /// The memory budget: a file larger than it is refused before it is read, and a device or pipe is read
+        /// at most [`crate::limits::MAX_STREAM_BYTES`].
+        pub limits: crate::limits::Limits,
+    }
 }
 
 impl VdbFile {
@@ -75,17 +94,19 @@ impl VdbFile {
     }
 }
 
-/// The grid class from the `class` metadata.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-pub enum GridClass {
-    /// Density-like data, zero background.
-    FogVolume,
-    /// Narrow-band signed distance field.
-    LevelSet,
-    /// Staggered (MAC) vector field.
-    Staggered,
-    /// Unknown or absent class.
-    Unknown,
+internal! {
+    /// The grid class from the `class` metadata.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+    pub enum GridClass {
+        /// Density-like data, zero background.
+        FogVolume,
+        /// Narrow-band signed distance field.
+        LevelSet,
+        /// Staggered (MAC) vector field.
+        Staggered,
+        /// Unknown or absent class.
+        Unknown,
+    }
 }
 
 impl GridClass {
@@ -99,24 +120,28 @@ impl GridClass {
     }
 }
 
-/// Value type as stored in the file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-pub enum ValueType {
-    /// 32-bit float.
-    Float,
-    /// 64-bit float (converted to `f32` in the tree).
-    Double,
-    /// Vector of three 32-bit floats.
-    Vec3s,
+internal! {
+    /// Value type as stored in the file.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+    pub enum ValueType {
+        /// 32-bit float.
+        Float,
+        /// 64-bit float (converted to `f32` in the tree).
+        Double,
+        /// Vector of three 32-bit floats.
+        Vec3s,
+    }
 }
 
-/// A grid's tree, by value kind.
-#[derive(Clone, Debug)]
-pub enum GridTree {
-    /// Scalar grid (float or double in the file).
-    Float(FloatTree),
-    /// Vector grid.
-    Vec3(Vec3Tree),
+internal! {
+    /// A grid's tree, by value kind.
+    #[derive(Clone, Debug)]
+    pub enum GridTree {
+        /// Scalar grid (float or double in the file).
+        Float(FloatTree),
+        /// Vector grid.
+        Vec3(Vec3Tree),
+    }
 }
 
 impl GridTree {
@@ -167,37 +192,43 @@ pub enum Background {
     Vec3([f32; 3]),
 }
 
-/// One grid of a VDB file.
-#[derive(Clone, Debug)]
-pub struct Grid {
-    /// Grid name (duplicates allowed).
-    pub name: String,
-    /// Grid class.
-    pub class: GridClass,
-    /// Value type in the file.
-    pub value_type: ValueType,
-    /// Whether the file stored the values as halves.
-    pub half: bool,
-    /// OpenVDB map type name.
-    pub map_type: String,
-    /// Index-to-world matrix, column-vector convention (`world = M · [i j k 1]ᵀ`).
-    pub index_to_world: DMat4,
-    /// Background value.
-    pub background: Background,
-    /// Per-grid metadata (file bbox, voxel count, ... where present).
-    pub metadata: Metadata,
-    /// Name of the grid whose tree this one shares, if it is an instance.
-    pub instance_of: Option<String>,
-    /// The sparse tree (shared between instances).
-    pub tree: Arc<GridTree>,
+internal! {
+    /// One grid of a VDB file.
+    #[derive(Clone, Debug)]
+    pub struct Grid {
+        /// Grid name (duplicates allowed).
+        pub name: String,
+        /// Grid class.
+        pub class: GridClass,
+        /// Value type in the file.
+        pub value_type: ValueType,
+        /// Whether the file stored the values as halves.
+        pub half: bool,
+        /// OpenVDB map type name.
+        pub map_type: String,
+        /// Index-to-world matrix, column-vector convention (`world = M · [i j k 1]ᵀ`).
+        pub index_to_world: DMat4,
+        /// Background value.
+        pub background: Background,
+        /// Per-grid metadata (file bbox, voxel count, ... where present).
+        #[cfg(any(test, feature = "testing"))]
+        pub metadata: Metadata,
+        /// Name of the grid whose tree this one shares, if it is an instance.
+        #[cfg(any(test, feature = "testing"))]
+        pub instance_of: Option<String>,
+        /// The sparse tree (shared between instances).
+        pub tree: Arc<GridTree>,
+    }
 }
 
 impl Grid {
     /// World-to-index matrix.
+    #[cfg(test)]
     pub fn world_to_index(&self) -> DMat4 {
         self.index_to_world.inverse()
     }
     /// Maps a world point to continuous index space.
+    #[cfg(test)]
     pub fn world_to_index_point(&self, p: DVec3) -> Vec3 {
         self.world_to_index().transform_point3(p).as_vec3()
     }
@@ -211,41 +242,49 @@ impl Grid {
     }
 }
 
-/// Reads a VDB file from disk; any grid of an unsupported type is an error.
-pub fn read_file(path: &Path) -> Result<VdbFile, VdbError> {
-    read_file_with(path, &ReadOptions::default())
-}
-
-/// Reads a VDB file from disk with options. A regular file is streamed: only the value buffer being decoded is
-/// held, never the whole file (a device is read whole first, within the budget).
-pub fn read_file_with(path: &Path, options: &ReadOptions) -> Result<VdbFile, VdbError> {
-    let error = |kind: VdbErrorKind| VdbError {
-        path: path.to_path_buf(),
-        kind,
-    };
-    match crate::limits::open_file(path, &options.limits).map_err(|e| error(e.into()))? {
-        crate::limits::OpenedFile::Regular(file, len) => {
-            read_impl(Reader::from_file(file, len), options).map_err(error)
-        }
-        crate::limits::OpenedFile::Read(bytes) => read_bytes_with(&bytes, path, options),
+internal! {
+    /// Reads a VDB file from disk; any grid of an unsupported type is an error.
+    pub fn read_file(path: &Path) -> Result<VdbFile, VdbError> {
+        read_file_with(path, &ReadOptions::default())
     }
 }
 
-/// Reads a VDB file held in memory; `path_for_errors` names it in errors.
-pub fn read_bytes(bytes: &[u8], path_for_errors: &Path) -> Result<VdbFile, VdbError> {
-    read_bytes_with(bytes, path_for_errors, &ReadOptions::default())
+internal! {
+    /// Reads a VDB file from disk with options. A regular file is streamed: only the value buffer being
+    /// decoded is held, never the whole file (a device is read whole first, within the budget).
+    pub fn read_file_with(path: &Path, options: &ReadOptions) -> Result<VdbFile, VdbError> {
+        let error = |kind: VdbErrorKind| VdbError {
+            path: path.to_path_buf(),
+            kind,
+        };
+        match crate::limits::open_file(path, &options.limits).map_err(|e| error(e.into()))? {
+            crate::limits::OpenedFile::Regular(file, len) => {
+                read_impl(Reader::from_file(file, len), options).map_err(error)
+            }
+            crate::limits::OpenedFile::Read(bytes) => read_bytes_with(&bytes, path, options),
+        }
+    }
 }
 
-/// Reads a VDB file held in memory with options; `path_for_errors` names it in errors.
-pub fn read_bytes_with(
-    bytes: &[u8],
-    path_for_errors: &Path,
-    options: &ReadOptions,
-) -> Result<VdbFile, VdbError> {
-    read_impl(Reader::new(bytes), options).map_err(|kind| VdbError {
-        path: PathBuf::from(path_for_errors),
-        kind,
-    })
+internal! {
+    /// Reads a VDB file held in memory; `path_for_errors` names it in errors.
+    pub fn read_bytes(bytes: &[u8], path_for_errors: &Path) -> Result<VdbFile, VdbError> {
+        read_bytes_with(bytes, path_for_errors, &ReadOptions::default())
+    }
+}
+
+internal! {
+    /// Reads a VDB file held in memory with options; `path_for_errors` names it in errors.
+    pub fn read_bytes_with(
+        bytes: &[u8],
+        path_for_errors: &Path,
+        options: &ReadOptions,
+    ) -> Result<VdbFile, VdbError> {
+        read_impl(Reader::new(bytes), options).map_err(|kind| VdbError {
+            path: PathBuf::from(path_for_errors),
+            kind,
+        })
+    }
 }
 
 fn in_grid(name: &str) -> impl FnOnce(VdbErrorKind) -> VdbErrorKind + '_ {
@@ -261,6 +300,8 @@ fn in_grid(name: &str) -> impl FnOnce(VdbErrorKind) -> VdbErrorKind + '_ {
 fn read_impl(mut r: Reader<'_>, options: &ReadOptions) -> KResult<VdbFile> {
     let header = header::read_header(&mut r)?;
     let metadata = metadata::read_metadata(&mut r)?;
+    #[cfg(not(any(test, feature = "testing")))]
+    let _ = metadata; // read past; only the tests look at it
     if !header.has_grid_offsets {
         return Err(VdbErrorKind::Unsupported(
             "files without grid offsets (streamed archives)".into(),
@@ -310,10 +351,14 @@ fn read_impl(mut r: Reader<'_>, options: &ReadOptions) -> KResult<VdbFile> {
         grids[i].background = grids[p].background;
     }
     Ok(VdbFile {
+        #[cfg(any(test, feature = "testing"))]
         version: header.version,
+        #[cfg(any(test, feature = "testing"))]
         header,
+        #[cfg(any(test, feature = "testing"))]
         metadata,
         grids,
+        #[cfg(any(test, feature = "testing"))]
         skipped,
     })
 }
@@ -372,7 +417,9 @@ fn read_grid_within(r: &mut Reader<'_>, header: &FileHeader, d: &GridDescriptor)
         map_type: transform.map_type,
         index_to_world: transform.index_to_world,
         background,
+        #[cfg(any(test, feature = "testing"))]
         metadata,
+        #[cfg(any(test, feature = "testing"))]
         instance_of: (!d.instance_parent.is_empty()).then(|| d.instance_parent.clone()),
         tree: Arc::new(tree),
     })

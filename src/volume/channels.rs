@@ -44,6 +44,7 @@ impl ChannelGrid {
     }
 
     /// Whether the grid holds vectors (colours) rather than scalars.
+    #[cfg(test)]
     pub fn is_vector(&self) -> bool {
         self.tree.as_vec3().is_some()
     }

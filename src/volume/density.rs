@@ -111,6 +111,7 @@ pub struct BadValues {
 
 impl BadValues {
     /// Total number of replaced or clamped values.
+    #[cfg(any(test, feature = "testing"))]
     pub fn total(&self) -> u64 {
         self.nan + self.infinite + self.negative + self.too_dense
     }
@@ -386,6 +387,7 @@ impl DensityField for GridDensity {
 
 /// Closed-form extinction fields inside an axis-aligned box (zero outside), for tests and benchmarks.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg(test)]
 pub enum AnalyticDensity {
     /// σ_t = `sigma` inside `bounds`.
     Constant {
@@ -418,6 +420,7 @@ pub enum AnalyticDensity {
     },
 }
 
+#[cfg(test)]
 impl AnalyticDensity {
     fn aabb(&self) -> Aabb {
         match *self {
@@ -482,6 +485,7 @@ impl AnalyticDensity {
     }
 }
 
+#[cfg(test)]
 impl DensityField for AnalyticDensity {
     type Lookup<'a> = Stateless<'a, Self>;
     fn lookup(&self) -> Stateless<'_, Self> {

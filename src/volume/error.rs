@@ -76,7 +76,7 @@ pub enum DensityError {
     /// The density scale is negative or not finite.
     #[error("invalid density scale {0}")]
     InvalidScale(f32),
-    /// The grid holds data beyond [`super::density::MAX_INDEX_COORD`] voxels from the index origin (a corrupt
+    /// The grid holds data beyond `super::density::MAX_INDEX_COORD` voxels from the index origin (a corrupt
     /// node origin, for one).
     #[error(
         "it holds voxels at index {origin:?}, beyond +/-{} voxels where single-precision lookups lose voxel precision",
@@ -87,7 +87,7 @@ pub enum DensityError {
         origin: [i32; 3],
     },
     /// The grid cannot be placed in the scene: its transform is not finite and invertible, or puts it beyond
-    /// [`super::density::MAX_WORLD_COORD`].
+    /// `super::density::MAX_WORLD_COORD`.
     #[error("{0}")]
     Placement(String),
 }

@@ -37,6 +37,7 @@ use super::{
     Chromatic, ChromaticTracking, Collision, FreeFlight, Medium, MediumMethod, MethodReason,
     PhaseFunction, TrackingCounters, TransmittanceMethod, VolumeSpec,
 };
+#[cfg(any(test, feature = "testing"))]
 use crate::limits::Limits;
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 use std::sync::Arc;
@@ -169,6 +170,7 @@ pub struct GridMedium {
 
 impl GridMedium {
     /// Builds a medium from a placed density field and its parameters.
+    #[cfg(any(test, feature = "testing"))]
     pub fn new(name: &str, density: GridDensity, kind: MajorantKind, albedo: Rgb, g: f32) -> Self {
         let majorants = Majorants::build(kind, &density);
         Self::with_parts(name, density, majorants, Vec::new(), albedo, g)
@@ -176,11 +178,13 @@ impl GridMedium {
 
     /// Builds a medium whose majorant structure is the cheapest by the pilot of [`majorant_choice::choose`],
     /// among those that fit the default memory budget.
+    #[cfg(any(test, feature = "testing"))]
     pub fn with_chosen_majorants(name: &str, density: GridDensity, albedo: Rgb, g: f32) -> Self {
         Self::chosen_within(name, density, albedo, g, &Limits::default())
     }
 
     /// [`with_chosen_majorants`](Self::with_chosen_majorants) under the budget `limits`.
+    #[cfg(any(test, feature = "testing"))]
     fn chosen_within(
         name: &str,
         density: GridDensity,
@@ -228,6 +232,7 @@ impl GridMedium {
     }
 
     /// Replaces the majorant structure (for benchmarks and tests of under-estimated majorants).
+    #[cfg(any(test, feature = "testing"))]
     pub fn with_majorants(mut self, majorants: Majorants) -> Self {
         self.world_bounds = world_bounds(&self.density, &majorants);
         self.majorants = majorants;
@@ -241,6 +246,7 @@ impl GridMedium {
     }
 
     /// The density field.
+    #[cfg(any(test, feature = "testing"))]
     pub fn density(&self) -> &GridDensity {
         &self.density
     }

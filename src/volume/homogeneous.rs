@@ -31,9 +31,11 @@ pub enum ChannelChoice {
     #[default]
     Auto,
     /// Spectral MIS with channel probabilities ∝ path throughput, even when σ_t is grey.
+    #[cfg(any(test, feature = "testing"))]
     Throughput,
     /// Spectral MIS with each channel chosen with probability 1/3 (the mixture pdf of hero-wavelength
     /// sampling); its weights grow with the path's chromatic history.
+    #[cfg(any(test, feature = "testing"))]
     Uniform,
 }
 
@@ -66,6 +68,7 @@ impl HomogeneousMedium {
     }
 
     /// The same medium with free-flight channels chosen by `choice` instead of automatically.
+    #[cfg(any(test, feature = "testing"))]
     pub fn with_channel_choice(mut self, choice: ChannelChoice) -> Self {
         self.channel_choice = choice;
         self
@@ -79,6 +82,7 @@ impl HomogeneousMedium {
     /// Channel-selection probabilities for a path of `throughput`.
     fn channel_weights(&self, throughput: Rgb) -> Rgb {
         match self.channel_choice {
+            #[cfg(any(test, feature = "testing"))]
             ChannelChoice::Uniform => Rgb::splat(1.0 / 3.0),
             _ => throughput_weights(throughput),
         }
@@ -90,6 +94,7 @@ impl HomogeneousMedium {
     }
 
     /// Extinction per channel.
+    #[cfg(any(test, feature = "testing"))]
     pub fn sigma_t(&self) -> Rgb {
         self.sigma_t
     }
@@ -107,6 +112,7 @@ impl Medium for HomogeneousMedium {
             (FreeFlight::ClosedForm, MethodReason::GreyExtinction)
         } else {
             match (self.channel_choice, self.is_grey()) {
+                #[cfg(any(test, feature = "testing"))]
                 (ChannelChoice::Uniform, _) => (
                     FreeFlight::SpectralMis(ChannelSampling::Uniform),
                     MethodReason::Forced,

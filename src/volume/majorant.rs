@@ -25,7 +25,11 @@
 //! Bounds are conservative for trilinear interpolation: a lookup at `x` reads voxels `floor(x)` and
 //! `floor(x) + 1`, so a cell's bound covers every voxel its points can read, one voxel beyond the cell.
 
-use super::density::{nonzero_regions, AnalyticDensity, DensityField, GridDensity};
+#[cfg(test)]
+use super::density::AnalyticDensity;
+#[cfg(test)]
+use super::density::DensityField;
+use super::density::{nonzero_regions, GridDensity};
 use crate::limits::{Limits, OverBudget};
 use crate::math::{Aabb, Ray, Vec3};
 use crate::vdb::{floor_ivec3, FloatTree, Leaf, LowerNode};
@@ -342,6 +346,7 @@ impl Majorants {
     }
 
     /// The exact global bound of an analytic field (its local space is world space).
+    #[cfg(test)]
     pub fn analytic(field: &AnalyticDensity) -> Self {
         let (lo, hi) = field.range();
         Self::global(field.bounds(), lo.max(0.0), hi)
@@ -456,6 +461,7 @@ impl Majorants {
     /// Turns the voxel refinement of thick segments on (the default) or off. Off, tracking uses the
     /// structure's own segments everywhere, as before the refinement existed: for benchmarks and tests that
     /// compare the two.
+    #[cfg(any(test, feature = "testing"))]
     pub fn with_voxel_refinement(mut self, on: bool) -> Self {
         self.voxel_refinement = on;
         self
@@ -479,6 +485,7 @@ impl Majorants {
     }
 
     /// The largest majorant anywhere.
+    #[cfg(test)]
     pub fn global_max(&self) -> f32 {
         self.sigma_max
     }

@@ -87,7 +87,8 @@ pub struct Chromatic {
 pub enum ChannelSampling {
     /// With probability ∝ the path throughput.
     Throughput,
-    /// With probability 1/3 each.
+    /// With probability 1/3 each (tests and benches force it).
+    #[cfg(any(test, feature = "testing"))]
     Uniform,
 }
 
@@ -187,9 +188,11 @@ impl fmt::Display for MediumMethod {
             FreeFlight::SpectralMis(channel) => {
                 let choice = match channel {
                     ChannelSampling::Throughput => "channel by path throughput",
+                    #[cfg(any(test, feature = "testing"))]
                     ChannelSampling::Uniform => "uniform channel choice",
                 };
                 let why = match (&self.why, channel) {
+                    #[cfg(any(test, feature = "testing"))]
                     (MethodReason::Forced, ChannelSampling::Uniform) => "forced",
                     (MethodReason::Forced, ChannelSampling::Throughput) => "forced on grey sigma_t",
                     (MethodReason::GreyExtinction, _) => "grey sigma_t",
@@ -294,6 +297,7 @@ impl serde::Serialize for MediumMethod {
                 "spectral_mis",
                 Some(match c {
                     ChannelSampling::Throughput => "throughput",
+                    #[cfg(any(test, feature = "testing"))]
                     ChannelSampling::Uniform => "uniform",
                 }),
                 false,

@@ -44,7 +44,7 @@ pub use method::{
     TransmittanceMethod,
 };
 pub use phase::PhaseFunction;
-pub use spec::VolumeSpec;
+pub use spec::{MissingFrame, VolumeSpec};
 pub use tracking::{SpectralFlight, TrackingCounters};
 
 /// What happens at a real collision inside a medium.

@@ -54,6 +54,7 @@ impl PhaseFunction {
     }
 
     /// Solid-angle density of [`PhaseFunction::sample`]; equal to [`PhaseFunction::eval`].
+    #[cfg(any(test, feature = "testing"))]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         self.eval(wo, wi)
     }

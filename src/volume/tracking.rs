@@ -66,10 +66,10 @@ pub struct TrackingCounters {
     /// Lookups where σ_t exceeded the segment's majorant, and voxel cells of a refined segment whose voxels
     /// exceeded it.
     pub majorant_violations: u64,
-    /// Voxel cells walked where a segment was refined to voxel bounds ([`REFINE_TAU`]): each reads the eight
+    /// Voxel cells walked where a segment was refined to voxel bounds (`REFINE_TAU`): each reads the eight
     /// voxels of its cell, about the work of one density lookup.
     pub voxel_cells: u64,
-    /// Free flights sampled by spectral tracking ([`spectral_tracking`]: all three channels of an RGB
+    /// Free flights sampled by spectral tracking (`spectral_tracking`: all three channels of an RGB
     /// extinction at once).
     pub spectral_flights: u64,
 }
@@ -348,6 +348,7 @@ impl Estimator for Delta {
 /// real collision, so optically thick media stay cheap. On a segment of constant density
 /// ([`Segment::is_uniform`]) the first tentative collision is real with probability 1, so it is taken without
 /// a lookup: closed-form free-flight sampling.
+#[cfg(any(test, feature = "testing"))]
 pub fn sample_collision<F: DensityField + ?Sized>(
     field: &F,
     majorants: &Majorants,
@@ -663,6 +664,7 @@ pub fn spectral_tracking<F: DensityField + ?Sized>(
 
 /// Deterministic reference optical depth ∫σ_t(o + t d)|d| dt over `[t0, t1]` of the world `ray`, by the
 /// composite midpoint rule with `steps` intervals (f64 accumulation). For tests and references.
+#[cfg(any(test, feature = "testing"))]
 pub fn optical_depth_quadrature<F: DensityField + ?Sized>(
     field: &F,
     ray: &Ray,

@@ -1,6 +1,6 @@
 //! USD loader (`.usd`, `.usda`, `.usdc`, `.usdz`), on top of the `openusd` crate, which parses the three
 //! encodings and composes sublayers, references and payloads. Nimbus reads the composed stage at one time code
-//! (see [`read_at_time`]: `startTimeCode`, else each attribute's earliest sample) and maps it onto the same scene
+//! (see `read_at_time`: `startTimeCode`, else each attribute's earliest sample) and maps it onto the same scene
 //! model as glTF. Under a motion-blur shutter it reads the stage again at each motion step and keeps what moved
 //! (`add_motion_steps`).
 //!
@@ -106,6 +106,7 @@ pub const READER_STACK_BYTES: usize = 64 << 20;
 /// finish on its own): a guard against compositions that `openusd` resolves in pathological time.
 pub const READER_TIME_LIMIT: std::time::Duration = std::time::Duration::from_secs(120);
 
+#[cfg(feature = "testing")]
 pub use layers::MAX_NESTING;
 
 /// Loads a USD stage and adds its volumes (see [`read_with_limits`]), each passed through the options' volume
@@ -222,6 +223,7 @@ fn add_motion_steps(
 pub const USD_MOTION_STEPS: usize = 3;
 
 /// [`read_with_limits`] with the default memory budget.
+#[cfg(any(test, feature = "testing"))]
 pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> {
     read_with_limits(path, &Limits::default())
 }
@@ -234,6 +236,7 @@ pub fn read(path: &Path) -> Result<(SceneBuilder, Vec<VolumeSpec>), SceneError> 
 /// with a [`READER_STACK_BYTES`] stack, given up after [`READER_TIME_LIMIT`]. `openusd` 0.6 still indexes out of bounds on some damaged `.usdc`
 /// files: such a panic is caught without printing anything and returned as
 /// [`SceneErrorKind::ReaderPanicked`].
+#[cfg(any(test, feature = "testing"))]
 pub fn read_with_limits(
     path: &Path,
     limits: &Limits,
@@ -245,6 +248,7 @@ pub fn read_with_limits(
 #[derive(Clone, Copy)]
 enum When {
     Default,
+    #[cfg(any(test, feature = "testing"))]
     TimeCode(f64),
     /// A frame of the shot, at the shot's frames per second if given (else the stage's `framesPerSecond`).
     Frame(f64, Option<f64>),
@@ -254,6 +258,7 @@ enum When {
 /// a time in seconds at the stage's `framesPerSecond` (default 24), read at time code
 /// `frame × timeCodesPerSecond / framesPerSecond` (`timeCodesPerSecond` default 24): frame 12 of a stage at 24
 /// time codes and 24 frames per second reads time code 12, and of one at 48 time codes per second, 24.
+#[cfg(any(test, feature = "testing"))]
 pub fn read_at_frame(
     path: &Path,
     limits: &Limits,
@@ -273,6 +278,7 @@ pub fn read_at_frame(
 /// metadata if authored, else the earliest time sample of each attribute. Every attribute is read at that time:
 /// time samples are interpolated linearly between the bracketing samples (quaternions by slerp) and held
 /// beyond the first and last (AOUSD Core §12.5); an attribute without samples gives its default value.
+#[cfg(any(test, feature = "testing"))]
 pub fn read_at_time(
     path: &Path,
     limits: &Limits,
@@ -365,6 +371,7 @@ fn read_stage(
     };
     loader.root = loader.stage_root()?;
     loader.time = match time {
+        #[cfg(any(test, feature = "testing"))]
         When::TimeCode(t) => usd::TimeCode::new(t),
         When::Frame(f, fps) => usd::TimeCode::new(f * loader.time_codes_per_frame(fps)?),
         When::Default => loader.default_time()?,
@@ -477,7 +484,7 @@ struct Loader<'a> {
     subdivision_level: Option<u32>,
     /// `--strict`: unknown `nimbus:` attributes are errors, not warnings.
     strict: bool,
-    /// The time code every attribute is read at (see [`read_at_time`]).
+    /// The time code every attribute is read at (see `read_at_time`).
     time: usd::TimeCode,
     /// `.usdz` packages opened for the files inside them, by package path.
     packages: HashMap<PathBuf, layers::Package>,
