@@ -6,7 +6,8 @@
 //! Media: along each segment every medium proposes its next real collision ([`Medium::sample_free_flight`]);
 //! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. A medium
 //! alone on a segment may instead track all colour channels at once ([`Medium::spectral_free_flight`], spectral
-//! tracking of an RGB density), returning the path's new throughput. An emitting medium gathers its emission
+//! tracking of an RGB density), returning the path's new throughput; beside grey media it does so over the part
+//! of the segment before their nearest collision. An emitting medium gathers its emission
 //! along its free flight, at the tentative collisions of its walk ([`TentativeEmission`]); the integrator adds
 //! what lies before the segment's event, weighted by the other media's survival there. Nothing here depends on
 //! which tracking method a medium uses.
@@ -74,7 +75,8 @@ pub struct PathSample {
 /// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
 /// weighted by 1/p_c, so the new throughput Σβ · e_c has the old one as its expectation (unbiased). Media whose
 /// extinction differs by channel ([`Medium::is_chromatic`](crate::volume::Medium::is_chromatic)) and that do
-/// not track it spectrally on this segment then track that channel alone, analog; so does a dispersive surface
+/// not track it spectrally (`chromatic_tracking: one_channel`, or two chromatic media on one segment, or one
+/// beside an emitting medium) then track that channel alone, analog; so does a dispersive surface
 /// (`KHR_materials_dispersion`), which refracts with the index of the channel returned. Spectral renderers
 /// sample one wavelength per path the same way; the cost is colour noise. A path already carrying one channel
 /// is unchanged and that channel returned (the green one for a path that carries nothing).
@@ -501,11 +503,23 @@ impl PathTracer {
                 return flight.collision.map(|t| (t, m));
             }
         }
-        if media
-            .ids()
-            .iter()
-            .any(|&m| scene.media[m as usize].is_chromatic())
-        {
+        let chromatic = |&m: &u32| scene.media[m as usize].is_chromatic();
+        if let Some(&h) = media.ids().iter().find(|m| chromatic(m)) {
+            let emissive_other = |&m: &u32| m != h && scene.media[m as usize].is_emissive();
+            if media.ids().iter().filter(|m| chromatic(m)).count() == 1
+                && !media.ids().iter().any(emissive_other)
+            {
+                return self.sample_shared_chromatic(
+                    services,
+                    s,
+                    ray,
+                    t_surface,
+                    media.ids(),
+                    h,
+                    rng,
+                    counters,
+                );
+            }
             carry_one_channel(&mut s.beta, rng);
         }
         let throughput = s.beta;
@@ -546,6 +560,81 @@ impl PathTracer {
         s.collided_segment = constant
             .map(|(segment, _)| segment)
             .filter(|_| nearest.is_some());
+        nearest
+    }
+
+    /// A segment that one chromatic medium `h` shares with grey ones: the grey media propose their collisions
+    /// first, over the whole segment, and `h` then tracks all colour channels at once
+    /// ([`Medium::spectral_free_flight`](crate::volume::Medium::spectral_free_flight)) over the interval up to
+    /// the nearest of them. Its walk's weights then cover exactly the part of the segment the path crosses: the
+    /// walk over `(0, t_cut)` is unbiased for any `t_cut` independent of it (Kutz et al. 2017, §5), and the grey
+    /// media's weights depend only on where the segment's event is. The path keeps its colour, where carrying one
+    /// channel (the fallback for a medium that does not track spectrally) would add colour noise. Other media must
+    /// not emit: their emission samples would need `h`'s walk weights at their distances.
+    #[allow(clippy::too_many_arguments)]
+    fn sample_shared_chromatic(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        t_surface: f32,
+        media: &[u32],
+        h: u32,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> Option<(f32, u32)> {
+        let scene = services.scene();
+        let throughput = s.beta;
+        let mut nearest: Option<(f32, u32)> = None;
+        for &m in media.iter().filter(|&&m| m != h) {
+            let counter = &mut counters.media[m as usize];
+            s.emitted.begin(m);
+            let medium = &scene.media[m as usize];
+            if let Some(t) =
+                medium.sample_free_flight(ray, t_surface, throughput, rng, counter, &mut s.emitted)
+            {
+                if nearest.is_none_or(|(tn, _)| t < tn) {
+                    nearest = Some((t, m));
+                }
+            }
+        }
+        let t_cut = nearest.map_or(t_surface, |(t, _)| t);
+        let chromatic = &scene.media[h as usize];
+        let counter = &mut counters.media[h as usize];
+        s.emitted.begin(h);
+        let collision = match chromatic.spectral_free_flight(
+            ray,
+            t_cut,
+            throughput,
+            rng,
+            counter,
+            &mut s.emitted,
+        ) {
+            Some(flight) => {
+                s.beta = flight.throughput;
+                flight.collision
+            }
+            None => {
+                carry_one_channel(&mut s.beta, rng);
+                let one = s.beta;
+                let t = chromatic.sample_free_flight(ray, t_cut, one, rng, counter, &mut s.emitted);
+                let t_end = t.unwrap_or(t_cut);
+                s.beta *= chromatic.free_flight_weight(ray, t_end, t.is_some(), one, rng, counter);
+                t
+            }
+        };
+        if let Some(t) = collision {
+            nearest = Some((t, h));
+        }
+        let t_event = nearest.map_or(t_surface, |(t, _)| t);
+        for &m in media.iter().filter(|&&m| m != h) {
+            let collided = nearest.is_some_and(|(_, n)| n == m);
+            let counter = &mut counters.media[m as usize];
+            s.beta *= scene.media[m as usize]
+                .free_flight_weight(ray, t_event, collided, throughput, rng, counter);
+        }
+        self.add_media_emission(services, s, ray, media, t_event, throughput, rng, counters);
+        s.collided_segment = None;
         nearest
     }
 

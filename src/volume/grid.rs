@@ -14,7 +14,8 @@
 //!   (Kutz et al. 2017, §5, history-aware collision probabilities: the path keeps all three channels), or with
 //!   `"chromatic_tracking": "one_channel"` by delta tracking of the one channel the path is made to carry. `auto`
 //!   (the default) is spectral tracking, measured 2.8× to 8.5× as efficient (docs/reference.md). On a segment shared with
-//!   another medium the path carries one channel either way.
+//!   grey media it tracks the part before their nearest collision; beside another chromatic medium or an emitting
+//!   one the path carries one channel.
 //! - Shadow rays: ratio tracking (Novák et al. 2014, eq. 6), or residual ratio tracking (Novák et al. 2014, §4)
 //!   with `"shadow_estimator": "residual_ratio"`.
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
@@ -316,7 +317,7 @@ impl GridMedium {
         })
     }
 
-    /// True for an RGB density whose free flights use spectral tracking (where the medium is alone on a segment).
+    /// True for an RGB density whose free flights use spectral tracking.
     fn tracks_spectrally(&self) -> bool {
         self.channels.is_some() && self.chromatic.tracking == ChromaticTracking::Spectral
     }
