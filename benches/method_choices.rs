@@ -34,7 +34,7 @@ use nimbus::vdb::{GridTree, Tree};
 use nimbus::volume::density::GridDensity;
 use nimbus::volume::grid::GridMedium;
 use nimbus::volume::homogeneous::{ChannelChoice, HomogeneousMedium};
-use nimbus::volume::{Medium, TrackingCounters};
+use nimbus::volume::{Medium, TentativeEmission, TrackingCounters};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -130,7 +130,14 @@ fn per_ray(medium: &dyn Medium, sigma: f32, n: usize) -> (f64, f64, f64) {
         let mut sink = 0.0f32;
         let start = Instant::now();
         for (ray, t_max) in &rays {
-            let t = medium.sample_free_flight(ray, *t_max, Rgb::ONE, &mut rng, &mut counters);
+            let t = medium.sample_free_flight(
+                ray,
+                *t_max,
+                Rgb::ONE,
+                &mut rng,
+                &mut counters,
+                &mut TentativeEmission::default(),
+            );
             sink += t.unwrap_or(*t_max);
             let estimate = medium.transmittance(ray, *t_max, &mut rng, &mut counters).y;
             squared_error += ((estimate - (-sigma * t_max).exp()) as f64).powi(2);

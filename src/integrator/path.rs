@@ -6,8 +6,11 @@
 //! Media: along each segment every medium proposes its next real collision ([`Medium::sample_free_flight`]);
 //! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. A medium
 //! alone on a segment may instead track all colour channels at once ([`Medium::spectral_free_flight`], spectral
-//! tracking of an RGB density), returning the path's new throughput. Nothing here depends on which tracking
-//! method a medium uses.
+//! tracking of an RGB density), returning the path's new throughput; beside grey media it does so over the part
+//! of the segment before their nearest collision. An emitting medium gathers its emission
+//! along its free flight, at the tentative collisions of its walk ([`TentativeEmission`]); the integrator adds
+//! what lies before the segment's event, weighted by the other media's survival there. Nothing here depends on
+//! which tracking method a medium uses.
 //!
 //! Point and spot lights in or near media: on a segment inside one medium of constant coefficients
 //! ([`Medium::constant_scattering`]), the direct light of a point or spot light is also estimated at a distance
@@ -44,7 +47,7 @@ use crate::material::LobeSplit;
 use crate::math::sampling::{power_heuristic, Equiangular};
 use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
 use crate::scene::{Scene, SurfaceHit};
-use crate::volume::ConstantScattering;
+use crate::volume::{ConstantScattering, TentativeEmission};
 
 /// Bounces after which Russian roulette may end a path.
 const ROULETTE_START: u32 = 3;
@@ -72,7 +75,8 @@ pub struct PathSample {
 /// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
 /// weighted by 1/p_c, so the new throughput Σβ · e_c has the old one as its expectation (unbiased). Media whose
 /// extinction differs by channel ([`Medium::is_chromatic`](crate::volume::Medium::is_chromatic)) and that do
-/// not track it spectrally on this segment then track that channel alone, analog; so does a dispersive surface
+/// not track it spectrally (`chromatic_tracking: one_channel`, or two chromatic media on one segment, or one
+/// beside an emitting medium) then track that channel alone, analog; so does a dispersive surface
 /// (`KHR_materials_dispersion`), which refracts with the index of the channel returned. Spectral renderers
 /// sample one wavelength per path the same way; the cost is colour noise. A path already carrying one channel
 /// is unchanged and that channel returned (the green one for a path that carries nothing).
@@ -180,6 +184,8 @@ struct PathState<'r> {
     /// passes through culled back faces, shadow catchers and index-matched boundaries): what deep output
     /// measures depths by.
     camera_t: f32,
+    /// The emission media gathered along the current segment's free flights.
+    emitted: TentativeEmission,
 }
 
 impl PathState<'_> {
@@ -348,6 +354,7 @@ impl PathTracer {
             crossed_medium: None,
             record,
             camera_t: 0.0,
+            emitted: TentativeEmission::default(),
         };
         counters.rays.camera += 1;
         loop {
@@ -469,21 +476,50 @@ impl PathTracer {
         }
         // A medium alone on the segment may track all channels at once (spectral tracking): its weights are the
         // walk's own, so the path keeps its colour.
+        s.emitted.clear();
         if let &[m] = media.ids() {
             let counter = &mut counters.media[m as usize];
-            if let Some(flight) =
-                scene.media[m as usize].spectral_free_flight(ray, t_surface, s.beta, rng, counter)
-            {
+            s.emitted.begin(m);
+            if let Some(flight) = scene.media[m as usize].spectral_free_flight(
+                ray,
+                t_surface,
+                s.beta,
+                rng,
+                counter,
+                &mut s.emitted,
+            ) {
                 s.beta = flight.throughput;
                 s.collided_segment = None;
+                self.add_media_emission(
+                    services,
+                    s,
+                    ray,
+                    &[m],
+                    f32::INFINITY,
+                    Rgb::ONE,
+                    rng,
+                    counters,
+                );
                 return flight.collision.map(|t| (t, m));
             }
         }
-        if media
-            .ids()
-            .iter()
-            .any(|&m| scene.media[m as usize].is_chromatic())
-        {
+        let chromatic = |&m: &u32| scene.media[m as usize].is_chromatic();
+        if let Some(&h) = media.ids().iter().find(|m| chromatic(m)) {
+            let emissive_other = |&m: &u32| m != h && scene.media[m as usize].is_emissive();
+            if media.ids().iter().filter(|m| chromatic(m)).count() == 1
+                && !media.ids().iter().any(emissive_other)
+            {
+                return self.sample_shared_chromatic(
+                    services,
+                    s,
+                    ray,
+                    t_surface,
+                    media.ids(),
+                    h,
+                    rng,
+                    counters,
+                );
+            }
             carry_one_channel(&mut s.beta, rng);
         }
         let throughput = s.beta;
@@ -495,7 +531,10 @@ impl PathTracer {
         for &m in media.ids() {
             let medium = &scene.media[m as usize];
             let counter = &mut counters.media[m as usize];
-            if let Some(t) = medium.sample_free_flight(ray, t_surface, throughput, rng, counter) {
+            s.emitted.begin(m);
+            if let Some(t) =
+                medium.sample_free_flight(ray, t_surface, throughput, rng, counter, &mut s.emitted)
+            {
                 if nearest.is_none_or(|(tn, _)| t < tn) {
                     nearest = Some((t, m));
                 }
@@ -508,10 +547,142 @@ impl PathTracer {
             let counter = &mut counters.media[m as usize];
             s.beta *= medium.free_flight_weight(ray, t_event, collided, throughput, rng, counter);
         }
+        self.add_media_emission(
+            services,
+            s,
+            ray,
+            media.ids(),
+            t_event,
+            throughput,
+            rng,
+            counters,
+        );
         s.collided_segment = constant
             .map(|(segment, _)| segment)
             .filter(|_| nearest.is_some());
         nearest
+    }
+
+    /// A segment that one chromatic medium `h` shares with grey ones: the grey media propose their collisions
+    /// first, over the whole segment, and `h` then tracks all colour channels at once
+    /// ([`Medium::spectral_free_flight`](crate::volume::Medium::spectral_free_flight)) over the interval up to
+    /// the nearest of them. Its walk's weights then cover exactly the part of the segment the path crosses: the
+    /// walk over `(0, t_cut)` is unbiased for any `t_cut` independent of it (Kutz et al. 2017, §5), and the grey
+    /// media's weights depend only on where the segment's event is. The path keeps its colour, where carrying one
+    /// channel (the fallback for a medium that does not track spectrally) would add colour noise. Other media must
+    /// not emit: their emission samples would need `h`'s walk weights at their distances.
+    #[allow(clippy::too_many_arguments)]
+    fn sample_shared_chromatic(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        t_surface: f32,
+        media: &[u32],
+        h: u32,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> Option<(f32, u32)> {
+        let scene = services.scene();
+        let throughput = s.beta;
+        let mut nearest: Option<(f32, u32)> = None;
+        for &m in media.iter().filter(|&&m| m != h) {
+            let counter = &mut counters.media[m as usize];
+            s.emitted.begin(m);
+            let medium = &scene.media[m as usize];
+            if let Some(t) =
+                medium.sample_free_flight(ray, t_surface, throughput, rng, counter, &mut s.emitted)
+            {
+                if nearest.is_none_or(|(tn, _)| t < tn) {
+                    nearest = Some((t, m));
+                }
+            }
+        }
+        let t_cut = nearest.map_or(t_surface, |(t, _)| t);
+        let chromatic = &scene.media[h as usize];
+        let counter = &mut counters.media[h as usize];
+        s.emitted.begin(h);
+        let collision = match chromatic.spectral_free_flight(
+            ray,
+            t_cut,
+            throughput,
+            rng,
+            counter,
+            &mut s.emitted,
+        ) {
+            Some(flight) => {
+                s.beta = flight.throughput;
+                flight.collision
+            }
+            None => {
+                carry_one_channel(&mut s.beta, rng);
+                let one = s.beta;
+                let t = chromatic.sample_free_flight(ray, t_cut, one, rng, counter, &mut s.emitted);
+                let t_end = t.unwrap_or(t_cut);
+                s.beta *= chromatic.free_flight_weight(ray, t_end, t.is_some(), one, rng, counter);
+                t
+            }
+        };
+        if let Some(t) = collision {
+            nearest = Some((t, h));
+        }
+        let t_event = nearest.map_or(t_surface, |(t, _)| t);
+        for &m in media.iter().filter(|&&m| m != h) {
+            let collided = nearest.is_some_and(|(_, n)| n == m);
+            let counter = &mut counters.media[m as usize];
+            s.beta *= scene.media[m as usize]
+                .free_flight_weight(ray, t_event, collided, throughput, rng, counter);
+        }
+        self.add_media_emission(services, s, ray, media, t_event, throughput, rng, counters);
+        s.collided_segment = None;
+        nearest
+    }
+
+    /// Adds the emission the free flights of `media` gathered at their tentative collisions up to the segment's
+    /// event `t_event` (`s.emitted`, already times the path throughput the flights started with). A medium's
+    /// sample at t counts only where no other medium collided before t, so it is weighted by the other media's
+    /// survival weights there ([`Medium::free_flight_weight`](crate::volume::Medium::free_flight_weight), for a
+    /// path of `throughput`): the expectation is then ∫ T(t) σ_a L_e dt with T the transmittance of all the
+    /// media. Holdout media emit nothing toward the camera (their collisions end camera paths).
+    #[allow(clippy::too_many_arguments)]
+    fn add_media_emission(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        media: &[u32],
+        t_event: f32,
+        throughput: Rgb,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) {
+        if s.emitted.samples().is_empty() {
+            return;
+        }
+        let scene = services.scene();
+        let emitted = std::mem::take(&mut s.emitted);
+        for &m in media {
+            if self.mattes && s.depth == 0 && scene.names().medium_is_holdout(m as usize) {
+                continue;
+            }
+            let mut sum = Rgb::ZERO;
+            for &(t, radiance, _) in emitted.samples().iter().filter(|e| e.2 == m) {
+                if t > t_event {
+                    continue;
+                }
+                let mut weight = Rgb::ONE;
+                for &other in media.iter().filter(|&&o| o != m) {
+                    let counter = &mut counters.media[other as usize];
+                    weight *= scene.media[other as usize]
+                        .free_flight_weight(ray, t, false, throughput, rng, counter);
+                }
+                sum += radiance * weight;
+            }
+            if sum.max_element() > 0.0 {
+                s.add_reached(sum, || scene.names().emitter_of_medium(m as usize));
+            }
+        }
+        s.emitted = emitted;
     }
 
     /// The segment `[0, t_surface)` of `ray` when equiangular sampling applies to it: it is on, the path may
@@ -954,8 +1125,8 @@ impl PathTracer {
         SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time))
     }
 
-    /// Handles a real collision at distance `t` in medium `m`: emission, next-event estimation with MIS against
-    /// phase sampling, then phase sampling to continue. Returns false when the path ends.
+    /// Handles a real collision at distance `t` in medium `m`: next-event estimation with MIS against phase
+    /// sampling, then phase sampling to continue. Returns false when the path ends.
     #[allow(clippy::too_many_arguments)]
     fn scatter_in_medium(
         &self,
@@ -979,11 +1150,8 @@ impl PathTracer {
                 Some(scene.names().item_of_medium(m as usize))
             });
         }
+        // The medium's emission here was gathered with its free flight (at every tentative collision).
         let collision = scene.media[m as usize].collision(p, ray.time);
-        if collision.emission.max_element() > 0.0 {
-            let emitter = || scene.names().emitter_of_medium(m as usize);
-            s.add_reached(s.beta * collision.emission, emitter);
-        }
         s.beta *= collision.albedo;
         if s.beta.max_element() <= 0.0 || s.depth >= self.max_depth {
             return false;

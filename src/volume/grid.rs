@@ -14,11 +14,16 @@
 //!   (Kutz et al. 2017, §5, history-aware collision probabilities: the path keeps all three channels), or with
 //!   `"chromatic_tracking": "one_channel"` by delta tracking of the one channel the path is made to carry. `auto`
 //!   (the default) is spectral tracking, measured 2.8× to 8.5× as efficient (docs/reference.md). On a segment shared with
-//!   another medium the path carries one channel either way.
+//!   grey media it tracks the part before their nearest collision; beside another chromatic medium or an emitting
+//!   one the path carries one channel.
 //! - Shadow rays: ratio tracking (Novák et al. 2014, eq. 6), or residual ratio tracking (Novák et al. 2014, §4)
 //!   with `"shadow_estimator": "residual_ratio"`.
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
-//!   added at real collisions as (σ_a/σ_t) · L_e (the collision estimator).
+//!   gathered at the tentative collisions of a free flight's walk: an unbiased blend, per collision, of Miller
+//!   et al. 2019's track-length estimator (σ_t/σ̄ · (σ_a/σ_t) · L_e at every tentative collision) and the
+//!   collision estimator ((σ_a/σ_t) · L_e at the real one), weighted toward the first where null collisions are
+//!   likely (thin regions, where it has less variance) and toward the second where the majorant is tight
+//!   (thick regions, where it has less) ([`super::tracking::TentativeCollision::emission_weight`]).
 //! - Motion blur: with a shutter and a velocity grid, every lookup at time τ reads the frame at x − v(x)·τ
 //!   ([`super::velocity`]), over majorants dilated for the shutter.
 
@@ -29,13 +34,14 @@ use super::error::VolumeError;
 use super::majorant::{MajorantKind, Majorants};
 use super::majorant_choice::{self, MajorantEstimate};
 use super::tracking::{
-    decomposition_tracking, ratio_tracking, residual_ratio_tracking, spectral_tracking,
-    SpectralFlight,
+    decomposition_tracking, decomposition_tracking_reporting, ratio_tracking,
+    residual_ratio_tracking, spectral_tracking, NoHook, SpectralFlight, TentativeCollision,
+    TentativeHook,
 };
 use super::velocity::{Displaced, VelocityField};
 use super::{
     Chromatic, ChromaticTracking, Collision, FreeFlight, Medium, MediumMethod, MethodReason,
-    PhaseFunction, TrackingCounters, TransmittanceMethod, VolumeSpec,
+    PhaseFunction, TentativeEmission, TrackingCounters, TransmittanceMethod, VolumeSpec,
 };
 #[cfg(any(test, feature = "testing"))]
 use crate::limits::Limits;
@@ -240,7 +246,83 @@ impl GridMedium {
         self
     }
 
-    /// True for an RGB density whose free flights use spectral tracking (where the medium is alone on a segment).
+    /// The emission gathered at a tentative collision `x` of a free flight along `ray` that leaves the medium
+    /// at `t_end` and started with path throughput `start`: [`TentativeCollision::emission_weight`] times
+    /// (σ_a/σ_t) L_e at the point. The blend's α is exp(−σ_t(x)·d), d the distance left to `t_end`: the chance
+    /// of getting through were the medium as dense as at x all the way, so that the track-length estimator is
+    /// used where the flight is likely to get through (thin media) and the collision estimator where it is
+    /// sure to end soon.
+    fn gather(
+        &self,
+        ray: &Ray,
+        t_end: f32,
+        x: &TentativeCollision,
+        start: Rgb,
+        emission: &mut TentativeEmission,
+    ) {
+        let depth_left = x.ratio.max_element() * x.sigma_bar * ray.dir.length() * (t_end - x.t);
+        let weight = x.emission_weight((-depth_left).exp());
+        // A null collision where the medium is empty gathers nothing: no lookup.
+        if weight == Rgb::ZERO {
+            return;
+        }
+        let emitted = self.collision(ray.at(x.t), ray.time).emission;
+        if emitted.max_element() > 0.0 {
+            emission.push(x.t, start * weight * emitted);
+        }
+    }
+
+    /// Where `ray` leaves the medium's box before `t_max` (`t_max` when it does not).
+    fn exit(&self, ray: &Ray, t_max: f32) -> f32 {
+        self.world_bounds
+            .intersect(ray, 0.0, t_max)
+            .map_or(t_max, |(_, far)| far)
+    }
+
+    /// Spectral tracking of `interval` of `ray` through the RGB density, reporting its tentative collisions to
+    /// `hook`; `None` for a scalar density.
+    fn spectral_walk<H: TentativeHook>(
+        &self,
+        ray: &Ray,
+        interval: (f32, f32),
+        throughput: Rgb,
+        rng: &mut Rng,
+        counters: &mut TrackingCounters,
+        hook: H,
+    ) -> Option<SpectralFlight> {
+        let channels = self.channels.as_deref()?;
+        Some(match self.moved(&self.density, ray.time) {
+            Some(max) => {
+                let [r, g, b] = channels
+                    .each_ref()
+                    .map(|density| Displaced { density, ..max });
+                spectral_tracking(
+                    &max,
+                    [&r, &g, &b],
+                    &self.majorants,
+                    ray,
+                    interval,
+                    throughput,
+                    rng,
+                    counters,
+                    hook,
+                )
+            }
+            None => spectral_tracking(
+                &self.density,
+                channels.each_ref(),
+                &self.majorants,
+                ray,
+                interval,
+                throughput,
+                rng,
+                counters,
+                hook,
+            ),
+        })
+    }
+
+    /// True for an RGB density whose free flights use spectral tracking.
     fn tracks_spectrally(&self) -> bool {
         self.channels.is_some() && self.chromatic.tracking == ChromaticTracking::Spectral
     }
@@ -576,6 +658,7 @@ impl Medium for GridMedium {
         throughput: Rgb,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
+        emission: &mut TentativeEmission,
     ) -> Option<f32> {
         // An RGB density tracked here (one-channel method, or a segment shared with other media) tracks the one
         // channel the path carries (the integrator makes it carry one, see `Medium::is_chromatic`): delta tracking
@@ -584,15 +667,32 @@ impl Medium for GridMedium {
             Some(ch) => &ch[throughput.max_position()],
             None => &self.density,
         };
-        with_field!(self, channel, ray.time, |field| decomposition_tracking(
-            field,
-            &self.majorants,
-            ray,
-            0.0,
-            t_max,
-            rng,
-            counters
-        ))
+        if !self.is_emissive() {
+            return with_field!(self, channel, ray.time, |field| decomposition_tracking(
+                field,
+                &self.majorants,
+                ray,
+                0.0,
+                t_max,
+                rng,
+                counters
+            ));
+        }
+        // The walk is analog: its weights are relative to the path's throughput.
+        let t_end = self.exit(ray, t_max);
+        let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, throughput, emission);
+        with_field!(self, channel, ray.time, |field| {
+            decomposition_tracking_reporting(
+                field,
+                &self.majorants,
+                ray,
+                0.0,
+                t_max,
+                rng,
+                counters,
+                gather,
+            )
+        })
     }
 
     fn free_flight_weight(
@@ -615,39 +715,19 @@ impl Medium for GridMedium {
         throughput: Rgb,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
+        emission: &mut TentativeEmission,
     ) -> Option<SpectralFlight> {
         if !self.tracks_spectrally() {
             return None;
         }
-        let channels = self.channels.as_deref()?;
         let interval = (0.0, t_max);
-        Some(match self.moved(&self.density, ray.time) {
-            Some(max) => {
-                let [r, g, b] = channels
-                    .each_ref()
-                    .map(|density| Displaced { density, ..max });
-                spectral_tracking(
-                    &max,
-                    [&r, &g, &b],
-                    &self.majorants,
-                    ray,
-                    interval,
-                    throughput,
-                    rng,
-                    counters,
-                )
-            }
-            None => spectral_tracking(
-                &self.density,
-                channels.each_ref(),
-                &self.majorants,
-                ray,
-                interval,
-                throughput,
-                rng,
-                counters,
-            ),
-        })
+        if !self.is_emissive() {
+            return self.spectral_walk(ray, interval, throughput, rng, counters, NoHook);
+        }
+        // The walk's weights already hold the path's throughput.
+        let t_end = self.exit(ray, t_max);
+        let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, Rgb::ONE, emission);
+        self.spectral_walk(ray, interval, throughput, rng, counters, gather)
     }
 
     fn collision(&self, p: Vec3, time: f32) -> Collision {

@@ -20,7 +20,7 @@
 
 use super::{
     ChannelSampling, Collision, ConstantScattering, FreeFlight, Medium, MediumMethod, MethodReason,
-    PhaseFunction, TrackingCounters, TransmittanceMethod,
+    PhaseFunction, TentativeEmission, TrackingCounters, TransmittanceMethod,
 };
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 
@@ -150,6 +150,7 @@ impl Medium for HomogeneousMedium {
         throughput: Rgb,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
+        _emission: &mut TentativeEmission,
     ) -> Option<f32> {
         if self.is_absorbing_only() {
             return None;
@@ -297,7 +298,14 @@ mod tests {
         let mut sum = [0.0f64; 3];
         let mut sum2 = [0.0f64; 3];
         for _ in 0..n {
-            let w = match m.sample_free_flight(&ray, d, Rgb::ONE, &mut rng, &mut c) {
+            let w = match m.sample_free_flight(
+                &ray,
+                d,
+                Rgb::ONE,
+                &mut rng,
+                &mut c,
+                &mut TentativeEmission::default(),
+            ) {
                 Some(_) => Rgb::ZERO,
                 None => m.free_flight_weight(&ray, d, false, Rgb::ONE, &mut rng, &mut c),
             };
@@ -337,8 +345,15 @@ mod tests {
                 100_000,
                 (0.0, t_max as f64),
                 || {
-                    m.sample_free_flight(&ray, t_max, throughput, &mut rng, &mut c)
-                        .unwrap_or(f32::INFINITY)
+                    m.sample_free_flight(
+                        &ray,
+                        t_max,
+                        throughput,
+                        &mut rng,
+                        &mut c,
+                        &mut TentativeEmission::default(),
+                    )
+                    .unwrap_or(f32::INFINITY)
                 },
                 |t| m.free_flight_pdf(t as f32, throughput) as f64,
             );
@@ -434,7 +449,14 @@ mod tests {
         let mut sum = Rgb::ZERO.as_dvec3();
         let mut sum2 = Rgb::ZERO.as_dvec3();
         for _ in 0..n {
-            if let Some(t) = m.sample_free_flight(&ray, d, Rgb::ONE, &mut rng, &mut c) {
+            if let Some(t) = m.sample_free_flight(
+                &ray,
+                d,
+                Rgb::ONE,
+                &mut rng,
+                &mut c,
+                &mut TentativeEmission::default(),
+            ) {
                 let w = (m.free_flight_weight(&ray, t, true, Rgb::ONE, &mut rng, &mut c)
                     * m.collision(ray.at(t), 0.0).albedo)
                     .as_dvec3();

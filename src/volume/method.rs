@@ -264,7 +264,7 @@ impl fmt::Display for MediumMethod {
                     match c.tracking {
                         ChromaticTracking::Spectral => write!(
                             f,
-                            ", history-aware collision probabilities over the path throughput ({why}; a path that shares a segment with another medium carries one channel there)"
+                            ", history-aware collision probabilities over the path throughput ({why}; beside grey media, over the part of a segment before their nearest collision; a path that shares a segment with another chromatic or an emitting medium carries one channel there)"
                         )?,
                         ChromaticTracking::OneChannel => write!(
                             f,

@@ -7,6 +7,9 @@
 //! - [`Medium::free_flight_weight`] gives the path-throughput factor that makes that proposal unbiased
 //!   (1 for analog methods such as closed-form or delta tracking of grey media);
 //! - [`Medium::collision`] gives the albedo, emission and phase function at a collision;
+//! - an emitting medium gathers its emission along the free flight, at the tentative collisions of its walk
+//!   (null or real), into [`TentativeEmission`] (Miller, Georgiev, Jarosz 2019, eq. 9, blended with the collision
+//!   estimator: [`tracking::TentativeCollision::emission_weight`]), not only at the real collision;
 //! - [`Medium::transmittance`] estimates beam transmittance for shadow rays.
 //!
 //! Overlapping media combine exactly: each proposes its own first collision and the nearest wins, because the
@@ -52,10 +55,45 @@ pub use tracking::{SpectralFlight, TrackingCounters};
 pub struct Collision {
     /// Single-scattering albedo σ_s/σ_t per channel: the path continues with this weight.
     pub albedo: Rgb,
-    /// Emitted radiance times σ_a/σ_t, added at the collision (collision estimator of emission).
+    /// Emitted radiance times σ_a/σ_t at the point: what a real collision there would gather (the collision
+    /// estimator of emission). Free flights gather it at every tentative collision instead, times σ_t/σ̄
+    /// ([`TentativeEmission`]).
     pub emission: Rgb,
     /// The phase function at the collision.
     pub phase: PhaseFunction,
+}
+
+/// The light a medium emitted along one segment of a path, gathered at the tentative collisions of its free
+/// flights: each sample is (ray parameter, radiance reaching the segment's start, already times the path
+/// throughput the flight started with). A sample counts only where the path has not collided before it in
+/// another medium; the integrator weights it by the other media's survival there. Reused across segments (the
+/// buffer allocates only for emitting media).
+#[derive(Clone, Debug, Default)]
+pub struct TentativeEmission {
+    samples: Vec<(f32, Rgb, u32)>,
+    medium: u32,
+}
+
+impl TentativeEmission {
+    /// Empties the buffer for a new segment.
+    pub fn clear(&mut self) {
+        self.samples.clear();
+    }
+
+    /// Makes the samples pushed next belong to medium `m` (the integrator's index).
+    pub fn begin(&mut self, m: u32) {
+        self.medium = m;
+    }
+
+    /// Adds `radiance` gathered at ray parameter `t` by the medium last begun.
+    pub fn push(&mut self, t: f32, radiance: Rgb) {
+        self.samples.push((t, radiance, self.medium));
+    }
+
+    /// The samples: (ray parameter, radiance, medium).
+    pub fn samples(&self) -> &[(f32, Rgb, u32)] {
+        &self.samples
+    }
 }
 
 /// The coefficients of a scattering medium that are the same everywhere, as light-driven (equiangular)
@@ -112,7 +150,8 @@ pub trait Medium: Send + Sync {
     /// path throughput that the walk's weights leave, for all channels at once; `None` when the medium does not
     /// track spectrally (the default), and the integrator uses [`Medium::sample_free_flight`]. The weights depend
     /// on the whole walk, not only on where it ended, which is why a segment shared with other media (whose
-    /// collision may come first) does not use it.
+    /// collision may come first) does not use it. An emitting medium pushes its emission at each tentative
+    /// collision into `emission`, times the walk's throughput there.
     fn spectral_free_flight(
         &self,
         _ray: &Ray,
@@ -120,12 +159,14 @@ pub trait Medium: Send + Sync {
         _throughput: Rgb,
         _rng: &mut Rng,
         _counters: &mut TrackingCounters,
+        _emission: &mut TentativeEmission,
     ) -> Option<SpectralFlight> {
         None
     }
 
     /// Proposes the distance of the next real collision in `(0, t_max)`, or `None`. `throughput` is the path's
-    /// current throughput, which chromatic media use to choose the channel to sample.
+    /// current throughput, which chromatic media use to choose the channel to sample. An emitting medium pushes
+    /// its emission at each tentative collision into `emission`, times `throughput`.
     fn sample_free_flight(
         &self,
         ray: &Ray,
@@ -133,6 +174,7 @@ pub trait Medium: Send + Sync {
         throughput: Rgb,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
+        emission: &mut TentativeEmission,
     ) -> Option<f32>;
 
     /// Throughput factor for the free flight from the ray origin to `t`: when `collided`, this medium's own

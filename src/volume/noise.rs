@@ -195,6 +195,7 @@ impl Medium for NoiseMedium {
         _: Rgb,
         _: &mut Rng,
         _: &mut TrackingCounters,
+        _: &mut super::TentativeEmission,
     ) -> Option<f32> {
         None
     }
