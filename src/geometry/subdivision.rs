@@ -329,7 +329,12 @@ impl PolygonMesh {
                 out.face_tags.push(self.face_tags[f]);
             }
         }
-        self.child_face_varying_into(Scheme::CatmullClark, &edges, &vertex_edges, &mut out);
+        let topology = Topology {
+            edges: &edges,
+            vertex_edges: &vertex_edges,
+            vertex_faces: &vertex_faces,
+        };
+        self.child_face_varying_into(Scheme::CatmullClark, &topology, &mut out);
         self.child_creases(&edges, &vertex_edges, edge_base, &mut out);
         out
     }
@@ -407,7 +412,12 @@ impl PolygonMesh {
                 out.face_tags.push(self.face_tags[f]);
             }
         }
-        self.child_face_varying_into(Scheme::Loop, &edges, &vertex_edges, &mut out);
+        let topology = Topology {
+            edges: &edges,
+            vertex_edges: &vertex_edges,
+            vertex_faces: &vertex_faces,
+        };
+        self.child_face_varying_into(Scheme::Loop, &topology, &mut out);
         self.child_creases(&edges, &vertex_edges, edge_base, &mut out);
         out
     }
@@ -541,28 +551,28 @@ impl PolygonMesh {
         }
     }
 
-    /// Sets `out`'s UVs and colours (its faces made by one level of `scheme` on this mesh, whose `edges` meet
-    /// at each vertex as `vertex_edges` says) from this mesh's.
-    fn child_face_varying_into(
-        &self,
-        scheme: Scheme,
-        edges: &[Edge],
-        vertex_edges: &[Vec<usize>],
-        out: &mut PolygonMesh,
-    ) {
-        let around: Vec<Vec<f32>> = vertex_edges
+    /// Sets `out`'s UVs and colours (its faces made by one level of `scheme` on this mesh, of `topology`) from
+    /// this mesh's.
+    fn child_face_varying_into(&self, scheme: Scheme, topology: &Topology, out: &mut PolygonMesh) {
+        let around: Vec<Vec<f32>> = topology
+            .vertex_edges
             .iter()
-            .map(|incident| incident.iter().map(|&e| edges[e].sharpness).collect())
+            .map(|incident| {
+                incident
+                    .iter()
+                    .map(|&e| topology.edges[e].sharpness)
+                    .collect()
+            })
             .collect();
         out.uvs = self.uvs.as_ref().map(|uvs| {
             let values: Vec<Vec3> = uvs.iter().map(|uv| uv.extend(0.0)).collect();
-            let child = self.child_face_varying(&values, scheme, &around);
+            let child = self.child_face_varying(&values, scheme, &around, topology);
             child.into_iter().map(Vec3::truncate).collect()
         });
         out.colors = self
             .colors
             .as_ref()
-            .map(|colors| self.child_face_varying(colors, scheme, &around));
+            .map(|colors| self.child_face_varying(colors, scheme, &around, topology));
     }
 
     /// The child corners' face-varying `values` (one per face corner of this mesh, in `scheme`'s child order):
@@ -573,6 +583,7 @@ impl PolygonMesh {
         values: &[Vec3],
         scheme: Scheme,
         around: &[Vec<f32>],
+        topology: &Topology,
     ) -> Vec<Vec3> {
         if self.rules.face_varying == FaceVaryingRule::All {
             let mut start = 0usize;
@@ -587,7 +598,7 @@ impl PolygonMesh {
             }
             return out;
         }
-        let (mesh, vertex_of) = self.value_mesh(values);
+        let (mesh, vertex_of) = self.value_mesh(values, topology);
         let around: Vec<Vec<f32>> = vertex_of
             .iter()
             .map(|&v| around[v as usize].clone())
@@ -609,7 +620,7 @@ impl PolygonMesh {
     /// infinitely sharp values where the rule pins them.
     ///
     /// Returns the mesh and the vertex of each of its values.
-    fn value_mesh(&self, values: &[Vec3]) -> (PolygonMesh, Vec<u32>) {
+    fn value_mesh(&self, values: &[Vec3], topology: &Topology) -> (PolygonMesh, Vec<u32>) {
         let mut id_of: HashMap<(u32, [u32; 3]), u32> = HashMap::new();
         let (mut points, mut vertex_of) = (Vec::new(), Vec::new());
         let indices: Vec<u32> = self
@@ -654,13 +665,10 @@ impl PolygonMesh {
         }
         // The mesh's corners hold for its values, and so does `edgeAndCorner`'s corner at a vertex of one face
         // (which matters under `none`, whose own boundary rule leaves island corners smooth).
-        let mut faces_at = vec![0usize; self.points.len()];
-        for &v in &self.indices {
-            faces_at[v as usize] += 1;
-        }
         for (value, &v) in vertex_of.iter().enumerate() {
             let boundary_corner =
-                self.rules.boundary == BoundaryRule::EdgeAndCorner && faces_at[v as usize] == 1;
+                self.rules.boundary == BoundaryRule::EdgeAndCorner
+                    && topology.vertex_faces[v as usize].len() == 1;
             let sharpness = if boundary_corner {
                 Some(INFINITELY_SHARP)
             } else {
@@ -670,7 +678,7 @@ impl PolygonMesh {
                 mesh.corners.insert(value as u32, s);
             }
         }
-        for value in self.pinned_values(rule, &mesh, &value_edges, &vertex_of) {
+        for value in self.pinned_values(rule, &mesh, &value_edges, &vertex_of, topology) {
             mesh.corners.insert(value, INFINITELY_SHARP);
         }
         (mesh, vertex_of)
@@ -686,6 +694,7 @@ impl PolygonMesh {
         value_mesh: &PolygonMesh,
         value_edges: &[Edge],
         vertex_of: &[u32],
+        topology: &Topology,
     ) -> Vec<u32> {
         let on_boundary = |edges: &[Edge], n: usize| {
             let mut boundary = vec![false; n];
@@ -714,7 +723,7 @@ impl PolygonMesh {
                 None => values.push((value, 1)),
             }
         }
-        let vertex_on_boundary = on_boundary(&self.edge_table().1, self.points.len());
+        let vertex_on_boundary = on_boundary(topology.edges, self.points.len());
         let plus2 = rule == FaceVaryingRule::CornersPlus2;
         let mut pinned = Vec::new();
         for (v, values) in at_vertex.iter().enumerate() {
@@ -802,6 +811,17 @@ fn transition_weight(corner: f32, child_corner: f32, parent: &[f32], child: &[f3
     } else {
         sum / n as f32
     }
+}
+
+/// The edges of the mesh being subdivided and what meets at each vertex, as one level computes them once
+/// ([`PolygonMesh::edge_table`], [`PolygonMesh::incidence`]) for its points and its face-varying data alike.
+struct Topology<'a> {
+    /// The edges.
+    edges: &'a [Edge],
+    /// Each vertex's incident edges.
+    vertex_edges: &'a [Vec<usize>],
+    /// Each vertex's incident faces.
+    vertex_faces: &'a [Vec<usize>],
 }
 
 /// An edge of the mesh being subdivided.
