@@ -1079,27 +1079,17 @@ impl Loader<'_> {
         // With the specular-glossiness extension, the core metallic-roughness is only its fallback: unread.
         let specular_glossiness = self.specular_glossiness(&material, &at)?;
         let metallic_roughness = specular_glossiness.is_none();
-        let base_color_texture = match pbr.base_color_texture().filter(|_| metallic_roughness) {
-            Some(t) => {
-                let r =
-                    self.info_ref(&t, &format!("{at}.pbrMetallicRoughness.baseColorTexture"))?;
-                Some(self.texture_ref(&r, ColorSpace::Srgb)?)
-            }
-            None => None,
-        };
-        let metallic_roughness_texture = match pbr
-            .metallic_roughness_texture()
-            .filter(|_| metallic_roughness)
-        {
-            Some(t) => {
-                let r = self.info_ref(
-                    &t,
-                    &format!("{at}.pbrMetallicRoughness.metallicRoughnessTexture"),
-                )?;
-                Some(self.texture_ref(&r, ColorSpace::Linear)?)
-            }
-            None => None,
-        };
+        let base_color_texture = self.info_texture(
+            pbr.base_color_texture().filter(|_| metallic_roughness),
+            ColorSpace::Srgb,
+            &format!("{at}.pbrMetallicRoughness.baseColorTexture"),
+        )?;
+        let metallic_roughness_texture = self.info_texture(
+            pbr.metallic_roughness_texture()
+                .filter(|_| metallic_roughness),
+            ColorSpace::Linear,
+            &format!("{at}.pbrMetallicRoughness.metallicRoughnessTexture"),
+        )?;
         let normal_texture = match material.normal_texture() {
             Some(t) => {
                 let r = self.raw_ref(
@@ -1124,13 +1114,11 @@ impl Loader<'_> {
             }
             None => None,
         };
-        let emission_texture = match material.emissive_texture() {
-            Some(t) => {
-                let r = self.info_ref(&t, &format!("{at}.emissiveTexture"))?;
-                Some(self.texture_ref(&r, ColorSpace::Srgb)?)
-            }
-            None => None,
-        };
+        let emission_texture = self.info_texture(
+            material.emissive_texture(),
+            ColorSpace::Srgb,
+            &format!("{at}.emissiveTexture"),
+        )?;
         // The specular-glossiness model fixes the dielectric F0 at 0.04 (ior 1.5, full specular): the ior and
         // specular extensions, which its specification excludes beside it, are not read.
         let fixed_f0 = specular_glossiness.is_some();
@@ -1144,17 +1132,17 @@ impl Loader<'_> {
         let (specular_factor, specular_color) = specular.as_ref().map_or((1.0, Rgb::ONE), |s| {
             (s.specular_factor(), Rgb::from(s.specular_color_factor()))
         });
-        let specular_texture = self.extension_texture(
+        let specular_texture = self.info_texture(
             specular.as_ref().and_then(|s| s.specular_texture()),
             ColorSpace::Linear,
             &format!("{at}.extensions.KHR_materials_specular.specularTexture"),
         )?;
-        let specular_color_texture = self.extension_texture(
+        let specular_color_texture = self.info_texture(
             specular.as_ref().and_then(|s| s.specular_color_texture()),
             ColorSpace::Srgb,
             &format!("{at}.extensions.KHR_materials_specular.specularColorTexture"),
         )?;
-        let transmission_texture = self.extension_texture(
+        let transmission_texture = self.info_texture(
             material
                 .transmission()
                 .and_then(|t| t.transmission_texture()),
@@ -1521,9 +1509,9 @@ impl Loader<'_> {
         }
     }
 
-    /// The texture of an extension's `textureInfo` that the `gltf` crate parsed (`at` names it in errors), if
-    /// the extension gives one.
-    fn extension_texture(
+    /// The texture of a `textureInfo` the `gltf` crate parsed (`at` names it in errors), if the material or
+    /// extension gives one.
+    fn info_texture(
         &mut self,
         info: Option<gltf::texture::Info>,
         space: ColorSpace,
