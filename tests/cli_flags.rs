@@ -1,6 +1,8 @@
 //! Hostile command-line values get a one-line error and exit code 1: never a panic (exit 101), an abort or
 //! a runaway allocation.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -319,12 +321,20 @@ fn a_physically_dim_scene_gets_a_viewable_preview_and_says_why() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// The backticked names in the section of `docs/reference.md` that starts at the heading line `heading` and ends
-/// at the next heading.
-fn documented_names(heading: &str) -> std::collections::BTreeSet<String> {
-    let reference =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/reference.md"))
-            .expect("docs/reference.md");
+/// `docs/reference.md`.
+fn reference() -> String {
+    std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/reference.md"))
+        .expect("docs/reference.md")
+}
+
+/// The backticked spans of `text`.
+fn backticked(text: &str) -> impl Iterator<Item = &str> {
+    text.split('`').skip(1).step_by(2)
+}
+
+/// The backticked names in the section of `reference` that starts at the heading line `heading` and ends at
+/// the next heading.
+fn documented_names(reference: &str, heading: &str) -> std::collections::BTreeSet<String> {
     let section: String = reference
         .lines()
         .skip_while(|line| line.trim_end() != heading)
@@ -336,12 +346,20 @@ fn documented_names(heading: &str) -> std::collections::BTreeSet<String> {
         !section.is_empty(),
         "docs/reference.md has no section {heading:?}"
     );
-    section
-        .split('`')
-        .skip(1)
-        .step_by(2)
-        .map(str::to_owned)
-        .collect()
+    backticked(&section).map(str::to_owned).collect()
+}
+
+/// The keys of `value` (see [`json_keys`]) that `documented` does not name, with where each was met.
+fn unnamed_keys(
+    value: &serde_json::Value,
+    at: &str,
+    documented: &std::collections::BTreeSet<String>,
+) -> Vec<(String, String)> {
+    let mut keys = Vec::new();
+    json_keys(value, at, &mut keys);
+    assert!(keys.len() > 10, "{keys:?}");
+    keys.retain(|(k, _)| !documented.contains(k));
+    keys
 }
 
 /// Every key of `value` (objects nested in objects and arrays included), with the path where it was met.
@@ -372,18 +390,11 @@ fn the_reference_documents_every_flag_and_every_json_key() {
     let dir = std::env::temp_dir().join(format!("nimbus-reference-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let run = |args: &[&str]| {
-        let out = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-            .args(args)
-            .current_dir(&dir)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout).into_owned()
+        let (ok, stdout, stderr) = common::run_nimbus(args, &dir);
+        assert!(ok, "{args:?}: {stderr}");
+        stdout
     };
+    let reference = reference();
 
     // Flags: the long ones of `render --help` against the table rows' first cells.
     let help = run(&["render", "--help"]);
@@ -396,17 +407,12 @@ fn the_reference_documents_every_flag_and_every_json_key() {
         })
         .filter(|w| w != "--help" && w != "--version")
         .collect();
-    let reference =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/reference.md")).unwrap();
     let rows: std::collections::BTreeSet<String> = reference
         .lines()
         .filter(|line| line.starts_with("| `-"))
         .flat_map(|line| {
-            let first = line.split('|').nth(1).unwrap_or("").to_owned();
-            first
-                .split('`')
-                .skip(1)
-                .step_by(2)
+            let first = line.split('|').nth(1).unwrap_or("");
+            backticked(first)
                 .filter(|name| name.starts_with("--"))
                 .map(str::to_owned)
                 .collect::<Vec<_>>()
@@ -451,13 +457,8 @@ fn the_reference_documents_every_flag_and_every_json_key() {
         !stats["media"].as_array().unwrap().is_empty(),
         "the scene has a medium"
     );
-    let documented = documented_names("### `--stats` JSON keys");
-    let mut keys = Vec::new();
-    json_keys(&stats, "stats", &mut keys);
-    let missing: Vec<_> = keys
-        .iter()
-        .filter(|(k, _)| !documented.contains(k))
-        .collect();
+    let documented = documented_names(&reference, "### `--stats` JSON keys");
+    let missing = unnamed_keys(&stats, "stats", &documented);
     assert!(
         missing.is_empty(),
         "--stats keys docs/reference.md does not name: {missing:?}"
@@ -469,7 +470,7 @@ fn the_reference_documents_every_flag_and_every_json_key() {
         "/tests/scenes/constant_grid.vdb"
     );
     let info: serde_json::Value = serde_json::from_str(&run(&["info", vdb, "--json"])).unwrap();
-    let documented = documented_names("### `nimbus info --json` keys");
+    let documented = documented_names(&reference, "### `nimbus info --json` keys");
     // The section lists the grid keys in one braced, comma-separated span.
     let documented: std::collections::BTreeSet<String> = documented
         .iter()
@@ -477,13 +478,7 @@ fn the_reference_documents_every_flag_and_every_json_key() {
         .filter(|w| !w.is_empty())
         .map(str::to_owned)
         .collect();
-    let mut keys = Vec::new();
-    json_keys(&info, "info", &mut keys);
-    assert!(keys.len() > 10, "{keys:?}");
-    let missing: Vec<_> = keys
-        .iter()
-        .filter(|(k, _)| !documented.contains(k))
-        .collect();
+    let missing = unnamed_keys(&info, "info", &documented);
     assert!(
         missing.is_empty(),
         "info --json keys docs/reference.md does not name: {missing:?}"
