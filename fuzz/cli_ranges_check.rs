@@ -1,4 +1,4 @@
-//! The body of the `cli_ranges` fuzz target, shared with its replay in `tests/fuzz_regressions.rs` so that a saved
+//! The body of the `cli_ranges` fuzz target, shared with its replay in `tests/suite/fuzz_regressions.rs` so that a saved
 //! input is checked the same way in both.
 
 /// Runs one input (see `fuzz_targets/cli_ranges.rs`).

@@ -1,5 +1,5 @@
 //! The stage of the `usd_compose` fuzz target, built from the fuzz input: shared by the target
-//! (`fuzz_targets/usd_compose.rs`) and its replay in `tests/fuzz_regressions.rs`, so that a saved input composes
+//! (`fuzz_targets/usd_compose.rs`) and its replay in `tests/suite/fuzz_regressions.rs`, so that a saved input composes
 //! the same stage in both.
 //!
 //! The input is read one byte at a time (bytes past its end read as 0). It describes up to four text layers

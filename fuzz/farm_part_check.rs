@@ -1,4 +1,4 @@
-//! The body of the `farm_part` fuzz target, shared with its replay in `tests/fuzz_regressions.rs` so that a saved
+//! The body of the `farm_part` fuzz target, shared with its replay in `tests/suite/fuzz_regressions.rs` so that a saved
 //! input is checked the same way in both.
 
 use nimbus::render::{Film, PixelWindow};

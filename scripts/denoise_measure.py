@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Measures Open Image Denoise on Nimbus renders: the figures and pictures of docs/denoising.md.
 
-For every scene of ../shared/validation (128x128, --max-depth from its extras.max_bounces, as tests/validation.rs
+For every scene of ../shared/validation (128x128, --max-depth from its extras.max_bounces, as tests/suite/validation.rs
 renders them) and for the bundled demo (128x72, against tests/denoise/reference_demo_128.exr), it renders with
 `nimbus render --denoise` at 4, 16 and 64 spp and raw at 256 and 1024 spp, and measures the relative MSE
 (mean over pixels and channels of (x - ref)^2 / (ref^2 + 1e-2)) of the raw beauty and of the `denoised` layer

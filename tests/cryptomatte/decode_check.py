@@ -6,7 +6,7 @@ specification) and compares each with its exact coverage.
 
 EXACT_DIR/NAME.f32 holds the exact per-pixel coverage of object NAME (little-endian float32, row-major from the
 top row). Prints each mask's mean absolute error and exits non-zero when one is 0.02 or more, when a name is
-missing from the manifest, or when the masks of a pixel sum to more than 1. Run by tests/cryptomatte.rs.
+missing from the manifest, or when the masks of a pixel sum to more than 1. Run by tests/suite/cryptomatte.rs.
 """
 import os
 import sys

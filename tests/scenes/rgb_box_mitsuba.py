@@ -1,4 +1,4 @@
-"""Mitsuba 3 reference of the RGB-extinction box in tests/volume_motion.rs (`an_rgb_density_box_matches_mitsuba`).
+"""Mitsuba 3 reference of the RGB-extinction box in tests/suite/volume_motion.rs (`an_rgb_density_box_matches_mitsuba`).
 
 The box is pyro_box.vdb's `rgb_density` grid, (1, 2, 4) on voxels [0, 15]^3 of 0.0625 m, placed at -0.5 m (the
 test's node translation), here a 3-channel grid volume padded by one zero voxel each side, whose texel centres

@@ -1,5 +1,5 @@
 //! Checks of VDB region iteration against a voxel-by-voxel scan, shared by the unit tests of `vdb/grid.rs`
-//! (synthetic trees) and `tests/vdb_corpus.rs` (corpus files). The including module's parent must have
+//! (synthetic trees) and `tests/suite/vdb_corpus.rs` (corpus files). The including module's parent must have
 //! `FloatTree`, `Region` and `IVec3` in scope.
 
 use super::{FloatTree, IVec3, Region};

@@ -1,6 +1,6 @@
 """Authors tests/usd/sequence.usdc with Pixar's own USD library: a Volume whose field:density OpenVDBAsset names
 a VDB sequence through a time-sampled filePath (UsdVol's way): grid.0001.vdb at time code 1, grid.0003.vdb at 3.
-The files are relative to the stage; tests/shots.rs copies the stage beside such a sequence. The binary crate
+The files are relative to the stage; tests/suite/shots.rs copies the stage beside such a sequence. The binary crate
 format is used because openusd 0.6's text parser does not read asset-valued time samples.
 
     python3 -m venv /work/usdvenv && /work/usdvenv/bin/pip install usd-core

@@ -1,4 +1,4 @@
-"""Authors the USD test stages of tests/usd_loader.rs with Pixar's own USD library, and the same Cornell box as
+"""Authors the USD test stages of tests/suite/usd_loader.rs with Pixar's own USD library, and the same Cornell box as
 glTF (for the USD-vs-glTF render comparison).
 
     python3 -m venv /work/usdvenv && /work/usdvenv/bin/pip install usd-core   # 26.x

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Mitsuba 3 references for tests/gltf_anisotropy.rs: the directional albedo E(wo) = ∫ f(wo, wi) cos θi dωi of an
+"""Mitsuba 3 references for tests/suite/gltf_anisotropy.rs: the directional albedo E(wo) = ∫ f(wo, wi) cos θi dωi of an
 anisotropic GGX metal of Fresnel 1, which is the image mean of an infinite plane of that metal under a constant
 environment of radiance 1 seen by an orthographic camera (every pixel sees the same wo).
 
@@ -13,7 +13,7 @@ So the script gives, per case:
   and its `smith_g1`), weight F · G1(wo, m) G1(wi, m) / G1(wo, m), which must match `render` (it checks the
   procedure);
 - `height-correlated`: the same estimator with weight G2 / G1(wo) = (1/G1(wo)) / (1/G1(wo) + 1/G1(wi) − 1), still
-  Mitsuba's D, sampling and Λ (1/G1 = 1 + Λ): the reference for Nimbus, written into tests/gltf_anisotropy.rs.
+  Mitsuba's D, sampling and Λ (1/G1 = 1 + Λ): the reference for Nimbus, written into tests/suite/gltf_anisotropy.rs.
 Directions are in the anisotropy frame (x = the direction of alpha_u): the view azimuth minus the rotation.
 
 Run: DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 python3 tests/validation/anisotropy/mitsuba_reference.py
