@@ -85,86 +85,14 @@ pub fn run(
     for &method in &options.methods {
         load(&options.scene, method)?;
     }
-    let (width, height, reference, reference_se) = match &options.reference {
-        Some(path) => {
-            let reference_error = |reason: String| ConvergeError::Reference {
-                path: path.clone(),
-                reason,
-            };
-            let layers = crate::output::read_exr_layers(path)?;
-            let beauty = layers
-                .rgb("")
-                .ok_or_else(|| reference_error("no R, G, B channels".into()))?;
-            let (w, h) = (options.width, options.height);
-            if w.is_some_and(|w| w != layers.width) || h.is_some_and(|h| h != layers.height) {
-                return Err(reference_error(format!(
-                    "{}x{}, not the size asked for",
-                    layers.width, layers.height
-                )));
-            }
-            check_finite(&beauty, layers.width).map_err(reference_error)?;
-            let se_path = standard_error_path(path);
-            let se = if se_path.is_file() {
-                let se_layers = crate::output::read_exr_layers(&se_path)?;
-                let se = se_layers
-                    .rgb("")
-                    .filter(|s| s.len() == beauty.len())
-                    .ok_or_else(|| ConvergeError::Reference {
-                        path: se_path.clone(),
-                        reason: "no R, G, B channels of the reference's size".into(),
-                    })?;
-                check_finite(&se, layers.width).map_err(|reason| ConvergeError::Reference {
-                    path: se_path.clone(),
-                    reason,
-                })?;
-                log(&format!(
-                    "{}: the reference's standard errors are subtracted from the squared errors",
-                    se_path.display()
-                ));
-                Some(se)
-            } else {
-                None
-            };
-            (layers.width, layers.height, beauty, se)
-        }
-        None => {
-            let scene = load(&options.scene, Method::Default)?;
-            let width = options.width.unwrap_or(DEFAULT_WIDTH).max(1);
-            let aspect = scene.camera.aspect_ratio.unwrap_or(4.0 / 3.0);
-            let height = options
-                .height
-                .unwrap_or(((width as f32 / aspect).round() as usize).max(1))
-                .max(1);
-            let seconds = REFERENCE_BUDGET_FACTOR * options.budget_seconds;
-            log(&format!(
-                "no --reference: rendering one with the default method for {seconds:.1} s \
-                 ({REFERENCE_BUDGET_FACTOR}x the budget)"
-            ));
-            let settings = RenderSettings {
-                time_limit: Some(Duration::from_secs_f64(seconds)),
-                spp: u32::MAX,
-                // Another seed than the methods', so that the reference's noise is independent of theirs.
-                seed: options.seed ^ 0x5EED_F00D,
-                ..settings(options, &scene, width, height, Method::Default)
-            };
-            let (image, stats) = Renderer::new(settings)
-                .render(&scene, &mut |_| true)
-                .map_err(ConvergeError::Render)?;
-            let path = options.output_dir.join("reference.exr");
-            crate::output::write_exr(&image, &path)?;
-            log(&format!(
-                "wrote {} ({} spp)",
-                path.display(),
-                stats.samples_per_pixel
-            ));
-            // Its own variance of the mean gives its standard errors.
-            let se = image
-                .variance
-                .iter()
-                .map(|v| v.max(Rgb::ZERO).map(f32::sqrt))
-                .collect();
-            (width, height, image.beauty, Some(se))
-        }
+    let Reference {
+        width,
+        height,
+        beauty: reference,
+        standard_errors: reference_se,
+    } = match &options.reference {
+        Some(path) => read_reference(path, options, log)?,
+        None => render_reference(options, log)?,
     };
     let noise_floor = reference_se.as_ref().map(|se| {
         let sum: f64 = se.iter().map(|s| s.length_squared() as f64).sum();
@@ -212,6 +140,116 @@ pub fn run(
         &dir.join("convergence.svg"),
     )?;
     Ok(curves)
+}
+
+/// The image every method's error is measured against, with its per-pixel standard errors when known.
+struct Reference {
+    width: usize,
+    height: usize,
+    beauty: Vec<Rgb>,
+    standard_errors: Option<Vec<Rgb>>,
+}
+
+/// Reads the `--reference` EXR at `path` (it must have the size asked for and finite values), and its standard
+/// errors from the `.se.exr` beside it when that exists.
+fn read_reference(
+    path: &Path,
+    options: &ConvergeOptions,
+    log: &mut dyn FnMut(&str),
+) -> Result<Reference, ConvergeError> {
+    let reference_error = |reason: String| ConvergeError::Reference {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let layers = crate::output::read_exr_layers(path)?;
+    let beauty = layers
+        .rgb("")
+        .ok_or_else(|| reference_error("no R, G, B channels".into()))?;
+    let (w, h) = (options.width, options.height);
+    if w.is_some_and(|w| w != layers.width) || h.is_some_and(|h| h != layers.height) {
+        return Err(reference_error(format!(
+            "{}x{}, not the size asked for",
+            layers.width, layers.height
+        )));
+    }
+    check_finite(&beauty, layers.width).map_err(reference_error)?;
+    let se_path = standard_error_path(path);
+    let se = if se_path.is_file() {
+        let se_layers = crate::output::read_exr_layers(&se_path)?;
+        let se = se_layers
+            .rgb("")
+            .filter(|s| s.len() == beauty.len())
+            .ok_or_else(|| ConvergeError::Reference {
+                path: se_path.clone(),
+                reason: "no R, G, B channels of the reference's size".into(),
+            })?;
+        check_finite(&se, layers.width).map_err(|reason| ConvergeError::Reference {
+            path: se_path.clone(),
+            reason,
+        })?;
+        log(&format!(
+            "{}: the reference's standard errors are subtracted from the squared errors",
+            se_path.display()
+        ));
+        Some(se)
+    } else {
+        None
+    };
+    Ok(Reference {
+        width: layers.width,
+        height: layers.height,
+        beauty,
+        standard_errors: se,
+    })
+}
+
+/// Renders a reference with the default method for [`REFERENCE_BUDGET_FACTOR`] times the budget, under another seed
+/// than the methods', writes it as `reference.exr`, and takes its standard errors from its own variance.
+fn render_reference(
+    options: &ConvergeOptions,
+    log: &mut dyn FnMut(&str),
+) -> Result<Reference, ConvergeError> {
+    let scene = load(&options.scene, Method::Default)?;
+    let width = options.width.unwrap_or(DEFAULT_WIDTH).max(1);
+    let aspect = scene.camera.aspect_ratio.unwrap_or(4.0 / 3.0);
+    let height = options
+        .height
+        .unwrap_or(((width as f32 / aspect).round() as usize).max(1))
+        .max(1);
+    let seconds = REFERENCE_BUDGET_FACTOR * options.budget_seconds;
+    log(&format!(
+        "no --reference: rendering one with the default method for {seconds:.1} s \
+         ({REFERENCE_BUDGET_FACTOR}x the budget)"
+    ));
+    let settings = RenderSettings {
+        time_limit: Some(Duration::from_secs_f64(seconds)),
+        spp: u32::MAX,
+        // Another seed than the methods', so that the reference's noise is independent of theirs.
+        seed: options.seed ^ 0x5EED_F00D,
+        ..settings(options, &scene, width, height, Method::Default)
+    };
+    let (image, stats) = Renderer::new(settings)
+        .render(&scene, &mut |_| true)
+        .map_err(ConvergeError::Render)?;
+    let path = options.output_dir.join("reference.exr");
+    crate::output::write_exr(&image, &path)?;
+    log(&format!(
+        "wrote {} ({} spp)",
+        path.display(),
+        stats.samples_per_pixel
+    ));
+    // Its own variance of the mean gives its standard errors.
+    let se = image
+        .variance
+        .iter()
+        .map(|v| v.max(Rgb::ZERO).map(f32::sqrt))
+        .collect();
+    Ok(Reference {
+        width,
+        height,
+        beauty: image.beauty,
+        standard_errors: Some(se),
+    })
 }
 
 /// Refuses an image with a NaN or infinite value: every error against it would be NaN, or skipped and read as 0.

@@ -183,8 +183,36 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
         path: path.to_path_buf(),
         reason,
     };
+    check_film_fits(film, info).map_err(invalid)?;
+    let info = &PartInfo {
+        plan: film.plan().clone(),
+        ..info.clone()
+    };
+    let mut channels = image_channels(film);
+    channels.extend(sum_channels(film));
+    let (crypto_channels, crypto_keys) = cryptomatte_channels(film);
+    channels.extend(crypto_channels);
+    let attributes = part_attributes(film, info, crypto_keys).map_err(invalid)?;
+    let layer = Layer::new(
+        Vec2(info.window.width(), info.window.height()),
+        attributes,
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(channels),
+    );
+    let display = IntegerBounds::from_dimensions(Vec2(info.width, info.height));
+    let image = Image::new(ImageAttributes::new(display), layer);
+    crate::output::write_sorted(&image, path)?;
+    Ok(())
+}
+
+/// Channels of a part: some `f32`, most `u32` words.
+type PartChannels = SmallVec<[AnyChannel<FlatSamples>; 4]>;
+
+/// Refuses a film whose frame or window is not the part's, a sample range that is empty or past the spp, and
+/// checkpoint progress that does not fit the film or ends elsewhere than the range.
+fn check_film_fits(film: &Film, info: &PartInfo) -> Result<(), String> {
     if (film.width, film.height, film.window()) != (info.width, info.height, info.window) {
-        return Err(invalid(format!(
+        return Err(format!(
             "film of {} in {}x{} does not match the part's crop {} in {}x{}",
             film.window(),
             film.width,
@@ -192,46 +220,52 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
             info.window,
             info.width,
             info.height
-        )));
+        ));
     }
     if info.samples.is_empty() || info.samples.end > info.spp {
-        return Err(invalid(format!(
+        return Err(format!(
             "samples {}..{} are not a non-empty range within {} spp",
             info.samples.start, info.samples.end, info.spp
-        )));
+        ));
     }
     if let Some(progress) = &info.progress {
         progress
             .fits(film, &info.samples)
-            .map_err(|e| invalid(format!("checkpoint progress: {e}")))?;
+            .map_err(|e| format!("checkpoint progress: {e}"))?;
         if progress.most_samples(info.samples.start) != info.samples.len() as u32 {
-            return Err(invalid(format!(
+            return Err(format!(
                 "checkpoint progress ends at {} samples, the range {}..{} at {}",
                 progress.most_samples(info.samples.start),
                 info.samples.start,
                 info.samples.end,
                 info.samples.len()
-            )));
+            ));
         }
     }
-    let info = &PartInfo {
-        plan: film.plan().clone(),
-        ..info.clone()
-    };
-    let image = film.image();
-    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
-    for (name, samples) in image.channels() {
-        list.push(AnyChannel::new(name.as_str(), FlatSamples::F32(samples)));
-    }
-    let mut uint = |name: String, samples: Vec<u32>| {
-        list.push(AnyChannel::new(name.as_str(), FlatSamples::U32(samples)));
-    };
+    Ok(())
+}
+
+/// The film's image as `f32` channels (what a compositor reads from a part).
+fn image_channels(film: &Film) -> PartChannels {
+    film.image()
+        .channels()
+        .into_iter()
+        .map(|(name, samples)| AnyChannel::new(name.as_str(), FlatSamples::F32(samples)))
+        .collect()
+}
+
+/// A `u32` channel.
+fn word_channel(name: &str, samples: Vec<u32>) -> AnyChannel<FlatSamples> {
+    AnyChannel::new(name, FlatSamples::U32(samples))
+}
+
+/// The exact sums a merge adds: each pixel's sums and each slot value's, word by word.
+fn sum_channels(film: &Film) -> PartChannels {
+    let mut list = PartChannels::new();
     let words: Vec<[u32; PixelSums::WORDS]> = film.pixels().iter().map(|p| p.to_words()).collect();
     for (k, name) in PixelSums::WORD_NAMES.iter().enumerate() {
-        uint(
-            format!("{PREFIX}{name}"),
-            words.iter().map(|w| w[k]).collect(),
-        );
+        let samples = words.iter().map(|w| w[k]).collect();
+        list.push(word_channel(&format!("{PREFIX}{name}"), samples));
     }
     let values = film.plan().values_per_pixel();
     for (j, name) in slot_word_names(film.plan()).into_iter().enumerate() {
@@ -241,10 +275,17 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
             .chunks_exact(values.max(1))
             .map(|pixel| pixel[value].to_words()[word])
             .collect();
-        uint(name, samples);
+        list.push(word_channel(&name, samples));
     }
+    list
+}
+
+/// Each Cryptomatte kind's per-pixel (id, weight) entries as `u32` channels, and the header keys that go with
+/// them: the kind's manifest and its entry count.
+fn cryptomatte_channels(film: &Film) -> (PartChannels, Vec<(String, String)>) {
+    let mut list = PartChannels::new();
+    let mut keys = Vec::new();
     let kinds = film.plan().cryptomatte.len();
-    let mut crypto_keys = Vec::new();
     for (k, (kind, manifest)) in film.plan().cryptomatte.iter().enumerate() {
         let maps: Vec<&IdCoverage> = film.crypto().iter().skip(k).step_by(kinds).collect();
         let entries = maps.iter().map(|m| m.entries().len()).max().unwrap_or(0);
@@ -255,19 +296,33 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
                     .collect()
             };
             let base = format!("{PREFIX}crypto.{}.{e:03}", kind.layer_name());
-            uint(format!("{base}.id"), entry(&|p| p.0));
-            uint(format!("{base}.w0"), entry(&|p| p.1 as u32));
-            uint(format!("{base}.w1"), entry(&|p| (p.1 >> 32) as u32));
+            list.push(word_channel(&format!("{base}.id"), entry(&|p| p.0)));
+            list.push(word_channel(&format!("{base}.w0"), entry(&|p| p.1 as u32)));
+            list.push(word_channel(
+                &format!("{base}.w1"),
+                entry(&|p| (p.1 >> 32) as u32),
+            ));
         }
-        crypto_keys.push((
+        keys.push((
             format!("crypto.{}.manifest", kind.layer_name()),
             manifest_json(manifest),
         ));
-        crypto_keys.push((
+        keys.push((
             format!("crypto.{}.entries", kind.layer_name()),
             entries.to_string(),
         ));
     }
+    (list, keys)
+}
+
+/// The part's layer attributes: its window's position, the camera matrices, and every key of `info`, the
+/// Cryptomatte kinds and `crypto_keys`, and the image metadata, as `PREFIX`ed text; a value that is not plain text
+/// is refused.
+fn part_attributes(
+    film: &Film,
+    info: &PartInfo,
+    crypto_keys: Vec<(String, String)>,
+) -> Result<LayerAttributes, String> {
     let mut attributes = LayerAttributes {
         layer_position: Vec2(to_i32(info.window.x0), to_i32(info.window.y0)),
         world_to_camera: info.metadata.world_to_camera.map(flatten),
@@ -298,22 +353,13 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
         );
     for (key, value) in keys {
         let text = Text::new_or_none(&value)
-            .ok_or_else(|| invalid(format!("{key} '{value}' is not plain text")))?;
+            .ok_or_else(|| format!("{key} '{value}' is not plain text"))?;
         attributes.other.insert(
             Text::from(format!("{PREFIX}{key}").as_str()),
             AttributeValue::Text(text),
         );
     }
-    let layer = Layer::new(
-        Vec2(info.window.width(), info.window.height()),
-        attributes,
-        Encoding::SMALL_LOSSLESS,
-        AnyChannels::sort(list),
-    );
-    let display = IntegerBounds::from_dimensions(Vec2(info.width, info.height));
-    let image = Image::new(ImageAttributes::new(display), layer);
-    crate::output::write_sorted(&image, path)?;
-    Ok(())
+    Ok(attributes)
 }
 
 /// The `uint` channel names of a plan's slot sums, in the order of the film's values and their words.

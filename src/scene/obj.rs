@@ -110,75 +110,88 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, SceneErr
     default_material.double_sided = true;
     let default_material = builder.add_material(default_material);
     for model in models {
-        let m = &model.mesh;
-        let positions: Vec<Vec3> = m
-            .positions
-            .chunks_exact(3)
-            .map(|p| Vec3::new(p[0], p[1], p[2]))
-            .collect();
-        let count = positions.len();
-        let normals: Vec<Vec3> = if m.normals.len() == count * 3 {
-            m.normals
-                .chunks_exact(3)
-                .map(|n| Vec3::new(n[0], n[1], n[2]).normalize_or_zero())
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let (material, uv_transform) = match m.material_id {
-            Some(i) => *converted.get(i).ok_or_else(|| {
-                SceneError::new(
-                    path,
-                    SceneErrorKind::InvalidReference(format!(
-                        "object '{}' uses material {i}, which is missing",
-                        one_line(&model.name, QUOTE_CHARS)
-                    )),
-                )
-            })?,
-            None => (default_material, None),
-        };
-        // The texture options' transform (u' = u·s + o), then the flip: OBJ's v runs upward, glTF's (and
-        // Nimbus's) downward from the top of the image.
-        let (scale, offset) = uv_transform.unwrap_or((Vec2::ONE, Vec2::ZERO));
-        let uvs = (m.texcoords.len() == count * 2).then(|| {
-            m.texcoords
-                .chunks_exact(2)
-                .map(|t| {
-                    let t = Vec2::new(t[0], t[1]) * scale + offset;
-                    Vec2::new(t.x, 1.0 - t.y)
-                })
-                .collect()
-        });
-        let mut mesh = Mesh {
-            name: model.name.clone(),
-            positions,
-            normals,
-            uvs,
-            uvs1: None,
-            colors: None,
-            tangents: None,
-            indices: m
-                .indices
-                .chunks_exact(3)
-                .map(|c| [c[0], c[1], c[2]])
-                .collect(),
-            material,
-            motion: None,
-            ..Mesh::default()
-        };
-        let dropped = mesh.remove_invalid_triangles();
-        if dropped > 0 {
-            return Err(SceneError::new(
-                path,
-                SceneErrorKind::InvalidReference(format!(
-                    "object '{}': {dropped} faces index missing vertices",
-                    one_line(&model.name, QUOTE_CHARS)
-                )),
-            ));
-        }
-        builder.add_mesh(mesh);
+        builder.add_mesh(model_mesh(path, &model, &converted, default_material)?);
     }
     Ok(builder)
+}
+
+/// One `tobj` model as a mesh: its positions, normals (kept when there is one per vertex), texture coordinates
+/// (through its material's texture transform, then flipped to glTF's downward v) and triangles, with the material
+/// `converted` gives its material id (`default_material` without one). A face that indexes a missing vertex is an
+/// error naming the object.
+fn model_mesh(
+    path: &Path,
+    model: &tobj::Model,
+    converted: &[(u32, Option<(Vec2, Vec2)>)],
+    default_material: u32,
+) -> Result<Mesh, SceneError> {
+    let m = &model.mesh;
+    let positions: Vec<Vec3> = m
+        .positions
+        .chunks_exact(3)
+        .map(|p| Vec3::new(p[0], p[1], p[2]))
+        .collect();
+    let count = positions.len();
+    let normals: Vec<Vec3> = if m.normals.len() == count * 3 {
+        m.normals
+            .chunks_exact(3)
+            .map(|n| Vec3::new(n[0], n[1], n[2]).normalize_or_zero())
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let (material, uv_transform) = match m.material_id {
+        Some(i) => *converted.get(i).ok_or_else(|| {
+            SceneError::new(
+                path,
+                SceneErrorKind::InvalidReference(format!(
+                    "object '{}' uses material {i}, which is missing",
+                    one_line(&model.name, QUOTE_CHARS)
+                )),
+            )
+        })?,
+        None => (default_material, None),
+    };
+    // The texture options' transform (u' = u·s + o), then the flip: OBJ's v runs upward, glTF's (and
+    // Nimbus's) downward from the top of the image.
+    let (scale, offset) = uv_transform.unwrap_or((Vec2::ONE, Vec2::ZERO));
+    let uvs = (m.texcoords.len() == count * 2).then(|| {
+        m.texcoords
+            .chunks_exact(2)
+            .map(|t| {
+                let t = Vec2::new(t[0], t[1]) * scale + offset;
+                Vec2::new(t.x, 1.0 - t.y)
+            })
+            .collect()
+    });
+    let mut mesh = Mesh {
+        name: model.name.clone(),
+        positions,
+        normals,
+        uvs,
+        uvs1: None,
+        colors: None,
+        tangents: None,
+        indices: m
+            .indices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
+        material,
+        motion: None,
+        ..Mesh::default()
+    };
+    let dropped = mesh.remove_invalid_triangles();
+    if dropped > 0 {
+        return Err(SceneError::new(
+            path,
+            SceneErrorKind::InvalidReference(format!(
+                "object '{}': {dropped} faces index missing vertices",
+                one_line(&model.name, QUOTE_CHARS)
+            )),
+        ));
+    }
+    Ok(mesh)
 }
 
 fn malformed(path: &Path, message: String) -> SceneError {

@@ -132,35 +132,41 @@ pub fn blosc_decompress(src: &[u8], out: &mut [u8]) -> KResult<()> {
         if bsize % nsplits != 0 {
             return Err(decomp("blosc block not divisible into its streams"));
         }
-        let neblock = bsize / nsplits;
-        let mut pos = start;
-        for s in 0..nsplits {
-            let len_bytes = src
-                .get(pos..pos + 4)
-                .ok_or_else(|| decomp("blosc stream header out of range"))?;
-            let clen = i32::from_le_bytes(len_bytes.try_into().expect("4 bytes"));
-            pos += 4;
-            if clen < 0 {
-                return Err(decomp("blosc stream with negative size"));
-            }
-            let clen = clen as usize;
-            let stream = src
-                .get(pos..pos + clen)
-                .ok_or_else(|| decomp("blosc stream out of range"))?;
-            pos += clen;
-            let piece = &mut target[s * neblock..(s + 1) * neblock];
-            if clen == neblock {
-                piece.copy_from_slice(stream);
-            } else {
-                let n = lz4_flex::block::decompress_into(stream, piece)
-                    .map_err(|e| decomp(format!("lz4: {e}")))?;
-                if n != neblock {
-                    return Err(decomp("lz4 stream decoded to the wrong size"));
-                }
-            }
-        }
+        decode_streams(src, start, target, nsplits)?;
         if shuffle {
             unshuffle(&tmp[..bsize], dst, typesize);
+        }
+    }
+    Ok(())
+}
+
+/// Decodes one Blosc block's `nsplits` streams, which start at byte `start` of the frame `src`, into `target`
+/// (each stream fills an equal share of it): a stream of exactly its share's size is stored, any other is LZ4.
+fn decode_streams(src: &[u8], start: usize, target: &mut [u8], nsplits: usize) -> KResult<()> {
+    let neblock = target.len() / nsplits;
+    let mut pos = start;
+    for piece in target.chunks_exact_mut(neblock) {
+        let len_bytes = src
+            .get(pos..pos + 4)
+            .ok_or_else(|| decomp("blosc stream header out of range"))?;
+        let clen = i32::from_le_bytes(len_bytes.try_into().expect("4 bytes"));
+        pos += 4;
+        if clen < 0 {
+            return Err(decomp("blosc stream with negative size"));
+        }
+        let clen = clen as usize;
+        let stream = src
+            .get(pos..pos + clen)
+            .ok_or_else(|| decomp("blosc stream out of range"))?;
+        pos += clen;
+        if clen == neblock {
+            piece.copy_from_slice(stream);
+        } else {
+            let n = lz4_flex::block::decompress_into(stream, piece)
+                .map_err(|e| decomp(format!("lz4: {e}")))?;
+            if n != neblock {
+                return Err(decomp("lz4 stream decoded to the wrong size"));
+            }
         }
     }
     Ok(())

@@ -92,24 +92,16 @@ fn popcount(m: &[u64]) -> usize {
     m.iter().map(|w| w.count_ones() as usize).sum()
 }
 
-/// Reads one array of `out.len()` values under the compressed-values scheme (OpenVDB `readCompressedValues`).
-pub(crate) fn read_values<T: VoxelValue>(
+/// The inactive values of one compressed array and, for the modes that store one, its selection mask: `inactive0`
+/// is the value where no selection bit is set (`background` or its negation unless the mode stores it),
+/// `inactive1` where one is (`background` unless stored). `values` is the array's length.
+fn read_inactive<T: VoxelValue>(
     r: &mut Reader<'_>,
     ctx: &mut TreeCtx,
+    mode: u8,
     background: T,
-    value_mask: &[u64],
-    out: &mut [T],
-) -> KResult<()> {
-    let mask_compressed = ctx.compression & COMPRESS_ACTIVE_MASK != 0;
-    let new_format = ctx.version >= VERSION_NODE_MASK_COMPRESSION;
-    let mode = if new_format {
-        r.u8("compression metadata")?
-    } else {
-        NO_MASK_AND_ALL_VALS
-    };
-    if mode > NO_MASK_AND_ALL_VALS {
-        return corrupt(format!("invalid compression metadata {mode}"));
-    }
+    values: usize,
+) -> KResult<(T, T, Option<Vec<u64>>)> {
     let mut inactive1 = background;
     // The inactive value where no selection bit is set; the modes that store it replace it below.
     let mut inactive0 = match mode {
@@ -130,10 +122,32 @@ pub(crate) fn read_values<T: VoxelValue>(
         mode,
         MASK_AND_NO_INACTIVE_VALS | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
     ) {
-        Some(read_mask_vec(r, out.len() / 64, "selection mask")?)
+        Some(read_mask_vec(r, values / 64, "selection mask")?)
     } else {
         None
     };
+    Ok((inactive0, inactive1, selection))
+}
+
+/// Reads one array of `out.len()` values under the compressed-values scheme (OpenVDB `readCompressedValues`).
+pub(crate) fn read_values<T: VoxelValue>(
+    r: &mut Reader<'_>,
+    ctx: &mut TreeCtx,
+    background: T,
+    value_mask: &[u64],
+    out: &mut [T],
+) -> KResult<()> {
+    let mask_compressed = ctx.compression & COMPRESS_ACTIVE_MASK != 0;
+    let new_format = ctx.version >= VERSION_NODE_MASK_COMPRESSION;
+    let mode = if new_format {
+        r.u8("compression metadata")?
+    } else {
+        NO_MASK_AND_ALL_VALS
+    };
+    if mode > NO_MASK_AND_ALL_VALS {
+        return corrupt(format!("invalid compression metadata {mode}"));
+    }
+    let (inactive0, inactive1, selection) = read_inactive(r, ctx, mode, background, out.len())?;
     let count = if mask_compressed && mode != NO_MASK_AND_ALL_VALS && new_format {
         popcount(value_mask)
     } else {

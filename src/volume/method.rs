@@ -221,56 +221,9 @@ impl fmt::Display for MediumMethod {
                     "{tracking} over {}",
                     self.majorant.map_or("no majorant", majorant_phrase)
                 )?;
-                match &self.why {
-                    MethodReason::Pilot(estimates) => {
-                        let costs: Vec<String> = estimates
-                            .iter()
-                            .map(|e| {
-                                let stopped = if e.rays_traced < PILOT_RAYS {
-                                    format!(", stopped after {} rays at the work cap", e.rays_traced)
-                                } else {
-                                    String::new()
-                                };
-                                format!(
-                                    "{} {:.0} ({:.1} lookups, {:.1} cells{stopped})",
-                                    e.kind.name(),
-                                    e.cost_ns,
-                                    e.lookups_per_ray,
-                                    e.cells_per_ray
-                                )
-                            })
-                            .collect();
-                        write!(
-                            f,
-                            " (auto: cheapest in a {PILOT_RAYS}-ray pilot, estimated ns per ray: {})",
-                            costs.join(", ")
-                        )?;
-                    }
-                    MethodReason::VelocityBlur { reach_voxels } => write!(
-                        f,
-                        " (velocity blur: majorants dilated by up to {reach_voxels:.1} voxels over the shutter)"
-                    )?,
-                    MethodReason::ChromaticExtinction => {
-                        write!(f, " (RGB density: majorants of the channels' maximum)")?
-                    }
-                    _ => write!(f, " (as requested)")?,
-                }
+                write_reason(f, &self.why)?;
                 if let Some(c) = chromatic {
-                    let why = if c.requested {
-                        "as requested"
-                    } else {
-                        ChromaticTracking::AUTO_WHY
-                    };
-                    match c.tracking {
-                        ChromaticTracking::Spectral => write!(
-                            f,
-                            ", history-aware collision probabilities over the path throughput ({why}; beside grey media, over the part of a segment before their nearest collision; a path that shares a segment with another chromatic or an emitting medium carries one channel there)"
-                        )?,
-                        ChromaticTracking::OneChannel => write!(
-                            f,
-                            ", a path carrying the one channel it is given, chosen by throughput ({why})"
-                        )?,
-                    }
+                    write_chromatic(f, &c)?;
                 }
                 if voxel_refinement {
                     write!(
@@ -285,6 +238,66 @@ impl fmt::Display for MediumMethod {
             }
         }
     }
+}
+
+/// Why a delta-tracking method was chosen, as the sentence's parenthesis: the pilot's cost estimates, velocity
+/// blur's dilation, an RGB density's majorants, or "as requested".
+fn write_reason(f: &mut fmt::Formatter<'_>, why: &MethodReason) -> fmt::Result {
+    match why {
+        MethodReason::Pilot(estimates) => {
+            let costs: Vec<String> = estimates
+                .iter()
+                .map(|e| {
+                    let stopped = if e.rays_traced < PILOT_RAYS {
+                        format!(", stopped after {} rays at the work cap", e.rays_traced)
+                    } else {
+                        String::new()
+                    };
+                    format!(
+                        "{} {:.0} ({:.1} lookups, {:.1} cells{stopped})",
+                        e.kind.name(),
+                        e.cost_ns,
+                        e.lookups_per_ray,
+                        e.cells_per_ray
+                    )
+                })
+                .collect();
+            write!(
+                f,
+                " (auto: cheapest in a {PILOT_RAYS}-ray pilot, estimated ns per ray: {})",
+                costs.join(", ")
+            )?;
+        }
+        MethodReason::VelocityBlur { reach_voxels } => write!(
+            f,
+            " (velocity blur: majorants dilated by up to {reach_voxels:.1} voxels over the shutter)"
+        )?,
+        MethodReason::ChromaticExtinction => {
+            write!(f, " (RGB density: majorants of the channels' maximum)")?
+        }
+        _ => write!(f, " (as requested)")?,
+    }
+    Ok(())
+}
+
+/// How a chromatic medium's collisions are sampled, and why.
+fn write_chromatic(f: &mut fmt::Formatter<'_>, c: &Chromatic) -> fmt::Result {
+        let why = if c.requested {
+            "as requested"
+        } else {
+            ChromaticTracking::AUTO_WHY
+        };
+        match c.tracking {
+            ChromaticTracking::Spectral => write!(
+                f,
+                ", history-aware collision probabilities over the path throughput ({why}; beside grey media, over the part of a segment before their nearest collision; a path that shares a segment with another chromatic or an emitting medium carries one channel there)"
+            )?,
+            ChromaticTracking::OneChannel => write!(
+                f,
+                ", a path carrying the one channel it is given, chosen by throughput ({why})"
+            )?,
+        }
+    Ok(())
 }
 
 /// The `--stats` keys, written flat into each `media` entry.

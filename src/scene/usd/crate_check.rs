@@ -16,7 +16,6 @@ use std::path::Path;
 
 /// Checks `bytes`, a `.usdc` file, for counts that would make the reader allocate beyond the data.
 pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
-    let mut c = Reader { bytes, pos: 0 };
     if bytes.get(..8) != Some(b"PXR-USDC".as_slice()) {
         return Err("not a USD crate file (bad magic)".into());
     }
@@ -34,7 +33,40 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
             "crate version {major}.{minor}.{patch} is older than 0.4.0"
         ));
     }
-    c.pos = 16;
+    check_sections(bytes)?;
+    // The structure is sound: let the crate reader decode it, then check every array value's length.
+    let file = CrateFile::open(Cursor::new(bytes)).map_err(|e| format!("{e:#}"))?;
+    file.validate().map_err(|e| format!("{e:#}"))?;
+    if let Some(deep) = file
+        .paths
+        .iter()
+        .find(|p| p.element_count() > super::layers::MAX_NESTING)
+    {
+        return Err(format!(
+            "a path nests deeper than {} levels ({} elements)",
+            super::layers::MAX_NESTING,
+            deep.element_count()
+        ));
+    }
+    for field in &file.fields {
+        let rep = field.value_rep;
+        if !rep.is_array() && !rep.is_inlined() {
+            let ty = (rep.0 >> 48) & 0xFF;
+            counted_vectors(bytes, rep.payload(), ty)?;
+            if ty == DICTIONARY {
+                let mut budget = Reader { bytes, pos: 0 }.limit();
+                dictionary(bytes, rep.payload(), 0, &mut budget, version)?;
+            }
+        }
+        array_value(bytes, rep.0, version)?;
+    }
+    Ok(())
+}
+
+/// Checks the table of contents and, in each section `openusd` reads, the counts and compressed blocks that
+/// size its allocations: each must lie within the file.
+fn check_sections(bytes: &[u8]) -> Result<(), String> {
+    let mut c = Reader { bytes, pos: 16 };
     let toc = c.u64()?;
     c.seek(toc)?;
     let sections = c.u64()?;
@@ -87,32 +119,6 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
             }
             _ => {}
         }
-    }
-    // The structure is sound: let the crate reader decode it, then check every array value's length.
-    let file = CrateFile::open(Cursor::new(bytes)).map_err(|e| format!("{e:#}"))?;
-    file.validate().map_err(|e| format!("{e:#}"))?;
-    if let Some(deep) = file
-        .paths
-        .iter()
-        .find(|p| p.element_count() > super::layers::MAX_NESTING)
-    {
-        return Err(format!(
-            "a path nests deeper than {} levels ({} elements)",
-            super::layers::MAX_NESTING,
-            deep.element_count()
-        ));
-    }
-    for field in &file.fields {
-        let rep = field.value_rep;
-        if !rep.is_array() && !rep.is_inlined() {
-            let ty = (rep.0 >> 48) & 0xFF;
-            counted_vectors(bytes, rep.payload(), ty)?;
-            if ty == DICTIONARY {
-                let mut budget = Reader { bytes, pos: 0 }.limit();
-                dictionary(bytes, rep.payload(), 0, &mut budget, version)?;
-            }
-        }
-        array_value(bytes, rep.0, version)?;
     }
     Ok(())
 }

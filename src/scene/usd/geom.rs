@@ -98,23 +98,7 @@ impl Loader<'_> {
                 .collect::<Vec<_>>()
         });
         let normals = normals.unwrap_or_default();
-        // Materials that read their colour from a primvar: one colour per face corner, white on the faces of
-        // other materials (the vertex colour multiplies the base colour).
-        let mut colors: Option<Vec<Rgb>> = None;
-        let mut corner = 0usize;
-        for (f, &c) in counts.iter().enumerate() {
-            let c = c.max(0) as usize;
-            if let Some(read) = self.primvar_color(face_material[f]).cloned() {
-                let values =
-                    match self.primvar(prim, &[read.attribute.as_str()], "constant", vec3_array)? {
-                        Some(p) => topology.expand(p).map_err(|m| self.error(&at, m))?,
-                        None => vec![read.fallback; indices.len()],
-                    };
-                colors.get_or_insert_with(|| vec![Rgb::ONE; indices.len()])[corner..corner + c]
-                    .copy_from_slice(&values[corner..corner + c]);
-            }
-            corner += c;
-        }
+        let colors = self.corner_colors(prim, &at, &topology, &face_material)?;
         let cage = PolygonMesh {
             points,
             counts: counts.iter().map(|&c| c.max(0) as u32).collect(),
@@ -133,62 +117,40 @@ impl Loader<'_> {
             }
             None => (cage, normals),
         };
-        // One mesh per material, one vertex per face corner: simple, and right for every interpolation.
-        let mut starts = Vec::with_capacity(surface.counts.len());
-        let mut start = 0usize;
-        for &c in &surface.counts {
-            starts.push(start);
-            start += c as usize;
-        }
-        let mut groups: Vec<u32> = surface.face_tags.clone();
-        groups.sort_unstable();
-        groups.dedup();
-        for &group in &groups {
-            let mut mesh = Mesh {
-                name: at.clone(),
-                material: group,
-                uvs: surface.uvs.as_ref().map(|_| Vec::new()),
-                colors: surface.colors.as_ref().map(|_| Vec::new()),
-                ..Default::default()
-            };
-            for (f, &c) in surface.counts.iter().enumerate() {
-                if surface.face_tags[f] != group {
-                    continue;
-                }
-                let (from, c) = (starts[f], c as usize);
-                let base = mesh.positions.len() as u32;
-                let corners = from..from + c;
-                mesh.positions.extend(
-                    surface.indices[corners.clone()]
-                        .iter()
-                        .map(|&i| surface.points[i as usize]),
-                );
-                if !normals.is_empty() {
-                    mesh.normals.extend_from_slice(&normals[corners.clone()]);
-                }
-                if let (Some(all), Some(own)) = (&surface.colors, &mut mesh.colors) {
-                    own.extend(
-                        all[corners.clone()]
-                            .iter()
-                            .map(|c| c.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0)),
-                    );
-                }
-                if let (Some(all), Some(own)) = (&surface.uvs, &mut mesh.uvs) {
-                    own.extend_from_slice(&all[corners]);
-                }
-                for k in 2..c as u32 {
-                    let tri = [base, base + k - 1, base + k];
-                    mesh.indices.push(if left_handed {
-                        [tri[0], tri[2], tri[1]]
-                    } else {
-                        tri
-                    });
-                }
-            }
+        for mut mesh in meshes_per_material(&at, &surface, &normals, left_handed) {
             mesh.transform(world);
             self.add_mesh(mesh)?;
         }
         Ok(())
+    }
+
+    /// The colour of each face corner for the materials that read their colour from a primvar (interpolated as
+    /// the primvar says, else the reader's fallback), white on the faces of other materials (the vertex colour
+    /// multiplies the base colour); `None` when no face's material reads one.
+    fn corner_colors(
+        &mut self,
+        prim: &usd::Prim,
+        at: &str,
+        topology: &Topology,
+        face_material: &[u32],
+    ) -> Result<Option<Vec<Rgb>>, SceneError> {
+        let corners = topology.indices.len();
+        let mut colors: Option<Vec<Rgb>> = None;
+        let mut corner = 0usize;
+        for (f, &c) in topology.counts.iter().enumerate() {
+            let c = c.max(0) as usize;
+            if let Some(read) = self.primvar_color(face_material[f]).cloned() {
+                let values =
+                    match self.primvar(prim, &[read.attribute.as_str()], "constant", vec3_array)? {
+                        Some(p) => topology.expand(p).map_err(|m| self.error(at, m))?,
+                        None => vec![read.fallback; corners],
+                    };
+                colors.get_or_insert_with(|| vec![Rgb::ONE; corners])[corner..corner + c]
+                    .copy_from_slice(&values[corner..corner + c]);
+            }
+            corner += c;
+        }
+        Ok(colors)
     }
 
     /// The scheme and level to subdivide the mesh `prim` to, or `None` to render its control cage: none unless
@@ -570,6 +532,73 @@ fn without_degenerate_faces(mesh: PolygonMesh) -> PolygonMesh {
         }
     }
     out
+}
+
+
+/// A polygon surface as triangle meshes, one per material (face tag), with one vertex per face corner: simple,
+/// and right for every interpolation. Faces are fanned from their first corner (reversed when `left_handed`);
+/// `normals` are per corner (or empty), colours are clamped to [0, 1].
+fn meshes_per_material(
+    name: &str,
+    surface: &PolygonMesh,
+    normals: &[crate::math::Vec3],
+    left_handed: bool,
+) -> Vec<Mesh> {
+    let mut starts = Vec::with_capacity(surface.counts.len());
+    let mut start = 0usize;
+    for &c in &surface.counts {
+        starts.push(start);
+        start += c as usize;
+    }
+    let mut groups: Vec<u32> = surface.face_tags.clone();
+    groups.sort_unstable();
+    groups.dedup();
+    let mut meshes = Vec::with_capacity(groups.len());
+    for &group in &groups {
+        let mut mesh = Mesh {
+            name: name.to_owned(),
+            material: group,
+            uvs: surface.uvs.as_ref().map(|_| Vec::new()),
+            colors: surface.colors.as_ref().map(|_| Vec::new()),
+            ..Default::default()
+        };
+        for (f, &c) in surface.counts.iter().enumerate() {
+            if surface.face_tags[f] != group {
+                continue;
+            }
+            let (from, c) = (starts[f], c as usize);
+            let base = mesh.positions.len() as u32;
+            let corners = from..from + c;
+            mesh.positions.extend(
+                surface.indices[corners.clone()]
+                    .iter()
+                    .map(|&i| surface.points[i as usize]),
+            );
+            if !normals.is_empty() {
+                mesh.normals.extend_from_slice(&normals[corners.clone()]);
+            }
+            if let (Some(all), Some(own)) = (&surface.colors, &mut mesh.colors) {
+                own.extend(
+                    all[corners.clone()]
+                        .iter()
+                        .map(|c| c.clamp(Rgb::ZERO, Rgb::ONE).extend(1.0)),
+                );
+            }
+            if let (Some(all), Some(own)) = (&surface.uvs, &mut mesh.uvs) {
+                own.extend_from_slice(&all[corners]);
+            }
+            for k in 2..c as u32 {
+                let tri = [base, base + k - 1, base + k];
+                mesh.indices.push(if left_handed {
+                    [tri[0], tri[2], tri[1]]
+                } else {
+                    tri
+                });
+            }
+        }
+        meshes.push(mesh);
+    }
+    meshes
 }
 
 #[cfg(test)]

@@ -547,42 +547,7 @@ impl Loader<'_> {
         let image = crate::limits::decode_image_named(&bytes, Some(&file), &self.limits, 4 + 22)
             .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e)))?
             .to_rgba8();
-        let space = if srgb {
-            ColorSpace::Srgb
-        } else {
-            ColorSpace::Linear
-        };
-        let (w, h) = (image.width() as usize, image.height() as usize);
-        let t = if (scale, bias) == IDENTITY_AFFINE && role == TextureRole::Color {
-            Texture::from_rgba8(w, h, image.as_raw(), space)
-        } else {
-            let decode = |v: u8| {
-                let f = v as f32 / 255.0;
-                if srgb {
-                    crate::math::srgb_to_linear(f)
-                } else {
-                    f
-                }
-            };
-            let texels = image
-                .as_raw()
-                .chunks_exact(4)
-                .map(|p| {
-                    let t = Vec4::new(
-                        decode(p[0]),
-                        decode(p[1]),
-                        decode(p[2]),
-                        p[3] as f32 / 255.0,
-                    );
-                    let v = t * scale + bias;
-                    match role {
-                        TextureRole::Color => v,
-                        TextureRole::Normal => ((v.truncate() + 1.0) * 0.5).extend(v.w),
-                    }
-                })
-                .collect();
-            Texture::from_linear(w, h, texels)
-        }
+        let t = texture_from_image(&image, srgb, (scale, bias), role)
         .ok_or_else(|| SceneError::new(&file, SceneErrorKind::Malformed("empty image".into())))?;
         self.builder.textures.push(t);
         let id = (self.builder.textures.len() - 1) as u32;
@@ -750,6 +715,52 @@ pub(super) fn preview_defaults(name: &str) -> Material {
         roughness: 0.5,
         ..Material::default()
     }
+}
+
+/// A decoded UsdUVTexture image as a texture: each texel `tex × scale + bias` (`tex` decoded from sRGB when
+/// `srgb`; alpha always linear), and a normal map's XYZ then stored in [0, 1] as glTF stores normal maps; `None`
+/// for an empty image. The plain colour case keeps the 8-bit texels.
+fn texture_from_image(
+    image: &image::RgbaImage,
+    srgb: bool,
+    (scale, bias): (Vec4, Vec4),
+    role: TextureRole,
+) -> Option<Texture> {
+    let space = if srgb {
+        ColorSpace::Srgb
+    } else {
+        ColorSpace::Linear
+    };
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    if (scale, bias) == IDENTITY_AFFINE && role == TextureRole::Color {
+        return Texture::from_rgba8(w, h, image.as_raw(), space);
+    }
+    let decode = |v: u8| {
+        let f = v as f32 / 255.0;
+        if srgb {
+            crate::math::srgb_to_linear(f)
+        } else {
+            f
+        }
+    };
+    let texels = image
+        .as_raw()
+        .chunks_exact(4)
+        .map(|p| {
+            let t = Vec4::new(
+                decode(p[0]),
+                decode(p[1]),
+                decode(p[2]),
+                p[3] as f32 / 255.0,
+            );
+            let v = t * scale + bias;
+            match role {
+                TextureRole::Color => v,
+                TextureRole::Normal => ((v.truncate() + 1.0) * 0.5).extend(v.w),
+            }
+        })
+        .collect();
+    Texture::from_linear(w, h, texels)
 }
 
 #[cfg(test)]
