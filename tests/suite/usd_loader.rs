@@ -262,6 +262,26 @@ def Mesh \"Floor\"\n{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexInd
     );
 }
 
+/// A DistantLight warns about its angle (rendered as a delta light) only where the file authors one above 0:
+/// UsdLux's unauthored default of 0.53 degrees is in every file and is not worth a word.
+#[test]
+fn a_distant_light_warns_about_its_angle_only_when_the_file_authors_one() {
+    let warnings = |tag: &str, angle: &str| {
+        let text = format!(
+            "#usda 1.0\n\ndef DistantLight \"Sun\"\n{{\n    float inputs:intensity = 2\n{angle}}}\n"
+        );
+        let (b, _) = usd::read(&temp_file(tag, "usda", text.as_bytes())).unwrap();
+        assert_eq!(b.lights().len(), 1, "{tag}: the sun is read");
+        b.warnings()
+            .iter()
+            .filter(|w| w.contains("inputs:angle"))
+            .count()
+    };
+    assert_eq!(warnings("sun_default", ""), 0);
+    assert_eq!(warnings("sun_point", "    float inputs:angle = 0\n"), 0);
+    assert_eq!(warnings("sun_disc", "    float inputs:angle = 1.5\n"), 1);
+}
+
 fn render(scene: &Scene) -> RenderImage {
     let settings = RenderSettings {
         width: 24,

@@ -28,29 +28,10 @@ impl Loader<'_> {
             return Err(self.error(&at, "light intensity is not finite"));
         }
         let mesh = match kind {
-            "RectLight" => {
-                let w = 0.5 * self.float(prim, "inputs:width", 1.0)?;
-                let h = 0.5 * self.float(prim, "inputs:height", 1.0)?;
-                // Counter-clockwise seen from −Z: the front face emits along −Z.
-                let positions = vec![
-                    Vec3::new(-w, -h, 0.0),
-                    Vec3::new(-w, h, 0.0),
-                    Vec3::new(w, h, 0.0),
-                    Vec3::new(w, -h, 0.0),
-                ];
-                let uvs = vec![
-                    Vec2::new(0.0, 1.0),
-                    Vec2::new(0.0, 0.0),
-                    Vec2::new(1.0, 0.0),
-                    Vec2::new(1.0, 1.0),
-                ];
-                Mesh {
-                    positions,
-                    uvs: Some(uvs),
-                    indices: vec![[0, 1, 2], [0, 2, 3]],
-                    ..Default::default()
-                }
-            }
+            "RectLight" => rect(
+                self.float(prim, "inputs:width", 1.0)?,
+                self.float(prim, "inputs:height", 1.0)?,
+            ),
             "DiskLight" => disk(self.float(prim, "inputs:radius", 0.5)?, 48),
             "SphereLight" => {
                 let r = self.float(prim, "inputs:radius", 0.5)?;
@@ -63,38 +44,27 @@ impl Loader<'_> {
                     } else {
                         std::f32::consts::PI * r * r
                     };
-                    let tag = LightTag {
-                        name: at.clone(),
-                        light_group: self.tags.light_group.clone(),
-                    };
-                    self.builder.add_tagged_light(
-                        Light::Point(PointLight {
-                            position: world.transform_point3(Vec3::ZERO),
-                            intensity: radiance * scale,
-                        }),
-                        tag,
-                    );
+                    let light = Light::Point(PointLight {
+                        position: world.transform_point3(Vec3::ZERO),
+                        intensity: radiance * scale,
+                    });
+                    self.add_delta_light(&at, light);
                     return Ok(());
                 }
                 Mesh::uv_sphere(Vec3::ZERO, r, 16, 32, 0)
             }
             "DistantLight" => {
-                if self.float(prim, "inputs:angle", 0.53)? > 0.0 {
+                // Only an authored angle is worth a word: UsdLux's default (0.53 degrees) is in every file.
+                if self.float(prim, "inputs:angle", 0.0)? > 0.0 {
                     self.warn(format!(
                         "{at}: DistantLight inputs:angle is ignored (a delta directional light)"
                     ));
                 }
-                let tag = LightTag {
-                    name: at.clone(),
-                    light_group: self.tags.light_group.clone(),
-                };
-                self.builder.add_tagged_light(
-                    Light::Directional(DirectionalLight {
-                        direction: world.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Y),
-                        irradiance: radiance,
-                    }),
-                    tag,
-                );
+                let light = Light::Directional(DirectionalLight {
+                    direction: world.transform_vector3(-Vec3::Z).normalize_or(-Vec3::Y),
+                    irradiance: radiance,
+                });
+                self.add_delta_light(&at, light);
                 return Ok(());
             }
             _ => return self.dome(prim, radiance, world),
@@ -121,6 +91,15 @@ impl Loader<'_> {
         mesh.material = self.builder.add_material(material);
         self.add_mesh(mesh)?;
         Ok(())
+    }
+
+    /// Adds a point or directional light named `at`, in the light group of the prims around it.
+    fn add_delta_light(&mut self, at: &str, light: Light) {
+        let tag = LightTag {
+            name: at.to_owned(),
+            light_group: self.tags.light_group.clone(),
+        };
+        self.builder.add_tagged_light(light, tag);
     }
 
     pub(super) fn dome(
@@ -157,6 +136,28 @@ impl Loader<'_> {
         self.builder
             .set_environment_group(self.tags.light_group.clone());
         Ok(())
+    }
+}
+
+/// A RectLight's quad of `width` by `height` in the XY plane, counter-clockwise seen from −Z (its front face
+/// emits along −Z), with texture coordinates over it.
+fn rect(width: f32, height: f32) -> Mesh {
+    let (w, h) = (0.5 * width, 0.5 * height);
+    Mesh {
+        positions: vec![
+            Vec3::new(-w, -h, 0.0),
+            Vec3::new(-w, h, 0.0),
+            Vec3::new(w, h, 0.0),
+            Vec3::new(w, -h, 0.0),
+        ],
+        uvs: Some(vec![
+            Vec2::new(0.0, 1.0),
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(1.0, 1.0),
+        ]),
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        ..Default::default()
     }
 }
 
