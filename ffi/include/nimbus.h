@@ -110,6 +110,9 @@ NimbusRenderSettings nimbus_render_settings_default(void);
 
 // Loads a scene file (`.gltf`, `.glb`, `.obj`, `.usd`, `.usda`, `.usdc` or `.usdz`, chosen by extension) into `*out_scene`.
 //
+// A scene without light of its own (no light, emitter, environment or emitting medium that lights it) gets a
+// uniform white environment of radiance 1, as `nimbus render` and Python's `nimbus.load` give it.
+//
 // On failure `*out_scene` is set to null, the status is `NIMBUS_STATUS_SCENE_ERROR` (or another) and
 // `nimbus_last_error()` names the file and what is wrong.
 //

@@ -24,6 +24,7 @@
 use nimbus::render::{
     AovSelection, LightGroupMode, RenderImage, RenderSettings, RenderStats, Renderer,
 };
+use nimbus::scene::{load_builder, LoadOptions};
 use nimbus::{Error, Scene};
 use std::any::Any;
 use std::cell::RefCell;
@@ -387,6 +388,9 @@ pub extern "C" fn nimbus_render_settings_default() -> NimbusRenderSettings {
 
 /// Loads a scene file (`.gltf`, `.glb`, `.obj`, `.usd`, `.usda`, `.usdc` or `.usdz`, chosen by extension) into `*out_scene`.
 ///
+/// A scene without light of its own (no light, emitter, environment or emitting medium that lights it) gets a
+/// uniform white environment of radiance 1, as `nimbus render` and Python's `nimbus.load` give it.
+///
 /// On failure `*out_scene` is set to null, the status is `NIMBUS_STATUS_SCENE_ERROR` (or another) and
 /// `nimbus_last_error()` names the file and what is wrong.
 ///
@@ -401,7 +405,11 @@ pub unsafe extern "C" fn nimbus_scene_load(
     call(|| {
         put(out_scene, std::ptr::null_mut(), "out_scene")?;
         let path = PathBuf::from(c_str(path, "path")?);
-        let scene = Scene::load(&path).map_err(Error::from)?;
+        // Lit as the CLI and the Python module light it: a scene without light of its own gets the neutral
+        // environment, so that the three interfaces give one image.
+        let mut builder = load_builder(&path, &LoadOptions::default()).map_err(Error::from)?;
+        builder.light_by_default();
+        let scene = builder.build().map_err(Error::from)?;
         *out_scene = NimbusScene::into_raw(scene);
         Ok(NimbusStatus::Ok)
     })

@@ -95,6 +95,47 @@ fn load_render_read_write_and_free() {
     }
 }
 
+/// A scene without light of its own renders lit, as from the CLI: a Lambertian triangle (OBJ's default albedo,
+/// 0.8) alone under the default environment reflects exactly 0.8 of its radiance wherever it is seen (a convex
+/// object sees the whole environment), and the background is the environment itself, so every pixel lies between
+/// 0.8 and 1 times `DEFAULT_ENVIRONMENT_RADIANCE`. Unlit, the image was black.
+#[test]
+fn an_unlit_scene_is_lit_by_the_default_environment() {
+    let dir = std::env::temp_dir().join(format!("nimbus-ffi-unlit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("triangle.obj");
+    std::fs::write(&obj, "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let path = CString::new(obj.to_str().unwrap()).unwrap();
+    unsafe {
+        let mut scene = null_mut();
+        let status = nimbus_scene_load(path.as_ptr(), &mut scene);
+        assert_eq!(status, NimbusStatus::Ok, "{}", last_error());
+        let settings = NimbusRenderSettings {
+            width: 8,
+            height: 8,
+            spp: 64,
+            ..nimbus_render_settings_default()
+        };
+        let mut image = null_mut();
+        let status = nimbus_render(scene, &settings, None, null_mut(), &mut image);
+        assert_eq!(status, NimbusStatus::Ok, "{}", last_error());
+        let mut red = vec![f32::NAN; 64];
+        let name = CString::new("R").unwrap();
+        let status = nimbus_image_channel(image, name.as_ptr(), red.as_mut_ptr(), red.len());
+        assert_eq!(status, NimbusStatus::Ok, "{}", last_error());
+        let mean = red.iter().map(|&v| v as f64).sum::<f64>() / red.len() as f64;
+        let radiance = nimbus::scene::DEFAULT_ENVIRONMENT_RADIANCE as f64;
+        // The bound's ends are the closed form; the margin is far above 64 spp's noise of a pixel mean.
+        assert!(
+            (0.75 * radiance..=1.05 * radiance).contains(&mean),
+            "mean red {mean} outside [0.8, 1] x {radiance}"
+        );
+        assert_eq!(nimbus_image_free(&mut image), NimbusStatus::Ok);
+        assert_eq!(nimbus_scene_free(&mut scene), NimbusStatus::Ok);
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn a_bad_path_names_the_file() {
     let mut scene = std::ptr::dangling_mut::<NimbusScene>(); // garbage that must be overwritten
