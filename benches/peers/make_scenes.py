@@ -11,6 +11,9 @@ Run from the repository root: `python3 benches/peers/make_scenes.py`. Determinis
 - `helmet.gltf` (git-ignored, because it refers to `../shared/realworld/`): DamagedHelmet's mesh with its base colour
   and emissive textures on a Lambert material (so that Mitsuba renders the same BSDF), 15,453 textured emissive
   triangles, over a floor under a dim sky. Its buffers and images are referenced in place, never copied.
+- `backlit.gltf` (issue 34, path guiding): the bundled `assets/cloud.vdb` at density scale 120 (optical depth about
+  60 through its middle along the view), albedo 0.99, g 0.5, with the sun behind it shining toward the camera, under
+  a dim sky; no ground. Light reaches the camera's side of the cloud only after many scattering events.
 
 The other benchmark scenes are the bundled `assets/cloud.gltf` and `../shared/validation/smoke-sun/scene.gltf`.
 """
@@ -118,9 +121,20 @@ def helmet(out_path):
     print("wrote", os.path.relpath(out_path, ROOT))
 
 
+def backlit():
+    b = GltfBuilder()
+    vdb = os.path.relpath(os.path.join(ROOT, "assets", "cloud.vdb"), SCENES)
+    b.volume_node("cloud", {"file": vdb, "density_grid": "density", "density_scale": 120.0,
+                            "albedo": [0.99, 0.99, 0.99], "anisotropy": 0.5},
+                  translation=[0.0, 1.0, 0.0])
+    b.directional_light("sun", [0.25, -0.3, 1.0], [1.0, 0.95, 0.85], 2049.0)
+    b.camera("camera", eye=[0.0, 1.45, 4.0], target=[0.0, 1.45, 0.0], yfov_deg=28, aspect=1.0)
+    return b, {"max_bounces": 128, "nimbus_environment": {"color": [0.03, 0.04, 0.06]}}
+
+
 def main():
     os.makedirs(SCENES, exist_ok=True)
-    for name, make in (("cornell", cornell), ("haze", haze), ("plume", plume)):
+    for name, make in (("cornell", cornell), ("haze", haze), ("plume", plume), ("backlit", backlit)):
         b, extras = make()
         out = os.path.join(SCENES, f"{name}.gltf")
         b.write(out, GENERATOR, scene_extras=extras)

@@ -42,6 +42,7 @@ use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
+use crate::guiding::{GuidePath, GUIDE_PROBABILITY};
 use crate::light::LightContext;
 use crate::material::LobeSplit;
 use crate::math::sampling::{power_heuristic, Equiangular};
@@ -186,6 +187,8 @@ struct PathState<'r> {
     camera_t: f32,
     /// The emission media gathered along the current segment's free flights.
     emitted: TentativeEmission,
+    /// Where a training path remembers its guided vertices, when it trains the guiding cache.
+    guide_path: Option<&'r mut GuidePath>,
 }
 
 impl PathState<'_> {
@@ -318,7 +321,8 @@ impl PathTracer {
 
     /// Traces one camera path: alternates [`Self::sample_segment_media`] along each segment with either
     /// [`Self::scatter_in_medium`] at a real collision or [`Self::shade_surface`] at the surface that ends it.
-    /// With [`FirstEmission::Omit`] the light emitted by the first surface hit is left out.
+    /// With [`FirstEmission::Omit`] the light emitted by the first surface hit is left out. A training path
+    /// (`guide_path` given) remembers its medium scattering events there, for the guiding cache to learn from.
     #[allow(clippy::too_many_arguments)]
     pub fn trace(
         &self,
@@ -328,6 +332,7 @@ impl PathTracer {
         rng: &mut Rng,
         counters: &mut PathCounters,
         record: Option<&mut SampleRecord>,
+        guide_path: Option<&mut GuidePath>,
     ) -> PathSample {
         let scene = services.scene();
         let mut out = PathSample::default();
@@ -355,6 +360,7 @@ impl PathTracer {
             record,
             camera_t: 0.0,
             emitted: TentativeEmission::default(),
+            guide_path,
         };
         counters.rays.camera += 1;
         loop {
@@ -1158,6 +1164,17 @@ impl PathTracer {
         }
         let wo = -ray.dir;
         let ctx = LightContext { p, n: None };
+        // Guided directions: one-sample MIS of the cache's distribution and the phase function, chosen with the
+        // fixed probability GUIDE_PROBABILITY (Müller et al. 2017, §5.2, with the phase function for the BSDF).
+        // The mixture's density is what light sampling is weighed against, so the estimate stays unbiased.
+        let guide = services.guide().and_then(|g| g.distribution_at(p));
+        let direction_pdf = |wi: Vec3| {
+            let phase = collision.phase.eval(wo, wi);
+            match guide {
+                Some(d) => GUIDE_PROBABILITY * d.pdf(wi) + (1.0 - GUIDE_PROBABILITY) * phase,
+                None => phase,
+            }
+        };
         services.sample_lights(&ctx, rng, |chosen, rng| {
             let ls = chosen.sample;
             let phase = collision.phase.eval(wo, ls.wi);
@@ -1171,15 +1188,32 @@ impl PathTracer {
                     } else if !self.media_mis {
                         1.0
                     } else {
-                        power_heuristic(light_pdf, phase)
+                        power_heuristic(light_pdf, direction_pdf(ls.wi))
                     };
                     let value = s.beta * tr * ls.radiance * (phase * weight / light_pdf);
                     s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
                 }
             }
         });
-        // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
-        let (wi, pdf) = collision.phase.sample(wo, rng.sample_2d());
+        let (wi, pdf) = match guide {
+            // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
+            None => collision.phase.sample(wo, rng.sample_2d()),
+            Some(distribution) => {
+                let guided = rng.next_f32() < GUIDE_PROBABILITY;
+                let u = rng.sample_2d();
+                let wi = if guided {
+                    distribution.sample(u).0
+                } else {
+                    collision.phase.sample(wo, u).0
+                };
+                let pdf = direction_pdf(wi);
+                if !(pdf > 0.0 && pdf.is_finite()) {
+                    return false;
+                }
+                s.beta *= collision.phase.eval(wo, wi) / pdf;
+                (wi, pdf)
+            }
+        };
         if s.depth == 0 {
             s.first_event = FirstEvent::Volume;
         }
@@ -1187,8 +1221,12 @@ impl PathTracer {
         s.prev_pdf = pdf;
         s.prev = ctx;
         s.prev_light_only = !self.media_mis;
+        let radiance_before = s.radiance;
         if !self.next_bounce(s, rng) {
             return false;
+        }
+        if let Some(path) = s.guide_path.as_deref_mut() {
+            path.push(p, wi, pdf, s.beta, radiance_before);
         }
         counters.rays.bounce += 1;
         *ray = Ray::new(p, wi).at_time(ray.time);
