@@ -1,10 +1,10 @@
 //! The spatial half of the guiding cache and the cache itself: a binary tree over a cube around the scene and
 //! its media, each leaf (a cell) with the directional quadtree learned there (Müller et al. 2017, "Practical
-//! Path Guiding for Efficient Light-Transport Simulation", §3.1 and §3.4: the SD-tree).
+//! Path Guiding for Efficient Light-Transport Simulation": the SD-tree).
 //!
 //! Cells split at their midpoint along x, y, z in turn. After each training iteration k, a cell that received
 //! more than `c · √(2^k)` radiance records is split until each part would (at an even spread) hold fewer
-//! (their §3.4, with c = [`SPLIT_RECORDS`] records instead of their 12000 path vertices, for our smaller
+//! (their rule, with c = [`SPLIT_RECORDS`] records instead of their 12000 path vertices, for our smaller
 //! training budgets), and the parts start from the parent's distribution. Each cell's histogram of the
 //! iteration's records becomes its quadtree for the next iteration; a cell that received no energy has none
 //! (paths there sample the phase function alone).

@@ -21,11 +21,16 @@ pub use pilot::GuidingDecision;
 use crate::math::{Rgb, Vec3};
 
 /// Probability that a guided scattering event samples the cache's distribution rather than the phase function
-/// (a fixed one-sample MIS selection probability, the α of Müller et al. 2017, §5.2 fixed at 0.5).
+/// (a fixed one-sample MIS selection probability, the α of Müller et al. 2017, fixed at 0.5 as there).
 pub const GUIDE_PROBABILITY: f32 = 0.5;
 
+/// Paths whose throughput (largest channel) is above this sample the phase function alone: guided weights,
+/// each at most 1/(1 − [`GUIDE_PROBABILITY`]), cannot compound beyond it over a long walk (our safeguard, in
+/// the spirit of the weight windows of Vorba & Křivánek 2016, without their splitting).
+pub const GUIDE_MAX_THROUGHPUT: f32 = 1.0;
+
 /// Training iterations before the image's samples: iteration k takes `2^k` samples per pixel of the whole
-/// frame (1, 2, 4: Müller et al. 2017, §3.4's doubling), and the cache of the last one guides the image.
+/// frame (1, 2, 4: Müller et al. 2017's doubling iterations), and the cache of the last one guides the image.
 pub const TRAINING_ITERATIONS: u32 = 3;
 
 /// `--guiding`: whether paths are guided.
@@ -59,7 +64,7 @@ struct GuideVertex {
 
 /// What a training path remembers of its medium scattering events, so that at its end each learns the
 /// incident radiance along the direction it sampled: the radiance gathered after it, divided by the throughput
-/// that carried it (an unbiased estimate of L_i(x, ω); Müller et al. 2017, §3.3).
+/// that carried it (an unbiased estimate of L_i(x, ω), as Müller et al. 2017 record it).
 #[derive(Clone, Debug, Default)]
 pub struct GuidePath {
     vertices: Vec<GuideVertex>,
@@ -102,3 +107,4 @@ impl GuidePath {
         }
     }
 }
+

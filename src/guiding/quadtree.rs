@@ -1,12 +1,12 @@
 //! The directional half of the guiding cache: a quadtree over the cylindrical (Lambert equal-area) map of the
 //! sphere, built from a histogram of incident radiance, as in Müller et al. 2017, "Practical Path Guiding for
-//! Efficient Light-Transport Simulation" (EGSR; CGF 36(4)), §3.2 and §3.3.
+//! Efficient Light-Transport Simulation" (EGSR 2017; CGF 36(4)).
 //!
 //! A direction ω = (sin θ cos φ, sin θ sin φ, cos θ) maps to the unit square by u = (cos θ + 1)/2, v = φ/2π. The
 //! map preserves area up to the constant 4π (the sphere's solid angle over the square's area 1), so a density q
-//! over the square is the solid-angle density q/4π on the sphere (Müller et al. 2017, §3.2, "cylindrical
-//! coordinates"). Each node of the quadtree holds the energy (the histogram's sum) of its square; a node is
-//! split while its energy exceeds [`SPLIT_FRACTION`] of the root's (their ρ = 0.01, §3.3) and it is coarser than
+//! over the square is the solid-angle density q/4π on the sphere (the cylindrical coordinates Müller et al.
+//! 2017 use). Each node of the quadtree holds the energy (the histogram's sum) of its square; a node is
+//! split while its energy exceeds [`SPLIT_FRACTION`] of the root's (their ρ = 0.01) and it is coarser than
 //! the histogram. Sampling descends from the root choosing a child by its share of the parent's energy and is
 //! uniform within the leaf reached, so the density of a direction is the product of 4 · (child share) over the
 //! levels it descends (their Eq. 4 with the tree's own energies), exactly the sampled one.
@@ -18,7 +18,7 @@ use std::f32::consts::PI;
 pub const HISTOGRAM_LEVELS: u32 = 5;
 /// Bins a side of the histogram.
 pub const HISTOGRAM_SIDE: usize = 1 << HISTOGRAM_LEVELS;
-/// A node is split while its energy exceeds this fraction of the whole (Müller et al. 2017, §3.3: ρ = 0.01).
+/// A node is split while its energy exceeds this fraction of the whole (Müller et al. 2017 use ρ = 0.01).
 const SPLIT_FRACTION: f64 = 0.01;
 
 /// The point of the unit square (u, v) ∈ \[0, 1)² where the cylindrical map puts the unit direction `w`.
@@ -114,7 +114,7 @@ impl DirectionalQuadtree {
 
     /// Samples a unit direction from `u` ∈ \[0, 1)²; returns it with its solid-angle density ([`Self::pdf`]).
     /// At each split node the u half is chosen by the halves' energies with `u.x`, then the v half within it
-    /// with `u.y`, each value rescaled to \[0, 1) for the next level (Müller et al. 2017, §3.3).
+    /// with `u.y`, each value rescaled to \[0, 1) for the next level (as Müller et al. 2017 descend their quadtrees).
     pub fn sample(&self, u: Vec2) -> (Vec3, f32) {
         let (mut ux, mut uy) = (u.x as f64, u.y as f64);
         let (mut origin, mut size) = (Vec2::ZERO, 1.0f32);

@@ -27,6 +27,15 @@
 //! (surface curvature is not modelled). Emission is always read at full resolution, so that light sampling and
 //! BSDF sampling see the same emitter.
 //!
+//! Path guiding: when the render trained a guiding cache ([`RendererServices::guide`]), a medium scattering event
+//! samples its direction from the cache's distribution at that point with probability
+//! [`GUIDE_PROBABILITY`] and from the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)):
+//! one-sample MIS with a fixed selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient
+//! Light-Transport Simulation", with the phase function in the BSDF's place). Next-event estimation there is
+//! weighed by the power heuristic against that mixture's density, so the estimate stays unbiased. A path whose
+//! throughput exceeds [`GUIDE_MAX_THROUGHPUT`] samples the phase function alone. A training path remembers its
+//! events ([`GuidePath`]) so that the cache learns the radiance found after each.
+//!
 //! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
 //! 1, ior 1, smooth) is not a scattering event and does not count.
@@ -42,7 +51,7 @@ use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
-use crate::guiding::{GuidePath, GUIDE_PROBABILITY};
+use crate::guiding::{GuidePath, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
 use crate::light::LightContext;
 use crate::material::LobeSplit;
 use crate::math::sampling::{power_heuristic, Equiangular};
@@ -1165,9 +1174,17 @@ impl PathTracer {
         let wo = -ray.dir;
         let ctx = LightContext { p, n: None };
         // Guided directions: one-sample MIS of the cache's distribution and the phase function, chosen with the
-        // fixed probability GUIDE_PROBABILITY (Müller et al. 2017, §5.2, with the phase function for the BSDF).
+        // fixed probability GUIDE_PROBABILITY (Müller et al. 2017, with the phase function in the BSDF's place).
         // The mixture's density is what light sampling is weighed against, so the estimate stays unbiased.
-        let guide = services.guide().and_then(|g| g.distribution_at(p));
+        // A path whose throughput has grown above GUIDE_MAX_THROUGHPUT samples the phase function alone (weight 1)
+        // until it falls back: a guided event's weight is at most 1/(1 − GUIDE_PROBABILITY), and over the
+        // hundreds of events of a walk in a dense medium their product otherwise grows without bound (measured:
+        // 13x the MSE of unguided paths on the backlit cloud). Choosing the strategy from the path's past keeps
+        // the estimate unbiased: each event's weight uses the density it sampled with.
+        let guide = services
+            .guide()
+            .filter(|_| s.beta.max_element() <= GUIDE_MAX_THROUGHPUT)
+            .and_then(|g| g.distribution_at(p));
         let direction_pdf = |wi: Vec3| {
             let phase = collision.phase.eval(wo, wi);
             match guide {

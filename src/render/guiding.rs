@@ -1,5 +1,5 @@
 //! The guiding cache's training: a fixed pre-pass of samples of its own before the image's (Müller et al. 2017,
-//! "Practical Path Guiding for Efficient Light-Transport Simulation", §3.4: iterations of doubling sample
+//! "Practical Path Guiding for Efficient Light-Transport Simulation": iterations of doubling sample
 //! counts, each guided by the cache of the one before, the last cache guiding the image).
 //!
 //! Determinism: iteration k takes `2^k` samples of every pixel of the whole frame, whatever the region a part
