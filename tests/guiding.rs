@@ -115,6 +115,43 @@ fn a_guided_white_furnace_shows_the_environment() {
     }
 }
 
+/// A Lambertian floor of albedo 0.5 under a uniform sky of radiance 1 (nothing else in the scene) reflects
+/// exactly 0.5 everywhere; guided directions at the floor (the cache learns the sky from the floor's own paths)
+/// must keep that mean within 4 standard errors.
+#[test]
+fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
+    let mut b = SceneBuilder::default();
+    let grey = b.add_material(nimbus::Material::lambertian("floor", Rgb::splat(0.5)));
+    let f = 1000.0;
+    let floor = vec![
+        Vec3::new(-f, 0.0, -f),
+        Vec3::new(-f, 0.0, f),
+        Vec3::new(f, 0.0, f),
+        Vec3::new(f, 0.0, -f),
+    ];
+    b.add_triangle_mesh(floor, vec![[0, 1, 2], [0, 2, 3]], grey)
+        .unwrap();
+    b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
+    b.set_camera(Camera::look_at(
+        Vec3::new(0.0, 1.0, 0.5),
+        Vec3::ZERO,
+        30f32.to_radians(),
+    ));
+    let scene = b.build().unwrap();
+    let (img, stats) = Renderer::new(settings(16, 16, 2, GuidingMode::On))
+        .render(&scene, &mut |_| true)
+        .unwrap();
+    assert!(stats.guiding.guided_cells > 0, "{:?}", stats.guiding);
+    for c in 0..3 {
+        let (mean, se) = common::mean_and_se(&img, c);
+        assert!(se > 0.0 && se < 0.02, "standard error {se}");
+        assert!(
+            (mean - 0.5).abs() < 4.0 * se,
+            "guided floor {mean} vs 0.5 (se {se})"
+        );
+    }
+}
+
 /// The guided image is the same on 1 and 3 threads, and sample-range parts written to files merge into it bit
 /// for bit; a part rendered unguided refuses to merge with a guided one.
 #[test]

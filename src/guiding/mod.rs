@@ -16,6 +16,7 @@ pub mod pilot;
 pub mod quadtree;
 
 pub use field::{GuidingField, RadianceRecord};
+pub use quadtree::DirectionalQuadtree;
 pub use pilot::GuidingDecision;
 
 use crate::math::{Rgb, Vec3};

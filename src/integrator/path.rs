@@ -31,7 +31,8 @@
 //! samples its direction from the cache's distribution at that point with probability
 //! [`GUIDE_PROBABILITY`] and from the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)):
 //! one-sample MIS with a fixed selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient
-//! Light-Transport Simulation", with the phase function in the BSDF's place). Next-event estimation there is
+//! Light-Transport Simulation", with the phase function in the BSDF's place). A Lambertian surface does the same
+//! with its BSDF, weighting by f cos θ/(α q + (1 − α) p_bsdf). Next-event estimation there is
 //! weighed by the power heuristic against that mixture's density, so the estimate stays unbiased. A path whose
 //! throughput exceeds [`GUIDE_MAX_THROUGHPUT`] samples the phase function alone. A training path remembers its
 //! events ([`GuidePath`]) so that the cache learns the radiance found after each.
@@ -51,11 +52,11 @@ use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
-use crate::guiding::{GuidePath, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
+use crate::guiding::{DirectionalQuadtree, GuidePath, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
 use crate::light::LightContext;
-use crate::material::LobeSplit;
+use crate::material::{Bsdf, BsdfSample, LobeClass, LobeSplit};
 use crate::math::sampling::{power_heuristic, Equiangular};
-use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
+use crate::math::{Frame, Ray, Rgb, Rng, Vec2, Vec3};
 use crate::scene::{Scene, SurfaceHit};
 use crate::volume::{ConstantScattering, TentativeEmission};
 
@@ -109,6 +110,25 @@ fn carry_one_channel(beta: &mut Rgb, rng: &mut Rng) -> usize {
     *beta = one;
     channel
 }
+
+/// The one-sample MIS choice of a guided event from its 2-D sample `u`: the guide when `u.x` <
+/// [`GUIDE_PROBABILITY`], else the phase function or BSDF, with `u.x` rescaled to \[0, 1) within the part chosen,
+/// so that each strategy keeps the stratification of the sampler's points (a separate random number for the
+/// choice measured worse on the Sobol sampler's early bounces).
+fn choose_strategy(u: Vec2) -> (bool, Vec2) {
+    let a = GUIDE_PROBABILITY;
+    if u.x < a {
+        (true, Vec2::new((u.x / a).min(ONE_BELOW), u.y))
+    } else {
+        (
+            false,
+            Vec2::new(((u.x - a) / (1.0 - a)).min(ONE_BELOW), u.y),
+        )
+    }
+}
+
+/// The largest f32 below 1.
+const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// The path tracer and its settings.
 #[derive(Clone, Copy, Debug)]
@@ -998,6 +1018,21 @@ impl PathTracer {
                 r.colors = bsdf.colors(wo) * seen_beta;
             }
         }
+        // Guided directions at a diffuse (Lambertian) surface, as at medium scattering events: one-sample MIS of the
+        // cache's distribution and the BSDF, whose mixture density light sampling is weighed against.
+        let guide = match bsdf {
+            Bsdf::Lambert(_) => self.guide_at(services, s, hit.p),
+            _ => None,
+        };
+        let direction_pdf = |wi: Vec3| {
+            let pdf = bsdf.pdf(wo, wi);
+            match guide {
+                Some(d) => {
+                    GUIDE_PROBABILITY * d.pdf(frame.to_world(wi)) + (1.0 - GUIDE_PROBABILITY) * pdf
+                }
+                None => pdf,
+            }
+        };
         // Next-event estimation.
         if !bsdf.is_delta() {
             let ctx = LightContext {
@@ -1020,7 +1055,7 @@ impl PathTracer {
                         let weight = if ls.is_delta {
                             1.0
                         } else {
-                            power_heuristic(light_pdf, bsdf.pdf(wo, wi))
+                            power_heuristic(light_pdf, direction_pdf(wi))
                         };
                         let value = s.beta * f * tr * ls.radiance * (weight / light_pdf);
                         let beta = s.beta;
@@ -1035,8 +1070,27 @@ impl PathTracer {
                 }
             });
         }
-        // Continue the path by sampling the BSDF.
-        let Some(bs) = bsdf.sample(wo, rng.sample_1d(), rng.sample_2d()) else {
+        // Continue the path by sampling the BSDF (or, guided, the mixture).
+        let sampled = match guide {
+            None => bsdf.sample(wo, rng.sample_1d(), rng.sample_2d()),
+            Some(distribution) => {
+                let u_lobe = rng.sample_1d();
+                let (guided, u) = choose_strategy(rng.sample_2d());
+                let wi = if guided {
+                    Some(frame.to_local(distribution.sample(u).0))
+                } else {
+                    bsdf.sample(wo, u_lobe, u).map(|b| b.wi)
+                };
+                wi.map(|wi| BsdfSample {
+                    wi,
+                    f: bsdf.eval(wo, wi),
+                    pdf: direction_pdf(wi),
+                    is_delta: false,
+                    class: LobeClass::Diffuse,
+                })
+            }
+        };
+        let Some(bs) = sampled else {
             return SurfaceOutcome::End;
         };
         if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f.max_element() <= 0.0 {
@@ -1059,6 +1113,7 @@ impl PathTracer {
             n: Some(frame.n),
         };
         s.prev_light_only = false;
+        let radiance_before = s.radiance;
         if let Some(interior) = material.interior {
             // Crossing the surface (refraction) enters or leaves its interior.
             let crossing = wi_world.dot(hit.geometric_normal).signum()
@@ -1070,6 +1125,9 @@ impl PathTracer {
         }
         if !self.next_bounce(s, rng) {
             return SurfaceOutcome::End;
+        }
+        if let (Some(path), false) = (s.guide_path.as_deref_mut(), bs.is_delta) {
+            path.push(hit.p, wi_world, bs.pdf, s.beta, radiance_before);
         }
         counters.rays.bounce += 1;
         SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(wi_world), wi_world).at_time(ray.time))
@@ -1181,10 +1239,7 @@ impl PathTracer {
         // hundreds of events of a walk in a dense medium their product otherwise grows without bound (measured:
         // 13x the MSE of unguided paths on the backlit cloud). Choosing the strategy from the path's past keeps
         // the estimate unbiased: each event's weight uses the density it sampled with.
-        let guide = services
-            .guide()
-            .filter(|_| s.beta.max_element() <= GUIDE_MAX_THROUGHPUT)
-            .and_then(|g| g.distribution_at(p));
+        let guide = self.guide_at(services, s, p);
         let direction_pdf = |wi: Vec3| {
             let phase = collision.phase.eval(wo, wi);
             match guide {
@@ -1216,8 +1271,7 @@ impl PathTracer {
             // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
             None => collision.phase.sample(wo, rng.sample_2d()),
             Some(distribution) => {
-                let guided = rng.next_f32() < GUIDE_PROBABILITY;
-                let u = rng.sample_2d();
+                let (guided, u) = choose_strategy(rng.sample_2d());
                 let wi = if guided {
                     distribution.sample(u).0
                 } else {
@@ -1248,6 +1302,20 @@ impl PathTracer {
         counters.rays.bounce += 1;
         *ray = Ray::new(p, wi).at_time(ray.time);
         true
+    }
+
+    /// The guiding cache's distribution at `p`, when the render is guided, the cache learned one there, and the
+    /// path's throughput is at most [`GUIDE_MAX_THROUGHPUT`].
+    fn guide_at<'a>(
+        &self,
+        services: &RendererServices<'a>,
+        s: &PathState,
+        p: Vec3,
+    ) -> Option<&'a DirectionalQuadtree> {
+        services
+            .guide()
+            .filter(|_| s.beta.max_element() <= GUIDE_MAX_THROUGHPUT)
+            .and_then(|g| g.distribution_at(p))
     }
 
     /// Counts a scattering event and plays Russian roulette; returns false when the path ends.
