@@ -198,9 +198,9 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
     let merged = farm::merge_parts(&[a.clone(), b]).unwrap();
     assert_bit_identical(&merged.image, &one, "parts 0..2 and 2..6 against the whole");
     let off = part(2..6, 1, GuidingMode::Off, "off.exr");
-    let refused = farm::merge_parts(&[a, off])
-        .err()
-        .expect("guided and unguided parts merged");
+    let Err(refused) = farm::merge_parts(&[a, off]) else {
+        panic!("guided and unguided parts merged");
+    };
     assert!(refused.to_string().contains("scene hash"), "{refused}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
