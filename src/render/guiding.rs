@@ -22,9 +22,9 @@ const TRAINING_STREAM: u64 = 0xa409_3822_299f_31d0;
 /// Rows traced in parallel before their records are added (bounds the records held at once).
 const ROWS_PER_BLOCK: usize = 16;
 
-/// What the camera needs to shoot a training path: the frame and the shutter.
+/// The frame training paths are shot through, and the seed their streams are mixed from.
 pub(super) struct TrainingFrame {
-    /// Frame width and height in pixels.
+    /// Frame width in pixels.
     pub width: usize,
     /// Frame height.
     pub height: usize,
@@ -33,7 +33,8 @@ pub(super) struct TrainingFrame {
 }
 
 /// Trains a guiding cache for `scene` with `tracer` (on the caller's thread pool) and says what it did;
-/// `decision` is what the guiding mode decided (no cache when off).
+/// `decision` is what the guiding mode decided (no cache when off). The training does not look at the cancel
+/// token or the time budget; the passes after it do (its seconds count in the budget).
 pub(super) fn train(
     scene: &Scene,
     tracer: &PathTracer,
