@@ -37,7 +37,8 @@ pub const TRAINING_ITERATIONS: u32 = 3;
 /// `--guiding`: whether paths are guided.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GuidingMode {
-    /// Guided where the scene's media make it pay ([`GuidingDecision`]).
+    /// Guided where guiding is measured to pay: no scene yet, so unguided; `--explain` (`GuidingMode::explain`)
+    /// says what the pilot measured of the scene's media.
     #[default]
     Auto,
     /// Always guided (a scene without scattering media trains a cache that guides nothing).
