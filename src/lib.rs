@@ -142,6 +142,7 @@ pub mod denoise;
 pub mod farm;
 pub mod frames;
 internal! { pub mod geometry; }
+internal! { pub mod guiding; }
 mod integrator;
 pub mod light;
 pub mod limits;

@@ -260,6 +260,11 @@ struct RenderArgs {
     #[arg(long = "emitter-edges", value_parser = choice::<nimbus::render::EmitterEdgeSampling>(),
           default_value = "auto")]
     emitter_edges: nimbus::render::EmitterEdgeSampling,
+    /// Path guiding in media: `on` trains a cache of incident light (7 samples per pixel of the frame, before
+    /// the image's) and samples directions from it at medium scattering events; `auto` guides where a medium has
+    /// high albedo and high optical depth (--explain says why); `off` never guides.
+    #[arg(long, value_parser = choice::<nimbus::render::GuidingMode>(), default_value = "auto")]
+    guiding: nimbus::render::GuidingMode,
     /// Constant environment radiance r,g,b (overrides the scene's nimbus_environment).
     #[arg(long = "env-color", value_parser = parse_rgb)]
     env_color: Option<Rgb>,
@@ -943,12 +948,14 @@ fn render_frame(
         light_groups: args.light_groups,
         cryptomatte_depth: args.cryptomatte_depth,
         deep_samples: args.deep.then_some(args.deep_samples as usize),
+        guiding: args.guiding,
     };
     if args.explain {
         eprintln!(
             "nimbus: emitter edges: {}",
             args.emitter_edges.explain(&scene, width, height)
         );
+        eprintln!("nimbus: path guiding: {}", args.guiding.explain(&scene));
     }
     eprintln!(
         "nimbus: {} triangles, {}, {width}x{height}, {} spp{}",

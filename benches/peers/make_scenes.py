@@ -11,6 +11,12 @@ Run from the repository root: `python3 benches/peers/make_scenes.py`. Determinis
 - `helmet.gltf` (git-ignored, because it refers to `../shared/realworld/`): DamagedHelmet's mesh with its base colour
   and emissive textures on a Lambert material (so that Mitsuba renders the same BSDF), 15,453 textured emissive
   triangles, over a floor under a dim sky. Its buffers and images are referenced in place, never copied.
+- `backlit.gltf` (issue 34, path guiding): the bundled `assets/cloud.vdb` at density scale 120 (optical depth about
+  60 through its middle along the view), albedo 0.99, g 0.5, with the sun behind it shining toward the camera, under
+  a dim sky; no ground. Light reaches the camera's side of the cloud only after many scattering events.
+- `doorgap.gltf` (issue 34): a closed 4 x 2.5 x 4 m room of thick white walls filled with haze (sigma_s 0.3,
+  sigma_a 0.01 /m, g 0.3), lit only by the sun through a 0.2 m gap in one wall; the camera inside. Most of the haze
+  and the walls see the sun only through the lit patch and the beam.
 
 The other benchmark scenes are the bundled `assets/cloud.gltf` and `../shared/validation/smoke-sun/scene.gltf`.
 """
@@ -118,9 +124,41 @@ def helmet(out_path):
     print("wrote", os.path.relpath(out_path, ROOT))
 
 
+def backlit():
+    b = GltfBuilder()
+    vdb = os.path.relpath(os.path.join(ROOT, "assets", "cloud.vdb"), SCENES)
+    b.volume_node("cloud", {"file": vdb, "density_grid": "density", "density_scale": 120.0,
+                            "albedo": [0.99, 0.99, 0.99], "anisotropy": 0.5},
+                  translation=[0.0, 1.0, 0.0])
+    b.directional_light("sun", [0.25, -0.3, 1.0], [1.0, 0.95, 0.85], 2049.0)
+    b.camera("camera", eye=[0.0, 1.45, 4.0], target=[0.0, 1.45, 0.0], yfov_deg=28, aspect=1.0)
+    return b, {"max_bounces": 128, "nimbus_environment": {"color": [0.03, 0.04, 0.06]}}
+
+
+def doorgap():
+    b = GltfBuilder()
+    white = b.lambert("wall", [0.6, 0.6, 0.6])
+    t = 0.2
+    b.box("floor", [-2 - t, -t, -2 - t], [2 + t, 0.0, 2 + t], white)
+    b.box("ceiling", [-2 - t, 2.5, -2 - t], [2 + t, 2.5 + t, 2 + t], white)
+    b.box("back", [-2 - t, 0.0, -2 - t], [2 + t, 2.5, -2.0], white)
+    b.box("front", [-2 - t, 0.0, 2.0], [2 + t, 2.5, 2 + t], white)
+    b.box("left", [-2 - t, 0.0, -2.0], [-2.0, 2.5, 2.0], white)
+    b.box("right_a", [2.0, 0.0, -2.0], [2 + t, 2.5, -0.1], white)
+    b.box("right_b", [2.0, 0.0, 0.1], [2 + t, 2.5, 2.0], white)
+    b.box("lintel", [2.0, 2.0, -0.1], [2 + t, 2.5, 0.1], white)
+    medium = b.medium_boundary("haze", {"sigma_a": [0.01, 0.01, 0.01], "sigma_s": [0.3, 0.3, 0.3],
+                                        "anisotropy": 0.3})
+    b.box("haze_box", [-1.99, 0.01, -1.99], [1.99, 2.49, 1.99], medium)
+    b.directional_light("sun", [-1.0, -0.45, 0.15], [1.0, 0.95, 0.85], 20000.0)
+    b.camera("camera", eye=[-1.8, 1.3, 1.8], target=[0.6, 0.7, -0.6], yfov_deg=60, aspect=1.0)
+    return b, {"max_bounces": 32, "nimbus_environment": {"color": [0.0, 0.0, 0.0]}}
+
+
 def main():
     os.makedirs(SCENES, exist_ok=True)
-    for name, make in (("cornell", cornell), ("haze", haze), ("plume", plume)):
+    for name, make in (("cornell", cornell), ("haze", haze), ("plume", plume), ("backlit", backlit),
+                       ("doorgap", doorgap)):
         b, extras = make()
         out = os.path.join(SCENES, f"{name}.gltf")
         b.write(out, GENERATOR, scene_extras=extras)

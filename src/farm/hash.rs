@@ -5,7 +5,8 @@
 //! 1. the tag `nimbus scene hash 1`;
 //! 2. the bytes of the scene file (for the bundled demo, its embedded glTF and VDB);
 //! 3. the settings that change the image: width, height, seed, max depth, media MIS, equiangular sampling,
-//!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian;
+//!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian; and,
+//!    unless `--guiding auto`, the tag `guiding`, the mode's name and the training iterations (the cache);
 //! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
 //!    its name's UTF-8 bytes; the CLI also passes the frame, the shutter, the `--camera` name and, for a camera
 //!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
@@ -105,6 +106,7 @@ pub fn scene_hash(
         // The memory budget: the estimators it chooses travel in the part (`nimbus.estimators`) and are
         // compared by the merge, since the default budget depends on the machine.
         limits: _,
+        guiding,
     } = settings;
     h.field(&(*width as u64).to_le_bytes());
     h.field(&(*height as u64).to_le_bytes());
@@ -121,6 +123,15 @@ pub fn scene_hash(
     // A transparent film leaves the environment out of the beauty (a scene asking for one does so in its bytes).
     if *transparent {
         h.field(b"transparent");
+    }
+    // Path guiding: its cache depends on the mode and the training plan (the scene and the settings above fix
+    // everything else it learns from). Auto is left out, so that the hashes of renders from before guiding
+    // existed stay the same; auto decides from the scene, which is hashed.
+    if *guiding != crate::guiding::GuidingMode::Auto {
+        use crate::params::Choice;
+        h.field(b"guiding");
+        h.field(guiding.name().as_bytes());
+        h.field(&crate::guiding::TRAINING_ITERATIONS.to_le_bytes());
     }
     for (name, value) in overrides {
         h.field(name.as_bytes());
@@ -227,7 +238,7 @@ mod tests {
             ..s.clone()
         };
         assert_eq!(base, scene_hash(&[b"scene"], &not_in_hash, &[]));
-        let changes: [fn(&mut RenderSettings); 10] = [
+        let changes: [fn(&mut RenderSettings); 12] = [
             |s| s.width += 1,
             |s| s.height -= 1,
             |s| s.seed = 1,
@@ -238,6 +249,8 @@ mod tests {
             |s| s.light_sampler = crate::light::LightSamplerChoice::Bvh,
             |s| s.emitter_edges = crate::render::EmitterEdgeSampling::Off,
             |s| s.transparent = !s.transparent,
+            |s| s.guiding = crate::guiding::GuidingMode::On,
+            |s| s.guiding = crate::guiding::GuidingMode::Off,
         ];
         let mut changed: Vec<u64> = changes
             .iter()

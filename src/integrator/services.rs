@@ -5,16 +5,20 @@
 
 use super::{MediumStack, PathCounters};
 use crate::geometry::ShadowSegment;
+use crate::guiding::GuidingField;
 use crate::light::{Light, LightBvh, LightContext, LightSample};
 use crate::math::{Ray, Rgb, Rng, Vec2, Vec3};
 use crate::scene::Scene;
 
 /// Light sampling and shadow-ray transmittance over a scene.
+#[derive(Clone, Copy)]
 pub struct RendererServices<'a> {
     scene: &'a Scene,
     /// The light BVH when the render chose it ([`crate::light::LightSamplerChoice`]); `None`: lights are
     /// chosen by power.
     light_bvh: Option<&'a LightBvh>,
+    /// The guiding cache paths sample directions from at medium scattering events, when the render is guided.
+    guide: Option<&'a GuidingField>,
 }
 
 /// A light sample chosen from all the scene's lights.
@@ -70,7 +74,18 @@ impl<'a> RendererServices<'a> {
         Self {
             scene,
             light_bvh: light_bvh.then(|| scene.light_bvh()),
+            guide: None,
         }
+    }
+
+    /// The same services with paths guided by `guide` (none: unguided).
+    pub fn with_guide(self, guide: Option<&'a GuidingField>) -> Self {
+        Self { guide, ..self }
+    }
+
+    /// The guiding cache, when the render is guided.
+    pub fn guide(&self) -> Option<&'a GuidingField> {
+        self.guide
     }
 
     /// The scene.

@@ -36,8 +36,9 @@ internal! {
         UV_SETS,
     };
 }
-#[cfg(feature = "testing")]
-pub use bsdf::BsdfSample;
+internal! {
+    pub use bsdf::BsdfSample;
+}
 #[cfg(feature = "testing")]
 pub use clearcoat::Clearcoat;
 #[cfg(feature = "testing")]

@@ -9,6 +9,7 @@ pub mod deep;
 mod emitter_edges;
 mod exact;
 mod film;
+mod guiding;
 mod image;
 mod recording;
 mod renderer;
@@ -31,6 +32,7 @@ pub use image::{AovLayer, ImageMetadata, RenderImage};
 internal! {
     pub use exact::ValueSum;
 }
+pub use crate::guiding::GuidingMode;
 #[cfg(feature = "testing")]
 pub use crate::integrator::PathSample;
 #[cfg(feature = "testing")]
@@ -44,6 +46,6 @@ pub use recording::LayerRecorder;
 #[cfg(feature = "testing")]
 pub use renderer::peak_memory_bytes;
 pub use renderer::{
-    MediumStats, Progress, RegionError, RenderError, RenderRegion, RenderSettings, RenderStats,
-    Renderer, Sampler, DEFAULT_MAX_DEPTH, DEFAULT_WIDTH,
+    GuidingStats, MediumStats, Progress, RegionError, RenderError, RenderRegion, RenderSettings,
+    RenderStats, Renderer, Sampler, DEFAULT_MAX_DEPTH, DEFAULT_WIDTH,
 };

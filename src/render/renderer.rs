@@ -12,6 +12,7 @@ use super::film::{Film, PixelSums, PixelWindow};
 use super::recording::LayerRecorder;
 use super::resume::{RegionProgress, ResumeFrom, StoppedPass};
 use super::{CancelToken, RenderImage};
+use crate::guiding::{GuidingField, GuidingMode};
 use crate::integrator::{
     FirstEmission, Origin, PathCounters, PathTracer, RayCounters, RendererServices, SampleRecord,
 };
@@ -93,6 +94,9 @@ pub struct RenderSettings {
     /// Deep output ([`super::deep`]): the most deep samples per pixel (`--deep-samples`), or `None` for none.
     /// It changes no estimate: the flat image is the same with it or without.
     pub deep_samples: Option<usize>,
+    /// Path guiding in media (`--guiding`): a cache of incident light trained before the image's samples, from
+    /// which paths sample directions at medium scattering events. It changes the noise, never the mean.
+    pub guiding: GuidingMode,
 }
 
 /// The image width of a render when none is given (`nimbus render` and the Python module).
@@ -148,6 +152,7 @@ impl Default for RenderSettings {
             light_groups: LightGroupMode::Scene,
             cryptomatte_depth: super::cryptomatte::DEFAULT_DEPTH,
             deep_samples: None,
+            guiding: GuidingMode::Auto,
         }
     }
 }
@@ -225,6 +230,29 @@ pub struct RenderStats {
     pub layers: Vec<String>,
     /// The light groups' layer names (`lg_<group>`), whether written or not.
     pub light_groups: Vec<String>,
+    /// Path guiding: whether it was on, why, and what its training did.
+    pub guiding: GuidingStats,
+}
+
+/// What path guiding did, as written by `--stats` under `guiding`.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct GuidingStats {
+    /// `on` or `off`: whether paths were guided.
+    pub mode: String,
+    /// Why (what `--explain` prints).
+    pub reason: String,
+    /// Samples per pixel of the whole frame the training took (0 when off).
+    pub training_samples_per_pixel: u32,
+    /// Training paths traced.
+    pub training_paths: u64,
+    /// Radiance records the cache learned from (one per medium scattering event of a training path).
+    pub training_records: u64,
+    /// Cells of the cache's spatial tree.
+    pub cells: usize,
+    /// Cells with a learned distribution (the others sample the phase function alone).
+    pub guided_cells: usize,
+    /// Wall-clock seconds of the training (counted in `render_seconds`).
+    pub training_seconds: f64,
 }
 
 /// Statistics of one medium, as written by `--stats` under `media`.
@@ -509,6 +537,20 @@ impl Renderer {
             }
         };
         let edges = s.emitter_edges.decide(scene, s.width, s.height);
+        // The guiding cache, trained over the whole frame whatever the region (see `super::guiding`).
+        let (guide, guiding) = pool.install(|| {
+            super::guiding::train(
+                scene,
+                &self.path_tracer(scene),
+                &self.services(scene),
+                &super::guiding::TrainingFrame {
+                    width: s.width,
+                    height: s.height,
+                    seed: s.seed,
+                },
+                s.guiding.decide(scene),
+            )
+        });
         let mut counters = PathCounters::new(scene.media.len());
         let mut cancelled = false;
         let target = region.samples.len() as u32;
@@ -536,6 +578,7 @@ impl Renderer {
                     &mut film,
                     &recorder,
                     edges.edges(),
+                    guide.as_ref(),
                     first..end,
                     skip,
                     cancel,
@@ -622,6 +665,7 @@ impl Renderer {
             transparent: self.transparent(scene),
             layers: plan.written.clone(),
             light_groups: groups.names,
+            guiding,
         };
         Ok((film, stats, at))
     }
@@ -630,7 +674,7 @@ impl Renderer {
     /// `r` (which took them already), stopping each row before its next pixel once `cancel` is cancelled;
     /// pixels that `edges` marks supersample their directly visible emission. Returns the counters, the
     /// dropped NaN samples, the clamped samples, and how many pixels of each row, from the left, hold the
-    /// samples (the skipped ones included).
+    /// samples (the skipped ones included). Paths are guided by `guide` when given.
     #[allow(clippy::too_many_arguments)]
     fn render_pass(
         &self,
@@ -638,6 +682,7 @@ impl Renderer {
         film: &mut Film,
         recorder: &LayerRecorder,
         edges: Option<&EmitterEdges>,
+        guide: Option<&GuidingField>,
         samples: Range<u32>,
         skip: Option<&[u32]>,
         cancel: &CancelToken,
@@ -647,15 +692,7 @@ impl Renderer {
         let window = film.window();
         debug_assert!(width > 0 && height > 0 && !window.is_empty());
         let aspect = width as f32 / height as f32;
-        let tracer = PathTracer {
-            max_depth: s.max_depth,
-            media_mis: s.media_mis,
-            equiangular: PathTracer::uses_equiangular(s.equiangular, scene),
-            pixel_spread: scene.camera.pixel_spread_angle(height),
-            pixel_width: scene.camera.pixel_width(height),
-            transparent: self.transparent(scene),
-            mattes: scene.names().has_mattes(),
-        };
+        let tracer = self.path_tracer(scene);
         let plan = film.plan().clone();
         let deep = film.deep_samples().is_some();
         let max_bins = film.deep_samples().map_or(0, super::deep::max_bins);
@@ -670,7 +707,7 @@ impl Renderer {
             };
             -to_world.z_axis.truncate().normalize_or_zero()
         };
-        let services = RendererServices::new(scene, s.light_sampler.uses_bvh(scene.lights()));
+        let services = self.services(scene).with_guide(guide);
         film.rows_mut()
             .into_par_iter()
             // One row per task: rayon's adaptive splitting otherwise hands a thread a run of rows it cannot
@@ -758,6 +795,7 @@ impl Renderer {
                                 &mut rng,
                                 &mut counters,
                                 record.as_mut(),
+                                None,
                             );
                             result.radiance += emission / EDGE_RAYS as f32;
                             result
@@ -769,6 +807,7 @@ impl Renderer {
                                 &mut rng,
                                 &mut counters,
                                 record.as_mut(),
+                                None,
                             )
                         };
                         if !is_finite_rgb(result.radiance) {
@@ -798,6 +837,27 @@ impl Renderer {
                     (counters, nans + row.1, clamped + row.2, rows)
                 },
             )
+    }
+}
+
+impl Renderer {
+    /// The path tracer of a render of `scene` with these settings.
+    fn path_tracer(&self, scene: &Scene) -> PathTracer {
+        let s = &self.settings;
+        PathTracer {
+            max_depth: s.max_depth,
+            media_mis: s.media_mis,
+            equiangular: PathTracer::uses_equiangular(s.equiangular, scene),
+            pixel_spread: scene.camera.pixel_spread_angle(s.height),
+            pixel_width: scene.camera.pixel_width(s.height),
+            transparent: self.transparent(scene),
+            mattes: scene.names().has_mattes(),
+        }
+    }
+
+    /// The renderer services of a render of `scene` with these settings (unguided).
+    fn services<'a>(&self, scene: &'a Scene) -> RendererServices<'a> {
+        RendererServices::new(scene, self.settings.light_sampler.uses_bvh(scene.lights()))
     }
 }
 

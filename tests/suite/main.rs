@@ -33,6 +33,7 @@ mod gltf_materials;
 mod gltf_mutations;
 mod gltf_variants;
 mod grid_media;
+mod guiding;
 mod hostile_volumes;
 mod motion_blur;
 mod obj_loader;

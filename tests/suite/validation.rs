@@ -31,7 +31,9 @@
 //! variance layer of their own: each scene is rendered as [`PARTS`] sample ranges (merged exactly into the
 //! beauty's render), and a layer's per-pixel standard error comes from the spread of the parts.
 //!
-//! Run `cargo test --release --test suite validation:: -- --nocapture` for the table of every figure.
+//! Run `cargo test --release --test suite validation:: -- --nocapture` for the table of every figure. With
+//! `NIMBUS_TEST_GUIDING=on` (or `off`, `auto`: the default) every scene renders with that `--guiding` mode, so
+//! that the suite also checks that path guiding leaves every mean unchanged.
 
 use crate::common;
 
@@ -39,7 +41,8 @@ use nimbus::math::Rgb;
 use nimbus::output::read_exr_layers;
 use nimbus::render::aovs::AovSelection;
 use nimbus::render::{
-    CancelToken, Film, PixelWindow, RenderImage, RenderRegion, RenderSettings, Renderer,
+    CancelToken, Film, GuidingMode, PixelWindow, RenderImage, RenderRegion, RenderSettings,
+    Renderer,
 };
 use nimbus::Scene;
 use std::path::{Path, PathBuf};
@@ -464,6 +467,7 @@ fn validate(scene: &ValidationScene) -> (Vec<String>, Vec<String>) {
         threads: 0,
         max_depth: loaded.max_bounces().unwrap_or(64),
         aovs: Some(AovSelection::parse("default,lightpaths,colors,lightgroups").unwrap()),
+        guiding: guiding_mode(),
         ..Default::default()
     };
     let renderer = Renderer::new(settings);
@@ -519,6 +523,16 @@ fn validate(scene: &ValidationScene) -> (Vec<String>, Vec<String>) {
         failures.extend(layer_failures.into_iter().map(|f| format!("{what}: {f}")));
     }
     (rows, failures)
+}
+
+/// The guiding mode `NIMBUS_TEST_GUIDING` names (auto when unset).
+fn guiding_mode() -> GuidingMode {
+    use nimbus::params::Choice;
+    match std::env::var("NIMBUS_TEST_GUIDING") {
+        Ok(name) => GuidingMode::from_name(&name)
+            .unwrap_or_else(|| panic!("NIMBUS_TEST_GUIDING={name}: not auto, on or off")),
+        Err(_) => GuidingMode::Auto,
+    }
 }
 
 /// The table row of one comparison; its failures are added to `failures`.

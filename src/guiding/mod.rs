@@ -1,0 +1,112 @@
+//! Path guiding: a cache of incident light learned from the render's own paths, from which paths sample
+//! directions at medium scattering events (Müller et al. 2017, "Practical Path Guiding for Efficient
+//! Light-Transport Simulation", CGF 36(4); their SD-tree, applied to volumes as Herholz et al. 2019, "Volume
+//! Path Guiding Based on Zero-Variance Random Walk Theory", TOG 38(3), do with their own cache).
+//!
+//! - [`quadtree`]: the directional distributions (quadtrees over the cylindrical map of the sphere).
+//! - [`field`]: the spatial tree of cells and the cache ([`GuidingField`]).
+//! - [`pilot`]: what `--guiding auto` decides for a scene, and why.
+//! - [`GuidePath`]: what a training path remembers of its vertices, turned into [`RadianceRecord`]s at its end.
+//!
+//! The training passes (fixed seeds, rows in order) are the renderer's (`render::guiding`); the guided sampling
+//! and its one-sample MIS with the phase function are the integrator's.
+
+pub mod field;
+pub mod pilot;
+pub mod quadtree;
+
+pub use field::{GuidingField, RadianceRecord};
+pub use quadtree::DirectionalQuadtree;
+pub use pilot::GuidingDecision;
+
+use crate::math::{Rgb, Vec3};
+
+/// Probability that a guided scattering event samples the cache's distribution rather than the phase function
+/// (a fixed one-sample MIS selection probability, the α of Müller et al. 2017, fixed at 0.5 as there).
+pub const GUIDE_PROBABILITY: f32 = 0.5;
+
+/// Paths whose throughput (largest channel) is above this sample the phase function alone: guided weights,
+/// each at most 1/(1 − [`GUIDE_PROBABILITY`]), cannot compound beyond it over a long walk (our safeguard, in
+/// the spirit of the weight windows of Vorba & Křivánek 2016, without their splitting).
+pub const GUIDE_MAX_THROUGHPUT: f32 = 1.0;
+
+/// Training iterations before the image's samples: iteration k takes `2^k` samples per pixel of the whole
+/// frame (1, 2, 4: Müller et al. 2017's doubling iterations), and the cache of the last one guides the image.
+pub const TRAINING_ITERATIONS: u32 = 3;
+
+/// `--guiding`: whether paths are guided.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GuidingMode {
+    /// Guided where guiding is measured to pay: no scene yet, so unguided; `--explain` (`GuidingMode::explain`)
+    /// says what the pilot measured of the scene's media.
+    #[default]
+    Auto,
+    /// Always guided (a scene without scattering media trains a cache that guides nothing).
+    On,
+    /// Never guided.
+    Off,
+}
+
+impl crate::params::Choice for GuidingMode {
+    const CHOICES: &'static [(&'static str, Self)] =
+        &[("auto", Self::Auto), ("on", Self::On), ("off", Self::Off)];
+}
+
+/// One guided vertex of a training path: where it scattered, the direction it sampled and that direction's
+/// density, the path throughput after the event (its weight included), and the radiance the path had gathered
+/// before it left (its next-event estimate there included).
+#[derive(Clone, Copy, Debug)]
+struct GuideVertex {
+    p: Vec3,
+    dir: Vec3,
+    pdf: f32,
+    throughput: Rgb,
+    radiance_before: Rgb,
+}
+
+/// What a training path remembers of its medium scattering events, so that at its end each learns the
+/// incident radiance along the direction it sampled: the radiance gathered after it, divided by the throughput
+/// that carried it (an unbiased estimate of L_i(x, ω), as Müller et al. 2017 record it).
+#[derive(Clone, Debug, Default)]
+pub struct GuidePath {
+    vertices: Vec<GuideVertex>,
+}
+
+impl GuidePath {
+    /// Forgets the previous path's vertices (keeps the allocation).
+    pub fn clear(&mut self) {
+        self.vertices.clear();
+    }
+
+    /// Remembers a scattering event at `p` that sampled `dir` with density `pdf`, leaving throughput
+    /// `throughput`, when the path had gathered `radiance_before`.
+    pub fn push(&mut self, p: Vec3, dir: Vec3, pdf: f32, throughput: Rgb, radiance_before: Rgb) {
+        self.vertices.push(GuideVertex {
+            p,
+            dir,
+            pdf,
+            throughput,
+            radiance_before,
+        });
+    }
+
+    /// The records of the path, which ended with `radiance` gathered, appended to `out`.
+    pub fn finish(&self, radiance: Rgb, out: &mut Vec<RadianceRecord>) {
+        for v in &self.vertices {
+            let carried = v.throughput.element_sum();
+            let gathered = (radiance - v.radiance_before).element_sum();
+            let incident = if carried > 0.0 {
+                (gathered / carried).max(0.0)
+            } else {
+                0.0
+            };
+            out.push(RadianceRecord {
+                p: v.p,
+                dir: v.dir,
+                radiance: incident,
+                pdf: v.pdf,
+            });
+        }
+    }
+}
+
