@@ -1,4 +1,7 @@
-//! `UsdGeomPointInstancer`: each instance's prototype is flattened to world meshes, like any other mesh.
+//! `UsdGeomPointInstancer`: each prototype's static meshes are read once, in the prototype's frame, and every
+//! instance places them as instances of shared object-space meshes (`crate::scene::MeshInstance`, traced
+//! through the two-level hierarchy); a prototype's moving (motion-blurred) meshes are copied to world space
+//! per instance, as any other mesh.
 //!
 //! Read: `prototypes` (relationship, in order), `protoIndices` (int[]), `positions` (point3f[]),
 //! `orientations` (quath[]) or `orientationsf` (quatf[]), `scales` (float3[]), `ids` (int64[]) and
@@ -10,15 +13,16 @@
 use super::values::vec3_array;
 use super::Loader;
 use crate::math::{Mat4, Quat, Vec3};
-use crate::scene::SceneError;
+use crate::geometry::Mesh;
+use crate::scene::{MeshInstance, SceneError, SceneErrorKind};
 use openusd::{sdf, usd};
 use std::collections::HashSet;
 
-/// Most instances one instancer may expand to world meshes (each copies its prototype's triangles).
+/// Most instances one instancer may place.
 pub(super) const MAX_INSTANCES: usize = 1 << 20;
 
 impl Loader<'_> {
-    /// Expands a `PointInstancer` into copies of its prototypes' meshes.
+    /// Places a `PointInstancer`'s prototypes: instances of their static meshes, copies of their moving ones.
     pub(super) fn point_instancer(
         &mut self,
         prim: &usd::Prim,
@@ -83,8 +87,10 @@ impl Loader<'_> {
             .int64_array(prim, "invisibleIds")?
             .into_iter()
             .collect();
-        // Each prototype's meshes, flattened once in the prototype's own frame (its root transform included).
+        // Each prototype's meshes, read once in the prototype's own frame (its root transform included): the
+        // static ones become shared prototypes, the moving ones stay meshes to copy.
         let mut flattened = Vec::with_capacity(prototypes.len());
+        let mut shared = Vec::with_capacity(prototypes.len());
         for proto in &prototypes {
             let proto = self.stage.prim(proto.prim_path().as_str());
             let (meshes, lights) = (self.builder.meshes.len(), self.builder.lights.len());
@@ -96,10 +102,31 @@ impl Loader<'_> {
                     proto.path().as_str()
                 ));
             }
-            flattened.push(self.builder.split_meshes_off(meshes));
+            let (moving, still): (Vec<Mesh>, Vec<Mesh>) = self
+                .builder
+                .split_meshes_off(meshes)
+                .into_iter()
+                .partition(|m| m.motion.is_some());
+            let ids: Vec<(u32, String)> = still
+                .into_iter()
+                .map(|m| {
+                    let name = m.name.clone();
+                    (self.builder.add_prototype(m), name)
+                })
+                .collect();
+            shared.push(ids);
+            flattened.push(moving);
         }
-        // The expanded meshes must fit the memory budget with the rest of the scene's, checked before any copy
-        // is made (each copy is checked again as it is added).
+        // The instance records and the copied meshes must fit the memory budget with the rest of the scene's,
+        // checked before any is made (each is checked again as it is added).
+        let records = indices
+            .iter()
+            .filter_map(|&p| usize::try_from(p).ok().and_then(|p| shared.get(p)))
+            .map(|ids| ids.len() as u64)
+            .sum::<u64>();
+        self.builder
+            .check_instances(format!("{at}: {n} instances"), records)
+            .map_err(|e| SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string())))?;
         let (triangles, vertices) = indices
             .iter()
             .filter_map(|&p| usize::try_from(p).ok().and_then(|p| flattened.get(p)))
@@ -116,9 +143,9 @@ impl Loader<'_> {
             if invisible.contains(&id) {
                 continue;
             }
-            let proto = usize::try_from(indices[i])
+            let p = usize::try_from(indices[i])
                 .ok()
-                .and_then(|p| flattened.get(p))
+                .filter(|&p| p < flattened.len())
                 .ok_or_else(|| {
                     self.error(
                         &at,
@@ -138,7 +165,19 @@ impl Loader<'_> {
             if !m.is_finite() {
                 return Err(self.error(&at, format!("instance {i} has a non-finite transform")));
             }
-            for mesh in proto {
+            for (prototype, name) in &shared[p] {
+                let instance = MeshInstance {
+                    prototype: *prototype,
+                    object_to_world: m,
+                    name: format!("{name}[{i}]"),
+                    asset: self.asset.clone(),
+                    tags: self.tags.clone(),
+                };
+                self.builder.add_instance(instance).map_err(|e| {
+                    SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string()))
+                })?;
+            }
+            for mesh in &flattened[p] {
                 let mut mesh = mesh.clone();
                 mesh.name = format!("{}[{i}]", mesh.name);
                 mesh.transform(&m);
