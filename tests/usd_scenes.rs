@@ -210,7 +210,7 @@ fn gprims_are_tessellated_with_their_xforms_and_materials() {
 }
 
 #[test]
-fn point_instancer_flattens_its_prototypes() {
+fn point_instancer_places_its_prototypes() {
     let b = read_text(
         "instancer",
         "#usda 1.0\n(upAxis = \"Y\")\n\
@@ -227,13 +227,23 @@ fn point_instancer_flattens_its_prototypes() {
              def Sphere \"Ball\" { double radius = 0.5 }\n\
            }\n}\n",
     );
-    // Four instances, one invisible; the prototypes themselves are not rendered.
+    // Four instances, one invisible, of two prototypes read once; the prototypes themselves are not rendered.
+    assert!(b.meshes().is_empty());
+    assert_eq!(b.prototypes().len(), 2);
+    let placed = b.world_meshes();
     assert_eq!(
-        b.meshes().len(),
+        placed.len(),
         3,
         "{:?}",
-        b.meshes().iter().map(|m| &m.name).collect::<Vec<_>>()
+        placed.iter().map(|m| &m.name).collect::<Vec<_>>()
     );
+    let mesh = |_: &SceneBuilder, name: &str| {
+        placed
+            .iter()
+            .find(|m| m.name == name)
+            .unwrap_or_else(|| panic!("no mesh {name}"))
+            .clone()
+    };
     let box0 = mesh(&b, "/I/Protos/Box[0]").bounds();
     assert!(
         close(box0.min, Vec3::new(-0.5, 0.5, -0.5), 1e-5),
@@ -547,8 +557,9 @@ fn normal_maps_decode_with_their_scale_and_bias() {
 
 #[test]
 fn point_instancers_share_one_memory_budget_per_scene() {
-    // Two instancers of 2,000 one-triangle instances each: either fits a budget of 3,000 instances, both together
-    // do not. Before, each instancer was checked on its own and the stage loaded.
+    // Two instancers of 2,000 one-triangle instances each: either fits a budget of 3,000 copies (each instance
+    // record counts `BYTES_PER_INSTANCE`, a little more than a copied triangle), both together do not. Before,
+    // each instancer was checked on its own and the stage loaded.
     let instancer = |name: &str| {
         let positions = vec!["(0, 0, 0)"; 2000].join(", ");
         let indices = vec!["0"; 2000].join(", ");
@@ -578,5 +589,5 @@ fn point_instancers_share_one_memory_budget_per_scene() {
     let one = format!("#usda 1.0\n{}", instancer("A"));
     std::fs::write(&path, one).unwrap();
     let (b, _) = usd::read_with_limits(&path, &limits).unwrap();
-    assert_eq!(b.meshes().len(), 2000);
+    assert_eq!(b.instances().len(), 2000);
 }

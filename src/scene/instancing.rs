@@ -58,12 +58,28 @@ impl SceneBuilder {
     }
 
     internal! {
-        /// Places a prototype, after checking that one more instance record fits the memory budget.
+        /// Places a prototype, after checking that it fits the memory budget: one more instance record, or
+        /// when the prototype's material (already added) emits, the world-space copy it will become.
         pub fn add_instance(
             &mut self,
             instance: MeshInstance,
         ) -> Result<(), crate::limits::OverBudget> {
-            self.check_instances(&instance.name, 1)?;
+            let copy = self
+                .prototypes
+                .get(instance.prototype as usize)
+                .filter(|m| {
+                    let material = self.materials.get(m.material as usize);
+                    material.is_some_and(crate::material::Material::is_emissive)
+                })
+                .map(super::mesh_counts);
+            match copy {
+                Some((triangles, vertices)) => {
+                    self.check_mesh(&instance.name, triangles, vertices)?;
+                    self.triangles = self.triangles.saturating_add(triangles);
+                    self.vertices = self.vertices.saturating_add(vertices);
+                }
+                None => self.check_instances(&instance.name, 1)?,
+            }
             self.instances.push(instance);
             Ok(())
         }

@@ -1276,14 +1276,16 @@ impl Scene {
         self.transparent
     }
 
-    /// The surface object of global triangle index `prim`, as [`SceneNames`] numbers them: its mesh, or for an
-    /// instance's triangle the number of meshes plus the instance's index.
-    pub(crate) fn mesh_of_prim(&self, prim: u32) -> usize {
-        match self.prims.get(prim as usize) {
-            Some(p) => p.0 as usize,
-            None => self
-                .locate_instanced(prim)
-                .map_or(0, |(i, _)| self.meshes.len() + i as usize),
+    internal! {
+        /// The surface object of global triangle index `prim`, as [`SceneNames`] numbers them: its mesh, or for
+        /// an instance's triangle the number of meshes plus the instance's index.
+        pub fn mesh_of_prim(&self, prim: u32) -> usize {
+            match self.prims.get(prim as usize) {
+                Some(p) => p.0 as usize,
+                None => self
+                    .locate_instanced(prim)
+                    .map_or(0, |(i, _)| self.meshes.len() + i as usize),
+            }
         }
     }
 
