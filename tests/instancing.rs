@@ -321,15 +321,15 @@ fn rays_spawned_off_instances_never_rehit_them() {
                 continue;
             };
             let w = nimbus::math::sampling::uniform_sphere(rng.next_2d());
-            let next = scene.intersect(
-                &Ray::new(hit.spawn_origin(w), w),
-                0.0,
-                f32::INFINITY,
-            );
-            let same = next.is_some_and(|h| scene.mesh_of_prim(h.prim) == scene.mesh_of_prim(hit.prim));
+            let next = scene.intersect(&Ray::new(hit.spawn_origin(w), w), 0.0, f32::INFINITY);
+            let same =
+                next.is_some_and(|h| scene.mesh_of_prim(h.prim) == scene.mesh_of_prim(hit.prim));
             let cos = w.dot(hit.geometric_normal);
             if cos > 0.0 {
-                assert!(!same, "{name}: an outward ray re-hit the ellipsoid: {next:?}");
+                assert!(
+                    !same,
+                    "{name}: an outward ray re-hit the ellipsoid: {next:?}"
+                );
             } else if cos < -0.1 {
                 // Not grazing, so the chord to the far side is long.
                 inward += 1;

@@ -7,9 +7,12 @@
 //!
 //! The object-space ray keeps the world ray's parameter: its direction is the transformed (not renormalised)
 //! world direction, so a hit's `t` is the world distance along the world ray, comparable with every other
-//! hit. The transformed origin carries rounding error; as PBRT 4th ed. §6.8.6 does when it transforms a ray,
-//! hits closer than that error's reach along the direction are rejected, so a ray spawned off an instance's
-//! surface cannot re-hit it through the rounding of the transform (see [`InstanceBvh::query`]).
+//! hit. Its origin is computed as `W·(o − c)`, with `c` the instance's world position and `W` the inverse of the
+//! linear part, not as `W·o + w` with `w = −W·c`: far from the world origin the latter cancels two large
+//! terms and loses the digits a ray spawned off the instance's surface depends on, while `o − c` is exact
+//! near the instance. The transformed origin still carries rounding error; as PBRT 4th ed. §6.8.6 does when it
+//! transforms a ray, hits closer than that error's reach along the direction are rejected, so a spawned ray
+//! cannot re-hit the surface it leaves through the rounding of the transform (see [`InstanceBvh::query`]).
 //!
 //! Hits are reported with a primitive index in the hierarchy's own numbering: instance `i`'s triangles are
 //! `first[i] .. first[i] + triangles`, in instance order ([`InstanceBvh::locate`] inverts it). Among hits at
@@ -19,7 +22,7 @@ use super::bvh::{prefetch, PrimRef, Tree, TriangleHierarchy};
 use super::triangle::TriangleHit;
 use super::{Bvh, TooManyTriangles};
 use crate::math::{gamma, Aabb, Mat4, Ray, Vec3};
-use glam::Affine3A;
+use glam::Mat3A;
 
 /// One placement of a prototype given to [`InstanceBvh::build`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,8 +37,10 @@ pub struct Instance {
 /// indices start.
 #[derive(Clone, Copy, Debug)]
 struct Placement {
-    /// World-to-object transform.
-    world_to_object: Affine3A,
+    /// The instance's world position (the translation of its object-to-world transform).
+    position: Vec3,
+    /// The inverse of the object-to-world transform's linear part.
+    world_to_object: Mat3A,
     /// The prototype's hierarchy.
     prototype: u32,
     /// Index of the instance's first triangle in the hierarchy's numbering.
@@ -88,7 +93,7 @@ impl InstanceBvh {
             .filter_map(|(i, inst)| {
                 let proto = prototypes.get(inst.prototype as usize)?;
                 let world = world_box(&proto.bounds(), &inst.object_to_world)?;
-                invertible(&inst.object_to_world)?;
+                inverse_linear(&inst.object_to_world)?;
                 Some(PrimRef::new(world, i as u32))
             })
             .collect();
@@ -99,7 +104,8 @@ impl InstanceBvh {
             .map(|&id| {
                 let inst = &instances[id as usize];
                 Placement {
-                    world_to_object: invertible(&inst.object_to_world).unwrap_or(Affine3A::ZERO),
+                    position: inst.object_to_world.w_axis.truncate(),
+                    world_to_object: inverse_linear(&inst.object_to_world).unwrap_or(Mat3A::ZERO),
                     prototype: inst.prototype,
                     first: first[id as usize],
                 }
@@ -145,14 +151,14 @@ impl InstanceBvh {
     }
 }
 
-/// The affine inverse of `m`, if `m` is finite and invertible with a finite inverse.
-fn invertible(m: &Mat4) -> Option<Affine3A> {
-    let affine = Affine3A::from_mat4(*m);
-    let det = affine.matrix3.determinant();
-    if !(affine.is_finite() && det != 0.0 && det.is_finite()) {
+/// The inverse of the linear part of the affine `m`, if `m` is finite and invertible with a finite inverse.
+fn inverse_linear(m: &Mat4) -> Option<Mat3A> {
+    let linear = Mat3A::from_mat4(*m);
+    let det = linear.determinant();
+    if !(m.is_finite() && det != 0.0 && det.is_finite()) {
         return None;
     }
-    let inverse = affine.inverse();
+    let inverse = linear.inverse();
     inverse.is_finite().then_some(inverse)
 }
 
@@ -169,20 +175,20 @@ fn world_box(object: &Aabb, m: &Mat4) -> Option<Aabb> {
     (b.min.is_finite() && b.max.is_finite()).then_some(b)
 }
 
-/// The ray carried into object space by `w`: origin and direction transformed (the direction not
+/// The ray carried into the object space of `place`: origin `W·(o − c)` and direction `W·d` (not
 /// renormalised, so distances along it stay the world ray's), and the distance below which a hit may be the
-/// rounding of the transformed origin: the per-axis bound `γ(4)·(|W|·|o| + |w_t|)` on the origin's error,
-/// projected on the direction as PBRT 4th ed. §6.8.6 offsets transformed rays (`|d|·e / |d|²`).
+/// rounding of the transformed origin. The subtraction rounds within `γ(1)·|o − c|` and the product within
+/// `γ(3)·|W|·|o − c|`, so `γ(5)·|W|·|o − c|` bounds the origin's error per axis; it is projected on the direction
+/// as PBRT 4th ed. §6.8.6 offsets transformed rays (`|d|·e / |d|²`).
 #[inline(always)]
-fn to_object(w: &Affine3A, ray: &Ray) -> (Ray, f32) {
-    let origin = w.transform_point3(ray.origin);
-    let dir = w.transform_vector3(ray.dir);
-    let m = w.matrix3;
-    let o = ray.origin.abs();
-    let error = (m.x_axis.abs() * o.x + m.y_axis.abs() * o.y + m.z_axis.abs() * o.z
-        + w.translation.abs())
-        * gamma(4.0);
-    let reach = Vec3::from(dir.abs()).dot(Vec3::from(error)) / dir.length_squared();
+fn to_object(place: &Placement, ray: &Ray) -> (Ray, f32) {
+    let w = &place.world_to_object;
+    let v = ray.origin - place.position;
+    let origin = Vec3::from(*w * v);
+    let dir = Vec3::from(*w * ray.dir);
+    let a = v.abs();
+    let error = (w.x_axis.abs() * a.x + w.y_axis.abs() * a.y + w.z_axis.abs() * a.z) * gamma(5.0);
+    let reach = dir.abs().dot(Vec3::from(error)) / dir.length_squared();
     (
         Ray {
             origin,
@@ -210,7 +216,7 @@ impl TriangleHierarchy for InstanceBvh {
             t_max,
             &|i, _, _, t0, t1| {
                 let place = &self.placements[i];
-                let (local, reach) = to_object(&place.world_to_object, ray);
+                let (local, reach) = to_object(place, ray);
                 let proto = &self.prototypes[place.prototype as usize];
                 let numbered = |h: &TriangleHit| TriangleHit {
                     prim: place.first + h.prim,

@@ -968,7 +968,7 @@ impl SceneBuilder {
             None => bvh.bounds(),
         };
         let bounds = match &instanced {
-            Some(i) => bounds.union(&i.bounds()),
+            Some(i) => bounds.union(&instance_bounds(&self.prototypes, &instances, i)),
             None => bounds,
         };
         let bounds = self
@@ -1036,6 +1036,35 @@ impl SceneBuilder {
             warnings: self.warnings,
         })
     }
+}
+
+/// Most vertex transforms spent on the exact world bounds of a scene's instances; past it, the hierarchy's
+/// boxes (each instance's object box transformed, a little looser) bound them.
+const EXACT_INSTANCE_BOUNDS_WORK: u64 = 1 << 24;
+
+/// The world bounds of `instances`: exactly those of their transformed vertices, as the same meshes copied to
+/// world space would have (so that the default camera frames a scene alike whether its meshes are instanced or
+/// not), unless that takes more than [`EXACT_INSTANCE_BOUNDS_WORK`] vertex transforms; then `hierarchy`'s.
+fn instance_bounds(
+    prototypes: &[Mesh],
+    instances: &[MeshInstance],
+    hierarchy: &InstanceBvh,
+) -> Aabb {
+    let work = instances.iter().fold(0u64, |w, i| {
+        w.saturating_add(prototypes[i.prototype as usize].positions.len() as u64)
+    });
+    if work > EXACT_INSTANCE_BOUNDS_WORK {
+        return hierarchy.bounds();
+    }
+    instances.iter().fold(Aabb::EMPTY, |b, i| {
+        let m = &i.object_to_world;
+        prototypes[i.prototype as usize]
+            .positions
+            .iter()
+            .map(|p| m.transform_point3(*p))
+            .filter(|p| p.is_finite())
+            .fold(b, |b, p| b.extend(p))
+    })
 }
 
 /// Radius of a sphere around `bounds` (half its diagonal, at least 1 mm; 1 for empty bounds): the size of the
