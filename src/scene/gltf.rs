@@ -30,8 +30,11 @@
 //! sparse indices are checked as it is read (by hand, not by the crate's reader), material factors when the
 //! material is built. The scene, buffer and image files are read within [`LoadOptions::limits`], and images
 //! decode under it. Animation channels with a target path the crate does not know (`KHR_animation_pointer`)
-//! are removed before it parses the file, with a warning. Each mesh instance's size counts against the
-//! memory budget before the primitive is read ([`SceneBuilder::check_mesh`]), and posing meshes (joint
+//! are removed before it parses the file, with a warning. A static mesh drawn more than once (by several
+//! nodes or by `EXT_mesh_gpu_instancing`) is read once as object-space prototypes and placed as instances in the
+//! two-level BVH (`Loader::place_mesh`); skinned, morphed and moving meshes are copied per node. Each copy's and
+//! prototype's size, and each instance record, counts against the memory budget before it is made
+//! ([`SceneBuilder::check_mesh`]), and posing meshes (joint
 //! matrices once per skin and pose, morph-target and skinned vertices) against the work it allows. A
 //! malformed file is an error naming the element, never a panic.
 

@@ -1,7 +1,8 @@
 //! The scene model (surfaces, materials, textures, lights, camera) and its loaders.
 //!
-//! Loaders fill a [`SceneBuilder`]; [`SceneBuilder::build`] flattens the meshes into one BVH, turns emissive
-//! triangles into area lights and builds the light-selection distribution.
+//! Loaders fill a [`SceneBuilder`]; [`SceneBuilder::build`] flattens the meshes into one BVH (moving ones into a
+//! motion BVH, instances of prototypes into a two-level one), turns emissive triangles into area lights and
+//! builds the light-selection distribution.
 
 mod builder;
 mod camera;
