@@ -184,8 +184,8 @@ fn world_box(object: &Aabb, m: &Mat4) -> Option<Aabb> {
 fn to_object(place: &Placement, ray: &Ray) -> (Ray, f32) {
     let w = &place.world_to_object;
     let v = ray.origin - place.position;
-    let origin = Vec3::from(*w * v);
-    let dir = Vec3::from(*w * ray.dir);
+    let origin = *w * v;
+    let dir = *w * ray.dir;
     let a = v.abs();
     let error = (w.x_axis.abs() * a.x + w.y_axis.abs() * a.y + w.z_axis.abs() * a.z) * gamma(5.0);
     let reach = dir.abs().dot(Vec3::from(error)) / dir.length_squared();
