@@ -340,3 +340,117 @@ fn rays_spawned_off_instances_never_rehit_them() {
         assert!(inward > 500, "{inward}");
     }
 }
+
+/// A sphere with texture coordinates, vertex colours and tangents (w = −1: a mirrored uv mapping) placed by
+/// three transforms (one mirroring, one shearing), as instances and as copies (`SceneBuilder::world_meshes`,
+/// the path every mesh took before instancing): every ray hits the same surface with the same shading frame
+/// (tangents carried to world space), texture coordinates, footprint scale, colour and facing.
+#[test]
+fn instance_hits_shade_like_world_copies() {
+    let mut sphere = Mesh::uv_sphere(Vec3::ZERO, 1.0, 32, 64, 0);
+    let n = sphere.positions.len();
+    sphere.uvs = Some(
+        sphere
+            .positions
+            .iter()
+            .map(|p| nimbus::math::Vec2::new(p.x.atan2(p.z), p.y) * 0.5 + 0.5)
+            .collect(),
+    );
+    sphere.colors = Some(
+        sphere
+            .positions
+            .iter()
+            .map(|p| (p.abs() * 0.8 + 0.1).extend(1.0))
+            .collect(),
+    );
+    sphere.tangents = Some(
+        sphere
+            .normals
+            .iter()
+            .map(|nrm| {
+                Vec3::Y
+                    .cross(*nrm)
+                    .try_normalize()
+                    .unwrap_or(Vec3::X)
+                    .extend(-1.0)
+            })
+            .collect(),
+    );
+    assert_eq!(sphere.tangents.as_ref().unwrap().len(), n);
+    let transforms = [
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(1.5, 0.6, 1.0),
+            Quat::from_rotation_x(0.5),
+            Vec3::new(-2.5, 0.0, 0.0),
+        ),
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(-0.8, 1.0, 1.2),
+            Quat::from_rotation_y(-0.9),
+            Vec3::new(0.0, 0.5, 0.5),
+        ),
+        Mat4::from_translation(Vec3::new(2.5, -0.5, 0.0))
+            * Mat4::from_cols_array(&[
+                1.0, 0.0, 0.0, 0.0, 0.4, 1.0, 0.0, 0.0, 0.0, 0.3, 0.9, 0.0, 0.0, 0.0, 0.0, 1.0,
+            ]),
+    ];
+    let scene_with = |instanced: bool| {
+        let mut b = SceneBuilder::new();
+        b.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+        let proto = b.add_prototype(sphere.clone());
+        for (i, m) in transforms.iter().enumerate() {
+            b.add_instance(MeshInstance {
+                prototype: proto,
+                object_to_world: *m,
+                name: format!("ball{i}"),
+                ..Default::default()
+            })
+            .unwrap();
+        }
+        if instanced {
+            return b.build().unwrap();
+        }
+        let mut copies = SceneBuilder::new();
+        copies.add_material(Material::lambertian("grey", Rgb::splat(0.5)));
+        for mesh in b.world_meshes() {
+            copies.add_mesh(mesh);
+        }
+        copies.build().unwrap()
+    };
+    let (a, b) = (scene_with(true), scene_with(false));
+    assert_eq!((a.instance_count(), b.instance_count()), (3, 0));
+    let mut rng = Rng::new(31, 7);
+    let mut hits = 0;
+    for _ in 0..3000 {
+        let o =
+            Vec3::new(0.0, 0.0, 0.0) + 8.0 * nimbus::math::sampling::uniform_sphere(rng.next_2d());
+        let target = Vec3::new(6.0 * rng.next_f32() - 3.0, 2.0 * rng.next_f32() - 1.0, 0.0);
+        let ray = Ray::new(o, (target - o).normalize());
+        let (ha, hb) = (
+            a.intersect(&ray, 0.0, f32::INFINITY),
+            b.intersect(&ray, 0.0, f32::INFINITY),
+        );
+        let (Some(ha), Some(hb)) = (ha, hb) else {
+            assert_eq!(ha.is_some(), hb.is_some(), "{ray:?}");
+            continue;
+        };
+        hits += 1;
+        let close = |x: Vec3, y: Vec3, tol: f32| x.distance(y) <= tol;
+        assert!((ha.t - hb.t).abs() <= 1e-4 * hb.t, "{} vs {}", ha.t, hb.t);
+        assert_eq!(ha.front_face, hb.front_face);
+        assert!(close(ha.geometric_normal, hb.geometric_normal, 1e-4));
+        for (x, y) in [
+            (ha.shading.n, hb.shading.n),
+            (ha.shading.s, hb.shading.s),
+            (ha.shading.t, hb.shading.t),
+        ] {
+            assert!(close(x, y, 1e-3), "{:?} vs {:?}", ha.shading, hb.shading);
+        }
+        // Barycentrics differ by rounding; a triangle across the atan2 seam stretches uv a lot.
+        assert!(ha.uv.distance(hb.uv) <= 2e-3, "{} vs {}", ha.uv, hb.uv);
+        assert!((ha.uv_per_world - hb.uv_per_world).abs() <= 1e-3 * hb.uv_per_world);
+        assert!(ha.color.distance(hb.color) <= 1e-4);
+        let names = |s: &Scene, prim: u32| s.names().items[s.mesh_of_prim(prim)].object.clone();
+        assert_eq!(names(&a, ha.prim), names(&b, hb.prim));
+    }
+    assert!(hits > 1000, "{hits}");
+}
