@@ -454,3 +454,60 @@ fn instance_hits_shade_like_world_copies() {
     }
     assert!(hits > 1000, "{hits}");
 }
+
+/// Instances of an emissive prototype are copied to world space when the scene is built (area lights are world
+/// triangles): each copy is a light of its own, under its instance's name, and counts as the scene's own
+/// lighting before the build.
+#[test]
+fn emissive_instances_become_area_lights_of_their_own() {
+    let mut b = SceneBuilder::new();
+    let mut glow = Material::lambertian("glow", Rgb::ZERO);
+    glow.emission = Rgb::splat(2.0);
+    let m = b.add_material(glow);
+    let unit = common::quad(
+        [
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ],
+        m,
+    );
+    let proto = b.add_prototype(unit);
+    for (i, x) in [-2.0f32, 2.0].into_iter().enumerate() {
+        b.add_instance(MeshInstance {
+            prototype: proto,
+            object_to_world: Mat4::from_translation(Vec3::new(x, 0.0, 0.0))
+                * Mat4::from_scale(Vec3::new(0.5, 2.0, 1.0)),
+            name: format!("panel{i}"),
+            ..Default::default()
+        })
+        .unwrap();
+    }
+    assert_eq!(b.own_lighting().emissive_meshes, 2);
+    let scene = b.build().unwrap();
+    assert_eq!(
+        scene.instance_count(),
+        0,
+        "emitters are copied, not instanced"
+    );
+    let areas: Vec<_> = scene
+        .lights()
+        .iter()
+        .filter_map(|l| match l {
+            nimbus::light::Light::Area(a) => Some(a),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(areas.len(), 4, "two triangles per panel");
+    // Each panel's triangles lie where its instance placed them, with its scaled area (0.5 × 2 = 1).
+    let area: f32 = areas.iter().map(|a| a.area).sum();
+    assert!((area - 2.0).abs() < 1e-5, "{area}");
+    let emitters: Vec<&str> = scene
+        .names()
+        .emitters
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect();
+    assert_eq!(emitters, ["panel0", "panel1"]);
+}

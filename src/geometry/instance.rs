@@ -14,6 +14,11 @@
 //! transforms a ray, hits closer than that error's reach along the direction are rejected, so a spawned ray
 //! cannot re-hit the surface it leaves through the rounding of the transform (see [`InstanceBvh::query`]).
 //!
+//! `benches/bvh.rs` (64 instances of a 50,880-triangle sphere, rotated and non-uniformly scaled, against the
+//! same 3.26 M triangles flattened into one [`Bvh`]; dev profile on a loaded 2-core machine): 3.9 MiB and 0.04
+//! CPU-seconds to build against 188 MiB and 3.05 s, and 1.25–1.31 against 0.67–0.75 million random closest-hit
+//! rays per CPU-second (the flattened tree's boxes overlap where the instances do).
+//!
 //! Hits are reported with a primitive index in the hierarchy's own numbering: instance `i`'s triangles are
 //! `first[i] .. first[i] + triangles`, in instance order ([`InstanceBvh::locate`] inverts it). Among hits at
 //! exactly the same distance the lowest index wins, as in [`Bvh`].
