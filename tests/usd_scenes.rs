@@ -270,7 +270,7 @@ fn point_instancer_places_its_prototypes() {
 }
 
 #[test]
-fn native_instances_are_expanded_and_prototypes_not_drawn() {
+fn native_instances_share_their_prototype_and_prototypes_are_not_drawn() {
     let b = read_text(
         "native",
         "#usda 1.0\n(upAxis = \"Y\")\n\
@@ -282,20 +282,46 @@ fn native_instances_are_expanded_and_prototypes_not_drawn() {
          def Xform \"B\" ( instanceable = true\n references = </Proto> ) {\n\
            double3 xformOp:translate = (0, 0, 7)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n",
     );
-    let names: Vec<&str> = b.meshes().iter().map(|m| m.name.as_str()).collect();
-    assert_eq!(b.meshes().len(), 2, "{names:?}");
-    let a = b
-        .meshes()
+    // Both instances share one prototype mesh, read once; each is named by its own proxy path.
+    assert_eq!((b.prototypes().len(), b.instances().len()), (1, 2));
+    let placed = b.world_meshes();
+    let mut names: Vec<&str> = placed.iter().map(|m| m.name.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["/A/Tri", "/B/Tri"]);
+    let a = placed
         .iter()
         .find(|m| m.bounds().min.x > 9.0)
         .expect("instance A");
     assert!(close(a.bounds().max, Vec3::new(11.0, 1.0, 0.0), 1e-6));
-    let b2 = b
-        .meshes()
+    let b2 = placed
         .iter()
         .find(|m| m.bounds().min.z > 6.0)
         .expect("instance B");
     assert!(close(b2.bounds().min, Vec3::new(0.0, 0.0, 7.0), 1e-6));
+}
+
+#[test]
+fn native_instances_with_a_light_inside_are_copied() {
+    // A prototype holding a light besides its mesh cannot be shared (lights are world objects): both instances
+    // are read as before, each with its own light and mesh copy.
+    let b = read_text(
+        "native_light",
+        "#usda 1.0\n(upAxis = \"Y\")\n\
+         class Xform \"Proto\" { def Mesh \"Tri\" {\n\
+           point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n\
+           uniform token subdivisionScheme = \"none\"\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2] }\n\
+           def SphereLight \"Bulb\" { float inputs:intensity = 5\n bool treatAsPoint = true } }\n\
+         def Xform \"A\" ( instanceable = true\n references = </Proto> ) {\n\
+           double3 xformOp:translate = (10, 0, 0)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n\
+         def Xform \"B\" ( instanceable = true\n references = </Proto> ) {\n\
+           double3 xformOp:translate = (0, 0, 7)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n",
+    );
+    assert!(b.instances().is_empty() && b.prototypes().is_empty());
+    let mut names: Vec<&str> = b.meshes().iter().map(|m| m.name.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["/A/Tri", "/B/Tri"]);
+    assert_eq!(b.lights().len(), 2);
+    assert!(b.meshes().iter().any(|m| m.bounds().min.x > 9.0));
 }
 
 #[test]

@@ -1,7 +1,9 @@
 //! `UsdGeomPointInstancer`: each prototype's static meshes are read once, in the prototype's frame, and every
 //! instance places them as instances of shared object-space meshes (`crate::scene::MeshInstance`, traced
 //! through the two-level hierarchy); a prototype's moving (motion-blurred) meshes are copied to world space
-//! per instance, as any other mesh.
+//! per instance, as any other mesh. Native instances (`instanceable` prims, which `openusd` composes as instance
+//! proxies of a shared prototype) are placed the same way when their prototype holds only static meshes
+//! (`Loader::native_instance`).
 //!
 //! Read: `prototypes` (relationship, in order), `protoIndices` (int[]), `positions` (point3f[]),
 //! `orientations` (quath[]) or `orientationsf` (quatf[]), `scales` (float3[]), `ids` (int64[]) and
@@ -13,10 +15,28 @@
 use super::values::vec3_array;
 use super::Loader;
 use crate::math::{Mat4, Quat, Vec3};
-use crate::geometry::Mesh;
+use crate::geometry::{CompositingTags, Mesh};
 use crate::scene::{MeshInstance, SceneError, SceneErrorKind};
 use openusd::{sdf, usd};
 use std::collections::HashSet;
+
+/// What a native instance's prototype became the first time an instance of it was read.
+pub(super) enum NativePrototype {
+    /// Static meshes only: prototypes, each with its mesh's path and asset below the instance prim (the part
+    /// after the instance's own path, or the whole path when it lies elsewhere) and its own compositing tags.
+    Shared(Vec<SharedMesh>),
+    /// Lights, cameras, volumes or moving meshes inside: each instance's subtree is read and copied as before.
+    Copied,
+}
+
+/// One static mesh of a native instance prototype.
+#[derive(Clone)]
+pub(super) struct SharedMesh {
+    prototype: u32,
+    name_suffix: String,
+    asset_suffix: Option<String>,
+    tags: CompositingTags,
+}
 
 /// Most instances one instancer may place.
 pub(super) const MAX_INSTANCES: usize = 1 << 20;
@@ -185,6 +205,117 @@ impl Loader<'_> {
             }
         }
         Ok(())
+    }
+
+    /// Places the native instance `prim` (at `world`, under the inherited material `binding`) as instances of
+    /// its prototype's static meshes, read once per prototype and binding; returns whether it did. `false`
+    /// (the caller reads the subtree as any other) for a prim that is not an instance, and for a prototype that
+    /// holds lights, cameras, volumes or moving meshes: those are copied per instance, as before.
+    pub(super) fn native_instance(
+        &mut self,
+        prim: &usd::Prim,
+        world: &Mat4,
+        binding: &Option<String>,
+        depth: usize,
+    ) -> Result<bool, SceneError> {
+        let at = prim.path().as_str().to_owned();
+        if !prim
+            .is_instance()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?
+        {
+            return Ok(false);
+        }
+        let Some(proto) = prim
+            .prototype()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?
+        else {
+            return Ok(false);
+        };
+        let key = (proto.as_str().to_owned(), binding.clone());
+        if !self.native.contains_key(&key) {
+            let read = self.read_native_prototype(prim, binding, depth)?;
+            self.native.insert(key.clone(), read);
+        }
+        let NativePrototype::Shared(meshes) = &self.native[&key] else {
+            return Ok(false);
+        };
+        for mesh in meshes.clone() {
+            let instance = MeshInstance {
+                prototype: mesh.prototype,
+                object_to_world: *world,
+                name: format!("{at}{}", mesh.name_suffix),
+                asset: match &mesh.asset_suffix {
+                    Some(suffix) => format!("{at}{suffix}"),
+                    None => self.asset.clone(),
+                },
+                tags: mesh.tags.or(&self.tags),
+            };
+            self.builder.add_instance(instance).map_err(|e| {
+                SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string()))
+            })?;
+        }
+        Ok(true)
+    }
+
+    /// Reads the subtree of the first instance `prim` of a prototype in the instance's own frame: its static
+    /// meshes become prototypes ([`NativePrototype::Shared`]); if anything else was added (a light, a camera,
+    /// a medium, a moving mesh), it is all taken back and the prototype is [`NativePrototype::Copied`].
+    fn read_native_prototype(
+        &mut self,
+        prim: &usd::Prim,
+        binding: &Option<String>,
+        depth: usize,
+    ) -> Result<NativePrototype, SceneError> {
+        let at = prim.path().as_str().to_owned();
+        let b = &self.builder;
+        let before = (
+            b.meshes.len(),
+            b.lights.len(),
+            b.cameras.len(),
+            b.media.len(),
+            b.camera.is_some(),
+        );
+        let outer = (self.tags.clone(), self.asset.clone());
+        // The meshes keep only the tags set inside the prototype; each instance adds its own.
+        self.tags = CompositingTags::default();
+        let mut visited = Ok(());
+        for child in self.children(prim)? {
+            visited = self.visit(&child, Mat4::IDENTITY, binding.clone(), depth + 1);
+            if visited.is_err() {
+                break;
+            }
+        }
+        (self.tags, self.asset) = outer;
+        visited?;
+        let meshes = self.builder.split_meshes_off(before.0);
+        let b = &mut self.builder;
+        let others = b.lights.len() != before.1 || b.cameras.len() != before.2 || b.media.len() != before.3;
+        if others || meshes.iter().any(|m| m.motion.is_some()) {
+            b.truncate_lights(before.1);
+            b.cameras.truncate(before.2);
+            b.media.truncate(before.3);
+            b.media_tags.truncate(before.3);
+            if !before.4 {
+                b.camera = None;
+            }
+            return Ok(NativePrototype::Copied);
+        }
+        let shared = meshes
+            .into_iter()
+            .map(|mesh| {
+                let suffix = |path: &str| path.strip_prefix(at.as_str()).map(str::to_owned);
+                let name_suffix = suffix(&mesh.name).unwrap_or_else(|| mesh.name.clone());
+                let asset_suffix = suffix(&mesh.asset);
+                let tags = mesh.tags.clone();
+                SharedMesh {
+                    prototype: self.builder.add_prototype(mesh),
+                    name_suffix,
+                    asset_suffix,
+                    tags,
+                }
+            })
+            .collect();
+        Ok(NativePrototype::Shared(shared))
     }
 
     /// `orientations` (quath[]) or `orientationsf` (quatf[]), normalised; empty when neither is authored.
