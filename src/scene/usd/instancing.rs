@@ -32,9 +32,14 @@ pub(super) enum NativePrototype {
 /// One static mesh of a native instance prototype.
 #[derive(Clone)]
 pub(super) struct SharedMesh {
+    /// The prototype's index in the builder.
     prototype: u32,
+    /// The mesh's path after the instance prim's (`/Tri` of `/A/Tri`).
     name_suffix: String,
+    /// Its asset's path after the instance prim's, when the asset lies inside the instance; `None`: each
+    /// instance's own asset.
     asset_suffix: Option<String>,
+    /// The compositing tags set inside the prototype (each instance's own apply where these are unset).
     tags: CompositingTags,
 }
 
