@@ -1,13 +1,14 @@
-//! BVH benchmark: build time, memory and ray throughput on a procedural ~1M-triangle bumpy sphere.
+//! BVH benchmark: build time, memory and ray throughput on a procedural ~1M-triangle bumpy sphere; then a scene
+//! of 64 instances of a 51 k-triangle sphere, as a two-level `InstanceBvh` and flattened into one `Bvh`.
 //!
 //! Run with `cargo bench --bench bvh`. Rays are generated up front; each figure is the best of a few runs
 //! of the whole ray set on a rayon pool with the given number of threads. Throughput is given per second of
 //! wall time and per second of CPU time summed over threads (steadier on a shared machine; with two
 //! threads it is per-core throughput, so the wall figure shows the scaling).
 
-use nimbus::geometry::{Bvh, TriangleHierarchy};
+use nimbus::geometry::{Bvh, Instance, InstanceBvh, TriangleHierarchy};
 use nimbus::math::sampling::uniform_sphere;
-use nimbus::math::{Ray, Rng, Vec3};
+use nimbus::math::{Mat4, Quat, Ray, Rng, Vec3};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -116,6 +117,126 @@ fn time<R>(reps: usize, mut f: impl FnMut() -> R) -> (f64, Option<f64>, R) {
     (wall, cpu, out.expect("at least one repetition"))
 }
 
+/// Mrays per second of wall time and per CPU-second, and the hit fraction, of `query` over `rays` on
+/// `threads` threads (best of 3).
+fn throughput(
+    h: &(impl TriangleHierarchy + Sync),
+    rays: &[Ray],
+    query: &str,
+    threads: usize,
+) -> (f64, f64, f64) {
+    let p = pool(threads);
+    let (secs, cpu, hits) = time(3, || {
+        p.install(|| {
+            rays.par_chunks(1024)
+                .map(|chunk| {
+                    chunk
+                        .iter()
+                        .filter(|r| match query {
+                            "closest" => h.intersect(r, 0.0, f32::INFINITY).is_some(),
+                            _ => h.occluded(r, 0.0, f32::INFINITY),
+                        })
+                        .count()
+                })
+                .sum::<usize>()
+        })
+    });
+    let mrays = |s: f64| rays.len() as f64 / s / 1e6;
+    (
+        mrays(secs),
+        cpu.map_or(f64::NAN, mrays),
+        hits as f64 / rays.len() as f64,
+    )
+}
+
+/// 64 instances of one bumpy sphere on a 4×4×4 lattice, rotated and non-uniformly scaled: the two-level
+/// hierarchy against the same triangles flattened into one hierarchy (build, memory, rays).
+fn instanced_scene(rng: &mut Rng) {
+    let proto = bumpy_sphere(160, 160, rng);
+    let instances: Vec<Instance> = (0..64)
+        .map(|i| {
+            let at = Vec3::new((i % 4) as f32, ((i / 4) % 4) as f32, (i / 16) as f32) * 3.0;
+            let axis = uniform_sphere(rng.next_2d());
+            let scale = Vec3::new(0.8 + rng.next_f32(), 0.8 + rng.next_f32(), 0.8);
+            Instance {
+                prototype: 0,
+                object_to_world: Mat4::from_scale_rotation_translation(
+                    scale,
+                    Quat::from_axis_angle(axis, 3.0 * rng.next_f32()),
+                    at,
+                ),
+            }
+        })
+        .collect();
+    let flat: Vec<[Vec3; 3]> = instances
+        .iter()
+        .flat_map(|i| {
+            proto
+                .iter()
+                .map(move |t| t.map(|v| i.object_to_world.transform_point3(v)))
+        })
+        .collect();
+    println!();
+    println!(
+        "instanced scene: 64 instances of a {}-triangle sphere ({} triangles flattened)",
+        proto.len(),
+        flat.len()
+    );
+    let p = pool(2);
+    let protos = vec![proto];
+    let (ib, icpu, inst) = time(2, || {
+        p.install(|| InstanceBvh::build(&protos, &instances).expect("within the limits"))
+    });
+    let (fb, fcpu, flat_bvh) = time(2, || {
+        p.install(|| Bvh::build(&flat).expect("within the triangle limit"))
+    });
+    let mib = |b: usize| b as f64 / (1 << 20) as f64;
+    println!(
+        "{:<12} {:>12} {:>12} {:>11}",
+        "hierarchy", "build wall s", "build CPU s", "memory MiB"
+    );
+    println!(
+        "{:<12} {:>12.3} {:>12.3} {:>11.1}",
+        "two-level",
+        ib,
+        icpu.unwrap_or(f64::NAN),
+        mib(inst.memory_bytes())
+    );
+    println!(
+        "{:<12} {:>12.3} {:>12.3} {:>11.1}",
+        "flattened",
+        fb,
+        fcpu.unwrap_or(f64::NAN),
+        mib(flat_bvh.memory_bytes())
+    );
+    let b = flat_bvh.bounds();
+    let random: Vec<Ray> = (0..1 << 18)
+        .map(|_| {
+            let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            Ray::new(b.min + u * b.extent(), uniform_sphere(rng.next_2d()))
+        })
+        .collect();
+    println!(
+        "{:<12} {:<9} {:>7} {:>14} {:>18} {:>9}",
+        "hierarchy", "query", "threads", "Mrays/s wall", "Mrays/CPU-second", "hit frac"
+    );
+    for query in ["closest", "occluded"] {
+        // Alternated, so that both see the same machine load.
+        for _ in 0..2 {
+            let rows = [
+                ("two-level", throughput(&inst, &random, query, 1)),
+                ("flattened", throughput(&flat_bvh, &random, query, 1)),
+            ];
+            for (name, (wall, cpu, hits)) in rows {
+                println!(
+                    "{:<12} {:<9} {:>7} {:>14.2} {:>18.2} {:>9.3}",
+                    name, query, 1, wall, cpu, hits
+                );
+            }
+        }
+    }
+}
+
 fn main() {
     let mut rng = Rng::new(2024, 1);
     let tris = bumpy_sphere(708, 708, &mut rng);
@@ -183,4 +304,5 @@ fn main() {
             }
         }
     }
+    instanced_scene(&mut rng);
 }

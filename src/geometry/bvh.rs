@@ -562,7 +562,6 @@ impl Bvh {
     }
 
     /// Number of triangles given to [`Bvh::build`], including any left out as non-finite.
-    #[cfg(any(test, feature = "testing"))]
     pub fn triangle_count(&self) -> usize {
         self.tree.input_count
     }
@@ -636,7 +635,10 @@ impl TriangleHierarchy for Bvh {
             ray,
             t_min,
             t_max,
-            &|i, r, t0, t1| intersect_triangle(r, &self.triangles[i], t0, t1),
+            &|i, prim, r, t0, t1| {
+                intersect_triangle(r, &self.triangles[i], t0, t1)
+                    .map(|(t, b1, b2)| TriangleHit { t, prim, b1, b2 })
+            },
             &|i| prefetch(&self.triangles[i] as *const [Vec3; 3] as *const i8),
             accept,
         )
@@ -702,14 +704,15 @@ impl Tree {
     }
 
     /// The closest (or with `ANY_HIT` the first found) hit with `t_min <= t <= t_max` that `accept` keeps;
-    /// `leaf(i, ray, t0, t1)` intersects primitive `i` of the leaf order, `prefetch_leaf(i)` starts loading it.
+    /// `leaf(i, id, ray, t0, t1)` intersects primitive `i` of the leaf order (input index `id`) and reports the
+    /// hit with the primitive index it stands for, `prefetch_leaf(i)` starts loading it.
     #[inline(always)]
     pub(super) fn query<const ANY_HIT: bool>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        leaf: &impl Fn(usize, &WatertightRay, f32, f32) -> Option<(f32, f32, f32)>,
+        leaf: &impl Fn(usize, u32, &WatertightRay, f32, f32) -> Option<TriangleHit>,
         prefetch_leaf: &impl Fn(usize),
         accept: &impl Fn(&TriangleHit) -> bool,
     ) -> Option<TriangleHit> {
@@ -731,7 +734,7 @@ impl Tree {
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        leaf: &impl Fn(usize, &WatertightRay, f32, f32) -> Option<(f32, f32, f32)>,
+        leaf: &impl Fn(usize, u32, &WatertightRay, f32, f32) -> Option<TriangleHit>,
         prefetch_leaf: &impl Fn(usize),
         accept: &impl Fn(&TriangleHit) -> bool,
     ) -> Option<TriangleHit> {
@@ -796,9 +799,9 @@ impl Tree {
                     break;
                 }
                 for (i, &prim) in self.prim_ids[child..child + count].iter().enumerate() {
-                    if let Some((t, b1, b2)) = leaf(child + i, &r.tri, t_min, best_t) {
-                        let hit = TriangleHit { t, prim, b1, b2 };
-                        if (t < best_t || best.is_none_or(|b| prim < b.prim)) && accept(&hit) {
+                    if let Some(hit) = leaf(child + i, prim, &r.tri, t_min, best_t) {
+                        let t = hit.t;
+                        if (t < best_t || best.is_none_or(|b| hit.prim < b.prim)) && accept(&hit) {
                             if ANY_HIT {
                                 return Some(hit);
                             }

@@ -1,5 +1,6 @@
-//! World-space triangle meshes. Loaders flatten instances: each node's mesh is transformed to world space once,
-//! so the BVH and the integrator see one list of triangles.
+//! Triangle meshes: world-space ones (each node's mesh transformed to world space once, so the BVH and the
+//! integrator see one list of triangles), and the object-space prototypes that instances place (see
+//! `crate::scene::MeshInstance`), which keep their own coordinates and are traced through an `InstanceBvh`.
 
 use super::motion::{lerp, MotionSteps, MovingTriangle};
 use super::CompositingTags;
@@ -7,7 +8,7 @@ use super::CompositingTags;
 use crate::math::Aabb;
 use crate::math::{Mat4, Vec2, Vec3, Vec4};
 
-/// A triangle mesh in world space with per-vertex attributes.
+/// A triangle mesh with per-vertex attributes: in world space, or in object space as an instance prototype.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
     /// Name from the scene file (node or mesh name), for messages and as its Cryptomatte object name.

@@ -1,7 +1,8 @@
-//! Surface geometry: world-space triangle meshes, the watertight ray–triangle test, the bounding volume
+//! Surface geometry: world-space triangle meshes, instances of object-space ones (a two-level hierarchy), the watertight ray–triangle test, the bounding volume
 //! hierarchies over static and moving triangles, and the robust spawning of rays off surfaces.
 
 mod bvh;
+mod instance;
 mod mesh;
 mod motion;
 mod spawn;
@@ -11,6 +12,7 @@ mod tangents;
 mod triangle;
 
 pub use bvh::{Bvh, TooManyTriangles, TriangleHierarchy};
+pub use instance::{Instance, InstanceBvh};
 pub use mesh::{Mesh, MeshMotion};
 pub use motion::{MotionBvh, MotionSteps};
 #[cfg(feature = "testing")]

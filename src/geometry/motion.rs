@@ -183,12 +183,12 @@ impl TriangleHierarchy for MotionBvh {
             ray,
             t_min,
             t_max,
-            &|i, r, t0, t1| {
+            &|i, prim, r, t0, t1| {
                 let (steps, first) = self.prims[i];
                 let first = first as usize;
                 let count = steps.count as usize;
                 let tri = interpolate(steps, &self.vertices[first..first + count], time);
-                intersect_triangle(r, &tri, t0, t1)
+                intersect_triangle(r, &tri, t0, t1).map(|(t, b1, b2)| TriangleHit { t, prim, b1, b2 })
             },
             &|i| {
                 let first = self.prims[i].1 as usize;

@@ -30,8 +30,11 @@
 //! sparse indices are checked as it is read (by hand, not by the crate's reader), material factors when the
 //! material is built. The scene, buffer and image files are read within [`LoadOptions::limits`], and images
 //! decode under it. Animation channels with a target path the crate does not know (`KHR_animation_pointer`)
-//! are removed before it parses the file, with a warning. Each mesh instance's size counts against the
-//! memory budget before the primitive is read ([`SceneBuilder::check_mesh`]), and posing meshes (joint
+//! are removed before it parses the file, with a warning. A static mesh drawn more than once (by several
+//! nodes or by `EXT_mesh_gpu_instancing`) is read once as object-space prototypes and placed as instances in the
+//! two-level BVH (`Loader::place_mesh`); skinned, morphed and moving meshes are copied per node. Each copy's and
+//! prototype's size, and each instance record, counts against the memory budget before it is made
+//! ([`SceneBuilder::check_mesh`]), and posing meshes (joint
 //! matrices once per skin and pose, morph-target and skinned vertices) against the work it allows. A
 //! malformed file is an error naming the element, never a panic.
 
@@ -237,6 +240,8 @@ pub fn load_slice(
         work: WorkBudget::new(&options.limits),
         variant,
         variant_count: variants.len(),
+        mesh_users: mesh_users(&document),
+        prototypes: HashMap::new(),
     };
     loader.builder.warnings.append(&mut warnings);
     let scene = document
@@ -256,6 +261,23 @@ pub fn load_slice(
 }
 
 type JsonParse = (gltf::json::Root, Option<Vec<u8>>, SkippedChannels);
+
+/// A mesh's name for messages and as its Cryptomatte object name: its own, else `mesh N`.
+fn mesh_name(mesh: &gltf::Mesh) -> String {
+    mesh.name()
+        .map_or_else(|| format!("mesh {}", mesh.index()), |n| one_line(n, QUOTE))
+}
+
+/// How many nodes of the document draw each mesh, by mesh index.
+fn mesh_users(document: &gltf::Document) -> Vec<u32> {
+    let mut users = vec![0u32; document.meshes().len()];
+    for node in document.nodes() {
+        if let Some(n) = node.mesh().and_then(|m| users.get_mut(m.index())) {
+            *n = n.saturating_add(1);
+        }
+    }
+    users
+}
 
 fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
     if bytes.starts_with(b"glTF") {
@@ -369,6 +391,10 @@ struct Loader<'a> {
     variant: Option<usize>,
     /// How many variants the file declares.
     variant_count: usize,
+    /// How many nodes draw each mesh, by mesh index: a static mesh drawn more than once is instanced.
+    mesh_users: Vec<u32>,
+    /// The prototypes (one per triangle primitive) of each instanced mesh, by mesh index, read once.
+    prototypes: HashMap<usize, Rc<[u32]>>,
 }
 
 impl Loader<'_> {
@@ -419,13 +445,16 @@ impl Loader<'_> {
             asset: outer.asset.clone(),
         };
         if let Some(mesh) = node.mesh() {
-            match self.instances(&node)? {
-                Some(instances) => {
-                    for instance in &instances {
-                        self.load_mesh(&node, mesh.clone(), &world, instance, &context)?;
-                    }
+            let instances = self.instances(&node)?;
+            let placements = instances.as_deref().unwrap_or(&[Mat4::IDENTITY]);
+            if self.instanceable(&node, &mesh, &world, instances.is_some()) {
+                for placement in placements {
+                    self.place_mesh(&node, &mesh, &(world * *placement), &context)?;
                 }
-                None => self.load_mesh(&node, mesh, &world, &Mat4::IDENTITY, &context)?,
+            } else {
+                for placement in placements {
+                    self.load_mesh(&node, mesh.clone(), &world, placement, &context)?;
+                }
             }
         }
         if let Some(camera) = node.camera() {
@@ -630,8 +659,8 @@ impl Loader<'_> {
 
     /// `EXT_mesh_gpu_instancing` on `node`: one matrix per instance, T·R·S from its `TRANSLATION`, `ROTATION`
     /// (a unit quaternion) and `SCALE` accessors (each optional, all of one count; the extension's
-    /// specification), placed in the node's frame; `None` without the extension. The instances are loaded as
-    /// copies of the mesh, each counted against the memory budget.
+    /// specification), placed in the node's frame; `None` without the extension. A static mesh's instances
+    /// share its prototypes ([`Self::place_mesh`]); a skinned, morphed or moving one is copied per instance.
     fn instances(&self, node: &gltf::Node) -> Result<Option<Vec<Mat4>>, SceneError> {
         let Some(ext) = node.extension_value("EXT_mesh_gpu_instancing") else {
             return Ok(None);
@@ -698,6 +727,110 @@ impl Loader<'_> {
         ))
     }
 
+    /// Whether `node`'s `mesh` at `world` becomes instances of shared prototypes rather than world-space
+    /// copies: when the mesh is drawn more than once (by several nodes, or by `EXT_mesh_gpu_instancing`) and
+    /// is static: no skin, no morph targets, and (under a shutter) the same world matrix at every motion step.
+    fn instanceable(
+        &self,
+        node: &gltf::Node,
+        mesh: &gltf::Mesh,
+        world: &Mat4,
+        gpu_instanced: bool,
+    ) -> bool {
+        let reused = gpu_instanced || self.mesh_users.get(mesh.index()).is_some_and(|&n| n > 1);
+        let deformed = node.skin().is_some()
+            || mesh
+                .primitives()
+                .any(|p| p.morph_targets().next().is_some());
+        let moving = self
+            .motion
+            .as_ref()
+            .is_some_and(|m| m.worlds.iter().any(|w| w[node.index()] != *world));
+        reused && !deformed && !moving
+    }
+
+    /// Places `mesh` at `world` as instances of its prototypes (one per triangle primitive, read the first
+    /// time the mesh is placed and counted once against the memory budget), each instance named as a
+    /// flattened copy would be (the node's name, else the mesh's) with the node's asset and tags.
+    fn place_mesh(
+        &mut self,
+        node: &gltf::Node,
+        mesh: &gltf::Mesh,
+        world: &Mat4,
+        context: &NodeContext,
+    ) -> Result<(), SceneError> {
+        let prototypes = match self.prototypes.get(&mesh.index()) {
+            Some(p) => p.clone(),
+            None => {
+                let p = self.read_prototypes(node, mesh)?;
+                self.prototypes.insert(mesh.index(), p.clone());
+                p
+            }
+        };
+        let name = node.name().map_or_else(|| mesh_name(mesh), str::to_owned);
+        for &prototype in prototypes.iter() {
+            let instance = super::MeshInstance {
+                prototype,
+                object_to_world: *world,
+                name: name.clone(),
+                asset: context.asset.clone(),
+                tags: context.tags.clone(),
+            };
+            self.builder
+                .add_instance(instance)
+                .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
+        }
+        Ok(())
+    }
+
+    /// Reads the triangle primitives of `mesh` (first placed by `node`) as object-space prototypes with
+    /// their materials, each checked against the memory budget first; returns their indices.
+    fn read_prototypes(
+        &mut self,
+        node: &gltf::Node,
+        mesh: &gltf::Mesh,
+    ) -> Result<Rc<[u32]>, SceneError> {
+        let mesh_name = mesh_name(mesh);
+        let mut ids = Vec::new();
+        for primitive in mesh.primitives() {
+            let what = format!("{mesh_name}, primitive {}", primitive.index());
+            let mode = primitive.mode();
+            if !matches!(
+                mode,
+                gltf::mesh::Mode::Triangles
+                    | gltf::mesh::Mode::TriangleStrip
+                    | gltf::mesh::Mode::TriangleFan
+            ) {
+                self.builder.warnings.push(format!(
+                    "{what}: {mode:?} primitives are not triangles; skipped"
+                ));
+                continue;
+            }
+            let (triangles, vertices) = primitive_size(&primitive);
+            self.builder
+                .check_mesh(
+                    format_args!("{what} on node {}", node.index()),
+                    triangles,
+                    vertices,
+                )
+                .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
+            let mut m = self.read_primitive(&primitive, &what)?;
+            if m.normals.is_empty() {
+                m.generate_normals();
+            }
+            m.name.clone_from(&mesh_name);
+            m.material = match self.variant_material(&primitive, &what)? {
+                Some(i) => {
+                    let material = self.document.materials().nth(i).expect("index checked");
+                    self.material(material)?
+                }
+                None => self.material(primitive.material())?,
+            };
+            ids.push(self.builder.add_prototype(m));
+        }
+        Ok(ids.into())
+    }
+
     /// Loads a node's mesh: each triangle primitive's attributes, morphed by the pose's weights, then posed
     /// by the node's skin or placed by the node's world matrix (times `instance`, an `EXT_mesh_gpu_instancing`
     /// instance's own, else the identity). Under a shutter, the same is done at each motion step, and a mesh
@@ -712,9 +845,7 @@ impl Loader<'_> {
         context: &NodeContext,
     ) -> Result<(), SceneError> {
         let world = &(*node_world * *instance);
-        let mesh_name = mesh
-            .name()
-            .map_or_else(|| format!("mesh {}", mesh.index()), |n| one_line(n, QUOTE));
+        let mesh_name = mesh_name(&mesh);
         if node.skin().is_some() && !std::mem::replace(&mut self.skin_warned, true) {
             self.builder.warnings.push(
                 "skinned meshes are posed at their rest pose (the joints' own node transforms); animations are not played".into(),

@@ -1,7 +1,8 @@
 //! The scene model (surfaces, materials, textures, lights, camera) and its loaders.
 //!
-//! Loaders fill a [`SceneBuilder`]; [`SceneBuilder::build`] flattens the meshes into one BVH, turns emissive
-//! triangles into area lights and builds the light-selection distribution.
+//! Loaders fill a [`SceneBuilder`]; [`SceneBuilder::build`] flattens the meshes into one BVH (moving ones into a
+//! motion BVH, instances of prototypes into a two-level one), turns emissive triangles into area lights and
+//! builds the light-selection distribution.
 
 mod builder;
 mod camera;
@@ -11,6 +12,7 @@ mod gltf_accessors;
 mod gltf_animation;
 mod gltf_check;
 mod gltf_deform;
+mod instancing;
 mod names;
 internal! {
     pub mod obj;
@@ -18,6 +20,7 @@ internal! {
     pub use builder::BUILDER_PATH;
     pub use camera::{blender_focal_length, CameraMotion, CAMERA_KEYS};
     pub use names::{Emitter, LightTag, MediumTag, SceneNames, ENVIRONMENT_NAME};
+    pub use instancing::{MeshInstance, BYTES_PER_INSTANCE};
 }
 pub use camera::{Camera, LensError, NamedCamera, Projection, ThinLens, UnknownCamera};
 #[cfg(feature = "testing")]
@@ -26,12 +29,13 @@ pub use names::CryptoNames;
 pub use crate::volume::{DensityError, MissingFrame, VolumeError};
 pub use error::{SceneError, SceneErrorKind};
 
-use crate::geometry::TriangleHit;
-use crate::geometry::{Bvh, Mesh, MotionBvh, SurfacePoint, TriangleHierarchy};
+use crate::geometry::{Bvh, InstanceBvh, Mesh, MotionBvh, SurfacePoint, TriangleHierarchy};
+use crate::geometry::{Instance, TriangleHit};
 use crate::light::{AreaLight, EnvironmentLight, Light, LightBvh, LightSampler};
 use crate::material::{AlphaMode, Material, ShadingPoint, TexCoord, Texture};
 use crate::math::{hash_to_unit, Aabb, Frame, Ray, Rgb, Vec2, Vec3, Vec4};
 use crate::volume::Medium;
+use names::SurfaceObject;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
@@ -277,6 +281,10 @@ pub fn load_builder(path: &Path, options: &LoadOptions) -> Result<SceneBuilder, 
 #[derive(Default)]
 pub struct SceneBuilder {
     meshes: Vec<Mesh>,
+    /// Object-space meshes that `instances` place.
+    prototypes: Vec<Mesh>,
+    /// Placements of `prototypes`, each with its own identity.
+    instances: Vec<MeshInstance>,
     materials: Vec<Material>,
     textures: Vec<Texture>,
     /// Punctual lights and the environment (area lights are added by `build`).
@@ -299,9 +307,9 @@ pub struct SceneBuilder {
     transparent: bool,
     /// The load's memory budget, which the scene's meshes must fit (see [`SceneBuilder::check_mesh`]).
     limits: crate::limits::Limits,
-    /// Triangles in `meshes`.
+    /// Triangles in `meshes` and `prototypes`.
     triangles: u64,
-    /// Vertices in `meshes`, counted once more for each motion step.
+    /// Vertices in `meshes` and `prototypes`, counted once more for each motion step.
     vertices: u64,
 }
 
@@ -326,11 +334,13 @@ impl SceneBuilder {
     ) -> Result<(), crate::limits::OverBudget> {
         let triangles = self.triangles.saturating_add(triangles);
         let vertices = self.vertices.saturating_add(vertices);
+        let instances = self.instances.len() as u64;
         self.limits.check(
             format_args!(
-                "{what}: the scene's meshes with it ({triangles} triangles, {vertices} vertices)"
+                "{what}: the scene's meshes with it ({triangles} triangles, {vertices} vertices, {instances} instances)"
             ),
-            mesh_bytes(triangles, vertices),
+            mesh_bytes(triangles, vertices)
+                .saturating_add(instances.saturating_mul(BYTES_PER_INSTANCE)),
         )
     }
 
@@ -564,14 +574,17 @@ impl SceneBuilder {
     /// The scene's own light sources by kind, as [`Self::has_own_lighting`] counts them.
     pub fn own_lighting(&self) -> OwnLighting {
         let emitting_meshes = |textured: bool| {
-            self.meshes
+            let emits = |mesh: &Mesh| {
+                self.materials
+                    .get(mesh.material as usize)
+                    .is_some_and(|m| m.is_emissive() && m.emission_texture.is_some() == textured)
+            };
+            // An emissive prototype's instances become meshes of their own when the scene is built.
+            let instances = self
+                .instances
                 .iter()
-                .filter(|mesh| {
-                    self.materials.get(mesh.material as usize).is_some_and(|m| {
-                        m.is_emissive() && m.emission_texture.is_some() == textured
-                    })
-                })
-                .count()
+                .filter(|i| self.prototypes.get(i.prototype as usize).is_some_and(emits));
+            self.meshes.iter().filter(|m| emits(m)).count() + instances.count()
         };
         OwnLighting {
             punctual: self
@@ -665,7 +678,7 @@ impl SceneBuilder {
             |what: String| SceneError::new(BUILDER_PATH, SceneErrorKind::InvalidReference(what));
         let malformed =
             |what: String| SceneError::new(BUILDER_PATH, SceneErrorKind::Malformed(what));
-        for mesh in &self.meshes {
+        for mesh in self.meshes.iter().chain(&self.prototypes) {
             if mesh.material as usize >= self.materials.len() {
                 return Err(invalid(format!(
                     "mesh '{}' uses material {}, but there are {} materials",
@@ -682,7 +695,7 @@ impl SceneBuilder {
                 )));
             }
         }
-        for mesh in &self.meshes {
+        for mesh in self.meshes.iter().chain(&self.prototypes) {
             let Some(m) = &mesh.motion else { continue };
             let count = m.steps.count as usize;
             let consistent = count >= 2
@@ -708,7 +721,7 @@ impl SceneBuilder {
         }
         // After the motion steps, so that a short step is named as such rather than as the normals that could
         // not be generated for it.
-        for mesh in &self.meshes {
+        for mesh in self.meshes.iter().chain(&self.prototypes) {
             let n = mesh.positions.len();
             let lengths_match = mesh.normals.len() == n
                 && mesh.uvs.as_ref().is_none_or(|u| u.len() == n)
@@ -751,11 +764,27 @@ impl SceneBuilder {
                 )));
             }
         }
-        for mesh in &self.meshes {
+        for mesh in self.meshes.iter().chain(&self.prototypes) {
             if !mesh.positions.iter().all(|p| p.is_finite()) {
                 return Err(malformed(format!(
                     "mesh '{}' has a non-finite position",
                     mesh.name
+                )));
+            }
+        }
+        for (i, instance) in self.instances.iter().enumerate() {
+            if instance.prototype as usize >= self.prototypes.len() {
+                return Err(invalid(format!(
+                    "instance {i} '{}' places prototype {}, but there are {} prototypes",
+                    instance.name,
+                    instance.prototype,
+                    self.prototypes.len()
+                )));
+            }
+            if !instance.object_to_world.is_finite() {
+                return Err(malformed(format!(
+                    "instance {i} '{}' has a non-finite transform",
+                    instance.name
                 )));
             }
         }
@@ -790,23 +819,42 @@ impl SceneBuilder {
     /// `BYTES_PER_TRIANGLE` and `BYTES_PER_VERTEX`.
     pub fn build(mut self) -> Result<Scene, SceneError> {
         self.validate()?;
+        // An emissive prototype's instances become world meshes: area lights are world triangles.
+        let (instances, flattened): (Vec<MeshInstance>, Vec<MeshInstance>) =
+            std::mem::take(&mut self.instances)
+                .into_iter()
+                .partition(|i| {
+                    let material = self.prototypes[i.prototype as usize].material;
+                    !self.materials[material as usize].is_emissive()
+                });
+        let flattened_counts = flattened
+            .iter()
+            .map(|i| mesh_counts(&self.prototypes[i.prototype as usize]));
         let (triangles, vertices) = self
             .meshes
             .iter()
+            .chain(&self.prototypes)
             .map(mesh_counts)
+            .chain(flattened_counts)
             .fold((0u64, 0u64), |(t, v), (mt, mv)| {
                 (t.saturating_add(mt), v.saturating_add(mv))
             });
+        let instance_count = instances.len() as u64;
         self.limits
             .check(
-                format_args!("the scene's meshes ({triangles} triangles, {vertices} vertices)"),
-                mesh_bytes(triangles, vertices),
+                format_args!("the scene's meshes ({triangles} triangles, {vertices} vertices, {instance_count} instances)"),
+                mesh_bytes(triangles, vertices)
+                    .saturating_add(instance_count.saturating_mul(BYTES_PER_INSTANCE)),
             )
             .map_err(|e| SceneError::new(BUILDER_PATH, SceneErrorKind::OverLimit(e.to_string())))?;
+        for instance in &flattened {
+            let mesh = instancing::flatten(&self.prototypes[instance.prototype as usize], instance);
+            self.meshes.push(mesh);
+        }
         // Normal maps and anisotropy need a tangent frame: MikkTSpace where the file gives no tangents (glTF 2.0
         // §3.7.2.1). Without texture coordinates there is none to build, and anisotropy follows an arbitrary
-        // direction.
-        for mesh in &mut self.meshes {
+        // direction. A prototype's tangents are made in object space and carried to world space with it.
+        for mesh in self.meshes.iter_mut().chain(&mut self.prototypes) {
             let material = &self.materials[mesh.material as usize];
             if mesh.tangents.is_none() && material.needs_tangents() {
                 if mesh.uvs.is_some() {
@@ -890,11 +938,39 @@ impl SceneBuilder {
             }
         }
         let bvh = Bvh::build(&triangles).map_err(too_many)?;
+        drop(triangles);
+        let instanced = if instances.is_empty() {
+            None
+        } else {
+            let prototype_triangles: Vec<Vec<[Vec3; 3]>> = self
+                .prototypes
+                .iter()
+                .map(|m| (0..m.indices.len()).map(|t| m.triangle(t)).collect())
+                .collect();
+            let placements: Vec<Instance> = instances
+                .iter()
+                .map(|i| Instance {
+                    prototype: i.prototype,
+                    object_to_world: i.object_to_world,
+                })
+                .collect();
+            let hierarchy =
+                InstanceBvh::build(&prototype_triangles, &placements).map_err(too_many)?;
+            let total = prims.len() as u64 + hierarchy.triangle_count() as u64;
+            if total > u32::MAX as u64 {
+                return Err(too_many(crate::geometry::TooManyTriangles(total as usize)));
+            }
+            Some(hierarchy)
+        };
         // Surfaces and the regions that media fill by position (a VDB placed by a node): the default camera
         // frames both, and lights at infinity light both.
         let bounds = match &motion {
             Some(m) => bvh.bounds().union(&m.bounds()),
             None => bvh.bounds(),
+        };
+        let bounds = match &instanced {
+            Some(i) => bounds.union(&instance_bounds(&self.prototypes, &instances, i)),
+            None => bounds,
         };
         let bounds = self
             .media
@@ -914,8 +990,18 @@ impl SceneBuilder {
             .iter()
             .any(|m| m.alpha_mode != AlphaMode::Opaque);
         let has_invisible_boundaries = self.materials.iter().any(|m| m.may_be_index_matched());
+        let objects = self
+            .meshes
+            .iter()
+            .map(SurfaceObject::of_mesh)
+            .chain(instances.iter().map(|i| SurfaceObject {
+                name: &i.name,
+                asset: &i.asset,
+                tags: &i.tags,
+                material: self.prototypes[i.prototype as usize].material,
+            }));
         let names = SceneNames::new(
-            &self.meshes,
+            objects,
             &self.materials,
             &lights,
             &self.light_tags,
@@ -932,6 +1018,9 @@ impl SceneBuilder {
             filled_media,
             camera: self.camera.unwrap_or_else(|| Camera::framing(&bounds)),
             meshes: self.meshes,
+            prototypes: self.prototypes,
+            placed: instances.iter().map(instancing::Placed::new).collect(),
+            instanced,
             materials: self.materials,
             textures: self.textures,
             lights,
@@ -950,6 +1039,35 @@ impl SceneBuilder {
     }
 }
 
+/// Most vertex transforms spent on the exact world bounds of a scene's instances; past it, the hierarchy's
+/// boxes (each instance's object box transformed, a little looser) bound them.
+const EXACT_INSTANCE_BOUNDS_WORK: u64 = 1 << 24;
+
+/// The world bounds of `instances`: exactly those of their transformed vertices, as the same meshes copied to
+/// world space would have (so that the default camera frames a scene alike whether its meshes are instanced or
+/// not), unless that takes more than [`EXACT_INSTANCE_BOUNDS_WORK`] vertex transforms; then `hierarchy`'s.
+fn instance_bounds(
+    prototypes: &[Mesh],
+    instances: &[MeshInstance],
+    hierarchy: &InstanceBvh,
+) -> Aabb {
+    let work = instances.iter().fold(0u64, |w, i| {
+        w.saturating_add(prototypes[i.prototype as usize].positions.len() as u64)
+    });
+    if work > EXACT_INSTANCE_BOUNDS_WORK {
+        return hierarchy.bounds();
+    }
+    instances.iter().fold(Aabb::EMPTY, |b, i| {
+        let m = &i.object_to_world;
+        prototypes[i.prototype as usize]
+            .positions
+            .iter()
+            .map(|p| m.transform_point3(*p))
+            .filter(|p| p.is_finite())
+            .fold(b, |b, p| b.extend(p))
+    })
+}
+
 /// Radius of a sphere around `bounds` (half its diagonal, at least 1 mm; 1 for empty bounds): the size of the
 /// disc that lights at infinity illuminate, and of the default camera's framing.
 pub(crate) fn bounding_radius(bounds: &Aabb) -> f32 {
@@ -965,6 +1083,13 @@ pub(crate) fn bounding_radius(bounds: &Aabb) -> f32 {
 pub struct Scene {
     /// World-space meshes.
     pub(crate) meshes: Vec<Mesh>,
+    /// Object-space meshes that instances place.
+    prototypes: Vec<Mesh>,
+    /// The instances, in the order of their surface objects (after the meshes) and triangle numbers.
+    placed: Vec<instancing::Placed>,
+    /// The instances' two-level hierarchy, if there are instances: global triangle indices from
+    /// `prims.len()` on.
+    instanced: Option<InstanceBvh>,
     /// Materials.
     pub(crate) materials: Vec<Material>,
     /// Textures.
@@ -1119,9 +1244,20 @@ impl Scene {
         load_builder(path, &LoadOptions::default())?.build()
     }
 
-    /// Number of triangles.
+    /// Number of triangles, each instance counting its prototype's.
     pub fn triangle_count(&self) -> usize {
         self.prims.len()
+            + self
+                .instanced
+                .as_ref()
+                .map_or(0, InstanceBvh::triangle_count)
+    }
+
+    internal! {
+        /// Number of instances (placements of an object-space mesh traced through the two-level hierarchy).
+        pub fn instance_count(&self) -> usize {
+            self.placed.len()
+        }
     }
 
     /// Number of moving triangles (transform motion blur).
@@ -1170,9 +1306,38 @@ impl Scene {
         self.transparent
     }
 
-    /// The mesh of global triangle index `prim`.
-    pub(crate) fn mesh_of_prim(&self, prim: u32) -> usize {
-        self.prims.get(prim as usize).map_or(0, |p| p.0 as usize)
+    internal! {
+        /// The surface object of global triangle index `prim`, as [`SceneNames`] numbers them: its mesh, or for
+        /// an instance's triangle the number of meshes plus the instance's index.
+        pub fn mesh_of_prim(&self, prim: u32) -> usize {
+            match self.prims.get(prim as usize) {
+                Some(p) => p.0 as usize,
+                None => self
+                    .locate_instanced(prim)
+                    .map_or(0, |(i, _)| self.meshes.len() + i as usize),
+            }
+        }
+    }
+
+    /// The instance and the prototype triangle of global triangle index `prim`, if an instance's.
+    fn locate_instanced(&self, prim: u32) -> Option<(u32, u32)> {
+        let base = self.prims.len() as u32;
+        self.instanced.as_ref()?.locate(prim.checked_sub(base)?)
+    }
+
+    /// The mesh holding global triangle `prim` (a prototype for an instance's), the triangle's index in it and
+    /// the instance's placement, if any.
+    fn surface_of(&self, prim: u32) -> (&Mesh, usize, Option<&instancing::Placed>) {
+        if let Some(&(mesh, tri)) = self.prims.get(prim as usize) {
+            return (&self.meshes[mesh as usize], tri as usize, None);
+        }
+        let (instance, tri) = self.locate_instanced(prim).unwrap_or_default();
+        let placed = &self.placed[instance as usize];
+        (
+            &self.prototypes[placed.prototype as usize],
+            tri as usize,
+            Some(placed),
+        )
     }
 
     internal! {
@@ -1259,6 +1424,15 @@ impl Scene {
                         m.occluded(ray, t_min, t_max)
                     }
                 })
+                || self.instanced.as_ref().is_some_and(|i| {
+                    if self.has_alpha {
+                        i.occluded_where(ray, t_min, t_max, &|hit| {
+                            self.covers(ray, &self.instanced_hit(hit))
+                        })
+                    } else {
+                        i.occluded(ray, t_min, t_max)
+                    }
+                })
         }
     }
 
@@ -1270,30 +1444,51 @@ impl Scene {
         }
     }
 
-    /// The closest triangle hit in `(t_min, t_max)`, static or moving (at the ray's time), alpha-tested; a
-    /// moving hit replaces a static one only when strictly closer, so ties go to the lower global index.
+    /// A hit reported by the instances' hierarchy with its global triangle index.
+    fn instanced_hit(&self, hit: &TriangleHit) -> TriangleHit {
+        TriangleHit {
+            prim: hit.prim + self.prims.len() as u32,
+            ..*hit
+        }
+    }
+
+    /// The closest triangle hit in `(t_min, t_max)`, static, moving (at the ray's time) or instanced,
+    /// alpha-tested; a later hierarchy's hit replaces an earlier one's only when strictly closer, so ties go to
+    /// the lower global index.
     fn closest_triangle(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<TriangleHit> {
-        let hit = if self.has_alpha {
+        let mut hit = if self.has_alpha {
             self.bvh
                 .intersect_where(ray, t_min, t_max, &|hit| self.covers(ray, hit))
         } else {
             self.bvh.intersect(ray, t_min, t_max)
         };
-        let Some(motion) = &self.motion else {
-            return hit;
-        };
-        let limit = hit.map_or(t_max, |h| h.t);
-        let moving = if self.has_alpha {
-            motion.intersect_where(ray, t_min, limit, &|h| {
-                self.covers(ray, &self.moving_hit(h))
-            })
-        } else {
-            motion.intersect(ray, t_min, limit)
-        };
-        match moving {
-            Some(m) if hit.is_none_or(|h| m.t < h.t) => Some(self.moving_hit(&m)),
-            _ => hit,
+        if let Some(motion) = &self.motion {
+            let limit = hit.map_or(t_max, |h| h.t);
+            let moving = if self.has_alpha {
+                motion.intersect_where(ray, t_min, limit, &|h| {
+                    self.covers(ray, &self.moving_hit(h))
+                })
+            } else {
+                motion.intersect(ray, t_min, limit)
+            };
+            if let Some(m) = moving.filter(|m| hit.is_none_or(|h| m.t < h.t)) {
+                hit = Some(self.moving_hit(&m));
+            }
         }
+        if let Some(instanced) = &self.instanced {
+            let limit = hit.map_or(t_max, |h| h.t);
+            let found = if self.has_alpha {
+                instanced.intersect_where(ray, t_min, limit, &|h| {
+                    self.covers(ray, &self.instanced_hit(h))
+                })
+            } else {
+                instanced.intersect(ray, t_min, limit)
+            };
+            if let Some(f) = found.filter(|f| hit.is_none_or(|h| f.t < h.t)) {
+                hit = Some(self.instanced_hit(&f));
+            }
+        }
+        hit
     }
 
     /// Whether a candidate hit counts, by its material's [`AlphaMode`]: opaque surfaces always do; a cut-out
@@ -1301,11 +1496,10 @@ impl Scene {
     /// ray and the triangle, so a ray and its shadow rays need no generator and the estimate stays unbiased
     /// (stochastic transparency: the expected result is alpha × the surface + (1 − alpha) × what is behind).
     fn covers(&self, ray: &Ray, hit: &TriangleHit) -> bool {
-        let (mesh_index, tri) = self.prims[hit.prim as usize];
-        let mesh = &self.meshes[mesh_index as usize];
+        let (mesh, tri, _) = self.surface_of(hit.prim);
         let material = &self.materials[mesh.material as usize];
         let alpha = |m: &Material| {
-            let idx = mesh.indices[tri as usize].map(|i| i as usize);
+            let idx = mesh.indices[tri].map(|i| i as usize);
             let b = [1.0 - hit.b1 - hit.b2, hit.b1, hit.b2];
             let uv = |set: Option<&[Vec2]>| {
                 TexCoord::point(set.map_or(Vec2::ZERO, |uv| at_barycentrics(uv, idx, b)))
@@ -1360,9 +1554,8 @@ impl Scene {
         /// its vertices are at the ray's time.
         pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<SurfaceHit> {
             let hit = self.closest_triangle(ray, t_min, t_max)?;
-            let (mesh_index, tri) = self.prims[hit.prim as usize];
-            let mesh = &self.meshes[mesh_index as usize];
-            let [i0, i1, i2] = mesh.indices[tri as usize].map(|i| i as usize);
+            let (mesh, tri, placed) = self.surface_of(hit.prim);
+            let [i0, i1, i2] = mesh.indices[tri].map(|i| i as usize);
             let (b1, b2) = (hit.b1, hit.b2);
             let b0 = 1.0 - b1 - b2;
             let ([v0, v1, v2], normals) = match &mesh.motion {
@@ -1372,8 +1565,17 @@ impl Scene {
                     [mesh.normals[i0], mesh.normals[i1], mesh.normals[i2]],
                 ),
             };
-            let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
-            let point = SurfacePoint::on_triangle([v0, v1, v2], b0, b1, b2, geometric_normal);
+            let ([v0, v1, v2], normals, geometric_normal, point) = match placed {
+                None => {
+                    let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
+                    let point = SurfacePoint::on_triangle([v0, v1, v2], b0, b1, b2, geometric_normal);
+                    ([v0, v1, v2], normals, geometric_normal, point)
+                }
+                Some(placed) => {
+                    let world = placed.triangle([v0, v1, v2], normals, [b0, b1, b2]);
+                    (world.vertices, world.normals, world.geometric_normal, world.point)
+                }
+            };
             let front_face = geometric_normal.dot(ray.dir) < 0.0;
             let mut n = (normals[0] * b0 + normals[1] * b1 + normals[2] * b2).normalize_or_zero();
             if n == Vec3::ZERO {
@@ -1394,7 +1596,7 @@ impl Scene {
                 [v0, v1, v2],
                 [b0, b1, b2],
             );
-            let mut frame = self.tangent_frame(mesh, [i0, i1, i2], n, Vec2::new(b1, b2));
+            let mut frame = self.tangent_frame(mesh, placed, [i0, i1, i2], n, Vec2::new(b1, b2));
             // Keep the shading normal on the geometric normal's side so that one-sided BSDFs see the front.
             if frame.n.dot(geometric_normal) < 0.0 {
                 frame = Frame::from_normal(geometric_normal);
@@ -1442,16 +1644,26 @@ impl Scene {
     }
 
     /// The tangent frame at a hit: from vertex tangents when present (given by the file, or MikkTSpace ones
-    /// generated for normal-mapped meshes), with the bitangent `w · cross(n, t)`; else arbitrary around the
-    /// normal.
-    fn tangent_frame(&self, mesh: &Mesh, idx: [usize; 3], n: Vec3, b: Vec2) -> Frame {
+    /// generated for normal-mapped meshes; an instance's carried to world space by its `placed` transform),
+    /// with the bitangent `w · cross(n, t)`; else arbitrary around the normal.
+    fn tangent_frame(
+        &self,
+        mesh: &Mesh,
+        placed: Option<&instancing::Placed>,
+        idx: [usize; 3],
+        n: Vec3,
+        b: Vec2,
+    ) -> Frame {
         let b0 = 1.0 - b.x - b.y;
         if let Some(t) = &mesh.tangents {
-            let tangent =
-                t[idx[0]].truncate() * b0 + t[idx[1]].truncate() * b.x + t[idx[2]].truncate() * b.y;
+            let t = idx.map(|i| match placed {
+                Some(p) => p.tangent(t[i]),
+                None => t[i],
+            });
+            let tangent = t[0].truncate() * b0 + t[1].truncate() * b.x + t[2].truncate() * b.y;
             let frame = Frame::from_normal_tangent(n, tangent);
             // The bitangent sign (w) says whether the uv mapping is mirrored.
-            if t[idx[0]].w < 0.0 {
+            if t[0].w < 0.0 {
                 return Frame {
                     s: frame.s,
                     t: -frame.t,

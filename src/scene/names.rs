@@ -51,11 +51,37 @@ pub struct CryptoNames {
     pub asset: String,
 }
 
+/// A surface object as names see it: a mesh, or an instance of a prototype with its own name, asset and tags.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SurfaceObject<'a> {
+    /// Its name (Cryptomatte object, emitter).
+    pub name: &'a str,
+    /// Its asset (empty: its name).
+    pub asset: &'a str,
+    /// Its own compositing tags (its material's apply where these are unset).
+    pub tags: &'a CompositingTags,
+    /// Its material's index.
+    pub material: u32,
+}
+
+impl<'a> SurfaceObject<'a> {
+    /// The names of `mesh`.
+    pub fn of_mesh(mesh: &'a Mesh) -> Self {
+        Self {
+            name: &mesh.name,
+            asset: &mesh.asset,
+            tags: &mesh.tags,
+            material: mesh.material,
+        }
+    }
+}
+
 /// No entry (a mesh that emits nothing, a medium that does not glow).
 const NONE: u32 = u32::MAX;
 
 /// The emitters and Cryptomatte names of a scene, and the holdout and shadow-catcher flags of its surfaces and
-/// media. Cryptomatte items are the meshes (`0..meshes`) followed by the media.
+/// media. Surface objects are the meshes, then the instances; Cryptomatte items are the surface objects
+/// followed by the media.
 #[derive(Clone, Debug, Default)]
 pub struct SceneNames {
     /// Every emitter.
@@ -77,11 +103,11 @@ pub struct SceneNames {
 }
 
 impl SceneNames {
-    /// The names of a scene's parts. `lights` are the scene's lights: the first `light_tags.len()` as the
-    /// loader added them (punctual and environment), then the area lights that `build` made from emissive
-    /// triangles.
-    pub(crate) fn new(
-        meshes: &[Mesh],
+    /// The names of a scene's parts. `objects` are its surface objects (the meshes, then the instances);
+    /// `lights` are the scene's lights: the first `light_tags.len()` as the loader added them (punctual and
+    /// environment), then the area lights that `build` made from emissive triangles.
+    pub(crate) fn new<'a>(
+        objects: impl IntoIterator<Item = SurfaceObject<'a>>,
         materials: &[Material],
         lights: &[Light],
         light_tags: &[LightTag],
@@ -89,15 +115,14 @@ impl SceneNames {
         media_tags: &[MediumTag],
     ) -> Self {
         let mut names = SceneNames::default();
-        let material_of = |mesh: &Mesh| materials.get(mesh.material as usize);
-        for mesh in meshes {
-            let material = material_of(mesh);
+        for mesh in objects {
+            let material = materials.get(mesh.material as usize);
             let tags = mesh
                 .tags
                 .or(material.map_or(&CompositingTags::default(), |m| &m.tags));
             let emits = material.is_some_and(|m| m.is_emissive() || m.unlit);
             let emitter = if emits {
-                names.push_emitter(&mesh.name, tags.light_group.clone())
+                names.push_emitter(mesh.name, tags.light_group.clone())
             } else {
                 NONE
             };
@@ -105,9 +130,9 @@ impl SceneNames {
             names.mesh_holdout.push(tags.holdout);
             names.mesh_catcher.push(tags.shadow_catcher);
             names.items.push(CryptoNames {
-                object: mesh.name.clone(),
+                object: mesh.name.to_owned(),
                 material: material.map_or_else(String::new, |m| m.name.clone()),
-                asset: non_empty_or(&mesh.asset, &mesh.name),
+                asset: non_empty_or(mesh.asset, mesh.name),
             });
         }
         for (i, light) in lights.iter().enumerate() {

@@ -725,8 +725,10 @@ fn animation_pointer_channels_are_skipped_with_a_warning() {
             .iter()
             .any(|w| w.contains("animations[0].channels[0]") && w.contains("pointer"));
         assert!(warned, "{:?}", b.warnings());
+        // The two nodes reuse one mesh: instances, seen here placed in world space.
+        let placed = b.world_meshes();
         let min_x = |m: usize| {
-            b.meshes()[m]
+            placed[m]
                 .positions
                 .iter()
                 .map(|p| p.x)
@@ -741,7 +743,7 @@ fn animation_pointer_channels_are_skipped_with_a_warning() {
             0.0,
             "the pointer channel's node keeps its rest pose"
         );
-        assert_eq!(b.meshes()[1].positions[0].z, 5.0);
+        assert_eq!(placed[1].positions[0].z, 5.0);
     }
 }
 
@@ -774,7 +776,7 @@ fn animation_samplers_are_read_once_per_load() {
     );
     let load = at_half_second(Limits::default(), true);
     let b = load_within(doc.bytes(), load, HANG).unwrap();
-    assert_eq!(b.meshes().len(), 200);
+    assert_eq!(b.world_meshes().len(), 200);
 }
 
 #[test]
@@ -885,15 +887,23 @@ fn skin_work_counts_against_the_budget() {
     assert_one_line(&err, &["anim.gltf", "skin 0", "--memory-limit"]);
 }
 
+/// A material that emits, whose instances are copied to world space (area lights are world triangles).
+fn emissive_material(doc: &mut Doc) -> usize {
+    doc.json["materials"] = json!([{"emissiveFactor": [1, 1, 1]}]);
+    0
+}
+
 #[test]
-fn mesh_instances_count_against_the_memory_budget() {
-    // 200 nodes drawing one 5,000-triangle mesh: each instance fits a 64 MiB budget, all 1,000,000 triangles
-    // do not. Before, every instance was copied and the scene built past the budget.
+fn emissive_mesh_instances_count_against_the_memory_budget() {
+    // 200 nodes drawing one emissive 5,000-triangle mesh: each copy fits a 64 MiB budget, all 1,000,000 triangles
+    // do not. Before, every instance was copied and the scene built past the budget. (A mesh that does not
+    // emit is instanced, not copied: see `instanced_forest_loads_and_renders_within_the_budget`.)
     let mut doc = Doc::new();
     let p = doc.zeros(15_000, "VEC3");
+    let material = emissive_material(&mut doc);
     let mesh = doc.push(
         "meshes",
-        json!({"primitives": [{"attributes": {"POSITION": p}}]}),
+        json!({"primitives": [{"attributes": {"POSITION": p}, "material": material}]}),
     );
     for _ in 0..200 {
         doc.root(json!({"mesh": mesh}));
@@ -908,10 +918,12 @@ fn mesh_instances_count_against_the_memory_budget() {
 }
 
 #[test]
-fn mesh_instance_vertices_count_against_the_memory_budget() {
-    // 200 nodes drawing one triangle indexed into 100,000 vertices with normals (so that every vertex is kept):
-    // the triangles are nothing, the vertices (6.4 MB counted a copy) pass a 64 MiB budget at the 11th instance.
+fn emissive_mesh_instance_vertices_count_against_the_memory_budget() {
+    // 200 nodes drawing one emissive triangle indexed into 100,000 vertices with normals (so that every vertex
+    // is kept): the triangles are nothing, the vertices (6.4 MB counted a copy) pass a 64 MiB budget at the
+    // 11th copy.
     let mut doc = Doc::new();
+    let material = emissive_material(&mut doc);
     let p = doc.zeros(100_000, "VEC3");
     let n = doc.zeros(100_000, "VEC3");
     let i = doc.view(&[0, 0, 1, 0, 2, 0, 0, 0]);
@@ -921,7 +933,8 @@ fn mesh_instance_vertices_count_against_the_memory_budget() {
     );
     let mesh = doc.push(
         "meshes",
-        json!({"primitives": [{"attributes": {"POSITION": p, "NORMAL": n}, "indices": i}]}),
+        json!({"primitives": [{"attributes": {"POSITION": p, "NORMAL": n}, "indices": i,
+                               "material": material}]}),
     );
     for _ in 0..200 {
         doc.root(json!({"mesh": mesh}));
@@ -933,4 +946,78 @@ fn mesh_instance_vertices_count_against_the_memory_budget() {
         &err,
         &["anim.gltf", "vertices", "memory budget", "--memory-limit"],
     );
+}
+
+/// A `side`² grid of vertices over the unit square (z a gentle bump), as 2·(side − 1)² triangles: mesh 0.
+fn grid_mesh(doc: &mut Doc, side: usize) -> usize {
+    let mut p = Vec::with_capacity(3 * side * side);
+    for j in 0..side {
+        for i in 0..side {
+            let (x, y) = (i as f32 / (side - 1) as f32, j as f32 / (side - 1) as f32);
+            p.extend_from_slice(&[x, y, 0.05 * (6.0 * x).sin() * (5.0 * y).cos()]);
+        }
+    }
+    let p = doc.floats(&p, "VEC3");
+    let mut indices: Vec<u8> = Vec::new();
+    for j in 0..side - 1 {
+        for i in 0..side - 1 {
+            let a = (j * side + i) as u32;
+            let quad = [
+                a,
+                a + 1,
+                a + side as u32 + 1,
+                a,
+                a + side as u32 + 1,
+                a + side as u32,
+            ];
+            indices.extend(quad.iter().flat_map(|v| v.to_le_bytes()));
+        }
+    }
+    let count = indices.len() / 4;
+    let view = doc.view(&indices);
+    let i = doc.push(
+        "accessors",
+        json!({"bufferView": view, "componentType": 5125, "count": count, "type": "SCALAR"}),
+    );
+    doc.push(
+        "meshes",
+        json!({"primitives": [{"attributes": {"POSITION": p}, "indices": i}]}),
+    )
+}
+
+#[test]
+fn instanced_forest_loads_and_renders_within_the_budget() {
+    // Issue 36, item 5: 2,000 nodes reusing one 50 k-triangle mesh aborted on a 2.4 GB allocation, then were
+    // refused by the budget. Now the mesh is one prototype and each node an instance: 100 million triangles
+    // load, build and render within `--memory-limit 1G`.
+    let mut doc = Doc::new();
+    let mesh = grid_mesh(&mut doc, 160);
+    for k in 0..2000 {
+        let (x, z) = ((k % 50) as f32 * 1.2, (k / 50) as f32 * 1.2);
+        doc.root(json!({"mesh": mesh, "translation": [x, 0.0, z], "rotation": [-0.70710677, 0.0, 0.0, 0.70710677]}));
+    }
+    let bytes = doc.bytes();
+    eprintln!("file: {} bytes", bytes.len());
+    let limits = Limits::with_memory(1 << 30);
+    let start = Instant::now();
+    let b = load_within(bytes, still(limits), HANG).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((b.prototypes().len(), b.instances().len()), (1, 2000));
+    let scene = b.build().unwrap_or_else(|e| panic!("{e}"));
+    eprintln!("loaded and built in {:.2} s", start.elapsed().as_secs_f64());
+    assert_eq!(scene.triangle_count(), 2000 * 2 * 159 * 159);
+    let settings = nimbus::render::RenderSettings {
+        width: 16,
+        height: 16,
+        spp: 1,
+        threads: 2,
+        limits,
+        ..Default::default()
+    };
+    let (img, _) = nimbus::render::Renderer::new(settings)
+        .render(&scene, &mut |_| true)
+        .unwrap();
+    assert!(img.beauty.iter().all(|v| v.is_finite()));
+    if let Some(peak) = nimbus::render::peak_memory_bytes() {
+        eprintln!("peak memory {:.0} MiB", peak as f64 / (1 << 20) as f64);
+    }
 }

@@ -351,7 +351,8 @@ fn a_missing_or_corrupt_environment_map_is_a_typed_error_naming_the_map() {
 
 /// `EXT_mesh_gpu_instancing`: a node (at y = 1) instances its triangle three times by TRANSLATION, ROTATION and
 /// SCALE accessors. By hand, the vertex (1, 0, 0) lands at (1, 1, 0) (identity), (4, 1, 0) (scale 2, then
-/// x + 2) and (0, 2, −3) (90° about z, then z − 3). The extension used to be ignored: one triangle.
+/// x + 2) and (0, 2, −3) (90° about z, then z − 3). The extension used to be ignored: one triangle; then each
+/// instance was a copy; now they are instances of one prototype.
 #[test]
 fn gpu_instancing_places_every_instance() {
     let dir = std::env::temp_dir().join(format!("nimbus-gltf-instancing-{}", std::process::id()));
@@ -374,13 +375,14 @@ fn gpu_instancing_places_every_instance() {
     )
     .unwrap();
     let b = load_builder(&path, &Default::default()).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(b.meshes().len(), 3, "one mesh per instance");
+    assert_eq!(b.instances().len(), 3, "one instance each");
+    assert_eq!(b.prototypes().len(), 1, "of one prototype");
     let want = [
         nimbus::math::Vec3::new(1.0, 1.0, 0.0),
         nimbus::math::Vec3::new(4.0, 1.0, 0.0),
         nimbus::math::Vec3::new(0.0, 2.0, -3.0),
     ];
-    for (mesh, want) in b.meshes().iter().zip(want) {
+    for (mesh, want) in b.world_meshes().iter().zip(want) {
         assert!(
             mesh.positions.iter().any(|p| p.distance(want) < 1e-5),
             "{:?} lacks {want}",

@@ -22,9 +22,10 @@ fn load(path: &Path) -> SceneBuilder {
     load_builder(path, &Default::default()).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-fn mesh<'a>(b: &'a SceneBuilder, name: &str) -> &'a Mesh {
-    b.meshes()
-        .iter()
+/// The mesh named `name` in world space (a mesh drawn by several nodes is an instance: its placed copy).
+fn mesh(b: &SceneBuilder, name: &str) -> Mesh {
+    b.world_meshes()
+        .into_iter()
         .find(|m| m.name == name)
         .unwrap_or_else(|| panic!("no mesh named {name}"))
 }
@@ -93,7 +94,7 @@ fn texture_transform_offsets_select_the_documented_quadrant() {
         ("Offset V", "blue"),
         ("Offset UV", "cyan"),
     ] {
-        let m = mesh(&b, name);
+        let m = &mesh(&b, name);
         let mut counts = std::collections::HashMap::new();
         for (_, uv) in surface_points(m, 12) {
             *counts.entry(class(base_color(&b, m, uv))).or_insert(0usize) += 1;
@@ -154,7 +155,7 @@ fn texture_transform_rotation_and_scale_follow_the_extension_matrices() {
         ("Scale", matrix(Vec2::ZERO, 0.0, Vec2::splat(1.5))),
         ("All", matrix(Vec2::new(-0.2, -0.1), 0.3, Vec2::splat(1.5))),
     ] {
-        let quad = mesh(&b, name);
+        let quad = &mesh(&b, name);
         let mut compared = 0;
         for (_, uv) in surface_points(quad, 40) {
             let Some(want) = expected((m * uv.extend(1.0)).truncate()) else {
@@ -170,14 +171,14 @@ fn texture_transform_rotation_and_scale_follow_the_extension_matrices() {
         assert!(compared > 300, "{name}: only {compared} points compared");
     }
     // Where the rotated arrow points: its black texels come closest to the "Correct" marker.
-    let quad = mesh(&b, "Rotation");
+    let quad = &mesh(&b, "Rotation");
     let black: Vec<Vec3> = surface_points(quad, 40)
         .into_iter()
         .filter(|&(_, uv)| base_color(&b, quad, uv).x < 0.1)
         .map(|(p, _)| p)
         .collect();
     let nearest = |marker: &str| {
-        let c = centre(mesh(&b, marker));
+        let c = centre(&mesh(&b, marker));
         black
             .iter()
             .map(|p| (p.truncate() - c.truncate()).length())
@@ -615,7 +616,7 @@ fn texture_settings_rows_follow_each_texture_s_own_sampler() {
         "TextureRepeatMeshT",
         "TextureClampMeshT",
     ] {
-        let quad = mesh(&b, name);
+        let quad = &mesh(&b, name);
         let (mut green, mut red) = (0, 0);
         for (_, uv) in surface_points(quad, 40) {
             let c = base_color(&b, quad, uv);

@@ -210,7 +210,7 @@ fn gprims_are_tessellated_with_their_xforms_and_materials() {
 }
 
 #[test]
-fn point_instancer_flattens_its_prototypes() {
+fn point_instancer_places_its_prototypes() {
     let b = read_text(
         "instancer",
         "#usda 1.0\n(upAxis = \"Y\")\n\
@@ -227,13 +227,23 @@ fn point_instancer_flattens_its_prototypes() {
              def Sphere \"Ball\" { double radius = 0.5 }\n\
            }\n}\n",
     );
-    // Four instances, one invisible; the prototypes themselves are not rendered.
+    // Four instances, one invisible, of two prototypes read once; the prototypes themselves are not rendered.
+    assert!(b.meshes().is_empty());
+    assert_eq!(b.prototypes().len(), 2);
+    let placed = b.world_meshes();
     assert_eq!(
-        b.meshes().len(),
+        placed.len(),
         3,
         "{:?}",
-        b.meshes().iter().map(|m| &m.name).collect::<Vec<_>>()
+        placed.iter().map(|m| &m.name).collect::<Vec<_>>()
     );
+    let mesh = |_: &SceneBuilder, name: &str| {
+        placed
+            .iter()
+            .find(|m| m.name == name)
+            .unwrap_or_else(|| panic!("no mesh {name}"))
+            .clone()
+    };
     let box0 = mesh(&b, "/I/Protos/Box[0]").bounds();
     assert!(
         close(box0.min, Vec3::new(-0.5, 0.5, -0.5), 1e-5),
@@ -260,7 +270,7 @@ fn point_instancer_flattens_its_prototypes() {
 }
 
 #[test]
-fn native_instances_are_expanded_and_prototypes_not_drawn() {
+fn native_instances_share_their_prototype_and_prototypes_are_not_drawn() {
     let b = read_text(
         "native",
         "#usda 1.0\n(upAxis = \"Y\")\n\
@@ -272,20 +282,46 @@ fn native_instances_are_expanded_and_prototypes_not_drawn() {
          def Xform \"B\" ( instanceable = true\n references = </Proto> ) {\n\
            double3 xformOp:translate = (0, 0, 7)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n",
     );
-    let names: Vec<&str> = b.meshes().iter().map(|m| m.name.as_str()).collect();
-    assert_eq!(b.meshes().len(), 2, "{names:?}");
-    let a = b
-        .meshes()
+    // Both instances share one prototype mesh, read once; each is named by its own proxy path.
+    assert_eq!((b.prototypes().len(), b.instances().len()), (1, 2));
+    let placed = b.world_meshes();
+    let mut names: Vec<&str> = placed.iter().map(|m| m.name.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["/A/Tri", "/B/Tri"]);
+    let a = placed
         .iter()
         .find(|m| m.bounds().min.x > 9.0)
         .expect("instance A");
     assert!(close(a.bounds().max, Vec3::new(11.0, 1.0, 0.0), 1e-6));
-    let b2 = b
-        .meshes()
+    let b2 = placed
         .iter()
         .find(|m| m.bounds().min.z > 6.0)
         .expect("instance B");
     assert!(close(b2.bounds().min, Vec3::new(0.0, 0.0, 7.0), 1e-6));
+}
+
+#[test]
+fn native_instances_with_a_light_inside_are_copied() {
+    // A prototype holding a light besides its mesh cannot be shared (lights are world objects): both instances
+    // are read as before, each with its own light and mesh copy.
+    let b = read_text(
+        "native_light",
+        "#usda 1.0\n(upAxis = \"Y\")\n\
+         class Xform \"Proto\" { def Mesh \"Tri\" {\n\
+           point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n\
+           uniform token subdivisionScheme = \"none\"\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2] }\n\
+           def SphereLight \"Bulb\" { float inputs:intensity = 5\n bool treatAsPoint = true } }\n\
+         def Xform \"A\" ( instanceable = true\n references = </Proto> ) {\n\
+           double3 xformOp:translate = (10, 0, 0)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n\
+         def Xform \"B\" ( instanceable = true\n references = </Proto> ) {\n\
+           double3 xformOp:translate = (0, 0, 7)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n",
+    );
+    assert!(b.instances().is_empty() && b.prototypes().is_empty());
+    let mut names: Vec<&str> = b.meshes().iter().map(|m| m.name.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["/A/Tri", "/B/Tri"]);
+    assert_eq!(b.lights().len(), 2);
+    assert!(b.meshes().iter().any(|m| m.bounds().min.x > 9.0));
 }
 
 #[test]
@@ -547,8 +583,9 @@ fn normal_maps_decode_with_their_scale_and_bias() {
 
 #[test]
 fn point_instancers_share_one_memory_budget_per_scene() {
-    // Two instancers of 2,000 one-triangle instances each: either fits a budget of 3,000 instances, both together
-    // do not. Before, each instancer was checked on its own and the stage loaded.
+    // Two instancers of 2,000 one-triangle instances each: either fits a budget of 3,000 copies (each instance
+    // record counts `BYTES_PER_INSTANCE`, a little more than a copied triangle), both together do not. Before,
+    // each instancer was checked on its own and the stage loaded.
     let instancer = |name: &str| {
         let positions = vec!["(0, 0, 0)"; 2000].join(", ");
         let indices = vec!["0"; 2000].join(", ");
@@ -578,5 +615,5 @@ fn point_instancers_share_one_memory_budget_per_scene() {
     let one = format!("#usda 1.0\n{}", instancer("A"));
     std::fs::write(&path, one).unwrap();
     let (b, _) = usd::read_with_limits(&path, &limits).unwrap();
-    assert_eq!(b.meshes().len(), 2000);
+    assert_eq!(b.instances().len(), 2000);
 }

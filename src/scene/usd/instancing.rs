@@ -1,4 +1,9 @@
-//! `UsdGeomPointInstancer`: each instance's prototype is flattened to world meshes, like any other mesh.
+//! `UsdGeomPointInstancer`: each prototype's static meshes are read once, in the prototype's frame, and every
+//! instance places them as instances of shared object-space meshes (`crate::scene::MeshInstance`, traced
+//! through the two-level hierarchy); a prototype's moving (motion-blurred) meshes are copied to world space
+//! per instance, as any other mesh. Native instances (`instanceable` prims, which `openusd` composes as instance
+//! proxies of a shared prototype) are placed the same way when their prototype holds only static meshes
+//! (`Loader::native_instance`).
 //!
 //! Read: `prototypes` (relationship, in order), `protoIndices` (int[]), `positions` (point3f[]),
 //! `orientations` (quath[]) or `orientationsf` (quatf[]), `scales` (float3[]), `ids` (int64[]) and
@@ -10,15 +15,39 @@
 use super::values::vec3_array;
 use super::Loader;
 use crate::math::{Mat4, Quat, Vec3};
-use crate::scene::SceneError;
+use crate::geometry::{CompositingTags, Mesh};
+use crate::scene::{MeshInstance, SceneError, SceneErrorKind};
 use openusd::{sdf, usd};
 use std::collections::HashSet;
 
-/// Most instances one instancer may expand to world meshes (each copies its prototype's triangles).
+/// What a native instance's prototype became the first time an instance of it was read.
+pub(super) enum NativePrototype {
+    /// Static meshes only: prototypes, each with its mesh's path and asset below the instance prim (the part
+    /// after the instance's own path, or the whole path when it lies elsewhere) and its own compositing tags.
+    Shared(Vec<SharedMesh>),
+    /// Lights, cameras, volumes or moving meshes inside: each instance's subtree is read and copied as before.
+    Copied,
+}
+
+/// One static mesh of a native instance prototype.
+#[derive(Clone)]
+pub(super) struct SharedMesh {
+    /// The prototype's index in the builder.
+    prototype: u32,
+    /// The mesh's path after the instance prim's (`/Tri` of `/A/Tri`).
+    name_suffix: String,
+    /// Its asset's path after the instance prim's, when the asset lies inside the instance; `None`: each
+    /// instance's own asset.
+    asset_suffix: Option<String>,
+    /// The compositing tags set inside the prototype (each instance's own apply where these are unset).
+    tags: CompositingTags,
+}
+
+/// Most instances one instancer may place.
 pub(super) const MAX_INSTANCES: usize = 1 << 20;
 
 impl Loader<'_> {
-    /// Expands a `PointInstancer` into copies of its prototypes' meshes.
+    /// Places a `PointInstancer`'s prototypes: instances of their static meshes, copies of their moving ones.
     pub(super) fn point_instancer(
         &mut self,
         prim: &usd::Prim,
@@ -83,8 +112,10 @@ impl Loader<'_> {
             .int64_array(prim, "invisibleIds")?
             .into_iter()
             .collect();
-        // Each prototype's meshes, flattened once in the prototype's own frame (its root transform included).
+        // Each prototype's meshes, read once in the prototype's own frame (its root transform included): the
+        // static ones become shared prototypes, the moving ones stay meshes to copy.
         let mut flattened = Vec::with_capacity(prototypes.len());
+        let mut shared = Vec::with_capacity(prototypes.len());
         for proto in &prototypes {
             let proto = self.stage.prim(proto.prim_path().as_str());
             let (meshes, lights) = (self.builder.meshes.len(), self.builder.lights.len());
@@ -96,10 +127,31 @@ impl Loader<'_> {
                     proto.path().as_str()
                 ));
             }
-            flattened.push(self.builder.split_meshes_off(meshes));
+            let (moving, still): (Vec<Mesh>, Vec<Mesh>) = self
+                .builder
+                .split_meshes_off(meshes)
+                .into_iter()
+                .partition(|m| m.motion.is_some());
+            let ids: Vec<(u32, String)> = still
+                .into_iter()
+                .map(|m| {
+                    let name = m.name.clone();
+                    (self.builder.add_prototype(m), name)
+                })
+                .collect();
+            shared.push(ids);
+            flattened.push(moving);
         }
-        // The expanded meshes must fit the memory budget with the rest of the scene's, checked before any copy
-        // is made (each copy is checked again as it is added).
+        // The instance records and the copied meshes must fit the memory budget with the rest of the scene's,
+        // checked before any is made (each is checked again as it is added).
+        let records = indices
+            .iter()
+            .filter_map(|&p| usize::try_from(p).ok().and_then(|p| shared.get(p)))
+            .map(|ids| ids.len() as u64)
+            .sum::<u64>();
+        self.builder
+            .check_instances(format!("{at}: {n} instances"), records)
+            .map_err(|e| SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string())))?;
         let (triangles, vertices) = indices
             .iter()
             .filter_map(|&p| usize::try_from(p).ok().and_then(|p| flattened.get(p)))
@@ -116,9 +168,9 @@ impl Loader<'_> {
             if invisible.contains(&id) {
                 continue;
             }
-            let proto = usize::try_from(indices[i])
+            let p = usize::try_from(indices[i])
                 .ok()
-                .and_then(|p| flattened.get(p))
+                .filter(|&p| p < flattened.len())
                 .ok_or_else(|| {
                     self.error(
                         &at,
@@ -138,7 +190,19 @@ impl Loader<'_> {
             if !m.is_finite() {
                 return Err(self.error(&at, format!("instance {i} has a non-finite transform")));
             }
-            for mesh in proto {
+            for (prototype, name) in &shared[p] {
+                let instance = MeshInstance {
+                    prototype: *prototype,
+                    object_to_world: m,
+                    name: format!("{name}[{i}]"),
+                    asset: self.asset.clone(),
+                    tags: self.tags.clone(),
+                };
+                self.builder.add_instance(instance).map_err(|e| {
+                    SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string()))
+                })?;
+            }
+            for mesh in &flattened[p] {
                 let mut mesh = mesh.clone();
                 mesh.name = format!("{}[{i}]", mesh.name);
                 mesh.transform(&m);
@@ -146,6 +210,117 @@ impl Loader<'_> {
             }
         }
         Ok(())
+    }
+
+    /// Places the native instance `prim` (at `world`, under the inherited material `binding`) as instances of
+    /// its prototype's static meshes, read once per prototype and binding; returns whether it did. `false`
+    /// (the caller reads the subtree as any other) for a prim that is not an instance, and for a prototype that
+    /// holds lights, cameras, volumes or moving meshes: those are copied per instance, as before.
+    pub(super) fn native_instance(
+        &mut self,
+        prim: &usd::Prim,
+        world: &Mat4,
+        binding: &Option<String>,
+        depth: usize,
+    ) -> Result<bool, SceneError> {
+        let at = prim.path().as_str().to_owned();
+        if !prim
+            .is_instance()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?
+        {
+            return Ok(false);
+        }
+        let Some(proto) = prim
+            .prototype()
+            .map_err(|e| self.error(&at, format!("{e:#}")))?
+        else {
+            return Ok(false);
+        };
+        let key = (proto.as_str().to_owned(), binding.clone());
+        if !self.native.contains_key(&key) {
+            let read = self.read_native_prototype(prim, binding, depth)?;
+            self.native.insert(key.clone(), read);
+        }
+        let NativePrototype::Shared(meshes) = &self.native[&key] else {
+            return Ok(false);
+        };
+        for mesh in meshes.clone() {
+            let instance = MeshInstance {
+                prototype: mesh.prototype,
+                object_to_world: *world,
+                name: format!("{at}{}", mesh.name_suffix),
+                asset: match &mesh.asset_suffix {
+                    Some(suffix) => format!("{at}{suffix}"),
+                    None => self.asset.clone(),
+                },
+                tags: mesh.tags.or(&self.tags),
+            };
+            self.builder.add_instance(instance).map_err(|e| {
+                SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string()))
+            })?;
+        }
+        Ok(true)
+    }
+
+    /// Reads the subtree of the first instance `prim` of a prototype in the instance's own frame: its static
+    /// meshes become prototypes ([`NativePrototype::Shared`]); if anything else was added (a light, a camera,
+    /// a medium, a moving mesh), it is all taken back and the prototype is [`NativePrototype::Copied`].
+    fn read_native_prototype(
+        &mut self,
+        prim: &usd::Prim,
+        binding: &Option<String>,
+        depth: usize,
+    ) -> Result<NativePrototype, SceneError> {
+        let at = prim.path().as_str().to_owned();
+        let b = &self.builder;
+        let before = (
+            b.meshes.len(),
+            b.lights.len(),
+            b.cameras.len(),
+            b.media.len(),
+            b.camera.is_some(),
+        );
+        let outer = (self.tags.clone(), self.asset.clone());
+        // The meshes keep only the tags set inside the prototype; each instance adds its own.
+        self.tags = CompositingTags::default();
+        let mut visited = Ok(());
+        for child in self.children(prim)? {
+            visited = self.visit(&child, Mat4::IDENTITY, binding.clone(), depth + 1);
+            if visited.is_err() {
+                break;
+            }
+        }
+        (self.tags, self.asset) = outer;
+        visited?;
+        let meshes = self.builder.split_meshes_off(before.0);
+        let b = &mut self.builder;
+        let others = b.lights.len() != before.1 || b.cameras.len() != before.2 || b.media.len() != before.3;
+        if others || meshes.iter().any(|m| m.motion.is_some()) {
+            b.truncate_lights(before.1);
+            b.cameras.truncate(before.2);
+            b.media.truncate(before.3);
+            b.media_tags.truncate(before.3);
+            if !before.4 {
+                b.camera = None;
+            }
+            return Ok(NativePrototype::Copied);
+        }
+        let shared = meshes
+            .into_iter()
+            .map(|mesh| {
+                let suffix = |path: &str| path.strip_prefix(at.as_str()).map(str::to_owned);
+                let name_suffix = suffix(&mesh.name).unwrap_or_else(|| mesh.name.clone());
+                let asset_suffix = suffix(&mesh.asset);
+                let tags = mesh.tags.clone();
+                SharedMesh {
+                    prototype: self.builder.add_prototype(mesh),
+                    name_suffix,
+                    asset_suffix,
+                    tags,
+                }
+            })
+            .collect();
+        Ok(NativePrototype::Shared(shared))
     }
 
     /// `orientations` (quath[]) or `orientationsf` (quatf[]), normalised; empty when neither is authored.

@@ -19,8 +19,8 @@
 //!   `primvars:displayColor` (the diffuse colour of an unbound mesh); `GeomSubset` children of the
 //!   `materialBind` family bind materials per face;
 //! - the gprims `Cube`, `Sphere`, `Cylinder`, `Cone`, `Capsule`, `Plane`, tessellated (`usd/shapes.rs`);
-//! - `PointInstancer` (`usd/instancing.rs`) and native instances (composed by `openusd` as instance proxies),
-//!   flattened to world meshes;
+//! - `PointInstancer` (`usd/instancing.rs`) and native instances (composed by `openusd` as instance proxies):
+//!   static prototype meshes read once and placed as instances, the rest copied to world meshes;
 //! - `Camera` (every one, named by its prim name and path; the first met renders unless another is chosen):
 //!   `projection` (`perspective`: yfov from `verticalAperture` and `focalLength`; `orthographic`: a film
 //!   `horizontalAperture` by `verticalAperture` tenths of a scene unit), the aspect ratio from the apertures'
@@ -359,6 +359,7 @@ fn read_stage(
         textures: HashMap::new(),
         transformed_textures: HashMap::new(),
         unsupported: HashSet::new(),
+        native: HashMap::new(),
         root: Mat4::IDENTITY,
         limits: *limits,
         prims: 0,
@@ -474,6 +475,8 @@ struct Loader<'a> {
     /// through it.
     transformed_textures: HashMap<(u32, [u32; 5]), u32>,
     unsupported: HashSet<String>,
+    /// What each native instance prototype (by prototype path and inherited material binding) became.
+    native: HashMap<(String, Option<String>), instancing::NativePrototype>,
     /// Stage units and up axis to Nimbus's metres and +Y up.
     root: Mat4,
     /// The memory budget for textures and environment maps, and the most prims to read.
@@ -729,6 +732,10 @@ impl Loader<'_> {
                     ));
                 }
             }
+        }
+        // A native instance whose prototype holds only static meshes places them as instances.
+        if self.native_instance(prim, &world, &binding, depth)? {
+            return Ok(());
         }
         for child in self.children(prim)? {
             self.visit(&child, world, binding.clone(), depth + 1)?;
