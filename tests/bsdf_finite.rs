@@ -97,7 +97,7 @@ fn transmissive_bsdfs_stay_finite_in_every_degenerate_case() {
                 let f = bsdf.eval(wo, wi);
                 let pdf = bsdf.pdf(wo, wi);
                 let split = bsdf.eval_split(wo, wi).total();
-                if !finite_non_negative(f) || !(pdf.is_finite() && pdf >= 0.0) {
+                if !(finite_non_negative(f) && pdf.is_finite() && pdf >= 0.0) {
                     failures.push(case(&format!("eval {f:?} pdf {pdf}"), wo, wi));
                 }
                 if !finite_non_negative(split) {
@@ -114,9 +114,10 @@ fn transmissive_bsdfs_stay_finite_in_every_degenerate_case() {
                         };
                         let weight = s.f * (s.wi.z.abs() / s.pdf);
                         let unit = (s.wi.length() - 1.0).abs() < 1e-4;
-                        if !(s.pdf > 0.0 && s.pdf.is_finite())
-                            || !finite_non_negative(weight)
-                            || !unit
+                        if !(s.pdf > 0.0
+                            && s.pdf.is_finite()
+                            && finite_non_negative(weight)
+                            && unit)
                         {
                             failures.push(case(
                                 &format!("sample {s:?} weight {weight:?}"),
