@@ -5,11 +5,20 @@
 //! of the whole ray set on a rayon pool with the given number of threads. Throughput is given per second of
 //! wall time and per second of CPU time summed over threads (steadier on a shared machine; with two
 //! threads it is per-core throughput, so the wall figure shows the scaling).
+//!
+//! `cargo bench --bench bvh -- --export DIR` also writes the mesh, both ray sets and Nimbus's answers to `DIR`
+//! as little-endian binary arrays, so that a peer traces the very same work (`benches/peers/embree_rays.py`):
+//! `triangles.f32` (9 floats a triangle), `primary.f32` and `random.f32` (origin then direction, 6 floats a ray,
+//! every ray from t = 0 to infinity), `primary_closest.f32` and `random_closest.f32` (the closest hit's distance,
+//! infinity for a miss), `primary_occluded.u8` and `random_occluded.u8` (1 where the ray hits anything).
+
+mod support;
 
 use nimbus::geometry::{Bvh, Instance, InstanceBvh, TriangleHierarchy};
 use nimbus::math::sampling::uniform_sphere;
 use nimbus::math::{Mat4, Quat, Ray, Rng, Vec3};
 use rayon::prelude::*;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// A closed UV sphere whose vertices are displaced radially by a smooth bump field plus per-vertex noise,
@@ -237,7 +246,50 @@ fn instanced_scene(rng: &mut Rng) {
     }
 }
 
+/// Writes `values` to `dir/name` as little-endian `f32`s.
+fn write_f32s(dir: &Path, name: &str, values: impl Iterator<Item = f32>) {
+    let bytes: Vec<u8> = values.flat_map(f32::to_le_bytes).collect();
+    std::fs::write(dir.join(name), bytes).expect("writing an export file");
+}
+
+/// Writes the mesh, the ray sets and Nimbus's closest-hit distances and occlusion answers to `dir` (see the
+/// module documentation).
+fn export(dir: &Path, tris: &[[Vec3; 3]], bvh: &Bvh, sets: &[(&str, Vec<Ray>)]) {
+    std::fs::create_dir_all(dir).expect("creating the export folder");
+    write_f32s(
+        dir,
+        "triangles.f32",
+        tris.iter().flatten().flat_map(|v| v.to_array()),
+    );
+    for (name, rays) in sets {
+        let set = name.split(' ').next().expect("a set name");
+        write_f32s(
+            dir,
+            &format!("{set}.f32"),
+            rays.iter()
+                .flat_map(|r| r.origin.to_array().into_iter().chain(r.dir.to_array())),
+        );
+        let closest: Vec<f32> = rays
+            .par_iter()
+            .map(|r| {
+                bvh.intersect(r, 0.0, f32::INFINITY)
+                    .map_or(f32::INFINITY, |h| h.t)
+            })
+            .collect();
+        write_f32s(dir, &format!("{set}_closest.f32"), closest.into_iter());
+        let occluded: Vec<u8> = rays
+            .par_iter()
+            .map(|r| u8::from(bvh.occluded(r, 0.0, f32::INFINITY)))
+            .collect();
+        std::fs::write(dir.join(format!("{set}_occluded.u8")), occluded)
+            .expect("writing an export file");
+    }
+    println!("exported the mesh, rays and answers to {}", dir.display());
+}
+
 fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let export_dir = support::flag_value(&args, "--export").map(PathBuf::from);
     let mut rng = Rng::new(2024, 1);
     let tris = bumpy_sphere(708, 708, &mut rng);
     println!("mesh: bumpy sphere, {} triangles", tris.len());
@@ -267,6 +319,9 @@ fn main() {
         ("primary (coherent)", camera_rays(1024)),
         ("random (incoherent)", random_rays(1 << 20, &bvh, &mut rng)),
     ];
+    if let Some(dir) = &export_dir {
+        export(dir, &tris, &bvh, &sets);
+    }
     println!();
     println!(
         "{:<20} {:<9} {:>7} {:>14} {:>18} {:>9}",
@@ -275,31 +330,10 @@ fn main() {
     for (name, rays) in &sets {
         for query in ["closest", "occluded"] {
             for threads in [1, 2] {
-                let p = pool(threads);
-                let (secs, cpu, hits) = time(3, || {
-                    p.install(|| {
-                        rays.par_chunks(1024)
-                            .map(|chunk| {
-                                chunk
-                                    .iter()
-                                    .filter(|r| match query {
-                                        "closest" => bvh.intersect(r, 0.0, f32::INFINITY).is_some(),
-                                        _ => bvh.occluded(r, 0.0, f32::INFINITY),
-                                    })
-                                    .count()
-                            })
-                            .sum::<usize>()
-                    })
-                });
-                let mrays = |s: f64| rays.len() as f64 / s / 1e6;
+                let (wall, cpu, hits) = throughput(&bvh, rays, query, threads);
                 println!(
                     "{:<20} {:<9} {:>7} {:>14.2} {:>18.2} {:>9.3}",
-                    name,
-                    query,
-                    threads,
-                    mrays(secs),
-                    cpu.map_or(f64::NAN, mrays),
-                    hits as f64 / rays.len() as f64
+                    name, query, threads, wall, cpu, hits
                 );
             }
         }

@@ -5,7 +5,7 @@ TRIANGLES triangles (default 50,000), laid out on a 50-wide lattice, lit by a su
     python3 scripts/instanced_forest.py forest.glb [--nodes 2000] [--triangles 50000]
 
 Before instancing, loading it copied the mesh per node (2.4 GB for the defaults, refused by the memory budget);
-now it is one prototype and 2,000 instances (`tests/gltf_hostile.rs` builds the same file in memory)."""
+now it is one prototype and 2,000 instances (`tests/suite/gltf_hostile.rs` builds the same file in memory)."""
 
 import argparse
 import json

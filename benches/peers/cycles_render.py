@@ -7,7 +7,7 @@ benchmark (issue 15).
 The scene is imported with Blender's own glTF importer; then every convention is set to match Nimbus and
 `../shared/tools/gltf2mitsuba.py`:
 - materials: Lambert (metallic 0, KHR_materials_specular 0) -> Diffuse BSDF of the base colour (factor x texture);
-  mirror (metallic 1, roughness 0) -> sharp Glossy; transmission -> sharp Glass of the ior, or Transparent at ior 1;
+  mirror (metallic 1, roughness 0) -> Glossy (GGX, roughness 0); transmission -> Glass (GGX, roughness 0) of the ior, or Transparent at ior 1;
   emission (factor x strength, x emissiveTexture) -> Emission, one-sided like glTF's;
 - media: material extras `nimbus_medium` -> Volume Scatter (sigma_s, g) + Volume Absorption (sigma_a); node extras
   `nimbus_volume` -> a Blender volume object of the VDB under that node, with Volume Scatter + Absorption of
@@ -57,12 +57,13 @@ def set_diffuse_like(mat, gm, nt):
             surf = nt.nodes.new("ShaderNodeBsdfTransparent")
         else:
             surf = nt.nodes.new("ShaderNodeBsdfGlass")
-            surf.distribution = "SHARP"
+            surf.distribution = "GGX"   # Blender 4+ has no "SHARP"; GGX at roughness 0 is the smooth interface
             surf.inputs["IOR"].default_value = ior
             surf.inputs["Roughness"].default_value = 0.0
     elif metallic >= 1 and rough <= 0:
         surf = nt.nodes.new("ShaderNodeBsdfGlossy")
-        surf.distribution = "SHARP"
+        surf.distribution = "GGX"   # at roughness 0: the perfect mirror
+        surf.inputs["Roughness"].default_value = 0.0
         surf.inputs["Color"].default_value = list(base) + [1]
     else:
         surf = nt.nodes.new("ShaderNodeBsdfDiffuse")

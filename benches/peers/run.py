@@ -48,6 +48,12 @@ SCENES = {
     "helmet": ("benches/peers/scenes/helmet.gltf", "DamagedHelmet: textured Lambert, 15,453 textured emissive "
                                                     "triangles, dim sky"),
     "smoke-sun": ("../shared/validation/smoke-sun/scene.gltf", "the validation scene: real VDB plume, sun, sky map"),
+    "mirrors": ("benches/peers/scenes/mirrors.gltf", "the Cornell box with two perfect-mirror spheres (4,620 "
+                                                      "triangles)"),
+    "glass": ("benches/peers/scenes/glass.gltf", "a smooth glass sphere (ior 1.5) holding a scattering, absorbing "
+                                                  "medium, over a checkerboard floor; quad light and dim sky"),
+    "dense": ("benches/peers/scenes/dense.gltf", "the Cornell box with a 1,002,528-triangle bumpy Lambert sphere "
+                                                  "(git-ignored; `make_scenes.py` writes it)"),
 }
 
 
@@ -139,6 +145,7 @@ def bench_scene(name, a):
     scene, _ = SCENES[name]
     scene = os.path.join(ROOT, scene)
     ref, ref_var = reference(name, scene, a.res, a.ref_spp, a.threads)
+    load_before = os.getloadavg()[0]
     renderers = ["nimbus"] + a.peers
     rounds = {r: [] for r in renderers}
     for rep in range(a.reps):
@@ -154,7 +161,7 @@ def bench_scene(name, a):
         err = float(np.mean([x["mse"] for x in rounds[r]]))
         summary[r] = {"seconds": secs, "mse": err, "efficiency": 1.0 / (max(err, 1e-30) * secs),
                       "wall_s": min(x["wall_s"] for x in rounds[r])}
-    return {"scene": name, "ref_var": ref_var, "ref_mean": ref.reshape(-1, 3).mean(0).tolist(),
+    return {"scene": name, "load_avg": [load_before, os.getloadavg()[0]], "ref_var": ref_var, "ref_mean": ref.reshape(-1, 3).mean(0).tolist(),
             "summary": summary, "rounds": rounds, "ladder": ladder}
 
 
@@ -185,7 +192,32 @@ def chart(result, path):
     plt.close(fig)
 
 
+def previous_page():
+    """The page as it stands, or empty"""
+    path = os.path.join(ROOT, "docs", "performance.md")
+    return open(path).read() if os.path.exists(path) else ""
+
+
+def previous_rows(page):
+    """{scene: table row} of the page as it stands, for scenes measured on an earlier run whose results are not
+    saved here (benches/peers/out/ is not committed)"""
+    rows = {}
+    for line in page.splitlines():
+        m = re.match(r"\| ([\w-]+) \|", line)
+        if m and m[1] in SCENES and line.count("|") > 4:
+            rows[m[1]] = line
+    return rows
+
+
+def kept_sections(page):
+    """The `<!-- section:NAME -->` ... `<!-- /section:NAME -->` blocks other scripts write into the page
+    (`embree_rays.py`), kept as they are"""
+    return [m.group(0) for m in re.finditer(r"<!-- section:([\w-]+) -->.*?<!-- /section:\1 -->", page, flags=re.S)]
+
+
 def write_markdown(results, a):
+    page = previous_page()
+    carried = {k: v for k, v in previous_rows(page).items() if k not in {r["scene"] for r in results}}
     lines = ["# Performance against peer renderers", "",
              "Written by `python3 benches/peers/run.py` (issue 15); every figure here comes from that harness. "
              f"Settings: {a.res}x{a.res}, {a.spp} spp, {a.threads} threads, box filter, best time of {a.reps} "
@@ -196,9 +228,18 @@ def write_markdown(results, a):
              "excluded), which favours them. Efficiency is 1 / (MSE x seconds); a ratio above 1 means Nimbus "
              "reaches a given error sooner.", "",
              "| scene | Nimbus s | Nimbus MSE | " + " | ".join(f"{p} s | {p} MSE | Nimbus/{p} efficiency"
-                                                        for p in a.peers) + " |",
-             "|---|---|---|" + "---|---|---|" * len(a.peers)]
-    for res in results:
+                                                        for p in a.peers) + " | load avg (1 min) |",
+             "|---|---|---|" + "---|---|---|" * len(a.peers) + "---|"]
+    measured = {r["scene"]: r for r in results}
+    for name in SCENES:
+        if name in carried:
+            row = carried[name]
+            if row.count("|") == 4 + 3 * len(a.peers):
+                row += " earlier run |"
+            lines.append(row)
+        if name not in measured:
+            continue
+        res = measured[name]
         s = res["summary"]
         row = [res["scene"], f"{s['nimbus']['seconds']:.2f}", f"{s['nimbus']['mse']:.3e}"]
         for p in a.peers:
@@ -207,10 +248,13 @@ def write_markdown(results, a):
                 continue
             row += [f"{s[p]['seconds']:.2f}", f"{s[p]['mse']:.3e}",
                     f"**{s['nimbus']['efficiency'] / s[p]['efficiency']:.2f}x**"]
+        load = res.get("load_avg")
+        row.append(f"{load[0]:.1f}-{load[1]:.1f}" if load else "not recorded")
         lines.append("| " + " | ".join(row) + " |")
     lines += ["", "Scenes:", ""]
-    for res in results:
-        lines.append(f"- `{res['scene']}`: {SCENES[res['scene']][1]} (`{SCENES[res['scene']][0]}`).")
+    for name in SCENES:
+        if name in measured or name in carried:
+            lines.append(f"- `{name}`: {SCENES[name][1]} (`{SCENES[name][0]}`).")
     lines += ["", "## Reading the table", "",
               "- The machine is shared: the same code measured on different runs the same day moved ratios by up "
               "to about 10% (best-of-3 times limit it, they do not remove it). A ratio near 2 can fall either side.",
@@ -218,12 +262,26 @@ def write_markdown(results, a):
               "heavy-tailed noise (Mitsuba on the dense plume, whose own 64 spp MSE is orders of magnitude above "
               "the others), what remains still floors every renderer's MSE, which pulls the ratios toward 1.",
               "- Cycles' MSE includes any difference of convention left in the translation (`cycles_render.py`); "
-              "at 32 spp and 128 px its image means agree with Mitsuba's and Nimbus's within 0.5% on every scene.",
+              "at 32 spp and 128 px its image means agree with Mitsuba's and Nimbus's within 0.5% on every scene of "
+              "issue 15; on the mirrors, glass and dense scenes (issue 33), at 64 spp and 256 px, every renderer's "
+              "mean is within 0.2% of the reference's but Cycles' on glass (1.2% low in red).",
+              "- The mirrors, glass and dense rows (issue 33) were measured with `--ladder 16` on a machine whose load "
+              "average stayed between 8 and 14 on 2 cores (their last column). Nimbus's time on dense includes reading "
+              "its 24 MB buffer and building the BVH of 1.0 M triangles; the peers' excludes their load and, for "
+              "Mitsuba, their BVH build. At 64 spp Nimbus's MSE is 0.57x Mitsuba's on mirrors and 0.88x on glass, "
+              "and its time 2.8x and 2.7x: the ratios below 2 there are speed per sample, not noise; no work on it "
+              "is in this change.",
               "- Rerun one scene with `--scenes NAME`; the page is rewritten from every scene's saved results "
-              "(`--docs-only` rewrites it without rendering)."]
+              "(`--docs-only` rewrites it without rendering). Rows of scenes with no saved results here "
+              "(`benches/peers/out/` is not committed) are carried over from the page as it stood.",
+              "- Load average: the 1-minute load average before and after the scene's rounds (2 cores, shared with "
+              "other builds: above 2, the renderers waited for a core)."]
     lines += ["", "## Error against time", ""]
-    for res in results:
-        lines.append(f"![{res['scene']}](performance/{res['scene']}.png)")
+    for name in SCENES:
+        if name in measured or os.path.exists(os.path.join(ROOT, "docs", "performance", f"{name}.png")):
+            lines.append(f"![{name}](performance/{name}.png)")
+    for section in kept_sections(page):
+        lines += ["", section]
     lines.append("")
     with open(os.path.join(ROOT, "docs", "performance.md"), "w") as f:
         f.write("\n".join(lines))

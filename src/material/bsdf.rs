@@ -15,6 +15,17 @@ pub use super::sample::BsdfSample;
 use super::sheen::Sheen;
 use crate::math::{Rgb, Vec2, Vec3};
 
+/// Directions whose cosine to the shading normal is below this in magnitude (within 1e-9 radians of the tangent
+/// plane) are taken as exactly tangent: no value, no density and no sample. The models divide by products and
+/// squares of cosines, which underflow `f32` below about 1e-19 and gave infinite or NaN values (issue 33, found by
+/// `tests/suite/bsdf_finite.rs`); the directions dropped carry no measurable light.
+const TANGENT_COS: f32 = 1e-9;
+
+/// True when `w` lies in the tangent plane to within [`TANGENT_COS`].
+fn is_tangent(w: Vec3) -> bool {
+    w.z.abs() < TANGENT_COS
+}
+
 /// A surface scattering model.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Bsdf {
@@ -64,6 +75,9 @@ impl Bsdf {
 
     /// BSDF value of the non-delta lobes, without the cosine.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        if is_tangent(wo) || is_tangent(wi) {
+            return Rgb::ZERO;
+        }
         match self {
             Bsdf::Lambert(b) => b.eval(wo, wi),
             Bsdf::Dielectric(b) => b.eval(wo, wi),
@@ -80,6 +94,9 @@ impl Bsdf {
     /// `KHR_materials_diffuse_transmission` are transmission. Glossy light
     /// therefore stays on `wo`'s side and transmitted light crosses the surface.
     pub fn eval_split(&self, wo: Vec3, wi: Vec3) -> LobeSplit {
+        if is_tangent(wo) || is_tangent(wi) {
+            return LobeSplit::ZERO;
+        }
         match self {
             Bsdf::Lambert(b) => b.eval_split(wo, wi),
             Bsdf::Dielectric(b) => b.eval_split(wo, wi),
@@ -106,6 +123,9 @@ impl Bsdf {
 
     /// Solid-angle density with which [`Bsdf::sample`] picks `wi` through its non-delta lobes.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if is_tangent(wo) || is_tangent(wi) {
+            return 0.0;
+        }
         match self {
             Bsdf::Lambert(b) => b.pdf(wo, wi),
             Bsdf::Dielectric(b) => b.pdf(wo, wi),
@@ -115,8 +135,18 @@ impl Bsdf {
     }
 
     /// Samples a direction with `u_lobe` choosing the lobe and `u` the direction within it; `None` when no
-    /// direction carries energy (e.g. `wo` below an opaque surface).
+    /// direction carries energy (e.g. `wo` below an opaque surface) or when `wo` or the direction is tangent
+    /// (see [`TANGENT_COS`]).
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        if is_tangent(wo) {
+            return None;
+        }
+        let sample = self.sample_any(wo, u_lobe, u)?;
+        (!is_tangent(sample.wi)).then_some(sample)
+    }
+
+    /// [`Bsdf::sample`] before tangent directions are dropped.
+    fn sample_any(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         match self {
             Bsdf::Lambert(b) => {
                 let wi = b.sample(wo, u)?;

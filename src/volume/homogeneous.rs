@@ -49,8 +49,13 @@ pub struct HomogeneousMedium {
     channel_choice: ChannelChoice,
 }
 
-fn exp_neg(v: Rgb) -> Rgb {
-    Rgb::new((-v.x).exp(), (-v.y).exp(), (-v.z).exp())
+/// Beer–Lambert transmittance `exp(−σ t)` per channel over a distance `t ≥ 0` that may be infinite (a path
+/// that leaves the scene with this medium still on its stack: an open or unclosed mesh): 0 where σ > 0 and
+/// `t = ∞`, and exactly 1 where σ = 0, for any `t`. The plain product `σ t` would be `0 · ∞`, a NaN, there
+/// (issue 33: NaN samples from glass whose `attenuationColor` is 1 in a channel).
+fn beer_lambert(sigma: Rgb, t: f32) -> Rgb {
+    let channel = |s: f32| if s > 0.0 { (-s * t).exp() } else { 1.0 };
+    Rgb::new(channel(sigma.x), channel(sigma.y), channel(sigma.z))
 }
 
 impl HomogeneousMedium {
@@ -189,7 +194,7 @@ impl Medium for HomogeneousMedium {
         _rng: &mut Rng,
         _c: &mut TrackingCounters,
     ) -> Rgb {
-        let transmittance = exp_neg(self.sigma_t * t);
+        let transmittance = beer_lambert(self.sigma_t, t);
         if self.is_absorbing_only() {
             return transmittance;
         }
@@ -237,10 +242,7 @@ impl Medium for HomogeneousMedium {
         _rng: &mut Rng,
         _c: &mut TrackingCounters,
     ) -> Rgb {
-        if t_max.is_infinite() {
-            return Rgb::select(self.sigma_t.cmpgt(Rgb::ZERO), Rgb::ZERO, Rgb::ONE);
-        }
-        exp_neg(self.sigma_t * t_max)
+        beer_lambert(self.sigma_t, t_max)
     }
 
     fn constant_scattering(&self) -> Option<ConstantScattering> {
@@ -256,7 +258,7 @@ impl Medium for HomogeneousMedium {
             return 0.0;
         }
         // σ_c exp(−σ_c t) for the one channel sampled, else the mixture p̄(t) = Σ_c w_c σ_c exp(−σ_c t).
-        let density = self.sigma_t * exp_neg(self.sigma_t * t);
+        let density = self.sigma_t * beer_lambert(self.sigma_t, t);
         if self.samples_single_channel() {
             density.x
         } else {
@@ -379,6 +381,38 @@ mod tests {
             &HomogeneousMedium::new("absorbing", Rgb::new(0.4, 0.8, 1.2), Rgb::ZERO, 0.0),
             2.0,
         );
+    }
+
+    #[test]
+    fn an_infinite_flight_keeps_the_clear_channels_and_loses_the_others() {
+        // Beer's law as t → ∞: exp(−σ t) → 0 for σ > 0 and stays 1 for σ = 0 (issue 33: `0 · ∞` was a NaN). An
+        // escaping path survives every medium's free flight with that transmittance, over the probability of
+        // no collision.
+        let ray = Ray::new(Vec3::ZERO, Vec3::Z);
+        let (mut rng, mut c) = (Rng::new(1, 2), TrackingCounters::default());
+        let clear_blue = Rgb::new(6.9, 2.2, 0.0);
+        for (name, medium, expected) in [
+            (
+                "absorbing",
+                HomogeneousMedium::new("a", clear_blue, Rgb::ZERO, 0.0),
+                Rgb::new(0.0, 0.0, 1.0),
+            ),
+            (
+                "scattering",
+                HomogeneousMedium::new("s", clear_blue, Rgb::new(0.3, 0.3, 0.0), 0.0),
+                // The flight survives only in blue, so the channel mixture's survival probability is blue's
+                // weight, 1/3 for a white path: T / P = 3 in blue.
+                Rgb::new(0.0, 0.0, 3.0),
+            ),
+        ] {
+            let t = f32::INFINITY;
+            let weight = medium.free_flight_weight(&ray, t, false, Rgb::ONE, &mut rng, &mut c);
+            assert_eq!(weight, expected, "{name}: free-flight weight at infinity");
+            let tr = medium.transmittance(&ray, t, &mut rng, &mut c);
+            assert_eq!(tr, Rgb::new(0.0, 0.0, 1.0), "{name}: transmittance");
+            let pdf = medium.free_flight_pdf(t, Rgb::ONE);
+            assert!(pdf.is_finite() && pdf >= 0.0, "{name}: pdf {pdf}");
+        }
     }
 
     #[test]

@@ -8,6 +8,7 @@ mod common;
 #[path = "../support/hostile.rs"]
 mod hostile;
 
+mod bsdf_finite;
 mod cameras;
 mod checkpoint;
 mod cli_flags;
@@ -23,6 +24,7 @@ mod emitter_edges;
 mod farm;
 mod fuzz_regressions;
 mod ggx_energy;
+mod glass_nan;
 mod gltf_alpha;
 mod gltf_anisotropy;
 mod gltf_geometry;
@@ -35,6 +37,7 @@ mod gltf_variants;
 mod grid_media;
 mod guiding;
 mod hostile_volumes;
+mod instancing;
 mod motion_blur;
 mod obj_loader;
 mod obj_materials;

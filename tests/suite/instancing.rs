@@ -4,7 +4,7 @@
 //! rays that never re-hit the surface they leave, and the same scene written with one mesh per node (which the
 //! loader copies to world space), rendered with the same estimator and seed.
 
-mod common;
+use crate::common;
 
 use nimbus::geometry::Mesh;
 use nimbus::material::Material;
