@@ -427,41 +427,7 @@ fn render(
     }
     let hash = scene.scene_hash(&settings)?;
     let renderer = Renderer::new(settings);
-    let cancel = CancelToken::new();
-    let shared = (Mutex::new(Shared::default()), Condvar::new());
-    let total = region.samples.len() as u32;
-    let result = std::thread::scope(|s| {
-        let worker = s.spawn(|| {
-            let result = renderer.render_resumable(
-                &scene.scene,
-                &region,
-                None,
-                &mut |p, _| {
-                    if let Ok(mut state) = shared.0.lock() {
-                        state.progress = Some((p.samples_done, total));
-                    }
-                    shared.1.notify_all();
-                    true
-                },
-                &cancel,
-            );
-            if let Ok(mut state) = shared.0.lock() {
-                state.done = true;
-            }
-            shared.1.notify_all();
-            result
-        });
-        let outcome = wait(py, &shared, progress.as_ref());
-        if outcome.is_err() {
-            cancel.cancel();
-        }
-        let result = py.detach(|| worker.join());
-        outcome.map(|()| result)
-    })?;
-    let (film, stats, _) = match result {
-        Ok(r) => r.map_err(py_error)?,
-        Err(_) => return Err(Error::new_err("the render thread panicked")),
-    };
+    let (film, stats) = render_on_worker(py, &renderer, &scene.scene, &region, progress.as_ref())?;
     let stats_json = stats_json(&stats)?;
     let metadata = ImageMetadata::for_render(
         &scene.scene,
@@ -492,6 +458,52 @@ fn render(
         stats_json,
         part: None,
     })
+}
+
+/// Renders `region` of `scene` with `renderer` on a thread of its own while this one [`wait`]s with the GIL
+/// released, calling `progress`; Ctrl-C or an exception from `progress` cancels the render and is returned.
+fn render_on_worker(
+    py: Python<'_>,
+    renderer: &Renderer,
+    scene: &nimbus::Scene,
+    region: &RenderRegion,
+    progress: Option<&Bound<'_, PyAny>>,
+) -> PyResult<(Film, RenderStats)> {
+    let cancel = CancelToken::new();
+    let shared = (Mutex::new(Shared::default()), Condvar::new());
+    let total = region.samples.len() as u32;
+    let result = std::thread::scope(|s| {
+        let worker = s.spawn(|| {
+            let result = renderer.render_resumable(
+                scene,
+                region,
+                None,
+                &mut |p, _| {
+                    if let Ok(mut state) = shared.0.lock() {
+                        state.progress = Some((p.samples_done, total));
+                    }
+                    shared.1.notify_all();
+                    true
+                },
+                &cancel,
+            );
+            if let Ok(mut state) = shared.0.lock() {
+                state.done = true;
+            }
+            shared.1.notify_all();
+            result
+        });
+        let outcome = wait(py, &shared, progress);
+        if outcome.is_err() {
+            cancel.cancel();
+        }
+        let result = py.detach(|| worker.join());
+        outcome.map(|()| result)
+    })?;
+    match result {
+        Ok(r) => r.map(|(film, stats, _)| (film, stats)).map_err(py_error),
+        Err(_) => Err(Error::new_err("the render thread panicked")),
+    }
 }
 
 /// Waits for the render of `shared` to end with the GIL released, waking every [`POLL`] to run Python's
