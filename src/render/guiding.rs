@@ -8,6 +8,7 @@
 //! The cache, and so the image, is the same for any thread count and in every farm part of a render.
 
 use super::renderer::GuidingStats;
+use super::CancelToken;
 use crate::guiding::{
     GuidePath, GuidingDecision, GuidingField, RadianceRecord, TRAINING_ITERATIONS,
 };
@@ -33,14 +34,16 @@ pub(super) struct TrainingFrame {
 }
 
 /// Trains a guiding cache for `scene` with `tracer` (on the caller's thread pool) and says what it did;
-/// `decision` is what the guiding mode decided (no cache when off). The training does not look at the cancel
-/// token or the time budget; the passes after it do (its seconds count in the budget).
+/// `decision` is what the guiding mode decided (no cache when off). A cancelled render stops training between
+/// blocks of rows and gets no cache (it renders no samples after it); the time budget is not looked at here, the
+/// passes after it are (the training's seconds count in the budget).
 pub(super) fn train(
     scene: &Scene,
     tracer: &PathTracer,
     services: &RendererServices,
     frame: &TrainingFrame,
     decision: GuidingDecision,
+    cancel: &CancelToken,
 ) -> (Option<GuidingField>, GuidingStats) {
     let mut stats = GuidingStats {
         mode: if decision.on { "on" } else { "off" }.to_owned(),
@@ -56,6 +59,10 @@ pub(super) fn train(
         let spp = 1u32 << k;
         let seed = frame.seed ^ TRAINING_STREAM ^ k as u64;
         for block in (0..frame.height).step_by(ROWS_PER_BLOCK) {
+            if cancel.is_cancelled() {
+                stats.training_seconds = start.elapsed().as_secs_f64();
+                return (None, stats);
+            }
             let rows = block..(block + ROWS_PER_BLOCK).min(frame.height);
             let guided = services.with_guide(Some(&field));
             let records: Vec<Vec<RadianceRecord>> = rows

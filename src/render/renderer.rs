@@ -549,6 +549,7 @@ impl Renderer {
                     seed: s.seed,
                 },
                 s.guiding.decide(scene),
+                cancel,
             )
         });
         let mut counters = PathCounters::new(scene.media.len());

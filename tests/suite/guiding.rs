@@ -230,3 +230,18 @@ fn auto_leaves_guiding_off_and_says_what_it_measured() {
     let scene = Scene::load(&root.join("assets/cloud.gltf")).unwrap();
     assert!(!GuidingMode::Off.decide(&scene).on && GuidingMode::On.decide(&scene).on);
 }
+
+/// A render cancelled before it starts does not train either: guiding's pre-pass stops between blocks of rows at
+/// the cancel token (it trained all 7 samples per pixel before, so Ctrl-C waited for the whole pre-pass).
+#[test]
+fn a_cancelled_render_stops_training() {
+    let scene = ball_scene(4.0, 1.0, false);
+    let cancel = CancelToken::new();
+    cancel.cancel();
+    let (_, stats) = Renderer::new(settings(24, 4, 2, GuidingMode::On))
+        .render_with_cancel(&scene, &mut |_| true, &cancel)
+        .unwrap();
+    assert_eq!(stats.guiding.mode, "on");
+    assert_eq!(stats.guiding.training_paths, 0, "{:?}", stats.guiding);
+    assert_eq!(stats.guiding.cells, 0, "no cache is kept");
+}
