@@ -1253,11 +1253,10 @@ impl Scene {
                 .map_or(0, InstanceBvh::triangle_count)
     }
 
-    internal! {
-        /// Number of instances (placements of an object-space mesh traced through the two-level hierarchy).
-        pub fn instance_count(&self) -> usize {
-            self.placed.len()
-        }
+    /// Number of instances: placements of a shared object-space mesh, traced through the two-level hierarchy
+    /// (their triangles are in [`Self::triangle_count`] once per placement).
+    pub fn instance_count(&self) -> usize {
+        self.placed.len()
     }
 
     /// Number of moving triangles (transform motion blur).
