@@ -783,6 +783,25 @@ impl Loader<'_> {
         Ok(())
     }
 
+    /// The description of `primitive` (`MESH, primitive N`) when it holds triangles (a list, strip or fan);
+    /// any other mode is warned about and skipped (`None`).
+    fn triangle_primitive(&mut self, mesh_name: &str, primitive: &gltf::Primitive) -> Option<String> {
+        let what = format!("{mesh_name}, primitive {}", primitive.index());
+        let mode = primitive.mode();
+        if matches!(
+            mode,
+            gltf::mesh::Mode::Triangles
+                | gltf::mesh::Mode::TriangleStrip
+                | gltf::mesh::Mode::TriangleFan
+        ) {
+            return Some(what);
+        }
+        self.builder.warnings.push(format!(
+            "{what}: {mode:?} primitives are not triangles; skipped"
+        ));
+        None
+    }
+
     /// Reads the triangle primitives of `mesh` (first placed by `node`) as object-space prototypes with
     /// their materials, each checked against the memory budget first; returns their indices.
     fn read_prototypes(
@@ -793,19 +812,9 @@ impl Loader<'_> {
         let mesh_name = mesh_name(mesh);
         let mut ids = Vec::new();
         for primitive in mesh.primitives() {
-            let what = format!("{mesh_name}, primitive {}", primitive.index());
-            let mode = primitive.mode();
-            if !matches!(
-                mode,
-                gltf::mesh::Mode::Triangles
-                    | gltf::mesh::Mode::TriangleStrip
-                    | gltf::mesh::Mode::TriangleFan
-            ) {
-                self.builder.warnings.push(format!(
-                    "{what}: {mode:?} primitives are not triangles; skipped"
-                ));
+            let Some(what) = self.triangle_primitive(&mesh_name, &primitive) else {
                 continue;
-            }
+            };
             let (triangles, vertices) = primitive_size(&primitive);
             self.builder
                 .check_mesh(
@@ -871,19 +880,9 @@ impl Loader<'_> {
             None => None,
         };
         for primitive in mesh.primitives() {
-            let what = format!("{mesh_name}, primitive {}", primitive.index());
-            let mode = primitive.mode();
-            if !matches!(
-                mode,
-                gltf::mesh::Mode::Triangles
-                    | gltf::mesh::Mode::TriangleStrip
-                    | gltf::mesh::Mode::TriangleFan
-            ) {
-                self.builder.warnings.push(format!(
-                    "{what}: {mode:?} primitives are not triangles; skipped"
-                ));
+            let Some(what) = self.triangle_primitive(&mesh_name, &primitive) else {
                 continue;
-            }
+            };
             let (triangles, vertices) = primitive_size(&primitive);
             let copies = 1 + step_deforms.as_ref().map_or(0, Vec::len) as u64;
             self.builder
