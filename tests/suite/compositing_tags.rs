@@ -4,6 +4,7 @@
 //! (inherited by child prims) with Cryptomatte's asset (the `component` model); wrong types are errors naming
 //! the node.
 
+use crate::common;
 use nimbus::render::{LightGroupMode, LightGroups};
 use nimbus::Scene;
 use std::path::PathBuf;
@@ -25,7 +26,10 @@ fn gltf(rig_extras: &str, lamp_material_extras: &str, scene_extras: &str) -> Str
         .flat_map(|v| v.to_le_bytes())
         .collect();
     bytes.extend([0u8, 0, 1, 0, 2, 0, 0, 0]);
-    let uri = format!("data:application/octet-stream;base64,{}", base64(&bytes));
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        common::base64(&bytes)
+    );
     format!(
         r#"{{"asset": {{"version": "2.0"}}, "scene": 0,
   "extensionsUsed": ["KHR_lights_punctual"],
@@ -54,27 +58,6 @@ fn gltf(rig_extras: &str, lamp_material_extras: &str, scene_extras: &str) -> Str
   "buffers": [{{"byteLength": 44, "uri": "{uri}"}}]
 }}"#
     )
-}
-
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-        for i in 0..4 {
-            out.push(if i <= chunk.len() {
-                A[(n >> (18 - 6 * i) & 63) as usize] as char
-            } else {
-                '='
-            });
-        }
-    }
-    out
 }
 
 #[test]
