@@ -8,7 +8,7 @@
 //! does not know (`KHR_animation_pointer`'s `"pointer"`): the crate panics on such a path, and refuses the
 //! target without a `node` that the extension writes. They are removed, with a warning each.
 
-use super::SceneErrorKind;
+use crate::scene::SceneErrorKind;
 use gltf::json::validation::Checked;
 use gltf::json::{Index, Root};
 use serde::Deserialize;

@@ -4,7 +4,7 @@
 //! `Σ weight × jointWorld × inverseBindMatrix` over its JOINTS_n / WEIGHTS_n sets, with the joints' own node
 //! transforms; the skinned mesh node's transform is ignored, §3.7.3.3). Morphing comes before skinning.
 
-use super::gltf_accessors::{read_floats, read_joints, Usage};
+use super::accessors::{read_floats, read_joints, Usage};
 use crate::geometry::Mesh;
 use crate::limits::Limits;
 use crate::math::{Mat4, Vec3};
@@ -43,7 +43,7 @@ pub(super) fn node_worlds(document: &gltf::Document, locals: &[Mat4]) -> Vec<Mat
         .collect()
 }
 
-/// The joint matrices of a skin (at least one joint, checked by `gltf_check`): each joint's world matrix times
+/// The joint matrices of a skin (at least one joint, checked by `check`): each joint's world matrix times
 /// its inverse bind matrix (identity when the skin has none).
 pub(super) fn joint_matrices(
     skin: &gltf::Skin,
@@ -87,7 +87,7 @@ pub(super) fn morph_weights<'a>(node: &gltf::Node<'a>, mesh: &gltf::Mesh<'a>) ->
     node.weights().or_else(|| mesh.weights()).unwrap_or(&[])
 }
 
-/// Adds `Σ weight × displacement` (the weights checked finite by `gltf_check`) of the primitive's morph targets to the mesh's object-space positions,
+/// Adds `Σ weight × displacement` (the weights checked finite by `check`) of the primitive's morph targets to the mesh's object-space positions,
 /// normals (renormalized) and tangents (xyz; w kept). Targets with weight 0 are not read.
 pub(super) fn apply_morph_targets(
     mesh: &mut Mesh,
