@@ -5,11 +5,39 @@ use super::instancing;
 use super::names::{SceneNames, SurfaceObject};
 use super::{mesh_bytes, mesh_counts, MeshInstance, BUILDER_PATH, BYTES_PER_INSTANCE};
 use super::{Camera, Scene, SceneBuilder, SceneError, SceneErrorKind};
-use crate::geometry::{Bvh, Instance, InstanceBvh, Mesh, MotionBvh};
+use crate::geometry::{Bvh, Instance, InstanceBvh, Mesh, MotionBvh, TooManyTriangles};
 use crate::light::{AreaLight, Light, LightSampler};
 use crate::material::AlphaMode;
 use crate::math::{Aabb, Vec2, Vec3};
 use std::sync::OnceLock;
+
+/// The triangles of a builder's world meshes, numbered: static ones first, in mesh order (so a scene without
+/// motion numbers them as it always did), then the moving ones.
+struct Triangles {
+    /// The mesh and the triangle in it of each global triangle index.
+    prims: Vec<(u32, u32)>,
+    /// The static triangles' vertices.
+    fixed: Vec<[Vec3; 3]>,
+    /// The moving triangles' hierarchy, if there are any.
+    motion: Option<MotionBvh>,
+}
+
+/// A triangle count past what a hierarchy indexes, as a scene error.
+fn too_many(e: TooManyTriangles) -> SceneError {
+    SceneError::new(BUILDER_PATH, SceneErrorKind::Unsupported(e.to_string()))
+}
+
+/// The hierarchies a scene is traced through, and its bounds.
+struct Hierarchies {
+    /// The static triangles.
+    bvh: Bvh,
+    /// The moving triangles, if any.
+    motion: Option<MotionBvh>,
+    /// The instances, if any.
+    instanced: Option<InstanceBvh>,
+    /// The number of static triangles.
+    static_count: u32,
+}
 
 impl SceneBuilder {
     /// Builds the renderable scene: flattens the meshes into one BVH, turns emissive triangles into area
@@ -18,7 +46,38 @@ impl SceneBuilder {
     /// `BYTES_PER_TRIANGLE` and `BYTES_PER_VERTEX`.
     pub fn build(mut self) -> Result<Scene, SceneError> {
         self.validate()?;
-        // An emissive prototype's instances become world meshes: area lights are world triangles.
+        let instances = self.flatten_emissive_instances()?;
+        self.generate_tangents();
+        self.keep_emitters_still();
+        let mut lights = std::mem::take(&mut self.lights);
+        let Triangles {
+            prims,
+            fixed,
+            motion,
+        } = self.number_triangles(&mut lights)?;
+        let static_count = fixed.len() as u32;
+        let mut light_of_prim = vec![u32::MAX; prims.len()];
+        for (i, l) in lights.iter().enumerate() {
+            if let Light::Area(a) = l {
+                light_of_prim[a.prim as usize] = i as u32;
+            }
+        }
+        let bvh = Bvh::build(&fixed).map_err(too_many)?;
+        drop(fixed);
+        let instanced = self.instance_hierarchy(&instances, prims.len())?;
+        let hierarchies = Hierarchies {
+            bvh,
+            motion,
+            instanced,
+            static_count,
+        };
+        Ok(self.into_scene(hierarchies, lights, instances, prims, light_of_prim))
+    }
+
+    /// Takes the instances out of the builder, after checking that the scene's meshes fit the memory budget:
+    /// an emissive prototype's instances become world meshes (area lights are world triangles); the others
+    /// are returned.
+    fn flatten_emissive_instances(&mut self) -> Result<Vec<MeshInstance>, SceneError> {
         let (instances, flattened): (Vec<MeshInstance>, Vec<MeshInstance>) =
             std::mem::take(&mut self.instances)
                 .into_iter()
@@ -50,9 +109,14 @@ impl SceneBuilder {
             let mesh = instancing::flatten(&self.prototypes[instance.prototype as usize], instance);
             self.meshes.push(mesh);
         }
-        // Normal maps and anisotropy need a tangent frame: MikkTSpace where the file gives no tangents (glTF 2.0
-        // §3.7.2.1). Without texture coordinates there is none to build, and anisotropy follows an arbitrary
-        // direction. A prototype's tangents are made in object space and carried to world space with it.
+        Ok(instances)
+    }
+
+    /// Normal maps and anisotropy need a tangent frame: MikkTSpace where the file gives no tangents (glTF 2.0
+    /// §3.7.2.1). Without texture coordinates there is none to build, and anisotropy follows an arbitrary
+    /// direction (a warning says so). A prototype's tangents are made in object space and carried to world
+    /// space with it.
+    fn generate_tangents(&mut self) {
         for mesh in self.meshes.iter_mut().chain(&mut self.prototypes) {
             let material = &self.materials[mesh.material as usize];
             if mesh.tangents.is_none() && material.needs_tangents() {
@@ -67,7 +131,11 @@ impl SceneBuilder {
                 }
             }
         }
-        // Emitters stay at the frame's pose: their area lights are sampled there.
+    }
+
+    /// Emitters stay at the frame's pose, where their area lights are sampled: a moving emissive mesh loses
+    /// its motion, with a warning.
+    fn keep_emitters_still(&mut self) {
         for mesh in &mut self.meshes {
             if mesh.motion.is_some() && self.materials[mesh.material as usize].is_emissive() {
                 mesh.motion = None;
@@ -77,16 +145,16 @@ impl SceneBuilder {
                 ));
             }
         }
-        // Static triangles first, in mesh order (so a scene without motion numbers them as it always did),
-        // then the moving ones.
+    }
+
+    /// The world meshes' triangles, numbered (see [`Triangles`]), the moving ones in their hierarchy; each
+    /// emissive static triangle's area light is added to `lights`.
+    fn number_triangles(&self, lights: &mut Vec<Light>) -> Result<Triangles, SceneError> {
         let order: Vec<usize> = (0..self.meshes.len())
             .filter(|&m| self.meshes[m].motion.is_none())
             .chain((0..self.meshes.len()).filter(|&m| self.meshes[m].motion.is_some()))
             .collect();
-        let mut prims = Vec::new();
-        let mut triangles = Vec::new();
-        let mut moving = Vec::new();
-        let mut lights = self.lights;
+        let (mut prims, mut fixed, mut moving) = (Vec::new(), Vec::new(), Vec::new());
         for mesh_index in order {
             let mesh = &self.meshes[mesh_index];
             let material = &self.materials[mesh.material as usize];
@@ -97,86 +165,114 @@ impl SceneBuilder {
                     continue;
                 }
                 let vertices = mesh.triangle(tri);
-                let prim = triangles.len() as u32;
+                let prim = fixed.len() as u32;
                 if material.is_emissive() {
-                    // The emissive texture's own UV set; its transform is applied by the light.
-                    let set = material
-                        .emission_texture
-                        .and_then(|t| self.textures.get(t as usize))
-                        .map_or(0, |t| t.uv_set());
-                    let uvs = match mesh.uv_set(set) {
-                        Some(uv) => mesh.indices[tri].map(|i| uv[i as usize]),
-                        None => [Vec2::ZERO; 3],
-                    };
-                    if let Some(l) = AreaLight::new(
-                        vertices,
-                        uvs,
-                        material.emission,
-                        material.emission_texture,
-                        [prim, mesh_index as u32],
-                    ) {
-                        lights.push(Light::Area(l));
-                    }
+                    lights.extend(self.area_light(mesh_index, tri, prim, vertices));
                 }
-                triangles.push(vertices);
+                fixed.push(vertices);
             }
         }
-        let too_many = |e: crate::geometry::TooManyTriangles| {
-            SceneError::new(BUILDER_PATH, SceneErrorKind::Unsupported(e.to_string()))
-        };
-        let static_count = triangles.len() as u32;
         let motion = if moving.is_empty() {
             None
         } else {
             Some(MotionBvh::build(&moving).map_err(too_many)?)
         };
-        let mut light_of_prim = vec![u32::MAX; prims.len()];
-        for (i, l) in lights.iter().enumerate() {
-            if let Light::Area(a) = l {
-                light_of_prim[a.prim as usize] = i as u32;
-            }
+        Ok(Triangles {
+            prims,
+            fixed,
+            motion,
+        })
+    }
+
+    /// The area light of static triangle `tri` of emissive mesh `mesh_index` (global index `prim`) with its
+    /// `vertices`, if it has an area.
+    fn area_light(
+        &self,
+        mesh_index: usize,
+        tri: usize,
+        prim: u32,
+        vertices: [Vec3; 3],
+    ) -> Option<Light> {
+        let mesh = &self.meshes[mesh_index];
+        let material = &self.materials[mesh.material as usize];
+        // The emissive texture's own UV set; its transform is applied by the light.
+        let set = material
+            .emission_texture
+            .and_then(|t| self.textures.get(t as usize))
+            .map_or(0, |t| t.uv_set());
+        let uvs = match mesh.uv_set(set) {
+            Some(uv) => mesh.indices[tri].map(|i| uv[i as usize]),
+            None => [Vec2::ZERO; 3],
+        };
+        AreaLight::new(
+            vertices,
+            uvs,
+            material.emission,
+            material.emission_texture,
+            [prim, mesh_index as u32],
+        )
+        .map(Light::Area)
+    }
+
+    /// The two-level hierarchy over `instances` (`None` without any), refused when the instances' triangles
+    /// and the `world_triangles` before them cannot all be numbered.
+    fn instance_hierarchy(
+        &self,
+        instances: &[MeshInstance],
+        world_triangles: usize,
+    ) -> Result<Option<InstanceBvh>, SceneError> {
+        if instances.is_empty() {
+            return Ok(None);
         }
-        let bvh = Bvh::build(&triangles).map_err(too_many)?;
-        drop(triangles);
-        let instanced = if instances.is_empty() {
-            None
-        } else {
-            let prototype_triangles: Vec<Vec<[Vec3; 3]>> = self
-                .prototypes
-                .iter()
-                .map(|m| (0..m.indices.len()).map(|t| m.triangle(t)).collect())
-                .collect();
-            let placements: Vec<Instance> = instances
-                .iter()
-                .map(|i| Instance {
-                    prototype: i.prototype,
-                    object_to_world: i.object_to_world,
-                })
-                .collect();
-            let hierarchy =
-                InstanceBvh::build(&prototype_triangles, &placements).map_err(too_many)?;
-            let total = prims.len() as u64 + hierarchy.triangle_count() as u64;
-            if total > u32::MAX as u64 {
-                return Err(too_many(crate::geometry::TooManyTriangles(total as usize)));
-            }
-            Some(hierarchy)
+        let prototype_triangles: Vec<Vec<[Vec3; 3]>> = self
+            .prototypes
+            .iter()
+            .map(|m| (0..m.indices.len()).map(|t| m.triangle(t)).collect())
+            .collect();
+        let placements: Vec<Instance> = instances
+            .iter()
+            .map(|i| Instance {
+                prototype: i.prototype,
+                object_to_world: i.object_to_world,
+            })
+            .collect();
+        let hierarchy = InstanceBvh::build(&prototype_triangles, &placements).map_err(too_many)?;
+        let total = world_triangles as u64 + hierarchy.triangle_count() as u64;
+        if total > u32::MAX as u64 {
+            return Err(too_many(TooManyTriangles(total as usize)));
+        }
+        Ok(Some(hierarchy))
+    }
+
+    /// Bounds of the surfaces and of the regions that media fill by position (a VDB placed by a node): the
+    /// default camera frames both, and lights at infinity light both.
+    fn scene_bounds(&self, hierarchies: &Hierarchies, instances: &[MeshInstance]) -> Aabb {
+        let bounds = match &hierarchies.motion {
+            Some(m) => hierarchies.bvh.bounds().union(&m.bounds()),
+            None => hierarchies.bvh.bounds(),
         };
-        // Surfaces and the regions that media fill by position (a VDB placed by a node): the default camera
-        // frames both, and lights at infinity light both.
-        let bounds = match &motion {
-            Some(m) => bvh.bounds().union(&m.bounds()),
-            None => bvh.bounds(),
-        };
-        let bounds = match &instanced {
-            Some(i) => bounds.union(&instance_bounds(&self.prototypes, &instances, i)),
+        let bounds = match &hierarchies.instanced {
+            Some(i) => bounds.union(&instance_bounds(&self.prototypes, instances, i)),
             None => bounds,
         };
-        let bounds = self
-            .media
+        self.media
             .iter()
             .filter_map(|m| m.fill_bounds())
             .filter(|b| !b.is_empty() && b.min.is_finite() && b.max.is_finite())
-            .fold(bounds, |all, b| all.union(&b));
+            .fold(bounds, |all, b| all.union(&b))
+    }
+
+    /// The scene made of the builder's parts, its `hierarchies`, all its `lights` (area lights included), its
+    /// `instances`, and its triangles' numbering (`prims`, `light_of_prim`).
+    fn into_scene(
+        self,
+        hierarchies: Hierarchies,
+        lights: Vec<Light>,
+        instances: Vec<MeshInstance>,
+        prims: Vec<(u32, u32)>,
+        light_of_prim: Vec<u32>,
+    ) -> Scene {
+        let bounds = self.scene_bounds(&hierarchies, &instances);
         let light_sampler = LightSampler::new(&lights, bounding_radius(&bounds));
         let environment = lights
             .iter()
@@ -207,7 +303,7 @@ impl SceneBuilder {
             &self.media,
             &self.media_tags,
         );
-        Ok(Scene {
+        Scene {
             names,
             transparent: self.transparent,
             has_alpha,
@@ -219,22 +315,22 @@ impl SceneBuilder {
             meshes: self.meshes,
             prototypes: self.prototypes,
             placed: instances.iter().map(instancing::Placed::new).collect(),
-            instanced,
+            instanced: hierarchies.instanced,
             materials: self.materials,
             textures: self.textures,
             lights,
             light_sampler,
             light_bvh: OnceLock::new(),
             environment,
-            bvh,
-            motion,
-            static_count,
+            bvh: hierarchies.bvh,
+            motion: hierarchies.motion,
+            static_count: hierarchies.static_count,
             prims,
             light_of_prim,
             bounds,
             max_bounces: self.max_bounces,
             warnings: self.warnings,
-        })
+        }
     }
 }
 

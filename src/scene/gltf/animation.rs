@@ -246,13 +246,29 @@ fn morph_targets(node: &gltf::Node) -> usize {
     })
 }
 
+/// An animation sampler whose output does not hold one value per key (see [`check_counts`]).
+#[derive(Debug, thiserror::Error)]
+#[error("the output has {has} elements; {keys} keys of a {interpolation} {what} need {need}")]
+struct OutputCountError {
+    /// The output accessor's elements.
+    has: usize,
+    /// The input accessor's keys.
+    keys: usize,
+    /// The sampler's interpolation (`LINEAR`, `STEP`, `CUBICSPLINE`).
+    interpolation: &'static str,
+    /// What it animates (`rotation`, `weights for 3 morph targets`).
+    what: String,
+    /// The elements it needs.
+    need: usize,
+}
+
 /// Checks from the accessors' counts that a sampler's output holds one value of `elements` floats per key
 /// (three per key for CUBICSPLINE: glTF 2.0 §3.11).
 fn check_counts(
     sampler: &gltf::animation::Sampler,
     property: Property,
     elements: usize,
-) -> Result<(), String> {
+) -> Result<(), OutputCountError> {
     let keys = sampler.input().count();
     let interpolation = sampler.interpolation();
     let per_key = if interpolation == Interpolation::CubicSpline {
@@ -275,10 +291,13 @@ fn check_counts(
             Property::Scale => "scale".to_owned(),
             Property::MorphTargetWeights => format!("weights for {elements} morph targets"),
         };
-        return Err(format!(
-            "the output has {has} elements; {keys} keys of a {} {what} need {need}",
-            interpolation_name(interpolation)
-        ));
+        return Err(OutputCountError {
+            has,
+            keys,
+            interpolation: interpolation_name(interpolation),
+            what,
+            need,
+        });
     }
     Ok(())
 }

@@ -44,52 +44,9 @@ impl Loader<'_> {
             ),
         };
         let at = format!("camera '{}': nimbus_camera", one_line(&name, QUOTE));
-        let camera_extras = match camera.extras() {
-            Some(raw) => Some(
-                serde_json::from_str::<serde_json::Value>(raw.get())
-                    .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{at}: {e}"))))?,
-            ),
-            None => None,
-        };
-        let declared = node_extras
-            .and_then(|e| e.get("nimbus_camera"))
-            .or_else(|| camera_extras.as_ref().and_then(|e| e.get("nimbus_camera")));
-        let lens = match declared {
-            None => None,
-            Some(value) => {
-                if !value.is_object() {
-                    return Err(self.error(SceneErrorKind::Camera {
-                        at: at.into(),
-                        source: crate::params::ParamError::WrongType {
-                            key: "nimbus_camera".into(),
-                            expected: "an object".into(),
-                        }
-                        .into(),
-                    }));
-                }
-                self.unknown_keys(&at, &unknown_json_keys(value, crate::scene::CAMERA_KEYS))?;
-                ThinLens::from_params(&crate::params::JsonParams::new(value), focal_length)
-                    .map_err(|source| {
-                        self.error(SceneErrorKind::Camera {
-                            at: at.clone().into(),
-                            source,
-                        })
-                    })?
-            }
-        };
+        let lens = self.camera_lens(&camera, node_extras, focal_length, &at)?;
         let camera_to_world = Camera::rigid(world);
-        // The camera moves when its pose at some motion step differs from the frame's.
-        let motion = self.motion.as_ref().and_then(|m| {
-            let poses: Vec<Mat4> = m
-                .worlds
-                .iter()
-                .map(|w| Camera::rigid(&w[node.index()]))
-                .collect();
-            poses
-                .iter()
-                .any(|p| *p != camera_to_world)
-                .then(|| CameraMotion::from_matrices(m.steps, &poses))
-        });
+        let motion = self.camera_motion(node, &camera_to_world);
         self.builder.add_camera(NamedCamera {
             name,
             path: None,
@@ -103,5 +60,67 @@ impl Loader<'_> {
             },
         });
         Ok(())
+    }
+
+    /// The thin lens of a camera from `extras.nimbus_camera` ([`crate::scene::CAMERA_KEYS`]) on its node
+    /// (`node_extras`), else on the camera object; `None` without one. `focal_length` is the perspective
+    /// camera's Blender focal length; `at` names the object in messages.
+    fn camera_lens(
+        &mut self,
+        camera: &gltf::Camera,
+        node_extras: Option<&serde_json::Value>,
+        focal_length: Option<f32>,
+        at: &str,
+    ) -> Result<Option<ThinLens>, SceneError> {
+        let camera_extras = match camera.extras() {
+            Some(raw) => Some(
+                serde_json::from_str::<serde_json::Value>(raw.get())
+                    .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{at}: {e}"))))?,
+            ),
+            None => None,
+        };
+        let declared = node_extras
+            .and_then(|e| e.get("nimbus_camera"))
+            .or_else(|| camera_extras.as_ref().and_then(|e| e.get("nimbus_camera")));
+        Ok(match declared {
+            None => None,
+            Some(value) => {
+                if !value.is_object() {
+                    return Err(self.error(SceneErrorKind::Camera {
+                        at: at.into(),
+                        source: crate::params::ParamError::WrongType {
+                            key: "nimbus_camera".into(),
+                            expected: "an object".into(),
+                        }
+                        .into(),
+                    }));
+                }
+                self.unknown_keys(at, &unknown_json_keys(value, crate::scene::CAMERA_KEYS))?;
+                ThinLens::from_params(&crate::params::JsonParams::new(value), focal_length)
+                    .map_err(|source| {
+                        self.error(SceneErrorKind::Camera {
+                            at: at.into(),
+                            source,
+                        })
+                    })?
+            }
+        })
+    }
+
+    /// The motion of the camera on `node` across the shutter, when its pose at some motion step differs from
+    /// the frame's (`camera_to_world`).
+    fn camera_motion(&self, node: &gltf::Node, camera_to_world: &Mat4) -> Option<CameraMotion> {
+        // The camera moves when its pose at some motion step differs from the frame's.
+        self.motion.as_ref().and_then(|m| {
+            let poses: Vec<Mat4> = m
+                .worlds
+                .iter()
+                .map(|w| Camera::rigid(&w[node.index()]))
+                .collect();
+            poses
+                .iter()
+                .any(|p| p != camera_to_world)
+                .then(|| CameraMotion::from_matrices(m.steps, &poses))
+        })
     }
 }

@@ -4,10 +4,111 @@
 //! `Σ weight × jointWorld × inverseBindMatrix` over its JOINTS_n / WEIGHTS_n sets, with the joints' own node
 //! transforms; the skinned mesh node's transform is ignored, §3.7.3.3). Morphing comes before skinning.
 
-use super::accessors::{read_floats, read_joints, Usage};
+use super::accessors::{read_floats, read_joints, AccessorError, Usage};
 use crate::geometry::Mesh;
 use crate::limits::Limits;
 use crate::math::{Mat4, Vec3};
+
+/// Why a mesh cannot be morphed or skinned.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum DeformError {
+    /// An accessor of a skin or morph target (named by `at`) that cannot be read.
+    #[error("{at}: {source}")]
+    Accessor {
+        /// Where the accessor is used (`skin 0: inverseBindMatrices`, `targets[1].POSITION`, `JOINTS_0`).
+        at: String,
+        /// Why it cannot be read.
+        source: AccessorError,
+    },
+    /// A skin's inverse bind matrices are fewer than its joints.
+    #[error("skin {skin}: inverseBindMatrices holds {matrices} matrices for {joints} joints")]
+    TooFewInverseBinds {
+        /// The skin's index.
+        skin: usize,
+        /// The inverse bind matrices.
+        matrices: usize,
+        /// The joints.
+        joints: usize,
+    },
+    /// A joint's matrix is not finite.
+    #[error("skin {skin}: joint {joint} has a non-finite matrix (its node transforms or inverse bind matrix)")]
+    JointNotFinite {
+        /// The skin's index.
+        skin: usize,
+        /// The joint's position in the skin.
+        joint: usize,
+    },
+    /// More morph weights than morph targets.
+    #[error("{weights} morph weights for {targets} morph targets")]
+    TooManyWeights {
+        /// The weights.
+        weights: usize,
+        /// The primitive's morph targets.
+        targets: usize,
+    },
+    /// A morph target's attribute is not one per vertex.
+    #[error("targets[{target}].{name} has {found} elements, not one per vertex ({count})")]
+    TargetCount {
+        /// The target's index.
+        target: usize,
+        /// The attribute (POSITION, NORMAL or TANGENT).
+        name: &'static str,
+        /// Its elements.
+        found: usize,
+        /// The primitive's vertices.
+        count: usize,
+    },
+    /// A morph target's attribute holds a number that is not finite.
+    #[error("targets[{target}].{name} holds a non-finite value")]
+    TargetNotFinite {
+        /// The target's index.
+        target: usize,
+        /// The attribute (POSITION, NORMAL or TANGENT).
+        name: &'static str,
+    },
+    /// A skinned primitive without both JOINTS_0 and WEIGHTS_0.
+    #[error("a skinned primitive needs JOINTS_0 and WEIGHTS_0 together (glTF 2.0 section 3.7.3.1)")]
+    FirstSkinSetIncomplete,
+    /// A later JOINTS_n or WEIGHTS_n set without the other.
+    #[error("a skinned primitive needs JOINTS_{set} and WEIGHTS_{set} together")]
+    SkinSetIncomplete {
+        /// The set's number.
+        set: u32,
+    },
+    /// A JOINTS_n or WEIGHTS_n set not one per vertex.
+    #[error("JOINTS_{set} or WEIGHTS_{set} is not one per vertex ({count})")]
+    SkinSetCount {
+        /// The set's number.
+        set: u32,
+        /// The primitive's vertices.
+        count: usize,
+    },
+    /// A skin weight that is negative or not finite.
+    #[error("WEIGHTS_{set}[{vertex}] holds {weight}")]
+    BadWeight {
+        /// The set's number.
+        set: u32,
+        /// The vertex.
+        vertex: usize,
+        /// The weight.
+        weight: f32,
+    },
+    /// A weighted joint the skin does not have.
+    #[error("JOINTS_{set}[{vertex}] names joint {joint}, but the skin has {joints} joints")]
+    NoSuchJoint {
+        /// The set's number.
+        set: u32,
+        /// The vertex.
+        vertex: usize,
+        /// The joint named.
+        joint: u32,
+        /// The skin's joints.
+        joints: usize,
+    },
+    /// A skinned vertex that is not finite.
+    #[error("skinned vertex {0} is not finite")]
+    SkinnedNotFinite(usize),
+}
 
 /// Every node's world matrix from its local matrix (`locals`, by node index: its own TRS or matrix, or its
 /// animated pose) and its ancestors' (the node graph is a checked forest); nodes outside the default scene get
@@ -50,19 +151,21 @@ pub(super) fn joint_matrices(
     worlds: &[Mat4],
     buffers: &[gltf::buffer::Data],
     limits: &Limits,
-) -> Result<Vec<Mat4>, String> {
+) -> Result<Vec<Mat4>, DeformError> {
     let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
     let inverse_binds: Vec<Mat4> = match skin.inverse_bind_matrices() {
         Some(a) => {
             let floats = read_floats(&a, Usage::InverseBindMatrices, buffers, limits)
-                .map_err(|e| format!("skin {}: inverseBindMatrices: {e}", skin.index()))?;
+                .map_err(|source| DeformError::Accessor {
+                    at: format!("skin {}: inverseBindMatrices", skin.index()),
+                    source,
+                })?;
             if floats.len() / 16 < joints.len() {
-                return Err(format!(
-                    "skin {}: inverseBindMatrices holds {} matrices for {} joints",
-                    skin.index(),
-                    floats.len() / 16,
-                    joints.len()
-                ));
+                return Err(DeformError::TooFewInverseBinds {
+                    skin: skin.index(),
+                    matrices: floats.len() / 16,
+                    joints: joints.len(),
+                });
             }
             floats.chunks_exact(16).map(Mat4::from_cols_slice).collect()
         }
@@ -74,10 +177,10 @@ pub(super) fn joint_matrices(
         .map(|(&j, ibm)| worlds.get(j).copied().unwrap_or(Mat4::IDENTITY) * *ibm)
         .collect();
     if let Some(k) = matrices.iter().position(|m| !m.is_finite()) {
-        return Err(format!(
-            "skin {}: joint {k} has a non-finite matrix (its node transforms or inverse bind matrix)",
-            skin.index()
-        ));
+        return Err(DeformError::JointNotFinite {
+            skin: skin.index(),
+            joint: k,
+        });
     }
     Ok(matrices)
 }
@@ -95,13 +198,13 @@ pub(super) fn apply_morph_targets(
     weights: &[f32],
     buffers: &[gltf::buffer::Data],
     limits: &Limits,
-) -> Result<(), String> {
+) -> Result<(), DeformError> {
     let targets = primitive.morph_targets().len();
     if weights.len() > targets {
-        return Err(format!(
-            "{} morph weights for {targets} morph targets",
-            weights.len()
-        ));
+        return Err(DeformError::TooManyWeights {
+            weights: weights.len(),
+            targets,
+        });
     }
     let count = mesh.positions.len();
     let mut normals_moved = false;
@@ -109,20 +212,25 @@ pub(super) fn apply_morph_targets(
         if w == 0.0 {
             continue;
         }
-        let read = |a: Option<gltf::Accessor>, usage: Usage, name: &str| {
+        let read = |a: Option<gltf::Accessor>, usage: Usage, name: &'static str| {
             let Some(a) = a else {
                 return Ok(None);
             };
             let floats = read_floats(&a, usage, buffers, limits)
-                .map_err(|e| format!("targets[{k}].{name}: {e}"))?;
+                .map_err(|source| DeformError::Accessor {
+                    at: format!("targets[{k}].{name}"),
+                    source,
+                })?;
             if floats.len() != 3 * count {
-                return Err(format!(
-                    "targets[{k}].{name} has {} elements, not one per vertex ({count})",
-                    floats.len() / 3
-                ));
+                return Err(DeformError::TargetCount {
+                    target: k,
+                    name,
+                    found: floats.len() / 3,
+                    count,
+                });
             }
             if floats.iter().any(|v| !v.is_finite()) {
-                return Err(format!("targets[{k}].{name} holds a non-finite value"));
+                return Err(DeformError::TargetNotFinite { target: k, name });
             }
             Ok(Some(
                 floats
@@ -167,63 +275,8 @@ pub(super) fn apply_skin(
     joints: &[Mat4],
     buffers: &[gltf::buffer::Data],
     limits: &Limits,
-) -> Result<(), String> {
-    let count = mesh.positions.len();
-    let mut blend = vec![Mat4::ZERO; count];
-    let mut total = vec![0.0f32; count];
-    let mut set = 0;
-    loop {
-        let j = primitive.get(&gltf::Semantic::Joints(set));
-        let w = primitive.get(&gltf::Semantic::Weights(set));
-        let (j, w) = match (j, w) {
-            (Some(j), Some(w)) => (j, w),
-            (None, None) if set > 0 => break,
-            _ => {
-                return Err(format!(
-                    "a skinned primitive needs JOINTS_{set} and WEIGHTS_{set} together{}",
-                    if set == 0 {
-                        " (glTF 2.0 section 3.7.3.1)"
-                    } else {
-                        ""
-                    }
-                ))
-            }
-        };
-        let ids = read_joints(&j, buffers, limits).map_err(|e| format!("JOINTS_{set}: {e}"))?;
-        let weights = read_floats(&w, Usage::Weights, buffers, limits)
-            .map_err(|e| format!("WEIGHTS_{set}: {e}"))?;
-        if ids.len() != count || weights.len() != 4 * count {
-            return Err(format!(
-                "JOINTS_{set} or WEIGHTS_{set} is not one per vertex ({count})"
-            ));
-        }
-        for (v, (ids, ws)) in ids.iter().zip(weights.chunks_exact(4)).enumerate() {
-            for (&id, &weight) in ids.iter().zip(ws) {
-                if !(weight.is_finite() && weight >= 0.0) {
-                    return Err(format!("WEIGHTS_{set}[{v}] holds {weight}"));
-                }
-                if weight == 0.0 {
-                    continue;
-                }
-                let m = joints.get(id as usize).ok_or_else(|| {
-                    format!(
-                        "JOINTS_{set}[{v}] names joint {id}, but the skin has {} joints",
-                        joints.len()
-                    )
-                })?;
-                blend[v] += *m * weight;
-                total[v] += weight;
-            }
-        }
-        set += 1;
-    }
-    for (m, &t) in blend.iter_mut().zip(&total) {
-        *m = if t > 0.0 {
-            *m * (1.0 / t)
-        } else {
-            Mat4::IDENTITY
-        };
-    }
+) -> Result<(), DeformError> {
+    let blend = blended_joints(primitive, joints, mesh.positions.len(), buffers, limits)?;
     for (p, m) in mesh.positions.iter_mut().zip(&blend) {
         *p = m.transform_point3(*p);
     }
@@ -248,7 +301,91 @@ pub(super) fn apply_skin(
         }
     }
     if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
-        return Err(format!("skinned vertex {i} is not finite"));
+        return Err(DeformError::SkinnedNotFinite(i));
+    }
+    Ok(())
+}
+
+/// Each of the `count` vertices' blended joint matrix: the weighted sum of its joints' matrices over every
+/// JOINTS_n / WEIGHTS_n set, divided by the sum of its weights (the identity where they are all zero).
+fn blended_joints(
+    primitive: &gltf::Primitive,
+    joints: &[Mat4],
+    count: usize,
+    buffers: &[gltf::buffer::Data],
+    limits: &Limits,
+) -> Result<Vec<Mat4>, DeformError> {
+    let mut blend = vec![Mat4::ZERO; count];
+    let mut total = vec![0.0f32; count];
+    let mut set = 0;
+    loop {
+        let j = primitive.get(&gltf::Semantic::Joints(set));
+        let w = primitive.get(&gltf::Semantic::Weights(set));
+        let (j, w) = match (j, w) {
+            (Some(j), Some(w)) => (j, w),
+            (None, None) if set > 0 => break,
+            _ if set == 0 => return Err(DeformError::FirstSkinSetIncomplete),
+            _ => return Err(DeformError::SkinSetIncomplete { set }),
+        };
+        let ids = read_joints(&j, buffers, limits).map_err(|source| DeformError::Accessor {
+            at: format!("JOINTS_{set}"),
+            source,
+        })?;
+        let weights = read_floats(&w, Usage::Weights, buffers, limits)
+            .map_err(|source| DeformError::Accessor {
+                at: format!("WEIGHTS_{set}"),
+                source,
+            })?;
+        if ids.len() != count || weights.len() != 4 * count {
+            return Err(DeformError::SkinSetCount { set, count });
+        }
+        add_joint_set(set, &ids, &weights, joints, &mut blend, &mut total)?;
+        set += 1;
+    }
+    for (m, &t) in blend.iter_mut().zip(&total) {
+        *m = if t > 0.0 {
+            *m * (1.0 / t)
+        } else {
+            Mat4::IDENTITY
+        };
+    }
+    Ok(blend)
+}
+
+/// Adds set `set` (each vertex's four joint `ids` and `weights`) to the vertices' weighted sums of joint
+/// matrices (`blend`) and of weights (`total`); a weight must be finite and non-negative, and a joint with a
+/// weight must exist.
+fn add_joint_set(
+    set: u32,
+    ids: &[[u32; 4]],
+    weights: &[f32],
+    joints: &[Mat4],
+    blend: &mut [Mat4],
+    total: &mut [f32],
+) -> Result<(), DeformError> {
+    for (v, (ids, ws)) in ids.iter().zip(weights.chunks_exact(4)).enumerate() {
+        for (&id, &weight) in ids.iter().zip(ws) {
+            if !(weight.is_finite() && weight >= 0.0) {
+                return Err(DeformError::BadWeight {
+                    set,
+                    vertex: v,
+                    weight,
+                });
+            }
+            if weight == 0.0 {
+                continue;
+            }
+            let m = joints
+                .get(id as usize)
+                .ok_or(DeformError::NoSuchJoint {
+                    set,
+                    vertex: v,
+                    joint: id,
+                    joints: joints.len(),
+                })?;
+            blend[v] += *m * weight;
+            total[v] += weight;
+        }
     }
     Ok(())
 }

@@ -149,22 +149,36 @@ fn parse_environment_light(
     Err(malformed("expected 'color' or 'map'"))
 }
 
+/// A compositing tag in `extras` that cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum TagError {
+    /// `nimbus_holdout` or `nimbus_shadow_catcher` (the key) not a boolean.
+    #[error("{0} must be true or false")]
+    NotAFlag(&'static str),
+    /// `nimbus_light_group` not a light group's name.
+    #[error("nimbus_light_group: {0}")]
+    LightGroup(BadLightGroup),
+}
+
+/// A light group's name that is not a non-empty string of at most 64 characters.
+#[derive(Debug, thiserror::Error)]
+#[error("a light group must be a non-empty string of at most 64 characters")]
+pub(super) struct BadLightGroup;
+
 /// The compositing tags in a node's or a material's `extras` (see [`CompositingTags`]): `nimbus_light_group`
 /// (a non-empty string), `nimbus_holdout` and `nimbus_shadow_catcher` (booleans). An error names the key.
-pub(super) fn node_tags(extras: Option<&serde_json::Value>) -> Result<CompositingTags, String> {
+pub(super) fn node_tags(extras: Option<&serde_json::Value>) -> Result<CompositingTags, TagError> {
     let Some(extras) = extras else {
         return Ok(CompositingTags::default());
     };
-    let flag = |key: &str| match extras.get(key) {
+    let flag = |key: &'static str| match extras.get(key) {
         None => Ok(false),
-        Some(v) => v
-            .as_bool()
-            .ok_or_else(|| format!("{key} must be true or false")),
+        Some(v) => v.as_bool().ok_or(TagError::NotAFlag(key)),
     };
     Ok(CompositingTags {
         light_group: match extras.get("nimbus_light_group") {
             None => None,
-            Some(g) => Some(light_group_name(g).map_err(|m| format!("nimbus_light_group: {m}"))?),
+            Some(g) => Some(light_group_name(g).map_err(TagError::LightGroup)?),
         },
         holdout: flag("nimbus_holdout")?,
         shadow_catcher: flag("nimbus_shadow_catcher")?,
@@ -172,9 +186,9 @@ pub(super) fn node_tags(extras: Option<&serde_json::Value>) -> Result<Compositin
 }
 
 /// A light group's name: a non-empty string of at most 64 characters.
-fn light_group_name(value: &serde_json::Value) -> Result<String, String> {
+fn light_group_name(value: &serde_json::Value) -> Result<String, BadLightGroup> {
     match value.as_str() {
         Some(name) if !name.trim().is_empty() && name.chars().count() <= 64 => Ok(name.to_owned()),
-        _ => Err("a light group must be a non-empty string of at most 64 characters".into()),
+        _ => Err(BadLightGroup),
     }
 }

@@ -164,13 +164,7 @@ impl Loader<'_> {
                 m.generate_normals();
             }
             m.name.clone_from(&mesh_name);
-            m.material = match self.variant_material(&primitive, &what)? {
-                Some(i) => {
-                    let material = self.document.materials().nth(i).expect("index checked");
-                    self.material(material)?
-                }
-                None => self.material(primitive.material())?,
-            };
+            m.material = self.primitive_material(&primitive, &what)?;
             ids.push(self.builder.add_prototype(m));
         }
         Ok(ids.into())

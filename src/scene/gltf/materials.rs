@@ -15,7 +15,35 @@ use crate::scene::{MediumTag, SceneError, SceneErrorKind};
 use super::{Loader, QUOTE};
 use super::extras::node_tags;
 
+/// A material's core textures (scene texture indices), read by [`Loader::core_textures`].
+struct CoreTextures {
+    /// `pbrMetallicRoughness.baseColorTexture`.
+    base_color: Option<u32>,
+    /// `pbrMetallicRoughness.metallicRoughnessTexture`.
+    metallic_roughness: Option<u32>,
+    /// `normalTexture` and its `scale`.
+    normal: Option<(u32, f32)>,
+    /// `occlusionTexture` and its `strength`.
+    occlusion: Option<(u32, f32)>,
+    /// `emissiveTexture`.
+    emission: Option<u32>,
+}
+
+/// A material's `KHR_materials_specular`, read by [`Loader::specular`].
+struct Specular {
+    /// `specularFactor` (default 1).
+    factor: f32,
+    /// `specularColorFactor` (default white).
+    color: Rgb,
+    /// `specularTexture`.
+    texture: Option<u32>,
+    /// `specularColorTexture`.
+    color_texture: Option<u32>,
+}
+
 impl Loader<'_> {
+    /// The scene material for a glTF material (made once per glTF material): its factors checked, its
+    /// textures read, its extensions, compositing tags and interior medium.
     pub(super) fn material(&mut self, material: gltf::Material) -> Result<u32, SceneError> {
         if let Some(&id) = self.material_map.get(&material.index()) {
             return Ok(id);
@@ -26,70 +54,11 @@ impl Loader<'_> {
         let at = material_path(&material);
         // With the specular-glossiness extension, the core metallic-roughness is only its fallback: unread.
         let specular_glossiness = self.specular_glossiness(&material, &at)?;
-        let metallic_roughness = specular_glossiness.is_none();
-        let base_color_texture = self.info_texture(
-            pbr.base_color_texture().filter(|_| metallic_roughness),
-            ColorSpace::Srgb,
-            &format!("{at}.pbrMetallicRoughness.baseColorTexture"),
-        )?;
-        let metallic_roughness_texture = self.info_texture(
-            pbr.metallic_roughness_texture()
-                .filter(|_| metallic_roughness),
-            ColorSpace::Linear,
-            &format!("{at}.pbrMetallicRoughness.metallicRoughnessTexture"),
-        )?;
-        let normal_texture = match material.normal_texture() {
-            Some(t) => {
-                let r = self.raw_ref(
-                    t.texture().index(),
-                    t.tex_coord(),
-                    t.extensions(),
-                    &format!("{at}.normalTexture"),
-                )?;
-                Some((self.texture_ref(&r, ColorSpace::Linear)?, t.scale()))
-            }
-            None => None,
-        };
-        let occlusion_texture = match material.occlusion_texture() {
-            Some(t) => {
-                let r = self.raw_ref(
-                    t.texture().index(),
-                    t.tex_coord(),
-                    t.extensions(),
-                    &format!("{at}.occlusionTexture"),
-                )?;
-                Some((self.texture_ref(&r, ColorSpace::Linear)?, t.strength()))
-            }
-            None => None,
-        };
-        let emission_texture = self.info_texture(
-            material.emissive_texture(),
-            ColorSpace::Srgb,
-            &format!("{at}.emissiveTexture"),
-        )?;
+        let textures = self.core_textures(&material, specular_glossiness.is_none(), &at)?;
         // The specular-glossiness model fixes the dielectric F0 at 0.04 (ior 1.5, full specular): the ior and
         // specular extensions, which its specification excludes beside it, are not read.
         let fixed_f0 = specular_glossiness.is_some();
-        if fixed_f0 && (material.ior().is_some() || material.specular().is_some()) {
-            self.builder.warnings.push(format!(
-                "{at}: KHR_materials_ior and KHR_materials_specular are not read beside \
-                 KHR_materials_pbrSpecularGlossiness (its dielectric F0 is 0.04)"
-            ));
-        }
-        let specular = material.specular().filter(|_| !fixed_f0);
-        let (specular_factor, specular_color) = specular.as_ref().map_or((1.0, Rgb::ONE), |s| {
-            (s.specular_factor(), Rgb::from(s.specular_color_factor()))
-        });
-        let specular_texture = self.info_texture(
-            specular.as_ref().and_then(|s| s.specular_texture()),
-            ColorSpace::Linear,
-            &format!("{at}.extensions.KHR_materials_specular.specularTexture"),
-        )?;
-        let specular_color_texture = self.info_texture(
-            specular.as_ref().and_then(|s| s.specular_color_texture()),
-            ColorSpace::Srgb,
-            &format!("{at}.extensions.KHR_materials_specular.specularColorTexture"),
-        )?;
+        let specular = self.specular(&material, fixed_f0, &at)?;
         let transmission_texture = self.info_texture(
             material
                 .transmission()
@@ -109,23 +78,23 @@ impl Loader<'_> {
                 str::to_owned,
             ),
             base_color: Vec4::from(pbr.base_color_factor()),
-            base_color_texture,
+            base_color_texture: textures.base_color,
             metallic: pbr.metallic_factor(),
             roughness: pbr.roughness_factor(),
-            metallic_roughness_texture,
-            normal_texture,
-            occlusion_texture,
+            metallic_roughness_texture: textures.metallic_roughness,
+            normal_texture: textures.normal,
+            occlusion_texture: textures.occlusion,
             emission: Rgb::from(material.emissive_factor()) * emissive_strength,
-            emission_texture,
+            emission_texture: textures.emission,
             ior: material.ior().filter(|_| !fixed_f0).unwrap_or(1.5),
-            specular_factor,
-            specular_color,
+            specular_factor: specular.factor,
+            specular_color: specular.color,
             transmission: material
                 .transmission()
                 .map_or(0.0, |t| t.transmission_factor()),
             transmission_texture,
-            specular_texture,
-            specular_color_texture,
+            specular_texture: specular.texture,
+            specular_color_texture: specular.color_texture,
             double_sided: material.double_sided(),
             interior: None,
             alpha_mode: alpha_mode(&material),
@@ -140,9 +109,14 @@ impl Loader<'_> {
             dispersion,
             tags: CompositingTags::default(),
         };
-        let mut m = m;
-        m.tags = self.material_tags(&material, &m.name)?;
-        m.interior = self.interior_medium(&material, &m)?;
+        self.finish_material(&material, m)
+    }
+
+    /// Adds `m`, made from `material`, with the compositing tags and interior medium of `material`; returns
+    /// its index.
+    fn finish_material(&mut self, material: &gltf::Material, mut m: Material) -> Result<u32, SceneError> {
+        m.tags = self.material_tags(material, &m.name)?;
+        m.interior = self.interior_medium(material, &m)?;
         if let Some(interior) = m.interior {
             let tag = MediumTag {
                 asset: String::new(),
@@ -155,68 +129,109 @@ impl Loader<'_> {
         Ok(id)
     }
 
+    /// The core textures of a material: base colour and metallic-roughness (when `metallic_roughness`: not
+    /// beside `KHR_materials_pbrSpecularGlossiness`), normal (with its scale), occlusion (with its strength)
+    /// and emissive.
+    fn core_textures(
+        &mut self,
+        material: &gltf::Material,
+        metallic_roughness: bool,
+        at: &str,
+    ) -> Result<CoreTextures, SceneError> {
+        let pbr = material.pbr_metallic_roughness();
+        let base_color = self.info_texture(
+            pbr.base_color_texture().filter(|_| metallic_roughness),
+            ColorSpace::Srgb,
+            &format!("{at}.pbrMetallicRoughness.baseColorTexture"),
+        )?;
+        let metallic_roughness = self.info_texture(
+            pbr.metallic_roughness_texture()
+                .filter(|_| metallic_roughness),
+            ColorSpace::Linear,
+            &format!("{at}.pbrMetallicRoughness.metallicRoughnessTexture"),
+        )?;
+        let normal = match material.normal_texture() {
+            Some(t) => {
+                let r = self.raw_ref(
+                    t.texture().index(),
+                    t.tex_coord(),
+                    t.extensions(),
+                    &format!("{at}.normalTexture"),
+                )?;
+                Some((self.texture_ref(&r, ColorSpace::Linear)?, t.scale()))
+            }
+            None => None,
+        };
+        let occlusion = match material.occlusion_texture() {
+            Some(t) => {
+                let r = self.raw_ref(
+                    t.texture().index(),
+                    t.tex_coord(),
+                    t.extensions(),
+                    &format!("{at}.occlusionTexture"),
+                )?;
+                Some((self.texture_ref(&r, ColorSpace::Linear)?, t.strength()))
+            }
+            None => None,
+        };
+        let emission = self.info_texture(
+            material.emissive_texture(),
+            ColorSpace::Srgb,
+            &format!("{at}.emissiveTexture"),
+        )?;
+        Ok(CoreTextures {
+            base_color,
+            metallic_roughness,
+            normal,
+            occlusion,
+            emission,
+        })
+    }
+
+    /// `KHR_materials_specular` of a material: its factors and textures (defaults without it, and when
+    /// `fixed_f0`, beside `KHR_materials_pbrSpecularGlossiness`, where it is not read and a warning says so if
+    /// it or `KHR_materials_ior` is there).
+    fn specular(
+        &mut self,
+        material: &gltf::Material,
+        fixed_f0: bool,
+        at: &str,
+    ) -> Result<Specular, SceneError> {
+        if fixed_f0 && (material.ior().is_some() || material.specular().is_some()) {
+            self.builder.warnings.push(format!(
+                "{at}: KHR_materials_ior and KHR_materials_specular are not read beside \
+                 KHR_materials_pbrSpecularGlossiness (its dielectric F0 is 0.04)"
+            ));
+        }
+        let specular = material.specular().filter(|_| !fixed_f0);
+        let (factor, color) = specular.as_ref().map_or((1.0, Rgb::ONE), |s| {
+            (s.specular_factor(), Rgb::from(s.specular_color_factor()))
+        });
+        let texture = self.info_texture(
+            specular.as_ref().and_then(|s| s.specular_texture()),
+            ColorSpace::Linear,
+            &format!("{at}.extensions.KHR_materials_specular.specularTexture"),
+        )?;
+        let color_texture = self.info_texture(
+            specular.as_ref().and_then(|s| s.specular_color_texture()),
+            ColorSpace::Srgb,
+            &format!("{at}.extensions.KHR_materials_specular.specularColorTexture"),
+        )?;
+        Ok(Specular {
+            factor,
+            color,
+            texture,
+            color_texture,
+        })
+    }
+
     /// Refuses a non-finite factor, or a negative emission, with an error naming the material and field.
     fn check_material_numbers(
         &self,
         material: &gltf::Material,
         emissive_strength: f32,
     ) -> Result<(), SceneError> {
-        let pbr = material.pbr_metallic_roughness();
-        let mut fields: Vec<(&str, Vec<f32>, bool)> = vec![
-            (
-                "pbrMetallicRoughness.baseColorFactor",
-                pbr.base_color_factor().to_vec(),
-                false,
-            ),
-            (
-                "pbrMetallicRoughness.metallicFactor",
-                vec![pbr.metallic_factor()],
-                false,
-            ),
-            (
-                "pbrMetallicRoughness.roughnessFactor",
-                vec![pbr.roughness_factor()],
-                false,
-            ),
-            ("emissiveFactor", material.emissive_factor().to_vec(), true),
-            (
-                "KHR_materials_emissive_strength.emissiveStrength",
-                vec![emissive_strength],
-                true,
-            ),
-        ];
-        if let Some(t) = material.normal_texture() {
-            fields.push(("normalTexture.scale", vec![t.scale()], false));
-        }
-        if let Some(cutoff) = material.alpha_cutoff() {
-            fields.push(("alphaCutoff", vec![cutoff], true));
-        }
-        if let Some(ior) = material.ior() {
-            fields.push(("KHR_materials_ior.ior", vec![ior], false));
-        }
-        if let Some(t) = material.transmission() {
-            let f = t.transmission_factor();
-            fields.push((
-                "KHR_materials_transmission.transmissionFactor",
-                vec![f],
-                false,
-            ));
-        }
-        if let Some(s) = material.specular() {
-            fields.push((
-                "KHR_materials_specular.specularFactor",
-                vec![s.specular_factor()],
-                false,
-            ));
-            let c = s.specular_color_factor().to_vec();
-            fields.push(("KHR_materials_specular.specularColorFactor", c, false));
-        }
-        if let Some(v) = material.volume() {
-            let t = v.thickness_factor();
-            fields.push(("KHR_materials_volume.thicknessFactor", vec![t], false));
-            let c = v.attenuation_color().to_vec();
-            fields.push(("KHR_materials_volume.attenuationColor", c, false));
-        }
+        let fields = material_number_fields(material, emissive_strength);
         let at = material.index().map_or_else(
             || "the default material".to_owned(),
             |i| format!("materials[{i}]"),
@@ -256,7 +271,7 @@ impl Loader<'_> {
         };
         let extras: serde_json::Value =
             serde_json::from_str(raw.get()).map_err(|e| bad(e.to_string()))?;
-        node_tags(Some(&extras)).map_err(bad)
+        node_tags(Some(&extras)).map_err(|e| bad(e.to_string()))
     }
 
     /// The medium filling meshes with this material: `extras.nimbus_medium`, else `KHR_materials_volume` with
@@ -332,6 +347,71 @@ const MATERIAL_EXTRAS: &[&str] = &[
     "nimbus_holdout",
     "nimbus_shadow_catcher",
 ];
+
+/// The numbers of a material that must be finite, by field name (relative to the material), each with whether
+/// it must also be non-negative.
+fn material_number_fields(
+    material: &gltf::Material,
+    emissive_strength: f32,
+) -> Vec<(&'static str, Vec<f32>, bool)> {
+    let pbr = material.pbr_metallic_roughness();
+    let mut fields: Vec<(&'static str, Vec<f32>, bool)> = vec![
+        (
+            "pbrMetallicRoughness.baseColorFactor",
+            pbr.base_color_factor().to_vec(),
+            false,
+        ),
+        (
+            "pbrMetallicRoughness.metallicFactor",
+            vec![pbr.metallic_factor()],
+            false,
+        ),
+        (
+            "pbrMetallicRoughness.roughnessFactor",
+            vec![pbr.roughness_factor()],
+            false,
+        ),
+        ("emissiveFactor", material.emissive_factor().to_vec(), true),
+        (
+            "KHR_materials_emissive_strength.emissiveStrength",
+            vec![emissive_strength],
+            true,
+        ),
+    ];
+    if let Some(t) = material.normal_texture() {
+        fields.push(("normalTexture.scale", vec![t.scale()], false));
+    }
+    if let Some(cutoff) = material.alpha_cutoff() {
+        fields.push(("alphaCutoff", vec![cutoff], true));
+    }
+    if let Some(ior) = material.ior() {
+        fields.push(("KHR_materials_ior.ior", vec![ior], false));
+    }
+    if let Some(t) = material.transmission() {
+        let f = t.transmission_factor();
+        fields.push((
+            "KHR_materials_transmission.transmissionFactor",
+            vec![f],
+            false,
+        ));
+    }
+    if let Some(s) = material.specular() {
+        fields.push((
+            "KHR_materials_specular.specularFactor",
+            vec![s.specular_factor()],
+            false,
+        ));
+        let c = s.specular_color_factor().to_vec();
+        fields.push(("KHR_materials_specular.specularColorFactor", c, false));
+    }
+    if let Some(v) = material.volume() {
+        let t = v.thickness_factor();
+        fields.push(("KHR_materials_volume.thicknessFactor", vec![t], false));
+        let c = v.attenuation_color().to_vec();
+        fields.push(("KHR_materials_volume.attenuationColor", c, false));
+    }
+    fields
+}
 
 /// The material's `alphaMode` and `alphaCutoff` (default 0.5), glTF 2.0 §3.9.4.
 fn alpha_mode(material: &gltf::Material) -> AlphaMode {

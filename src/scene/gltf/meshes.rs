@@ -60,20 +60,7 @@ impl Loader<'_> {
         }
         let frame_deform =
             self.deformation(node, &mesh, &self.pose, 0, &self.node_worlds, world)?;
-        let step_deforms = match &self.motion {
-            Some(m) => Some(
-                m.poses
-                    .iter()
-                    .zip(&m.worlds)
-                    .enumerate()
-                    .map(|(k, (pose, worlds))| {
-                        let world = worlds[node.index()] * *instance;
-                        self.deformation(node, &mesh, pose, k + 1, worlds, &world)
-                    })
-                    .collect::<Result<Vec<_>, _>>()?,
-            ),
-            None => None,
-        };
+        let step_deforms = self.step_deformations(node, &mesh, instance)?;
         for primitive in mesh.primitives() {
             let Some(what) = self.triangle_primitive(&mesh_name, &primitive) else {
                 continue;
@@ -89,43 +76,92 @@ impl Loader<'_> {
                 .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
             let base = self.read_primitive(&primitive, &what)?;
             let mut m = self.deformed(&base, &primitive, &frame_deform, &what)?;
-            if let (Some(deforms), Some(motion)) = (&step_deforms, &self.motion) {
-                let mut positions = Vec::with_capacity(deforms.len());
-                let mut normals = Vec::with_capacity(deforms.len());
-                for d in deforms {
-                    let step = self.deformed(&base, &primitive, d, &what)?;
-                    if step.indices != m.indices {
-                        // A mirroring transform at some steps only (a scale through zero) flips the winding.
-                        self.builder.warnings.push(format!(
-                            "{what}: its winding flips across the shutter; not motion-blurred"
-                        ));
-                        positions.clear();
-                        break;
-                    }
-                    positions.push(step.positions);
-                    normals.push(step.normals);
-                }
-                if positions.iter().any(|p| *p != m.positions) {
-                    m.motion = Some(MeshMotion {
-                        steps: motion.steps,
-                        positions,
-                        normals,
-                    });
-                }
+            if let Some(deforms) = &step_deforms {
+                m.motion = self.step_motion(&base, &primitive, deforms, &m, &what)?;
             }
             m.name = node.name().map_or_else(|| mesh_name.clone(), str::to_owned);
             m.asset = context.asset.clone();
             m.tags = context.tags.clone();
-            m.material = match self.variant_material(&primitive, &what)? {
-                Some(i) => {
-                    let material = self.document.materials().nth(i).expect("index checked");
-                    self.material(material)?
-                }
-                None => self.material(primitive.material())?,
-            };
+            m.material = self.primitive_material(&primitive, &what)?;
             self.builder.add_mesh(m);
         }
         Ok(())
+    }
+
+    /// The material of a primitive: the one `KHR_materials_variants` maps the chosen variant to, else its own.
+    pub(super) fn primitive_material(
+        &mut self,
+        primitive: &gltf::Primitive,
+        what: &str,
+    ) -> Result<u32, SceneError> {
+        match self.variant_material(primitive, what)? {
+            Some(i) => {
+                let material = self.document.materials().nth(i).expect("index checked");
+                self.material(material)
+            }
+            None => self.material(primitive.material()),
+        }
+    }
+
+    /// What poses `node`'s `mesh` (placed by `instance` in the node's frame) at each motion step of the
+    /// shutter; `None` without one.
+    fn step_deformations(
+        &self,
+        node: &gltf::Node,
+        mesh: &gltf::Mesh,
+        instance: &Mat4,
+    ) -> Result<Option<Vec<Deformation>>, SceneError> {
+        let Some(m) = &self.motion else {
+            return Ok(None);
+        };
+        m.poses
+            .iter()
+            .zip(&m.worlds)
+            .enumerate()
+            .map(|(k, (pose, worlds))| {
+                let world = worlds[node.index()] * *instance;
+                self.deformation(node, mesh, pose, k + 1, worlds, &world)
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some)
+    }
+
+    /// The motion of primitive `base`, posed as `m` at the frame, across the shutter: its vertices posed by
+    /// each step's deformation in `deforms`; `None` when no step moves a vertex, or when the winding flips
+    /// at some step (a warning says so).
+    fn step_motion(
+        &mut self,
+        base: &Mesh,
+        primitive: &gltf::Primitive,
+        deforms: &[Deformation],
+        m: &Mesh,
+        what: &str,
+    ) -> Result<Option<MeshMotion>, SceneError> {
+        let Some(motion) = &self.motion else {
+            return Ok(None);
+        };
+        let steps = motion.steps;
+        let mut positions = Vec::with_capacity(deforms.len());
+        let mut normals = Vec::with_capacity(deforms.len());
+        for d in deforms {
+            let step = self.deformed(base, primitive, d, what)?;
+            if step.indices != m.indices {
+                // A mirroring transform at some steps only (a scale through zero) flips the winding.
+                self.builder.warnings.push(format!(
+                    "{what}: its winding flips across the shutter; not motion-blurred"
+                ));
+                positions.clear();
+                break;
+            }
+            positions.push(step.positions);
+            normals.push(step.normals);
+        }
+        let moves = positions.iter().any(|p| *p != m.positions);
+        Ok(moves.then_some(MeshMotion {
+            steps,
+            positions,
+            normals,
+        }))
     }
 
     /// What poses a node's mesh in `pose` (number `pose_index`: 0 the frame's, k + 1 motion step k): its morph
@@ -176,7 +212,7 @@ impl Loader<'_> {
             .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
         let joints: Rc<[Mat4]> =
             deform::joint_matrices(skin, worlds, self.buffers, &self.options.limits)
-                .map_err(|e| self.error(SceneErrorKind::Malformed(e)))?
+                .map_err(|e| self.error(SceneErrorKind::Malformed(e.to_string())))?
                 .into();
         self.joints.borrow_mut().insert(key, joints.clone());
         Ok(joints)
@@ -223,13 +259,34 @@ impl Loader<'_> {
     /// A primitive's vertices in object space: POSITION, NORMAL, TANGENT and TEXCOORD_0 (sparse or quantized
     /// accessors decoded), its index list triangulated, every other attribute's bytes checked.
     pub(super) fn read_primitive(&self, primitive: &gltf::Primitive, what: &str) -> Result<Mesh, SceneError> {
+        let (buffers, limits) = (self.buffers, &self.options.limits);
+        let bad = |m: String| self.error(SceneErrorKind::InvalidReference(format!("{what}: {m}")));
+        let mut mesh = self.read_vertices(primitive, what)?;
+        let count = mesh.positions.len();
+        let flat: Vec<u32> = match primitive.indices() {
+            Some(a) => read_indices(&a, buffers, limits).map_err(|e| bad(e.to_string()))?,
+            None => (0..count as u32).collect(),
+        };
+        if let Some(i) = flat.iter().find(|&&i| i as usize >= count) {
+            return Err(bad(format!(
+                "index {i} is out of range for {count} vertices"
+            )));
+        }
+        self.check_vertices(&mesh, what)?;
+        mesh.indices = triangulate(&flat, primitive.mode());
+        Ok(mesh)
+    }
+
+    /// A primitive's vertex attributes (POSITION, NORMAL, TEXCOORD_0, TANGENT, TEXCOORD_1, COLOR_0), without
+    /// indices; every other attribute's bytes are checked.
+    fn read_vertices(&self, primitive: &gltf::Primitive, what: &str) -> Result<Mesh, SceneError> {
         use gltf::Semantic as S;
         let (buffers, limits) = (self.buffers, &self.options.limits);
         let bad = |m: String| self.error(SceneErrorKind::InvalidReference(format!("{what}: {m}")));
         let floats = |semantic: &S, usage| match primitive.get(semantic) {
             Some(a) => read_floats(&a, usage, buffers, limits)
                 .map(Some)
-                .map_err(bad),
+                .map_err(|e| bad(e.to_string())),
             None => Ok(None),
         };
         let positions: Vec<Vec3> = floats(&S::Positions, Usage::Position)?
@@ -239,7 +296,6 @@ impl Loader<'_> {
             .chunks_exact(3)
             .map(Vec3::from_slice)
             .collect();
-        let count = positions.len();
         let normals: Vec<Vec3> = floats(&S::Normals, Usage::Normal)?
             .map(|f| f.chunks_exact(3).map(Vec3::from_slice).collect())
             .unwrap_or_default();
@@ -275,15 +331,29 @@ impl Loader<'_> {
                     .map_err(|e| bad(format!("{semantic:?}: {e}")))?;
             }
         }
-        let flat: Vec<u32> = match primitive.indices() {
-            Some(a) => read_indices(&a, buffers, limits).map_err(bad)?,
-            None => (0..count as u32).collect(),
-        };
-        if let Some(i) = flat.iter().find(|&&i| i as usize >= count) {
-            return Err(bad(format!(
-                "index {i} is out of range for {count} vertices"
-            )));
-        }
+        Ok(Mesh {
+            positions,
+            normals,
+            uvs,
+            uvs1,
+            colors,
+            tangents,
+            ..Default::default()
+        })
+    }
+
+    /// Refuses a primitive whose attributes are not one per position, or hold a number that is not finite.
+    fn check_vertices(&self, mesh: &Mesh, what: &str) -> Result<(), SceneError> {
+        let Mesh {
+            positions,
+            normals,
+            uvs,
+            uvs1,
+            colors,
+            tangents,
+            ..
+        } = mesh;
+        let count = positions.len();
         let same_len = |n: usize| n == count;
         if (!normals.is_empty() && !same_len(normals.len()))
             || uvs.as_ref().is_some_and(|u| !same_len(u.len()))
@@ -320,16 +390,7 @@ impl Loader<'_> {
                 "{what}: {name}[{i}] is not finite"
             ))));
         }
-        Ok(Mesh {
-            positions,
-            normals,
-            uvs,
-            uvs1,
-            colors,
-            tangents,
-            indices: triangulate(&flat, primitive.mode()),
-            ..Default::default()
-        })
+        Ok(())
     }
 }
 

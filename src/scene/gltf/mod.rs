@@ -150,7 +150,7 @@ pub fn load_slice(
 ) -> Result<SceneBuilder, SceneError> {
     let err = |kind| SceneError::new(path, kind);
     let malformed = |m: String| err(SceneErrorKind::Malformed(m));
-    let (root, blob, skipped) = parse(bytes).map_err(malformed)?;
+    let (root, blob, skipped) = parse(bytes).map_err(|e| malformed(e.to_string()))?;
     check::check_document(&root).map_err(&err)?;
     let mut warnings = validate(&root).map_err(&err)?;
     warnings.extend(skipped.warnings.iter().cloned());
@@ -285,24 +285,43 @@ fn read_pose(
 
 type JsonParse = (gltf::json::Root, Option<Vec<u8>>, SkippedChannels);
 
-fn parse(bytes: &[u8]) -> Result<JsonParse, String> {
+/// Why a file is not a glTF or GLB document the loader can read.
+#[derive(Debug, thiserror::Error)]
+enum ParseError {
+    /// A GLB header whose length field is missing or shorter than the header.
+    #[error("GLB container: the header's length field ({length}) is shorter than the 12-byte header")]
+    ShortGlbHeader {
+        /// The length field, or `missing`.
+        length: String,
+    },
+    /// A GLB container the `gltf` crate refuses.
+    #[error("GLB container: {0}")]
+    Glb(gltf::Error),
+    /// A GLB file's JSON chunk that does not parse.
+    #[error("JSON chunk: {0}")]
+    JsonChunk(String),
+    /// A `.gltf` file's JSON that does not parse.
+    #[error("JSON: {0}")]
+    Json(String),
+}
+
+/// The document of a `.gltf` or `.glb` file, its GLB binary chunk if any, and the animation channels skipped.
+fn parse(bytes: &[u8]) -> Result<JsonParse, ParseError> {
     if bytes.starts_with(b"glTF") {
         // The crate subtracts the header size from the declared length unchecked.
         let length = bytes
             .get(8..12)
             .map(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]));
         if length.is_none_or(|l| l < 12) {
-            return Err(format!(
-                "GLB container: the header's length field ({}) is shorter than the 12-byte header",
-                length.map_or_else(|| "missing".to_owned(), |l| l.to_string())
-            ));
+            return Err(ParseError::ShortGlbHeader {
+                length: length.map_or_else(|| "missing".to_owned(), |l| l.to_string()),
+            });
         }
-        let mut glb =
-            gltf::binary::Glb::from_slice(bytes).map_err(|e| format!("GLB container: {e}"))?;
-        let (root, skipped) = parse_json(&glb.json).map_err(|e| format!("JSON chunk: {e}"))?;
+        let mut glb = gltf::binary::Glb::from_slice(bytes).map_err(ParseError::Glb)?;
+        let (root, skipped) = parse_json(&glb.json).map_err(ParseError::JsonChunk)?;
         Ok((root, glb.bin.take().map(|b| b.into_owned()), skipped))
     } else {
-        let (root, skipped) = parse_json(bytes).map_err(|e| format!("JSON: {e}"))?;
+        let (root, skipped) = parse_json(bytes).map_err(ParseError::Json)?;
         Ok((root, None, skipped))
     }
 }
