@@ -14,6 +14,8 @@ use super::{Loader, QUOTE};
 use super::nodes::NodeContext;
 
 impl Loader<'_> {
+    /// Reads the scene's `extras`: `max_bounces`, `nimbus_environment` and `nimbus_transparent` (unknown
+    /// `nimbus_*` keys warned about, or refused under `--strict`).
     pub(super) fn read_scene_extras(&mut self, extras: &gltf::json::Extras) -> Result<(), SceneError> {
         let Some(raw) = extras else { return Ok(()) };
         let value: serde_json::Value = serde_json::from_str(raw.get())

@@ -9,6 +9,8 @@ use crate::scene::{LightTag, SceneError, SceneErrorKind};
 use super::Loader;
 
 impl Loader<'_> {
+    /// Adds a `KHR_lights_punctual` light placed by its node's `world` matrix, its intensity in the scene's
+    /// light units; `range` is warned about and ignored.
     pub(super) fn load_light(&mut self, light: gltf::khr_lights_punctual::Light, world: &Mat4, tag: LightTag) {
         let color = Rgb::from(light.color()) * (light.intensity() * self.light_unit_scale);
         let position = world.transform_point3(Vec3::ZERO);

@@ -283,6 +283,7 @@ fn read_pose(
     Ok((pose, motion))
 }
 
+/// A parsed document, its GLB binary chunk if any, and the animation channels skipped.
 type JsonParse = (gltf::json::Root, Option<Vec<u8>>, SkippedChannels);
 
 /// Why a file is not a glTF or GLB document the loader can read.
@@ -376,6 +377,7 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
         .collect())
 }
 
+/// The state of one glTF load: the document, its buffers and pose, and the builder being filled.
 struct Loader<'a> {
     path: &'a Path,
     /// Every node's local matrix and animated morph weights: the file's, or at the shot's frame.
@@ -442,6 +444,7 @@ impl Loader<'_> {
             .map_err(|kind| self.error(kind))
     }
 
+    /// A malformed-file error naming the file, its message cut to one line.
     fn malformed(&self, message: String) -> SceneError {
         self.error(SceneErrorKind::Malformed(one_line(&message, 4 * QUOTE)))
     }

@@ -14,6 +14,8 @@ use super::{Loader, MAX_NODE_DEPTH, QUOTE};
 use super::extras::node_tags;
 
 impl Loader<'_> {
+    /// Loads `node` and its subtree under the `parent` world matrix at `depth`, with the compositing tags and
+    /// asset its ancestors pass down (`outer`).
     pub(super) fn visit(
         &mut self,
         node: gltf::Node,

@@ -186,6 +186,8 @@ impl Loader<'_> {
         Ok(mip)
     }
 
+    /// The RGBA8 pixels of an image (embedded in a buffer view, a data URI or a file), decoded within the
+    /// memory budget.
     fn decode_image(&mut self, image: gltf::Image) -> Result<image::RgbaImage, SceneError> {
         let name = match image.source() {
             gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
