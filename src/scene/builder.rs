@@ -1,12 +1,362 @@
-//! Convenience methods for building a scene in code rather than loading it from a file.
+//! [`SceneBuilder`]: what a loader (or code) fills before the scene is built: meshes, prototypes and
+//! instances, materials, textures, lights, media and cameras, counted against the memory budget as they are
+//! added ([`BYTES_PER_TRIANGLE`](super::BYTES_PER_TRIANGLE), [`BYTES_PER_VERTEX`](super::BYTES_PER_VERTEX)); and the convenience methods for building a scene in
+//! code rather than loading it from a file.
 
-use super::{Camera, SceneBuilder, SceneError, SceneErrorKind};
+use super::names::{self, LightTag, MediumTag};
+use super::{mesh_bytes, mesh_counts, MeshInstance, BYTES_PER_INSTANCE};
+use super::{Camera, NamedCamera, SceneError, SceneErrorKind, UnknownCamera};
 use crate::geometry::Mesh;
-use crate::light::{DirectionalLight, Light, PointLight};
+use crate::light::{DirectionalLight, EnvironmentLight, Light, PointLight};
+use crate::material::{Material, Texture};
 use crate::math::{Rgb, Vec3};
+use crate::volume::Medium;
+use std::sync::Arc;
 
 /// The name that errors about a programmatic scene give in place of a file path.
 pub const BUILDER_PATH: &str = "<scene builder>";
+
+/// Everything a loader produces, before acceleration structures are built: add meshes, materials, textures,
+/// lights and media, then [`build`](Self::build) the renderable [`Scene`]. References between them (a mesh's
+/// material, a material's textures and interior medium) are checked when the scene is built, so a dangling
+/// index is an error, never a panic.
+#[derive(Default)]
+pub struct SceneBuilder {
+    pub(super) meshes: Vec<Mesh>,
+    /// Object-space meshes that `instances` place.
+    pub(super) prototypes: Vec<Mesh>,
+    /// Placements of `prototypes`, each with its own identity.
+    pub(super) instances: Vec<MeshInstance>,
+    pub(super) materials: Vec<Material>,
+    pub(super) textures: Vec<Texture>,
+    /// Punctual lights and the environment (area lights are added by `build`).
+    pub(super) lights: Vec<Light>,
+    /// The name and light group of each light in `lights`.
+    pub(super) light_tags: Vec<LightTag>,
+    /// The camera the scene renders from: the first of `cameras` unless one was chosen or set.
+    pub(super) camera: Option<Camera>,
+    /// Every camera of the scene file with its names, in the order the loader met them.
+    pub(super) cameras: Vec<NamedCamera>,
+    pub(super) max_bounces: Option<u32>,
+    pub(super) warnings: Vec<String>,
+    /// Mesh interiors (referenced by `Material::interior`) and position-filled volumes.
+    pub(super) media: Vec<Arc<dyn Medium>>,
+    /// The asset and compositing tags of each medium in `media`.
+    pub(super) media_tags: Vec<MediumTag>,
+    /// The motion-blur shutter, in frames relative to the frame.
+    pub(super) shutter: Option<crate::frames::Shutter>,
+    /// Whether the scene asks for a transparent film (glTF scene extras `nimbus_transparent`).
+    pub(super) transparent: bool,
+    /// The load's memory budget, which the scene's meshes must fit (see [`SceneBuilder::check_mesh`]).
+    pub(super) limits: crate::limits::Limits,
+    /// Triangles in `meshes` and `prototypes`.
+    pub(super) triangles: u64,
+    /// Vertices in `meshes` and `prototypes`, counted once more for each motion step.
+    pub(super) vertices: u64,
+}
+impl SceneBuilder {
+    /// An empty builder whose meshes must fit `limits` (a default builder has the default limits).
+    pub(crate) fn with_limits(limits: crate::limits::Limits) -> Self {
+        Self {
+            limits,
+            ..Self::default()
+        }
+    }
+
+    /// `Ok` if a mesh of `triangles` and `vertices` (counted once more per motion step) fits the memory budget
+    /// with the meshes added so far, at [`BYTES_PER_TRIANGLE`] and [`BYTES_PER_VERTEX`]. Loaders call it before
+    /// making a mesh (an instance, an expanded prototype), so that a file reusing one mesh many times is
+    /// refused before the copies are made; `what` names the mesh.
+    pub(crate) fn check_mesh(
+        &self,
+        what: impl std::fmt::Display,
+        triangles: u64,
+        vertices: u64,
+    ) -> Result<(), crate::limits::OverBudget> {
+        let triangles = self.triangles.saturating_add(triangles);
+        let vertices = self.vertices.saturating_add(vertices);
+        let instances = self.instances.len() as u64;
+        self.limits.check(
+            format_args!(
+                "{what}: the scene's meshes with it ({triangles} triangles, {vertices} vertices, {instances} instances)"
+            ),
+            mesh_bytes(triangles, vertices)
+                .saturating_add(instances.saturating_mul(BYTES_PER_INSTANCE)),
+        )
+    }
+
+    /// Loads the VDB volume `spec` describes and adds it as a position-filled medium; returns its index, or
+    /// `None` when a sequence has no file for the frame and its `missing_frame` is `empty` (a warning says so).
+    pub(crate) fn add_volume(
+        &mut self,
+        spec: &crate::volume::VolumeSpec,
+    ) -> Result<Option<u32>, crate::volume::VolumeError> {
+        match crate::volume::load_grid_medium(spec)? {
+            Some(medium) => {
+                let index = self.add_medium(medium);
+                self.set_medium_tag(
+                    index,
+                    MediumTag {
+                        asset: spec.asset.clone(),
+                        tags: spec.tags.clone(),
+                    },
+                );
+                Ok(Some(index))
+            }
+            None => {
+                self.warn(format!(
+                    "volume '{}': the sequence {} has no file for frame {}; the volume is empty in this frame",
+                    spec.name,
+                    spec.file.display(),
+                    spec.file_frame()
+                ));
+                Ok(None)
+            }
+        }
+    }
+
+    internal! {
+        /// Adds a medium and returns its index. Its Cryptomatte names are its own name; see
+        /// [`set_medium_tag`](Self::set_medium_tag) for an asset and compositing tags.
+        pub fn add_medium(&mut self, medium: Arc<dyn Medium>) -> u32 {
+            self.warnings.extend(medium.warnings());
+            self.media.push(medium);
+            self.media_tags.push(MediumTag::default());
+            (self.media.len() - 1) as u32
+        }
+    }
+
+    /// Gives medium `index` (as [`add_medium`](Self::add_medium) returned it) its asset name and compositing
+    /// tags; an index that names no medium is ignored.
+    pub(crate) fn set_medium_tag(&mut self, index: u32, tag: MediumTag) {
+        if let Some(t) = self.media_tags.get_mut(index as usize) {
+            *t = tag;
+        }
+    }
+
+    /// Adds a material and returns its index. Its texture and medium indices must refer to textures and media
+    /// added to this builder by the time the scene is built.
+    pub fn add_material(&mut self, material: Material) -> u32 {
+        self.materials.push(material);
+        (self.materials.len() - 1) as u32
+    }
+
+    internal! {
+        /// Adds a texture and returns its index.
+        pub fn add_texture(&mut self, texture: Texture) -> u32 {
+            self.textures.push(texture);
+            (self.textures.len() - 1) as u32
+        }
+    }
+
+    internal! {
+        /// Adds a world-space mesh, generating normals when it has none. Its material index must refer to a
+        /// material added by the time the scene is built.
+        pub fn add_mesh(&mut self, mut mesh: Mesh) {
+            // A mesh whose indices, attributes or motion steps do not fit its positions keeps its normals as given,
+            // and `build` names the problem: generating normals would index past the end of one of them.
+            if mesh.normals.len() != mesh.positions.len() && mesh.indices_fit_attributes() {
+                mesh.generate_normals();
+            }
+            let (triangles, vertices) = mesh_counts(&mesh);
+            self.triangles = self.triangles.saturating_add(triangles);
+            self.vertices = self.vertices.saturating_add(vertices);
+            self.meshes.push(mesh);
+        }
+    }
+
+    /// Removes and returns the meshes added after the first `at` (a USD prototype flattened for instancing).
+    pub(crate) fn split_meshes_off(&mut self, at: usize) -> Vec<Mesh> {
+        let taken = self.meshes.split_off(at);
+        for (triangles, vertices) in taken.iter().map(mesh_counts) {
+            self.triangles = self.triangles.saturating_sub(triangles);
+            self.vertices = self.vertices.saturating_sub(vertices);
+        }
+        taken
+    }
+
+    internal! {
+        /// Adds a light (area lights come from emissive materials instead; an environment replaces any other),
+        /// named `light<i>` in no light group.
+        pub fn add_light(&mut self, light: Light) {
+            let tag = LightTag {
+                name: format!("light{}", self.lights.len()),
+                light_group: None,
+            };
+            self.add_tagged_light(light, tag);
+        }
+    }
+
+    internal! {
+        /// Adds a light with its name (for per-light groups) and light group.
+        pub fn add_tagged_light(&mut self, light: Light, tag: LightTag) {
+            match light {
+                Light::Environment(env) => {
+                    self.set_environment(env);
+                    self.set_environment_group(tag.light_group);
+                }
+                other => {
+                    self.lights.push(other);
+                    self.light_tags.push(tag);
+                }
+            }
+        }
+    }
+
+    /// Replaces any environment light with `env`, keeping the old one's light group.
+    pub fn set_environment(&mut self, env: EnvironmentLight) {
+        let group = self.environment_tag().and_then(|t| t.light_group.clone());
+        let old = self
+            .lights
+            .iter()
+            .position(|l| matches!(l, Light::Environment(_)));
+        if let Some(i) = old {
+            self.lights.remove(i);
+            self.light_tags.remove(i);
+        }
+        self.lights.push(Light::Environment(env));
+        self.light_tags.push(LightTag {
+            name: names::ENVIRONMENT_NAME.into(),
+            light_group: group,
+        });
+    }
+
+    /// Drops the lights added after the first `count` (with their tags).
+    pub(crate) fn truncate_lights(&mut self, count: usize) {
+        self.lights.truncate(count);
+        self.light_tags.truncate(count);
+    }
+
+    /// Puts the environment light, if there is one, in light group `group` (`None`: no declared group).
+    pub(crate) fn set_environment_group(&mut self, group: Option<String>) {
+        let env = self
+            .lights
+            .iter()
+            .position(|l| matches!(l, Light::Environment(_)));
+        if let Some(i) = env {
+            self.light_tags[i].light_group = group;
+        }
+    }
+
+    /// The tag of the environment light, if there is one.
+    fn environment_tag(&self) -> Option<&LightTag> {
+        let i = self
+            .lights
+            .iter()
+            .position(|l| matches!(l, Light::Environment(_)))?;
+        self.light_tags.get(i)
+    }
+
+    /// Sets the motion-blur shutter (frames relative to the frame): camera rays of the built scene sample
+    /// their time in it. Loaders set it from [`LoadOptions::shutter`].
+    pub fn set_shutter(&mut self, shutter: Option<crate::frames::Shutter>) {
+        self.shutter = shutter;
+    }
+
+    /// Sets whether the scene asks for a transparent film: the directly seen environment left out of the
+    /// beauty (the renderer's `transparent` setting; `--transparent` also turns it on).
+    pub fn set_transparent(&mut self, transparent: bool) {
+        self.transparent = transparent;
+    }
+
+    /// Sets the maximum number of bounces the scene asks for (the default of `--max-depth`).
+    pub fn set_max_bounces(&mut self, bounces: u32) {
+        self.max_bounces = Some(bounces);
+    }
+
+    /// Records a non-fatal problem met while loading.
+    pub(crate) fn warn(&mut self, message: impl Into<String>) {
+        self.warnings.push(message.into());
+    }
+
+    internal! {
+        /// The meshes added so far.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn meshes(&self) -> &[Mesh] {
+            &self.meshes
+        }
+    }
+
+    /// The materials added so far, by index.
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    internal! {
+        /// The textures added so far, by index.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn textures(&self) -> &[Texture] {
+            &self.textures
+        }
+    }
+
+    internal! {
+        /// The lights added so far (area lights are made by [`build`](Self::build)).
+        #[cfg(any(test, feature = "testing"))]
+        pub fn lights(&self) -> &[Light] {
+            &self.lights
+        }
+    }
+
+    /// The camera, if one was loaded or set; without one, [`build`](Self::build) frames the scene.
+    pub fn camera(&self) -> Option<&Camera> {
+        self.camera.as_ref()
+    }
+
+    /// Adds a camera of the scene file with its names: the first one added becomes the camera (unless one was
+    /// set), the others can be chosen by [`select_camera`](Self::select_camera).
+    pub fn add_camera(&mut self, camera: NamedCamera) {
+        if self.camera.is_none() {
+            self.camera = Some(camera.camera.clone());
+        }
+        self.cameras.push(camera);
+    }
+
+    /// Every camera of the scene file, in the order met (glTF: the nodes' depth-first order; USD: the prims').
+    pub fn cameras(&self) -> &[NamedCamera] {
+        &self.cameras
+    }
+
+    /// Makes the camera named `name` (a glTF node or camera name, a USD prim name or path; the first match in
+    /// [`cameras`](Self::cameras)) the camera; an error listing the names when none has it.
+    pub fn select_camera(&mut self, name: &str) -> Result<(), UnknownCamera> {
+        match self.cameras.iter().find(|c| c.is_named(name)) {
+            Some(c) => {
+                self.camera = Some(c.camera.clone());
+                Ok(())
+            }
+            None => Err(UnknownCamera {
+                name: name.to_owned(),
+                available: self
+                    .cameras
+                    .iter()
+                    .map(|c| match &c.path {
+                        Some(p) if *p != c.name => format!("{} ({p})", c.name),
+                        _ => c.name.clone(),
+                    })
+                    .collect(),
+            }),
+        }
+    }
+
+    /// The maximum number of bounces the scene asks for, if any.
+    pub fn max_bounces(&self) -> Option<u32> {
+        self.max_bounces
+    }
+
+    /// Problems met while loading.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    internal! {
+        /// The media added so far, by index.
+        #[cfg(any(test, feature = "testing"))]
+        pub fn media(&self) -> &[Arc<dyn Medium>] {
+            &self.media
+        }
+    }
+}
 
 impl SceneBuilder {
     /// An empty builder: no meshes, materials or lights, and a camera framing whatever is added.

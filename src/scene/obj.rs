@@ -272,70 +272,19 @@ fn scan_obj(text: &str) -> Result<ObjScan, LineError> {
         let args: Vec<&str> = words.collect();
         match key {
             "v" => {
-                let x = numbers(n, "vertex", &args)?;
-                let position = match x.len() {
-                    3 | 6 => [x[0], x[1], x[2]],
-                    4 if x[3] != 0.0 => [x[0] / x[3], x[1] / x[3], x[2] / x[3]],
-                    4 => return Err(bad(n, "vertex: weight w is 0".into())),
-                    k => {
-                        return Err(bad(
-                            n,
-                            format!("vertex: expected 3 coordinates (then a weight or a colour), found {k} numbers"),
-                        ))
-                    }
-                };
-                if position.iter().any(|c| !c.is_finite()) {
-                    return Err(bad(n, "vertex: coordinate / weight is not finite".into()));
-                }
-                if position.iter().any(|c| c.abs() > MAX_COORDINATE) {
-                    return Err(bad(
-                        n,
-                        format!("vertex: a coordinate beyond +-{MAX_COORDINATE:e}"),
-                    ));
-                }
+                check_vertex(n, &args)?;
                 v += 1;
             }
             "vt" => {
-                let x = numbers(n, "texture coordinate", &args)?;
-                if !(2..=3).contains(&x.len()) {
-                    return Err(bad(
-                        n,
-                        format!(
-                            "texture coordinate: expected 2 or 3 numbers, found {}",
-                            x.len()
-                        ),
-                    ));
-                }
+                check_texture_coordinate(n, &args)?;
                 vt += 1;
             }
             "vn" => {
-                let x = numbers(n, "normal", &args)?;
-                if x.len() != 3 {
-                    return Err(bad(
-                        n,
-                        format!("normal: expected 3 numbers, found {}", x.len()),
-                    ));
-                }
+                check_normal(n, &args)?;
                 vn += 1;
             }
             "f" | "l" => {
-                let what = if key == "f" { "face" } else { "line element" };
-                let least = if key == "f" { 3 } else { 2 };
-                if args.len() < least {
-                    return Err(bad(
-                        n,
-                        format!("{what}: {} corners (at least {least} needed)", args.len()),
-                    ));
-                }
-                for corner in &args {
-                    check_corner(corner, [v, vt, vn]).map_err(|(kind, m)| {
-                        (
-                            kind,
-                            n,
-                            format!("{what} corner '{}': {m}", one_line(corner, QUOTE_CHARS)),
-                        )
-                    })?;
-                }
+                check_element(n, key, &args, [v, vt, vn])?;
                 if key == "f" {
                     faces += 1;
                 } else {
@@ -366,6 +315,83 @@ fn scan_obj(text: &str) -> Result<ObjScan, LineError> {
         return Err(bad(text.lines().count(), "no faces".into()));
     }
     Ok(scan)
+}
+
+/// Checks a vertex (`v`, on line `n`): 3 finite coordinates within [`MAX_COORDINATE`], then an optional
+/// non-zero weight or a colour.
+fn check_vertex(n: usize, args: &[&str]) -> Result<(), LineError> {
+    let x = numbers(n, "vertex", args)?;
+    let position = match x.len() {
+        3 | 6 => [x[0], x[1], x[2]],
+        4 if x[3] != 0.0 => [x[0] / x[3], x[1] / x[3], x[2] / x[3]],
+        4 => return Err(bad(n, "vertex: weight w is 0".into())),
+        k => {
+            return Err(bad(
+                n,
+                format!("vertex: expected 3 coordinates (then a weight or a colour), found {k} numbers"),
+            ))
+        }
+    };
+    if position.iter().any(|c| !c.is_finite()) {
+        return Err(bad(n, "vertex: coordinate / weight is not finite".into()));
+    }
+    if position.iter().any(|c| c.abs() > MAX_COORDINATE) {
+        return Err(bad(
+            n,
+            format!("vertex: a coordinate beyond +-{MAX_COORDINATE:e}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a texture coordinate (`vt`, on line `n`): 2 or 3 finite numbers.
+fn check_texture_coordinate(n: usize, args: &[&str]) -> Result<(), LineError> {
+    let x = numbers(n, "texture coordinate", args)?;
+    if !(2..=3).contains(&x.len()) {
+        return Err(bad(
+            n,
+            format!(
+                "texture coordinate: expected 2 or 3 numbers, found {}",
+                x.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a normal (`vn`, on line `n`): 3 finite numbers.
+fn check_normal(n: usize, args: &[&str]) -> Result<(), LineError> {
+    let x = numbers(n, "normal", args)?;
+    if x.len() != 3 {
+        return Err(bad(
+            n,
+            format!("normal: expected 3 numbers, found {}", x.len()),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a face (`f`, at least 3 corners) or line element (`l`, at least 2) on line `n`: each corner's
+/// indices refer to the `[v, vt, vn]` elements declared before it.
+fn check_element(n: usize, key: &str, args: &[&str], declared: [usize; 3]) -> Result<(), LineError> {
+    let what = if key == "f" { "face" } else { "line element" };
+    let least = if key == "f" { 3 } else { 2 };
+    if args.len() < least {
+        return Err(bad(
+            n,
+            format!("{what}: {} corners (at least {least} needed)", args.len()),
+        ));
+    }
+    for corner in args {
+        check_corner(corner, declared).map_err(|(kind, m)| {
+            (
+                kind,
+                n,
+                format!("{what} corner '{}': {m}", one_line(corner, QUOTE_CHARS)),
+            )
+        })?;
+    }
+    Ok(())
 }
 
 /// The numbers of a statement, each a finite `f32`.
@@ -550,6 +576,50 @@ impl Libraries<'_> {
 /// A material's texture-coordinate transform from its texture options: scale, then offset.
 type UvTransform = Option<(Vec2, Vec2)>;
 
+/// How much of a surface the MTL block `m` covers (`d`, `Tr`): an illumination model with glass (4, 6, 7, 9)
+/// transmits the rest, any other blends it with what is behind; `kd` is the block's diffuse colour.
+fn apply_coverage(out: &mut Material, m: &mtl::MtlMaterial, kd: Rgb) {
+    let coverage = m.coverage();
+    let glass = matches!(m.illum, Some(4 | 6 | 7 | 9));
+    if glass && coverage < 1.0 {
+        out.transmission = 1.0 - coverage;
+        out.specular_factor = 1.0;
+        out.metallic = 0.0;
+        out.double_sided = false;
+        if kd.max_element() <= 0.0 {
+            out.base_color = Rgb::ONE.extend(1.0);
+        }
+    } else {
+        out.base_color.w = coverage;
+        if coverage < 1.0 {
+            out.alpha_mode = AlphaMode::Blend;
+        }
+    }
+}
+
+/// The texture-coordinate transform of the material `m` of library `mtl` whose `used` maps are read: the
+/// first map's, one per material (it moves the mesh's coordinates), with a warning when another map's
+/// differs; `None` for the identity.
+fn shared_transform(
+    mtl: &Path,
+    m: &mtl::MtlMaterial,
+    used: &[&mtl::TextureMap],
+    builder: &mut SceneBuilder,
+) -> UvTransform {
+    let transform = used.first().map(|t| (t.scale, t.offset));
+    if let Some(other) = used.iter().find(|t| Some((t.scale, t.offset)) != transform) {
+        builder.warn(format!(
+            "{}: line {}: material '{}': the -o/-s options of {} differ from those of its other textures; the \
+             first ones apply to all",
+            mtl.display(),
+            other.line,
+            one_line(&m.name, QUOTE_CHARS),
+            other.key
+        ));
+    }
+    transform.filter(|&(s, o)| s != Vec2::ONE || o != Vec2::ZERO)
+}
+
 /// The material of an MTL block of the library `mtl`, and the texture-coordinate transform of its textures.
 fn convert_material(
     mtl: &Path,
@@ -601,45 +671,18 @@ fn convert_material(
     if let Some(ni) = m.ior.filter(|v| v.is_finite() && *v > 0.0) {
         out.ior = ni;
     }
-    let coverage = m.coverage();
-    let glass = matches!(m.illum, Some(4 | 6 | 7 | 9));
-    if glass && coverage < 1.0 {
-        out.transmission = 1.0 - coverage;
-        out.specular_factor = 1.0;
-        out.metallic = 0.0;
-        out.double_sided = false;
-        if kd.max_element() <= 0.0 {
-            out.base_color = Rgb::ONE.extend(1.0);
-        }
-    } else {
-        out.base_color.w = coverage;
-        if coverage < 1.0 {
-            out.alpha_mode = AlphaMode::Blend;
-        }
-    }
+    apply_coverage(&mut out, m, kd);
     if let Some((id, _)) = alpha_map {
         out.alpha_texture = Some(id);
         out.alpha_mode = AlphaMode::Mask { cutoff: 0.5 };
     }
 
-    // One texture-coordinate transform per material (it moves the mesh's coordinates).
     let used: Vec<&mtl::TextureMap> = [diffuse_map, emission_map, alpha_map]
         .into_iter()
         .flatten()
         .map(|(_, map)| map)
         .chain(normal_map.map(|(_, _, map)| map))
         .collect();
-    let transform = used.first().map(|t| (t.scale, t.offset));
-    if let Some(other) = used.iter().find(|t| Some((t.scale, t.offset)) != transform) {
-        builder.warn(format!(
-            "{}: line {}: material '{}': the -o/-s options of {} differ from those of its other textures; the \
-             first ones apply to all",
-            mtl.display(),
-            other.line,
-            one_line(&m.name, QUOTE_CHARS),
-            other.key
-        ));
-    }
-    let transform = transform.filter(|&(s, o)| s != Vec2::ONE || o != Vec2::ZERO);
+    let transform = shared_transform(mtl, m, &used, builder);
     Ok((out, transform))
 }

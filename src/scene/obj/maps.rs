@@ -91,42 +91,7 @@ impl<'a> TextureMaps<'a> {
             wrap_t: wrap,
             ..Sampler::default()
         };
-        let rgba = image.to_rgba8();
-        let (w, h) = (rgba.width() as usize, rgba.height() as usize);
-        let mip = match kind {
-            MapKind::Diffuse | MapKind::Emission => {
-                MipImage::from_rgba8(w, h, rgba.as_raw(), ColorSpace::Srgb)
-            }
-            MapKind::Normal => MipImage::from_rgba8(w, h, rgba.as_raw(), ColorSpace::Linear),
-            MapKind::Dissolve => {
-                let channel = map.channel.unwrap_or(if image.color().has_alpha() {
-                    'm'
-                } else {
-                    'l'
-                });
-                let texels = scalars(&rgba, channel)
-                    .map(|c| Vec4::new(c, c, c, 1.0))
-                    .collect();
-                MipImage::new(w, h, texels)
-            }
-            MapKind::Bump => {
-                let linear = MipImage::from_rgba8(w, h, rgba.as_raw(), ColorSpace::Linear);
-                if map.channel.is_none() && looks_like_normal_map(&rgba) {
-                    builder.warn(format!(
-                        "{}: line {}: {} image '{}' is a tangent-space normal map (bluish), not a height map; read \
-                         as a normal map",
-                        mtl.display(),
-                        map.line,
-                        map.key,
-                        one_line(&map.file, QUOTE_CHARS)
-                    ));
-                    linear
-                } else {
-                    let heights: Vec<f32> = scalars(&rgba, map.channel.unwrap_or('l')).collect();
-                    MipImage::new(w, h, height_to_normals(&heights, w, h, map.bump_multiplier, wrap))
-                }
-            }
-        }
+        let mip = mip_image(mtl, map, kind, &image, wrap, builder)
         .ok_or_else(|| {
             SceneError::new(&file, SceneErrorKind::Malformed("the image is empty".into()))
         })?;
@@ -165,6 +130,56 @@ impl<'a> TextureMaps<'a> {
         Ok(image)
     }
 }
+
+/// The mip-mapped image of `map` (of kind `kind`, in the MTL file `mtl`) from its decoded `image`: colour
+/// maps as sRGB, normal maps as linear data, a dissolve map's channel as grey, a bump map's heights made
+/// normals (or, when it looks like a normal map, read as one with a warning); `None` for an empty image.
+fn mip_image(
+    mtl: &Path,
+    map: &TextureMap,
+    kind: MapKind,
+    image: &image::DynamicImage,
+    wrap: Wrap,
+    builder: &mut SceneBuilder,
+) -> Option<MipImage> {
+    let rgba = image.to_rgba8();
+    let (w, h) = (rgba.width() as usize, rgba.height() as usize);
+    match kind {
+        MapKind::Diffuse | MapKind::Emission => {
+            MipImage::from_rgba8(w, h, rgba.as_raw(), ColorSpace::Srgb)
+        }
+        MapKind::Normal => MipImage::from_rgba8(w, h, rgba.as_raw(), ColorSpace::Linear),
+        MapKind::Dissolve => {
+            let channel = map.channel.unwrap_or(if image.color().has_alpha() {
+                'm'
+            } else {
+                'l'
+            });
+            let texels = scalars(&rgba, channel)
+                .map(|c| Vec4::new(c, c, c, 1.0))
+                .collect();
+            MipImage::new(w, h, texels)
+        }
+        MapKind::Bump => {
+            let linear = MipImage::from_rgba8(w, h, rgba.as_raw(), ColorSpace::Linear);
+            if map.channel.is_none() && looks_like_normal_map(&rgba) {
+                builder.warn(format!(
+                    "{}: line {}: {} image '{}' is a tangent-space normal map (bluish), not a height map; read \
+                     as a normal map",
+                    mtl.display(),
+                    map.line,
+                    map.key,
+                    one_line(&map.file, QUOTE_CHARS)
+                ));
+                linear
+            } else {
+                let heights: Vec<f32> = scalars(&rgba, map.channel.unwrap_or('l')).collect();
+                MipImage::new(w, h, height_to_normals(&heights, w, h, map.bump_multiplier, wrap))
+            }
+        }
+    }
+}
+
 
 /// The file an MTL statement names: `name` with `\` read as a separator, relative to `base` (an absolute path
 /// as it is), then the same with each component matched case-insensitively, then the bare file name next to

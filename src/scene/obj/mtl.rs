@@ -327,6 +327,38 @@ impl OptionWords<'_> {
     }
 }
 
+/// The channel an `-imfchan` option names: r, g, b, m, l or z.
+fn channel(args: &mut OptionWords) -> Result<char, LineError> {
+    let a = args.word()?;
+    match a.as_str() {
+        "r" | "g" | "b" | "m" | "l" | "z" => Ok(a.chars().next().unwrap_or('l')),
+        _ => Err(bad(
+            args.line,
+            format!(
+                "{}: expected r, g, b, m, l or z, found '{}'",
+                args.what,
+                one_line(&a, QUOTE_CHARS)
+            ),
+        )),
+    }
+}
+
+/// The values of an `-o`, `-s` or `-t` option: one to three numbers (u, then optionally v and w), as u and v
+/// (v `default` when absent).
+fn uv_option(args: &mut OptionWords, default: f32) -> Result<Vec2, LineError> {
+    let mut values = vec![args.number()?];
+    while values.len() < 3 {
+        match split_word(args.rest) {
+            Some((w, after)) if w.parse::<f32>().is_ok() => {
+                values.push(args.parse(w)?);
+                args.rest = after;
+            }
+            _ => break,
+        }
+    }
+    Ok(Vec2::new(values[0], values.get(1).copied().unwrap_or(default)))
+}
+
 /// Reads texture option `option` of statement `key` (its values from `args`) into `map`; returns whether Nimbus
 /// honours it (`-bm`, `-clamp`, `-imfchan`, `-o`, `-s`) or only checks and ignores it (`-blendu`, `-blendv`,
 /// `-cc`, `-boost`, `-texres`, `-mm`, `-type`, `-t`). An unknown option is an error.
@@ -359,20 +391,7 @@ fn texture_option(
             false
         }
         "-imfchan" => {
-            let a = args.word()?;
-            match a.as_str() {
-                "r" | "g" | "b" | "m" | "l" | "z" => map.channel = a.chars().next(),
-                _ => {
-                    return Err(bad(
-                        args.line,
-                        format!(
-                            "{}: expected r, g, b, m, l or z, found '{}'",
-                            args.what,
-                            one_line(&a, QUOTE_CHARS)
-                        ),
-                    ))
-                }
-            }
+            map.channel = Some(channel(args)?);
             true
         }
         "-type" => {
@@ -380,19 +399,8 @@ fn texture_option(
             false
         }
         "-o" | "-s" | "-t" => {
-            // One to three numbers: u, then optionally v and w.
-            let mut values = vec![args.number()?];
-            while values.len() < 3 {
-                match split_word(args.rest) {
-                    Some((w, after)) if w.parse::<f32>().is_ok() => {
-                        values.push(args.parse(w)?);
-                        args.rest = after;
-                    }
-                    _ => break,
-                }
-            }
             let default = if option == "-s" { 1.0 } else { 0.0 };
-            let uv = Vec2::new(values[0], values.get(1).copied().unwrap_or(default));
+            let uv = uv_option(args, default)?;
             match option {
                 "-o" => map.offset = uv,
                 "-s" => map.scale = uv,

@@ -3,7 +3,7 @@
 //! spline of Appendix C) interpolation, held before the first key and after the last. The result is a pose:
 //! each node's local matrix and morph weights at that time, which the loader uses in place of the file's.
 //!
-//! Accessors go through `gltf_accessors` (bounds, sparse data, normalized rotations and weights decoded);
+//! Accessors go through `accessors` (bounds, sparse data, normalized rotations and weights decoded);
 //! key times must be finite and strictly increasing, and each output must hold one value per key (three for
 //! CUBICSPLINE) of its property's size (3, 4, or the mesh's morph targets). Every sampler is read once per load
 //! ([`Animations::read`]; an accessor shared by samplers once), within the memory budget, so that a pose costs
@@ -16,9 +16,9 @@
 //! interpolated linearly between steps, so a rotation's arc is cut to chords no longer than that angle
 //! (a radius shrinks by at most 1 − cos 5° ≈ 0.4 % between steps).
 
-use super::gltf_accessors::{read_floats, Usage};
-use super::gltf_check::SkippedChannels;
-use super::SceneErrorKind;
+use super::accessors::{read_floats, Usage};
+use super::check::SkippedChannels;
+use crate::scene::SceneErrorKind;
 use crate::frames::Shutter;
 use crate::geometry::MotionSteps;
 use crate::limits::{one_line, Limits};
@@ -246,13 +246,29 @@ fn morph_targets(node: &gltf::Node) -> usize {
     })
 }
 
+/// An animation sampler whose output does not hold one value per key (see [`check_counts`]).
+#[derive(Debug, thiserror::Error)]
+#[error("the output has {has} elements; {keys} keys of a {interpolation} {what} need {need}")]
+struct OutputCountError {
+    /// The output accessor's elements.
+    has: usize,
+    /// The input accessor's keys.
+    keys: usize,
+    /// The sampler's interpolation (`LINEAR`, `STEP`, `CUBICSPLINE`).
+    interpolation: &'static str,
+    /// What it animates (`rotation`, `weights for 3 morph targets`).
+    what: String,
+    /// The elements it needs.
+    need: usize,
+}
+
 /// Checks from the accessors' counts that a sampler's output holds one value of `elements` floats per key
 /// (three per key for CUBICSPLINE: glTF 2.0 §3.11).
 fn check_counts(
     sampler: &gltf::animation::Sampler,
     property: Property,
     elements: usize,
-) -> Result<(), String> {
+) -> Result<(), OutputCountError> {
     let keys = sampler.input().count();
     let interpolation = sampler.interpolation();
     let per_key = if interpolation == Interpolation::CubicSpline {
@@ -275,10 +291,13 @@ fn check_counts(
             Property::Scale => "scale".to_owned(),
             Property::MorphTargetWeights => format!("weights for {elements} morph targets"),
         };
-        return Err(format!(
-            "the output has {has} elements; {keys} keys of a {} {what} need {need}",
-            interpolation_name(interpolation)
-        ));
+        return Err(OutputCountError {
+            has,
+            keys,
+            interpolation: interpolation_name(interpolation),
+            what,
+            need,
+        });
     }
     Ok(())
 }
@@ -298,7 +317,7 @@ pub(super) struct ShutterPoses {
     pub steps: MotionSteps,
     /// The pose at each step.
     pub poses: Vec<Pose>,
-    /// Every node's world matrix at each step (see `gltf_deform::node_worlds`).
+    /// Every node's world matrix at each step (see `deform::node_worlds`).
     pub worlds: Vec<Vec<Mat4>>,
 }
 
@@ -325,12 +344,12 @@ pub(super) fn shutter_poses(
             .collect();
         let worlds = poses
             .iter()
-            .map(|p| super::gltf_deform::node_worlds(document, &p.locals))
+            .map(|p| super::deform::node_worlds(document, &p.locals))
             .collect();
         (poses, worlds)
     };
     let (_, probes) = sample(shutter.sample_times(PROBES));
-    let rotation = |m: &Mat4| Quat::from_mat4(&super::Camera::rigid(m)).normalize();
+    let rotation = |m: &Mat4| Quat::from_mat4(&crate::scene::Camera::rigid(m)).normalize();
     let turn = (0..document.nodes().len())
         .map(|n| {
             probes

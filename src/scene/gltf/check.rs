@@ -8,11 +8,51 @@
 //! does not know (`KHR_animation_pointer`'s `"pointer"`): the crate panics on such a path, and refuses the
 //! target without a `node` that the extension writes. They are removed, with a warning each.
 
-use super::SceneErrorKind;
+use crate::scene::SceneErrorKind;
 use gltf::json::validation::Checked;
 use gltf::json::{Index, Root};
 use serde::Deserialize;
 use std::f32::consts::{FRAC_PI_2, PI};
+
+/// What the up-front checks refuse, each naming the field it was found at (`nodes[3].camera`).
+#[derive(Debug, thiserror::Error)]
+pub(super) enum CheckError {
+    /// An index past the end of the array it names.
+    #[error("{field} is {index}, past the end of {array} ({len} entries)")]
+    IndexOutOfRange {
+        /// Where the index was read.
+        field: String,
+        /// The index.
+        index: usize,
+        /// The array it names.
+        array: String,
+        /// The array's length.
+        len: usize,
+    },
+    /// An image with neither a `uri` nor a `bufferView`, or with a `bufferView` but no `mimeType`.
+    #[error("{0}")]
+    ImageSource(String),
+    /// The node graph is not a forest rooted at the scenes' nodes (a cycle, a node with two parents...).
+    #[error("{0}")]
+    NotAForest(String),
+    /// A number that must be finite is not.
+    #[error("{field} is {value}")]
+    NotFinite {
+        /// Where it was read (with its position in an array of numbers).
+        field: String,
+        /// The number.
+        value: f32,
+    },
+    /// A skin (by index) without joints.
+    #[error("skins[{0}] has no joints")]
+    SkinWithoutJoints(usize),
+    /// A camera without its projection, or with a number out of range.
+    #[error("{0}")]
+    Camera(String),
+    /// A `KHR_lights_punctual` light without its type's object, or with a number out of range.
+    #[error("{0}")]
+    Light(String),
+}
 
 /// The target paths the `gltf` crate reads (glTF 2.0 §3.11).
 const KNOWN_PATHS: [&str; 4] = ["translation", "rotation", "scale", "weights"];
@@ -118,11 +158,13 @@ pub(super) fn skip_unknown_channels(
 
 /// All the checks, in order: indices first (the others follow them).
 pub(super) fn check_document(root: &Root) -> Result<(), SceneErrorKind> {
-    check_indices(root).map_err(SceneErrorKind::InvalidReference)?;
-    check_forest(root).map_err(SceneErrorKind::Malformed)?;
-    check_nodes(root).map_err(SceneErrorKind::Malformed)?;
-    check_cameras(root).map_err(SceneErrorKind::Malformed)?;
-    check_lights(root).map_err(SceneErrorKind::Malformed)
+    let invalid = |e: CheckError| SceneErrorKind::InvalidReference(e.to_string());
+    let malformed = |e: CheckError| SceneErrorKind::Malformed(e.to_string());
+    check_indices(root).map_err(invalid)?;
+    check_forest(root).map_err(malformed)?;
+    check_nodes(root).map_err(malformed)?;
+    check_cameras(root).map_err(malformed)?;
+    check_lights(root).map_err(malformed)
 }
 
 /// `Ok` if `index` names an element of the array `array` of `len` elements; `field` names where it was read.
@@ -131,21 +173,23 @@ fn within<T>(
     index: Index<T>,
     array: &str,
     len: usize,
-) -> Result<(), String> {
+) -> Result<(), CheckError> {
     let i = index.value();
     if i < len {
         Ok(())
     } else {
-        Err(format!(
-            "{} is {i}, past the end of {array} ({len} entries)",
-            field()
-        ))
+        Err(CheckError::IndexOutOfRange {
+            field: field(),
+            index: i,
+            array: array.to_owned(),
+            len,
+        })
     }
 }
 
 /// Every index in the document points inside the array it names (glTF 2.0 §3.2 and the extensions' own
 /// arrays): an index past the end is an error naming the field, the index and the array's length.
-fn check_indices(root: &Root) -> Result<(), String> {
+fn check_indices(root: &Root) -> Result<(), CheckError> {
     check_scene_and_node_indices(root)?;
     check_mesh_indices(root)?;
     check_buffer_and_image_indices(root)?;
@@ -155,7 +199,7 @@ fn check_indices(root: &Root) -> Result<(), String> {
 }
 
 /// The default scene, each scene's root nodes, and each node's children, camera, mesh, skin and light.
-fn check_scene_and_node_indices(root: &Root) -> Result<(), String> {
+fn check_scene_and_node_indices(root: &Root) -> Result<(), CheckError> {
     let nodes = root.nodes.len();
     if let Some(s) = root.scene {
         within(|| "scene".into(), s, "scenes", root.scenes.len())?;
@@ -206,7 +250,7 @@ fn check_scene_and_node_indices(root: &Root) -> Result<(), String> {
 }
 
 /// Each primitive's attribute, index and morph-target accessors and its material.
-fn check_mesh_indices(root: &Root) -> Result<(), String> {
+fn check_mesh_indices(root: &Root) -> Result<(), CheckError> {
     let accessors = root.accessors.len();
     for (i, mesh) in root.meshes.iter().enumerate() {
         for (j, p) in mesh.primitives.iter().enumerate() {
@@ -247,7 +291,7 @@ fn check_mesh_indices(root: &Root) -> Result<(), String> {
 
 /// Accessors' (and their sparse parts') buffer views, views' buffers, and images' buffer views (an image needs
 /// a `uri` or a `bufferView` with a `mimeType`).
-fn check_buffer_and_image_indices(root: &Root) -> Result<(), String> {
+fn check_buffer_and_image_indices(root: &Root) -> Result<(), CheckError> {
     let views = root.buffer_views.len();
     for (i, a) in root.accessors.iter().enumerate() {
         if let Some(v) = a.buffer_view {
@@ -284,18 +328,18 @@ fn check_buffer_and_image_indices(root: &Root) -> Result<(), String> {
                     views,
                 )?;
                 if image.mime_type.is_none() {
-                    return Err(format!("images[{i}] has a bufferView but no mimeType"));
+                    return Err(CheckError::ImageSource(format!("images[{i}] has a bufferView but no mimeType")));
                 }
             }
             (None, Some(_)) => {}
-            (None, None) => return Err(format!("images[{i}] has neither a uri nor a bufferView")),
+            (None, None) => return Err(CheckError::ImageSource(format!("images[{i}] has neither a uri nor a bufferView"))),
         }
     }
     Ok(())
 }
 
 /// Each texture's image and sampler.
-fn check_texture_indices(root: &Root) -> Result<(), String> {
+fn check_texture_indices(root: &Root) -> Result<(), CheckError> {
     for (i, t) in root.textures.iter().enumerate() {
         within(
             || format!("textures[{i}].source"),
@@ -312,7 +356,7 @@ fn check_texture_indices(root: &Root) -> Result<(), String> {
 }
 
 /// The textures each material refers to, core and the extensions the `gltf` crate parses.
-fn check_material_texture_indices(root: &Root) -> Result<(), String> {
+fn check_material_texture_indices(root: &Root) -> Result<(), CheckError> {
     let textures = root.textures.len();
     for (i, m) in root.materials.iter().enumerate() {
         let pbr = &m.pbr_metallic_roughness;
@@ -375,7 +419,7 @@ fn check_material_texture_indices(root: &Root) -> Result<(), String> {
 
 /// Skins' joints, skeleton and inverse bind matrices; animations' sampler accessors and channels' samplers and
 /// target nodes.
-fn check_skin_and_animation_indices(root: &Root) -> Result<(), String> {
+fn check_skin_and_animation_indices(root: &Root) -> Result<(), CheckError> {
     let (accessors, nodes) = (root.accessors.len(), root.nodes.len());
     for (i, skin) in root.skins.iter().enumerate() {
         for (j, &n) in skin.joints.iter().enumerate() {
@@ -417,23 +461,23 @@ fn check_skin_and_animation_indices(root: &Root) -> Result<(), String> {
 
 /// The node graph must be a forest whose roots are the scenes' nodes: no node its own child, no cycle, no
 /// node with two parents (or listed twice by one), no scene root that is also a child.
-fn check_forest(root: &Root) -> Result<(), String> {
+fn check_forest(root: &Root) -> Result<(), CheckError> {
     let n = root.nodes.len();
     let mut parent: Vec<Option<usize>> = vec![None; n];
     for (i, node) in root.nodes.iter().enumerate() {
         for c in node.children.iter().flatten() {
             let c = c.value();
             if c == i {
-                return Err(format!("nodes[{i}] lists itself as a child"));
+                return Err(CheckError::NotAForest(format!("nodes[{i}] lists itself as a child")));
             }
             match parent[c] {
                 Some(p) if p == i => {
-                    return Err(format!("nodes[{i}] lists nodes[{c}] twice as a child"))
+                    return Err(CheckError::NotAForest(format!("nodes[{i}] lists nodes[{c}] twice as a child")))
                 }
                 Some(p) => {
-                    return Err(format!(
+                    return Err(CheckError::NotAForest(format!(
                         "nodes[{c}] has two parents, nodes[{p}] and nodes[{i}]"
-                    ))
+                    )))
                 }
                 None => parent[c] = Some(i),
             }
@@ -458,10 +502,10 @@ fn check_forest(root: &Root) -> Result<(), String> {
                         .chain(std::iter::once(&at))
                         .map(|p| format!("nodes[{p}]"))
                         .collect();
-                    return Err(format!(
+                    return Err(CheckError::NotAForest(format!(
                         "the node hierarchy has a cycle: {}",
                         cycle.join(" -> ")
-                    ));
+                    )));
                 }
                 _ => {}
             }
@@ -481,12 +525,12 @@ fn check_forest(root: &Root) -> Result<(), String> {
         for r in &scene.nodes {
             let r = r.value();
             if let Some(p) = parent[r] {
-                return Err(format!(
+                return Err(CheckError::NotAForest(format!(
                     "scenes[{s}] lists nodes[{r}] as a root, but it is a child of nodes[{p}]"
-                ));
+                )));
             }
             if std::mem::replace(&mut seen[r], true) {
-                return Err(format!("scenes[{s}] lists nodes[{r}] twice"));
+                return Err(CheckError::NotAForest(format!("scenes[{s}] lists nodes[{r}] twice")));
             }
         }
     }
@@ -494,15 +538,21 @@ fn check_forest(root: &Root) -> Result<(), String> {
 }
 
 /// `Err` naming `field` if any of `values` is not finite.
-fn finite(field: impl Fn() -> String, values: &[f32]) -> Result<(), String> {
+fn finite(field: impl Fn() -> String, values: &[f32]) -> Result<(), CheckError> {
     match values.iter().position(|v| !v.is_finite()) {
         None => Ok(()),
-        Some(k) if values.len() == 1 => Err(format!("{} is {}", field(), values[k])),
-        Some(k) => Err(format!("{}[{k}] is {}", field(), values[k])),
+        Some(k) if values.len() == 1 => Err(CheckError::NotFinite {
+            field: field(),
+            value: values[k],
+        }),
+        Some(k) => Err(CheckError::NotFinite {
+            field: format!("{}[{k}]", field()),
+            value: values[k],
+        }),
     }
 }
 
-fn check_nodes(root: &Root) -> Result<(), String> {
+fn check_nodes(root: &Root) -> Result<(), CheckError> {
     for (i, node) in root.nodes.iter().enumerate() {
         if let Some(m) = &node.matrix {
             finite(|| format!("nodes[{i}].matrix"), m)?;
@@ -527,26 +577,26 @@ fn check_nodes(root: &Root) -> Result<(), String> {
     }
     for (i, skin) in root.skins.iter().enumerate() {
         if skin.joints.is_empty() {
-            return Err(format!("skins[{i}] has no joints"));
+            return Err(CheckError::SkinWithoutJoints(i));
         }
     }
     Ok(())
 }
 
-fn check_cameras(root: &Root) -> Result<(), String> {
+fn check_cameras(root: &Root) -> Result<(), CheckError> {
     use gltf::json::camera::Type;
     for (i, camera) in root.cameras.iter().enumerate() {
         let bad = |field: &str, rule: &str, value: f32| {
-            Err(format!(
+            Err(CheckError::Camera(format!(
                 "cameras[{i}].{field} is {value}; it must be {rule}"
-            ))
+            )))
         };
         match camera.type_ {
             Checked::Valid(Type::Perspective) => {
                 let Some(p) = &camera.perspective else {
-                    return Err(format!(
+                    return Err(CheckError::Camera(format!(
                         "cameras[{i}] is of type perspective but has no 'perspective' object"
-                    ));
+                    )));
                 };
                 if !(p.yfov > 0.0 && p.yfov < PI) {
                     return bad("perspective.yfov", "between 0 and pi radians", p.yfov);
@@ -567,9 +617,9 @@ fn check_cameras(root: &Root) -> Result<(), String> {
             }
             Checked::Valid(Type::Orthographic) => {
                 let Some(o) = &camera.orthographic else {
-                    return Err(format!(
+                    return Err(CheckError::Camera(format!(
                         "cameras[{i}] is of type orthographic but has no 'orthographic' object"
-                    ));
+                    )));
                 };
                 for (field, v) in [("orthographic.xmag", o.xmag), ("orthographic.ymag", o.ymag)] {
                     if !(v.is_finite() && v != 0.0) {
@@ -584,16 +634,16 @@ fn check_cameras(root: &Root) -> Result<(), String> {
                 }
             }
             Checked::Invalid => {
-                return Err(format!(
+                return Err(CheckError::Camera(format!(
                     "cameras[{i}].type must be \"perspective\" or \"orthographic\""
-                ))
+                )))
             }
         }
     }
     Ok(())
 }
 
-fn check_lights(root: &Root) -> Result<(), String> {
+fn check_lights(root: &Root) -> Result<(), CheckError> {
     use gltf::json::extensions::scene::khr_lights_punctual::Type;
     let Some(lights) = root
         .extensions
@@ -605,44 +655,44 @@ fn check_lights(root: &Root) -> Result<(), String> {
     for (i, light) in lights.lights.iter().enumerate() {
         let at = format!("KHR_lights_punctual.lights[{i}]");
         if light.color.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
-            return Err(format!(
+            return Err(CheckError::Light(format!(
                 "{at}.color is {:?}; it must be three finite numbers >= 0",
                 light.color
-            ));
+            )));
         }
         if !(light.intensity.is_finite() && light.intensity >= 0.0) {
-            return Err(format!(
+            return Err(CheckError::Light(format!(
                 "{at}.intensity is {}; it must be finite and >= 0",
                 light.intensity
-            ));
+            )));
         }
         if let Some(r) = light.range {
             if !(r.is_finite() && r > 0.0) {
-                return Err(format!("{at}.range is {r}; it must be finite and > 0"));
+                return Err(CheckError::Light(format!("{at}.range is {r}; it must be finite and > 0")));
             }
         }
         match light.type_ {
             Checked::Valid(Type::Spot) => {
                 let Some(spot) = &light.spot else {
-                    return Err(format!("{at} is of type spot but has no 'spot' object"));
+                    return Err(CheckError::Light(format!("{at} is of type spot but has no 'spot' object")));
                 };
                 let (inner, outer) = (spot.inner_cone_angle, spot.outer_cone_angle);
                 if !(outer > 0.0 && outer <= FRAC_PI_2) {
-                    return Err(format!(
+                    return Err(CheckError::Light(format!(
                         "{at}.spot.outerConeAngle is {outer}; it must be in (0, pi/2]"
-                    ));
+                    )));
                 }
                 if !(inner >= 0.0 && inner <= outer) {
-                    return Err(format!(
+                    return Err(CheckError::Light(format!(
                         "{at}.spot.innerConeAngle is {inner}; it must be >= 0 and <= outerConeAngle {outer}"
-                    ));
+                    )));
                 }
             }
             Checked::Valid(_) => {}
             Checked::Invalid => {
-                return Err(format!(
+                return Err(CheckError::Light(format!(
                     "{at}.type must be \"directional\", \"point\" or \"spot\""
-                ))
+                )))
             }
         }
     }

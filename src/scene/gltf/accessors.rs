@@ -5,7 +5,8 @@
 //! `c / (2^b - 1)`). Each use ([`Usage`]) accepts the core component types for its semantic plus the
 //! quantized ones of `KHR_mesh_quantization`.
 //!
-//! Errors are one-line strings naming the accessor and the problem; the caller adds the file and primitive.
+//! Errors ([`AccessorError`]) name the accessor and the problem in one line; the caller adds the file and
+//! primitive.
 //! Nothing is allocated by a count before the count is checked: a dense accessor's elements must lie inside
 //! its view, and the bytes of any accessor must fit the memory budget.
 
@@ -97,6 +98,107 @@ impl Usage {
     }
 }
 
+/// An accessor that cannot be read: `accessor N: ` and the problem.
+#[derive(Debug, thiserror::Error)]
+#[error("accessor {accessor}: {problem}")]
+pub(super) struct AccessorError {
+    /// The accessor's index.
+    pub(super) accessor: usize,
+    /// What is wrong with it.
+    pub(super) problem: AccessorProblem,
+}
+
+/// What is wrong with an accessor ([`AccessorError`]).
+#[derive(Debug, thiserror::Error)]
+pub(super) enum AccessorProblem {
+    /// Its type or component type is not one its use reads.
+    #[error("{found} cannot be read as {usage:?} ({accepted})")]
+    WrongType {
+        /// Its type and component type, in words.
+        found: String,
+        /// What it was read as.
+        usage: Usage,
+        /// The type and component types that use accepts, in words.
+        accepted: String,
+    },
+    /// It has no elements.
+    #[error("count is 0")]
+    CountZero,
+    /// Its view's byte stride is smaller than an element.
+    #[error("byteStride {stride} is smaller than the element size {element}")]
+    StrideTooSmall {
+        /// The byte stride.
+        stride: usize,
+        /// The element size in bytes.
+        element: usize,
+    },
+    /// Its elements run past the end of its buffer view.
+    #[error("{count} elements run past the end of buffer view {view}")]
+    PastViewEnd {
+        /// Its element count.
+        count: usize,
+        /// The buffer view's index.
+        view: usize,
+    },
+    /// A buffer view it reads runs past the end of its buffer.
+    #[error("buffer view {view} (bytes {offset}+{length}) runs past the end of its buffer ({buffer} bytes)")]
+    ViewPastBuffer {
+        /// The buffer view's index.
+        view: usize,
+        /// Its byte offset.
+        offset: usize,
+        /// Its byte length.
+        length: usize,
+        /// The buffer's length in bytes.
+        buffer: usize,
+    },
+    /// A sparse accessor's count is 0 or more than the accessor's.
+    #[error("sparse.count is {n}; it must be between 1 and the accessor's count {count}")]
+    SparseCount {
+        /// The sparse count.
+        n: usize,
+        /// The accessor's count.
+        count: usize,
+    },
+    /// A sparse index is past the accessor's elements.
+    #[error("sparse.indices[{k}] is {i}, past the accessor's {count} elements")]
+    SparseIndexPastEnd {
+        /// Its position among the sparse indices.
+        k: usize,
+        /// The index.
+        i: usize,
+        /// The accessor's count.
+        count: usize,
+    },
+    /// The sparse indices do not strictly increase.
+    #[error("sparse.indices[{k}] is {i}; the indices must be strictly increasing")]
+    SparseIndexNotIncreasing {
+        /// Its position among the sparse indices.
+        k: usize,
+        /// The index.
+        i: usize,
+    },
+    /// The sparse indices or values run past the end of their buffer view.
+    #[error("{what}: {n} items of {size} bytes at byteOffset {offset} run past the end of buffer view {view} ({view_bytes} bytes)")]
+    SectionPastView {
+        /// `sparse.indices` or `sparse.values`.
+        what: &'static str,
+        /// The number of items.
+        n: usize,
+        /// An item's size in bytes.
+        size: usize,
+        /// The byte offset in the view.
+        offset: usize,
+        /// The buffer view's index.
+        view: usize,
+        /// The buffer view's length in bytes.
+        view_bytes: usize,
+    },
+    /// Its elements (a sparse accessor without a view) do not fit the memory budget.
+    #[error("{0}")]
+    OverBudget(crate::limits::OverBudget),
+}
+
 /// Reads an accessor as `usage` into `count × components` floats, element after element, normalized integers
 /// decoded to [-1, 1] or [0, 1] and other integers converted as they are.
 pub(super) fn read_floats(
@@ -104,7 +206,7 @@ pub(super) fn read_floats(
     usage: Usage,
     buffers: &[gltf::buffer::Data],
     limits: &Limits,
-) -> Result<Vec<f32>, String> {
+) -> Result<Vec<f32>, AccessorError> {
     let packed = read_packed(accessor, usage, buffers, limits)?;
     let decode = decoder(accessor.data_type(), accessor.normalized());
     let size = accessor.data_type().size();
@@ -116,7 +218,7 @@ pub(super) fn read_indices(
     accessor: &gltf::Accessor,
     buffers: &[gltf::buffer::Data],
     limits: &Limits,
-) -> Result<Vec<u32>, String> {
+) -> Result<Vec<u32>, AccessorError> {
     let packed = read_packed(accessor, Usage::Indices, buffers, limits)?;
     let size = accessor.data_type().size();
     Ok(packed.chunks_exact(size).map(unsigned).collect())
@@ -127,7 +229,7 @@ pub(super) fn read_joints(
     accessor: &gltf::Accessor,
     buffers: &[gltf::buffer::Data],
     limits: &Limits,
-) -> Result<Vec<[u32; 4]>, String> {
+) -> Result<Vec<[u32; 4]>, AccessorError> {
     let packed = read_packed(accessor, Usage::Joints, buffers, limits)?;
     let size = accessor.data_type().size();
     let flat: Vec<u32> = packed.chunks_exact(size).map(unsigned).collect();
@@ -142,7 +244,7 @@ pub(super) fn check_bytes(
     accessor: &gltf::Accessor,
     buffers: &[gltf::buffer::Data],
     limits: &Limits,
-) -> Result<(), String> {
+) -> Result<(), AccessorError> {
     read_packed(accessor, Usage::Unread, buffers, limits).map(drop)
 }
 
@@ -179,9 +281,42 @@ fn read_packed(
     usage: Usage,
     buffers: &[gltf::buffer::Data],
     limits: &Limits,
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, AccessorError> {
     let index = accessor.index();
-    let bad = |m: String| format!("accessor {index}: {m}");
+    let bad = |problem| AccessorError {
+        accessor: index,
+        problem,
+    };
+    let dims = check_usage(accessor, usage).map_err(&bad)?;
+    let count = accessor.count();
+    if count == 0 {
+        return Err(bad(AccessorProblem::CountZero));
+    }
+    let element = accessor.data_type().size() * dims.multiplicity();
+    let mut packed = match accessor.view() {
+        Some(view) => dense_elements(accessor, &view, element, buffers).map_err(&bad)?,
+        None => {
+            // Only a sparse accessor may omit its view (checked by the gltf crate's validation); its base
+            // is zeros, and its count is bounded only by the memory budget.
+            limits
+                .check_items(
+                    format_args!("accessor {index} ({count} elements)"),
+                    count as u64,
+                    element as u64,
+                )
+                .map_err(|e| bad(AccessorProblem::OverBudget(e)))?;
+            vec![0u8; count * element]
+        }
+    };
+    if let Some(sparse) = accessor.sparse() {
+        substitute_sparse(&sparse, &mut packed, count, element, buffers).map_err(&bad)?;
+    }
+    Ok(packed)
+}
+
+/// The dimensions `usage` reads the accessor as, if its type and component type are among those `usage`
+/// accepts (any, for a usage without a list); else an error listing them.
+fn check_usage(accessor: &gltf::Accessor, usage: Usage) -> Result<Dimensions, AccessorProblem> {
     let (data_type, dimensions, normalized) = (
         accessor.data_type(),
         accessor.dimensions(),
@@ -199,65 +334,54 @@ fn read_packed(
     });
     if dimensions != dims || !type_ok {
         let norm = if normalized { " normalized" } else { "" };
-        return Err(bad(format!(
-            "type {dimensions:?} with{norm} componentType {data_type:?} cannot be read as {usage:?} ({dims:?} of {})",
-            types
-                .iter()
-                .map(|(t, n)| match n {
-                    Norm::Yes => format!("{t:?} normalized"),
-                    Norm::No => format!("{t:?}"),
-                    Norm::Either => format!("{t:?} (normalized or not)"),
-                })
-                .collect::<Vec<_>>()
-                .join(", ")
-        )));
+        return Err(AccessorProblem::WrongType {
+            found: format!("type {dimensions:?} with{norm} componentType {data_type:?}"),
+            usage,
+            accepted: format!(
+                "{dims:?} of {}",
+                types
+                    .iter()
+                    .map(|(t, n)| match n {
+                        Norm::Yes => format!("{t:?} normalized"),
+                        Norm::No => format!("{t:?}"),
+                        Norm::Either => format!("{t:?} (normalized or not)"),
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        });
     }
+    Ok(dims)
+}
+
+/// The accessor's `element`-byte elements packed out of its buffer `view` (its byte stride respected), each
+/// checked to lie inside the view.
+fn dense_elements(
+    accessor: &gltf::Accessor,
+    view: &gltf::buffer::View,
+    element: usize,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Vec<u8>, AccessorProblem> {
     let count = accessor.count();
-    if count == 0 {
-        return Err(bad("count is 0".into()));
+    let bytes = view_bytes(view, buffers)?;
+    let stride = view.stride().unwrap_or(element);
+    if stride < element {
+        return Err(AccessorProblem::StrideTooSmall { stride, element });
     }
-    let element = data_type.size() * dims.multiplicity();
-    let mut packed = match accessor.view() {
-        Some(view) => {
-            let bytes = view_bytes(&view, buffers).map_err(&bad)?;
-            let stride = view.stride().unwrap_or(element);
-            if stride < element {
-                return Err(bad(format!(
-                    "byteStride {stride} is smaller than the element size {element}"
-                )));
-            }
-            let end = (count - 1)
-                .checked_mul(stride)
-                .and_then(|v| v.checked_add(accessor.offset()))
-                .and_then(|v| v.checked_add(element));
-            if end.is_none_or(|e| e > bytes.len()) {
-                return Err(bad(format!(
-                    "{count} elements run past the end of buffer view {}",
-                    view.index()
-                )));
-            }
-            let mut packed = Vec::with_capacity(count * element);
-            for i in 0..count {
-                let start = accessor.offset() + i * stride;
-                packed.extend_from_slice(&bytes[start..start + element]);
-            }
-            packed
-        }
-        None => {
-            // Only a sparse accessor may omit its view (checked by the gltf crate's validation); its base
-            // is zeros, and its count is bounded only by the memory budget.
-            limits
-                .check_items(
-                    format_args!("accessor {index} ({count} elements)"),
-                    count as u64,
-                    element as u64,
-                )
-                .map_err(|e| bad(e.to_string()))?;
-            vec![0u8; count * element]
-        }
-    };
-    if let Some(sparse) = accessor.sparse() {
-        substitute_sparse(&sparse, &mut packed, count, element, buffers).map_err(&bad)?;
+    let end = (count - 1)
+        .checked_mul(stride)
+        .and_then(|v| v.checked_add(accessor.offset()))
+        .and_then(|v| v.checked_add(element));
+    if end.is_none_or(|e| e > bytes.len()) {
+        return Err(AccessorProblem::PastViewEnd {
+            count,
+            view: view.index(),
+        });
+    }
+    let mut packed = Vec::with_capacity(count * element);
+    for i in 0..count {
+        let start = accessor.offset() + i * stride;
+        packed.extend_from_slice(&bytes[start..start + element]);
     }
     Ok(packed)
 }
@@ -266,19 +390,16 @@ fn read_packed(
 fn view_bytes<'b>(
     view: &gltf::buffer::View,
     buffers: &'b [gltf::buffer::Data],
-) -> Result<&'b [u8], String> {
+) -> Result<&'b [u8], AccessorProblem> {
     let buffer = buffers.get(view.buffer().index()).map_or(&[][..], |b| &b.0);
     view.offset()
         .checked_add(view.length())
         .and_then(|end| buffer.get(view.offset()..end))
-        .ok_or_else(|| {
-            format!(
-                "buffer view {} (bytes {}+{}) runs past the end of its buffer ({} bytes)",
-                view.index(),
-                view.offset(),
-                view.length(),
-                buffer.len()
-            )
+        .ok_or(AccessorProblem::ViewPastBuffer {
+            view: view.index(),
+            offset: view.offset(),
+            length: view.length(),
+            buffer: buffer.len(),
         })
 }
 
@@ -290,12 +411,10 @@ fn substitute_sparse(
     count: usize,
     element: usize,
     buffers: &[gltf::buffer::Data],
-) -> Result<(), String> {
+) -> Result<(), AccessorProblem> {
     let n = sparse.count();
     if n == 0 || n > count {
-        return Err(format!(
-            "sparse.count is {n}; it must be between 1 and the accessor's count {count}"
-        ));
+        return Err(AccessorProblem::SparseCount { n, count });
     }
     let indices = sparse.indices();
     let index_size = match indices.index_type() {
@@ -328,14 +447,10 @@ fn substitute_sparse(
     {
         let i = unsigned(i) as usize;
         if i >= count {
-            return Err(format!(
-                "sparse.indices[{k}] is {i}, past the accessor's {count} elements"
-            ));
+            return Err(AccessorProblem::SparseIndexPastEnd { k, i, count });
         }
         if previous.is_some_and(|p| i <= p) {
-            return Err(format!(
-                "sparse.indices[{k}] is {i}; the indices must be strictly increasing"
-            ));
+            return Err(AccessorProblem::SparseIndexNotIncreasing { k, i });
         }
         previous = Some(i);
         packed[i * element..(i + 1) * element].copy_from_slice(value);
@@ -349,19 +464,20 @@ fn section<'b>(
     offset: usize,
     n: usize,
     size: usize,
-    what: &str,
+    what: &'static str,
     buffers: &'b [gltf::buffer::Data],
-) -> Result<&'b [u8], String> {
+) -> Result<&'b [u8], AccessorProblem> {
     let bytes = view_bytes(view, buffers)?;
     n.checked_mul(size)
         .and_then(|len| offset.checked_add(len))
         .and_then(|end| bytes.get(offset..end))
-        .ok_or_else(|| {
-            format!(
-                "{what}: {n} items of {size} bytes at byteOffset {offset} run past the end of buffer view {} ({} bytes)",
-                view.index(),
-                bytes.len()
-            )
+        .ok_or(AccessorProblem::SectionPastView {
+            what,
+            n,
+            size,
+            offset,
+            view: view.index(),
+            view_bytes: bytes.len(),
         })
 }
 
