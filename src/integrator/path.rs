@@ -3,22 +3,22 @@
 //! with the power heuristic (Veach 1997, §9.2, eq. 9.13). Russian roulette (Arvo & Kirk 1990) ends
 //! low-throughput paths after a few bounces.
 //!
-//! Media: along each segment every medium proposes its next real collision ([`Medium::sample_free_flight`]);
-//! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. A medium
-//! alone on a segment may instead track all colour channels at once ([`Medium::spectral_free_flight`], spectral
-//! tracking of an RGB density), returning the path's new throughput; beside grey media it does so over the part
-//! of the segment before their nearest collision. An emitting medium gathers its emission
-//! along its free flight, at the tentative collisions of its walk ([`TentativeEmission`]); the integrator adds
-//! what lies before the segment's event, weighted by the other media's survival there. Nothing here depends on
-//! which tracking method a medium uses.
+//! Media: along each segment every medium answers one question, [`Medium::free_flight`]: its next real
+//! collision and the path throughput its walk's weights leave (spectral MIS, spectral tracking of an RGB
+//! density, or 1 for analog tracking). Where media overlap, each flies over the part of the segment before the
+//! nearest collision of those asked before it, which combines them exactly (`combined_flight`), so a chromatic
+//! medium keeps all colour channels beside any other. An emitting medium gathers its emission along its free
+//! flight, at the tentative collisions of its walk ([`TentativeEmission`]); the integrator weights it by the
+//! transmittance of the media asked after it. Nothing here depends on which tracking method a medium uses.
 //!
 //! Point and spot lights in or near media: on a segment inside one medium of constant coefficients
 //! ([`Medium::constant_scattering`]), the direct light of a point or spot light is also estimated at a distance
 //! sampled equiangularly toward it (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path Tracing in
 //! Participating Media", §4.1), and both that estimate and next-event estimation at the free-flight collision
-//! are weighted by the power heuristic over the two distance densities ([`Medium::free_flight_pdf`] and the
-//! equiangular one). Distance sampling alone scatters where the medium is dense, not where the light is
-//! bright, and leaves fireflies around every small light in a thin medium.
+//! are weighted by the power heuristic over the two distance densities
+//! ([`ConstantScattering::free_flight_pdf`] and the equiangular one). Distance sampling alone scatters where the
+//! medium is dense, not where the light is bright, and leaves fireflies around every small light in a thin
+//! medium.
 //!
 //! Texture filtering: each path carries a ray cone (Akenine-Möller et al. 2021, "Improved Shader and Texture
 //! Level of Detail Using Ray Cones", JCGT 10(1)) that starts at the camera with the spread of one pixel. Its
@@ -41,11 +41,8 @@
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
 //! 1, ior 1, smooth) is not a scattering event and does not count.
 //!
-//! [`Medium::sample_free_flight`]: crate::volume::Medium::sample_free_flight
-//! [`Medium::free_flight_weight`]: crate::volume::Medium::free_flight_weight
-//! [`Medium::spectral_free_flight`]: crate::volume::Medium::spectral_free_flight
+//! [`Medium::free_flight`]: crate::volume::Medium::free_flight
 //! [`Medium::constant_scattering`]: crate::volume::Medium::constant_scattering
-//! [`Medium::free_flight_pdf`]: crate::volume::Medium::free_flight_pdf
 //! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
 
 use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
@@ -55,7 +52,7 @@ use crate::geometry::SurfacePoint;
 use crate::guiding::{DirectionalQuadtree, GuidePath, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
 use crate::light::LightContext;
 use crate::material::{Bsdf, BsdfSample, LobeClass, LobeSplit};
-use crate::math::sampling::{power_heuristic, Equiangular};
+use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
 use crate::math::{Frame, Ray, Rgb, Rng, Vec2, Vec3};
 use crate::scene::{Scene, SurfaceHit};
 use crate::volume::{ConstantScattering, TentativeEmission};
@@ -81,34 +78,6 @@ pub struct PathSample {
     pub depth: f32,
     /// Coverage: 1 − the camera ray's transmittance to the environment (or to a holdout), in \[0, 1\].
     pub alpha: f32,
-}
-
-/// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
-/// weighted by 1/p_c, so the new throughput Σβ · e_c has the old one as its expectation (unbiased). Media whose
-/// extinction differs by channel ([`Medium::is_chromatic`](crate::volume::Medium::is_chromatic)) and that do
-/// not track it spectrally (`chromatic_tracking: one_channel`, or two chromatic media on one segment, or one
-/// beside an emitting medium) then track that channel alone, analog; so does a dispersive surface
-/// (`KHR_materials_dispersion`), which refracts with the index of the channel returned. Spectral renderers
-/// sample one wavelength per path the same way; the cost is colour noise. A path already carrying one channel
-/// is unchanged and that channel returned (the green one for a path that carries nothing).
-fn carry_one_channel(beta: &mut Rgb, rng: &mut Rng) -> usize {
-    let carried = beta.to_array().iter().filter(|&&b| b > 0.0).count();
-    if carried <= 1 {
-        return beta.to_array().iter().position(|&b| b > 0.0).unwrap_or(1);
-    }
-    let sum = beta.element_sum();
-    let u = rng.next_f32() * sum;
-    let channel = if u < beta.x {
-        0
-    } else if u < beta.x + beta.y {
-        1
-    } else {
-        2
-    };
-    let mut one = Rgb::ZERO;
-    one[channel] = sum;
-    *beta = one;
-    channel
 }
 
 /// The one-sample MIS choice of a guided event from its 2-D sample `u`: the guide when `u.x` <
@@ -165,10 +134,10 @@ struct ConstantSegment {
     dir: Vec3,
     /// Its length: the distance to the surface that ends it.
     length: f32,
-    /// The medium.
-    medium: u32,
     /// The path throughput when the segment starts, as the medium's free-flight sampling saw it.
     throughput: Rgb,
+    /// The medium's coefficients.
+    coefficients: ConstantScattering,
 }
 
 /// The state of a path between events.
@@ -477,11 +446,11 @@ impl PathTracer {
         (Rgb::ZERO, None)
     }
 
-    /// Runs the media overlapping the segment `[0, t_surface)` of `ray`: every medium proposes its next real
-    /// collision ([`Medium::sample_free_flight`](crate::volume::Medium::sample_free_flight)), the nearest wins,
-    /// and every medium weights the throughput for what happened
-    /// ([`Medium::free_flight_weight`](crate::volume::Medium::free_flight_weight)). Returns the winning
-    /// collision's distance and medium, or `None` when the path reaches the surface (or escapes).
+    /// Runs the media overlapping the segment `[0, t_surface)` of `ray`: each answers one question,
+    /// [`Medium::free_flight`](crate::volume::Medium::free_flight), for the part of the segment before the
+    /// nearest collision of those asked before it ([`Self::combined_flight`]), and the emission their walks
+    /// gathered is added ([`Self::add_media_emission`]). Returns the nearest collision's distance and medium,
+    /// or `None` when the path reaches the surface (or escapes).
     fn sample_segment_media(
         &self,
         services: &RendererServices,
@@ -492,202 +461,109 @@ impl PathTracer {
         counters: &mut PathCounters,
     ) -> Option<(f32, u32)> {
         let scene = services.scene();
-        let media = services.segment_media(ray, t_surface, &s.stack);
-        if s.depth == 0 && s.crossed_medium.is_none() {
-            s.crossed_medium = media.ids().first().copied();
+        let crossed = services.segment_media(ray, t_surface, &s.stack);
+        if s.depth == 0 {
+            s.crossed_medium = s.crossed_medium.or(crossed.ids().first().copied());
+            self.record_deep_media(services, s, ray, t_surface, crossed.ids());
         }
-        if let (0, Some(r)) = (s.depth, s.record.as_deref_mut().filter(|r| r.deep)) {
-            // Deep output: where the camera ray crosses media.
-            for &m in media.ids() {
-                let (near, far) = match scene.media[m as usize].fill_bounds() {
-                    Some(bounds) => match bounds.intersect(ray, 0.0, t_surface) {
-                        Some(range) => range,
-                        None => continue,
-                    },
-                    None => (0.0, t_surface),
-                };
-                r.cross_media(s.camera_t + near, s.camera_t + far.min(t_surface));
-            }
-        }
-        // A medium alone on the segment may track all channels at once (spectral tracking): its weights are the
-        // walk's own, so the path keeps its colour.
+        let media = crossed.in_flight_order(&scene.media);
         s.emitted.clear();
-        if let &[m] = media.ids() {
-            let counter = &mut counters.media[m as usize];
-            s.emitted.begin(m);
-            if let Some(flight) = scene.media[m as usize].spectral_free_flight(
-                ray,
-                t_surface,
-                s.beta,
-                rng,
-                counter,
-                &mut s.emitted,
-            ) {
-                s.beta = flight.throughput;
-                s.collided_segment = None;
-                self.add_media_emission(
-                    services,
-                    s,
-                    ray,
-                    &[m],
-                    f32::INFINITY,
-                    Rgb::ONE,
-                    rng,
-                    counters,
-                );
-                return flight.collision.map(|t| (t, m));
-            }
+        let constant = self.constant_segment(services, s, ray, t_surface, media.ids());
+        if let Some(segment) = &constant {
+            self.sample_equiangular(services, s, ray, segment, rng, counters);
         }
-        let chromatic = |&m: &u32| scene.media[m as usize].is_chromatic();
-        if let Some(&h) = media.ids().iter().find(|m| chromatic(m)) {
-            let emissive_other = |&m: &u32| m != h && scene.media[m as usize].is_emissive();
-            if media.ids().iter().filter(|m| chromatic(m)).count() == 1
-                && !media.ids().iter().any(emissive_other)
-            {
-                return self.sample_shared_chromatic(
-                    services,
-                    s,
-                    ray,
-                    t_surface,
-                    media.ids(),
-                    h,
-                    rng,
-                    counters,
-                );
-            }
-            carry_one_channel(&mut s.beta, rng);
-        }
-        let throughput = s.beta;
-        let constant = self.constant_segment(services, s, ray, t_surface, media.ids(), throughput);
-        if let Some((segment, coefficients)) = &constant {
-            self.sample_equiangular(services, s, ray, segment, coefficients, rng, counters);
-        }
-        let mut nearest: Option<(f32, u32)> = None;
-        for &m in media.ids() {
-            let medium = &scene.media[m as usize];
-            let counter = &mut counters.media[m as usize];
-            s.emitted.begin(m);
-            if let Some(t) =
-                medium.sample_free_flight(ray, t_surface, throughput, rng, counter, &mut s.emitted)
-            {
-                if nearest.is_none_or(|(tn, _)| t < tn) {
-                    nearest = Some((t, m));
-                }
-            }
-        }
-        let t_event = nearest.map_or(t_surface, |(t, _)| t);
-        for &m in media.ids() {
-            let collided = nearest.is_some_and(|(_, n)| n == m);
-            let medium = &scene.media[m as usize];
-            let counter = &mut counters.media[m as usize];
-            s.beta *= medium.free_flight_weight(ray, t_event, collided, throughput, rng, counter);
-        }
-        self.add_media_emission(
-            services,
-            s,
-            ray,
-            media.ids(),
-            t_event,
-            throughput,
-            rng,
-            counters,
-        );
-        s.collided_segment = constant
-            .map(|(segment, _)| segment)
-            .filter(|_| nearest.is_some());
+        let nearest = self.combined_flight(services, s, ray, t_surface, media.ids(), rng, counters);
+        self.add_media_emission(services, s, ray, media.ids(), rng, counters);
+        s.collided_segment = constant.filter(|_| nearest.is_some());
         nearest
     }
 
-    /// A segment that one chromatic medium `h` shares with grey ones: the grey media propose their collisions
-    /// first, over the whole segment, and `h` then tracks all colour channels at once
-    /// ([`Medium::spectral_free_flight`](crate::volume::Medium::spectral_free_flight)) over the interval up to
-    /// the nearest of them. Its walk's weights then cover exactly the part of the segment the path crosses: the
-    /// walk over `(0, t_cut)` is unbiased for any `t_cut` independent of it (Kutz et al. 2017, §5), and the grey
-    /// media's weights depend only on where the segment's event is. The path keeps its colour, where carrying one
-    /// channel (the fallback for a medium that does not track spectrally) would add colour noise. Other media must
-    /// not emit: their emission samples would need `h`'s walk weights at their distances.
-    #[allow(clippy::too_many_arguments)]
-    fn sample_shared_chromatic(
+    /// Deep output: where the camera ray crosses `media` before `t_surface`, when the path records deep data.
+    fn record_deep_media(
         &self,
         services: &RendererServices,
         s: &mut PathState,
         ray: &Ray,
         t_surface: f32,
         media: &[u32],
-        h: u32,
+    ) {
+        let camera_t = s.camera_t;
+        let Some(r) = s.record.as_deref_mut().filter(|r| r.deep) else {
+            return;
+        };
+        for &m in media {
+            let (near, far) = match services.scene().media[m as usize].fill_bounds() {
+                Some(bounds) => match bounds.intersect(ray, 0.0, t_surface) {
+                    Some(range) => range,
+                    None => continue,
+                },
+                None => (0.0, t_surface),
+            };
+            r.cross_media(camera_t + near, camera_t + far.min(t_surface));
+        }
+    }
+
+    /// The free flight through the overlapping `media` (in the order of
+    /// [`SegmentMedia::in_flight_order`](super::services::SegmentMedia::in_flight_order)) of the segment
+    /// `[0, t_surface)`: each medium in turn flies over `(0, t_cut)`, `t_cut` the nearest collision of the
+    /// media before it (the surface at first), starting with the throughput their walks left; its collision,
+    /// if any, becomes the nearest. Returns the nearest collision and its medium.
+    ///
+    /// This combines the media exactly, whatever each one's estimator. A medium's walk over `(0, t_cut)` with
+    /// `t_cut` independent of it is unbiased (Kutz et al. 2017, §5): its weight w times any function h of where
+    /// it ends has the expectation ∫₀^t_cut σ T h + T(t_cut) h(t_cut). Taking h as what the later media make of
+    /// the interval up to that end, the expectation over both walks is the collision integral of the summed
+    /// extinction, ∫ (σ₁ + σ₂) T₁ T₂ h + T₁ T₂ h(surface), with each collision in the medium that made it. So a
+    /// chromatic medium keeps its spectral tracking or spectral MIS beside any other medium and the path keeps
+    /// its colour; nothing is cut down to one channel. Media that never collide (absorption only) come last and
+    /// carry their transmittance to the event. For analog media it is the nearest of independent collisions,
+    /// the event of the sum of their extinctions.
+    #[allow(clippy::too_many_arguments)]
+    fn combined_flight(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        t_surface: f32,
+        media: &[u32],
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) -> Option<(f32, u32)> {
         let scene = services.scene();
-        let throughput = s.beta;
         let mut nearest: Option<(f32, u32)> = None;
-        for &m in media.iter().filter(|&&m| m != h) {
-            let counter = &mut counters.media[m as usize];
+        for &m in media {
+            let t_cut = nearest.map_or(t_surface, |(t, _)| t);
             s.emitted.begin(m);
-            let medium = &scene.media[m as usize];
-            if let Some(t) =
-                medium.sample_free_flight(ray, t_surface, throughput, rng, counter, &mut s.emitted)
-            {
-                if nearest.is_none_or(|(tn, _)| t < tn) {
-                    nearest = Some((t, m));
-                }
-            }
-        }
-        let t_cut = nearest.map_or(t_surface, |(t, _)| t);
-        let chromatic = &scene.media[h as usize];
-        let counter = &mut counters.media[h as usize];
-        s.emitted.begin(h);
-        let collision = match chromatic.spectral_free_flight(
-            ray,
-            t_cut,
-            throughput,
-            rng,
-            counter,
-            &mut s.emitted,
-        ) {
-            Some(flight) => {
-                s.beta = flight.throughput;
-                flight.collision
-            }
-            None => {
-                carry_one_channel(&mut s.beta, rng);
-                let one = s.beta;
-                let t = chromatic.sample_free_flight(ray, t_cut, one, rng, counter, &mut s.emitted);
-                let t_end = t.unwrap_or(t_cut);
-                s.beta *= chromatic.free_flight_weight(ray, t_end, t.is_some(), one, rng, counter);
-                t
-            }
-        };
-        if let Some(t) = collision {
-            nearest = Some((t, h));
-        }
-        let t_event = nearest.map_or(t_surface, |(t, _)| t);
-        for &m in media.iter().filter(|&&m| m != h) {
-            let collided = nearest.is_some_and(|(_, n)| n == m);
             let counter = &mut counters.media[m as usize];
-            s.beta *= scene.media[m as usize]
-                .free_flight_weight(ray, t_event, collided, throughput, rng, counter);
+            let flight = scene.media[m as usize].free_flight(
+                ray,
+                t_cut,
+                s.beta,
+                rng,
+                counter,
+                &mut s.emitted,
+            );
+            s.beta = flight.throughput;
+            if let Some(t) = flight.collision {
+                nearest = Some((t, m));
+            }
         }
-        self.add_media_emission(services, s, ray, media, t_event, throughput, rng, counters);
-        s.collided_segment = None;
         nearest
     }
 
-    /// Adds the emission the free flights of `media` gathered at their tentative collisions up to the segment's
-    /// event `t_event` (`s.emitted`, already times the path throughput the flights started with). A medium's
-    /// sample at t counts only where no other medium collided before t, so it is weighted by the other media's
-    /// survival weights there ([`Medium::free_flight_weight`](crate::volume::Medium::free_flight_weight), for a
-    /// path of `throughput`): the expectation is then ∫ T(t) σ_a L_e dt with T the transmittance of all the
-    /// media. Holdout media emit nothing toward the camera (their collisions end camera paths).
-    #[allow(clippy::too_many_arguments)]
+    /// Adds the emission the free flights of `media` (in the order they flew) gathered at their tentative
+    /// collisions (`s.emitted`, already times the path throughput their walks carried there, which holds the
+    /// weights of the media that flew before). A sample at t of one medium lies before that medium's end, and
+    /// before the nearest collision of the media before it; the media that flew after it are accounted for by
+    /// their transmittance estimates to t ([`Medium::transmittance`](crate::volume::Medium::transmittance)), so
+    /// the expectation is ∫ T(t) σ_a L_e dt with T the transmittance of all the media. Holdout media emit nothing
+    /// toward the camera (their collisions end camera paths).
     fn add_media_emission(
         &self,
         services: &RendererServices,
         s: &mut PathState,
         ray: &Ray,
         media: &[u32],
-        t_event: f32,
-        throughput: Rgb,
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) {
@@ -696,20 +572,16 @@ impl PathTracer {
         }
         let scene = services.scene();
         let emitted = std::mem::take(&mut s.emitted);
-        for &m in media {
+        for (i, &m) in media.iter().enumerate() {
             if self.mattes && s.depth == 0 && scene.names().medium_is_holdout(m as usize) {
                 continue;
             }
             let mut sum = Rgb::ZERO;
             for &(t, radiance, _) in emitted.samples().iter().filter(|e| e.2 == m) {
-                if t > t_event {
-                    continue;
-                }
                 let mut weight = Rgb::ONE;
-                for &other in media.iter().filter(|&&o| o != m) {
-                    let counter = &mut counters.media[other as usize];
-                    weight *= scene.media[other as usize]
-                        .free_flight_weight(ray, t, false, throughput, rng, counter);
+                for &later in &media[i + 1..] {
+                    let counter = &mut counters.media[later as usize];
+                    weight *= scene.media[later as usize].transmittance(ray, t, rng, counter);
                 }
                 sum += radiance * weight;
             }
@@ -730,21 +602,19 @@ impl PathTracer {
         ray: &Ray,
         t_surface: f32,
         media: &[u32],
-        throughput: Rgb,
-    ) -> Option<(ConstantSegment, ConstantScattering)> {
+    ) -> Option<ConstantSegment> {
         let &[medium] = media else { return None };
         if !self.equiangular || s.depth >= self.max_depth || !t_surface.is_finite() {
             return None;
         }
         let coefficients = services.scene().media[medium as usize].constant_scattering()?;
-        let segment = ConstantSegment {
+        Some(ConstantSegment {
             origin: ray.origin,
             dir: ray.dir,
             length: t_surface,
-            medium,
-            throughput,
-        };
-        Some((segment, coefficients))
+            throughput: s.beta,
+            coefficients,
+        })
     }
 
     /// The equiangular half of the direct light on a constant-medium segment: chooses a light as next-event
@@ -759,7 +629,6 @@ impl PathTracer {
         s: &mut PathState,
         ray: &Ray,
         segment: &ConstantSegment,
-        coefficients: &ConstantScattering,
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) {
@@ -786,6 +655,7 @@ impl PathTracer {
             return;
         };
         let ls = chosen.sample;
+        let coefficients = &segment.coefficients;
         let phase = coefficients.phase.eval(-ray.dir, ls.wi);
         let Some(shadow) = ls.shadow_segment(&SurfacePoint::free(p)) else {
             return;
@@ -797,13 +667,8 @@ impl PathTracer {
         if tr.max_element() <= 0.0 {
             return;
         }
-        let medium = &scene.media[segment.medium as usize];
-        let weight = power_heuristic(pdf, medium.free_flight_pdf(t, segment.throughput));
-        let transmittance = Rgb::new(
-            (-coefficients.sigma_t.x * t).exp(),
-            (-coefficients.sigma_t.y * t).exp(),
-            (-coefficients.sigma_t.z * t).exp(),
-        );
+        let weight = power_heuristic(pdf, coefficients.free_flight_pdf(t, segment.throughput));
+        let transmittance = coefficients.transmittance(t);
         let value = segment.throughput
             * coefficients.sigma_s
             * transmittance
@@ -831,9 +696,8 @@ impl PathTracer {
         };
         let pdf_equiangular = Equiangular::new(segment.origin, segment.dir, segment.length, light)
             .map_or(0.0, |e| e.pdf(t));
-        let medium = &services.scene().media[segment.medium as usize];
         power_heuristic(
-            medium.free_flight_pdf(t, segment.throughput),
+            segment.coefficients.free_flight_pdf(t, segment.throughput),
             pdf_equiangular,
         )
     }
