@@ -27,15 +27,10 @@
 //! (surface curvature is not modelled). Emission is always read at full resolution, so that light sampling and
 //! BSDF sampling see the same emitter.
 //!
-//! Path guiding: when the render trained a guiding cache ([`RendererServices::guide`]), a medium scattering event
-//! samples its direction from the cache's distribution at that point with probability
-//! [`GUIDE_PROBABILITY`] and from the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)):
-//! one-sample MIS with a fixed selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient
-//! Light-Transport Simulation", with the phase function in the BSDF's place). A Lambertian surface does the same
-//! with its BSDF, weighting by f cos θ/(α q + (1 − α) p_bsdf). Next-event estimation there is
-//! weighed by the power heuristic against that mixture's density, so the estimate stays unbiased. A path whose
-//! throughput exceeds [`GUIDE_MAX_THROUGHPUT`] samples the phase function alone. A training path remembers its
-//! events ([`GuidePath`]) so that the cache learns the radiance found after each.
+//! Path guiding: when the render trained a guiding cache, medium scattering events and Lambertian surfaces
+//! sample their direction from the one-sample MIS mixture of the cache's distribution and the phase function or
+//! BSDF, and next-event estimation there is weighed against the mixture's density (all in [`super::guided`]). A
+//! training path remembers its events ([`GuidePath`]) so that the cache learns the radiance found after each.
 //!
 //! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
@@ -45,17 +40,18 @@
 //! [`Medium::constant_scattering`]: crate::volume::Medium::constant_scattering
 //! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
 
+use super::guided;
 use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
-use crate::guiding::{DirectionalQuadtree, GuidePath, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
+use crate::guiding::GuidePath;
 use crate::light::LightContext;
-use crate::material::{Bsdf, BsdfSample, LobeClass, LobeSplit};
+use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
 use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
-use crate::math::{Frame, Ray, Rgb, Rng, Vec2, Vec3};
+use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
 use crate::scene::{Scene, SurfaceHit};
-use crate::volume::{ConstantScattering, TentativeEmission};
+use crate::volume::{ConstantScattering, PhaseFunction, TentativeEmission};
 
 /// Bounces after which Russian roulette may end a path.
 const ROULETTE_START: u32 = 3;
@@ -79,25 +75,6 @@ pub struct PathSample {
     /// Coverage: 1 − the camera ray's transmittance to the environment (or to a holdout), in \[0, 1\].
     pub alpha: f32,
 }
-
-/// The one-sample MIS choice of a guided event from its 2-D sample `u`: the guide when `u.x` <
-/// [`GUIDE_PROBABILITY`], else the phase function or BSDF, with `u.x` rescaled to \[0, 1) within the part chosen,
-/// so that each strategy keeps the stratification of the sampler's points (a separate random number for the
-/// choice measured worse on the Sobol sampler's early bounces).
-fn choose_strategy(u: Vec2) -> (bool, Vec2) {
-    let a = GUIDE_PROBABILITY;
-    if u.x < a {
-        (true, Vec2::new((u.x / a).min(ONE_BELOW), u.y))
-    } else {
-        (
-            false,
-            Vec2::new(((u.x - a) / (1.0 - a)).min(ONE_BELOW), u.y),
-        )
-    }
-}
-
-/// The largest f32 below 1.
-const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// The path tracer and its settings.
 #[derive(Clone, Copy, Debug)]
@@ -277,6 +254,114 @@ enum SurfaceOutcome {
     End,
 }
 
+/// A surface hit a path scatters at.
+struct Surface<'a> {
+    /// The hit, with its normal map applied.
+    hit: &'a SurfaceHit,
+    /// Where its textures are read.
+    at: &'a ShadingPoint,
+    /// The shading frame before the normal map (the clear coat's default normal).
+    unmapped: Frame,
+    /// The shading frame, oriented by [`shading_frame`].
+    frame: Frame,
+}
+
+/// The first-hit AOVs (albedo, normal, depth) of a visible surface hit by `ray`, recorded once. An invisible,
+/// index-matched boundary records none: the camera ray goes on to what lies behind it, a medium's first
+/// collision or another surface.
+struct SurfaceAovs<'a> {
+    hit: &'a SurfaceHit,
+    ray: &'a Ray,
+    at: &'a ShadingPoint,
+    scene: &'a Scene,
+}
+
+impl SurfaceAovs<'_> {
+    /// Records the AOVs into `out` when they are still pending.
+    fn record(&self, s: &mut PathState, out: &mut PathSample) {
+        if std::mem::take(&mut s.aovs_pending) {
+            let (hit, scene) = (self.hit, self.scene);
+            let material = &scene.materials[hit.material as usize];
+            out.depth = (hit.p - self.ray.origin).length();
+            out.albedo = material.pbr_params(self.at, &scene.textures).base_color;
+            out.normal = if hit.shading.n.dot(-self.ray.dir) < 0.0 {
+                -hit.shading.n
+            } else {
+                hit.shading.n
+            };
+        }
+    }
+}
+
+/// The first-hit AOVs at the camera ray's first real collision, at `t` in medium `m`: what a denoiser's auxiliary
+/// images see of a medium (as Cycles writes it): its scattering albedo there, and the way back to the camera.
+fn record_collision_aovs(out: &mut PathSample, scene: &Scene, ray: &Ray, t: f32, m: u32) {
+    out.albedo = scene.media[m as usize]
+        .collision(ray.at(t), ray.time)
+        .albedo;
+    out.normal = -ray.dir;
+    out.depth = t;
+}
+
+/// An unlit surface `hit` ends the path showing its base colour, on its front face (or both faces when
+/// double-sided); it scatters nothing and is not a light (weight 1).
+fn show_unlit(
+    s: &mut PathState,
+    scene: &Scene,
+    hit: &SurfaceHit,
+    at: &ShadingPoint,
+    item: impl FnOnce() -> Option<u32>,
+    emitter: impl FnOnce() -> Option<u32>,
+) {
+    let material = &scene.materials[hit.material as usize];
+    if s.depth == 0 {
+        s.cover(1.0, CameraEvent::Surface, hit.t, item);
+    }
+    if hit.front_face || material.double_sided {
+        let value = s.beta * material.unlit_radiance(at, &scene.textures);
+        s.add_reached(value, emitter);
+    }
+}
+
+/// Passes the path through the surface `hit` along `ray` without scattering (a culled back face, an
+/// index-matched boundary), entering or leaving `interior` when the surface bounds one; the path ends after
+/// [`MAX_BOUNDARY_CROSSINGS`] crossings.
+fn cross_boundary(
+    s: &mut PathState,
+    ray: &Ray,
+    hit: &SurfaceHit,
+    interior: Option<u32>,
+    counters: &mut PathCounters,
+) -> SurfaceOutcome {
+    s.crossings += 1;
+    if s.crossings > MAX_BOUNDARY_CROSSINGS {
+        return SurfaceOutcome::End;
+    }
+    if let Some(interior) = interior {
+        s.stack
+            .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
+    }
+    counters.rays.bounce += 1;
+    SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time))
+}
+
+/// The shading frame a path scatters in at `hit`: one-sided surfaces reflect nothing from behind (`None`); a
+/// refracting interface keeps its orientation (its inside is below); a diffusely transmitting thin wall scatters
+/// alike on both faces.
+fn shading_frame(hit: &SurfaceHit, material: &crate::material::Material) -> Option<Frame> {
+    if hit.front_face || material.is_transmissive() {
+        Some(hit.shading)
+    } else if material.double_sided || material.transmits_diffusely() {
+        Some(Frame {
+            s: hit.shading.s,
+            t: -hit.shading.t,
+            n: -hit.shading.n,
+        })
+    } else {
+        None
+    }
+}
+
 /// What equiangular sampling can aim at in a scene: the media of constant scattering coefficients it samples
 /// distances in, and the point and spot lights it samples toward. It runs only where both exist.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -368,14 +453,8 @@ impl PathTracer {
                 self.sample_segment_media(services, &mut s, &ray, t_surface, rng, counters)
             {
                 if s.aovs_pending && s.depth == 0 {
-                    // The camera ray's first real collision: what a denoiser's auxiliary images see of a
-                    // medium (as Cycles writes it): its scattering albedo there, and the way back to the camera.
                     s.aovs_pending = false;
-                    out.albedo = scene.media[m as usize]
-                        .collision(ray.at(t), ray.time)
-                        .albedo;
-                    out.normal = -ray.dir;
-                    out.depth = t;
+                    record_collision_aovs(&mut out, scene, &ray, t, m);
                 }
                 if !self.scatter_in_medium(services, &mut s, &mut ray, t, m, rng, counters) {
                     break;
@@ -383,12 +462,7 @@ impl PathTracer {
                 continue;
             }
             let Some(hit) = hit else {
-                if s.depth == 0 {
-                    let medium = s.crossed_medium;
-                    let item = || medium.map(|m| scene.names().item_of_medium(m as usize));
-                    s.cover(s.coverage_so_far(), CameraEvent::Ended, f32::INFINITY, item);
-                }
-                self.add_environment(services, &mut s, ray.dir);
+                self.escape(services, &mut s, ray.dir);
                 break;
             };
             if s.beta.max_element() <= 0.0 {
@@ -702,6 +776,18 @@ impl PathTracer {
         )
     }
 
+    /// A path that escapes along `dir`: a camera ray decides its coverage (what the media it crossed took),
+    /// and the environment's light is added.
+    fn escape(&self, services: &RendererServices, s: &mut PathState, dir: Vec3) {
+        if s.depth == 0 {
+            let scene = services.scene();
+            let medium = s.crossed_medium;
+            let item = || medium.map(|m| scene.names().item_of_medium(m as usize));
+            s.cover(s.coverage_so_far(), CameraEvent::Ended, f32::INFINITY, item);
+        }
+        self.add_environment(services, s, dir);
+    }
+
     /// Adds the environment's radiance for a path that escapes along `dir`, MIS-weighted against the
     /// environment's light sampling. Seen directly (no scattering event before), it is recorded as the
     /// environment and, on a transparent film, left out of the radiance.
@@ -736,8 +822,8 @@ impl PathTracer {
     }
 
     /// Shades a surface hit: records the first hit's AOVs, adds the surface's emission (MIS-weighted against
-    /// light sampling), passes through index-matched boundaries, estimates direct light, and samples the BSDF
-    /// for the next ray.
+    /// light sampling), passes through index-matched boundaries and culled back faces, and scatters
+    /// ([`Self::scatter_at_surface`]).
     #[allow(clippy::too_many_arguments)]
     fn shade_surface(
         &self,
@@ -754,14 +840,7 @@ impl PathTracer {
         // A single-sided material's back faces are culled (glTF 2.0 §3.9.3 `doubleSided`; UsdGeomGprim
         // `doubleSided`): camera rays, before any scattering event, pass through them as if they were not there.
         if s.depth == 0 && !hit.front_face && material.culls_back_faces() {
-            s.crossings += 1;
-            if s.crossings > MAX_BOUNDARY_CROSSINGS {
-                return SurfaceOutcome::End;
-            }
-            counters.rays.bounce += 1;
-            return SurfaceOutcome::Continue(
-                Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time),
-            );
+            return cross_boundary(s, ray, &hit, None, counters);
         }
         s.cone_width += self.pixel_spread * hit.t;
         let at = hit.shading_point(s.cone_width, ray.dir);
@@ -769,7 +848,6 @@ impl PathTracer {
         if material.has_normal_map() {
             scene.apply_normal_map(&mut hit, &at);
         }
-        let wo_world = -ray.dir;
         let mesh = || scene.mesh_of_prim(hit.prim);
         // Camera rays (no scattering event yet) pass through shadow catchers and are cut by holdouts.
         let matte = self.mattes && s.depth == 0;
@@ -778,97 +856,101 @@ impl PathTracer {
         }
         let count_emission = !s.first_hit || s.first_emission == FirstEmission::Count;
         s.first_hit = false;
-        // The first-hit AOVs of a visible surface (an invisible, index-matched boundary records none: the
-        // camera ray goes on to what lies behind it, a medium's first collision or another surface).
-        let record_aovs = |s: &mut PathState, out: &mut PathSample| {
-            if std::mem::take(&mut s.aovs_pending) {
-                out.depth = (hit.p - ray.origin).length();
-                out.albedo = material.pbr_params(&at, &scene.textures).base_color;
-                out.normal = if hit.shading.n.dot(wo_world) < 0.0 {
-                    -hit.shading.n
-                } else {
-                    hit.shading.n
-                };
-            }
+        let aovs = SurfaceAovs {
+            hit: &hit,
+            ray,
+            at: &at,
+            scene,
         };
         if matte && scene.names().mesh_is_holdout(mesh()) {
-            record_aovs(s, out);
+            aovs.record(s, out);
             s.cover(s.coverage_so_far(), CameraEvent::Ended, hit.t, || None);
             return SurfaceOutcome::End;
         }
         let item = || Some(scene.names().item_of_mesh(mesh()));
         let emitter = || scene.names().emitter_of_mesh(mesh());
-        // An unlit surface shows its base colour and scatters nothing (not a light: weight 1).
         if material.unlit {
-            record_aovs(s, out);
-            if s.depth == 0 {
-                s.cover(1.0, CameraEvent::Surface, hit.t, item);
-            }
-            if hit.front_face || material.double_sided {
-                let value = s.beta * material.unlit_radiance(&at, &scene.textures);
-                s.add_reached(value, emitter);
-            }
+            aovs.record(s, out);
+            show_unlit(s, scene, &hit, &at, item, emitter);
             return SurfaceOutcome::End;
         }
-        // Light emitted by the surface toward the path (where an emissive texture is black there is nothing
-        // to weight: the light sampler's density is not asked for).
         if count_emission && hit.front_face && material.is_emissive() {
-            let le = material.emission_at(&hit.point_shading(), &scene.textures);
-            if le.max_element() > 0.0 {
-                let weight = match scene.area_light_of(hit.prim) {
-                    Some(_) if s.prev_light_only => 0.0,
-                    Some(light) if !s.prev_delta => {
-                        power_heuristic(s.prev_pdf, services.area_light_pdf(light, &s.prev, hit.p))
-                    }
-                    _ => 1.0,
-                };
-                s.add_reached(s.beta * le * weight, emitter);
-            }
+            self.add_surface_emission(services, s, &hit, emitter);
         }
-        let mut bsdf = material.bsdf(&at, &scene.textures);
+        let bsdf = material.bsdf(&at, &scene.textures);
         if bsdf.is_index_matched() {
-            s.crossings += 1;
-            if s.crossings > MAX_BOUNDARY_CROSSINGS {
-                return SurfaceOutcome::End;
-            }
-            if let Some(interior) = material.interior {
-                s.stack
-                    .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
-            }
-            counters.rays.bounce += 1;
-            return SurfaceOutcome::Continue(
-                Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time),
-            );
+            return cross_boundary(s, ray, &hit, material.interior, counters);
         }
-        record_aovs(s, out);
+        aovs.record(s, out);
         if s.depth == 0 {
             s.cover(1.0, CameraEvent::Surface, hit.t, item);
         }
         if s.depth >= self.max_depth {
             return SurfaceOutcome::End;
         }
-        // Orient the shading frame: one-sided surfaces reflect nothing from behind; a refracting interface keeps
-        // its orientation (its inside is below); a diffusely transmitting thin wall scatters alike on both faces.
-        let frame = if hit.front_face || material.is_transmissive() {
-            hit.shading
-        } else if material.double_sided || material.transmits_diffusely() {
-            Frame {
-                s: hit.shading.s,
-                t: -hit.shading.t,
-                n: -hit.shading.n,
-            }
-        } else {
+        let Some(frame) = shading_frame(&hit, material) else {
             return SurfaceOutcome::End;
         };
+        let surface = Surface {
+            hit: &hit,
+            at: &at,
+            unmapped,
+            frame,
+        };
+        self.scatter_at_surface(services, s, ray, &surface, bsdf, rng, counters)
+    }
+
+    /// Adds the light the emissive surface `hit` emits toward the path (where an emissive texture is black there
+    /// is nothing to weight: the light sampler's density is not asked for), weighted by the power heuristic
+    /// against light sampling when the last event sampled its direction.
+    fn add_surface_emission(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        hit: &SurfaceHit,
+        emitter: impl FnOnce() -> Option<u32>,
+    ) {
+        let scene = services.scene();
+        let material = &scene.materials[hit.material as usize];
+        let le = material.emission_at(&hit.point_shading(), &scene.textures);
+        if le.max_element() > 0.0 {
+            let weight = match scene.area_light_of(hit.prim) {
+                Some(_) if s.prev_light_only => 0.0,
+                Some(light) if !s.prev_delta => {
+                    power_heuristic(s.prev_pdf, services.area_light_pdf(light, &s.prev, hit.p))
+                }
+                _ => 1.0,
+            };
+            s.add_reached(s.beta * le * weight, emitter);
+        }
+    }
+
+    /// Scatters at a surface: a dispersive surface first makes the path carry one channel; next-event
+    /// estimation, then the BSDF (or, guided at a Lambertian surface, the mixture of the guide and the BSDF,
+    /// see the guided module) samples the direction to continue in.
+    #[allow(clippy::too_many_arguments)]
+    fn scatter_at_surface(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        surface: &Surface,
+        mut bsdf: Bsdf,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> SurfaceOutcome {
+        let scene = services.scene();
+        let (hit, frame) = (surface.hit, surface.frame);
+        let material = &scene.materials[hit.material as usize];
         // A dispersive surface: the path goes on in one colour channel, refracted with that channel's index (the
         // first hit's colours are seen with the throughput before the choice).
         let seen_beta = s.beta;
         if material.is_dispersive() {
             let channel = carry_one_channel(&mut s.beta, rng);
-            bsdf = material.bsdf_in_channel(&at, &scene.textures, channel);
+            bsdf = material.bsdf_in_channel(surface.at, &scene.textures, channel);
         }
         // The clear coat's normal: its own normal map, else the normal before the base's normal map.
-        if let Some(n) = material.coat_normal(&unmapped, &at, &scene.textures) {
+        if let Some(n) = material.coat_normal(&surface.unmapped, surface.at, &scene.textures) {
             let n = if frame.n.dot(hit.shading.n) < 0.0 {
                 -n
             } else {
@@ -876,84 +958,32 @@ impl PathTracer {
             };
             bsdf.set_coat_normal(frame.to_local(n));
         }
-        let wo = frame.to_local(wo_world);
+        let wo = frame.to_local(-ray.dir);
         if s.depth == 0 {
             if let Some(r) = s.record.as_deref_mut() {
                 r.colors = bsdf.colors(wo) * seen_beta;
             }
         }
-        // Guided directions at a diffuse (Lambertian) surface, as at medium scattering events: one-sample MIS of the
-        // cache's distribution and the BSDF, whose mixture density light sampling is weighed against.
         let guide = match bsdf {
-            Bsdf::Lambert(_) => self.guide_at(services, s, hit.p),
+            Bsdf::Lambert(_) => guided::guide_at(services, s.beta, hit.p),
             _ => None,
         };
-        let direction_pdf = |wi: Vec3| {
-            let pdf = bsdf.pdf(wo, wi);
-            match guide {
-                Some(d) => {
-                    GUIDE_PROBABILITY * d.pdf(frame.to_world(wi)) + (1.0 - GUIDE_PROBABILITY) * pdf
-                }
-                None => pdf,
-            }
-        };
-        // Next-event estimation.
+        let direction_pdf =
+            |wi: Vec3| guided::mixture_pdf(guide, frame.to_world(wi), bsdf.pdf(wo, wi));
         if !bsdf.is_delta() {
-            let ctx = LightContext {
-                p: hit.p,
-                n: Some(frame.n),
-            };
-            services.sample_lights(&ctx, rng, |chosen, rng| {
-                let ls = chosen.sample;
-                let wi = frame.to_local(ls.wi);
-                let f = bsdf.eval(wo, wi) * wi.z.abs();
-                let segment = ls.shadow_segment(&hit.surface_point());
-                if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
-                    let mut stack = s.stack;
-                    if let Some(interior) = material.interior {
-                        stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
-                    }
-                    let tr = services.transmittance(&segment, ray.time, &stack, rng, counters);
-                    if tr.max_element() > 0.0 {
-                        let light_pdf = chosen.pmf * ls.pdf;
-                        let weight = if ls.is_delta {
-                            1.0
-                        } else {
-                            power_heuristic(light_pdf, direction_pdf(wi))
-                        };
-                        let value = s.beta * f * tr * ls.radiance * (weight / light_pdf);
-                        let beta = s.beta;
-                        let split = || {
-                            let factor =
-                                beta * tr * ls.radiance * (wi.z.abs() * weight / light_pdf);
-                            bsdf.eval_split(wo, wi) * factor
-                        };
-                        let emitter = || scene.names().emitter_of_light(chosen.index);
-                        s.add_surface_sample(value, split, emitter);
-                    }
-                }
-            });
+            self.surface_next_event(
+                services,
+                s,
+                ray,
+                surface,
+                &bsdf,
+                wo,
+                direction_pdf,
+                rng,
+                counters,
+            );
         }
-        // Continue the path by sampling the BSDF (or, guided, the mixture).
-        let sampled = match guide {
-            None => bsdf.sample(wo, rng.sample_1d(), rng.sample_2d()),
-            Some(distribution) => {
-                let u_lobe = rng.sample_1d();
-                let (guided, u) = choose_strategy(rng.sample_2d());
-                let wi = if guided {
-                    Some(frame.to_local(distribution.sample(u).0))
-                } else {
-                    bsdf.sample(wo, u_lobe, u).map(|b| b.wi)
-                };
-                wi.map(|wi| BsdfSample {
-                    wi,
-                    f: bsdf.eval(wo, wi),
-                    pdf: direction_pdf(wi),
-                    is_delta: false,
-                    class: LobeClass::Diffuse,
-                })
-            }
-        };
+        let sampled = guided::sample_bsdf(&bsdf, guide, &frame, wo, rng, direction_pdf);
         let Some(bs) = sampled else {
             return SurfaceOutcome::End;
         };
@@ -968,6 +998,77 @@ impl PathTracer {
                 bsdf.eval_split(wo, bs.wi).shares()
             });
         }
+        self.continue_from_surface(s, ray, hit, frame, material.interior, &bs, rng, counters)
+    }
+
+    /// Next-event estimation at a surface: each light sample weighted by the power heuristic against
+    /// `direction_pdf` (the density with which the path samples its next direction, local directions).
+    #[allow(clippy::too_many_arguments)]
+    fn surface_next_event(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        surface: &Surface,
+        bsdf: &Bsdf,
+        wo: Vec3,
+        direction_pdf: impl Fn(Vec3) -> f32,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) {
+        let scene = services.scene();
+        let (hit, frame) = (surface.hit, surface.frame);
+        let material = &scene.materials[hit.material as usize];
+        let ctx = LightContext {
+            p: hit.p,
+            n: Some(frame.n),
+        };
+        services.sample_lights(&ctx, rng, |chosen, rng| {
+            let ls = chosen.sample;
+            let wi = frame.to_local(ls.wi);
+            let f = bsdf.eval(wo, wi) * wi.z.abs();
+            let segment = ls.shadow_segment(&hit.surface_point());
+            if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
+                let mut stack = s.stack;
+                if let Some(interior) = material.interior {
+                    stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
+                }
+                let tr = services.transmittance(&segment, ray.time, &stack, rng, counters);
+                if tr.max_element() > 0.0 {
+                    let light_pdf = chosen.pmf * ls.pdf;
+                    let weight = if ls.is_delta {
+                        1.0
+                    } else {
+                        power_heuristic(light_pdf, direction_pdf(wi))
+                    };
+                    let value = s.beta * f * tr * ls.radiance * (weight / light_pdf);
+                    let beta = s.beta;
+                    let split = || {
+                        let factor = beta * tr * ls.radiance * (wi.z.abs() * weight / light_pdf);
+                        bsdf.eval_split(wo, wi) * factor
+                    };
+                    let emitter = || scene.names().emitter_of_light(chosen.index);
+                    s.add_surface_sample(value, split, emitter);
+                }
+            }
+        });
+    }
+
+    /// Continues the path from a surface along the sampled direction `bs`: weights the throughput, crosses into
+    /// or out of the surface's interior when the direction refracts, counts the bounce (Russian roulette) and
+    /// remembers the event for the guiding cache. Returns the next ray, or the end of the path.
+    #[allow(clippy::too_many_arguments)]
+    fn continue_from_surface(
+        &self,
+        s: &mut PathState,
+        ray: &Ray,
+        hit: &SurfaceHit,
+        frame: Frame,
+        interior: Option<u32>,
+        bs: &BsdfSample,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> SurfaceOutcome {
         let wi_world = frame.to_world(bs.wi);
         s.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
         s.prev_delta = bs.is_delta;
@@ -978,8 +1079,9 @@ impl PathTracer {
         };
         s.prev_light_only = false;
         let radiance_before = s.radiance;
-        if let Some(interior) = material.interior {
+        if let Some(interior) = interior {
             // Crossing the surface (refraction) enters or leaves its interior.
+            let wo_world = -ray.dir;
             let crossing = wi_world.dot(hit.geometric_normal).signum()
                 != wo_world.dot(hit.geometric_normal).signum();
             if crossing {
@@ -1095,60 +1197,25 @@ impl PathTracer {
         }
         let wo = -ray.dir;
         let ctx = LightContext { p, n: None };
-        // Guided directions: one-sample MIS of the cache's distribution and the phase function, chosen with the
-        // fixed probability GUIDE_PROBABILITY (Müller et al. 2017, with the phase function in the BSDF's place).
-        // The mixture's density is what light sampling is weighed against, so the estimate stays unbiased.
-        // A path whose throughput has grown above GUIDE_MAX_THROUGHPUT samples the phase function alone (weight 1)
-        // until it falls back: a guided event's weight is at most 1/(1 − GUIDE_PROBABILITY), and over the
-        // hundreds of events of a walk in a dense medium their product otherwise grows without bound (measured:
-        // 13x the MSE of unguided paths on the backlit cloud). Choosing the strategy from the path's past keeps
-        // the estimate unbiased: each event's weight uses the density it sampled with.
-        let guide = self.guide_at(services, s, p);
-        let direction_pdf = |wi: Vec3| {
-            let phase = collision.phase.eval(wo, wi);
-            match guide {
-                Some(d) => GUIDE_PROBABILITY * d.pdf(wi) + (1.0 - GUIDE_PROBABILITY) * phase,
-                None => phase,
-            }
+        // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
+        // against, so the estimate stays unbiased.
+        let guide = guided::guide_at(services, s.beta, p);
+        let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, collision.phase.eval(wo, wi));
+        self.medium_next_event(
+            services,
+            s,
+            ray,
+            t,
+            &ctx,
+            &collision.phase,
+            direction_pdf,
+            rng,
+            counters,
+        );
+        let Some((wi, pdf, weight)) = guided::sample_phase(&collision.phase, guide, wo, rng) else {
+            return false;
         };
-        services.sample_lights(&ctx, rng, |chosen, rng| {
-            let ls = chosen.sample;
-            let phase = collision.phase.eval(wo, ls.wi);
-            let segment = ls.shadow_segment(&SurfacePoint::free(p));
-            if let (true, Some(segment)) = (phase > 0.0, segment) {
-                let tr = services.transmittance(&segment, ray.time, &s.stack, rng, counters);
-                if tr.max_element() > 0.0 {
-                    let light_pdf = chosen.pmf * ls.pdf;
-                    let weight = if ls.is_delta {
-                        self.equiangular_weight(services, s, t, chosen.index)
-                    } else if !self.media_mis {
-                        1.0
-                    } else {
-                        power_heuristic(light_pdf, direction_pdf(ls.wi))
-                    };
-                    let value = s.beta * tr * ls.radiance * (phase * weight / light_pdf);
-                    s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
-                }
-            }
-        });
-        let (wi, pdf) = match guide {
-            // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
-            None => collision.phase.sample(wo, rng.sample_2d()),
-            Some(distribution) => {
-                let (guided, u) = choose_strategy(rng.sample_2d());
-                let wi = if guided {
-                    distribution.sample(u).0
-                } else {
-                    collision.phase.sample(wo, u).0
-                };
-                let pdf = direction_pdf(wi);
-                if !(pdf > 0.0 && pdf.is_finite()) {
-                    return false;
-                }
-                s.beta *= collision.phase.eval(wo, wi) / pdf;
-                (wi, pdf)
-            }
-        };
+        s.beta *= weight;
         if s.depth == 0 {
             s.first_event = FirstEvent::Volume;
         }
@@ -1168,18 +1235,44 @@ impl PathTracer {
         true
     }
 
-    /// The guiding cache's distribution at `p`, when the render is guided, the cache learned one there, and the
-    /// path's throughput is at most [`GUIDE_MAX_THROUGHPUT`].
-    fn guide_at<'a>(
+    /// Next-event estimation at a real collision `t` along `ray` (the point and its phase function `phase`):
+    /// one light sample, weighted by the power heuristic against `direction_pdf` (the density with which the
+    /// path samples its next direction), or against equiangular sampling for a point or spot light.
+    #[allow(clippy::too_many_arguments)]
+    fn medium_next_event(
         &self,
-        services: &RendererServices<'a>,
-        s: &PathState,
-        p: Vec3,
-    ) -> Option<&'a DirectionalQuadtree> {
-        services
-            .guide()
-            .filter(|_| s.beta.max_element() <= GUIDE_MAX_THROUGHPUT)
-            .and_then(|g| g.distribution_at(p))
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        t: f32,
+        ctx: &LightContext,
+        phase: &PhaseFunction,
+        direction_pdf: impl Fn(Vec3) -> f32,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) {
+        let scene = services.scene();
+        let wo = -ray.dir;
+        services.sample_lights(ctx, rng, |chosen, rng| {
+            let ls = chosen.sample;
+            let phase = phase.eval(wo, ls.wi);
+            let segment = ls.shadow_segment(&SurfacePoint::free(ctx.p));
+            if let (true, Some(segment)) = (phase > 0.0, segment) {
+                let tr = services.transmittance(&segment, ray.time, &s.stack, rng, counters);
+                if tr.max_element() > 0.0 {
+                    let light_pdf = chosen.pmf * ls.pdf;
+                    let weight = if ls.is_delta {
+                        self.equiangular_weight(services, s, t, chosen.index)
+                    } else if !self.media_mis {
+                        1.0
+                    } else {
+                        power_heuristic(light_pdf, direction_pdf(ls.wi))
+                    };
+                    let value = s.beta * tr * ls.radiance * (phase * weight / light_pdf);
+                    s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
+                }
+            }
+        });
     }
 
     /// Counts a scattering event and plays Russian roulette; returns false when the path ends.
