@@ -591,7 +591,10 @@ impl PathTracer {
     /// chromatic medium keeps its spectral tracking or spectral MIS beside any other medium and the path keeps
     /// its colour; nothing is cut down to one channel. Media that never collide (absorption only) come last and
     /// carry their transmittance to the event. For analog media it is the nearest of independent collisions,
-    /// the event of the sum of their extinctions.
+    /// the event of the sum of their extinctions. (Letting every colliding medium fly over the whole segment and
+    /// keeping the nearest collision, with each walk's whole weight, is unbiased as well, since E[w 1{end > t}]
+    /// = T(t) for each walk; the cut stops the later walks at the nearest collision so far and hands them the
+    /// throughput the earlier ones left.)
     #[allow(clippy::too_many_arguments)]
     fn combined_flight(
         &self,
