@@ -130,14 +130,16 @@ fn per_ray(medium: &dyn Medium, sigma: f32, n: usize) -> (f64, f64, f64) {
         let mut sink = 0.0f32;
         let start = Instant::now();
         for (ray, t_max) in &rays {
-            let t = medium.sample_free_flight(
-                ray,
-                *t_max,
-                Rgb::ONE,
-                &mut rng,
-                &mut counters,
-                &mut TentativeEmission::default(),
-            );
+            let t = medium
+                .free_flight(
+                    ray,
+                    *t_max,
+                    Rgb::ONE,
+                    &mut rng,
+                    &mut counters,
+                    &mut TentativeEmission::default(),
+                )
+                .collision;
             sink += t.unwrap_or(*t_max);
             let estimate = medium.transmittance(ray, *t_max, &mut rng, &mut counters).y;
             squared_error += ((estimate - (-sigma * t_max).exp()) as f64).powi(2);

@@ -141,7 +141,7 @@ pub fn measure(medium: &dyn Medium, bounds: &Aabb) -> MediumPilot {
         while count < MAX_PILOT_COLLISIONS {
             let ray = Ray::new(start + dir * travelled, dir);
             emission.clear();
-            let flight = medium.sample_free_flight(
+            let flight = medium.free_flight(
                 &ray,
                 2.0 * reach - travelled,
                 Vec3::ONE,
@@ -149,7 +149,7 @@ pub fn measure(medium: &dyn Medium, bounds: &Aabb) -> MediumPilot {
                 &mut counters,
                 &mut emission,
             );
-            let Some(t) = flight else { break };
+            let Some(t) = flight.collision else { break };
             if count == 0 {
                 albedo_sum += luminance(medium.collision(ray.at(t), 0.0).albedo);
                 collisions += 1;

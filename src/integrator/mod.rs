@@ -2,6 +2,7 @@
 //! importance sampling at surfaces and in media, and the renderer services it hands to whoever needs light
 //! samples or shadow-ray transmittance.
 
+mod guided;
 mod medium_stack;
 mod path;
 mod record;

@@ -3,22 +3,22 @@
 //! with the power heuristic (Veach 1997, §9.2, eq. 9.13). Russian roulette (Arvo & Kirk 1990) ends
 //! low-throughput paths after a few bounces.
 //!
-//! Media: along each segment every medium proposes its next real collision ([`Medium::sample_free_flight`]);
-//! the nearest wins, and each medium's [`Medium::free_flight_weight`] keeps the estimate unbiased. A medium
-//! alone on a segment may instead track all colour channels at once ([`Medium::spectral_free_flight`], spectral
-//! tracking of an RGB density), returning the path's new throughput; beside grey media it does so over the part
-//! of the segment before their nearest collision. An emitting medium gathers its emission
-//! along its free flight, at the tentative collisions of its walk ([`TentativeEmission`]); the integrator adds
-//! what lies before the segment's event, weighted by the other media's survival there. Nothing here depends on
-//! which tracking method a medium uses.
+//! Media: along each segment every medium answers one question, [`Medium::free_flight`]: its next real
+//! collision and the path throughput its walk's weights leave (spectral MIS, spectral tracking of an RGB
+//! density, or 1 for analog tracking). Where media overlap, each flies over the part of the segment before the
+//! nearest collision of those asked before it, which combines them exactly (`combined_flight`), so a chromatic
+//! medium keeps all colour channels beside any other. An emitting medium gathers its emission along its free
+//! flight, at the tentative collisions of its walk ([`TentativeEmission`]); the integrator weights it by the
+//! transmittance of the media asked after it. Nothing here depends on which tracking method a medium uses.
 //!
 //! Point and spot lights in or near media: on a segment inside one medium of constant coefficients
 //! ([`Medium::constant_scattering`]), the direct light of a point or spot light is also estimated at a distance
 //! sampled equiangularly toward it (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path Tracing in
 //! Participating Media", §4.1), and both that estimate and next-event estimation at the free-flight collision
-//! are weighted by the power heuristic over the two distance densities ([`Medium::free_flight_pdf`] and the
-//! equiangular one). Distance sampling alone scatters where the medium is dense, not where the light is
-//! bright, and leaves fireflies around every small light in a thin medium.
+//! are weighted by the power heuristic over the two distance densities
+//! ([`ConstantScattering::free_flight_pdf`] and the equiangular one). Distance sampling alone scatters where the
+//! medium is dense, not where the light is bright, and leaves fireflies around every small light in a thin
+//! medium.
 //!
 //! Texture filtering: each path carries a ray cone (Akenine-Möller et al. 2021, "Improved Shader and Texture
 //! Level of Detail Using Ray Cones", JCGT 10(1)) that starts at the camera with the spread of one pixel. Its
@@ -27,38 +27,31 @@
 //! (surface curvature is not modelled). Emission is always read at full resolution, so that light sampling and
 //! BSDF sampling see the same emitter.
 //!
-//! Path guiding: when the render trained a guiding cache ([`RendererServices::guide`]), a medium scattering event
-//! samples its direction from the cache's distribution at that point with probability
-//! [`GUIDE_PROBABILITY`] and from the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)):
-//! one-sample MIS with a fixed selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient
-//! Light-Transport Simulation", with the phase function in the BSDF's place). A Lambertian surface does the same
-//! with its BSDF, weighting by f cos θ/(α q + (1 − α) p_bsdf). Next-event estimation there is
-//! weighed by the power heuristic against that mixture's density, so the estimate stays unbiased. A path whose
-//! throughput exceeds [`GUIDE_MAX_THROUGHPUT`] samples the phase function alone. A training path remembers its
-//! events ([`GuidePath`]) so that the cache learns the radiance found after each.
+//! Path guiding: when the render trained a guiding cache, medium scattering events and Lambertian surfaces
+//! sample their direction from the one-sample MIS mixture of the cache's distribution and the phase function or
+//! BSDF, and next-event estimation there is weighed against the mixture's density (all in [`super::guided`]). A
+//! training path remembers its events ([`GuidePath`]) so that the cache learns the radiance found after each.
 //!
 //! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
 //! 1, ior 1, smooth) is not a scattering event and does not count.
 //!
-//! [`Medium::sample_free_flight`]: crate::volume::Medium::sample_free_flight
-//! [`Medium::free_flight_weight`]: crate::volume::Medium::free_flight_weight
-//! [`Medium::spectral_free_flight`]: crate::volume::Medium::spectral_free_flight
+//! [`Medium::free_flight`]: crate::volume::Medium::free_flight
 //! [`Medium::constant_scattering`]: crate::volume::Medium::constant_scattering
-//! [`Medium::free_flight_pdf`]: crate::volume::Medium::free_flight_pdf
 //! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
 
+use super::guided;
 use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
-use crate::guiding::{DirectionalQuadtree, GuidePath, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
+use crate::guiding::GuidePath;
 use crate::light::LightContext;
-use crate::material::{Bsdf, BsdfSample, LobeClass, LobeSplit};
-use crate::math::sampling::{power_heuristic, Equiangular};
-use crate::math::{Frame, Ray, Rgb, Rng, Vec2, Vec3};
+use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
+use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
+use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
 use crate::scene::{Scene, SurfaceHit};
-use crate::volume::{ConstantScattering, TentativeEmission};
+use crate::volume::{ConstantScattering, PhaseFunction, TentativeEmission};
 
 /// Bounces after which Russian roulette may end a path.
 const ROULETTE_START: u32 = 3;
@@ -82,53 +75,6 @@ pub struct PathSample {
     /// Coverage: 1 − the camera ray's transmittance to the environment (or to a holdout), in \[0, 1\].
     pub alpha: f32,
 }
-
-/// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
-/// weighted by 1/p_c, so the new throughput Σβ · e_c has the old one as its expectation (unbiased). Media whose
-/// extinction differs by channel ([`Medium::is_chromatic`](crate::volume::Medium::is_chromatic)) and that do
-/// not track it spectrally (`chromatic_tracking: one_channel`, or two chromatic media on one segment, or one
-/// beside an emitting medium) then track that channel alone, analog; so does a dispersive surface
-/// (`KHR_materials_dispersion`), which refracts with the index of the channel returned. Spectral renderers
-/// sample one wavelength per path the same way; the cost is colour noise. A path already carrying one channel
-/// is unchanged and that channel returned (the green one for a path that carries nothing).
-fn carry_one_channel(beta: &mut Rgb, rng: &mut Rng) -> usize {
-    let carried = beta.to_array().iter().filter(|&&b| b > 0.0).count();
-    if carried <= 1 {
-        return beta.to_array().iter().position(|&b| b > 0.0).unwrap_or(1);
-    }
-    let sum = beta.element_sum();
-    let u = rng.next_f32() * sum;
-    let channel = if u < beta.x {
-        0
-    } else if u < beta.x + beta.y {
-        1
-    } else {
-        2
-    };
-    let mut one = Rgb::ZERO;
-    one[channel] = sum;
-    *beta = one;
-    channel
-}
-
-/// The one-sample MIS choice of a guided event from its 2-D sample `u`: the guide when `u.x` <
-/// [`GUIDE_PROBABILITY`], else the phase function or BSDF, with `u.x` rescaled to \[0, 1) within the part chosen,
-/// so that each strategy keeps the stratification of the sampler's points (a separate random number for the
-/// choice measured worse on the Sobol sampler's early bounces).
-fn choose_strategy(u: Vec2) -> (bool, Vec2) {
-    let a = GUIDE_PROBABILITY;
-    if u.x < a {
-        (true, Vec2::new((u.x / a).min(ONE_BELOW), u.y))
-    } else {
-        (
-            false,
-            Vec2::new(((u.x - a) / (1.0 - a)).min(ONE_BELOW), u.y),
-        )
-    }
-}
-
-/// The largest f32 below 1.
-const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// The path tracer and its settings.
 #[derive(Clone, Copy, Debug)]
@@ -165,10 +111,10 @@ struct ConstantSegment {
     dir: Vec3,
     /// Its length: the distance to the surface that ends it.
     length: f32,
-    /// The medium.
-    medium: u32,
     /// The path throughput when the segment starts, as the medium's free-flight sampling saw it.
     throughput: Rgb,
+    /// The medium's coefficients.
+    coefficients: ConstantScattering,
 }
 
 /// The state of a path between events.
@@ -308,6 +254,114 @@ enum SurfaceOutcome {
     End,
 }
 
+/// A surface hit a path scatters at.
+struct Surface<'a> {
+    /// The hit, with its normal map applied.
+    hit: &'a SurfaceHit,
+    /// Where its textures are read.
+    at: &'a ShadingPoint,
+    /// The shading frame before the normal map (the clear coat's default normal).
+    unmapped: Frame,
+    /// The shading frame, oriented by [`shading_frame`].
+    frame: Frame,
+}
+
+/// The first-hit AOVs (albedo, normal, depth) of a visible surface hit by `ray`, recorded once. An invisible,
+/// index-matched boundary records none: the camera ray goes on to what lies behind it, a medium's first
+/// collision or another surface.
+struct SurfaceAovs<'a> {
+    hit: &'a SurfaceHit,
+    ray: &'a Ray,
+    at: &'a ShadingPoint,
+    scene: &'a Scene,
+}
+
+impl SurfaceAovs<'_> {
+    /// Records the AOVs into `out` when they are still pending.
+    fn record(&self, s: &mut PathState, out: &mut PathSample) {
+        if std::mem::take(&mut s.aovs_pending) {
+            let (hit, scene) = (self.hit, self.scene);
+            let material = &scene.materials[hit.material as usize];
+            out.depth = (hit.p - self.ray.origin).length();
+            out.albedo = material.pbr_params(self.at, &scene.textures).base_color;
+            out.normal = if hit.shading.n.dot(-self.ray.dir) < 0.0 {
+                -hit.shading.n
+            } else {
+                hit.shading.n
+            };
+        }
+    }
+}
+
+/// The first-hit AOVs at the camera ray's first real collision, at `t` in medium `m`: what a denoiser's auxiliary
+/// images see of a medium (as Cycles writes it): its scattering albedo there, and the way back to the camera.
+fn record_collision_aovs(out: &mut PathSample, scene: &Scene, ray: &Ray, t: f32, m: u32) {
+    out.albedo = scene.media[m as usize]
+        .collision(ray.at(t), ray.time)
+        .albedo;
+    out.normal = -ray.dir;
+    out.depth = t;
+}
+
+/// An unlit surface `hit` ends the path showing its base colour, on its front face (or both faces when
+/// double-sided); it scatters nothing and is not a light (weight 1).
+fn show_unlit(
+    s: &mut PathState,
+    scene: &Scene,
+    hit: &SurfaceHit,
+    at: &ShadingPoint,
+    item: impl FnOnce() -> Option<u32>,
+    emitter: impl FnOnce() -> Option<u32>,
+) {
+    let material = &scene.materials[hit.material as usize];
+    if s.depth == 0 {
+        s.cover(1.0, CameraEvent::Surface, hit.t, item);
+    }
+    if hit.front_face || material.double_sided {
+        let value = s.beta * material.unlit_radiance(at, &scene.textures);
+        s.add_reached(value, emitter);
+    }
+}
+
+/// Passes the path through the surface `hit` along `ray` without scattering (a culled back face, an
+/// index-matched boundary), entering or leaving `interior` when the surface bounds one; the path ends after
+/// [`MAX_BOUNDARY_CROSSINGS`] crossings.
+fn cross_boundary(
+    s: &mut PathState,
+    ray: &Ray,
+    hit: &SurfaceHit,
+    interior: Option<u32>,
+    counters: &mut PathCounters,
+) -> SurfaceOutcome {
+    s.crossings += 1;
+    if s.crossings > MAX_BOUNDARY_CROSSINGS {
+        return SurfaceOutcome::End;
+    }
+    if let Some(interior) = interior {
+        s.stack
+            .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
+    }
+    counters.rays.bounce += 1;
+    SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time))
+}
+
+/// The shading frame a path scatters in at `hit`: one-sided surfaces reflect nothing from behind (`None`); a
+/// refracting interface keeps its orientation (its inside is below); a diffusely transmitting thin wall scatters
+/// alike on both faces.
+fn shading_frame(hit: &SurfaceHit, material: &crate::material::Material) -> Option<Frame> {
+    if hit.front_face || material.is_transmissive() {
+        Some(hit.shading)
+    } else if material.double_sided || material.transmits_diffusely() {
+        Some(Frame {
+            s: hit.shading.s,
+            t: -hit.shading.t,
+            n: -hit.shading.n,
+        })
+    } else {
+        None
+    }
+}
+
 /// What equiangular sampling can aim at in a scene: the media of constant scattering coefficients it samples
 /// distances in, and the point and spot lights it samples toward. It runs only where both exist.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -399,14 +453,8 @@ impl PathTracer {
                 self.sample_segment_media(services, &mut s, &ray, t_surface, rng, counters)
             {
                 if s.aovs_pending && s.depth == 0 {
-                    // The camera ray's first real collision: what a denoiser's auxiliary images see of a
-                    // medium (as Cycles writes it): its scattering albedo there, and the way back to the camera.
                     s.aovs_pending = false;
-                    out.albedo = scene.media[m as usize]
-                        .collision(ray.at(t), ray.time)
-                        .albedo;
-                    out.normal = -ray.dir;
-                    out.depth = t;
+                    record_collision_aovs(&mut out, scene, &ray, t, m);
                 }
                 if !self.scatter_in_medium(services, &mut s, &mut ray, t, m, rng, counters) {
                     break;
@@ -414,12 +462,7 @@ impl PathTracer {
                 continue;
             }
             let Some(hit) = hit else {
-                if s.depth == 0 {
-                    let medium = s.crossed_medium;
-                    let item = || medium.map(|m| scene.names().item_of_medium(m as usize));
-                    s.cover(s.coverage_so_far(), CameraEvent::Ended, f32::INFINITY, item);
-                }
-                self.add_environment(services, &mut s, ray.dir);
+                self.escape(services, &mut s, ray.dir);
                 break;
             };
             if s.beta.max_element() <= 0.0 {
@@ -477,11 +520,11 @@ impl PathTracer {
         (Rgb::ZERO, None)
     }
 
-    /// Runs the media overlapping the segment `[0, t_surface)` of `ray`: every medium proposes its next real
-    /// collision ([`Medium::sample_free_flight`](crate::volume::Medium::sample_free_flight)), the nearest wins,
-    /// and every medium weights the throughput for what happened
-    /// ([`Medium::free_flight_weight`](crate::volume::Medium::free_flight_weight)). Returns the winning
-    /// collision's distance and medium, or `None` when the path reaches the surface (or escapes).
+    /// Runs the media overlapping the segment `[0, t_surface)` of `ray`: each answers one question,
+    /// [`Medium::free_flight`](crate::volume::Medium::free_flight), for the part of the segment before the
+    /// nearest collision of those asked before it ([`Self::combined_flight`]), and the emission their walks
+    /// gathered is added ([`Self::add_media_emission`]). Returns the nearest collision's distance and medium,
+    /// or `None` when the path reaches the surface (or escapes).
     fn sample_segment_media(
         &self,
         services: &RendererServices,
@@ -492,202 +535,112 @@ impl PathTracer {
         counters: &mut PathCounters,
     ) -> Option<(f32, u32)> {
         let scene = services.scene();
-        let media = services.segment_media(ray, t_surface, &s.stack);
-        if s.depth == 0 && s.crossed_medium.is_none() {
-            s.crossed_medium = media.ids().first().copied();
+        let crossed = services.segment_media(ray, t_surface, &s.stack);
+        if s.depth == 0 {
+            s.crossed_medium = s.crossed_medium.or(crossed.ids().first().copied());
+            self.record_deep_media(services, s, ray, t_surface, crossed.ids());
         }
-        if let (0, Some(r)) = (s.depth, s.record.as_deref_mut().filter(|r| r.deep)) {
-            // Deep output: where the camera ray crosses media.
-            for &m in media.ids() {
-                let (near, far) = match scene.media[m as usize].fill_bounds() {
-                    Some(bounds) => match bounds.intersect(ray, 0.0, t_surface) {
-                        Some(range) => range,
-                        None => continue,
-                    },
-                    None => (0.0, t_surface),
-                };
-                r.cross_media(s.camera_t + near, s.camera_t + far.min(t_surface));
-            }
-        }
-        // A medium alone on the segment may track all channels at once (spectral tracking): its weights are the
-        // walk's own, so the path keeps its colour.
+        let media = crossed.in_flight_order(&scene.media);
         s.emitted.clear();
-        if let &[m] = media.ids() {
-            let counter = &mut counters.media[m as usize];
-            s.emitted.begin(m);
-            if let Some(flight) = scene.media[m as usize].spectral_free_flight(
-                ray,
-                t_surface,
-                s.beta,
-                rng,
-                counter,
-                &mut s.emitted,
-            ) {
-                s.beta = flight.throughput;
-                s.collided_segment = None;
-                self.add_media_emission(
-                    services,
-                    s,
-                    ray,
-                    &[m],
-                    f32::INFINITY,
-                    Rgb::ONE,
-                    rng,
-                    counters,
-                );
-                return flight.collision.map(|t| (t, m));
-            }
+        let constant = self.constant_segment(services, s, ray, t_surface, media.ids());
+        if let Some(segment) = &constant {
+            self.sample_equiangular(services, s, ray, segment, rng, counters);
         }
-        let chromatic = |&m: &u32| scene.media[m as usize].is_chromatic();
-        if let Some(&h) = media.ids().iter().find(|m| chromatic(m)) {
-            let emissive_other = |&m: &u32| m != h && scene.media[m as usize].is_emissive();
-            if media.ids().iter().filter(|m| chromatic(m)).count() == 1
-                && !media.ids().iter().any(emissive_other)
-            {
-                return self.sample_shared_chromatic(
-                    services,
-                    s,
-                    ray,
-                    t_surface,
-                    media.ids(),
-                    h,
-                    rng,
-                    counters,
-                );
-            }
-            carry_one_channel(&mut s.beta, rng);
-        }
-        let throughput = s.beta;
-        let constant = self.constant_segment(services, s, ray, t_surface, media.ids(), throughput);
-        if let Some((segment, coefficients)) = &constant {
-            self.sample_equiangular(services, s, ray, segment, coefficients, rng, counters);
-        }
-        let mut nearest: Option<(f32, u32)> = None;
-        for &m in media.ids() {
-            let medium = &scene.media[m as usize];
-            let counter = &mut counters.media[m as usize];
-            s.emitted.begin(m);
-            if let Some(t) =
-                medium.sample_free_flight(ray, t_surface, throughput, rng, counter, &mut s.emitted)
-            {
-                if nearest.is_none_or(|(tn, _)| t < tn) {
-                    nearest = Some((t, m));
-                }
-            }
-        }
-        let t_event = nearest.map_or(t_surface, |(t, _)| t);
-        for &m in media.ids() {
-            let collided = nearest.is_some_and(|(_, n)| n == m);
-            let medium = &scene.media[m as usize];
-            let counter = &mut counters.media[m as usize];
-            s.beta *= medium.free_flight_weight(ray, t_event, collided, throughput, rng, counter);
-        }
-        self.add_media_emission(
-            services,
-            s,
-            ray,
-            media.ids(),
-            t_event,
-            throughput,
-            rng,
-            counters,
-        );
-        s.collided_segment = constant
-            .map(|(segment, _)| segment)
-            .filter(|_| nearest.is_some());
+        let nearest = self.combined_flight(services, s, ray, t_surface, media.ids(), rng, counters);
+        self.add_media_emission(services, s, ray, media.ids(), rng, counters);
+        s.collided_segment = constant.filter(|_| nearest.is_some());
         nearest
     }
 
-    /// A segment that one chromatic medium `h` shares with grey ones: the grey media propose their collisions
-    /// first, over the whole segment, and `h` then tracks all colour channels at once
-    /// ([`Medium::spectral_free_flight`](crate::volume::Medium::spectral_free_flight)) over the interval up to
-    /// the nearest of them. Its walk's weights then cover exactly the part of the segment the path crosses: the
-    /// walk over `(0, t_cut)` is unbiased for any `t_cut` independent of it (Kutz et al. 2017, §5), and the grey
-    /// media's weights depend only on where the segment's event is. The path keeps its colour, where carrying one
-    /// channel (the fallback for a medium that does not track spectrally) would add colour noise. Other media must
-    /// not emit: their emission samples would need `h`'s walk weights at their distances.
-    #[allow(clippy::too_many_arguments)]
-    fn sample_shared_chromatic(
+    /// Deep output: where the camera ray crosses `media` before `t_surface`, when the path records deep data.
+    fn record_deep_media(
         &self,
         services: &RendererServices,
         s: &mut PathState,
         ray: &Ray,
         t_surface: f32,
         media: &[u32],
-        h: u32,
+    ) {
+        let camera_t = s.camera_t;
+        let Some(r) = s.record.as_deref_mut().filter(|r| r.deep) else {
+            return;
+        };
+        for &m in media {
+            let (near, far) = match services.scene().media[m as usize].fill_bounds() {
+                Some(bounds) => match bounds.intersect(ray, 0.0, t_surface) {
+                    Some(range) => range,
+                    None => continue,
+                },
+                None => (0.0, t_surface),
+            };
+            r.cross_media(camera_t + near, camera_t + far.min(t_surface));
+        }
+    }
+
+    /// The free flight through the overlapping `media` (in the order of
+    /// [`SegmentMedia::in_flight_order`](super::services::SegmentMedia::in_flight_order)) of the segment
+    /// `[0, t_surface)`: each medium in turn flies over `(0, t_cut)`, `t_cut` the nearest collision of the
+    /// media before it (the surface at first), starting with the throughput their walks left; its collision,
+    /// if any, becomes the nearest. Returns the nearest collision and its medium.
+    ///
+    /// This combines the media exactly, whatever each one's estimator. A medium's walk over `(0, t_cut)` with
+    /// `t_cut` independent of it is unbiased (Kutz et al. 2017, §5): its weight w times any function h of where
+    /// it ends has the expectation ∫₀^t_cut σ T h + T(t_cut) h(t_cut). Taking h as what the later media make of
+    /// the interval up to that end, the expectation over both walks is the collision integral of the summed
+    /// extinction, ∫ (σ₁ + σ₂) T₁ T₂ h + T₁ T₂ h(surface), with each collision in the medium that made it. So a
+    /// chromatic medium keeps its spectral tracking or spectral MIS beside any other medium and the path keeps
+    /// its colour; nothing is cut down to one channel. Media that never collide (absorption only) come last and
+    /// carry their transmittance to the event. For analog media it is the nearest of independent collisions,
+    /// the event of the sum of their extinctions. (Letting every colliding medium fly over the whole segment and
+    /// keeping the nearest collision, with each walk's whole weight, is unbiased as well, since E[w 1{end > t}]
+    /// = T(t) for each walk; the cut stops the later walks at the nearest collision so far and hands them the
+    /// throughput the earlier ones left.)
+    #[allow(clippy::too_many_arguments)]
+    fn combined_flight(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        t_surface: f32,
+        media: &[u32],
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) -> Option<(f32, u32)> {
         let scene = services.scene();
-        let throughput = s.beta;
         let mut nearest: Option<(f32, u32)> = None;
-        for &m in media.iter().filter(|&&m| m != h) {
-            let counter = &mut counters.media[m as usize];
+        for &m in media {
+            let t_cut = nearest.map_or(t_surface, |(t, _)| t);
             s.emitted.begin(m);
-            let medium = &scene.media[m as usize];
-            if let Some(t) =
-                medium.sample_free_flight(ray, t_surface, throughput, rng, counter, &mut s.emitted)
-            {
-                if nearest.is_none_or(|(tn, _)| t < tn) {
-                    nearest = Some((t, m));
-                }
-            }
-        }
-        let t_cut = nearest.map_or(t_surface, |(t, _)| t);
-        let chromatic = &scene.media[h as usize];
-        let counter = &mut counters.media[h as usize];
-        s.emitted.begin(h);
-        let collision = match chromatic.spectral_free_flight(
-            ray,
-            t_cut,
-            throughput,
-            rng,
-            counter,
-            &mut s.emitted,
-        ) {
-            Some(flight) => {
-                s.beta = flight.throughput;
-                flight.collision
-            }
-            None => {
-                carry_one_channel(&mut s.beta, rng);
-                let one = s.beta;
-                let t = chromatic.sample_free_flight(ray, t_cut, one, rng, counter, &mut s.emitted);
-                let t_end = t.unwrap_or(t_cut);
-                s.beta *= chromatic.free_flight_weight(ray, t_end, t.is_some(), one, rng, counter);
-                t
-            }
-        };
-        if let Some(t) = collision {
-            nearest = Some((t, h));
-        }
-        let t_event = nearest.map_or(t_surface, |(t, _)| t);
-        for &m in media.iter().filter(|&&m| m != h) {
-            let collided = nearest.is_some_and(|(_, n)| n == m);
             let counter = &mut counters.media[m as usize];
-            s.beta *= scene.media[m as usize]
-                .free_flight_weight(ray, t_event, collided, throughput, rng, counter);
+            let flight = scene.media[m as usize].free_flight(
+                ray,
+                t_cut,
+                s.beta,
+                rng,
+                counter,
+                &mut s.emitted,
+            );
+            s.beta = flight.throughput;
+            if let Some(t) = flight.collision {
+                nearest = Some((t, m));
+            }
         }
-        self.add_media_emission(services, s, ray, media, t_event, throughput, rng, counters);
-        s.collided_segment = None;
         nearest
     }
 
-    /// Adds the emission the free flights of `media` gathered at their tentative collisions up to the segment's
-    /// event `t_event` (`s.emitted`, already times the path throughput the flights started with). A medium's
-    /// sample at t counts only where no other medium collided before t, so it is weighted by the other media's
-    /// survival weights there ([`Medium::free_flight_weight`](crate::volume::Medium::free_flight_weight), for a
-    /// path of `throughput`): the expectation is then ∫ T(t) σ_a L_e dt with T the transmittance of all the
-    /// media. Holdout media emit nothing toward the camera (their collisions end camera paths).
-    #[allow(clippy::too_many_arguments)]
+    /// Adds the emission the free flights of `media` (in the order they flew) gathered at their tentative
+    /// collisions (`s.emitted`, already times the path throughput their walks carried there, which holds the
+    /// weights of the media that flew before). A sample at t of one medium lies before that medium's end, and
+    /// before the nearest collision of the media before it; the media that flew after it are accounted for by
+    /// their transmittance estimates to t ([`Medium::transmittance`](crate::volume::Medium::transmittance)), so
+    /// the expectation is ∫ T(t) σ_a L_e dt with T the transmittance of all the media. Holdout media emit nothing
+    /// toward the camera (their collisions end camera paths).
     fn add_media_emission(
         &self,
         services: &RendererServices,
         s: &mut PathState,
         ray: &Ray,
         media: &[u32],
-        t_event: f32,
-        throughput: Rgb,
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) {
@@ -696,20 +649,16 @@ impl PathTracer {
         }
         let scene = services.scene();
         let emitted = std::mem::take(&mut s.emitted);
-        for &m in media {
+        for (i, &m) in media.iter().enumerate() {
             if self.mattes && s.depth == 0 && scene.names().medium_is_holdout(m as usize) {
                 continue;
             }
             let mut sum = Rgb::ZERO;
             for &(t, radiance, _) in emitted.samples().iter().filter(|e| e.2 == m) {
-                if t > t_event {
-                    continue;
-                }
                 let mut weight = Rgb::ONE;
-                for &other in media.iter().filter(|&&o| o != m) {
-                    let counter = &mut counters.media[other as usize];
-                    weight *= scene.media[other as usize]
-                        .free_flight_weight(ray, t, false, throughput, rng, counter);
+                for &later in &media[i + 1..] {
+                    let counter = &mut counters.media[later as usize];
+                    weight *= scene.media[later as usize].transmittance(ray, t, rng, counter);
                 }
                 sum += radiance * weight;
             }
@@ -730,21 +679,19 @@ impl PathTracer {
         ray: &Ray,
         t_surface: f32,
         media: &[u32],
-        throughput: Rgb,
-    ) -> Option<(ConstantSegment, ConstantScattering)> {
+    ) -> Option<ConstantSegment> {
         let &[medium] = media else { return None };
         if !self.equiangular || s.depth >= self.max_depth || !t_surface.is_finite() {
             return None;
         }
         let coefficients = services.scene().media[medium as usize].constant_scattering()?;
-        let segment = ConstantSegment {
+        Some(ConstantSegment {
             origin: ray.origin,
             dir: ray.dir,
             length: t_surface,
-            medium,
-            throughput,
-        };
-        Some((segment, coefficients))
+            throughput: s.beta,
+            coefficients,
+        })
     }
 
     /// The equiangular half of the direct light on a constant-medium segment: chooses a light as next-event
@@ -759,7 +706,6 @@ impl PathTracer {
         s: &mut PathState,
         ray: &Ray,
         segment: &ConstantSegment,
-        coefficients: &ConstantScattering,
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) {
@@ -786,6 +732,7 @@ impl PathTracer {
             return;
         };
         let ls = chosen.sample;
+        let coefficients = &segment.coefficients;
         let phase = coefficients.phase.eval(-ray.dir, ls.wi);
         let Some(shadow) = ls.shadow_segment(&SurfacePoint::free(p)) else {
             return;
@@ -797,13 +744,8 @@ impl PathTracer {
         if tr.max_element() <= 0.0 {
             return;
         }
-        let medium = &scene.media[segment.medium as usize];
-        let weight = power_heuristic(pdf, medium.free_flight_pdf(t, segment.throughput));
-        let transmittance = Rgb::new(
-            (-coefficients.sigma_t.x * t).exp(),
-            (-coefficients.sigma_t.y * t).exp(),
-            (-coefficients.sigma_t.z * t).exp(),
-        );
+        let weight = power_heuristic(pdf, coefficients.free_flight_pdf(t, segment.throughput));
+        let transmittance = coefficients.transmittance(t);
         let value = segment.throughput
             * coefficients.sigma_s
             * transmittance
@@ -831,11 +773,22 @@ impl PathTracer {
         };
         let pdf_equiangular = Equiangular::new(segment.origin, segment.dir, segment.length, light)
             .map_or(0.0, |e| e.pdf(t));
-        let medium = &services.scene().media[segment.medium as usize];
         power_heuristic(
-            medium.free_flight_pdf(t, segment.throughput),
+            segment.coefficients.free_flight_pdf(t, segment.throughput),
             pdf_equiangular,
         )
+    }
+
+    /// A path that escapes along `dir`: a camera ray decides its coverage (what the media it crossed took),
+    /// and the environment's light is added.
+    fn escape(&self, services: &RendererServices, s: &mut PathState, dir: Vec3) {
+        if s.depth == 0 {
+            let scene = services.scene();
+            let medium = s.crossed_medium;
+            let item = || medium.map(|m| scene.names().item_of_medium(m as usize));
+            s.cover(s.coverage_so_far(), CameraEvent::Ended, f32::INFINITY, item);
+        }
+        self.add_environment(services, s, dir);
     }
 
     /// Adds the environment's radiance for a path that escapes along `dir`, MIS-weighted against the
@@ -872,8 +825,8 @@ impl PathTracer {
     }
 
     /// Shades a surface hit: records the first hit's AOVs, adds the surface's emission (MIS-weighted against
-    /// light sampling), passes through index-matched boundaries, estimates direct light, and samples the BSDF
-    /// for the next ray.
+    /// light sampling), passes through index-matched boundaries and culled back faces, and scatters
+    /// ([`Self::scatter_at_surface`]).
     #[allow(clippy::too_many_arguments)]
     fn shade_surface(
         &self,
@@ -890,14 +843,7 @@ impl PathTracer {
         // A single-sided material's back faces are culled (glTF 2.0 §3.9.3 `doubleSided`; UsdGeomGprim
         // `doubleSided`): camera rays, before any scattering event, pass through them as if they were not there.
         if s.depth == 0 && !hit.front_face && material.culls_back_faces() {
-            s.crossings += 1;
-            if s.crossings > MAX_BOUNDARY_CROSSINGS {
-                return SurfaceOutcome::End;
-            }
-            counters.rays.bounce += 1;
-            return SurfaceOutcome::Continue(
-                Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time),
-            );
+            return cross_boundary(s, ray, &hit, None, counters);
         }
         s.cone_width += self.pixel_spread * hit.t;
         let at = hit.shading_point(s.cone_width, ray.dir);
@@ -905,7 +851,6 @@ impl PathTracer {
         if material.has_normal_map() {
             scene.apply_normal_map(&mut hit, &at);
         }
-        let wo_world = -ray.dir;
         let mesh = || scene.mesh_of_prim(hit.prim);
         // Camera rays (no scattering event yet) pass through shadow catchers and are cut by holdouts.
         let matte = self.mattes && s.depth == 0;
@@ -914,97 +859,101 @@ impl PathTracer {
         }
         let count_emission = !s.first_hit || s.first_emission == FirstEmission::Count;
         s.first_hit = false;
-        // The first-hit AOVs of a visible surface (an invisible, index-matched boundary records none: the
-        // camera ray goes on to what lies behind it, a medium's first collision or another surface).
-        let record_aovs = |s: &mut PathState, out: &mut PathSample| {
-            if std::mem::take(&mut s.aovs_pending) {
-                out.depth = (hit.p - ray.origin).length();
-                out.albedo = material.pbr_params(&at, &scene.textures).base_color;
-                out.normal = if hit.shading.n.dot(wo_world) < 0.0 {
-                    -hit.shading.n
-                } else {
-                    hit.shading.n
-                };
-            }
+        let aovs = SurfaceAovs {
+            hit: &hit,
+            ray,
+            at: &at,
+            scene,
         };
         if matte && scene.names().mesh_is_holdout(mesh()) {
-            record_aovs(s, out);
+            aovs.record(s, out);
             s.cover(s.coverage_so_far(), CameraEvent::Ended, hit.t, || None);
             return SurfaceOutcome::End;
         }
         let item = || Some(scene.names().item_of_mesh(mesh()));
         let emitter = || scene.names().emitter_of_mesh(mesh());
-        // An unlit surface shows its base colour and scatters nothing (not a light: weight 1).
         if material.unlit {
-            record_aovs(s, out);
-            if s.depth == 0 {
-                s.cover(1.0, CameraEvent::Surface, hit.t, item);
-            }
-            if hit.front_face || material.double_sided {
-                let value = s.beta * material.unlit_radiance(&at, &scene.textures);
-                s.add_reached(value, emitter);
-            }
+            aovs.record(s, out);
+            show_unlit(s, scene, &hit, &at, item, emitter);
             return SurfaceOutcome::End;
         }
-        // Light emitted by the surface toward the path (where an emissive texture is black there is nothing
-        // to weight: the light sampler's density is not asked for).
         if count_emission && hit.front_face && material.is_emissive() {
-            let le = material.emission_at(&hit.point_shading(), &scene.textures);
-            if le.max_element() > 0.0 {
-                let weight = match scene.area_light_of(hit.prim) {
-                    Some(_) if s.prev_light_only => 0.0,
-                    Some(light) if !s.prev_delta => {
-                        power_heuristic(s.prev_pdf, services.area_light_pdf(light, &s.prev, hit.p))
-                    }
-                    _ => 1.0,
-                };
-                s.add_reached(s.beta * le * weight, emitter);
-            }
+            self.add_surface_emission(services, s, &hit, emitter);
         }
-        let mut bsdf = material.bsdf(&at, &scene.textures);
+        let bsdf = material.bsdf(&at, &scene.textures);
         if bsdf.is_index_matched() {
-            s.crossings += 1;
-            if s.crossings > MAX_BOUNDARY_CROSSINGS {
-                return SurfaceOutcome::End;
-            }
-            if let Some(interior) = material.interior {
-                s.stack
-                    .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
-            }
-            counters.rays.bounce += 1;
-            return SurfaceOutcome::Continue(
-                Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time),
-            );
+            return cross_boundary(s, ray, &hit, material.interior, counters);
         }
-        record_aovs(s, out);
+        aovs.record(s, out);
         if s.depth == 0 {
             s.cover(1.0, CameraEvent::Surface, hit.t, item);
         }
         if s.depth >= self.max_depth {
             return SurfaceOutcome::End;
         }
-        // Orient the shading frame: one-sided surfaces reflect nothing from behind; a refracting interface keeps
-        // its orientation (its inside is below); a diffusely transmitting thin wall scatters alike on both faces.
-        let frame = if hit.front_face || material.is_transmissive() {
-            hit.shading
-        } else if material.double_sided || material.transmits_diffusely() {
-            Frame {
-                s: hit.shading.s,
-                t: -hit.shading.t,
-                n: -hit.shading.n,
-            }
-        } else {
+        let Some(frame) = shading_frame(&hit, material) else {
             return SurfaceOutcome::End;
         };
+        let surface = Surface {
+            hit: &hit,
+            at: &at,
+            unmapped,
+            frame,
+        };
+        self.scatter_at_surface(services, s, ray, &surface, bsdf, rng, counters)
+    }
+
+    /// Adds the light the emissive surface `hit` emits toward the path (where an emissive texture is black there
+    /// is nothing to weight: the light sampler's density is not asked for), weighted by the power heuristic
+    /// against light sampling when the last event sampled its direction.
+    fn add_surface_emission(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        hit: &SurfaceHit,
+        emitter: impl FnOnce() -> Option<u32>,
+    ) {
+        let scene = services.scene();
+        let material = &scene.materials[hit.material as usize];
+        let le = material.emission_at(&hit.point_shading(), &scene.textures);
+        if le.max_element() > 0.0 {
+            let weight = match scene.area_light_of(hit.prim) {
+                Some(_) if s.prev_light_only => 0.0,
+                Some(light) if !s.prev_delta => {
+                    power_heuristic(s.prev_pdf, services.area_light_pdf(light, &s.prev, hit.p))
+                }
+                _ => 1.0,
+            };
+            s.add_reached(s.beta * le * weight, emitter);
+        }
+    }
+
+    /// Scatters at a surface: a dispersive surface first makes the path carry one channel; next-event
+    /// estimation, then the BSDF (or, guided at a Lambertian surface, the mixture of the guide and the BSDF,
+    /// see the guided module) samples the direction to continue in.
+    #[allow(clippy::too_many_arguments)]
+    fn scatter_at_surface(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        surface: &Surface,
+        mut bsdf: Bsdf,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> SurfaceOutcome {
+        let scene = services.scene();
+        let (hit, frame) = (surface.hit, surface.frame);
+        let material = &scene.materials[hit.material as usize];
         // A dispersive surface: the path goes on in one colour channel, refracted with that channel's index (the
         // first hit's colours are seen with the throughput before the choice).
         let seen_beta = s.beta;
         if material.is_dispersive() {
             let channel = carry_one_channel(&mut s.beta, rng);
-            bsdf = material.bsdf_in_channel(&at, &scene.textures, channel);
+            bsdf = material.bsdf_in_channel(surface.at, &scene.textures, channel);
         }
         // The clear coat's normal: its own normal map, else the normal before the base's normal map.
-        if let Some(n) = material.coat_normal(&unmapped, &at, &scene.textures) {
+        if let Some(n) = material.coat_normal(&surface.unmapped, surface.at, &scene.textures) {
             let n = if frame.n.dot(hit.shading.n) < 0.0 {
                 -n
             } else {
@@ -1012,84 +961,32 @@ impl PathTracer {
             };
             bsdf.set_coat_normal(frame.to_local(n));
         }
-        let wo = frame.to_local(wo_world);
+        let wo = frame.to_local(-ray.dir);
         if s.depth == 0 {
             if let Some(r) = s.record.as_deref_mut() {
                 r.colors = bsdf.colors(wo) * seen_beta;
             }
         }
-        // Guided directions at a diffuse (Lambertian) surface, as at medium scattering events: one-sample MIS of the
-        // cache's distribution and the BSDF, whose mixture density light sampling is weighed against.
         let guide = match bsdf {
-            Bsdf::Lambert(_) => self.guide_at(services, s, hit.p),
+            Bsdf::Lambert(_) => guided::guide_at(services, s.beta, hit.p),
             _ => None,
         };
-        let direction_pdf = |wi: Vec3| {
-            let pdf = bsdf.pdf(wo, wi);
-            match guide {
-                Some(d) => {
-                    GUIDE_PROBABILITY * d.pdf(frame.to_world(wi)) + (1.0 - GUIDE_PROBABILITY) * pdf
-                }
-                None => pdf,
-            }
-        };
-        // Next-event estimation.
+        let direction_pdf =
+            |wi: Vec3| guided::mixture_pdf(guide, frame.to_world(wi), bsdf.pdf(wo, wi));
         if !bsdf.is_delta() {
-            let ctx = LightContext {
-                p: hit.p,
-                n: Some(frame.n),
-            };
-            services.sample_lights(&ctx, rng, |chosen, rng| {
-                let ls = chosen.sample;
-                let wi = frame.to_local(ls.wi);
-                let f = bsdf.eval(wo, wi) * wi.z.abs();
-                let segment = ls.shadow_segment(&hit.surface_point());
-                if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
-                    let mut stack = s.stack;
-                    if let Some(interior) = material.interior {
-                        stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
-                    }
-                    let tr = services.transmittance(&segment, ray.time, &stack, rng, counters);
-                    if tr.max_element() > 0.0 {
-                        let light_pdf = chosen.pmf * ls.pdf;
-                        let weight = if ls.is_delta {
-                            1.0
-                        } else {
-                            power_heuristic(light_pdf, direction_pdf(wi))
-                        };
-                        let value = s.beta * f * tr * ls.radiance * (weight / light_pdf);
-                        let beta = s.beta;
-                        let split = || {
-                            let factor =
-                                beta * tr * ls.radiance * (wi.z.abs() * weight / light_pdf);
-                            bsdf.eval_split(wo, wi) * factor
-                        };
-                        let emitter = || scene.names().emitter_of_light(chosen.index);
-                        s.add_surface_sample(value, split, emitter);
-                    }
-                }
-            });
+            self.surface_next_event(
+                services,
+                s,
+                ray,
+                surface,
+                &bsdf,
+                wo,
+                direction_pdf,
+                rng,
+                counters,
+            );
         }
-        // Continue the path by sampling the BSDF (or, guided, the mixture).
-        let sampled = match guide {
-            None => bsdf.sample(wo, rng.sample_1d(), rng.sample_2d()),
-            Some(distribution) => {
-                let u_lobe = rng.sample_1d();
-                let (guided, u) = choose_strategy(rng.sample_2d());
-                let wi = if guided {
-                    Some(frame.to_local(distribution.sample(u).0))
-                } else {
-                    bsdf.sample(wo, u_lobe, u).map(|b| b.wi)
-                };
-                wi.map(|wi| BsdfSample {
-                    wi,
-                    f: bsdf.eval(wo, wi),
-                    pdf: direction_pdf(wi),
-                    is_delta: false,
-                    class: LobeClass::Diffuse,
-                })
-            }
-        };
+        let sampled = guided::sample_bsdf(&bsdf, guide, &frame, wo, rng, direction_pdf);
         let Some(bs) = sampled else {
             return SurfaceOutcome::End;
         };
@@ -1104,6 +1001,77 @@ impl PathTracer {
                 bsdf.eval_split(wo, bs.wi).shares()
             });
         }
+        self.continue_from_surface(s, ray, hit, frame, material.interior, &bs, rng, counters)
+    }
+
+    /// Next-event estimation at a surface: each light sample weighted by the power heuristic against
+    /// `direction_pdf` (the density with which the path samples its next direction, local directions).
+    #[allow(clippy::too_many_arguments)]
+    fn surface_next_event(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        surface: &Surface,
+        bsdf: &Bsdf,
+        wo: Vec3,
+        direction_pdf: impl Fn(Vec3) -> f32,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) {
+        let scene = services.scene();
+        let (hit, frame) = (surface.hit, surface.frame);
+        let material = &scene.materials[hit.material as usize];
+        let ctx = LightContext {
+            p: hit.p,
+            n: Some(frame.n),
+        };
+        services.sample_lights(&ctx, rng, |chosen, rng| {
+            let ls = chosen.sample;
+            let wi = frame.to_local(ls.wi);
+            let f = bsdf.eval(wo, wi) * wi.z.abs();
+            let segment = ls.shadow_segment(&hit.surface_point());
+            if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
+                let mut stack = s.stack;
+                if let Some(interior) = material.interior {
+                    stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
+                }
+                let tr = services.transmittance(&segment, ray.time, &stack, rng, counters);
+                if tr.max_element() > 0.0 {
+                    let light_pdf = chosen.pmf * ls.pdf;
+                    let weight = if ls.is_delta {
+                        1.0
+                    } else {
+                        power_heuristic(light_pdf, direction_pdf(wi))
+                    };
+                    let value = s.beta * f * tr * ls.radiance * (weight / light_pdf);
+                    let beta = s.beta;
+                    let split = || {
+                        let factor = beta * tr * ls.radiance * (wi.z.abs() * weight / light_pdf);
+                        bsdf.eval_split(wo, wi) * factor
+                    };
+                    let emitter = || scene.names().emitter_of_light(chosen.index);
+                    s.add_surface_sample(value, split, emitter);
+                }
+            }
+        });
+    }
+
+    /// Continues the path from a surface along the sampled direction `bs`: weights the throughput, crosses into
+    /// or out of the surface's interior when the direction refracts, counts the bounce (Russian roulette) and
+    /// remembers the event for the guiding cache. Returns the next ray, or the end of the path.
+    #[allow(clippy::too_many_arguments)]
+    fn continue_from_surface(
+        &self,
+        s: &mut PathState,
+        ray: &Ray,
+        hit: &SurfaceHit,
+        frame: Frame,
+        interior: Option<u32>,
+        bs: &BsdfSample,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> SurfaceOutcome {
         let wi_world = frame.to_world(bs.wi);
         s.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
         s.prev_delta = bs.is_delta;
@@ -1114,8 +1082,9 @@ impl PathTracer {
         };
         s.prev_light_only = false;
         let radiance_before = s.radiance;
-        if let Some(interior) = material.interior {
+        if let Some(interior) = interior {
             // Crossing the surface (refraction) enters or leaves its interior.
+            let wo_world = -ray.dir;
             let crossing = wi_world.dot(hit.geometric_normal).signum()
                 != wo_world.dot(hit.geometric_normal).signum();
             if crossing {
@@ -1231,60 +1200,25 @@ impl PathTracer {
         }
         let wo = -ray.dir;
         let ctx = LightContext { p, n: None };
-        // Guided directions: one-sample MIS of the cache's distribution and the phase function, chosen with the
-        // fixed probability GUIDE_PROBABILITY (Müller et al. 2017, with the phase function in the BSDF's place).
-        // The mixture's density is what light sampling is weighed against, so the estimate stays unbiased.
-        // A path whose throughput has grown above GUIDE_MAX_THROUGHPUT samples the phase function alone (weight 1)
-        // until it falls back: a guided event's weight is at most 1/(1 − GUIDE_PROBABILITY), and over the
-        // hundreds of events of a walk in a dense medium their product otherwise grows without bound (measured:
-        // 13x the MSE of unguided paths on the backlit cloud). Choosing the strategy from the path's past keeps
-        // the estimate unbiased: each event's weight uses the density it sampled with.
-        let guide = self.guide_at(services, s, p);
-        let direction_pdf = |wi: Vec3| {
-            let phase = collision.phase.eval(wo, wi);
-            match guide {
-                Some(d) => GUIDE_PROBABILITY * d.pdf(wi) + (1.0 - GUIDE_PROBABILITY) * phase,
-                None => phase,
-            }
+        // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
+        // against, so the estimate stays unbiased.
+        let guide = guided::guide_at(services, s.beta, p);
+        let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, collision.phase.eval(wo, wi));
+        self.medium_next_event(
+            services,
+            s,
+            ray,
+            t,
+            &ctx,
+            &collision.phase,
+            direction_pdf,
+            rng,
+            counters,
+        );
+        let Some((wi, pdf, weight)) = guided::sample_phase(&collision.phase, guide, wo, rng) else {
+            return false;
         };
-        services.sample_lights(&ctx, rng, |chosen, rng| {
-            let ls = chosen.sample;
-            let phase = collision.phase.eval(wo, ls.wi);
-            let segment = ls.shadow_segment(&SurfacePoint::free(p));
-            if let (true, Some(segment)) = (phase > 0.0, segment) {
-                let tr = services.transmittance(&segment, ray.time, &s.stack, rng, counters);
-                if tr.max_element() > 0.0 {
-                    let light_pdf = chosen.pmf * ls.pdf;
-                    let weight = if ls.is_delta {
-                        self.equiangular_weight(services, s, t, chosen.index)
-                    } else if !self.media_mis {
-                        1.0
-                    } else {
-                        power_heuristic(light_pdf, direction_pdf(ls.wi))
-                    };
-                    let value = s.beta * tr * ls.radiance * (phase * weight / light_pdf);
-                    s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
-                }
-            }
-        });
-        let (wi, pdf) = match guide {
-            // The phase function is sampled exactly (value == pdf), so the throughput is unchanged.
-            None => collision.phase.sample(wo, rng.sample_2d()),
-            Some(distribution) => {
-                let (guided, u) = choose_strategy(rng.sample_2d());
-                let wi = if guided {
-                    distribution.sample(u).0
-                } else {
-                    collision.phase.sample(wo, u).0
-                };
-                let pdf = direction_pdf(wi);
-                if !(pdf > 0.0 && pdf.is_finite()) {
-                    return false;
-                }
-                s.beta *= collision.phase.eval(wo, wi) / pdf;
-                (wi, pdf)
-            }
-        };
+        s.beta *= weight;
         if s.depth == 0 {
             s.first_event = FirstEvent::Volume;
         }
@@ -1304,18 +1238,44 @@ impl PathTracer {
         true
     }
 
-    /// The guiding cache's distribution at `p`, when the render is guided, the cache learned one there, and the
-    /// path's throughput is at most [`GUIDE_MAX_THROUGHPUT`].
-    fn guide_at<'a>(
+    /// Next-event estimation at a real collision `t` along `ray` (the point and its phase function `phase`):
+    /// one light sample, weighted by the power heuristic against `direction_pdf` (the density with which the
+    /// path samples its next direction), or against equiangular sampling for a point or spot light.
+    #[allow(clippy::too_many_arguments)]
+    fn medium_next_event(
         &self,
-        services: &RendererServices<'a>,
-        s: &PathState,
-        p: Vec3,
-    ) -> Option<&'a DirectionalQuadtree> {
-        services
-            .guide()
-            .filter(|_| s.beta.max_element() <= GUIDE_MAX_THROUGHPUT)
-            .and_then(|g| g.distribution_at(p))
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        t: f32,
+        ctx: &LightContext,
+        phase: &PhaseFunction,
+        direction_pdf: impl Fn(Vec3) -> f32,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) {
+        let scene = services.scene();
+        let wo = -ray.dir;
+        services.sample_lights(ctx, rng, |chosen, rng| {
+            let ls = chosen.sample;
+            let phase = phase.eval(wo, ls.wi);
+            let segment = ls.shadow_segment(&SurfacePoint::free(ctx.p));
+            if let (true, Some(segment)) = (phase > 0.0, segment) {
+                let tr = services.transmittance(&segment, ray.time, &s.stack, rng, counters);
+                if tr.max_element() > 0.0 {
+                    let light_pdf = chosen.pmf * ls.pdf;
+                    let weight = if ls.is_delta {
+                        self.equiangular_weight(services, s, t, chosen.index)
+                    } else if !self.media_mis {
+                        1.0
+                    } else {
+                        power_heuristic(light_pdf, direction_pdf(ls.wi))
+                    };
+                    let value = s.beta * tr * ls.radiance * (phase * weight / light_pdf);
+                    s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
+                }
+            }
+        });
     }
 
     /// Counts a scattering event and plays Russian roulette; returns false when the path ends.

@@ -9,6 +9,7 @@ use crate::guiding::GuidingField;
 use crate::light::{Light, LightBvh, LightContext, LightSample};
 use crate::math::{Ray, Rgb, Rng, Vec2, Vec3};
 use crate::scene::Scene;
+use crate::volume::Medium;
 
 /// Light sampling and shadow-ray transmittance over a scene.
 #[derive(Clone, Copy)]
@@ -57,6 +58,25 @@ impl SegmentMedia {
     /// The medium indices.
     pub fn ids(&self) -> &[u32] {
         &self.ids[..self.len]
+    }
+
+    /// The same media in the order the integrator asks them for their free flights: media that collide and
+    /// do not emit, then those that collide and emit, then those that never collide (absorption only), each
+    /// group in its order here. An absorber's weight is its transmittance to the segment's event, so it must be
+    /// asked once the event is known; an emitting medium's samples are weighted by the transmittance of the
+    /// media asked after it, fewest when it comes late.
+    pub fn in_flight_order(&self, media: &[std::sync::Arc<dyn Medium>]) -> Self {
+        let rank = |&m: &u32| {
+            let medium = &media[m as usize];
+            match (medium.is_absorbing_only(), medium.is_emissive()) {
+                (true, _) => 2,
+                (false, true) => 1,
+                (false, false) => 0,
+            }
+        };
+        let mut ordered = *self;
+        ordered.ids[..self.len].sort_by_key(rank);
+        ordered
     }
 
     fn push(&mut self, id: u32) {

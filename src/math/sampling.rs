@@ -127,6 +127,33 @@ impl Equiangular {
     }
 }
 
+/// Makes a path carry a single colour channel, chosen with probability proportional to its throughput β_c and
+/// weighted by 1/p_c, so the new throughput Σβ · e_c has the old one as its expectation (unbiased); returns the
+/// channel. Spectral renderers sample one wavelength per path the same way (hero wavelength); the cost is colour
+/// noise. Used where one channel is all an event can follow: a dispersive surface
+/// (`KHR_materials_dispersion`) refracts with the index of the channel returned, and an RGB grid medium with
+/// `chromatic_tracking: one_channel` delta-tracks that channel alone. A path already carrying one channel is
+/// unchanged and that channel returned (the green one for a path that carries nothing).
+pub fn carry_one_channel(beta: &mut super::Rgb, rng: &mut super::Rng) -> usize {
+    let carried = beta.to_array().iter().filter(|&&b| b > 0.0).count();
+    if carried <= 1 {
+        return beta.to_array().iter().position(|&b| b > 0.0).unwrap_or(1);
+    }
+    let sum = beta.element_sum();
+    let u = rng.next_f32() * sum;
+    let channel = if u < beta.x {
+        0
+    } else if u < beta.x + beta.y {
+        1
+    } else {
+        2
+    };
+    let mut one = super::Rgb::ZERO;
+    one[channel] = sum;
+    *beta = one;
+    channel
+}
+
 /// Balance heuristic for one sample from each of two strategies (Veach 1997, eq. 9.10).
 #[cfg(test)]
 pub fn balance_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {

@@ -13,9 +13,8 @@
 //! - RGB extinction (a vec3 density grid): majorants of the channels' maximum; free flights by spectral tracking
 //!   (Kutz et al. 2017, §5, history-aware collision probabilities: the path keeps all three channels), or with
 //!   `"chromatic_tracking": "one_channel"` by delta tracking of the one channel the path is made to carry. `auto`
-//!   (the default) is spectral tracking, measured 2.8× to 8.5× as efficient (docs/reference.md). On a segment shared with
-//!   grey media it tracks the part before their nearest collision; beside another chromatic medium or an emitting
-//!   one the path carries one channel.
+//!   (the default) is spectral tracking, measured 2.8× to 8.5× as efficient (docs/reference.md), alone on a segment
+//!   or beside other media (each medium flies over the part before the collisions of those before it).
 //! - Shadow rays: ratio tracking (Novák et al. 2014, eq. 6), or residual ratio tracking (Novák et al. 2014, §4)
 //!   with `"shadow_estimator": "residual_ratio"`.
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
@@ -35,12 +34,11 @@ use super::majorant::{MajorantKind, Majorants};
 use super::majorant_choice::{self, MajorantEstimate};
 use super::tracking::{
     decomposition_tracking, decomposition_tracking_reporting, ratio_tracking,
-    residual_ratio_tracking, spectral_tracking, NoHook, SpectralFlight, TentativeCollision,
-    TentativeHook,
+    residual_ratio_tracking, spectral_tracking, NoHook, TentativeCollision, TentativeHook,
 };
 use super::velocity::{Displaced, VelocityField};
 use super::{
-    Chromatic, ChromaticTracking, Collision, FreeFlight, Medium, MediumMethod, MethodReason,
+    Chromatic, ChromaticTracking, Collision, Flight, FreeFlight, Medium, MediumMethod, MethodReason,
     PhaseFunction, TentativeEmission, TrackingCounters, TransmittanceMethod, VolumeSpec,
 };
 #[cfg(any(test, feature = "testing"))]
@@ -289,7 +287,7 @@ impl GridMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
         hook: H,
-    ) -> Option<SpectralFlight> {
+    ) -> Option<Flight> {
         let channels = self.channels.as_deref()?;
         Some(match self.moved(&self.density, ray.time) {
             Some(max) => {
@@ -319,6 +317,68 @@ impl GridMedium {
                 counters,
                 hook,
             ),
+        })
+    }
+
+    /// Spectral tracking over `(0, t_max)` of `ray` for a path of `throughput`, gathering emission at its
+    /// tentative collisions when the medium emits; `None` for a scalar density.
+    fn spectral_flight(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        throughput: Rgb,
+        rng: &mut Rng,
+        counters: &mut TrackingCounters,
+        emission: &mut TentativeEmission,
+    ) -> Option<Flight> {
+        let interval = (0.0, t_max);
+        if !self.is_emissive() {
+            return self.spectral_walk(ray, interval, throughput, rng, counters, NoHook);
+        }
+        // The walk's weights already hold the path's throughput.
+        let t_end = self.exit(ray, t_max);
+        let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, Rgb::ONE, emission);
+        self.spectral_walk(ray, interval, throughput, rng, counters, gather)
+    }
+
+    /// Delta (decomposition) tracking of the field `channel` over `(0, t_max)` of `ray`: the next real
+    /// collision, analog. An emitting medium gathers its emission at the walk's tentative collisions, times
+    /// `throughput` (the walk's weights are 1).
+    #[allow(clippy::too_many_arguments)]
+    fn delta_flight(
+        &self,
+        channel: &GridDensity,
+        ray: &Ray,
+        t_max: f32,
+        throughput: Rgb,
+        rng: &mut Rng,
+        counters: &mut TrackingCounters,
+        emission: &mut TentativeEmission,
+    ) -> Option<f32> {
+        if !self.is_emissive() {
+            return with_field!(self, channel, ray.time, |field| decomposition_tracking(
+                field,
+                &self.majorants,
+                ray,
+                0.0,
+                t_max,
+                rng,
+                counters
+            ));
+        }
+        let t_end = self.exit(ray, t_max);
+        let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, throughput, emission);
+        with_field!(self, channel, ray.time, |field| {
+            decomposition_tracking_reporting(
+                field,
+                &self.majorants,
+                ray,
+                0.0,
+                t_max,
+                rng,
+                counters,
+                gather,
+            )
         })
     }
 
@@ -639,10 +699,6 @@ impl Medium for GridMedium {
         false
     }
 
-    fn is_chromatic(&self) -> bool {
-        self.channels.is_some()
-    }
-
     fn is_emissive(&self) -> bool {
         self.emission.as_ref().is_some_and(|e| e.scale > 0.0)
             || self
@@ -651,7 +707,7 @@ impl Medium for GridMedium {
                 .is_some_and(|f| f.radiance.max_element() > 0.0)
     }
 
-    fn sample_free_flight(
+    fn free_flight(
         &self,
         ray: &Ray,
         t_max: f32,
@@ -659,75 +715,28 @@ impl Medium for GridMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
         emission: &mut TentativeEmission,
-    ) -> Option<f32> {
-        // An RGB density tracked here (one-channel method, or a segment shared with other media) tracks the one
-        // channel the path carries (the integrator makes it carry one, see `Medium::is_chromatic`): delta tracking
-        // in it is analog, over the majorants of the channels' maximum.
+    ) -> Flight {
+        if self.tracks_spectrally() {
+            if let Some(flight) = self.spectral_flight(ray, t_max, throughput, rng, counters, emission)
+            {
+                return flight;
+            }
+        }
+        // An RGB density tracked one channel at a time makes the path carry one channel, chosen ∝ its
+        // throughput; delta tracking in it is analog (weight 1), over the majorants of the channels' maximum.
+        let mut carried = throughput;
         let channel = match &self.channels {
-            Some(ch) => &ch[throughput.max_position()],
+            Some(ch) => {
+                crate::math::sampling::carry_one_channel(&mut carried, rng);
+                &ch[carried.max_position()]
+            }
             None => &self.density,
         };
-        if !self.is_emissive() {
-            return with_field!(self, channel, ray.time, |field| decomposition_tracking(
-                field,
-                &self.majorants,
-                ray,
-                0.0,
-                t_max,
-                rng,
-                counters
-            ));
+        let collision = self.delta_flight(channel, ray, t_max, carried, rng, counters, emission);
+        Flight {
+            collision,
+            throughput: carried,
         }
-        // The walk is analog: its weights are relative to the path's throughput.
-        let t_end = self.exit(ray, t_max);
-        let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, throughput, emission);
-        with_field!(self, channel, ray.time, |field| {
-            decomposition_tracking_reporting(
-                field,
-                &self.majorants,
-                ray,
-                0.0,
-                t_max,
-                rng,
-                counters,
-                gather,
-            )
-        })
-    }
-
-    fn free_flight_weight(
-        &self,
-        _: &Ray,
-        _: f32,
-        _: bool,
-        _: Rgb,
-        _: &mut Rng,
-        _: &mut TrackingCounters,
-    ) -> Rgb {
-        // Delta tracking of a grey medium is analog.
-        Rgb::ONE
-    }
-
-    fn spectral_free_flight(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        throughput: Rgb,
-        rng: &mut Rng,
-        counters: &mut TrackingCounters,
-        emission: &mut TentativeEmission,
-    ) -> Option<SpectralFlight> {
-        if !self.tracks_spectrally() {
-            return None;
-        }
-        let interval = (0.0, t_max);
-        if !self.is_emissive() {
-            return self.spectral_walk(ray, interval, throughput, rng, counters, NoHook);
-        }
-        // The walk's weights already hold the path's throughput.
-        let t_end = self.exit(ray, t_max);
-        let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, Rgb::ONE, emission);
-        self.spectral_walk(ray, interval, throughput, rng, counters, gather)
     }
 
     fn collision(&self, p: Vec3, time: f32) -> Collision {

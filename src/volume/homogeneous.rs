@@ -19,8 +19,8 @@
 //! measure what each choice wins: forced spectral MIS on a grey medium, or a uniform channel choice.
 
 use super::{
-    ChannelSampling, Collision, ConstantScattering, FreeFlight, Medium, MediumMethod, MethodReason,
-    PhaseFunction, TentativeEmission, TrackingCounters, TransmittanceMethod,
+    ChannelSampling, Collision, ConstantScattering, Flight, FreeFlight, Medium, MediumMethod,
+    MethodReason, PhaseFunction, TentativeEmission, TrackingCounters, TransmittanceMethod,
 };
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 
@@ -53,7 +53,7 @@ pub struct HomogeneousMedium {
 /// that leaves the scene with this medium still on its stack: an open or unclosed mesh): 0 where σ > 0 and
 /// `t = ∞`, and exactly 1 where σ = 0, for any `t`. The plain product `σ t` would be `0 · ∞`, a NaN, there
 /// (issue 33: NaN samples from glass whose `attenuationColor` is 1 in a channel).
-fn beer_lambert(sigma: Rgb, t: f32) -> Rgb {
+pub(crate) fn beer_lambert(sigma: Rgb, t: f32) -> Rgb {
     let channel = |s: f32| if s > 0.0 { (-s * t).exp() } else { 1.0 };
     Rgb::new(channel(sigma.x), channel(sigma.y), channel(sigma.z))
 }
@@ -84,12 +84,80 @@ impl HomogeneousMedium {
         self.channel_choice == ChannelChoice::Auto && self.is_grey()
     }
 
-    /// Channel-selection probabilities for a path of `throughput`.
-    fn channel_weights(&self, throughput: Rgb) -> Rgb {
+    /// How spectral MIS chooses channels: `None` when free flights sample one exponential.
+    fn spectral_mis(&self) -> Option<ChannelSampling> {
         match self.channel_choice {
+            _ if self.samples_single_channel() => None,
             #[cfg(any(test, feature = "testing"))]
-            ChannelChoice::Uniform => Rgb::splat(1.0 / 3.0),
-            _ => throughput_weights(throughput),
+            ChannelChoice::Uniform => Some(ChannelSampling::Uniform),
+            _ => Some(ChannelSampling::Throughput),
+        }
+    }
+
+    /// Proposes the distance of the next real collision in `(0, t_max)`, or `None`: the exponential of one
+    /// channel, chosen by spectral MIS for a path of `throughput` unless σ_t is grey.
+    fn sample_distance(
+        &self,
+        t_max: f32,
+        throughput: Rgb,
+        rng: &mut Rng,
+        counters: &mut TrackingCounters,
+    ) -> Option<f32> {
+        if self.is_absorbing_only() {
+            return None;
+        }
+        let channel = match self.spectral_mis() {
+            None => 0,
+            Some(choice) => {
+                let w = channel_weights(choice, throughput);
+                let u = rng.next_f32();
+                if u < w.x {
+                    0
+                } else if u < w.x + w.y {
+                    1
+                } else {
+                    2
+                }
+            }
+        };
+        let sigma = self.sigma_t[channel];
+        let u = rng.next_f32();
+        if sigma <= 0.0 {
+            return None;
+        }
+        let t = -(1.0 - u).ln() / sigma;
+        (t < t_max).then(|| {
+            counters.real_collisions += 1;
+            t
+        })
+    }
+
+    /// The throughput factor of a flight that ends at `t`: when `collided`, σ_t T(t) / p̄(t) with p̄ the
+    /// mixture density Σ_c w_c σ_c exp(−σ_c t) of the channels' exponentials; otherwise T(t) / P(no collision
+    /// before t). 1 for both without spectral MIS; T(t) for an absorber.
+    fn flight_weight(&self, t: f32, collided: bool, throughput: Rgb) -> Rgb {
+        let transmittance = beer_lambert(self.sigma_t, t);
+        if self.is_absorbing_only() {
+            return transmittance;
+        }
+        let Some(choice) = self.spectral_mis() else {
+            return Rgb::ONE;
+        };
+        let w = channel_weights(choice, throughput);
+        if collided {
+            let pdf = (self.sigma_t * transmittance).dot(w);
+            if pdf > 0.0 {
+                self.sigma_t * transmittance / pdf
+            } else {
+                Rgb::ZERO
+            }
+        } else {
+            let p = transmittance.dot(w);
+            if p > 0.0 {
+                transmittance / p
+            } else {
+                Rgb::ZERO
+            }
         }
     }
 
@@ -148,7 +216,7 @@ impl Medium for HomogeneousMedium {
         self.sigma_s.max_element() <= 0.0
     }
 
-    fn sample_free_flight(
+    fn free_flight(
         &self,
         _ray: &Ray,
         t_max: f32,
@@ -156,67 +224,12 @@ impl Medium for HomogeneousMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
         _emission: &mut TentativeEmission,
-    ) -> Option<f32> {
-        if self.is_absorbing_only() {
-            return None;
-        }
-        let channel = if self.samples_single_channel() {
-            0
-        } else {
-            let w = self.channel_weights(throughput);
-            let u = rng.next_f32();
-            if u < w.x {
-                0
-            } else if u < w.x + w.y {
-                1
-            } else {
-                2
-            }
-        };
-        let sigma = self.sigma_t[channel];
-        let u = rng.next_f32();
-        if sigma <= 0.0 {
-            return None;
-        }
-        let t = -(1.0 - u).ln() / sigma;
-        (t < t_max).then(|| {
-            counters.real_collisions += 1;
-            t
-        })
-    }
-
-    fn free_flight_weight(
-        &self,
-        _ray: &Ray,
-        t: f32,
-        collided: bool,
-        throughput: Rgb,
-        _rng: &mut Rng,
-        _c: &mut TrackingCounters,
-    ) -> Rgb {
-        let transmittance = beer_lambert(self.sigma_t, t);
-        if self.is_absorbing_only() {
-            return transmittance;
-        }
-        if self.samples_single_channel() {
-            return Rgb::ONE;
-        }
-        let w = self.channel_weights(throughput);
-        if collided {
-            // σ_t T(t) / p̄(t) with p̄(t) = Σ_c w_c σ_c exp(−σ_c t).
-            let pdf = (self.sigma_t * transmittance).dot(w);
-            if pdf > 0.0 {
-                self.sigma_t * transmittance / pdf
-            } else {
-                Rgb::ZERO
-            }
-        } else {
-            let p = transmittance.dot(w);
-            if p > 0.0 {
-                transmittance / p
-            } else {
-                Rgb::ZERO
-            }
+    ) -> Flight {
+        let collision = self.sample_distance(t_max, throughput, rng, counters);
+        let weight = self.flight_weight(collision.unwrap_or(t_max), collision.is_some(), throughput);
+        Flight {
+            collision,
+            throughput: throughput * weight,
         }
     }
 
@@ -250,20 +263,17 @@ impl Medium for HomogeneousMedium {
             sigma_s: self.sigma_s,
             sigma_t: self.sigma_t,
             phase: self.phase,
+            spectral_mis: self.spectral_mis(),
         })
     }
+}
 
-    fn free_flight_pdf(&self, t: f32, throughput: Rgb) -> f32 {
-        if self.is_absorbing_only() {
-            return 0.0;
-        }
-        // σ_c exp(−σ_c t) for the one channel sampled, else the mixture p̄(t) = Σ_c w_c σ_c exp(−σ_c t).
-        let density = self.sigma_t * beer_lambert(self.sigma_t, t);
-        if self.samples_single_channel() {
-            density.x
-        } else {
-            density.dot(self.channel_weights(throughput))
-        }
+/// Channel-selection probabilities of spectral MIS by `choice` for a path of `throughput`.
+pub(crate) fn channel_weights(choice: ChannelSampling, throughput: Rgb) -> Rgb {
+    match choice {
+        #[cfg(any(test, feature = "testing"))]
+        ChannelSampling::Uniform => Rgb::splat(1.0 / 3.0),
+        ChannelSampling::Throughput => throughput_weights(throughput),
     }
 }
 
@@ -300,16 +310,17 @@ mod tests {
         let mut sum = [0.0f64; 3];
         let mut sum2 = [0.0f64; 3];
         for _ in 0..n {
-            let w = match m.sample_free_flight(
+            let flight = m.free_flight(
                 &ray,
                 d,
                 Rgb::ONE,
                 &mut rng,
                 &mut c,
                 &mut TentativeEmission::default(),
-            ) {
+            );
+            let w = match flight.collision {
                 Some(_) => Rgb::ZERO,
-                None => m.free_flight_weight(&ray, d, false, Rgb::ONE, &mut rng, &mut c),
+                None => flight.throughput,
             };
             for k in 0..3 {
                 sum[k] += w[k] as f64;
@@ -347,7 +358,7 @@ mod tests {
                 100_000,
                 (0.0, t_max as f64),
                 || {
-                    m.sample_free_flight(
+                    m.free_flight(
                         &ray,
                         t_max,
                         throughput,
@@ -355,14 +366,17 @@ mod tests {
                         &mut c,
                         &mut TentativeEmission::default(),
                     )
+                    .collision
                     .unwrap_or(f32::INFINITY)
                 },
-                |t| m.free_flight_pdf(t as f32, throughput) as f64,
+                |t| {
+                    let constant = m.constant_scattering().unwrap();
+                    constant.free_flight_pdf(t as f32, throughput) as f64
+                },
             );
         }
         // Nothing to sample in an absorber.
         let absorber = HomogeneousMedium::new("a", Rgb::ONE, Rgb::ZERO, 0.0);
-        assert_eq!(absorber.free_flight_pdf(0.5, Rgb::ONE), 0.0);
         assert!(absorber.constant_scattering().is_none());
         assert!(cases[0].constant_scattering().is_some());
     }
@@ -406,12 +420,14 @@ mod tests {
             ),
         ] {
             let t = f32::INFINITY;
-            let weight = medium.free_flight_weight(&ray, t, false, Rgb::ONE, &mut rng, &mut c);
+            let weight = medium.flight_weight(t, false, Rgb::ONE);
             assert_eq!(weight, expected, "{name}: free-flight weight at infinity");
             let tr = medium.transmittance(&ray, t, &mut rng, &mut c);
             assert_eq!(tr, Rgb::new(0.0, 0.0, 1.0), "{name}: transmittance");
-            let pdf = medium.free_flight_pdf(t, Rgb::ONE);
-            assert!(pdf.is_finite() && pdf >= 0.0, "{name}: pdf {pdf}");
+            if let Some(constant) = medium.constant_scattering() {
+                let pdf = constant.free_flight_pdf(t, Rgb::ONE);
+                assert!(pdf.is_finite() && pdf >= 0.0, "{name}: pdf {pdf}");
+            }
         }
     }
 
@@ -483,17 +499,16 @@ mod tests {
         let mut sum = Rgb::ZERO.as_dvec3();
         let mut sum2 = Rgb::ZERO.as_dvec3();
         for _ in 0..n {
-            if let Some(t) = m.sample_free_flight(
+            let flight = m.free_flight(
                 &ray,
                 d,
                 Rgb::ONE,
                 &mut rng,
                 &mut c,
                 &mut TentativeEmission::default(),
-            ) {
-                let w = (m.free_flight_weight(&ray, t, true, Rgb::ONE, &mut rng, &mut c)
-                    * m.collision(ray.at(t), 0.0).albedo)
-                    .as_dvec3();
+            );
+            if let Some(t) = flight.collision {
+                let w = (flight.throughput * m.collision(ray.at(t), 0.0).albedo).as_dvec3();
                 sum += w;
                 sum2 += w * w;
             }

@@ -290,7 +290,7 @@ fn write_chromatic(f: &mut fmt::Formatter<'_>, c: &Chromatic) -> fmt::Result {
         match c.tracking {
             ChromaticTracking::Spectral => write!(
                 f,
-                ", history-aware collision probabilities over the path throughput ({why}; beside grey media, over the part of a segment before their nearest collision; a path that shares a segment with another chromatic or an emitting medium carries one channel there)"
+                ", history-aware collision probabilities over the path throughput ({why}; beside other media too, over the part of a segment before the collisions of the media asked before it)"
             )?,
             ChromaticTracking::OneChannel => write!(
                 f,

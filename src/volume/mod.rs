@@ -3,18 +3,19 @@
 //! which tracking method it uses.
 //!
 //! Every medium implements [`Medium`]:
-//! - [`Medium::sample_free_flight`] proposes the distance of the next real collision (or none);
-//! - [`Medium::free_flight_weight`] gives the path-throughput factor that makes that proposal unbiased
-//!   (1 for analog methods such as closed-form or delta tracking of grey media);
+//! - [`Medium::free_flight`] answers for an interval of a ray: the next real collision (or none) and the path
+//!   throughput the walk's weights leave ([`Flight`]; the weights are 1 for analog methods such as closed-form or
+//!   delta tracking of grey media);
 //! - [`Medium::collision`] gives the albedo, emission and phase function at a collision;
 //! - an emitting medium gathers its emission along the free flight, at the tentative collisions of its walk
 //!   (null or real), into [`TentativeEmission`] (Miller, Georgiev, Jarosz 2019, eq. 9, blended with the collision
 //!   estimator: [`tracking::TentativeCollision::emission_weight`]), not only at the real collision;
 //! - [`Medium::transmittance`] estimates beam transmittance for shadow rays.
 //!
-//! Overlapping media combine exactly: each proposes its own first collision and the nearest wins, because the
-//! first event of independent exponential processes is the event of their sum (the integrator's
-//! `MediumSegment`). Implementations, each the cheapest exact method for what it models:
+//! Overlapping media combine exactly: each flies in turn over the part of the segment before the nearest
+//! collision of those before it (a walk cut at a distance independent of it stays unbiased, Kutz et al. 2017,
+//! §5), so their free flights together sample the sum of their extinctions, whatever each one's estimator (the
+//! integrator's `combined_flight`). Implementations, each the cheapest exact method for what it models:
 //! - [`homogeneous`]: closed-form tracking, spectral MIS for chromatic extinction, no collisions at all when
 //!   absorption-only (Beer's law);
 //! - [`noise`]: the thesis's absorption-only procedural noise medium, ratio-tracked transmittance only;
@@ -48,7 +49,7 @@ pub use method::{
 };
 pub use phase::PhaseFunction;
 pub use spec::{MissingFrame, VolumeSpec};
-pub use tracking::{SpectralFlight, TrackingCounters};
+pub use tracking::TrackingCounters;
 
 /// What happens at a real collision inside a medium.
 #[derive(Clone, Copy, Debug)]
@@ -65,9 +66,9 @@ pub struct Collision {
 
 /// The light a medium emitted along one segment of a path, gathered at the tentative collisions of its free
 /// flights: each sample is (ray parameter, radiance reaching the segment's start, already times the path
-/// throughput the flight started with). A sample counts only where the path has not collided before it in
-/// another medium; the integrator weights it by the other media's survival there. Reused across segments (the
-/// buffer allocates only for emitting media).
+/// throughput the walk carried there). The integrator weights each sample by the transmittance of the media
+/// that flew after its medium on the segment. Reused across segments (the buffer allocates only for emitting
+/// media).
 #[derive(Clone, Debug, Default)]
 pub struct TentativeEmission {
     samples: Vec<(f32, Rgb, u32)>,
@@ -106,6 +107,38 @@ pub struct ConstantScattering {
     pub sigma_t: Rgb,
     /// The phase function.
     pub phase: PhaseFunction,
+    /// How [`Medium::free_flight`] samples distances: `None` for one exponential shared by every channel (grey
+    /// σ_t), else the channel choice of its spectral MIS.
+    pub spectral_mis: Option<ChannelSampling>,
+}
+
+impl ConstantScattering {
+    /// The transmittance exp(−σ_t t) per channel over a distance `t`.
+    pub fn transmittance(&self, t: f32) -> Rgb {
+        homogeneous::beer_lambert(self.sigma_t, t)
+    }
+
+    /// Density, per metre, with which [`Medium::free_flight`] returns a real collision at distance `t` for a
+    /// path of `throughput`: σ_t exp(−σ_t t) for grey σ_t, else the channel mixture Σ_c w_c σ_c exp(−σ_c t) of
+    /// spectral MIS. The other strategy in the multiple importance sampling of equiangular sampling.
+    pub fn free_flight_pdf(&self, t: f32, throughput: Rgb) -> f32 {
+        let density = self.sigma_t * self.transmittance(t);
+        match self.spectral_mis {
+            None => density.x,
+            Some(choice) => density.dot(homogeneous::channel_weights(choice, throughput)),
+        }
+    }
+}
+
+/// What one free flight through a medium ([`Medium::free_flight`]) did: where it collided, and the path
+/// throughput that the walk's weights leave.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Flight {
+    /// The parameter of the real collision, or `None` when the path left the interval.
+    pub collision: Option<f32>,
+    /// The path throughput after the flight: the throughput it started with, times σ_t(x) T(x)/p(x) at the
+    /// collision, or T/P(no collision) on leaving, per channel.
+    pub throughput: Rgb,
 }
 
 /// A participating medium.
@@ -139,35 +172,19 @@ pub trait Medium: Send + Sync {
         false
     }
 
-    /// True when σ_t varies by channel in a way [`Medium::sample_free_flight`] cannot sample for all channels at
-    /// once (an RGB density grid): the integrator then makes the path carry one channel before the medium tracks
-    /// it, unless the medium is alone on the segment and tracks it spectrally ([`Medium::spectral_free_flight`]).
-    fn is_chromatic(&self) -> bool {
-        false
-    }
-
-    /// Spectral tracking of a segment `(0, t_max)` that this medium fills alone: the next real collision and the
-    /// path throughput that the walk's weights leave, for all channels at once; `None` when the medium does not
-    /// track spectrally (the default), and the integrator uses [`Medium::sample_free_flight`]. The weights depend
-    /// on the whole walk, not only on where it ended, which is why a segment shared with other media (whose
-    /// collision may come first) does not use it. An emitting medium pushes its emission at each tentative
-    /// collision into `emission`, times the walk's throughput there.
-    fn spectral_free_flight(
-        &self,
-        _ray: &Ray,
-        _t_max: f32,
-        _throughput: Rgb,
-        _rng: &mut Rng,
-        _counters: &mut TrackingCounters,
-        _emission: &mut TentativeEmission,
-    ) -> Option<SpectralFlight> {
-        None
-    }
-
-    /// Proposes the distance of the next real collision in `(0, t_max)`, or `None`. `throughput` is the path's
-    /// current throughput, which chromatic media use to choose the channel to sample. An emitting medium pushes
-    /// its emission at each tentative collision into `emission`, times `throughput`.
-    fn sample_free_flight(
+    /// The free flight of a path through this medium over `(0, t_max)` of `ray`, as if the medium were alone
+    /// there: the next real collision (or none), and the path throughput `throughput` times the weight of the
+    /// whole walk (σ_t·T/p at a collision, T/P(no collision) on passing, with any spectral-MIS or
+    /// spectral-tracking weights; 1 for analog samplers). The walk is unbiased for every channel: the expected
+    /// weighted outcome is the collision integral ∫ σ_t T h + T(t_max) h(t_max) for any function h of where the
+    /// flight ends. An emitting medium pushes its emission at each tentative collision into `emission`, already
+    /// times the path throughput there. A medium that never collides ([`Medium::is_absorbing_only`]) returns
+    /// no collision and its transmittance estimate to `t_max` as the weight.
+    ///
+    /// This one answer is all the integrator asks of a medium along a path: where media overlap, each answers
+    /// for the interval up to the nearest collision of those asked before it (see the integrator's
+    /// `sample_segment_media`).
+    fn free_flight(
         &self,
         ray: &Ray,
         t_max: f32,
@@ -175,20 +192,7 @@ pub trait Medium: Send + Sync {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
         emission: &mut TentativeEmission,
-    ) -> Option<f32>;
-
-    /// Throughput factor for the free flight from the ray origin to `t`: when `collided`, this medium's own
-    /// collision at `t` (σ_t(t)·T(t)/p(t)); otherwise surviving to `t` (T(t)/P(no collision before t)).
-    /// Analog samplers return 1 for both. `throughput` must be the value given to `sample_free_flight`.
-    fn free_flight_weight(
-        &self,
-        ray: &Ray,
-        t: f32,
-        collided: bool,
-        throughput: Rgb,
-        rng: &mut Rng,
-        counters: &mut TrackingCounters,
-    ) -> Rgb;
+    ) -> Flight;
 
     /// Albedo, emission and phase function at a collision point, for a ray at `time` (frames from the frame;
     /// a moving medium reads its values where they were at the frame).
@@ -208,13 +212,6 @@ pub trait Medium: Send + Sync {
     /// whose transmittance has no closed form.
     fn constant_scattering(&self) -> Option<ConstantScattering> {
         None
-    }
-
-    /// Density, per metre, with which [`Medium::sample_free_flight`] returns a real collision at distance `t`
-    /// for a path of `throughput`: the other strategy in the multiple importance sampling of equiangular
-    /// sampling. Only media with [`Medium::constant_scattering`] need it; the default is 0.
-    fn free_flight_pdf(&self, _t: f32, _throughput: Rgb) -> f32 {
-        0.0
     }
 }
 

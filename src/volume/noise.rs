@@ -13,7 +13,7 @@ use super::density::DensityField;
 use super::majorant::{MajorantKind, Majorants};
 use super::tracking::ratio_tracking;
 use super::{
-    Collision, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
+    Collision, Flight, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
     TransmittanceMethod,
 };
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
@@ -188,28 +188,20 @@ impl Medium for NoiseMedium {
         true
     }
 
-    fn sample_free_flight(
-        &self,
-        _: &Ray,
-        _: f32,
-        _: Rgb,
-        _: &mut Rng,
-        _: &mut TrackingCounters,
-        _: &mut super::TentativeEmission,
-    ) -> Option<f32> {
-        None
-    }
-
-    fn free_flight_weight(
+    fn free_flight(
         &self,
         ray: &Ray,
-        t: f32,
-        _collided: bool,
-        _throughput: Rgb,
+        t_max: f32,
+        throughput: Rgb,
         rng: &mut Rng,
-        c: &mut TrackingCounters,
-    ) -> Rgb {
-        Rgb::splat(self.ratio_track(ray, t, rng, c))
+        counters: &mut TrackingCounters,
+        _: &mut super::TentativeEmission,
+    ) -> Flight {
+        // Never a collision: the path carries the ratio-tracked transmittance.
+        Flight {
+            collision: None,
+            throughput: throughput * Rgb::splat(self.ratio_track(ray, t_max, rng, counters)),
+        }
     }
 
     fn collision(&self, _p: Vec3, _time: f32) -> Collision {

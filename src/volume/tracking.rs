@@ -26,6 +26,7 @@
 
 use super::density::{local_ray, DensityField, DensityLookup};
 use super::majorant::{Majorants, Segment, VoxelCells};
+use super::Flight;
 use crate::math::{Ray, Rgb, Rng};
 use std::ops::ControlFlow;
 
@@ -742,17 +743,6 @@ impl<C: DensityLookup, H: TentativeHook> Estimator for Spectral<C, H> {
     }
 }
 
-/// A free flight sampled by [`spectral_tracking`]: where it collided, and the path throughput that the walk's
-/// weights leave.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpectralFlight {
-    /// The parameter of the real collision, or `None` when the path left the interval.
-    pub collision: Option<f32>,
-    /// The path throughput after the flight: at the collision, σ_t(x) times the transmittance to it over the
-    /// collision's density, per channel; otherwise the transmittance over the probability of escaping.
-    pub throughput: Rgb,
-}
-
 /// Spectral tracking (Kutz, Habel, Li, Novák 2017, "Spectral and Decomposition Tracking for Rendering
 /// Heterogeneous Volumes", §5, with the history-aware collision probabilities of §5.1): samples a free flight
 /// along the world `ray` in `[t_min, t_max]` through a medium whose extinction differs per channel, for all
@@ -785,7 +775,7 @@ pub fn spectral_tracking<F: DensityField + ?Sized, H: TentativeHook>(
     rng: &mut Rng,
     counters: &mut TrackingCounters,
     hook: H,
-) -> SpectralFlight {
+) -> Flight {
     let mut spectral = Spectral {
         channels: channels.map(|f| f.lookup()),
         throughput,
@@ -802,7 +792,7 @@ pub fn spectral_tracking<F: DensityField + ?Sized, H: TentativeHook>(
         counters,
         &mut spectral,
     );
-    SpectralFlight {
+    Flight {
         collision: spectral.hit,
         throughput: spectral.throughput,
     }

@@ -42,6 +42,7 @@ mod motion_blur;
 mod obj_loader;
 mod obj_materials;
 mod obj_mutations;
+mod overlapping_media;
 mod reliability;
 mod render_accuracy;
 mod shots;
