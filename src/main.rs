@@ -389,6 +389,10 @@ impl RenderArgs {
     }
 }
 
+// The value parsers of the flags below (`value_parser = ...`) return `Result<T, String>`: clap's convention,
+// whose message it prints after the flag and value. The command functions return `String` too: the CLI's one
+// error line (`nimbus: error: ...`); the library's typed errors become that text at this boundary.
+
 /// Parses `--aovs`.
 fn parse_aovs(list: &str) -> Result<nimbus::render::AovSelection, String> {
     nimbus::render::AovSelection::parse(list).map_err(|e| e.to_string())
@@ -518,7 +522,7 @@ fn converge(args: ConvergeArgs) -> Result<(), String> {
     let options = nimbus::converge::ConvergeOptions {
         scene: args.scene,
         reference: args.reference,
-        methods: nimbus::converge::Method::parse_list(&args.methods)?,
+        methods: nimbus::converge::Method::parse_list(&args.methods).map_err(|e| e.to_string())?,
         budget_seconds: args.budget,
         width: args.image.width,
         height: args.image.height,

@@ -1116,7 +1116,7 @@ fn check_resume(
     }
     from.progress
         .fits(&from.film, &region.samples)
-        .map_err(RenderError::Resume)
+        .map_err(|e| RenderError::Resume(e.to_string()))
 }
 
 /// Peak resident set size of this process (Linux `VmHWM`), or `None` where unknown.
