@@ -113,20 +113,9 @@ pub(super) enum CompositionError {
          brings it in), over the limit of {0} prims (raise it with --max-prims)"
     )]
     StagePrims(u64),
-    /// A class arc that Pcp's implied classes carry back into the run.
-    #[error(
-        "{class_arc} is a composition cycle for openusd 0.6, which follows it for exponential time ({through}, \
-         below which {below}: a class arc implied onto {referencing}'s layer stack as {implied}, nested with \
-         {nested_with})"
-    )]
-    ImpliedClass {
-        class_arc: String,
-        through: String,
-        below: String,
-        referencing: String,
-        implied: String,
-        nested_with: String,
-    },
+    /// A class arc that Pcp's implied classes carry back into the run (boxed: the largest variant).
+    #[error(transparent)]
+    ImpliedClass(Box<ImpliedClassCycle>),
     /// A prim index of more nodes than the prim limit.
     #[error(
         "composing {site} reaches {nodes} arc targets (each arc's target with its own and its ancestors' arcs, \
@@ -197,6 +186,22 @@ pub(super) enum CompositionError {
         target: String,
         chain: String,
     },
+}
+
+/// A class arc that Pcp's implied classes carry back into the run ([`CompositionError::ImpliedClass`]): the
+/// arc, the reference it is met through, the step below which it is met, and where it is implied.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{class_arc} is a composition cycle for openusd 0.6, which follows it for exponential time ({through}, below \
+     which {below}: a class arc implied onto {referencing}'s layer stack as {implied}, nested with {nested_with})"
+)]
+pub(super) struct ImpliedClassCycle {
+    class_arc: String,
+    through: String,
+    below: String,
+    referencing: String,
+    implied: String,
+    nested_with: String,
 }
 
 /// How an arc composes its target.
@@ -812,14 +817,14 @@ impl<'a> Walk<'a> {
         };
         let top = frames.last().expect("a frame");
         let class_arc = top.last_step().1.authored(&self.sites[top.site].1);
-        Err(CompositionError::ImpliedClass {
+        Err(CompositionError::ImpliedClass(Box::new(ImpliedClassCycle {
             class_arc: class_arc.unwrap_or_default(),
             through: describe(&frames[through]),
             below: describe(top),
             referencing: referencing.clone(),
             implied: implied_site.1,
             nested_with: self.sites[frames[from].site].1.clone(),
-        })
+        })))
     }
 
     /// `Ok` when the prim index of `site` holds at most as many nodes as the prim limit allows prims: the arcs a
