@@ -1,27 +1,29 @@
 //! The `nimbus` command line: `render` a scene (or a part of it) to EXR + PNG, `merge` parts, `info` about a VDB
 //! file, `converge` charts.
 
+mod cli;
+
 use clap::{Args, Parser, Subcommand};
-use nimbus::farm::checkpoint::{read_checkpoint, write_checkpoint};
+use cli::frame::render_frame;
+use nimbus::farm::checkpoint::read_checkpoint;
 use nimbus::farm::{FarmError, PartInfo};
 use nimbus::frames::{has_frame_token, with_frame, FrameRange, Shutter};
-use nimbus::light::EnvironmentLight;
 use nimbus::limits::{one_line, Limits, MAX_MESSAGE_CHARS};
 use nimbus::math::Rgb;
 use nimbus::output::Exposure;
 use nimbus::params::Choice;
-use nimbus::render::resume::{RegionProgress, ResumeFrom};
+use nimbus::render::resume::ResumeFrom;
 use nimbus::render::{
-    CancelToken, Film, PixelWindow, Progress, RenderImage, RenderRegion, RenderSettings,
-    RenderStats, Renderer,
+    CancelToken, PixelWindow, Progress, RenderImage, RenderRegion, RenderSettings, RenderStats,
 };
-use nimbus::scene::{LoadOptions, Scene, SceneBuilder, DEFAULT_ENVIRONMENT_RADIANCE};
+use nimbus::scene::{LoadOptions, Scene, SceneBuilder};
 use std::io::IsTerminal;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
-use std::time::{Duration, Instant};
+#[cfg(feature = "denoise")]
+use std::time::Instant;
 
 #[derive(Parser)]
 #[command(
@@ -387,6 +389,10 @@ impl RenderArgs {
     }
 }
 
+// The value parsers of the flags below (`value_parser = ...`) return `Result<T, String>`: clap's convention,
+// whose message it prints after the flag and value. The command functions return `String` too: the CLI's one
+// error line (`nimbus: error: ...`); the library's typed errors become that text at this boundary.
+
 /// Parses `--aovs`.
 fn parse_aovs(list: &str) -> Result<nimbus::render::AovSelection, String> {
     nimbus::render::AovSelection::parse(list).map_err(|e| e.to_string())
@@ -516,7 +522,7 @@ fn converge(args: ConvergeArgs) -> Result<(), String> {
     let options = nimbus::converge::ConvergeOptions {
         scene: args.scene,
         reference: args.reference,
-        methods: nimbus::converge::Method::parse_list(&args.methods)?,
+        methods: nimbus::converge::Method::parse_list(&args.methods).map_err(|e| e.to_string())?,
         budget_seconds: args.budget,
         width: args.image.width,
         height: args.image.height,
@@ -845,290 +851,6 @@ fn light_group_mode_name(mode: nimbus::render::LightGroupMode) -> &'static str {
         nimbus::render::LightGroupMode::PerLight => "per-light",
         nimbus::render::LightGroupMode::Off => "off",
     }
-}
-
-/// Loads, renders and writes one frame (`None`: a still).
-fn render_frame(
-    args: &RenderArgs,
-    frame: Option<i64>,
-    reporter: &mut ProgressReporter,
-    cancel: &CancelToken,
-) -> Result<(), String> {
-    let output = frame_path(&args.output, frame);
-    let stats_path = args.stats.as_deref().map(|s| frame_path(s, frame));
-    let limits = args.limits();
-    let loading = LoadingPhase::start();
-    let mut builder = load_builder(args, frame, args.shutter)?;
-    if let Some(name) = &args.camera {
-        builder.select_camera(name).map_err(|e| {
-            let file = args
-                .scene
-                .as_deref()
-                .unwrap_or(Path::new("assets/cloud.gltf"));
-            format!("{}: --camera: {e}", file.display())
-        })?;
-    }
-    if let Some(c) = args.env_color {
-        builder.set_environment(EnvironmentLight::Constant(c));
-    }
-    let lighting = builder.own_lighting();
-    if builder.light_by_default() {
-        let textured = match lighting.textured_emissive_meshes {
-            0 => String::new(),
-            n => format!(
-                " ({n} mesh(es) with textured emission glow but do not count: such emission is detail, which \
-                 glTF viewers show under their own environment)"
-            ),
-        };
-        eprintln!(
-            "nimbus: the scene has no light of its own{textured}, so a uniform white environment of radiance \
-             {DEFAULT_ENVIRONMENT_RADIANCE} lights it (a nimbus_environment or --env-color 0,0,0 keeps it dark)"
-        );
-    } else if !lighting.environment {
-        eprintln!(
-            "nimbus: the scene lights itself ({}), so it gets no default environment (--env-color 1,1,1 adds the \
-             white one)",
-            lighting.describe()
-        );
-    }
-    let scene: Scene = builder.build().map_err(|e| e.to_string())?;
-    drop(loading);
-    for w in scene.warnings() {
-        eprintln!("nimbus: warning: {}", one_line(w, MAX_MESSAGE_CHARS));
-    }
-    if args.explain {
-        for line in scene.explain_media() {
-            eprintln!("nimbus: {line}");
-        }
-        explain_volume_sampling(&scene, args.volume_sampling);
-        eprintln!(
-            "nimbus: light sampler: {}",
-            args.light_sampler.explain(&scene)
-        );
-        if let Some(shutter) = scene.shutter() {
-            eprintln!(
-                "nimbus: motion blur: shutter {} frames (box), {} moving triangles, the camera {}",
-                shutter,
-                scene.moving_triangle_count(),
-                if scene.camera().is_moving() {
-                    "moves"
-                } else {
-                    "stands still"
-                }
-            );
-        }
-    }
-    let (width, height) = RenderSettings::frame_size(&scene, args.image.width, args.image.height);
-    check_image_size(width, height)?;
-    let time_limit = match args.time_limit {
-        Some(t) => Some(Duration::try_from_secs_f64(t).map_err(|_| {
-            format!("--time-limit {t} is not a non-negative number of seconds that fits a duration")
-        })?),
-        None => None,
-    };
-    let spp = args
-        .spp
-        .unwrap_or(if time_limit.is_some() { u32::MAX } else { 64 });
-    let settings = RenderSettings {
-        width,
-        height,
-        spp,
-        seed: args.image.seed,
-        threads: args.image.threads,
-        max_depth: RenderSettings::max_depth_for(&scene, args.max_depth),
-        time_limit,
-        media_mis: true,
-        equiangular: args.volume_sampling == VolumeSampling::Mis,
-        sampler: args.sampler,
-        light_sampler: args.light_sampler,
-        emitter_edges: args.emitter_edges,
-        limits,
-        aovs: args.aovs.clone(),
-        transparent: args.transparent,
-        light_groups: args.light_groups,
-        cryptomatte_depth: args.cryptomatte_depth,
-        deep_samples: args.deep.then_some(args.deep_samples as usize),
-        guiding: args.guiding,
-    };
-    if args.explain {
-        eprintln!(
-            "nimbus: emitter edges: {}",
-            args.emitter_edges.explain(&scene, width, height)
-        );
-        eprintln!("nimbus: path guiding: {}", args.guiding.explain(&scene));
-    }
-    eprintln!(
-        "nimbus: {} triangles, {}, {width}x{height}, {} spp{}",
-        scene.triangle_count(),
-        scene.describe_lights(),
-        if spp == u32::MAX {
-            "unlimited".to_string()
-        } else {
-            spp.to_string()
-        },
-        time_limit.map_or(String::new(), |t| format!(
-            ", time limit {:.1} s",
-            t.as_secs_f64()
-        ))
-    );
-    let renderer = Renderer::new(settings);
-    let plan = renderer.layer_plan(&scene).map_err(|e| e.to_string())?;
-    if args.storage.compression == nimbus::output::ExrCompression::Pxr24
-        && !plan.cryptomatte.is_empty()
-    {
-        return Err("--compression pxr24 rounds 32-bit floats to 24 bits, which destroys Cryptomatte IDs; use zip, piz, rle or none".into());
-    }
-    let hash = part_scene_hash(args, frame, renderer.settings(), scene.camera())?;
-    let part = part_region(args, &output, renderer.settings())?;
-    let is_part = part.is_some();
-    let (region, output) = part.unwrap_or_else(|| {
-        let whole = RenderRegion {
-            window: PixelWindow::full(width, height),
-            samples: 0..spp.max(1),
-        };
-        (whole, output)
-    });
-    if is_part {
-        eprintln!(
-            "nimbus: part: samples {}..{} of the pixels in {}",
-            region.samples.start, region.samples.end, region.window
-        );
-    }
-    let checkpoint = nimbus::farm::checkpoint::checkpoint_path(&output);
-    let from = resume_from(
-        args,
-        &checkpoint,
-        &scene,
-        renderer.settings(),
-        hash,
-        &region,
-    )?;
-    let checkpoint_info = PartInfo {
-        estimators: PartInfo::estimators_of(&scene),
-        ..PartInfo::new(renderer.settings(), hash, &region, &RenderStats::default())
-    };
-    let interval = args.checkpoint.map(Duration::from_secs_f64);
-    let mut last_checkpoint = Instant::now();
-    let preview_every = args.preview_every.map(Duration::from_secs_f64);
-    let mut last_preview = Instant::now();
-    let preview = nimbus::output::preview_path(&output);
-    let mut on_pass = |p: &Progress, film: &Film| {
-        let go_on = reporter.report(p);
-        let complete = region.samples.start + p.samples_done;
-        if let Some(every) = preview_every.filter(|_| complete < region.samples.end) {
-            if last_preview.elapsed() >= every {
-                if let Err(e) = write_progress_preview(args, &film.image(), &preview) {
-                    eprintln!(
-                        "nimbus: warning: preview not written: {}",
-                        one_line(&e, MAX_MESSAGE_CHARS)
-                    );
-                }
-                last_preview = Instant::now();
-            }
-        }
-        if let Some(interval) = interval.filter(|_| complete < region.samples.end) {
-            if last_checkpoint.elapsed() >= interval {
-                let info = PartInfo {
-                    nan_samples: p.nan_samples,
-                    clamped_samples: p.clamped_samples,
-                    ..checkpoint_info.clone()
-                };
-                let progress = RegionProgress::start(complete);
-                if let Err(e) = write_checkpoint(&checkpoint, film, &info, &progress) {
-                    eprintln!(
-                        "nimbus: warning: checkpoint not written: {}",
-                        one_line(&e.to_string(), MAX_MESSAGE_CHARS)
-                    );
-                }
-                last_checkpoint = Instant::now();
-            }
-        }
-        go_on
-    };
-    let (film, mut stats, progress) = renderer
-        .render_resumable(&scene, &region, from, &mut on_pass, cancel)
-        .map_err(|e| e.to_string())?;
-    reporter.finish();
-    let stop = STOP_SIGNAL.load(Ordering::SeqCst);
-    // A signal that came after the last pass stops nothing: the render is written as finished.
-    let finished = progress.complete == region.samples.end;
-    if stats.cancelled && stop != 0 && !finished {
-        let signal = signal_name(stop);
-        if progress.is_empty(region.samples.start) {
-            return Err(format!(
-                "stopped by {signal} before any sample was taken; nothing written"
-            ));
-        }
-        let complete = progress.complete - region.samples.start;
-        if args.checkpoint.is_some() || is_part {
-            let info = PartInfo {
-                nan_samples: stats.nan_samples,
-                clamped_samples: stats.clamped_samples,
-                ..checkpoint_info
-            };
-            write_checkpoint(&checkpoint, &film, &info, &progress).map_err(|e| e.to_string())?;
-            return Err(format!(
-                "stopped by {signal}: wrote checkpoint {} ({complete} of {} samples in every pixel); continue with --resume",
-                checkpoint.display(),
-                region.samples.len()
-            ));
-        }
-        stats.partial = true;
-        stats.interrupted_by = Some(signal.to_owned());
-        let mut image = film.image();
-        image.metadata = image_metadata(args, &scene, renderer.settings(), frame, hash, &stats);
-        image
-            .metadata
-            .nimbus
-            .insert("spp".into(), complete.to_string());
-        image
-            .metadata
-            .nimbus
-            .insert("partial".into(), "true".into());
-        image
-            .metadata
-            .nimbus
-            .insert("interrupted_by".into(), signal.to_owned());
-        write_image(args, &image, &output)?;
-        finish_render(&stats, stats_path.as_deref())?;
-        return Err(format!(
-            "stopped by {signal}: wrote the partial image {} ({complete} of {} samples in every pixel; nimbus/partial in its header)",
-            output.display(),
-            region.samples.len()
-        ));
-    }
-    let metadata = image_metadata(args, &scene, renderer.settings(), frame, hash, &stats);
-    if is_part {
-        let info =
-            PartInfo::new(renderer.settings(), hash, &region, &stats).with_metadata(metadata);
-        create_parent(&output)?;
-        nimbus::farm::write_part(&output, &film, &info).map_err(|e| e.to_string())?;
-        eprintln!(
-            "nimbus: wrote part {} ({} spp in {:.2} s, {:.0} samples/s)",
-            output.display(),
-            stats.samples_per_pixel,
-            stats.render_seconds,
-            stats.samples_per_second
-        );
-    } else {
-        let mut image = film.image();
-        image.metadata = metadata;
-        image
-            .metadata
-            .nimbus
-            .insert("spp".into(), stats.samples_per_pixel.to_string());
-        write_image(args, &image, &output)?;
-        eprintln!(
-            "nimbus: wrote {} and {} ({} spp in {:.2} s, {:.0} samples/s)",
-            output.display(),
-            nimbus::output::preview_path(&output).display(),
-            stats.samples_per_pixel,
-            stats.render_seconds,
-            stats.samples_per_second
-        );
-    }
-    remove_checkpoint(&checkpoint)?;
-    finish_render(&stats, stats_path.as_deref())
 }
 
 /// Writes the EXR `output` of `image`, its PNG preview and, with `--deep`, its deep EXR.

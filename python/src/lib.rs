@@ -200,7 +200,7 @@ fn load(
     let method = volume_method
         .map(|m| m.parse::<nimbus::converge::Method>())
         .transpose()
-        .map_err(PyValueError::new_err)?;
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
     let limits = memory_limit.map_or_else(Limits::default, Limits::with_memory);
     let loaded = py.detach(|| -> Result<nimbus::Scene, String> {
         let options = LoadOptions {
@@ -413,18 +413,7 @@ fn render(
         ..RenderSettings::default()
     };
     let is_part = samples.is_some() || crop.is_some();
-    let region = RenderRegion {
-        window: crop.map_or(PixelWindow::full(width, height), |(x0, y0, x1, y1)| {
-            PixelWindow { x0, y0, x1, y1 }
-        }),
-        samples: samples.map_or(0..spp.max(1), |(start, end)| start..end),
-    };
-    if region.samples.end > spp {
-        return Err(RegionError::new_err(format!(
-            "samples {}..{} go past spp {spp}",
-            region.samples.start, region.samples.end
-        )));
-    }
+    let region = render_region(samples, crop, &settings)?;
     let hash = scene.scene_hash(&settings)?;
     let renderer = Renderer::new(settings);
     let (film, stats) = render_on_worker(py, &renderer, &scene.scene, &region, progress.as_ref())?;
@@ -437,27 +426,64 @@ fn render(
         hash,
         &stats,
     );
+    let part = is_part.then(|| {
+        PartInfo::new(renderer.settings(), hash, &region, &stats).with_metadata(metadata.clone())
+    });
+    Ok(raw_image(film, &stats, stats_json, metadata, part))
+}
+
+/// The image of a finished render with its header attributes: a part keeps its film and its description (for
+/// `write_part`); a whole render's header records its samples per pixel.
+fn raw_image(
+    film: Film,
+    stats: &RenderStats,
+    stats_json: String,
+    metadata: ImageMetadata,
+    part: Option<PartInfo>,
+) -> RawImage {
     let mut image = film.image();
-    if is_part {
-        let info = PartInfo::new(renderer.settings(), hash, &region, &stats)
-            .with_metadata(metadata.clone());
-        image.metadata = metadata;
-        return Ok(RawImage {
+    image.metadata = metadata;
+    match part {
+        Some(info) => RawImage {
             image,
             stats_json,
             part: Some((film, info)),
-        });
+        },
+        None => {
+            image
+                .metadata
+                .nimbus
+                .insert("spp".into(), stats.samples_per_pixel.to_string());
+            RawImage {
+                image,
+                stats_json,
+                part: None,
+            }
+        }
     }
-    image.metadata = metadata;
-    image
-        .metadata
-        .nimbus
-        .insert("spp".into(), stats.samples_per_pixel.to_string());
-    Ok(RawImage {
-        image,
-        stats_json,
-        part: None,
-    })
+}
+
+/// The region a render covers: the `crop` window (x0, y0, x1, y1) of the frame (all of it without one) and the
+/// `samples` range start..end (0..spp without one), which may not go past `spp`.
+fn render_region(
+    samples: Option<(u32, u32)>,
+    crop: Option<(usize, usize, usize, usize)>,
+    settings: &RenderSettings,
+) -> PyResult<RenderRegion> {
+    let (width, height, spp) = (settings.width, settings.height, settings.spp);
+    let region = RenderRegion {
+        window: crop.map_or(PixelWindow::full(width, height), |(x0, y0, x1, y1)| {
+            PixelWindow { x0, y0, x1, y1 }
+        }),
+        samples: samples.map_or(0..spp.max(1), |(start, end)| start..end),
+    };
+    if region.samples.end > spp {
+        return Err(RegionError::new_err(format!(
+            "samples {}..{} go past spp {spp}",
+            region.samples.start, region.samples.end
+        )));
+    }
+    Ok(region)
 }
 
 /// Renders `region` of `scene` with `renderer` on a thread of its own while this one [`wait`]s with the GIL

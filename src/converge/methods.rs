@@ -51,7 +51,7 @@ impl Method {
     }
 
     /// Parses a comma-separated list of method names (duplicates removed, order kept).
-    pub fn parse_list(list: &str) -> Result<Vec<Method>, String> {
+    pub fn parse_list(list: &str) -> Result<Vec<Method>, MethodError> {
         let mut methods = Vec::new();
         for name in list.split(',').map(str::trim).filter(|n| !n.is_empty()) {
             let m: Method = name.parse()?;
@@ -60,7 +60,7 @@ impl Method {
             }
         }
         if methods.is_empty() {
-            return Err("no method named".into());
+            return Err(MethodError::NoneNamed);
         }
         Ok(methods)
     }
@@ -97,17 +97,25 @@ impl fmt::Display for Method {
 }
 
 impl FromStr for Method {
-    type Err = String;
+    type Err = MethodError;
 
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, MethodError> {
         Method::ALL
             .into_iter()
             .find(|m| m.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<_> = Method::ALL.iter().map(|m| m.name()).collect();
-                format!("unknown method '{s}' (one of {})", names.join(", "))
-            })
+            .ok_or_else(|| MethodError::Unknown(s.to_owned()))
     }
+}
+
+/// A method name that does not parse ([`Method::from_str`], [`Method::parse_list`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum MethodError {
+    /// A name that is no method's.
+    #[error("unknown method '{0}' (one of {names})", names = Method::ALL.map(Method::name).join(", "))]
+    Unknown(String),
+    /// A list that names no method.
+    #[error("no method named")]
+    NoneNamed,
 }
 
 #[cfg(test)]

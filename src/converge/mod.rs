@@ -18,7 +18,7 @@ internal! {
 #[cfg(all(feature = "charts", feature = "testing"))]
 pub use chart::{draw_loglog_chart, LegendCorner, LogLogChart, Series};
 pub use error::ConvergeError;
-pub use methods::Method;
+pub use methods::{Method, MethodError};
 pub use metrics::{ErrorMetrics, SizeMismatch};
 pub use summary::{Checkpoint, Curve};
 internal! {
@@ -172,7 +172,7 @@ fn read_reference(
             layers.width, layers.height
         )));
     }
-    check_finite(&beauty, layers.width).map_err(reference_error)?;
+    check_finite(&beauty, layers.width).map_err(|e| reference_error(e.to_string()))?;
     let se_path = standard_error_path(path);
     let se = if se_path.is_file() {
         let se_layers = crate::output::read_exr_layers(&se_path)?;
@@ -183,9 +183,9 @@ fn read_reference(
                 path: se_path.clone(),
                 reason: "no R, G, B channels of the reference's size".into(),
             })?;
-        check_finite(&se, layers.width).map_err(|reason| ConvergeError::Reference {
+        check_finite(&se, layers.width).map_err(|e| ConvergeError::Reference {
             path: se_path.clone(),
-            reason,
+            reason: e.to_string(),
         })?;
         log(&format!(
             "{}: the reference's standard errors are subtracted from the squared errors",
@@ -254,19 +254,30 @@ fn render_reference(
 
 /// Refuses an image with a NaN or infinite value: every error against it would be NaN, or skipped and read as 0.
 /// Names the first such pixel (x, y) and channel.
-fn check_finite(image: &[Rgb], width: usize) -> Result<(), String> {
+fn check_finite(image: &[Rgb], width: usize) -> Result<(), NonFinitePixel> {
     for (index, pixel) in image.iter().enumerate() {
         for (channel, value) in ["R", "G", "B"].into_iter().zip(pixel.to_array()) {
             if !value.is_finite() {
-                return Err(format!(
-                    "pixel ({}, {}) channel {channel} is {value}; a reference must be finite everywhere",
-                    index % width.max(1),
-                    index / width.max(1)
-                ));
+                return Err(NonFinitePixel {
+                    x: index % width.max(1),
+                    y: index / width.max(1),
+                    channel,
+                    value,
+                });
             }
         }
     }
     Ok(())
+}
+
+/// A reference pixel's channel that is NaN or infinite ([`check_finite`]).
+#[derive(Debug, thiserror::Error)]
+#[error("pixel ({x}, {y}) channel {channel} is {value}; a reference must be finite everywhere")]
+struct NonFinitePixel {
+    x: usize,
+    y: usize,
+    channel: &'static str,
+    value: f32,
 }
 
 /// `DIR/STEM_se.exr` for a reference `DIR/STEM.exr`: the per-pixel standard errors of its mean.

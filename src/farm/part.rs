@@ -37,7 +37,7 @@ use super::FarmError;
 use crate::limits::one_line;
 use crate::output::OutputError;
 use crate::render::cryptomatte::{manifest_json, parse_manifest, CryptoKind, IdCoverage};
-use crate::render::resume::{RegionProgress, StoppedPass};
+use crate::render::resume::{ProgressMismatch, RegionProgress, StoppedPass};
 use crate::render::{
     Film, ImageMetadata, LayerPlan, PixelSums, PixelWindow, RenderImage, RenderRegion,
     RenderSettings, RenderStats, ValueSum,
@@ -183,7 +183,7 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
         path: path.to_path_buf(),
         reason,
     };
-    check_film_fits(film, info).map_err(invalid)?;
+    check_film_fits(film, info).map_err(|e| invalid(e.to_string()))?;
     let info = &PartInfo {
         plan: film.plan().clone(),
         ..info.clone()
@@ -192,7 +192,8 @@ pub fn write_part(path: &Path, film: &Film, info: &PartInfo) -> Result<(), FarmE
     channels.extend(sum_channels(film));
     let (crypto_channels, crypto_keys) = cryptomatte_channels(film);
     channels.extend(crypto_channels);
-    let attributes = part_attributes(film, info, crypto_keys).map_err(invalid)?;
+    let attributes =
+        part_attributes(film, info, crypto_keys).map_err(|e| invalid(e.to_string()))?;
     let layer = Layer::new(
         Vec2(info.window.width(), info.window.height()),
         attributes,
@@ -210,39 +211,71 @@ type PartChannels = SmallVec<[AnyChannel<FlatSamples>; 4]>;
 
 /// Refuses a film whose frame or window is not the part's, a sample range that is empty or past the spp, and
 /// checkpoint progress that does not fit the film or ends elsewhere than the range.
-fn check_film_fits(film: &Film, info: &PartInfo) -> Result<(), String> {
+fn check_film_fits(film: &Film, info: &PartInfo) -> Result<(), PartProblem> {
     if (film.width, film.height, film.window()) != (info.width, info.height, info.window) {
-        return Err(format!(
-            "film of {} in {}x{} does not match the part's crop {} in {}x{}",
-            film.window(),
-            film.width,
-            film.height,
-            info.window,
-            info.width,
-            info.height
-        ));
+        return Err(PartProblem::FilmWindow {
+            film_window: film.window(),
+            film_width: film.width,
+            film_height: film.height,
+            window: info.window,
+            width: info.width,
+            height: info.height,
+        });
     }
     if info.samples.is_empty() || info.samples.end > info.spp {
-        return Err(format!(
-            "samples {}..{} are not a non-empty range within {} spp",
-            info.samples.start, info.samples.end, info.spp
-        ));
+        return Err(PartProblem::Samples {
+            samples: info.samples.clone(),
+            spp: info.spp,
+        });
     }
     if let Some(progress) = &info.progress {
         progress
             .fits(film, &info.samples)
-            .map_err(|e| format!("checkpoint progress: {e}"))?;
-        if progress.most_samples(info.samples.start) != info.samples.len() as u32 {
-            return Err(format!(
-                "checkpoint progress ends at {} samples, the range {}..{} at {}",
-                progress.most_samples(info.samples.start),
-                info.samples.start,
-                info.samples.end,
-                info.samples.len()
-            ));
+            .map_err(PartProblem::Progress)?;
+        let most = progress.most_samples(info.samples.start);
+        if most != info.samples.len() as u32 {
+            return Err(PartProblem::ProgressEnd {
+                most,
+                samples: info.samples.clone(),
+            });
         }
     }
     Ok(())
+}
+
+/// What makes a film or a header value unfit for a part: the reason of a [`FarmError::Invalid`].
+#[derive(Debug, thiserror::Error)]
+enum PartProblem {
+    /// The film's frame or window is not the part's.
+    #[error(
+        "film of {film_window} in {film_width}x{film_height} does not match the part's crop {window} in \
+         {width}x{height}"
+    )]
+    FilmWindow {
+        film_window: PixelWindow,
+        film_width: usize,
+        film_height: usize,
+        window: PixelWindow,
+        width: usize,
+        height: usize,
+    },
+    /// The sample range is empty or goes past the spp.
+    #[error("samples {}..{} are not a non-empty range within {spp} spp", samples.start, samples.end)]
+    Samples { samples: Range<u32>, spp: u32 },
+    /// The checkpoint progress does not fit the film.
+    #[error("checkpoint progress: {0}")]
+    Progress(ProgressMismatch),
+    /// The checkpoint progress ends elsewhere than the range.
+    #[error(
+        "checkpoint progress ends at {most} samples, the range {}..{} at {}",
+        samples.start,
+        samples.end,
+        samples.len()
+    )]
+    ProgressEnd { most: u32, samples: Range<u32> },
+    /// A header value is not plain text.
+    #[error("{key} '{value}' is not plain text")]
+    NotPlainText { key: String, value: String },
 }
 
 /// The film's image as `f32` channels (what a compositor reads from a part).
@@ -322,7 +355,7 @@ fn part_attributes(
     film: &Film,
     info: &PartInfo,
     crypto_keys: Vec<(String, String)>,
-) -> Result<LayerAttributes, String> {
+) -> Result<LayerAttributes, PartProblem> {
     let mut attributes = LayerAttributes {
         layer_position: Vec2(to_i32(info.window.x0), to_i32(info.window.y0)),
         world_to_camera: info.metadata.world_to_camera.map(flatten),
@@ -352,8 +385,9 @@ fn part_attributes(
                 .map(|(k, v)| (format!("meta.{k}"), v.clone())),
         );
     for (key, value) in keys {
-        let text = Text::new_or_none(&value)
-            .ok_or_else(|| format!("{key} '{value}' is not plain text"))?;
+        let Some(text) = Text::new_or_none(&value) else {
+            return Err(PartProblem::NotPlainText { key, value });
+        };
         attributes.other.insert(
             Text::from(format!("{PREFIX}{key}").as_str()),
             AttributeValue::Text(text),
@@ -637,40 +671,69 @@ fn parse_stopped_pass(
     complete: u32,
     text: &str,
     window: PixelWindow,
-) -> Result<RegionProgress, String> {
+) -> Result<RegionProgress, StoppedPassError> {
+    use StoppedPassError as E;
     if text == "none" {
         return Ok(RegionProgress::start(complete));
     }
-    let (end, runs) = text.split_once(';').ok_or("neither 'none' nor END;RUNS")?;
-    let end: u32 = end.parse().map_err(|_| "END is not a sample number")?;
+    let (end, runs) = text.split_once(';').ok_or(E::Form)?;
+    let end: u32 = end.parse().map_err(|_| E::End)?;
     if end <= complete {
-        return Err(format!("the pass ends at {end}, not after {complete}"));
+        return Err(E::EndsEarly { end, complete });
     }
     let mut row_pixels = Vec::new();
     for run in runs.split(',') {
-        let (pixels, rows) = run.split_once('x').ok_or("a run is not PIXELSxROWS")?;
-        let pixels: u32 = pixels.parse().map_err(|_| "PIXELS is not a number")?;
-        let rows: usize = rows.parse().map_err(|_| "ROWS is not a number")?;
+        let (pixels, rows) = run.split_once('x').ok_or(E::Run)?;
+        let pixels: u32 = pixels.parse().map_err(|_| E::Pixels)?;
+        let rows: usize = rows.parse().map_err(|_| E::Rows)?;
         if pixels as usize > window.width() || rows > window.height() - row_pixels.len() {
-            return Err(format!(
-                "the runs do not fit the {}x{} window",
-                window.width(),
-                window.height()
-            ));
+            return Err(E::RunsOutside {
+                width: window.width(),
+                height: window.height(),
+            });
         }
         row_pixels.extend(std::iter::repeat_n(pixels, rows));
     }
     if row_pixels.len() != window.height() {
-        return Err(format!(
-            "the runs cover {} rows, the window has {}",
-            row_pixels.len(),
-            window.height()
-        ));
+        return Err(E::RowCount {
+            rows: row_pixels.len(),
+            height: window.height(),
+        });
     }
     Ok(RegionProgress {
         complete,
         stopped_pass: Some(StoppedPass { end, row_pixels }),
     })
+}
+
+/// What is wrong with a checkpoint's `nimbus.stopped_pass` value (`none`, or `END;RUNS` with runs of
+/// `PIXELSxROWS`).
+#[derive(Debug, thiserror::Error)]
+enum StoppedPassError {
+    /// Neither form.
+    #[error("neither 'none' nor END;RUNS")]
+    Form,
+    /// END does not parse.
+    #[error("END is not a sample number")]
+    End,
+    /// The pass ends at or before the complete samples.
+    #[error("the pass ends at {end}, not after {complete}")]
+    EndsEarly { end: u32, complete: u32 },
+    /// A run lacks its `x`.
+    #[error("a run is not PIXELSxROWS")]
+    Run,
+    /// A run's PIXELS does not parse.
+    #[error("PIXELS is not a number")]
+    Pixels,
+    /// A run's ROWS does not parse.
+    #[error("ROWS is not a number")]
+    Rows,
+    /// A run is wider than the window, or runs past its last row.
+    #[error("the runs do not fit the {width}x{height} window")]
+    RunsOutside { width: usize, height: usize },
+    /// The runs cover another number of rows than the window has.
+    #[error("the runs cover {rows} rows, the window has {height}")]
+    RowCount { rows: usize, height: usize },
 }
 
 /// The layer plan of a part's header: `nimbus.layers`, and the manifest of each Cryptomatte kind it lists.
@@ -758,6 +821,21 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
         &uint,
         &invalid,
     )?;
+    let film = film_of_words(&info, &words, &slot_words, &crypto, &invalid)?;
+    check_image(&film.image(), &info.window, &channel, &invalid)?;
+    Ok((info, film))
+}
+
+/// The film of a part described by `info`, made from its channels' words: each pixel's core sums (`words`),
+/// slot sums (`slot_words`) and Cryptomatte maps (`crypto`); a pixel counting more samples than its range is
+/// refused.
+fn film_of_words(
+    info: &PartInfo,
+    words: &[&Vec<u32>],
+    slot_words: &[&Vec<u32>],
+    crypto: &[Vec<IdCoverage>],
+    invalid: &dyn Fn(String) -> FarmError,
+) -> Result<Film, FarmError> {
     let mut film = Film::with_plan(
         info.width,
         info.height,
@@ -765,6 +843,7 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
         Arc::new(info.plan.clone()),
     );
     let values = info.plan.values_per_pixel();
+    let n = info.window.pixel_count();
     for i in 0..n {
         let sums = PixelSums::from_words(&std::array::from_fn(|k| words[k][i]));
         let (x, y) = pixel_position(&info.window, i);
@@ -790,8 +869,7 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, Film), FarmError> {
         let maps = (!crypto.is_empty()).then(|| crypto.iter().map(|k| k[i].clone()).collect());
         film.set_pixel(i, sums, &slots, maps);
     }
-    check_image(&film.image(), &info.window, &channel, &invalid)?;
-    Ok((info, film))
+    Ok(film)
 }
 
 /// The text header attributes of a part, by key.

@@ -510,6 +510,42 @@ pub enum PlanError {
     },
 }
 
+/// Refuses a light group that `selection` names but `groups` lacks, listing the groups there are.
+fn check_light_groups(selection: &AovSelection, groups: &LightGroups) -> Result<(), PlanError> {
+    for aov in &selection.aovs {
+        if let Aov::LightGroup(name) = aov {
+            if !groups.names.contains(name) {
+                return Err(PlanError::UnknownLightGroup {
+                    name: name.clone(),
+                    available: if groups.names.is_empty() {
+                        "none".into()
+                    } else {
+                        groups.names.join(", ")
+                    },
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The Cryptomatte manifest of `kind` for `scene`: each name item's object, material or asset name with its ID.
+fn cryptomatte_manifest(scene: &Scene, kind: CryptoKind) -> Manifest {
+    scene
+        .names()
+        .items
+        .iter()
+        .map(|item| {
+            let name = match kind {
+                CryptoKind::Object => &item.object,
+                CryptoKind::Material => &item.material,
+                CryptoKind::Asset => &item.asset,
+            };
+            (name.clone(), name_id(name))
+        })
+        .collect()
+}
+
 impl LayerPlan {
     /// The plan of a render of `scene` writing `selection`, with the light `groups` and `cryptomatte_depth`
     /// ranks per Cryptomatte kind (rounded up to even).
@@ -554,20 +590,7 @@ impl LayerPlan {
             }
         }
         let all_groups = selection.contains(&Aov::AllLightGroups);
-        for aov in &selection.aovs {
-            if let Aov::LightGroup(name) = aov {
-                if !groups.names.contains(name) {
-                    return Err(PlanError::UnknownLightGroup {
-                        name: name.clone(),
-                        available: if groups.names.is_empty() {
-                            "none".into()
-                        } else {
-                            groups.names.join(", ")
-                        },
-                    });
-                }
-            }
-        }
+        check_light_groups(selection, groups)?;
         for name in &groups.names {
             if all_groups || selection.contains(&Aov::LightGroup(name.clone())) {
                 plan.slots.push(name.clone());
@@ -583,20 +606,8 @@ impl LayerPlan {
             if !selection.contains(&Aov::Cryptomatte(kind)) {
                 continue;
             }
-            let manifest = scene
-                .names()
-                .items
-                .iter()
-                .map(|item| {
-                    let name = match kind {
-                        CryptoKind::Object => &item.object,
-                        CryptoKind::Material => &item.material,
-                        CryptoKind::Asset => &item.asset,
-                    };
-                    (name.clone(), name_id(name))
-                })
-                .collect();
-            plan.cryptomatte.push((kind, manifest));
+            plan.cryptomatte
+                .push((kind, cryptomatte_manifest(scene, kind)));
             plan.written.push(kind.layer_name().into());
         }
         Ok(plan)

@@ -30,7 +30,7 @@
 //!
 //! [`PathTracer::first_surface_emission`]: crate::integrator::PathTracer::first_surface_emission
 
-use crate::light::Light;
+use crate::light::{AreaLight, Light};
 use crate::math::{Vec2, Vec3};
 use crate::scene::Scene;
 use std::collections::HashMap;
@@ -138,6 +138,43 @@ impl EmitterEdgeSampling {
     }
 }
 
+/// The outline edges of `triangles`, in their order: an edge shared by two triangles of the same emission lies
+/// inside an emitter, not on its outline, and is left out.
+fn outline_edges(triangles: &[&AreaLight]) -> Vec<(Vec3, Vec3)> {
+    let mut uses: HashMap<EdgeKey, u32> = HashMap::new();
+    for l in triangles {
+        for (a, b) in triangle_edges(l) {
+            *uses.entry(edge_key(a, b, l)).or_default() += 1;
+        }
+    }
+    triangles
+        .iter()
+        .flat_map(|l| triangle_edges(l).map(|(a, b)| (a, b, edge_key(a, b, l))))
+        .filter(|(_, _, key)| uses[key] == 1)
+        .map(|(a, b, _)| (a, b))
+        .collect()
+}
+
+/// The three edges of an emissive triangle.
+fn triangle_edges(l: &AreaLight) -> [(Vec3, Vec3); 3] {
+    let v = l.vertices;
+    [(v[0], v[1]), (v[1], v[2]), (v[2], v[0])]
+}
+
+/// The key of edge `a`–`b` of `light`: its ends (in either order) and the light's emission, bit for bit.
+fn edge_key(a: Vec3, b: Vec3, light: &AreaLight) -> EdgeKey {
+    let (a, b) = (
+        a.to_array().map(f32::to_bits),
+        b.to_array().map(f32::to_bits),
+    );
+    let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+    EdgeKey {
+        ends: [lo, hi],
+        emission: light.emission.to_array().map(f32::to_bits),
+        texture: light.emission_texture,
+    }
+}
+
 impl EmitterEdges {
     /// Marks the pixels of a `width` × `height` frame that an outline edge of an emissive triangle crosses
     /// (occlusion is not considered), or says why supersampling is off.
@@ -166,29 +203,6 @@ impl EmitterEdges {
                 triangles.len()
             ));
         }
-        // An edge shared by two triangles of the same emission lies inside an emitter, not on its outline.
-        let mut uses: HashMap<EdgeKey, u32> = HashMap::new();
-        let key = |a: Vec3, b: Vec3, light: &crate::light::AreaLight| {
-            let (a, b) = (
-                a.to_array().map(f32::to_bits),
-                b.to_array().map(f32::to_bits),
-            );
-            let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
-            EdgeKey {
-                ends: [lo, hi],
-                emission: light.emission.to_array().map(f32::to_bits),
-                texture: light.emission_texture,
-            }
-        };
-        let edges_of = |l: &crate::light::AreaLight| {
-            let v = l.vertices;
-            [(v[0], v[1]), (v[1], v[2]), (v[2], v[0])]
-        };
-        for l in &triangles {
-            for (a, b) in edges_of(l) {
-                *uses.entry(key(a, b, l)).or_default() += 1;
-            }
-        }
         let pixels = width * height;
         let limit = (MAX_MARKED_SHARE * pixels as f64) as usize;
         let mut edges = EmitterEdges {
@@ -199,25 +213,19 @@ impl EmitterEdges {
         let camera = &scene.camera;
         let aspect = width as f32 / height as f32;
         let size = Vec2::new(width as f32, height as f32);
-        for l in &triangles {
-            for (a, b) in edges_of(l) {
-                if uses[&key(a, b, l)] > 1 {
-                    continue;
-                }
-                let Some((a, b)) =
-                    clip_in_front(camera.to_camera_space(a), camera.to_camera_space(b))
-                else {
-                    continue;
-                };
-                let raster = |p| camera.film_position(p, aspect).map(|f| f * size);
-                if let (Some(a), Some(b)) = (raster(a), raster(b)) {
-                    edges.mark_segment(a, b, size);
-                    if edges.count > limit {
-                        return EdgeDecision::Off(format!(
-                            "emitter outlines cross more than {:.0}% of the image",
-                            100.0 * MAX_MARKED_SHARE
-                        ));
-                    }
+        for (a, b) in outline_edges(&triangles) {
+            let Some((a, b)) = clip_in_front(camera.to_camera_space(a), camera.to_camera_space(b))
+            else {
+                continue;
+            };
+            let raster = |p| camera.film_position(p, aspect).map(|f| f * size);
+            if let (Some(a), Some(b)) = (raster(a), raster(b)) {
+                edges.mark_segment(a, b, size);
+                if edges.count > limit {
+                    return EdgeDecision::Off(format!(
+                        "emitter outlines cross more than {:.0}% of the image",
+                        100.0 * MAX_MARKED_SHARE
+                    ));
                 }
             }
         }

@@ -8,16 +8,17 @@
 
 use super::aovs::{AovSelection, LayerPlan, LightGroupMode, LightGroups, PlanError};
 use super::emitter_edges::{EmitterEdgeSampling, EmitterEdges, EDGE_RAYS};
-use super::film::{Film, PixelSums, PixelWindow};
+use super::film::{Film, FilmRow, PixelSums, PixelWindow};
 use super::recording::LayerRecorder;
 use super::resume::{RegionProgress, ResumeFrom, StoppedPass};
 use super::{CancelToken, RenderImage};
 use crate::guiding::{GuidingField, GuidingMode};
 use crate::integrator::{
-    FirstEmission, Origin, PathCounters, PathTracer, RayCounters, RendererServices, SampleRecord,
+    FirstEmission, Origin, PathCounters, PathSample, PathTracer, RayCounters, RendererServices,
+    SampleRecord,
 };
 use crate::light::LightSamplerChoice;
-use crate::math::{is_finite_rgb, Rgb, Rng, Vec2};
+use crate::math::{is_finite_rgb, Ray, Rgb, Rng, Vec2};
 use crate::scene::Scene;
 use crate::volume::{MediumMethod, TrackingCounters};
 use rayon::prelude::*;
@@ -495,47 +496,13 @@ impl Renderer {
         let groups = self.light_groups(scene)?;
         let plan = Arc::new(self.layer_plan(scene)?);
         let recorder = LayerRecorder::new(scene, &plan, &groups);
-        // Per pixel: the film's exact sums, then the f32 channels of the image made from them.
-        let pixel_bytes = std::mem::size_of::<PixelSums>()
-            + 4 * super::channels::channel_names().len()
-            + plan.film_bytes_per_pixel()
-            + 4 * (plan.values_per_pixel() + 2 * plan.cryptomatte_depth * plan.cryptomatte.len())
-            // Deep bins grow with the depths a pixel's paths reach; counted here at one per pixel.
-            + s.deep_samples.map_or(0, |_| 128);
-        let (w, h) = (region.window.width() as u64, region.window.height() as u64);
-        s.limits.check_items(
-            format_args!("the film of {w}x{h} pixels"),
-            w.saturating_mul(h),
-            pixel_bytes as u64,
-        )?;
+        self.check_film_memory(&plan, region)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(s.threads.min(crate::limits::max_threads()))
             .build()?;
         let threads = pool.current_num_threads();
         let start = Instant::now();
-        let (mut film, mut at, mut nan_samples, mut clamped_samples) = match from {
-            Some(from) => {
-                check_resume(&from, region, &plan)?;
-                if from.film.deep_samples() != s.deep_samples {
-                    return Err(RenderError::Resume(
-                        "the film to resume from has other deep output settings".into(),
-                    ));
-                }
-                (
-                    from.film,
-                    from.progress,
-                    from.nan_samples,
-                    from.clamped_samples,
-                )
-            }
-            None => {
-                let mut film = Film::with_plan(s.width, s.height, region.window, plan.clone());
-                if let Some(max) = s.deep_samples {
-                    film.enable_deep(max);
-                }
-                (film, RegionProgress::start(region.samples.start), 0, 0)
-            }
-        };
+        let (mut film, at, nan_samples, clamped_samples) = self.first_film(from, region, &plan)?;
         let edges = s.emitter_edges.decide(scene, s.width, s.height);
         // The guiding cache, trained over the whole frame whatever the region (see `super::guiding`).
         let (guide, guiding) = pool.install(|| {
@@ -552,105 +519,132 @@ impl Renderer {
                 cancel,
             )
         });
-        let mut counters = PathCounters::new(scene.media.len());
-        let mut cancelled = false;
-        let target = region.samples.len() as u32;
         let resumed_samples = at.complete - region.samples.start;
-        let mut done = resumed_samples;
-        // Pass size: about 16 passes for progress reports, 1 spp at first under a time budget.
-        let mut pass = if s.time_limit.is_some() || doubling {
-            1
-        } else {
-            target.div_ceil(16)
-        };
-        while done < target && !cancel.is_cancelled() {
-            let pass_start = Instant::now();
-            let first = at.complete;
-            // A pass a checkpoint stopped in is finished first, on the pixels that did not take it.
-            let stopped = at.stopped_pass.take();
-            let (end, skip) = match &stopped {
-                Some(p) => (p.end, Some(p.row_pixels.as_slice())),
-                None => (first + pass.min(target - done), None),
-            };
-            let count = end - first;
-            let (c, nans, clamped, rows) = pool.install(|| {
-                self.render_pass(
-                    scene,
-                    &mut film,
-                    &recorder,
-                    edges.edges(),
-                    guide.as_ref(),
-                    first..end,
-                    skip,
-                    cancel,
-                )
-            });
-            counters.add(&c);
-            nan_samples += nans;
-            clamped_samples += clamped;
-            at = after_pass(first, end, rows, region.window.width());
-            done = at.complete - region.samples.start;
-            if at.stopped_pass.is_some() {
-                break;
-            }
-            let elapsed = start.elapsed();
-            let fraction = match s.time_limit {
-                Some(limit) => (elapsed.as_secs_f64() / limit.as_secs_f64().max(1e-9))
-                    .max(done as f64 / target as f64),
-                None => done as f64 / target as f64,
-            };
-            let report = Progress {
-                samples_done: done,
-                samples_target: target,
-                elapsed_seconds: elapsed.as_secs_f64(),
-                fraction: fraction.min(1.0),
-                nan_samples,
-                clamped_samples,
-            };
-            if !progress(&report, &film) {
-                cancelled = true;
-                break;
-            }
-            if let Some(limit) = s.time_limit {
-                if elapsed >= limit {
-                    break;
-                }
-                // Size the next pass to use about half of the remaining budget.
-                let per_spp = pass_start.elapsed().as_secs_f64() / count as f64;
-                let remaining = (limit - elapsed).as_secs_f64();
-                pass = ((remaining * 0.5 / per_spp.max(1e-9)) as u32).clamp(1, 64);
-            }
-            if doubling {
-                pass = done;
-            }
-        }
-        cancelled |= cancel.is_cancelled();
-        let seconds = start.elapsed().as_secs_f64();
-        let stats = RenderStats {
-            samples_per_pixel: done,
-            render_seconds: seconds,
-            rays: counters.rays,
+        let mut totals = PassTotals {
+            counters: PathCounters::new(scene.media.len()),
             nan_samples,
             clamped_samples,
+            done: resumed_samples,
+            cancelled: false,
+        };
+        let passes = Passes {
+            renderer: self,
+            scene,
+            region,
+            recorder: &recorder,
+            edges: edges.edges(),
+            guide: guide.as_ref(),
+            pool: &pool,
+            cancel,
+            doubling,
+            start,
+        };
+        let at = passes.run(&mut film, at, &mut totals, progress);
+        totals.cancelled |= cancel.is_cancelled();
+        let seconds = start.elapsed().as_secs_f64();
+        let stats = RenderStats {
+            threads,
+            resumed_samples,
+            emitter_edge_pixels: edges.edges().map_or(0, EmitterEdges::count),
+            transparent: self.transparent(scene),
+            layers: plan.written.clone(),
+            light_groups: groups.names,
+            guiding,
+            ..self.pass_stats(scene, region, totals, seconds)
+        };
+        Ok((film, stats, at))
+    }
+
+    /// Refuses a film of `region`'s window whose memory, at what `plan` keeps per pixel, would pass the limits.
+    fn check_film_memory(
+        &self,
+        plan: &LayerPlan,
+        region: &RenderRegion,
+    ) -> Result<(), RenderError> {
+        // Per pixel: the film's exact sums, then the f32 channels of the image made from them.
+        let pixel_bytes = std::mem::size_of::<PixelSums>()
+            + 4 * super::channels::channel_names().len()
+            + plan.film_bytes_per_pixel()
+            + 4 * (plan.values_per_pixel() + 2 * plan.cryptomatte_depth * plan.cryptomatte.len())
+            // Deep bins grow with the depths a pixel's paths reach; counted here at one per pixel.
+            + self.settings.deep_samples.map_or(0, |_| 128);
+        let (w, h) = (region.window.width() as u64, region.window.height() as u64);
+        self.settings.limits.check_items(
+            format_args!("the film of {w}x{h} pixels"),
+            w.saturating_mul(h),
+            pixel_bytes as u64,
+        )?;
+        Ok(())
+    }
+
+    /// The film a render starts from, with its progress and its dropped and clamped sample counts: `from`'s
+    /// (checked to fit the region and the plan), or an empty one.
+    fn first_film(
+        &self,
+        from: Option<ResumeFrom>,
+        region: &RenderRegion,
+        plan: &Arc<LayerPlan>,
+    ) -> Result<(Film, RegionProgress, u64, u64), RenderError> {
+        let s = &self.settings;
+        match from {
+            Some(from) => {
+                check_resume(&from, region, plan)?;
+                if from.film.deep_samples() != s.deep_samples {
+                    return Err(RenderError::Resume(
+                        "the film to resume from has other deep output settings".into(),
+                    ));
+                }
+                Ok((
+                    from.film,
+                    from.progress,
+                    from.nan_samples,
+                    from.clamped_samples,
+                ))
+            }
+            None => {
+                let mut film = Film::with_plan(s.width, s.height, region.window, plan.clone());
+                if let Some(max) = s.deep_samples {
+                    film.enable_deep(max);
+                }
+                Ok((film, RegionProgress::start(region.samples.start), 0, 0))
+            }
+        }
+    }
+
+    /// The statistics that the passes' `totals` over `region` and the scene give, after `seconds` of rendering
+    /// (the rest of the fields at their defaults).
+    fn pass_stats(
+        &self,
+        scene: &Scene,
+        region: &RenderRegion,
+        totals: PassTotals,
+        seconds: f64,
+    ) -> RenderStats {
+        let s = &self.settings;
+        let done = totals.done;
+        RenderStats {
+            samples_per_pixel: done,
+            render_seconds: seconds,
+            rays: totals.counters.rays,
+            nan_samples: totals.nan_samples,
+            clamped_samples: totals.clamped_samples,
             peak_memory_bytes: peak_memory_bytes(),
             width: s.width,
             height: s.height,
-            threads,
             seed: s.seed,
             max_depth: s.max_depth,
             samples_per_second: (done as f64 * region.window.pixel_count() as f64)
                 / seconds.max(1e-9),
-            cancelled,
+            cancelled: totals.cancelled,
             partial: false,
             interrupted_by: None,
-            resumed_samples,
             shutter: scene.shutter.map(|s| [s.open, s.close]),
             moving_triangles: scene.moving_triangle_count(),
             camera_moves: scene.camera.motion.is_some(),
             media: scene
                 .media
                 .iter()
-                .zip(&counters.media)
+                .zip(&totals.counters.media)
                 .map(|(m, c)| {
                     let method = m.method();
                     MediumStats {
@@ -662,13 +656,8 @@ impl Renderer {
                     }
                 })
                 .collect(),
-            emitter_edge_pixels: edges.edges().map_or(0, EmitterEdges::count),
-            transparent: self.transparent(scene),
-            layers: plan.written.clone(),
-            light_groups: groups.names,
-            guiding,
-        };
-        Ok((film, stats, at))
+            ..RenderStats::default()
+        }
     }
 
     /// Adds `samples` to every pixel of the film's window, but the first `skip[r]` pixels of each window row
@@ -688,27 +677,25 @@ impl Renderer {
         skip: Option<&[u32]>,
         cancel: &CancelToken,
     ) -> (PathCounters, u64, u64, Vec<u32>) {
-        let s = &self.settings;
-        let (width, height) = (film.width, film.height);
         let window = film.window();
-        debug_assert!(width > 0 && height > 0 && !window.is_empty());
-        let aspect = width as f32 / height as f32;
-        let tracer = self.path_tracer(scene);
-        let plan = film.plan().clone();
-        let deep = film.deep_samples().is_some();
-        let max_bins = film.deep_samples().map_or(0, super::deep::max_bins);
-        let records = plan.records() || deep;
-        let shadow_catcher = plan.slot(super::aovs::CATCHER_LIT).is_some();
-        // Deep depths are along the view axis (at the sample's time, for a moving camera): a camera ray's
-        // distance times its cosine to the axis.
-        let view_axis = |time: Option<f32>| {
-            let to_world = match (&scene.camera.motion, time) {
-                (Some(m), Some(t)) => m.camera_to_world_at(t),
-                _ => scene.camera.camera_to_world,
-            };
-            -to_world.z_axis.truncate().normalize_or_zero()
+        debug_assert!(film.width > 0 && film.height > 0 && !window.is_empty());
+        let pass = Pass {
+            scene,
+            settings: &self.settings,
+            tracer: self.path_tracer(scene),
+            services: self.services(scene).with_guide(guide),
+            recorder,
+            edges,
+            width: film.width,
+            height: film.height,
+            window,
+            records: film.plan().records() || film.deep_samples().is_some(),
+            shadow_catcher: film.plan().slot(super::aovs::CATCHER_LIT).is_some(),
+            deep: film.deep_samples().is_some(),
+            max_bins: film.deep_samples().map_or(0, super::deep::max_bins),
+            samples,
+            cancel,
         };
-        let services = self.services(scene).with_guide(guide);
         film.rows_mut()
             .into_par_iter()
             // One row per task: rayon's adaptive splitting otherwise hands a thread a run of rows it cannot
@@ -717,116 +704,7 @@ impl Renderer {
             .with_max_len(1)
             .enumerate()
             .map(|(row_index, row)| {
-                let y = window.y0 + row_index;
-                let mut counters = PathCounters::new(scene.media.len());
-                let (mut nans, mut clamped) = (0u64, 0u64);
-                let mut record = records.then(|| SampleRecord {
-                    shadow_catcher,
-                    deep,
-                    ..SampleRecord::default()
-                });
-                let first_column = skip.map_or(0, |s| s[row_index] as usize);
-                let mut columns_done = first_column;
-                for (column, mut pixel) in row.pixels().enumerate().skip(first_column) {
-                    let x = window.x0 + column;
-                    if cancel.is_cancelled() {
-                        break;
-                    }
-                    columns_done = column + 1;
-                    let pixel_index = (y * width + x) as u64;
-                    let on_edge = edges.is_some_and(|e| e.is_marked(x, y));
-                    for sample in samples.clone() {
-                        let rng_of = |seed: u64, index: u64| match s.sampler {
-                            Sampler::Sobol => Rng::for_sample_sobol(seed, pixel_index, index),
-                            Sampler::Independent => Rng::for_sample(seed, pixel_index, index),
-                        };
-                        let mut rng = rng_of(s.seed, sample as u64);
-                        // A box shutter: the time is uniform over the interval, drawn from a stream of its
-                        // own so that the path's numbers are those of a render without a shutter (a still
-                        // scene renders bit for bit the same with one).
-                        let time = scene.shutter.map(|shutter| {
-                            let u = Rng::for_sample(
-                                s.seed ^ SHUTTER_STREAM,
-                                pixel_index,
-                                sample as u64,
-                            )
-                            .next_f32();
-                            shutter.time_at(u)
-                        });
-                        // Box filter: uniform jitter over the pixel, unweighted mean. A camera with a thin
-                        // lens takes the sample's next 2-D value for the point on its lens; a pinhole draws
-                        // none, so its paths keep the numbers they had before lenses existed.
-                        let camera_ray = |jitter: Vec2, lens: Option<Vec2>| {
-                            let film_pos = Vec2::new(
-                                (x as f32 + jitter.x) / width as f32,
-                                (y as f32 + jitter.y) / height as f32,
-                            );
-                            scene.camera.sample_ray(film_pos, lens, aspect, time)
-                        };
-                        let has_lens = scene.camera.lens.is_some();
-                        let jitter = rng.sample_2d();
-                        let lens = has_lens.then(|| rng.sample_2d());
-                        let ray = camera_ray(jitter, lens);
-                        if let Some(r) = record.as_mut() {
-                            r.clear();
-                        }
-                        let result = if on_edge {
-                            // The directly visible emission from EDGE_RAYS positions of their own, the rest
-                            // of the light from the path (see `super::emitter_edges`).
-                            let mut emission = Rgb::ZERO;
-                            for k in 0..EDGE_RAYS {
-                                let index = sample as u64 * EDGE_RAYS as u64 + k as u64;
-                                // `EmitterEdgeSampling::decide` keeps edges off for a thin lens; were they
-                                // on, each edge ray would take its own lens point, as camera rays do.
-                                let mut edge_rng = rng_of(s.seed ^ EDGE_STREAM, index);
-                                let jitter = edge_rng.sample_2d();
-                                let r = camera_ray(jitter, has_lens.then(|| edge_rng.sample_2d()));
-                                let (e, emitter) =
-                                    tracer.first_surface_emission(&services, &r, &mut counters);
-                                emission += e;
-                                if let (Some(rec), true) = (record.as_mut(), e.max_element() > 0.0)
-                                {
-                                    rec.push(e / EDGE_RAYS as f32, Origin::Emitted, emitter, true);
-                                }
-                            }
-                            let mut result = tracer.trace(
-                                &services,
-                                ray,
-                                FirstEmission::Omit,
-                                &mut rng,
-                                &mut counters,
-                                record.as_mut(),
-                                None,
-                            );
-                            result.radiance += emission / EDGE_RAYS as f32;
-                            result
-                        } else {
-                            tracer.trace(
-                                &services,
-                                ray,
-                                FirstEmission::Count,
-                                &mut rng,
-                                &mut counters,
-                                record.as_mut(),
-                                None,
-                            )
-                        };
-                        if !is_finite_rgb(result.radiance) {
-                            nans += 1;
-                            continue;
-                        }
-                        let mut clamped_here = pixel.sums.add(&result);
-                        if let Some(r) = &record {
-                            clamped_here |= recorder.commit(r, result.alpha, &mut pixel);
-                            if let Some(d) = pixel.deep.as_deref_mut() {
-                                let cos = ray.dir.normalize_or_zero().dot(view_axis(time));
-                                d.add(r, result.radiance, result.alpha, cos, max_bins);
-                            }
-                        }
-                        clamped += clamped_here as u64;
-                    }
-                }
-                (counters, nans, clamped, columns_done as u32)
+                pass.render_row(row_index, row, skip.map_or(0, |s| s[row_index] as usize))
             })
             .collect::<Vec<_>>()
             .into_iter()
@@ -838,6 +716,341 @@ impl Renderer {
                     (counters, nans + row.1, clamped + row.2, rows)
                 },
             )
+    }
+}
+
+/// What every pixel of one pass shares: the scene and how it is traced, where the samples go, and which samples
+/// they are.
+struct Pass<'a> {
+    scene: &'a Scene,
+    settings: &'a RenderSettings,
+    tracer: PathTracer,
+    services: RendererServices<'a>,
+    recorder: &'a LayerRecorder,
+    /// The pixels that supersample their directly visible emission.
+    edges: Option<&'a EmitterEdges>,
+    /// The whole frame's size (the window is a part of it).
+    width: usize,
+    height: usize,
+    /// The film's window.
+    window: PixelWindow,
+    /// Whether samples are recorded for layers (AOVs or deep output).
+    records: bool,
+    /// Whether the records carry the shadow catcher's lit estimate.
+    shadow_catcher: bool,
+    /// Whether the records carry deep bins.
+    deep: bool,
+    /// The most deep bins a pixel keeps.
+    max_bins: usize,
+    /// The sample indices the pass adds to every pixel.
+    samples: Range<u32>,
+    cancel: &'a CancelToken,
+}
+
+impl Pass<'_> {
+    /// Adds the pass's samples to the pixels of window row `row_index` from column `first_column` on, stopping
+    /// before the next pixel once cancelled. Returns the counters, the dropped NaN samples, the clamped samples,
+    /// and how many pixels of the row, from the left, hold the samples.
+    fn render_row(
+        &self,
+        row_index: usize,
+        row: FilmRow<'_>,
+        first_column: usize,
+    ) -> (PathCounters, u64, u64, u32) {
+        let y = self.window.y0 + row_index;
+        let mut counters = PathCounters::new(self.scene.media.len());
+        let (mut nans, mut clamped) = (0u64, 0u64);
+        let mut record = self.records.then(|| SampleRecord {
+            shadow_catcher: self.shadow_catcher,
+            deep: self.deep,
+            ..SampleRecord::default()
+        });
+        let mut columns_done = first_column;
+        for (column, mut pixel) in row.pixels().enumerate().skip(first_column) {
+            let x = self.window.x0 + column;
+            if self.cancel.is_cancelled() {
+                break;
+            }
+            columns_done = column + 1;
+            let pixel_index = (y * self.width + x) as u64;
+            let on_edge = self.edges.is_some_and(|e| e.is_marked(x, y));
+            for sample in self.samples.clone() {
+                let (ray, time, result) = self.trace_sample(
+                    (x, y),
+                    pixel_index,
+                    sample,
+                    on_edge,
+                    record.as_mut(),
+                    &mut counters,
+                );
+                if !is_finite_rgb(result.radiance) {
+                    nans += 1;
+                    continue;
+                }
+                let mut clamped_here = pixel.sums.add(&result);
+                if let Some(r) = &record {
+                    clamped_here |= self.recorder.commit(r, result.alpha, &mut pixel);
+                    if let Some(d) = pixel.deep.as_deref_mut() {
+                        let cos = ray.dir.normalize_or_zero().dot(self.view_axis(time));
+                        d.add(r, result.radiance, result.alpha, cos, self.max_bins);
+                    }
+                }
+                clamped += clamped_here as u64;
+            }
+        }
+        (counters, nans, clamped, columns_done as u32)
+    }
+
+    /// Traces sample `sample` of the pixel at `(x, y)` (index `pixel_index` in the frame), clearing and filling
+    /// `record`. Returns the camera ray, its shutter time and the path's sample.
+    fn trace_sample(
+        &self,
+        (x, y): (usize, usize),
+        pixel_index: u64,
+        sample: u32,
+        on_edge: bool,
+        mut record: Option<&mut SampleRecord>,
+        counters: &mut PathCounters,
+    ) -> (Ray, Option<f32>, PathSample) {
+        let s = self.settings;
+        let mut rng = self.sample_rng(s.seed, pixel_index, sample as u64);
+        // A box shutter: the time is uniform over the interval, drawn from a stream of its own so that the
+        // path's numbers are those of a render without a shutter (a still scene renders bit for bit the same
+        // with one).
+        let time = self.scene.shutter.map(|shutter| {
+            let u = Rng::for_sample(s.seed ^ SHUTTER_STREAM, pixel_index, sample as u64).next_f32();
+            shutter.time_at(u)
+        });
+        // A camera with a thin lens takes the sample's next 2-D value for the point on its lens; a pinhole draws
+        // none, so its paths keep the numbers they had before lenses existed.
+        let has_lens = self.scene.camera.lens.is_some();
+        let jitter = rng.sample_2d();
+        let lens = has_lens.then(|| rng.sample_2d());
+        let ray = self.camera_ray((x, y), jitter, lens, time);
+        if let Some(r) = record.as_deref_mut() {
+            r.clear();
+        }
+        let result = if on_edge {
+            // The directly visible emission from EDGE_RAYS positions of their own, the rest of the light from
+            // the path (see `super::emitter_edges`).
+            let emission = self.edge_emission(
+                (x, y),
+                pixel_index,
+                sample,
+                time,
+                record.as_deref_mut(),
+                counters,
+            );
+            let mut result = self.tracer.trace(
+                &self.services,
+                ray,
+                FirstEmission::Omit,
+                &mut rng,
+                counters,
+                record,
+                None,
+            );
+            result.radiance += emission / EDGE_RAYS as f32;
+            result
+        } else {
+            self.tracer.trace(
+                &self.services,
+                ray,
+                FirstEmission::Count,
+                &mut rng,
+                counters,
+                record,
+                None,
+            )
+        };
+        (ray, time, result)
+    }
+
+    /// The directly visible emission summed over the EDGE_RAYS camera rays of an edge pixel's sample, each
+    /// emitter's share pushed onto `record`.
+    fn edge_emission(
+        &self,
+        (x, y): (usize, usize),
+        pixel_index: u64,
+        sample: u32,
+        time: Option<f32>,
+        mut record: Option<&mut SampleRecord>,
+        counters: &mut PathCounters,
+    ) -> Rgb {
+        let has_lens = self.scene.camera.lens.is_some();
+        let mut emission = Rgb::ZERO;
+        for k in 0..EDGE_RAYS {
+            let index = sample as u64 * EDGE_RAYS as u64 + k as u64;
+            // `EmitterEdgeSampling::decide` keeps edges off for a thin lens; were they on, each edge ray would
+            // take its own lens point, as camera rays do.
+            let mut edge_rng =
+                self.sample_rng(self.settings.seed ^ EDGE_STREAM, pixel_index, index);
+            let jitter = edge_rng.sample_2d();
+            let r = self.camera_ray((x, y), jitter, has_lens.then(|| edge_rng.sample_2d()), time);
+            let (e, emitter) = self
+                .tracer
+                .first_surface_emission(&self.services, &r, counters);
+            emission += e;
+            if let (Some(rec), true) = (record.as_deref_mut(), e.max_element() > 0.0) {
+                rec.push(e / EDGE_RAYS as f32, Origin::Emitted, emitter, true);
+            }
+        }
+        emission
+    }
+
+    /// The random stream of sample `index` of pixel `pixel_index` under `seed`, from the chosen sampler.
+    fn sample_rng(&self, seed: u64, pixel_index: u64, index: u64) -> Rng {
+        match self.settings.sampler {
+            Sampler::Sobol => Rng::for_sample_sobol(seed, pixel_index, index),
+            Sampler::Independent => Rng::for_sample(seed, pixel_index, index),
+        }
+    }
+
+    /// The camera ray through the pixel at `(x, y)`, offset by `jitter` in it (a box filter: uniform jitter,
+    /// unweighted mean), through `lens` on a thin lens, at shutter time `time`.
+    fn camera_ray(
+        &self,
+        (x, y): (usize, usize),
+        jitter: Vec2,
+        lens: Option<Vec2>,
+        time: Option<f32>,
+    ) -> Ray {
+        let film_pos = Vec2::new(
+            (x as f32 + jitter.x) / self.width as f32,
+            (y as f32 + jitter.y) / self.height as f32,
+        );
+        let aspect = self.width as f32 / self.height as f32;
+        self.scene.camera.sample_ray(film_pos, lens, aspect, time)
+    }
+
+    /// The camera's view axis at `time` (a moving camera's at the sample's time): deep depths are a camera
+    /// ray's distance times its cosine to it.
+    fn view_axis(&self, time: Option<f32>) -> crate::math::Vec3 {
+        let camera = &self.scene.camera;
+        let to_world = match (&camera.motion, time) {
+            (Some(m), Some(t)) => m.camera_to_world_at(t),
+            _ => camera.camera_to_world,
+        };
+        -to_world.z_axis.truncate().normalize_or_zero()
+    }
+}
+
+/// The running totals of a render's passes.
+struct PassTotals {
+    counters: PathCounters,
+    /// Samples dropped as NaN/Inf.
+    nan_samples: u64,
+    /// Samples clamped into the film's range.
+    clamped_samples: u64,
+    /// Samples per pixel done in the region, those resumed from included.
+    done: u32,
+    /// Whether the progress callback stopped the render.
+    cancelled: bool,
+}
+
+/// The pass loop of one render: what every pass needs besides the film.
+struct Passes<'a> {
+    renderer: &'a Renderer,
+    scene: &'a Scene,
+    region: &'a RenderRegion,
+    recorder: &'a LayerRecorder,
+    edges: Option<&'a EmitterEdges>,
+    guide: Option<&'a GuidingField>,
+    pool: &'a rayon::ThreadPool,
+    cancel: &'a CancelToken,
+    /// Whether every pass is as large as all the previous ones together.
+    doubling: bool,
+    /// When the render started.
+    start: Instant,
+}
+
+impl Passes<'_> {
+    /// Renders passes into `film` from `at` until the region's samples are done, the time limit is spent, a
+    /// pass stops part way, `cancel` is cancelled or `progress` (called after each pass) says stop; returns
+    /// where the region stands.
+    fn run(
+        &self,
+        film: &mut Film,
+        mut at: RegionProgress,
+        totals: &mut PassTotals,
+        progress: &mut dyn FnMut(&Progress, &Film) -> bool,
+    ) -> RegionProgress {
+        let s = &self.renderer.settings;
+        let target = self.region.samples.len() as u32;
+        // Pass size: about 16 passes for progress reports, 1 spp at first under a time budget.
+        let mut pass = if s.time_limit.is_some() || self.doubling {
+            1
+        } else {
+            target.div_ceil(16)
+        };
+        while totals.done < target && !self.cancel.is_cancelled() {
+            let pass_start = Instant::now();
+            let first = at.complete;
+            // A pass a checkpoint stopped in is finished first, on the pixels that did not take it.
+            let stopped = at.stopped_pass.take();
+            let (end, skip) = match &stopped {
+                Some(p) => (p.end, Some(p.row_pixels.as_slice())),
+                None => (first + pass.min(target - totals.done), None),
+            };
+            let count = end - first;
+            let (c, nans, clamped, rows) = self.pool.install(|| {
+                self.renderer.render_pass(
+                    self.scene,
+                    film,
+                    self.recorder,
+                    self.edges,
+                    self.guide,
+                    first..end,
+                    skip,
+                    self.cancel,
+                )
+            });
+            totals.counters.add(&c);
+            totals.nan_samples += nans;
+            totals.clamped_samples += clamped;
+            at = after_pass(first, end, rows, self.region.window.width());
+            totals.done = at.complete - self.region.samples.start;
+            if at.stopped_pass.is_some() {
+                break;
+            }
+            let elapsed = self.start.elapsed();
+            if !progress(&self.report(totals, target, elapsed), film) {
+                totals.cancelled = true;
+                break;
+            }
+            if let Some(limit) = s.time_limit {
+                if elapsed >= limit {
+                    break;
+                }
+                // Size the next pass to use about half of the remaining budget.
+                let per_spp = pass_start.elapsed().as_secs_f64() / count as f64;
+                let remaining = (limit - elapsed).as_secs_f64();
+                pass = ((remaining * 0.5 / per_spp.max(1e-9)) as u32).clamp(1, 64);
+            }
+            if self.doubling {
+                pass = totals.done;
+            }
+        }
+        at
+    }
+
+    /// The progress report after a pass: samples done of `target`, and the fraction done (of the time limit,
+    /// when that is further along).
+    fn report(&self, totals: &PassTotals, target: u32, elapsed: Duration) -> Progress {
+        let done = totals.done;
+        let fraction = match self.renderer.settings.time_limit {
+            Some(limit) => (elapsed.as_secs_f64() / limit.as_secs_f64().max(1e-9))
+                .max(done as f64 / target as f64),
+            None => done as f64 / target as f64,
+        };
+        Progress {
+            samples_done: done,
+            samples_target: target,
+            elapsed_seconds: elapsed.as_secs_f64(),
+            fraction: fraction.min(1.0),
+            nan_samples: totals.nan_samples,
+            clamped_samples: totals.clamped_samples,
+        }
     }
 }
 
@@ -903,7 +1116,7 @@ fn check_resume(
     }
     from.progress
         .fits(&from.film, &region.samples)
-        .map_err(RenderError::Resume)
+        .map_err(|e| RenderError::Resume(e.to_string()))
 }
 
 /// Peak resident set size of this process (Linux `VmHWM`), or `None` where unknown.

@@ -64,44 +64,83 @@ impl RegionProgress {
 
     /// Checks that this progress can describe `film`: a stopped pass has one entry per row of the window, no
     /// more pixels than the window's width, and ends after `complete`.
-    pub fn fits(&self, film: &Film, samples: &Range<u32>) -> Result<(), String> {
+    pub fn fits(&self, film: &Film, samples: &Range<u32>) -> Result<(), ProgressMismatch> {
         let window = film.window();
         if self.complete < samples.start || self.complete > samples.end {
-            return Err(format!(
-                "complete samples end at {}, outside {}..{}",
-                self.complete, samples.start, samples.end
-            ));
+            return Err(ProgressMismatch::Complete {
+                complete: self.complete,
+                samples: samples.clone(),
+            });
         }
         if let Some(pass) = &self.stopped_pass {
             if pass.end <= self.complete || pass.end > samples.end {
-                return Err(format!(
-                    "the stopped pass ends at sample {}, not within {}..{}",
-                    pass.end,
-                    self.complete + 1,
-                    samples.end
-                ));
+                return Err(ProgressMismatch::PassEnd {
+                    end: pass.end,
+                    first: self.complete + 1,
+                    last: samples.end,
+                });
             }
             if pass.row_pixels.len() != window.height() {
-                return Err(format!(
-                    "the stopped pass lists {} rows, the window has {}",
-                    pass.row_pixels.len(),
-                    window.height()
-                ));
+                return Err(ProgressMismatch::Rows {
+                    rows: pass.row_pixels.len(),
+                    height: window.height(),
+                });
             }
             if let Some(r) = pass
                 .row_pixels
                 .iter()
                 .position(|&n| n as usize > window.width())
             {
-                return Err(format!(
-                    "row {r} of the stopped pass lists {} pixels, the window is {} wide",
-                    pass.row_pixels[r],
-                    window.width()
-                ));
+                return Err(ProgressMismatch::RowPixels {
+                    row: r,
+                    pixels: pass.row_pixels[r],
+                    width: window.width(),
+                });
             }
         }
         Ok(())
     }
+}
+
+/// Why a [`RegionProgress`] cannot describe a film ([`RegionProgress::fits`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ProgressMismatch {
+    /// The complete samples end outside the sample range.
+    #[error("complete samples end at {complete}, outside {}..{}", samples.start, samples.end)]
+    Complete {
+        /// Where the complete samples end.
+        complete: u32,
+        /// The sample range.
+        samples: Range<u32>,
+    },
+    /// The stopped pass ends at or before the complete samples, or past the range.
+    #[error("the stopped pass ends at sample {end}, not within {first}..{last}")]
+    PassEnd {
+        /// Where the stopped pass ends.
+        end: u32,
+        /// The first end it could have (one past the complete samples).
+        first: u32,
+        /// The range's end.
+        last: u32,
+    },
+    /// The stopped pass lists another number of rows than the window has.
+    #[error("the stopped pass lists {rows} rows, the window has {height}")]
+    Rows {
+        /// The rows listed.
+        rows: usize,
+        /// The window's height.
+        height: usize,
+    },
+    /// A row of the stopped pass lists more pixels than the window is wide.
+    #[error("row {row} of the stopped pass lists {pixels} pixels, the window is {width} wide")]
+    RowPixels {
+        /// The row, from the window's top.
+        row: usize,
+        /// The pixels it lists.
+        pixels: u32,
+        /// The window's width.
+        width: usize,
+    },
 }
 
 /// Where a render starts: the film a checkpoint held and how far it got, and its dropped and clamped samples.

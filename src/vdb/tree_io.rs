@@ -229,6 +229,60 @@ fn set_bits(mask: &[u64]) -> impl Iterator<Item = usize> + '_ {
     })
 }
 
+/// Reads the topology of the upper node at `origin` under the root: its lower nodes go to `tree.lowers` and its
+/// leaves (values still `background`; their buffers come later) to `tree.leaves`, in depth-first order.
+fn read_upper<T: VoxelValue>(
+    r: &mut Reader<'_>,
+    ctx: &mut TreeCtx,
+    tree: &mut Tree<T>,
+    background: T,
+    origin: IVec3,
+) -> KResult<UpperNode<T>> {
+    let (mut upper, umask): (UpperNode<T>, _) = read_internal(r, ctx, background, origin)?;
+    for ui in set_bits(&umask) {
+        let lorigin = upper.slot_origin(ui);
+        let (mut lower, lmask): (LowerNode<T>, _) = read_internal(r, ctx, background, lorigin)?;
+        for li in set_bits(&lmask) {
+            let value_mask = r.mask::<8>("leaf value mask")?;
+            lower.children[li] = tree.leaves.len() as u32;
+            tree.leaves.push(Leaf {
+                origin: lower.slot_origin(li),
+                value_mask,
+                values: [background; 512],
+                min: background,
+                max: background,
+            });
+        }
+        upper.children[ui] = tree.lowers.len() as u32;
+        tree.lowers.push(lower);
+    }
+    Ok(upper)
+}
+
+/// Reads the buffers of `tree`'s leaves, in the depth-first order of the topology: each leaf's value mask and
+/// values.
+fn read_leaf_buffers<T: VoxelValue>(
+    r: &mut Reader<'_>,
+    ctx: &mut TreeCtx,
+    tree: &mut Tree<T>,
+    background: T,
+) -> KResult<()> {
+    for i in 0..tree.leaves.len() {
+        let mask = r.mask::<8>("leaf buffer mask")?;
+        if ctx.version < VERSION_NODE_MASK_COMPRESSION {
+            r.ivec3("leaf origin")?;
+            let nbuf = r.u8("leaf buffer count")?;
+            if nbuf != 1 {
+                return corrupt(format!("leaf has {nbuf} buffers, expected 1"));
+            }
+        }
+        let leaf = &mut tree.leaves[i];
+        read_values(r, ctx, background, &mask, &mut leaf.values)?;
+        leaf.value_mask = mask;
+    }
+    Ok(())
+}
+
 /// Reads a whole tree (topology then buffers) at the reader's position.
 pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) -> KResult<Tree<T>> {
     let buffer_count = r.i32("tree buffer count")?;
@@ -269,24 +323,7 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
                 Root::<T>::DIM
             ));
         }
-        let (mut upper, umask): (UpperNode<T>, _) = read_internal(r, ctx, background, origin)?;
-        for ui in set_bits(&umask) {
-            let lorigin = upper.slot_origin(ui);
-            let (mut lower, lmask): (LowerNode<T>, _) = read_internal(r, ctx, background, lorigin)?;
-            for li in set_bits(&lmask) {
-                let value_mask = r.mask::<8>("leaf value mask")?;
-                lower.children[li] = tree.leaves.len() as u32;
-                tree.leaves.push(Leaf {
-                    origin: lower.slot_origin(li),
-                    value_mask,
-                    values: [background; 512],
-                    min: background,
-                    max: background,
-                });
-            }
-            upper.children[ui] = tree.lowers.len() as u32;
-            tree.lowers.push(lower);
-        }
+        let upper = read_upper(r, ctx, &mut tree, background, origin)?;
         tree.root
             .entries
             .push((origin, RootSlot::Child(tree.uppers.len() as u32)));
@@ -296,20 +333,7 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
     if tree.root.entries.windows(2).any(|w| w[0].0 == w[1].0) {
         return corrupt("duplicate root table entries");
     }
-    // Buffers: the leaves in the same depth-first order.
-    for i in 0..tree.leaves.len() {
-        let mask = r.mask::<8>("leaf buffer mask")?;
-        if ctx.version < VERSION_NODE_MASK_COMPRESSION {
-            r.ivec3("leaf origin")?;
-            let nbuf = r.u8("leaf buffer count")?;
-            if nbuf != 1 {
-                return corrupt(format!("leaf has {nbuf} buffers, expected 1"));
-            }
-        }
-        let leaf = &mut tree.leaves[i];
-        read_values(r, ctx, background, &mask, &mut leaf.values)?;
-        leaf.value_mask = mask;
-    }
+    read_leaf_buffers(r, ctx, &mut tree, background)?;
     tree.leaves.shrink_to_fit();
     tree.lowers.shrink_to_fit();
     tree.uppers.shrink_to_fit();

@@ -64,14 +64,14 @@ pub(super) fn check(
     root: &str,
     resolver: &CheckingResolver,
     limits: &Limits,
-) -> Result<(), String> {
+) -> Result<(), CompositionError> {
     let (layers, root) = Layers::load(resolver, root);
     for (layer, name) in layers.layers.iter().zip(&layers.names) {
         if let Some(twice) = layer.as_ref().and_then(|l| l.duplicate.as_ref()) {
-            return Err(format!(
-                "{name} {twice}: Pixar's USD refuses such a layer (\"Duplicate prim\", \"Duplicate items exist \
-                 for field\")"
-            ));
+            return Err(CompositionError::Duplicate {
+                layer: name.clone(),
+                twice: twice.clone(),
+            });
         }
     }
     match root {
@@ -81,6 +81,127 @@ pub(super) fn check(
         }
         None => Ok(()),
     }
+}
+
+/// Why a stage's composition is refused before `openusd` composes it ([`check`]): what Pixar's USD refuses, what
+/// `openusd` 0.6 would follow without end or for exponential time, and what passes the limits.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum CompositionError {
+    /// A layer lists a prim, or an item of an arc list, twice.
+    #[error(
+        "{layer} {twice}: Pixar's USD refuses such a layer (\"Duplicate prim\", \"Duplicate items exist for \
+         field\")"
+    )]
+    Duplicate { layer: String, twice: String },
+    /// Arcs that lead back into the run they extend: `named` (the first authored arc, or where the cycle ends),
+    /// the `chain` of steps, and where it `lands` when not on its start.
+    #[error("{named} is a composition cycle ({chain}{lands})")]
+    Cycle {
+        named: String,
+        chain: String,
+        lands: String,
+    },
+    /// Following the arcs takes more than `max_steps` steps.
+    #[error(
+        "following the stage's arcs takes more than {max_steps} steps (four per prim of the limit of {max_prims} \
+         prims; raise it with --max-prims)"
+    )]
+    Steps { max_steps: u64, max_prims: u64 },
+    /// The stage composes more prims than the limit, counted along its paths.
+    #[error(
+        "the stage composes more than {0} prims through its arcs and children (each counted once per arc that \
+         brings it in), over the limit of {0} prims (raise it with --max-prims)"
+    )]
+    StagePrims(u64),
+    /// A class arc that Pcp's implied classes carry back into the run (boxed: the largest variant).
+    #[error(transparent)]
+    ImpliedClass(Box<ImpliedClassCycle>),
+    /// A prim index of more nodes than the prim limit.
+    #[error(
+        "composing {site} reaches {nodes} arc targets (each arc's target with its own and its ancestors' arcs, \
+         once per path that leads to it), over the limit of {max_prims} (raise it with --max-prims)"
+    )]
+    IndexNodes {
+        site: String,
+        nodes: u64,
+        max_prims: u64,
+    },
+    /// A site (`what`: the stage, or a prim's path) that composes more prims than the limit.
+    #[error(
+        "{what} composes {prims} prims through its arcs and children (each counted once per arc that brings it \
+         in), over the limit of {max_prims} prims (raise it with --max-prims)"
+    )]
+    SitePrims {
+        what: String,
+        prims: u64,
+        max_prims: u64,
+    },
+    /// Arcs that map prims onto more sites than four per prim of the limit.
+    #[error(
+        "the stage's arcs map its prims onto more than {max_sites} sites (a prim in each layer stack an arc \
+         brings in, four per prim of the limit of {max_prims} prims; raise it with --max-prims)"
+    )]
+    Sites { max_sites: u64, max_prims: u64 },
+    /// An ancestor's arc that targets the ancestor's own namespace.
+    #[error(
+        "{ancestor}: {arc} is a composition cycle (it targets {ancestor}'s own namespace; met composing {path})"
+    )]
+    OwnNamespace {
+        ancestor: String,
+        arc: String,
+        path: String,
+    },
+    /// A class arc whose target an ancestor's arc maps onto the prim or a child of it.
+    #[error(
+        "{path}: {class_arc} lies inside the target of {ancestor}'s {arc}, which maps it onto {mapped}: openusd \
+         0.6 pre-caches that without end (a stack overflow), so it is refused"
+    )]
+    MappedOntoItself {
+        path: String,
+        class_arc: String,
+        ancestor: String,
+        arc: String,
+        mapped: String,
+    },
+    /// A layer stack of more entries than the limit.
+    #[error(
+        "the layer stack of {layer} expands to {entries} layers (a sublayer named twice counts twice), over the \
+         limit of {max} (raise it with --max-sublayers)"
+    )]
+    LayerStack { layer: String, entries: u64, max: u64 },
+    /// `openusd`'s pre-caching of inherit and specialize targets follows more than the limit from `from`.
+    #[error(
+        "openusd 0.6 pre-caches more than {max_prims} inherit and specialize targets from {from} (each once per \
+         path that leads to it), over the limit of {max_prims} prims (raise it with --max-prims)"
+    )]
+    Precache { max_prims: u64, from: String },
+    /// A cycle of pre-cached targets: the arc of the prim `at` of `kind` to `target`, and the `chain` of paths.
+    #[error(
+        "{at}: {kind} <{target}> is a composition cycle for openusd 0.6, whose pre-caching of inherit and \
+         specialize targets would follow {chain} without end (a stack overflow)"
+    )]
+    PrecacheCycle {
+        at: String,
+        kind: &'static str,
+        target: String,
+        chain: String,
+    },
+}
+
+/// A class arc that Pcp's implied classes carry back into the run ([`CompositionError::ImpliedClass`]): the
+/// arc, the reference it is met through, the step below which it is met, and where it is implied.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{class_arc} is a composition cycle for openusd 0.6, which follows it for exponential time ({through}, below \
+     which {below}: a class arc implied onto {referencing}'s layer stack as {implied}, nested with {nested_with})"
+)]
+pub(super) struct ImpliedClassCycle {
+    class_arc: String,
+    through: String,
+    below: String,
+    referencing: String,
+    implied: String,
+    nested_with: String,
 }
 
 /// How an arc composes its target.
@@ -540,7 +661,7 @@ impl<'a> Walk<'a> {
     /// Walks the composition from the pseudo-root of `root`'s layer stack: first every site once, counting the
     /// prims each composes and finding the cycles of sites (see [`Walk::count`]), then every path of children
     /// and arcs, as many as the prims counted, for arcs back into the chain they extend (see [`Walk::unfold`]).
-    fn run(&mut self, root: usize) -> Result<(), String> {
+    fn run(&mut self, root: usize) -> Result<(), CompositionError> {
         let start = (self.stack(root)?, "/".to_owned());
         let start = self.site(start);
         self.count(start)?;
@@ -562,7 +683,7 @@ impl<'a> Walk<'a> {
     /// Walks every site reachable from `start` once, depth first, counting the prims each composes; a site
     /// reached again on its own path closes a cycle (see [`cycle_back`]), and a site that composes more prims
     /// than the limit is refused.
-    fn count(&mut self, start: usize) -> Result<(), String> {
+    fn count(&mut self, start: usize) -> Result<(), CompositionError> {
         // The prims and prim-index nodes of every site walked; `None` while it is being walked.
         let mut counted: HashMap<usize, Option<(u64, u64)>> = HashMap::from([(start, None)]);
         let mut frames = vec![self.frame(start)?];
@@ -609,7 +730,7 @@ impl<'a> Walk<'a> {
     /// prim they start from. Composing that prim would follow the arc forever: Pcp's cycle rule, which `openusd`
     /// applies to references but misses for inherits and specializes, overflowing its stack. The counting pass
     /// cannot see it, as it walks each site once and the run depends on the path.
-    fn unfold(&mut self, start: usize) -> Result<(), String> {
+    fn unfold(&mut self, start: usize) -> Result<(), CompositionError> {
         let mut frames = vec![self.frame(start)?];
         // Paths the counting pass left out (a step back onto a site being walked that closes no cycle) are
         // followed here too: bound them by the same limit.
@@ -625,19 +746,14 @@ impl<'a> Walk<'a> {
             top.taken += 1;
             taken += 1;
             if taken > max_steps {
-                return Err(format!(
-                    "following the stage's arcs takes more than {max_steps} steps (four per prim of the limit of \
-                     {} prims; raise it with --max-prims)",
-                    self.max_prims
-                ));
+                return Err(CompositionError::Steps {
+                    max_steps,
+                    max_prims: self.max_prims,
+                });
             }
             prims += u64::from(step.counts());
             if prims > self.max_prims {
-                return Err(format!(
-                    "the stage composes more than {0} prims through its arcs and children (each counted once per \
-                     arc that brings it in), over the limit of {0} prims (raise it with --max-prims)",
-                    self.max_prims
-                ));
+                return Err(CompositionError::StagePrims(self.max_prims));
             }
             match step {
                 Step::ParentArc(_) => continue,
@@ -672,7 +788,7 @@ impl<'a> Walk<'a> {
     /// in that stack, the referencing prim would inherit itself or its own namespace. Pixar's USD reports that
     /// as an arc cycle, or drops the reference when its target has no specs; `openusd` 0.6 follows it for
     /// exponential time. Only the nearest reference of the run is modelled.
-    fn implied_class_in_run(&self, frames: &[Frame], next: usize) -> Result<(), String> {
+    fn implied_class_in_run(&self, frames: &[Frame], next: usize) -> Result<(), CompositionError> {
         let start = run_start(frames);
         let through = (start..frames.len()).rev().find(|&i| {
             let (target, step) = frames[i].last_step();
@@ -701,34 +817,33 @@ impl<'a> Walk<'a> {
         };
         let top = frames.last().expect("a frame");
         let class_arc = top.last_step().1.authored(&self.sites[top.site].1);
-        Err(format!(
-            "{} is a composition cycle for openusd 0.6, which follows it for exponential time ({}, below which \
-             {}: a class arc implied onto {referencing}'s layer stack as {}, nested with {})",
-            class_arc.unwrap_or_default(),
-            describe(&frames[through]),
-            describe(top),
-            implied_site.1,
-            self.sites[frames[from].site].1,
-        ))
+        Err(CompositionError::ImpliedClass(Box::new(ImpliedClassCycle {
+            class_arc: class_arc.unwrap_or_default(),
+            through: describe(&frames[through]),
+            below: describe(top),
+            referencing: referencing.clone(),
+            implied: implied_site.1,
+            nested_with: self.sites[frames[from].site].1.clone(),
+        })))
     }
 
     /// `Ok` when the prim index of `site` holds at most as many nodes as the prim limit allows prims: the arcs a
     /// prim composes (its own and its ancestors', each target with its own arcs, once per path that reaches it)
     /// are the work of building its index, which Pixar's USD and `openusd` alike do node by node. A few
     /// payloads, each reaching the next through several arcs, make millions of nodes for one prim.
-    fn index_within_limit(&self, site: usize, nodes: u64) -> Result<(), String> {
+    fn index_within_limit(&self, site: usize, nodes: u64) -> Result<(), CompositionError> {
         if nodes <= self.max_prims {
             return Ok(());
         }
-        Err(format!(
-            "composing {} reaches {nodes} arc targets (each arc's target with its own and its ancestors' arcs, \
-             once per path that leads to it), over the limit of {} (raise it with --max-prims)",
-            self.sites[site].1, self.max_prims
-        ))
+        Err(CompositionError::IndexNodes {
+            site: self.sites[site].1.clone(),
+            nodes,
+            max_prims: self.max_prims,
+        })
     }
 
     /// `Ok` when `site` composes at most the limit's prims (the pseudo-root, not a prim itself, one more).
-    fn within_limit(&self, site: usize, prims: u64) -> Result<(), String> {
+    fn within_limit(&self, site: usize, prims: u64) -> Result<(), CompositionError> {
         let path = &self.sites[site].1;
         let (what, prims) = if path == "/" {
             ("the stage", prims - 1)
@@ -738,23 +853,22 @@ impl<'a> Walk<'a> {
         if prims <= self.max_prims {
             return Ok(());
         }
-        Err(format!(
-            "{what} composes {prims} prims through its arcs and children (each counted once per arc that brings \
-             it in), over the limit of {} prims (raise it with --max-prims)",
-            self.max_prims
-        ))
+        Err(CompositionError::SitePrims {
+            what: what.to_owned(),
+            prims,
+            max_prims: self.max_prims,
+        })
     }
 
     /// A frame for `site`, its steps found the first time. The sites met are bounded by four times the prim
     /// limit: arcs that map sites ever deeper would otherwise make new ones without end.
-    fn frame(&mut self, site: usize) -> Result<Frame, String> {
+    fn frame(&mut self, site: usize) -> Result<Frame, CompositionError> {
         let max_sites = self.max_prims.saturating_mul(4);
         if self.sites.len() as u64 > max_sites {
-            return Err(format!(
-                "the stage's arcs map its prims onto more than {max_sites} sites (a prim in each layer stack an \
-                 arc brings in, four per prim of the limit of {} prims; raise it with --max-prims)",
-                self.max_prims
-            ));
+            return Err(CompositionError::Sites {
+                max_sites,
+                max_prims: self.max_prims,
+            });
         }
         let steps = match &self.steps[site] {
             Some(steps) => steps.clone(),
@@ -775,7 +889,7 @@ impl<'a> Walk<'a> {
 
     /// The steps out of `site`: its arcs' targets, its parent's class-based arcs' targets, its ancestors' arcs'
     /// targets with the site mapped onto them, then its children.
-    fn find_steps(&mut self, site: usize) -> Result<Vec<(usize, Step)>, String> {
+    fn find_steps(&mut self, site: usize) -> Result<Vec<(usize, Step)>, CompositionError> {
         let (stack, path) = self.sites[site].clone();
         self.not_mapped_onto_itself(stack, &path)?;
         let prims = &self.stacks[stack].prims;
@@ -819,11 +933,11 @@ impl<'a> Walk<'a> {
                 // An ancestor whose own arc lands in its own namespace is a cycle in the ancestor's index, which
                 // the walk may never visit (a reference can target the prim below it directly).
                 if nested(&(stack, ancestor.clone()), &(target_stack, target.clone())) {
-                    return Err(format!(
-                        "{ancestor}: {} is a composition cycle (it targets {ancestor}'s own namespace; met \
-                         composing {path})",
-                        arc.describe()
-                    ));
+                    return Err(CompositionError::OwnNamespace {
+                        ancestor,
+                        arc: arc.describe(),
+                        path: path.to_owned(),
+                    });
                 }
                 let mapped = format!("{target}{}", &path[ancestor.len()..]);
                 if precache::depth(&mapped) <= self.max_mapped_depth {
@@ -843,7 +957,7 @@ impl<'a> Walk<'a> {
     /// itself or a child of it: a prim that inherits `/X` and `/X/Y`, or references `/X` and specializes `/X/Y`, or
     /// under one that inherits `/X`, a prim `B` that inherits `/X/B`. Such a stage composes in USD, but `openusd`
     /// 0.6 pre-caches the mapped path, finds the same arc there again and recurses until its stack overflows.
-    fn not_mapped_onto_itself(&self, stack: usize, path: &str) -> Result<(), String> {
+    fn not_mapped_onto_itself(&self, stack: usize, path: &str) -> Result<(), CompositionError> {
         let prims = &self.stacks[stack].prims;
         let Some(own) = prims.get(path) else {
             return Ok(());
@@ -859,12 +973,13 @@ impl<'a> Walk<'a> {
                     };
                     let mapped = format!("{ancestor}{rest}");
                     if rest.starts_with('/') && (mapped == path || parent(&mapped) == path) {
-                        return Err(format!(
-                            "{path}: {} lies inside the target of {ancestor}'s {}, which maps it onto {mapped}: \
-                             openusd 0.6 pre-caches that without end (a stack overflow), so it is refused",
-                            class.describe(),
-                            arc.describe()
-                        ));
+                        return Err(CompositionError::MappedOntoItself {
+                            path: path.to_owned(),
+                            class_arc: class.describe(),
+                            ancestor: ancestor.to_owned(),
+                            arc: arc.describe(),
+                            mapped,
+                        });
                     }
                 }
                 ancestor = parent(ancestor);
@@ -881,7 +996,7 @@ impl<'a> Walk<'a> {
     }
 
     /// The site an arc authored in layer stack `stack` targets; `None` for a default prim that is not authored.
-    fn target(&mut self, stack: usize, arc: &Arc) -> Result<Option<Site>, String> {
+    fn target(&mut self, stack: usize, arc: &Arc) -> Result<Option<Site>, CompositionError> {
         let Some(layer) = arc.layer else {
             return Ok(Some((stack, arc.path.clone())));
         };
@@ -901,17 +1016,17 @@ impl<'a> Walk<'a> {
 
     /// The index of the layer stack whose root is `layer`, counting its entries against the limit and merging
     /// its layers' prims the first time.
-    fn stack(&mut self, layer: usize) -> Result<usize, String> {
+    fn stack(&mut self, layer: usize) -> Result<usize, CompositionError> {
         if let Some(&index) = self.stack_of.get(&layer) {
             return Ok(index);
         }
         let entries = self.entries(layer);
         if entries > self.max_layer_stack {
-            return Err(format!(
-                "the layer stack of {} expands to {entries} layers (a sublayer named twice counts twice), over \
-                 the limit of {} (raise it with --max-sublayers)",
-                self.layers.names[layer], self.max_layer_stack
-            ));
+            return Err(CompositionError::LayerStack {
+                layer: self.layers.names[layer].clone(),
+                entries,
+                max: self.max_layer_stack,
+            });
         }
         let mut prims: HashMap<String, Prim> = HashMap::new();
         for member in self.members(layer) {
@@ -996,7 +1111,7 @@ impl<'a> Walk<'a> {
     /// The error for a walk that closed a cycle by stepping to `site` from the top frame: the steps from frame
     /// `from` to the top, named by the first arc among them, and where the last lands when it is not on `from`'s
     /// site itself.
-    fn cycle(&self, frames: &[Frame], from: usize, site: usize) -> String {
+    fn cycle(&self, frames: &[Frame], from: usize, site: usize) -> CompositionError {
         let path = |id: usize| self.sites[id].1.as_str();
         let steps: Vec<(&str, &Step, &str)> = frames[from..]
             .iter()
@@ -1015,11 +1130,11 @@ impl<'a> Walk<'a> {
         } else {
             String::new()
         };
-        format!(
-            "{} is a composition cycle ({}{lands})",
-            named.unwrap_or_else(|| end.to_owned()),
-            chain.join(", ")
-        )
+        CompositionError::Cycle {
+            named: named.unwrap_or_else(|| end.to_owned()),
+            chain: chain.join(", "),
+            lands,
+        }
     }
 }
 
@@ -1090,7 +1205,7 @@ mod tests {
     /// [`check_files`] under `limits`.
     fn check_with(tag: &str, files: &[(&str, &str)], limits: Limits) -> Result<(), String> {
         let root = write_files(tag, files);
-        check(root.to_str().unwrap(), &resolver(), &limits)
+        check(root.to_str().unwrap(), &resolver(), &limits).map_err(|e| e.to_string())
     }
 
     /// Only the pre-caching model's check of the stage `files` make (the walk left out).
@@ -1098,7 +1213,9 @@ mod tests {
         let root = write_files(tag, files);
         let resolver = resolver();
         let (layers, _) = Layers::load(&resolver, root.to_str().unwrap());
-        precache::Precache::new(&layers).check(Limits::default().usd_prims)
+        precache::Precache::new(&layers)
+            .check(Limits::default().usd_prims)
+            .map_err(|e| e.to_string())
     }
 
     /// Writes `files` (name, text) to a fresh folder; returns the path of the first, the root layer.

@@ -15,9 +15,9 @@ use std::io::{self, Cursor};
 use std::path::Path;
 
 /// Checks `bytes`, a `.usdc` file, for counts that would make the reader allocate beyond the data.
-pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
+pub(super) fn check(bytes: &[u8]) -> Result<(), CrateError> {
     if bytes.get(..8) != Some(b"PXR-USDC".as_slice()) {
-        return Err("not a USD crate file (bad magic)".into());
+        return Err(CrateError::BadMagic);
     }
     let version = (
         bytes.get(8).copied(),
@@ -25,28 +25,22 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
         bytes.get(10).copied(),
     );
     let (Some(major), Some(minor), Some(patch)) = version else {
-        return Err("truncated header".into());
+        return Err(CrateError::TruncatedHeader);
     };
     let version = (major, minor, patch);
     if version < (0, 4, 0) {
-        return Err(format!(
-            "crate version {major}.{minor}.{patch} is older than 0.4.0"
-        ));
+        return Err(CrateError::OldVersion(major, minor, patch));
     }
     check_sections(bytes)?;
     // The structure is sound: let the crate reader decode it, then check every array value's length.
-    let file = CrateFile::open(Cursor::new(bytes)).map_err(|e| format!("{e:#}"))?;
-    file.validate().map_err(|e| format!("{e:#}"))?;
+    let file = CrateFile::open(Cursor::new(bytes)).map_err(CrateError::reader)?;
+    file.validate().map_err(CrateError::reader)?;
     if let Some(deep) = file
         .paths
         .iter()
         .find(|p| p.element_count() > super::layers::MAX_NESTING)
     {
-        return Err(format!(
-            "a path nests deeper than {} levels ({} elements)",
-            super::layers::MAX_NESTING,
-            deep.element_count()
-        ));
+        return Err(CrateError::PathTooDeep(deep.element_count()));
     }
     for field in &file.fields {
         let rep = field.value_rep;
@@ -63,15 +57,78 @@ pub(super) fn check(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// Why a `.usdc` file is refused before `openusd` reads it ([`check`]).
+#[derive(Debug, thiserror::Error)]
+pub(super) enum CrateError {
+    /// The file does not start with the crate magic.
+    #[error("not a USD crate file (bad magic)")]
+    BadMagic,
+    /// The file ends inside its header.
+    #[error("truncated header")]
+    TruncatedHeader,
+    /// A crate version (major, minor, patch) before 0.4.0.
+    #[error("crate version {0}.{1}.{2} is older than 0.4.0")]
+    OldVersion(u8, u8, u8),
+    /// `openusd`'s crate reader refused the file, saying this (its whole chain of causes).
+    #[error("{0}")]
+    Reader(String),
+    /// A path with this many elements, more than [`super::layers::MAX_NESTING`].
+    #[error("a path nests deeper than {max} levels ({0} elements)", max = super::layers::MAX_NESTING)]
+    PathTooDeep(usize),
+    /// A table of contents with this many sections (none, or 64 and more).
+    #[error("{0} sections")]
+    Sections(u64),
+    /// The named section runs past the end of the file.
+    #[error("section {0} runs past the end of the file")]
+    SectionPastEnd(String),
+    /// The STRINGS section's byte count overflows.
+    #[error("string count overflows")]
+    StringCountOverflow,
+    /// Dictionaries nest deeper than [`super::layers::MAX_NESTING`].
+    #[error("dictionaries nest deeper than {} levels", super::layers::MAX_NESTING)]
+    DictionaryTooDeep,
+    /// A dictionary at `payload` claims `n` entries, more than the file could hold.
+    #[error("a dictionary at offset {payload} claims {n} entries")]
+    DictionaryEntries { payload: u64, n: u64 },
+    /// A dictionary entry at this offset jumps outside the file.
+    #[error("a dictionary entry at offset {0} jumps outside the file")]
+    DictionaryJump(i64),
+    /// An array claims this many elements, more than the file could hold.
+    #[error("an array claims {0} elements")]
+    ArrayElements(u64),
+    /// A vector of crate type `ty` at `payload` claims `n` items, more than the file holds.
+    #[error("a vector of type {ty} at offset {payload} claims {n} items")]
+    VectorItems { ty: u64, payload: u64, n: u64 },
+    /// An offset past the end of the file.
+    #[error("offset {0} is past the end of the file")]
+    OffsetPastEnd(u64),
+    /// `n` bytes at offset `at` run past the end of the file.
+    #[error("{n} bytes at offset {at} run past the end of the file")]
+    BytesPastEnd { n: usize, at: usize },
+    /// A count of `n` at offset `at`, more than the file could hold.
+    #[error("a count of {n} at offset {at} exceeds the file")]
+    CountExceeds { n: u64, at: usize },
+    /// A compressed block's size does not fit memory.
+    #[error("compressed size overflows")]
+    CompressedSizeOverflow,
+}
+
+impl CrateError {
+    /// The error of `openusd`'s crate reader, with its whole chain of causes.
+    fn reader(error: impl std::fmt::Display) -> Self {
+        CrateError::Reader(format!("{error:#}"))
+    }
+}
+
 /// Checks the table of contents and, in each section `openusd` reads, the counts and compressed blocks that
 /// size its allocations: each must lie within the file.
-fn check_sections(bytes: &[u8]) -> Result<(), String> {
+fn check_sections(bytes: &[u8]) -> Result<(), CrateError> {
     let mut c = Reader { bytes, pos: 16 };
     let toc = c.u64()?;
     c.seek(toc)?;
     let sections = c.u64()?;
     if sections == 0 || sections >= 64 {
-        return Err(format!("{sections} sections"));
+        return Err(CrateError::Sections(sections));
     }
     for _ in 0..sections {
         let name = c.take(16)?.to_vec();
@@ -84,7 +141,7 @@ fn check_sections(bytes: &[u8]) -> Result<(), String> {
             .checked_add(size)
             .is_none_or(|end| end > bytes.len() as u64)
         {
-            return Err(format!("section {name} runs past the end of the file"));
+            return Err(CrateError::SectionPastEnd(name));
         }
         let mut s = Reader { bytes, pos: 0 };
         s.seek(start)?;
@@ -96,7 +153,7 @@ fn check_sections(bytes: &[u8]) -> Result<(), String> {
             }
             "STRINGS" => {
                 let n = s.count()?;
-                s.take(n.checked_mul(4).ok_or("string count overflows")?)?;
+                s.take(n.checked_mul(4).ok_or(CrateError::StringCountOverflow)?)?;
             }
             "FIELDS" => {
                 s.count()?;
@@ -137,20 +194,15 @@ fn dictionary(
     depth: usize,
     budget: &mut u64,
     version: (u8, u8, u8),
-) -> Result<(), String> {
+) -> Result<(), CrateError> {
     if depth > super::layers::MAX_NESTING {
-        return Err(format!(
-            "dictionaries nest deeper than {} levels",
-            super::layers::MAX_NESTING
-        ));
+        return Err(CrateError::DictionaryTooDeep);
     }
     let mut r = Reader { bytes, pos: 0 };
     r.seek(payload)?;
     let n = r.u64()?;
     if n > bytes.len() as u64 / 12 || n > *budget {
-        return Err(format!(
-            "a dictionary at offset {payload} claims {n} entries"
-        ));
+        return Err(CrateError::DictionaryEntries { payload, n });
     }
     *budget -= n;
     for _ in 0..n {
@@ -160,7 +212,7 @@ fn dictionary(
         let target = at
             .checked_add(jump)
             .filter(|t| *t >= 0)
-            .ok_or_else(|| format!("a dictionary entry at offset {at} jumps outside the file"))?;
+            .ok_or(CrateError::DictionaryJump(at))?;
         r.seek(target as u64)?;
         // A value representation: type in bits 48..56, "inlined" bit 62, payload in bits 0..48.
         let rep = r.u64()?;
@@ -176,7 +228,7 @@ fn dictionary(
 /// Checks the array a value representation `rep` points at, if it is a non-inlined array: its element count
 /// must fit what the file could hold, and a compressed one must hold a whole LZ4 block (the reader allocates
 /// the count, and the block's decoded size, before reading them).
-fn array_value(bytes: &[u8], rep: u64, version: (u8, u8, u8)) -> Result<(), String> {
+fn array_value(bytes: &[u8], rep: u64, version: (u8, u8, u8)) -> Result<(), CrateError> {
     let is_array = rep & (1 << 63) != 0;
     let is_inlined = rep & (1 << 62) != 0;
     let is_compressed = rep & (1 << 61) != 0;
@@ -195,7 +247,7 @@ fn array_value(bytes: &[u8], rep: u64, version: (u8, u8, u8)) -> Result<(), Stri
         a.u64()?
     };
     if n > a.limit() {
-        return Err(format!("an array claims {n} elements"));
+        return Err(CrateError::ArrayElements(n));
     }
     if is_compressed && n >= 4 {
         // Compressed integer arrays hold an LZ4 block; compressed float arrays a codec byte before one (or
@@ -226,7 +278,7 @@ fn array_value(bytes: &[u8], rep: u64, version: (u8, u8, u8)) -> Result<(), Stri
 /// allocates each count before reading): token, string and path vectors and list ops hold 4-byte indices,
 /// 64-bit list ops 8 bytes, double vectors 8 and layer-offset vectors 16; reference, payload and unregistered
 /// list ops hold items of varying size, of which only the first list's count is bounded (one byte per item).
-fn counted_vectors(bytes: &[u8], payload: u64, ty: u64) -> Result<(), String> {
+fn counted_vectors(bytes: &[u8], payload: u64, ty: u64) -> Result<(), CrateError> {
     let (list_op, item) = match ty {
         40 | 41 | 50 => (false, 4),
         48 => (false, 8),
@@ -248,9 +300,7 @@ fn counted_vectors(bytes: &[u8], payload: u64, ty: u64) -> Result<(), String> {
         let n = r.u64()?;
         let room = (bytes.len() - r.pos) as u64;
         if n.checked_mul(item.max(1)).is_none_or(|b| b > room) {
-            return Err(format!(
-                "a vector of type {ty} at offset {payload} claims {n} items"
-            ));
+            return Err(CrateError::VectorItems { ty, payload, n });
         }
         if item == 0 {
             break;
@@ -271,48 +321,40 @@ impl Reader<'_> {
         256 * self.bytes.len() as u64 + 1024
     }
 
-    fn seek(&mut self, pos: u64) -> Result<(), String> {
+    fn seek(&mut self, pos: u64) -> Result<(), CrateError> {
         if pos > self.bytes.len() as u64 {
-            return Err(format!("offset {pos} is past the end of the file"));
+            return Err(CrateError::OffsetPastEnd(pos));
         }
         self.pos = pos as usize;
         Ok(())
     }
 
-    fn take(&mut self, n: usize) -> Result<&[u8], String> {
+    fn take(&mut self, n: usize) -> Result<&[u8], CrateError> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len());
-        let end = end.ok_or_else(|| {
-            format!(
-                "{n} bytes at offset {} run past the end of the file",
-                self.pos
-            )
-        })?;
+        let end = end.ok_or(CrateError::BytesPastEnd { n, at: self.pos })?;
         let s = &self.bytes[self.pos..end];
         self.pos = end;
         Ok(s)
     }
 
-    fn u64(&mut self) -> Result<u64, String> {
+    fn u64(&mut self) -> Result<u64, CrateError> {
         let b = self.take(8)?;
         Ok(u64::from_le_bytes(b.try_into().unwrap_or_default()))
     }
 
     /// A count or decoded size, bounded by what the file could hold.
-    fn count(&mut self) -> Result<usize, String> {
+    fn count(&mut self) -> Result<usize, CrateError> {
         let n = self.u64()?;
         if n > self.limit() {
-            return Err(format!(
-                "a count of {n} at offset {} exceeds the file",
-                self.pos - 8
-            ));
+            return Err(CrateError::CountExceeds { n, at: self.pos - 8 });
         }
         Ok(n as usize)
     }
 
     /// A compressed block: its size, then that many bytes.
-    fn compressed(&mut self) -> Result<(), String> {
+    fn compressed(&mut self) -> Result<(), CrateError> {
         let n = self.u64()?;
-        let n = usize::try_from(n).map_err(|_| "compressed size overflows")?;
+        let n = usize::try_from(n).map_err(|_| CrateError::CompressedSizeOverflow)?;
         self.take(n).map(|_| ())
     }
 }
@@ -343,8 +385,9 @@ impl ar::Resolver for CheckingResolver {
     }
 
     fn open_asset(&self, resolved_path: &ar::ResolvedPath) -> io::Result<Box<dyn ar::Asset>> {
-        let invalid =
-            |m: String| io::Error::new(io::ErrorKind::InvalidData, format!("{resolved_path}: {m}"));
+        let invalid = |m: super::layers::LayerError| {
+            io::Error::new(io::ErrorKind::InvalidData, format!("{resolved_path}: {m}"))
+        };
         let name = resolved_path.to_str().unwrap_or_default();
         let bytes = if ar::is_package_relative_path(name) {
             // A layer inside a package: check the whole package first (its entries with a size cap).

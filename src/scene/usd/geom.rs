@@ -5,7 +5,7 @@ use super::Loader;
 use crate::geometry::{
     BoundaryRule, CreaseMethod, FaceVaryingRule, Mesh, PolygonMesh, Scheme, SubdivisionRules,
 };
-use crate::math::{Mat4, Rgb, Vec2};
+use crate::math::{Mat4, Rgb, Vec2, Vec3};
 use crate::scene::SceneError;
 use openusd::{sdf, usd};
 
@@ -21,6 +21,9 @@ pub const MAX_SUBDIVISION_LEVEL: u32 = 8;
 const SUBDIVIDED_QUAD_BYTES: u64 = 320;
 
 impl Loader<'_> {
+    /// Reads the `Mesh` prim `prim` (at `world`, under the inherited material `binding`): its faces, with their
+    /// materials, normals, texture coordinates and colours, subdivided when its scheme asks, and adds one
+    /// triangle mesh per material.
     pub(super) fn mesh(
         &mut self,
         prim: &usd::Prim,
@@ -36,31 +39,7 @@ impl Loader<'_> {
         };
         let counts = self.int_array(prim, "faceVertexCounts")?;
         let indices = self.int_array(prim, "faceVertexIndices")?;
-        let total: usize = counts.iter().map(|&c| c.max(0) as usize).sum();
-        if total != indices.len() {
-            return Err(self.error(
-                &at,
-                format!(
-                    "faceVertexCounts sum to {total} but faceVertexIndices has {} entries",
-                    indices.len()
-                ),
-            ));
-        }
-        if let Some(bad) = indices
-            .iter()
-            .find(|&&i| i < 0 || i as usize >= points.len())
-        {
-            return Err(self.error(
-                &at,
-                format!(
-                    "face vertex index {bad} is out of range ({} points)",
-                    points.len()
-                ),
-            ));
-        }
-        if !points.iter().all(|p| p.is_finite()) {
-            return Err(self.error(&at, "points must be finite"));
-        }
+        self.check_faces(&at, &points, &counts, &indices)?;
         let normals = self.primvar(prim, &["primvars:normals", "normals"], "vertex", vec3_array)?;
         let uvs = self.primvar(prim, &["primvars:st"], "vertex", vec2_array)?;
         let topology = Topology {
@@ -83,15 +62,7 @@ impl Loader<'_> {
         let double_sided = self
             .value(prim, "doubleSided")?
             .is_some_and(|v| matches!(v, sdf::Value::Bool(true)));
-        let material = self.material(prim, binding, double_sided, true)?;
-        // The material of each face: the mesh's, or that of the `materialBind` subset holding the face.
-        let mut face_material = vec![material; counts.len()];
-        for (subset, faces) in self.material_subsets(prim, counts.len())? {
-            let id = self.material(prim, Some(&subset), double_sided, true)?;
-            for f in faces {
-                face_material[f] = id;
-            }
-        }
+        let face_material = self.face_materials(prim, binding, double_sided, counts.len())?;
         let uvs = uvs.map(|st| {
             st.into_iter()
                 .map(|t: Vec2| Vec2::new(t.x, 1.0 - t.y))
@@ -122,6 +93,63 @@ impl Loader<'_> {
             self.add_mesh(mesh)?;
         }
         Ok(())
+    }
+
+    /// Checks a mesh's faces: `counts` must add up to the length of `indices`, each index must name one of the
+    /// `points`, and the points must be finite.
+    fn check_faces(
+        &self,
+        at: &str,
+        points: &[Vec3],
+        counts: &[i32],
+        indices: &[i32],
+    ) -> Result<(), SceneError> {
+        let total: usize = counts.iter().map(|&c| c.max(0) as usize).sum();
+        if total != indices.len() {
+            return Err(self.error(
+                at,
+                format!(
+                    "faceVertexCounts sum to {total} but faceVertexIndices has {} entries",
+                    indices.len()
+                ),
+            ));
+        }
+        if let Some(bad) = indices
+            .iter()
+            .find(|&&i| i < 0 || i as usize >= points.len())
+        {
+            return Err(self.error(
+                at,
+                format!(
+                    "face vertex index {bad} is out of range ({} points)",
+                    points.len()
+                ),
+            ));
+        }
+        if !points.iter().all(|p| p.is_finite()) {
+            return Err(self.error(at, "points must be finite"));
+        }
+        Ok(())
+    }
+
+    /// The material of each of `faces` faces of `prim`: the mesh's (from `binding` or its own binding), or
+    /// that of the `materialBind` subset holding the face.
+    fn face_materials(
+        &mut self,
+        prim: &usd::Prim,
+        binding: Option<&str>,
+        double_sided: bool,
+        faces: usize,
+    ) -> Result<Vec<u32>, SceneError> {
+        let material = self.material(prim, binding, double_sided, true)?;
+        let mut face_material = vec![material; faces];
+        for (subset, subset_faces) in self.material_subsets(prim, faces)? {
+            let id = self.material(prim, Some(&subset), double_sided, true)?;
+            for f in subset_faces {
+                face_material[f] = id;
+            }
+        }
+        Ok(face_material)
     }
 
     /// The colour of each face corner for the materials that read their colour from a primvar (interpolated as

@@ -43,6 +43,34 @@ pub(super) struct SharedMesh {
     tags: CompositingTags,
 }
 
+/// The per-instance arrays of a `PointInstancer`, all as long as `indices` (or empty where optional).
+struct InstancerArrays {
+    /// `protoIndices`: each instance's prototype.
+    indices: Vec<i32>,
+    /// `positions`.
+    positions: Vec<Vec3>,
+    /// `orientations` or `orientationsf` (empty: none).
+    orientations: Vec<Quat>,
+    /// `scales` (empty: none).
+    scales: Vec<Vec3>,
+    /// `ids` (empty: the instance indices).
+    ids: Vec<i64>,
+    /// `invisibleIds`.
+    invisible: HashSet<i64>,
+}
+
+impl InstancerArrays {
+    /// Instance `i`'s matrix in the instancer's frame: scale, then orientation, then translation by its
+    /// position.
+    fn instance_matrix(&self, i: usize) -> Mat4 {
+        Mat4::from_scale_rotation_translation(
+            self.scales.get(i).copied().unwrap_or(Vec3::ONE),
+            self.orientations.get(i).copied().unwrap_or(Quat::IDENTITY),
+            self.positions[i],
+        )
+    }
+}
+
 /// Most instances one instancer may place.
 pub(super) const MAX_INSTANCES: usize = 1 << 20;
 
@@ -60,23 +88,56 @@ impl Loader<'_> {
             .relationship("prototypes")
             .targets()
             .map_err(|e| self.error(&at, format!("prototypes: {e:#}")))?;
+        let arrays = self.instancer_arrays(prim, &at)?;
+        let (shared, flattened) = self.instancer_prototypes(&prototypes, &at, binding, depth)?;
+        self.check_instancer_budget(&at, &arrays.indices, &shared, &flattened)?;
+        for i in 0..arrays.indices.len() {
+            let id = arrays.ids.get(i).copied().unwrap_or(i as i64);
+            if arrays.invisible.contains(&id) {
+                continue;
+            }
+            let p = usize::try_from(arrays.indices[i])
+                .ok()
+                .filter(|&p| p < flattened.len())
+                .ok_or_else(|| {
+                    self.error(
+                        &at,
+                        format!(
+                            "protoIndices[{i}] = {} but there are {} prototypes",
+                            arrays.indices[i],
+                            prototypes.len()
+                        ),
+                    )
+                })?;
+            let m = *world * arrays.instance_matrix(i);
+            if !m.is_finite() {
+                return Err(self.error(&at, format!("instance {i} has a non-finite transform")));
+            }
+            self.place_instance(i, &m, &shared[p], &flattened[p])?;
+        }
+        Ok(())
+    }
+
+    /// The per-instance arrays of the instancer `prim` (at `at`), checked to match `protoIndices` in length,
+    /// which is at most [`MAX_INSTANCES`].
+    fn instancer_arrays(&self, prim: &usd::Prim, at: &str) -> Result<InstancerArrays, SceneError> {
         let indices = self.int_array(prim, "protoIndices")?;
         let positions = match self.value(prim, "positions")? {
             Some(v) => {
-                vec3_array(&v).ok_or_else(|| self.error(&at, "positions must be a point3f[]"))?
+                vec3_array(&v).ok_or_else(|| self.error(at, "positions must be a point3f[]"))?
             }
             None => Vec::new(),
         };
         let n = indices.len();
         if n > MAX_INSTANCES {
             return Err(self.error(
-                &at,
+                at,
                 format!("{n} instances; at most {MAX_INSTANCES} are expanded"),
             ));
         }
         if positions.len() != n {
             return Err(self.error(
-                &at,
+                at,
                 format!(
                     "positions has {} entries for {n} protoIndices",
                     positions.len()
@@ -86,7 +147,7 @@ impl Loader<'_> {
         let orientations = self.orientations(prim)?;
         let scales = match self.value(prim, "scales")? {
             Some(v) => {
-                vec3_array(&v).ok_or_else(|| self.error(&at, "scales must be a float3[]"))?
+                vec3_array(&v).ok_or_else(|| self.error(at, "scales must be a float3[]"))?
             }
             None => Vec::new(),
         };
@@ -96,7 +157,7 @@ impl Loader<'_> {
         ] {
             if len != 0 && len != n {
                 return Err(self.error(
-                    &at,
+                    at,
                     format!("{name} has {len} entries for {n} protoIndices"),
                 ));
             }
@@ -104,19 +165,38 @@ impl Loader<'_> {
         let ids = self.int64_array(prim, "ids")?;
         if !ids.is_empty() && ids.len() != n {
             return Err(self.error(
-                &at,
+                at,
                 format!("ids has {} entries for {n} protoIndices", ids.len()),
             ));
         }
-        let invisible: HashSet<i64> = self
+        let invisible = self
             .int64_array(prim, "invisibleIds")?
             .into_iter()
             .collect();
-        // Each prototype's meshes, read once in the prototype's own frame (its root transform included): the
-        // static ones become shared prototypes, the moving ones stay meshes to copy.
+        Ok(InstancerArrays {
+            indices,
+            positions,
+            orientations,
+            scales,
+            ids,
+            invisible,
+        })
+    }
+
+    /// Each prototype's meshes, read once in the prototype's own frame (its root transform included): the
+    /// static ones become shared prototypes (their builder indices and names), the moving ones stay meshes to
+    /// copy. Lights inside a prototype are dropped with a warning.
+    #[allow(clippy::type_complexity)]
+    fn instancer_prototypes(
+        &mut self,
+        prototypes: &[sdf::Path],
+        at: &str,
+        binding: Option<String>,
+        depth: usize,
+    ) -> Result<(Vec<Vec<(u32, String)>>, Vec<Vec<Mesh>>), SceneError> {
         let mut flattened = Vec::with_capacity(prototypes.len());
         let mut shared = Vec::with_capacity(prototypes.len());
-        for proto in &prototypes {
+        for proto in prototypes {
             let proto = self.stage.prim(proto.prim_path().as_str());
             let (meshes, lights) = (self.builder.meshes.len(), self.builder.lights.len());
             self.visit(&proto, Mat4::IDENTITY, binding.clone(), depth + 1)?;
@@ -142,8 +222,19 @@ impl Loader<'_> {
             shared.push(ids);
             flattened.push(moving);
         }
-        // The instance records and the copied meshes must fit the memory budget with the rest of the scene's,
-        // checked before any is made (each is checked again as it is added).
+        Ok((shared, flattened))
+    }
+
+    /// Checks that the instance records and the copied meshes of the instances of `indices` fit the memory
+    /// budget with the rest of the scene's, before any is made (each is checked again as it is added).
+    fn check_instancer_budget(
+        &self,
+        at: &str,
+        indices: &[i32],
+        shared: &[Vec<(u32, String)>],
+        flattened: &[Vec<Mesh>],
+    ) -> Result<(), SceneError> {
+        let n = indices.len();
         let records = indices
             .iter()
             .filter_map(|&p| usize::try_from(p).ok().and_then(|p| shared.get(p)))
@@ -162,52 +253,35 @@ impl Loader<'_> {
                     v.saturating_add(m.positions.len() as u64),
                 )
             });
-        self.check_mesh(&format!("{at}: {n} instances"), triangles, vertices)?;
-        for i in 0..n {
-            let id = ids.get(i).copied().unwrap_or(i as i64);
-            if invisible.contains(&id) {
-                continue;
-            }
-            let p = usize::try_from(indices[i])
-                .ok()
-                .filter(|&p| p < flattened.len())
-                .ok_or_else(|| {
-                    self.error(
-                        &at,
-                        format!(
-                            "protoIndices[{i}] = {} but there are {} prototypes",
-                            indices[i],
-                            prototypes.len()
-                        ),
-                    )
-                })?;
-            let instance = Mat4::from_scale_rotation_translation(
-                scales.get(i).copied().unwrap_or(Vec3::ONE),
-                orientations.get(i).copied().unwrap_or(Quat::IDENTITY),
-                positions[i],
-            );
-            let m = *world * instance;
-            if !m.is_finite() {
-                return Err(self.error(&at, format!("instance {i} has a non-finite transform")));
-            }
-            for (prototype, name) in &shared[p] {
-                let instance = MeshInstance {
-                    prototype: *prototype,
-                    object_to_world: m,
-                    name: format!("{name}[{i}]"),
-                    asset: self.asset.clone(),
-                    tags: self.tags.clone(),
-                };
-                self.builder.add_instance(instance).map_err(|e| {
-                    SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string()))
-                })?;
-            }
-            for mesh in &flattened[p] {
-                let mut mesh = mesh.clone();
-                mesh.name = format!("{}[{i}]", mesh.name);
-                mesh.transform(&m);
-                self.add_mesh(mesh)?;
-            }
+        self.check_mesh(&format!("{at}: {n} instances"), triangles, vertices)
+    }
+
+    /// Places instance `i` at `m`: an instance of each of its prototype's `shared` meshes, a copy of each of its
+    /// `moving` ones.
+    fn place_instance(
+        &mut self,
+        i: usize,
+        m: &Mat4,
+        shared: &[(u32, String)],
+        moving: &[Mesh],
+    ) -> Result<(), SceneError> {
+        for (prototype, name) in shared {
+            let instance = MeshInstance {
+                prototype: *prototype,
+                object_to_world: *m,
+                name: format!("{name}[{i}]"),
+                asset: self.asset.clone(),
+                tags: self.tags.clone(),
+            };
+            self.builder.add_instance(instance).map_err(|e| {
+                SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string()))
+            })?;
+        }
+        for mesh in moving {
+            let mut mesh = mesh.clone();
+            mesh.name = format!("{}[{i}]", mesh.name);
+            mesh.transform(m);
+            self.add_mesh(mesh)?;
         }
         Ok(())
     }

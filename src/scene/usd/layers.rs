@@ -10,7 +10,7 @@
 //! - Packages (`.usdz`): every layer inside is decompressed with a size cap (a zip bomb is refused) and checked
 //!   as above.
 
-use super::crate_check;
+use super::crate_check::{self, CrateError};
 use crate::limits::{Limits, MAX_STREAM_BYTES};
 use std::io::{Cursor, Read};
 
@@ -19,10 +19,45 @@ use std::io::{Cursor, Read};
 /// less stack than the loader's thread has for this many levels.
 pub const MAX_NESTING: usize = 200;
 
+/// Why a layer or package is refused before `openusd` parses it, or a file in a package cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum LayerError {
+    /// A `.usdc` layer fails the crate bounds check.
+    #[error(transparent)]
+    Crate(#[from] CrateError),
+    /// A path literal of a text layer, starting `start`, runs past the end of its line.
+    #[error("line {line}: the path starting '<{start}' runs past the end of its line")]
+    UnclosedPath { line: usize, start: String },
+    /// A text layer nests deeper than [`MAX_NESTING`] at `line`.
+    #[error("line {line}: nested deeper than {MAX_NESTING} levels")]
+    TooDeep { line: usize },
+    /// A package file cannot be read.
+    #[error("{0}")]
+    Read(std::io::Error),
+    /// A package that is not a zip archive.
+    #[error("not a valid package: {0}")]
+    Package(zip::result::ZipError),
+    /// Entry `index` of a package cannot be opened.
+    #[error("package entry {index}: {error}")]
+    Entry {
+        index: usize,
+        error: zip::result::ZipError,
+    },
+    /// A package entry cannot be decompressed.
+    #[error("package entry '{name}': {error}")]
+    EntryRead { name: String, error: std::io::Error },
+    /// A package entry expands to more than `cap` bytes.
+    #[error("package entry '{name}' expands to more than {}", crate::limits::format_bytes(*cap))]
+    EntryTooLarge { name: String, cap: u64 },
+    /// A layer inside a package fails its check.
+    #[error("package entry '{name}': {error}")]
+    InEntry { name: String, error: Box<LayerError> },
+}
+
 /// Checks one layer or package by its content: a crate file, a zip package or (anything else) text.
-pub(super) fn check_layer(bytes: &[u8], limits: &Limits) -> Result<(), String> {
+pub(super) fn check_layer(bytes: &[u8], limits: &Limits) -> Result<(), LayerError> {
     if bytes.starts_with(b"PXR-USDC") {
-        crate_check::check(bytes)
+        Ok(crate_check::check(bytes)?)
     } else if bytes.starts_with(b"PK\x03\x04") {
         check_package(bytes, limits)
     } else {
@@ -32,13 +67,12 @@ pub(super) fn check_layer(bytes: &[u8], limits: &Limits) -> Result<(), String> {
 
 /// Checks every layer in a `.usdz` package, decompressing each with a cap of the memory budget (at most
 /// [`MAX_STREAM_BYTES`]).
-fn check_package(bytes: &[u8], limits: &Limits) -> Result<(), String> {
-    let mut archive = zip::ZipArchive::new(Cursor::new(bytes))
-        .map_err(|e| format!("not a valid package: {e}"))?;
+fn check_package(bytes: &[u8], limits: &Limits) -> Result<(), LayerError> {
+    let mut archive = zip::ZipArchive::new(Cursor::new(bytes)).map_err(LayerError::Package)?;
     for i in 0..archive.len() {
         let name = archive
             .by_index(i)
-            .map_err(|e| format!("package entry {i}: {e}"))?
+            .map_err(|error| LayerError::Entry { index: i, error })?
             .name()
             .to_owned();
         let layer = [".usda", ".usdc", ".usd"]
@@ -49,11 +83,14 @@ fn check_package(bytes: &[u8], limits: &Limits) -> Result<(), String> {
         }
         let data = read_entry(&mut archive, i, limits)?;
         let inner = if data.starts_with(b"PXR-USDC") {
-            crate_check::check(&data)
+            crate_check::check(&data).map_err(LayerError::from)
         } else {
             text_nesting(&data)
         };
-        inner.map_err(|m| format!("package entry '{name}': {m}"))?;
+        inner.map_err(|error| LayerError::InEntry {
+            name,
+            error: Box::new(error),
+        })?;
     }
     Ok(())
 }
@@ -64,22 +101,22 @@ fn read_entry<R: Read + std::io::Seek>(
     archive: &mut zip::ZipArchive<R>,
     index: usize,
     limits: &Limits,
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, LayerError> {
     let cap = MAX_STREAM_BYTES.min(limits.memory_bytes);
     let mut entry = archive
         .by_index(index)
-        .map_err(|e| format!("package entry {index}: {e}"))?;
+        .map_err(|error| LayerError::Entry { index, error })?;
     let name = entry.name().to_owned();
     let mut data = Vec::new();
     (&mut entry)
         .take(cap + 1)
         .read_to_end(&mut data)
-        .map_err(|e| format!("package entry '{name}': {e}"))?;
+        .map_err(|error| LayerError::EntryRead {
+            name: name.clone(),
+            error,
+        })?;
     if data.len() as u64 > cap {
-        return Err(format!(
-            "package entry '{name}' expands to more than {}",
-            crate::limits::format_bytes(cap)
-        ));
+        return Err(LayerError::EntryTooLarge { name, cap });
     }
     Ok(data)
 }
@@ -92,10 +129,9 @@ pub(super) struct Package {
 
 impl Package {
     /// Opens the package at `path`, read whole with the memory budget's size cap.
-    pub(super) fn open(path: &std::path::Path, limits: &Limits) -> Result<Self, String> {
-        let bytes = crate::limits::read_file(path, limits).map_err(|e| e.to_string())?;
-        let archive = zip::ZipArchive::new(Cursor::new(bytes))
-            .map_err(|e| format!("not a valid package: {e}"))?;
+    pub(super) fn open(path: &std::path::Path, limits: &Limits) -> Result<Self, LayerError> {
+        let bytes = crate::limits::read_file(path, limits).map_err(LayerError::Read)?;
+        let archive = zip::ZipArchive::new(Cursor::new(bytes)).map_err(LayerError::Package)?;
         Ok(Self { archive })
     }
 
@@ -105,7 +141,7 @@ impl Package {
         &mut self,
         member: &str,
         limits: &Limits,
-    ) -> Result<Option<Vec<u8>>, String> {
+    ) -> Result<Option<Vec<u8>>, LayerError> {
         let mut parts: Vec<&str> = Vec::new();
         for part in member.split(['/', '\\']) {
             match part {
@@ -126,7 +162,7 @@ impl Package {
 
 /// Refuses a text layer whose braces, brackets and parentheses nest deeper than [`MAX_NESTING`]. Unterminated
 /// comments, strings and paths end the scan: `openusd`'s lexer stops there too.
-pub(super) fn text_nesting(bytes: &[u8]) -> Result<(), String> {
+pub(super) fn text_nesting(bytes: &[u8]) -> Result<(), LayerError> {
     let find = |from: usize, pat: &[u8]| {
         bytes
             .get(from..)
@@ -161,13 +197,13 @@ pub(super) fn text_nesting(bytes: &[u8]) -> Result<(), String> {
                 // made its instancing resolution run for minutes).
                 let inside = &bytes[i + 1..close.map_or(end, |c| c - 1)];
                 if close.is_some() && inside.iter().any(u8::is_ascii_control) {
-                    return Err(format!(
-                        "line {line}: the path starting '<{}' runs past the end of its line",
-                        crate::limits::one_line(
+                    return Err(LayerError::UnclosedPath {
+                        line,
+                        start: crate::limits::one_line(
                             &String::from_utf8_lossy(&inside[..inside.len().min(40)]),
-                            40
-                        )
-                    ));
+                            40,
+                        ),
+                    });
                 }
                 close
             }
@@ -176,9 +212,7 @@ pub(super) fn text_nesting(bytes: &[u8]) -> Result<(), String> {
             b'{' | b'[' | b'(' => {
                 depth += 1;
                 if depth > MAX_NESTING {
-                    return Err(format!(
-                        "line {line}: nested deeper than {MAX_NESTING} levels"
-                    ));
+                    return Err(LayerError::TooDeep { line });
                 }
                 Some(i + 1)
             }
@@ -205,7 +239,7 @@ mod tests {
         assert!(text_nesting(deep(MAX_NESTING).as_bytes()).is_ok());
         let err = text_nesting(format!("#usda 1.0\n\n{}", deep(MAX_NESTING + 1)).as_bytes());
         assert_eq!(
-            err.unwrap_err(),
+            err.unwrap_err().to_string(),
             format!("line 3: nested deeper than {MAX_NESTING} levels")
         );
         let hidden = "{".repeat(MAX_NESTING + 1);

@@ -9,6 +9,8 @@ use crate::scene::{LightTag, SceneError, SceneErrorKind};
 use openusd::{sdf, usd};
 
 impl Loader<'_> {
+    /// Reads the UsdLux light `prim` of type `kind` at `world`: its radiance from intensity, exposure and
+    /// colour, and the emissive mesh, point, directional or dome light it becomes.
     pub(super) fn light(
         &mut self,
         prim: &usd::Prim,
@@ -69,8 +71,20 @@ impl Loader<'_> {
             }
             _ => return self.dome(prim, radiance, world),
         };
-        let mut mesh = mesh;
-        mesh.name = at.clone();
+        self.add_area_light(&at, mesh, radiance, normalize, world)
+    }
+
+    /// Adds the emissive `mesh` of area light `at`, placed at `world`, emitting `radiance` (divided by its
+    /// area when `normalize`d).
+    fn add_area_light(
+        &mut self,
+        at: &str,
+        mut mesh: Mesh,
+        radiance: Rgb,
+        normalize: bool,
+        world: &Mat4,
+    ) -> Result<(), SceneError> {
+        mesh.name = at.to_owned();
         mesh.transform(world);
         let area: f32 = (0..mesh.indices.len())
             .map(|t| {
@@ -80,13 +94,13 @@ impl Loader<'_> {
             .sum();
         let emission = if normalize {
             if area <= 0.0 {
-                return Err(self.error(&at, "a normalized light must have a positive area"));
+                return Err(self.error(at, "a normalized light must have a positive area"));
             }
             radiance / area
         } else {
             radiance
         };
-        let mut material = Material::lambertian(&at, Rgb::ZERO);
+        let mut material = Material::lambertian(at, Rgb::ZERO);
         material.emission = emission;
         mesh.material = self.builder.add_material(material);
         self.add_mesh(mesh)?;

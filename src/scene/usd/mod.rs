@@ -392,7 +392,7 @@ fn read_stage(
 fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
     let bytes =
         read_file(path, limits).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    layers::check_layer(&bytes, limits).map_err(|m| malformed(path, m))?;
+    layers::check_layer(&bytes, limits).map_err(|e| malformed(path, e.to_string()))?;
     drop(bytes);
     let name = path
         .to_str()
@@ -401,7 +401,7 @@ fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
         inner: ar::DefaultResolver::new(),
         limits: *limits,
     };
-    composition::check(name, &resolver(), limits).map_err(|m| malformed(path, m))?;
+    composition::check(name, &resolver(), limits).map_err(|e| malformed(path, e.to_string()))?;
     let stage = usd::Stage::builder()
         .resolver(resolver())
         .open(name)
@@ -873,7 +873,8 @@ impl Loader<'_> {
             .to_string_lossy()
             .into_owned();
         if !self.packages.contains_key(package) {
-            let opened = layers::Package::open(package, &self.limits)?;
+            let opened =
+                layers::Package::open(package, &self.limits).map_err(|e| e.to_string())?;
             self.packages.insert(package.to_path_buf(), opened);
         }
         let limits = self.limits;
@@ -882,7 +883,8 @@ impl Loader<'_> {
             .get_mut(package)
             .ok_or("the package was not opened")?;
         opened
-            .read(&member, &limits)?
+            .read(&member, &limits)
+            .map_err(|e| e.to_string())?
             .ok_or_else(|| format!("the package {} holds no file '{member}'", package.display()))
     }
 

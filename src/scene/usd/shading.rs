@@ -287,10 +287,37 @@ impl Loader<'_> {
             self.color_input(&shader, "inputs:emissiveColor", Rgb::ZERO, true)?;
         m.emission = emission.max(Rgb::ZERO);
         m.emission_texture = emission_tex;
-        m.metallic = self.float(&shader, "inputs:metallic", 0.0)?;
-        m.roughness = self.float(&shader, "inputs:roughness", 0.5)?;
-        let roughness_map = self.scalar_texture(&shader, "inputs:roughness")?;
-        let metallic_map = self.scalar_texture(&shader, "inputs:metallic")?;
+        self.metallic_roughness(path, &shader, &mut m)?;
+        m.ior = self.scalar_input(&shader, "inputs:ior", 1.5)?;
+        m.transmission = (1.0 - self.scalar_input(&shader, "inputs:opacity", 1.0)?).clamp(0.0, 1.0);
+        m.normal_texture = self
+            .texture_of(&shader, "inputs:normal", false, TextureRole::Normal)?
+            .map(|t| (t, 1.0));
+        let specular_workflow = match self.value(&shader, "inputs:useSpecularWorkflow")? {
+            Some(v) => number(&v).unwrap_or(0.0) != 0.0,
+            None => false,
+        };
+        if specular_workflow {
+            m.metallic = 0.0;
+            self.warn(format!(
+                "material {path}: useSpecularWorkflow is not supported; read as metallic 0"
+            ));
+        }
+        Ok((m, primvar_color))
+    }
+
+    /// Sets `m`'s metallic and roughness from the UsdPreviewSurface `shader` of material `path`: their values
+    /// (0 and 0.5 by default), and their textures packed into one in glTF's layout.
+    fn metallic_roughness(
+        &mut self,
+        path: &str,
+        shader: &usd::Prim,
+        m: &mut Material,
+    ) -> Result<(), SceneError> {
+        m.metallic = self.float(shader, "inputs:metallic", 0.0)?;
+        m.roughness = self.float(shader, "inputs:roughness", 0.5)?;
+        let roughness_map = self.scalar_texture(shader, "inputs:roughness")?;
+        let metallic_map = self.scalar_texture(shader, "inputs:metallic")?;
         if roughness_map.is_some() || metallic_map.is_some() {
             // glTF's layout: roughness in G, metalness in B, each times its factor (1 where textured).
             let transform = roughness_map
@@ -310,22 +337,7 @@ impl Loader<'_> {
             let id = (self.builder.textures.len() - 1) as u32;
             m.metallic_roughness_texture = Some(self.transformed(id, transform));
         }
-        m.ior = self.scalar_input(&shader, "inputs:ior", 1.5)?;
-        m.transmission = (1.0 - self.scalar_input(&shader, "inputs:opacity", 1.0)?).clamp(0.0, 1.0);
-        m.normal_texture = self
-            .texture_of(&shader, "inputs:normal", false, TextureRole::Normal)?
-            .map(|t| (t, 1.0));
-        let specular_workflow = match self.value(&shader, "inputs:useSpecularWorkflow")? {
-            Some(v) => number(&v).unwrap_or(0.0) != 0.0,
-            None => false,
-        };
-        if specular_workflow {
-            m.metallic = 0.0;
-            self.warn(format!(
-                "material {path}: useSpecularWorkflow is not supported; read as metallic 0"
-            ));
-        }
-        Ok((m, primvar_color))
+        Ok(())
     }
 
     /// Maps a MaterialX `standard_surface` shader (Autodesk Standard Surface 1.0.1, as MaterialX 1.38 defines

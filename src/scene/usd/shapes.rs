@@ -181,77 +181,17 @@ impl Shape {
                 radius,
                 height,
                 axis,
-            } => {
-                let h = 0.5 * height;
-                let side = |r: f32, z: f32, t: f32| ProfilePoint {
-                    r,
-                    z,
-                    n: Vec2::X,
-                    t,
-                };
-                let mesh = revolve(&[
-                    cap(radius, -h, -1.0),
-                    vec![side(radius, -h, 0.0), side(radius, h, 1.0)],
-                    cap(radius, h, 1.0),
-                ]);
-                axis.orient(mesh)
-            }
+            } => axis.orient(cylinder(radius, height)),
             Shape::Cone {
                 radius,
                 height,
                 axis,
-            } => {
-                let h = 0.5 * height;
-                // The side's outward normal is perpendicular to the slant (−radius, height).
-                let n = Vec2::new(height, radius).normalize();
-                let mesh = revolve(&[
-                    cap(radius, -h, -1.0),
-                    vec![
-                        ProfilePoint {
-                            r: radius,
-                            z: -h,
-                            n,
-                            t: 0.0,
-                        },
-                        ProfilePoint {
-                            r: 0.0,
-                            z: h,
-                            n,
-                            t: 1.0,
-                        },
-                    ],
-                ]);
-                axis.orient(mesh)
-            }
+            } => axis.orient(cone(radius, height)),
             Shape::Capsule {
                 radius,
                 height,
                 axis,
-            } => {
-                let h = 0.5 * height;
-                let total = height + 2.0 * radius;
-                let t = |z: f32| (z + h + radius) / total;
-                // One strip: the bottom hemisphere's equator joins the top one's, making the cylinder between.
-                let mut profile = arc(
-                    radius,
-                    -h,
-                    -FRAC_PI_2,
-                    0.0,
-                    RINGS / 2,
-                    t(-h - radius),
-                    t(-h),
-                );
-                profile.extend(arc(
-                    radius,
-                    h,
-                    0.0,
-                    FRAC_PI_2,
-                    RINGS / 2,
-                    t(h),
-                    t(h + radius),
-                ));
-                axis.orient(revolve(&[profile]))
-            }
+            } => axis.orient(capsule(radius, height)),
             Shape::Plane {
                 width,
                 length,
@@ -261,6 +201,73 @@ impl Shape {
         orient_outward(&mut mesh);
         mesh
     }
+}
+
+/// A capped cylinder of `radius` and `height` along +Z, centred on the origin.
+fn cylinder(radius: f32, height: f32) -> Mesh {
+    let h = 0.5 * height;
+    let side = |r: f32, z: f32, t: f32| ProfilePoint {
+        r,
+        z,
+        n: Vec2::X,
+        t,
+    };
+    revolve(&[
+        cap(radius, -h, -1.0),
+        vec![side(radius, -h, 0.0), side(radius, h, 1.0)],
+        cap(radius, h, 1.0),
+    ])
+}
+
+/// A cone of base `radius` and `height` along +Z (apex up), centred on the origin, its base capped.
+fn cone(radius: f32, height: f32) -> Mesh {
+    let h = 0.5 * height;
+    // The side's outward normal is perpendicular to the slant (−radius, height).
+    let n = Vec2::new(height, radius).normalize();
+    revolve(&[
+        cap(radius, -h, -1.0),
+        vec![
+            ProfilePoint {
+                r: radius,
+                z: -h,
+                n,
+                t: 0.0,
+            },
+            ProfilePoint {
+                r: 0.0,
+                z: h,
+                n,
+                t: 1.0,
+            },
+        ],
+    ])
+}
+
+/// A capsule of `radius` along +Z, centred on the origin: a cylinder of `height` between two hemispheres.
+fn capsule(radius: f32, height: f32) -> Mesh {
+    let h = 0.5 * height;
+    let total = height + 2.0 * radius;
+    let t = |z: f32| (z + h + radius) / total;
+    // One strip: the bottom hemisphere's equator joins the top one's, making the cylinder between.
+    let mut profile = arc(
+        radius,
+        -h,
+        -FRAC_PI_2,
+        0.0,
+        RINGS / 2,
+        t(-h - radius),
+        t(-h),
+    );
+    profile.extend(arc(
+        radius,
+        h,
+        0.0,
+        FRAC_PI_2,
+        RINGS / 2,
+        t(h),
+        t(h + radius),
+    ));
+    revolve(&[profile])
 }
 
 /// A circular arc of the profile: centre height `z`, latitudes `from..=to` (radians, −π/2 at the bottom),

@@ -8,6 +8,7 @@ use crate::params::{ParamError, ParamKey, ParamSource, ParamType, ParamValue, Us
 use crate::scene::{SceneError, SceneErrorKind};
 use crate::volume::VolumeSpec;
 use openusd::{sdf, usd};
+use std::path::PathBuf;
 
 /// A prim's `nimbus:` attributes as a parameter source: keys bound to [`UsdBinding::Attribute`] are read from
 /// `nimbus:<key>`, the others are not given.
@@ -64,6 +65,8 @@ impl ParamSource for UsdParams<'_> {
 }
 
 impl Loader<'_> {
+    /// Reads the `Volume` prim `prim` (at `world`): its OpenVDB fields (density required, temperature, flame,
+    /// Cd and albedo optional, all from one file) and its `nimbus:` medium parameters.
     pub(super) fn volume(&mut self, prim: &usd::Prim, world: &Mat4) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
         let mut fields = Vec::new();
@@ -74,37 +77,7 @@ impl Loader<'_> {
             "field:Cd",
             "field:albedo",
         ] {
-            let targets = prim
-                .relationship(name)
-                .targets()
-                .map_err(|e| self.error(&at, format!("{e:#}")))?;
-            let field = match targets.first() {
-                Some(t) => {
-                    let asset = self.stage.prim(t.prim_path().as_str());
-                    let kind = self.type_name(&asset)?;
-                    if kind != "OpenVDBAsset" {
-                        return Err(self.error(
-                            &at,
-                            format!("{name} targets a '{kind}', not an OpenVDBAsset"),
-                        ));
-                    }
-                    let file = self
-                        .asset(&asset, "filePath")?
-                        .ok_or_else(|| self.error(asset.path().as_str(), "filePath is required"))?;
-                    let grid = self
-                        .value(&asset, "fieldName")?
-                        .and_then(|v| token(&v))
-                        .unwrap_or_else(|| name["field:".len()..].to_owned());
-                    if self.float(&asset, "fieldIndex", 0.0)? != 0.0 {
-                        self.warn(format!(
-                            "{}: fieldIndex is ignored (the grid is found by name)",
-                            asset.path().as_str()
-                        ));
-                    }
-                    Some((file, grid))
-                }
-                None => None,
-            };
+            let field = self.volume_field(prim, &at, name)?;
             fields.push(field);
         }
         let Some((file, density_grid)) = fields[0].clone() else {
@@ -147,5 +120,44 @@ impl Loader<'_> {
         spec.tags = self.tags.clone();
         self.volumes.push(spec);
         Ok(())
+    }
+
+    /// The file and grid name of the `OpenVDBAsset` that field relationship `name` of the Volume `prim` (at
+    /// `at`) targets, or `None` when it targets none.
+    fn volume_field(
+        &mut self,
+        prim: &usd::Prim,
+        at: &str,
+        name: &str,
+    ) -> Result<Option<(PathBuf, String)>, SceneError> {
+        let targets = prim
+            .relationship(name)
+            .targets()
+            .map_err(|e| self.error(at, format!("{e:#}")))?;
+        let Some(t) = targets.first() else {
+            return Ok(None);
+        };
+        let asset = self.stage.prim(t.prim_path().as_str());
+        let kind = self.type_name(&asset)?;
+        if kind != "OpenVDBAsset" {
+            return Err(self.error(
+                at,
+                format!("{name} targets a '{kind}', not an OpenVDBAsset"),
+            ));
+        }
+        let file = self
+            .asset(&asset, "filePath")?
+            .ok_or_else(|| self.error(asset.path().as_str(), "filePath is required"))?;
+        let grid = self
+            .value(&asset, "fieldName")?
+            .and_then(|v| token(&v))
+            .unwrap_or_else(|| name["field:".len()..].to_owned());
+        if self.float(&asset, "fieldIndex", 0.0)? != 0.0 {
+            self.warn(format!(
+                "{}: fieldIndex is ignored (the grid is found by name)",
+                asset.path().as_str()
+            ));
+        }
+        Ok(Some((file, grid)))
     }
 }

@@ -15,7 +15,7 @@
 //! and a target that leads to more targets (counted per path, as the recursion follows them) than the prim
 //! limit is refused with the prim limit's message.
 
-use super::{inside, parent, ArcKind, Layers};
+use super::{inside, parent, ArcKind, CompositionError, Layers};
 use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
 
@@ -142,7 +142,7 @@ impl Precache {
 
     /// Refuses a cycle of pre-cached targets, and a path from which the pre-caching follows more than
     /// `max_prims` targets.
-    pub(super) fn check(&mut self, max_prims: u64) -> Result<(), String> {
+    pub(super) fn check(&mut self, max_prims: u64) -> Result<(), CompositionError> {
         if self.class.is_empty() {
             return Ok(());
         }
@@ -159,11 +159,10 @@ impl Precache {
                 let Some((next, _)) = top.1.get(top.2).cloned() else {
                     let (done, _, _, count) = frames.pop().expect("a frame");
                     if count > max_prims {
-                        return Err(format!(
-                            "openusd 0.6 pre-caches more than {max_prims} inherit and specialize targets from \
-                             {done} (each once per path that leads to it), over the limit of {max_prims} prims \
-                             (raise it with --max-prims)"
-                        ));
+                        return Err(CompositionError::Precache {
+                            max_prims,
+                            from: done,
+                        });
                     }
                     counted.insert(done, Some(count));
                     if let Some(parent) = frames.last_mut() {
@@ -259,7 +258,7 @@ impl Precache {
 
 /// The error for a pre-caching that reached `path` again while following it: the targets from `path` round to
 /// it, named by the arc that first leads back.
-fn cycle(frames: &[Frame], path: &str) -> String {
+fn cycle(frames: &[Frame], path: &str) -> CompositionError {
     let from = frames.iter().position(|f| f.0 == path).unwrap_or(0);
     let chain: Vec<&str> = frames[from..]
         .iter()
@@ -267,12 +266,10 @@ fn cycle(frames: &[Frame], path: &str) -> String {
         .chain([path])
         .collect();
     let arc = &frames[from].1[frames[from].2 - 1].1;
-    format!(
-        "{}: {} <{}> is a composition cycle for openusd 0.6, whose pre-caching of inherit and specialize targets \
-         would follow {} without end (a stack overflow)",
-        arc.at,
-        arc.kind.name(),
-        arc.target,
-        chain.join(" -> ")
-    )
+    CompositionError::PrecacheCycle {
+        at: arc.at.clone(),
+        kind: arc.kind.name(),
+        target: arc.target.clone(),
+        chain: chain.join(" -> "),
+    }
 }
