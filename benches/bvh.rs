@@ -158,6 +158,22 @@ fn throughput(
     )
 }
 
+/// The mean number of wide nodes and triangles a query tests per ray, over `rays`.
+fn counts_per_ray(bvh: &Bvh, rays: &[Ray], query: &str) -> (f64, f64) {
+    let (nodes, triangles) = rays
+        .par_iter()
+        .map(|r| {
+            let counts = match query {
+                "closest" => bvh.traversal_counts::<false>(r, 0.0, f32::INFINITY).1,
+                _ => bvh.traversal_counts::<true>(r, 0.0, f32::INFINITY).1,
+            };
+            (counts.nodes, counts.triangles)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let n = rays.len() as f64;
+    (nodes as f64 / n, triangles as f64 / n)
+}
+
 /// 64 instances of one bumpy sphere on a 4×4×4 lattice, rotated and non-uniformly scaled: the two-level
 /// hierarchy against the same triangles flattened into one hierarchy (build, memory, rays).
 fn instanced_scene(rng: &mut Rng) {
@@ -336,6 +352,17 @@ fn main() {
                     name, query, threads, wall, cpu, hits
                 );
             }
+        }
+    }
+    println!();
+    println!(
+        "{:<20} {:<9} {:>14} {:>18}",
+        "rays", "query", "nodes per ray", "triangles per ray"
+    );
+    for (name, rays) in &sets {
+        for query in ["closest", "occluded"] {
+            let (nodes, triangles) = counts_per_ray(&bvh, rays, query);
+            println!("{name:<20} {query:<9} {nodes:>14.1} {triangles:>18.1}");
         }
     }
     instanced_scene(&mut rng);
