@@ -467,6 +467,7 @@ struct TraversalRay {
 }
 
 impl TraversalRay {
+    #[inline(always)]
     fn new(ray: &Ray) -> Self {
         let inv = ray.dir.recip();
         Self {
@@ -686,40 +687,95 @@ impl Bvh {
         node_visited: &impl Fn(),
         tested: &impl Fn(usize),
     ) -> Option<TriangleHit> {
-        let t_min = t_range[0];
-        self.tree.query_counted::<ANY_HIT>(
-            ray,
-            t_range,
-            &|first, count, r, best| {
-                tested(count);
-                let packs = self.packs.get(first..first + count.div_ceil(PACK)).unwrap_or_default();
-                for (p, pack) in packs.iter().enumerate() {
-                    let valid = (1u32 << (count - p * PACK).min(PACK)) - 1;
-                    let hits = pack.intersect(r, valid, t_min, best.limit());
-                    let mut m = hits.mask;
-                    while m != 0 {
-                        let i = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        let hit = TriangleHit {
-                            t: hits.t[i],
-                            prim: pack.ids[i],
-                            b1: hits.b1[i],
-                            b2: hits.b2[i],
-                        };
-                        if best.offer::<ANY_HIT>(hit, accept) {
-                            return true;
-                        }
-                    }
+        let leaves = PackLeaves::<'_, _, _, ANY_HIT> {
+            packs: &self.packs,
+            t_min: t_range[0],
+            accept,
+            tested,
+        };
+        self.tree
+            .query_counted::<ANY_HIT>(ray, t_range, &leaves, node_visited)
+    }
+}
+
+/// The leaves of a [`Bvh`] for one query: runs of triangle packs, each tested four triangles at a time,
+/// their hits offered in leaf order to the query's [`Closest`] (with `ANY_HIT`, until one is kept).
+struct PackLeaves<'a, A, T, const ANY_HIT: bool> {
+    packs: &'a [Triangle4],
+    t_min: f32,
+    /// Which hits count (alpha cut-outs).
+    accept: &'a A,
+    /// Called with the number of triangles of each leaf tested (the statistics).
+    tested: &'a T,
+}
+
+impl<A, T, const ANY_HIT: bool> Leaves for PackLeaves<'_, A, T, ANY_HIT>
+where
+    A: Fn(&TriangleHit) -> bool,
+    T: Fn(usize),
+{
+    #[inline(always)]
+    fn intersect(&self, first: usize, count: usize, ray: &WatertightRay, best: &mut Closest) -> bool {
+        (self.tested)(count);
+        let packs = self.packs.get(first..first + count.div_ceil(PACK)).unwrap_or_default();
+        for (p, pack) in packs.iter().enumerate() {
+            let valid = (1u32 << (count - p * PACK).min(PACK)) - 1;
+            let hits = pack.intersect(ray, valid, self.t_min, best.limit());
+            let mut m = hits.mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let hit = TriangleHit {
+                    t: hits.t[i],
+                    prim: pack.ids[i],
+                    b1: hits.b1[i],
+                    b2: hits.b2[i],
+                };
+                if best.offer::<ANY_HIT>(hit, self.accept) {
+                    return true;
                 }
-                false
-            },
-            &|i| {
-                let p = &self.packs[i] as *const Triangle4 as *const i8;
-                prefetch(p);
-                prefetch(p.wrapping_add(64));
-            },
-            node_visited,
-        )
+            }
+        }
+        false
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, first: usize) {
+        if let Some(pack) = self.packs.get(first) {
+            let p = pack as *const Triangle4 as *const i8;
+            prefetch(p);
+            prefetch(p.wrapping_add(64));
+        }
+    }
+}
+
+/// The leaves of a [`Tree`] as its traversal sees them.
+pub(super) trait Leaves {
+    /// Intersects the leaf of `count` primitives at `first` (an index into the leaf order, or whatever the
+    /// hierarchy made it), offers each hit to `best` ([`Closest::offer`]) and returns whether `offer` ended
+    /// the query.
+    fn intersect(&self, first: usize, count: usize, ray: &WatertightRay, best: &mut Closest) -> bool;
+
+    /// Starts loading the leaf at `first`.
+    fn prefetch(&self, first: usize);
+}
+
+/// Leaves given as two closures: `.0` intersects (as [`Leaves::intersect`]), `.1` prefetches.
+struct LeafFns<'a, L, P>(&'a L, &'a P);
+
+impl<L, P> Leaves for LeafFns<'_, L, P>
+where
+    L: Fn(usize, usize, &WatertightRay, &mut Closest) -> bool,
+    P: Fn(usize),
+{
+    #[inline(always)]
+    fn intersect(&self, first: usize, count: usize, ray: &WatertightRay, best: &mut Closest) -> bool {
+        (self.0)(first, count, ray, best)
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, first: usize) {
+        (self.1)(first)
     }
 }
 
@@ -844,7 +900,7 @@ impl Tree {
         leaf: &impl Fn(usize, usize, &WatertightRay, &mut Closest) -> bool,
         prefetch_leaf: &impl Fn(usize),
     ) -> Option<TriangleHit> {
-        self.query_counted::<ANY_HIT>(ray, [t_min, t_max], leaf, prefetch_leaf, &|| {})
+        self.query_counted::<ANY_HIT>(ray, [t_min, t_max], &LeafFns(leaf, prefetch_leaf), &|| {})
     }
 
     /// [`Tree::query`], calling `node_visited()` for each wide node whose boxes are tested (for the
@@ -854,11 +910,10 @@ impl Tree {
         &self,
         ray: &Ray,
         [t_min, t_max]: [f32; 2],
-        leaf: &impl Fn(usize, usize, &WatertightRay, &mut Closest) -> bool,
-        prefetch_leaf: &impl Fn(usize),
+        leaves: &impl Leaves,
         node_visited: &impl Fn(),
     ) -> Option<TriangleHit> {
-        let hooks = (leaf, prefetch_leaf, node_visited);
+        let hooks = (leaves, node_visited);
         if self.stack_needed <= STACK_TINY {
             self.traverse::<ANY_HIT, STACK_TINY>(ray, t_min, t_max, hooks)
         } else if self.stack_needed <= STACK_SMALL {
@@ -877,11 +932,7 @@ impl Tree {
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        (leaf, prefetch_leaf, node_visited): (
-            &impl Fn(usize, usize, &WatertightRay, &mut Closest) -> bool,
-            &impl Fn(usize),
-            &impl Fn(),
-        ),
+        (leaves, node_visited): (&impl Leaves, &impl Fn()),
     ) -> Option<TriangleHit> {
         // A non-finite origin or direction, or a NaN interval, meets nothing. Such a ray would make every
         // slab comparison NaN, which the slab test reads as "no constraint", so it would "hit" every slot.
@@ -906,7 +957,7 @@ impl Tree {
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
-                self.prefetch_slot(&self.nodes[node], i, prefetch_leaf);
+                self.prefetch_slot(&self.nodes[node], i, leaves);
                 let entry = ((node * 4 + i) as u32, near[i]);
                 // `stack_needed` bounds `sp` for any ray that reaches here; a full stack is still a miss of
                 // the rest, never an overrun.
@@ -942,7 +993,7 @@ impl Tree {
                     node = child;
                     break;
                 }
-                if leaf(child, count, &r.tri, &mut best) {
+                if leaves.intersect(child, count, &r.tri, &mut best) {
                     return best.best;
                 }
             }
@@ -976,14 +1027,14 @@ impl Tree {
     /// Starts loading what visiting child `i` of `node` will read, so that the memory latency overlaps the
     /// work on its siblings: the child's node (two cache lines) or the leaf's first primitive.
     #[inline(always)]
-    fn prefetch_slot(&self, node: &Node4, i: usize, prefetch_leaf: &impl Fn(usize)) {
+    fn prefetch_slot(&self, node: &Node4, i: usize, leaves: &impl Leaves) {
         let child = node.child[i] as usize;
         if node.count[i] == 0 {
             let p = &self.nodes[child] as *const Node4 as *const i8;
             prefetch(p);
             prefetch(p.wrapping_add(64));
         } else {
-            prefetch_leaf(child);
+            leaves.prefetch(child);
         }
     }
 }

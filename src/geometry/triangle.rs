@@ -46,6 +46,7 @@ pub struct WatertightRay {
 impl WatertightRay {
     /// Precomputes the permutation (largest direction component becomes z, winding preserved) and the
     /// shear constants `Sx = dx/dz`, `Sy = dy/dz`, `Sz = 1/dz` of Woop et al. 2013.
+    #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         let d = ray.dir.to_array();
         let a = ray.dir.abs();
@@ -296,6 +297,39 @@ mod tests {
         assert!(hit(Vec3::new(1.0, 1.0, 2.0), -Vec3::Z, &point).is_none());
         let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
         assert!(hit(Vec3::new(-1.0, 0.25, 0.0), Vec3::X, &tri).is_none());
+    }
+
+    #[test]
+    fn packs_of_four_match_the_single_test_bit_for_bit() {
+        let mut rng = crate::math::Rng::new(21, 22);
+        let mut point = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        for k in 0..4000 {
+            let mut tris: Vec<[Vec3; 3]> = (0..4).map(|_| [point(), point(), point()]).collect();
+            // Shared edges and vertices, a degenerate triangle, and axis-aligned rays through vertices.
+            tris[1][0] = tris[0][1];
+            tris[1][1] = tris[0][0];
+            if k % 5 == 0 {
+                tris[2] = [tris[0][2]; 3];
+            }
+            let o = point() * 3.0;
+            let d = match k % 4 {
+                0 => (tris[k % 3][k % 3] - o).normalize(),
+                1 => Vec3::X,
+                _ => (point() - o).normalize(),
+            };
+            let ray = WatertightRay::new(&Ray::new(o, d));
+            let used = 1 + k % 4;
+            let ids: Vec<u32> = (0..used as u32).collect();
+            let pack = Triangle4::new(&tris[..used], &ids);
+            let hits = pack.intersect(&ray, (1 << used) - 1, 0.0, 2.5);
+            for (i, tri) in tris[..used].iter().enumerate() {
+                let single = intersect_triangle(&ray, tri, 0.0, 2.5);
+                let packed = (hits.mask >> i & 1 == 1).then(|| (hits.t[i], hits.b1[i], hits.b2[i]));
+                assert_eq!(packed.map(|h| h.0.to_bits()), single.map(|h| h.0.to_bits()), "{k} {i}");
+                assert_eq!(packed, single, "{k} {i}");
+            }
+            assert_eq!(hits.mask >> used, 0, "{k}: an unused lane hit");
+        }
     }
 
     #[test]
