@@ -1,7 +1,8 @@
 //! BVH benchmark: build time, memory and ray throughput on a procedural ~1M-triangle bumpy sphere; then a scene
 //! of 64 instances of a 51 k-triangle sphere, as a two-level `InstanceBvh` and flattened into one `Bvh`.
 //!
-//! Run with `cargo bench --bench bvh`. Rays are generated up front; each figure is the best of a few runs
+//! Run with `cargo bench --bench bvh`. After the throughput table it gives the mean number of wide nodes and
+//! triangles each query tests per ray (`Bvh::traversal_counts`). Rays are generated up front; each figure is the best of a few runs
 //! of the whole ray set on a rayon pool with the given number of threads. Throughput is given per second of
 //! wall time and per second of CPU time summed over threads (steadier on a shared machine; with two
 //! threads it is per-core throughput, so the wall figure shows the scaling).
