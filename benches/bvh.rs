@@ -1,7 +1,8 @@
 //! BVH benchmark: build time, memory and ray throughput on a procedural ~1M-triangle bumpy sphere; then a scene
 //! of 64 instances of a 51 k-triangle sphere, as a two-level `InstanceBvh` and flattened into one `Bvh`.
 //!
-//! Run with `cargo bench --bench bvh`. Rays are generated up front; each figure is the best of a few runs
+//! Run with `cargo bench --bench bvh`. After the throughput table it gives the mean number of wide nodes and
+//! triangles each query tests per ray (`Bvh::traversal_counts`). Rays are generated up front; each figure is the best of a few runs
 //! of the whole ray set on a rayon pool with the given number of threads. Throughput is given per second of
 //! wall time and per second of CPU time summed over threads (steadier on a shared machine; with two
 //! threads it is per-core throughput, so the wall figure shows the scaling).
@@ -156,6 +157,22 @@ fn throughput(
         cpu.map_or(f64::NAN, mrays),
         hits as f64 / rays.len() as f64,
     )
+}
+
+/// The mean number of wide nodes and triangles a query tests per ray, over `rays`.
+fn counts_per_ray(bvh: &Bvh, rays: &[Ray], query: &str) -> (f64, f64) {
+    let (nodes, triangles) = rays
+        .par_iter()
+        .map(|r| {
+            let counts = match query {
+                "closest" => bvh.traversal_counts::<false>(r, 0.0, f32::INFINITY).1,
+                _ => bvh.traversal_counts::<true>(r, 0.0, f32::INFINITY).1,
+            };
+            (counts.nodes, counts.triangles)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let n = rays.len() as f64;
+    (nodes as f64 / n, triangles as f64 / n)
 }
 
 /// 64 instances of one bumpy sphere on a 4×4×4 lattice, rotated and non-uniformly scaled: the two-level
@@ -336,6 +353,17 @@ fn main() {
                     name, query, threads, wall, cpu, hits
                 );
             }
+        }
+    }
+    println!();
+    println!(
+        "{:<20} {:<9} {:>14} {:>18}",
+        "rays", "query", "nodes per ray", "triangles per ray"
+    );
+    for (name, rays) in &sets {
+        for query in ["closest", "occluded"] {
+            let (nodes, triangles) = counts_per_ray(&bvh, rays, query);
+            println!("{name:<20} {query:<9} {nodes:>14.1} {triangles:>18.1}");
         }
     }
     instanced_scene(&mut rng);

@@ -102,7 +102,7 @@ impl InstanceBvh {
                 Some(PrimRef::new(world, i as u32))
             })
             .collect();
-        let tree = Tree::build(refs, instances.len())?;
+        let tree = Tree::build(refs, instances.len(), 1)?;
         let placements = tree
             .prim_ids()
             .iter()
@@ -219,20 +219,27 @@ impl TriangleHierarchy for InstanceBvh {
             ray,
             t_min,
             t_max,
-            &|i, _, _, t0, t1| {
-                let place = &self.placements[i];
-                let (local, reach) = to_object(place, ray);
-                let proto = &self.prototypes[place.prototype as usize];
-                let numbered = |h: &TriangleHit| TriangleHit {
-                    prim: place.first + h.prim,
-                    ..*h
-                };
-                proto
-                    .query::<ANY_HIT>(&local, t0.max(reach), t1, &|h| accept(&numbered(h)))
-                    .map(|h| numbered(&h))
+            &|first, count, _, best| {
+                for place in &self.placements[first..first + count] {
+                    let (local, reach) = to_object(place, ray);
+                    let proto = &self.prototypes[place.prototype as usize];
+                    let numbered = |h: &TriangleHit| TriangleHit {
+                        prim: place.first + h.prim,
+                        ..*h
+                    };
+                    let hit = proto.query::<ANY_HIT>(&local, t_min.max(reach), best.limit(), &|h| {
+                        accept(&numbered(h))
+                    });
+                    // The prototype's query has applied `accept` already.
+                    if let Some(h) = hit {
+                        if best.offer::<ANY_HIT>(numbered(&h), &|_| true) {
+                            return true;
+                        }
+                    }
+                }
+                false
             },
             &|i| prefetch(&self.placements[i] as *const Placement as *const i8),
-            &|_| true,
         )
     }
 }

@@ -11,6 +11,8 @@ mod tags;
 mod tangents;
 mod triangle;
 
+#[cfg(feature = "testing")]
+pub use bvh::TraversalCounts;
 pub use bvh::{Bvh, TooManyTriangles, TriangleHierarchy};
 pub use instance::{Instance, InstanceBvh};
 pub use mesh::{Mesh, MeshMotion};

@@ -132,7 +132,7 @@ impl MotionBvh {
                 Some(PrimRef::new(t.bounds().filter(|_| usable)?, i as u32))
             })
             .collect();
-        let tree = Tree::build(refs, triangles.len())?;
+        let tree = Tree::build(refs, triangles.len(), 1)?;
         let mut prims = Vec::with_capacity(tree.prim_ids().len());
         let mut vertices = Vec::new();
         for &id in tree.prim_ids() {
@@ -183,18 +183,23 @@ impl TriangleHierarchy for MotionBvh {
             ray,
             t_min,
             t_max,
-            &|i, prim, r, t0, t1| {
-                let (steps, first) = self.prims[i];
-                let first = first as usize;
-                let count = steps.count as usize;
-                let tri = interpolate(steps, &self.vertices[first..first + count], time);
-                intersect_triangle(r, &tri, t0, t1).map(|(t, b1, b2)| TriangleHit { t, prim, b1, b2 })
+            &|first, count, r, best| {
+                for (i, &prim) in (first..first + count).zip(&self.tree.prim_ids()[first..first + count]) {
+                    let (steps, at) = self.prims[i];
+                    let at = at as usize;
+                    let tri = interpolate(steps, &self.vertices[at..at + steps.count as usize], time);
+                    if let Some((t, b1, b2)) = intersect_triangle(r, &tri, t_min, best.limit()) {
+                        if best.offer::<ANY_HIT>(TriangleHit { t, prim, b1, b2 }, accept) {
+                            return true;
+                        }
+                    }
+                }
+                false
             },
             &|i| {
                 let first = self.prims[i].1 as usize;
                 prefetch(&self.vertices[first] as *const [Vec3; 3] as *const i8);
             },
-            accept,
         )
     }
 }

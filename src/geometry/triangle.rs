@@ -11,8 +11,8 @@
 //! Triangles are hit from both sides; face culling is the integrator's job. A hit closer to the origin than the
 //! distance's own rounding error is rejected, so a ray spawned off a surface never re-hits it.
 
-use crate::math::{gamma, Ray, Vec3};
-use glam::{Vec3A, Vec3Swizzles};
+use crate::math::{gamma, Ray, Vec3, Vec4};
+use glam::{BVec4A, Vec3A, Vec3Swizzles};
 
 /// A closest hit found by [`crate::geometry::Bvh::intersect`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,6 +46,7 @@ pub struct WatertightRay {
 impl WatertightRay {
     /// Precomputes the permutation (largest direction component becomes z, winding preserved) and the
     /// shear constants `Sx = dx/dz`, `Sy = dy/dz`, `Sz = 1/dz` of Woop et al. 2013.
+    #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         let d = ray.dir.to_array();
         let a = ray.dir.abs();
@@ -134,6 +135,96 @@ pub fn intersect_triangle(
     Some((t, v * rcp, w * rcp))
 }
 
+/// Four triangles in structure-of-arrays form, tested against one ray together by [`Triangle4::intersect`]:
+/// the packed leaf triangles of a [`crate::geometry::Bvh`] (160 bytes, 40 a triangle). Lanes past the pack's
+/// triangle count repeat its first triangle and are masked out by the caller.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+pub(super) struct Triangle4 {
+    /// `vertex[k][a]`: coordinate `a` (x, y, z) of vertex `k` of the four triangles.
+    vertex: [[Vec4; 3]; 3],
+    /// The triangles' indices in the input list (`u32::MAX` in unused lanes).
+    pub(super) ids: [u32; 4],
+}
+
+/// What [`Triangle4::intersect`] found: a bit mask of the lanes hit, and their distances and barycentrics.
+pub(super) struct Hits4 {
+    /// Bit `i` set: lane `i` is hit within the interval.
+    pub(super) mask: u32,
+    /// Distance of each hit lane.
+    pub(super) t: Vec4,
+    /// Barycentric weight of each hit lane's second vertex.
+    pub(super) b1: Vec4,
+    /// Barycentric weight of each hit lane's third vertex.
+    pub(super) b2: Vec4,
+}
+
+impl Triangle4 {
+    /// Packs up to four triangles with their input indices; an empty list gives a pack no valid lane names.
+    pub(super) fn new(tris: &[[Vec3; 3]], ids: &[u32]) -> Self {
+        let lane = |i: usize| tris.get(i).or(tris.first()).copied().unwrap_or_default();
+        let vertex = [0, 1, 2].map(|k| {
+            [0, 1, 2].map(|a| Vec4::from_array([0, 1, 2, 3].map(|i| lane(i)[k][a])))
+        });
+        Self {
+            vertex,
+            ids: [0, 1, 2, 3].map(|i| ids.get(i).copied().unwrap_or(u32::MAX)),
+        }
+    }
+
+    /// The watertight test of [`intersect_triangle`] on the lanes of `valid` (a bit mask) at once. Each lane
+    /// performs exactly the scalar operations of [`intersect_triangle`] in the same order, so its hits,
+    /// distances and barycentrics are bit for bit those of testing the triangles one at a time.
+    #[inline(always)]
+    pub(super) fn intersect(&self, ray: &WatertightRay, valid: u32, t_min: f32, t_max: f32) -> Hits4 {
+        let o = ray.origin;
+        // Vertex k translated to the ray origin, then a row of the permute-and-shear transform applied.
+        let rel = |k: usize| {
+            let v = &self.vertex[k];
+            [v[0] - o.x, v[1] - o.y, v[2] - o.z]
+        };
+        let (a, b, c) = (rel(0), rel(1), rel(2));
+        let row = |p: &[Vec4; 3], s: Vec3| p[0] * s.x + p[1] * s.y + p[2] * s.z;
+        let (ax, bx, cx) = (row(&a, ray.shear_x), row(&b, ray.shear_x), row(&c, ray.shear_x));
+        let (ay, by, cy) = (row(&a, ray.shear_y), row(&b, ray.shear_y), row(&c, ray.shear_y));
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        let zero = (u.cmpeq(Vec4::ZERO) | v.cmpeq(Vec4::ZERO) | w.cmpeq(Vec4::ZERO)).bitmask() & valid;
+        let mut m = zero;
+        while m != 0 {
+            // An exact zero may be a rounding artefact; decide that lane in double precision.
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let edge = |p: [f32; 4]| -> f64 { f64::from(p[0]) * f64::from(p[1]) - f64::from(p[2]) * f64::from(p[3]) };
+            u[i] = edge([cx[i], by[i], cy[i], bx[i]]) as f32;
+            v[i] = edge([ax[i], cy[i], ay[i], cx[i]]) as f32;
+            w[i] = edge([bx[i], ay[i], by[i], ax[i]]) as f32;
+        }
+        let negative = u.cmplt(Vec4::ZERO) | v.cmplt(Vec4::ZERO) | w.cmplt(Vec4::ZERO);
+        let positive = u.cmpgt(Vec4::ZERO) | v.cmpgt(Vec4::ZERO) | w.cmpgt(Vec4::ZERO);
+        let inside = (!(negative & positive)).bitmask() & valid;
+        let none = Hits4 { mask: 0, t: Vec4::ZERO, b1: Vec4::ZERO, b2: Vec4::ZERO };
+        if inside == 0 {
+            return none;
+        }
+        let det = u + v + w;
+        let (az, bz, cz) = (row(&a, ray.scale_z), row(&b, ray.scale_z), row(&c, ray.scale_z));
+        let t_scaled = az * u + bz * v + cz * w;
+        let rcp = Vec4::ONE / det;
+        let t = t_scaled * rcp;
+        let max_abs = |p: Vec4, q: Vec4, r: Vec4| p.abs().max(q.abs()).max(r.abs());
+        let bound = error_bound_from_maxima(
+            [max_abs(ax, bx, cx), max_abs(ay, by, cy), max_abs(az, bz, cz)],
+            max_abs(u, v, w),
+            rcp.abs(),
+        );
+        let in_range: BVec4A = t.cmpge(Vec4::splat(t_min)) & t.cmple(Vec4::splat(t_max));
+        let hit = det.cmpne(Vec4::ZERO) & in_range & t.cmpgt(bound);
+        Hits4 { mask: hit.bitmask() & inside, t, b1: v * rcp, b2: w * rcp }
+    }
+}
+
 /// A conservative bound on the rounding error of the distance computed by [`intersect_triangle`], from the
 /// magnitudes of the sheared vertex coordinates and edge functions (the forward error analysis of PBRT 4th ed.,
 /// §6.8.4, "Robust Triangle Intersections", applied to Woop et al.'s transform, which rounds no more). A hit
@@ -145,12 +236,25 @@ fn distance_error_bound(sx: Vec3A, sy: Vec3A, sz: Vec3A, uvw: Vec3A, rcp: f32) -
     let max_z = sz.abs().max_element();
     let max_x = sx.abs().max_element();
     let max_y = sy.abs().max_element();
+    let max_e = uvw.abs().max_element();
+    error_bound_from_maxima([max_x, max_y, max_z], max_e, rcp.abs())
+}
+
+/// The bound of [`distance_error_bound`] from the largest sheared |x|, |y|, |z| of the vertices, the largest
+/// |edge function| and |1/det|: for one triangle (`f32`) or lane by lane for four ([`Vec4`]), with the same
+/// operations in the same order either way.
+#[inline(always)]
+fn error_bound_from_maxima<T>(max_xyz: [T; 3], max_e: T, rcp_abs: T) -> T
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+    f32: std::ops::Mul<T, Output = T>,
+{
+    let [max_x, max_y, max_z] = max_xyz;
     let delta_z = gamma(3.0) * max_z;
     let delta_x = gamma(5.0) * (max_x + max_z);
     let delta_y = gamma(5.0) * (max_y + max_z);
     let delta_e = 2.0 * (gamma(2.0) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-    let max_e = uvw.abs().max_element();
-    3.0 * (gamma(3.0) * max_e * max_z + delta_e * max_z + delta_z * max_e) * rcp.abs()
+    3.0 * (gamma(3.0) * max_e * max_z + delta_e * max_z + delta_z * max_e) * rcp_abs
 }
 
 #[cfg(test)]
@@ -193,6 +297,39 @@ mod tests {
         assert!(hit(Vec3::new(1.0, 1.0, 2.0), -Vec3::Z, &point).is_none());
         let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
         assert!(hit(Vec3::new(-1.0, 0.25, 0.0), Vec3::X, &tri).is_none());
+    }
+
+    #[test]
+    fn packs_of_four_match_the_single_test_bit_for_bit() {
+        let mut rng = crate::math::Rng::new(21, 22);
+        let mut point = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        for k in 0..4000 {
+            let mut tris: Vec<[Vec3; 3]> = (0..4).map(|_| [point(), point(), point()]).collect();
+            // Shared edges and vertices, a degenerate triangle, and axis-aligned rays through vertices.
+            tris[1][0] = tris[0][1];
+            tris[1][1] = tris[0][0];
+            if k % 5 == 0 {
+                tris[2] = [tris[0][2]; 3];
+            }
+            let o = point() * 3.0;
+            let d = match k % 4 {
+                0 => (tris[k % 3][k % 3] - o).normalize(),
+                1 => Vec3::X,
+                _ => (point() - o).normalize(),
+            };
+            let ray = WatertightRay::new(&Ray::new(o, d));
+            let used = 1 + k % 4;
+            let ids: Vec<u32> = (0..used as u32).collect();
+            let pack = Triangle4::new(&tris[..used], &ids);
+            let hits = pack.intersect(&ray, (1 << used) - 1, 0.0, 2.5);
+            for (i, tri) in tris[..used].iter().enumerate() {
+                let single = intersect_triangle(&ray, tri, 0.0, 2.5);
+                let packed = (hits.mask >> i & 1 == 1).then(|| (hits.t[i], hits.b1[i], hits.b2[i]));
+                assert_eq!(packed.map(|h| h.0.to_bits()), single.map(|h| h.0.to_bits()), "{k} {i}");
+                assert_eq!(packed, single, "{k} {i}");
+            }
+            assert_eq!(hits.mask >> used, 0, "{k}: an unused lane hit");
+        }
     }
 
     #[test]
