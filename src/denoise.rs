@@ -111,7 +111,7 @@ pub fn denoise(
             &mut output,
         )
     })
-    .map_err(DenoiseError::Oidn)?
+    .map_err(|panic| DenoiseError::Oidn(panic.0))?
     .map_err(DenoiseError::Oidn)?;
     Ok(output
         .chunks_exact(3)

@@ -342,6 +342,34 @@ pub(crate) fn refuse_pipes_and_sockets(path: &Path) -> std::io::Result<()> {
     }
 }
 
+/// Why an image could not be decoded ([`decode_image`]); its `Display` is the one-line message.
+#[derive(Debug)]
+pub(crate) enum ImageError {
+    /// The decoder refused the bytes: its own message, on one line.
+    Decoder(String),
+    /// The image's header gives more texels than the memory budget holds.
+    OverBudget(OverBudget),
+}
+
+impl fmt::Display for ImageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ImageError::Decoder(message) => f.write_str(message),
+            ImageError::OverBudget(over) => over.fmt(f),
+        }
+    }
+}
+
+/// The message of a panic that [`catch_quietly`] caught inside a dependency.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct PanicMessage(pub(crate) String);
+
+impl fmt::Display for PanicMessage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
 /// Decodes a PNG, JPEG or other image the `image` crate reads, from bytes, refusing before decoding one whose
 /// header gives more than the budget allows at `bytes_per_texel` (what the caller keeps per texel, beyond the
 /// decoder's own buffers, which the decoder's `max_alloc` bounds). Errors are one line.
@@ -349,7 +377,7 @@ pub(crate) fn decode_image(
     bytes: &[u8],
     limits: &Limits,
     bytes_per_texel: u64,
-) -> Result<image::DynamicImage, String> {
+) -> Result<image::DynamicImage, ImageError> {
     decode_image_named(bytes, None, limits, bytes_per_texel)
 }
 
@@ -360,15 +388,16 @@ pub(crate) fn decode_image_named(
     name: Option<&Path>,
     limits: &Limits,
     bytes_per_texel: u64,
-) -> Result<image::DynamicImage, String> {
+) -> Result<image::DynamicImage, ImageError> {
     let by_extension = name
         .and_then(|n| n.extension())
         .and_then(image::ImageFormat::from_extension)
         .filter(|f| *f == image::ImageFormat::Tga);
-    let reader = || -> Result<image::ImageReader<std::io::Cursor<&[u8]>>, String> {
+    let decoder_error = |e: &dyn fmt::Display| ImageError::Decoder(one_line(&e.to_string(), 200));
+    let reader = || -> Result<image::ImageReader<std::io::Cursor<&[u8]>>, ImageError> {
         let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| ImageError::Decoder(e.to_string()))?;
         if reader.format().is_none() {
             if let Some(format) = by_extension {
                 reader.set_format(format);
@@ -379,19 +408,15 @@ pub(crate) fn decode_image_named(
         reader.limits(decoder_limits);
         Ok(reader)
     };
-    let (width, height) = reader()?
-        .into_dimensions()
-        .map_err(|e| one_line(&e.to_string(), 200))?;
+    let (width, height) = reader()?.into_dimensions().map_err(|e| decoder_error(&e))?;
     limits
         .check_items(
             format_args!("the {width}x{height} image"),
             width as u64 * height as u64,
             bytes_per_texel,
         )
-        .map_err(|e| e.to_string())?;
-    reader()?
-        .decode()
-        .map_err(|e| one_line(&e.to_string(), 200))
+        .map_err(ImageError::OverBudget)?;
+    reader()?.decode().map_err(|e| decoder_error(&e))
 }
 
 thread_local! {
@@ -402,7 +427,7 @@ thread_local! {
 /// Runs `f`, which may panic inside a dependency, and returns its panic message as `Err` instead of unwinding.
 /// While `f` runs, a panic on this thread prints nothing (no message, no backtrace); panics elsewhere print as
 /// before. The first call wraps the process's panic hook with one that checks a per-thread flag.
-pub(crate) fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+pub(crate) fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, PanicMessage> {
     static WRAP_HOOK: Once = Once::new();
     WRAP_HOOK.call_once(|| {
         let previous = std::panic::take_hook();
@@ -416,11 +441,13 @@ pub(crate) fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
     QUIET.with(|q| q.set(was_quiet));
     outcome.map_err(|payload| {
-        payload
-            .downcast_ref::<String>()
-            .cloned()
-            .or_else(|| payload.downcast_ref::<&str>().map(|s| (*s).to_owned()))
-            .unwrap_or_else(|| "a panic without a message".to_owned())
+        PanicMessage(
+            payload
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| payload.downcast_ref::<&str>().map(|s| (*s).to_owned()))
+                .unwrap_or_else(|| "a panic without a message".to_owned()),
+        )
     })
 }
 
@@ -521,7 +548,7 @@ mod tests {
         assert!(decode_image(&png, &Limits::with_memory(1 << 20), 26).is_ok());
         let err = decode_image(&png, &Limits::with_memory(64 << 10), 26).unwrap_err();
         assert!(
-            err.contains("64x64 image") && err.contains("memory budget"),
+            err.to_string().contains("64x64 image") && err.to_string().contains("memory budget"),
             "{err}"
         );
         assert!(decode_image(b"not an image", &Limits::default(), 26).is_err());
@@ -529,8 +556,8 @@ mod tests {
 
     #[test]
     fn quiet_panics_become_errors() {
-        let r: Result<(), String> = catch_quietly(|| panic!("inside a dependency"));
-        assert_eq!(r, Err("inside a dependency".to_owned()));
+        let r: Result<(), PanicMessage> = catch_quietly(|| panic!("inside a dependency"));
+        assert_eq!(r, Err(PanicMessage("inside a dependency".to_owned())));
         assert_eq!(catch_quietly(|| 7), Ok(7));
     }
 }

@@ -268,43 +268,14 @@ impl PolygonMesh {
             })
             .collect();
         let (edge_index, edges) = self.edge_table();
-        // Edge points.
-        let point = |v: u32| self.points[v as usize];
-        let edge_points: Vec<Vec3> = edges
-            .iter()
-            .map(|e| {
-                let mid = (point(e.ends.0) + point(e.ends.1)) * 0.5;
-                if e.sharpness >= 1.0 {
-                    return mid;
-                }
-                let smooth = (point(e.ends.0)
-                    + point(e.ends.1)
-                    + face_points[e.faces[0]]
-                    + face_points[e.faces[1]])
-                    * 0.25;
-                smooth.lerp(mid, e.sharpness)
-            })
-            .collect();
-        // Vertex points: gather each vertex's edges and faces.
+        let edge_points = self.catmull_clark_edge_points(&edges, &face_points);
         let (vertex_edges, vertex_faces) = self.incidence(&edges);
-        let vertex_points: Vec<Vec3> = (0..n_points)
-            .map(|v| {
-                let s = self.points[v];
-                let incident = &vertex_edges[v];
-                let faces = &vertex_faces[v];
-                if incident.is_empty() || faces.is_empty() {
-                    return s;
-                }
-                let n = incident.len() as f32;
-                let q =
-                    faces.iter().fold(Vec3::ZERO, |a, &f| a + face_points[f]) / faces.len() as f32;
-                let r = incident.iter().fold(Vec3::ZERO, |a, &e| {
-                    a + (point(edges[e].ends.0) + point(edges[e].ends.1)) * 0.5
-                }) / n;
-                let smooth = (q + 2.0 * r + (n - 3.0) * s) / n;
-                self.sharpened_vertex(v, smooth, incident, faces.len(), &edges, around)
-            })
-            .collect();
+        let incidence = Topology {
+            edges: &edges,
+            vertex_edges: &vertex_edges,
+            vertex_faces: &vertex_faces,
+        };
+        let vertex_points = self.catmull_clark_vertex_points(&incidence, &face_points, around);
         // New points: vertices, then edges, then faces.
         let edge_base = n_points as u32;
         let face_base = edge_base + edges.len() as u32;
@@ -329,14 +300,61 @@ impl PolygonMesh {
                 out.face_tags.push(self.face_tags[f]);
             }
         }
-        let topology = Topology {
-            edges: &edges,
-            vertex_edges: &vertex_edges,
-            vertex_faces: &vertex_faces,
-        };
-        self.child_face_varying_into(Scheme::CatmullClark, &topology, &mut out);
+        self.child_face_varying_into(Scheme::CatmullClark, &incidence, &mut out);
         self.child_creases(&edges, &vertex_edges, edge_base, &mut out);
         out
+    }
+
+    /// Catmull-Clark edge points: the average of the edge's ends and its two faces' points when smooth, the
+    /// midpoint when sharp (sharpness ≥ 1), and the blend of the two for a semi-sharp edge (DeRose et al. 1998).
+    fn catmull_clark_edge_points(&self, edges: &[Edge], face_points: &[Vec3]) -> Vec<Vec3> {
+        let point = |v: u32| self.points[v as usize];
+        edges
+            .iter()
+            .map(|e| {
+                let mid = (point(e.ends.0) + point(e.ends.1)) * 0.5;
+                if e.sharpness >= 1.0 {
+                    return mid;
+                }
+                let smooth = (point(e.ends.0)
+                    + point(e.ends.1)
+                    + face_points[e.faces[0]]
+                    + face_points[e.faces[1]])
+                    * 0.25;
+                smooth.lerp(mid, e.sharpness)
+            })
+            .collect()
+    }
+
+    /// Catmull-Clark vertex points, (Q + 2R + (n − 3)S) / n for a smooth vertex of valence n (Q the average of
+    /// its faces' points, R of its edges' midpoints), then the crease and corner rules of
+    /// [`PolygonMesh::sharpened_vertex`]; a vertex with no edge or face stays where it is.
+    fn catmull_clark_vertex_points(
+        &self,
+        topology: &Topology,
+        face_points: &[Vec3],
+        around: Option<&[Vec<f32>]>,
+    ) -> Vec<Vec3> {
+        let point = |v: u32| self.points[v as usize];
+        let edges = topology.edges;
+        (0..self.points.len())
+            .map(|v| {
+                let s = self.points[v];
+                let incident = &topology.vertex_edges[v];
+                let faces = &topology.vertex_faces[v];
+                if incident.is_empty() || faces.is_empty() {
+                    return s;
+                }
+                let n = incident.len() as f32;
+                let q =
+                    faces.iter().fold(Vec3::ZERO, |a, &f| a + face_points[f]) / faces.len() as f32;
+                let r = incident.iter().fold(Vec3::ZERO, |a, &e| {
+                    a + (point(edges[e].ends.0) + point(edges[e].ends.1)) * 0.5
+                }) / n;
+                let smooth = (q + 2.0 * r + (n - 3.0) * s) / n;
+                self.sharpened_vertex(v, smooth, incident, faces.len(), edges, around)
+            })
+            .collect()
     }
 
     /// One level of Loop subdivision (Loop 1987) of a mesh of triangles, with the same sharp and semi-sharp

@@ -207,9 +207,9 @@ impl EnvironmentMap {
                 )
             } else {
                 let img = crate::limits::decode_image(&bytes, limits, TEXEL_BYTES)
-                    .map_err(|message| EnvironmentError::Image {
+                    .map_err(|e| EnvironmentError::Image {
                         path: path.to_path_buf(),
-                        message,
+                        message: e.to_string(),
                     })?
                     .to_rgb32f();
                 let (w, h) = (img.width() as usize, img.height() as usize);

@@ -223,7 +223,7 @@ impl Loader<'_> {
         };
         // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels) stay in the budget.
         let decoded = crate::limits::decode_image(&bytes, &budget, 4 + 22)
-            .map_err(malformed)?
+            .map_err(|e| malformed(e.to_string()))?
             .to_rgba8();
         Ok(decoded)
     }

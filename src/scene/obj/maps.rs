@@ -124,7 +124,8 @@ impl<'a> TextureMaps<'a> {
         };
         let bytes = read_file(file, self.limits).map_err(|e| context(e.to_string()))?;
         // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels) stay in the budget.
-        let image = crate::limits::decode_image(&bytes, self.limits, 4 + 22).map_err(context)?;
+        let image = crate::limits::decode_image(&bytes, self.limits, 4 + 22)
+            .map_err(|e| context(e.to_string()))?;
         let image = Arc::new(image);
         self.images.insert(file.to_path_buf(), image.clone());
         Ok(image)

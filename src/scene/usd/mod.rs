@@ -316,7 +316,7 @@ fn read_when(
                             &owned,
                             SceneErrorKind::ReaderPanicked {
                                 reader: "openusd",
-                                message: one_line(&message, MESSAGE_CHARS),
+                                message: one_line(&message.0, MESSAGE_CHARS),
                             },
                         ))
                     });

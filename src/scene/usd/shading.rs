@@ -557,7 +557,7 @@ impl Loader<'_> {
         };
         // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels).
         let image = crate::limits::decode_image_named(&bytes, Some(&file), &self.limits, 4 + 22)
-            .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e)))?
+            .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e.to_string())))?
             .to_rgba8();
         let t = texture_from_image(&image, srgb, (scale, bias), role)
         .ok_or_else(|| SceneError::new(&file, SceneErrorKind::Malformed("empty image".into())))?;
@@ -649,7 +649,7 @@ impl Loader<'_> {
         // The RGBA8 copy, the values and the packed texture's float mip pyramid.
         let image =
             crate::limits::decode_image_named(&bytes, Some(&file), &self.limits, 4 + 4 + 22)
-                .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e)))?
+                .map_err(|e| SceneError::new(&file, SceneErrorKind::Malformed(e.to_string())))?
                 .to_rgba8();
         let values = image
             .as_raw()
