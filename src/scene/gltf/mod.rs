@@ -100,21 +100,38 @@ const MAX_NODE_DEPTH: usize = 256;
 /// Longest text quoted from the file (a URI) in an error message.
 const QUOTE: usize = 120;
 
+/// Why the bytes a buffer or image URI names could not be read ([`read_uri`]); each message is one line.
+#[derive(Debug, thiserror::Error)]
+enum UriError {
+    /// A `data:` URI the `gltf` crate cannot decode: its message.
+    #[error("{0}")]
+    DataUri(String),
+    /// A URI with a scheme other than `data:` or `file://`.
+    #[error("only data: and file URIs are read")]
+    Scheme,
+    /// A `%XX` escape that is malformed or decodes to invalid UTF-8.
+    #[error("the URI is not valid percent-encoded UTF-8")]
+    PercentEncoding,
+    /// The file could not be read within the budget: the reader's message.
+    #[error("{0}")]
+    File(String),
+}
+
 /// Reads the bytes a buffer or image URI names: a `data:` URI decoded, else a file (a relative path, an
-/// absolute one or a `file://` URI, percent-decoded) read within the memory budget. Errors are one line.
-fn read_uri(uri: &str, base: &Path, limits: &crate::limits::Limits) -> Result<Vec<u8>, String> {
+/// absolute one or a `file://` URI, percent-decoded) read within the memory budget.
+fn read_uri(uri: &str, base: &Path, limits: &crate::limits::Limits) -> Result<Vec<u8>, UriError> {
     if uri.starts_with("data:") {
         return gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), Some(base))
             .map(|d| d.0)
-            .map_err(|e| one_line(&e.to_string(), QUOTE));
+            .map_err(|e| UriError::DataUri(one_line(&e.to_string(), QUOTE)));
     }
     let rest = uri.strip_prefix("file://").unwrap_or(uri);
     if rest.len() == uri.len() && uri.contains("://") {
-        return Err("only data: and file URIs are read".into());
+        return Err(UriError::Scheme);
     }
-    let decoded = percent_decode(rest).ok_or("the URI is not valid percent-encoded UTF-8")?;
+    let decoded = percent_decode(rest).ok_or(UriError::PercentEncoding)?;
     crate::limits::read_file(&base.join(decoded), limits)
-        .map_err(|e| one_line(&e.to_string(), QUOTE))
+        .map_err(|e| UriError::File(one_line(&e.to_string(), QUOTE)))
 }
 
 /// `%XX` escapes decoded; `None` if one is malformed or the result is not UTF-8.
@@ -156,7 +173,7 @@ pub fn load_slice(
     warnings.extend(skipped.warnings.iter().cloned());
     let document = gltf::Document::from_json_without_validation(root);
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let variants = variant_names(&document).map_err(malformed)?;
+    let variants = variant_names(&document).map_err(|e| malformed(e.to_string()))?;
     let variant = choose_variant(&variants, options.variant).map_err(&err)?;
     if options.variant.is_none() && !variants.is_empty() {
         let names: Vec<String> = variants.iter().map(|n| one_line(n, QUOTE)).collect();

@@ -69,17 +69,27 @@ impl Loader<'_> {
     }
 }
 
+/// A malformed `KHR_materials_variants` root extension ([`variant_names`]).
+#[derive(Debug, thiserror::Error)]
+pub(super) enum VariantsError {
+    /// `variants` is missing or not an array.
+    #[error("extensions.KHR_materials_variants.variants must be an array")]
+    NotAnArray,
+    /// The entry at this index has no string `name`.
+    #[error("extensions.KHR_materials_variants.variants[{0}].name must be a string")]
+    UnnamedVariant(usize),
+}
+
 /// The names of the file's `KHR_materials_variants` variants (the root extension's `variants[i].name`), in
 /// order; none without the extension. An error names a malformed entry.
-pub(super) fn variant_names(document: &gltf::Document) -> Result<Vec<String>, String> {
+pub(super) fn variant_names(document: &gltf::Document) -> Result<Vec<String>, VariantsError> {
     let Some(ext) = document.extension_value("KHR_materials_variants") else {
         return Ok(Vec::new());
     };
-    let at = "extensions.KHR_materials_variants";
     let variants = ext
         .get("variants")
         .and_then(|v| v.as_array())
-        .ok_or_else(|| format!("{at}.variants must be an array"))?;
+        .ok_or(VariantsError::NotAnArray)?;
     variants
         .iter()
         .enumerate()
@@ -87,7 +97,7 @@ pub(super) fn variant_names(document: &gltf::Document) -> Result<Vec<String>, St
             v.get("name")
                 .and_then(|n| n.as_str())
                 .map(str::to_owned)
-                .ok_or_else(|| format!("{at}.variants[{i}].name must be a string"))
+                .ok_or(VariantsError::UnnamedVariant(i))
         })
         .collect()
 }
