@@ -30,13 +30,15 @@
 //! it by the sign of the direction along the axis on which the two sides' centres lie farthest apart (the
 //! ordered traversal of shallow BVHs in Dammertz et al. 2008, with the split axis taken from the boxes). With
 //! that order the pushes are branch-free: every slot's entry is written and the top advances past the hit ones.
-//! On the benchmark mesh, against the unchanged tree with distance-sorted pushes, nodes and triangles per ray
-//! stayed within 5 % and the traversal, with the min/max slab below, traced 13–17 % (coherent) and 5–20 %
-//! (incoherent) more rays per CPU-second (docs/performance.md). The slab test (Williams, Barrus, Morley,
+//! On the benchmark mesh, against distance-sorted pushes, nodes and triangles per ray stayed within 5 %; this
+//! traversal with the min/max slab test below traced 15–17 % more coherent closest-hit rays and 8–10 % more
+//! coherent occlusion rays per CPU-second than the previous one, and incoherent rays no differently beyond the
+//! machine's noise (docs/performance.md). The slab test (Williams, Barrus, Morley,
 //! Shirley 2005, "An efficient and robust ray-box intersection algorithm", JGT 10(1)) uses a precomputed
 //! inverse direction with per-axis near/far planes picked by the direction's sign, ignores the NaN of a ray
 //! lying in a slab plane, and widens the far distance to cover floating-point error (Ize 2013, "Robust BVH Ray
-//! Traversal", JCGT 2(2)), as Woop et al. 2013 also require.
+//! Traversal", JCGT 2(2)), as Woop et al. 2013 also require; its running maximum and minimum are SSE's
+//! `maxps`/`minps`, whose definition (`a > b ? a : b`) is that of the select it replaces.
 //!
 //! **Exactness.** Among hits at exactly the same distance the lowest input index wins, and the boxes are
 //! widened enough that a triangle the brute-force test would hit is never culled, so
