@@ -599,7 +599,8 @@ impl PathTracer {
     /// the event of the sum of their extinctions. (Letting every colliding medium fly over the whole segment and
     /// keeping the nearest collision, with each walk's whole weight, is unbiased as well, since E[w 1{end > t}]
     /// = T(t) for each walk; the cut stops the later walks at the nearest collision so far and hands them the
-    /// throughput the earlier ones left.)
+    /// throughput the earlier ones left. Measured on the overlapping-media tests, the uncut variant looked up the
+    /// densities 1.72×, 1.16× and 1.05× as often for the same error: docs/performance.md.)
     fn combined_flight(
         &self,
         cx: &mut PathContext,
