@@ -176,3 +176,8 @@ pub struct EmbeddingGuide;
 #[cfg(doctest)]
 #[doc = include_str!("../docs/api.md")]
 pub struct ApiGuide;
+
+/// The Rust example of `README.md`, compiled (not run) as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeExample;
