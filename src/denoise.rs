@@ -82,7 +82,7 @@ pub fn denoise(
     let mut output = vec![0.0f32; 3 * n];
     // The crate panics where OIDN cannot allocate a buffer: taken as an error, never a crash.
     crate::limits::catch_quietly(|| {
-        let device = oidn::Device::cpu().map_err(|e| e.to_string())?;
+        let device = oidn::Device::cpu().map_err(oidn_c::FilterError::Device)?;
         let mut clean_albedo = vec![0.0f32; 3 * n];
         oidn_c::run_rt_filter(
             &device,
@@ -112,7 +112,7 @@ pub fn denoise(
         )
     })
     .map_err(|panic| DenoiseError::Oidn(panic.0))?
-    .map_err(DenoiseError::Oidn)?;
+    .map_err(|e| DenoiseError::Oidn(e.to_string()))?;
     Ok(output
         .chunks_exact(3)
         .map(|c| Rgb::new(c[0], c[1], c[2]))
@@ -226,6 +226,25 @@ mod oidn_c {
     };
     use std::ffi::{c_void, CStr};
 
+    /// Why an OIDN filter could not run.
+    #[derive(Debug, thiserror::Error)]
+    pub(super) enum FilterError {
+        /// A buffer of another size than the frame's.
+        #[error("an image is not {width}x{height} float3 pixels")]
+        ImageSize {
+            /// The frame's width.
+            width: usize,
+            /// The frame's height.
+            height: usize,
+        },
+        /// OIDN made no `RT` filter and reported no error.
+        #[error("no RT filter")]
+        NoFilter,
+        /// OIDN's device reported an error.
+        #[error("{0}")]
+        Device(oidn::Error),
+    }
+
     /// Runs one `RT` filter on `device` over the float3 images `inputs` (OIDN's image name and the pixels, row
     /// by row), with the boolean parameters `flags`, into `output`. Every buffer must hold width × height × 3
     /// floats; OIDN's error, if any, is returned.
@@ -235,10 +254,10 @@ mod oidn_c {
         inputs: &[(&CStr, &[f32])],
         flags: &[(&CStr, bool)],
         output: &mut [f32],
-    ) -> Result<(), String> {
+    ) -> Result<(), FilterError> {
         let len = width * height * 3;
         if output.len() != len || inputs.iter().any(|(_, pixels)| pixels.len() != len) {
-            return Err(format!("an image is not {width}x{height} float3 pixels"));
+            return Err(FilterError::ImageSize { width, height });
         }
         // SAFETY: `device.raw()` stays valid while `device` is borrowed here. The filter is created, used and
         // released within this block. Each shared image points into a slice checked above to hold exactly
@@ -250,8 +269,8 @@ mod oidn_c {
             if filter.is_null() {
                 return device
                     .get_error()
-                    .map_err(|e| e.to_string())
-                    .and(Err("no RT filter".into()));
+                    .map_err(FilterError::Device)
+                    .and(Err(FilterError::NoFilter));
             }
             for (name, pixels) in inputs {
                 oidnSetSharedFilterImage(
@@ -284,6 +303,6 @@ mod oidn_c {
             oidnExecuteFilter(filter);
             oidnReleaseFilter(filter);
         }
-        device.get_error().map_err(|e| e.to_string())
+        device.get_error().map_err(FilterError::Device)
     }
 }

@@ -171,3 +171,13 @@ pub use vdb::VdbError;
 #[cfg(doctest)]
 #[doc = include_str!("../docs/embedding.md")]
 pub struct EmbeddingGuide;
+
+/// The Rust examples of `docs/api.md`, compiled as doctests for the same reason.
+#[cfg(doctest)]
+#[doc = include_str!("../docs/api.md")]
+pub struct ApiGuide;
+
+/// The Rust example of `README.md`, compiled (not run) as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeExample;

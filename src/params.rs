@@ -62,6 +62,30 @@ internal! {
     }
 }
 
+impl ParamDefault {
+    /// The default as the value a scene file would give for it; `None` for [`ParamDefault::Required`] and
+    /// [`ParamDefault::Unset`] (no value stands for them).
+    pub fn value(self) -> Option<ParamValue> {
+        match self {
+            Self::Required | Self::Unset => None,
+            Self::Number(x) => Some(ParamValue::Number(x)),
+            Self::Rgb(c) => Some(ParamValue::Rgb(Rgb::from_array(c))),
+            Self::Text(s) => Some(ParamValue::Text(s.to_owned())),
+        }
+    }
+}
+
+/// A key's default as a scene file spells it (a JSON value), `None` where no value stands for it (required,
+/// unset): for tests that give each default explicitly.
+#[cfg(test)]
+pub(crate) fn default_as_json(key: &ParamKey) -> Option<serde_json::Value> {
+    Some(match key.default.value()? {
+        ParamValue::Number(x) => serde_json::json!(x),
+        ParamValue::Rgb(c) => serde_json::json!(c.to_array()),
+        ParamValue::Text(s) => serde_json::json!(s),
+    })
+}
+
 impl fmt::Display for ParamDefault {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -213,11 +237,34 @@ internal! {
             })
         }
 
+        /// A number key in double precision, else the key's table default: a key's default is applied by this
+        /// one reading of its table ([`ParamKey::default`]). [`ParamError::Missing`] when neither is there.
+        fn number_f64_or_default(&self, key: &ParamKey) -> Result<f64, ParamError> {
+            match self.number_f64(key)? {
+                Some(x) => Ok(x),
+                None => TableDefaults.number_f64(key)?.ok_or_else(|| self.missing(key)),
+            }
+        }
+
+        /// An RGB key (or grey number), else the key's table default; [`ParamError::Missing`] when neither is
+        /// there.
+        fn rgb_or_default(&self, key: &ParamKey) -> Result<Rgb, ParamError> {
+            match self.rgb(key)? {
+                Some(c) => Ok(c),
+                None => TableDefaults.rgb(key)?.ok_or_else(|| self.missing(key)),
+            }
+        }
+
         /// A required text key.
         fn required_text(&self, key: &ParamKey) -> Result<String, ParamError> {
-            self.text(key)?.ok_or_else(|| ParamError::Missing {
+            self.text(key)?.ok_or_else(|| self.missing(key))
+        }
+
+        /// The error for a key that is absent and has no default.
+        fn missing(&self, key: &ParamKey) -> ParamError {
+            ParamError::Missing {
                 key: self.spelling(key),
-            })
+            }
         }
 
         /// The error for a value that is not of `key`'s type.
@@ -231,6 +278,20 @@ internal! {
 }
 
 impl<S: ParamSource + ?Sized> ParamRead for S {}
+
+internal! {
+    /// The key tables' own defaults as a parameter source: every key gives its [`ParamKey::default`] (as
+    /// [`ParamDefault::value`]), so that a declaration's defaults are applied by the same code that applies the
+    /// values a file gives.
+    #[derive(Clone, Copy, Debug)]
+    pub struct TableDefaults;
+}
+
+impl ParamSource for TableDefaults {
+    fn get(&self, key: &ParamKey) -> Result<Option<ParamValue>, ParamError> {
+        Ok(key.default.value())
+    }
+}
 
 internal! {
     /// A glTF JSON object (`extras.nimbus_volume`, `extras.nimbus_medium`) as a parameter source.

@@ -172,6 +172,29 @@ impl Scene {
     }
 }
 
+/// Why [`load`] gave no scene.
+enum LoadFailure {
+    /// The file could not be loaded, or the scene built.
+    Scene(nimbus::SceneError),
+    /// The scene (at the path) has no camera of the name asked for.
+    Camera(PathBuf, nimbus::scene::UnknownCamera),
+}
+
+impl From<nimbus::SceneError> for LoadFailure {
+    fn from(error: nimbus::SceneError) -> Self {
+        Self::Scene(error)
+    }
+}
+
+impl std::fmt::Display for LoadFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Scene(error) => error.fmt(f),
+            Self::Camera(path, error) => write!(f, "{}: camera: {error}", path.display()),
+        }
+    }
+}
+
 /// Loads a scene file with the options of `nimbus render` (`source_text`: the bytes a part's scene hash takes
 /// instead of the file's, for a flattened USD stage written to `path`).
 #[pyfunction]
@@ -202,7 +225,7 @@ fn load(
         .transpose()
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
     let limits = memory_limit.map_or_else(Limits::default, Limits::with_memory);
-    let loaded = py.detach(|| -> Result<nimbus::Scene, String> {
+    let loaded = py.detach(|| -> Result<nimbus::Scene, LoadFailure> {
         let options = LoadOptions {
             limits,
             frame,
@@ -213,17 +236,17 @@ fn load(
             volume_override: method.map(nimbus::scene::VolumeOverride::method),
             ..LoadOptions::default()
         };
-        let mut builder =
-            nimbus::scene::load_builder(&path, &options).map_err(|e| e.to_string())?;
+        let mut builder = nimbus::scene::load_builder(&path, &options)?;
         if let Some(name) = &camera {
             builder
                 .select_camera(name)
-                .map_err(|e| format!("{}: camera: {e}", path.display()))?;
+                .map_err(|e| LoadFailure::Camera(path.clone(), e))?;
         }
         builder.light_by_default();
-        builder.build().map_err(|e| e.to_string())
+        Ok(builder.build()?)
     });
-    let scene = loaded.map_err(|m| SceneError::new_err(one_line(&m, MAX_MESSAGE_CHARS)))?;
+    let scene =
+        loaded.map_err(|e| SceneError::new_err(one_line(&e.to_string(), MAX_MESSAGE_CHARS)))?;
     let source = match source_text {
         Some(text) => Source::Text {
             label: source_label.unwrap_or_else(|| path.display().to_string()),

@@ -231,13 +231,23 @@ mod tests {
         };
         let base = scene_hash(&[b"scene"], &s, &[]);
         assert_eq!(base, scene_hash(&[b"scene"], &s, &[]));
-        let not_in_hash = RenderSettings {
-            spp: 3,
-            threads: 7,
-            time_limit: Some(std::time::Duration::from_secs(1)),
-            ..s.clone()
-        };
-        assert_eq!(base, scene_hash(&[b"scene"], &not_in_hash, &[]));
+        // Each field `scene_hash` leaves out, changed in turn.
+        let unhashed: [fn(&mut RenderSettings); 8] = [
+            |s| s.spp = 3,
+            |s| s.threads = 7,
+            |s| s.time_limit = Some(std::time::Duration::from_secs(1)),
+            |s| s.aovs = Some(crate::render::AovSelection { aovs: Vec::new() }),
+            |s| s.light_groups = crate::render::LightGroupMode::PerLight,
+            |s| s.cryptomatte_depth += 2,
+            |s| s.deep_samples = Some(4),
+            |s| s.limits = crate::limits::Limits::with_memory(1 << 20),
+        ];
+        for (i, change) in unhashed.iter().enumerate() {
+            let mut t = s.clone();
+            change(&mut t);
+            assert_ne!(format!("{t:?}"), format!("{s:?}"), "unhashed change {i} changes nothing");
+            assert_eq!(base, scene_hash(&[b"scene"], &t, &[]), "unhashed change {i}");
+        }
         let changes: [fn(&mut RenderSettings); 12] = [
             |s| s.width += 1,
             |s| s.height -= 1,

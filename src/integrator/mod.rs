@@ -10,7 +10,7 @@ mod services;
 mod stats;
 
 pub use medium_stack::MediumStack;
-pub use path::{EquiangularTargets, FirstEmission, PathSample, PathTracer};
+pub use path::{EquiangularTargets, FirstEmission, PathContext, PathSample, PathTracer};
 pub use record::{CameraEvent, EventClass, Origin, SampleRecord};
 pub use services::RendererServices;
 pub use stats::{PathCounters, RayCounters};

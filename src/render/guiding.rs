@@ -12,7 +12,7 @@ use super::CancelToken;
 use crate::guiding::{
     GuidePath, GuidingDecision, GuidingField, RadianceRecord, TRAINING_ITERATIONS,
 };
-use crate::integrator::{FirstEmission, PathCounters, PathTracer, RendererServices};
+use crate::integrator::{FirstEmission, PathContext, PathCounters, PathTracer, RendererServices};
 use crate::math::{Rng, Vec2};
 use crate::scene::Scene;
 use rayon::prelude::*;
@@ -112,15 +112,12 @@ fn trace_row(
             );
             let ray = scene.camera.sample_ray(film, lens, aspect, time);
             path.clear();
-            let result = tracer.trace(
+            let mut cx = PathContext {
                 services,
-                ray,
-                FirstEmission::Count,
-                &mut rng,
-                &mut counters,
-                None,
-                Some(&mut path),
-            );
+                rng: &mut rng,
+                counters: &mut counters,
+            };
+            let result = tracer.trace(&mut cx, ray, FirstEmission::Count, None, Some(&mut path));
             if result.radiance.is_finite() {
                 path.finish(result.radiance, &mut records);
             }

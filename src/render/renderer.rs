@@ -14,8 +14,8 @@ use super::resume::{RegionProgress, ResumeFrom, StoppedPass};
 use super::{CancelToken, RenderImage};
 use crate::guiding::{GuidingField, GuidingMode};
 use crate::integrator::{
-    FirstEmission, Origin, PathCounters, PathSample, PathTracer, RayCounters, RendererServices,
-    SampleRecord,
+    FirstEmission, Origin, PathContext, PathCounters, PathSample, PathTracer, RayCounters,
+    RendererServices, SampleRecord,
 };
 use crate::light::LightSamplerChoice;
 use crate::math::{is_finite_rgb, Ray, Rgb, Rng, Vec2};
@@ -841,27 +841,24 @@ impl Pass<'_> {
                 record.as_deref_mut(),
                 counters,
             );
-            let mut result = self.tracer.trace(
-                &self.services,
-                ray,
-                FirstEmission::Omit,
-                &mut rng,
+            let mut cx = PathContext {
+                services: &self.services,
+                rng: &mut rng,
                 counters,
-                record,
-                None,
-            );
+            };
+            let mut result = self
+                .tracer
+                .trace(&mut cx, ray, FirstEmission::Omit, record, None);
             result.radiance += emission / EDGE_RAYS as f32;
             result
         } else {
-            self.tracer.trace(
-                &self.services,
-                ray,
-                FirstEmission::Count,
-                &mut rng,
+            let mut cx = PathContext {
+                services: &self.services,
+                rng: &mut rng,
                 counters,
-                record,
-                None,
-            )
+            };
+            self.tracer
+                .trace(&mut cx, ray, FirstEmission::Count, record, None)
         };
         (ray, time, result)
     }

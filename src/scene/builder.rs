@@ -10,6 +10,7 @@ use crate::geometry::Mesh;
 use crate::light::{DirectionalLight, EnvironmentLight, Light, PointLight};
 use crate::material::{Material, Texture};
 use crate::math::{Rgb, Vec3};
+use crate::scene::MalformedPart;
 use crate::volume::Medium;
 use std::sync::Arc;
 
@@ -397,7 +398,7 @@ impl SceneBuilder {
         if !positions.iter().all(|p| p.is_finite()) {
             return Err(SceneError::new(
                 BUILDER_PATH,
-                SceneErrorKind::Malformed("a mesh position is not finite".into()),
+                SceneErrorKind::malformed(MalformedPart::Mesh, "a mesh position is not finite"),
             ));
         }
         self.add_mesh(Mesh {

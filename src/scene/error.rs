@@ -21,9 +21,10 @@ pub enum SceneErrorKind {
     /// The file could not be read.
     #[error("cannot read: {0}")]
     Io(#[from] std::io::Error),
-    /// The file is not valid for its format (malformed JSON, truncated GLB, bad header...).
+    /// The file is not valid for its format (malformed JSON, truncated GLB, bad header...); the error says
+    /// which part of the scene ([`MalformedPart`]) and what is wrong with it.
     #[error("malformed: {0}")]
-    Malformed(String),
+    Malformed(MalformedError),
     /// The file uses a feature Nimbus cannot render and must not ignore.
     #[error("unsupported: {0}")]
     Unsupported(String),
@@ -71,6 +72,70 @@ pub enum SceneErrorKind {
     /// The file extension names no format Nimbus reads.
     #[error("unknown scene format (expected .gltf, .glb, .obj, .usd, .usda, .usdc or .usdz)")]
     UnknownFormat,
+}
+
+impl SceneErrorKind {
+    /// A [`SceneErrorKind::Malformed`] about `part`, saying `message`.
+    pub(crate) fn malformed(part: MalformedPart, message: impl Into<String>) -> Self {
+        Self::Malformed(MalformedError {
+            part,
+            message: message.into(),
+        })
+    }
+}
+
+/// Which part of a scene a [`MalformedError`] is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum MalformedPart {
+    /// The file as a whole: its syntax or container (glTF JSON and GLB chunks, a USD layer, its composition
+    /// or its stage metadata, an OBJ statement), or a file without a scene.
+    File,
+    /// Binary data: a glTF buffer, buffer view or accessor.
+    Data,
+    /// A mesh: its vertices, faces or vertex attributes (glTF primitives, OBJ faces, USD meshes and shapes,
+    /// meshes built in code).
+    Mesh,
+    /// A glTF node or a USD prim: its place in the hierarchy, its transform, its extras, or an attribute of a
+    /// type the prim's schema does not give it.
+    Node,
+    /// A material: its parameters, extensions, extras or variants (OBJ: its MTL file).
+    Material,
+    /// An image, or a material's reference to a texture.
+    Texture,
+    /// An animation, a skin or morph targets.
+    Animation,
+    /// A camera.
+    Camera,
+    /// A light.
+    Light,
+    /// Instancing: glTF `EXT_mesh_gpu_instancing`, a USD `PointInstancer` or native instance.
+    Instancing,
+    /// A volume declared in the file (USD `Volume` prims and their `OpenVDBAsset` fields).
+    Volume,
+    /// Scene-wide settings: the glTF scene's extras (environment, light units, bounces, transparency).
+    Settings,
+}
+
+/// A part of a scene file is malformed: which part, and what is wrong with it. Its `Display` is the message
+/// alone (the [`SceneErrorKind::Malformed`] around it adds `malformed: `).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
+pub struct MalformedError {
+    part: MalformedPart,
+    message: String,
+}
+
+impl MalformedError {
+    /// Which part of the scene is malformed.
+    pub fn part(&self) -> MalformedPart {
+        self.part
+    }
+
+    /// What is wrong with it, naming where it was found (`node 3 has a non-finite transform`).
+    pub fn message(&self) -> &str {
+        &self.message
+    }
 }
 
 impl std::fmt::Display for SceneError {

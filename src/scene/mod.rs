@@ -34,7 +34,7 @@ pub use options::{LoadOptions, VolumeOverride};
 pub use own_lighting::{OwnLighting, DEFAULT_ENVIRONMENT_RADIANCE};
 
 pub use crate::volume::{DensityError, MissingFrame, VolumeError};
-pub use error::{SceneError, SceneErrorKind};
+pub use error::{MalformedError, MalformedPart, SceneError, SceneErrorKind};
 
 pub(crate) use build::bounding_radius;
 pub(crate) use options::report_unknown_keys;

@@ -36,6 +36,7 @@
 mod maps;
 mod mtl;
 
+use crate::scene::MalformedPart;
 use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::limits::{one_line, read_file, Limits};
@@ -195,7 +196,7 @@ fn model_mesh(
 }
 
 fn malformed(path: &Path, message: String) -> SceneError {
-    SceneError::new(path, SceneErrorKind::Malformed(message))
+    SceneError::new(path, malformed_statement(message))
 }
 
 /// Most line numbers a warning about non-UTF-8 lines lists.
@@ -247,7 +248,17 @@ type LineError = (fn(String) -> SceneErrorKind, usize, String);
 type CornerError = (fn(String) -> SceneErrorKind, String);
 
 fn bad(line: usize, message: String) -> LineError {
-    (SceneErrorKind::Malformed, line, message)
+    (malformed_statement, line, message)
+}
+
+/// A statement of an OBJ or MTL file that does not parse: the file's syntax.
+fn malformed_statement(message: String) -> SceneErrorKind {
+    SceneErrorKind::malformed(MalformedPart::File, message)
+}
+
+/// A face corner that names no vertex it may: the mesh's faces.
+fn malformed_face(message: String) -> SceneErrorKind {
+    SceneErrorKind::malformed(MalformedPart::Mesh, message)
 }
 
 /// What the scan of an OBJ file found.
@@ -420,10 +431,10 @@ fn check_corner(corner: &str, counts: [usize; 3]) -> Result<(), CornerError> {
     const NAMES: [&str; 3] = ["vertex", "texture coordinate", "normal"];
     let parts: Vec<&str> = corner.split('/').collect();
     if parts.len() > 3 {
-        return Err((SceneErrorKind::Malformed, "more than three indices".into()));
+        return Err((malformed_face, "more than three indices".into()));
     }
     if parts[0].is_empty() {
-        return Err((SceneErrorKind::Malformed, "no vertex index".into()));
+        return Err((malformed_face, "no vertex index".into()));
     }
     for (k, part) in parts.iter().enumerate() {
         if part.is_empty() {
@@ -431,7 +442,7 @@ fn check_corner(corner: &str, counts: [usize; 3]) -> Result<(), CornerError> {
         }
         let Ok(index) = part.parse::<i64>() else {
             return Err((
-                SceneErrorKind::Malformed,
+                malformed_face,
                 "an index is not an integer".into(),
             ));
         };

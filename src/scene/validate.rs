@@ -3,6 +3,7 @@
 
 use super::{SceneBuilder, SceneError, SceneErrorKind, BUILDER_PATH};
 use crate::light::Light;
+use crate::scene::MalformedPart;
 
 /// A dangling reference in a built scene, named by `what`.
 fn invalid(what: String) -> SceneError {
@@ -10,8 +11,8 @@ fn invalid(what: String) -> SceneError {
 }
 
 /// A number no loader should have let through, named by `what`.
-fn malformed(what: String) -> SceneError {
-    SceneError::new(BUILDER_PATH, SceneErrorKind::Malformed(what))
+fn malformed(part: MalformedPart, what: String) -> SceneError {
+    SceneError::new(BUILDER_PATH, SceneErrorKind::malformed(part, what))
 }
 
 impl SceneBuilder {
@@ -72,10 +73,13 @@ impl SceneBuilder {
             )));
             }
             if !m.positions.iter().flatten().all(|p| p.is_finite()) {
-                return Err(malformed(format!(
-                    "mesh '{}' has a non-finite position in a motion step",
-                    mesh.name
-                )));
+                return Err(malformed(
+                    MalformedPart::Mesh,
+                    format!(
+                        "mesh '{}' has a non-finite position in a motion step",
+                        mesh.name
+                    ),
+                ));
             }
         }
         Ok(())
@@ -104,13 +108,13 @@ impl SceneBuilder {
     fn check_camera(&self) -> Result<(), SceneError> {
         if let Some(c) = &self.camera {
             if !c.is_valid() {
-                return Err(malformed(format!(
+                return Err(malformed(MalformedPart::Camera, format!(
                 "the camera needs a finite placement, 0 < yfov < pi (perspective) or a positive half height (orthographic), a positive aspect ratio and a lens with a positive radius and focus distance (yfov {}, {:?}, aspect ratio {:?}, lens {:?})",
                 c.yfov, c.projection, c.aspect_ratio, c.lens
             )));
             }
             if c.motion.as_ref().is_some_and(|m| !m.is_valid()) {
-                return Err(malformed(
+                return Err(malformed(MalformedPart::Camera,
                 "the camera's motion needs one finite pose per step, at least two, at ordered instants"
                     .into(),
             ));
@@ -131,9 +135,10 @@ impl SceneBuilder {
                 Light::Area(_) | Light::Environment(_) => true,
             };
             if !finite {
-                return Err(malformed(format!(
-                    "light {i} has a non-finite position, direction or intensity"
-                )));
+                return Err(malformed(
+                    MalformedPart::Light,
+                    format!("light {i} has a non-finite position, direction or intensity"),
+                ));
             }
         }
         Ok(())
@@ -143,10 +148,10 @@ impl SceneBuilder {
     fn check_positions(&self) -> Result<(), SceneError> {
         for mesh in self.meshes.iter().chain(&self.prototypes) {
             if !mesh.positions.iter().all(|p| p.is_finite()) {
-                return Err(malformed(format!(
-                    "mesh '{}' has a non-finite position",
-                    mesh.name
-                )));
+                return Err(malformed(
+                    MalformedPart::Mesh,
+                    format!("mesh '{}' has a non-finite position", mesh.name),
+                ));
             }
         }
         Ok(())
@@ -164,10 +169,13 @@ impl SceneBuilder {
                 )));
             }
             if !instance.object_to_world.is_finite() {
-                return Err(malformed(format!(
-                    "instance {i} '{}' has a non-finite transform",
-                    instance.name
-                )));
+                return Err(malformed(
+                    MalformedPart::Instancing,
+                    format!(
+                        "instance {i} '{}' has a non-finite transform",
+                        instance.name
+                    ),
+                ));
             }
         }
         Ok(())
@@ -184,10 +192,13 @@ impl SceneBuilder {
                 )));
             }
             if !(m.emission.is_finite() && m.emission.min_element() >= 0.0) {
-                return Err(malformed(format!(
-                    "material '{}' has emission {:?}, not finite and non-negative",
-                    m.name, m.emission
-                )));
+                return Err(malformed(
+                    MalformedPart::Material,
+                    format!(
+                        "material '{}' has emission {:?}, not finite and non-negative",
+                        m.name, m.emission
+                    ),
+                ));
             }
             if let Some(i) = m.interior.filter(|&i| i as usize >= self.media.len()) {
                 return Err(invalid(format!(

@@ -279,32 +279,90 @@ pub fn parse_nimbus_medium(
     spec: &serde_json::Value,
     name: &str,
 ) -> Result<std::sync::Arc<dyn Medium>, VolumeError> {
-    let params = JsonParams::new(spec);
-    if let Some(noise) = params.nested(&NOISE)? {
-        let get = |key: &ParamKey, default: f64| -> Result<f64, ParamError> {
-            Ok(noise.number_f64(key)?.unwrap_or(default))
-        };
-        let medium = noise::NoiseMedium::new(
-            name,
-            get(&NOISE_SCALE, 1.0)? as f32,
-            get(&NOISE_MAX_DENSITY, 1.0)? as f32,
-            get(&NOISE_SEED, 0.0)? as u64,
-        );
-        return Ok(std::sync::Arc::new(medium));
-    }
-    let g = params.number_f64(&ANISOTROPY)?.unwrap_or(0.0);
-    if g.abs() >= 1.0 {
-        return Err(ParamError::OutOfRange {
-            key: ANISOTROPY.name.to_owned(),
-            value: g.to_string(),
-            constraint: "lie in (-1, 1)",
+    Ok(match MediumParams::from_json(spec)? {
+        MediumParams::Homogeneous {
+            sigma_a,
+            sigma_s,
+            anisotropy,
+        } => std::sync::Arc::new(homogeneous::HomogeneousMedium::new(
+            name, sigma_a, sigma_s, anisotropy,
+        )),
+        MediumParams::Noise {
+            scale,
+            max_density,
+            seed,
+        } => std::sync::Arc::new(noise::NoiseMedium::new(name, scale, max_density, seed)),
+    })
+}
+
+/// The values of a `nimbus_medium` declaration, each key absent from the file at its [`MEDIUM_KEYS`] default.
+#[derive(Clone, Debug, PartialEq)]
+enum MediumParams {
+    /// `sigma_a`, `sigma_s`, `anisotropy`.
+    Homogeneous {
+        sigma_a: Rgb,
+        sigma_s: Rgb,
+        anisotropy: f32,
+    },
+    /// The keys of `noise`.
+    Noise {
+        scale: f32,
+        max_density: f32,
+        seed: u64,
+    },
+}
+
+impl MediumParams {
+    /// Reads and checks the declaration; a key's default is taken from its table (`*_or_default`).
+    fn from_json(spec: &serde_json::Value) -> Result<Self, ParamError> {
+        let params = JsonParams::new(spec);
+        if let Some(noise) = params.nested(&NOISE)? {
+            return Ok(Self::Noise {
+                scale: noise.number_f64_or_default(&NOISE_SCALE)? as f32,
+                max_density: noise.number_f64_or_default(&NOISE_MAX_DENSITY)? as f32,
+                seed: noise.number_f64_or_default(&NOISE_SEED)? as u64,
+            });
         }
-        .into());
+        let g = params.number_f64_or_default(&ANISOTROPY)?;
+        if g.abs() >= 1.0 {
+            return Err(ParamError::OutOfRange {
+                key: ANISOTROPY.name.to_owned(),
+                value: g.to_string(),
+                constraint: "lie in (-1, 1)",
+            });
+        }
+        Ok(Self::Homogeneous {
+            sigma_a: params.rgb_or_default(&SIGMA_A)?,
+            sigma_s: params.rgb_or_default(&SIGMA_S)?,
+            anisotropy: g as f32,
+        })
     }
-    Ok(std::sync::Arc::new(homogeneous::HomogeneousMedium::new(
-        name,
-        params.rgb(&SIGMA_A)?.unwrap_or(Rgb::ZERO),
-        params.rgb(&SIGMA_S)?.unwrap_or(Rgb::ZERO),
-        g as f32,
-    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// Every key of `keys` with a default is given it in turn inside `wrap` (the declaration around the keys);
+    /// the result must be the declaration that omits it.
+    fn check_defaults(keys: &[ParamKey], wrap: impl Fn(serde_json::Value) -> serde_json::Value) -> usize {
+        let omitted = MediumParams::from_json(&wrap(json!({}))).unwrap();
+        let mut checked = 0;
+        for key in keys {
+            let Some(default) = crate::params::default_as_json(key) else {
+                continue;
+            };
+            let given = MediumParams::from_json(&wrap(json!({key.name: default}))).unwrap();
+            assert_eq!(given, omitted, "'{}' given as its default {default}", key.name);
+            checked += 1;
+        }
+        checked
+    }
+
+    #[test]
+    fn omitting_a_medium_key_is_giving_its_table_default() {
+        assert_eq!(check_defaults(MEDIUM_KEYS, |keys| keys), 3);
+        assert_eq!(check_defaults(NOISE_KEYS, |keys| json!({"noise": keys})), 3);
+    }
 }

@@ -16,7 +16,8 @@ use super::majorant::MajorantKind;
 use super::method::ChromaticTracking;
 use crate::math::{Mat4, Rgb};
 use crate::params::{
-    JsonParams, ParamDefault, ParamError, ParamKey, ParamRead, ParamSource, ParamType, UsdBinding,
+    JsonParams, ParamDefault, ParamError, ParamKey, ParamRead, ParamSource, ParamType, TableDefaults,
+    UsdBinding,
 };
 use std::path::PathBuf;
 
@@ -150,9 +151,10 @@ const ALBEDO_GRID: ParamKey = ParamKey {
 const VELOCITY_GRID: ParamKey = ParamKey {
     name: "velocity_grid",
     ty: ParamType::Text,
-    default: ParamDefault::Text("vel"),
+    default: ParamDefault::Unset,
     doc: "with `--shutter`: the velocity (world units per second), a vec3 grid or the scalar grids \
-          `NAME.x/.y/.z`; the volume is blurred by looking up x − velocity_scale · v · t (none: no blur)",
+          `NAME.x/.y/.z`; the volume is blurred by looking up x − velocity_scale · v · t (none: `vel` or \
+          `vel.x/.y/.z` where the file has them, else no blur; a grid named here must be in the file)",
     usd: UsdBinding::Attribute,
 };
 const VELOCITY_SCALE: ParamKey = ParamKey {
@@ -319,41 +321,51 @@ pub struct VolumeSpec {
 }
 
 impl VolumeSpec {
-    /// A volume with every optional key at its default.
+    /// A volume with every optional key at its default. The defaults of [`VOLUME_KEYS`] are declared only
+    /// there: they are applied by the code that applies a file's values ([`TableDefaults`] read like a file).
     pub fn new(name: &str, file: PathBuf, node_to_world: Mat4) -> Self {
-        Self {
+        let mut spec = Self {
             name: name.to_owned(),
             file,
-            density_grid: "density".into(),
-            density_scale: 1.0,
-            albedo: Rgb::ONE,
+            // The fields of VOLUME_KEYS: blank here, set from the table's defaults below (a key without a
+            // default, `ParamDefault::Unset`, leaves its `None`).
+            density_grid: String::new(),
+            density_scale: 0.0,
+            albedo: Rgb::ZERO,
             anisotropy: 0.0,
             temperature_grid: None,
-            emission_scale: 1.0,
-            temperature_scale: 1.0,
+            emission_scale: 0.0,
+            temperature_scale: 0.0,
             temperature_offset: 0.0,
             flame_grid: None,
-            flame_scale: 1.0,
+            flame_scale: 0.0,
             flame_color: None,
-            flame_temperature: 1500.0,
+            flame_temperature: 0.0,
             color_grid: None,
             albedo_grid: None,
             velocity_grid: None,
-            velocity_scale: 1.0,
-            node_to_world,
+            velocity_scale: 0.0,
             majorant: None,
             shadow_estimator: ShadowEstimator::Ratio,
             chromatic_tracking: None,
-            embedded: None,
-            limits: crate::limits::Limits::default(),
             frame_offset: 0,
             missing_frame: MissingFrame::Error,
+            // The fields no key sets.
+            node_to_world,
+            embedded: None,
+            limits: crate::limits::Limits::default(),
             frame: None,
             shutter: None,
             fps: crate::frames::DEFAULT_FPS,
             asset: String::new(),
             tags: crate::geometry::CompositingTags::default(),
-        }
+        };
+        let applied = spec.apply_params(&TableDefaults);
+        debug_assert!(
+            applied.is_ok(),
+            "a VOLUME_KEYS default does not read as its key's type: {applied:?}"
+        );
+        spec
     }
 
     /// The sequence frame this volume reads: the shot's frame (1 without one) plus `frame_offset`.
@@ -480,6 +492,14 @@ impl VolumeSpec {
     /// validates. glTF gives every key; a USD prim gives its `nimbus:` attributes (the grids come from its
     /// field relationships).
     pub fn read_params(&mut self, params: &impl ParamSource) -> Result<(), ParamError> {
+        self.apply_params(params)?;
+        self.validate()
+    }
+
+    /// Sets the field of every key of [`VOLUME_KEYS`] but `file` that `params` gives, leaving the others as
+    /// they are; the shared step of reading a file ([`Self::read_params`]) and of taking the table's defaults
+    /// ([`Self::new`]).
+    fn apply_params(&mut self, params: &impl ParamSource) -> Result<(), ParamError> {
         if let Some(g) = params.text(&DENSITY_GRID)? {
             self.density_grid = g;
         }
@@ -536,7 +556,7 @@ impl VolumeSpec {
             }
             self.frame_offset = offset as i64;
         }
-        self.validate()
+        Ok(())
     }
 
     /// Reads glTF's `extras.nimbus_volume` object; `base` is the glTF file's folder.
@@ -606,6 +626,24 @@ mod tests {
             ),
             (10.0, 2.0, 3.0, 4.0)
         );
+    }
+
+    #[test]
+    fn omitting_a_key_is_giving_its_table_default() {
+        let base = std::path::Path::new("/");
+        let omitted =
+            VolumeSpec::from_json(&json!({"file": "a"}), "n", base, Mat4::IDENTITY).unwrap();
+        let mut checked = 0;
+        for key in VOLUME_KEYS {
+            let Some(default) = crate::params::default_as_json(key) else {
+                continue;
+            };
+            let given = json!({"file": "a", key.name: default});
+            let explicit = VolumeSpec::from_json(&given, "n", base, Mat4::IDENTITY).unwrap();
+            assert_eq!(explicit, omitted, "'{}' given as its default {default}", key.name);
+            checked += 1;
+        }
+        assert!(checked >= 15, "only {checked} keys have a default");
     }
 
     #[test]

@@ -375,6 +375,18 @@ struct Delta<H> {
     hook: H,
 }
 
+impl<H> Delta<H> {
+    /// A walk yet to collide: delta tracking (`decompose` false) or decomposition tracking (true), reporting
+    /// its tentative collisions to `hook`.
+    fn new(decompose: bool, hook: H) -> Self {
+        Self {
+            hit: None,
+            decompose,
+            hook,
+        }
+    }
+}
+
 impl<H: TentativeHook> Estimator for Delta<H> {
     fn segment(&mut self, s: &Segment, len: f32, _: &mut Rng) -> OnSegment {
         OnSegment::Track(s.sigma_max * len)
@@ -447,8 +459,7 @@ pub fn sample_collision<F: DensityField + ?Sized>(
         (t_min, t_max),
         rng,
         counters,
-        false,
-        NoHook,
+        Delta::new(false, NoHook),
     )
 }
 
@@ -484,20 +495,17 @@ pub fn decomposition_tracking<F: DensityField + ?Sized>(
         (t_min, t_max),
         rng,
         counters,
-        true,
-        NoHook,
+        Delta::new(true, NoHook),
     )
 }
 
-/// [`decomposition_tracking`] that also reports every tentative collision to `hook` (the tentative-collision
-/// estimator of emission): the same walk, decisions and random numbers.
-#[allow(clippy::too_many_arguments)]
+/// [`decomposition_tracking`] over `interval` (`t_min`, `t_max`) that also reports every tentative collision
+/// to `hook` (the tentative-collision estimator of emission): the same walk, decisions and random numbers.
 pub fn decomposition_tracking_reporting<F: DensityField + ?Sized, H: TentativeHook>(
     field: &F,
     majorants: &Majorants,
     ray: &Ray,
-    t_min: f32,
-    t_max: f32,
+    interval: (f32, f32),
     rng: &mut Rng,
     counters: &mut TrackingCounters,
     hook: H,
@@ -506,17 +514,15 @@ pub fn decomposition_tracking_reporting<F: DensityField + ?Sized, H: TentativeHo
         field,
         majorants,
         ray,
-        (t_min, t_max),
+        interval,
         rng,
         counters,
-        true,
-        hook,
+        Delta::new(true, hook),
     )
 }
 
-/// The walk of [`sample_collision`] (`decompose` false) and [`decomposition_tracking`] (true): the first real
-/// collision in `interval`, if any, with every tentative collision reported to `hook`.
-#[allow(clippy::too_many_arguments)]
+/// The walk of [`sample_collision`] and [`decomposition_tracking`] (as `delta` was made, see [`Delta::new`]):
+/// the first real collision in `interval`, if any, with every tentative collision reported to its hook.
 fn first_real_collision<F: DensityField + ?Sized, H: TentativeHook>(
     field: &F,
     majorants: &Majorants,
@@ -524,14 +530,8 @@ fn first_real_collision<F: DensityField + ?Sized, H: TentativeHook>(
     interval: (f32, f32),
     rng: &mut Rng,
     counters: &mut TrackingCounters,
-    decompose: bool,
-    hook: H,
+    mut delta: Delta<H>,
 ) -> Option<f32> {
-    let mut delta = Delta {
-        hit: None,
-        decompose,
-        hook,
-    };
     track(field, majorants, ray, interval, rng, counters, &mut delta);
     delta.hit
 }
@@ -1020,7 +1020,13 @@ mod tests {
                     };
                     let (mut rng, mut c) = (Rng::new(9, k as u64), TrackingCounters::default());
                     let t = decomposition_tracking_reporting(
-                        &g, &m, ray, 0.0, 20.0, &mut rng, &mut c, hook,
+                        &g,
+                        &m,
+                        ray,
+                        (0.0, 20.0),
+                        &mut rng,
+                        &mut c,
+                        hook,
                     );
                     let (mut rng, mut c) = (Rng::new(9, k as u64), TrackingCounters::default());
                     let plain = decomposition_tracking(&g, &m, ray, 0.0, 20.0, &mut rng, &mut c);

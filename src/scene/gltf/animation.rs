@@ -16,6 +16,7 @@
 //! interpolated linearly between steps, so a rotation's arc is cut to chords no longer than that angle
 //! (a radius shrinks by at most 1 − cos 5° ≈ 0.4 % between steps).
 
+use crate::scene::MalformedPart;
 use super::accessors::{read_floats, Usage};
 use super::check::SkippedChannels;
 use crate::scene::SceneErrorKind;
@@ -117,12 +118,12 @@ impl KeyCache<'_> {
             )
             .map_err(|e| SceneErrorKind::OverLimit(e.to_string()))?;
         let floats: Rc<[f32]> = read_floats(accessor, usage, self.buffers, self.limits)
-            .map_err(|e| SceneErrorKind::Malformed(format!("{at}: {e}")))?
+            .map_err(|e| SceneErrorKind::malformed(MalformedPart::Animation, format!("{at}: {e}")))?
             .into();
         if usage == Usage::KeyTimes
             && (!floats.iter().all(|t| t.is_finite()) || floats.windows(2).any(|w| w[0] >= w[1]))
         {
-            return Err(SceneErrorKind::Malformed(format!(
+            return Err(SceneErrorKind::malformed(MalformedPart::Animation, format!(
                 "{at}: the key times (accessor {}) must be finite and strictly increasing",
                 key.0
             )));
@@ -178,7 +179,7 @@ impl Animations {
                     },
                 };
                 check_counts(&sampler, property, elements)
-                    .map_err(|e| SceneErrorKind::Malformed(format!("{at}: {e}")))?;
+                    .map_err(|e| SceneErrorKind::malformed(MalformedPart::Animation, format!("{at}: {e}")))?;
                 let usage = match property {
                     Property::Translation | Property::Scale => Usage::KeyVec3,
                     Property::Rotation => Usage::KeyRotation,

@@ -2,6 +2,7 @@
 //! node (a rigid transform), with a thin lens from `extras.nimbus_camera` (keys [`crate::scene::CAMERA_KEYS`])
 //! on the node or the camera object, and motion across the shutter when the node is animated.
 
+use crate::scene::MalformedPart;
 use crate::limits::one_line;
 use crate::math::Mat4;
 use crate::params::unknown_json_keys;
@@ -75,7 +76,7 @@ impl Loader<'_> {
         let camera_extras = match camera.extras() {
             Some(raw) => Some(
                 serde_json::from_str::<serde_json::Value>(raw.get())
-                    .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{at}: {e}"))))?,
+                    .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Camera, format!("{at}: {e}"))))?,
             ),
             None => None,
         };

@@ -8,6 +8,7 @@
 //! does not know (`KHR_animation_pointer`'s `"pointer"`): the crate panics on such a path, and refuses the
 //! target without a `node` that the extension writes. They are removed, with a warning each.
 
+use crate::scene::MalformedPart;
 use crate::scene::SceneErrorKind;
 use gltf::json::validation::Checked;
 use gltf::json::{Index, Root};
@@ -110,7 +111,7 @@ struct ScanTarget {
 /// error: left to the crate, the channel would reach it and panic.
 pub(super) fn skip_unknown_channels(
     json: &[u8],
-) -> Result<(Option<serde_json::Value>, SkippedChannels), String> {
+) -> Result<(Option<serde_json::Value>, SkippedChannels), UnskippableChannel> {
     let mut skipped = SkippedChannels::default();
     let mut first_unknown = None;
     let Ok(scan) = serde_json::from_slice::<Scan>(json) else {
@@ -140,11 +141,14 @@ pub(super) fn skip_unknown_channels(
     if skipped.warnings.is_empty() {
         return Ok((None, skipped));
     }
-    let mut document = serde_json::from_slice::<serde_json::Value>(json).map_err(|e| {
-        let (a, c, path) = &first_unknown.expect("a warning was given for a channel");
-        format!(
-            "animations[{a}].channels[{c}]: target path \"{path}\" would be skipped, but the document cannot be read to skip it: {e}"
-        )
+    let mut document = serde_json::from_slice::<serde_json::Value>(json).map_err(|source| {
+        let (animation, channel, path) = first_unknown.expect("a warning was given for a channel");
+        UnskippableChannel {
+            animation,
+            channel,
+            path,
+            source,
+        }
     })?;
     for (a, removed) in skipped.removed.iter().enumerate() {
         if let Some(channels) = document["animations"][a]["channels"].as_array_mut() {
@@ -156,15 +160,31 @@ pub(super) fn skip_unknown_channels(
     Ok((Some(document), skipped))
 }
 
+/// An animation channel with a target path the `gltf` crate does not know, in a document that cannot be read
+/// whole to remove it (see [`skip_unknown_channels`]).
+#[derive(Debug, thiserror::Error)]
+#[error("animations[{animation}].channels[{channel}]: target path \"{path}\" would be skipped, but the document cannot be read to skip it: {source}")]
+pub(super) struct UnskippableChannel {
+    /// The animation's index.
+    animation: usize,
+    /// The channel's index in the file.
+    channel: usize,
+    /// The target path, cut to one short line.
+    path: String,
+    /// Why the document cannot be read whole.
+    source: serde_json::Error,
+}
+
 /// All the checks, in order: indices first (the others follow them).
 pub(super) fn check_document(root: &Root) -> Result<(), SceneErrorKind> {
     let invalid = |e: CheckError| SceneErrorKind::InvalidReference(e.to_string());
-    let malformed = |e: CheckError| SceneErrorKind::Malformed(e.to_string());
+    let malformed =
+        |part: MalformedPart| move |e: CheckError| SceneErrorKind::malformed(part, e.to_string());
     check_indices(root).map_err(invalid)?;
-    check_forest(root).map_err(malformed)?;
-    check_nodes(root).map_err(malformed)?;
-    check_cameras(root).map_err(malformed)?;
-    check_lights(root).map_err(malformed)
+    check_forest(root).map_err(malformed(MalformedPart::Node))?;
+    check_nodes(root).map_err(malformed(MalformedPart::Node))?;
+    check_cameras(root).map_err(malformed(MalformedPart::Camera))?;
+    check_lights(root).map_err(malformed(MalformedPart::Light))
 }
 
 /// `Ok` if `index` names an element of the array `array` of `len` elements; `field` names where it was read.
@@ -730,7 +750,7 @@ mod tests {
             .to_vec();
         let at = json.windows(2).position(|w| w == b"AB").unwrap();
         json[at] = 0x8a;
-        let error = skip_unknown_channels(&json).unwrap_err();
+        let error = skip_unknown_channels(&json).unwrap_err().to_string();
         assert!(
             error.starts_with("animations[0].channels[0]: target path \"rotatkon\"")
                 && error.contains("invalid unicode"),

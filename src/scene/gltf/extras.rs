@@ -3,6 +3,7 @@
 //! or material (`nimbus_light_group`, `nimbus_holdout`, `nimbus_shadow_catcher`), and a node's
 //! `nimbus_volume` (the keys of `crate::volume::spec::VOLUME_KEYS`), a VDB medium placed by the node.
 
+use crate::scene::MalformedPart;
 use crate::geometry::CompositingTags;
 use crate::light::{EnvironmentLight, EnvironmentMap};
 use crate::limits::{Limits, one_line};
@@ -19,7 +20,7 @@ impl Loader<'_> {
     pub(super) fn read_scene_extras(&mut self, extras: &gltf::json::Extras) -> Result<(), SceneError> {
         let Some(raw) = extras else { return Ok(()) };
         let value: serde_json::Value = serde_json::from_str(raw.get())
-            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("scene extras: {e}"))))?;
+            .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Settings, format!("scene extras: {e}"))))?;
         self.unknown_keys(
             "scene extras",
             &unknown_json_names(&value, SCENE_EXTRAS, "nimbus_"),
@@ -30,8 +31,8 @@ impl Loader<'_> {
         }
         if let Some(b) = value.get("max_bounces") {
             let b = b.as_u64().ok_or_else(|| {
-                self.error(SceneErrorKind::Malformed(
-                    "scene extras: max_bounces must be a non-negative integer".into(),
+                self.error(SceneErrorKind::malformed(MalformedPart::Settings,
+                    "scene extras: max_bounces must be a non-negative integer",
                 ))
             })?;
             self.builder.max_bounces = Some(b.min(u32::MAX as u64) as u32);
@@ -44,8 +45,8 @@ impl Loader<'_> {
         }
         if let Some(t) = value.get("nimbus_transparent") {
             let t = t.as_bool().ok_or_else(|| {
-                self.error(SceneErrorKind::Malformed(
-                    "scene extras: nimbus_transparent must be true or false".into(),
+                self.error(SceneErrorKind::malformed(MalformedPart::Settings,
+                    "scene extras: nimbus_transparent must be true or false",
                 ))
             })?;
             self.builder.set_transparent(t);
@@ -110,12 +111,12 @@ pub(super) fn parse_environment(
     base: &Path,
     limits: &Limits,
 ) -> Result<(EnvironmentLight, Option<String>), SceneErrorKind> {
-    let malformed = |m: &str| SceneErrorKind::Malformed(format!("nimbus_environment: {m}"));
+    let malformed = |m: &str| SceneErrorKind::malformed(MalformedPart::Settings, format!("nimbus_environment: {m}"));
     let group = match value.get("light_group") {
         None => None,
         Some(g) => Some(
             light_group_name(g)
-                .map_err(|m| SceneErrorKind::Malformed(format!("nimbus_environment: {m}")))?,
+                .map_err(|m| SceneErrorKind::malformed(MalformedPart::Settings, format!("nimbus_environment: {m}")))?,
         ),
     };
     parse_environment_light(value, base, limits, &malformed).map(|env| (env, group))

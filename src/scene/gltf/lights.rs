@@ -3,6 +3,7 @@
 //! extras key `nimbus_light_units` (`"photometric"`, the default, divides intensities by
 //! [`LUMENS_PER_WATT`]; `"radiometric"` takes them as W/sr and W/m²).
 
+use crate::scene::MalformedPart;
 use crate::light::{DirectionalLight, LUMENS_PER_WATT, Light, PointLight, SpotLight};
 use crate::math::{Mat4, Rgb, Vec3};
 use crate::scene::{LightTag, SceneError, SceneErrorKind};
@@ -48,14 +49,14 @@ impl Loader<'_> {
     pub(super) fn read_light_units(&mut self, extras: &gltf::json::Extras) -> Result<(), SceneError> {
         let Some(raw) = extras else { return Ok(()) };
         let value: serde_json::Value = serde_json::from_str(raw.get())
-            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("scene extras: {e}"))))?;
+            .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Settings, format!("scene extras: {e}"))))?;
         self.light_unit_scale = match value.get("nimbus_light_units") {
             None => 1.0 / LUMENS_PER_WATT,
             Some(v) => match v.as_str() {
                 Some("photometric") => 1.0 / LUMENS_PER_WATT,
                 Some("radiometric") => 1.0,
                 _ => {
-                    return Err(self.error(SceneErrorKind::Malformed(format!(
+                    return Err(self.error(SceneErrorKind::malformed(MalformedPart::Settings, format!(
                         "scene extras: nimbus_light_units must be \"photometric\" or \"radiometric\", not {v}"
                     ))))
                 }

@@ -3,6 +3,7 @@
 //! `KHR_materials_anisotropy`, `KHR_materials_diffuse_transmission`, `KHR_materials_iridescence` and
 //! `KHR_materials_dispersion` (their keys in each function's documentation).
 
+use crate::scene::MalformedPart;
 use crate::material::{Anisotropy, ClearcoatLayer, ColorSpace, DiffuseTransmission, Iridescence, SheenLayer, SpecularGlossiness};
 use crate::math::{Rgb, Vec4};
 use crate::scene::SceneError;
@@ -30,7 +31,7 @@ impl Loader<'_> {
                 let field = format!("{at}.clearcoatNormalTexture");
                 let scale = match v.get("scale") {
                     Some(s) => s.as_f64().filter(|s| s.is_finite()).ok_or_else(|| {
-                        self.malformed(format!("{field}.scale must be a finite number"))
+                        self.malformed(MalformedPart::Material, format!("{field}.scale must be a finite number"))
                     })? as f32,
                     None => 1.0,
                 };
@@ -62,7 +63,7 @@ impl Loader<'_> {
             Some(v) => crate::params::parse_rgb(v)
                 .filter(|c| c.max_element() <= 1.0)
                 .ok_or_else(|| {
-                    self.malformed(format!(
+                    self.malformed(MalformedPart::Material, format!(
                         "{at}.sheenColorFactor must be three numbers in [0, 1]"
                     ))
                 })?,
@@ -95,13 +96,13 @@ impl Loader<'_> {
         let mut sg = SpecularGlossiness::default();
         if let Some(v) = ext.get("diffuseFactor") {
             let d = unit_numbers::<4>(v).ok_or_else(|| {
-                self.malformed(format!("{at}.diffuseFactor must be four numbers in [0, 1]"))
+                self.malformed(MalformedPart::Material, format!("{at}.diffuseFactor must be four numbers in [0, 1]"))
             })?;
             sg.diffuse = Vec4::from(d);
         }
         if let Some(v) = ext.get("specularFactor") {
             let s = unit_numbers::<3>(v).ok_or_else(|| {
-                self.malformed(format!(
+                self.malformed(MalformedPart::Material, format!(
                     "{at}.specularFactor must be three numbers in [0, 1]"
                 ))
             })?;
@@ -133,7 +134,7 @@ impl Loader<'_> {
                 .map(|r| r as f32)
                 .filter(|r| r.is_finite())
                 .ok_or_else(|| {
-                    self.malformed(format!(
+                    self.malformed(MalformedPart::Material, format!(
                         "{at}.anisotropyRotation must be a finite number (radians)"
                     ))
                 })?,
@@ -163,7 +164,7 @@ impl Loader<'_> {
         let factor = self.unit_number(&ext, "diffuseTransmissionFactor", 0.0, &at)?;
         let color = match ext.get("diffuseTransmissionColorFactor") {
             Some(v) => Rgb::from(unit_numbers::<3>(v).ok_or_else(|| {
-                self.malformed(format!(
+                self.malformed(MalformedPart::Material, format!(
                     "{at}.diffuseTransmissionColorFactor must be three numbers in [0, 1]"
                 ))
             })?),
@@ -207,7 +208,7 @@ impl Loader<'_> {
                 .map(|v| v as f32)
                 .filter(|v| v.is_finite() && *v >= min)
                 .ok_or_else(|| {
-                    self.malformed(format!("{at}.{key} must be a finite number >= {min}"))
+                    self.malformed(MalformedPart::Material, format!("{at}.{key} must be a finite number >= {min}"))
                 }),
         };
         let ior = number("iridescenceIor", defaults.ior, 1.0)?;
@@ -243,7 +244,7 @@ impl Loader<'_> {
                 .map(|v| v as f32)
                 .filter(|v| v.is_finite() && *v >= 0.0)
                 .ok_or_else(|| {
-                    self.malformed(format!("{at}.dispersion must be a finite number >= 0"))
+                    self.malformed(MalformedPart::Material, format!("{at}.dispersion must be a finite number >= 0"))
                 })?,
         };
         let volume = material
@@ -268,7 +269,7 @@ impl Loader<'_> {
         match material.extensions().and_then(|e| e.get(name)) {
             None => Ok(None),
             Some(serde_json::Value::Object(o)) => Ok(Some(o.clone())),
-            Some(_) => Err(self.malformed(format!("{at} must be an object"))),
+            Some(_) => Err(self.malformed(MalformedPart::Material, format!("{at} must be an object"))),
         }
     }
 
@@ -286,7 +287,7 @@ impl Loader<'_> {
                 .as_f64()
                 .filter(|v| (0.0..=1.0).contains(v))
                 .map(|v| v as f32)
-                .ok_or_else(|| self.malformed(format!("{at}.{key} must be a number in [0, 1]"))),
+                .ok_or_else(|| self.malformed(MalformedPart::Material, format!("{at}.{key} must be a number in [0, 1]"))),
         }
     }
 }

@@ -6,6 +6,7 @@
 //! interior); the others are in `material_extensions`. Material `extras`: [`MATERIAL_EXTRAS`]
 //! (`nimbus_medium` with `crate::volume::MEDIUM_KEYS`, and the compositing tags).
 
+use crate::scene::MalformedPart;
 use crate::geometry::CompositingTags;
 use crate::limits::one_line;
 use crate::material::{AlphaMode, ColorSpace, Material};
@@ -246,7 +247,7 @@ impl Loader<'_> {
                 } else {
                     "finite"
                 };
-                return Err(self.error(SceneErrorKind::Malformed(format!(
+                return Err(self.error(SceneErrorKind::malformed(MalformedPart::Material, format!(
                     "{at}.{field} holds {v}; it must be {rule}"
                 ))));
             }
@@ -261,7 +262,7 @@ impl Loader<'_> {
         name: &str,
     ) -> Result<CompositingTags, SceneError> {
         let bad = |msg: String| {
-            self.error(SceneErrorKind::Malformed(format!(
+            self.error(SceneErrorKind::malformed(MalformedPart::Material, format!(
                 "material '{}': extras: {msg}",
                 one_line(name, QUOTE)
             )))
@@ -285,7 +286,7 @@ impl Loader<'_> {
         let bad = |msg: String| {
             SceneError::new(
                 path,
-                SceneErrorKind::Malformed(format!(
+                SceneErrorKind::malformed(MalformedPart::Material, format!(
                     "material '{}': {msg}",
                     one_line(&m.name, QUOTE)
                 )),

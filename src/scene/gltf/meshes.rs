@@ -4,6 +4,7 @@
 //! `targets` with the pose's or `weights`, skinned by the node's `skin` (see `deform`), and sampled at the
 //! motion steps under a shutter.
 
+use crate::scene::MalformedPart;
 use crate::geometry::{Mesh, MeshMotion};
 use crate::limits::one_line;
 use crate::math::{Mat4, Vec2, Vec3, Vec4};
@@ -212,7 +213,7 @@ impl Loader<'_> {
             .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
         let joints: Rc<[Mat4]> =
             deform::joint_matrices(skin, worlds, self.buffers, &self.options.limits)
-                .map_err(|e| self.error(SceneErrorKind::Malformed(e.to_string())))?
+                .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Animation, e.to_string())))?
                 .into();
         self.joints.borrow_mut().insert(key, joints.clone());
         Ok(joints)
@@ -249,7 +250,7 @@ impl Loader<'_> {
                     Ok(())
                 }
             })
-            .map_err(|e| self.error(SceneErrorKind::Malformed(format!("{what}: {e}"))))?;
+            .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Animation, format!("{what}: {e}"))))?;
         if m.normals.is_empty() {
             m.generate_normals();
         }
@@ -291,7 +292,7 @@ impl Loader<'_> {
         };
         let positions: Vec<Vec3> = floats(&S::Positions, Usage::Position)?
             .ok_or_else(|| {
-                self.error(SceneErrorKind::Malformed(format!("{what} has no POSITION")))
+                self.error(SceneErrorKind::malformed(MalformedPart::Mesh, format!("{what} has no POSITION")))
             })?
             .chunks_exact(3)
             .map(Vec3::from_slice)
@@ -361,7 +362,7 @@ impl Loader<'_> {
             || colors.as_ref().is_some_and(|c| !same_len(c.len()))
             || tangents.as_ref().is_some_and(|t| !same_len(t.len()))
         {
-            return Err(self.error(SceneErrorKind::Malformed(format!(
+            return Err(self.error(SceneErrorKind::malformed(MalformedPart::Mesh, format!(
                 "{what}: attribute counts differ from POSITION's {count}"
             ))));
         }
@@ -386,7 +387,7 @@ impl Loader<'_> {
             ),
         ];
         if let Some((name, Some(i))) = bad.into_iter().find(|(_, i)| i.is_some()) {
-            return Err(self.error(SceneErrorKind::Malformed(format!(
+            return Err(self.error(SceneErrorKind::malformed(MalformedPart::Mesh, format!(
                 "{what}: {name}[{i}] is not finite"
             ))));
         }

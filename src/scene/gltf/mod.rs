@@ -53,6 +53,7 @@ mod nodes;
 mod textures;
 mod variants;
 
+use crate::scene::MalformedPart;
 use check::SkippedChannels;
 use crate::geometry::CompositingTags;
 use crate::light::LUMENS_PER_WATT;
@@ -166,14 +167,16 @@ pub fn load_slice(
     options: &LoadOptions,
 ) -> Result<SceneBuilder, SceneError> {
     let err = |kind| SceneError::new(path, kind);
-    let malformed = |m: String| err(SceneErrorKind::Malformed(m));
-    let (root, blob, skipped) = parse(bytes).map_err(|e| malformed(e.to_string()))?;
+    let malformed = |part, m: String| err(SceneErrorKind::malformed(part, m));
+    let (root, blob, skipped) =
+        parse(bytes).map_err(|e| malformed(MalformedPart::File, e.to_string()))?;
     check::check_document(&root).map_err(&err)?;
     let mut warnings = validate(&root).map_err(&err)?;
     warnings.extend(skipped.warnings.iter().cloned());
     let document = gltf::Document::from_json_without_validation(root);
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let variants = variant_names(&document).map_err(|e| malformed(e.to_string()))?;
+    let variants =
+        variant_names(&document).map_err(|e| malformed(MalformedPart::Material, e.to_string()))?;
     let variant = choose_variant(&variants, options.variant).map_err(&err)?;
     if options.variant.is_none() && !variants.is_empty() {
         let names: Vec<String> = variants.iter().map(|n| one_line(n, QUOTE)).collect();
@@ -222,7 +225,7 @@ fn read_buffers(
     limits: &Limits,
 ) -> Result<Vec<gltf::buffer::Data>, SceneError> {
     let err = |kind| SceneError::new(path, kind);
-    let malformed = |m: String| err(SceneErrorKind::Malformed(m));
+    let malformed = |m: String| err(SceneErrorKind::malformed(MalformedPart::Data, m));
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let name = match buffer.source() {
@@ -317,10 +320,21 @@ enum ParseError {
     Glb(gltf::Error),
     /// A GLB file's JSON chunk that does not parse.
     #[error("JSON chunk: {0}")]
-    JsonChunk(String),
+    JsonChunk(JsonError),
     /// A `.gltf` file's JSON that does not parse.
     #[error("JSON: {0}")]
-    Json(String),
+    Json(JsonError),
+}
+
+/// Why a glTF document's JSON could not be read (see [`parse_json`]).
+#[derive(Debug, thiserror::Error)]
+enum JsonError {
+    /// A channel to skip in a document that cannot be read whole to skip it.
+    #[error(transparent)]
+    Unskippable(#[from] check::UnskippableChannel),
+    /// The `gltf` crate's parser refused the document.
+    #[error(transparent)]
+    Syntax(#[from] gltf::json::Error),
 }
 
 /// The document of a `.gltf` or `.glb` file, its GLB binary chunk if any, and the animation channels skipped.
@@ -346,13 +360,12 @@ fn parse(bytes: &[u8]) -> Result<JsonParse, ParseError> {
 
 /// The document in `json`, less the animation channels the `gltf` crate cannot read (see
 /// `check::skip_unknown_channels`), and which those were.
-fn parse_json(json: &[u8]) -> Result<(gltf::json::Root, SkippedChannels), String> {
+fn parse_json(json: &[u8]) -> Result<(gltf::json::Root, SkippedChannels), JsonError> {
     let (edited, skipped) = check::skip_unknown_channels(json)?;
     let root = match edited {
         Some(document) => gltf::json::deserialize::from_value(document),
         None => gltf::json::deserialize::from_slice(json),
-    }
-    .map_err(|e| e.to_string())?;
+    }?;
     Ok((root, skipped))
 }
 
@@ -381,7 +394,7 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
         }
     }
     if !fatal.is_empty() {
-        return Err(SceneErrorKind::Malformed(one_line(
+        return Err(SceneErrorKind::malformed(MalformedPart::File, one_line(
             &fatal.join("; "),
             4 * QUOTE,
         )));
@@ -438,7 +451,7 @@ impl Loader<'_> {
         let scene = document
             .default_scene()
             .or_else(|| document.scenes().next())
-            .ok_or_else(|| self.error(SceneErrorKind::Malformed("the file has no scene".into())))?;
+            .ok_or_else(|| self.malformed(MalformedPart::File, "the file has no scene".into()))?;
         self.read_light_units(scene.extras())?;
         for node in scene.nodes() {
             let top = NodeContext {
@@ -461,9 +474,9 @@ impl Loader<'_> {
             .map_err(|kind| self.error(kind))
     }
 
-    /// A malformed-file error naming the file, its message cut to one line.
-    fn malformed(&self, message: String) -> SceneError {
-        self.error(SceneErrorKind::Malformed(one_line(&message, 4 * QUOTE)))
+    /// An error about a malformed `part` of the file, naming the file, its message cut to one line.
+    fn malformed(&self, part: MalformedPart, message: String) -> SceneError {
+        self.error(SceneErrorKind::malformed(part, one_line(&message, 4 * QUOTE)))
     }
 
 }

@@ -5,6 +5,7 @@
 //! `instancing`), `camera`, `extensions.KHR_lights_punctual.light` and an `extras.nimbus_volume`. A node's
 //! compositing tags pass to its children; the top-level node names Cryptomatte's asset.
 
+use crate::scene::MalformedPart;
 use crate::geometry::CompositingTags;
 use crate::limits::one_line;
 use crate::math::Mat4;
@@ -24,14 +25,14 @@ impl Loader<'_> {
         outer: &NodeContext,
     ) -> Result<(), SceneError> {
         if depth > MAX_NODE_DEPTH {
-            return Err(self.error(SceneErrorKind::Malformed(format!(
+            return Err(self.error(SceneErrorKind::malformed(MalformedPart::Node, format!(
                 "node {} is nested deeper than {MAX_NODE_DEPTH} levels (a cycle?)",
                 node.index()
             ))));
         }
         let world = parent * self.pose.locals[node.index()];
         if !world.is_finite() {
-            return Err(self.error(SceneErrorKind::Malformed(format!(
+            return Err(self.error(SceneErrorKind::malformed(MalformedPart::Node, format!(
                 "node {} has a non-finite transform",
                 node.index()
             ))));
@@ -44,7 +45,7 @@ impl Loader<'_> {
         let context = NodeContext {
             tags: node_tags(extras.as_ref())
                 .map_err(|m| {
-                    self.error(SceneErrorKind::Malformed(format!(
+                    self.error(SceneErrorKind::malformed(MalformedPart::Node, format!(
                         "node '{}': extras: {m}",
                         node_name(&node)
                     )))
@@ -90,7 +91,7 @@ impl Loader<'_> {
             return Ok(None);
         };
         serde_json::from_str(raw.get()).map(Some).map_err(|e| {
-            self.error(SceneErrorKind::Malformed(format!(
+            self.error(SceneErrorKind::malformed(MalformedPart::Node, format!(
                 "node '{}': extras: {e}",
                 node_name(node)
             )))

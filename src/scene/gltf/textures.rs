@@ -3,6 +3,7 @@
 //! `minFilter`, `wrapS`, `wrapT`) and `images[]` (`uri` or `bufferView`), decoded once per colour space within
 //! the memory budget.
 
+use crate::scene::MalformedPart;
 use crate::limits::one_line;
 use crate::material::{ColorSpace, Filter, MipImage, Sampler, Texture, UV_SETS, UvTransform, Wrap};
 use crate::math::Vec2;
@@ -50,13 +51,13 @@ impl Loader<'_> {
         let index = value
             .get("index")
             .and_then(|i| i.as_u64())
-            .ok_or_else(|| self.malformed(format!("{at}.index must be a texture index")))?;
+            .ok_or_else(|| self.malformed(MalformedPart::Texture, format!("{at}.index must be a texture index")))?;
         let tex_coord = match value.get("texCoord") {
             Some(t) => t
                 .as_u64()
                 .filter(|&t| t <= u32::MAX as u64)
                 .ok_or_else(|| {
-                    self.malformed(format!("{at}.texCoord must be a non-negative integer"))
+                    self.malformed(MalformedPart::Texture, format!("{at}.texCoord must be a non-negative integer"))
                 })? as u32,
             None => 0,
         };
@@ -84,7 +85,7 @@ impl Loader<'_> {
             transform: UvTransform::default(),
         };
         if let Some(t) = extensions.and_then(|e| e.get("KHR_texture_transform")) {
-            let bad = || self.malformed(format!("{at}.extensions.KHR_texture_transform: {t}"));
+            let bad = || self.malformed(MalformedPart::Texture, format!("{at}.extensions.KHR_texture_transform: {t}"));
             let pair = |key: &str, default: [f32; 2]| match t.get(key) {
                 None => Some(default),
                 Some(v) => {
@@ -115,7 +116,7 @@ impl Loader<'_> {
         if let Some(t) = info.texture_transform() {
             r.transform =
                 checked_transform(t.offset(), t.rotation(), t.scale()).ok_or_else(|| {
-                    self.malformed(format!(
+                    self.malformed(MalformedPart::Texture, format!(
                         "{at}.extensions.KHR_texture_transform holds a non-finite number"
                     ))
                 })?;
@@ -180,7 +181,7 @@ impl Loader<'_> {
             rgba.as_raw(),
             space,
         )
-        .ok_or_else(|| self.error(SceneErrorKind::Malformed(format!("image {index} is empty"))))?;
+        .ok_or_else(|| self.error(SceneErrorKind::malformed(MalformedPart::Texture, format!("image {index} is empty"))))?;
         let mip = Arc::new(mip);
         self.images.insert(key, mip.clone());
         Ok(mip)
@@ -216,7 +217,7 @@ impl Loader<'_> {
         };
         let budget = self.options.limits;
         let malformed = |e: String| {
-            self.error(SceneErrorKind::Malformed(format!(
+            self.error(SceneErrorKind::malformed(MalformedPart::Texture, format!(
                 "{name}: {}",
                 one_line(&e, QUOTE)
             )))

@@ -1,6 +1,7 @@
 //! `KHR_materials_variants`: the root extension's `variants[].name`, the variant chosen by
 //! [`crate::scene::LoadOptions::variant`], and each primitive's `mappings[]` (`material`, `variants`).
 
+use crate::scene::MalformedPart;
 use crate::limits::one_line;
 use crate::scene::{SceneError, SceneErrorKind};
 use std::collections::HashMap;
@@ -22,7 +23,7 @@ impl Loader<'_> {
         let mappings = ext
             .get("mappings")
             .and_then(|m| m.as_array())
-            .ok_or_else(|| self.malformed(format!("{at}.mappings must be an array")))?;
+            .ok_or_else(|| self.malformed(MalformedPart::Material, format!("{at}.mappings must be an array")))?;
         let materials = self.document.materials().len();
         // The mapping that named each variant met so far: the work follows the primitive's own mappings, not
         // the file's count of variants.
@@ -42,7 +43,7 @@ impl Loader<'_> {
                 .get("variants")
                 .and_then(|v| v.as_array())
                 .ok_or_else(|| {
-                    self.malformed(format!("{at}.mappings[{i}].variants must be an array"))
+                    self.malformed(MalformedPart::Material, format!("{at}.mappings[{i}].variants must be an array"))
                 })?;
             for v in variants {
                 let index = v
@@ -56,7 +57,7 @@ impl Loader<'_> {
                         )))
                     })? as usize;
                 if let Some(first) = mapped_at.insert(index, i) {
-                    return Err(self.malformed(format!(
+                    return Err(self.malformed(MalformedPart::Material, format!(
                         "{at}: variant {index} is mapped by mappings[{first}] and mappings[{i}]"
                     )));
                 }
@@ -129,7 +130,7 @@ pub(super) fn choose_variant(
             one_line(wanted, QUOTE),
             list()
         ))),
-        _ => Err(SceneErrorKind::Malformed(format!(
+        _ => Err(SceneErrorKind::malformed(MalformedPart::Material, format!(
             "{} material variants are named '{}' (variants: {})",
             matches.len(),
             one_line(wanted, QUOTE),

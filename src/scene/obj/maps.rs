@@ -19,6 +19,7 @@
 //! `-clamp on` makes a texture clamp to its edge instead of repeating; `-o` and `-s` move and scale the texture
 //! coordinates of the meshes using the material (see [`super::load`]).
 
+use crate::scene::MalformedPart;
 use super::mtl::{MapKind, TextureMap};
 use super::QUOTE_CHARS;
 use crate::limits::{one_line, read_file, Limits};
@@ -93,7 +94,7 @@ impl<'a> TextureMaps<'a> {
         };
         let mip = mip_image(mtl, map, kind, &image, wrap, builder)
         .ok_or_else(|| {
-            SceneError::new(&file, SceneErrorKind::Malformed("the image is empty".into()))
+            SceneError::new(&file, SceneErrorKind::malformed(MalformedPart::Texture, "the image is empty"))
         })?;
         let id = builder.add_texture(Texture::new(Arc::new(mip), sampler));
         self.textures.insert(key, id);
@@ -113,7 +114,7 @@ impl<'a> TextureMaps<'a> {
         let context = |e: String| {
             SceneError::new(
                 file,
-                SceneErrorKind::Malformed(format!(
+                SceneErrorKind::malformed(MalformedPart::Texture, format!(
                     "{} (named by {} line {})",
                     one_line(&e, 200),
                     mtl.file_name()

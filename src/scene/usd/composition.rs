@@ -1198,24 +1198,27 @@ mod tests {
     use super::*;
 
     /// Writes `files` (name, text) to a fresh folder and checks the stage whose root is the first.
-    fn check_files(tag: &str, files: &[(&str, &str)]) -> Result<(), String> {
+    fn check_files(tag: &str, files: &[(&str, &str)]) -> Result<(), CompositionError> {
         check_with(tag, files, Limits::default())
     }
 
     /// [`check_files`] under `limits`.
-    fn check_with(tag: &str, files: &[(&str, &str)], limits: Limits) -> Result<(), String> {
+    fn check_with(
+        tag: &str,
+        files: &[(&str, &str)],
+        limits: Limits,
+    ) -> Result<(), CompositionError> {
         let root = write_files(tag, files);
-        check(root.to_str().unwrap(), &resolver(), &limits).map_err(|e| e.to_string())
+        check(root.to_str().unwrap(), &resolver(), &limits)
     }
 
     /// Only the pre-caching model's check of the stage `files` make (the walk left out).
-    fn precache_files(tag: &str, files: &[(&str, &str)]) -> Result<(), String> {
+    fn precache_files(tag: &str, files: &[(&str, &str)]) -> Result<(), CompositionError> {
         let root = write_files(tag, files);
         let resolver = resolver();
         let (layers, _) = Layers::load(&resolver, root.to_str().unwrap());
         precache::Precache::new(&layers)
             .check(Limits::default().usd_prims)
-            .map_err(|e| e.to_string())
     }
 
     /// Writes `files` (name, text) to a fresh folder; returns the path of the first, the root layer.
@@ -1244,7 +1247,7 @@ mod tests {
         let root = "(\n defaultPrim = \"A\"\n)\ndef \"A\" (references = @./a.usda@</C/C>) {}";
         let asset = "over \"C\" (payload = @./root.usda@) { def \"C\" {} }";
         let err =
-            check_files("ancestor_cycle", &[("root.usda", root), ("a.usda", asset)]).unwrap_err();
+            check_files("ancestor_cycle", &[("root.usda", root), ("a.usda", asset)]).unwrap_err().to_string();
         assert!(
             err.contains("composition cycle") && err.contains("/C/C is under /C, which payload"),
             "{err}"
@@ -1257,7 +1260,7 @@ mod tests {
     fn arcs_that_map_a_prim_ever_deeper_are_a_cycle() {
         let root =
             "def \"A\" (references = </C/D>) {}\ndef \"C\" (references = </A>) { def \"D\" {} }";
-        let err = check_files("deeper", &[("root.usda", root)]).unwrap_err();
+        let err = check_files("deeper", &[("root.usda", root)]).unwrap_err().to_string();
         assert!(
             err.contains("composition cycle") && err.contains("back inside /A"),
             "{err}"
@@ -1271,7 +1274,7 @@ mod tests {
     fn a_class_implied_back_into_the_referencing_prim_is_refused() {
         let root = "def \"A\" (references = @./l1.usda@</C/C>) { over \"C\" (references = @./l1.usda@</C/D>) {} }";
         let asset = "over \"C\" (inherits = </A>) {}\ndef \"A\" {}";
-        let err = check_files("implied", &[("root.usda", root), ("l1.usda", asset)]).unwrap_err();
+        let err = check_files("implied", &[("root.usda", root), ("l1.usda", asset)]).unwrap_err().to_string();
         assert!(
             err.contains("implied onto /A's layer stack as /A/C, nested with /A"),
             "{err}"
@@ -1295,7 +1298,7 @@ mod tests {
     #[test]
     fn a_prim_or_an_arc_authored_twice_is_refused() {
         let prim =
-            check_files("twice_prim", &[("root.usda", "def \"A\" {}\ndef \"A\" {}")]).unwrap_err();
+            check_files("twice_prim", &[("root.usda", "def \"A\" {}\ndef \"A\" {}")]).unwrap_err().to_string();
         assert!(
             prim.ends_with(
                 "root.usda defines prim </A> twice in one scope: Pixar's USD refuses such a layer \
@@ -1304,10 +1307,10 @@ mod tests {
             "{prim}"
         );
         let nested = "def \"B\" { def \"C\" {}\n def \"C\" {} }";
-        let err = check_files("twice_nested", &[("root.usda", nested)]).unwrap_err();
+        let err = check_files("twice_nested", &[("root.usda", nested)]).unwrap_err().to_string();
         assert!(err.contains("defines prim </B/C> twice"), "{err}");
         let arcs = "def \"A\" (inherits = [</B>, </B>]) {}\nclass \"B\" {}";
-        let err = check_files("twice_arc", &[("root.usda", arcs)]).unwrap_err();
+        let err = check_files("twice_arc", &[("root.usda", arcs)]).unwrap_err().to_string();
         assert!(err.contains("lists </A> inherits </B> twice"), "{err}");
         // The same target through two kinds of arc, or in two prims, is no duplicate.
         let fine = "def \"A\" (inherits = </B> specializes = </B>) {}\ndef \"C\" (inherits = </B>) {}\nclass \"B\" {}";
@@ -1349,13 +1352,13 @@ mod tests {
             ),
             ("other.usda", "def \"X\" (specializes = </Q>) {}"),
         ];
-        let walk = check_files("precache_cycle", &files).unwrap_err();
+        let walk = check_files("precache_cycle", &files).unwrap_err().to_string();
         assert!(
             walk.starts_with("/X: specializes </Q> is a composition cycle"),
             "{walk}"
         );
         assert_eq!(
-            precache_files("precache_model", &files).unwrap_err(),
+            precache_files("precache_model", &files).unwrap_err().to_string(),
             "/Q: specializes </A/B> is a composition cycle for openusd 0.6, whose pre-caching of inherit and \
              specialize targets would follow /Q -> /A/B -> /Q without end (a stack overflow)"
         );
@@ -1380,7 +1383,7 @@ mod tests {
                 "/A/B: inherits </X/B> lies inside the target of /A's inherits </X>, which maps it onto /A/B",
             ),
         ] {
-            let err = check_files(tag, &[("root.usda", stage)]).unwrap_err();
+            let err = check_files(tag, &[("root.usda", stage)]).unwrap_err().to_string();
             assert!(err.starts_with(message), "{err}");
         }
         // Mapped anywhere else, or not strictly inside, it composes (and `openusd` composes it).
@@ -1435,11 +1438,11 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
         };
         check_with("fan_48", &[("root.usda", &fan)], limit(48)).unwrap();
         assert_eq!(
-            check_with("fan_47", &[("root.usda", &fan)], limit(47)).unwrap_err(),
+            check_with("fan_47", &[("root.usda", &fan)], limit(47)).unwrap_err().to_string(),
             "the stage composes 48 prims through its arcs and children (each counted once per arc that brings it \
              in), over the limit of 47 prims (raise it with --max-prims)"
         );
-        let err = check_with("fan_20", &[("root.usda", &fan)], limit(20)).unwrap_err();
+        let err = check_with("fan_20", &[("root.usda", &fan)], limit(20)).unwrap_err().to_string();
         assert!(err.starts_with("/L3 composes 29 prims"), "{err}");
     }
 
@@ -1459,7 +1462,7 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
             ..Limits::default()
         };
         check_with("stack_7", &files, limit(7)).unwrap();
-        let err = check_with("stack_6", &files, limit(6)).unwrap_err();
+        let err = check_with("stack_6", &files, limit(6)).unwrap_err().to_string();
         assert!(
             err.starts_with("the layer stack of ")
                 && err.ends_with(
@@ -1477,7 +1480,7 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
             &[("root.usda", "def \"A\" { def \"C\" (inherits = </A>) {} }")],
         );
         assert_eq!(
-            err.unwrap_err(),
+            err.unwrap_err().to_string(),
             "/A/C: inherits </A> is a composition cycle (/A holds /A/C, /A/C inherits </A>)"
         );
         let err = check_files(
@@ -1488,7 +1491,7 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
             ],
         );
         assert_eq!(
-            err.unwrap_err(),
+            err.unwrap_err().to_string(),
             "/A: references @./b.usda@</B> is a composition cycle (/A references @./b.usda@</B>, \
              /B payload @./a.usda@</A>)"
         );
@@ -1500,7 +1503,7 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
             )],
         );
         assert_eq!(
-            err.unwrap_err(),
+            err.unwrap_err().to_string(),
             "/A: references </B> is a composition cycle (/A references </B>, /B specializes </A/C>, back inside /A)"
         );
         let err = check_files(
@@ -1511,7 +1514,7 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
             )],
         );
         assert_eq!(
-            err.unwrap_err(),
+            err.unwrap_err().to_string(),
             "/D: inherits </B/C> is a composition cycle (/D/E is under /D, which inherits </B/C>, /B/C is under /B, \
              which inherits </D/E>)"
         );

@@ -1,5 +1,6 @@
 //! USD geometry: `Mesh` prims (points, face topology, normals and `st` primvars with their interpolation).
 
+use crate::scene::MalformedPart;
 use super::values::{number, token, vec2_array, vec3_array};
 use super::Loader;
 use crate::geometry::{
@@ -33,7 +34,7 @@ impl Loader<'_> {
         let at = prim.path().as_str().to_owned();
         let points = match self.value(prim, "points")? {
             Some(v) => {
-                vec3_array(&v).ok_or_else(|| self.error(&at, "points must be a point3f[]"))?
+                vec3_array(&v).ok_or_else(|| self.error(MalformedPart::Mesh, &at, "points must be a point3f[]"))?
             }
             None => return Ok(()),
         };
@@ -50,11 +51,11 @@ impl Loader<'_> {
         let normals = normals
             .map(|p| topology.expand(p))
             .transpose()
-            .map_err(|m| self.error(&at, m))?;
+            .map_err(|m| self.error(MalformedPart::Mesh, &at, m))?;
         let uvs = uvs
             .map(|p| topology.expand(p))
             .transpose()
-            .map_err(|m| self.error(&at, m))?;
+            .map_err(|m| self.error(MalformedPart::Mesh, &at, m))?;
         let left_handed = self
             .value(prim, "orientation")?
             .and_then(|v| token(&v))
@@ -106,7 +107,7 @@ impl Loader<'_> {
     ) -> Result<(), SceneError> {
         let total: usize = counts.iter().map(|&c| c.max(0) as usize).sum();
         if total != indices.len() {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::Mesh,
                 at,
                 format!(
                     "faceVertexCounts sum to {total} but faceVertexIndices has {} entries",
@@ -118,7 +119,7 @@ impl Loader<'_> {
             .iter()
             .find(|&&i| i < 0 || i as usize >= points.len())
         {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::Mesh,
                 at,
                 format!(
                     "face vertex index {bad} is out of range ({} points)",
@@ -127,7 +128,7 @@ impl Loader<'_> {
             ));
         }
         if !points.iter().all(|p| p.is_finite()) {
-            return Err(self.error(at, "points must be finite"));
+            return Err(self.error(MalformedPart::Mesh, at, "points must be finite"));
         }
         Ok(())
     }
@@ -170,7 +171,7 @@ impl Loader<'_> {
             if let Some(read) = self.primvar_color(face_material[f]).cloned() {
                 let values =
                     match self.primvar(prim, &[read.attribute.as_str()], "constant", vec3_array)? {
-                        Some(p) => topology.expand(p).map_err(|m| self.error(at, m))?,
+                        Some(p) => topology.expand(p).map_err(|m| self.error(MalformedPart::Mesh, at, m))?,
                         None => vec![read.fallback; corners],
                     };
                 colors.get_or_insert_with(|| vec![Rgb::ONE; corners])[corner..corner + c]
@@ -221,7 +222,7 @@ impl Loader<'_> {
                     Some(l) if l.is_finite() && l >= 0.0 => l as u32,
                     _ => {
                         return Err(
-                            self.error(at, "refineLevel must be a whole number of 0 or more")
+                            self.error(MalformedPart::Mesh, at, "refineLevel must be a whole number of 0 or more")
                         )
                     }
                 },
@@ -256,7 +257,7 @@ impl Loader<'_> {
                 faces,
                 SUBDIVIDED_QUAD_BYTES,
             )
-            .map_err(|e| self.error(at, e.to_string()))?;
+            .map_err(|e| self.error(MalformedPart::Mesh, at, e.to_string()))?;
         let points = cage.points.len();
         let vertex = |i: i32| {
             usize::try_from(i)
@@ -272,17 +273,17 @@ impl Loader<'_> {
         for (crease, &length) in crease_lengths.iter().enumerate() {
             let length = usize::try_from(length).unwrap_or(0);
             let chain = crease_indices.get(next..next + length).ok_or_else(|| {
-                self.error(at, "creaseLengths sum to more than creaseIndices holds")
+                self.error(MalformedPart::Mesh, at, "creaseLengths sum to more than creaseIndices holds")
             })?;
             next += length;
             for pair in chain.windows(2) {
                 let (Some(a), Some(b)) = (vertex(pair[0]), vertex(pair[1])) else {
-                    return Err(self.error(at, "a crease index is out of range"));
+                    return Err(self.error(MalformedPart::Mesh, at, "a crease index is out of range"));
                 };
                 let sharpness = sharpnesses
                     .get(if per_edge { edge } else { crease })
                     .copied()
-                    .ok_or_else(|| self.error(at, "creaseSharpnesses is too short"))?;
+                    .ok_or_else(|| self.error(MalformedPart::Mesh, at, "creaseSharpnesses is too short"))?;
                 edge += 1;
                 cage.creases
                     .insert((a.min(b), a.max(b)), sharpness.max(0.0));
@@ -291,16 +292,16 @@ impl Loader<'_> {
         let corner_indices = self.int_array(prim, "cornerIndices")?;
         let corner_sharpnesses = self.float_values(prim, "cornerSharpnesses")?;
         for (k, &i) in corner_indices.iter().enumerate() {
-            let v = vertex(i).ok_or_else(|| self.error(at, "a corner index is out of range"))?;
+            let v = vertex(i).ok_or_else(|| self.error(MalformedPart::Mesh, at, "a corner index is out of range"))?;
             let s = corner_sharpnesses
                 .get(k)
                 .copied()
-                .ok_or_else(|| self.error(at, "cornerSharpnesses is too short"))?;
+                .ok_or_else(|| self.error(MalformedPart::Mesh, at, "cornerSharpnesses is too short"))?;
             cage.corners.insert(v, s.max(0.0));
         }
         cage.rules = self.subdivision_rules(prim, at)?;
         cage.subdivide_with(scheme, level)
-            .map_err(|e| self.error(at, e.to_string()))
+            .map_err(|e| self.error(MalformedPart::Mesh, at, e.to_string()))
     }
 
     /// The mesh's `interpolateBoundary`, `creaseMethod` and `faceVaryingLinearInterpolation` (USD's defaults
@@ -374,10 +375,10 @@ impl Loader<'_> {
             None => return Ok(Vec::new()),
             Some(sdf::Value::FloatVec(v)) => v,
             Some(sdf::Value::DoubleVec(v)) => v.into_iter().map(|x| x as f32).collect(),
-            Some(_) => return Err(self.error(&at, "expected a float[]")),
+            Some(_) => return Err(self.error(MalformedPart::Mesh, &at, "expected a float[]")),
         };
         if values.iter().any(|v| !v.is_finite()) {
-            return Err(self.error(&at, "values must be finite"));
+            return Err(self.error(MalformedPart::Mesh, &at, "values must be finite"));
         }
         Ok(values)
     }
@@ -412,7 +413,7 @@ impl Loader<'_> {
                 .map(|i| usize::try_from(i).ok().filter(|&i| i < faces).ok_or(i))
                 .collect::<Result<Vec<_>, _>>()
                 .map_err(|i| {
-                    self.error(
+                    self.error(MalformedPart::Mesh,
                         at,
                         format!("face index {i} is out of range ({faces} faces)"),
                     )
@@ -426,7 +427,7 @@ impl Loader<'_> {
         match self.value(prim, name)? {
             None => Ok(Vec::new()),
             Some(sdf::Value::IntVec(v)) => Ok(v),
-            Some(_) => Err(self.error(
+            Some(_) => Err(self.error(MalformedPart::Mesh,
                 &format!("{}.{name}", prim.path().as_str()),
                 "expected an int[]",
             )),
@@ -446,16 +447,16 @@ impl Loader<'_> {
                 continue;
             };
             let at = format!("{}.{name}", prim.path().as_str());
-            let values = convert(&v).ok_or_else(|| self.error(&at, "unexpected value type"))?;
+            let values = convert(&v).ok_or_else(|| self.error(MalformedPart::Mesh, &at, "unexpected value type"))?;
             let attr = prim.attribute(*name);
             let interpolation = attr
                 .get_metadata::<sdf::Value>("interpolation")
-                .map_err(|e| self.error(&at, format!("{e:#}")))?
+                .map_err(|e| self.error(MalformedPart::Mesh, &at, format!("{e:#}")))?
                 .and_then(|v| token(&v))
                 .unwrap_or_else(|| default_interpolation.to_owned());
             let indices = match self.value(prim, &format!("{name}:indices"))? {
                 Some(sdf::Value::IntVec(ix)) => Some(ix),
-                Some(_) => return Err(self.error(&at, "indices must be an int[]")),
+                Some(_) => return Err(self.error(MalformedPart::Mesh, &at, "indices must be an int[]")),
                 None => None,
             };
             let values = match indices {
@@ -463,7 +464,7 @@ impl Loader<'_> {
                     .iter()
                     .map(|&i| usize::try_from(i).ok().and_then(|i| values.get(i).copied()))
                     .collect::<Option<Vec<T>>>()
-                    .ok_or_else(|| self.error(&at, "primvar index out of range"))?,
+                    .ok_or_else(|| self.error(MalformedPart::Mesh, &at, "primvar index out of range"))?,
                 None => values,
             };
             return Ok(Some(Primvar {
@@ -491,17 +492,42 @@ pub(super) struct Topology<'a> {
     pub(super) points: usize,
 }
 
+/// Why a primvar cannot be expanded to one value per face corner.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum PrimvarError {
+    /// Fewer values than the interpolation needs.
+    #[error("{name}: {interpolation} interpolation needs {need} values, has {has}")]
+    TooFewValues {
+        /// The attribute's name.
+        name: String,
+        /// Its interpolation.
+        interpolation: String,
+        /// How many values the interpolation needs.
+        need: usize,
+        /// How many it has.
+        has: usize,
+    },
+    /// An interpolation UsdGeom does not define.
+    #[error("{name}: unknown interpolation '{interpolation}'")]
+    UnknownInterpolation {
+        /// The attribute's name.
+        name: String,
+        /// The interpolation it names.
+        interpolation: String,
+    },
+}
+
 impl Topology<'_> {
     /// One value per face corner, from any interpolation.
-    fn expand<T: Copy>(&self, p: Primvar<T>) -> Result<Vec<T>, String> {
+    fn expand<T: Copy>(&self, p: Primvar<T>) -> Result<Vec<T>, PrimvarError> {
         let need = |n: usize| {
             if p.values.len() < n {
-                Err(format!(
-                    "{}: {} interpolation needs {n} values, has {}",
-                    p.name,
-                    p.interpolation,
-                    p.values.len()
-                ))
+                Err(PrimvarError::TooFewValues {
+                    name: p.name.clone(),
+                    interpolation: p.interpolation.clone(),
+                    need: n,
+                    has: p.values.len(),
+                })
             } else {
                 Ok(())
             }
@@ -528,7 +554,10 @@ impl Topology<'_> {
                 need(self.points)?;
                 Ok(self.indices.iter().map(|&i| p.values[i as usize]).collect())
             }
-            other => Err(format!("{}: unknown interpolation '{other}'", p.name)),
+            _ => Err(PrimvarError::UnknownInterpolation {
+                name: p.name,
+                interpolation: p.interpolation,
+            }),
         }
     }
 }

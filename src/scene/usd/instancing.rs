@@ -12,6 +12,7 @@
 //! (UsdGeomPointInstancer::ComputeInstanceTransformsAtTime), then the instancer's world matrix. Velocities,
 //! accelerations and angular velocities (motion) are not read.
 
+use crate::scene::MalformedPart;
 use super::values::vec3_array;
 use super::Loader;
 use crate::math::{Mat4, Quat, Vec3};
@@ -74,6 +75,22 @@ impl InstancerArrays {
 /// Most instances one instancer may place.
 pub(super) const MAX_INSTANCES: usize = 1 << 20;
 
+/// One prototype of a `PointInstancer`, read once: its static meshes made shared prototypes, and its moving
+/// meshes, which each instance copies.
+struct PrototypeMeshes {
+    /// The static meshes, as prototypes of the builder.
+    shared: Vec<StaticMesh>,
+    /// The meshes with motion, copied (and transformed) per instance.
+    moving: Vec<Mesh>,
+}
+
+/// A static mesh of a `PointInstancer` prototype: its index among the builder's prototypes, and its name,
+/// which each instance's name extends with the instance's number.
+struct StaticMesh {
+    prototype: u32,
+    name: String,
+}
+
 impl Loader<'_> {
     /// Places a `PointInstancer`'s prototypes: instances of their static meshes, copies of their moving ones.
     pub(super) fn point_instancer(
@@ -87,10 +104,10 @@ impl Loader<'_> {
         let prototypes = prim
             .relationship("prototypes")
             .targets()
-            .map_err(|e| self.error(&at, format!("prototypes: {e:#}")))?;
+            .map_err(|e| self.error(MalformedPart::Instancing, &at, format!("prototypes: {e:#}")))?;
         let arrays = self.instancer_arrays(prim, &at)?;
-        let (shared, flattened) = self.instancer_prototypes(&prototypes, &at, binding, depth)?;
-        self.check_instancer_budget(&at, &arrays.indices, &shared, &flattened)?;
+        let parts = self.instancer_prototypes(&prototypes, &at, binding, depth)?;
+        self.check_instancer_budget(&at, &arrays.indices, &parts)?;
         for i in 0..arrays.indices.len() {
             let id = arrays.ids.get(i).copied().unwrap_or(i as i64);
             if arrays.invisible.contains(&id) {
@@ -98,9 +115,9 @@ impl Loader<'_> {
             }
             let p = usize::try_from(arrays.indices[i])
                 .ok()
-                .filter(|&p| p < flattened.len())
+                .filter(|&p| p < parts.len())
                 .ok_or_else(|| {
-                    self.error(
+                    self.error(MalformedPart::Instancing,
                         &at,
                         format!(
                             "protoIndices[{i}] = {} but there are {} prototypes",
@@ -111,9 +128,9 @@ impl Loader<'_> {
                 })?;
             let m = *world * arrays.instance_matrix(i);
             if !m.is_finite() {
-                return Err(self.error(&at, format!("instance {i} has a non-finite transform")));
+                return Err(self.error(MalformedPart::Instancing, &at, format!("instance {i} has a non-finite transform")));
             }
-            self.place_instance(i, &m, &shared[p], &flattened[p])?;
+            self.place_instance(i, &m, &parts[p])?;
         }
         Ok(())
     }
@@ -124,19 +141,19 @@ impl Loader<'_> {
         let indices = self.int_array(prim, "protoIndices")?;
         let positions = match self.value(prim, "positions")? {
             Some(v) => {
-                vec3_array(&v).ok_or_else(|| self.error(at, "positions must be a point3f[]"))?
+                vec3_array(&v).ok_or_else(|| self.error(MalformedPart::Instancing, at, "positions must be a point3f[]"))?
             }
             None => Vec::new(),
         };
         let n = indices.len();
         if n > MAX_INSTANCES {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::Instancing,
                 at,
                 format!("{n} instances; at most {MAX_INSTANCES} are expanded"),
             ));
         }
         if positions.len() != n {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::Instancing,
                 at,
                 format!(
                     "positions has {} entries for {n} protoIndices",
@@ -147,7 +164,7 @@ impl Loader<'_> {
         let orientations = self.orientations(prim)?;
         let scales = match self.value(prim, "scales")? {
             Some(v) => {
-                vec3_array(&v).ok_or_else(|| self.error(at, "scales must be a float3[]"))?
+                vec3_array(&v).ok_or_else(|| self.error(MalformedPart::Instancing, at, "scales must be a float3[]"))?
             }
             None => Vec::new(),
         };
@@ -156,7 +173,7 @@ impl Loader<'_> {
             ("scales", scales.len()),
         ] {
             if len != 0 && len != n {
-                return Err(self.error(
+                return Err(self.error(MalformedPart::Instancing,
                     at,
                     format!("{name} has {len} entries for {n} protoIndices"),
                 ));
@@ -164,7 +181,7 @@ impl Loader<'_> {
         }
         let ids = self.int64_array(prim, "ids")?;
         if !ids.is_empty() && ids.len() != n {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::Instancing,
                 at,
                 format!("ids has {} entries for {n} protoIndices", ids.len()),
             ));
@@ -184,18 +201,16 @@ impl Loader<'_> {
     }
 
     /// Each prototype's meshes, read once in the prototype's own frame (its root transform included): the
-    /// static ones become shared prototypes (their builder indices and names), the moving ones stay meshes to
-    /// copy. Lights inside a prototype are dropped with a warning.
-    #[allow(clippy::type_complexity)]
+    /// static ones become shared prototypes, the moving ones stay meshes to copy. Lights inside a prototype are
+    /// dropped with a warning.
     fn instancer_prototypes(
         &mut self,
         prototypes: &[sdf::Path],
         at: &str,
         binding: Option<String>,
         depth: usize,
-    ) -> Result<(Vec<Vec<(u32, String)>>, Vec<Vec<Mesh>>), SceneError> {
-        let mut flattened = Vec::with_capacity(prototypes.len());
-        let mut shared = Vec::with_capacity(prototypes.len());
+    ) -> Result<Vec<PrototypeMeshes>, SceneError> {
+        let mut parts = Vec::with_capacity(prototypes.len());
         for proto in prototypes {
             let proto = self.stage.prim(proto.prim_path().as_str());
             let (meshes, lights) = (self.builder.meshes.len(), self.builder.lights.len());
@@ -212,41 +227,43 @@ impl Loader<'_> {
                 .split_meshes_off(meshes)
                 .into_iter()
                 .partition(|m| m.motion.is_some());
-            let ids: Vec<(u32, String)> = still
+            let shared = still
                 .into_iter()
                 .map(|m| {
                     let name = m.name.clone();
-                    (self.builder.add_prototype(m), name)
+                    StaticMesh {
+                        prototype: self.builder.add_prototype(m),
+                        name,
+                    }
                 })
                 .collect();
-            shared.push(ids);
-            flattened.push(moving);
+            parts.push(PrototypeMeshes { shared, moving });
         }
-        Ok((shared, flattened))
+        Ok(parts)
     }
 
-    /// Checks that the instance records and the copied meshes of the instances of `indices` fit the memory
-    /// budget with the rest of the scene's, before any is made (each is checked again as it is added).
+    /// Checks that the instance records and the copied meshes of the instances of `indices` (into `parts`) fit
+    /// the memory budget with the rest of the scene's, before any is made (each is checked again as it is added).
     fn check_instancer_budget(
         &self,
         at: &str,
         indices: &[i32],
-        shared: &[Vec<(u32, String)>],
-        flattened: &[Vec<Mesh>],
+        parts: &[PrototypeMeshes],
     ) -> Result<(), SceneError> {
         let n = indices.len();
+        let of_instance = |p: &i32| usize::try_from(*p).ok().and_then(|p| parts.get(p));
         let records = indices
             .iter()
-            .filter_map(|&p| usize::try_from(p).ok().and_then(|p| shared.get(p)))
-            .map(|ids| ids.len() as u64)
+            .filter_map(of_instance)
+            .map(|part| part.shared.len() as u64)
             .sum::<u64>();
         self.builder
             .check_instances(format!("{at}: {n} instances"), records)
             .map_err(|e| SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string())))?;
         let (triangles, vertices) = indices
             .iter()
-            .filter_map(|&p| usize::try_from(p).ok().and_then(|p| flattened.get(p)))
-            .flatten()
+            .filter_map(of_instance)
+            .flat_map(|part| &part.moving)
             .fold((0u64, 0u64), |(t, v), m| {
                 (
                     t.saturating_add(m.indices.len() as u64),
@@ -256,20 +273,14 @@ impl Loader<'_> {
         self.check_mesh(&format!("{at}: {n} instances"), triangles, vertices)
     }
 
-    /// Places instance `i` at `m`: an instance of each of its prototype's `shared` meshes, a copy of each of its
-    /// `moving` ones.
-    fn place_instance(
-        &mut self,
-        i: usize,
-        m: &Mat4,
-        shared: &[(u32, String)],
-        moving: &[Mesh],
-    ) -> Result<(), SceneError> {
-        for (prototype, name) in shared {
+    /// Places instance `i` at `m`: an instance of each of its prototype's shared meshes, a copy of each of its
+    /// moving ones.
+    fn place_instance(&mut self, i: usize, m: &Mat4, part: &PrototypeMeshes) -> Result<(), SceneError> {
+        for shared in &part.shared {
             let instance = MeshInstance {
-                prototype: *prototype,
+                prototype: shared.prototype,
                 object_to_world: *m,
-                name: format!("{name}[{i}]"),
+                name: format!("{}[{i}]", shared.name),
                 asset: self.asset.clone(),
                 tags: self.tags.clone(),
             };
@@ -277,7 +288,7 @@ impl Loader<'_> {
                 SceneError::new(self.path, SceneErrorKind::OverLimit(e.to_string()))
             })?;
         }
-        for mesh in moving {
+        for mesh in &part.moving {
             let mut mesh = mesh.clone();
             mesh.name = format!("{}[{i}]", mesh.name);
             mesh.transform(m);
@@ -300,13 +311,13 @@ impl Loader<'_> {
         let at = prim.path().as_str().to_owned();
         if !prim
             .is_instance()
-            .map_err(|e| self.error(&at, format!("{e:#}")))?
+            .map_err(|e| self.error(MalformedPart::Instancing, &at, format!("{e:#}")))?
         {
             return Ok(false);
         }
         let Some(proto) = prim
             .prototype()
-            .map_err(|e| self.error(&at, format!("{e:#}")))?
+            .map_err(|e| self.error(MalformedPart::Instancing, &at, format!("{e:#}")))?
         else {
             return Ok(false);
         };
@@ -420,7 +431,7 @@ impl Loader<'_> {
                 .iter()
                 .map(|q| Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32))
                 .collect(),
-            _ => return Err(self.error(at, "orientations must be a quath[]")),
+            _ => return Err(self.error(MalformedPart::Instancing, at, "orientations must be a quath[]")),
         };
         quats
             .into_iter()
@@ -428,7 +439,7 @@ impl Loader<'_> {
                 let len = q.length();
                 (len.is_finite() && len > 0.0)
                     .then(|| q / len)
-                    .ok_or_else(|| self.error(at, "an orientation is zero or not finite"))
+                    .ok_or_else(|| self.error(MalformedPart::Instancing, at, "an orientation is zero or not finite"))
             })
             .collect()
     }
@@ -439,7 +450,7 @@ impl Loader<'_> {
             None => Ok(Vec::new()),
             Some(sdf::Value::Int64Vec(v)) => Ok(v),
             Some(sdf::Value::IntVec(v)) => Ok(v.into_iter().map(i64::from).collect()),
-            Some(_) => Err(self.error(
+            Some(_) => Err(self.error(MalformedPart::Instancing,
                 &format!("{}.{name}", prim.path().as_str()),
                 "expected an int64[]",
             )),

@@ -1,5 +1,6 @@
 //! UsdLux lights: rect, disk, sphere, distant and dome lights (see the module docs of [`super`] for the units).
 
+use crate::scene::MalformedPart;
 use super::Loader;
 use crate::geometry::Mesh;
 use crate::light::{DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight};
@@ -27,7 +28,7 @@ impl Loader<'_> {
         );
         let radiance = (color * intensity * exposure.exp2()).max(Rgb::ZERO);
         if !radiance.is_finite() {
-            return Err(self.error(&at, "light intensity is not finite"));
+            return Err(self.error(MalformedPart::Light, &at, "light intensity is not finite"));
         }
         let mesh = match kind {
             "RectLight" => rect(
@@ -94,7 +95,7 @@ impl Loader<'_> {
             .sum();
         let emission = if normalize {
             if area <= 0.0 {
-                return Err(self.error(at, "a normalized light must have a positive area"));
+                return Err(self.error(MalformedPart::Light, at, "a normalized light must have a positive area"));
             }
             radiance / area
         } else {

@@ -69,6 +69,7 @@ mod values;
 mod vol;
 mod xform;
 
+use crate::scene::MalformedPart;
 use super::camera::{Camera, CameraMotion, NamedCamera, Projection, ThinLens};
 use super::{report_unknown_keys, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::{CompositingTags, Mesh, MeshMotion, MotionSteps};
@@ -392,20 +393,20 @@ fn read_stage(
 fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
     let bytes =
         read_file(path, limits).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    layers::check_layer(&bytes, limits).map_err(|e| malformed(path, e.to_string()))?;
+    layers::check_layer(&bytes, limits).map_err(|e| malformed(path, MalformedPart::File, e.to_string()))?;
     drop(bytes);
     let name = path
         .to_str()
-        .ok_or_else(|| malformed(path, "the path is not valid UTF-8".into()))?;
+        .ok_or_else(|| malformed(path, MalformedPart::File, "the path is not valid UTF-8".into()))?;
     let resolver = || crate_check::CheckingResolver {
         inner: ar::DefaultResolver::new(),
         limits: *limits,
     };
-    composition::check(name, &resolver(), limits).map_err(|e| malformed(path, e.to_string()))?;
+    composition::check(name, &resolver(), limits).map_err(|e| malformed(path, MalformedPart::File, e.to_string()))?;
     let stage = usd::Stage::builder()
         .resolver(resolver())
         .open(name)
-        .map_err(|e| malformed(path, format!("{e:#}")))?;
+        .map_err(|e| malformed(path, MalformedPart::File, format!("{e:#}")))?;
     // Only the errors here; their warnings are collected once the whole stage is read.
     composition_errors(path, &stage)?;
     Ok(stage)
@@ -440,8 +441,7 @@ fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, Sc
         }
     }
     if !errors.is_empty() {
-        return Err(malformed(
-            path,
+        return Err(malformed(path, MalformedPart::File,
             format!("composition: {}", errors.join("; ")),
         ));
     }
@@ -452,11 +452,30 @@ fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, Sc
 const MESSAGE_CHARS: usize = 600;
 
 /// A malformed-file error, its message cut to one printable line (it may quote the file).
-fn malformed(path: &Path, message: String) -> SceneError {
+fn malformed(path: &Path, part: MalformedPart, message: String) -> SceneError {
     SceneError::new(
         path,
-        SceneErrorKind::Malformed(one_line(&message, MESSAGE_CHARS)),
+        SceneErrorKind::malformed(part, one_line(&message, MESSAGE_CHARS)),
     )
+}
+
+/// Why an asset file (a texture) named by the stage could not be read.
+#[derive(Debug, thiserror::Error)]
+enum AssetError {
+    /// The file on disk cannot be read.
+    #[error("{0}")]
+    File(std::io::Error),
+    /// The `.usdz` package holding it cannot be opened, or its entry read.
+    #[error(transparent)]
+    Package(#[from] layers::LayerError),
+    /// The package holds no such entry.
+    #[error("the package {} holds no file '{member}'", package.display())]
+    NotInPackage {
+        /// The package file.
+        package: PathBuf,
+        /// The path inside it.
+        member: String,
+    },
 }
 
 struct Loader<'a> {
@@ -502,8 +521,9 @@ struct Loader<'a> {
 const TAG_ATTRIBUTES: &[&str] = &["lightGroup", "holdout", "shadowCatcher"];
 
 impl Loader<'_> {
-    fn error(&self, at: &str, message: impl std::fmt::Display) -> SceneError {
-        malformed(self.path, format!("{at}: {message}"))
+    /// An error about a malformed `part` of the stage, found at `at` (a prim path, or `stage metadata`).
+    fn error(&self, part: MalformedPart, at: &str, message: impl std::fmt::Display) -> SceneError {
+        malformed(self.path, part, format!("{at}: {message}"))
     }
 
     fn warn(&mut self, message: String) {
@@ -515,7 +535,7 @@ impl Loader<'_> {
         let start = self
             .stage
             .stage_metadata("startTimeCode")
-            .map_err(|e| self.error("stage metadata", format!("startTimeCode: {e:#}")))?
+            .map_err(|e| self.error(MalformedPart::File, "stage metadata", format!("startTimeCode: {e:#}")))?
             .and_then(|v| number(&v))
             .filter(|t| t.is_finite());
         Ok(start.map_or(usd::TimeCode::EARLIEST, usd::TimeCode::new))
@@ -541,13 +561,13 @@ impl Loader<'_> {
         let value = self
             .stage
             .stage_metadata(key)
-            .map_err(|e| self.error("stage metadata", format!("{key}: {e:#}")))?
+            .map_err(|e| self.error(MalformedPart::File, "stage metadata", format!("{key}: {e:#}")))?
             .and_then(|v| number(&v))
             .unwrap_or(24.0);
         if value.is_finite() && value > 0.0 {
             Ok(value)
         } else {
-            Err(self.error("stage metadata", format!("{key} {value} must be positive")))
+            Err(self.error(MalformedPart::File, "stage metadata", format!("{key} {value} must be positive")))
         }
     }
 
@@ -556,14 +576,14 @@ impl Loader<'_> {
         let meta = |key: &str| {
             self.stage
                 .stage_metadata(key)
-                .map_err(|e| self.error("stage metadata", format!("{key}: {e:#}")))
+                .map_err(|e| self.error(MalformedPart::File, "stage metadata", format!("{key}: {e:#}")))
         };
         let up = meta("upAxis")?.and_then(|v| token(&v));
         let mpu = meta("metersPerUnit")?
             .and_then(|v| number(&v))
             .unwrap_or(1.0);
         if !(mpu.is_finite() && mpu > 0.0) {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::File,
                 "stage metadata",
                 format!("metersPerUnit {mpu} must be positive"),
             ));
@@ -577,7 +597,7 @@ impl Loader<'_> {
 
     fn children(&self, prim: &usd::Prim) -> Result<Vec<usd::Prim>, SceneError> {
         prim.children()
-            .map_err(|e| self.error(prim.path().as_str(), format!("{e:#}")))
+            .map_err(|e| self.error(MalformedPart::Node, prim.path().as_str(), format!("{e:#}")))
     }
 
     /// The value of attribute `name` on `prim` at the loader's time code, if authored. A name that is not a USD property name (identifiers joined by
@@ -585,7 +605,7 @@ impl Loader<'_> {
     /// resolving a malformed one (a line break inside, from a damaged string) walked path parents for minutes.
     fn value(&self, prim: &usd::Prim, name: &str) -> Result<Option<sdf::Value>, SceneError> {
         if !is_property_name(name) {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::Node,
                 prim.path().as_str(),
                 format!(
                     "'{}' is not a valid attribute name",
@@ -596,7 +616,7 @@ impl Loader<'_> {
         prim.attribute(name)
             .get_at::<sdf::Value>(self.time)
             .map_err(|e| {
-                self.error(
+                self.error(MalformedPart::Node,
                     &format!("{}.{name}", prim.path().as_str()),
                     format!("{e:#}"),
                 )
@@ -610,7 +630,7 @@ impl Loader<'_> {
                 .filter(|x| x.is_finite())
                 .map(|x| x as f32)
                 .ok_or_else(|| {
-                    self.error(
+                    self.error(MalformedPart::Node,
                         &format!("{}.{name}", prim.path().as_str()),
                         "expected a number",
                     )
@@ -622,7 +642,7 @@ impl Loader<'_> {
         match self.value(prim, name)? {
             None => Ok(default),
             Some(v) => vec3(&v).filter(|c| c.is_finite()).ok_or_else(|| {
-                self.error(
+                self.error(MalformedPart::Node,
                     &format!("{}.{name}", prim.path().as_str()),
                     "expected a colour",
                 )
@@ -633,7 +653,7 @@ impl Loader<'_> {
     fn type_name(&self, prim: &usd::Prim) -> Result<String, SceneError> {
         Ok(prim
             .type_name()
-            .map_err(|e| self.error(prim.path().as_str(), format!("{e:#}")))?
+            .map_err(|e| self.error(MalformedPart::Node, prim.path().as_str(), format!("{e:#}")))?
             .map(|t| t.as_str().to_owned())
             .unwrap_or_default())
     }
@@ -647,13 +667,13 @@ impl Loader<'_> {
     ) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
         if depth > MAX_DEPTH {
-            return Err(self.error(&at, format!("nested deeper than {MAX_DEPTH} levels")));
+            return Err(self.error(MalformedPart::Node, &at, format!("nested deeper than {MAX_DEPTH} levels")));
         }
         // The composition check counts prims before composing, but not those an ancestor's arcs map onto an
         // arc's target: every prim composed is counted here too.
         self.prims += 1;
         if self.prims > self.limits.usd_prims {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::Node,
                 &at,
                 format!(
                     "the stage has more than {} prims (raise the limit with --max-prims)",
@@ -663,7 +683,7 @@ impl Loader<'_> {
         }
         if !prim
             .is_active()
-            .map_err(|e| self.error(&at, format!("{e:#}")))?
+            .map_err(|e| self.error(MalformedPart::Node, &at, format!("{e:#}")))?
         {
             return Ok(());
         }
@@ -671,7 +691,7 @@ impl Loader<'_> {
         // inherits) or a bare `over` is not (UsdPrimDefaultPredicate). Their children are skipped with them.
         let specifier = prim
             .specifier()
-            .map_err(|e| self.error(&at, format!("{e:#}")))?;
+            .map_err(|e| self.error(MalformedPart::Node, &at, format!("{e:#}")))?;
         if !matches!(specifier, Some(sdf::Specifier::Def)) {
             return Ok(());
         }
@@ -686,7 +706,7 @@ impl Loader<'_> {
         let (local, reset) = self.local_transform(prim)?;
         let world = if reset { local } else { parent * local };
         if !world.is_finite() {
-            return Err(self.error(&at, "non-finite transform"));
+            return Err(self.error(MalformedPart::Node, &at, "non-finite transform"));
         }
         let outer = (self.tags.clone(), self.asset.clone());
         self.check_nimbus_attributes(prim)?;
@@ -749,10 +769,10 @@ impl Loader<'_> {
         let at = prim.path().as_str().to_owned();
         let names = prim
             .property_names()
-            .map_err(|e| self.error(&at, format!("{e:#}")))?;
+            .map_err(|e| self.error(MalformedPart::Node, &at, format!("{e:#}")))?;
         let volume = prim
             .type_name()
-            .map_err(|e| self.error(&at, format!("{e:#}")))?
+            .map_err(|e| self.error(MalformedPart::Node, &at, format!("{e:#}")))?
             .is_some_and(|t| t.as_str() == "Volume");
         let known: Vec<&'static str> = TAG_ATTRIBUTES
             .iter()
@@ -785,7 +805,7 @@ impl Loader<'_> {
             match self.value(prim, name)? {
                 None => Ok(false),
                 Some(sdf::Value::Bool(b)) => Ok(b),
-                Some(_) => Err(self.error(&format!("{at}.{name}"), "expected a bool")),
+                Some(_) => Err(self.error(MalformedPart::Node, &format!("{at}.{name}"), "expected a bool")),
             }
         };
         let light_group = match self.value(prim, "nimbus:lightGroup")? {
@@ -793,7 +813,7 @@ impl Loader<'_> {
             Some(v) => match token(&v) {
                 Some(name) if !name.trim().is_empty() && name.chars().count() <= 64 => Some(name),
                 _ => {
-                    return Err(self.error(
+                    return Err(self.error(MalformedPart::Node,
                         &format!("{at}.nimbus:lightGroup"),
                         "a light group must be a non-empty string of at most 64 characters",
                     ))
@@ -811,7 +831,7 @@ impl Loader<'_> {
     fn is_component(&self, prim: &usd::Prim) -> Result<bool, SceneError> {
         let kind = prim
             .kind()
-            .map_err(|e| self.error(prim.path().as_str(), format!("{e:#}")))?;
+            .map_err(|e| self.error(MalformedPart::Node, prim.path().as_str(), format!("{e:#}")))?;
         Ok(kind.is_some_and(|k| k.as_str() == "component"))
     }
 
@@ -840,7 +860,7 @@ impl Loader<'_> {
             None => return Ok(None),
             Some(sdf::Value::AssetPath(a)) => a.asset_path().to_owned(),
             Some(sdf::Value::String(s)) => s,
-            Some(_) => return Err(self.error(&at, "expected an asset path")),
+            Some(_) => return Err(self.error(MalformedPart::Node, &at, "expected an asset path")),
         };
         if file.is_empty() {
             return Ok(None);
@@ -848,7 +868,7 @@ impl Loader<'_> {
         let stack = prim
             .attribute(name)
             .property_stack()
-            .map_err(|e| self.error(&at, format!("{e:#}")))?;
+            .map_err(|e| self.error(MalformedPart::Node, &at, format!("{e:#}")))?;
         let base = stack
             .first()
             .map(|(layer, _)| layer_folder(layer))
@@ -859,33 +879,28 @@ impl Loader<'_> {
 
     /// The bytes of an asset [`Loader::asset`] resolved: a file on disk, or an entry of a `.usdz` package when
     /// a folder of the path is a package file (the asset was named by a layer inside the package).
-    fn read_asset(&mut self, file: &Path) -> Result<Vec<u8>, String> {
-        let package = file
-            .ancestors()
-            .skip(1)
-            .find(|a| is_package_name(a) && a.is_file());
-        let Some(package) = package else {
-            return read_file(file, &self.limits).map_err(|e| e.to_string());
+    fn read_asset(&mut self, file: &Path) -> Result<Vec<u8>, AssetError> {
+        let in_package = file.ancestors().skip(1).find_map(|folder| {
+            let member = file.strip_prefix(folder).ok()?;
+            (is_package_name(folder) && folder.is_file()).then_some((folder, member))
+        });
+        let Some((package, member)) = in_package else {
+            return read_file(file, &self.limits).map_err(AssetError::File);
         };
-        let member = file
-            .strip_prefix(package)
-            .map_err(|e| e.to_string())?
-            .to_string_lossy()
-            .into_owned();
-        if !self.packages.contains_key(package) {
-            let opened =
-                layers::Package::open(package, &self.limits).map_err(|e| e.to_string())?;
-            self.packages.insert(package.to_path_buf(), opened);
-        }
+        let member = member.to_string_lossy().into_owned();
         let limits = self.limits;
-        let opened = self
-            .packages
-            .get_mut(package)
-            .ok_or("the package was not opened")?;
+        let opened = match self.packages.entry(package.to_path_buf()) {
+            std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
+            std::collections::hash_map::Entry::Vacant(entry) => {
+                entry.insert(layers::Package::open(package, &limits)?)
+            }
+        };
         opened
-            .read(&member, &limits)
-            .map_err(|e| e.to_string())?
-            .ok_or_else(|| format!("the package {} holds no file '{member}'", package.display()))
+            .read(&member, &limits)?
+            .ok_or_else(|| AssetError::NotInPackage {
+                package: package.to_path_buf(),
+                member,
+            })
     }
 
     fn camera(&mut self, prim: &usd::Prim, world: &Mat4) -> Result<(), SceneError> {
@@ -894,7 +909,7 @@ impl Loader<'_> {
         let h = self.float(prim, "horizontalAperture", 20.955)?;
         let v = self.float(prim, "verticalAperture", 15.2908)?;
         if !(focal > 0.0 && h > 0.0 && v > 0.0) {
-            return Err(self.error(&at, "focalLength and apertures must be positive"));
+            return Err(self.error(MalformedPart::Camera, &at, "focalLength and apertures must be positive"));
         }
         let f_stop = self.float(prim, "fStop", 0.0)?;
         let focus = self.float(prim, "focusDistance", 0.0)?;
@@ -920,14 +935,14 @@ impl Loader<'_> {
         };
         if let Projection::Orthographic { half_height } = projection {
             if !(half_height.is_finite() && half_height > 0.0) {
-                return Err(self.error(
+                return Err(self.error(MalformedPart::Camera,
                     &at,
                     format!("an orthographic film {half_height} m high (verticalAperture {v} tenths of a scene unit at the camera's scale {unit}) must be finite and > 0"),
                 ));
             }
         }
         if !(f_stop.is_finite() && f_stop >= 0.0) {
-            return Err(self.error(&format!("{at}.fStop"), format!("{f_stop} must be ≥ 0")));
+            return Err(self.error(MalformedPart::Camera, &format!("{at}.fStop"), format!("{f_stop} must be ≥ 0")));
         }
         let radius = if f_stop > 0.0 {
             0.1 * focal / (2.0 * f_stop) * unit

@@ -1,6 +1,7 @@
 //! UsdVol: `Volume` prims with `OpenVDBAsset` fields, and the `nimbus:` attributes of
 //! [`VOLUME_KEYS`](crate::volume::spec::VOLUME_KEYS), read through the same table as glTF's keys.
 
+use crate::scene::MalformedPart;
 use super::values::{number, token, vec3};
 use super::Loader;
 use crate::math::{Mat4, Rgb};
@@ -99,7 +100,7 @@ impl Loader<'_> {
         for (field, slot) in fields[1..].iter().zip(channels) {
             if let Some((other_file, grid)) = field {
                 if *other_file != file {
-                    return Err(self.error(
+                    return Err(self.error(MalformedPart::Volume,
                         &at,
                         "every field of a Volume (density, temperature, flame, Cd, albedo) must come from the same VDB file",
                     ));
@@ -133,21 +134,21 @@ impl Loader<'_> {
         let targets = prim
             .relationship(name)
             .targets()
-            .map_err(|e| self.error(at, format!("{e:#}")))?;
+            .map_err(|e| self.error(MalformedPart::Volume, at, format!("{e:#}")))?;
         let Some(t) = targets.first() else {
             return Ok(None);
         };
         let asset = self.stage.prim(t.prim_path().as_str());
         let kind = self.type_name(&asset)?;
         if kind != "OpenVDBAsset" {
-            return Err(self.error(
+            return Err(self.error(MalformedPart::Volume,
                 at,
                 format!("{name} targets a '{kind}', not an OpenVDBAsset"),
             ));
         }
         let file = self
             .asset(&asset, "filePath")?
-            .ok_or_else(|| self.error(asset.path().as_str(), "filePath is required"))?;
+            .ok_or_else(|| self.error(MalformedPart::Volume, asset.path().as_str(), "filePath is required"))?;
         let grid = self
             .value(&asset, "fieldName")?
             .and_then(|v| token(&v))

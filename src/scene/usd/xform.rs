@@ -1,5 +1,6 @@
 //! USD xform ops: `xformOpOrder` and each op's matrix (UsdGeomXformable).
 
+use crate::scene::MalformedPart;
 use super::values::{number, tokens, vec3};
 use super::Loader;
 use crate::math::{Mat4, Quat};
@@ -14,7 +15,7 @@ impl Loader<'_> {
             return Ok((Mat4::IDENTITY, false));
         };
         let ops =
-            tokens(&order).ok_or_else(|| self.error(at, "xformOpOrder must be a token array"))?;
+            tokens(&order).ok_or_else(|| self.error(MalformedPart::Node, at, "xformOpOrder must be a token array"))?;
         let mut m = Mat4::IDENTITY;
         let mut reset = false;
         for op in ops {
@@ -28,10 +29,10 @@ impl Loader<'_> {
             };
             let value = self
                 .value(prim, name)?
-                .ok_or_else(|| self.error(at, format!("xformOp '{name}' has no value")))?;
+                .ok_or_else(|| self.error(MalformedPart::Node, at, format!("xformOp '{name}' has no value")))?;
             let op_kind = name.split(':').nth(1).unwrap_or("");
             let mut op_m = xform_op(op_kind, &value).ok_or_else(|| {
-                self.error(at, format!("unsupported or malformed xformOp '{name}'"))
+                self.error(MalformedPart::Node, at, format!("unsupported or malformed xformOp '{name}'"))
             })?;
             if invert {
                 op_m = op_m.inverse();
