@@ -31,6 +31,10 @@
 //! sample their direction from the one-sample MIS mixture of the cache's distribution and the phase function or
 //! BSDF, and next-event estimation there is weighed against the mixture's density (all in [`super::guided`]). A
 //! training path remembers its events ([`GuidePath`]) so that the cache learns the radiance found after each.
+//! With [`PathTracer::guided_roulette`], a medium scattering event also plays the weight window of guided Russian
+//! roulette and splitting ([`crate::guiding::adjoint`]) in place of classic Russian roulette: the path may end,
+//! or split into paths of their own ([`Branch`]), each of which does the event's next-event estimate and samples
+//! its direction from a generator derived from the path's, so a sample stays a pure function of its seed.
 //!
 //! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
@@ -45,6 +49,7 @@ use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
+use crate::guiding::adjoint::{self, Roulette};
 use crate::guiding::GuidePath;
 use crate::light::LightContext;
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
@@ -100,6 +105,69 @@ pub struct PathTracer {
     /// Whether the scene has holdouts or shadow catchers ([`crate::scene::SceneNames::has_mattes`]), which
     /// camera rays must look for.
     pub mattes: bool,
+    /// Guided Russian roulette and splitting at medium scattering events, where the render is guided and the
+    /// cache and the training have estimates there ([`crate::guiding::adjoint`]); classic Russian roulette
+    /// otherwise.
+    pub guided_roulette: bool,
+}
+
+/// Mixed into the streams of split-off paths' generators.
+const BRANCH_STREAM: u64 = 0x8979_0a0b_4e5d_1c3f;
+
+/// A path split off at a medium scattering event by guided splitting: the state of the path at the event
+/// (its albedo and the split's 1/n in the throughput), and a generator of its own. It goes on from there as the
+/// path that split does: next-event estimation at the event, then its own direction.
+struct Branch {
+    /// The ray that reached the event, and the event's distance along it.
+    ray: Ray,
+    t: f32,
+    /// The phase function at the event.
+    phase: PhaseFunction,
+    rng: Rng,
+    beta: Rgb,
+    depth: u32,
+    stack: MediumStack,
+    cone_width: f32,
+    crossings: u32,
+    first_hit: bool,
+    collided_segment: Option<ConstantSegment>,
+    first_event: FirstEvent,
+}
+
+impl Branch {
+    /// A copy of the path in `s` at the event `t` along `ray`, its generator seeded from `rng`'s next numbers.
+    fn split_off(s: &PathState, ray: &Ray, t: f32, phase: PhaseFunction, rng: &mut Rng) -> Self {
+        let seed = (u64::from(rng.next_u32()) << 32) | u64::from(rng.next_u32());
+        let stream = u64::from(rng.next_u32()) ^ BRANCH_STREAM;
+        Self {
+            ray: *ray,
+            t,
+            phase,
+            rng: Rng::new(seed, stream),
+            beta: s.beta,
+            depth: s.depth,
+            stack: s.stack,
+            cone_width: s.cone_width,
+            crossings: s.crossings,
+            first_hit: s.first_hit,
+            collided_segment: s.collided_segment,
+            first_event: s.first_event,
+        }
+    }
+
+    /// Puts the branch's state into `s` (the radiance, coverage and records stay the sample's) and returns
+    /// the ray, the event's distance, its phase function and the branch's generator.
+    fn resume(self, s: &mut PathState) -> (Ray, f32, PhaseFunction, Rng) {
+        s.beta = self.beta;
+        s.depth = self.depth;
+        s.stack = self.stack;
+        s.cone_width = self.cone_width;
+        s.crossings = self.crossings;
+        s.first_hit = self.first_hit;
+        s.collided_segment = self.collided_segment;
+        s.first_event = self.first_event;
+        (self.ray, self.t, self.phase, self.rng)
+    }
 }
 
 /// A segment inside exactly one medium of constant coefficients, whose direct light from point and spot
@@ -164,6 +232,10 @@ struct PathState<'r> {
     emitted: TentativeEmission,
     /// Where a training path remembers its guided vertices, when it trains the guiding cache.
     guide_path: Option<&'r mut GuidePath>,
+    /// Paths split off and not yet traced.
+    branches: Vec<Branch>,
+    /// Extra paths splitting may still add to the sample.
+    branch_budget: u32,
 }
 
 impl PathState<'_> {
@@ -410,14 +482,13 @@ impl PathTracer {
     pub fn trace(
         &self,
         services: &RendererServices,
-        mut ray: Ray,
+        ray: Ray,
         first_emission: FirstEmission,
         rng: &mut Rng,
         counters: &mut PathCounters,
         record: Option<&mut SampleRecord>,
         guide_path: Option<&mut GuidePath>,
     ) -> PathSample {
-        let scene = services.scene();
         let mut out = PathSample::default();
         let mut s = PathState {
             radiance: Rgb::ZERO,
@@ -444,32 +515,57 @@ impl PathTracer {
             camera_t: 0.0,
             emitted: TentativeEmission::default(),
             guide_path,
+            branches: Vec::new(),
+            branch_budget: adjoint::MAX_BRANCHES,
         };
         counters.rays.camera += 1;
+        self.walk(services, &mut s, ray, rng, counters, &mut out);
+        while let Some(branch) = s.branches.pop() {
+            let (mut ray, t, phase, mut rng) = branch.resume(&mut s);
+            if self.scatter_from(services, &mut s, &mut ray, t, &phase, true, &mut rng, counters) {
+                self.walk(services, &mut s, ray, &mut rng, counters, &mut out);
+            }
+        }
+        out.radiance = s.radiance;
+        out.alpha = s.coverage.unwrap_or(1.0);
+        out
+    }
+
+    /// Follows the path in `s` from `ray` until it ends, filling `out`'s first-hit AOVs when they are pending.
+    fn walk(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        mut ray: Ray,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+        out: &mut PathSample,
+    ) {
+        let scene = services.scene();
         loop {
             let hit = scene.intersect(&ray, 0.0, f32::INFINITY);
             let t_surface = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
             if let Some((t, m)) =
-                self.sample_segment_media(services, &mut s, &ray, t_surface, rng, counters)
+                self.sample_segment_media(services, s, &ray, t_surface, rng, counters)
             {
                 if s.aovs_pending && s.depth == 0 {
                     s.aovs_pending = false;
-                    record_collision_aovs(&mut out, scene, &ray, t, m);
+                    record_collision_aovs(out, scene, &ray, t, m);
                 }
-                if !self.scatter_in_medium(services, &mut s, &mut ray, t, m, rng, counters) {
+                if !self.scatter_in_medium(services, s, &mut ray, t, m, rng, counters) {
                     break;
                 }
                 continue;
             }
             let Some(hit) = hit else {
-                self.escape(services, &mut s, ray.dir);
+                self.escape(services, s, ray.dir);
                 break;
             };
             if s.beta.max_element() <= 0.0 {
                 break;
             }
             let t_hit = hit.t;
-            match self.shade_surface(services, &mut s, &ray, hit, &mut out, rng, counters) {
+            match self.shade_surface(services, s, &ray, hit, out, rng, counters) {
                 SurfaceOutcome::Continue(next) => {
                     if s.depth == 0 {
                         s.camera_t += t_hit;
@@ -479,9 +575,6 @@ impl PathTracer {
                 SurfaceOutcome::End => break,
             }
         }
-        out.radiance = s.radiance;
-        out.alpha = s.coverage.unwrap_or(1.0);
-        out
     }
 
     /// The light emitted toward the camera by the first surface `ray` (a camera ray) hits: the term a path
@@ -1092,7 +1185,7 @@ impl PathTracer {
                     .cross(interior, wi_world.dot(hit.geometric_normal) < 0.0);
             }
         }
-        if !self.next_bounce(s, rng) {
+        if !self.next_bounce(s, rng, true) {
             return SurfaceOutcome::End;
         }
         if let (Some(path), false) = (s.guide_path.as_deref_mut(), bs.is_delta) {
@@ -1167,8 +1260,9 @@ impl PathTracer {
         SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time))
     }
 
-    /// Handles a real collision at distance `t` in medium `m`: next-event estimation with MIS against phase
-    /// sampling, then phase sampling to continue. Returns false when the path ends.
+    /// Handles a real collision at distance `t` in medium `m`: the medium's albedo, guided Russian roulette and
+    /// splitting where it applies ([`Self::guided_roulette`]), then [`Self::scatter_from`]. Returns false when
+    /// the path ends.
     #[allow(clippy::too_many_arguments)]
     fn scatter_in_medium(
         &self,
@@ -1198,24 +1292,86 @@ impl PathTracer {
         if s.beta.max_element() <= 0.0 || s.depth >= self.max_depth {
             return false;
         }
+        let played = match self.guided_roulette(services, s, ray, t, collision.phase, rng, counters) {
+            Some(false) => return false,
+            Some(true) => true,
+            None => false,
+        };
+        self.scatter_from(services, s, ray, t, &collision.phase, played, rng, counters)
+    }
+
+    /// Guided Russian roulette and splitting at the medium scattering event `t` along `ray` (phase function
+    /// `phase`), after its albedo ([`crate::guiding::adjoint`]): the path's expected contribution is its
+    /// throughput (channel mean) times the cache's mean incident radiance there, compared with its pixel's
+    /// training value. Returns `None` where it does not apply (not on, a training path, or no estimate: classic
+    /// Russian roulette then), else whether the path goes on; paths split off wait in `s.branches`.
+    #[allow(clippy::too_many_arguments)]
+    fn guided_roulette(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &Ray,
+        t: f32,
+        phase: PhaseFunction,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> Option<bool> {
+        if !self.guided_roulette || s.guide_path.is_some() {
+            return None;
+        }
+        let pixel = services.pixel_estimate()?;
+        let radiance = services.guide()?.mean_radiance_at(ray.at(t))?;
+        let ratio = s.beta.element_sum() / 3.0 * radiance / pixel;
+        match adjoint::play(ratio, rng.next_f32(), s.branch_budget) {
+            Roulette::Ends => Some(false),
+            Roulette::GoesOn { copies, weight } => {
+                s.beta *= weight;
+                for _ in 1..copies {
+                    let branch = Branch::split_off(s, ray, t, phase, rng);
+                    s.branches.push(branch);
+                }
+                s.branch_budget -= copies - 1;
+                counters.rays.split += u64::from(copies - 1);
+                Some(true)
+            }
+        }
+    }
+
+    /// Scatters at the medium collision `t` along `ray` (its albedo already in the throughput): next-event
+    /// estimation with MIS against phase sampling, then phase (or guided) sampling to continue, `ray` becoming
+    /// the next one. Classic Russian roulette is played unless `roulette_played` (guided roulette decided this
+    /// event). Returns false when the path ends.
+    #[allow(clippy::too_many_arguments)]
+    fn scatter_from(
+        &self,
+        services: &RendererServices,
+        s: &mut PathState,
+        ray: &mut Ray,
+        t: f32,
+        phase: &PhaseFunction,
+        roulette_played: bool,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> bool {
+        let p = ray.at(t);
         let wo = -ray.dir;
         let ctx = LightContext { p, n: None };
         // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
         // against, so the estimate stays unbiased.
         let guide = guided::guide_at(services, s.beta, p);
-        let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, collision.phase.eval(wo, wi));
+        let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, phase.eval(wo, wi));
         self.medium_next_event(
             services,
             s,
             ray,
             t,
             &ctx,
-            &collision.phase,
+            phase,
             direction_pdf,
             rng,
             counters,
         );
-        let Some((wi, pdf, weight)) = guided::sample_phase(&collision.phase, guide, wo, rng) else {
+        let Some((wi, pdf, weight)) = guided::sample_phase(phase, guide, wo, rng) else {
             return false;
         };
         s.beta *= weight;
@@ -1227,7 +1383,7 @@ impl PathTracer {
         s.prev = ctx;
         s.prev_light_only = !self.media_mis;
         let radiance_before = s.radiance;
-        if !self.next_bounce(s, rng) {
+        if !self.next_bounce(s, rng, !roulette_played) {
             return false;
         }
         if let Some(path) = s.guide_path.as_deref_mut() {
@@ -1278,10 +1434,11 @@ impl PathTracer {
         });
     }
 
-    /// Counts a scattering event and plays Russian roulette; returns false when the path ends.
-    fn next_bounce(&self, s: &mut PathState, rng: &mut Rng) -> bool {
+    /// Counts a scattering event and, with `roulette`, plays classic Russian roulette; returns false when the
+    /// path ends.
+    fn next_bounce(&self, s: &mut PathState, rng: &mut Rng, roulette: bool) -> bool {
         s.depth += 1;
-        if s.depth > ROULETTE_START {
+        if roulette && s.depth > ROULETTE_START {
             let survive = s.beta.max_element().clamp(0.05, 1.0);
             if rng.next_f32() >= survive {
                 return false;

@@ -6,9 +6,14 @@
 //! renders, from streams of their own (`seed` mixed with [`TRAINING_STREAM`] and k, the independent sampler);
 //! rows are traced in parallel a block at a time and their records added to the cache in row order, one thread.
 //! The cache, and so the image, is the same for any thread count and in every farm part of a render.
+//!
+//! The training's samples are also the pixel values guided Russian roulette compares paths with
+//! ([`PixelEstimates`], every iteration's samples: each is an unbiased estimate of its pixel), summed in the
+//! same row order.
 
 use super::renderer::GuidingStats;
 use super::CancelToken;
+use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::{
     GuidePath, GuidingDecision, GuidingField, RadianceRecord, TRAINING_ITERATIONS,
 };
@@ -55,6 +60,7 @@ pub(super) fn train(
     }
     let start = Instant::now();
     let mut field = GuidingField::new(scene.bounds);
+    let mut pixels = PixelEstimates::new(frame.width, frame.height);
     for k in 0..TRAINING_ITERATIONS {
         let spp = 1u32 << k;
         let seed = frame.seed ^ TRAINING_STREAM ^ k as u64;
@@ -65,27 +71,37 @@ pub(super) fn train(
             }
             let rows = block..(block + ROWS_PER_BLOCK).min(frame.height);
             let guided = services.with_guide(Some(&field));
-            let records: Vec<Vec<RadianceRecord>> = rows
+            let traced: Vec<TrainingRow> = rows
                 .into_par_iter()
                 .map(|y| trace_row(tracer, &guided, frame, y, spp, seed))
                 .collect();
-            for row in &records {
-                stats.training_records += row.len() as u64;
-                field.add_records(row);
+            for row in &traced {
+                stats.training_records += row.records.len() as u64;
+                field.add_records(&row.records);
+                for &(pixel, value) in &row.values {
+                    pixels.add(pixel, value);
+                }
             }
         }
         field.finish_iteration();
         stats.training_paths += (frame.width * frame.height) as u64 * spp as u64;
         stats.training_samples_per_pixel += spp;
     }
+    field.set_pixel_estimates(pixels);
     stats.cells = field.cell_count();
     stats.guided_cells = field.guided_cell_count();
     stats.training_seconds = start.elapsed().as_secs_f64();
     (Some(field), stats)
 }
 
-/// Traces `spp` training paths through every pixel of row `y` (samples from `seed`'s streams) and returns
-/// their records, pixel by pixel in order.
+/// What the training paths of one row found: their records and each sample's value (channel mean), pixel by
+/// pixel in order.
+struct TrainingRow {
+    records: Vec<RadianceRecord>,
+    values: Vec<((usize, usize), f32)>,
+}
+
+/// Traces `spp` training paths through every pixel of row `y` (samples from `seed`'s streams).
 fn trace_row(
     tracer: &PathTracer,
     services: &RendererServices,
@@ -93,12 +109,13 @@ fn trace_row(
     y: usize,
     spp: u32,
     seed: u64,
-) -> Vec<RadianceRecord> {
+) -> TrainingRow {
     let scene = services.scene();
     let aspect = frame.width as f32 / frame.height as f32;
     let mut counters = PathCounters::new(scene.media.len());
     let mut path = GuidePath::default();
     let mut records = Vec::new();
+    let mut values = Vec::with_capacity(frame.width * spp as usize);
     for x in 0..frame.width {
         let pixel_index = (y * frame.width + x) as u64;
         for sample in 0..spp {
@@ -123,8 +140,9 @@ fn trace_row(
             );
             if result.radiance.is_finite() {
                 path.finish(result.radiance, &mut records);
+                values.push(((x, y), result.radiance.element_sum() / 3.0));
             }
         }
     }
-    records
+    TrainingRow { records, values }
 }
