@@ -146,3 +146,118 @@ fn trace_row(
     }
     TrainingRow { records, values }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::PathSample;
+    use crate::light::EnvironmentLight;
+    use crate::math::{Rgb, Vec3};
+    use crate::scene::{Camera, SceneBuilder};
+    use crate::vdb::{GridTree, Tree};
+    use crate::volume::density::GridDensity;
+    use crate::volume::grid::GridMedium;
+    use crate::volume::majorant::MajorantKind;
+    use glam::{DMat4, DVec3, IVec3};
+    use std::sync::Arc;
+
+    /// A white furnace: a smooth ball (radius 0.75, density 10 at its middle, albedo 1, g 0.4) in a uniform
+    /// environment of radiance 1, seen through its middle. Every path sees exactly 1 on average.
+    fn furnace() -> Scene {
+        let voxels = (-12..=12).flat_map(|x| {
+            (-12..=12).flat_map(move |y| {
+                (-12..=12).filter_map(move |z| {
+                    let r = ((x * x + y * y + z * z) as f32).sqrt() / 12.0;
+                    (r < 1.0).then(|| (IVec3::new(x, y, z), (1.0 - r * r).powi(2)))
+                })
+            })
+        });
+        let density = GridDensity::from_tree(
+            Arc::new(GridTree::Float(Tree::from_voxels(0.0, voxels))),
+            DMat4::from_scale(DVec3::splat(0.0625)),
+            10.0,
+        )
+        .unwrap();
+        let mut b = SceneBuilder::default();
+        let medium = GridMedium::new("ball", density, MajorantKind::Adaptive, Rgb::ONE, 0.4);
+        b.add_medium(Arc::new(medium));
+        b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
+        b.set_camera(Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 0.3));
+        b.build().unwrap()
+    }
+
+    /// Traces `n` paths through the middle of the image; returns the mean of the red channel, its standard
+    /// error and the counters.
+    fn trace_middle(
+        scene: &Scene,
+        tracer: &PathTracer,
+        services: &RendererServices,
+        n: u64,
+    ) -> (f64, f64, PathCounters) {
+        let mut counters = PathCounters::new(scene.media.len());
+        let ray = scene.camera.sample_ray(Vec2::splat(0.5), None, 1.0, None);
+        let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+        for i in 0..n {
+            let mut rng = Rng::for_sample(5, 0, i);
+            let PathSample { radiance, .. } = tracer.trace(
+                services,
+                ray,
+                FirstEmission::Count,
+                &mut rng,
+                &mut counters,
+                None,
+                None,
+            );
+            sum += radiance.x as f64;
+            sum2 += (radiance.x as f64).powi(2);
+        }
+        let mean = sum / n as f64;
+        (mean, ((sum2 / n as f64 - mean * mean) / n as f64).sqrt(), counters)
+    }
+
+    /// Guided Russian roulette and splitting keep the white furnace's mean, 1, within 4 standard errors where
+    /// the pixel value they compare with is far too low (every event splits, up to the sample's budget) and far
+    /// too high (roulette ends most paths): the weights 1/n and 1/q are what keeps it (forgetting 1/q fails
+    /// this test).
+    #[test]
+    fn guided_roulette_and_splitting_keep_the_white_furnace() {
+        let scene = furnace();
+        let tracer = PathTracer {
+            max_depth: 100_000,
+            media_mis: true,
+            pixel_spread: 0.0,
+            pixel_width: 0.0,
+            equiangular: false,
+            transparent: false,
+            mattes: false,
+            guided_roulette: true,
+        };
+        let services = RendererServices::new(&scene, false);
+        let frame = TrainingFrame {
+            width: 16,
+            height: 16,
+            seed: 3,
+        };
+        let decision = GuidingDecision {
+            on: true,
+            reason: String::new(),
+        };
+        let cancel = CancelToken::new();
+        let (field, _) = train(&scene, &tracer, &services, &frame, decision, &cancel);
+        let field = field.unwrap();
+        let guided = services.with_guide(Some(&field));
+        let (_, _, plain) = trace_middle(&scene, &tracer, &guided, 1000);
+        for pixel in [0.02f32, 50.0] {
+            let services = guided.with_pixel_estimate(Some(pixel));
+            let (mean, se, counters) = trace_middle(&scene, &tracer, &services, 3000);
+            assert!(se > 0.0 && se < 0.25, "pixel {pixel}: standard error {se}");
+            assert!((mean - 1.0).abs() < 4.0 * se, "pixel {pixel}: {mean} vs 1 (se {se})");
+            if pixel < 1.0 {
+                assert!(counters.rays.split > 3000, "{:?}", counters.rays);
+            } else {
+                assert_eq!(counters.rays.split, 0);
+                assert!(counters.rays.bounce < plain.rays.bounce / 2, "{:?}", counters.rays);
+            }
+        }
+    }
+}
