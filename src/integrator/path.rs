@@ -522,7 +522,9 @@ impl PathTracer {
         self.walk(services, &mut s, ray, rng, counters, &mut out);
         while let Some(branch) = s.branches.pop() {
             let (mut ray, t, phase, mut rng) = branch.resume(&mut s);
-            if self.scatter_from(services, &mut s, &mut ray, t, &phase, true, &mut rng, counters) {
+            if self.scatter_from(
+                services, &mut s, &mut ray, t, &phase, true, &mut rng, counters,
+            ) {
                 self.walk(services, &mut s, ray, &mut rng, counters, &mut out);
             }
         }
@@ -1292,7 +1294,8 @@ impl PathTracer {
         if s.beta.max_element() <= 0.0 || s.depth >= self.max_depth {
             return false;
         }
-        let played = match self.guided_roulette(services, s, ray, t, collision.phase, rng, counters) {
+        let played = match self.guided_roulette(services, s, ray, t, collision.phase, rng, counters)
+        {
             Some(false) => return false,
             Some(true) => true,
             None => false,

@@ -212,7 +212,11 @@ mod tests {
             sum2 += (radiance.x as f64).powi(2);
         }
         let mean = sum / n as f64;
-        (mean, ((sum2 / n as f64 - mean * mean) / n as f64).sqrt(), counters)
+        (
+            mean,
+            ((sum2 / n as f64 - mean * mean) / n as f64).sqrt(),
+            counters,
+        )
     }
 
     /// Guided Russian roulette and splitting keep the white furnace's mean, 1, within 4 standard errors where
@@ -251,12 +255,19 @@ mod tests {
             let services = guided.with_pixel_estimate(Some(pixel));
             let (mean, se, counters) = trace_middle(&scene, &tracer, &services, 3000);
             assert!(se > 0.0 && se < 0.25, "pixel {pixel}: standard error {se}");
-            assert!((mean - 1.0).abs() < 4.0 * se, "pixel {pixel}: {mean} vs 1 (se {se})");
+            assert!(
+                (mean - 1.0).abs() < 4.0 * se,
+                "pixel {pixel}: {mean} vs 1 (se {se})"
+            );
             if pixel < 1.0 {
                 assert!(counters.rays.split > 3000, "{:?}", counters.rays);
             } else {
                 assert_eq!(counters.rays.split, 0);
-                assert!(counters.rays.bounce < plain.rays.bounce / 2, "{:?}", counters.rays);
+                assert!(
+                    counters.rays.bounce < plain.rays.bounce / 2,
+                    "{:?}",
+                    counters.rays
+                );
             }
         }
     }
