@@ -33,8 +33,8 @@
 //! training path remembers its events ([`GuidePath`]) so that the cache learns the radiance found after each.
 //! With [`PathTracer::guided_roulette`], a medium scattering event also plays the weight window of guided Russian
 //! roulette and splitting ([`crate::guiding::adjoint`]) in place of classic Russian roulette: the path may end,
-//! or split into paths of their own ([`Branch`]), each of which does the event's next-event estimate and samples
-//! its direction from a generator derived from the path's, so a sample stays a pure function of its seed.
+//! or split into paths of their own ([`Branch`]) after the event's next-event estimate, each of which samples its
+//! direction from a generator derived from the path's, so a sample stays a pure function of its seed.
 //!
 //! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
@@ -114,15 +114,31 @@ pub struct PathTracer {
 /// Mixed into the streams of split-off paths' generators.
 const BRANCH_STREAM: u64 = 0x8979_0a0b_4e5d_1c3f;
 
-/// A path split off at a medium scattering event by guided splitting: the state of the path at the event
-/// (its albedo and the split's 1/n in the throughput), and a generator of its own. It goes on from there as the
-/// path that split does: next-event estimation at the event, then its own direction.
-struct Branch {
+/// A medium scattering event, as a path goes on from it after its next-event estimate.
+#[derive(Clone, Copy)]
+struct MediumEvent {
     /// The ray that reached the event, and the event's distance along it.
     ray: Ray,
     t: f32,
-    /// The phase function at the event.
+    /// The phase function there.
     phase: PhaseFunction,
+    /// Whether its direction is sampled from the mixture with the guiding cache's distribution (decided once,
+    /// before next-event estimation, which is weighed against that density).
+    guided: bool,
+}
+
+impl MediumEvent {
+    /// Where it happened.
+    fn point(&self) -> Vec3 {
+        self.ray.at(self.t)
+    }
+}
+
+/// A path split off at a medium scattering event by guided splitting: the state of the path there (its albedo,
+/// next-event estimate and the split's 1/n done), and a generator of its own. It goes on from there as the path
+/// that split does, sampling its own direction.
+struct Branch {
+    event: MediumEvent,
     rng: Rng,
     beta: Rgb,
     depth: u32,
@@ -135,14 +151,12 @@ struct Branch {
 }
 
 impl Branch {
-    /// A copy of the path in `s` at the event `t` along `ray`, its generator seeded from `rng`'s next numbers.
-    fn split_off(s: &PathState, ray: &Ray, t: f32, phase: PhaseFunction, rng: &mut Rng) -> Self {
+    /// A copy of the path in `s` at `event`, its generator seeded from `rng`'s next numbers.
+    fn split_off(s: &PathState, event: &MediumEvent, rng: &mut Rng) -> Self {
         let seed = (u64::from(rng.next_u32()) << 32) | u64::from(rng.next_u32());
         let stream = u64::from(rng.next_u32()) ^ BRANCH_STREAM;
         Self {
-            ray: *ray,
-            t,
-            phase,
+            event: *event,
             rng: Rng::new(seed, stream),
             beta: s.beta,
             depth: s.depth,
@@ -156,8 +170,8 @@ impl Branch {
     }
 
     /// Puts the branch's state into `s` (the radiance, coverage and records stay the sample's) and returns
-    /// the ray, the event's distance, its phase function and the branch's generator.
-    fn resume(self, s: &mut PathState) -> (Ray, f32, PhaseFunction, Rng) {
+    /// the event and the branch's generator.
+    fn resume(self, s: &mut PathState) -> (MediumEvent, Rng) {
         s.beta = self.beta;
         s.depth = self.depth;
         s.stack = self.stack;
@@ -166,7 +180,7 @@ impl Branch {
         s.first_hit = self.first_hit;
         s.collided_segment = self.collided_segment;
         s.first_event = self.first_event;
-        (self.ray, self.t, self.phase, self.rng)
+        (self.event, self.rng)
     }
 }
 
@@ -521,10 +535,10 @@ impl PathTracer {
         counters.rays.camera += 1;
         self.walk(services, &mut s, ray, rng, counters, &mut out);
         while let Some(branch) = s.branches.pop() {
-            let (mut ray, t, phase, mut rng) = branch.resume(&mut s);
-            if self.scatter_from(
-                services, &mut s, &mut ray, t, &phase, true, &mut rng, counters,
-            ) {
+            let (event, mut rng) = branch.resume(&mut s);
+            if let Some(ray) =
+                self.scatter_onward(services, &mut s, &event, true, &mut rng, counters)
+            {
                 self.walk(services, &mut s, ray, &mut rng, counters, &mut out);
             }
         }
@@ -1262,9 +1276,9 @@ impl PathTracer {
         SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time))
     }
 
-    /// Handles a real collision at distance `t` in medium `m`: the medium's albedo, guided Russian roulette and
-    /// splitting where it applies ([`Self::guided_roulette`]), then [`Self::scatter_from`]. Returns false when
-    /// the path ends.
+    /// Handles a real collision at distance `t` in medium `m`: the medium's albedo, next-event estimation with
+    /// MIS against the direction sampling to come, guided Russian roulette and splitting where it applies
+    /// ([`Self::guided_roulette`]), then [`Self::scatter_onward`]. Returns false when the path ends.
     #[allow(clippy::too_many_arguments)]
     fn scatter_in_medium(
         &self,
@@ -1294,28 +1308,51 @@ impl PathTracer {
         if s.beta.max_element() <= 0.0 || s.depth >= self.max_depth {
             return false;
         }
-        let played = match self.guided_roulette(services, s, ray, t, collision.phase, rng, counters)
-        {
+        let wo = -ray.dir;
+        let ctx = LightContext { p, n: None };
+        // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
+        // against, so the estimate stays unbiased; the choice is made once, before roulette changes the
+        // throughput, and holds for every path split off here.
+        let guide = guided::guide_at(services, s.beta, p);
+        let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, collision.phase.eval(wo, wi));
+        self.medium_next_event(
+            services,
+            s,
+            ray,
+            t,
+            &ctx,
+            &collision.phase,
+            direction_pdf,
+            rng,
+            counters,
+        );
+        let event = MediumEvent {
+            ray: *ray,
+            t,
+            phase: collision.phase,
+            guided: guide.is_some(),
+        };
+        let played = match self.guided_roulette(services, s, &event, rng, counters) {
             Some(false) => return false,
             Some(true) => true,
             None => false,
         };
-        self.scatter_from(services, s, ray, t, &collision.phase, played, rng, counters)
+        self.scatter_onward(services, s, &event, played, rng, counters)
+            .map(|next| *ray = next)
+            .is_some()
     }
 
-    /// Guided Russian roulette and splitting at the medium scattering event `t` along `ray` (phase function
-    /// `phase`), after its albedo ([`crate::guiding::adjoint`]): the path's expected contribution is its
-    /// throughput (channel mean) times the cache's mean incident radiance there, compared with its pixel's
-    /// training value. Returns `None` where it does not apply (not on, a training path, or no estimate: classic
-    /// Russian roulette then), else whether the path goes on; paths split off wait in `s.branches`.
-    #[allow(clippy::too_many_arguments)]
+    /// Guided Russian roulette and splitting at the medium scattering `event`, after its albedo and its
+    /// next-event estimate ([`crate::guiding::adjoint`]): the expected contribution of the path's continuation
+    /// is its throughput (channel mean) times the cache's mean incident radiance there (which, like the
+    /// continuation, leaves out the event's own next-event estimate), compared with its pixel's training value.
+    /// Returns `None` where it does not apply (not on, a training path, or no estimate: classic Russian roulette
+    /// then), else whether the path goes on; paths split off wait in `s.branches`.
     fn guided_roulette(
         &self,
         services: &RendererServices,
         s: &mut PathState,
-        ray: &Ray,
-        t: f32,
-        phase: PhaseFunction,
+        event: &MediumEvent,
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) -> Option<bool> {
@@ -1323,14 +1360,14 @@ impl PathTracer {
             return None;
         }
         let pixel = services.pixel_estimate()?;
-        let radiance = services.guide()?.mean_radiance_at(ray.at(t))?;
+        let radiance = services.guide()?.mean_radiance_at(event.point())?;
         let ratio = s.beta.element_sum() / 3.0 * radiance / pixel;
         match adjoint::play(ratio, rng.next_f32(), s.branch_budget) {
             Roulette::Ends => Some(false),
             Roulette::GoesOn { copies, weight } => {
                 s.beta *= weight;
                 for _ in 1..copies {
-                    let branch = Branch::split_off(s, ray, t, phase, rng);
+                    let branch = Branch::split_off(s, event, rng);
                     s.branches.push(branch);
                 }
                 s.branch_budget -= copies - 1;
@@ -1340,61 +1377,42 @@ impl PathTracer {
         }
     }
 
-    /// Scatters at the medium collision `t` along `ray` (its albedo already in the throughput): next-event
-    /// estimation with MIS against phase sampling, then phase (or guided) sampling to continue, `ray` becoming
-    /// the next one. Classic Russian roulette is played unless `roulette_played` (guided roulette decided this
-    /// event). Returns false when the path ends.
-    #[allow(clippy::too_many_arguments)]
-    fn scatter_from(
+    /// Samples the direction to go on from the medium scattering `event` (its albedo and next-event estimate
+    /// done): the phase function, or the mixture with the cache's distribution when the event is guided.
+    /// Classic Russian roulette is played unless `roulette_played` (guided roulette decided this event).
+    /// Returns the next ray, or `None` when the path ends.
+    fn scatter_onward(
         &self,
         services: &RendererServices,
         s: &mut PathState,
-        ray: &mut Ray,
-        t: f32,
-        phase: &PhaseFunction,
+        event: &MediumEvent,
         roulette_played: bool,
         rng: &mut Rng,
         counters: &mut PathCounters,
-    ) -> bool {
-        let p = ray.at(t);
-        let wo = -ray.dir;
-        let ctx = LightContext { p, n: None };
-        // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
-        // against, so the estimate stays unbiased.
-        let guide = guided::guide_at(services, s.beta, p);
-        let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, phase.eval(wo, wi));
-        self.medium_next_event(
-            services,
-            s,
-            ray,
-            t,
-            &ctx,
-            phase,
-            direction_pdf,
-            rng,
-            counters,
-        );
-        let Some((wi, pdf, weight)) = guided::sample_phase(phase, guide, wo, rng) else {
-            return false;
-        };
+    ) -> Option<Ray> {
+        let p = event.point();
+        let guide = services
+            .guide()
+            .filter(|_| event.guided)
+            .and_then(|g| g.distribution_at(p));
+        let (wi, pdf, weight) = guided::sample_phase(&event.phase, guide, -event.ray.dir, rng)?;
         s.beta *= weight;
         if s.depth == 0 {
             s.first_event = FirstEvent::Volume;
         }
         s.prev_delta = false;
         s.prev_pdf = pdf;
-        s.prev = ctx;
+        s.prev = LightContext { p, n: None };
         s.prev_light_only = !self.media_mis;
         let radiance_before = s.radiance;
         if !self.next_bounce(s, rng, !roulette_played) {
-            return false;
+            return None;
         }
         if let Some(path) = s.guide_path.as_deref_mut() {
             path.push(p, wi, pdf, s.beta, radiance_before);
         }
         counters.rays.bounce += 1;
-        *ray = Ray::new(p, wi).at_time(ray.time);
-        true
+        Some(Ray::new(p, wi).at_time(event.ray.time))
     }
 
     /// Next-event estimation at a real collision `t` along `ray` (the point and its phase function `phase`):
