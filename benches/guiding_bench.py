@@ -13,8 +13,8 @@ back); `table` reads the EXRs with NumPy and PyPI's OpenEXR.
    relative efficiency), not with other renderers. Its own noise (the mean of its `variance` layer, the variance
    of each pixel's mean) is subtracted from every MSE.
 2. `--rounds` rounds, each with its own seed, interleaved: unguided (`--guiding off`), guided with guided Russian
-   roulette and splitting (`--guiding on`, the default) and guided with classic Russian roulette (`--guiding on
-   --no-guided-roulette`), all at `--spp`. MSE is over all pixels and channels of the beauty; efficiency =
+   roulette and splitting (`--guiding on --guided-roulette`) and guided with classic Russian roulette (`--guiding
+   on`), all at `--spp`. MSE is over all pixels and channels of the beauty; efficiency =
    1 / (MSE x seconds), seconds being the renderer's `render_seconds` (training included).
 3. `table` prints, per scene, one row per variant: seconds, MSE, efficiency against unguided, and the work per
    camera sample: rays (camera + bounce + shadow), extra paths from splitting, and density lookups (all media).
@@ -29,8 +29,8 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VARIANTS = {
     "unguided": ["--guiding", "off"],
-    "guided, classic roulette": ["--guiding", "on", "--no-guided-roulette"],
-    "guided, guided roulette and splitting": ["--guiding", "on"],
+    "guided, classic roulette": ["--guiding", "on"],
+    "guided, guided roulette and splitting": ["--guiding", "on", "--guided-roulette"],
 }
 
 

@@ -256,7 +256,7 @@ mod tests {
             |s| s.guiding = crate::guiding::GuidingMode::Off,
             |s| {
                 s.guiding = crate::guiding::GuidingMode::On;
-                s.guided_roulette = false;
+                s.guided_roulette = true;
             },
         ];
         let mut changed: Vec<u64> = changes

@@ -161,9 +161,12 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
     let scene = ball_scene(30.0, 0.98, true);
     let (size, spp) = (20, 6);
     let render = |threads| {
-        Renderer::new(settings(size, spp, threads, GuidingMode::On))
-            .render(&scene, &mut |_| true)
-            .unwrap()
+        Renderer::new(RenderSettings {
+            guided_roulette: true,
+            ..settings(size, spp, threads, GuidingMode::On)
+        })
+        .render(&scene, &mut |_| true)
+        .unwrap()
     };
     let (one, stats) = render(1);
     assert!(stats.guiding.guided_cells > 0, "{:?}", stats.guiding);
