@@ -267,6 +267,12 @@ struct RenderArgs {
     /// high albedo and high optical depth (--explain says why); `off` never guides.
     #[arg(long, value_parser = choice::<nimbus::render::GuidingMode>(), default_value = "auto")]
     guiding: nimbus::render::GuidingMode,
+    /// Where paths are guided, guided Russian roulette and splitting at medium scattering events instead of
+    /// classic Russian roulette: each path's expected contribution, from the guiding cache, is compared with its
+    /// pixel's value from the training, and paths are ended or split to keep it near that value (off by
+    /// default: measured to lose so far).
+    #[arg(long = "guided-roulette")]
+    guided_roulette: bool,
     /// Constant environment radiance r,g,b (overrides the scene's nimbus_environment).
     #[arg(long = "env-color", value_parser = parse_rgb)]
     env_color: Option<Rgb>,

@@ -157,6 +157,7 @@ fn frame_settings(args: &RenderArgs, scene: &Scene) -> Result<RenderSettings, St
         cryptomatte_depth: args.cryptomatte_depth,
         deep_samples: args.deep.then_some(args.deep_samples as usize),
         guiding: args.guiding,
+        guided_roulette: args.guided_roulette,
     })
 }
 

@@ -6,7 +6,8 @@
 //! 2. the bytes of the scene file (for the bundled demo, its embedded glTF and VDB);
 //! 3. the settings that change the image: width, height, seed, max depth, media MIS, equiangular sampling,
 //!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian; and,
-//!    unless `--guiding auto`, the tag `guiding`, the mode's name and the training iterations (the cache);
+//!    unless `--guiding auto`, the tag `guiding`, the mode's name, the training iterations (the cache) and
+//!    whether guided Russian roulette is on (one byte);
 //! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
 //!    its name's UTF-8 bytes; the CLI also passes the frame, the shutter, the `--camera` name and, for a camera
 //!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
@@ -107,6 +108,7 @@ pub fn scene_hash(
         // compared by the merge, since the default budget depends on the machine.
         limits: _,
         guiding,
+        guided_roulette,
     } = settings;
     h.field(&(*width as u64).to_le_bytes());
     h.field(&(*height as u64).to_le_bytes());
@@ -132,6 +134,7 @@ pub fn scene_hash(
         h.field(b"guiding");
         h.field(guiding.name().as_bytes());
         h.field(&crate::guiding::TRAINING_ITERATIONS.to_le_bytes());
+        h.field(&[*guided_roulette as u8]);
     }
     for (name, value) in overrides {
         h.field(name.as_bytes());
@@ -248,7 +251,7 @@ mod tests {
             assert_ne!(format!("{t:?}"), format!("{s:?}"), "unhashed change {i} changes nothing");
             assert_eq!(base, scene_hash(&[b"scene"], &t, &[]), "unhashed change {i}");
         }
-        let changes: [fn(&mut RenderSettings); 12] = [
+        let changes: [fn(&mut RenderSettings); 13] = [
             |s| s.width += 1,
             |s| s.height -= 1,
             |s| s.seed = 1,
@@ -261,6 +264,10 @@ mod tests {
             |s| s.transparent = !s.transparent,
             |s| s.guiding = crate::guiding::GuidingMode::On,
             |s| s.guiding = crate::guiding::GuidingMode::Off,
+            |s| {
+                s.guiding = crate::guiding::GuidingMode::On;
+                s.guided_roulette = true;
+            },
         ];
         let mut changed: Vec<u64> = changes
             .iter()

@@ -9,12 +9,18 @@
 //! iteration's records becomes its quadtree for the next iteration; a cell that received no energy has none
 //! (paths there sample the phase function alone).
 //!
+//! Each cell also keeps the mean incident radiance its records estimate (the histogram's total over the records
+//! and 4π), and the cache keeps the training's pixel values ([`PixelEstimates`]): the two adjoint estimates of
+//! guided Russian roulette and splitting ([`super::adjoint`]).
+//!
 //! Determinism: records are added in the order [`GuidingField::add_records`] gets them, one thread, so a
 //! caller that hands them over in a fixed order (the training's rows, in row order) builds the same field on
 //! any number of threads.
 
+use super::adjoint::PixelEstimates;
 use super::quadtree::{bin_of, to_square, DirectionalQuadtree, HISTOGRAM_SIDE};
 use crate::math::{Aabb, Vec3};
+use std::f64::consts::PI;
 
 /// The `c` of the split rule (see the module documentation).
 pub const SPLIT_RECORDS: f64 = 4000.0;
@@ -56,16 +62,24 @@ struct Cell {
     histogram: Vec<f64>,
     /// What paths sample from, learned in the previous iteration.
     distribution: Option<DirectionalQuadtree>,
+    /// The mean incident radiance over the sphere the previous iteration's records estimate (Σ radiance/pdf
+    /// over the records, / 4π), when it had records.
+    mean_radiance: Option<f32>,
     /// Depth in the spatial tree.
     depth: u32,
 }
 
 impl Cell {
-    fn new(depth: u32, distribution: Option<DirectionalQuadtree>) -> Self {
+    fn new(
+        depth: u32,
+        distribution: Option<DirectionalQuadtree>,
+        mean_radiance: Option<f32>,
+    ) -> Self {
         Self {
             records: 0,
             histogram: vec![0.0; HISTOGRAM_SIDE * HISTOGRAM_SIDE],
             distribution,
+            mean_radiance,
             depth,
         }
     }
@@ -79,6 +93,8 @@ pub struct GuidingField {
     cells: Vec<Cell>,
     /// Training iterations finished.
     iterations: u32,
+    /// The training's pixel values, once given ([`GuidingField::set_pixel_estimates`]).
+    pixels: Option<PixelEstimates>,
 }
 
 impl GuidingField {
@@ -95,8 +111,9 @@ impl GuidingField {
         Self {
             bounds: Aabb::new(centre - half, centre + half),
             nodes: vec![SpatialNode::Leaf(0)],
-            cells: vec![Cell::new(0, None)],
+            cells: vec![Cell::new(0, None, None)],
             iterations: 0,
+            pixels: None,
         }
     }
 
@@ -144,6 +161,22 @@ impl GuidingField {
         self.cells[self.cell_index(p)].distribution.as_ref()
     }
 
+    /// The mean incident radiance over the sphere at `p` (a luminance), as the cell there estimated it in the
+    /// last training iteration; `None` where it had no records.
+    pub fn mean_radiance_at(&self, p: Vec3) -> Option<f32> {
+        self.cells[self.cell_index(p)].mean_radiance
+    }
+
+    /// Keeps the training's pixel values, which guided Russian roulette compares paths with.
+    pub fn set_pixel_estimates(&mut self, pixels: PixelEstimates) {
+        self.pixels = Some(pixels);
+    }
+
+    /// The training's value of pixel `(x, y)` ([`PixelEstimates::at`]), once given.
+    pub fn pixel_estimate(&self, pixel: (usize, usize)) -> Option<f32> {
+        self.pixels.as_ref().and_then(|p| p.at(pixel))
+    }
+
     /// Adds records to the iteration under way, in order (non-finite or non-positive densities are skipped;
     /// every other record counts toward its cell's split, a dark one included).
     pub fn add_records(&mut self, records: &[RadianceRecord]) {
@@ -165,6 +198,9 @@ impl GuidingField {
         let threshold = SPLIT_RECORDS * 2f64.powf(self.iterations as f64 * 0.5);
         for cell in &mut self.cells {
             cell.distribution = DirectionalQuadtree::from_histogram(&cell.histogram);
+            let total: f64 = cell.histogram.iter().sum();
+            cell.mean_radiance = (cell.records > 0 && total.is_finite())
+                .then(|| (total / (cell.records as f64 * 4.0 * PI)) as f32);
         }
         // Walk the leaves in node order (deterministic) and split those over the threshold.
         let leaves: Vec<(usize, usize)> = self
@@ -200,9 +236,11 @@ impl GuidingField {
         }
         let first_child = self.nodes.len();
         let distribution = self.cells[cell].distribution.clone();
+        let mean_radiance = self.cells[cell].mean_radiance;
         let other = self.cells.len();
         self.cells[cell].depth = depth + 1;
-        self.cells.push(Cell::new(depth + 1, distribution));
+        self.cells
+            .push(Cell::new(depth + 1, distribution, mean_radiance));
         self.nodes.push(SpatialNode::Leaf(cell as u32));
         self.nodes.push(SpatialNode::Leaf(other as u32));
         self.nodes[node] = SpatialNode::Inner {
@@ -261,6 +299,33 @@ mod tests {
             again.distribution_at(p).unwrap().pdf(w).to_bits(),
             field.distribution_at(p).unwrap().pdf(w).to_bits()
         );
+    }
+
+    /// Records of a uniform incident radiance L sampled uniformly over the sphere (pdf 1/4π) give a mean
+    /// radiance of L; a cell without records has none.
+    #[test]
+    fn cells_estimate_their_mean_incident_radiance() {
+        let mut field = GuidingField::new(unit_box());
+        let pdf = 0.25 / std::f32::consts::PI;
+        let records: Vec<RadianceRecord> = (0..100)
+            .map(|k| RadianceRecord {
+                p: Vec3::splat(0.5),
+                dir: super::super::quadtree::from_square(crate::math::Vec2::new(
+                    (k % 10) as f32 / 10.0 + 0.05,
+                    (k / 10) as f32 / 10.0 + 0.05,
+                )),
+                radiance: 2.0,
+                pdf,
+            })
+            .collect();
+        field.add_records(&records);
+        field.finish_iteration();
+        let mean = field.mean_radiance_at(Vec3::splat(0.5)).unwrap();
+        assert!((mean - 2.0).abs() < 1e-5, "{mean}");
+        assert!(field.pixel_estimate((0, 0)).is_none());
+        let mut empty = GuidingField::new(unit_box());
+        empty.finish_iteration();
+        assert!(empty.mean_radiance_at(Vec3::ZERO).is_none());
     }
 
     #[test]

@@ -5,12 +5,14 @@
 //!
 //! - [`quadtree`]: the directional distributions (quadtrees over the cylindrical map of the sphere).
 //! - [`field`]: the spatial tree of cells and the cache ([`GuidingField`]).
+//! - [`adjoint`]: guided Russian roulette and splitting from the cache's radiance and the training's pixel values.
 //! - [`pilot`]: what `--guiding auto` decides for a scene, and why.
 //! - [`GuidePath`]: what a training path remembers of its vertices, turned into [`RadianceRecord`]s at its end.
 //!
 //! The training passes (fixed seeds, rows in order) are the renderer's (`render::guiding`); the guided sampling
 //! and its one-sample MIS with the phase function are the integrator's.
 
+pub mod adjoint;
 pub mod field;
 pub mod pilot;
 pub mod quadtree;
@@ -26,8 +28,8 @@ use crate::math::{Rgb, Vec3};
 pub const GUIDE_PROBABILITY: f32 = 0.5;
 
 /// Paths whose throughput (largest channel) is above this sample the phase function alone: guided weights,
-/// each at most 1/(1 − [`GUIDE_PROBABILITY`]), cannot compound beyond it over a long walk (our safeguard, in
-/// the spirit of the weight windows of Vorba & Křivánek 2016, without their splitting).
+/// each at most 1/(1 − [`GUIDE_PROBABILITY`]), cannot compound beyond it over a long walk (our safeguard,
+/// kept beside the weight window of [`adjoint`]).
 pub const GUIDE_MAX_THROUGHPUT: f32 = 1.0;
 
 /// Training iterations before the image's samples: iteration k takes `2^k` samples per pixel of the whole

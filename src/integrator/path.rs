@@ -31,6 +31,10 @@
 //! sample their direction from the one-sample MIS mixture of the cache's distribution and the phase function or
 //! BSDF, and next-event estimation there is weighed against the mixture's density (all in [`super::guided`]). A
 //! training path remembers its events ([`GuidePath`]) so that the cache learns the radiance found after each.
+//! With [`PathTracer::guided_roulette`], a medium scattering event also plays the weight window of guided Russian
+//! roulette and splitting ([`crate::guiding::adjoint`]) in place of classic Russian roulette: the path may end,
+//! or split into paths of their own ([`Branch`]) after the event's next-event estimate, each of which samples its
+//! direction from a generator derived from the path's, so a sample stays a pure function of its seed.
 //!
 //! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
@@ -45,6 +49,7 @@ use super::record::{CameraEvent, FirstEvent, Origin, SampleRecord};
 use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
+use crate::guiding::adjoint::{self, Roulette};
 use crate::guiding::GuidePath;
 use crate::light::LightContext;
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
@@ -100,6 +105,83 @@ pub struct PathTracer {
     /// Whether the scene has holdouts or shadow catchers ([`crate::scene::SceneNames::has_mattes`]), which
     /// camera rays must look for.
     pub mattes: bool,
+    /// Guided Russian roulette and splitting at medium scattering events, where the render is guided and the
+    /// cache and the training have estimates there ([`crate::guiding::adjoint`]); classic Russian roulette
+    /// otherwise.
+    pub guided_roulette: bool,
+}
+
+/// Mixed into the streams of split-off paths' generators.
+const BRANCH_STREAM: u64 = 0x8979_0a0b_4e5d_1c3f;
+
+/// A medium scattering event, as a path goes on from it after its next-event estimate.
+#[derive(Clone, Copy)]
+struct MediumEvent {
+    /// The ray that reached the event, and the event's distance along it.
+    ray: Ray,
+    t: f32,
+    /// The phase function there.
+    phase: PhaseFunction,
+    /// Whether its direction is sampled from the mixture with the guiding cache's distribution (decided once,
+    /// before next-event estimation, which is weighed against that density).
+    guided: bool,
+}
+
+impl MediumEvent {
+    /// Where it happened.
+    fn point(&self) -> Vec3 {
+        self.ray.at(self.t)
+    }
+}
+
+/// A path split off at a medium scattering event by guided splitting: the state of the path there (its albedo,
+/// next-event estimate and the split's 1/n done), and a generator of its own. It goes on from there as the path
+/// that split does, sampling its own direction.
+struct Branch {
+    event: MediumEvent,
+    rng: Rng,
+    beta: Rgb,
+    depth: u32,
+    stack: MediumStack,
+    cone_width: f32,
+    crossings: u32,
+    first_hit: bool,
+    collided_segment: Option<ConstantSegment>,
+    first_event: FirstEvent,
+}
+
+impl Branch {
+    /// A copy of the path in `s` at `event`, its generator seeded from `rng`'s next numbers.
+    fn split_off(s: &PathState, event: &MediumEvent, rng: &mut Rng) -> Self {
+        let seed = (u64::from(rng.next_u32()) << 32) | u64::from(rng.next_u32());
+        let stream = u64::from(rng.next_u32()) ^ BRANCH_STREAM;
+        Self {
+            event: *event,
+            rng: Rng::new(seed, stream),
+            beta: s.beta,
+            depth: s.depth,
+            stack: s.stack,
+            cone_width: s.cone_width,
+            crossings: s.crossings,
+            first_hit: s.first_hit,
+            collided_segment: s.collided_segment,
+            first_event: s.first_event,
+        }
+    }
+
+    /// Puts the branch's state into `s` (the radiance, coverage and records stay the sample's) and returns
+    /// the event and the branch's generator.
+    fn resume(self, s: &mut PathState) -> (MediumEvent, Rng) {
+        s.beta = self.beta;
+        s.depth = self.depth;
+        s.stack = self.stack;
+        s.cone_width = self.cone_width;
+        s.crossings = self.crossings;
+        s.first_hit = self.first_hit;
+        s.collided_segment = self.collided_segment;
+        s.first_event = self.first_event;
+        (self.event, self.rng)
+    }
 }
 
 /// What every step of one path draws on besides the path's state: the renderer's services, the path's random
@@ -175,6 +257,10 @@ struct PathState<'r> {
     emitted: TentativeEmission,
     /// Where a training path remembers its guided vertices, when it trains the guiding cache.
     guide_path: Option<&'r mut GuidePath>,
+    /// Paths split off and not yet traced.
+    branches: Vec<Branch>,
+    /// Extra paths splitting may still add to the sample.
+    branch_budget: u32,
 }
 
 impl PathState<'_> {
@@ -420,12 +506,11 @@ impl PathTracer {
     pub fn trace(
         &self,
         cx: &mut PathContext,
-        mut ray: Ray,
+        ray: Ray,
         first_emission: FirstEmission,
         record: Option<&mut SampleRecord>,
         guide_path: Option<&mut GuidePath>,
     ) -> PathSample {
-        let scene = cx.services.scene();
         let mut out = PathSample::default();
         let mut s = PathState {
             radiance: Rgb::ZERO,
@@ -452,30 +537,52 @@ impl PathTracer {
             camera_t: 0.0,
             emitted: TentativeEmission::default(),
             guide_path,
+            branches: Vec::new(),
+            branch_budget: adjoint::MAX_BRANCHES,
         };
         cx.counters.rays.camera += 1;
+        self.walk(cx, &mut s, ray, &mut out);
+        while let Some(branch) = s.branches.pop() {
+            let (event, mut rng) = branch.resume(&mut s);
+            let mut branch_cx = PathContext {
+                services: cx.services,
+                rng: &mut rng,
+                counters: &mut *cx.counters,
+            };
+            if let Some(ray) = self.scatter_onward(&mut branch_cx, &mut s, &event, true) {
+                self.walk(&mut branch_cx, &mut s, ray, &mut out);
+            }
+        }
+        out.radiance = s.radiance;
+        out.alpha = s.coverage.unwrap_or(1.0);
+        out
+    }
+
+    /// Follows the path in `s` from `ray` until it ends, filling `out`'s first-hit AOVs when they are pending.
+    fn walk(&self, cx: &mut PathContext, s: &mut PathState, mut ray: Ray, out: &mut PathSample) {
+        let scene = cx.services.scene();
         loop {
             let hit = scene.intersect(&ray, 0.0, f32::INFINITY);
             let t_surface = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
-            if let Some((t, m)) = self.sample_segment_media(cx, &mut s, &ray, t_surface) {
+            if let Some((t, m)) = self.sample_segment_media(cx, s, &ray, t_surface) {
                 if s.aovs_pending && s.depth == 0 {
                     s.aovs_pending = false;
-                    record_collision_aovs(&mut out, scene, &ray, t, m);
+                    record_collision_aovs(out, scene, &ray, t, m);
                 }
-                if !self.scatter_in_medium(cx, &mut s, &mut ray, t, m) {
+                if !self.scatter_in_medium(cx, s, &mut ray, t, m) {
                     break;
                 }
                 continue;
             }
             let Some(hit) = hit else {
-                self.escape(cx.services, &mut s, ray.dir);
+                self.escape(cx.services, s, ray.dir);
                 break;
             };
             if s.beta.max_element() <= 0.0 {
                 break;
             }
             let t_hit = hit.t;
-            match self.shade_surface(cx, &mut s, &ray, hit, &mut out) {
+            match self.shade_surface(cx, s, &ray, hit, out) {
                 SurfaceOutcome::Continue(next) => {
                     if s.depth == 0 {
                         s.camera_t += t_hit;
@@ -485,9 +592,6 @@ impl PathTracer {
                 SurfaceOutcome::End => break,
             }
         }
-        out.radiance = s.radiance;
-        out.alpha = s.coverage.unwrap_or(1.0);
-        out
     }
 
     /// The light emitted toward the camera by the first surface `ray` (a camera ray) hits: the term a path
@@ -1073,7 +1177,7 @@ impl PathTracer {
                     .cross(interior, wi_world.dot(hit.geometric_normal) < 0.0);
             }
         }
-        if !self.next_bounce(s, cx.rng) {
+        if !self.next_bounce(s, cx.rng, true) {
             return SurfaceOutcome::End;
         }
         if let (Some(path), false) = (s.guide_path.as_deref_mut(), bs.is_delta) {
@@ -1146,8 +1250,9 @@ impl PathTracer {
         SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(ray.dir), ray.dir).at_time(ray.time))
     }
 
-    /// Handles a real collision at distance `t` in medium `m`: next-event estimation with MIS against phase
-    /// sampling, then phase sampling to continue. Returns false when the path ends.
+    /// Handles a real collision at distance `t` in medium `m`: the medium's albedo, next-event estimation with
+    /// MIS against the direction sampling to come, guided Russian roulette and splitting where it applies
+    /// ([`Self::guided_roulette`]), then [`Self::scatter_onward`]. Returns false when the path ends.
     fn scatter_in_medium(
         &self,
         cx: &mut PathContext,
@@ -1177,14 +1282,78 @@ impl PathTracer {
         }
         let wo = -ray.dir;
         // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
-        // against, so the estimate stays unbiased.
+        // against, so the estimate stays unbiased; the choice is made once, before roulette changes the
+        // throughput, and holds for every path split off here.
         let guide = guided::guide_at(services, s.beta, p);
         let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, collision.phase.eval(wo, wi));
         self.medium_next_event(cx, s, ray, t, &collision.phase, direction_pdf);
-        let Some((wi, pdf, weight)) = guided::sample_phase(&collision.phase, guide, wo, cx.rng)
-        else {
-            return false;
+        let event = MediumEvent {
+            ray: *ray,
+            t,
+            phase: collision.phase,
+            guided: guide.is_some(),
         };
+        let played = match self.guided_roulette(cx, s, &event) {
+            Some(false) => return false,
+            Some(true) => true,
+            None => false,
+        };
+        self.scatter_onward(cx, s, &event, played)
+            .map(|next| *ray = next)
+            .is_some()
+    }
+
+    /// Guided Russian roulette and splitting at the medium scattering `event`, after its albedo and its
+    /// next-event estimate ([`crate::guiding::adjoint`]): the expected contribution of the path's continuation
+    /// is its throughput (channel mean) times the cache's mean incident radiance there (which, like the
+    /// continuation, leaves out the event's own next-event estimate), compared with its pixel's training value.
+    /// Returns `None` where it does not apply (not on, a training path, or no estimate: classic Russian roulette
+    /// then), else whether the path goes on; paths split off wait in `s.branches`.
+    fn guided_roulette(
+        &self,
+        cx: &mut PathContext,
+        s: &mut PathState,
+        event: &MediumEvent,
+    ) -> Option<bool> {
+        if !self.guided_roulette || s.guide_path.is_some() {
+            return None;
+        }
+        let pixel = cx.services.pixel_estimate()?;
+        let radiance = cx.services.guide()?.mean_radiance_at(event.point())?;
+        let ratio = s.beta.element_sum() / 3.0 * radiance / pixel;
+        match adjoint::play(ratio, cx.rng.next_f32(), s.branch_budget) {
+            Roulette::Ends => Some(false),
+            Roulette::GoesOn { copies, weight } => {
+                s.beta *= weight;
+                for _ in 1..copies {
+                    let branch = Branch::split_off(s, event, cx.rng);
+                    s.branches.push(branch);
+                }
+                s.branch_budget -= copies - 1;
+                cx.counters.rays.split += u64::from(copies - 1);
+                Some(true)
+            }
+        }
+    }
+
+    /// Samples the direction to go on from the medium scattering `event` (its albedo and next-event estimate
+    /// done): the phase function, or the mixture with the cache's distribution when the event is guided.
+    /// Classic Russian roulette is played unless `roulette_played` (guided roulette decided this event).
+    /// Returns the next ray, or `None` when the path ends.
+    fn scatter_onward(
+        &self,
+        cx: &mut PathContext,
+        s: &mut PathState,
+        event: &MediumEvent,
+        roulette_played: bool,
+    ) -> Option<Ray> {
+        let p = event.point();
+        let guide = cx
+            .services
+            .guide()
+            .filter(|_| event.guided)
+            .and_then(|g| g.distribution_at(p));
+        let (wi, pdf, weight) = guided::sample_phase(&event.phase, guide, -event.ray.dir, cx.rng)?;
         s.beta *= weight;
         if s.depth == 0 {
             s.first_event = FirstEvent::Volume;
@@ -1194,15 +1363,14 @@ impl PathTracer {
         s.prev = LightContext { p, n: None };
         s.prev_light_only = !self.media_mis;
         let radiance_before = s.radiance;
-        if !self.next_bounce(s, cx.rng) {
-            return false;
+        if !self.next_bounce(s, cx.rng, !roulette_played) {
+            return None;
         }
         if let Some(path) = s.guide_path.as_deref_mut() {
             path.push(p, wi, pdf, s.beta, radiance_before);
         }
         cx.counters.rays.bounce += 1;
-        *ray = Ray::new(p, wi).at_time(ray.time);
-        true
+        Some(Ray::new(p, wi).at_time(event.ray.time))
     }
 
     /// Next-event estimation at a real collision `t` along `ray` (the point, with its phase function `phase`):
@@ -1246,10 +1414,11 @@ impl PathTracer {
         });
     }
 
-    /// Counts a scattering event and plays Russian roulette; returns false when the path ends.
-    fn next_bounce(&self, s: &mut PathState, rng: &mut Rng) -> bool {
+    /// Counts a scattering event and, with `roulette`, plays classic Russian roulette; returns false when the
+    /// path ends.
+    fn next_bounce(&self, s: &mut PathState, rng: &mut Rng, roulette: bool) -> bool {
         s.depth += 1;
-        if s.depth > ROULETTE_START {
+        if roulette && s.depth > ROULETTE_START {
             let survive = s.beta.max_element().clamp(0.05, 1.0);
             if rng.next_f32() >= survive {
                 return false;

@@ -20,6 +20,9 @@ pub struct RendererServices<'a> {
     light_bvh: Option<&'a LightBvh>,
     /// The guiding cache paths sample directions from at medium scattering events, when the render is guided.
     guide: Option<&'a GuidingField>,
+    /// The training's value of the pixel whose samples are traced, which guided Russian roulette and splitting
+    /// compare paths with ([`crate::guiding::adjoint`]); `None`: classic Russian roulette.
+    pixel_estimate: Option<f32>,
 }
 
 /// A light sample chosen from all the scene's lights.
@@ -95,12 +98,26 @@ impl<'a> RendererServices<'a> {
             scene,
             light_bvh: light_bvh.then(|| scene.light_bvh()),
             guide: None,
+            pixel_estimate: None,
         }
     }
 
     /// The same services with paths guided by `guide` (none: unguided).
     pub fn with_guide(self, guide: Option<&'a GuidingField>) -> Self {
         Self { guide, ..self }
+    }
+
+    /// The same services for the samples of a pixel whose training value is `pixel_estimate`.
+    pub fn with_pixel_estimate(self, pixel_estimate: Option<f32>) -> Self {
+        Self {
+            pixel_estimate,
+            ..self
+        }
+    }
+
+    /// The training's value of the pixel being traced, when guided roulette has one.
+    pub fn pixel_estimate(&self) -> Option<f32> {
+        self.pixel_estimate
     }
 
     /// The guiding cache, when the render is guided.

@@ -15,6 +15,9 @@ pub struct RayCounters {
     /// Extra camera rays of emitter-edge supersampling (`nimbus::render::EmitterEdges`), which only look for
     /// the emission of the first surface they hit.
     pub emitter_edge: u64,
+    /// Extra paths guided splitting started at medium scattering events (each goes on from the event, with its
+    /// own next-event estimate and bounces, counted in `shadow` and `bounce`).
+    pub split: u64,
 }
 
 impl RayCounters {
@@ -25,6 +28,7 @@ impl RayCounters {
         self.shadow += other.shadow;
         self.equiangular += other.equiangular;
         self.emitter_edge += other.emitter_edge;
+        self.split += other.split;
     }
 
     /// All rays traced.

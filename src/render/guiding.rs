@@ -6,9 +6,14 @@
 //! renders, from streams of their own (`seed` mixed with [`TRAINING_STREAM`] and k, the independent sampler);
 //! rows are traced in parallel a block at a time and their records added to the cache in row order, one thread.
 //! The cache, and so the image, is the same for any thread count and in every farm part of a render.
+//!
+//! The training's samples are also the pixel values guided Russian roulette compares paths with
+//! ([`PixelEstimates`], every iteration's samples: each is an unbiased estimate of its pixel), summed in the
+//! same row order.
 
 use super::renderer::GuidingStats;
 use super::CancelToken;
+use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::{
     GuidePath, GuidingDecision, GuidingField, RadianceRecord, TRAINING_ITERATIONS,
 };
@@ -55,6 +60,7 @@ pub(super) fn train(
     }
     let start = Instant::now();
     let mut field = GuidingField::new(scene.bounds);
+    let mut pixels = PixelEstimates::new(frame.width, frame.height);
     for k in 0..TRAINING_ITERATIONS {
         let spp = 1u32 << k;
         let seed = frame.seed ^ TRAINING_STREAM ^ k as u64;
@@ -65,27 +71,37 @@ pub(super) fn train(
             }
             let rows = block..(block + ROWS_PER_BLOCK).min(frame.height);
             let guided = services.with_guide(Some(&field));
-            let records: Vec<Vec<RadianceRecord>> = rows
+            let traced: Vec<TrainingRow> = rows
                 .into_par_iter()
                 .map(|y| trace_row(tracer, &guided, frame, y, spp, seed))
                 .collect();
-            for row in &records {
-                stats.training_records += row.len() as u64;
-                field.add_records(row);
+            for row in &traced {
+                stats.training_records += row.records.len() as u64;
+                field.add_records(&row.records);
+                for &(pixel, value) in &row.values {
+                    pixels.add(pixel, value);
+                }
             }
         }
         field.finish_iteration();
         stats.training_paths += (frame.width * frame.height) as u64 * spp as u64;
         stats.training_samples_per_pixel += spp;
     }
+    field.set_pixel_estimates(pixels);
     stats.cells = field.cell_count();
     stats.guided_cells = field.guided_cell_count();
     stats.training_seconds = start.elapsed().as_secs_f64();
     (Some(field), stats)
 }
 
-/// Traces `spp` training paths through every pixel of row `y` (samples from `seed`'s streams) and returns
-/// their records, pixel by pixel in order.
+/// What the training paths of one row found: their records and each sample's value (channel mean), pixel by
+/// pixel in order.
+struct TrainingRow {
+    records: Vec<RadianceRecord>,
+    values: Vec<((usize, usize), f32)>,
+}
+
+/// Traces `spp` training paths through every pixel of row `y` (samples from `seed`'s streams).
 fn trace_row(
     tracer: &PathTracer,
     services: &RendererServices,
@@ -93,12 +109,13 @@ fn trace_row(
     y: usize,
     spp: u32,
     seed: u64,
-) -> Vec<RadianceRecord> {
+) -> TrainingRow {
     let scene = services.scene();
     let aspect = frame.width as f32 / frame.height as f32;
     let mut counters = PathCounters::new(scene.media.len());
     let mut path = GuidePath::default();
     let mut records = Vec::new();
+    let mut values = Vec::with_capacity(frame.width * spp as usize);
     for x in 0..frame.width {
         let pixel_index = (y * frame.width + x) as u64;
         for sample in 0..spp {
@@ -120,8 +137,133 @@ fn trace_row(
             let result = tracer.trace(&mut cx, ray, FirstEmission::Count, None, Some(&mut path));
             if result.radiance.is_finite() {
                 path.finish(result.radiance, &mut records);
+                values.push(((x, y), result.radiance.element_sum() / 3.0));
             }
         }
     }
-    records
+    TrainingRow { records, values }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::PathSample;
+    use crate::light::EnvironmentLight;
+    use crate::math::{Rgb, Vec3};
+    use crate::scene::{Camera, SceneBuilder};
+    use crate::vdb::{GridTree, Tree};
+    use crate::volume::density::GridDensity;
+    use crate::volume::grid::GridMedium;
+    use crate::volume::majorant::MajorantKind;
+    use glam::{DMat4, DVec3, IVec3};
+    use std::sync::Arc;
+
+    /// A white furnace: a smooth ball (radius 0.75, density 10 at its middle, albedo 1, g 0.4) in a uniform
+    /// environment of radiance 1, seen through its middle. Every path sees exactly 1 on average.
+    fn furnace() -> Scene {
+        let voxels = (-12..=12).flat_map(|x| {
+            (-12..=12).flat_map(move |y| {
+                (-12..=12).filter_map(move |z| {
+                    let r = ((x * x + y * y + z * z) as f32).sqrt() / 12.0;
+                    (r < 1.0).then(|| (IVec3::new(x, y, z), (1.0 - r * r).powi(2)))
+                })
+            })
+        });
+        let density = GridDensity::from_tree(
+            Arc::new(GridTree::Float(Tree::from_voxels(0.0, voxels))),
+            DMat4::from_scale(DVec3::splat(0.0625)),
+            10.0,
+        )
+        .unwrap();
+        let mut b = SceneBuilder::default();
+        let medium = GridMedium::new("ball", density, MajorantKind::Adaptive, Rgb::ONE, 0.4);
+        b.add_medium(Arc::new(medium));
+        b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
+        b.set_camera(Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 0.3));
+        b.build().unwrap()
+    }
+
+    /// Traces `n` paths through the middle of the image; returns the mean of the red channel, its standard
+    /// error and the counters.
+    fn trace_middle(
+        scene: &Scene,
+        tracer: &PathTracer,
+        services: &RendererServices,
+        n: u64,
+    ) -> (f64, f64, PathCounters) {
+        let mut counters = PathCounters::new(scene.media.len());
+        let ray = scene.camera.sample_ray(Vec2::splat(0.5), None, 1.0, None);
+        let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+        for i in 0..n {
+            let mut rng = Rng::for_sample(5, 0, i);
+            let mut cx = PathContext {
+                services,
+                rng: &mut rng,
+                counters: &mut counters,
+            };
+            let PathSample { radiance, .. } =
+                tracer.trace(&mut cx, ray, FirstEmission::Count, None, None);
+            sum += radiance.x as f64;
+            sum2 += (radiance.x as f64).powi(2);
+        }
+        let mean = sum / n as f64;
+        (
+            mean,
+            ((sum2 / n as f64 - mean * mean) / n as f64).sqrt(),
+            counters,
+        )
+    }
+
+    /// Guided Russian roulette and splitting keep the white furnace's mean, 1, within 4 standard errors where
+    /// the pixel value they compare with is far too low (every event splits, up to the sample's budget) and far
+    /// too high (roulette ends most paths): the weights 1/n and 1/q are what keeps it (forgetting 1/q fails
+    /// this test).
+    #[test]
+    fn guided_roulette_and_splitting_keep_the_white_furnace() {
+        let scene = furnace();
+        let tracer = PathTracer {
+            max_depth: 100_000,
+            media_mis: true,
+            pixel_spread: 0.0,
+            pixel_width: 0.0,
+            equiangular: false,
+            transparent: false,
+            mattes: false,
+            guided_roulette: true,
+        };
+        let services = RendererServices::new(&scene, false);
+        let frame = TrainingFrame {
+            width: 16,
+            height: 16,
+            seed: 3,
+        };
+        let decision = GuidingDecision {
+            on: true,
+            reason: String::new(),
+        };
+        let cancel = CancelToken::new();
+        let (field, _) = train(&scene, &tracer, &services, &frame, decision, &cancel);
+        let field = field.unwrap();
+        let guided = services.with_guide(Some(&field));
+        let (_, _, plain) = trace_middle(&scene, &tracer, &guided, 1000);
+        for pixel in [0.02f32, 50.0] {
+            let services = guided.with_pixel_estimate(Some(pixel));
+            let (mean, se, counters) = trace_middle(&scene, &tracer, &services, 3000);
+            assert!(se > 0.0 && se < 0.25, "pixel {pixel}: standard error {se}");
+            assert!(
+                (mean - 1.0).abs() < 4.0 * se,
+                "pixel {pixel}: {mean} vs 1 (se {se})"
+            );
+            if pixel < 1.0 {
+                assert!(counters.rays.split > 3000, "{:?}", counters.rays);
+            } else {
+                assert_eq!(counters.rays.split, 0);
+                assert!(
+                    counters.rays.bounce < plain.rays.bounce / 2,
+                    "{:?}",
+                    counters.rays
+                );
+            }
+        }
+    }
 }

@@ -98,6 +98,10 @@ pub struct RenderSettings {
     /// Path guiding in media (`--guiding`): a cache of incident light trained before the image's samples, from
     /// which paths sample directions at medium scattering events. It changes the noise, never the mean.
     pub guiding: GuidingMode,
+    /// Where paths are guided, guided Russian roulette and splitting at medium scattering events (default off:
+    /// measured to lose against classic roulette so far; `--guided-roulette`; `crate::guiding::adjoint`). It
+    /// changes the noise, never the mean.
+    pub guided_roulette: bool,
 }
 
 /// The image width of a render when none is given (`nimbus render` and the Python module).
@@ -154,6 +158,7 @@ impl Default for RenderSettings {
             cryptomatte_depth: super::cryptomatte::DEFAULT_DEPTH,
             deep_samples: None,
             guiding: GuidingMode::Auto,
+            guided_roulette: false,
         }
     }
 }
@@ -813,6 +818,9 @@ impl Pass<'_> {
         counters: &mut PathCounters,
     ) -> (Ray, Option<f32>, PathSample) {
         let s = self.settings;
+        let services = self
+            .services
+            .with_pixel_estimate(self.services.guide().and_then(|g| g.pixel_estimate((x, y))));
         let mut rng = self.sample_rng(s.seed, pixel_index, sample as u64);
         // A box shutter: the time is uniform over the interval, drawn from a stream of its own so that the
         // path's numbers are those of a render without a shutter (a still scene renders bit for bit the same
@@ -842,7 +850,7 @@ impl Pass<'_> {
                 counters,
             );
             let mut cx = PathContext {
-                services: &self.services,
+                services: &services,
                 rng: &mut rng,
                 counters,
             };
@@ -853,7 +861,7 @@ impl Pass<'_> {
             result
         } else {
             let mut cx = PathContext {
-                services: &self.services,
+                services: &services,
                 rng: &mut rng,
                 counters,
             };
@@ -1063,6 +1071,7 @@ impl Renderer {
             pixel_width: scene.camera.pixel_width(s.height),
             transparent: self.transparent(scene),
             mattes: scene.names().has_mattes(),
+            guided_roulette: s.guided_roulette,
         }
     }
 

@@ -153,18 +153,24 @@ fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
 }
 
 /// The guided image is the same on 1 and 3 threads, and sample-range parts written to files merge into it bit
-/// for bit; a part rendered unguided refuses to merge with a guided one.
+/// for bit, with guided Russian roulette and splitting at work (split paths draw from generators derived from
+/// their sample's); a part rendered unguided refuses to merge with a guided one, and so does a guided part with
+/// classic roulette.
 #[test]
 fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
     let scene = ball_scene(30.0, 0.98, true);
     let (size, spp) = (20, 6);
     let render = |threads| {
-        Renderer::new(settings(size, spp, threads, GuidingMode::On))
-            .render(&scene, &mut |_| true)
-            .unwrap()
+        Renderer::new(RenderSettings {
+            guided_roulette: true,
+            ..settings(size, spp, threads, GuidingMode::On)
+        })
+        .render(&scene, &mut |_| true)
+        .unwrap()
     };
     let (one, stats) = render(1);
     assert!(stats.guiding.guided_cells > 0, "{:?}", stats.guiding);
+    assert!(stats.rays.split > 0, "paths were split: {:?}", stats.rays);
     let (three, _) = render(3);
     assert_bit_identical(&three, &one, "3 threads against 1");
     let (unguided, _) = Renderer::new(settings(size, spp, 1, GuidingMode::Off))
@@ -178,7 +184,10 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
     let dir = std::env::temp_dir().join(format!("nimbus-guiding-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let part = |samples: std::ops::Range<u32>, threads: usize, mode: GuidingMode, name: &str| {
-        let settings = settings(size, spp, threads, mode);
+        let settings = RenderSettings {
+            guided_roulette: name != "classic.exr",
+            ..settings(size, spp, threads, mode)
+        };
         let hash = farm::scene_hash(&[b"ball"], &settings, &[]);
         let region = RenderRegion {
             window: PixelWindow::full(size, size),
@@ -198,8 +207,13 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
     let merged = farm::merge_parts(&[a.clone(), b]).unwrap();
     assert_bit_identical(&merged.image, &one, "parts 0..2 and 2..6 against the whole");
     let off = part(2..6, 1, GuidingMode::Off, "off.exr");
-    let Err(refused) = farm::merge_parts(&[a, off]) else {
+    let Err(refused) = farm::merge_parts(&[a.clone(), off]) else {
         panic!("guided and unguided parts merged");
+    };
+    assert!(refused.to_string().contains("scene hash"), "{refused}");
+    let classic = part(2..6, 1, GuidingMode::On, "classic.exr");
+    let Err(refused) = farm::merge_parts(&[a, classic]) else {
+        panic!("parts with guided and classic roulette merged");
     };
     assert!(refused.to_string().contains("scene hash"), "{refused}");
     std::fs::remove_dir_all(&dir).unwrap();
