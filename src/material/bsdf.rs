@@ -441,7 +441,11 @@ mod tests {
                 ..Default::default()
             });
             let colors = bsdf.colors(dir(0.8));
-            assert_eq!(colors.diffuse, Rgb::ZERO, "metallic {metallic} roughness {roughness}");
+            assert_eq!(
+                colors.diffuse,
+                Rgb::ZERO,
+                "metallic {metallic} roughness {roughness}"
+            );
             if roughness > 0.0 {
                 continue;
             }
@@ -460,9 +464,15 @@ mod tests {
             }
             let f = 0.04;
             let expected = metallic + (1.0 - metallic) * f;
-            assert!((reflected - expected).abs() < 1e-3, "{reflected} vs {expected}");
+            assert!(
+                (reflected - expected).abs() < 1e-3,
+                "{reflected} vs {expected}"
+            );
             let expected_t = (1.0 - metallic) * (1.0 - f);
-            assert!((refracted - expected_t).abs() < 1e-3, "{refracted} vs {expected_t}");
+            assert!(
+                (refracted - expected_t).abs() < 1e-3,
+                "{refracted} vs {expected_t}"
+            );
         }
     }
 
@@ -1315,13 +1325,19 @@ mod tests {
         let reflected = bsdf.sample(wo, 0.0, Vec2::splat(0.5)).unwrap();
         assert!(reflected.is_delta && reflected.wi.z > 0.0);
         let r = reflected.f * reflected.wi.z;
-        assert!((r - expected).abs().max_element() < 1e-4, "{r} vs {expected}");
+        assert!(
+            (r - expected).abs().max_element() < 1e-4,
+            "{r} vs {expected}"
+        );
         let refracted = bsdf.sample(wo, 1.0 - 1e-6, Vec2::splat(0.5)).unwrap();
         assert!(refracted.is_delta && refracted.wi.z < 0.0);
         let t = refracted.f * refracted.wi.z.abs() * ior * ior;
         let tint = Rgb::new(0.9, 0.6, 0.3);
         let expected_t = tint * (Rgb::ONE - expected);
-        assert!((t - expected_t).abs().max_element() < 1e-4, "{t} vs {expected_t}");
+        assert!(
+            (t - expected_t).abs().max_element() < 1e-4,
+            "{t} vs {expected_t}"
+        );
         // The probabilities of the two lobes add up to 1.
         assert!((reflected.pdf + refracted.pdf - 1.0).abs() < 1e-5);
     }

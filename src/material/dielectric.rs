@@ -69,7 +69,8 @@ impl Dielectric {
         match self.film {
             Some(film) if outside => {
                 let r = (self.ior - 1.0) / (self.ior + 1.0);
-                film.fresnel(f, cos, Rgb::splat(r * r)).clamp(Rgb::ZERO, Rgb::ONE)
+                film.fresnel(f, cos, Rgb::splat(r * r))
+                    .clamp(Rgb::ZERO, Rgb::ONE)
             }
             _ => f,
         }
