@@ -96,8 +96,9 @@ def render(nimbus, scene, out_dir, name, args):
     for p in (exr, stats, exr[:-4] + ".png"):
         if os.path.exists(p):
             os.remove(p)
-    cmd = [nimbus, "render", scene, "--width", str(args.width), "--height", str(args.width),
-           "--spp", str(args.spp), "--threads", str(args.threads), "-o", exr, "--stats", stats]
+    height = args.width if args.height is None else args.height
+    cmd = [nimbus, "render", scene, "--width", str(args.width)] + (["--height", str(height)] if height else [])
+    cmd += ["--spp", str(args.spp), "--threads", str(args.threads), "-o", exr, "--stats", stats]
     start = time.monotonic()
     try:
         run = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
@@ -107,7 +108,8 @@ def render(nimbus, scene, out_dir, name, args):
     seconds = time.monotonic() - start
     lines = [l for l in err.splitlines() if l.strip() and "%" not in l and "rendering" not in l.lower()]
     row = {"name": name, "seconds": seconds, "loads": False, "renders": False, "mean": None, "lit": None,
-           "nan": None, "default_env": any("has no light" in l for l in lines), "notes": ""}
+           "nan": None, "default_env": any("has no light" in l for l in lines), "notes": "",
+           "panic": "panicked" in err, "png": None}
     if code is None or code < 0:
         row["notes"] = "CRASH/TIMEOUT: " + one_line(err if code is None else f"signal {-code}")
         return row
@@ -120,7 +122,8 @@ def render(nimbus, scene, out_dir, name, args):
     row["loads"] = True
     with open(stats) as f:
         row["nan"] = json.load(f).get("nan_samples")
-    row["mean"], row["lit"] = png_figures(exr[:-4] + ".png")
+    row["png"] = exr[:-4] + ".png"
+    row["mean"], row["lit"] = png_figures(row["png"])
     row["renders"] = row["nan"] == 0 and row["mean"] > 1.0
     warnings = [l.split("warning: ", 1)[1] for l in lines if "warning: " in l]
     row["notes"] = "; ".join(one_line(w, 200) for w in warnings[:3])
@@ -137,9 +140,12 @@ def main():
     parser.add_argument("--realworld", help="also render every scene file under this folder")
     parser.add_argument("--out", default="/tmp/conformance-extra", help="folder for the EXR/PNG/JSON outputs")
     parser.add_argument("--width", type=int, default=128)
+    parser.add_argument("--height", type=int, help="image height (default: the width; 0: the CLI's own, from the camera's aspect ratio)")
     parser.add_argument("--spp", type=int, default=16)
     parser.add_argument("--threads", type=int, default=0)
     parser.add_argument("--timeout", type=int, default=300, help="seconds allowed per file")
+    parser.add_argument("--json", help="also write the rows (with each PNG's path) to this JSON file, for "
+                        "scripts/conformance_sheet.py")
     args = parser.parse_args()
     os.makedirs(args.out, exist_ok=True)
 
@@ -156,12 +162,14 @@ def main():
                 continue
             name, repo, _commit, path = line.rstrip("\n").split("\t")[:4]
             jobs.append((name, os.path.join(args.root, repo.replace("/", "+"), path)))
+    scene_of = dict(jobs)
 
     rows = []
     for name, scene in jobs:
         if not os.path.isfile(scene):
             rows.append({"name": name, "seconds": 0, "loads": False, "renders": False, "mean": None,
-                         "lit": None, "nan": None, "default_env": False, "notes": f"MISSING {scene}"})
+                         "lit": None, "nan": None, "default_env": False, "notes": f"MISSING {scene}",
+                         "panic": False, "png": None})
         else:
             rows.append(render(args.nimbus, scene, args.out, name, args))
         r = rows[-1]
@@ -169,18 +177,23 @@ def main():
               file=sys.stderr)
 
     yes = lambda b: "yes" if b else "no"
-    print("| file | loads | renders | mean sRGB | lit px | NaN samples | default env | s | error / warnings |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump([dict(r, scene=scene_of[r["name"]]) for r in rows], f, indent=1)
+    print("| file | loads | renders | panic | mean sRGB | lit px | NaN samples | default env | s | error / warnings |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         mean = "" if r["mean"] is None else f"{r['mean']:.1f}"
         lit = "" if r["lit"] is None else f"{100 * r['lit']:.0f}%"
         nan = "" if r["nan"] is None else str(r["nan"])
         notes = r["notes"].replace("|", "\\|")
-        print(f"| {r['name']} | {yes(r['loads'])} | {yes(r['renders'])} | {mean} | {lit} | {nan} | "
+        print(f"| {r['name']} | {yes(r['loads'])} | {yes(r['renders'])} | {yes(r['panic'])} | {mean} | {lit} | {nan} | "
               f"{yes(r['default_env'])} | {r['seconds']:.1f} | {notes} |")
     loads = sum(r["loads"] for r in rows)
     renders = sum(r["renders"] for r in rows)
-    print(f"\n{len(rows)} files: {loads} load, {renders} render (finish, no NaN sample, not black).")
+    panics = sum(r["panic"] for r in rows)
+    print(f"\n{len(rows)} files: {loads} load, {renders} render (finish, no NaN sample, not black), "
+          f"{panics} panic.")
 
 
 if __name__ == "__main__":

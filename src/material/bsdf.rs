@@ -427,6 +427,80 @@ mod tests {
     }
 
     #[test]
+    fn transmission_takes_the_whole_dielectric_base_of_a_part_metal() {
+        // glTF 2.0 Appendix B with KHR_materials_transmission: `mix(dielectric_brdf, metal_brdf, metallic)`, the
+        // dielectric's base `mix(diffuse_brdf, specular_btdf, transmission)`. Transmission 1 leaves no diffuse
+        // at any metallic, and the metal keeps its weight `metallic`: a smooth white part-metal reflects
+        // `metallic · 1 + (1 − metallic) · F` (F the exact Fresnel term of the glass) and refracts the rest.
+        for (metallic, roughness) in [(0.5f32, 0.0f32), (0.3, 0.4), (0.8, 0.0)] {
+            let bsdf = Bsdf::from_gltf(&PbrParams {
+                base_color: Rgb::ONE,
+                transmission: 1.0,
+                metallic,
+                roughness,
+                ..Default::default()
+            });
+            let colors = bsdf.colors(dir(0.8));
+            assert_eq!(
+                colors.diffuse,
+                Rgb::ZERO,
+                "metallic {metallic} roughness {roughness}"
+            );
+            if roughness > 0.0 {
+                continue;
+            }
+            let (mut reflected, mut refracted) = (0.0, 0.0);
+            let n = 1000;
+            for k in 0..n {
+                let u_lobe = (k as f32 + 0.5) / n as f32;
+                let s = bsdf.sample(Vec3::Z, u_lobe, Vec2::splat(0.5)).unwrap();
+                assert!(s.is_delta);
+                let w = (s.f * s.wi.z.abs() / s.pdf).x / n as f32;
+                if s.wi.z > 0.0 {
+                    reflected += w;
+                } else {
+                    refracted += w * 1.5 * 1.5;
+                }
+            }
+            let f = 0.04;
+            let expected = metallic + (1.0 - metallic) * f;
+            assert!(
+                (reflected - expected).abs() < 1e-3,
+                "{reflected} vs {expected}"
+            );
+            let expected_t = (1.0 - metallic) * (1.0 - f);
+            assert!(
+                (refracted - expected_t).abs() < 1e-3,
+                "{refracted} vs {expected_t}"
+            );
+        }
+    }
+
+    #[test]
+    fn iridescent_rough_dielectric_chi2_outside_and_inside() {
+        // The film colours the Fresnel term; the lobe is picked by the channels' mean, which `pdf` must follow.
+        let mut seed = 2100;
+        for roughness in [0.3, 0.7] {
+            let bsdf = Bsdf::from_gltf(&PbrParams {
+                transmission: 1.0,
+                iridescence: 1.0,
+                iridescence_ior: 1.8,
+                iridescence_thickness: 350.0,
+                ..params(0.0, roughness)
+            });
+            for c in [0.95, 0.3, -0.6] {
+                seed += 1;
+                chi2_bsdf(
+                    &format!("iridescent rough dielectric roughness {roughness} cos {c}"),
+                    &bsdf,
+                    dir(c),
+                    seed,
+                );
+            }
+        }
+    }
+
+    #[test]
     fn partial_transmission_chi2() {
         // Rough everywhere, from both sides; and smooth, where delta lobes take the mass pdf() lacks.
         let rough = Bsdf::from_gltf(&PbrParams {
@@ -1212,6 +1286,60 @@ mod tests {
             (w - expected).abs().max_element() < 1e-5,
             "{w} vs {expected}"
         );
+    }
+
+    /// Reflectance of a film of index `n2` and thickness `d` (nm) between air and a substrate of index `n3` at
+    /// normal incidence and wavelength `lambda` (nm): `|(r12 + r23 e^{iδ}) / (1 + r12 r23 e^{iδ})|²` with
+    /// `r_ij = (n_i − n_j)/(n_i + n_j)` and `δ = 4π n2 d / λ` (Born & Wolf, "Principles of Optics", §1.6).
+    fn film_at_normal_incidence(n2: f64, n3: f64, d: f64, lambda: f64) -> f64 {
+        let (r12, r23) = ((1.0 - n2) / (1.0 + n2), (n2 - n3) / (n2 + n3));
+        let delta = 4.0 * std::f64::consts::PI * n2 * d / lambda;
+        let (num_re, num_im) = (r12 + r23 * delta.cos(), r23 * delta.sin());
+        let (den_re, den_im) = (1.0 + r12 * r23 * delta.cos(), r12 * r23 * delta.sin());
+        (num_re * num_re + num_im * num_im) / (den_re * den_re + den_im * den_im)
+    }
+
+    #[test]
+    fn iridescent_glass_reflects_the_film_and_transmits_the_rest() {
+        // KHR_materials_iridescence replaces the Fresnel term F of `fresnel_mix`, whose base holds the
+        // transmission's `specular_btdf`: a smooth glass (transmission 1) under a film of weight 1 reflects the
+        // film's reflectance R and refracts `tint (1 − R) / η²` (the radiance factor), channel by channel.
+        let (ior, film_ior, d) = (1.5f32, 1.3f32, 400.0f32);
+        let bsdf = Bsdf::from_gltf(&PbrParams {
+            transmission: 1.0,
+            ior,
+            iridescence: 1.0,
+            iridescence_ior: film_ior,
+            iridescence_thickness: d,
+            ..params(0.0, 0.0)
+        });
+        let expected = Rgb::from_array(std::array::from_fn(|k| {
+            film_at_normal_incidence(
+                film_ior.into(),
+                ior.into(),
+                d.into(),
+                crate::math::RGB_WAVELENGTHS_NM[k].into(),
+            ) as f32
+        }));
+        let wo = Vec3::Z;
+        let reflected = bsdf.sample(wo, 0.0, Vec2::splat(0.5)).unwrap();
+        assert!(reflected.is_delta && reflected.wi.z > 0.0);
+        let r = reflected.f * reflected.wi.z;
+        assert!(
+            (r - expected).abs().max_element() < 1e-4,
+            "{r} vs {expected}"
+        );
+        let refracted = bsdf.sample(wo, 1.0 - 1e-6, Vec2::splat(0.5)).unwrap();
+        assert!(refracted.is_delta && refracted.wi.z < 0.0);
+        let t = refracted.f * refracted.wi.z.abs() * ior * ior;
+        let tint = Rgb::new(0.9, 0.6, 0.3);
+        let expected_t = tint * (Rgb::ONE - expected);
+        assert!(
+            (t - expected_t).abs().max_element() < 1e-4,
+            "{t} vs {expected_t}"
+        );
+        // The probabilities of the two lobes add up to 1.
+        assert!((reflected.pdf + refracted.pdf - 1.0).abs() < 1e-5);
     }
 
     fn flags(split: &LobeSplit) -> [bool; 3] {

@@ -5,6 +5,12 @@
 //! glTF: `KHR_materials_transmission.transmissionFactor` selects it, `KHR_materials_ior.ior` is the index
 //! (default 1.5), `roughnessFactor`² is the GGX α and `baseColorFactor` tints the transmitted light.
 //! Reflection uses the exact Fresnel term and is untinted; `KHR_materials_specular` does not apply here.
+//! `KHR_materials_iridescence` puts a thin film on the outside of the interface: for light arriving from
+//! outside, the Fresnel term F becomes `mix(F, R_film, weight)` per channel ([`ThinFilm::fresnel`], substrate
+//! `F0 = ((ior − 1)/(ior + 1))²`), the reflection weighted by it and the refraction by `1 − F` (the extension
+//! replaces the F of `fresnel_mix`, whose base holds the transmission's `specular_btdf`). The lobe is then
+//! picked with the channels' mean of F. From inside, the interface is bare (the film's model assumes air
+//! above it).
 //!
 //! Conventions: the surface is a solid interface with index `ior` below (z < 0) and 1 above. `wo` and `wi`
 //! point away from the surface; `wo.z < 0` means the ray arrives from inside. Refraction carries radiance, so
@@ -13,6 +19,7 @@
 use super::fresnel;
 use super::lobes::{LobeClass, LobeSplit};
 use super::microfacet::{Ggx, DELTA_ALPHA};
+use super::thin_film::ThinFilm;
 use crate::math::{Rgb, Vec2, Vec3};
 
 /// A direction chosen by [`Dielectric::sample`]: the direction, its lobe's class (reflection glossy,
@@ -35,6 +42,13 @@ pub struct Dielectric {
     pub alpha: f32,
     /// Colour multiplying the transmitted light (glTF base colour).
     pub tint: Rgb,
+    /// The thin film on the outside of the interface (`KHR_materials_iridescence`), if any.
+    pub film: Option<ThinFilm>,
+}
+
+/// Mean of the channels of a colour: the probability of picking a lobe weighted by a coloured Fresnel term.
+fn mean(c: Rgb) -> f32 {
+    (c.x + c.y + c.z) / 3.0
 }
 
 /// Mirrors a direction pair so that `wo` is above the surface, and returns the relative index
@@ -48,6 +62,20 @@ fn orient(ior: f32, wo: Vec3, wi: Vec3) -> (Vec3, Vec3, f32) {
 }
 
 impl Dielectric {
+    /// The Fresnel reflectance per channel at `cos = wo·h` (with `wo` mirrored above), η = η(far side)/η(wo's
+    /// side): the exact term, under the film when there is one and `wo` arrives from outside (η = ior).
+    fn reflectance(&self, cos: f32, eta: f32, outside: bool) -> Rgb {
+        let f = Rgb::splat(fresnel::dielectric(cos, eta));
+        match self.film {
+            Some(film) if outside => {
+                let r = (self.ior - 1.0) / (self.ior + 1.0);
+                film.fresnel(f, cos, Rgb::splat(r * r))
+                    .clamp(Rgb::ZERO, Rgb::ONE)
+            }
+            _ => f,
+        }
+    }
+
     /// True when the interface is a delta BSDF: α below [`DELTA_ALPHA`], or the indices match (then the
     /// microfacets refract nothing and every roughness is invisible).
     pub fn is_smooth(&self) -> bool {
@@ -63,22 +91,23 @@ impl Dielectric {
         if self.is_smooth() || wo.z == 0.0 || wi.z == 0.0 {
             return Rgb::ZERO;
         }
+        let outside = wo.z > 0.0;
         let (wo, wi, eta) = orient(self.ior, wo, wi);
         let ggx = Ggx::isotropic(self.alpha);
         if wi.z > 0.0 {
             let h = (wo + wi).normalize();
-            let f = fresnel::dielectric(wo.dot(h), eta);
-            return Rgb::splat(f * ggx.d(h) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z));
+            let f = self.reflectance(wo.dot(h), eta, outside);
+            return f * (ggx.d(h) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z));
         }
         let Some(h) = transmission_half_vector(wo, wi, eta) else {
             return Rgb::ZERO;
         };
         let (oh, ih) = (wo.dot(h), wi.dot(h));
-        let f = fresnel::dielectric(oh, eta);
+        let f = self.reflectance(oh, eta, outside);
         let denom = eta * ih + oh;
-        let value = (ih * oh).abs() * (1.0 - f) * ggx.d(h) * ggx.g2(wo, wi)
-            / ((wi.z * wo.z).abs() * denom * denom);
-        self.tint * value
+        let value =
+            (ih * oh).abs() * ggx.d(h) * ggx.g2(wo, wi) / ((wi.z * wo.z).abs() * denom * denom);
+        self.tint * (Rgb::ONE - f) * value
     }
 
     /// [`Dielectric::eval`] split by class: reflection (`wi` on `wo`'s side) is glossy, refraction
@@ -95,7 +124,8 @@ impl Dielectric {
     /// The class colours seen from `wo` (zero when `wo` is tangent): glossy `R`, transmission
     /// `tint (1 − R) / η²` with η = η(far side)/η(wo's side). These are the directional albedos of the
     /// reflection and of the refraction (whose weight carries the radiance factor 1/η², see the module
-    /// documentation) when `R` is the interface's reflectance. Smooth: `R = F(|cos θo|)`, exact. Rough: an
+    /// documentation) when `R` is the interface's reflectance. Smooth: `R = F(|cos θo|)`, exact (under the film
+    /// from outside: [`Dielectric::eval`]'s term). Rough: an
     /// estimate, `R = (1 − α) F(|cos θo|) + α F̄` with F̄ the hemispherical average reflectance
     /// (`fresnel::dielectric_average`): the rougher the interface, the more microfacet angles it averages
     /// over. `F̄ < 1` keeps the refraction's colour positive past the critical angle, where tilted microfacets
@@ -105,67 +135,72 @@ impl Dielectric {
             return LobeSplit::ZERO;
         }
         let (wo_up, _, eta) = orient(self.ior, wo, Vec3::Z);
-        let mut r = fresnel::dielectric(wo_up.z, eta);
+        let mut r = self.reflectance(wo_up.z, eta, wo.z > 0.0);
         if !self.is_smooth() {
-            r += self.alpha * (fresnel::dielectric_average(eta) - r);
+            r += (Rgb::splat(fresnel::dielectric_average(eta)) - r) * self.alpha;
         }
         LobeSplit {
-            glossy: Rgb::splat(r),
-            transmission: self.tint * ((1.0 - r) / (eta * eta)),
+            glossy: r,
+            transmission: self.tint * (Rgb::ONE - r) / (eta * eta),
             ..LobeSplit::ZERO
         }
     }
 
     /// Solid-angle density of the non-delta directions of its sampler (0 for a smooth interface):
-    /// the visible-normal density times the lobe probability (F or 1 − F) times the half-vector Jacobian,
+    /// the visible-normal density times the lobe probability (the channels' mean of F, or 1 − it) times the
+    /// half-vector Jacobian,
     /// `1/(4 |wo·h|)` for reflection (Walter et al. 2007, eq. 14) and `η² |wi·h| / (η wi·h + wo·h)²` for
     /// transmission (eq. 17).
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if self.is_smooth() || wo.z == 0.0 || wi.z == 0.0 {
             return 0.0;
         }
+        let outside = wo.z > 0.0;
         let (wo, wi, eta) = orient(self.ior, wo, wi);
         let ggx = Ggx::isotropic(self.alpha);
         if wi.z > 0.0 {
             let h = (wo + wi).normalize();
             let oh = wo.dot(h);
-            return fresnel::dielectric(oh, eta) * ggx.pdf_visible(wo, h) / (4.0 * oh);
+            let p_reflect = mean(self.reflectance(oh, eta, outside));
+            return p_reflect * ggx.pdf_visible(wo, h) / (4.0 * oh);
         }
         let Some(h) = transmission_half_vector(wo, wi, eta) else {
             return 0.0;
         };
         let (oh, ih) = (wo.dot(h), wi.dot(h));
         let denom = eta * ih + oh;
-        (1.0 - fresnel::dielectric(oh, eta)) * ggx.pdf_visible(wo, h) * eta * eta * ih.abs()
-            / (denom * denom)
+        let p_refract = 1.0 - mean(self.reflectance(oh, eta, outside));
+        p_refract * ggx.pdf_visible(wo, h) * eta * eta * ih.abs() / (denom * denom)
     }
 
-    /// Samples the interface. Smooth: reflection with probability F(|wo.z|) (exact Fresnel), else refraction
-    /// by Snell's law; f is `F/|cos|` or `tint (1 − F) / (η² |cos|)` so the weight `f |cos| / pdf` is 1 or
-    /// `tint / η²`. Rough: a visible normal `h` (Heitz 2018), then reflection about `h` with probability
-    /// F(wo·h), else refraction through `h`; `None` when the direction ends on the wrong side.
+    /// Samples the interface. Smooth: reflection with probability P = mean(F(|wo.z|)) (exact Fresnel, under
+    /// the film from outside), else refraction by Snell's law; f is `F/|cos|` or `tint (1 − F) / (η² |cos|)`,
+    /// so the weight `f |cos| / pdf` is `F/P` or `tint (1 − F) / (η² (1 − P))` (1 and `tint / η²` without a
+    /// film). Rough: a visible normal `h` (Heitz 2018), then reflection about `h` with probability
+    /// mean(F(wo·h)), else refraction through `h`; `None` when the direction ends on the wrong side.
     pub(super) fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<DielectricSample> {
         if wo.z == 0.0 {
             return None;
         }
-        let sign = wo.z.signum();
+        let (sign, outside) = (wo.z.signum(), wo.z > 0.0);
         let (wo_up, _, eta) = orient(self.ior, wo, Vec3::Z);
         if self.is_smooth() {
-            let f = fresnel::dielectric(wo_up.z, eta);
-            if u_lobe < f {
+            let f = self.reflectance(wo_up.z, eta, outside);
+            let p_reflect = mean(f);
+            if u_lobe < p_reflect {
                 let wi = Vec3::new(-wo.x, -wo.y, wo.z);
                 return Some(DielectricSample {
                     wi,
                     class: LobeClass::Glossy,
-                    delta: Some((Rgb::splat(f / wi.z.abs()), f)),
+                    delta: Some((f / wi.z.abs(), p_reflect)),
                 });
             }
             let wi = fresnel::refract(wo_up, Vec3::Z, eta)? * sign;
-            let value = self.tint * ((1.0 - f) / (eta * eta * wi.z.abs()));
+            let value = self.tint * (Rgb::ONE - f) / (eta * eta * wi.z.abs());
             return Some(DielectricSample {
                 wi,
                 class: LobeClass::Transmission,
-                delta: Some((value, 1.0 - f)),
+                delta: Some((value, 1.0 - p_reflect)),
             });
         }
         let h = Ggx::isotropic(self.alpha).sample_visible(wo_up, u);
@@ -173,7 +208,7 @@ impl Dielectric {
         if oh <= 0.0 {
             return None;
         }
-        let (wi_up, class) = if u_lobe < fresnel::dielectric(oh, eta) {
+        let (wi_up, class) = if u_lobe < mean(self.reflectance(oh, eta, outside)) {
             let wi = Some(fresnel::reflect(wo_up, h)).filter(|w| w.z > 0.0);
             (wi, LobeClass::Glossy)
         } else {

@@ -20,7 +20,12 @@
 //! interface, the clear coat and the colour estimates keep the isotropic α.
 //!
 //! The transmissive part is a [`Dielectric`] interface tinted by the base colour. Metals do not transmit, so the
-//! BSDF is `(1 − t)·opaque + t·dielectric` with `t = transmission · (1 − metallic)`.
+//! BSDF is `(1 − t)·opaque + t·dielectric` with `t = transmission · (1 − metallic)`. The specification's
+//! material is `mix(dielectric_brdf, metal_brdf, metallic)` with the transmission inside the dielectric's base
+//! (`mix(diffuse_brdf, specular_btdf, transmission)`, KHR_materials_transmission): the metal keeps its weight
+//! `metallic` and the opaque dielectric gets `(1 − metallic)(1 − transmission)`. The opaque part therefore
+//! mixes its dielectric and its metal by the share `m = metallic / (1 − t)` ([`GltfPbr::metallic`]), not by
+//! `metallic` itself.
 //!
 //! `KHR_materials_diffuse_transmission` (`diffuseTransmissionFactor` × `diffuseTransmissionTexture` (A) = `dt`,
 //! `diffuseTransmissionColorFactor` × `diffuseTransmissionColorTexture` (RGB) = `c_dt`) replaces the diffuse
@@ -35,7 +40,8 @@
 //!
 //! `KHR_materials_iridescence` replaces both Schlick terms (dielectric `F_d`, metal `F_m`) by
 //! `mix(F, R_film, weight)`, the reflectance of a thin film over the specular layer ([`ThinFilm`]); `kd`
-//! follows, since it is computed from `F_d`.
+//! follows, since it is computed from `F_d`. The transmissive part's exact Fresnel term is mixed the same way
+//! (see [`Dielectric`]).
 
 use super::dielectric::Dielectric;
 use super::fresnel;
@@ -127,7 +133,9 @@ impl Default for PbrParams {
 pub struct GltfPbr {
     /// Base colour (diffuse albedo, metal f0 and transmission tint).
     pub base_color: Rgb,
-    /// Metallic weight in \[0, 1\].
+    /// The metal's share of the opaque part, in \[0, 1\]: `metallic / (1 − t)` with `t` the effective
+    /// transmission weight (`metallic` itself without transmission), so that the metal's weight in the whole
+    /// BSDF is `metallic`.
     pub metallic: f32,
     /// `specularFactor`.
     pub specular_factor: f32,
@@ -173,19 +181,22 @@ impl GltfPbr {
         let r = (ior - 1.0) / (ior + 1.0);
         let base_color = p.base_color.max(Rgb::ZERO);
         let (specular, anisotropy_direction) = anisotropic_specular(alpha, p);
+        let transmission = p.transmission.clamp(0.0, 1.0) * (1.0 - metallic);
+        let film = ThinFilm::new(p.iridescence, p.iridescence_ior, p.iridescence_thickness);
         Self {
             base_color,
-            metallic,
+            metallic: opaque_metal_share(metallic, transmission),
             specular_factor: p.specular_factor.clamp(0.0, 1.0),
             f0: (r * r * p.specular_color.max(Rgb::ZERO)).min(Rgb::ONE),
             alpha,
             specular,
             anisotropy_direction,
-            transmission: p.transmission.clamp(0.0, 1.0) * (1.0 - metallic),
+            transmission,
             dielectric: Dielectric {
                 ior,
                 alpha,
                 tint: base_color,
+                film,
             },
             diffuse_transmission: if p.diffuse_transmission.is_nan() {
                 0.0
@@ -197,7 +208,7 @@ impl GltfPbr {
             } else {
                 Rgb::ONE
             },
-            film: ThinFilm::new(p.iridescence, p.iridescence_ior, p.iridescence_thickness),
+            film,
         }
     }
 
@@ -534,6 +545,18 @@ impl GltfPbr {
             is_delta: false,
             class,
         })
+    }
+}
+
+/// The metal's share of the opaque part of a material whose metallic is `metallic` and whose effective
+/// transmission weight is `transmission` (`t`): `metallic / (1 − t)`, so that `(1 − t)` times it is
+/// `metallic` (see the module documentation); `metallic` where nothing is opaque (`t = 1`).
+fn opaque_metal_share(metallic: f32, transmission: f32) -> f32 {
+    let opaque = 1.0 - transmission;
+    if opaque > 0.0 {
+        (metallic / opaque).min(1.0)
+    } else {
+        metallic
     }
 }
 

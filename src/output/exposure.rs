@@ -5,7 +5,10 @@
 //! eq. 1 and 2): the scene's key is the log-average luminance L̄ = exp(Σ wᵢ·log(δ + Lᵢ) / Σ wᵢ), and the exposure
 //! that maps it to middle grey a = 0.18 is EV = log₂(a / L̄). The weights wᵢ are the pixels' coverage (alpha), so
 //! a small object in front of an empty background is exposed for the object, not for the void around it; an
-//! image with no coverage at all (an environment seen alone) weighs every pixel alike.
+//! image with no coverage at all (an environment seen alone) weighs every pixel alike. Pixels that are exactly
+//! black (geometry that no light reaches, in a scene lit only by its own emitters) are left out as well: with
+//! the δ of eq. 1 each would count as log δ, 26 stops below white, and a third of the frame unlit would
+//! expose the lit rest 8 stops too bright (the Khronos EmissiveStrengthTest's backdrop).
 //!
 //! The automatic exposure leaves a normally exposed image alone: it is the exposure nearest to 0 that puts the
 //! key within [`KEY_RANGE`]: from one stop below middle grey, for a low-key scene, up to white, for a high-key
@@ -32,7 +35,8 @@ pub const BLACK_LUMINANCE: f32 = 0.01;
 /// An image is almost black when fewer than this share of its pixels reaches [`BLACK_LUMINANCE`].
 pub const BLACK_SHARE: f64 = 0.001;
 
-/// `δ` of the log-average: keeps log(δ + L) finite on black pixels, far below any visible luminance.
+/// `δ` of the log-average: keeps log(δ + L) finite for the smallest positive luminances, far below any visible
+/// one (exactly black pixels are not metered).
 const LOG_DELTA: f64 = 1e-8;
 
 /// How the PNG preview is exposed (`--exposure auto` or `--exposure STOPS`).
@@ -60,7 +64,7 @@ impl Exposure {
 /// What the meter read from an image.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Metering {
-    /// The coverage-weighted log-average luminance (the scene's key, L̄).
+    /// The coverage-weighted log-average luminance (the scene's key, L̄) of the pixels that are not black.
     pub key: f32,
     /// The exposure in stops that maps the key to `MIDDLE_GREY`, clamped to ±`MAX_AUTO_STOPS`; 0 for an
     /// image without one finite non-zero pixel.
@@ -84,10 +88,14 @@ pub fn meter(image: &RenderImage) -> Metering {
             continue;
         }
         let l = l.max(0.0);
-        lit |= l > 0.0;
         if l >= BLACK_LUMINANCE {
             bright += 1;
         }
+        if l == 0.0 {
+            // Unlit: no sample found light here, so the pixel says nothing about the exposure.
+            continue;
+        }
+        lit = true;
         let w = if covered {
             f64::from(coverage(i).clamp(0.0, 1.0))
         } else {
@@ -199,6 +207,19 @@ mod tests {
         let half = meter(&image(&[(0.5, 1.0), (0.125, 0.5)]));
         // exp((1·ln 0.5 + 0.5·ln 0.125) / 1.5) = 2^(−(1 + 1.5) / 1.5).
         assert!((half.key - 2f32.powf(-2.5 / 1.5)).abs() < 1e-4, "{half:?}");
+    }
+
+    /// Covered pixels that are exactly black (geometry no light reaches, such as the faces of
+    /// EmissiveStrengthTest's backdrop turned away from its glowing cubes) do not drag the key down: with δ
+    /// they would count as 26 stops below white, and a third of them exposed the lit wall 8 stops too bright.
+    #[test]
+    fn unlit_covered_pixels_do_not_dilute_the_key() {
+        let m = meter(&image(&[(0.18, 1.0), (0.0, 1.0), (0.18, 1.0), (0.0, 1.0)]));
+        assert!((m.key - 0.18).abs() < 1e-4, "{m:?}");
+        assert_eq!(m.auto_stops, 0.0, "{m:?}");
+        // A pixel that is dim but lit is still metered.
+        let dim = meter(&image(&[(0.18, 1.0), (0.18 / 64.0, 1.0)]));
+        assert!((dim.key - 0.18 / 8.0).abs() < 1e-4, "{dim:?}");
     }
 
     #[test]

@@ -321,6 +321,51 @@ fn a_physically_dim_scene_gets_a_viewable_preview_and_says_why() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A small emitter (radiance 0.5, which switches the default environment off) in front of a black backdrop
+/// that fills most of the frame, as in the Khronos EmissiveStrengthTest: the backdrop's pixels are covered but
+/// exactly black. The automatic exposure used to meter them as δ, 26 stops below white, and exposed the
+/// emitter 16 stops too bright (pure white); they carry no exposure information, so the emitter, already in
+/// the meter's range, stays at 0 stops: sRGB 188 for 0.5.
+#[test]
+fn unlit_geometry_does_not_push_the_auto_exposure_up() {
+    let dir =
+        std::env::temp_dir().join(format!("nimbus-cli-unlit-backdrop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("backdrop.gltf");
+    // Quads facing +Z: the backdrop ±1.2 m at z = 0 (base colour black), the emitter ±0.4 m at z = 0.01; a
+    // camera at z = 3 looking down −Z.
+    std::fs::write(
+        &scene,
+        r#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1, 2]}],
+  "nodes": [{"mesh": 0}, {"mesh": 1}, {"camera": 0, "translation": [0, 0, 3]}],
+  "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
+  "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1], "metallicFactor": 0}},
+                {"pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1], "metallicFactor": 0},
+                 "emissiveFactor": [0.5, 0.5, 0.5]}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 2, "material": 0}]},
+             {"primitives": [{"attributes": {"POSITION": 1}, "indices": 2, "material": 1}]}],
+  "buffers": [{"byteLength": 108, "uri": "data:application/octet-stream;base64,mpmZv5qZmb8AAAAAmpmZP5qZmb8AAAAAmpmZP5qZmT8AAAAAmpmZv5qZmT8AAAAAzczMvs3MzL4K1yM8zczMPs3MzL4K1yM8zczMPs3MzD4K1yM8zczMvs3MzD4K1yM8AAABAAIAAAACAAMA"}],
+  "bufferViews": [{"buffer": 0, "byteLength": 96}, {"buffer": 0, "byteOffset": 96, "byteLength": 12}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                 "min": [-1.2, -1.2, 0], "max": [1.2, 1.2, 0]},
+                {"bufferView": 0, "byteOffset": 48, "componentType": 5126, "count": 4, "type": "VEC3",
+                 "min": [-0.4, -0.4, 0.01], "max": [0.4, 0.4, 0.01]},
+                {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}]}"#,
+    )
+    .unwrap();
+    let (stderr, _) = render_preview(&scene, &dir, &["--width", "16", "--height", "16"], &[]);
+    assert!(stderr.contains("lights itself"), "{stderr}");
+    assert!(stderr.contains("preview exposure +0.00 stops"), "{stderr}");
+    // The centre pixel sees the emitter: linear 0.5 is sRGB 188.
+    let png = image::open(dir.join("out.png")).unwrap().to_luma8();
+    let centre = png.get_pixel(8, 8)[0];
+    assert!(
+        (180..=196).contains(&centre),
+        "emitter at sRGB {centre}: {stderr}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// `docs/reference.md`.
 fn reference() -> String {
     std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/reference.md"))
