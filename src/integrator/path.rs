@@ -50,7 +50,7 @@ use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::guiding::adjoint::{self, Roulette};
-use crate::guiding::GuidePath;
+use crate::guiding::{DirectionalQuadtree, GuidePath};
 use crate::light::LightContext;
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
 use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
@@ -116,18 +116,19 @@ const BRANCH_STREAM: u64 = 0x8979_0a0b_4e5d_1c3f;
 
 /// A medium scattering event, as a path goes on from it after its next-event estimate.
 #[derive(Clone, Copy)]
-struct MediumEvent {
+struct MediumEvent<'g> {
     /// The ray that reached the event, and the event's distance along it.
     ray: Ray,
     t: f32,
     /// The phase function there.
     phase: PhaseFunction,
-    /// Whether its direction is sampled from the mixture with the guiding cache's distribution (decided once,
-    /// before next-event estimation, which is weighed against that density).
-    guided: bool,
+    /// The guiding cache's distribution its direction is sampled from in the mixture with the phase function,
+    /// when the event is guided ([`guided::guide_at`], decided once, before next-event estimation, which is
+    /// weighed against that density).
+    guide: Option<&'g DirectionalQuadtree>,
 }
 
-impl MediumEvent {
+impl MediumEvent<'_> {
     /// Where it happened.
     fn point(&self) -> Vec3 {
         self.ray.at(self.t)
@@ -137,8 +138,8 @@ impl MediumEvent {
 /// A path split off at a medium scattering event by guided splitting: the state of the path there (its albedo,
 /// next-event estimate and the split's 1/n done), and a generator of its own. It goes on from there as the path
 /// that split does, sampling its own direction.
-struct Branch {
-    event: MediumEvent,
+struct Branch<'g> {
+    event: MediumEvent<'g>,
     rng: Rng,
     beta: Rgb,
     depth: u32,
@@ -150,9 +151,9 @@ struct Branch {
     first_event: FirstEvent,
 }
 
-impl Branch {
+impl<'g> Branch<'g> {
     /// A copy of the path in `s` at `event`, its generator seeded from `rng`'s next numbers.
-    fn split_off(s: &PathState, event: &MediumEvent, rng: &mut Rng) -> Self {
+    fn split_off(s: &PathState, event: &MediumEvent<'g>, rng: &mut Rng) -> Self {
         let seed = (u64::from(rng.next_u32()) << 32) | u64::from(rng.next_u32());
         let stream = u64::from(rng.next_u32()) ^ BRANCH_STREAM;
         Self {
@@ -171,7 +172,7 @@ impl Branch {
 
     /// Puts the branch's state into `s` (the radiance, coverage and records stay the sample's) and returns
     /// the event and the branch's generator.
-    fn resume(self, s: &mut PathState) -> (MediumEvent, Rng) {
+    fn resume(self, s: &mut PathState) -> (MediumEvent<'g>, Rng) {
         s.beta = self.beta;
         s.depth = self.depth;
         s.stack = self.stack;
@@ -210,8 +211,9 @@ struct ConstantSegment {
     coefficients: ConstantScattering,
 }
 
-/// The state of a path between events.
-struct PathState<'r> {
+/// The state of a path between events; `'r` borrows the sample's records, `'g` the guiding cache its
+/// split-off paths sample from.
+struct PathState<'r, 'g> {
     radiance: Rgb,
     beta: Rgb,
     depth: u32,
@@ -258,12 +260,12 @@ struct PathState<'r> {
     /// Where a training path remembers its guided vertices, when it trains the guiding cache.
     guide_path: Option<&'r mut GuidePath>,
     /// Paths split off and not yet traced.
-    branches: Vec<Branch>,
+    branches: Vec<Branch<'g>>,
     /// Extra paths splitting may still add to the sample.
     branch_budget: u32,
 }
 
-impl PathState<'_> {
+impl PathState<'_, '_> {
     /// 1 − the mean of the throughput's channels: how much of the camera ray something in front has taken,
     /// where the path meets the environment or a holdout.
     fn coverage_so_far(&self) -> f32 {
@@ -559,7 +561,13 @@ impl PathTracer {
     }
 
     /// Follows the path in `s` from `ray` until it ends, filling `out`'s first-hit AOVs when they are pending.
-    fn walk(&self, cx: &mut PathContext, s: &mut PathState, mut ray: Ray, out: &mut PathSample) {
+    fn walk<'g>(
+        &self,
+        cx: &mut PathContext<'_, 'g>,
+        s: &mut PathState<'_, 'g>,
+        mut ray: Ray,
+        out: &mut PathSample,
+    ) {
         let scene = cx.services.scene();
         loop {
             let hit = scene.intersect(&ray, 0.0, f32::INFINITY);
@@ -1253,10 +1261,10 @@ impl PathTracer {
     /// Handles a real collision at distance `t` in medium `m`: the medium's albedo, next-event estimation with
     /// MIS against the direction sampling to come, guided Russian roulette and splitting where it applies
     /// ([`Self::guided_roulette`]), then [`Self::scatter_onward`]. Returns false when the path ends.
-    fn scatter_in_medium(
+    fn scatter_in_medium<'g>(
         &self,
-        cx: &mut PathContext,
-        s: &mut PathState,
+        cx: &mut PathContext<'_, 'g>,
+        s: &mut PathState<'_, 'g>,
         ray: &mut Ray,
         t: f32,
         m: u32,
@@ -1291,7 +1299,7 @@ impl PathTracer {
             ray: *ray,
             t,
             phase: collision.phase,
-            guided: guide.is_some(),
+            guide,
         };
         let played = match self.guided_roulette(cx, s, &event) {
             Some(false) => return false,
@@ -1309,11 +1317,11 @@ impl PathTracer {
     /// continuation, leaves out the event's own next-event estimate), compared with its pixel's training value.
     /// Returns `None` where it does not apply (not on, a training path, or no estimate: classic Russian roulette
     /// then), else whether the path goes on; paths split off wait in `s.branches`.
-    fn guided_roulette(
+    fn guided_roulette<'g>(
         &self,
         cx: &mut PathContext,
-        s: &mut PathState,
-        event: &MediumEvent,
+        s: &mut PathState<'_, 'g>,
+        event: &MediumEvent<'g>,
     ) -> Option<bool> {
         if !self.guided_roulette || s.guide_path.is_some() {
             return None;
@@ -1348,12 +1356,8 @@ impl PathTracer {
         roulette_played: bool,
     ) -> Option<Ray> {
         let p = event.point();
-        let guide = cx
-            .services
-            .guide()
-            .filter(|_| event.guided)
-            .and_then(|g| g.distribution_at(p));
-        let (wi, pdf, weight) = guided::sample_phase(&event.phase, guide, -event.ray.dir, cx.rng)?;
+        let (wi, pdf, weight) =
+            guided::sample_phase(&event.phase, event.guide, -event.ray.dir, cx.rng)?;
         s.beta *= weight;
         if s.depth == 0 {
             s.first_event = FirstEvent::Volume;
