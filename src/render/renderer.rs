@@ -818,9 +818,13 @@ impl Pass<'_> {
         counters: &mut PathCounters,
     ) -> (Ray, Option<f32>, PathSample) {
         let s = self.settings;
-        let services = self
-            .services
-            .with_pixel_estimate(self.services.guide().and_then(|g| g.pixel_estimate((x, y))));
+        // Only guided Russian roulette reads the pixel's training value.
+        let services = if self.tracer.guided_roulette {
+            let estimate = self.services.guide().and_then(|g| g.pixel_estimate((x, y)));
+            self.services.with_pixel_estimate(estimate)
+        } else {
+            self.services
+        };
         let mut rng = self.sample_rng(s.seed, pixel_index, sample as u64);
         // A box shutter: the time is uniform over the interval, drawn from a stream of its own so that the
         // path's numbers are those of a render without a shutter (a still scene renders bit for bit the same
