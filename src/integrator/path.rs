@@ -50,7 +50,7 @@ use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::guiding::adjoint::{self, Roulette};
-use crate::guiding::GuidePath;
+use crate::guiding::{DirectionalQuadtree, GuidePath};
 use crate::light::LightContext;
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
 use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
@@ -116,18 +116,19 @@ const BRANCH_STREAM: u64 = 0x8979_0a0b_4e5d_1c3f;
 
 /// A medium scattering event, as a path goes on from it after its next-event estimate.
 #[derive(Clone, Copy)]
-struct MediumEvent {
+struct MediumEvent<'g> {
     /// The ray that reached the event, and the event's distance along it.
     ray: Ray,
     t: f32,
     /// The phase function there.
     phase: PhaseFunction,
-    /// Whether its direction is sampled from the mixture with the guiding cache's distribution (decided once,
-    /// before next-event estimation, which is weighed against that density).
-    guided: bool,
+    /// The guiding cache's distribution its direction is sampled from in the mixture with the phase function,
+    /// when the event is guided ([`guided::guide_at`], decided once, before next-event estimation, which is
+    /// weighed against that density).
+    guide: Option<&'g DirectionalQuadtree>,
 }
 
-impl MediumEvent {
+impl MediumEvent<'_> {
     /// Where it happened.
     fn point(&self) -> Vec3 {
         self.ray.at(self.t)
@@ -137,49 +138,28 @@ impl MediumEvent {
 /// A path split off at a medium scattering event by guided splitting: the state of the path there (its albedo,
 /// next-event estimate and the split's 1/n done), and a generator of its own. It goes on from there as the path
 /// that split does, sampling its own direction.
-struct Branch {
-    event: MediumEvent,
+struct Branch<'g> {
+    event: MediumEvent<'g>,
     rng: Rng,
-    beta: Rgb,
-    depth: u32,
-    stack: MediumStack,
-    cone_width: f32,
-    crossings: u32,
-    first_hit: bool,
-    collided_segment: Option<ConstantSegment>,
-    first_event: FirstEvent,
+    onward: OnwardState,
 }
 
-impl Branch {
+impl<'g> Branch<'g> {
     /// A copy of the path in `s` at `event`, its generator seeded from `rng`'s next numbers.
-    fn split_off(s: &PathState, event: &MediumEvent, rng: &mut Rng) -> Self {
+    fn split_off(s: &PathState, event: &MediumEvent<'g>, rng: &mut Rng) -> Self {
         let seed = (u64::from(rng.next_u32()) << 32) | u64::from(rng.next_u32());
         let stream = u64::from(rng.next_u32()) ^ BRANCH_STREAM;
         Self {
             event: *event,
             rng: Rng::new(seed, stream),
-            beta: s.beta,
-            depth: s.depth,
-            stack: s.stack,
-            cone_width: s.cone_width,
-            crossings: s.crossings,
-            first_hit: s.first_hit,
-            collided_segment: s.collided_segment,
-            first_event: s.first_event,
+            onward: s.onward,
         }
     }
 
     /// Puts the branch's state into `s` (the radiance, coverage and records stay the sample's) and returns
     /// the event and the branch's generator.
-    fn resume(self, s: &mut PathState) -> (MediumEvent, Rng) {
-        s.beta = self.beta;
-        s.depth = self.depth;
-        s.stack = self.stack;
-        s.cone_width = self.cone_width;
-        s.crossings = self.crossings;
-        s.first_hit = self.first_hit;
-        s.collided_segment = self.collided_segment;
-        s.first_event = self.first_event;
+    fn resume(self, s: &mut PathState) -> (MediumEvent<'g>, Rng) {
+        s.onward = self.onward;
         (self.event, self.rng)
     }
 }
@@ -210,11 +190,36 @@ struct ConstantSegment {
     coefficients: ConstantScattering,
 }
 
-/// The state of a path between events.
-struct PathState<'r> {
-    radiance: Rgb,
+/// The part of a path's state that it carries from one event to the next and that a path split off at a medium
+/// scattering event copies whole ([`Branch`]): the sample's radiance, coverage and records stay with the
+/// sample, and what the last event was (`prev*`) the split-off path's own direction sampling sets.
+#[derive(Clone, Copy)]
+struct OnwardState {
+    /// The path throughput.
     beta: Rgb,
+    /// Scattering events so far.
     depth: u32,
+    /// The media the path is inside.
+    stack: MediumStack,
+    /// Width of the ray cone where the current ray starts, in world units.
+    cone_width: f32,
+    /// Invisible (index-matched) boundaries crossed so far.
+    crossings: u32,
+    /// Whether the next surface hit is the first (whose emission `first_emission` decides).
+    first_hit: bool,
+    /// The constant-medium segment that ended in the current real collision, for the MIS weight of its
+    /// next-event estimate against equiangular sampling.
+    collided_segment: Option<ConstantSegment>,
+    /// The path's first scattering event, by which its later light is classed.
+    first_event: FirstEvent,
+}
+
+/// The state of a path between events; `'r` borrows the sample's records, `'g` the guiding cache its
+/// split-off paths sample from.
+struct PathState<'r, 'g> {
+    radiance: Rgb,
+    /// What the path carries from event to event, and all a path split off from it copies.
+    onward: OnwardState,
     /// Whether the last scattering event was a delta lobe (no MIS for emitters hit next).
     prev_delta: bool,
     /// Solid-angle density of the last sampled direction, for MIS on emitters hit next.
@@ -225,23 +230,11 @@ struct PathState<'r> {
     prev: LightContext,
     /// Whether emitters hit next were already counted by light sampling alone (a medium event without MIS).
     prev_light_only: bool,
-    stack: MediumStack,
-    /// Width of the ray cone where the current ray starts, in world units.
-    cone_width: f32,
-    /// Invisible (index-matched) boundaries crossed so far.
-    crossings: u32,
-    /// Whether the next surface hit is the first (whose emission `first_emission` decides).
-    first_hit: bool,
     /// Whether the first-hit AOVs (albedo, normal, depth) are still to be recorded: at the first surface hit
     /// or, before it, the camera ray's first real collision in a medium.
     aovs_pending: bool,
     /// Whether the first surface hit's emission is counted.
     first_emission: FirstEmission,
-    /// The constant-medium segment that ended in the current real collision, for the MIS weight of its
-    /// next-event estimate against equiangular sampling.
-    collided_segment: Option<ConstantSegment>,
-    /// The path's first scattering event, by which its later light is classed.
-    first_event: FirstEvent,
     /// The sample's coverage, once known.
     coverage: Option<f32>,
     /// The first medium the camera ray crossed: what covers the part of a sample that media weights, not
@@ -258,16 +251,16 @@ struct PathState<'r> {
     /// Where a training path remembers its guided vertices, when it trains the guiding cache.
     guide_path: Option<&'r mut GuidePath>,
     /// Paths split off and not yet traced.
-    branches: Vec<Branch>,
+    branches: Vec<Branch<'g>>,
     /// Extra paths splitting may still add to the sample.
     branch_budget: u32,
 }
 
-impl PathState<'_> {
+impl PathState<'_, '_> {
     /// 1 − the mean of the throughput's channels: how much of the camera ray something in front has taken,
     /// where the path meets the environment or a holdout.
     fn coverage_so_far(&self) -> f32 {
-        (1.0 - self.beta.element_sum() / 3.0).clamp(0.0, 1.0)
+        (1.0 - self.onward.beta.element_sum() / 3.0).clamp(0.0, 1.0)
     }
 
     /// Decides the sample's coverage (once): `coverage` of it, decided by `event` at distance `t` along the
@@ -299,7 +292,12 @@ impl PathState<'_> {
     fn add_reached(&mut self, value: Rgb, emitter: impl FnOnce() -> Option<u32>) {
         self.radiance += value;
         if let Some(r) = self.record.as_deref_mut() {
-            r.add(value, self.first_event, self.depth == 1, emitter());
+            r.add(
+                value,
+                self.onward.first_event,
+                self.onward.depth == 1,
+                emitter(),
+            );
         }
     }
 
@@ -313,10 +311,10 @@ impl PathState<'_> {
     ) {
         self.radiance += value;
         if let Some(r) = self.record.as_deref_mut() {
-            if self.depth == 0 {
+            if self.onward.depth == 0 {
                 r.add_split(split(), true, emitter());
             } else {
-                r.add(value, self.first_event, false, emitter());
+                r.add(value, self.onward.first_event, false, emitter());
             }
         }
     }
@@ -325,9 +323,9 @@ impl PathState<'_> {
     fn add_volume_sample(&mut self, value: Rgb, emitter: impl FnOnce() -> Option<u32>) {
         self.radiance += value;
         if let Some(r) = self.record.as_deref_mut() {
-            match self.depth {
+            match self.onward.depth {
                 0 => r.add(value, FirstEvent::Volume, true, emitter()),
-                _ => r.add(value, self.first_event, false, emitter()),
+                _ => r.add(value, self.onward.first_event, false, emitter()),
             }
         }
     }
@@ -411,11 +409,11 @@ fn show_unlit(
     emitter: impl FnOnce() -> Option<u32>,
 ) {
     let material = &scene.materials[hit.material as usize];
-    if s.depth == 0 {
+    if s.onward.depth == 0 {
         s.cover(1.0, CameraEvent::Surface, hit.t, item);
     }
     if hit.front_face || material.double_sided {
-        let value = s.beta * material.unlit_radiance(at, &scene.textures);
+        let value = s.onward.beta * material.unlit_radiance(at, &scene.textures);
         s.add_reached(value, emitter);
     }
 }
@@ -430,12 +428,13 @@ fn cross_boundary(
     interior: Option<u32>,
     counters: &mut PathCounters,
 ) -> SurfaceOutcome {
-    s.crossings += 1;
-    if s.crossings > MAX_BOUNDARY_CROSSINGS {
+    s.onward.crossings += 1;
+    if s.onward.crossings > MAX_BOUNDARY_CROSSINGS {
         return SurfaceOutcome::End;
     }
     if let Some(interior) = interior {
-        s.stack
+        s.onward
+            .stack
             .cross(interior, ray.dir.dot(hit.geometric_normal) < 0.0);
     }
     counters.rays.bounce += 1;
@@ -514,8 +513,16 @@ impl PathTracer {
         let mut out = PathSample::default();
         let mut s = PathState {
             radiance: Rgb::ZERO,
-            beta: Rgb::ONE,
-            depth: 0,
+            onward: OnwardState {
+                beta: Rgb::ONE,
+                depth: 0,
+                stack: MediumStack::default(),
+                cone_width: self.pixel_width,
+                crossings: 0,
+                first_hit: true,
+                collided_segment: None,
+                first_event: FirstEvent::None,
+            },
             prev_delta: true,
             prev_pdf: 0.0,
             prev: LightContext {
@@ -523,14 +530,8 @@ impl PathTracer {
                 n: None,
             },
             prev_light_only: false,
-            stack: MediumStack::default(),
-            cone_width: self.pixel_width,
-            crossings: 0,
-            first_hit: true,
             aovs_pending: true,
             first_emission,
-            collided_segment: None,
-            first_event: FirstEvent::None,
             coverage: None,
             crossed_medium: None,
             record,
@@ -559,13 +560,19 @@ impl PathTracer {
     }
 
     /// Follows the path in `s` from `ray` until it ends, filling `out`'s first-hit AOVs when they are pending.
-    fn walk(&self, cx: &mut PathContext, s: &mut PathState, mut ray: Ray, out: &mut PathSample) {
+    fn walk<'g>(
+        &self,
+        cx: &mut PathContext<'_, 'g>,
+        s: &mut PathState<'_, 'g>,
+        mut ray: Ray,
+        out: &mut PathSample,
+    ) {
         let scene = cx.services.scene();
         loop {
             let hit = scene.intersect(&ray, 0.0, f32::INFINITY);
             let t_surface = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
             if let Some((t, m)) = self.sample_segment_media(cx, s, &ray, t_surface) {
-                if s.aovs_pending && s.depth == 0 {
+                if s.aovs_pending && s.onward.depth == 0 {
                     s.aovs_pending = false;
                     record_collision_aovs(out, scene, &ray, t, m);
                 }
@@ -578,13 +585,13 @@ impl PathTracer {
                 self.escape(cx.services, s, ray.dir);
                 break;
             };
-            if s.beta.max_element() <= 0.0 {
+            if s.onward.beta.max_element() <= 0.0 {
                 break;
             }
             let t_hit = hit.t;
             match self.shade_surface(cx, s, &ray, hit, out) {
                 SurfaceOutcome::Continue(next) => {
-                    if s.depth == 0 {
+                    if s.onward.depth == 0 {
                         s.camera_t += t_hit;
                     }
                     ray = next;
@@ -644,8 +651,8 @@ impl PathTracer {
     ) -> Option<(f32, u32)> {
         let services = cx.services;
         let scene = services.scene();
-        let crossed = services.segment_media(ray, t_surface, &s.stack);
-        if s.depth == 0 {
+        let crossed = services.segment_media(ray, t_surface, &s.onward.stack);
+        if s.onward.depth == 0 {
             s.crossed_medium = s.crossed_medium.or(crossed.ids().first().copied());
             self.record_deep_media(services, s, ray, t_surface, crossed.ids());
         }
@@ -657,7 +664,7 @@ impl PathTracer {
         }
         let nearest = self.combined_flight(cx, s, ray, t_surface, media.ids());
         self.add_media_emission(cx, s, ray, media.ids());
-        s.collided_segment = constant.filter(|_| nearest.is_some());
+        s.onward.collided_segment = constant.filter(|_| nearest.is_some());
         nearest
     }
 
@@ -722,12 +729,12 @@ impl PathTracer {
             let flight = scene.media[m as usize].free_flight(
                 ray,
                 t_cut,
-                s.beta,
+                s.onward.beta,
                 cx.rng,
                 counter,
                 &mut s.emitted,
             );
-            s.beta = flight.throughput;
+            s.onward.beta = flight.throughput;
             if let Some(t) = flight.collision {
                 nearest = Some((t, m));
             }
@@ -755,7 +762,7 @@ impl PathTracer {
         let scene = cx.services.scene();
         let emitted = std::mem::take(&mut s.emitted);
         for (i, &m) in media.iter().enumerate() {
-            if self.mattes && s.depth == 0 && scene.names().medium_is_holdout(m as usize) {
+            if self.mattes && s.onward.depth == 0 && scene.names().medium_is_holdout(m as usize) {
                 continue;
             }
             let mut sum = Rgb::ZERO;
@@ -786,7 +793,7 @@ impl PathTracer {
         media: &[u32],
     ) -> Option<ConstantSegment> {
         let &[medium] = media else { return None };
-        if !self.equiangular || s.depth >= self.max_depth || !t_surface.is_finite() {
+        if !self.equiangular || s.onward.depth >= self.max_depth || !t_surface.is_finite() {
             return None;
         }
         let coefficients = services.scene().media[medium as usize].constant_scattering()?;
@@ -794,7 +801,7 @@ impl PathTracer {
             origin: ray.origin,
             dir: ray.dir,
             length: t_surface,
-            throughput: s.beta,
+            throughput: s.onward.beta,
             coefficients,
         })
     }
@@ -843,7 +850,7 @@ impl PathTracer {
         if phase <= 0.0 {
             return;
         }
-        let tr = services.transmittance(&shadow, ray.time, &s.stack, cx.rng, cx.counters);
+        let tr = services.transmittance(&shadow, ray.time, &s.onward.stack, cx.rng, cx.counters);
         if tr.max_element() <= 0.0 {
             return;
         }
@@ -868,7 +875,7 @@ impl PathTracer {
         t: f32,
         index: usize,
     ) -> f32 {
-        let Some(segment) = &s.collided_segment else {
+        let Some(segment) = &s.onward.collided_segment else {
             return 1.0;
         };
         let Some(light) = services.scene().lights[index].point_position() else {
@@ -885,7 +892,7 @@ impl PathTracer {
     /// A path that escapes along `dir`: a camera ray decides its coverage (what the media it crossed took),
     /// and the environment's light is added.
     fn escape(&self, services: &RendererServices, s: &mut PathState, dir: Vec3) {
-        if s.depth == 0 {
+        if s.onward.depth == 0 {
             let scene = services.scene();
             let medium = s.crossed_medium;
             let item = || medium.map(|m| scene.names().item_of_medium(m as usize));
@@ -909,13 +916,13 @@ impl PathTracer {
         } else {
             power_heuristic(s.prev_pdf, services.environment_pdf(dir, &s.prev))
         };
-        let value = s.beta * env.radiance(dir) * weight;
+        let value = s.onward.beta * env.radiance(dir) * weight;
         let emitter = || {
             scene
                 .environment
                 .and_then(|i| scene.names().emitter_of_light(i))
         };
-        if s.depth > 0 {
+        if s.onward.depth > 0 {
             s.add_reached(value, emitter);
             return;
         }
@@ -943,23 +950,23 @@ impl PathTracer {
         let material = &scene.materials[hit.material as usize];
         // A single-sided material's back faces are culled (glTF 2.0 §3.9.3 `doubleSided`; UsdGeomGprim
         // `doubleSided`): camera rays, before any scattering event, pass through them as if they were not there.
-        if s.depth == 0 && !hit.front_face && material.culls_back_faces() {
+        if s.onward.depth == 0 && !hit.front_face && material.culls_back_faces() {
             return cross_boundary(s, ray, &hit, None, cx.counters);
         }
-        s.cone_width += self.pixel_spread * hit.t;
-        let at = hit.shading_point(s.cone_width, ray.dir);
+        s.onward.cone_width += self.pixel_spread * hit.t;
+        let at = hit.shading_point(s.onward.cone_width, ray.dir);
         let unmapped = hit.shading;
         if material.has_normal_map() {
             scene.apply_normal_map(&mut hit, &at);
         }
         let mesh = || scene.mesh_of_prim(hit.prim);
         // Camera rays (no scattering event yet) pass through shadow catchers and are cut by holdouts.
-        let matte = self.mattes && s.depth == 0;
+        let matte = self.mattes && s.onward.depth == 0;
         if matte && scene.names().mesh_is_shadow_catcher(mesh()) {
             return self.pass_shadow_catcher(cx, s, ray, &hit, &at);
         }
-        let count_emission = !s.first_hit || s.first_emission == FirstEmission::Count;
-        s.first_hit = false;
+        let count_emission = !s.onward.first_hit || s.first_emission == FirstEmission::Count;
+        s.onward.first_hit = false;
         let aovs = SurfaceAovs {
             hit: &hit,
             ray,
@@ -986,10 +993,10 @@ impl PathTracer {
             return cross_boundary(s, ray, &hit, material.interior, cx.counters);
         }
         aovs.record(s, out);
-        if s.depth == 0 {
+        if s.onward.depth == 0 {
             s.cover(1.0, CameraEvent::Surface, hit.t, item);
         }
-        if s.depth >= self.max_depth {
+        if s.onward.depth >= self.max_depth {
             return SurfaceOutcome::End;
         }
         let Some(frame) = shading_frame(&hit, material) else {
@@ -1025,7 +1032,7 @@ impl PathTracer {
                 }
                 _ => 1.0,
             };
-            s.add_reached(s.beta * le * weight, emitter);
+            s.add_reached(s.onward.beta * le * weight, emitter);
         }
     }
 
@@ -1046,9 +1053,9 @@ impl PathTracer {
         let material = &scene.materials[hit.material as usize];
         // A dispersive surface: the path goes on in one colour channel, refracted with that channel's index (the
         // first hit's colours are seen with the throughput before the choice).
-        let seen_beta = s.beta;
+        let seen_beta = s.onward.beta;
         if material.is_dispersive() {
-            let channel = carry_one_channel(&mut s.beta, cx.rng);
+            let channel = carry_one_channel(&mut s.onward.beta, cx.rng);
             bsdf = material.bsdf_in_channel(surface.at, &scene.textures, channel);
         }
         // The clear coat's normal: its own normal map, else the normal before the base's normal map.
@@ -1061,13 +1068,13 @@ impl PathTracer {
             bsdf.set_coat_normal(frame.to_local(n));
         }
         let wo = frame.to_local(-ray.dir);
-        if s.depth == 0 {
+        if s.onward.depth == 0 {
             if let Some(r) = s.record.as_deref_mut() {
                 r.colors = bsdf.colors(wo) * seen_beta;
             }
         }
         let guide = match bsdf {
-            Bsdf::Lambert(_) => guided::guide_at(services, s.beta, hit.p),
+            Bsdf::Lambert(_) => guided::guide_at(services, s.onward.beta, hit.p),
             _ => None,
         };
         let direction_pdf =
@@ -1082,9 +1089,9 @@ impl PathTracer {
         if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f.max_element() <= 0.0 {
             return SurfaceOutcome::End;
         }
-        if s.depth == 0 && s.record.is_some() {
+        if s.onward.depth == 0 && s.record.is_some() {
             // The first event's classes share the path's later light as they share this direction's value.
-            s.first_event = FirstEvent::Surface(if bs.is_delta {
+            s.onward.first_event = FirstEvent::Surface(if bs.is_delta {
                 LobeSplit::only(bs.class, Rgb::ONE)
             } else {
                 bsdf.eval_split(wo, bs.wi).shares()
@@ -1119,7 +1126,7 @@ impl PathTracer {
             let f = bsdf.eval(wo, wi) * wi.z.abs();
             let segment = ls.shadow_segment(&hit.surface_point());
             if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
-                let mut stack = s.stack;
+                let mut stack = s.onward.stack;
                 if let Some(interior) = material.interior {
                     stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
                 }
@@ -1131,8 +1138,8 @@ impl PathTracer {
                     } else {
                         power_heuristic(light_pdf, direction_pdf(wi))
                     };
-                    let value = s.beta * f * tr * ls.radiance * (weight / light_pdf);
-                    let beta = s.beta;
+                    let value = s.onward.beta * f * tr * ls.radiance * (weight / light_pdf);
+                    let beta = s.onward.beta;
                     let split = || {
                         let factor = beta * tr * ls.radiance * (wi.z.abs() * weight / light_pdf);
                         bsdf.eval_split(wo, wi) * factor
@@ -1158,7 +1165,7 @@ impl PathTracer {
     ) -> SurfaceOutcome {
         let (hit, frame) = (surface.hit, surface.frame);
         let wi_world = frame.to_world(bs.wi);
-        s.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+        s.onward.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
         s.prev_delta = bs.is_delta;
         s.prev_pdf = bs.pdf;
         s.prev = LightContext {
@@ -1173,7 +1180,8 @@ impl PathTracer {
             let crossing = wi_world.dot(hit.geometric_normal).signum()
                 != wo_world.dot(hit.geometric_normal).signum();
             if crossing {
-                s.stack
+                s.onward
+                    .stack
                     .cross(interior, wi_world.dot(hit.geometric_normal) < 0.0);
             }
         }
@@ -1181,7 +1189,7 @@ impl PathTracer {
             return SurfaceOutcome::End;
         }
         if let (Some(path), false) = (s.guide_path.as_deref_mut(), bs.is_delta) {
-            path.push(hit.p, wi_world, bs.pdf, s.beta, radiance_before);
+            path.push(hit.p, wi_world, bs.pdf, s.onward.beta, radiance_before);
         }
         cx.counters.rays.bounce += 1;
         SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(wi_world), wi_world).at_time(ray.time))
@@ -1223,7 +1231,7 @@ impl PathTracer {
                 n: Some(frame.n),
             };
             let (mut lit, mut open) = (Rgb::ZERO, Rgb::ZERO);
-            let beta = s.beta;
+            let beta = s.onward.beta;
             services.sample_lights(&ctx, cx.rng, |chosen, rng| {
                 let ls = chosen.sample;
                 let wi = frame.to_local(ls.wi);
@@ -1234,7 +1242,13 @@ impl PathTracer {
                 let unshadowed = beta * f * ls.radiance / (chosen.pmf * ls.pdf);
                 open += unshadowed;
                 if let Some(segment) = ls.shadow_segment(&hit.surface_point()) {
-                    let tr = services.transmittance(&segment, ray.time, &s.stack, rng, cx.counters);
+                    let tr = services.transmittance(
+                        &segment,
+                        ray.time,
+                        &s.onward.stack,
+                        rng,
+                        cx.counters,
+                    );
                     lit += unshadowed * tr;
                 }
             });
@@ -1242,8 +1256,8 @@ impl PathTracer {
                 r.catcher = Some((lit, open));
             }
         }
-        s.crossings += 1;
-        if s.crossings > MAX_BOUNDARY_CROSSINGS {
+        s.onward.crossings += 1;
+        if s.onward.crossings > MAX_BOUNDARY_CROSSINGS {
             return SurfaceOutcome::End;
         }
         cx.counters.rays.bounce += 1;
@@ -1253,19 +1267,19 @@ impl PathTracer {
     /// Handles a real collision at distance `t` in medium `m`: the medium's albedo, next-event estimation with
     /// MIS against the direction sampling to come, guided Russian roulette and splitting where it applies
     /// ([`Self::guided_roulette`]), then [`Self::scatter_onward`]. Returns false when the path ends.
-    fn scatter_in_medium(
+    fn scatter_in_medium<'g>(
         &self,
-        cx: &mut PathContext,
-        s: &mut PathState,
+        cx: &mut PathContext<'_, 'g>,
+        s: &mut PathState<'_, 'g>,
         ray: &mut Ray,
         t: f32,
         m: u32,
     ) -> bool {
         let services = cx.services;
         let scene = services.scene();
-        s.cone_width += self.pixel_spread * t;
+        s.onward.cone_width += self.pixel_spread * t;
         let p = ray.at(t);
-        if s.depth == 0 {
+        if s.onward.depth == 0 {
             if self.mattes && scene.names().medium_is_holdout(m as usize) {
                 s.cover(s.coverage_so_far(), CameraEvent::Ended, t, || None);
                 return false;
@@ -1276,22 +1290,22 @@ impl PathTracer {
         }
         // The medium's emission here was gathered with its free flight (at every tentative collision).
         let collision = scene.media[m as usize].collision(p, ray.time);
-        s.beta *= collision.albedo;
-        if s.beta.max_element() <= 0.0 || s.depth >= self.max_depth {
+        s.onward.beta *= collision.albedo;
+        if s.onward.beta.max_element() <= 0.0 || s.onward.depth >= self.max_depth {
             return false;
         }
         let wo = -ray.dir;
         // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
         // against, so the estimate stays unbiased; the choice is made once, before roulette changes the
         // throughput, and holds for every path split off here.
-        let guide = guided::guide_at(services, s.beta, p);
+        let guide = guided::guide_at(services, s.onward.beta, p);
         let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, collision.phase.eval(wo, wi));
         self.medium_next_event(cx, s, ray, t, &collision.phase, direction_pdf);
         let event = MediumEvent {
             ray: *ray,
             t,
             phase: collision.phase,
-            guided: guide.is_some(),
+            guide,
         };
         let played = match self.guided_roulette(cx, s, &event) {
             Some(false) => return false,
@@ -1309,22 +1323,22 @@ impl PathTracer {
     /// continuation, leaves out the event's own next-event estimate), compared with its pixel's training value.
     /// Returns `None` where it does not apply (not on, a training path, or no estimate: classic Russian roulette
     /// then), else whether the path goes on; paths split off wait in `s.branches`.
-    fn guided_roulette(
+    fn guided_roulette<'g>(
         &self,
         cx: &mut PathContext,
-        s: &mut PathState,
-        event: &MediumEvent,
+        s: &mut PathState<'_, 'g>,
+        event: &MediumEvent<'g>,
     ) -> Option<bool> {
         if !self.guided_roulette || s.guide_path.is_some() {
             return None;
         }
         let pixel = cx.services.pixel_estimate()?;
         let radiance = cx.services.guide()?.mean_radiance_at(event.point())?;
-        let ratio = s.beta.element_sum() / 3.0 * radiance / pixel;
+        let ratio = s.onward.beta.element_sum() / 3.0 * radiance / pixel;
         match adjoint::play(ratio, cx.rng.next_f32(), s.branch_budget) {
             Roulette::Ends => Some(false),
             Roulette::GoesOn { copies, weight } => {
-                s.beta *= weight;
+                s.onward.beta *= weight;
                 for _ in 1..copies {
                     let branch = Branch::split_off(s, event, cx.rng);
                     s.branches.push(branch);
@@ -1348,15 +1362,11 @@ impl PathTracer {
         roulette_played: bool,
     ) -> Option<Ray> {
         let p = event.point();
-        let guide = cx
-            .services
-            .guide()
-            .filter(|_| event.guided)
-            .and_then(|g| g.distribution_at(p));
-        let (wi, pdf, weight) = guided::sample_phase(&event.phase, guide, -event.ray.dir, cx.rng)?;
-        s.beta *= weight;
-        if s.depth == 0 {
-            s.first_event = FirstEvent::Volume;
+        let (wi, pdf, weight) =
+            guided::sample_phase(&event.phase, event.guide, -event.ray.dir, cx.rng)?;
+        s.onward.beta *= weight;
+        if s.onward.depth == 0 {
+            s.onward.first_event = FirstEvent::Volume;
         }
         s.prev_delta = false;
         s.prev_pdf = pdf;
@@ -1367,7 +1377,7 @@ impl PathTracer {
             return None;
         }
         if let Some(path) = s.guide_path.as_deref_mut() {
-            path.push(p, wi, pdf, s.beta, radiance_before);
+            path.push(p, wi, pdf, s.onward.beta, radiance_before);
         }
         cx.counters.rays.bounce += 1;
         Some(Ray::new(p, wi).at_time(event.ray.time))
@@ -1397,7 +1407,8 @@ impl PathTracer {
             let phase = phase.eval(wo, ls.wi);
             let segment = ls.shadow_segment(&SurfacePoint::free(ctx.p));
             if let (true, Some(segment)) = (phase > 0.0, segment) {
-                let tr = services.transmittance(&segment, ray.time, &s.stack, rng, cx.counters);
+                let tr =
+                    services.transmittance(&segment, ray.time, &s.onward.stack, rng, cx.counters);
                 if tr.max_element() > 0.0 {
                     let light_pdf = chosen.pmf * ls.pdf;
                     let weight = if ls.is_delta {
@@ -1407,7 +1418,7 @@ impl PathTracer {
                     } else {
                         power_heuristic(light_pdf, direction_pdf(ls.wi))
                     };
-                    let value = s.beta * tr * ls.radiance * (phase * weight / light_pdf);
+                    let value = s.onward.beta * tr * ls.radiance * (phase * weight / light_pdf);
                     s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
                 }
             }
@@ -1417,13 +1428,13 @@ impl PathTracer {
     /// Counts a scattering event and, with `roulette`, plays classic Russian roulette; returns false when the
     /// path ends.
     fn next_bounce(&self, s: &mut PathState, rng: &mut Rng, roulette: bool) -> bool {
-        s.depth += 1;
-        if roulette && s.depth > ROULETTE_START {
-            let survive = s.beta.max_element().clamp(0.05, 1.0);
+        s.onward.depth += 1;
+        if roulette && s.onward.depth > ROULETTE_START {
+            let survive = s.onward.beta.max_element().clamp(0.05, 1.0);
             if rng.next_f32() >= survive {
                 return false;
             }
-            s.beta /= survive;
+            s.onward.beta /= survive;
         }
         true
     }

@@ -7,9 +7,9 @@
 //! rows are traced in parallel a block at a time and their records added to the cache in row order, one thread.
 //! The cache, and so the image, is the same for any thread count and in every farm part of a render.
 //!
-//! The training's samples are also the pixel values guided Russian roulette compares paths with
-//! ([`PixelEstimates`], every iteration's samples: each is an unbiased estimate of its pixel), summed in the
-//! same row order.
+//! With guided Russian roulette on ([`PathTracer::guided_roulette`]), the training's samples are also the pixel
+//! values it compares paths with ([`PixelEstimates`], every iteration's samples: each is an unbiased estimate of
+//! its pixel), summed in the same row order; without it they are not kept.
 
 use super::renderer::GuidingStats;
 use super::CancelToken;
@@ -60,7 +60,9 @@ pub(super) fn train(
     }
     let start = Instant::now();
     let mut field = GuidingField::new(scene.bounds);
-    let mut pixels = PixelEstimates::new(frame.width, frame.height);
+    let mut pixels = tracer
+        .guided_roulette
+        .then(|| PixelEstimates::new(frame.width, frame.height));
     for k in 0..TRAINING_ITERATIONS {
         let spp = 1u32 << k;
         let seed = frame.seed ^ TRAINING_STREAM ^ k as u64;
@@ -78,8 +80,10 @@ pub(super) fn train(
             for row in &traced {
                 stats.training_records += row.records.len() as u64;
                 field.add_records(&row.records);
-                for &(pixel, value) in &row.values {
-                    pixels.add(pixel, value);
+                if let Some(pixels) = pixels.as_mut() {
+                    for &(pixel, value) in &row.values {
+                        pixels.add(pixel, value);
+                    }
                 }
             }
         }
@@ -87,15 +91,17 @@ pub(super) fn train(
         stats.training_paths += (frame.width * frame.height) as u64 * spp as u64;
         stats.training_samples_per_pixel += spp;
     }
-    field.set_pixel_estimates(pixels);
+    if let Some(pixels) = pixels {
+        field.set_pixel_estimates(pixels);
+    }
     stats.cells = field.cell_count();
     stats.guided_cells = field.guided_cell_count();
     stats.training_seconds = start.elapsed().as_secs_f64();
     (Some(field), stats)
 }
 
-/// What the training paths of one row found: their records and each sample's value (channel mean), pixel by
-/// pixel in order.
+/// What the training paths of one row found: their records and, for guided Russian roulette, each sample's
+/// value (channel mean), pixel by pixel in order.
 struct TrainingRow {
     records: Vec<RadianceRecord>,
     values: Vec<((usize, usize), f32)>,
@@ -115,7 +121,9 @@ fn trace_row(
     let mut counters = PathCounters::new(scene.media.len());
     let mut path = GuidePath::default();
     let mut records = Vec::new();
-    let mut values = Vec::with_capacity(frame.width * spp as usize);
+    // Only guided Russian roulette reads the samples' values (as its pixel estimates).
+    let keeps_values = tracer.guided_roulette;
+    let mut values = Vec::with_capacity(keeps_values as usize * frame.width * spp as usize);
     for x in 0..frame.width {
         let pixel_index = (y * frame.width + x) as u64;
         for sample in 0..spp {
@@ -137,7 +145,9 @@ fn trace_row(
             let result = tracer.trace(&mut cx, ray, FirstEmission::Count, None, Some(&mut path));
             if result.radiance.is_finite() {
                 path.finish(result.radiance, &mut records);
-                values.push(((x, y), result.radiance.element_sum() / 3.0));
+                if keeps_values {
+                    values.push(((x, y), result.radiance.element_sum() / 3.0));
+                }
             }
         }
     }
@@ -212,6 +222,45 @@ mod tests {
             ((sum2 / n as f64 - mean * mean) / n as f64).sqrt(),
             counters,
         )
+    }
+
+    /// The training keeps its samples' values as pixel estimates only for guided Russian roulette, their only
+    /// reader: a render without it does no such work.
+    #[test]
+    fn pixel_estimates_are_kept_only_for_guided_roulette() {
+        let scene = furnace();
+        let services = RendererServices::new(&scene, false);
+        let frame = TrainingFrame {
+            width: 4,
+            height: 4,
+            seed: 3,
+        };
+        for guided_roulette in [false, true] {
+            let tracer = PathTracer {
+                max_depth: 64,
+                media_mis: true,
+                pixel_spread: 0.0,
+                pixel_width: 0.0,
+                equiangular: false,
+                transparent: false,
+                mattes: false,
+                guided_roulette,
+            };
+            let decision = GuidingDecision {
+                on: true,
+                reason: String::new(),
+            };
+            let (field, _) = train(
+                &scene,
+                &tracer,
+                &services,
+                &frame,
+                decision,
+                &CancelToken::new(),
+            );
+            let estimate = field.unwrap().pixel_estimate((2, 2));
+            assert_eq!(estimate.is_some(), guided_roulette, "{estimate:?}");
+        }
     }
 
     /// Guided Russian roulette and splitting keep the white furnace's mean, 1, within 4 standard errors where

@@ -664,64 +664,6 @@ impl Renderer {
             ..RenderStats::default()
         }
     }
-
-    /// Adds `samples` to every pixel of the film's window, but the first `skip[r]` pixels of each window row
-    /// `r` (which took them already), stopping each row before its next pixel once `cancel` is cancelled;
-    /// pixels that `edges` marks supersample their directly visible emission. Returns the counters, the
-    /// dropped NaN samples, the clamped samples, and how many pixels of each row, from the left, hold the
-    /// samples (the skipped ones included). Paths are guided by `guide` when given.
-    #[allow(clippy::too_many_arguments)]
-    fn render_pass(
-        &self,
-        scene: &Scene,
-        film: &mut Film,
-        recorder: &LayerRecorder,
-        edges: Option<&EmitterEdges>,
-        guide: Option<&GuidingField>,
-        samples: Range<u32>,
-        skip: Option<&[u32]>,
-        cancel: &CancelToken,
-    ) -> (PathCounters, u64, u64, Vec<u32>) {
-        let window = film.window();
-        debug_assert!(film.width > 0 && film.height > 0 && !window.is_empty());
-        let pass = Pass {
-            scene,
-            settings: &self.settings,
-            tracer: self.path_tracer(scene),
-            services: self.services(scene).with_guide(guide),
-            recorder,
-            edges,
-            width: film.width,
-            height: film.height,
-            window,
-            records: film.plan().records() || film.deep_samples().is_some(),
-            shadow_catcher: film.plan().slot(super::aovs::CATCHER_LIT).is_some(),
-            deep: film.deep_samples().is_some(),
-            max_bins: film.deep_samples().map_or(0, super::deep::max_bins),
-            samples,
-            cancel,
-        };
-        film.rows_mut()
-            .into_par_iter()
-            // One row per task: rayon's adaptive splitting otherwise hands a thread a run of rows it cannot
-            // give up once started, and the other thread idled for ~10 ms at the end of each pass (cloud, 2
-            // threads).
-            .with_max_len(1)
-            .enumerate()
-            .map(|(row_index, row)| {
-                pass.render_row(row_index, row, skip.map_or(0, |s| s[row_index] as usize))
-            })
-            .collect::<Vec<_>>()
-            .into_iter()
-            .fold(
-                (PathCounters::new(scene.media.len()), 0, 0, Vec::new()),
-                |(mut counters, nans, clamped, mut rows), row| {
-                    counters.add(&row.0);
-                    rows.push(row.3);
-                    (counters, nans + row.1, clamped + row.2, rows)
-                },
-            )
-    }
 }
 
 /// What every pixel of one pass shares: the scene and how it is traced, where the samples go, and which samples
@@ -818,9 +760,13 @@ impl Pass<'_> {
         counters: &mut PathCounters,
     ) -> (Ray, Option<f32>, PathSample) {
         let s = self.settings;
-        let services = self
-            .services
-            .with_pixel_estimate(self.services.guide().and_then(|g| g.pixel_estimate((x, y))));
+        // Only guided Russian roulette reads the pixel's training value.
+        let services = if self.tracer.guided_roulette {
+            let estimate = self.services.guide().and_then(|g| g.pixel_estimate((x, y)));
+            self.services.with_pixel_estimate(estimate)
+        } else {
+            self.services
+        };
         let mut rng = self.sample_rng(s.seed, pixel_index, sample as u64);
         // A box shutter: the time is uniform over the interval, drawn from a stream of its own so that the
         // path's numbers are those of a render without a shutter (a still scene renders bit for bit the same
@@ -970,6 +916,59 @@ struct Passes<'a> {
 }
 
 impl Passes<'_> {
+    /// Adds `samples` to every pixel of the film's window, but the first `skip[r]` pixels of each window row
+    /// `r` (which took them already), stopping each row before its next pixel once the render is cancelled;
+    /// pixels that the emitter edges mark supersample their directly visible emission. Returns the counters, the
+    /// dropped NaN samples, the clamped samples, and how many pixels of each row, from the left, hold the
+    /// samples (the skipped ones included). Paths are guided by the render's cache when it has one.
+    fn render_pass(
+        &self,
+        film: &mut Film,
+        samples: Range<u32>,
+        skip: Option<&[u32]>,
+    ) -> (PathCounters, u64, u64, Vec<u32>) {
+        let (renderer, scene) = (self.renderer, self.scene);
+        let window = film.window();
+        debug_assert!(film.width > 0 && film.height > 0 && !window.is_empty());
+        let pass = Pass {
+            scene,
+            settings: &renderer.settings,
+            tracer: renderer.path_tracer(scene),
+            services: renderer.services(scene).with_guide(self.guide),
+            recorder: self.recorder,
+            edges: self.edges,
+            width: film.width,
+            height: film.height,
+            window,
+            records: film.plan().records() || film.deep_samples().is_some(),
+            shadow_catcher: film.plan().slot(super::aovs::CATCHER_LIT).is_some(),
+            deep: film.deep_samples().is_some(),
+            max_bins: film.deep_samples().map_or(0, super::deep::max_bins),
+            samples,
+            cancel: self.cancel,
+        };
+        film.rows_mut()
+            .into_par_iter()
+            // One row per task: rayon's adaptive splitting otherwise hands a thread a run of rows it cannot
+            // give up once started, and the other thread idled for ~10 ms at the end of each pass (cloud, 2
+            // threads).
+            .with_max_len(1)
+            .enumerate()
+            .map(|(row_index, row)| {
+                pass.render_row(row_index, row, skip.map_or(0, |s| s[row_index] as usize))
+            })
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(
+                (PathCounters::new(scene.media.len()), 0, 0, Vec::new()),
+                |(mut counters, nans, clamped, mut rows), row| {
+                    counters.add(&row.0);
+                    rows.push(row.3);
+                    (counters, nans + row.1, clamped + row.2, rows)
+                },
+            )
+    }
+
     /// Renders passes into `film` from `at` until the region's samples are done, the time limit is spent, a
     /// pass stops part way, `cancel` is cancelled or `progress` (called after each pass) says stop; returns
     /// where the region stands.
@@ -998,18 +997,9 @@ impl Passes<'_> {
                 None => (first + pass.min(target - totals.done), None),
             };
             let count = end - first;
-            let (c, nans, clamped, rows) = self.pool.install(|| {
-                self.renderer.render_pass(
-                    self.scene,
-                    film,
-                    self.recorder,
-                    self.edges,
-                    self.guide,
-                    first..end,
-                    skip,
-                    self.cancel,
-                )
-            });
+            let (c, nans, clamped, rows) = self
+                .pool
+                .install(|| self.render_pass(film, first..end, skip));
             totals.counters.add(&c);
             totals.nan_samples += nans;
             totals.clamped_samples += clamped;

@@ -34,7 +34,8 @@ use super::majorant::{MajorantKind, Majorants};
 use super::majorant_choice::{self, MajorantEstimate};
 use super::tracking::{
     decomposition_tracking, decomposition_tracking_reporting, ratio_tracking,
-    residual_ratio_tracking, spectral_tracking, NoHook, TentativeCollision, TentativeHook,
+    residual_ratio_tracking, spectral_tracking, NoHook, RgbDensity, TentativeCollision,
+    TentativeHook,
 };
 use super::velocity::{Displaced, VelocityField};
 use super::{
@@ -295,9 +296,11 @@ impl GridMedium {
                     .each_ref()
                     .map(|density| Displaced { density, ..max });
                 spectral_tracking(
-                    &max,
-                    [&r, &g, &b],
-                    &self.majorants,
+                    RgbDensity {
+                        max: &max,
+                        channels: [&r, &g, &b],
+                        majorants: &self.majorants,
+                    },
                     ray,
                     interval,
                     throughput,
@@ -307,9 +310,11 @@ impl GridMedium {
                 )
             }
             None => spectral_tracking(
-                &self.density,
-                channels.each_ref(),
-                &self.majorants,
+                RgbDensity {
+                    max: &self.density,
+                    channels: channels.each_ref(),
+                    majorants: &self.majorants,
+                },
                 ray,
                 interval,
                 throughput,
@@ -341,22 +346,44 @@ impl GridMedium {
         self.spectral_walk(ray, interval, throughput, rng, counters, gather)
     }
 
-    /// Delta (decomposition) tracking of the field `channel` over `(0, t_max)` of `ray`: the next real
-    /// collision, analog. An emitting medium gathers its emission at the walk's tentative collisions, times
-    /// `throughput` (the walk's weights are 1).
-    #[allow(clippy::too_many_arguments)]
+    /// Delta (decomposition) tracking over `(0, t_max)` of `ray` for a path of `throughput`: the next real
+    /// collision, analog. An RGB density tracked one channel at a time makes the path carry one channel, chosen
+    /// ∝ its throughput; delta tracking in it is analog (weight 1), over the majorants of the channels'
+    /// maximum. An emitting medium gathers its emission at the walk's tentative collisions, times the carried
+    /// throughput (the walk's weights are 1).
     fn delta_flight(
         &self,
-        channel: &GridDensity,
         ray: &Ray,
         t_max: f32,
         throughput: Rgb,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
         emission: &mut TentativeEmission,
-    ) -> Option<f32> {
-        if !self.is_emissive() {
-            return with_field!(self, channel, ray.time, |field| decomposition_tracking(
+    ) -> Flight {
+        let mut carried = throughput;
+        let channel = match &self.channels {
+            Some(ch) => {
+                crate::math::sampling::carry_one_channel(&mut carried, rng);
+                &ch[carried.max_position()]
+            }
+            None => &self.density,
+        };
+        let collision = if self.is_emissive() {
+            let t_end = self.exit(ray, t_max);
+            let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, carried, emission);
+            with_field!(self, channel, ray.time, |field| {
+                decomposition_tracking_reporting(
+                    field,
+                    &self.majorants,
+                    ray,
+                    (0.0, t_max),
+                    rng,
+                    counters,
+                    gather,
+                )
+            })
+        } else {
+            with_field!(self, channel, ray.time, |field| decomposition_tracking(
                 field,
                 &self.majorants,
                 ray,
@@ -364,21 +391,12 @@ impl GridMedium {
                 t_max,
                 rng,
                 counters
-            ));
+            ))
+        };
+        Flight {
+            collision,
+            throughput: carried,
         }
-        let t_end = self.exit(ray, t_max);
-        let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, throughput, emission);
-        with_field!(self, channel, ray.time, |field| {
-            decomposition_tracking_reporting(
-                field,
-                &self.majorants,
-                ray,
-                (0.0, t_max),
-                rng,
-                counters,
-                gather,
-            )
-        })
     }
 
     /// True for an RGB density whose free flights use spectral tracking.
@@ -721,21 +739,7 @@ impl Medium for GridMedium {
                 return flight;
             }
         }
-        // An RGB density tracked one channel at a time makes the path carry one channel, chosen ∝ its
-        // throughput; delta tracking in it is analog (weight 1), over the majorants of the channels' maximum.
-        let mut carried = throughput;
-        let channel = match &self.channels {
-            Some(ch) => {
-                crate::math::sampling::carry_one_channel(&mut carried, rng);
-                &ch[carried.max_position()]
-            }
-            None => &self.density,
-        };
-        let collision = self.delta_flight(channel, ray, t_max, carried, rng, counters, emission);
-        Flight {
-            collision,
-            throughput: carried,
-        }
+        self.delta_flight(ray, t_max, throughput, rng, counters, emission)
     }
 
     fn collision(&self, p: Vec3, time: f32) -> Collision {

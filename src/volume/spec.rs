@@ -360,6 +360,9 @@ impl VolumeSpec {
             asset: String::new(),
             tags: crate::geometry::CompositingTags::default(),
         };
+        // Only the static table reaches this (no input does): the defaults are constants, so an error here is a
+        // bug in VOLUME_KEYS, which every debug build's tests of volumes would trip, not something a file can
+        // cause. Hence an internal invariant's debug assertion, not a typed error.
         let applied = spec.apply_params(&TableDefaults);
         debug_assert!(
             applied.is_ok(),

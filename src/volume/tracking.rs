@@ -743,12 +743,23 @@ impl<C: DensityLookup, H: TentativeHook> Estimator for Spectral<C, H> {
     }
 }
 
+/// An RGB density as [`spectral_tracking`] walks it: its three channels, the field of their per-voxel maximum,
+/// and that field's majorants, which bound every channel.
+pub struct RgbDensity<'a, F: ?Sized> {
+    /// The field of the channels' per-voxel maximum.
+    pub max: &'a F,
+    /// The red, green and blue densities.
+    pub channels: [&'a F; 3],
+    /// The majorants of `max`.
+    pub majorants: &'a Majorants,
+}
+
 /// Spectral tracking (Kutz, Habel, Li, Novák 2017, "Spectral and Decomposition Tracking for Rendering
 /// Heterogeneous Volumes", §5, with the history-aware collision probabilities of §5.1): samples a free flight
-/// along the world `ray` in `[t_min, t_max]` through a medium whose extinction differs per channel, for all
-/// three channels at once, and returns the collision with the path's new throughput.
+/// along the world `ray` in `[t_min, t_max]` through a medium whose extinction differs per channel (`density`),
+/// for all three channels at once, and returns the collision with the path's new throughput.
 ///
-/// Tentative collisions are sampled at the rate σ̄ of the majorants of `max` (which bound every channel). At
+/// Tentative collisions are sampled at the rate σ̄ of the majorants of `density.max` (which bound every channel). At
 /// each, with σ_n = σ̄ − σ_t per channel and β the path throughput so far (walk weights included), the collision
 /// is real with probability P_r = ⟨β, σ_t⟩ / c and null with P_n = ⟨β, |σ_n|⟩ / c, c = ⟨β, σ_t⟩ + ⟨β, |σ_n|⟩
 /// (the throughput-weighted average of the paper's collision-type probabilities, absorption and scattering
@@ -762,13 +773,10 @@ impl<C: DensityLookup, H: TentativeHook> Estimator for Spectral<C, H> {
 /// no channel's weight can grow without bound, whatever the chromaticity. A path carrying one channel is
 /// delta-tracked in that channel exactly as [`sample_collision`] would (weights 1). Each tentative collision
 /// reads the three channels (counted as three lookups); segments thicker than [`REFINE_TAU`] per voxel are
-/// refined to voxel cells bounded by `max`'s eight voxels. Every tentative collision is reported to `hook`
+/// refined to voxel cells bounded by `density.max`'s eight voxels. Every tentative collision is reported to `hook`
 /// ([`NoHook`] for none) with the throughput arriving there and, when real, the throughput it leaves.
-#[allow(clippy::too_many_arguments)]
 pub fn spectral_tracking<F: DensityField + ?Sized, H: TentativeHook>(
-    max: &F,
-    channels: [&F; 3],
-    majorants: &Majorants,
+    density: RgbDensity<'_, F>,
     ray: &Ray,
     (t_min, t_max): (f32, f32),
     throughput: Rgb,
@@ -777,15 +785,15 @@ pub fn spectral_tracking<F: DensityField + ?Sized, H: TentativeHook>(
     hook: H,
 ) -> Flight {
     let mut spectral = Spectral {
-        channels: channels.map(|f| f.lookup()),
+        channels: density.channels.map(|f| f.lookup()),
         throughput,
         hit: None,
         hook,
     };
     counters.spectral_flights += 1;
     track(
-        max,
-        majorants,
+        density.max,
+        density.majorants,
         ray,
         (t_min, t_max),
         rng,
@@ -1073,9 +1081,11 @@ mod tests {
             let mut gathered = Rgb::ZERO;
             let hook = |x: &TentativeCollision| gathered += x.emission_weight(0.5);
             spectral_tracking(
-                &slab.max,
-                slab.channels.each_ref(),
-                &maj,
+                RgbDensity {
+                    max: &slab.max,
+                    channels: slab.channels.each_ref(),
+                    majorants: &maj,
+                },
                 &slab.ray,
                 (0.0, 10.0),
                 beta,
@@ -1481,9 +1491,11 @@ mod tests {
         let channels = slab.channels.each_ref();
         for _ in 0..N {
             let f = spectral_tracking(
-                &slab.max,
-                channels,
-                maj,
+                RgbDensity {
+                    max: &slab.max,
+                    channels,
+                    majorants: maj,
+                },
                 &slab.ray,
                 (0.0, 10.0),
                 beta,
@@ -1559,9 +1571,11 @@ mod tests {
         let beta = Rgb::new(0.2, 1.0, 3.0);
         for i in 0..2000 {
             let f = spectral_tracking(
-                &slab.max,
-                slab.channels.each_ref(),
-                &maj,
+                RgbDensity {
+                    max: &slab.max,
+                    channels: slab.channels.each_ref(),
+                    majorants: &maj,
+                },
                 &slab.ray,
                 (0.0, 10.0),
                 beta,
@@ -1584,9 +1598,11 @@ mod tests {
         for i in 0..2000 {
             let mut c = TrackingCounters::default();
             let f = spectral_tracking(
-                &slab.max,
-                slab.channels.each_ref(),
-                &maj,
+                RgbDensity {
+                    max: &slab.max,
+                    channels: slab.channels.each_ref(),
+                    majorants: &maj,
+                },
                 &slab.ray,
                 (0.0, 10.0),
                 one,
