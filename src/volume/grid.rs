@@ -20,9 +20,12 @@
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
 //!   gathered at the tentative collisions of a free flight's walk: an unbiased blend, per collision, of Miller
 //!   et al. 2019's track-length estimator (σ_t/σ̄ · (σ_a/σ_t) · L_e at every tentative collision) and the
-//!   collision estimator ((σ_a/σ_t) · L_e at the real one), weighted toward the first where null collisions are
-//!   likely (thin regions, where it has less variance) and toward the second where the majorant is tight
-//!   (thick regions, where it has less) ([`super::tracking::TentativeCollision::emission_weight`]).
+//!   collision estimator ((σ_a/σ_t) · L_e at the real one) with the blend α = exp(−σ̄·d) (σ̄ the majorant at the
+//!   collision, d the distance left to the medium's exit; 0 below 1/64), weighted toward the first where the
+//!   flight is likely to get through (thin regions, where it has less variance) and toward the second where it
+//!   is sure to end soon (thick regions, where it has less) ([`super::tracking::TentativeCollision::emission_weight`],
+//!   `Gather`). Taken from the majorant, α is known before a collision is decided: where it is 0, control
+//!   collisions need no density lookup and null collisions no emission lookup.
 //! - Motion blur: with a shutter and a velocity grid, every lookup at time τ reads the frame at x − v(x)·τ
 //!   ([`super::velocity`]), over majorants dilated for the shutter.
 
@@ -609,10 +612,11 @@ impl TentativeHook for Gather<'_> {
         if weight == Rgb::ZERO {
             return;
         }
-        let emitted = self
-            .medium
-            .collision(self.ray.at(x.t), self.ray.time)
-            .emission;
+        let collision = self.medium.collision(self.ray.at(x.t), self.ray.time);
+        if x.real.is_some() {
+            self.emission.keep_real(x.t, collision);
+        }
+        let emitted = collision.emission;
         if emitted.max_element() > 0.0 {
             self.emission.push(x.t, self.start * weight * emitted);
         }
