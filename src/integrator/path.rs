@@ -1288,8 +1288,12 @@ impl PathTracer {
                 Some(scene.names().item_of_medium(m as usize))
             });
         }
-        // The medium's emission here was gathered with its free flight (at every tentative collision).
-        let collision = scene.media[m as usize].collision(p, ray.time);
+        // The medium's emission here was gathered with its free flight (at every tentative collision), which
+        // may have kept the collision it looked up here.
+        let collision = s
+            .emitted
+            .real_collision(m, t)
+            .unwrap_or_else(|| scene.media[m as usize].collision(p, ray.time));
         s.onward.beta *= collision.albedo;
         if s.onward.beta.max_element() <= 0.0 || s.onward.depth >= self.max_depth {
             return false;

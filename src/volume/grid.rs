@@ -20,9 +20,12 @@
 //! - Emission: σ_a · L_e with L_e = emission_scale · blackbody(temperature_scale · T(x) + temperature_offset),
 //!   gathered at the tentative collisions of a free flight's walk: an unbiased blend, per collision, of Miller
 //!   et al. 2019's track-length estimator (σ_t/σ̄ · (σ_a/σ_t) · L_e at every tentative collision) and the
-//!   collision estimator ((σ_a/σ_t) · L_e at the real one), weighted toward the first where null collisions are
-//!   likely (thin regions, where it has less variance) and toward the second where the majorant is tight
-//!   (thick regions, where it has less) ([`super::tracking::TentativeCollision::emission_weight`]).
+//!   collision estimator ((σ_a/σ_t) · L_e at the real one) with the blend α = exp(−σ̄·d) (σ̄ the majorant at the
+//!   collision, d the distance left to the medium's exit; 0 below 1/64), weighted toward the first where the
+//!   flight is likely to get through (thin regions, where it has less variance) and toward the second where it
+//!   is sure to end soon (thick regions, where it has less) ([`super::tracking::TentativeCollision::emission_weight`],
+//!   `Gather`). Taken from the majorant, α is known before a collision is decided: where it is 0, control
+//!   collisions need no density lookup and null collisions no emission lookup.
 //! - Motion blur: with a shutter and a velocity grid, every lookup at time τ reads the frame at x − v(x)·τ
 //!   ([`super::velocity`]), over majorants dilated for the shutter.
 
@@ -245,32 +248,6 @@ impl GridMedium {
         self
     }
 
-    /// The emission gathered at a tentative collision `x` of a free flight along `ray` that leaves the medium
-    /// at `t_end` and started with path throughput `start`: [`TentativeCollision::emission_weight`] times
-    /// (σ_a/σ_t) L_e at the point. The blend's α is exp(−σ_t(x)·d), d the distance left to `t_end`: the chance
-    /// of getting through were the medium as dense as at x all the way, so that the track-length estimator is
-    /// used where the flight is likely to get through (thin media) and the collision estimator where it is
-    /// sure to end soon.
-    fn gather(
-        &self,
-        ray: &Ray,
-        t_end: f32,
-        x: &TentativeCollision,
-        start: Rgb,
-        emission: &mut TentativeEmission,
-    ) {
-        let depth_left = x.ratio.max_element() * x.sigma_bar * ray.dir.length() * (t_end - x.t);
-        let weight = x.emission_weight((-depth_left).exp());
-        // A null collision where the medium is empty gathers nothing: no lookup.
-        if weight == Rgb::ZERO {
-            return;
-        }
-        let emitted = self.collision(ray.at(x.t), ray.time).emission;
-        if emitted.max_element() > 0.0 {
-            emission.push(x.t, start * weight * emitted);
-        }
-    }
-
     /// Where `ray` leaves the medium's box before `t_max` (`t_max` when it does not).
     fn exit(&self, ray: &Ray, t_max: f32) -> f32 {
         self.world_bounds
@@ -341,8 +318,7 @@ impl GridMedium {
             return self.spectral_walk(ray, interval, throughput, rng, counters, NoHook);
         }
         // The walk's weights already hold the path's throughput.
-        let t_end = self.exit(ray, t_max);
-        let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, Rgb::ONE, emission);
+        let gather = Gather::new(self, ray, t_max, Rgb::ONE, emission);
         self.spectral_walk(ray, interval, throughput, rng, counters, gather)
     }
 
@@ -369,8 +345,7 @@ impl GridMedium {
             None => &self.density,
         };
         let collision = if self.is_emissive() {
-            let t_end = self.exit(ray, t_max);
-            let gather = |x: &TentativeCollision| self.gather(ray, t_end, x, carried, emission);
+            let gather = Gather::new(self, ray, t_max, carried, emission);
             with_field!(self, channel, ray.time, |field| {
                 decomposition_tracking_reporting(
                     field,
@@ -585,6 +560,83 @@ impl GridMedium {
                     .transform_point3(d.source(index))
             }
             None => p,
+        }
+    }
+}
+
+/// The majorant optical depth left to the medium's exit beyond which [`Gather`]'s blend is 0, the collision
+/// estimator alone: ln 64, so the smallest blend used is 1/64.
+const MAX_BLEND_DEPTH: f32 = 4.158_883;
+
+/// The emission hook of a grid medium's free flight: gathers (σ_a/σ_t) L_e at the walk's tentative collisions
+/// with the weight [`TentativeCollision::emission_weight`] of the blend α = exp(−σ̄·d), σ̄ the majorant at the
+/// collision and d the distance left to the medium's exit (0 when σ̄·d exceeds [`MAX_BLEND_DEPTH`]).
+///
+/// The blend leans on the track-length estimator (Miller, Georgiev, Jarosz 2019, eq. 9) where even a medium as
+/// dense as the majorant all the way would likely let the flight through (thin media, where it has less
+/// variance), and on the collision estimator where the flight is sure to end soon (thick media, where that one
+/// is nearly deterministic). It is taken from the majorant, not from σ_t(x): it is then known before the walk
+/// decides the collision, so decomposition tracking keeps its lookup-free control collisions where it is 0,
+/// and null collisions there gather nothing and read no emission.
+struct Gather<'a> {
+    medium: &'a GridMedium,
+    ray: &'a Ray,
+    /// The length of the ray's direction: world length per unit of its parameter.
+    len: f32,
+    /// Where the ray leaves the medium (or the flight's interval ends).
+    t_end: f32,
+    /// The path throughput that the walk's own weights do not hold.
+    start: Rgb,
+    emission: &'a mut TentativeEmission,
+}
+
+impl<'a> Gather<'a> {
+    /// The hook of a flight over `(0, t_max)` of `ray` through `medium` for a path of throughput `start` (before
+    /// the walk's weights), gathering into `emission`.
+    fn new(
+        medium: &'a GridMedium,
+        ray: &'a Ray,
+        t_max: f32,
+        start: Rgb,
+        emission: &'a mut TentativeEmission,
+    ) -> Self {
+        Self {
+            medium,
+            ray,
+            len: ray.dir.length(),
+            t_end: medium.exit(ray, t_max),
+            start,
+            emission,
+        }
+    }
+}
+
+impl TentativeHook for Gather<'_> {
+    const WANTS: bool = true;
+
+    #[inline]
+    fn blend(&mut self, t: f32, sigma_bar: f32) -> f32 {
+        let depth_left = sigma_bar * self.len * (self.t_end - t);
+        if depth_left > MAX_BLEND_DEPTH {
+            0.0
+        } else {
+            (-depth_left).exp()
+        }
+    }
+
+    fn tentative(&mut self, x: &TentativeCollision) {
+        let weight = x.emission_weight(self.blend(x.t, x.sigma_bar));
+        // A null collision where the blend is 0 or the medium is empty gathers nothing: no lookup.
+        if weight == Rgb::ZERO {
+            return;
+        }
+        let collision = self.medium.collision(self.ray.at(x.t), self.ray.time);
+        if x.real.is_some() {
+            self.emission.keep_real(x.t, collision);
+        }
+        let emitted = collision.emission;
+        if emitted.max_element() > 0.0 {
+            self.emission.push(x.t, self.start * weight * emitted);
         }
     }
 }
@@ -815,4 +867,118 @@ pub fn load_grid_medium(spec: &VolumeSpec) -> Result<Option<Arc<dyn Medium>>, Vo
         ..spec.clone()
     };
     Ok(Some(Arc::new(GridMedium::load(&spec)?)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vdb::{GridTree, Tree};
+    use glam::{DMat4, DVec3, IVec3};
+
+    /// Voxels along the ray of [`emitting_ramp`].
+    const N: i32 = 32;
+    /// Voxel size in metres.
+    const VOXEL: f64 = 0.05;
+    /// The density of the ramp's first voxel, in units of its step per voxel.
+    const RAMP_START: f32 = 8.0;
+    /// The temperature everywhere the ramp has density, in kelvin.
+    const KELVIN: f32 = 2000.0;
+
+    /// An `N`³ block whose density rises along x, `scale` · ([`RAMP_START`] + i) at voxel i, placed at voxel size
+    /// [`VOXEL`], with a constant temperature ([`KELVIN`]) on a block two voxels wider on every side, albedo 0
+    /// (σ_a = σ_t) and emission scale 1, under majorants `kind`. Along a ray on x through the block's middle the
+    /// trilinear density is piecewise linear between voxel centres and falls to 0 one voxel beyond the end
+    /// ones, so the optical depth across it is exactly `scale` · [`VOXEL`] · Σ ([`RAMP_START`] + i). The
+    /// interior leaves (8³ voxels) have minorants above 0: decomposition tracking's control collisions.
+    fn emitting_ramp(scale: f32, kind: MajorantKind) -> GridMedium {
+        let index_to_world = DMat4::from_scale(DVec3::splat(VOXEL));
+        let block = |lo: i32, hi: i32, value: &dyn Fn(i32) -> f32| {
+            let voxels = (lo..hi).flat_map(|x| {
+                (lo..hi).flat_map(move |y| (lo..hi).map(move |z| (IVec3::new(x, y, z), x)))
+            });
+            let tree = Tree::from_voxels(0.0, voxels.map(|(p, x)| (p, value(x))));
+            Arc::new(GridTree::Float(tree))
+        };
+        let density =
+            GridDensity::from_tree(block(0, N, &|x| RAMP_START + x as f32), index_to_world, scale)
+                .unwrap();
+        let temperature =
+            GridDensity::from_tree(block(-2, N + 2, &|_| 1.0), index_to_world, 1.0).unwrap();
+        let mut medium = GridMedium::new("ramp", density, kind, Rgb::ZERO, 0.0);
+        medium.emission = Some(Emission {
+            temperature,
+            table: BlackbodyTable::new(),
+            scale: 1.0,
+            temperature_scale: KELVIN,
+            temperature_offset: 0.0,
+        });
+        medium
+    }
+
+    /// The mean and standard error of the emission gathered by `n` free flights along `ray` (path throughput 1)
+    /// and the flights' tracking counters.
+    fn gathered_emission(
+        medium: &GridMedium,
+        ray: &Ray,
+        n: u64,
+    ) -> (DVec3, DVec3, TrackingCounters) {
+        let (mut sum, mut sum2) = (DVec3::ZERO, DVec3::ZERO);
+        let mut counters = TrackingCounters::default();
+        let mut emission = TentativeEmission::default();
+        for k in 0..n {
+            emission.clear();
+            let mut rng = Rng::new(21, k);
+            medium.free_flight(ray, 10.0, Rgb::ONE, &mut rng, &mut counters, &mut emission);
+            let total = emission
+                .samples()
+                .iter()
+                .fold(DVec3::ZERO, |total, sample| total + sample.1.as_dvec3());
+            sum += total;
+            sum2 += total * total;
+        }
+        let mean = sum / n as f64;
+        let variance = (sum2 / n as f64 - mean * mean).max(DVec3::ZERO);
+        (mean, (variance / n as f64).powf(0.5), counters)
+    }
+
+    /// The blended estimator of emission ([`Gather`]) is unbiased: along a ray through an emitting ramp of
+    /// albedo 0 and constant temperature, the emission gathered at the tentative collisions has the expectation
+    /// L_e (1 − e^−τ) (∫ σ_t T L_e dt in closed form), within 4 standard errors, with every majorant
+    /// structure; in a thin ramp (τ = 1, where the blend is above 0 everywhere) and a thick one (τ = 30, where it
+    /// is 0 until the last few collisions before the exit, and decomposition tracking decides its control
+    /// collisions without a density lookup).
+    #[test]
+    fn blended_emission_matches_the_closed_form_in_thin_and_thick_media() {
+        let middle = (N as f32 / 2.0 - 0.3) * VOXEL as f32;
+        let ray = Ray::new(Vec3::new(-1.0, middle, middle + 0.01), Vec3::X);
+        let ramp_sum = (N * (N - 1) / 2) as f64 + (N as f64) * RAMP_START as f64;
+        for tau in [1.0f64, 30.0] {
+            let scale = (tau / (VOXEL * ramp_sum)) as f32;
+            for kind in MajorantKind::ALL {
+                let medium = emitting_ramp(scale, kind);
+                let le = medium
+                    .collision(Vec3::new(0.4, middle, middle), 0.0)
+                    .emission;
+                assert!(le.min_element() > 0.0, "the ramp emits: {le:?}");
+                let (mean, se, counters) = gathered_emission(&medium, &ray, 20_000);
+                let expected = le.as_dvec3() * (1.0 - (-tau).exp());
+                for c in 0..3 {
+                    assert!(
+                        (mean[c] - expected[c]).abs() <= 4.0 * se[c] + 1e-5 * expected[c],
+                        "τ {tau} {kind:?} channel {c}: {} ± {} vs L_e (1 − e^−τ) = {}",
+                        mean[c],
+                        se[c],
+                        expected[c]
+                    );
+                }
+                if tau > 10.0 && kind == MajorantKind::Adaptive {
+                    let tentative = counters.real_collisions + counters.null_collisions;
+                    assert!(
+                        counters.density_lookups < tentative,
+                        "control collisions need no lookup: {counters:?}"
+                    );
+                }
+            }
+        }
+    }
 }

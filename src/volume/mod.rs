@@ -69,16 +69,36 @@ pub struct Collision {
 /// throughput the walk carried there). The integrator weights each sample by the transmittance of the media
 /// that flew after its medium on the segment. Reused across segments (the buffer allocates only for emitting
 /// media).
+///
+/// A flight that looked up [`Medium::collision`] at its real collision to gather the emission there keeps it
+/// ([`Self::keep_real`]), so the integrator scattering there reads it instead of looking it up again
+/// ([`Self::real_collision`]): the same pure function of the same point, so the image is unchanged.
 #[derive(Clone, Debug, Default)]
 pub struct TentativeEmission {
     samples: Vec<(f32, Rgb, u32)>,
     medium: u32,
+    /// The medium, ray parameter and collision of the last real collision kept.
+    real: Option<(u32, f32, Collision)>,
 }
 
 impl TentativeEmission {
     /// Empties the buffer for a new segment.
     pub fn clear(&mut self) {
         self.samples.clear();
+        self.real = None;
+    }
+
+    /// Keeps `collision`, what [`Medium::collision`] gave at the real collision at ray parameter `t` of the
+    /// medium last begun.
+    pub fn keep_real(&mut self, t: f32, collision: Collision) {
+        self.real = Some((self.medium, t, collision));
+    }
+
+    /// The collision kept for a real collision of medium `m` at ray parameter `t`, if its flight kept one.
+    pub fn real_collision(&self, m: u32, t: f32) -> Option<Collision> {
+        self.real
+            .filter(|&(medium, at, _)| medium == m && at == t)
+            .map(|(_, _, collision)| collision)
     }
 
     /// Makes the samples pushed next belong to medium `m` (the integrator's index).

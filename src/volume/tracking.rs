@@ -312,8 +312,10 @@ pub struct TentativeCollision {
     pub t: f32,
     /// The walk's throughput arriving there (1 for an analog walk such as delta tracking).
     pub throughput: Rgb,
-    /// σ_t(x)/σ̄ per channel: the probability that the collision is real, for a grey walk.
-    pub ratio: Rgb,
+    /// σ_t(x)/σ̄ per channel: the probability that the collision is real, for a grey walk. `None` where the
+    /// walk decided the collision without reading the density (a control collision of decomposition tracking)
+    /// because the hook's [`TentativeHook::blend`] there is 0, so that the track-length term needs no ratio.
+    pub ratio: Option<Rgb>,
     /// The majorant σ̄ there, per unit of world length.
     pub sigma_bar: f32,
     /// For a real collision, the walk's throughput after its weight (1 for an analog walk); `None` for a null one.
@@ -330,9 +332,12 @@ impl TentativeCollision {
     /// unbiased. Neither estimator wins everywhere: where the flight is likely to leave the interval the
     /// track-length one avoids the all-or-nothing of rare real collisions, while where it is sure to end soon
     /// the collision estimator is nearly deterministic and the track-length one adds the variance of how many
-    /// null collisions came first.
+    /// null collisions came first. A collision reported without its ratio has a track-length term of 0: `alpha`
+    /// there is the hook's blend, which was 0.
     pub fn emission_weight(&self, alpha: f32) -> Rgb {
-        let track_length = self.throughput * self.ratio * alpha;
+        let track_length = self
+            .ratio
+            .map_or(Rgb::ZERO, |ratio| self.throughput * ratio * alpha);
         match self.real {
             Some(after) => track_length + after * (1.0 - alpha),
             None => track_length,
@@ -345,6 +350,12 @@ impl TentativeCollision {
 pub trait TentativeHook {
     /// False for [`NoHook`]: the walk then reads no density it would not read anyway (compiled out).
     const WANTS: bool;
+    /// The blend α of [`TentativeCollision::emission_weight`] the hook will use at a tentative collision at ray
+    /// parameter `t` under the majorant `sigma_bar` (per unit of world length), asked before the walk decides
+    /// the collision (so it cannot depend on that decision, which keeps the blend unbiased). Where it is 0 the
+    /// track-length term is 0, and a walk that can decide the collision without a lookup (a control collision
+    /// of decomposition tracking) does not read the density to report its ratio.
+    fn blend(&mut self, t: f32, sigma_bar: f32) -> f32;
     /// A tentative collision, decided.
     fn tentative(&mut self, collision: &TentativeCollision);
 }
@@ -355,11 +366,20 @@ pub struct NoHook;
 impl TentativeHook for NoHook {
     const WANTS: bool = false;
     #[inline]
+    fn blend(&mut self, _: f32, _: f32) -> f32 {
+        0.0
+    }
+    #[inline]
     fn tentative(&mut self, _: &TentativeCollision) {}
 }
 
+/// A closure hook reads every collision's ratio (its blend is 1: it may weigh the terms as it likes).
 impl<F: FnMut(&TentativeCollision)> TentativeHook for F {
     const WANTS: bool = true;
+    #[inline]
+    fn blend(&mut self, _: f32, _: f32) -> f32 {
+        1.0
+    }
     #[inline]
     fn tentative(&mut self, collision: &TentativeCollision) {
         self(collision)
@@ -401,23 +421,23 @@ impl<H: TentativeHook> Estimator for Delta<H> {
         let s = x.segment;
         // σ_t = σ̄ on a uniform segment: every tentative collision is real, no lookup needed.
         let (real, ratio) = if s.is_uniform() {
-            (true, 1.0)
+            (true, Some(1.0))
         } else {
             let u = rng.next_f32() * s.sigma_max;
             let control = self.decompose && u < s.sigma_min;
-            // A control collision needs no lookup to be decided, only to be reported.
-            if control && !H::WANTS {
-                (true, 1.0)
+            // A control collision needs no lookup to be decided, only to be reported with a track-length term.
+            if control && (!H::WANTS || self.hook.blend(x.t, s.sigma_max) == 0.0) {
+                (true, None)
             } else {
                 let sigma = x.density(c);
-                (control || u < sigma, sigma / s.sigma_max)
+                (control || u < sigma, Some(sigma / s.sigma_max))
             }
         };
         if H::WANTS {
             self.hook.tentative(&TentativeCollision {
                 t: x.t,
                 throughput: Rgb::ONE,
-                ratio: Rgb::splat(ratio),
+                ratio: ratio.map(Rgb::splat),
                 sigma_bar: s.sigma_max,
                 real: real.then_some(Rgb::ONE),
             });
@@ -730,7 +750,7 @@ impl<C: DensityLookup, H: TentativeHook> Estimator for Spectral<C, H> {
             self.hook.tentative(&TentativeCollision {
                 t: x.t,
                 throughput: arriving,
-                ratio: sigma / sigma_bar,
+                ratio: Some(sigma / sigma_bar),
                 sigma_bar,
                 real: is_real.then_some(self.throughput),
             });
