@@ -17,7 +17,7 @@
 //! inside, by the tables' `E`). A rough interface compensates in
 //! the spirit of Turquin 2019, "Practical multiple scattering compensation for microfacet models" (the BSDF
 //! scaled by the inverse of its single-scattering directional albedo `E(μ) = ∫ (f_r + η² f_t) |cos θi| dωi`,
-//! tabulated over cos θ, α and η separately for the two sides: [`super::dielectric_albedo`]), so that the
+//! tabulated over cos θ, α and η separately for the two sides: `material/dielectric_albedo`), so that the
 //! lossless interface passes the white furnace, `∫ (f_r + η² f_t) |cos θi| dωi = 1`, from both sides. From
 //! outside (the thinner side), the reflection is scaled by `1/√(E(μo) E(μi))`, which keeps it reciprocal,
 //! and the refraction by the tabulated `t(μo)` that closes the energy balance (about `1/E(μo)`). From inside,
@@ -100,9 +100,9 @@ impl Dielectric {
     }
 
     /// Rough-interface BSDF value (0 for a smooth one): the single-scattering value
-    /// ([`Dielectric::eval_single_scattering`]) with the multiple-scattering compensation of the module
-    /// documentation (reflection and refraction scaled by [`dielectric_albedo::reflection_scale`] and
-    /// [`dielectric_albedo::refraction_scale`]).
+    /// (`Dielectric::eval_single_scattering`) with the multiple-scattering compensation of the module
+    /// documentation (reflection and refraction scaled by `dielectric_albedo::reflection_scale` and
+    /// `dielectric_albedo::refraction_scale`).
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
         let single = self.eval_single_scattering(wo, wi);
         if single == Rgb::ZERO {

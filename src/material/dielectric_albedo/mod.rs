@@ -1,16 +1,17 @@
 //! The directional albedo `E(μo, α, η) = ∫ (f_r + η² f_t) |cos θi| dωi` of the single-scattering rough
 //! dielectric ([`super::dielectric::Dielectric`], Walter et al. 2007, GGX with height-correlated Smith
 //! masking-shadowing, exact Fresnel, no thin film), tabulated for the multiple-scattering compensation of
-//! Turquin 2019, "Practical multiple scattering compensation for microfacet models" (the BSDF divided by `E`
-//! of the outgoing direction, so that a lossless interface conserves energy).
+//! Turquin 2019, "Practical multiple scattering compensation for microfacet models" (the BSDF scaled so that
+//! a lossless interface conserves energy; the scalings are [`reflection_scale`] and [`refraction_scale`]).
 //!
 //! `η` is the relative index η(far side)/η(wo's side), and refraction's radiance factor 1/η² is undone in
-//! `E`, so a lossless interface has `E = 1` with every microfacet interaction counted. Two tables: `DENSER`
-//! for η ≥ 1 (light arriving from the optically thinner side) indexed by η, `RARER` for η < 1 indexed by 1/η;
-//! each over [`COS_NODES`] cosines `(i + ½)/COS_NODES`, [`ROUGHNESS_NODES`] roughnesses `√α = j/(N − 1)` and
-//! [`ETA_NODES`] indices `1 + (MAX_ETA − 1) k/(N − 1)`, stored as `E · 65535` rounded (table.rs, written by
-//! the ignored test `generate_tables` from a lattice quadrature over visible normals). Lookups interpolate
-//! trilinearly and clamp to the grid: indices above [`MAX_ETA`] use its entries.
+//! `E`, so a lossless interface would have `E = 1` with every microfacet interaction counted. Three tables:
+//! `ALBEDO_DENSER` (`E · 65535`) and `TRANSMISSION_DENSER` (the refraction's factor `t · 4096`) for η ≥ 1
+//! (light arriving from the optically thinner side), indexed by η, and `ALBEDO_RARER` for η < 1, indexed by
+//! 1/η; each over [`COS_NODES`] cosines `(i + ½)/COS_NODES`, [`ROUGHNESS_NODES`] roughnesses
+//! `√α = j/(N − 1)` and [`ETA_NODES`] indices `1 + (MAX_ETA − 1) k/(N − 1)`, rounded to `u16` (table.rs,
+//! written by the ignored test `generate_tables` from a lattice quadrature over visible normals). Lookups
+//! interpolate trilinearly and clamp to the grid: indices above [`MAX_ETA`] use its entries.
 
 mod table;
 
