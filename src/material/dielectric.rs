@@ -12,10 +12,27 @@
 //! picked with the channels' mean of F. From inside, the interface is bare (the film's model assumes air
 //! above it).
 //!
+//! Multiple scattering: the single-scattering model of Walter et al. loses the light that scatters more than
+//! once between microfacets (at roughness 1 and index 1.5, about 30% of it from outside and up to 56% from
+//! inside, by the tables' `E`). A rough interface compensates in
+//! the spirit of Turquin 2019, "Practical multiple scattering compensation for microfacet models" (the BSDF
+//! scaled by the inverse of its single-scattering directional albedo `E(μ) = ∫ (f_r + η² f_t) |cos θi| dωi`,
+//! tabulated over cos θ, α and η separately for the two sides: `material/dielectric_albedo`), so that the
+//! lossless interface passes the white furnace, `∫ (f_r + η² f_t) |cos θi| dωi = 1`, from both sides. From
+//! outside (the thinner side), the reflection is scaled by `1/√(E(μo) E(μi))`, which keeps it reciprocal,
+//! and the refraction by the tabulated `t(μo)` that closes the energy balance (about `1/E(μo)`). From inside,
+//! both are scaled by `1/E(μo)` as in Turquin's paper: there `E` changes so steeply across the critical
+//! angle that the symmetric scaling overshoots (the scaled reflection alone carried more than all the energy
+//! at some angles), so the reflection inside is not exactly reciprocal. Sampling is unchanged (the
+//! single-scattering visible-normal sampler); only the values, and so the sample weights, grow. The tables
+//! leave out the thin film (an iridescent rough interface is compensated as if bare) and clamp indices above
+//! 3 to 3. A smooth interface is untouched.
+//!
 //! Conventions: the surface is a solid interface with index `ior` below (z < 0) and 1 above. `wo` and `wi`
 //! point away from the surface; `wo.z < 0` means the ray arrives from inside. Refraction carries radiance, so
 //! it includes the factor 1/η² with η = η(wi side)/η(wo side) (Veach 1997, §5.2): camera paths only.
 
+use super::dielectric_albedo;
 use super::fresnel;
 use super::lobes::{LobeClass, LobeSplit};
 use super::microfacet::{Ggx, DELTA_ALPHA};
@@ -82,12 +99,30 @@ impl Dielectric {
         self.alpha < DELTA_ALPHA || (self.ior - 1.0).abs() < 1e-6
     }
 
-    /// Rough-interface BSDF value (0 for a smooth one). With the pair mirrored so that `wo` is above, η the
-    /// index of `wi`'s side over `wo`'s, and
+    /// Rough-interface BSDF value (0 for a smooth one): the single-scattering value
+    /// (`Dielectric::eval_single_scattering`) with the multiple-scattering compensation of the module
+    /// documentation (reflection and refraction scaled by `dielectric_albedo::reflection_scale` and
+    /// `dielectric_albedo::refraction_scale`).
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+        let single = self.eval_single_scattering(wo, wi);
+        if single == Rgb::ZERO {
+            return single;
+        }
+        let (wo_up, wi_up, eta) = orient(self.ior, wo, wi);
+        let scale = if wi_up.z > 0.0 {
+            dielectric_albedo::reflection_scale(wo_up.z, wi_up.z, self.alpha, eta)
+        } else {
+            dielectric_albedo::refraction_scale(wo_up.z, self.alpha, eta)
+        };
+        single * scale
+    }
+
+    /// Single-scattering rough-interface BSDF value (0 for a smooth one). With the pair mirrored so that `wo`
+    /// is above, η the index of `wi`'s side over `wo`'s, and
     /// `h` the (generalised) half vector: reflection `F D G2 / (4 |wo.z| |wi.z|)` (Walter et al. 2007, eqs. 13
     /// and 20); transmission `|wi·h| |wo·h| (1 − F) D G2 / (|wi.z| |wo.z| (η wi·h + wo·h)²)` (eqs. 16 and 21
     /// with η_o = 1, η_i = η), times the tint. F is the exact Fresnel term at `wo·h`.
-    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+    pub(super) fn eval_single_scattering(&self, wo: Vec3, wi: Vec3) -> Rgb {
         if self.is_smooth() || wo.z == 0.0 || wi.z == 0.0 {
             return Rgb::ZERO;
         }
@@ -129,7 +164,7 @@ impl Dielectric {
     /// estimate, `R = (1 − α) F(|cos θo|) + α F̄` with F̄ the hemispherical average reflectance
     /// (`fresnel::dielectric_average`): the rougher the interface, the more microfacet angles it averages
     /// over. `F̄ < 1` keeps the refraction's colour positive past the critical angle, where tilted microfacets
-    /// still refract. The energy that masking takes from a rough interface is left out.
+    /// still refract. `R` plus the refraction's `(1 − R)` is 1, as the compensated interface's albedo is.
     pub fn colors(&self, wo: Vec3) -> LobeSplit {
         if wo.z == 0.0 {
             return LobeSplit::ZERO;

@@ -7,6 +7,7 @@
 mod bsdf;
 mod clearcoat;
 mod dielectric;
+mod dielectric_albedo;
 mod fresnel;
 mod gltf_pbr;
 mod lambert;
