@@ -1,6 +1,6 @@
 //! A bounds-checked little-endian byte reader: every read checks the remaining input first. It reads from bytes
 //! in memory or streams from a file, so that reading a VDB file from disk never holds the whole file: only the
-//! value buffer being decoded (OpenVDB's own reader streams the same way).
+//! value buffers being decoded, a batch at a time (OpenVDB's own reader streams too).
 
 use super::error::{corrupt, KResult, VdbErrorKind};
 use glam::{DVec3, IVec3};
