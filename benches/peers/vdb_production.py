@@ -16,7 +16,8 @@ headers include Boost's), and g++.
    loading off, reads every grid in full (as Nimbus does) and touches every leaf's voxel count.
 3. Runs `nimbus info FILE` and the harness `--reps` times each, alternating, under `/usr/bin/time` (wall seconds,
    peak resident memory), and one `nimbus render` of the ball at 256x256 and 16 spp (wall seconds and peak
-   memory of the whole process). No time to the first finished pixel is reported: `--stats` has no such key.
+   memory of the whole process), with its time to the first pixel (`--stats` `first_pixel_seconds`, from the
+   start of the render: the scene loaded).
 4. Prints the table and (unless `--no-docs`) writes it into `docs/performance.md` between the `vdb` section
    markers, which `run.py` keeps when it rewrites the page.
 """
@@ -130,7 +131,8 @@ def main():
                                  "--width", "256", "--spp", "16", "--threads", "2", "--stats", stats_path])
     stats = json.load(open(stats_path))
     load_after = os.getloadavg()[0]
-    print(f"render: {render_s:.2f} s, peak {render_mb:.0f} MB, NaN samples {stats.get('nan_samples')}")
+    print(f"render: {render_s:.2f} s, peak {render_mb:.0f} MB, NaN samples {stats.get('nan_samples')}, "
+          f"first pixel {stats.get('first_pixel_seconds')} s after the render's start")
     if not a.no_docs:
         write_section(a, size_mb, info, runs, render_s, render_mb, stats, (load_before, load_after))
 
@@ -148,7 +150,9 @@ def write_section(a, size_mb, info, runs, render_s, render_mb, stats, loads):
              f"| `nimbus info` | {n[0]:.2f} | {n[1]:.0f} |", f"| OpenVDB C++ | {o[0]:.2f} | {o[1]:.0f} |",
              f"| Nimbus / OpenVDB | **{n[0] / o[0]:.2f}x** | **{n[1] / o[1]:.2f}x** |", "",
              f"A render of the ball (256x256, 16 spp, 2 threads, sun and sky): {render_s:.2f} s in all, peak "
-             f"{render_mb:.0f} MB. Load average (1 min) {loads[0]:.1f} before, {loads[1]:.1f} after, on 2 cores "
+             f"{render_mb:.0f} MB; its first pixel {stats['first_pixel_seconds']:.3f} s after the render's start "
+             f"(`--stats` `first_pixel_seconds`; the render itself {stats['render_seconds']:.2f} s, reading the "
+             f"file, building the medium and writing the outputs the rest). Load average (1 min) {loads[0]:.1f} before, {loads[1]:.1f} after, on 2 cores "
              "shared with other builds.", "", END]
     section = "\n".join(lines)
     text = open(DOC).read() if os.path.exists(DOC) else ""

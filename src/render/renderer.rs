@@ -23,7 +23,7 @@ use crate::scene::Scene;
 use crate::volume::{MediumMethod, TrackingCounters};
 use rayon::prelude::*;
 use std::ops::Range;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 /// Mixed into the seed of the stream that draws each camera ray's shutter time, so that it is independent of
@@ -187,6 +187,10 @@ pub struct RenderStats {
     pub samples_per_pixel: u32,
     /// Wall-clock seconds spent rendering (scene loading excluded).
     pub render_seconds: f64,
+    /// Seconds from the start of the render (as `render_seconds`: the scene loaded, guiding training included)
+    /// until the first pixel held the samples of the first pass, the first pixel of the first progressive
+    /// image; `None` when no pixel was rendered (cancelled before).
+    pub first_pixel_seconds: Option<f64>,
     /// Rays traced, by kind.
     pub rays: RayCounters,
     /// Samples dropped because their radiance was NaN or infinite (never written to the film).
@@ -532,7 +536,12 @@ impl Renderer {
             done: resumed_samples,
             cancelled: false,
         };
+        let clock = FirstPixelClock {
+            start,
+            seconds: OnceLock::new(),
+        };
         let passes = Passes {
+            clock: &clock,
             renderer: self,
             scene,
             region,
@@ -555,6 +564,7 @@ impl Renderer {
             layers: plan.written.clone(),
             light_groups: groups.names,
             guiding,
+            first_pixel_seconds: clock.seconds.get().copied(),
             ..self.pass_stats(scene, region, totals, seconds)
         };
         Ok((film, stats, at))
@@ -692,6 +702,25 @@ struct Pass<'a> {
     /// The sample indices the pass adds to every pixel.
     samples: Range<u32>,
     cancel: &'a CancelToken,
+    /// Notes when the first pixel is done.
+    clock: &'a FirstPixelClock,
+}
+
+/// When the first pixel of a render held its first pass's samples.
+struct FirstPixelClock {
+    /// When the render started.
+    start: Instant,
+    /// Seconds from `start` to the first pixel done, once one is.
+    seconds: OnceLock<f64>,
+}
+
+impl FirstPixelClock {
+    /// Notes that a pixel is done (only the first note counts).
+    fn pixel_done(&self) {
+        if self.seconds.get().is_none() {
+            let _ = self.seconds.set(self.start.elapsed().as_secs_f64());
+        }
+    }
 }
 
 impl Pass<'_> {
@@ -744,6 +773,7 @@ impl Pass<'_> {
                 }
                 clamped += clamped_here as u64;
             }
+            self.clock.pixel_done();
         }
         (counters, nans, clamped, columns_done as u32)
     }
@@ -901,6 +931,8 @@ struct PassTotals {
 
 /// The pass loop of one render: what every pass needs besides the film.
 struct Passes<'a> {
+    /// Notes when the first pixel is done.
+    clock: &'a FirstPixelClock,
     renderer: &'a Renderer,
     scene: &'a Scene,
     region: &'a RenderRegion,
@@ -946,6 +978,7 @@ impl Passes<'_> {
             max_bins: film.deep_samples().map_or(0, super::deep::max_bins),
             samples,
             cancel: self.cancel,
+            clock: self.clock,
         };
         film.rows_mut()
             .into_par_iter()

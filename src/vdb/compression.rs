@@ -18,30 +18,58 @@ fn decomp(msg: impl Into<String>) -> VdbErrorKind {
     VdbErrorKind::Decompress(msg.into())
 }
 
-/// Reads a buffer of exactly `out.len()` bytes stored with the given compression flags.
-pub(crate) fn read_data(r: &mut Reader<'_>, compression: u32, out: &mut [u8]) -> KResult<()> {
+/// How a value buffer's stored bytes encode its decoded bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Codec {
+    /// Stored as they are.
+    Raw,
+    /// A zlib stream.
+    Zlib,
+    /// A Blosc 1 frame.
+    Blosc,
+}
+
+/// Reads the stored bytes of a buffer of `nbytes` decoded bytes, written with the given compression flags,
+/// appending them to `sink`; returns how they are encoded (for [`decode`]).
+pub(crate) fn read_stored(
+    r: &mut Reader<'_>,
+    compression: u32,
+    nbytes: usize,
+    sink: &mut Vec<u8>,
+) -> KResult<Codec> {
     if compression & (COMPRESS_BLOSC | COMPRESS_ZIP) == 0 {
-        out.copy_from_slice(r.take(out.len() as u64, "raw value buffer")?);
-        return Ok(());
+        r.append_to(nbytes as u64, "raw value buffer", sink)?;
+        return Ok(Codec::Raw);
     }
     let n = r.i64("compressed byte count")?;
     if n <= 0 {
         let raw = n.unsigned_abs();
-        if raw != out.len() as u64 {
+        if raw != nbytes as u64 {
             return Err(decomp(format!(
-                "uncompressed block holds {raw} bytes, expected {}",
-                out.len()
+                "uncompressed block holds {raw} bytes, expected {nbytes}"
             )));
         }
-        out.copy_from_slice(r.take(raw, "uncompressed value buffer")?);
-        return Ok(());
+        r.append_to(raw, "uncompressed value buffer", sink)?;
+        return Ok(Codec::Raw);
     }
-    let src = r.take(n as u64, "compressed value buffer")?;
-    if compression & COMPRESS_BLOSC != 0 {
-        blosc_decompress(src, out)
+    r.append_to(n as u64, "compressed value buffer", sink)?;
+    Ok(if compression & COMPRESS_BLOSC != 0 {
+        Codec::Blosc
     } else {
-        zlib_decompress(src, out)
+        Codec::Zlib
+    })
+}
+
+/// Decodes the stored bytes `src` (as [`read_stored`] read them, with its `codec`) into exactly `out.len()`
+/// bytes.
+pub(crate) fn decode(codec: Codec, src: &[u8], out: &mut [u8]) -> KResult<()> {
+    match codec {
+        // read_stored took exactly the decoded size.
+        Codec::Raw => out.copy_from_slice(src),
+        Codec::Zlib => zlib_decompress(src, out)?,
+        Codec::Blosc => blosc_decompress(src, out)?,
     }
+    Ok(())
 }
 
 /// Inflates a zlib stream into exactly `out.len()` bytes.
@@ -252,10 +280,16 @@ mod tests {
         let mut bytes = (-4i64).to_le_bytes().to_vec();
         bytes.extend_from_slice(&[1, 2, 3, 4]);
         let mut r = Reader::new(&bytes);
+        let mut stored = vec![9];
+        assert_eq!(
+            read_stored(&mut r, COMPRESS_ZIP, 4, &mut stored).unwrap(),
+            Codec::Raw
+        );
+        assert_eq!(stored, [9, 1, 2, 3, 4]);
         let mut out = [0u8; 4];
-        read_data(&mut r, COMPRESS_ZIP, &mut out).unwrap();
+        decode(Codec::Raw, &stored[1..], &mut out).unwrap();
         assert_eq!(out, [1, 2, 3, 4]);
         let mut r = Reader::new(&bytes);
-        assert!(read_data(&mut r, COMPRESS_BLOSC, &mut [0u8; 8]).is_err());
+        assert!(read_stored(&mut r, COMPRESS_BLOSC, 8, &mut stored).is_err());
     }
 }

@@ -13,6 +13,7 @@
 //! stored values and refreshes the ranges.
 
 use glam::{IVec3, Vec3};
+use rayon::prelude::*;
 
 /// Sentinel child index meaning "this slot is a tile".
 pub(crate) const NO_CHILD: u32 = u32::MAX;
@@ -90,6 +91,16 @@ fn set_bit(mask: &mut [u64], i: usize) {
     mask[i >> 6] |= 1 << (i & 63);
 }
 
+/// (min, max) of `values` (component-wise for vectors), which holds at least one value.
+fn value_range<T: VoxelValue>(values: &[T]) -> (T, T) {
+    let (mut lo, mut hi) = (values[0], values[0]);
+    for &v in &values[1..] {
+        lo = lo.min_of(v);
+        hi = hi.max_of(v);
+    }
+    (lo, hi)
+}
+
 /// An 8³ block of voxels, the tree's lowest level.
 #[derive(Clone, Debug)]
 pub struct Leaf<T> {
@@ -103,6 +114,21 @@ pub struct Leaf<T> {
     pub(crate) min: T,
     /// Maximum over all 512 values.
     pub(crate) max: T,
+}
+
+impl<T: VoxelValue> Leaf<T> {
+    /// The leaf at `origin` holding `values`, whose active voxels are the bits of `value_mask`; its range
+    /// computed.
+    pub(crate) fn with_values(origin: IVec3, value_mask: [u64; 8], values: [T; 512]) -> Self {
+        let (min, max) = value_range(&values);
+        Self {
+            origin,
+            value_mask,
+            values,
+            min,
+            max,
+        }
+    }
 }
 
 impl<T: Copy> Leaf<T> {
@@ -576,17 +602,16 @@ impl<T: VoxelValue> Tree<T> {
         (self.uppers.len() - 1) as u32
     }
 
-    /// Recomputes every leaf's and node's min/max (bottom-up).
+    /// Recomputes every leaf's and node's min/max (bottom-up); the leaves in parallel.
     pub fn finalize(&mut self) {
-        for lf in &mut self.leaves {
-            let (mut lo, mut hi) = (lf.values[0], lf.values[0]);
-            for &v in &lf.values[1..] {
-                lo = lo.min_of(v);
-                hi = hi.max_of(v);
-            }
-            lf.min = lo;
-            lf.max = hi;
-        }
+        self.leaves
+            .par_iter_mut()
+            .for_each(|lf| (lf.min, lf.max) = value_range(&lf.values));
+        self.finalize_nodes();
+    }
+
+    /// Recomputes every internal node's min/max (bottom-up) from its children's, the leaves' being current.
+    pub(crate) fn finalize_nodes(&mut self) {
         let leaves = &self.leaves;
         for n in &mut self.lowers {
             n.update_range(|c| (leaves[c].min, leaves[c].max));
@@ -825,51 +850,167 @@ impl<T: VoxelValue> Tree<T> {
     }
 
     /// Statistics over active values: counts, sum, min, max (magnitudes for vectors) and the active bbox.
+    /// The regions are summarised in parallel, a chunk at a time, then added up in their order: the sum of each
+    /// leaf's values in offset order, the leaves' sums in region order, the tiles' apart.
     pub fn stats(&self) -> TreeStats {
-        let mut s = TreeStats::default();
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        let mut bmin = IVec3::splat(i32::MAX);
-        let mut bmax = IVec3::splat(i32::MIN);
-        let (mut tile_sum, mut leaf_sum) = (0.0, 0.0);
-        for region in self.regions() {
-            match region {
-                Region::Tile(t) if t.active => {
-                    let m = t.value.magnitude();
-                    let n = (t.edge as u64).pow(3);
-                    s.active_voxels += n;
-                    s.tiles += 1;
-                    tile_sum += m * n as f64;
-                    lo = lo.min(m);
-                    hi = hi.max(m);
-                    bmin = bmin.min(t.origin);
-                    bmax = bmax.max(t.origin + (t.edge - 1));
-                }
-                Region::Tile(_) => {}
-                Region::Leaf(leaf) => {
-                    s.leaves += 1;
-                    let mut sum = 0.0;
-                    for (p, v) in leaf.active_voxels() {
-                        let m = v.magnitude();
-                        sum += m;
-                        lo = lo.min(m);
-                        hi = hi.max(m);
-                        bmin = bmin.min(p);
-                        bmax = bmax.max(p);
-                        s.leaf_voxels += 1;
-                    }
-                    leaf_sum += sum;
-                }
+        const CHUNK: usize = 1 << 14;
+        let mut total = StatsTotal::default();
+        let mut regions = self.regions();
+        let mut chunk = Vec::with_capacity(CHUNK);
+        loop {
+            chunk.clear();
+            chunk.extend(regions.by_ref().take(CHUNK));
+            if chunk.is_empty() {
+                return total.stats();
+            }
+            let summaries: Vec<RegionSummary> = chunk.par_iter().map(RegionSummary::of).collect();
+            summaries.iter().for_each(|summary| total.add(summary));
+        }
+    }
+}
+
+/// The running totals of [`Tree::stats`], region by region.
+struct StatsTotal {
+    stats: TreeStats,
+    lo: f64,
+    hi: f64,
+    bmin: IVec3,
+    bmax: IVec3,
+    tile_sum: f64,
+    leaf_sum: f64,
+}
+
+impl Default for StatsTotal {
+    fn default() -> Self {
+        Self {
+            stats: TreeStats::default(),
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+            bmin: IVec3::splat(i32::MAX),
+            bmax: IVec3::splat(i32::MIN),
+            tile_sum: 0.0,
+            leaf_sum: 0.0,
+        }
+    }
+}
+
+impl StatsTotal {
+    /// Adds the next region's summary.
+    fn add(&mut self, summary: &RegionSummary) {
+        let s = &mut self.stats;
+        match summary.kind {
+            RegionKind::ActiveTile => {
+                s.active_voxels += summary.active;
+                s.tiles += 1;
+                self.tile_sum += summary.sum;
+            }
+            RegionKind::InactiveTile => return,
+            RegionKind::Leaf => {
+                s.leaves += 1;
+                s.leaf_voxels += summary.active;
+                self.leaf_sum += summary.sum;
             }
         }
-        s.sum = tile_sum + leaf_sum;
+        self.lo = self.lo.min(summary.min);
+        self.hi = self.hi.max(summary.max);
+        if let Some((a, b)) = summary.bbox {
+            self.bmin = self.bmin.min(a);
+            self.bmax = self.bmax.max(b);
+        }
+    }
+
+    /// The statistics of the regions added.
+    fn stats(self) -> TreeStats {
+        let mut s = self.stats;
+        s.sum = self.tile_sum + self.leaf_sum;
         s.active_voxels += s.leaf_voxels;
         if s.active_voxels > 0 {
-            s.min = lo;
-            s.max = hi;
-            s.bbox = Some((bmin, bmax));
+            s.min = self.lo;
+            s.max = self.hi;
+            s.bbox = Some((self.bmin, self.bmax));
         }
         s
     }
+}
+
+/// What [`Tree::stats`] counts of a region.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum RegionKind {
+    ActiveTile,
+    InactiveTile,
+    Leaf,
+}
+
+/// One region's share of [`Tree::stats`].
+struct RegionSummary {
+    kind: RegionKind,
+    /// Active voxels.
+    active: u64,
+    /// Sum of the active magnitudes: a leaf's in offset order, a tile's its magnitude times its voxels.
+    sum: f64,
+    /// Least and greatest active magnitude (∞ and −∞ when none).
+    min: f64,
+    max: f64,
+    /// Inclusive bounding box of the active voxels, if any.
+    bbox: Option<(IVec3, IVec3)>,
+}
+
+impl RegionSummary {
+    fn of<T: VoxelValue>(region: &Region<'_, T>) -> Self {
+        match region {
+            Region::Tile(t) => {
+                let m = t.value.magnitude();
+                let n = (t.edge as u64).pow(3);
+                Self {
+                    kind: if t.active {
+                        RegionKind::ActiveTile
+                    } else {
+                        RegionKind::InactiveTile
+                    },
+                    active: n,
+                    sum: m * n as f64,
+                    min: m,
+                    max: m,
+                    bbox: Some((t.origin, t.origin + (t.edge - 1))),
+                }
+            }
+            Region::Leaf(leaf) => {
+                let (mut sum, mut min, mut max) = (0.0, f64::INFINITY, f64::NEG_INFINITY);
+                for (_, v) in leaf.active_voxels() {
+                    let m = v.magnitude();
+                    sum += m;
+                    min = min.min(m);
+                    max = max.max(m);
+                }
+                Self {
+                    kind: RegionKind::Leaf,
+                    active: leaf.value_mask.iter().map(|w| w.count_ones() as u64).sum(),
+                    sum,
+                    min,
+                    max,
+                    bbox: mask_bbox(&leaf.value_mask)
+                        .map(|(a, b)| (leaf.origin + a, leaf.origin + b)),
+                }
+            }
+        }
+    }
+}
+
+/// The inclusive bounding box, in voxels from a leaf's origin, of the set bits of its value mask (voxel
+/// `(x<<6)|(y<<3)|z`: word `x`, byte `y`, bit `z`); `None` when no bit is set.
+fn mask_bbox(mask: &[u64; 8]) -> Option<(IVec3, IVec3)> {
+    let x0 = mask.iter().position(|&w| w != 0)?;
+    let x1 = mask.iter().rposition(|&w| w != 0)?;
+    let union = mask.iter().fold(0, |a, &w| a | w);
+    let bytes = union.to_le_bytes();
+    let y_bits = (0..8).fold(0u8, |a, y| a | u8::from(bytes[y] != 0) << y);
+    let z_bits = bytes.iter().fold(0u8, |a, &b| a | b);
+    let low = |bits: u8| bits.trailing_zeros() as i32;
+    let high = |bits: u8| 7 - bits.leading_zeros() as i32;
+    Some((
+        IVec3::new(x0 as i32, low(y_bits), low(z_bits)),
+        IVec3::new(x1 as i32, high(y_bits), high(z_bits)),
+    ))
 }
 
 /// Cached, coherent access to a [`Tree`]: remembers the last leaf, lower and upper node it visited.
@@ -1034,6 +1175,26 @@ mod tests {
             }
         }
         FloatTree::from_voxels(-5.0, v)
+    }
+
+    /// The bounding box read off a mask's words and bytes is the one of its set bits' voxels, found one by one.
+    #[test]
+    fn mask_bbox_is_the_box_of_the_set_voxels() {
+        let mut rng = crate::math::Rng::new(7, 0);
+        for case in 0..2000 {
+            let mut mask = [0u64; 8];
+            // From one bit to dense masks: as many random bits as the case number says, up to 64.
+            for _ in 0..(case % 64) {
+                let i = (rng.next_f32() * 512.0) as usize % 512;
+                set_bit(&mut mask, i);
+            }
+            let mut expected: Option<(IVec3, IVec3)> = None;
+            for i in (0..512).filter(|&i| bit(&mask, i)) {
+                let p = IVec3::new(i as i32 >> 6, (i as i32 >> 3) & 7, i as i32 & 7);
+                expected = Some(expected.map_or((p, p), |(a, b)| (a.min(p), b.max(p))));
+            }
+            assert_eq!(mask_bbox(&mask), expected, "{mask:x?}");
+        }
     }
 
     #[test]

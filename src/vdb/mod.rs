@@ -250,8 +250,9 @@ internal! {
 }
 
 internal! {
-    /// Reads a VDB file from disk with options. A regular file is streamed: only the value buffer being
-    /// decoded is held, never the whole file (a device is read whole first, within the budget).
+    /// Reads a VDB file from disk with options. A regular file is streamed: only the leaf buffers being
+    /// decoded are held (two batches of about 1 MiB), never the whole file (a device is read whole first, within
+    /// the budget).
     pub fn read_file_with(path: &Path, options: &ReadOptions) -> Result<VdbFile, VdbError> {
         let error = |kind: VdbErrorKind| VdbError {
             path: path.to_path_buf(),

@@ -1,6 +1,6 @@
 //! A bounds-checked little-endian byte reader: every read checks the remaining input first. It reads from bytes
 //! in memory or streams from a file, so that reading a VDB file from disk never holds the whole file: only the
-//! value buffer being decoded (OpenVDB's own reader streams the same way).
+//! value buffers being decoded, a batch at a time (OpenVDB's own reader streams too).
 
 use super::error::{corrupt, KResult, VdbErrorKind};
 use glam::{DVec3, IVec3};
@@ -117,6 +117,24 @@ impl<'a> Reader<'a> {
         }
     }
 
+    /// Appends the next `n` bytes to `sink` (from a file: read straight into it, never more than the file
+    /// holds).
+    pub fn append_to(&mut self, n: u64, what: &'static str, sink: &mut Vec<u8>) -> KResult<()> {
+        self.ensure(n, what)?;
+        let n = n as usize;
+        let start = self.pos;
+        self.pos += n;
+        match &mut self.source {
+            Source::Slice(data) => sink.extend_from_slice(&data[start..start + n]),
+            Source::File { file, .. } => {
+                let old = sink.len();
+                sink.resize(old + n, 0);
+                file.read_exact(&mut sink[old..])?;
+            }
+        }
+        Ok(())
+    }
+
     fn arr<const N: usize>(&mut self, what: &'static str) -> KResult<[u8; N]> {
         let s = self.take(N as u64, what)?;
         let mut a = [0u8; N];
@@ -212,6 +230,10 @@ mod tests {
             r.seek(4 * 7).unwrap();
             assert_eq!(r.u32("c").unwrap(), 7);
             assert_eq!(r.take(8, "d").unwrap(), &[8, 0, 0, 0, 9, 0, 0, 0]);
+            let mut sink = vec![1];
+            r.append_to(4, "appended", &mut sink).unwrap();
+            assert_eq!(sink, [1, 10, 0, 0, 0]);
+            r.seek(4 * 10).unwrap();
             let old = r.limit_to(4 * 11);
             assert_eq!(r.u32("e").unwrap(), 10);
             assert!(r.u32("past the limit").is_err());

@@ -4,12 +4,13 @@
 //! inactive values were encoded, optionally followed by one or two inactive values and a selection mask; with
 //! active-mask compression only the active values are stored and the rest are rebuilt.
 
-use super::compression::{read_data, COMPRESS_ACTIVE_MASK};
-use super::error::{corrupt, KResult};
+use super::compression::{decode, read_stored, Codec, COMPRESS_ACTIVE_MASK};
+use super::error::{corrupt, KResult, VdbErrorKind};
 use super::grid::{InternalNode, Leaf, LowerNode, Root, RootSlot, Tree, UpperNode, VoxelValue};
 use super::half::half_to_f32;
 use super::stream::Reader;
 use glam::IVec3;
+use rayon::prelude::*;
 
 /// File version that introduced the per-buffer compression metadata byte and node-mask compression.
 pub const VERSION_NODE_MASK_COMPRESSION: u32 = 222;
@@ -46,6 +47,9 @@ pub(crate) struct TreeCtx {
     pub compression: u32,
     pub scalar: Scalar,
     pub half: bool,
+    /// The stored bytes of the internal-node array being read.
+    stored: Vec<u8>,
+    /// Its decoded bytes.
     scratch: Vec<u8>,
 }
 
@@ -56,12 +60,23 @@ impl TreeCtx {
             compression,
             scalar,
             half,
+            stored: Vec::new(),
             scratch: Vec::new(),
         }
     }
 
+    /// Bytes of one value at full precision in the file.
     fn full_size<T: VoxelValue>(&self) -> usize {
         T::COMPONENTS * if self.scalar == Scalar::F64 { 8 } else { 4 }
+    }
+
+    /// Bytes of one value in a value buffer: half or full precision.
+    fn stored_size<T: VoxelValue>(&self) -> usize {
+        if self.half {
+            2 * T::COMPONENTS
+        } else {
+            self.full_size::<T>()
+        }
     }
 }
 
@@ -92,41 +107,158 @@ fn popcount(m: &[u64]) -> usize {
     m.iter().map(|w| w.count_ones() as usize).sum()
 }
 
-/// The inactive values of one compressed array and, for the modes that store one, its selection mask: `inactive0`
-/// is the value where no selection bit is set (`background` or its negation unless the mode stores it),
-/// `inactive1` where one is (`background` unless stored). `values` is the array's length.
-fn read_inactive<T: VoxelValue>(
-    r: &mut Reader<'_>,
-    ctx: &mut TreeCtx,
-    mode: u8,
-    background: T,
-    values: usize,
-) -> KResult<(T, T, Option<Vec<u64>>)> {
-    let mut inactive1 = background;
-    // The inactive value where no selection bit is set; the modes that store it replace it below.
-    let mut inactive0 = match mode {
-        NO_MASK_OR_INACTIVE_VALS => background,
-        NO_MASK_AND_MINUS_BG => background.neg(),
-        _ => background.neg(),
-    };
-    if matches!(
-        mode,
-        NO_MASK_AND_ONE_INACTIVE_VAL | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
-    ) {
-        inactive0 = read_full(r, ctx, "inactive value")?;
-        if mode == MASK_AND_TWO_INACTIVE_VALS {
-            inactive1 = read_full(r, ctx, "second inactive value")?;
+/// The header of one array under the compressed-values scheme: what fills its inactive values and how many
+/// values its stored bytes hold.
+struct ValuesHeader<T> {
+    /// The inactive value where no selection bit is set (`background` or its negation unless the mode stores
+    /// it).
+    inactive0: T,
+    /// The inactive value where a selection bit is set (`background` unless the mode stores it).
+    inactive1: T,
+    /// The selection mask, for the modes that store one.
+    selection: Option<Vec<u64>>,
+    /// Values stored: the active ones with active-mask compression, else all.
+    count: usize,
+}
+
+impl<T: VoxelValue> ValuesHeader<T> {
+    /// Reads the header of an array of `values` values whose active bits are `value_mask` (OpenVDB
+    /// `readCompressedValues`, up to the value bytes).
+    fn read(
+        r: &mut Reader<'_>,
+        ctx: &TreeCtx,
+        background: T,
+        value_mask: &[u64],
+        values: usize,
+    ) -> KResult<Self> {
+        let new_format = ctx.version >= VERSION_NODE_MASK_COMPRESSION;
+        let mode = if new_format {
+            r.u8("compression metadata")?
+        } else {
+            NO_MASK_AND_ALL_VALS
+        };
+        if mode > NO_MASK_AND_ALL_VALS {
+            return corrupt(format!("invalid compression metadata {mode}"));
+        }
+        let mut inactive1 = background;
+        // The modes that store the inactive value replace it below.
+        let mut inactive0 = match mode {
+            NO_MASK_OR_INACTIVE_VALS => background,
+            NO_MASK_AND_MINUS_BG => background.neg(),
+            _ => background.neg(),
+        };
+        if matches!(
+            mode,
+            NO_MASK_AND_ONE_INACTIVE_VAL | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
+        ) {
+            inactive0 = read_full(r, ctx, "inactive value")?;
+            if mode == MASK_AND_TWO_INACTIVE_VALS {
+                inactive1 = read_full(r, ctx, "second inactive value")?;
+            }
+        }
+        let selection = if matches!(
+            mode,
+            MASK_AND_NO_INACTIVE_VALS | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
+        ) {
+            Some(read_mask_vec(r, values / 64, "selection mask")?)
+        } else {
+            None
+        };
+        let mask_compressed = ctx.compression & COMPRESS_ACTIVE_MASK != 0;
+        let count = if mask_compressed && mode != NO_MASK_AND_ALL_VALS && new_format {
+            popcount(value_mask)
+        } else {
+            values
+        };
+        Ok(Self {
+            inactive0,
+            inactive1,
+            selection,
+            count,
+        })
+    }
+
+    /// Reads the array's stored bytes (after its header), appending them to `sink`: their codec, or `None` when
+    /// nothing is stored (OpenVDB's half reader returns before touching the stream when there is nothing to
+    /// read).
+    fn read_stored(
+        &self,
+        r: &mut Reader<'_>,
+        ctx: &TreeCtx,
+        sink: &mut Vec<u8>,
+    ) -> KResult<Option<Codec>> {
+        if ctx.half && self.count == 0 {
+            return Ok(None);
+        }
+        read_stored(
+            r,
+            ctx.compression,
+            self.count * ctx.stored_size::<T>(),
+            sink,
+        )
+        .map(Some)
+    }
+
+    /// Fills `out` from the decoded bytes of the stored values `decoded` (`count` of them) and the inactive
+    /// values, by the active bits `value_mask`.
+    fn fill(&self, ctx: &TreeCtx, decoded: &[u8], value_mask: &[u64], out: &mut [T]) {
+        let elem = ctx.stored_size::<T>();
+        let (half, scalar) = (ctx.half, ctx.scalar);
+        let get = |b: &[u8]| -> T {
+            if half {
+                T::from_components(|c| half_to_f32(u16::from_le_bytes([b[2 * c], b[2 * c + 1]])))
+            } else {
+                decode_full(b, scalar)
+            }
+        };
+        if self.count == out.len() {
+            for (o, b) in out.iter_mut().zip(decoded.chunks_exact(elem)) {
+                *o = get(b);
+            }
+            return;
+        }
+        let mut stored = decoded.chunks_exact(elem);
+        for (i, o) in out.iter_mut().enumerate() {
+            let on = value_mask[i >> 6] >> (i & 63) & 1 != 0;
+            *o = if on {
+                // count == popcount(value_mask), so a stored value is always left here.
+                stored.next().map_or(self.inactive0, get)
+            } else if self
+                .selection
+                .as_ref()
+                .is_some_and(|s| s[i >> 6] >> (i & 63) & 1 != 0)
+            {
+                self.inactive1
+            } else {
+                self.inactive0
+            };
         }
     }
-    let selection = if matches!(
-        mode,
-        MASK_AND_NO_INACTIVE_VALS | MASK_AND_ONE_INACTIVE_VAL | MASK_AND_TWO_INACTIVE_VALS
-    ) {
-        Some(read_mask_vec(r, values / 64, "selection mask")?)
-    } else {
-        None
-    };
-    Ok((inactive0, inactive1, selection))
+
+    /// Decodes the stored bytes `stored` (of `codec`, `None` for none) into `out`, through `scratch`.
+    fn decode(
+        &self,
+        ctx: &TreeCtx,
+        stored: Option<(Codec, &[u8])>,
+        scratch: &mut Vec<u8>,
+        value_mask: &[u64],
+        out: &mut [T],
+    ) -> KResult<()> {
+        let nbytes = self.count * ctx.stored_size::<T>();
+        let decoded: &[u8] = match stored {
+            Some((Codec::Raw, bytes)) => bytes,
+            Some((codec, bytes)) => {
+                scratch.clear();
+                scratch.resize(nbytes, 0);
+                decode(codec, bytes, scratch)?;
+                scratch
+            }
+            // Nothing stored: every value is inactive (a half array with no active values).
+            None => &[],
+        };
+        self.fill(ctx, decoded, value_mask, out);
+        Ok(())
+    }
 }
 
 /// Reads one array of `out.len()` values under the compressed-values scheme (OpenVDB `readCompressedValues`).
@@ -137,66 +269,21 @@ pub(crate) fn read_values<T: VoxelValue>(
     value_mask: &[u64],
     out: &mut [T],
 ) -> KResult<()> {
-    let mask_compressed = ctx.compression & COMPRESS_ACTIVE_MASK != 0;
-    let new_format = ctx.version >= VERSION_NODE_MASK_COMPRESSION;
-    let mode = if new_format {
-        r.u8("compression metadata")?
-    } else {
-        NO_MASK_AND_ALL_VALS
-    };
-    if mode > NO_MASK_AND_ALL_VALS {
-        return corrupt(format!("invalid compression metadata {mode}"));
-    }
-    let (inactive0, inactive1, selection) = read_inactive(r, ctx, mode, background, out.len())?;
-    let count = if mask_compressed && mode != NO_MASK_AND_ALL_VALS && new_format {
-        popcount(value_mask)
-    } else {
-        out.len()
-    };
-    let elem = if ctx.half {
-        2 * T::COMPONENTS
-    } else {
-        ctx.full_size::<T>()
-    };
-    let nbytes = count * elem;
-    ctx.scratch.clear();
-    ctx.scratch.resize(nbytes, 0);
-    // OpenVDB's half reader returns before touching the stream when there is nothing to read.
-    if !(ctx.half && count == 0) {
-        read_data(r, ctx.compression, &mut ctx.scratch)?;
-    }
-    let buf = &ctx.scratch;
-    let half = ctx.half;
-    let scalar = ctx.scalar;
-    let get = |b: &[u8]| -> T {
-        if half {
-            T::from_components(|c| half_to_f32(u16::from_le_bytes([b[2 * c], b[2 * c + 1]])))
-        } else {
-            decode_full(b, scalar)
-        }
-    };
-    if count == out.len() {
-        for (o, b) in out.iter_mut().zip(buf.chunks_exact(elem)) {
-            *o = get(b);
-        }
-    } else {
-        let mut stored = buf.chunks_exact(elem);
-        for (i, o) in out.iter_mut().enumerate() {
-            let on = value_mask[i >> 6] >> (i & 63) & 1 != 0;
-            *o = if on {
-                // count == popcount(value_mask), so a stored value is always left here.
-                stored.next().map_or(inactive0, get)
-            } else if selection
-                .as_ref()
-                .is_some_and(|s| s[i >> 6] >> (i & 63) & 1 != 0)
-            {
-                inactive1
-            } else {
-                inactive0
-            };
-        }
-    }
-    Ok(())
+    let header = ValuesHeader::read(r, ctx, background, value_mask, out.len())?;
+    let mut stored = std::mem::take(&mut ctx.stored);
+    stored.clear();
+    let codec = header.read_stored(r, ctx, &mut stored)?;
+    let mut scratch = std::mem::take(&mut ctx.scratch);
+    let decoded = header.decode(
+        ctx,
+        codec.map(|c| (c, &stored[..])),
+        &mut scratch,
+        value_mask,
+        out,
+    );
+    ctx.stored = stored;
+    ctx.scratch = scratch;
+    decoded
 }
 
 /// Reads an internal node's masks and tile values; returns the node and its child mask.
@@ -229,29 +316,25 @@ fn set_bits(mask: &[u64]) -> impl Iterator<Item = usize> + '_ {
     })
 }
 
-/// Reads the topology of the upper node at `origin` under the root: its lower nodes go to `tree.lowers` and its
-/// leaves (values still `background`; their buffers come later) to `tree.leaves`, in depth-first order.
+/// Reads the topology of the upper node at `origin` under the root: its lower nodes go to `tree.lowers` and the
+/// origins of its leaves (whose buffers come later) to `leaf_origins`, in depth-first order.
 fn read_upper<T: VoxelValue>(
     r: &mut Reader<'_>,
     ctx: &mut TreeCtx,
     tree: &mut Tree<T>,
-    background: T,
+    leaf_origins: &mut Vec<IVec3>,
     origin: IVec3,
 ) -> KResult<UpperNode<T>> {
+    let background = tree.background;
     let (mut upper, umask): (UpperNode<T>, _) = read_internal(r, ctx, background, origin)?;
     for ui in set_bits(&umask) {
         let lorigin = upper.slot_origin(ui);
         let (mut lower, lmask): (LowerNode<T>, _) = read_internal(r, ctx, background, lorigin)?;
         for li in set_bits(&lmask) {
-            let value_mask = r.mask::<8>("leaf value mask")?;
-            lower.children[li] = tree.leaves.len() as u32;
-            tree.leaves.push(Leaf {
-                origin: lower.slot_origin(li),
-                value_mask,
-                values: [background; 512],
-                min: background,
-                max: background,
-            });
+            // The topology's value mask; the buffer repeats it, and the buffer's is the one kept.
+            r.mask::<8>("leaf value mask")?;
+            lower.children[li] = leaf_origins.len() as u32;
+            leaf_origins.push(lower.slot_origin(li));
         }
         upper.children[ui] = tree.lowers.len() as u32;
         tree.lowers.push(lower);
@@ -259,28 +342,169 @@ fn read_upper<T: VoxelValue>(
     Ok(upper)
 }
 
-/// Reads the buffers of `tree`'s leaves, in the depth-first order of the topology: each leaf's value mask and
-/// values.
+/// The stored bytes of the leaf buffers read in one batch, with at least this many bytes (or the last leaves).
+const LEAF_BATCH_BYTES: usize = 1 << 20;
+
+/// One leaf buffer as the sequential scan found it: its active mask, its header and where its stored bytes lie
+/// in the batch.
+struct LeafRecord<T> {
+    value_mask: [u64; 8],
+    header: ValuesHeader<T>,
+    /// Codec and byte range in [`LeafBatch::bytes`]; `None` when nothing is stored.
+    stored: Option<(Codec, std::ops::Range<usize>)>,
+}
+
+/// The buffers of a run of consecutive leaves: read sequentially from the file, then decoded in parallel.
+struct LeafBatch<T> {
+    /// Index of the first leaf.
+    first: usize,
+    records: Vec<LeafRecord<T>>,
+    /// The stored bytes of every record, one after the other.
+    bytes: Vec<u8>,
+}
+
+impl<T: VoxelValue> LeafBatch<T> {
+    fn new() -> Self {
+        Self {
+            first: 0,
+            records: Vec::new(),
+            bytes: Vec::new(),
+        }
+    }
+
+    /// The leaf after the batch's last.
+    fn end(&self) -> usize {
+        self.first + self.records.len()
+    }
+
+    /// Reads the buffers of the leaves from `first` on, in file order, until the batch holds
+    /// [`LEAF_BATCH_BYTES`] or the leaf `leaves - 1` is read. On an error the batch keeps the leaves before it.
+    fn scan(
+        &mut self,
+        r: &mut Reader<'_>,
+        ctx: &TreeCtx,
+        background: T,
+        first: usize,
+        leaves: usize,
+    ) -> KResult<()> {
+        self.first = first;
+        self.records.clear();
+        self.bytes.clear();
+        while self.end() < leaves && self.bytes.len() < LEAF_BATCH_BYTES {
+            let value_mask = r.mask::<8>("leaf buffer mask")?;
+            if ctx.version < VERSION_NODE_MASK_COMPRESSION {
+                r.ivec3("leaf origin")?;
+                let nbuf = r.u8("leaf buffer count")?;
+                if nbuf != 1 {
+                    return corrupt(format!("leaf has {nbuf} buffers, expected 1"));
+                }
+            }
+            let header = ValuesHeader::read(r, ctx, background, &value_mask, 512)?;
+            let start = self.bytes.len();
+            let codec = header.read_stored(r, ctx, &mut self.bytes)?;
+            self.records.push(LeafRecord {
+                value_mask,
+                header,
+                stored: codec.map(|c| (c, start..self.bytes.len())),
+            });
+        }
+        Ok(())
+    }
+
+    /// Decodes the batch's leaves in parallel, appending them to `tree.leaves` in order (at `leaf_origins`);
+    /// the first failing leaf's error, in file order.
+    fn decode(
+        &self,
+        ctx: &TreeCtx,
+        leaf_origins: &[IVec3],
+        leaves: &mut Vec<Leaf<T>>,
+    ) -> KResult<()> {
+        let first_error = FirstError::default();
+        let origins = &leaf_origins[self.first..self.end()];
+        let decoded = self
+            .records
+            .par_iter()
+            .zip(origins.par_iter())
+            .enumerate()
+            .map_init(Vec::new, |scratch, (i, (record, &origin))| {
+                // Every value is written by the decoding (or the leaf is dropped with the error).
+                let mut values = [record.header.inactive0; 512];
+                let stored = record
+                    .stored
+                    .as_ref()
+                    .map(|(codec, range)| (*codec, &self.bytes[range.clone()]));
+                if let Err(e) =
+                    record
+                        .header
+                        .decode(ctx, stored, scratch, &record.value_mask, &mut values)
+                {
+                    first_error.offer(i, e);
+                }
+                Leaf::with_values(origin, record.value_mask, values)
+            });
+        leaves.par_extend(decoded);
+        first_error.into_result()
+    }
+}
+
+/// The error of the first failing item (by index) among items processed in parallel.
+#[derive(Default)]
+struct FirstError(std::sync::Mutex<Option<(usize, VdbErrorKind)>>);
+
+impl FirstError {
+    /// Records the error of item `index`, kept if no earlier item's is.
+    fn offer(&self, index: usize, error: VdbErrorKind) {
+        let mut first = self
+            .0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if first.as_ref().is_none_or(|(i, _)| index < *i) {
+            *first = Some((index, error));
+        }
+    }
+
+    /// The first error recorded, if any.
+    fn into_result(self) -> KResult<()> {
+        match self
+            .0
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+        {
+            Some((_, error)) => Err(error),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Reads the buffers of the leaves at `leaf_origins` (in the depth-first order of the topology) into
+/// `tree.leaves`: each leaf's value mask and values. The file is read sequentially, a batch at a time, while
+/// the batch read before it is decoded in parallel; an error is the first in file order, as when read one by
+/// one.
 fn read_leaf_buffers<T: VoxelValue>(
     r: &mut Reader<'_>,
-    ctx: &mut TreeCtx,
+    ctx: &TreeCtx,
     tree: &mut Tree<T>,
-    background: T,
+    leaf_origins: &[IVec3],
 ) -> KResult<()> {
-    for i in 0..tree.leaves.len() {
-        let mask = r.mask::<8>("leaf buffer mask")?;
-        if ctx.version < VERSION_NODE_MASK_COMPRESSION {
-            r.ivec3("leaf origin")?;
-            let nbuf = r.u8("leaf buffer count")?;
-            if nbuf != 1 {
-                return corrupt(format!("leaf has {nbuf} buffers, expected 1"));
-            }
+    let (background, count) = (tree.background, leaf_origins.len());
+    tree.leaves = Vec::with_capacity(count);
+    let (mut batch, mut next) = (LeafBatch::new(), LeafBatch::new());
+    let mut scanned = batch.scan(r, ctx, background, 0, count);
+    loop {
+        if scanned.is_err() || batch.end() == count {
+            // The leaves read before a scan error decode first: one of them may fail earlier in the file.
+            batch.decode(ctx, leaf_origins, &mut tree.leaves)?;
+            return scanned;
         }
-        let leaf = &mut tree.leaves[i];
-        read_values(r, ctx, background, &mask, &mut leaf.values)?;
-        leaf.value_mask = mask;
+        let leaves = &mut tree.leaves;
+        let (decoded, next_scanned) = rayon::join(
+            || batch.decode(ctx, leaf_origins, leaves),
+            || next.scan(r, ctx, background, batch.end(), count),
+        );
+        decoded?;
+        scanned = next_scanned;
+        std::mem::swap(&mut batch, &mut next);
     }
-    Ok(())
 }
 
 /// Reads a whole tree (topology then buffers) at the reader's position.
@@ -301,6 +525,7 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
         ));
     }
     let mut tree = Tree::new(background);
+    let mut leaf_origins = Vec::new();
     for _ in 0..num_tiles {
         let origin = r.ivec3("root tile origin")?;
         let value = read_full(r, ctx, "root tile value")?;
@@ -323,7 +548,7 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
                 Root::<T>::DIM
             ));
         }
-        let upper = read_upper(r, ctx, &mut tree, background, origin)?;
+        let upper = read_upper(r, ctx, &mut tree, &mut leaf_origins, origin)?;
         tree.root
             .entries
             .push((origin, RootSlot::Child(tree.uppers.len() as u32)));
@@ -333,11 +558,11 @@ pub(crate) fn read_tree<T: VoxelValue>(r: &mut Reader<'_>, ctx: &mut TreeCtx) ->
     if tree.root.entries.windows(2).any(|w| w[0].0 == w[1].0) {
         return corrupt("duplicate root table entries");
     }
-    read_leaf_buffers(r, ctx, &mut tree, background)?;
-    tree.leaves.shrink_to_fit();
+    read_leaf_buffers(r, ctx, &mut tree, &leaf_origins)?;
     tree.lowers.shrink_to_fit();
     tree.uppers.shrink_to_fit();
-    tree.finalize();
+    // The leaves' ranges were computed as they were decoded.
+    tree.finalize_nodes();
     Ok(tree)
 }
 
@@ -415,5 +640,141 @@ mod tests {
         let mut c = ctx(COMPRESS_ACTIVE_MASK | COMPRESS_ZIP);
         read_values(&mut Reader::new(&bytes), &mut c, 1.5, &[0], &mut out).unwrap();
         assert!(out.iter().all(|&v| v == 1.5));
+    }
+
+    fn words(bytes: &mut Vec<u8>, words: &[u64]) {
+        words
+            .iter()
+            .for_each(|w| bytes.extend_from_slice(&w.to_le_bytes()));
+    }
+
+    /// A zip-compressed tree (with active-mask compression) of one upper and one lower node over
+    /// `buffers.len()` leaves in the lower node's first slots, every voxel active; leaf `i`'s buffer is its
+    /// all-on mask, the mode "every value stored" and then `buffers[i]`.
+    fn tree_bytes(buffers: &[Vec<u8>]) -> Vec<u8> {
+        let mut b = Vec::new();
+        for field in [
+            1i32.to_le_bytes(),
+            0f32.to_le_bytes(),
+            [0; 4],
+            1u32.to_le_bytes(),
+        ] {
+            b.extend_from_slice(&field);
+        }
+        b.extend_from_slice(&[0; 12]);
+        // Upper node: child 0, no active tiles, its tile array (nothing stored: an empty uncompressed block).
+        let mut upper_children = vec![0u64; 512];
+        upper_children[0] = 1;
+        words(&mut b, &upper_children);
+        words(&mut b, &[0; 512]);
+        b.push(NO_MASK_OR_INACTIVE_VALS);
+        b.extend_from_slice(&0i64.to_le_bytes());
+        let mut lower_children = vec![0u64; 64];
+        (0..buffers.len()).for_each(|i| lower_children[i / 64] |= 1 << (i % 64));
+        words(&mut b, &lower_children);
+        words(&mut b, &[0; 64]);
+        b.push(NO_MASK_OR_INACTIVE_VALS);
+        b.extend_from_slice(&0i64.to_le_bytes());
+        buffers.iter().for_each(|_| words(&mut b, &[u64::MAX; 8]));
+        for buffer in buffers {
+            words(&mut b, &[u64::MAX; 8]);
+            b.push(NO_MASK_AND_ALL_VALS);
+            b.extend_from_slice(buffer);
+        }
+        b
+    }
+
+    /// Leaf `i`'s values all `i`, stored uncompressed (a negative byte count).
+    fn stored_leaf(i: usize) -> Vec<u8> {
+        let mut b = (-2048i64).to_le_bytes().to_vec();
+        (0..512).for_each(|_| b.extend_from_slice(&(i as f32).to_le_bytes()));
+        b
+    }
+
+    fn read(bytes: &[u8]) -> KResult<Tree<f32>> {
+        let mut c = ctx(COMPRESS_ACTIVE_MASK | COMPRESS_ZIP);
+        read_tree(&mut Reader::new(bytes), &mut c)
+    }
+
+    /// 3000 leaves span several batches (decoded in parallel, a batch while the next is read): every leaf gets
+    /// its own values, and of two corrupt leaves the error is the first one's in file order, whether each is
+    /// found reading (a wrong uncompressed size) or decoding (a bad zlib stream), in one batch or two.
+    #[test]
+    fn leaves_decoded_in_parallel_keep_their_values_and_the_first_error() {
+        let leaves = 3000;
+        let good: Vec<Vec<u8>> = (0..leaves).map(stored_leaf).collect();
+        let tree = read(&tree_bytes(&good)).unwrap();
+        assert_eq!(tree.leaves.len(), leaves);
+        for (i, leaf) in tree.leaves.iter().enumerate() {
+            assert!(leaf.values.iter().all(|&v| v == i as f32), "leaf {i}");
+            assert_eq!(leaf.range(), (i as f32, i as f32));
+        }
+        let compressed = |data: &[u8]| {
+            let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::fast());
+            std::io::Write::write_all(&mut z, data).unwrap();
+            let z = z.finish().unwrap();
+            let mut b = (z.len() as i64).to_le_bytes().to_vec();
+            b.extend_from_slice(&z);
+            b
+        };
+        // Read: an uncompressed block of the wrong size. Decoded: a zlib stream cut short, and one of garbage.
+        let wrong_size = [(-100i64).to_le_bytes().to_vec(), vec![0; 100]].concat();
+        let cut_short = {
+            let full = compressed(
+                &(0..2048)
+                    .map(|i| (i * 7919 % 251) as u8)
+                    .collect::<Vec<_>>(),
+            );
+            let half = (full.len() - 8) / 2;
+            let mut cut = full[..8 + half].to_vec();
+            cut[..8].copy_from_slice(&(half as i64).to_le_bytes());
+            cut
+        };
+        let garbage = [4i64.to_le_bytes().to_vec(), vec![1, 2, 3, 4]].concat();
+        let message = |first: (usize, &Vec<u8>), second: (usize, &Vec<u8>)| {
+            let mut buffers = good.clone();
+            buffers[first.0] = first.1.clone();
+            buffers[second.0] = second.1.clone();
+            read(&tree_bytes(&buffers)).unwrap_err().to_string()
+        };
+        let alone = |(i, buffer): (usize, &Vec<u8>)| message((i, buffer), (i, buffer));
+        let (size_error, cut_error, garbage_error) = (
+            alone((1600, &wrong_size)),
+            alone((1600, &cut_short)),
+            alone((1600, &garbage)),
+        );
+        assert!(
+            size_error.contains("uncompressed block holds 100"),
+            "{size_error}"
+        );
+        assert_ne!(cut_error, garbage_error);
+        for (a, b) in [(1600, 1610), (1600, 2600), (10, 2990)] {
+            assert_eq!(message((a, &wrong_size), (b, &garbage)), size_error);
+            assert_eq!(message((a, &garbage), (b, &wrong_size)), garbage_error);
+            assert_eq!(message((a, &cut_short), (b, &garbage)), cut_error);
+            assert_eq!(message((a, &garbage), (b, &cut_short)), garbage_error);
+        }
+        // A file ending inside leaf 2000's values: the error names the field and its offset in the file,
+        // unless an earlier leaf failed.
+        let record = 64 + 1 + 8 + 2048;
+        let whole = tree_bytes(&good);
+        let values_at = whole.len() - (leaves - 2000) * record + 64 + 1 + 8;
+        match read(&whole[..values_at + 10]) {
+            Err(VdbErrorKind::Truncated {
+                what,
+                offset,
+                needed,
+                remaining,
+            }) => assert_eq!(
+                (what, offset, needed, remaining),
+                ("uncompressed value buffer", values_at, 2048, 10)
+            ),
+            other => panic!("{:?}", other.map(|_| ())),
+        }
+        let mut buffers = good.clone();
+        buffers[1990] = garbage.clone();
+        let cut = tree_bytes(&buffers);
+        let cut = &cut[..cut.len() - (leaves - 2000) * record + 64 + 1 + 8 + 10];
+        assert_eq!(read(cut).unwrap_err().to_string(), garbage_error);
     }
 }

@@ -80,7 +80,7 @@ impl ShadowEstimator {
 /// Temperature lookup and the blackbody table for an emitting grid.
 struct Emission {
     temperature: GridDensity,
-    table: BlackbodyTable,
+    table: &'static BlackbodyTable,
     scale: f32,
     temperature_scale: f32,
     temperature_offset: f32,
@@ -473,7 +473,7 @@ impl GridMedium {
                 .map_err(grid_error(spec, t))?;
             self.emission = Some(Emission {
                 temperature,
-                table: BlackbodyTable::new(),
+                table: BlackbodyTable::shared(),
                 scale: spec.emission_scale,
                 temperature_scale: spec.temperature_scale,
                 temperature_offset: spec.temperature_offset,
@@ -486,7 +486,7 @@ impl GridMedium {
         if let Some(name) = &spec.flame_grid {
             let colour = spec
                 .flame_color
-                .unwrap_or_else(|| BlackbodyTable::new().lookup(spec.flame_temperature));
+                .unwrap_or_else(|| BlackbodyTable::shared().lookup(spec.flame_temperature));
             self.flame = Some(Flame {
                 grid: channel(name)?,
                 radiance: colour * spec.flame_scale,
@@ -907,7 +907,7 @@ mod tests {
         let mut medium = GridMedium::new("ramp", density, kind, Rgb::ZERO, 0.0);
         medium.emission = Some(Emission {
             temperature,
-            table: BlackbodyTable::new(),
+            table: BlackbodyTable::shared(),
             scale: 1.0,
             temperature_scale: KELVIN,
             temperature_offset: 0.0,

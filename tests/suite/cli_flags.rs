@@ -425,6 +425,37 @@ fn json_keys(value: &serde_json::Value, at: &str, out: &mut Vec<(String, String)
     }
 }
 
+/// `--stats` reports the time to the first pixel: there, finite, and no later than the render's end.
+#[test]
+fn the_stats_report_the_time_to_the_first_pixel() {
+    let dir = std::env::temp_dir().join(format!("nimbus-first-pixel-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let stats = dir.join("stats.json");
+    let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+        .arg("render")
+        .arg(demo_scene())
+        .args(["--width", "16", "--spp", "4", "--stats"])
+        .arg(&stats)
+        .arg("-o")
+        .arg(dir.join("out.exr"))
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let first = stats["first_pixel_seconds"].as_f64().unwrap();
+    let total = stats["render_seconds"].as_f64().unwrap();
+    assert!(
+        first.is_finite() && first >= 0.0 && first <= total,
+        "first pixel {first} s, render {total} s"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// The reference tables are checked against the code: every long flag `nimbus render --help` lists has a row
 /// in docs/reference.md's flag table and every row names a real flag; every key a `--stats` file holds (a render
 /// with a grid medium, light paths and Cryptomatte, so that the media entries and layers are there) is named in
