@@ -419,6 +419,12 @@ impl<H: TentativeHook> Estimator for Delta<H> {
         c: &mut TrackingCounters,
     ) -> ControlFlow<()> {
         let s = x.segment;
+        // The hook's blend, asked before the collision is decided (0 without a hook).
+        let blend = if H::WANTS {
+            self.hook.blend(x.t, s.sigma_max)
+        } else {
+            0.0
+        };
         // σ_t = σ̄ on a uniform segment: every tentative collision is real, no lookup needed.
         let (real, ratio) = if s.is_uniform() {
             (true, Some(1.0))
@@ -426,14 +432,15 @@ impl<H: TentativeHook> Estimator for Delta<H> {
             let u = rng.next_f32() * s.sigma_max;
             let control = self.decompose && u < s.sigma_min;
             // A control collision needs no lookup to be decided, only to be reported with a track-length term.
-            if control && (!H::WANTS || self.hook.blend(x.t, s.sigma_max) == 0.0) {
+            if control && blend == 0.0 {
                 (true, None)
             } else {
                 let sigma = x.density(c);
                 (control || u < sigma, Some(sigma / s.sigma_max))
             }
         };
-        if H::WANTS {
+        // A null collision under a blend of 0 has no emission weight: nothing to report.
+        if H::WANTS && (real || blend > 0.0) {
             self.hook.tentative(&TentativeCollision {
                 t: x.t,
                 throughput: Rgb::ONE,
