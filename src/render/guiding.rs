@@ -224,6 +224,21 @@ mod tests {
         )
     }
 
+    /// A plain path tracer (no pixel footprint, no equiangular sampling, opaque, no mattes) of `max_depth`
+    /// bounces, with or without guided Russian roulette.
+    fn furnace_tracer(max_depth: u32, guided_roulette: bool) -> PathTracer {
+        PathTracer {
+            max_depth,
+            media_mis: true,
+            pixel_spread: 0.0,
+            pixel_width: 0.0,
+            equiangular: false,
+            transparent: false,
+            mattes: false,
+            guided_roulette,
+        }
+    }
+
     /// The training keeps its samples' values as pixel estimates only for guided Russian roulette, their only
     /// reader: a render without it does no such work.
     #[test]
@@ -236,16 +251,7 @@ mod tests {
             seed: 3,
         };
         for guided_roulette in [false, true] {
-            let tracer = PathTracer {
-                max_depth: 64,
-                media_mis: true,
-                pixel_spread: 0.0,
-                pixel_width: 0.0,
-                equiangular: false,
-                transparent: false,
-                mattes: false,
-                guided_roulette,
-            };
+            let tracer = furnace_tracer(64, guided_roulette);
             let decision = GuidingDecision {
                 on: true,
                 reason: String::new(),
@@ -270,16 +276,7 @@ mod tests {
     #[test]
     fn guided_roulette_and_splitting_keep_the_white_furnace() {
         let scene = furnace();
-        let tracer = PathTracer {
-            max_depth: 100_000,
-            media_mis: true,
-            pixel_spread: 0.0,
-            pixel_width: 0.0,
-            equiangular: false,
-            transparent: false,
-            mattes: false,
-            guided_roulette: true,
-        };
+        let tracer = furnace_tracer(100_000, true);
         let services = RendererServices::new(&scene, false);
         let frame = TrainingFrame {
             width: 16,

@@ -431,20 +431,23 @@ fn the_stats_report_the_time_to_the_first_pixel() {
     let dir = std::env::temp_dir().join(format!("nimbus-first-pixel-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let stats = dir.join("stats.json");
-    let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
-        .arg("render")
-        .arg(demo_scene())
-        .args(["--width", "16", "--spp", "4", "--stats"])
-        .arg(&stats)
-        .arg("-o")
-        .arg(dir.join("out.exr"))
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
+    let scene = demo_scene();
+    let (ok, _, stderr) = common::run_nimbus(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--width",
+            "16",
+            "--spp",
+            "4",
+            "--stats",
+            "stats.json",
+            "-o",
+            "out.exr",
+        ],
+        &dir,
     );
+    assert!(ok, "{stderr}");
     let stats: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
     let first = stats["first_pixel_seconds"].as_f64().unwrap();
