@@ -112,18 +112,24 @@ mod tests {
     use crate::math::{Rgb, Rng, Vec2, Vec3};
     use std::fmt::Write;
 
-    /// `E` at one node by a lattice rule over the visible-normal sampler's square ([`lattice_point`]; Heitz
-    /// 2018): each visible normal `h` reflects with weight `F(wo·h) G2/G1(wo)` and refracts with weight
-    /// `(1 − F) G2/G1(wo)` (the sample weights of `f_r` and of `η² f_t` under visible-normal sampling, Walter et
-    /// al. 2007 eqs. 14, 17, 20, 21), zero where the direction leaves on the wrong side.
-    fn quadrature_albedo(cos_o: f32, alpha: f32, eta: f32) -> f64 {
+    /// One visible-normal sample's weight under the lattice rule, for the lobe it falls in.
+    enum LatticeWeight {
+        /// A reflection leaving on the outgoing side: `F(wo·h) G2/G1(wo)`, and the cosine of its direction.
+        Reflected(f32, f32),
+        /// A refraction leaving on the other side: `(1 − F) G2/G1(wo)`.
+        Refracted(f32),
+    }
+
+    /// Walks the lattice rule over the visible-normal sampler's square ([`lattice_point`]; Heitz 2018) for one
+    /// node, handing `visit` each visible normal's reflection and refraction weights in order (the sample
+    /// weights of `f_r` and of `η² f_t` under visible-normal sampling, Walter et al. 2007 eqs. 14, 17, 20,
+    /// 21), none where the direction leaves on the wrong side.
+    fn walk_lattice(cos_o: f32, alpha: f32, eta: f32, mut visit: impl FnMut(LatticeWeight)) {
         let wo = Vec3::new((1.0 - cos_o * cos_o).max(0.0).sqrt(), 0.0, cos_o);
         let ggx = Ggx::isotropic(alpha);
         let g1 = ggx.g1(wo);
-        let mut sum = 0.0f64;
         for n in 0..LATTICE_POINTS {
-            let u = lattice_point(n);
-            let h = ggx.sample_visible(wo, u);
+            let h = ggx.sample_visible(wo, lattice_point(n));
             let oh = wo.dot(h);
             if oh <= 0.0 {
                 continue;
@@ -131,12 +137,23 @@ mod tests {
             let f = fresnel::dielectric(oh, eta);
             let reflected = fresnel::reflect(wo, h);
             if reflected.z > 0.0 {
-                sum += f64::from(f * ggx.g2(wo, reflected) / g1);
+                visit(LatticeWeight::Reflected(
+                    f * ggx.g2(wo, reflected) / g1,
+                    reflected.z,
+                ));
             }
             if let Some(t) = fresnel::refract(wo, h, eta).filter(|t| t.z < 0.0) {
-                sum += f64::from((1.0 - f) * ggx.g2(wo, t) / g1);
+                visit(LatticeWeight::Refracted((1.0 - f) * ggx.g2(wo, t) / g1));
             }
         }
+    }
+
+    /// `E` at one node by the lattice rule: the mean of every reflection and refraction weight.
+    fn quadrature_albedo(cos_o: f32, alpha: f32, eta: f32) -> f64 {
+        let mut sum = 0.0f64;
+        walk_lattice(cos_o, alpha, eta, |weight| match weight {
+            LatticeWeight::Reflected(w, _) | LatticeWeight::Refracted(w) => sum += f64::from(w),
+        });
         sum / LATTICE_POINTS as f64
     }
 
@@ -157,28 +174,14 @@ mod tests {
         eta: f32,
         albedo: impl Fn(f32) -> f32,
     ) -> f64 {
-        let wo = Vec3::new((1.0 - cos_o * cos_o).max(0.0).sqrt(), 0.0, cos_o);
-        let ggx = Ggx::isotropic(alpha);
-        let g1 = ggx.g1(wo);
         let e_o = albedo(cos_o);
         let (mut reflected_sum, mut refracted_sum) = (0.0f64, 0.0f64);
-        for n in 0..LATTICE_POINTS {
-            let u = lattice_point(n);
-            let h = ggx.sample_visible(wo, u);
-            let oh = wo.dot(h);
-            if oh <= 0.0 {
-                continue;
+        walk_lattice(cos_o, alpha, eta, |weight| match weight {
+            LatticeWeight::Reflected(w, cos_i) => {
+                reflected_sum += f64::from(w * (1.0 / (e_o * albedo(cos_i)).sqrt()));
             }
-            let f = fresnel::dielectric(oh, eta);
-            let r = fresnel::reflect(wo, h);
-            if r.z > 0.0 {
-                let scale = 1.0 / (e_o * albedo(r.z)).sqrt();
-                reflected_sum += f64::from(f * ggx.g2(wo, r) / g1 * scale);
-            }
-            if let Some(t) = fresnel::refract(wo, h, eta).filter(|t| t.z < 0.0) {
-                refracted_sum += f64::from((1.0 - f) * ggx.g2(wo, t) / g1);
-            }
-        }
+            LatticeWeight::Refracted(w) => refracted_sum += f64::from(w),
+        });
         let cells = LATTICE_POINTS as f64;
         if refracted_sum <= 0.0 {
             return 1.0;
