@@ -200,9 +200,10 @@ def previous_page():
 
 def previous_rows(page):
     """{scene: table row} of the page as it stands, for scenes measured on an earlier run whose results are not
-    saved here (benches/peers/out/ is not committed)"""
+    saved here (benches/peers/out/ is not committed). Only the first table is read: the sections below it have
+    tables of their own whose rows may start with a scene's name."""
     rows = {}
-    for line in page.splitlines():
+    for line in page.split("\nScenes:\n")[0].splitlines():
         m = re.match(r"\| ([\w-]+) \|", line)
         if m and m[1] in SCENES and line.count("|") > 4:
             rows[m[1]] = line
@@ -268,9 +269,11 @@ def write_markdown(results, a):
               "- The mirrors, glass and dense rows (issue 33) were measured with `--ladder 16` on a machine whose load "
               "average stayed between 8 and 14 on 2 cores (their last column). Nimbus's time on dense includes reading "
               "its 24 MB buffer and building the BVH of 1.0 M triangles; the peers' excludes their load and, for "
-              "Mitsuba, their BVH build. At 64 spp Nimbus's MSE is 0.57x Mitsuba's on mirrors and 0.88x on glass, "
-              "and its time 2.8x and 2.7x: the ratios below 2 there are speed per sample, not noise; no work on it "
-              "is in this change.",
+              "Mitsuba, their BVH build. At 64 spp Nimbus's MSE is 0.57x Mitsuba's on mirrors and 0.88x on glass: "
+              "the ratios below 2 there are speed per sample, not noise. At a load average of 9-10 both renderers "
+              "spent most of their wall time waiting for a core, so the wall-clock ratio of those two rows moves "
+              "between runs by more than the cost of a sample does; the CPU time per sample is the steadier "
+              "comparison (section \"Mirrors and glass: the cost per sample\" below).",
               "- Rerun one scene with `--scenes NAME`; the page is rewritten from every scene's saved results "
               "(`--docs-only` rewrites it without rendering). Rows of scenes with no saved results here "
               "(`benches/peers/out/` is not committed) are carried over from the page as it stood.",

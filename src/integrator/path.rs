@@ -372,13 +372,29 @@ struct SurfaceAovs<'a> {
 }
 
 impl SurfaceAovs<'_> {
-    /// Records the AOVs into `out` when they are still pending.
+    /// Records the AOVs into `out` when they are still pending, the albedo from the material's parameters
+    /// at the hit.
     fn record(&self, s: &mut PathState, out: &mut PathSample) {
+        let (hit, scene) = (self.hit, self.scene);
+        self.record_with_albedo(s, out, || {
+            scene.materials[hit.material as usize]
+                .pbr_params(self.at, &scene.textures)
+                .base_color
+        });
+    }
+
+    /// Records the AOVs into `out` when they are still pending, with `albedo()` the base colour at the hit
+    /// (asked only then).
+    fn record_with_albedo(
+        &self,
+        s: &mut PathState,
+        out: &mut PathSample,
+        albedo: impl FnOnce() -> Rgb,
+    ) {
         if std::mem::take(&mut s.aovs_pending) {
-            let (hit, scene) = (self.hit, self.scene);
-            let material = &scene.materials[hit.material as usize];
+            let hit = self.hit;
             out.depth = (hit.p - self.ray.origin).length();
-            out.albedo = material.pbr_params(self.at, &scene.textures).base_color;
+            out.albedo = albedo();
             out.normal = if hit.shading.n.dot(-self.ray.dir) < 0.0 {
                 -hit.shading.n
             } else {
@@ -651,6 +667,13 @@ impl PathTracer {
     ) -> Option<(f32, u32)> {
         let services = cx.services;
         let scene = services.scene();
+        if s.onward.stack.current().is_none() && scene.filled_media.is_empty() {
+            // No interior and no volume anywhere: the segment crosses no medium (what the steps below come
+            // to, without their work).
+            s.emitted.clear();
+            s.onward.collided_segment = None;
+            return None;
+        }
         let crossed = services.segment_media(ray, t_surface, &s.onward.stack);
         if s.onward.depth == 0 {
             s.crossed_medium = s.crossed_medium.or(crossed.ids().first().copied());
@@ -988,11 +1011,11 @@ impl PathTracer {
         if count_emission && hit.front_face && material.is_emissive() {
             self.add_surface_emission(services, s, &hit, emitter);
         }
-        let bsdf = material.bsdf(&at, &scene.textures);
-        if bsdf.is_index_matched() {
+        let shading = scene.shading(hit.material, &at);
+        if shading.bsdf.is_index_matched() {
             return cross_boundary(s, ray, &hit, material.interior, cx.counters);
         }
-        aovs.record(s, out);
+        aovs.record_with_albedo(s, out, || shading.params.base_color);
         if s.onward.depth == 0 {
             s.cover(1.0, CameraEvent::Surface, hit.t, item);
         }
@@ -1008,7 +1031,7 @@ impl PathTracer {
             unmapped,
             frame,
         };
-        self.scatter_at_surface(cx, s, ray, &surface, bsdf)
+        self.scatter_at_surface(cx, s, ray, &surface, shading.bsdf)
     }
 
     /// Adds the light the emissive surface `hit` emits toward the path (where an emissive texture is black there
@@ -1214,8 +1237,7 @@ impl PathTracer {
             .as_deref()
             .is_some_and(|r| r.shadow_catcher && r.catcher.is_none());
         if wanted {
-            let material = &scene.materials[hit.material as usize];
-            let bsdf = material.bsdf(at, &scene.textures);
+            let bsdf = scene.shading(hit.material, at).bsdf;
             let frame = if hit.front_face {
                 hit.shading
             } else {

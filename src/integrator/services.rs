@@ -298,13 +298,14 @@ impl<'a> RendererServices<'a> {
                 return Rgb::ZERO;
             }
             let Some(hit) = hit else { return tr };
-            let material = &scene.materials[hit.material as usize];
-            if !material
-                .bsdf(&hit.point_shading(), &scene.textures)
+            if !scene
+                .shading(hit.material, &hit.point_shading())
+                .bsdf
                 .is_index_matched()
             {
                 return Rgb::ZERO;
             }
+            let material = &scene.materials[hit.material as usize];
             if let Some(interior) = material.interior {
                 stack.cross(interior, dir.dot(hit.geometric_normal) < 0.0);
             }
@@ -332,6 +333,10 @@ impl<'a> RendererServices<'a> {
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) -> Rgb {
+        if stack.current().is_none() && self.scene.filled_media.is_empty() {
+            // No interior and no volume anywhere: nothing on the segment attenuates.
+            return tr;
+        }
         for &m in self.segment_media(ray, t_max, stack).ids() {
             let medium = &self.scene.media[m as usize];
             tr *= medium.transmittance(ray, t_max, rng, &mut counters.media[m as usize]);

@@ -24,6 +24,7 @@ mod thin_film;
 pub use crate::geometry::CompositingTags;
 pub use lobes::LobeClass;
 pub use spec_gloss::SpecularGlossiness;
+pub(crate) use surface::MaterialShading;
 pub use surface::{
     AlphaMode, Anisotropy, ClearcoatLayer, DiffuseTransmission, Iridescence, Material, SheenLayer,
     TextureId,

@@ -42,10 +42,47 @@
 //!   surface refracts with that channel's index.
 
 use super::spec_gloss::{to_metallic_roughness, MetallicRoughness, SpecularGlossiness};
-use super::texture::{ShadingPoint, Texture};
+use super::texture::{ShadingPoint, TexCoord, Texture};
 use super::{Bsdf, PbrParams};
 use crate::geometry::CompositingTags;
 use crate::math::{Frame, Rgb, Vec2, Vec3, Vec4};
+
+/// A material's parameters at a point and the BSDF made from them ([`Material::pbr_params`],
+/// [`Material::bsdf`]): what shading a surface hit needs, computed once per hit, or once per scene for a
+/// material without textures ([`Material::constant_shading`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct MaterialShading {
+    /// The parameters (the first hit's albedo AOV is their base colour).
+    pub params: PbrParams,
+    /// The BSDF made from them.
+    pub bsdf: Bsdf,
+}
+
+impl MaterialShading {
+    /// `material`'s shading at `at`.
+    pub(crate) fn of(material: &Material, at: &ShadingPoint, textures: &[Texture]) -> Self {
+        let params = material.pbr_params(at, textures);
+        Self {
+            params,
+            bsdf: Bsdf::from_gltf(&params),
+        }
+    }
+
+    /// `material`'s shading at `at`, taken from `constant` (its [`Material::constant_shading`]) where that
+    /// holds there, i.e. where the vertex colour is white (the same bits as [`Self::of`]: a factor of 1 is
+    /// exact), else computed.
+    pub(crate) fn at(
+        constant: Option<&Self>,
+        material: &Material,
+        at: &ShadingPoint,
+        textures: &[Texture],
+    ) -> Self {
+        match constant {
+            Some(shading) if at.color == Vec4::ONE => *shading,
+            _ => Self::of(material, at, textures),
+        }
+    }
+}
 
 /// A texture reference: an index into the scene's texture list.
 pub type TextureId = u32;
@@ -522,12 +559,26 @@ impl Material {
         }
     }
 
-    internal! {
-        /// Creates the BSDF for a hit at a point (a clear coat's normal is the shading normal until
-        /// [`Bsdf::set_coat_normal`] tilts it; see [`Material::coat_normal`]).
-        pub fn bsdf(&self, at: &ShadingPoint, textures: &[Texture]) -> Bsdf {
-            Bsdf::from_gltf(&self.pbr_params(at, textures))
+    /// Creates the BSDF for a hit at a point (a clear coat's normal is the shading normal until
+    /// [`Bsdf::set_coat_normal`] tilts it; see [`Material::coat_normal`]). The renderer takes it together with
+    /// the parameters it is made from ([`MaterialShading`]); this is the tests' way to ask for it alone.
+    #[cfg(any(test, feature = "testing"))]
+    pub fn bsdf(&self, at: &ShadingPoint, textures: &[Texture]) -> Bsdf {
+        MaterialShading::of(self, at, textures).bsdf
+    }
+
+    /// The material's parameters and BSDF where they are the same at every point: it refers to no texture
+    /// ([`Self::texture_ids`]), so they depend on the point only through its vertex colour, and this is their
+    /// value where that is white ([`MaterialShading::at`] checks it). `None` for a textured material.
+    pub(crate) fn constant_shading(&self) -> Option<MaterialShading> {
+        if self.texture_ids().next().is_some() {
+            return None;
         }
+        Some(MaterialShading::of(
+            self,
+            &ShadingPoint::from(TexCoord::default()),
+            &[],
+        ))
     }
 
     /// [`Material::bsdf`] for a path that carries colour channel `channel` alone: the refraction index is
@@ -665,6 +716,56 @@ mod tests {
             dispersion,
             ..Material::default()
         }
+    }
+
+    /// The shading a scene keeps for an untextured material is what the material gives at any point where
+    /// the vertex colour is white, bit for bit; a coloured vertex and a textured material are computed anew.
+    #[test]
+    fn constant_shading_is_the_materials_own_wherever_it_is_used() {
+        let mut coated = glass(0.0);
+        coated.clearcoat = Some(ClearcoatLayer {
+            factor: 0.5,
+            ..ClearcoatLayer::default()
+        });
+        let materials = [
+            Material::lambertian("wall", Rgb::new(0.73, 0.5, 0.2)),
+            Material {
+                metallic: 1.0,
+                roughness: 0.0,
+                ..Material::default()
+            },
+            glass(0.0),
+            coated,
+        ];
+        let white = ShadingPoint::from(TexCoord {
+            uv: Vec2::new(0.3, 0.7),
+            footprint: 0.01,
+        });
+        let coloured = ShadingPoint {
+            color: Vec4::new(0.5, 0.25, 1.0, 1.0),
+            ..white
+        };
+        for m in &materials {
+            let constant = m.constant_shading().expect("no textures");
+            for at in [&white, &coloured] {
+                let shading = MaterialShading::at(Some(&constant), m, at, &[]);
+                assert_eq!(shading, MaterialShading::of(m, at, &[]));
+                assert_eq!(shading.params, m.pbr_params(at, &[]));
+                assert_eq!(shading.bsdf, Bsdf::from_gltf(&m.pbr_params(at, &[])));
+            }
+        }
+        assert_ne!(
+            MaterialShading::of(&materials[0], &coloured, &[])
+                .params
+                .base_color,
+            materials[0].constant_shading().unwrap().params.base_color,
+            "a coloured vertex changes the base colour"
+        );
+        let textured = Material {
+            base_color_texture: Some(0),
+            ..materials[0].clone()
+        };
+        assert!(textured.constant_shading().is_none());
     }
 
     #[test]

@@ -484,20 +484,20 @@ impl Texture {
         let l = &self.image.levels[level];
         let x = uv.x * l.width as f32;
         let y = uv.y * l.height as f32;
-        let texel = |x: i64, y: i64| {
-            let x = wrap_index(x, l.width, self.sampler.wrap_s);
-            let y = wrap_index(y, l.height, self.sampler.wrap_t);
-            l.texels[y * l.width + x]
-        };
+        let column = |x: i64| wrap_index(x, l.width, self.sampler.wrap_s);
+        let row = |y: i64| wrap_index(y, l.height, self.sampler.wrap_t) * l.width;
         match filter {
-            Filter::Nearest => texel(x.floor() as i64, y.floor() as i64),
+            Filter::Nearest => l.texels[row(y.floor() as i64) + column(x.floor() as i64)],
             Filter::Linear => {
                 let (x, y) = (x - 0.5, y - 0.5);
                 let (x0, y0) = (x.floor(), y.floor());
                 let (fx, fy) = (x - x0, y - y0);
                 let (x0, y0) = (x0 as i64, y0 as i64);
-                let top = texel(x0, y0).lerp(texel(x0 + 1, y0), fx);
-                let bottom = texel(x0, y0 + 1).lerp(texel(x0 + 1, y0 + 1), fx);
+                // The two columns and two rows are wrapped once each, not once per texel.
+                let (left, right) = (column(x0), column(x0 + 1));
+                let (top_row, bottom_row) = (row(y0), row(y0 + 1));
+                let top = l.texels[top_row + left].lerp(l.texels[top_row + right], fx);
+                let bottom = l.texels[bottom_row + left].lerp(l.texels[bottom_row + right], fx);
                 top.lerp(bottom, fy)
             }
         }

@@ -7,7 +7,7 @@ use super::{mesh_bytes, mesh_counts, MeshInstance, BUILDER_PATH, BYTES_PER_INSTA
 use super::{Camera, Scene, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::{Bvh, Instance, InstanceBvh, Mesh, MotionBvh, TooManyTriangles};
 use crate::light::{AreaLight, Light, LightSampler};
-use crate::material::AlphaMode;
+use crate::material::{AlphaMode, Material};
 use crate::math::{Aabb, Vec2, Vec3};
 use std::sync::OnceLock;
 
@@ -316,6 +316,11 @@ impl SceneBuilder {
             prototypes: self.prototypes,
             placed: instances.iter().map(instancing::Placed::new).collect(),
             instanced: hierarchies.instanced,
+            constant_shading: self
+                .materials
+                .iter()
+                .map(Material::constant_shading)
+                .collect(),
             materials: self.materials,
             textures: self.textures,
             lights,

@@ -7,7 +7,7 @@ use crate::geometry::{
     Bvh, InstanceBvh, Mesh, MotionBvh, SurfacePoint, TriangleHierarchy, TriangleHit,
 };
 use crate::light::{EnvironmentLight, Light, LightBvh, LightSampler};
-use crate::material::{AlphaMode, Material, ShadingPoint, TexCoord, Texture};
+use crate::material::{AlphaMode, Material, MaterialShading, ShadingPoint, TexCoord, Texture};
 use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3, Vec4};
 use crate::volume::Medium;
 use std::path::Path;
@@ -29,6 +29,9 @@ pub struct Scene {
     pub(crate) materials: Vec<Material>,
     /// Textures.
     pub(crate) textures: Vec<Texture>,
+    /// Per material, its shading where it has no textures ([`Material::constant_shading`]): made once here
+    /// instead of at every hit.
+    pub(super) constant_shading: Vec<Option<MaterialShading>>,
     /// All lights, area lights included.
     pub(crate) lights: Vec<Light>,
     /// Light selection by power.
@@ -358,6 +361,19 @@ impl Scene {
                 u < alpha(material)
             }
         }
+    }
+
+    /// The parameters and BSDF of material `material` at `at` (a hit's [`SurfaceHit::shading_point`]); the
+    /// same as [`Material::pbr_params`] and [`Material::bsdf`], taken from [`Self::constant_shading`] where
+    /// the material has no textures.
+    pub(crate) fn shading(&self, material: u32, at: &ShadingPoint) -> MaterialShading {
+        let index = material as usize;
+        MaterialShading::at(
+            self.constant_shading.get(index).and_then(Option::as_ref),
+            &self.materials[index],
+            at,
+            &self.textures,
+        )
     }
 
     /// The index in `lights` of the area light on triangle `prim`, if it emits.
