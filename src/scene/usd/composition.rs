@@ -26,9 +26,10 @@
 //! is not in it, and is counted as the stage is read instead (see `Loader::visit`).
 //!
 //! Every layer stack the walk enters (the root's, and each arc target's) is counted first as `openusd` builds it:
-//! the root layer, then each sublayer in turn with its own sublayers, a layer named twice counting twice (only a
-//! layer already on the path, a sublayer cycle, is left out). Twenty-five layers that each name the next twice
-//! make 2²⁴ entries, which `openusd` builds one by one and every prim then reads through; a stack over
+//! the root layer, then each sublayer in turn with its own sublayers, a layer named twice counting twice. A
+//! layer already on the path, a sublayer cycle, is refused, as Pixar's USD reports it. Twenty-five layers that
+//! each name the next twice make 2²⁴ entries, which `openusd` builds one by one and every prim then reads
+//! through; a stack over
 //! [`Limits::usd_layer_stack`] entries is refused before the stage is opened, naming its root layer and the flag
 //! that raises the limit.
 //!
@@ -37,10 +38,11 @@
 //! that arcs back into the run through an ancestor are cycles (as Pixar's USD reports them), and arcs that map
 //! a prim ever deeper into its own namespace are stopped by the same rule; an ancestor whose own arc targets its
 //! namespace is refused where it is met. A class arc met below a reference is implied onto the referencing
-//! layer stack (Pcp's implied classes): landing back in the run that way is refused too. `openusd` 0.6 followed
-//! each of these for minutes (the fuzz target's slow inputs, replayed under `tests/`). The nodes of each site's
-//! prim index (each arc's target with its own arcs, once per path) are counted against the prim limit, and the
-//! sites and steps of the walk are bounded by four times it.
+//! layer stack (Pcp's implied classes): landing back in the run that way is refused too, and so is a class arc
+//! of a prim below the referenced one implied onto the prim it composes there, its ancestors or descendants.
+//! `openusd` 0.6 followed each of these for minutes (the fuzz target's slow inputs, replayed under `tests/`).
+//! The nodes of each site's prim index (each arc's target with its own arcs, once per path) are counted against
+//! the prim limit, and the sites and steps of the walk are bounded by four times it.
 //!
 //! The walk is iterative and visits each site once. It works on layer stacks, while `openusd`'s pre-caching takes
 //! every inherit and specialize target as a path of the stage and maps it through arcs to any layer stack: a last
@@ -162,6 +164,16 @@ pub(super) enum CompositionError {
         ancestor: String,
         arc: String,
         mapped: String,
+    },
+    /// A layer stack (`root`'s) in which `layer` names a sublayer (`names`) already on the path to it.
+    #[error(
+        "{root}: its subLayers lead back to a layer on their path: {layer} names {names}, a layer on the path of \
+         sublayers that leads to it (a sublayer cycle)"
+    )]
+    SublayerCycle {
+        root: String,
+        layer: String,
+        names: String,
     },
     /// A layer stack of more entries than the limit.
     #[error(
@@ -763,6 +775,7 @@ impl<'a> Walk<'a> {
                     }
                     if arc.kind.is_class() {
                         self.implied_class_in_run(&frames, next)?;
+                        self.implied_class_below_children(&frames, next)?;
                     }
                 }
                 Step::Child => {}
@@ -824,6 +837,52 @@ impl<'a> Walk<'a> {
             referencing: referencing.clone(),
             implied: implied_site.1,
             nested_with: self.sites[frames[from].site].1.clone(),
+        })))
+    }
+
+    /// Refuses the class arc just followed from the top frame to `next` when the top frame was reached from a
+    /// reference or payload through children alone (the prim lies below the referenced prim) and Pcp's implied
+    /// classes carry the arc onto the referencing layer stack as an arc of the prim it composes there onto
+    /// that prim itself, an ancestor or a descendant: `implied_class_in_run` sees only arcs, and the composed
+    /// prim (the referencing prim with the top's path below the referenced one) is no site of the walk, whose
+    /// children come from each stack's own specs. Pixar's USD reports an arc cycle ("CANNOT inherit from");
+    /// `openusd` 0.6 maps the prim ever deeper for seconds to minutes.
+    fn implied_class_below_children(
+        &self,
+        frames: &[Frame],
+        next: usize,
+    ) -> Result<(), CompositionError> {
+        let mut below = frames.len() - 1;
+        while below > 0 && matches!(frames[below - 1].last_step().1, Step::Child) {
+            below -= 1;
+        }
+        let Some(reference) = below.checked_sub(1).map(|i| &frames[i]) else {
+            return Ok(());
+        };
+        let (source_site, step) = reference.last_step();
+        let by_reference = step.arc().is_some_and(|a| !a.kind.is_class());
+        let (source_stack, source) = &self.sites[*source_site];
+        let (stack, referencing) = &self.sites[reference.site];
+        let (target_stack, target) = &self.sites[next];
+        if !by_reference || source_stack == stack || target_stack != source_stack {
+            return Ok(());
+        }
+        let top = frames.last().expect("a frame");
+        let Some(composed) = precache::map(&self.sites[top.site].1, source, referencing) else {
+            return Ok(());
+        };
+        let implied = precache::map(target, source, referencing).unwrap_or_else(|| target.clone());
+        if !nested(&(*stack, implied.clone()), &(*stack, composed.clone())) {
+            return Ok(());
+        }
+        let class_arc = top.last_step().1.authored(&self.sites[top.site].1);
+        Err(CompositionError::ImpliedClass(Box::new(ImpliedClassCycle {
+            class_arc: class_arc.unwrap_or_default(),
+            through: step.describe(referencing, source),
+            below: format!("{} composes {composed}", self.sites[top.site].1),
+            referencing: referencing.clone(),
+            implied,
+            nested_with: composed,
         })))
     }
 
@@ -1020,7 +1079,7 @@ impl<'a> Walk<'a> {
         if let Some(&index) = self.stack_of.get(&layer) {
             return Ok(index);
         }
-        let entries = self.entries(layer);
+        let entries = self.entries(layer)?;
         if entries > self.max_layer_stack {
             return Err(CompositionError::LayerStack {
                 layer: self.layers.names[layer].clone(),
@@ -1073,11 +1132,12 @@ impl<'a> Walk<'a> {
     }
 
     /// The entries the layer stack whose root is `layer` expands to, as `openusd` builds it: the layer, then each
-    /// sublayer's own entries in turn, skipping a sublayer already on the path (a cycle). Counted without
-    /// recursion, each layer once (a layer's count is kept for every stack that names it), saturating.
-    fn entries(&mut self, layer: usize) -> u64 {
+    /// sublayer's own entries in turn. Counted without recursion, each layer once (a layer's count is kept for
+    /// every stack that names it), saturating. A sublayer already on the path is a sublayer cycle, which Pixar's
+    /// USD reports as a composition error ("Sublayer hierarchy ... has cycles"), and is refused.
+    fn entries(&mut self, layer: usize) -> Result<u64, CompositionError> {
         if let Some(&known) = self.entries.get(&layer) {
-            return known;
+            return Ok(known);
         }
         // (layer, sublayers gone through, entries so far) along the path from `layer`.
         let mut path = vec![(layer, 0usize, 1u64)];
@@ -1095,7 +1155,12 @@ impl<'a> Walk<'a> {
             };
             top.1 += 1;
             if on_path.contains(&sub) {
-                continue;
+                let names = &self.layers.names;
+                return Err(CompositionError::SublayerCycle {
+                    root: names[layer].clone(),
+                    layer: names[top.0].clone(),
+                    names: names[sub].clone(),
+                });
             }
             match self.entries.get(&sub) {
                 Some(&known) => top.2 = top.2.saturating_add(known),
@@ -1105,7 +1170,7 @@ impl<'a> Walk<'a> {
                 }
             }
         }
-        self.entries[&layer]
+        Ok(self.entries[&layer])
     }
 
     /// The error for a walk that closed a cycle by stepping to `site` from the top frame: the steps from frame
@@ -1281,6 +1346,27 @@ mod tests {
         );
     }
 
+    /// A class arc on a child of the referenced prim (met below the reference through children, not arcs) is
+    /// implied onto the referencing layer stack too: here onto /A/A/C, the prim that composes l1's /C/C/C, as
+    /// an inherit of its own ancestor /A. Pixar's USD (usd-core 26.11) reports an arc cycle ("/A/A/C CANNOT
+    /// inherit from /A") in 0.03 s; `openusd` 0.6 mapped the prim ever deeper for 11 s (fuzz target
+    /// `usd_compose`, `final-run-60ad648e` reduced).
+    #[test]
+    fn a_class_implied_from_a_child_below_a_reference_onto_its_ancestor_is_refused() {
+        let root = "def \"A\" { def \"A\" (references = @./l1.usda@</C/C>) {} }";
+        let asset = "def \"C\" { class \"C\" { over \"C\" (inherits = </A>) {} } }";
+        let files = [("root.usda", root), ("l1.usda", asset)];
+        let err = check_files("implied_child", &files).unwrap_err().to_string();
+        assert!(
+            err.contains("implied onto /A/A's layer stack as /A, nested with /A/A/C"),
+            "{err}"
+        );
+        // The same class arc on a global class outside the composed prim's namespace is no cycle.
+        let asset = "def \"C\" { class \"C\" { over \"C\" (inherits = </K>) {} } }\nclass \"K\" {}";
+        let files = [("root.usda", root), ("l1.usda", asset)];
+        check_files("implied_child_global", &files).unwrap();
+    }
+
     /// A model's usual arcs: a reference to an asset whose prim inherits a class and whose child references a
     /// part, and an override below the reference that inherits a class of the stage. Pixar's USD composes it
     /// without errors.
@@ -1329,6 +1415,22 @@ mod tests {
         // /A/C composes /B/C (the parent's inherit, mapped), not /B: nothing leads back.
         let stage = "def \"A\" (inherits = </B>) { def \"C\" {} }\nclass \"B\" { def \"X\" (references = </A/C>) {} }";
         check_files("parent_ok", &[("root.usda", stage)]).unwrap();
+    }
+
+    /// `openusd` 0.6 maps each pre-cached target back through every arc of the parent's prim index, chains of
+    /// arcs included: under /B, which inherits /D, /B/D composes /D/D, which inherits /X, so /X maps onto /B/D,
+    /// and /B's inherit of /D/D/A maps onto /B/D/A. Pre-caching /B/D/A then finds /B/D and /B/D finds /B/D/A,
+    /// until its stack overflows (the fuzz target's `final-run-63b4c7ce`, reduced). Pixar's USD (usd-core
+    /// 26.11) composes the stage in 0.02 s with no error; it is refused as openusd's cycle.
+    #[test]
+    fn pre_caching_maps_targets_back_through_chains_of_arcs() {
+        let stage = "def \"D\" {\n over \"B\" (specializes = </B/A>) {}\n def \"D\" (inherits = </X>) {}\n}\n\
+                     def \"B\" (inherits = [</D/D/A>, </D>]) {}\n";
+        let err = precache_files("chain", &[("root.usda", stage)]).unwrap_err().to_string();
+        assert!(
+            err.contains("is a composition cycle for openusd 0.6") && err.contains("/B/D/A -> /B/D -> /B/D/A"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -1446,15 +1548,46 @@ def "World" (variantSets = "v" references = @./asset.usda@) {
         assert!(err.starts_with("/L3 composes 29 prims"), "{err}");
     }
 
+    /// Pixar's USD (usd-core 26.11) reports a sublayer cycle ("Sublayer hierarchy with root layer ... has
+    /// cycles") on a layer stack whose layer names a layer it is itself a sublayer of; `openusd` 0.6 composed
+    /// the fuzz target's stages with such stacks for minutes.
+    #[test]
+    fn a_sublayer_cycle_is_refused() {
+        let files = [
+            ("a.usda", "(\n subLayers = [@./b.usda@]\n)\n"),
+            ("b.usda", "(\n subLayers = [@./c.usda@, @./a.usda@]\n)\n"),
+            ("c.usda", "def \"C\" {}\n"),
+        ];
+        let err = check_files("sublayer_cycle", &files).unwrap_err().to_string();
+        let cycle = "a.usda, a layer on the path of sublayers that leads to it (a sublayer cycle)";
+        assert!(
+            err.contains("a.usda: its subLayers lead back to a layer on their path: ")
+                && err.contains("b.usda names ")
+                && err.ends_with(cycle),
+            "{err}"
+        );
+        // Through a reference too: the referenced layer stack of d names d itself.
+        let files = [
+            ("r.usda", "def \"A\" (references = @./d.usda@</D>) {}\n"),
+            ("d.usda", "(\n subLayers = [@./d.usda@]\n)\ndef \"D\" {}\n"),
+        ];
+        let err = check_files("sublayer_self", &files).unwrap_err().to_string();
+        let cycle = "d.usda, a layer on the path of sublayers that leads to it (a sublayer cycle)";
+        assert!(err.contains("d.usda names ") && err.ends_with(cycle), "{err}");
+        // A layer named twice is no cycle (Pixar's USD composes it with no error).
+        let files = [
+            ("t.usda", "(\n subLayers = [@./u.usda@, @./u.usda@]\n)\n"),
+            ("u.usda", "def \"U\" {}\n"),
+        ];
+        check_files("sublayer_twice", &files).unwrap();
+    }
+
     #[test]
     fn layer_stacks_count_every_naming_of_a_sublayer() {
-        // a names b twice, b names c twice and a (a cycle, left out): 1 + 2 × (1 + 2) = 7 entries.
+        // a names b twice, b names c twice: 1 + 2 × (1 + 2) = 7 entries.
         let files = [
             ("a.usda", "(\n subLayers = [@./b.usda@, @./b.usda@]\n)\n"),
-            (
-                "b.usda",
-                "(\n subLayers = [@./c.usda@, @./c.usda@, @./a.usda@]\n)\n",
-            ),
+            ("b.usda", "(\n subLayers = [@./c.usda@, @./c.usda@]\n)\n"),
             ("c.usda", "def \"C\" {}\n"),
         ];
         let limit = |usd_layer_stack| Limits {

@@ -215,14 +215,21 @@ impl Precache {
     }
 
     /// The targets pre-cached for prim `path`, each with the arc that gives it: the inherit and specialize
-    /// targets authored at each site of its parent and at that site's child named like `path`, as authored and
-    /// mapped from each arc target of the sites' ancestors back onto them.
+    /// targets authored at each site of its parent and at that site's child named like `path`, as authored,
+    /// mapped from each arc target of the sites' ancestors back onto them, and mapped from each site of the
+    /// parent's ancestors (the parent too) back onto that ancestor (a chain of arcs, as `openusd` composes
+    /// their maps).
     fn targets_of(&mut self, path: &str) -> Targets {
         if let Some(targets) = self.targets.get(path) {
             return targets.clone();
         }
         let name = &path[path.rfind('/').map_or(0, |at| at + 1)..];
         let sites = self.sites_of(parent(path));
+        // Each ancestor of the parent (the parent too) with its sites: a target inside a site maps back onto
+        // the ancestor through the whole chain of arcs that led to the site.
+        let ancestor_sites: Vec<(String, Vec<String>)> = ancestors(parent(path))
+            .map(|ancestor| (ancestor.to_owned(), self.sites_of(ancestor)))
+            .collect();
         let mut targets: Vec<(String, ClassArc)> = Vec::new();
         let mut add = |target: String, arc: &ClassArc| {
             if !targets.iter().any(|(t, _)| *t == target) {
@@ -244,6 +251,13 @@ impl Precache {
                                 if let Some(mapped) = map(&arc.target, from, ancestor) {
                                     add(mapped, arc);
                                 }
+                            }
+                        }
+                    }
+                    for (ancestor, its_sites) in &ancestor_sites {
+                        for site in its_sites.iter().filter(|s| *s != ancestor) {
+                            if let Some(mapped) = map(&arc.target, site, ancestor) {
+                                add(mapped, arc);
                             }
                         }
                     }
