@@ -53,6 +53,8 @@ const BINS: usize = 32;
 const MAX_LEAF: usize = 8;
 /// Triangles per [`Triangle4`] pack: a [`Bvh`] leaf is tested this many triangles at a time.
 const PACK: usize = 4;
+/// Packs holding at most this many triangles are tested a triangle at a time rather than four lanes at once.
+const SCALAR_MAX: usize = 1;
 /// Subtrees with at least this many triangles are built with `rayon::join`.
 const PARALLEL_MIN: usize = 4096;
 /// SAH cost of one traversal step, relative to one triangle test.
@@ -549,20 +551,26 @@ struct TraversalRay {
     neg: [bool; 3],
     /// The direction's octant, bit `a` set when `neg[a]`: the index into [`Node4::order`].
     octant: usize,
-    tri: WatertightRay,
 }
 
 impl TraversalRay {
+    /// The splatted origin and inverse direction, and the direction's signs. Written out axis by axis: an
+    /// array `map` over the axes is a call per array in release builds, which a ray through a mesh of a few
+    /// triangles pays as much as for its whole traversal.
     #[inline(always)]
     fn new(ray: &Ray) -> Self {
-        let inv = ray.dir.recip();
-        let neg = [0, 1, 2].map(|a| ray.dir[a].is_sign_negative());
+        let (o, d) = (ray.origin, ray.dir);
+        let inv = d.recip();
+        let neg = [
+            d.x.is_sign_negative(),
+            d.y.is_sign_negative(),
+            d.z.is_sign_negative(),
+        ];
         Self {
-            origin: [0, 1, 2].map(|a| Vec4::splat(ray.origin[a])),
-            inv_dir: [0, 1, 2].map(|a| Vec4::splat(inv[a])),
+            origin: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
+            inv_dir: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
             neg,
             octant: usize::from(neg[0]) | usize::from(neg[1]) << 1 | usize::from(neg[2]) << 2,
-            tri: WatertightRay::new(ray),
         }
     }
 
@@ -864,7 +872,14 @@ where
         (self.tested)(count);
         let packs = self.packs.get(first..first + count.div_ceil(PACK)).unwrap_or_default();
         for (p, pack) in packs.iter().enumerate() {
-            let valid = (1u32 << (count - p * PACK).min(PACK)) - 1;
+            let used = (count - p * PACK).min(PACK);
+            if used <= SCALAR_MAX {
+                if self.intersect_lanes(pack, used, ray, best) {
+                    return true;
+                }
+                continue;
+            }
+            let valid = (1u32 << used) - 1;
             let hits = pack.intersect(ray, valid, self.t_min, best.limit());
             let mut m = hits.mask;
             while m != 0 {
@@ -891,6 +906,25 @@ where
             prefetch(p);
             prefetch(p.wrapping_add(64));
         }
+    }
+}
+
+impl<A, T, const ANY_HIT: bool> PackLeaves<'_, A, T, ANY_HIT>
+where
+    A: Fn(&TriangleHit) -> bool,
+{
+    /// Tests the first `used` triangles of `pack` one at a time ([`Triangle4::intersect_lane`]), offering each
+    /// hit to `best` in lane order as the four-lane test does; returns whether `offer` ended the query.
+    #[inline(always)]
+    fn intersect_lanes(&self, pack: &Triangle4, used: usize, ray: &WatertightRay, best: &mut Closest) -> bool {
+        for (i, &prim) in pack.ids.iter().enumerate().take(used) {
+            if let Some((t, b1, b2)) = pack.intersect_lane(ray, i, self.t_min, best.limit()) {
+                if best.offer::<ANY_HIT>(TriangleHit { t, prim, b1, b2 }, self.accept) {
+                    return true;
+                }
+            }
+        }
+        false
     }
 }
 
@@ -1090,6 +1124,9 @@ impl Tree {
             return None;
         }
         let r = TraversalRay::new(ray);
+        // The triangle test's constants, computed at the first leaf: a ray that meets no leaf box (most of
+        // them, in a scene of a few large triangles) never needs them.
+        let mut tri: Option<WatertightRay> = None;
         let mut best = Closest::new(t_max);
         let mut stack = Stack {
             entries: [(0u32, 0.0f32); STACK],
@@ -1112,8 +1149,15 @@ impl Tree {
                     // never an overrun.
                     Pushed::Overflow => return best.best,
                 }
-            } else if leaves.intersect(child, count, &r.tri, &mut best) {
-                return best.best;
+            } else {
+                if leaves.intersect(
+                    child,
+                    count,
+                    tri.get_or_insert_with(|| WatertightRay::new(ray)),
+                    &mut best,
+                ) {
+                    return best.best;
+                }
             }
             // Pop until an entry still within reach.
             loop {

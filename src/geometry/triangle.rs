@@ -12,7 +12,7 @@
 //! distance's own rounding error is rejected, so a ray spawned off a surface never re-hits it.
 
 use crate::math::{gamma, Ray, Vec3, Vec4};
-use glam::{BVec4A, Vec3A, Vec3Swizzles};
+use glam::{BVec3A, BVec4A, Vec3A, Vec3Swizzles};
 
 /// A closest hit found by [`crate::geometry::Bvh::intersect`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,29 +46,30 @@ pub struct WatertightRay {
 impl WatertightRay {
     /// Precomputes the permutation (largest direction component becomes z, winding preserved) and the
     /// shear constants `Sx = dx/dz`, `Sy = dy/dz`, `Sz = 1/dz` of Woop et al. 2013.
+    ///
+    /// Branch-free: the axes come from comparisons and small tables, and each row is selected lane by lane
+    /// with SIMD masks, so the rows hold exactly `1`, the shear and `+0`, whatever the ray.
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         let d = ray.dir.to_array();
         let a = ray.dir.abs();
-        // The largest component (the first of equal ones), then the two others in cyclic order.
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
-        let (mut kx, mut ky) = [(1, 2), (2, 0), (0, 1)][kz];
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        // The largest component (the first of equal ones), then the two others in cyclic order, swapped
+        // for a negative largest component so that the winding is kept.
+        let x_largest = a.x >= a.y && a.x >= a.z;
+        let y_largest = !x_largest && a.y >= a.z;
+        let kz = usize::from(!x_largest) + usize::from(!x_largest && !y_largest);
+        const OTHERS: [[(usize, usize); 2]; 3] = [[(1, 2), (2, 1)], [(2, 0), (0, 2)], [(0, 1), (1, 0)]];
+        let (kx, ky) = OTHERS[kz][usize::from(d[kz] < 0.0)];
         let sz = 1.0 / d[kz];
-        // Each row holds one exact 1 (or `Sz`) and the shear at `kz`, zeros elsewhere.
+        // Each row holds one exact 1 (or `Sz`) and the shear at `kz`, +0 elsewhere.
+        const AXIS: [BVec3A; 3] = [
+            BVec3A::new(true, false, false),
+            BVec3A::new(false, true, false),
+            BVec3A::new(false, false, true),
+        ];
         let row = |k: usize, at_k: f32, at_kz: f32| {
-            let mut r = [0.0; 3];
-            r[k] = at_k;
-            r[kz] = at_kz;
-            Vec3::from_array(r)
+            let at_kz = Vec3A::select(AXIS[kz], Vec3A::splat(at_kz), Vec3A::ZERO);
+            Vec3::from(Vec3A::select(AXIS[k], Vec3A::splat(at_k), at_kz))
         };
         Self {
             origin: ray.origin,
@@ -95,11 +96,29 @@ pub fn intersect_triangle(
     t_min: f32,
     t_max: f32,
 ) -> Option<(f32, f32, f32)> {
+    let [p, q, r] = tri;
+    let coordinates = [
+        Vec3A::new(p.x, q.x, r.x),
+        Vec3A::new(p.y, q.y, r.y),
+        Vec3A::new(p.z, q.z, r.z),
+    ];
+    intersect_vertices(ray, coordinates, t_min, t_max)
+}
+
+/// [`intersect_triangle`] on the triangle given coordinate by coordinate: lane `k` of `coordinates[a]` is
+/// coordinate `a` (x, y, z) of vertex `k`.
+#[inline(always)]
+fn intersect_vertices(
+    ray: &WatertightRay,
+    [x, y, z]: [Vec3A; 3],
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32, f32)> {
     let o = ray.origin;
     // Lane i holds vertex i, translated to the ray origin.
-    let xs = Vec3A::new(tri[0].x, tri[1].x, tri[2].x) - o.x;
-    let ys = Vec3A::new(tri[0].y, tri[1].y, tri[2].y) - o.y;
-    let zs = Vec3A::new(tri[0].z, tri[1].z, tri[2].z) - o.z;
+    let xs = x - o.x;
+    let ys = y - o.y;
+    let zs = z - o.z;
     let row = |s: Vec3| xs * s.x + ys * s.y + zs * s.z;
     // Sheared x and y of (A, B, C).
     let sx = row(ray.shear_x);
@@ -170,6 +189,25 @@ impl Triangle4 {
             vertex,
             ids: [0, 1, 2, 3].map(|i| ids.get(i).copied().unwrap_or(u32::MAX)),
         }
+    }
+
+    /// The watertight test of [`intersect_triangle`] on the triangle in lane `lane` (taken modulo 4) alone:
+    /// the cheaper test for a pack holding one triangle, whose other lanes the four-lane test would compute
+    /// for nothing. Its answer is bit for bit that lane's of [`Triangle4::intersect`].
+    #[inline(always)]
+    pub(super) fn intersect_lane(
+        &self,
+        ray: &WatertightRay,
+        lane: usize,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(f32, f32, f32)> {
+        let v = &self.vertex;
+        let coordinate = |a: usize| {
+            let at = |k: usize| v[k][a].to_array()[lane & 3];
+            Vec3A::new(at(0), at(1), at(2))
+        };
+        intersect_vertices(ray, [coordinate(0), coordinate(1), coordinate(2)], t_min, t_max)
     }
 
     /// The watertight test of [`intersect_triangle`] on the lanes of `valid` (a bit mask) at once. Each lane
@@ -329,6 +367,49 @@ mod tests {
                 assert_eq!(packed, single, "{k} {i}");
             }
             assert_eq!(hits.mask >> used, 0, "{k}: an unused lane hit");
+            for (i, tri) in tris[..used].iter().enumerate() {
+                let lane = pack.intersect_lane(&ray, i, 0.0, 2.5);
+                let single = intersect_triangle(&ray, tri, 0.0, 2.5);
+                assert_eq!(lane.map(|h| h.0.to_bits()), single.map(|h| h.0.to_bits()), "{k} {i}");
+                assert_eq!(lane, single, "{k} {i}");
+            }
+        }
+    }
+
+    /// The rows as Woop et al. 2013 define them, written with an indexed array: `kz` the largest |component|
+    /// (the first of equal ones), `kx`, `ky` the others in cyclic order, swapped when `d[kz] < 0`.
+    fn rows_by_index(d: Vec3) -> [Vec3; 3] {
+        let a = d.abs().to_array();
+        let kz = (0..3).fold(0, |k, i| if a[i] > a[k] { i } else { k });
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = 1.0 / d[kz];
+        let row = |k: usize, at_k: f32, at_kz: f32| {
+            let mut r = [0.0; 3];
+            r[k] = at_k;
+            r[kz] = at_kz;
+            Vec3::from_array(r)
+        };
+        [
+            row(kx, 1.0, 0.0 - d[kx] * sz),
+            row(ky, 1.0, 0.0 - d[ky] * sz),
+            row(kz, sz, sz),
+        ]
+    }
+
+    #[test]
+    fn shear_rows_are_those_of_the_indexed_form_bit_for_bit() {
+        let mut rng = crate::math::Rng::new(5, 6);
+        let mut dirs = vec![Vec3::X, -Vec3::Y, Vec3::Z, Vec3::ONE, -Vec3::ONE, Vec3::new(-0.0, 0.0, 1.0)];
+        dirs.extend([Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 2.0, -2.0), Vec3::new(-0.0, -0.0, -0.5)]);
+        dirs.extend((0..2000).map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0));
+        for d in dirs {
+            let ray = WatertightRay::new(&Ray::new(Vec3::ZERO, d));
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            let got = [ray.shear_x, ray.shear_y, ray.scale_z].map(bits);
+            assert_eq!(got, rows_by_index(d).map(bits), "{d}");
         }
     }
 
