@@ -53,8 +53,6 @@ const BINS: usize = 32;
 const MAX_LEAF: usize = 8;
 /// Triangles per [`Triangle4`] pack: a [`Bvh`] leaf is tested this many triangles at a time.
 const PACK: usize = 4;
-/// Packs holding at most this many triangles are tested a triangle at a time rather than four lanes at once.
-const SCALAR_MAX: usize = 1;
 /// Subtrees with at least this many triangles are built with `rayon::join`.
 const PARALLEL_MIN: usize = 4096;
 /// SAH cost of one traversal step, relative to one triangle test.
@@ -872,14 +870,7 @@ where
         (self.tested)(count);
         let packs = self.packs.get(first..first + count.div_ceil(PACK)).unwrap_or_default();
         for (p, pack) in packs.iter().enumerate() {
-            let used = (count - p * PACK).min(PACK);
-            if used <= SCALAR_MAX {
-                if self.intersect_lanes(pack, used, ray, best) {
-                    return true;
-                }
-                continue;
-            }
-            let valid = (1u32 << used) - 1;
+            let valid = (1u32 << (count - p * PACK).min(PACK)) - 1;
             let hits = pack.intersect(ray, valid, self.t_min, best.limit());
             let mut m = hits.mask;
             while m != 0 {
@@ -906,25 +897,6 @@ where
             prefetch(p);
             prefetch(p.wrapping_add(64));
         }
-    }
-}
-
-impl<A, T, const ANY_HIT: bool> PackLeaves<'_, A, T, ANY_HIT>
-where
-    A: Fn(&TriangleHit) -> bool,
-{
-    /// Tests the first `used` triangles of `pack` one at a time ([`Triangle4::intersect_lane`]), offering each
-    /// hit to `best` in lane order as the four-lane test does; returns whether `offer` ended the query.
-    #[inline(always)]
-    fn intersect_lanes(&self, pack: &Triangle4, used: usize, ray: &WatertightRay, best: &mut Closest) -> bool {
-        for (i, &prim) in pack.ids.iter().enumerate().take(used) {
-            if let Some((t, b1, b2)) = pack.intersect_lane(ray, i, self.t_min, best.limit()) {
-                if best.offer::<ANY_HIT>(TriangleHit { t, prim, b1, b2 }, self.accept) {
-                    return true;
-                }
-            }
-        }
-        false
     }
 }
 

@@ -41,6 +41,9 @@ pub struct WatertightRay {
     shear_y: Vec3,
     /// Row giving the scaled z: `Sz·A[kz]`.
     scale_z: Vec3,
+    /// The origin and the three rows above with each of their coordinates splatted across four lanes, for
+    /// [`Triangle4::intersect`]: `splat[0]` the origin, `splat[1..4]` the rows, `splat[r][a]` coordinate `a`.
+    splat: [[Vec4; 3]; 4],
 }
 
 impl WatertightRay {
@@ -71,11 +74,18 @@ impl WatertightRay {
             let at_kz = Vec3A::select(AXIS[kz], Vec3A::splat(at_kz), Vec3A::ZERO);
             Vec3::from(Vec3A::select(AXIS[k], Vec3A::splat(at_k), at_kz))
         };
+        let (shear_x, shear_y, scale_z) = (
+            row(kx, 1.0, 0.0 - d[kx] * sz),
+            row(ky, 1.0, 0.0 - d[ky] * sz),
+            row(kz, sz, sz),
+        );
+        let splat = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
         Self {
             origin: ray.origin,
-            shear_x: row(kx, 1.0, 0.0 - d[kx] * sz),
-            shear_y: row(ky, 1.0, 0.0 - d[ky] * sz),
-            scale_z: row(kz, sz, sz),
+            shear_x,
+            shear_y,
+            scale_z,
+            splat: [splat(ray.origin), splat(shear_x), splat(shear_y), splat(scale_z)],
         }
     }
 }
@@ -96,29 +106,11 @@ pub fn intersect_triangle(
     t_min: f32,
     t_max: f32,
 ) -> Option<(f32, f32, f32)> {
-    let [p, q, r] = tri;
-    let coordinates = [
-        Vec3A::new(p.x, q.x, r.x),
-        Vec3A::new(p.y, q.y, r.y),
-        Vec3A::new(p.z, q.z, r.z),
-    ];
-    intersect_vertices(ray, coordinates, t_min, t_max)
-}
-
-/// [`intersect_triangle`] on the triangle given coordinate by coordinate: lane `k` of `coordinates[a]` is
-/// coordinate `a` (x, y, z) of vertex `k`.
-#[inline(always)]
-fn intersect_vertices(
-    ray: &WatertightRay,
-    [x, y, z]: [Vec3A; 3],
-    t_min: f32,
-    t_max: f32,
-) -> Option<(f32, f32, f32)> {
     let o = ray.origin;
     // Lane i holds vertex i, translated to the ray origin.
-    let xs = x - o.x;
-    let ys = y - o.y;
-    let zs = z - o.z;
+    let xs = Vec3A::new(tri[0].x, tri[1].x, tri[2].x) - o.x;
+    let ys = Vec3A::new(tri[0].y, tri[1].y, tri[2].y) - o.y;
+    let zs = Vec3A::new(tri[0].z, tri[1].z, tri[2].z) - o.z;
     let row = |s: Vec3| xs * s.x + ys * s.y + zs * s.z;
     // Sheared x and y of (A, B, C).
     let sx = row(ray.shear_x);
@@ -191,40 +183,21 @@ impl Triangle4 {
         }
     }
 
-    /// The watertight test of [`intersect_triangle`] on the triangle in lane `lane` (taken modulo 4) alone:
-    /// the cheaper test for a pack holding one triangle, whose other lanes the four-lane test would compute
-    /// for nothing. Its answer is bit for bit that lane's of [`Triangle4::intersect`].
-    #[inline(always)]
-    pub(super) fn intersect_lane(
-        &self,
-        ray: &WatertightRay,
-        lane: usize,
-        t_min: f32,
-        t_max: f32,
-    ) -> Option<(f32, f32, f32)> {
-        let v = &self.vertex;
-        let coordinate = |a: usize| {
-            let at = |k: usize| v[k][a].to_array()[lane & 3];
-            Vec3A::new(at(0), at(1), at(2))
-        };
-        intersect_vertices(ray, [coordinate(0), coordinate(1), coordinate(2)], t_min, t_max)
-    }
-
     /// The watertight test of [`intersect_triangle`] on the lanes of `valid` (a bit mask) at once. Each lane
     /// performs exactly the scalar operations of [`intersect_triangle`] in the same order, so its hits,
     /// distances and barycentrics are bit for bit those of testing the triangles one at a time.
     #[inline(always)]
     pub(super) fn intersect(&self, ray: &WatertightRay, valid: u32, t_min: f32, t_max: f32) -> Hits4 {
-        let o = ray.origin;
+        let [o, shear_x, shear_y, scale_z] = &ray.splat;
         // Vertex k translated to the ray origin, then a row of the permute-and-shear transform applied.
         let rel = |k: usize| {
             let v = &self.vertex[k];
-            [v[0] - o.x, v[1] - o.y, v[2] - o.z]
+            [v[0] - o[0], v[1] - o[1], v[2] - o[2]]
         };
         let (a, b, c) = (rel(0), rel(1), rel(2));
-        let row = |p: &[Vec4; 3], s: Vec3| p[0] * s.x + p[1] * s.y + p[2] * s.z;
-        let (ax, bx, cx) = (row(&a, ray.shear_x), row(&b, ray.shear_x), row(&c, ray.shear_x));
-        let (ay, by, cy) = (row(&a, ray.shear_y), row(&b, ray.shear_y), row(&c, ray.shear_y));
+        let row = |p: &[Vec4; 3], s: &[Vec4; 3]| p[0] * s[0] + p[1] * s[1] + p[2] * s[2];
+        let (ax, bx, cx) = (row(&a, shear_x), row(&b, shear_x), row(&c, shear_x));
+        let (ay, by, cy) = (row(&a, shear_y), row(&b, shear_y), row(&c, shear_y));
         let mut u = cx * by - cy * bx;
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
@@ -247,7 +220,7 @@ impl Triangle4 {
             return none;
         }
         let det = u + v + w;
-        let (az, bz, cz) = (row(&a, ray.scale_z), row(&b, ray.scale_z), row(&c, ray.scale_z));
+        let (az, bz, cz) = (row(&a, scale_z), row(&b, scale_z), row(&c, scale_z));
         let t_scaled = az * u + bz * v + cz * w;
         let rcp = Vec4::ONE / det;
         let t = t_scaled * rcp;
@@ -367,12 +340,6 @@ mod tests {
                 assert_eq!(packed, single, "{k} {i}");
             }
             assert_eq!(hits.mask >> used, 0, "{k}: an unused lane hit");
-            for (i, tri) in tris[..used].iter().enumerate() {
-                let lane = pack.intersect_lane(&ray, i, 0.0, 2.5);
-                let single = intersect_triangle(&ray, tri, 0.0, 2.5);
-                assert_eq!(lane.map(|h| h.0.to_bits()), single.map(|h| h.0.to_bits()), "{k} {i}");
-                assert_eq!(lane, single, "{k} {i}");
-            }
         }
     }
 
