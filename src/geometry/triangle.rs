@@ -12,7 +12,7 @@
 //! distance's own rounding error is rejected, so a ray spawned off a surface never re-hits it.
 
 use crate::math::{gamma, Ray, Vec3, Vec4};
-use glam::{BVec4A, Vec3A, Vec3Swizzles};
+use glam::{BVec3A, BVec4A, Vec3A, Vec3Swizzles};
 
 /// A closest hit found by [`crate::geometry::Bvh::intersect`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,40 +41,51 @@ pub struct WatertightRay {
     shear_y: Vec3,
     /// Row giving the scaled z: `Sz·A[kz]`.
     scale_z: Vec3,
+    /// The origin and the three rows above with each of their coordinates splatted across four lanes, for
+    /// [`Triangle4::intersect`]: `splat[0]` the origin, `splat[1..4]` the rows, `splat[r][a]` coordinate `a`.
+    splat: [[Vec4; 3]; 4],
 }
 
 impl WatertightRay {
     /// Precomputes the permutation (largest direction component becomes z, winding preserved) and the
     /// shear constants `Sx = dx/dz`, `Sy = dy/dz`, `Sz = 1/dz` of Woop et al. 2013.
+    ///
+    /// Branch-free: the axes come from comparisons and small tables, and each row is selected lane by lane
+    /// with SIMD masks, so the rows hold exactly `1`, the shear and `+0`, whatever the ray.
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         let d = ray.dir.to_array();
         let a = ray.dir.abs();
-        // The largest component (the first of equal ones), then the two others in cyclic order.
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
-        let (mut kx, mut ky) = [(1, 2), (2, 0), (0, 1)][kz];
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        // The largest component (the first of equal ones), then the two others in cyclic order, swapped
+        // for a negative largest component so that the winding is kept.
+        let x_largest = a.x >= a.y && a.x >= a.z;
+        let y_largest = !x_largest && a.y >= a.z;
+        let kz = usize::from(!x_largest) + usize::from(!x_largest && !y_largest);
+        const OTHERS: [[(usize, usize); 2]; 3] = [[(1, 2), (2, 1)], [(2, 0), (0, 2)], [(0, 1), (1, 0)]];
+        let (kx, ky) = OTHERS[kz][usize::from(d[kz] < 0.0)];
         let sz = 1.0 / d[kz];
-        // Each row holds one exact 1 (or `Sz`) and the shear at `kz`, zeros elsewhere.
+        // Each row holds one exact 1 (or `Sz`) and the shear at `kz`, +0 elsewhere.
+        const AXIS: [BVec3A; 3] = [
+            BVec3A::new(true, false, false),
+            BVec3A::new(false, true, false),
+            BVec3A::new(false, false, true),
+        ];
         let row = |k: usize, at_k: f32, at_kz: f32| {
-            let mut r = [0.0; 3];
-            r[k] = at_k;
-            r[kz] = at_kz;
-            Vec3::from_array(r)
+            let at_kz = Vec3A::select(AXIS[kz], Vec3A::splat(at_kz), Vec3A::ZERO);
+            Vec3::from(Vec3A::select(AXIS[k], Vec3A::splat(at_k), at_kz))
         };
+        let (shear_x, shear_y, scale_z) = (
+            row(kx, 1.0, 0.0 - d[kx] * sz),
+            row(ky, 1.0, 0.0 - d[ky] * sz),
+            row(kz, sz, sz),
+        );
+        let splat = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
         Self {
             origin: ray.origin,
-            shear_x: row(kx, 1.0, 0.0 - d[kx] * sz),
-            shear_y: row(ky, 1.0, 0.0 - d[ky] * sz),
-            scale_z: row(kz, sz, sz),
+            shear_x,
+            shear_y,
+            scale_z,
+            splat: [splat(ray.origin), splat(shear_x), splat(shear_y), splat(scale_z)],
         }
     }
 }
@@ -177,16 +188,16 @@ impl Triangle4 {
     /// distances and barycentrics are bit for bit those of testing the triangles one at a time.
     #[inline(always)]
     pub(super) fn intersect(&self, ray: &WatertightRay, valid: u32, t_min: f32, t_max: f32) -> Hits4 {
-        let o = ray.origin;
+        let [o, shear_x, shear_y, scale_z] = &ray.splat;
         // Vertex k translated to the ray origin, then a row of the permute-and-shear transform applied.
         let rel = |k: usize| {
             let v = &self.vertex[k];
-            [v[0] - o.x, v[1] - o.y, v[2] - o.z]
+            [v[0] - o[0], v[1] - o[1], v[2] - o[2]]
         };
         let (a, b, c) = (rel(0), rel(1), rel(2));
-        let row = |p: &[Vec4; 3], s: Vec3| p[0] * s.x + p[1] * s.y + p[2] * s.z;
-        let (ax, bx, cx) = (row(&a, ray.shear_x), row(&b, ray.shear_x), row(&c, ray.shear_x));
-        let (ay, by, cy) = (row(&a, ray.shear_y), row(&b, ray.shear_y), row(&c, ray.shear_y));
+        let row = |p: &[Vec4; 3], s: &[Vec4; 3]| p[0] * s[0] + p[1] * s[1] + p[2] * s[2];
+        let (ax, bx, cx) = (row(&a, shear_x), row(&b, shear_x), row(&c, shear_x));
+        let (ay, by, cy) = (row(&a, shear_y), row(&b, shear_y), row(&c, shear_y));
         let mut u = cx * by - cy * bx;
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
@@ -209,7 +220,7 @@ impl Triangle4 {
             return none;
         }
         let det = u + v + w;
-        let (az, bz, cz) = (row(&a, ray.scale_z), row(&b, ray.scale_z), row(&c, ray.scale_z));
+        let (az, bz, cz) = (row(&a, scale_z), row(&b, scale_z), row(&c, scale_z));
         let t_scaled = az * u + bz * v + cz * w;
         let rcp = Vec4::ONE / det;
         let t = t_scaled * rcp;
@@ -329,6 +340,43 @@ mod tests {
                 assert_eq!(packed, single, "{k} {i}");
             }
             assert_eq!(hits.mask >> used, 0, "{k}: an unused lane hit");
+        }
+    }
+
+    /// The rows as Woop et al. 2013 define them, written with an indexed array: `kz` the largest |component|
+    /// (the first of equal ones), `kx`, `ky` the others in cyclic order, swapped when `d[kz] < 0`.
+    fn rows_by_index(d: Vec3) -> [Vec3; 3] {
+        let a = d.abs().to_array();
+        let kz = (0..3).fold(0, |k, i| if a[i] > a[k] { i } else { k });
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = 1.0 / d[kz];
+        let row = |k: usize, at_k: f32, at_kz: f32| {
+            let mut r = [0.0; 3];
+            r[k] = at_k;
+            r[kz] = at_kz;
+            Vec3::from_array(r)
+        };
+        [
+            row(kx, 1.0, 0.0 - d[kx] * sz),
+            row(ky, 1.0, 0.0 - d[ky] * sz),
+            row(kz, sz, sz),
+        ]
+    }
+
+    #[test]
+    fn shear_rows_are_those_of_the_indexed_form_bit_for_bit() {
+        let mut rng = crate::math::Rng::new(5, 6);
+        let mut dirs = vec![Vec3::X, -Vec3::Y, Vec3::Z, Vec3::ONE, -Vec3::ONE, Vec3::new(-0.0, 0.0, 1.0)];
+        dirs.extend([Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 2.0, -2.0), Vec3::new(-0.0, -0.0, -0.5)]);
+        dirs.extend((0..2000).map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0));
+        for d in dirs {
+            let ray = WatertightRay::new(&Ray::new(Vec3::ZERO, d));
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            let got = [ray.shear_x, ray.shear_y, ray.scale_z].map(bits);
+            assert_eq!(got, rows_by_index(d).map(bits), "{d}");
         }
     }
 
