@@ -69,7 +69,16 @@ pub(super) fn medium_guide_at<'a>(
         .guide()
         .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)
         .and_then(|g| g.radiance_grid_at(p))
-        .and_then(|grid| ProductGuide::new(grid, -wo, |cos| phase.eval_cos(cos)))
+        .and_then(|grid| match *phase {
+            // A constant factor: the product is the learned distribution itself.
+            PhaseFunction::Isotropic => ProductGuide::new(grid, -wo, |_| 1.0),
+            // Henyey & Greenstein 1941 without its constant (1 − g²)/4π, which the product's normalisation
+            // divides out: (1 + g² − 2g cos θ)^(−3/2).
+            PhaseFunction::HenyeyGreenstein { g } => ProductGuide::new(grid, -wo, |cos| {
+                let d = 1.0 + g * g - 2.0 * g * cos;
+                1.0 / (d * d.sqrt())
+            }),
+        })
 }
 
 /// The density of the direction `wi_world` under the one-sample MIS mixture α q + (1 − α) p of the guide's
