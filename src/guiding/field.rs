@@ -161,6 +161,7 @@ impl GuidingField {
     }
 
     /// The distribution paths at `p` sample from, if the cell there learned one.
+    #[cfg(test)]
     pub fn distribution_at(&self, p: Vec3) -> Option<&DirectionalQuadtree> {
         self.cells[self.cell_index(p)].distribution.as_ref()
     }

@@ -21,7 +21,6 @@ pub mod quadtree;
 
 pub use field::{GuidingField, RadianceRecord};
 pub use product::ProductGuide;
-pub use quadtree::DirectionalQuadtree;
 pub use pilot::GuidingDecision;
 
 use crate::math::{Rgb, Vec3};

@@ -10,6 +10,10 @@
 //! the histogram. Sampling descends from the root choosing a child by its share of the parent's energy and is
 //! uniform within the leaf reached, so the density of a direction is the product of 4 · (child share) over the
 //! levels it descends (their Eq. 4 with the tree's own energies), exactly the sampled one.
+//!
+//! Paths do not sample the tree itself: its bin probabilities ([`DirectionalQuadtree::bin_probabilities`]) feed
+//! the product with the phase function or the cosine ([`super::product`]). The tree's own sampler and density
+//! are test-only; its tests check the tree the product reads.
 
 use crate::math::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -115,6 +119,7 @@ impl DirectionalQuadtree {
     /// Samples a unit direction from `u` ∈ \[0, 1)²; returns it with its solid-angle density ([`Self::pdf`]).
     /// At each split node the u half is chosen by the halves' energies with `u.x`, then the v half within it
     /// with `u.y`, each value rescaled to \[0, 1) for the next level (as Müller et al. 2017 descend their quadtrees).
+    #[cfg(test)]
     pub fn sample(&self, u: Vec2) -> (Vec3, f32) {
         let (mut ux, mut uy) = (u.x as f64, u.y as f64);
         let (mut origin, mut size) = (Vec2::ZERO, 1.0f32);
@@ -182,6 +187,7 @@ impl DirectionalQuadtree {
     }
 
     /// Solid-angle density with which [`Self::sample`] returns the unit direction `w`.
+    #[cfg(test)]
     pub fn pdf(&self, w: Vec3) -> f32 {
         let mut p = to_square(w);
         let mut node = self.nodes[0];

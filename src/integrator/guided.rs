@@ -17,7 +17,7 @@
 //! weight uses the density it sampled with.
 
 use super::services::RendererServices;
-use crate::guiding::{DirectionalQuadtree, ProductGuide, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
+use crate::guiding::{ProductGuide, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
 use crate::material::{Bsdf, BsdfSample, LobeClass};
 use crate::math::{Frame, Rgb, Rng, Vec2, Vec3};
 use crate::volume::PhaseFunction;
@@ -25,35 +25,20 @@ use crate::volume::PhaseFunction;
 /// The largest f32 below 1.
 const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
-/// A guiding distribution over directions, as the mixture's density sees it.
-pub(super) trait GuideDensity {
-    /// The solid-angle density with which the distribution samples the unit direction `w`.
-    fn density(&self, w: Vec3) -> f32;
-}
-
-impl GuideDensity for DirectionalQuadtree {
-    fn density(&self, w: Vec3) -> f32 {
-        self.pdf(w)
-    }
-}
-
-impl GuideDensity for ProductGuide<'_> {
-    fn density(&self, w: Vec3) -> f32 {
-        self.pdf(w)
-    }
-}
-
-/// The guiding cache's distribution at a surface point `p`, when the render is guided, the cache learned one
-/// there, and the path's throughput `beta` is at most [`GUIDE_MAX_THROUGHPUT`].
+/// The product of the guiding cache's distribution at a surface point `p` with the cosine to the shading
+/// normal `n` (a Lambertian BSDF's shape), when the render is guided, the cache learned one there, and the path's
+/// throughput `beta` is at most [`GUIDE_MAX_THROUGHPUT`].
 pub(super) fn surface_guide_at<'a>(
     services: &RendererServices<'a>,
     beta: Rgb,
     p: Vec3,
-) -> Option<&'a DirectionalQuadtree> {
+    n: Vec3,
+) -> Option<ProductGuide<'a>> {
     services
         .guide()
         .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)
-        .and_then(|g| g.distribution_at(p))
+        .and_then(|g| g.radiance_grid_at(p))
+        .and_then(|grid| ProductGuide::new(grid, n, |cos| cos))
 }
 
 /// The product of the guiding cache's distribution at a medium point `p` with the phase function `phase` for
@@ -83,9 +68,9 @@ pub(super) fn medium_guide_at<'a>(
 
 /// The density of the direction `wi_world` under the one-sample MIS mixture α q + (1 − α) p of the guide's
 /// distribution q and the phase function's or BSDF's density `pdf` = p(wi); `pdf` alone unguided.
-pub(super) fn mixture_pdf<G: GuideDensity>(guide: Option<&G>, wi_world: Vec3, pdf: f32) -> f32 {
+pub(super) fn mixture_pdf(guide: Option<&ProductGuide>, wi_world: Vec3, pdf: f32) -> f32 {
     match guide {
-        Some(d) => GUIDE_PROBABILITY * d.density(wi_world) + (1.0 - GUIDE_PROBABILITY) * pdf,
+        Some(d) => GUIDE_PROBABILITY * d.pdf(wi_world) + (1.0 - GUIDE_PROBABILITY) * pdf,
         None => pdf,
     }
 }
@@ -137,7 +122,7 @@ pub(super) fn sample_phase(
 /// guided, the mixture's, with the mixture's density (`direction_pdf`, local directions) and the BSDF's value.
 pub(super) fn sample_bsdf(
     bsdf: &Bsdf,
-    guide: Option<&DirectionalQuadtree>,
+    guide: Option<&ProductGuide>,
     frame: &Frame,
     wo: Vec3,
     rng: &mut Rng,
@@ -149,7 +134,7 @@ pub(super) fn sample_bsdf(
     let u_lobe = rng.sample_1d();
     let (guided, u) = choose_strategy(rng.sample_2d());
     let wi = if guided {
-        Some(frame.to_local(distribution.sample(u).0))
+        Some(frame.to_local(distribution.sample(u)))
     } else {
         bsdf.sample(wo, u_lobe, u).map(|b| b.wi)
     };

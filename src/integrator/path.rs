@@ -1074,15 +1074,16 @@ impl PathTracer {
             }
         }
         let guide = match bsdf {
-            Bsdf::Lambert(_) => guided::surface_guide_at(services, s.onward.beta, hit.p),
+            Bsdf::Lambert(_) => guided::surface_guide_at(services, s.onward.beta, hit.p, frame.n),
             _ => None,
         };
         let direction_pdf =
-            |wi: Vec3| guided::mixture_pdf(guide, frame.to_world(wi), bsdf.pdf(wo, wi));
+            |wi: Vec3| guided::mixture_pdf(guide.as_ref(), frame.to_world(wi), bsdf.pdf(wo, wi));
         if !bsdf.is_delta() {
             self.surface_next_event(cx, s, ray, surface, &bsdf, direction_pdf);
         }
-        let sampled = guided::sample_bsdf(&bsdf, guide, &frame, wo, cx.rng, direction_pdf);
+        let sampled =
+            guided::sample_bsdf(&bsdf, guide.as_ref(), &frame, wo, cx.rng, direction_pdf);
         let Some(bs) = sampled else {
             return SurfaceOutcome::End;
         };
