@@ -130,7 +130,7 @@ impl<'a> ProductGuide<'a> {
         );
         let c = (fj / FINE) * PRODUCT_SIDE + fi / FINE;
         let m_c = self.grid.coarse[c];
-        if !(m_c > 0.0) {
+        if m_c <= 0.0 {
             return 0.0;
         }
         let m_f = self.grid.fine[fj * HISTOGRAM_SIDE + fi];

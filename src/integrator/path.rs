@@ -1082,8 +1082,7 @@ impl PathTracer {
         if !bsdf.is_delta() {
             self.surface_next_event(cx, s, ray, surface, &bsdf, direction_pdf);
         }
-        let sampled =
-            guided::sample_bsdf(&bsdf, guide.as_ref(), &frame, wo, cx.rng, direction_pdf);
+        let sampled = guided::sample_bsdf(&bsdf, guide.as_ref(), &frame, wo, cx.rng, direction_pdf);
         let Some(bs) = sampled else {
             return SurfaceOutcome::End;
         };
