@@ -47,14 +47,9 @@ impl PhaseFunction {
 
     /// Phase function value for the pair (`wo`, `wi`), per steradian.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.eval_cos(-wo.dot(wi))
-    }
-
-    /// Phase function value for a scattering angle with cosine `cos_theta` (`-wo·wi`), per steradian.
-    pub fn eval_cos(&self, cos_theta: f32) -> f32 {
         match *self {
             PhaseFunction::Isotropic => 0.25 / PI,
-            PhaseFunction::HenyeyGreenstein { g } => hg(g, cos_theta.clamp(-1.0, 1.0)),
+            PhaseFunction::HenyeyGreenstein { g } => hg(g, (-wo.dot(wi)).clamp(-1.0, 1.0)),
         }
     }
 
