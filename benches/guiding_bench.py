@@ -3,6 +3,7 @@
 
     python3 benches/guiding_bench.py render [--out DIR] [--scenes backlit,doorgap] [--res 128] [--spp 64]
                                             [--ref-spp 4096] [--rounds 3] [--threads 2] [--nimbus PATH]
+                                            [--variants off,on,roulette]
     python3 benches/guiding_bench.py table [--out DIR]
 
 `render` needs only Python (it can run on another machine: copy the binary and the scenes there, bring DIR
@@ -14,7 +15,7 @@ back); `table` reads the EXRs with NumPy and PyPI's OpenEXR.
    of each pixel's mean) is subtracted from every MSE.
 2. `--rounds` rounds, each with its own seed, interleaved: unguided (`--guiding off`), guided with guided Russian
    roulette and splitting (`--guiding on --guided-roulette`) and guided with classic Russian roulette (`--guiding
-   on`), all at `--spp`. MSE is over all pixels and channels of the beauty; efficiency =
+   on`), all at `--spp` (`--variants` renders some of them: `off`, `roulette`, `on`). MSE is over all pixels and channels of the beauty; efficiency =
    1 / (MSE x seconds), seconds being the renderer's `render_seconds` (training included).
 3. `table` prints, per scene, one row per variant: seconds, MSE, efficiency against unguided, and the work per
    camera sample: rays (camera + bounce + shadow), extra paths from splitting, and density lookups (all media).
@@ -32,6 +33,8 @@ VARIANTS = {
     "guided, classic roulette": ["--guiding", "on"],
     "guided, guided roulette and splitting": ["--guiding", "on", "--guided-roulette"],
 }
+# `--variants` names, in the order of VARIANTS.
+VARIANT_NAMES = ["off", "on", "roulette"]
 
 
 def render(nimbus, scene, out, a, spp, seed, extra):
@@ -52,6 +55,8 @@ def render_all(a):
             print(f"{name}: reference {a.ref_spp} spp in {time.time() - start:.1f} s", flush=True)
         for r in range(a.rounds):
             for v, (label, extra) in enumerate(VARIANTS.items()):
+                if VARIANT_NAMES[v] not in a.variants.split(","):
+                    continue
                 out = os.path.join(a.out, f"{name}_v{v}_r{r}.exr")
                 render(nimbus, scene, out, a, a.spp, 100 + r, extra)
                 secs = json.load(open(out + ".json"))["render_seconds"]
@@ -87,6 +92,8 @@ def table(a):
         base = None
         for v, label in enumerate(VARIANTS):
             runs = sorted(glob.glob(os.path.join(a.out, f"{name}_v{v}_r*.exr")))
+            if not runs:
+                continue
             stats = [json.load(open(p + ".json")) for p in runs]
             mse = np.mean([np.mean((read(p) - ref) ** 2) - ref_var for p in runs])
             seconds = np.mean([s["render_seconds"] for s in stats])
@@ -113,6 +120,7 @@ def main():
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--nimbus", help="the nimbus binary (default: target/release/nimbus)")
+    ap.add_argument("--variants", default=",".join(VARIANT_NAMES), help="which variants to render")
     a = ap.parse_args()
     render_all(a) if a.command == "render" else table(a)
 

@@ -18,6 +18,7 @@
 //! any number of threads.
 
 use super::adjoint::PixelEstimates;
+use super::product::RadianceGrid;
 use super::quadtree::{bin_of, to_square, DirectionalQuadtree, HISTOGRAM_SIDE};
 use crate::math::{Aabb, Vec3};
 use std::f64::consts::PI;
@@ -62,6 +63,8 @@ struct Cell {
     histogram: Vec<f64>,
     /// What paths sample from, learned in the previous iteration.
     distribution: Option<DirectionalQuadtree>,
+    /// The same distribution tabulated for the product with the phase function at medium events.
+    radiance_grid: Option<RadianceGrid>,
     /// The mean incident radiance over the sphere the previous iteration's records estimate (Σ radiance/pdf
     /// over the records, / 4π), when it had records.
     mean_radiance: Option<f32>,
@@ -78,6 +81,7 @@ impl Cell {
         Self {
             records: 0,
             histogram: vec![0.0; HISTOGRAM_SIDE * HISTOGRAM_SIDE],
+            radiance_grid: distribution.as_ref().map(RadianceGrid::new),
             distribution,
             mean_radiance,
             depth,
@@ -157,8 +161,14 @@ impl GuidingField {
     }
 
     /// The distribution paths at `p` sample from, if the cell there learned one.
+    #[cfg(test)]
     pub fn distribution_at(&self, p: Vec3) -> Option<&DirectionalQuadtree> {
         self.cells[self.cell_index(p)].distribution.as_ref()
+    }
+
+    /// The learned distribution at `p` tabulated for product guiding, if the cell there learned one.
+    pub fn radiance_grid_at(&self, p: Vec3) -> Option<&RadianceGrid> {
+        self.cells[self.cell_index(p)].radiance_grid.as_ref()
     }
 
     /// The mean incident radiance over the sphere at `p` (a luminance), as the cell there estimated it in the
@@ -198,6 +208,7 @@ impl GuidingField {
         let threshold = SPLIT_RECORDS * 2f64.powf(self.iterations as f64 * 0.5);
         for cell in &mut self.cells {
             cell.distribution = DirectionalQuadtree::from_histogram(&cell.histogram);
+            cell.radiance_grid = cell.distribution.as_ref().map(RadianceGrid::new);
             let total: f64 = cell.histogram.iter().sum();
             cell.mean_radiance = (cell.records > 0 && total.is_finite())
                 .then(|| (total / (cell.records as f64 * 4.0 * PI)) as f32);

@@ -5,6 +5,7 @@
 //!
 //! - [`quadtree`]: the directional distributions (quadtrees over the cylindrical map of the sphere).
 //! - [`field`]: the spatial tree of cells and the cache ([`GuidingField`]).
+//! - [`product`]: the product of a cell's distribution with the phase function, sampled at medium events.
 //! - [`adjoint`]: guided Russian roulette and splitting from the cache's radiance and the training's pixel values.
 //! - [`pilot`]: what `--guiding auto` decides for a scene, and why.
 //! - [`GuidePath`]: what a training path remembers of its vertices, turned into [`RadianceRecord`]s at its end.
@@ -15,10 +16,11 @@
 pub mod adjoint;
 pub mod field;
 pub mod pilot;
+pub mod product;
 pub mod quadtree;
 
 pub use field::{GuidingField, RadianceRecord};
-pub use quadtree::DirectionalQuadtree;
+pub use product::ProductGuide;
 pub use pilot::GuidingDecision;
 
 use crate::math::{Rgb, Vec3};

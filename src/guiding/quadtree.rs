@@ -10,6 +10,10 @@
 //! the histogram. Sampling descends from the root choosing a child by its share of the parent's energy and is
 //! uniform within the leaf reached, so the density of a direction is the product of 4 · (child share) over the
 //! levels it descends (their Eq. 4 with the tree's own energies), exactly the sampled one.
+//!
+//! Paths do not sample the tree itself: its bin probabilities ([`DirectionalQuadtree::bin_probabilities`]) feed
+//! the product with the phase function or the cosine ([`super::product`]). The tree's own sampler and density
+//! are test-only; its tests check the tree the product reads.
 
 use crate::math::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -115,6 +119,7 @@ impl DirectionalQuadtree {
     /// Samples a unit direction from `u` ∈ \[0, 1)²; returns it with its solid-angle density ([`Self::pdf`]).
     /// At each split node the u half is chosen by the halves' energies with `u.x`, then the v half within it
     /// with `u.y`, each value rescaled to \[0, 1) for the next level (as Müller et al. 2017 descend their quadtrees).
+    #[cfg(test)]
     pub fn sample(&self, u: Vec2) -> (Vec3, f32) {
         let (mut ux, mut uy) = (u.x as f64, u.y as f64);
         let (mut origin, mut size) = (Vec2::ZERO, 1.0f32);
@@ -152,7 +157,37 @@ impl DirectionalQuadtree {
         (from_square(p), (density / (4.0 * std::f64::consts::PI)) as f32)
     }
 
+    /// The probability of each histogram bin under this distribution (bin `j · side + i` as in
+    /// [`Self::from_histogram`]): every leaf's share of the root's energy, spread evenly over the bins it covers.
+    /// The density is constant on each bin (a leaf covers whole bins), so these give it exactly.
+    pub fn bin_probabilities(&self) -> Vec<f32> {
+        let mut out = vec![0.0; HISTOGRAM_SIDE * HISTOGRAM_SIDE];
+        self.spread(0, (0, 0), HISTOGRAM_SIDE, 1.0, &mut out);
+        out
+    }
+
+    /// Spreads `share`, the probability of node `index` covering the bins from `corner` over `size` a side,
+    /// over those bins (down its children where it is split).
+    fn spread(&self, index: usize, corner: (usize, usize), size: usize, share: f64, out: &mut [f32]) {
+        let node = self.nodes[index];
+        if node.first_child == 0 {
+            let per_bin = (share / (size * size) as f64) as f32;
+            for j in corner.1..corner.1 + size {
+                out[j * HISTOGRAM_SIDE + corner.0..j * HISTOGRAM_SIDE + corner.0 + size].fill(per_bin);
+            }
+            return;
+        }
+        let half = size / 2;
+        for child in 0..4 {
+            let c = node.first_child as usize + child;
+            let child_corner = (corner.0 + (child & 1) * half, corner.1 + (child >> 1) * half);
+            let child_share = share * self.nodes[c].energy / node.energy;
+            self.spread(c, child_corner, half, child_share, out);
+        }
+    }
+
     /// Solid-angle density with which [`Self::sample`] returns the unit direction `w`.
+    #[cfg(test)]
     pub fn pdf(&self, w: Vec3) -> f32 {
         let mut p = to_square(w);
         let mut node = self.nodes[0];
@@ -254,6 +289,21 @@ mod tests {
             |rng| Some(tree.sample(rng.next_2d()).0),
             |w| claimed.pdf(w) as f64,
         );
+    }
+
+    #[test]
+    fn bin_probabilities_are_the_density_on_each_bin() {
+        let tree = DirectionalQuadtree::from_histogram(&lumpy_histogram()).unwrap();
+        let probabilities = tree.bin_probabilities();
+        let total: f64 = probabilities.iter().map(|&p| p as f64).sum();
+        assert!((total - 1.0).abs() < 1e-5, "{total}");
+        let bin_area = 1.0 / (HISTOGRAM_SIDE * HISTOGRAM_SIDE) as f32;
+        for (k, &p) in probabilities.iter().enumerate() {
+            let (i, j) = (k % HISTOGRAM_SIDE, k / HISTOGRAM_SIDE);
+            let centre = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) / HISTOGRAM_SIDE as f32;
+            let density = tree.pdf(from_square(centre)) * 4.0 * PI;
+            assert!((p - density * bin_area).abs() <= 1e-4 * p.max(1e-6), "bin {k}: {p} vs {density}");
+        }
     }
 
     #[test]

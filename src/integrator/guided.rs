@@ -1,21 +1,23 @@
 //! Path guiding inside the path tracer: when the render trained a guiding cache
-//! ([`RendererServices::guide`]), a medium scattering event samples its direction from the cache's distribution at
-//! that point with probability [`GUIDE_PROBABILITY`] and from the phase function otherwise, and weights it by
-//! ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS with a fixed selection probability (Müller et al. 2017,
-//! "Practical Path Guiding for Efficient Light-Transport Simulation", with the phase function in the BSDF's
-//! place). A Lambertian surface does the same with its BSDF, weighting by f cos θ/(α q + (1 − α) p_bsdf).
-//! Next-event estimation there is weighed by the power heuristic against that mixture's density
-//! ([`mixture_pdf`]), so the estimate stays unbiased.
+//! ([`RendererServices::guide`]), a medium scattering event samples its direction from the product of the
+//! cache's distribution at that point with the phase function ([`ProductGuide`], Herholz et al. 2019, "Volume
+//! Path Guiding Based on Zero-Variance Random Walk Theory", §4) with probability [`GUIDE_PROBABILITY`] and from
+//! the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS with a fixed
+//! selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient Light-Transport
+//! Simulation", with the phase function in the BSDF's place). A Lambertian surface samples the cache's
+//! distribution itself (not its product with the cosine) in the mixture with its BSDF, weighting by
+//! f cos θ/(α q + (1 − α) p_bsdf). Next-event estimation there is weighed by the power heuristic against that
+//! mixture's density ([`mixture_pdf`]), so the estimate stays unbiased.
 //!
 //! A path whose throughput exceeds [`GUIDE_MAX_THROUGHPUT`] samples the phase function or BSDF alone
-//! ([`guide_at`] gives no distribution) until it falls back: a guided event's weight is at most
+//! (no guide is looked up) until it falls back: a guided event's weight is at most
 //! 1/(1 − [`GUIDE_PROBABILITY`]), and over the hundreds of events of a walk in a dense medium their product
-//! otherwise grows without bound (measured: 13x the MSE of unguided paths on the backlit cloud). Choosing the
-//! strategy from the path's past keeps the estimate unbiased: each event's weight uses the density it sampled
-//! with.
+//! otherwise grew without bound with guiding by the radiance alone (measured: 13x the MSE of unguided paths on
+//! the backlit cloud). Choosing the strategy from the path's past keeps the estimate unbiased: each event's
+//! weight uses the density it sampled with.
 
 use super::services::RendererServices;
-use crate::guiding::{DirectionalQuadtree, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
+use crate::guiding::{ProductGuide, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
 use crate::material::{Bsdf, BsdfSample, LobeClass};
 use crate::math::{Frame, Rgb, Rng, Vec2, Vec3};
 use crate::volume::PhaseFunction;
@@ -23,22 +25,50 @@ use crate::volume::PhaseFunction;
 /// The largest f32 below 1.
 const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
-/// The guiding cache's distribution at `p`, when the render is guided, the cache learned one there, and the
-/// path's throughput `beta` is at most [`GUIDE_MAX_THROUGHPUT`].
-pub(super) fn guide_at<'a>(
+/// The product of the guiding cache's distribution at a surface point `p` with the cosine to the shading
+/// normal `n` (a Lambertian BSDF's shape), when the render is guided, the cache learned one there, and the path's
+/// throughput `beta` is at most [`GUIDE_MAX_THROUGHPUT`].
+pub(super) fn surface_guide_at<'a>(
     services: &RendererServices<'a>,
     beta: Rgb,
     p: Vec3,
-) -> Option<&'a DirectionalQuadtree> {
+    n: Vec3,
+) -> Option<ProductGuide<'a>> {
     services
         .guide()
         .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)
-        .and_then(|g| g.distribution_at(p))
+        .and_then(|g| g.radiance_grid_at(p))
+        .and_then(|grid| ProductGuide::new(grid, n, |cos| cos))
+}
+
+/// The product of the guiding cache's distribution at a medium point `p` with the phase function `phase` for
+/// light leaving toward `wo`, under the same conditions as [`surface_guide_at`].
+pub(super) fn medium_guide_at<'a>(
+    services: &RendererServices<'a>,
+    beta: Rgb,
+    p: Vec3,
+    phase: &PhaseFunction,
+    wo: Vec3,
+) -> Option<ProductGuide<'a>> {
+    services
+        .guide()
+        .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)
+        .and_then(|g| g.radiance_grid_at(p))
+        .and_then(|grid| match *phase {
+            // A constant factor: the product is the learned distribution itself.
+            PhaseFunction::Isotropic => ProductGuide::new(grid, -wo, |_| 1.0),
+            // Henyey & Greenstein 1941 without its constant (1 − g²)/4π, which the product's normalisation
+            // divides out: (1 + g² − 2g cos θ)^(−3/2).
+            PhaseFunction::HenyeyGreenstein { g } => ProductGuide::new(grid, -wo, |cos| {
+                let d = 1.0 + g * g - 2.0 * g * cos;
+                1.0 / (d * d.sqrt())
+            }),
+        })
 }
 
 /// The density of the direction `wi_world` under the one-sample MIS mixture α q + (1 − α) p of the guide's
 /// distribution q and the phase function's or BSDF's density `pdf` = p(wi); `pdf` alone unguided.
-pub(super) fn mixture_pdf(guide: Option<&DirectionalQuadtree>, wi_world: Vec3, pdf: f32) -> f32 {
+pub(super) fn mixture_pdf(guide: Option<&ProductGuide>, wi_world: Vec3, pdf: f32) -> f32 {
     match guide {
         Some(d) => GUIDE_PROBABILITY * d.pdf(wi_world) + (1.0 - GUIDE_PROBABILITY) * pdf,
         None => pdf,
@@ -62,11 +92,12 @@ fn choose_strategy(u: Vec2) -> (bool, Vec2) {
 }
 
 /// The direction to continue from a medium scattering event at which light leaves toward `wo`: the phase
-/// function's sample, or, guided, the mixture's. Returns the direction, its density and the throughput factor
-/// ρ/pdf (1 for the phase function sampled exactly), or `None` where the mixture's density is not positive.
+/// function's sample, or, guided, the mixture's with the product `guide`. Returns the direction, its density and
+/// the throughput factor ρ/pdf (1 for the phase function sampled exactly), or `None` where the mixture's
+/// density is not positive.
 pub(super) fn sample_phase(
     phase: &PhaseFunction,
-    guide: Option<&DirectionalQuadtree>,
+    guide: Option<&ProductGuide>,
     wo: Vec3,
     rng: &mut Rng,
 ) -> Option<(Vec3, f32, f32)> {
@@ -76,7 +107,7 @@ pub(super) fn sample_phase(
     };
     let (guided, u) = choose_strategy(rng.sample_2d());
     let wi = if guided {
-        distribution.sample(u).0
+        distribution.sample(u)
     } else {
         phase.sample(wo, u).0
     };
@@ -91,7 +122,7 @@ pub(super) fn sample_phase(
 /// guided, the mixture's, with the mixture's density (`direction_pdf`, local directions) and the BSDF's value.
 pub(super) fn sample_bsdf(
     bsdf: &Bsdf,
-    guide: Option<&DirectionalQuadtree>,
+    guide: Option<&ProductGuide>,
     frame: &Frame,
     wo: Vec3,
     rng: &mut Rng,
@@ -103,7 +134,7 @@ pub(super) fn sample_bsdf(
     let u_lobe = rng.sample_1d();
     let (guided, u) = choose_strategy(rng.sample_2d());
     let wi = if guided {
-        Some(frame.to_local(distribution.sample(u).0))
+        Some(frame.to_local(distribution.sample(u)))
     } else {
         bsdf.sample(wo, u_lobe, u).map(|b| b.wi)
     };

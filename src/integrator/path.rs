@@ -27,9 +27,9 @@
 //! (surface curvature is not modelled). Emission is always read at full resolution, so that light sampling and
 //! BSDF sampling see the same emitter.
 //!
-//! Path guiding: when the render trained a guiding cache, medium scattering events and Lambertian surfaces
-//! sample their direction from the one-sample MIS mixture of the cache's distribution and the phase function or
-//! BSDF, and next-event estimation there is weighed against the mixture's density (all in [`super::guided`]). A
+//! Path guiding: when the render trained a guiding cache, medium scattering events sample their direction from
+//! the one-sample MIS mixture of the phase function and the product of the cache's distribution with it, and
+//! Lambertian surfaces from the mixture of the cache's distribution and the BSDF; next-event estimation there is weighed against the mixture's density (all in [`super::guided`]). A
 //! training path remembers its events ([`GuidePath`]) so that the cache learns the radiance found after each.
 //! With [`PathTracer::guided_roulette`], a medium scattering event also plays the weight window of guided Russian
 //! roulette and splitting ([`crate::guiding::adjoint`]) in place of classic Russian roulette: the path may end,
@@ -50,7 +50,7 @@ use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::guiding::adjoint::{self, Roulette};
-use crate::guiding::{DirectionalQuadtree, GuidePath};
+use crate::guiding::{GuidePath, ProductGuide};
 use crate::light::LightContext;
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
 use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
@@ -122,10 +122,10 @@ struct MediumEvent<'g> {
     t: f32,
     /// The phase function there.
     phase: PhaseFunction,
-    /// The guiding cache's distribution its direction is sampled from in the mixture with the phase function,
-    /// when the event is guided ([`guided::guide_at`], decided once, before next-event estimation, which is
-    /// weighed against that density).
-    guide: Option<&'g DirectionalQuadtree>,
+    /// The product of the guiding cache's distribution with the phase function, which its direction is sampled
+    /// from in the mixture with the phase function, when the event is guided ([`guided::medium_guide_at`],
+    /// decided once, before next-event estimation, which is weighed against that density).
+    guide: Option<ProductGuide<'g>>,
 }
 
 impl MediumEvent<'_> {
@@ -1097,15 +1097,15 @@ impl PathTracer {
             }
         }
         let guide = match bsdf {
-            Bsdf::Lambert(_) => guided::guide_at(services, s.onward.beta, hit.p),
+            Bsdf::Lambert(_) => guided::surface_guide_at(services, s.onward.beta, hit.p, frame.n),
             _ => None,
         };
         let direction_pdf =
-            |wi: Vec3| guided::mixture_pdf(guide, frame.to_world(wi), bsdf.pdf(wo, wi));
+            |wi: Vec3| guided::mixture_pdf(guide.as_ref(), frame.to_world(wi), bsdf.pdf(wo, wi));
         if !bsdf.is_delta() {
             self.surface_next_event(cx, s, ray, surface, &bsdf, direction_pdf);
         }
-        let sampled = guided::sample_bsdf(&bsdf, guide, &frame, wo, cx.rng, direction_pdf);
+        let sampled = guided::sample_bsdf(&bsdf, guide.as_ref(), &frame, wo, cx.rng, direction_pdf);
         let Some(bs) = sampled else {
             return SurfaceOutcome::End;
         };
@@ -1324,8 +1324,9 @@ impl PathTracer {
         // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
         // against, so the estimate stays unbiased; the choice is made once, before roulette changes the
         // throughput, and holds for every path split off here.
-        let guide = guided::guide_at(services, s.onward.beta, p);
-        let direction_pdf = |wi: Vec3| guided::mixture_pdf(guide, wi, collision.phase.eval(wo, wi));
+        let guide = guided::medium_guide_at(services, s.onward.beta, p, &collision.phase, wo);
+        let direction_pdf =
+            |wi: Vec3| guided::mixture_pdf(guide.as_ref(), wi, collision.phase.eval(wo, wi));
         self.medium_next_event(cx, s, ray, t, &collision.phase, direction_pdf);
         let event = MediumEvent {
             ray: *ray,
@@ -1389,7 +1390,7 @@ impl PathTracer {
     ) -> Option<Ray> {
         let p = event.point();
         let (wi, pdf, weight) =
-            guided::sample_phase(&event.phase, event.guide, -event.ray.dir, cx.rng)?;
+            guided::sample_phase(&event.phase, event.guide.as_ref(), -event.ray.dir, cx.rng)?;
         s.onward.beta *= weight;
         if s.onward.depth == 0 {
             s.onward.first_event = FirstEvent::Volume;
