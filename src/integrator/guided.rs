@@ -4,8 +4,8 @@
 //! Path Guiding Based on Zero-Variance Random Walk Theory", §4) with probability [`GUIDE_PROBABILITY`] and from
 //! the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS with a fixed
 //! selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient Light-Transport
-//! Simulation", with the phase function in the BSDF's place). A Lambertian surface samples the cache's
-//! distribution itself (not its product with the cosine) in the mixture with its BSDF, weighting by
+//! Simulation", with the phase function in the BSDF's place). A Lambertian surface samples the product of the
+//! cache's distribution with the cosine to its shading normal in the mixture with its BSDF, weighting by
 //! f cos θ/(α q + (1 − α) p_bsdf). Next-event estimation there is weighed by the power heuristic against that
 //! mixture's density ([`mixture_pdf`]), so the estimate stays unbiased.
 //!
