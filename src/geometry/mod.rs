@@ -5,6 +5,7 @@ mod bvh;
 mod instance;
 mod mesh;
 mod motion;
+mod pages;
 mod spawn;
 mod subdivision;
 mod tags;
