@@ -40,6 +40,9 @@
 //! namespace is refused where it is met. A class arc met below a reference is implied onto the referencing
 //! layer stack (Pcp's implied classes): landing back in the run that way is refused too, and so is a class arc
 //! of a prim below the referenced one implied onto the prim it composes there, its ancestors or descendants.
+//! Both rules (an arc back into the run, an implied class) are also applied at the level of the prims that
+//! author the arcs, each mapped back through the arc before it: Pcp composes the ancestors first and finds the
+//! cycle there, while the sites themselves may grow ever deeper without ever nesting.
 //! `openusd` 0.6 followed each of these for minutes (the fuzz target's slow inputs, replayed under `tests/`).
 //! The nodes of each site's prim index (each arc's target with its own arcs, once per path) are counted against
 //! the prim limit, and the sites and steps of the walk are bounded by four times it.
@@ -773,6 +776,16 @@ impl<'a> Walk<'a> {
                     if let Some(from) = self.lands_in_run(&frames, next) {
                         return Err(self.cycle(&frames, from, next));
                     }
+                    if let Some((from, level, target)) = self.lands_in_run_by_authors(&frames, next) {
+                        let mut cycle = self.cycle(&frames, from, next);
+                        if let CompositionError::Cycle { lands, .. } = &mut cycle {
+                            *lands = format!(
+                                "; at the level of the prims that author the arcs, {level} composes \
+                                 {target}, nested with it"
+                            );
+                        }
+                        return Err(cycle);
+                    }
                     if arc.kind.is_class() {
                         self.implied_class_in_run(&frames, next)?;
                         self.implied_class_below_children(&frames, next)?;
@@ -794,13 +807,39 @@ impl<'a> Walk<'a> {
         (run_start(frames)..frames.len()).find(|&i| nested(&self.sites[frames[i].site], target))
     }
 
+    /// Like [`Walk::lands_in_run`], at the level of the prims that author the run's arcs (an ancestor's arc is
+    /// authored above the site it maps): the frame whose prim at that level is nested with the target of the arc
+    /// just followed to `next`, that prim, and the target.
+    /// Walking back from the top, each arc's author lies inside the target of the arc before it and maps back
+    /// through it. Pcp composes the ancestors' indices first and finds the cycle there, while the sites
+    /// themselves may grow ever deeper and never nest (`openusd` 0.6 followed them for minutes).
+    fn lands_in_run_by_authors(
+        &self,
+        frames: &[Frame],
+        next: usize,
+    ) -> Option<(usize, String, String)> {
+        let top = frames.len() - 1;
+        let (mut level, lands) = self.author(&frames[top].last_step().1, &self.sites[frames[top].site].1)?;
+        let lands = (self.sites[next].0, lands);
+        for i in (run_start(frames)..top).rev() {
+            let (author, target) = self.author(&frames[i].last_step().1, &self.sites[frames[i].site].1)?;
+            level = precache::map(&level, &target, &author)?;
+            if nested(&(self.sites[frames[i].site].0, level.clone()), &lands) {
+                return Some((i, level, lands.1));
+            }
+        }
+        None
+    }
+
     /// Refuses the class arc just followed from the top frame to `next` when Pcp's implied classes carry it
     /// back into the run: a class arc met below a reference or payload is implied onto the referencing prim's
     /// layer stack, its target mapped through the reference (a target inside the referenced prim moves to the
     /// referencing prim; one outside keeps its path). When that implied target is nested with a site of the run
     /// in that stack, the referencing prim would inherit itself or its own namespace. Pixar's USD reports that
     /// as an arc cycle, or drops the reference when its target has no specs; `openusd` 0.6 follows it for
-    /// exponential time. Only the nearest reference of the run is modelled.
+    /// exponential time. Only the nearest reference of the run is modelled; when either arc is an ancestor's,
+    /// the class is also implied at the level of the prims that author them (Pcp composes the ancestors' index
+    /// first), so that an ancestor of a site of the run inheriting its own namespace is refused too.
     fn implied_class_in_run(&self, frames: &[Frame], next: usize) -> Result<(), CompositionError> {
         let start = run_start(frames);
         let through = (start..frames.len()).rev().find(|&i| {
@@ -818,26 +857,54 @@ impl<'a> Walk<'a> {
             return Ok(());
         }
         let implied = precache::map(target, source, referencing).unwrap_or_else(|| target.clone());
-        let implied_site = (*stack, implied);
-        let Some(from) =
-            (start..=through).find(|&i| nested(&self.sites[frames[i].site], &implied_site))
-        else {
+        let top = frames.last().expect("a frame");
+        // The class arc implied as the sites map it, and at the level of the prims that author the two arcs
+        // (an ancestor's arc is implied onto the prim that the reference's author composes).
+        let mut implied = vec![(referencing.clone(), implied)];
+        let authors = (
+            self.author(&frames[through].last_step().1, referencing),
+            self.author(&top.last_step().1, &self.sites[top.site].1),
+        );
+        if let (Some((by, source)), Some((class_by, class_target))) = authors {
+            if (by != *referencing || class_by != self.sites[top.site].1)
+                && (class_by == source || inside(&class_by, &source))
+            {
+                let at_level = precache::map(&class_target, &source, &by).unwrap_or(class_target);
+                implied.push((by, at_level));
+            }
+        }
+        let found = implied.into_iter().find_map(|(by, path)| {
+            let site = (*stack, path);
+            let from = (start..=through).find(|&i| nested(&self.sites[frames[i].site], &site))?;
+            Some((by, site.1, from))
+        });
+        let Some((referencing, implied, from)) = found else {
             return Ok(());
         };
         let describe = |frame: &Frame| {
             let (next, step) = frame.last_step();
             step.describe(&self.sites[frame.site].1, &self.sites[*next].1)
         };
-        let top = frames.last().expect("a frame");
         let class_arc = top.last_step().1.authored(&self.sites[top.site].1);
         Err(CompositionError::ImpliedClass(Box::new(ImpliedClassCycle {
             class_arc: class_arc.unwrap_or_default(),
             through: describe(&frames[through]),
             below: describe(top),
-            referencing: referencing.clone(),
-            implied: implied_site.1,
+            referencing,
+            implied,
             nested_with: self.sites[frames[from].site].1.clone(),
         })))
+    }
+
+    /// The prim that authors the arc `step` follows from the site at `at` (the site's own path, or the ancestor
+    /// whose arc it is), with the arc's target path; `None` for a child, a parent's arc, or a layer's default
+    /// prim that is not authored.
+    fn author(&self, step: &Step, at: &str) -> Option<(String, String)> {
+        match step {
+            Step::Arc(arc) => Some((at.to_owned(), self.target_path(arc)?)),
+            Step::AncestorArc(arc, ancestor) => Some((ancestor.clone(), self.target_path(arc)?)),
+            Step::Child | Step::ParentArc(_) => None,
+        }
     }
 
     /// Refuses the class arc just followed from the top frame to `next` when the top frame was reached from a
@@ -1012,10 +1079,11 @@ impl<'a> Walk<'a> {
     }
 
     /// Refuses a class-based arc of the prim at `path` whose target lies strictly inside the target of an arc
-    /// (of any kind) of the prim or of an ancestor, in the same layer stack, and maps through it onto the prim
-    /// itself or a child of it: a prim that inherits `/X` and `/X/Y`, or references `/X` and specializes `/X/Y`, or
-    /// under one that inherits `/X`, a prim `B` that inherits `/X/B`. Such a stage composes in USD, but `openusd`
-    /// 0.6 pre-caches the mapped path, finds the same arc there again and recurses until its stack overflows.
+    /// (of any kind; its prim path, or its layer's default prim) of the prim or of an ancestor, in the same
+    /// layer stack, and maps through it onto the prim itself or a child of it: a prim that inherits `/X` and
+    /// `/X/Y`, or references `/X` and specializes `/X/Y`, or under one that inherits `/X`, a prim `B` that
+    /// inherits `/X/B`. Such a stage composes in USD, but `openusd` 0.6 pre-caches the mapped path, finds the
+    /// same arc there again and recurses until its stack overflows.
     fn not_mapped_onto_itself(&self, stack: usize, path: &str) -> Result<(), CompositionError> {
         let prims = &self.stacks[stack].prims;
         let Some(own) = prims.get(path) else {
@@ -1027,16 +1095,24 @@ impl<'a> Walk<'a> {
             while ancestor != "/" {
                 let arcs = prims.get(ancestor).map_or(&[][..], |p| p.arcs.as_slice());
                 for arc in arcs.iter().filter(here) {
-                    let Some(rest) = class.path.strip_prefix(arc.path.as_str()) else {
+                    let Some(target) = self.target_path(arc) else {
+                        continue;
+                    };
+                    let Some(rest) = class.path.strip_prefix(target.as_str()) else {
                         continue;
                     };
                     let mapped = format!("{ancestor}{rest}");
                     if rest.starts_with('/') && (mapped == path || parent(&mapped) == path) {
+                        let default = if arc.path.is_empty() {
+                            format!(" (its default prim <{target}>)")
+                        } else {
+                            String::new()
+                        };
                         return Err(CompositionError::MappedOntoItself {
                             path: path.to_owned(),
                             class_arc: class.describe(),
                             ancestor: ancestor.to_owned(),
-                            arc: arc.describe(),
+                            arc: format!("{}{default}", arc.describe()),
                             mapped,
                         });
                     }
@@ -1056,21 +1132,23 @@ impl<'a> Walk<'a> {
 
     /// The site an arc authored in layer stack `stack` targets; `None` for a default prim that is not authored.
     fn target(&mut self, stack: usize, arc: &Arc) -> Result<Option<Site>, CompositionError> {
-        let Some(layer) = arc.layer else {
-            return Ok(Some((stack, arc.path.clone())));
+        let Some(path) = self.target_path(arc) else {
+            return Ok(None);
         };
-        let path = if arc.path.is_empty() {
-            let default = self.layers.layers[layer]
+        match arc.layer {
+            Some(layer) => Ok(Some((self.stack(layer)?, path))),
+            None => Ok(Some((stack, path))),
+        }
+    }
+
+    /// The prim path an arc targets: its own, or its layer's default prim (`None` when that is not authored).
+    fn target_path(&self, arc: &Arc) -> Option<String> {
+        match arc.layer {
+            Some(layer) if arc.path.is_empty() => self.layers.layers[layer]
                 .as_ref()
-                .and_then(|l| l.default_prim.clone());
-            let Some(default) = default else {
-                return Ok(None);
-            };
-            default
-        } else {
-            arc.path.clone()
-        };
-        Ok(Some((self.stack(layer)?, path)))
+                .and_then(|l| l.default_prim.clone()),
+            _ => Some(arc.path.clone()),
+        }
     }
 
     /// The index of the layer stack whose root is `layer`, counting its entries against the limit and merging
@@ -1367,6 +1445,43 @@ mod tests {
         check_files("implied_child_global", &files).unwrap();
     }
 
+    /// A class arc authored on an ancestor, met below a payload that an ancestor authors, is implied at the level
+    /// of those ancestors: /A/C composes l1's /C/C, whose parent's payload brings /D/D/B/C, whose ancestor /D's
+    /// payload brings l0's /A/D/B/C, whose ancestor /A inherits /C; implied through /D's payload onto l1, /D
+    /// inherits l1's /C, the ancestor of the run's /C/C. Pixar's USD (usd-core 26.11) reports the arc cycle
+    /// ("l1 </D> CANNOT inherit from l1 </C>") in 0.02 s; `openusd` 0.6 ran past 60 s (the fuzz target's
+    /// `slow-composition-a867f5a8`, reduced).
+    #[test]
+    fn a_class_implied_at_the_level_of_the_ancestors_that_author_the_arcs_is_refused() {
+        let root = "def \"A\" (inherits = </C>) { over \"C\" (references = @./l1.usda@</C/C>) {} }";
+        let asset = "def \"C\" (payload = [</D/D/B>, @./l0.usda@</A/B/A>]) {}\n\
+                     def \"D\" (payload = @./l0.usda@</A>) {}";
+        let files = [("l0.usda", root), ("l1.usda", asset)];
+        let err = check_files("implied_ancestors", &files).unwrap_err().to_string();
+        assert!(
+            err.starts_with("/A: inherits </C> is a composition cycle")
+                && err.contains("implied onto /D's layer stack as /C, nested with /C/C"),
+            "{err}"
+        );
+    }
+
+    /// Arcs of ancestors that lead back into the run at the level of the prims that author them: /A/C composes
+    /// l1's /B/A/C, whose ancestor /B inherits /A, whose specialize of /B/B/C lies inside /B. Pixar's USD
+    /// (usd-core 26.11) reports the arc cycle ("l1 </B> inherits from l1 </A> which CANNOT refer to l1
+    /// </B/B/C>"); the sites themselves never nest (/B/A/C, /A/A/C, /B/B/C/A/C, /A/B/C/A/C... ever deeper), and
+    /// `openusd` 0.6 ran past 60 s (the fuzz target's `final-run-64d6ea8c`, reduced).
+    #[test]
+    fn ancestors_arcs_back_into_the_run_at_their_own_level_are_a_cycle() {
+        let root = "def \"A\" (specializes = </B/B/C>) { over \"C\" (references = @./l1.usda@</B/A/C>) {} }";
+        let asset = "(\n subLayers = [@./l0.usda@]\n)\nover \"B\" (inherits = </A> payload = </A/A>) {}";
+        let files = [("l0.usda", root), ("l1.usda", asset)];
+        let err = check_files("ancestor_level", &files).unwrap_err().to_string();
+        assert!(
+            err.contains("composition cycle") && err.contains("at the level of the prims that author the arcs"),
+            "{err}"
+        );
+    }
+
     /// A model's usual arcs: a reference to an asset whose prim inherits a class and whose child references a
     /// part, and an override below the reference that inherits a class of the stage. Pixar's USD composes it
     /// without errors.
@@ -1433,6 +1548,22 @@ mod tests {
         );
     }
 
+    /// `openusd` 0.6 composes the ancestors of each pre-cached target first, pre-caching theirs: /E's target
+    /// /D/X/Y has none, but its ancestor /D/X takes /D's inherit of /B/A mapped through /D's reference of /B,
+    /// /D/A, whose own targets are the same (its parent is /D too), /D/A among them, until its stack overflows (the
+    /// fuzz target's `final-run-c15c398e`, reduced). Pixar's USD (usd-core 26.11) composes the stage in 0.02 s
+    /// with no error. The walk refuses it too (an inherit mapped onto the prim's own child); the model on its own:
+    #[test]
+    fn pre_caching_composes_the_ancestors_of_each_target() {
+        let stage = "class \"B\" {}\ndef \"D\" (inherits = </B/A> references = </B>) {}\n\
+                     def \"E\" (inherits = </D/X/Y>) {}\n";
+        let err = precache_files("ancestors", &[("root.usda", stage)]).unwrap_err().to_string();
+        assert!(
+            err.contains("is a composition cycle for openusd 0.6") && err.contains("/D/A -> /D/A"),
+            "{err}"
+        );
+    }
+
     #[test]
     fn pre_caching_follows_stage_paths_across_layer_stacks() {
         // A class inside a referenced asset, and a payload beside an inherit: targets that lead nowhere back.
@@ -1483,6 +1614,15 @@ mod tests {
                 "ancestor",
                 "def \"A\" (inherits = </X>) { def \"B\" (inherits = </X/B>) {} }",
                 "/A/B: inherits </X/B> lies inside the target of /A's inherits </X>, which maps it onto /A/B",
+            ),
+            // A payload of a layer's default prim (here the root's own /X) maps the same way: the fuzz target's
+            // `precache-overflow-e3e50b5a`, which overflowed `openusd`'s stack in 0.8 s.
+            (
+                "default_prim",
+                "(\n defaultPrim = \"X\"\n)\ndef \"A\" (specializes = </X/A> payload = @./root.usda@) {}\n\
+                 class \"X\" {}",
+                "/A: specializes </X/A> lies inside the target of /A's payload @./root.usda@ (its default prim \
+                 </X>), which maps it onto /A/A",
             ),
         ] {
             let err = check_files(tag, &[("root.usda", stage)]).unwrap_err().to_string();

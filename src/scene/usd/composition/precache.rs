@@ -5,8 +5,8 @@
 //! For a prim `T` with parent `P`, `openusd` reads the inherit and specialize targets authored at every site of
 //! `P` (its path in its own namespace and in each namespace an arc maps onto it) and at those sites' child named
 //! like `T`. It takes each target as a path of the stage, whatever layer stack authored it, adds the target
-//! mapped through the arcs of `P`'s ancestors, composes each, and recurses into each target the same way,
-//! remembering none. A target that leads back to itself recurses until the stack overflows; targets that lead
+//! mapped through the arcs of `P`'s ancestors, composes each (its ancestors first, each pre-caching its own
+//! targets as it is composed), and recurses into each target the same way, remembering none. A target that leads back to itself recurses until the stack overflows; targets that lead
 //! to one another in a diamond are followed once per path.
 //!
 //! The model over-approximates: every layer's prims are merged into one namespace (so a target authored in a
@@ -148,7 +148,12 @@ impl Precache {
         }
         // The targets followed from each path, counting itself; `None` while it is being followed.
         let mut counted: HashMap<String, Option<u64>> = HashMap::new();
-        for start in self.prims.clone() {
+        // Where the pre-caching starts: every prim, then the ancestors of every target followed, which
+        // `openusd` composes before the target (each pre-caching its own targets as it is composed).
+        let mut starts = self.prims.clone();
+        let mut next_start = 0;
+        while let Some(start) = starts.get(next_start).cloned() {
+            next_start += 1;
             if counted.contains_key(&start) {
                 continue;
             }
@@ -176,6 +181,7 @@ impl Precache {
                     Some(None) => return Err(cycle(&frames, &next)),
                     None => {
                         counted.insert(next.clone(), None);
+                        starts.extend(ancestors(&next).skip(1).map(str::to_owned));
                         let targets = self.targets_of(&next);
                         frames.push((next, targets, 0, 1));
                     }
