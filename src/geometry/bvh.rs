@@ -21,10 +21,7 @@
 //! al. 2014, "Embree: a kernel framework for efficient CPU ray tracing", ACM TOG 33(4)). The SAH counts a
 //! leaf's cost in packs (`⌈n/4⌉`), which favours leaves of four. On the benchmark mesh this traced 6–9%
 //! (coherent) and 20–35% (incoherent) more rays per CPU-second than testing a leaf's triangles one at a
-//! time (back-to-back runs on a loaded 2-core machine). Both arrays are large enough on a big mesh that an
-//! incoherent ray's reads also miss the TLB; they are allocated with transparent huge pages where Linux allows
-//! it ([`super::pages`]), which traced 4–31 % more incoherent closest-hit rays and −2 to +23 % more incoherent
-//! occlusion rays per CPU-second on the benchmark mesh, coherent ones no differently (docs/performance.md).
+//! time (back-to-back runs on a loaded 2-core machine).
 //!
 //! **Traversal.** A stack-based loop. Of a node's hit children the first in a front-to-back order is visited
 //! next directly and the others are pushed with their entry distances; a popped entry is skipped if a closer
@@ -51,7 +48,6 @@
 //! widened enough that a triangle the brute-force test would hit is never culled, so
 //! [`Bvh::intersect`] returns bit for bit what testing every triangle in input order returns.
 
-use super::pages::{huge_vec, into_huge};
 use super::triangle::{Triangle4, TriangleHit, WatertightRay};
 use crate::math::{gamma, Aabb, Ray, Vec3, Vec4};
 
@@ -1006,7 +1002,7 @@ impl Tree {
             binary.push(root.shifted(1));
             binary.extend(desc.into_iter().map(|n| n.shifted(1)));
             let bounds = Aabb::new(Vec3::from_array(root.min), Vec3::from_array(root.max));
-            (into_huge(collapse(&binary)), bounds)
+            (collapse(&binary), bounds)
         };
         let stack_needed = if nodes.is_empty() {
             0
@@ -1207,7 +1203,7 @@ impl Tree {
             .map(|(n, i)| (self.nodes[n].child[i], n, i))
             .collect();
         leaves.sort_unstable();
-        let mut packs = huge_vec(self.prim_ids.len().div_ceil(PACK) + leaves.len());
+        let mut packs = Vec::with_capacity(self.prim_ids.len().div_ceil(PACK) + leaves.len());
         for (first, n, i) in leaves {
             let first = first as usize;
             let ids = &self.prim_ids[first..first + self.nodes[n].count[i] as usize];

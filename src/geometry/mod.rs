@@ -5,7 +5,6 @@ mod bvh;
 mod instance;
 mod mesh;
 mod motion;
-mod pages;
 mod spawn;
 mod subdivision;
 mod tags;
