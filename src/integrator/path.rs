@@ -109,6 +109,8 @@ pub struct PathTracer {
     /// cache and the training have estimates there ([`crate::guiding::adjoint`]); classic Russian roulette
     /// otherwise.
     pub guided_roulette: bool,
+    /// The interior media around the camera, which camera paths start in ([`MediumStack::enclosing`]).
+    pub camera_media: MediumStack,
 }
 
 /// Mixed into the streams of split-off paths' generators.
@@ -532,7 +534,7 @@ impl PathTracer {
             onward: OnwardState {
                 beta: Rgb::ONE,
                 depth: 0,
-                stack: MediumStack::default(),
+                stack: self.camera_media,
                 cone_width: self.pixel_width,
                 crossings: 0,
                 first_hit: true,

@@ -157,7 +157,7 @@ fn trace_row(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::integrator::PathSample;
+    use crate::integrator::{MediumStack, PathSample};
     use crate::light::EnvironmentLight;
     use crate::math::{Rgb, Vec3};
     use crate::scene::{Camera, SceneBuilder};
@@ -225,7 +225,7 @@ mod tests {
     }
 
     /// A plain path tracer (no pixel footprint, no equiangular sampling, opaque, no mattes) of `max_depth`
-    /// bounces, with or without guided Russian roulette.
+    /// bounces, with or without guided Russian roulette, its camera outside every medium.
     fn furnace_tracer(max_depth: u32, guided_roulette: bool) -> PathTracer {
         PathTracer {
             max_depth,
@@ -236,6 +236,7 @@ mod tests {
             transparent: false,
             mattes: false,
             guided_roulette,
+            camera_media: MediumStack::default(),
         }
     }
 

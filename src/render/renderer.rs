@@ -14,8 +14,8 @@ use super::resume::{RegionProgress, ResumeFrom, StoppedPass};
 use super::{CancelToken, RenderImage};
 use crate::guiding::{GuidingField, GuidingMode};
 use crate::integrator::{
-    FirstEmission, Origin, PathContext, PathCounters, PathSample, PathTracer, RayCounters,
-    RendererServices, SampleRecord,
+    FirstEmission, MediumStack, Origin, PathContext, PathCounters, PathSample, PathTracer,
+    RayCounters, RendererServices, SampleRecord,
 };
 use crate::light::LightSamplerChoice;
 use crate::math::{is_finite_rgb, Ray, Rgb, Rng, Vec2};
@@ -1095,6 +1095,7 @@ impl Renderer {
             transparent: self.transparent(scene),
             mattes: scene.names().has_mattes(),
             guided_roulette: s.guided_roulette,
+            camera_media: MediumStack::enclosing(scene, scene.camera.position()),
         }
     }
 

@@ -9,6 +9,7 @@ mod common;
 mod hostile;
 
 mod bsdf_finite;
+mod camera_medium;
 mod cameras;
 mod checkpoint;
 mod cli_flags;
