@@ -8,7 +8,8 @@ The scene is imported with Blender's own glTF importer; then every convention is
 `../shared/tools/gltf2mitsuba.py`:
 - materials: Lambert (metallic 0, KHR_materials_specular 0) -> Diffuse BSDF of the base colour (factor x texture);
   metal (metallic 1) -> Glossy (GGX, single scattering, the glTF roughness: alpha = roughness^2; roughness 0 is the
-  mirror), exactly the glTF metal for base colour 1 (the Glossy BSDF has no Fresnel term); transmission -> Glass (GGX, roughness 0) of the ior, or Transparent at ior 1;
+  mirror), exactly the glTF metal for base colour 1 (the Glossy BSDF has no Fresnel term); transmission -> Glass
+  (GGX, roughness 0) of the ior, or Transparent at ior 1;
   emission (factor x strength, x emissiveTexture) -> Emission, one-sided like glTF's;
 - media: material extras `nimbus_medium` -> Volume Scatter (sigma_s, g) + Volume Absorption (sigma_a); node extras
   `nimbus_volume` -> a Blender volume object of the VDB under that node, with Volume Scatter + Absorption of

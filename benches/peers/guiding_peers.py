@@ -5,7 +5,7 @@
     python3 benches/peers/guiding_peers.py render [--scenes backlit,doorgap,baffle] [--res 128]
                                                   [--ladder 8,16,32,64,128] [--equal-spp 64] [--ref-spp 1024]
                                                   [--threads 2] [--renderers nimbus-off,nimbus-on,cycles-on,cycles-off]
-                                                  [--nimbus PATH]
+                                                  [--nimbus PATH] [--out DIR]
     python3 benches/peers/guiding_peers.py report [--scenes ...]
 
 Run with the Python that has Mitsuba 3 (the references, and reading EXRs); Cycles runs in `$CYCLES_PYTHON` (Python
@@ -17,8 +17,9 @@ training) and `cycles-off`.
 1. The Mitsuba 3 reference of `run.py` (cached in `benches/peers/out/reference/`; its per-pixel standard error
    from 16 independent passes).
 2. The ladder: every renderer at every `--ladder` spp, one after the other (interleaved), seed 1.
-3. Equal time: T is `nimbus-off`'s CPU time at `--equal-spp` on the ladder; every renderer is rendered once more
-   (seed 2) at the spp that its ladder's line t = a + b spp (least squares, CPU seconds) gives for T.
+3. Equal time (unless `--equal-spp 0`): T is `nimbus-off`'s CPU time at `--equal-spp` on the ladder; every
+   renderer is rendered once more (seed 2) at the spp that its ladder's line t = a + b spp (least squares, CPU
+   seconds) gives for T.
 Time is CPU time (all threads: the machine this was written for is shared, and under load the wall clock
 measures the waiting); wall seconds are kept beside it. Nimbus's is the whole process (load, BVH, training,
 render, EXR writing), Cycles' its render call alone (its scene sync, BVH and guiding training included, the
@@ -27,7 +28,10 @@ channels against the reference, minus the reference's own variance (the mean of 
 
 `report` writes, from the saved results (`benches/peers/out/guiding/results_<scene>.json`), the error-against-time
 charts `docs/performance/guiding_<scene>.png`, the equal-time pictures `docs/performance/guiding_<scene>_equal.png`
-and the tables between the `generated:guiding-peers` markers of `docs/performance.md`.
+and the tables between the `generated:guiding-peers` markers of `docs/performance.md`. Beside each MSE the tables
+give the render's variance estimated from its renderer's own renders of seeds 1 and 2 (`variances`): it is free of
+any bias of a translation (a peer's MSE includes its differences of convention), but, from two images per figure,
+it is noisier than the MSE, most where the images have fireflies.
 """
 import argparse
 import json
@@ -72,7 +76,7 @@ def render(renderer, scene, out, spp, a, seed):
 
 
 def measure(name, renderer, scene, spp, a, seed, ref, ref_var):
-    out = os.path.join(OUT, "renders", f"{name}_{renderer}_{spp}_{seed}.exr")
+    out = os.path.join(a.out, "renders", f"{name}_{renderer}_{spp}_{seed}.exr")
     os.makedirs(os.path.dirname(out), exist_ok=True)
     r = render(renderer, scene, out, spp, a, seed)
     img = peers.read_rgb(out)
@@ -118,6 +122,9 @@ def bench_scene(name, a):
     for spp in a.ladder:
         for r in a.renderers:
             result["ladder"][r].append(measure(name, r, scene, spp, a, 1, ref, ref_var))
+    if not a.equal_spp:
+        result["load_end"] = os.getloadavg()
+        return result
     base = next(p for p in result["ladder"]["nimbus-off"] if p["spp"] == a.equal_spp)
     result["equal_seconds"] = base["cpu_s"]
     for r in a.renderers:
@@ -172,7 +179,7 @@ def chart(res, path):
     ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.xaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.tick_params(axis="x", which="minor", labelsize=7)
-    ax.set_xlabel("CPU seconds, 2 threads (Nimbus: whole process; Cycles: render call)")
+    ax.set_xlabel("CPU seconds (Nimbus: whole process; Cycles: render call)", fontsize=8)
     ax.set_ylabel("MSE against the Mitsuba reference")
     ax.set_title(f"{res['scene']}, {res['res']}², {res['threads']} threads")
     ax.grid(True, which="both", alpha=0.3)
@@ -182,23 +189,49 @@ def chart(res, path):
     plt.close(fig)
 
 
+def variances(res):
+    """each renderer's variance (per pixel and channel, averaged) at T and at the ladder's top, from differences
+    of its renderer's own renders alone, so free of any bias of its translation. Renders with the same seed are
+    correlated (guided and unguided paths share their first random numbers), so only pairs of seeds 1 and 2 are
+    used: for independent X, Y of one expectation, E(X - Y)^2 = v_X + v_Y. The unguided variance is taken as
+    sigma^2 / spp (independent samples), sigma^2 from its two renders; each guided render's from its difference
+    with the unguided render of the other seed."""
+    out = {}
+    for kind in ("nimbus", "cycles"):
+        on, off = f"{kind}-on", f"{kind}-off"
+        if on not in res["equal"] or off not in res["equal"]:
+            continue
+        renders = {(r, w): p for r in (on, off) for w, p in (("top", res["ladder"][r][-1]), ("equal", res["equal"][r]))}
+        img = {k: peers.read_rgb(os.path.join(peers.ROOT, p["exr"])) for k, p in renders.items()}
+        n_top, n_eq = renders[off, "top"]["spp"], renders[off, "equal"]["spp"]
+        sigma2 = float(np.mean((img[off, "top"] - img[off, "equal"]) ** 2)) / (1 / n_top + 1 / n_eq)
+        out[off, "top"], out[off, "equal"] = sigma2 / n_top, sigma2 / n_eq
+        out[on, "top"] = float(np.mean((img[on, "top"] - img[off, "equal"]) ** 2)) - out[off, "equal"]
+        out[on, "equal"] = float(np.mean((img[on, "equal"] - img[off, "top"]) ** 2)) - out[off, "top"]
+    return out
+
+
 def table(res):
     base = res["equal"]["nimbus-off"]
     top = {r: pts[-1] for r, pts in res["ladder"].items()}
     base_eff = 1 / (top["nimbus-off"]["mse"] * top["nimbus-off"]["cpu_s"])
     spp_top = top["nimbus-off"]["spp"]
-    lines = [f"**{res['scene']}** ({peers.SCENES[res['scene']][1]}): reference Mitsuba {res['ref_spp']} spp, its "
+    about = peers.SCENES[res["scene"]][1].removeprefix("path guiding (issue 34): ")
+    lines = [f"**{res['scene']}** ({about}): reference Mitsuba {res['ref_spp']} spp, its "
              f"variance {res['ref_var']:.2e} subtracted; equal time T = {res['equal_seconds']:.2f} CPU s; 1-minute "
              f"load average {res['load_start'][0]:.1f} at the start, {res['load_end'][0]:.1f} at the end.", "",
-             f"| render | spp at T | CPU s (wall s) | MSE at T | MSE / unguided Nimbus's | {spp_top} spp: CPU s "
-             f"(wall s) | {spp_top} spp: MSE | efficiency / unguided Nimbus's at {spp_top} spp |",
-             "|---|---|---|---|---|---|---|---|"]
+             f"| render | spp at T | CPU s (wall s) | MSE at T | MSE / unguided Nimbus's | variance at T | "
+             f"{spp_top} spp: CPU s (wall s) | {spp_top} spp: MSE | {spp_top} spp: variance | efficiency / unguided "
+             f"Nimbus's at {spp_top} spp |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    var = variances(res)
     for r, p in res["equal"].items():
         t = top[r]
         eff = 1 / (t["mse"] * t["cpu_s"]) / base_eff
+        v_eq, v_top = (f"{var[r, w]:.3e}" if (r, w) in var else "–" for w in ("equal", "top"))
         lines.append(f"| {LABELS[r]} | {p['spp']} | {p['cpu_s']:.2f} ({p['wall_s']:.2f}) | {p['mse']:.3e} | "
-                     f"{p['mse'] / base['mse']:.2f}× | {t['cpu_s']:.2f} ({t['wall_s']:.2f}) | {t['mse']:.3e} | "
-                     f"**{eff:.2f}×** |")
+                     f"{p['mse'] / base['mse']:.2f}× | {v_eq} | {t['cpu_s']:.2f} ({t['wall_s']:.2f}) | "
+                     f"{t['mse']:.3e} | {v_top} | **{eff:.2f}×** |")
     means = [f"{LABELS[r]} {np.mean(pts[-1]['mean']):.4f}" for r, pts in res["ladder"].items()]
     lines += ["", f"Image means at {spp_top} spp (mean of RGB): reference {np.mean(res['ref_mean']):.4f}; "
               + "; ".join(means) + "."]
@@ -216,8 +249,8 @@ def table(res):
 
 
 def report(a):
-    results = [json.load(open(os.path.join(OUT, f"results_{n}.json"))) for n in a.scenes
-               if os.path.exists(os.path.join(OUT, f"results_{n}.json"))]
+    results = [json.load(open(os.path.join(a.out, f"results_{n}.json"))) for n in a.scenes
+               if os.path.exists(os.path.join(a.out, f"results_{n}.json"))]
     lines = [BEGIN, ""]
     for res in results:
         chart(res, os.path.join(DOCS, "performance", f"guiding_{res['scene']}.png"))
@@ -241,10 +274,12 @@ def main():
     ap.add_argument("--scenes", default="backlit,doorgap,baffle")
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--ladder", default="8,16,32,64,128")
-    ap.add_argument("--equal-spp", type=int, default=64, help="unguided Nimbus's spp that sets the equal time")
+    ap.add_argument("--equal-spp", type=int, default=64,
+                    help="unguided Nimbus's spp that sets the equal time (0: the ladder alone)")
     ap.add_argument("--ref-spp", type=int, default=1024)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--renderers", default="nimbus-off,nimbus-on,cycles-on,cycles-off")
+    ap.add_argument("--out", default=OUT, help="where renders and results go (default benches/peers/out/guiding)")
     ap.add_argument("--nimbus", default=peers.NIMBUS, help="the nimbus binary (default: target/release/nimbus)")
     a = ap.parse_args()
     a.scenes = a.scenes.split(",")
@@ -252,10 +287,10 @@ def main():
     a.renderers = a.renderers.split(",")
     if a.command == "report":
         return report(a)
-    os.makedirs(OUT, exist_ok=True)
+    os.makedirs(a.out, exist_ok=True)
     for name in a.scenes:
         res = bench_scene(name, a)
-        with open(os.path.join(OUT, f"results_{name}.json"), "w") as f:
+        with open(os.path.join(a.out, f"results_{name}.json"), "w") as f:
             json.dump(res, f, indent=1)
         print(f"[{name}] saved", flush=True)
 
