@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Path guiding against no guiding (issue 34), run by hand after `cargo build --release` (never in CI).
 
-    python3 benches/guiding_bench.py render [--out DIR] [--scenes backlit,doorgap] [--res 128] [--spp 64]
+    python3 benches/guiding_bench.py render [--out DIR] [--scenes backlit,doorgap,baffle] [--res 128] [--spp 64]
                                             [--ref-spp 4096] [--rounds 3] [--threads 2] [--nimbus PATH]
                                             [--variants off,on,roulette]
     python3 benches/guiding_bench.py table [--out DIR]
@@ -113,7 +113,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("command", choices=["render", "table"])
     ap.add_argument("--out", default=os.path.join(ROOT, "benches", "guiding_out"))
-    ap.add_argument("--scenes", default="backlit,doorgap")
+    ap.add_argument("--scenes", default="backlit,doorgap,baffle")
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--ref-spp", type=int, default=4096)

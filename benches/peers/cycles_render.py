@@ -2,12 +2,14 @@
 """Render a Nimbus-convention glTF scene with Cycles 5.0 (`pip install bpy==5.0.1`, Python 3.11) for the peer
 benchmark (issue 15).
 
-    python3 benches/peers/cycles_render.py SCENE.gltf OUT.exr --spp N --res W [--threads T] [--seed S]
+    python3 benches/peers/cycles_render.py SCENE.gltf OUT.exr --spp N --res W [--threads T] [--seed S] [--guiding]
 
 The scene is imported with Blender's own glTF importer; then every convention is set to match Nimbus and
 `../shared/tools/gltf2mitsuba.py`:
 - materials: Lambert (metallic 0, KHR_materials_specular 0) -> Diffuse BSDF of the base colour (factor x texture);
-  mirror (metallic 1, roughness 0) -> Glossy (GGX, roughness 0); transmission -> Glass (GGX, roughness 0) of the ior, or Transparent at ior 1;
+  metal (metallic 1) -> Glossy (GGX, single scattering, the glTF roughness: alpha = roughness^2; roughness 0 is the
+  mirror), exactly the glTF metal for base colour 1 (the Glossy BSDF has no Fresnel term); transmission -> Glass
+  (GGX, roughness 0) of the ior, or Transparent at ior 1;
   emission (factor x strength, x emissiveTexture) -> Emission, one-sided like glTF's;
 - media: material extras `nimbus_medium` -> Volume Scatter (sigma_s, g) + Volume Absorption (sigma_a); node extras
   `nimbus_volume` -> a Blender volume object of the VDB under that node, with Volume Scatter + Absorption of
@@ -15,10 +17,14 @@ The scene is imported with Blender's own glTF importer; then every convention is
 - lights: KHR_lights_punctual at photometric / 683 (or radiometric by scene extras), point and spot as Blender watts
   (4 pi x W/sr), sun in W/m^2, all with zero size; scene extras `nimbus_environment` -> the world;
 - render: CPU, `--spp` samples without adaptive sampling, denoising or clamping, a 1-pixel box filter, max bounces
-  from scene extras `max_bounces`.
+  from scene extras `max_bounces`;
+- `--guiding` (issue 34): Cycles' path guiding (Intel Open PGL) on, surface and volume guiding both, every other
+  guiding setting at Blender's default (training samples 128, parallax-aware von Mises-Fisher mixtures, RIS
+  directional sampling, deterministic guiding). Guiding trains on the render's own first samples, which count
+  toward the image, so the time includes the training, as Nimbus's does.
 
 Prints one `RESULT {json}` line; `render_s` is the `bpy.ops.render.render` call alone (Cycles' scene sync and BVH
-build included, the glTF import not).
+build included, the glTF import not), `render_cpu_s` the CPU time of all the process's threads during that call.
 """
 import argparse
 import json
@@ -60,10 +66,12 @@ def set_diffuse_like(mat, gm, nt):
             surf.distribution = "GGX"   # Blender 4+ has no "SHARP"; GGX at roughness 0 is the smooth interface
             surf.inputs["IOR"].default_value = ior
             surf.inputs["Roughness"].default_value = 0.0
-    elif metallic >= 1 and rough <= 0:
+    elif metallic >= 1:
+        # single-scattering GGX of alpha = roughness^2 (Blender squares its roughness input); at roughness 0 the
+        # perfect mirror. The Glossy BSDF has no Fresnel term: the glTF metal's only for base colour 1.
         surf = nt.nodes.new("ShaderNodeBsdfGlossy")
-        surf.distribution = "GGX"   # at roughness 0: the perfect mirror
-        surf.inputs["Roughness"].default_value = 0.0
+        surf.distribution = "GGX"
+        surf.inputs["Roughness"].default_value = max(rough, 0.0)
         surf.inputs["Color"].default_value = list(base) + [1]
     else:
         surf = nt.nodes.new("ShaderNodeBsdfDiffuse")
@@ -160,6 +168,7 @@ def main():
     ap.add_argument("--res", type=int, default=256)
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--guiding", action="store_true", help="path guiding on (surface and volume)")
     a = ap.parse_args()
     t0 = time.perf_counter()
     import bpy
@@ -244,6 +253,8 @@ def main():
     cy.sample_clamp_indirect = 0.0
     cy.blur_glossy = 0.0
     cy.caustics_reflective = cy.caustics_refractive = True
+    cy.use_guiding = a.guiding
+    cy.use_surface_guiding = cy.use_volume_guiding = a.guiding
     cam = next(n for n in g["nodes"] if "camera" in n)
     aspect = g["cameras"][cam["camera"]]["perspective"].get("aspectRatio", 1.0)
     sc.render.resolution_x = a.res
@@ -257,11 +268,12 @@ def main():
     sc.render.image_settings.file_format = "OPEN_EXR"
     sc.render.image_settings.color_depth = "32"
     sc.render.filepath = os.path.abspath(a.out)
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     bpy.ops.render.render(write_still=True)
-    t2 = time.perf_counter()
+    t2, c2 = time.perf_counter(), time.process_time()
     print("RESULT " + json.dumps({"peer": f"cycles-{bpy.app.version_string}", "threads": a.threads, "spp": a.spp,
-                                  "load_s": t1 - t0, "render_s": t2 - t1}), flush=True)
+                                  "guiding": a.guiding, "load_s": t1 - t0, "render_s": t2 - t1,
+                                  "render_cpu_s": c2 - c1}), flush=True)
     sys.stdout.flush()
     os._exit(0)
 

@@ -18,6 +18,12 @@ Run from the repository root: `python3 benches/peers/make_scenes.py`. Determinis
   sigma_a 0.01 /m, g 0.3), lit only by the sun through a 0.2 m gap in one wall; the camera inside. Most of the haze
   and the walls see the sun only through the lit patch and the beam.
 
+- `baffle.gltf` (issue 34): a glossy Cornell box lit only indirectly: a quad light facing the ceiling, lying on a
+  baffle that hides it from the room, so that light reaches the room only from the lit patch of the (Lambertian)
+  ceiling. Floor, back wall and the two boxes are a white rough metal (metallic 1, base colour 1, so that the glTF
+  Fresnel term is exactly 1 and Mitsuba's and Cycles' GGX conductors of reflectance 1 are the same BSDF; roughness
+  0.3 and 0.2); the side walls, ceiling and baffle are Lambertian.
+
 - `mirrors.gltf` (issue 33): the Cornell box with two perfect-mirror spheres (metallic 1, roughness 0; 2,304 smooth
   triangles each) in place of the boxes.
 - `glass.gltf` (issue 33): a smooth glass sphere (ior 1.5) holding a scattering, absorbing medium (nimbus_medium
@@ -79,6 +85,36 @@ def mirrors():
     light = b.emitter("light", [1.0, 0.85, 0.6], 20.0)
     y = 1.999
     b.quad("light", [[-0.25, y, -0.2], [0.25, y, -0.2], [0.25, y, 0.2], [-0.25, y, 0.2]], light)
+    b.camera("camera", eye=[0.0, 1.0, 3.9], target=[0.0, 1.0, 0.0], yfov_deg=39, aspect=1.0)
+    return b, {"max_bounces": 16}
+
+
+def baffle():
+    b = GltfBuilder()
+    white = b.lambert("white", [0.73, 0.73, 0.73])
+    red = b.lambert("red", [0.63, 0.065, 0.05])
+    green = b.lambert("green", [0.14, 0.45, 0.091])
+    # white metals: base colour 1 makes the glTF Fresnel term (Schlick, F0 = base colour) exactly 1
+    metal = b.add_material("rough_metal", pbrMetallicRoughness={"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                                                                "metallicFactor": 1.0, "roughnessFactor": 0.3})
+    glossy = b.add_material("glossy_metal", pbrMetallicRoughness={"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                                                                  "metallicFactor": 1.0, "roughnessFactor": 0.2})
+    s = 1.0   # the box spans [-1, 1] in x and z, [0, 2] in y, open toward +z (the camera)
+    b.quad("floor", [[-s, 0, s], [s, 0, s], [s, 0, -s], [-s, 0, -s]], metal)
+    b.quad("ceiling", [[-s, 2, -s], [s, 2, -s], [s, 2, s], [-s, 2, s]], white)
+    b.quad("back", [[-s, 0, -s], [s, 0, -s], [s, 2, -s], [-s, 2, -s]], metal)
+    b.quad("left", [[-s, 0, s], [-s, 0, -s], [-s, 2, -s], [-s, 2, s]], red)
+    b.quad("right", [[s, 0, -s], [s, 0, s], [s, 2, s], [s, 2, -s]], green)
+    b.box("tall_box", [-0.3, 0.0, -0.3], [0.3, 1.2, 0.3], glossy, translation=[-0.35, 0.0, -0.3],
+          rotation=rotation_y(17))
+    b.box("short_box", [-0.3, 0.0, -0.3], [0.3, 0.6, 0.3], glossy, translation=[0.35, 0.0, 0.35],
+          rotation=rotation_y(-17))
+    # the baffle: a white slab under the light, wider than it on every side; the light lies on its top face,
+    # facing the ceiling, so that no point below the slab's top sees the light's emitting face
+    b.box("baffle", [-0.4, 1.70, -0.45], [0.4, 1.74, 0.15], white)
+    light = b.emitter("light", [1.0, 0.85, 0.6], 60.0)
+    y = 1.741
+    b.quad("light", [[-0.25, y, 0.0], [0.25, y, 0.0], [0.25, y, -0.3], [-0.25, y, -0.3]], light)
     b.camera("camera", eye=[0.0, 1.0, 3.9], target=[0.0, 1.0, 0.0], yfov_deg=39, aspect=1.0)
     return b, {"max_bounces": 16}
 
@@ -306,7 +342,7 @@ def doorgap():
 def main():
     os.makedirs(SCENES, exist_ok=True)
     for name, make in (("cornell", cornell), ("haze", haze), ("plume", plume), ("backlit", backlit),
-                       ("doorgap", doorgap), ("mirrors", mirrors)):
+                       ("doorgap", doorgap), ("mirrors", mirrors), ("baffle", baffle)):
         b, extras = make()
         out = os.path.join(SCENES, f"{name}.gltf")
         b.write(out, GENERATOR, scene_extras=extras)

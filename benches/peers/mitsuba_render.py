@@ -4,9 +4,14 @@
     python3 benches/peers/mitsuba_render.py SCENE.gltf OUT.exr --spp N --res W [--threads T] [--seed S]
             [--integrator volpath|volpathmis] [--passes P] [--variant llvm_ad_rgb]
 
-The translation is `../shared/tools/gltf2mitsuba.py` (imported as a module), with one addition it lacks: a material's
-`emissiveTexture` becomes a textured area emitter (radiance = emissiveFactor * texture, sRGB-decoded), so that
-scenes with textured emitters (DamagedHelmet) render the same light in both renderers.
+The translation is `../shared/tools/gltf2mitsuba.py` (imported as a module), with two additions it lacks:
+- a material's `emissiveTexture` becomes a textured area emitter (radiance = emissiveFactor * texture,
+  sRGB-decoded), so that scenes with textured emitters (DamagedHelmet) render the same light in both renderers;
+- a rough metal (metallic 1, roughness r > 0, base colour 1, no textures) becomes a `roughconductor` of GGX
+  alpha = r^2 with Fresnel 1 (`material: none`), visible-normal sampling: the glTF metal BRDF with base colour 1
+  (its Schlick Fresnel is then exactly 1). Mitsuba's shadowing is the separable Smith G1(i) G1(o), glTF's and
+  Nimbus's the height-correlated one: they differ only near grazing angles. A base colour other than 1 would
+  need the Schlick Fresnel, which Mitsuba's conductors lack: that case stays gltf2mitsuba's (diffuse, warned).
 
 With `--passes P` > 1 the samples are split into P passes with independent seeds, and `OUT_se.exr` gets the per-pixel
 standard error of the mean from their spread (for references). Prints one `RESULT {json}` line: `render_s` is the
@@ -47,6 +52,24 @@ def textured_emitters(translator, scene):
             shape["emitter"] = {"type": "area", "radiance": translator.texture(mat["emissiveTexture"], factor)}
 
 
+def rough_metals(translator):
+    """wrap the translator's `bsdf` so that white rough metals become GGX conductors with Fresnel 1"""
+    plain = translator.bsdf
+
+    def bsdf(mat):
+        pbr = mat.get("pbrMetallicRoughness", {})
+        rough = pbr.get("roughnessFactor", 1.0)
+        textured = "baseColorTexture" in pbr or "metallicRoughnessTexture" in pbr
+        if (pbr.get("metallicFactor", 1.0) >= 1 and rough > 0 and not textured
+                and np.allclose(pbr.get("baseColorFactor", [1, 1, 1, 1])[:3], 1)
+                and "KHR_materials_transmission" not in mat.get("extensions", {})):
+            return {"type": "roughconductor", "material": "none", "distribution": "ggx", "alpha": float(rough) ** 2,
+                    "sample_visible": True}
+        return plain(mat)
+
+    translator.bsdf = bsdf
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scene")
@@ -70,6 +93,7 @@ def main():
         sys.exit("--spp must be a multiple of --passes")
     pass_spp = a.spp // a.passes
     translator = gltf2mitsuba.Translator(a.scene, res=a.res, spp=pass_spp, integrator=a.integrator)
+    rough_metals(translator)
     scene_dict = translator.build()
     textured_emitters(translator, scene_dict)
     scene = mi.load_dict(scene_dict)

@@ -219,9 +219,9 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// `--guiding auto` stays off on the bundled demo, on a surfaces-only Cornell box and on the backlit-cloud
-/// benchmark, each with what its pilot measured (the demo's albedo 0.95, the backlit cloud's 0.99 and its optical
-/// depth far above the demo's).
+/// `--guiding auto` stays off on the bundled demo, on the surfaces-only Cornell boxes (the Lambertian one and the
+/// glossy baffle box of the guiding benchmark) and on the backlit-cloud benchmark, each with what its pilot
+/// measured (the demo's albedo 0.95, the backlit cloud's 0.99 and its optical depth far above the demo's).
 #[test]
 fn auto_leaves_guiding_off_and_says_what_it_measured() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -235,6 +235,11 @@ fn auto_leaves_guiding_off_and_says_what_it_measured() {
     assert!(
         !cornell.on && cornell.reason.contains("no scattering medium"),
         "{cornell:?}"
+    );
+    let baffle = decide("benches/peers/scenes/baffle.gltf");
+    assert!(
+        !baffle.on && baffle.reason.contains("no scattering medium"),
+        "{baffle:?}"
     );
     let backlit = decide("benches/peers/scenes/backlit.gltf");
     assert!(
