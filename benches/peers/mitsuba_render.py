@@ -11,7 +11,10 @@ The translation is `../shared/tools/gltf2mitsuba.py` (imported as a module), wit
   alpha = r^2 with Fresnel 1 (`material: none`), visible-normal sampling: the glTF metal BRDF with base colour 1
   (its Schlick Fresnel is then exactly 1). Mitsuba's shadowing is the separable Smith G1(i) G1(o), glTF's and
   Nimbus's the height-correlated one: they differ only near grazing angles. A base colour other than 1 would
-  need the Schlick Fresnel, which Mitsuba's conductors lack: that case stays gltf2mitsuba's (diffuse, warned).
+  need the Schlick Fresnel, which Mitsuba's conductors lack: that case stays gltf2mitsuba's (diffuse, warned);
+- a camera inside a closed mesh with an interior medium gets that medium as its sensor medium (the innermost, by
+  bounding-box volume, where meshes nest), as Nimbus starts camera paths in the media around the camera
+  (gltf2mitsuba sets it only for a camera inside a VDB grid's box).
 
 With `--passes P` > 1 the samples are split into P passes with independent seeds, and `OUT_se.exr` gets the per-pixel
 standard error of the mean from their spread (for references). Prints one `RESULT {json}` line: `render_s` is the
@@ -70,6 +73,43 @@ def rough_metals(translator):
     translator.bsdf = bsdf
 
 
+def inside_mesh(eye, vertices, faces, direction):
+    """whether `eye` is inside the closed triangle mesh: the parity of a ray's crossings (Moller-Trumbore)"""
+    v0, v1, v2 = (vertices[faces[:, i]] for i in range(3))
+    e1, e2 = v1 - v0, v2 - v0
+    p = np.cross(direction, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > 1e-12
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    t_vec = eye - v0
+    u = np.einsum("ij,ij->i", t_vec, p) * inv
+    q = np.cross(t_vec, e1)
+    v = (q @ direction) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    hits = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    return int(hits.sum()) % 2 == 1
+
+
+def camera_medium(mi, scene_dict):
+    """set the sensor medium to the interior medium of the innermost closed mesh around the camera"""
+    sensor = scene_dict["sensor"]
+    eye = np.array(sensor["to_world"].matrix, dtype=np.float64).reshape(4, 4)[:3, 3]
+    direction = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
+    around = []
+    for shape in scene_dict.values():
+        if not isinstance(shape, dict) or "interior" not in shape or shape.get("type") != "ply":
+            continue
+        mesh = mi.load_dict({"type": "ply", "filename": shape["filename"]})
+        vertices = np.array(mesh.vertex_positions_buffer(), dtype=np.float64).reshape(-1, 3)
+        faces = np.array(mesh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
+        if inside_mesh(eye, vertices, faces, direction):
+            around.append((np.prod(vertices.max(0) - vertices.min(0)), shape["interior"]["id"]))
+    if around:
+        medium = min(around)[1]
+        sensor["medium"] = {"type": "ref", "id": medium}
+        print(f"mitsuba_render: camera inside the mesh medium {medium}: sensor medium set", file=sys.stderr)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scene")
@@ -96,6 +136,8 @@ def main():
     rough_metals(translator)
     scene_dict = translator.build()
     textured_emitters(translator, scene_dict)
+    if "medium" not in scene_dict["sensor"]:
+        camera_medium(mi, scene_dict)
     scene = mi.load_dict(scene_dict)
     t1 = time.perf_counter()
     total = total_sq = None
