@@ -144,5 +144,7 @@ pub(super) fn sample_bsdf(
         pdf: direction_pdf(wi),
         is_delta: false,
         class: LobeClass::Diffuse,
+        // Guided surfaces are Lambertian: nothing refracts.
+        eta: 1.0,
     })
 }

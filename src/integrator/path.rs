@@ -1,7 +1,8 @@
 //! The volumetric path tracer: next-event estimation at every non-delta scattering event (surface or medium),
 //! BSDF or phase-function sampling to continue the path, and multiple importance sampling of both strategies
 //! with the power heuristic (Veach 1997, §9.2, eq. 9.13). Russian roulette (Arvo & Kirk 1990) ends
-//! low-throughput paths after a few bounces.
+//! low-throughput paths after a few bounces, judging the throughput with the radiance factors 1/η² of the
+//! refractions so far undone (pbrt-v4's `etaScale`).
 //!
 //! Media: along each segment every medium answers one question, [`Medium::free_flight`]: its next real
 //! collision and the path throughput its walk's weights leave (spectral MIS, spectral tracking of an RGB
@@ -199,6 +200,9 @@ struct ConstantSegment {
 struct OnwardState {
     /// The path throughput.
     beta: Rgb,
+    /// The product of η² over the refractions so far (pbrt-v4's `etaScale`): `beta` times it undoes their
+    /// radiance factors 1/η², which Russian roulette looks at instead of `beta` alone.
+    eta_scale: f32,
     /// Scattering events so far.
     depth: u32,
     /// The media the path is inside.
@@ -533,6 +537,7 @@ impl PathTracer {
             radiance: Rgb::ZERO,
             onward: OnwardState {
                 beta: Rgb::ONE,
+                eta_scale: 1.0,
                 depth: 0,
                 stack: self.camera_media,
                 cone_width: self.pixel_width,
@@ -1191,6 +1196,7 @@ impl PathTracer {
         let (hit, frame) = (surface.hit, surface.frame);
         let wi_world = frame.to_world(bs.wi);
         s.onward.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+        s.onward.eta_scale *= bs.eta * bs.eta;
         s.prev_delta = bs.is_delta;
         s.prev_pdf = bs.pdf;
         s.prev = LightContext {
@@ -1455,11 +1461,13 @@ impl PathTracer {
     }
 
     /// Counts a scattering event and, with `roulette`, plays classic Russian roulette; returns false when the
-    /// path ends.
+    /// path ends. The survival probability is the throughput's largest channel with the refractions' 1/η²
+    /// undone (the `etaScale` of pbrt-v4's path integrator; Mitsuba 3's path tracers do the same): a path inside a dense dielectric
+    /// carries 1/η² less radiance until it leaves, not less importance, and is not ended more often for it.
     fn next_bounce(&self, s: &mut PathState, rng: &mut Rng, roulette: bool) -> bool {
         s.onward.depth += 1;
         if roulette && s.onward.depth > ROULETTE_START {
-            let survive = s.onward.beta.max_element().clamp(0.05, 1.0);
+            let survive = (s.onward.beta.max_element() * s.onward.eta_scale).clamp(0.05, 1.0);
             if rng.next_f32() >= survive {
                 return false;
             }

@@ -40,12 +40,14 @@ use super::thin_film::ThinFilm;
 use crate::math::{Rgb, Vec2, Vec3};
 
 /// A direction chosen by [`Dielectric::sample`]: the direction, its lobe's class (reflection glossy,
-/// refraction transmission), whether it is a delta lobe and, for delta lobes only, the BSDF value and the
-/// discrete lobe probability.
+/// refraction transmission), the relative index it crossed, whether it is a delta lobe and, for delta lobes
+/// only, the BSDF value and the discrete lobe probability.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct DielectricSample {
     pub wi: Vec3,
     pub class: LobeClass,
+    /// η = η(wi side)/η(wo side) for a refraction (whose value carries 1/η²), 1 for a reflection.
+    pub eta: f32,
     /// Delta lobes: (f, probability). Non-delta: `None`, evaluate with `eval`/`pdf`.
     pub delta: Option<(Rgb, f32)>,
 }
@@ -227,6 +229,7 @@ impl Dielectric {
                 return Some(DielectricSample {
                     wi,
                     class: LobeClass::Glossy,
+                    eta: 1.0,
                     delta: Some((f / wi.z.abs(), p_reflect)),
                 });
             }
@@ -235,6 +238,7 @@ impl Dielectric {
             return Some(DielectricSample {
                 wi,
                 class: LobeClass::Transmission,
+                eta,
                 delta: Some((value, 1.0 - p_reflect)),
             });
         }
@@ -243,16 +247,17 @@ impl Dielectric {
         if oh <= 0.0 {
             return None;
         }
-        let (wi_up, class) = if u_lobe < mean(self.reflectance(oh, eta, outside)) {
+        let (wi_up, class, crossed) = if u_lobe < mean(self.reflectance(oh, eta, outside)) {
             let wi = Some(fresnel::reflect(wo_up, h)).filter(|w| w.z > 0.0);
-            (wi, LobeClass::Glossy)
+            (wi, LobeClass::Glossy, 1.0)
         } else {
             let wi = fresnel::refract(wo_up, h, eta).filter(|w| w.z < 0.0);
-            (wi, LobeClass::Transmission)
+            (wi, LobeClass::Transmission, eta)
         };
         Some(DielectricSample {
             wi: wi_up? * sign,
             class,
+            eta: crossed,
             delta: None,
         })
     }

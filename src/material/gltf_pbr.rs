@@ -488,7 +488,7 @@ impl GltfPbr {
     /// probability.
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let p = self.dielectric_probability(wo);
-        let (wi, class) = if u_lobe < p {
+        let (wi, class, eta) = if u_lobe < p {
             let s = self.dielectric.sample(wo, u_lobe / p, u)?;
             if let Some((f, prob)) = s.delta {
                 return Some(BsdfSample {
@@ -497,9 +497,10 @@ impl GltfPbr {
                     pdf: p * prob,
                     is_delta: true,
                     class: s.class,
+                    eta: s.eta,
                 });
             }
-            (s.wi, s.class)
+            (s.wi, s.class, s.eta)
         } else {
             if wo.z <= 0.0 {
                 return None;
@@ -509,9 +510,9 @@ impl GltfPbr {
             if u_lobe < pd {
                 let wi = cosine_hemisphere(u);
                 if u_lobe < pd * self.diffuse_transmission_probability() {
-                    (Vec3::new(wi.x, wi.y, -wi.z), LobeClass::Transmission)
+                    (Vec3::new(wi.x, wi.y, -wi.z), LobeClass::Transmission, 1.0)
                 } else {
-                    (wi, LobeClass::Diffuse)
+                    (wi, LobeClass::Diffuse, 1.0)
                 }
             } else if self.specular_is_delta() {
                 let wi = Vec3::new(-wo.x, -wo.y, wo.z);
@@ -523,6 +524,7 @@ impl GltfPbr {
                     pdf: (1.0 - p) * (1.0 - pd),
                     is_delta: true,
                     class: LobeClass::Glossy,
+                    eta: 1.0,
                 });
             } else {
                 let o = self.anisotropy_local(wo);
@@ -534,7 +536,7 @@ impl GltfPbr {
                 if wi.z <= 0.0 {
                     return None;
                 }
-                (wi, LobeClass::Glossy)
+                (wi, LobeClass::Glossy, 1.0)
             }
         };
         let pdf = self.pdf(wo, wi);
@@ -544,6 +546,7 @@ impl GltfPbr {
             pdf,
             is_delta: false,
             class,
+            eta,
         })
     }
 }

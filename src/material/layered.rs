@@ -168,7 +168,7 @@ impl Layered {
             return self.base.sample(wo, u_lobe, u);
         }
         let p = self.choice(wo);
-        let (wi, class) = if u_lobe < p.coat {
+        let (wi, class, eta) = if u_lobe < p.coat {
             let c = self.coat?;
             let wi = c.sample(wo, u)?;
             if c.is_delta() {
@@ -178,15 +178,16 @@ impl Layered {
                     pdf: p.coat,
                     is_delta: true,
                     class: LobeClass::Glossy,
+                    eta: 1.0,
                 });
             }
-            (wi, LobeClass::Glossy)
+            (wi, LobeClass::Glossy, 1.0)
         } else if u_lobe < p.coat + p.sheen {
             let wi = cosine_hemisphere(u);
             if wi.z <= 0.0 {
                 return None;
             }
-            (wi, LobeClass::Glossy)
+            (wi, LobeClass::Glossy, 1.0)
         } else {
             let u_base = ((u_lobe - p.coat - p.sheen) / p.base).clamp(0.0, 1.0 - f32::EPSILON);
             let s = self.base.sample(wo, u_base, u)?;
@@ -198,7 +199,7 @@ impl Layered {
                     ..s
                 });
             }
-            (s.wi, s.class)
+            (s.wi, s.class, s.eta)
         };
         let pdf = self.pdf(wo, wi);
         (pdf > 0.0).then(|| BsdfSample {
@@ -207,6 +208,7 @@ impl Layered {
             pdf,
             is_delta: false,
             class,
+            eta,
         })
     }
 }

@@ -22,4 +22,8 @@ pub struct BsdfSample {
     /// `wi`: a glTF material's GGX reflection that falls below the horizon is rejected, not kept where only
     /// a transmissive lobe has a value.
     pub class: LobeClass,
+    /// The relative index of refraction η = η(wi side)/η(wo side) when `wi` refracts through a dielectric
+    /// interface, whose value `f` then carries the radiance factor 1/η² (Veach 1997, §5.2); 1 for every other
+    /// lobe. Russian roulette undoes that factor with it (pbrt-v4's `etaScale`).
+    pub eta: f32,
 }

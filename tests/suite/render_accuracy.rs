@@ -61,6 +61,33 @@ fn white_furnace_lambertian_sphere_renders_the_environment() {
     }
 }
 
+/// White furnace of a smooth, clear, lossless glass sphere (ior 1.5): every path that leaves it carries the
+/// environment's 0.8 back, so the image is 0.8 with no noise at all. Inside the glass a path's throughput is
+/// 1/η² = 0.44 (the radiance factor of the refraction in, which the refraction out undoes); Russian roulette
+/// that looked at that throughput alone would end the paths that reflect inside past its start depth with
+/// probability 0.56 and weight the survivors by 2.25: noise around the right mean. It undoes the refractions'
+/// 1/η² (pbrt-v4's `etaScale`), so it ends none of them.
+#[test]
+fn white_furnace_smooth_glass_sphere_renders_the_environment_without_noise() {
+    let img = furnace_image(Material {
+        base_color: Vec4::ONE,
+        metallic: 0.0,
+        roughness: 0.0,
+        transmission: 1.0,
+        ior: 1.5,
+        ..Material::default()
+    });
+    for i in 0..img.pixel_count() {
+        for c in 0..3 {
+            let (value, variance) = (img.beauty[i][c], img.variance[i][c]);
+            assert!(
+                (value - 0.8).abs() < 1e-5 && variance < 1e-10,
+                "pixel {i} channel {c}: {value} (variance of the mean {variance:e}) vs 0.8"
+            );
+        }
+    }
+}
+
 /// A unit sphere of `material` under a constant environment of 0.8, seen whole by a 24² camera, at 16 spp.
 fn furnace_image(material: Material) -> RenderImage {
     let mut b = SceneBuilder::default();
