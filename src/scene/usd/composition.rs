@@ -45,7 +45,13 @@
 //! cycle there, while the sites themselves may grow ever deeper without ever nesting.
 //! `openusd` 0.6 followed each of these for minutes (the fuzz target's slow inputs, replayed under `tests/`).
 //! The nodes of each site's prim index (each arc's target with its own arcs, once per path) are counted against
-//! the prim limit, and the sites and steps of the walk are bounded by four times it.
+//! the prim limit, and the sites and steps of the walk are bounded by four times it. The walk also follows the
+//! nodes Pcp adds beyond a site's own arcs: each class arc met below a reference is walked again where Pcp
+//! implies it (on the referencing prim, its target mapped through the reference, with its own arcs, and up
+//! through every reference above), and each specializes arc below the root of a prim index again where Pcp
+//! copies it (that root), so that their work counts against the same bound. A site that an ancestor's arc
+//! maps deeper than twice the deepest prim path the layers author or target (plus two) is refused: only arcs
+//! that map prims ever deeper reach it, which `openusd` 0.6 and Pixar's USD both follow for minutes.
 //!
 //! The walk is iterative and visits each site once. It works on layer stacks, while `openusd`'s pre-caching takes
 //! every inherit and specialize target as a path of the stage and maps it through arcs to any layer stack: a last
