@@ -45,7 +45,13 @@
 //! cycle there, while the sites themselves may grow ever deeper without ever nesting.
 //! `openusd` 0.6 followed each of these for minutes (the fuzz target's slow inputs, replayed under `tests/`).
 //! The nodes of each site's prim index (each arc's target with its own arcs, once per path) are counted against
-//! the prim limit, and the sites and steps of the walk are bounded by four times it.
+//! the prim limit, and the sites and steps of the walk are bounded by four times it. The walk also follows the
+//! nodes Pcp adds beyond a site's own arcs: each class arc met below a reference is walked again where Pcp
+//! implies it (on the referencing prim, its target mapped through the reference, with its own arcs, and up
+//! through every reference above), and each specializes arc below the root of a prim index again where Pcp
+//! copies it (that root), so that their work counts against the same bound. A site that an ancestor's arc
+//! maps deeper than twice the deepest prim path the layers author or target (plus two) is refused: only arcs
+//! that map prims ever deeper reach it, which `openusd` 0.6 and Pixar's USD both follow for minutes.
 //!
 //! The walk is iterative and visits each site once. It works on layer stacks, while `openusd`'s pre-caching takes
 //! every inherit and specialize target as a path of the stage and maps it through arcs to any layer stack: a last
@@ -155,6 +161,20 @@ pub(super) enum CompositionError {
         ancestor: String,
         arc: String,
         path: String,
+    },
+    /// An ancestor's arc that maps a prim deeper than the walk's bound on mapped paths.
+    #[error(
+        "{path} is under {ancestor}, whose {arc} maps it onto {mapped}, {depth} prims deep: deeper than twice the \
+         deepest prim path the stage's layers author or target, plus two ({max_depth}); arcs that map prims ever \
+         deeper make openusd 0.6 compose for exponential time, so it is refused"
+    )]
+    MappedTooDeep {
+        path: String,
+        ancestor: String,
+        arc: String,
+        mapped: String,
+        depth: usize,
+        max_depth: usize,
     },
     /// A class arc whose target an ancestor's arc maps onto the prim or a child of it.
     #[error(
@@ -555,6 +575,11 @@ enum Step {
     /// site's path below the ancestor appended. Composition brings that site into this one's prim index (an
     /// ancestral arc), so it closes cycles like an arc; its prims are counted with the ancestor's arc.
     AncestorArc(Arc, String),
+    /// To the target of a class-based arc met below a reference or payload of the site (through arcs and
+    /// children), implied onto the site's layer stack with its target mapped through that reference (Pcp's
+    /// implied classes; the arc holds the mapped target). Pcp adds such a node to the prim index, with the
+    /// nodes of its own arcs, at every reference above the class arc: the work the walk bounds by following it.
+    Implied(Arc),
 }
 
 impl Step {
@@ -570,8 +595,20 @@ impl Step {
         !matches!(self, Step::ParentArc(_))
     }
 
+    /// Whether the step follows a class-based arc into the site's prim index (its own, an ancestor's, or an
+    /// implied one), whose target Pcp's implied classes carry up through the references above it.
+    fn implies_class(&self) -> bool {
+        match self {
+            Step::Arc(arc) | Step::AncestorArc(arc, _) => arc.kind.is_class(),
+            Step::Implied(_) => true,
+            Step::ParentArc(_) | Step::Child => false,
+        }
+    }
+
     /// Whether the step follows an arc to the site it composes (the site's own or an ancestor's): a run of
     /// these that lands nested with a site it started from is Pcp's arc cycle.
+    /// An implied class starts a run of its own: it belongs to the prim the referencing site composes below
+    /// the reference (the site itself, or a descendant), not to the site's run.
     fn follows_arc(&self) -> bool {
         matches!(self, Step::Arc(_) | Step::AncestorArc(..))
     }
@@ -579,7 +616,9 @@ impl Step {
     /// The arc the step follows, if it follows one (its own, its parent's or an ancestor's).
     fn arc(&self) -> Option<&Arc> {
         match self {
-            Step::Arc(arc) | Step::ParentArc(arc) | Step::AncestorArc(arc, _) => Some(arc),
+            Step::Arc(arc) | Step::ParentArc(arc) | Step::AncestorArc(arc, _) | Step::Implied(arc) => {
+                Some(arc)
+            }
             Step::Child => None,
         }
     }
@@ -596,6 +635,7 @@ impl Step {
             Step::AncestorArc(arc, ancestor) => {
                 format!("{at} is under {ancestor}, which {}", arc.describe())
             }
+            Step::Implied(arc) => format!("{at} {} (an implied class)", arc.describe()),
         }
     }
 
@@ -604,6 +644,7 @@ impl Step {
     fn authored(&self, at: &str) -> Option<String> {
         let by = match self {
             Step::Child => return None,
+            Step::Implied(arc) => return Some(format!("{at}: {} (an implied class)", arc.describe())),
             Step::Arc(_) => at,
             Step::ParentArc(_) => parent(at),
             Step::AncestorArc(_, ancestor) => ancestor,
@@ -625,6 +666,10 @@ struct Frame {
     /// The nodes of the site's prim index counted so far (the counting pass): itself, and each arc's target
     /// (its own or an ancestor's) with that target's nodes.
     nodes: u64,
+    /// The implied classes carried onto the site while walking below it (the unfolding pass), taken after its
+    /// own steps, and their targets, each implied once (Pcp adds one node per implied site and parent).
+    implied: Vec<(usize, Step)>,
+    implied_sites: HashSet<usize>,
 }
 
 impl Frame {
@@ -650,8 +695,9 @@ struct Walk<'a> {
     /// The most entries a layer stack may expand to.
     max_layer_stack: u64,
     /// The deepest path an ancestor's arc may map a site onto, in path elements: twice the deepest prim path
-    /// authored or targeted in any layer, plus two. Deeper sites hold no specs, and arcs that map sites ever
-    /// deeper (which `openusd` follows for exponential time) would otherwise make new ones without end.
+    /// authored or targeted in any layer, plus two. Deeper sites hold no specs: only arcs that map sites ever
+    /// deeper reach them (which `openusd` follows for exponential time, and Pixar's USD for minutes too), so a
+    /// deeper one is refused.
     max_mapped_depth: usize,
     /// The entries each layer's stack expands to, by layer, once counted.
     entries: HashMap<usize, u64>,
@@ -754,6 +800,11 @@ impl<'a> Walk<'a> {
         let mut taken = 0u64;
         let max_steps = self.max_prims.saturating_mul(4);
         while let Some(top) = frames.last_mut() {
+            if top.taken == top.steps.len() && !top.implied.is_empty() {
+                let mut steps = top.steps.to_vec();
+                steps.append(&mut top.implied);
+                top.steps = steps.into();
+            }
             let Some((next, step)) = top.steps.get(top.taken).cloned() else {
                 frames.pop();
                 continue;
@@ -770,8 +821,16 @@ impl<'a> Walk<'a> {
             if prims > self.max_prims {
                 return Err(CompositionError::StagePrims(self.max_prims));
             }
+            if step.implies_class() {
+                self.imply_class(&mut frames, next);
+                propagate_specializes(&mut frames, next);
+            }
             match step {
                 Step::ParentArc(_) => continue,
+                // An implied class belongs to the prim the referencing frame composes below the reference (the
+                // frame itself, or a descendant), so the run's nesting rules do not apply to it (the implied
+                // class rules below model where it lands): it is walked for the work it brings.
+                Step::Implied(_) => {}
                 Step::Arc(arc) | Step::AncestorArc(arc, _) => {
                     if let Some(from) = self.lands_in_run(&frames, next) {
                         return Err(self.cycle(&frames, from, next));
@@ -797,6 +856,50 @@ impl<'a> Walk<'a> {
             frames.push(frame);
         }
         Ok(())
+    }
+
+    /// Carries the class-based arc just followed from the top frame to `next` onto the layer stack of the
+    /// nearest reference or payload below which it is met (through arcs and children), as Pcp's implied classes
+    /// do: its target mapped through the reference (a target outside the referenced prim keeps its path, Pcp's
+    /// root identity) becomes a step of the referencing frame, walked with its own arcs after that frame's own
+    /// steps, and carried further up when it is followed. Pcp builds each of these nodes with the nodes its
+    /// arcs bring, at every reference above the class arc, so that a few class arcs below references that fan
+    /// out make exponentially many; the walk counts them as steps against the same limit.
+    fn imply_class(&mut self, frames: &mut [Frame], next: usize) {
+        let Some(through) = (0..frames.len()).rev().find(|&i| {
+            let step = &frames[i].last_step().1;
+            step.follows_arc() && !step.implies_class()
+        }) else {
+            return;
+        };
+        let passes = |f: &Frame| {
+            let step = &f.last_step().1;
+            step.follows_arc() || matches!(step, Step::Child | Step::Implied(_))
+        };
+        if !frames[through + 1..].iter().all(passes) {
+            return;
+        }
+        let (source_stack, source) = &self.sites[frames[through].last_step().0];
+        let (stack, referencing) = &self.sites[frames[through].site];
+        let (target_stack, target) = &self.sites[next];
+        if target_stack != source_stack {
+            return;
+        }
+        let Some(arc) = frames.last().and_then(|f| f.last_step().1.arc()) else {
+            return;
+        };
+        let path = precache::map(target, source, referencing).unwrap_or_else(|| target.clone());
+        let implied = Arc {
+            kind: arc.kind,
+            layer: None,
+            path: path.clone(),
+            asset: String::new(),
+        };
+        let site = self.site((*stack, path));
+        let frame = &mut frames[through];
+        if frame.implied_sites.insert(site) {
+            frame.implied.push((site, Step::Implied(implied)));
+        }
     }
 
     /// The frame of the arc run that the step just taken from the top frame extends (the frames entered through
@@ -903,7 +1006,7 @@ impl<'a> Walk<'a> {
         match step {
             Step::Arc(arc) => Some((at.to_owned(), self.target_path(arc)?)),
             Step::AncestorArc(arc, ancestor) => Some((ancestor.clone(), self.target_path(arc)?)),
-            Step::Child | Step::ParentArc(_) => None,
+            Step::Child | Step::ParentArc(_) | Step::Implied(_) => None,
         }
     }
 
@@ -1010,6 +1113,8 @@ impl<'a> Walk<'a> {
             taken: 0,
             prims: 1,
             nodes: 1,
+            implied: Vec::new(),
+            implied_sites: HashSet::new(),
         })
     }
 
@@ -1066,10 +1171,19 @@ impl<'a> Walk<'a> {
                     });
                 }
                 let mapped = format!("{target}{}", &path[ancestor.len()..]);
-                if precache::depth(&mapped) <= self.max_mapped_depth {
-                    let site = self.site((target_stack, mapped));
-                    steps.push((site, Step::AncestorArc(arc, ancestor)));
+                let depth = precache::depth(&mapped);
+                if depth > self.max_mapped_depth {
+                    return Err(CompositionError::MappedTooDeep {
+                        path: path.to_owned(),
+                        ancestor,
+                        arc: arc.describe(),
+                        mapped,
+                        depth,
+                        max_depth: self.max_mapped_depth,
+                    });
                 }
+                let site = self.site((target_stack, mapped));
+                steps.push((site, Step::AncestorArc(arc, ancestor)));
             }
         }
         for child in children {
@@ -1296,6 +1410,34 @@ fn add_to_last(frames: &mut [Frame], prims: u64, nodes: u64) {
     }
 }
 
+/// Copies the specializes arc just followed from the top frame to `next` to the root of the prim index it lies
+/// in, as Pcp propagates every specializes node below the root (with its subtree) to the root: a step of the
+/// deepest frame reached from the pseudo-root through children alone (the prim whose index it is, or the
+/// ancestor under which the walk composes it), taken after that frame's own steps. The copy, at the root, is
+/// not propagated again.
+fn propagate_specializes(frames: &mut [Frame], next: usize) {
+    let top = frames.len() - 1;
+    let Some(Step::Arc(arc) | Step::AncestorArc(arc, _) | Step::Implied(arc)) =
+        Some(&frames[top].last_step().1)
+    else {
+        return;
+    };
+    if arc.kind != ArcKind::Specializes {
+        return;
+    }
+    let root = (1..=top)
+        .find(|&i| !matches!(frames[i - 1].last_step().1, Step::Child))
+        .map_or(top, |i| i - 1);
+    if root == top {
+        return;
+    }
+    let copy = Step::Implied(arc.clone());
+    let frame = &mut frames[root];
+    if frame.implied_sites.insert(next) {
+        frame.implied.push((next, copy));
+    }
+}
+
 /// Whether the step just taken from the top frame, back to `site` on the path, closes a cycle: the index of the
 /// frame it starts from if the steps around are arcs and children (the site composes an arc back onto itself or
 /// an ancestor), or inherits and specializes alone, its own or its parent's (the loop `openusd`'s pre-caching
@@ -1307,7 +1449,7 @@ fn cycle_back(frames: &[Frame], site: usize) -> Option<usize> {
     let composes = steps().all(Step::composes);
     let precaches = steps().all(|s| match s {
         Step::Arc(arc) | Step::ParentArc(arc) => arc.kind.is_class(),
-        Step::AncestorArc(..) | Step::Child => false,
+        Step::AncestorArc(..) | Step::Child | Step::Implied(_) => false,
     });
     (composes || precaches).then_some(from)
 }
@@ -1410,6 +1552,38 @@ mod tests {
         );
     }
 
+    /// Ancestors' arcs that map a prim ever deeper, never nested with the prims they started from: in `l1`'s
+    /// stack (which holds `root`), `/B` specializes `/A/B/D` and `/A` specializes `/B/B/A`, so `/B/A/C` maps to
+    /// `/A/B/D/A/C`, then `/B/B/A/B/D/A/C`, and so on. `openusd` 0.6 composed this (the fuzz target's
+    /// `confirm-run-7a6ce936`, reduced) for over 20 s, Pixar's USD for over 30 s; the walk used to stop
+    /// following such sites silently, and now refuses the first one deeper than its bound.
+    #[test]
+    fn ancestors_arcs_that_map_prims_ever_deeper_are_refused() {
+        let root = "def \"A\" (specializes = [</B/B/A>, </B/B/C>])\n{\n    over \"C\" (references = \
+                    @l1.usda@</B/A/C>)\n    {\n        class \"C\" {\n        }\n    }\n}\n";
+        let l1 = "(\n    subLayers = [@root.usda@]\n)\nover \"B\" (specializes = </A/B/D>) {\n}\ndef \"A\" {\n}\n";
+        let err = check_files("ever_deeper", &[("root.usda", root), ("l1.usda", l1)])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("maps it onto") && err.contains("deeper than twice the deepest"),
+            "{err}"
+        );
+    }
+
+    /// Class arcs met below references are implied onto the referencing prims (and specializes copied to the
+    /// root of the index), each walked with its own arcs: the fuzz target's `confirm-run-5051797f` (unreduced),
+    /// which `openusd` 0.6 composed for over 20 s and Pixar's USD for over 60 s. Only through the implied
+    /// classes does the walk reach the class arc that the implied-class rule refuses.
+    #[test]
+    fn implied_classes_are_walked_with_their_own_arcs() {
+        let l0 = "(\n    defaultPrim = \"A\"\n)\ndef Xform \"A\" (prepend specializes = [</B/B/C>, </B/B/B>]\nprepend references = [</C/B>])\n{\n    over Xform \"D\" (instanceable = true\nprepend references = [@./l1.usda@</C/C>, @./l2.usda@])\n    {\n        class Xform \"B\" (variants = { string v = \"x\" }\nprepend variantSets = \"v\")\n        {\n            variantSet \"v\" = {\n                \"x\" (prepend specializes = [</D/D>]) {}\n            }\n        }\n        over Xform \"C\" (prepend references = [@./l1.usda@</C/C>])\n        {\n        }\n    }\n}\n";
+        let l1 = "(\n    subLayers = [@./l2.usda@, @./l2.usda@, @./l2.usda@]\n)\ndef Xform \"B\" (prepend inherits = [</A>, </C>]\nprepend references = [</C>])\n{\n}\ndef Xform \"C\" (prepend references = [@./l0.usda@</A>]\nprepend payload = [@./l1.usda@</A/D/C>])\n{\n}\n";
+        let files = [("l0.usda", l0), ("l1.usda", l1), ("l2.usda", "")];
+        let err = check_files("implied_walk", &files).unwrap_err().to_string();
+        assert!(err.contains("a class arc implied onto"), "{err}");
+    }
+
     /// A class arc below a reference is implied onto the referencing prim: here /A would inherit its own child.
     /// Pixar's USD drops the reference (its target has no specs) with an error; `openusd` 0.6 keeps it and
     /// composed the stage for minutes, so it is refused.
@@ -1476,8 +1650,12 @@ mod tests {
         let asset = "(\n subLayers = [@./l0.usda@]\n)\nover \"B\" (inherits = </A> payload = </A/A>) {}";
         let files = [("l0.usda", root), ("l1.usda", asset)];
         let err = check_files("ancestor_level", &files).unwrap_err().to_string();
+        // Refused as arcs that map prims ever deeper (the first rule met), or as the cycle it is at the level of
+        // the prims that author the arcs.
         assert!(
-            err.contains("composition cycle") && err.contains("at the level of the prims that author the arcs"),
+            err.contains("deeper than twice the deepest")
+                || (err.contains("composition cycle")
+                    && err.contains("at the level of the prims that author the arcs")),
             "{err}"
         );
     }
