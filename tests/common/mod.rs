@@ -209,9 +209,16 @@ pub fn run_nimbus(args: &[&str], dir: &Path) -> (bool, String, String) {
     )
 }
 
+/// Readers whose exit status carries nothing: OpenEXR 3.1's `exrinfo` (Debian's `openexr` 3.1.5) exits with an
+/// arbitrary status whatever the file (measured: 4 of 30 runs nonzero on one valid flat EXR, 8 of 30 with
+/// `--strict -v` on one valid deep EXR, each time a different code; on a truncated file a random code and no
+/// message). A run of one of these fails on anything it writes to stderr instead.
+const STATUS_UNRELIABLE: &[&str] = &["exrinfo"];
+
 /// Runs an independent reader (OpenEXR's `exrheader` or `exrinfo`, OpenImageIO's `oiiotool`) with `args` in
-/// `dir` and returns its stdout; a run that fails fails the test. `None` when the tool is not installed, which
-/// fails the test under `NIMBUS_REQUIRE_TOOLS=1` (`.ci/run` installs them).
+/// `dir` and returns its stdout; a run that fails fails the test (for [`STATUS_UNRELIABLE`] readers: a run that
+/// reports an error). `None` when the tool is not installed, which fails the test under
+/// `NIMBUS_REQUIRE_TOOLS=1` (`.ci/run` installs them).
 pub fn run_tool(tool: &str, args: &[&str], dir: &Path) -> Option<String> {
     match std::process::Command::new(tool)
         .args(args)
@@ -219,8 +226,13 @@ pub fn run_tool(tool: &str, args: &[&str], dir: &Path) -> Option<String> {
         .output()
     {
         Ok(out) => {
+            let failed = if STATUS_UNRELIABLE.contains(&tool) {
+                !out.stderr.is_empty()
+            } else {
+                !out.status.success()
+            };
             assert!(
-                out.status.success(),
+                !failed,
                 "{tool} {args:?} failed: {}{}",
                 String::from_utf8_lossy(&out.stdout),
                 String::from_utf8_lossy(&out.stderr)
