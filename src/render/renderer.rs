@@ -513,11 +513,12 @@ impl Renderer {
         let start = Instant::now();
         let (mut film, at, nan_samples, clamped_samples) = self.first_film(from, region, &plan)?;
         let edges = s.emitter_edges.decide(scene, s.width, s.height);
+        let tracer = self.path_tracer(scene);
         // The guiding cache, trained over the whole frame whatever the region (see `super::guiding`).
         let (guide, guiding) = pool.install(|| {
             super::guiding::train(
                 scene,
-                &self.path_tracer(scene),
+                &tracer,
                 &self.services(scene),
                 &super::guiding::TrainingFrame {
                     width: s.width,
@@ -544,6 +545,7 @@ impl Renderer {
             clock: &clock,
             renderer: self,
             scene,
+            tracer,
             region,
             recorder: &recorder,
             edges: edges.edges(),
@@ -935,6 +937,8 @@ struct Passes<'a> {
     clock: &'a FirstPixelClock,
     renderer: &'a Renderer,
     scene: &'a Scene,
+    /// The render's path tracer, made once ([`Renderer::path_tracer`] walks a ray to find the camera's media).
+    tracer: PathTracer,
     region: &'a RenderRegion,
     recorder: &'a LayerRecorder,
     edges: Option<&'a EmitterEdges>,
@@ -965,7 +969,7 @@ impl Passes<'_> {
         let pass = Pass {
             scene,
             settings: &renderer.settings,
-            tracer: renderer.path_tracer(scene),
+            tracer: self.tracer,
             services: renderer.services(scene).with_guide(self.guide),
             recorder: self.recorder,
             edges: self.edges,
