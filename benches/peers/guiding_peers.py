@@ -165,28 +165,11 @@ def pictures(res, path):
 
 
 def chart(res, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import FormatStrFormatter
-    fig, ax = plt.subplots(figsize=(5, 3.6), dpi=80)
-    for r, pts in res["ladder"].items():
-        ax.loglog([p["cpu_s"] for p in pts], [max(p["mse"], 1e-12) for p in pts], "o-", color=COLOURS[r],
-                  label=LABELS[r])
-        for p in pts:
-            ax.annotate(str(p["spp"]), (p["cpu_s"], max(p["mse"], 1e-12)), fontsize=6, xytext=(3, 3),
-                        textcoords="offset points")
-    ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
-    ax.xaxis.set_minor_formatter(FormatStrFormatter("%g"))
-    ax.tick_params(axis="x", which="minor", labelsize=7)
-    ax.set_xlabel("CPU seconds (Nimbus: whole process; Cycles: render call)", fontsize=8)
-    ax.set_ylabel("MSE against the Mitsuba reference")
-    ax.set_title(f"{res['scene']}, {res['res']}², {res['threads']} threads")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    """The scene's log-log chart of MSE against CPU seconds, one curve per renderer's spp ladder."""
+    curves = [(LABELS[r], COLOURS[r], [dict(p, seconds=p["cpu_s"]) for p in pts])
+              for r, pts in res["ladder"].items()]
+    peers.mse_chart(curves, path, f"{res['scene']}, {res['res']}², {res['threads']} threads",
+                    "CPU seconds (Nimbus: whole process; Cycles: render call)", dpi=80, small=True)
 
 
 def variances(res):

@@ -171,31 +171,39 @@ def bench_scene(name, a):
             "summary": summary, "rounds": rounds, "ladder": ladder}
 
 
-def chart(result, path):
+def mse_chart(curves, path, title, xlabel, dpi=110, small=False):
+    """One log-log chart of MSE against seconds: `curves` is a list of (label, colour, points), each point a dict
+    with `seconds`, `mse` and `spp` (written beside it); shared by this harness and `guiding_peers.py`."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(5, 3.6), dpi=110)
-    colours = {"nimbus": "tab:blue", "mitsuba": "tab:orange", "cycles": "tab:green"}
-    for r, pts in result["ladder"].items():
-        pts = sorted(pts + result["rounds"][r][:1], key=lambda p: p["seconds"])
-        ax.loglog([p["seconds"] for p in pts], [max(p["mse"], 1e-12) for p in pts], "o-", color=colours[r],
-                  label=r)
-        for p in pts:
-            ax.annotate(str(p["spp"]), (p["seconds"], max(p["mse"], 1e-12)), fontsize=7, xytext=(3, 3),
-                        textcoords="offset points")
     from matplotlib.ticker import FormatStrFormatter
+    fig, ax = plt.subplots(figsize=(5, 3.6), dpi=dpi)
+    for label, colour, pts in curves:
+        ax.loglog([p["seconds"] for p in pts], [max(p["mse"], 1e-12) for p in pts], "o-", color=colour,
+                  label=label)
+        for p in pts:
+            ax.annotate(str(p["spp"]), (p["seconds"], max(p["mse"], 1e-12)), fontsize=6 if small else 7,
+                        xytext=(3, 3), textcoords="offset points")
     ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.xaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.tick_params(axis="x", which="minor", labelsize=7)
-    ax.set_xlabel("seconds (Nimbus: whole process; peers: render call only)")
+    ax.set_xlabel(xlabel, fontsize=8 if small else None)
     ax.set_ylabel("MSE against the Mitsuba reference")
-    ax.set_title(result["scene"])
+    ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=7 if small else None)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def chart(result, path):
+    """The harness's chart of one scene: each renderer's spp ladder and its first timed round."""
+    colours = {"nimbus": "tab:blue", "mitsuba": "tab:orange", "cycles": "tab:green"}
+    curves = [(r, colours[r], sorted(pts + result["rounds"][r][:1], key=lambda p: p["seconds"]))
+              for r, pts in result["ladder"].items()]
+    mse_chart(curves, path, result["scene"], "seconds (Nimbus: whole process; peers: render call only)")
 
 
 def previous_page():
