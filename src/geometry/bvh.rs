@@ -1180,6 +1180,8 @@ impl Tree {
         // Every slot is written, last in visiting order first, and the top advances past the hit ones only:
         // no branch depends on which children were hit.
         let order = node.order[r.octant & 7];
+        // Lanes read from an array: `Vec4` indexed by a run-time lane became a jump table per entry.
+        let near = near.to_array();
         for k in (0..4).rev() {
             let i = usize::from(order >> (2 * k) & 3);
             if !stack.write_top(((at * 4 + i) as u32, near[i])) {
