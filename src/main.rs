@@ -83,7 +83,8 @@ fn choice<T: Choice + Clone + Send + Sync>() -> impl clap::builder::TypedValuePa
 /// `--volume-sampling`: the distance-sampling strategies of media (Cycles' "volume sampling" names).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum VolumeSampling {
-    /// Distance sampling and, where it applies, equiangular sampling, combined by MIS.
+    /// Distance sampling and, where they apply, equiangular sampling (combined by MIS) and decoupled
+    /// direct-light sampling.
     Mis,
     /// Distance sampling alone.
     Distance,
@@ -243,7 +244,8 @@ struct RenderArgs {
     #[arg(long)]
     stats: Option<PathBuf>,
     /// Distance sampling in media: `mis` also samples segments through constant media equiangularly toward
-    /// point and spot lights, MIS'd with distance sampling; `distance` uses distance sampling alone.
+    /// point and spot lights, MIS'd with distance sampling, and estimates the other lights' direct light at a
+    /// distance decoupled from the path's (truncated to each segment); `distance` uses distance sampling alone.
     #[arg(long = "volume-sampling", value_enum, default_value = "mis")]
     volume_sampling: VolumeSampling,
     /// Where the paths' key random decisions come from: `sobol` (Owen-scrambled Sobol points, stratified per
@@ -1150,25 +1152,50 @@ fn create_parent(path: &Path) -> Result<(), String> {
 }
 
 /// `--explain`'s line on distance sampling in media: whether segments through constant media are also
-/// sampled equiangularly toward point and spot lights, and why (not).
+/// sampled equiangularly toward point and spot lights, whether the other lights' direct light is estimated at a
+/// decoupled distance on every segment, and why (not).
 fn explain_volume_sampling(scene: &Scene, sampling: VolumeSampling) {
     let nimbus::render::EquiangularTargets {
         constant_media: constant,
         point_lights: points,
+        decoupled_lights: others,
+        open_constant_media: open,
     } = nimbus::render::EquiangularTargets::of(scene);
     if constant == 0 {
         return;
     }
-    let choice = match (sampling, points) {
-        (VolumeSampling::Distance, _) => "distance sampling alone (--volume-sampling distance)".to_string(),
-        (_, 0) => "distance sampling alone: no point or spot light to sample toward".to_string(),
-        _ => format!(
-            "equiangular sampling toward {points} point/spot light(s), MIS'd with distance sampling \
-             (power heuristic): distance sampling alone scatters where the medium is dense, not where a \
-             small light is bright"
-        ),
-    };
-    eprintln!("nimbus: volume sampling in {constant} constant medium/media: {choice}");
+    let mut choices = Vec::new();
+    if sampling == VolumeSampling::Distance {
+        choices.push("distance sampling alone (--volume-sampling distance)".to_string());
+    } else {
+        if points > 0 {
+            choices.push(format!(
+                "equiangular sampling toward {points} point/spot light(s), MIS'd with distance sampling \
+                 (power heuristic): distance sampling alone scatters where the medium is dense, not where a \
+                 small light is bright"
+            ));
+        }
+        if others > 0 && open == 0 {
+            choices.push(format!(
+                "the direct light of {others} directional/area/environment light(s) estimated at collisions: \
+                 every constant medium is sealed by refracting surfaces, which shadow rays do not pass"
+            ));
+        } else if others > 0 {
+            choices.push(format!(
+                "the direct light of {others} directional/area/environment light(s) estimated on every \
+                 segment at a distance from the transmittance truncated to it (decoupled from the path's \
+                 collision, which estimates none): collisions alone reach only the 1 - T of segments that \
+                 collide"
+            ));
+        }
+        if choices.is_empty() {
+            choices.push("distance sampling alone: no light to sample toward".to_string());
+        }
+    }
+    eprintln!(
+        "nimbus: volume sampling in {constant} constant medium/media: {}",
+        choices.join("; ")
+    );
 }
 
 /// Warns about biased media, dropped and clamped samples, and writes the statistics if asked.

@@ -147,6 +147,7 @@ fn frame_settings(args: &RenderArgs, scene: &Scene) -> Result<RenderSettings, St
         time_limit,
         media_mis: true,
         equiangular: args.volume_sampling == VolumeSampling::Mis,
+        decoupled: args.volume_sampling == VolumeSampling::Mis,
         sampler: args.sampler,
         light_sampler: args.light_sampler,
         emitter_edges: args.emitter_edges,

@@ -5,9 +5,11 @@
 //! 1. the tag `nimbus scene hash 1`;
 //! 2. the bytes of the scene file (for the bundled demo, its embedded glTF and VDB);
 //! 3. the settings that change the image: width, height, seed, max depth, media MIS, equiangular sampling,
-//!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian; and,
-//!    unless `--guiding auto`, the tag `guiding`, the mode's name, the training iterations (the cache) and
-//!    whether guided Russian roulette is on (one byte);
+//!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian; the
+//!    tags `emitter-edges off` and `decoupled off` when those are off (so that the hashes of renders from
+//!    before them stay the same) and `transparent` for a transparent film; and, unless `--guiding auto`, the
+//!    tag `guiding`, the mode's name, the training iterations (the cache) and whether guided Russian roulette
+//!    is on (one byte);
 //! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
 //!    its name's UTF-8 bytes; the CLI also passes the frame, the shutter, the `--camera` name and, for a camera
 //!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
@@ -90,6 +92,7 @@ pub fn scene_hash(
         max_depth,
         media_mis,
         equiangular,
+        decoupled,
         sampler,
         light_sampler,
         emitter_edges,
@@ -121,6 +124,10 @@ pub fn scene_hash(
     // Only when off, so that the hashes of renders from before the setting existed stay the same.
     if *emitter_edges == crate::render::EmitterEdgeSampling::Off {
         h.field(b"emitter-edges off");
+    }
+    // Only when off, as `emitter_edges`.
+    if !*decoupled {
+        h.field(b"decoupled off");
     }
     // A transparent film leaves the environment out of the beauty (a scene asking for one does so in its bytes).
     if *transparent {
@@ -251,13 +258,14 @@ mod tests {
             assert_ne!(format!("{t:?}"), format!("{s:?}"), "unhashed change {i} changes nothing");
             assert_eq!(base, scene_hash(&[b"scene"], &t, &[]), "unhashed change {i}");
         }
-        let changes: [fn(&mut RenderSettings); 13] = [
+        let changes: [fn(&mut RenderSettings); 14] = [
             |s| s.width += 1,
             |s| s.height -= 1,
             |s| s.seed = 1,
             |s| s.max_depth = 3,
             |s| s.media_mis = !s.media_mis,
             |s| s.equiangular = !s.equiangular,
+            |s| s.decoupled = !s.decoupled,
             |s| s.sampler = crate::render::Sampler::Independent,
             |s| s.light_sampler = crate::light::LightSamplerChoice::Bvh,
             |s| s.emitter_edges = crate::render::EmitterEdgeSampling::Off,

@@ -12,6 +12,10 @@ pub struct RayCounters {
     /// Equiangular samples of segments through constant media toward point and spot lights (each also traces
     /// one shadow ray, counted in `shadow`).
     pub equiangular: u64,
+    /// Decoupled direct-light samples of segments through constant media, at a distance drawn from the
+    /// free-flight density truncated to the segment (each also traces one shadow ray per light sample, counted in
+    /// `shadow`).
+    pub decoupled: u64,
     /// Extra camera rays of emitter-edge supersampling (`nimbus::render::EmitterEdges`), which only look for
     /// the emission of the first surface they hit.
     pub emitter_edge: u64,
@@ -27,6 +31,7 @@ impl RayCounters {
         self.bounce += other.bounce;
         self.shadow += other.shadow;
         self.equiangular += other.equiangular;
+        self.decoupled += other.decoupled;
         self.emitter_edge += other.emitter_edge;
         self.split += other.split;
     }

@@ -233,6 +233,7 @@ mod tests {
             pixel_spread: 0.0,
             pixel_width: 0.0,
             equiangular: false,
+            decoupled: false,
             transparent: false,
             mattes: false,
             guided_roulette,

@@ -73,6 +73,11 @@ pub struct RenderSettings {
     /// Equiangular sampling toward point and spot lights on segments through constant media, MIS'd with
     /// distance sampling (Kulla & Fajardo 2012); off: distance sampling alone.
     pub equiangular: bool,
+    /// Decoupled direct light on segments through constant (homogeneous) scattering media: each segment also
+    /// estimates the direct light of every light at a distance drawn from the free-flight density truncated to
+    /// it, MIS'd with the estimate at the free-flight collision (Novák et al. 2018, §5); off: only at
+    /// collisions.
+    pub decoupled: bool,
     /// Where the path's key random decisions come from.
     pub sampler: Sampler,
     /// How next-event estimation chooses a light: by power, through the light BVH, or per scene (auto).
@@ -148,6 +153,7 @@ impl Default for RenderSettings {
             time_limit: None,
             media_mis: true,
             equiangular: true,
+            decoupled: true,
             sampler: Sampler::Sobol,
             light_sampler: LightSamplerChoice::Auto,
             emitter_edges: EmitterEdgeSampling::Auto,
@@ -1094,6 +1100,7 @@ impl Renderer {
             max_depth: s.max_depth,
             media_mis: s.media_mis,
             equiangular: PathTracer::uses_equiangular(s.equiangular, scene),
+            decoupled: PathTracer::uses_decoupled(s.decoupled, s.equiangular, scene),
             pixel_spread: scene.camera.pixel_spread_angle(s.height),
             pixel_width: scene.camera.pixel_width(s.height),
             transparent: self.transparent(scene),

@@ -236,13 +236,8 @@ impl Medium for HomogeneousMedium {
     fn collision(&self, _p: Vec3, _time: f32) -> Collision {
         // The weight σ_t T/p̄ multiplies by σ_t per channel, so the albedo here is σ_s/σ_t per channel and the
         // product is σ_s T/p̄, as the radiative transfer equation needs.
-        let albedo = Rgb::new(
-            ratio(self.sigma_s.x, self.sigma_t.x),
-            ratio(self.sigma_s.y, self.sigma_t.y),
-            ratio(self.sigma_s.z, self.sigma_t.z),
-        );
         Collision {
-            albedo,
+            albedo: albedo(self.sigma_s, self.sigma_t),
             emission: Rgb::ZERO,
             phase: self.phase,
         }
@@ -286,6 +281,15 @@ fn throughput_weights(throughput: Rgb) -> Rgb {
     } else {
         Rgb::splat(1.0 / 3.0)
     }
+}
+
+/// The scattering albedo σ_s/σ_t per channel, 0 where σ_t is 0.
+pub(crate) fn albedo(sigma_s: Rgb, sigma_t: Rgb) -> Rgb {
+    Rgb::new(
+        ratio(sigma_s.x, sigma_t.x),
+        ratio(sigma_s.y, sigma_t.y),
+        ratio(sigma_s.z, sigma_t.z),
+    )
 }
 
 fn ratio(a: f32, b: f32) -> f32 {

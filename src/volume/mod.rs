@@ -37,7 +37,8 @@ pub mod spec;
 pub mod tracking;
 pub mod velocity;
 
-use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
+use crate::math::sampling::TruncatedExponential;
+use crate::math::{Aabb, Ray, Rgb, Rng, Vec2, Vec3};
 use crate::params::{
     JsonParams, ParamDefault, ParamError, ParamKey, ParamRead, ParamType, UsdBinding,
 };
@@ -147,6 +148,59 @@ impl ConstantScattering {
             None => density.x,
             Some(choice) => density.dot(homogeneous::channel_weights(choice, throughput)),
         }
+    }
+
+    /// The path throughput after a real collision at `t` returned by [`Medium::free_flight`] for a path of
+    /// `throughput`, and the collision's albedo: `throughput` σ_s/σ_t for grey σ_t, else `throughput`
+    /// σ_s T(t) / p̄(t) with p̄ the spectral-MIS mixture ([`Self::free_flight_pdf`]).
+    pub fn throughput_at_collision(&self, t: f32, throughput: Rgb) -> Rgb {
+        let albedo = homogeneous::albedo(self.sigma_s, self.sigma_t);
+        if self.spectral_mis.is_none() {
+            return throughput * albedo;
+        }
+        let pdf = self.free_flight_pdf(t, throughput);
+        if pdf > 0.0 {
+            throughput * (self.sigma_t * self.transmittance(t) / pdf) * albedo
+        } else {
+            Rgb::ZERO
+        }
+    }
+
+    /// The channel mixture whose truncated exponentials [`Self::sample_in_segment`] draws from: the spectral-MIS
+    /// channel probabilities of a path of `throughput`, or channel 0 alone for grey σ_t.
+    fn segment_channels(&self, throughput: Rgb) -> Rgb {
+        match self.spectral_mis {
+            None => Rgb::new(1.0, 0.0, 0.0),
+            Some(choice) => homogeneous::channel_weights(choice, throughput),
+        }
+    }
+
+    /// A distance on a segment `[0, length]` from `u`, drawn from the free-flight density truncated to the
+    /// segment (Novák et al. 2018, §5: a point on every segment, where free flights collide with probability
+    /// 1 − T(length)), and its density ([`Self::segment_pdf`]): for chromatic σ_t a channel is chosen by `u.y`
+    /// as free flights choose it (throughput-proportional spectral MIS) and its truncated exponential sampled
+    /// by `u.x`. `None` for an unbounded or empty segment.
+    pub fn sample_in_segment(&self, u: Vec2, length: f32, throughput: Rgb) -> Option<(f32, f32)> {
+        let w = self.segment_channels(throughput);
+        let channel = if u.y < w.x {
+            0
+        } else if u.y < w.x + w.y {
+            1
+        } else {
+            2
+        };
+        let (t, _) = TruncatedExponential::new(self.sigma_t[channel], length)?.sample(u.x);
+        Some((t, self.segment_pdf(t, length, throughput)))
+    }
+
+    /// Density, per metre, of [`Self::sample_in_segment`] at `t`: the mixture Σ_c w_c σ_c e^{−σ_c t} /
+    /// (1 − e^{−σ_c length}) over the channel probabilities w_c (one term for grey σ_t).
+    pub fn segment_pdf(&self, t: f32, length: f32, throughput: Rgb) -> f32 {
+        let w = self.segment_channels(throughput);
+        (0..3)
+            .filter(|&c| w[c] > 0.0)
+            .filter_map(|c| TruncatedExponential::new(self.sigma_t[c], length).map(|d| w[c] * d.pdf(t)))
+            .sum()
     }
 }
 

@@ -249,9 +249,12 @@ fn homogeneous_sphere_transmittance_for_every_method() {
 
 /// Single scattering of a point light inside a homogeneous box, seen along one ray, against the quadrature of
 /// its closed-form integrand L = ∫ σ_s e^{−σ_t s} ρ_HG(μ(s)) I e^{−σ_t r(s)} / r(s)² ds (max depth 1, no other
-/// light). Both distance sampling alone and equiangular sampling MIS'd with it must match; the MIS must also
-/// cut the variance, as it exists to. Grey and chromatic media (the chromatic one exercises the spectral-MIS
-/// free-flight density in the MIS weights).
+/// light). Distance sampling alone, equiangular sampling MIS'd with it, and each with the decoupled sample on
+/// (which serves the point light in place of next-event estimation at the collision when equiangular sampling
+/// is off, and leaves it to equiangular sampling when on) must match; equiangular sampling must also cut the
+/// variance, as it exists to, and so must the decoupled sample against distance sampling alone. Grey and
+/// chromatic media (the chromatic one exercises the spectral-MIS free-flight densities in the MIS weights and
+/// the decoupled sample's channel mixture).
 #[test]
 fn single_scattering_of_a_point_light_matches_quadrature() {
     use nimbus::light::{Light, PointLight};
@@ -286,7 +289,8 @@ fn single_scattering_of_a_point_light_matches_quadrature() {
             }
         }
         let mut variances = Vec::new();
-        for equiangular in [false, true] {
+        for (equiangular, decoupled) in [(false, false), (true, false), (false, true), (true, true)]
+        {
             let mut b = SceneBuilder::default();
             let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
                 "box", sigma_a, sigma_s, g as f32,
@@ -310,30 +314,133 @@ fn single_scattering_of_a_point_light_matches_quadrature() {
                 threads: 2,
                 max_depth: 1,
                 equiangular,
+                decoupled,
                 ..Default::default()
             };
             let (img, stats) = nimbus::render::Renderer::new(settings)
                 .render(&b.build().unwrap(), &mut |_| true)
                 .unwrap();
             assert_eq!(stats.rays.equiangular > 0, equiangular, "{label}");
+            // With equiangular sampling on, the point light is its to serve, not the decoupled sample's.
+            assert_eq!(
+                stats.rays.decoupled > 0,
+                decoupled && !equiangular,
+                "{label}"
+            );
             let mut var = 0.0;
             for (c, &expected) in truth.iter().enumerate() {
                 let (mean, se) = common::mean_and_se(&img, c);
-                eprintln!(
-                    "{label} equiangular={equiangular} channel {c}: {mean:.6} ± {se:.6} vs {expected:.6}"
-                );
+                let name =
+                    format!("{label} equiangular={equiangular} decoupled={decoupled} channel {c}");
+                eprintln!("{name}: {mean:.6} ± {se:.6} vs {expected:.6}");
                 assert!(
                     (mean - expected).abs() < 4.0 * se,
-                    "{label} equiangular={equiangular} channel {c}: {mean} vs {expected} (se {se})"
+                    "{name}: {mean} vs {expected} (se {se})"
                 );
                 var += se * se;
             }
             variances.push(var);
         }
-        eprintln!(
-            "{label}: variance ratio distance/MIS {:.1}",
-            variances[0] / variances[1]
-        );
+        eprintln!("{label}: variances distance, MIS, decoupled, decoupled with MIS {variances:?}");
         assert!(variances[1] * 2.0 < variances[0], "{label}: {variances:?}");
+        assert!(variances[2] * 1.3 < variances[0], "{label}: {variances:?}");
+    }
+}
+
+/// Single scattering of the sun (a directional light) in a homogeneous box, seen along one ray, against the
+/// quadrature of L = ∫ σ_s e^{−σ_t s} ρ_HG(μ) E e^{−σ_t r(s)} ds, r(s) the distance from the ray's point at s to
+/// the box's boundary toward the sun (max depth 1, no other light). With and without the decoupled direct-light
+/// sample (a distance from the free-flight density truncated to the segment, in place of next-event estimation
+/// at the collision); in this thin box (optical depth 0.8 along the ray) the decoupled sample must also cut the
+/// variance, since every path estimates the direct light where only the 1 − e^{−0.8} = 55% that collide did.
+/// Grey and chromatic media.
+#[test]
+fn single_scattering_of_the_sun_matches_quadrature() {
+    use nimbus::light::{DirectionalLight, Light};
+    // The direction the light travels in: toward −x, down, and toward the camera.
+    let travel = Vec3::new(-1.0, -0.5, 0.3).normalize();
+    let irradiance = Rgb::new(2.0, 1.5, 1.0);
+    let g = 0.3;
+    for (label, sigma_a, sigma_s) in [
+        ("grey", Rgb::splat(0.1), Rgb::splat(0.3)),
+        (
+            "chromatic",
+            Rgb::new(0.05, 0.2, 0.4),
+            Rgb::new(0.4, 0.3, 0.2),
+        ),
+    ] {
+        let sigma_t = sigma_a + sigma_s;
+        // The ray runs from z = 1 (where it enters the box [−1, 1]³) to z = −1 along −z.
+        let to_sun = -travel.as_dvec3();
+        let exit = |x: DVec3| {
+            // Distance from x inside the box to its boundary along `to_sun` (slab by slab).
+            (0..3)
+                .filter(|&a| to_sun[a] != 0.0)
+                .map(|a| ((to_sun[a].signum() - x[a]) / to_sun[a]).max(0.0))
+                .fold(f64::INFINITY, f64::min)
+        };
+        // Deflection cosine between the light's travel and the scattered light's, toward the camera (+z).
+        let mu = travel.as_dvec3().dot(DVec3::new(0.0, 0.0, 1.0));
+        let phase = (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5));
+        let steps = 400_000;
+        let mut truth = [0.0f64; 3];
+        for i in 0..steps {
+            let s = (i as f64 + 0.5) / steps as f64 * 2.0;
+            let r = exit(DVec3::new(0.0, 0.0, 1.0 - s));
+            for c in 0..3 {
+                let st = sigma_t[c] as f64;
+                truth[c] += sigma_s[c] as f64
+                    * (-st * (s + r)).exp()
+                    * phase
+                    * irradiance[c] as f64
+                    * (2.0 / steps as f64);
+            }
+        }
+        let mut variances = Vec::new();
+        for decoupled in [false, true] {
+            let mut b = SceneBuilder::default();
+            let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
+                "box", sigma_a, sigma_s, g as f32,
+            )));
+            let mat = b.add_material(common::boundary(medium));
+            b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
+            b.add_light(Light::Directional(DirectionalLight {
+                direction: travel,
+                irradiance,
+            }));
+            b.set_camera(Camera::look_at(
+                Vec3::new(0.0, 0.0, 5.0),
+                Vec3::ZERO,
+                0.001f32.to_radians(),
+            ));
+            let settings = nimbus::render::RenderSettings {
+                width: 1,
+                height: 1,
+                spp: 40_000,
+                seed: 9,
+                threads: 2,
+                max_depth: 1,
+                decoupled,
+                ..Default::default()
+            };
+            let (img, stats) = nimbus::render::Renderer::new(settings)
+                .render(&b.build().unwrap(), &mut |_| true)
+                .unwrap();
+            assert_eq!(stats.rays.decoupled > 0, decoupled, "{label}");
+            let mut var = 0.0;
+            for (c, &expected) in truth.iter().enumerate() {
+                let (mean, se) = common::mean_and_se(&img, c);
+                let name = format!("{label} decoupled={decoupled} channel {c}");
+                eprintln!("{name}: {mean:.6} ± {se:.6} vs {expected:.6}");
+                assert!(
+                    (mean - expected).abs() < 4.0 * se,
+                    "{name}: {mean} vs {expected} (se {se})"
+                );
+                var += se * se;
+            }
+            variances.push(var);
+        }
+        eprintln!("{label}: variances without, with the decoupled sample {variances:?}");
+        assert!(variances[1] * 1.5 < variances[0], "{label}: {variances:?}");
     }
 }
