@@ -1742,6 +1742,56 @@ mod tests {
         );
     }
 
+    /// A class target met through an arc is composed with its target mapped back through that arc too (Pcp's
+    /// implied classes): /C inherits /A, so /C/D composes /A/D, whose specializes of /A/A is also /C/A, which
+    /// inherits /A; so /C/D composes /A with /C/D's path, and /A/D's target /A/A, pre-cached for the child /C/D/A,
+    /// maps onto /C/D/A itself (the fuzz target's `confirm-run2-55db2b7c`, reduced). Pixar's USD (usd-core
+    /// 26.11) composes the stage with no error in 0.02 s; `openusd` 0.6 overflowed its stack.
+    #[test]
+    fn pre_caching_composes_class_targets_mapped_back_through_the_arcs() {
+        let stage = "def \"C\" (inherits = </A>) { over \"A\" (inherits = </A>) {} }\n\
+                     def \"A\" { def \"D\" (specializes = </A/A>) {} }\n";
+        let err = precache_files("implied_site", &[("root.usda", stage)]).unwrap_err().to_string();
+        assert!(
+            err.contains("is a composition cycle for openusd 0.6") && err.contains("/C/A/D/A -> /C/A/D/A"),
+            "{err}"
+        );
+    }
+
+    /// A class target is a path of the layer stack that authors it, mapped into the stage through the arcs of
+    /// the author's ancestors: /D references the root layer's default prim /A, so /D/A's inherit of /A is an
+    /// inherit of /D, and /A/B's specializes of /D/A/A composes /D/A below /A/B; the target /D/A/A, pre-cached
+    /// for /A/B/A, maps onto /A/B/A itself (the fuzz target's `confirm-run2-6717a55a`, reduced). Pixar's USD
+    /// (usd-core 26.11) composes it with no error in 0.03 s; `openusd` 0.6 overflowed its stack.
+    #[test]
+    fn pre_caching_maps_class_targets_through_the_authors_ancestors() {
+        let stage = "(\n defaultPrim = \"A\"\n)\n\
+                     over \"D\" (references = @./root.usda@) { class \"A\" (inherits = </A>) {} }\n\
+                     def \"A\" { over \"B\" (specializes = </D/A/A>) {} }\n";
+        let err = precache_files("author_ancestors", &[("root.usda", stage)]).unwrap_err().to_string();
+        assert!(
+            err.contains("is a composition cycle for openusd 0.6") && err.contains("/A/B/A -> /A/B/A"),
+            "{err}"
+        );
+    }
+
+    /// The children a prim composes through its sites are pre-cached too (the fuzz target's
+    /// `confirm-run-33d695f0`, reduced): /D/A composes /C through its payload and /C composes /A through its own,
+    /// so /D/A/C holds /D/A/C/B, composed from /A/B, which inherits /A/C; mapped back, that target is
+    /// /D/A/C/B/C, whose own targets hold it again. No authored prim or once-mapped one leads there. Pixar's USD (usd-core 26.11) composes it with no
+    /// error in 0.04 s; `openusd` 0.6 overflowed its stack after 2.5 s (the stage unreduced: 9 s).
+    #[test]
+    fn pre_caching_starts_from_the_children_composed_through_arcs() {
+        let stage = "def \"A\" { def \"B\" (inherits = </A/C>) {} }\n\
+                     over \"C\" (payload = </A>) {}\n\
+                     def \"D\" { over \"A\" (payload = @./root.usda@</C>) { class \"C\" (inherits = </A>) {} } }\n";
+        let err = precache_files("composed_children", &[("root.usda", stage)]).unwrap_err().to_string();
+        assert!(
+            err.contains("is a composition cycle for openusd 0.6") && err.contains("/D/A/C/B/C -> /D/A/C/B/C"),
+            "{err}"
+        );
+    }
+
     #[test]
     fn pre_caching_follows_stage_paths_across_layer_stacks() {
         // A class inside a referenced asset, and a payload beside an inherit: targets that lead nowhere back.

@@ -47,6 +47,8 @@ pub(super) struct Precache {
     prims: Vec<String>,
     /// The deepest prim path authored or targeted, in path elements: sites deeper than twice this are left out.
     depth: usize,
+    /// The names of the children authored under each prim path, in any layer.
+    children: HashMap<String, Vec<String>>,
     /// Each prim's sites, once found.
     sites: HashMap<String, Vec<String>>,
     /// Each path's targets (and the arc that gives each), once found.
@@ -87,6 +89,7 @@ impl Precache {
             maps: HashMap::new(),
             prims: Vec::new(),
             depth: layers.deepest_path(),
+            children: HashMap::new(),
             sites: HashMap::new(),
             targets: HashMap::new(),
         };
@@ -95,6 +98,9 @@ impl Precache {
             for (path, prim) in &layer.prims {
                 if path != "/" && seen.insert(path.clone()) {
                     model.prims.push(path.clone());
+                    let name = &path[path.rfind('/').map_or(0, |at| at + 1)..];
+                    let children = model.children.entry(parent(path).to_owned()).or_default();
+                    children.push(name.to_owned());
                 }
                 for arc in &prim.arcs {
                     let target = match (arc.layer, arc.path.is_empty()) {
@@ -119,6 +125,27 @@ impl Precache {
                         });
                     }
                 }
+            }
+        }
+        // A class target is a path of the layer stack that authors it, which the arcs of the author's ancestors
+        // map into the stage (Pcp composes the class there): the prim's arc maps its namespace onto that path
+        // too. `openusd` adds the class node there and maps pre-cached targets through it.
+        let mut composed_targets = Vec::new();
+        for (at, arcs) in &model.class {
+            for arc in arcs {
+                for ancestor in ancestors(at).skip(1) {
+                    for from in model.maps.get(ancestor).into_iter().flatten() {
+                        if let Some(mapped) = map(&arc.target, from, ancestor) {
+                            composed_targets.push((at.clone(), mapped));
+                        }
+                    }
+                }
+            }
+        }
+        for (at, mapped) in composed_targets {
+            let maps = model.maps.entry(at).or_default();
+            if !maps.contains(&mapped) {
+                maps.push(mapped);
             }
         }
         // Prims composed through an arc are pre-cached too: each authored prim mapped once onto every prim
@@ -151,9 +178,18 @@ impl Precache {
         // Where the pre-caching starts: every prim, then the ancestors of every target followed, which
         // `openusd` composes before the target (each pre-caching its own targets as it is composed).
         let mut starts = self.prims.clone();
+        // The children each start composes through its sites are starts too (`openusd` composes each prim's
+        // children as the stage is read), each once, up to four per prim of the limit (the model's own work).
+        let mut started: HashSet<String> = starts.iter().cloned().collect();
+        let max_starts = usize::try_from(max_prims.saturating_mul(4)).unwrap_or(usize::MAX);
         let mut next_start = 0;
         while let Some(start) = starts.get(next_start).cloned() {
             next_start += 1;
+            for child in self.composed_children(&start) {
+                if started.len() < max_starts && started.insert(child.clone()) {
+                    starts.push(child);
+                }
+            }
             if counted.contains_key(&start) {
                 continue;
             }
@@ -191,28 +227,68 @@ impl Precache {
         Ok(())
     }
 
+    /// The children prim `path` composes through its sites: each child authored at one of them, named under
+    /// `path`, deeper paths than the sites' bound left out.
+    fn composed_children(&mut self, path: &str) -> Vec<String> {
+        let max_depth = 2 * self.depth + 2;
+        if depth(path) >= max_depth {
+            return Vec::new();
+        }
+        let mut children = Vec::new();
+        for site in self.sites_of(path) {
+            for child in self.children.get(&site).into_iter().flatten() {
+                let composed = if path == "/" {
+                    format!("/{child}")
+                } else {
+                    format!("{path}/{child}")
+                };
+                if !children.contains(&composed) {
+                    children.push(composed);
+                }
+            }
+        }
+        children
+    }
+
     /// The sites of prim `path`: itself, and the paths the arcs of it and its ancestors (in any of its sites)
     /// map onto it, in turn.
     fn sites_of(&mut self, path: &str) -> Vec<String> {
         if let Some(sites) = self.sites.get(path) {
             return sites.clone();
         }
+        // The sites of the path's strict ancestors, each with the ancestor: a class target inside one of them
+        // is composed at the ancestor too (mapped back through the arcs that led there).
+        let above: Vec<(String, Vec<String>)> = ancestors(path)
+            .skip(1)
+            .map(|ancestor| (ancestor.to_owned(), self.sites_of(ancestor)))
+            .collect();
+        let max_depth = 2 * self.depth + 2;
         let mut sites = vec![path.to_owned()];
         let mut seen = HashSet::from([path.to_owned()]);
         let mut next = 0;
         while let Some(site) = sites.get(next).cloned() {
             next += 1;
+            let mut found = Vec::new();
             for ancestor in ancestors(&site) {
                 for target in self.maps.get(ancestor).into_iter().flatten() {
-                    let Some(mapped) = map(&site, ancestor, target) else {
-                        continue;
-                    };
-                    if sites.len() < MAX_SITES
-                        && depth(&mapped) <= 2 * self.depth + 2
-                        && seen.insert(mapped.clone())
-                    {
-                        sites.push(mapped);
+                    found.extend(map(&site, ancestor, target));
+                }
+            }
+            // Pcp's implied classes: a class arc met at a site reached through arcs is also composed with its
+            // target mapped back through them, onto the path or an ancestor of it (`openusd` adds that node and
+            // the nodes of its own arcs to the index, and maps pre-cached targets through them).
+            for arc in self.class.get(&site).into_iter().flatten() {
+                for (ancestor, its_sites) in std::iter::once((path, &sites)).chain(
+                    above.iter().map(|(a, s)| (a.as_str(), s)),
+                ) {
+                    for from in its_sites.iter().filter(|s| *s != ancestor) {
+                        found.extend(map(&arc.target, from, ancestor));
                     }
+                }
+            }
+            for mapped in found {
+                if sites.len() < MAX_SITES && depth(&mapped) <= max_depth && seen.insert(mapped.clone()) {
+                    sites.push(mapped);
                 }
             }
         }
