@@ -23,6 +23,11 @@ use std::rc::Rc;
 /// it are left out (the stages the model guards against need a few).
 const MAX_SITES: usize = 4096;
 
+/// The most children composed through sites (beyond the authored and once-mapped prims) the model starts from:
+/// a bound on the model's own work, which grows with each level of children (the stages it guards against need
+/// a few). Those past it are left out, as sites past [`MAX_SITES`] are.
+const MAX_COMPOSED_CHILDREN: usize = 4096;
+
 /// An inherit or specialize arc: the prim that authors it, its kind, its target.
 #[derive(Clone)]
 struct ClassArc {
@@ -34,6 +39,9 @@ struct ClassArc {
 /// The targets pre-cached for a path, each with the arc that gives it.
 type Targets = Rc<[(String, ClassArc)]>;
 
+/// A prim's sites, in the order found, and as a set.
+type Sites = (Vec<String>, HashSet<String>);
+
 /// A path the model is following: its targets, how many have been taken, and the targets counted so far.
 type Frame = (String, Targets, usize, u64);
 
@@ -41,6 +49,8 @@ type Frame = (String, Targets, usize, u64);
 pub(super) struct Precache {
     /// Inherit and specialize arcs by the prim that authors them.
     class: HashMap<String, Vec<ClassArc>>,
+    /// The parents of the prims that author inherit and specialize arcs.
+    class_parents: HashSet<String>,
     /// Every arc as a namespace map, by the prim that authors it: the target paths it maps onto that prim.
     maps: HashMap<String, Vec<String>>,
     /// Every authored prim path, and each mapped once through an arc: where the pre-caching starts.
@@ -50,7 +60,7 @@ pub(super) struct Precache {
     /// The names of the children authored under each prim path, in any layer.
     children: HashMap<String, Vec<String>>,
     /// Each prim's sites, once found.
-    sites: HashMap<String, Vec<String>>,
+    sites: HashMap<String, Rc<Sites>>,
     /// Each path's targets (and the arc that gives each), once found.
     targets: HashMap<String, Targets>,
 }
@@ -86,6 +96,7 @@ impl Precache {
     pub(super) fn new(layers: &Layers) -> Self {
         let mut model = Self {
             class: HashMap::new(),
+            class_parents: HashSet::new(),
             maps: HashMap::new(),
             prims: Vec::new(),
             depth: layers.deepest_path(),
@@ -127,6 +138,7 @@ impl Precache {
                 }
             }
         }
+        model.class_parents = model.class.keys().map(|at| parent(at).to_owned()).collect();
         // A class target is a path of the layer stack that authors it, which the arcs of the author's ancestors
         // map into the stage (Pcp composes the class there): the prim's arc maps its namespace onto that path
         // too. `openusd` adds the class node there and maps pre-cached targets through it.
@@ -179,9 +191,9 @@ impl Precache {
         // `openusd` composes before the target (each pre-caching its own targets as it is composed).
         let mut starts = self.prims.clone();
         // The children each start composes through its sites are starts too (`openusd` composes each prim's
-        // children as the stage is read), each once, up to four per prim of the limit (the model's own work).
+        // children as the stage is read), each once, [`MAX_COMPOSED_CHILDREN`] of them at most.
         let mut started: HashSet<String> = starts.iter().cloned().collect();
-        let max_starts = usize::try_from(max_prims.saturating_mul(4)).unwrap_or(usize::MAX);
+        let max_starts = starts.len() + MAX_COMPOSED_CHILDREN;
         let mut next_start = 0;
         while let Some(start) = starts.get(next_start).cloned() {
             next_start += 1;
@@ -235,8 +247,8 @@ impl Precache {
             return Vec::new();
         }
         let mut children = Vec::new();
-        for site in self.sites_of(path) {
-            for child in self.children.get(&site).into_iter().flatten() {
+        for site in &self.sites_of(path).0 {
+            for child in self.children.get(site).into_iter().flatten() {
                 let composed = if path == "/" {
                     format!("/{child}")
                 } else {
@@ -252,13 +264,13 @@ impl Precache {
 
     /// The sites of prim `path`: itself, and the paths the arcs of it and its ancestors (in any of its sites)
     /// map onto it, in turn.
-    fn sites_of(&mut self, path: &str) -> Vec<String> {
+    fn sites_of(&mut self, path: &str) -> Rc<Sites> {
         if let Some(sites) = self.sites.get(path) {
             return sites.clone();
         }
         // The sites of the path's strict ancestors, each with the ancestor: a class target inside one of them
         // is composed at the ancestor too (mapped back through the arcs that led there).
-        let above: Vec<(String, Vec<String>)> = ancestors(path)
+        let above: Vec<(String, Rc<Sites>)> = ancestors(path)
             .skip(1)
             .map(|ancestor| (ancestor.to_owned(), self.sites_of(ancestor)))
             .collect();
@@ -277,12 +289,15 @@ impl Precache {
             // Pcp's implied classes: a class arc met at a site reached through arcs is also composed with its
             // target mapped back through them, onto the path or an ancestor of it (`openusd` adds that node and
             // the nodes of its own arcs to the index, and maps pre-cached targets through them).
+            // Only a site that is the target or holds it maps it: each of the target's ancestors looked up.
             for arc in self.class.get(&site).into_iter().flatten() {
-                for (ancestor, its_sites) in std::iter::once((path, &sites)).chain(
-                    above.iter().map(|(a, s)| (a.as_str(), s)),
-                ) {
-                    for from in its_sites.iter().filter(|s| *s != ancestor) {
-                        found.extend(map(&arc.target, from, ancestor));
+                for (ancestor, its_sites) in std::iter::once((path, &seen))
+                    .chain(above.iter().map(|(a, s)| (a.as_str(), &s.1)))
+                {
+                    for from in ancestors(&arc.target) {
+                        if from != ancestor && its_sites.contains(from) {
+                            found.extend(map(&arc.target, from, ancestor));
+                        }
                     }
                 }
             }
@@ -292,6 +307,7 @@ impl Precache {
                 }
             }
         }
+        let sites = Rc::new((sites, seen));
         self.sites.insert(path.to_owned(), sites.clone());
         sites
     }
@@ -309,16 +325,35 @@ impl Precache {
         let sites = self.sites_of(parent(path));
         // Each ancestor of the parent (the parent too) with its sites: a target inside a site maps back onto
         // the ancestor through the whole chain of arcs that led to the site.
-        let ancestor_sites: Vec<(String, Vec<String>)> = ancestors(parent(path))
+        let ancestor_sites: Vec<(String, Rc<Sites>)> = ancestors(parent(path))
             .map(|ancestor| (ancestor.to_owned(), self.sites_of(ancestor)))
             .collect();
+        // The arcs of the sites' ancestors as (target, ancestor) pairs, each once: a target inside the arc's
+        // target maps back onto the ancestor.
+        let mut scope_maps: Vec<(&str, &str)> = Vec::new();
+        let mut scope_seen = HashSet::new();
+        for scope in &sites.0 {
+            for ancestor in ancestors(scope) {
+                for from in self.maps.get(ancestor).into_iter().flatten() {
+                    if scope_seen.insert((from.as_str(), ancestor)) {
+                        scope_maps.push((from, ancestor));
+                    }
+                }
+            }
+        }
         let mut targets: Vec<(String, ClassArc)> = Vec::new();
+        let mut seen = HashSet::new();
         let mut add = |target: String, arc: &ClassArc| {
-            if !targets.iter().any(|(t, _)| *t == target) {
+            if seen.insert(target.clone()) {
                 targets.push((target, arc.clone()));
             }
         };
-        for site in &sites {
+        // Only sites that author a class arc, or whose child does, give targets: the others are passed over
+        // before a child path is made.
+        let relevant = sites.0.iter().filter(|site| {
+            self.class.contains_key(site.as_str()) || self.class_parents.contains(site.as_str())
+        });
+        for site in relevant {
             let child = if site == "/" {
                 format!("/{name}")
             } else {
@@ -327,19 +362,15 @@ impl Precache {
             for at in [site.as_str(), child.as_str()] {
                 for arc in self.class.get(at).into_iter().flatten() {
                     add(arc.target.clone(), arc);
-                    for scope in &sites {
-                        for ancestor in ancestors(scope) {
-                            for from in self.maps.get(ancestor).into_iter().flatten() {
-                                if let Some(mapped) = map(&arc.target, from, ancestor) {
-                                    add(mapped, arc);
-                                }
-                            }
+                    for &(from, ancestor) in &scope_maps {
+                        if let Some(mapped) = map(&arc.target, from, ancestor) {
+                            add(mapped, arc);
                         }
                     }
                     for (ancestor, its_sites) in &ancestor_sites {
-                        for site in its_sites.iter().filter(|s| *s != ancestor) {
-                            if let Some(mapped) = map(&arc.target, site, ancestor) {
-                                add(mapped, arc);
+                        for site in ancestors(&arc.target) {
+                            if site != ancestor && its_sites.1.contains(site) {
+                                add(map(&arc.target, site, ancestor).expect("inside"), arc);
                             }
                         }
                     }
