@@ -23,6 +23,11 @@ use std::rc::Rc;
 /// it are left out (the stages the model guards against need a few).
 const MAX_SITES: usize = 4096;
 
+/// The most children composed through sites (beyond the authored and once-mapped prims) the model starts from:
+/// a bound on the model's own work, which grows with each level of children (the stages it guards against need
+/// a few). Those past it are left out, as sites past [`MAX_SITES`] are.
+const MAX_COMPOSED_CHILDREN: usize = 4096;
+
 /// An inherit or specialize arc: the prim that authors it, its kind, its target.
 #[derive(Clone)]
 struct ClassArc {
@@ -34,6 +39,9 @@ struct ClassArc {
 /// The targets pre-cached for a path, each with the arc that gives it.
 type Targets = Rc<[(String, ClassArc)]>;
 
+/// A prim's sites, in the order found, and as a set.
+type Sites = (Vec<String>, HashSet<String>);
+
 /// A path the model is following: its targets, how many have been taken, and the targets counted so far.
 type Frame = (String, Targets, usize, u64);
 
@@ -41,14 +49,18 @@ type Frame = (String, Targets, usize, u64);
 pub(super) struct Precache {
     /// Inherit and specialize arcs by the prim that authors them.
     class: HashMap<String, Vec<ClassArc>>,
+    /// The parents of the prims that author inherit and specialize arcs.
+    class_parents: HashSet<String>,
     /// Every arc as a namespace map, by the prim that authors it: the target paths it maps onto that prim.
     maps: HashMap<String, Vec<String>>,
     /// Every authored prim path, and each mapped once through an arc: where the pre-caching starts.
     prims: Vec<String>,
     /// The deepest prim path authored or targeted, in path elements: sites deeper than twice this are left out.
     depth: usize,
+    /// The names of the children authored under each prim path, in any layer.
+    children: HashMap<String, Vec<String>>,
     /// Each prim's sites, once found.
-    sites: HashMap<String, Vec<String>>,
+    sites: HashMap<String, Rc<Sites>>,
     /// Each path's targets (and the arc that gives each), once found.
     targets: HashMap<String, Targets>,
 }
@@ -84,9 +96,11 @@ impl Precache {
     pub(super) fn new(layers: &Layers) -> Self {
         let mut model = Self {
             class: HashMap::new(),
+            class_parents: HashSet::new(),
             maps: HashMap::new(),
             prims: Vec::new(),
             depth: layers.deepest_path(),
+            children: HashMap::new(),
             sites: HashMap::new(),
             targets: HashMap::new(),
         };
@@ -95,6 +109,9 @@ impl Precache {
             for (path, prim) in &layer.prims {
                 if path != "/" && seen.insert(path.clone()) {
                     model.prims.push(path.clone());
+                    let name = &path[path.rfind('/').map_or(0, |at| at + 1)..];
+                    let children = model.children.entry(parent(path).to_owned()).or_default();
+                    children.push(name.to_owned());
                 }
                 for arc in &prim.arcs {
                     let target = match (arc.layer, arc.path.is_empty()) {
@@ -119,6 +136,28 @@ impl Precache {
                         });
                     }
                 }
+            }
+        }
+        model.class_parents = model.class.keys().map(|at| parent(at).to_owned()).collect();
+        // A class target is a path of the layer stack that authors it, which the arcs of the author's ancestors
+        // map into the stage (Pcp composes the class there): the prim's arc maps its namespace onto that path
+        // too. `openusd` adds the class node there and maps pre-cached targets through it.
+        let mut composed_targets = Vec::new();
+        for (at, arcs) in &model.class {
+            for arc in arcs {
+                for ancestor in ancestors(at).skip(1) {
+                    for from in model.maps.get(ancestor).into_iter().flatten() {
+                        if let Some(mapped) = map(&arc.target, from, ancestor) {
+                            composed_targets.push((at.clone(), mapped));
+                        }
+                    }
+                }
+            }
+        }
+        for (at, mapped) in composed_targets {
+            let maps = model.maps.entry(at).or_default();
+            if !maps.contains(&mapped) {
+                maps.push(mapped);
             }
         }
         // Prims composed through an arc are pre-cached too: each authored prim mapped once onto every prim
@@ -151,9 +190,18 @@ impl Precache {
         // Where the pre-caching starts: every prim, then the ancestors of every target followed, which
         // `openusd` composes before the target (each pre-caching its own targets as it is composed).
         let mut starts = self.prims.clone();
+        // The children each start composes through its sites are starts too (`openusd` composes each prim's
+        // children as the stage is read), each once, [`MAX_COMPOSED_CHILDREN`] of them at most.
+        let mut started: HashSet<String> = starts.iter().cloned().collect();
+        let max_starts = starts.len() + MAX_COMPOSED_CHILDREN;
         let mut next_start = 0;
         while let Some(start) = starts.get(next_start).cloned() {
             next_start += 1;
+            for child in self.composed_children(&start) {
+                if started.len() < max_starts && started.insert(child.clone()) {
+                    starts.push(child);
+                }
+            }
             if counted.contains_key(&start) {
                 continue;
             }
@@ -191,31 +239,75 @@ impl Precache {
         Ok(())
     }
 
+    /// The children prim `path` composes through its sites: each child authored at one of them, named under
+    /// `path`, deeper paths than the sites' bound left out.
+    fn composed_children(&mut self, path: &str) -> Vec<String> {
+        let max_depth = 2 * self.depth + 2;
+        if depth(path) >= max_depth {
+            return Vec::new();
+        }
+        let mut children = Vec::new();
+        for site in &self.sites_of(path).0 {
+            for child in self.children.get(site).into_iter().flatten() {
+                let composed = if path == "/" {
+                    format!("/{child}")
+                } else {
+                    format!("{path}/{child}")
+                };
+                if !children.contains(&composed) {
+                    children.push(composed);
+                }
+            }
+        }
+        children
+    }
+
     /// The sites of prim `path`: itself, and the paths the arcs of it and its ancestors (in any of its sites)
     /// map onto it, in turn.
-    fn sites_of(&mut self, path: &str) -> Vec<String> {
+    fn sites_of(&mut self, path: &str) -> Rc<Sites> {
         if let Some(sites) = self.sites.get(path) {
             return sites.clone();
         }
+        // The sites of the path's strict ancestors, each with the ancestor: a class target inside one of them
+        // is composed at the ancestor too (mapped back through the arcs that led there).
+        let above: Vec<(String, Rc<Sites>)> = ancestors(path)
+            .skip(1)
+            .map(|ancestor| (ancestor.to_owned(), self.sites_of(ancestor)))
+            .collect();
+        let max_depth = 2 * self.depth + 2;
         let mut sites = vec![path.to_owned()];
         let mut seen = HashSet::from([path.to_owned()]);
         let mut next = 0;
         while let Some(site) = sites.get(next).cloned() {
             next += 1;
+            let mut found = Vec::new();
             for ancestor in ancestors(&site) {
                 for target in self.maps.get(ancestor).into_iter().flatten() {
-                    let Some(mapped) = map(&site, ancestor, target) else {
-                        continue;
-                    };
-                    if sites.len() < MAX_SITES
-                        && depth(&mapped) <= 2 * self.depth + 2
-                        && seen.insert(mapped.clone())
-                    {
-                        sites.push(mapped);
+                    found.extend(map(&site, ancestor, target));
+                }
+            }
+            // Pcp's implied classes: a class arc met at a site reached through arcs is also composed with its
+            // target mapped back through them, onto the path or an ancestor of it (`openusd` adds that node and
+            // the nodes of its own arcs to the index, and maps pre-cached targets through them).
+            // Only a site that is the target or holds it maps it: each of the target's ancestors looked up.
+            for arc in self.class.get(&site).into_iter().flatten() {
+                for (ancestor, its_sites) in std::iter::once((path, &seen))
+                    .chain(above.iter().map(|(a, s)| (a.as_str(), &s.1)))
+                {
+                    for from in ancestors(&arc.target) {
+                        if from != ancestor && its_sites.contains(from) {
+                            found.extend(map(&arc.target, from, ancestor));
+                        }
                     }
                 }
             }
+            for mapped in found {
+                if sites.len() < MAX_SITES && depth(&mapped) <= max_depth && seen.insert(mapped.clone()) {
+                    sites.push(mapped);
+                }
+            }
         }
+        let sites = Rc::new((sites, seen));
         self.sites.insert(path.to_owned(), sites.clone());
         sites
     }
@@ -233,16 +325,35 @@ impl Precache {
         let sites = self.sites_of(parent(path));
         // Each ancestor of the parent (the parent too) with its sites: a target inside a site maps back onto
         // the ancestor through the whole chain of arcs that led to the site.
-        let ancestor_sites: Vec<(String, Vec<String>)> = ancestors(parent(path))
+        let ancestor_sites: Vec<(String, Rc<Sites>)> = ancestors(parent(path))
             .map(|ancestor| (ancestor.to_owned(), self.sites_of(ancestor)))
             .collect();
+        // The arcs of the sites' ancestors as (target, ancestor) pairs, each once: a target inside the arc's
+        // target maps back onto the ancestor.
+        let mut scope_maps: Vec<(&str, &str)> = Vec::new();
+        let mut scope_seen = HashSet::new();
+        for scope in &sites.0 {
+            for ancestor in ancestors(scope) {
+                for from in self.maps.get(ancestor).into_iter().flatten() {
+                    if scope_seen.insert((from.as_str(), ancestor)) {
+                        scope_maps.push((from, ancestor));
+                    }
+                }
+            }
+        }
         let mut targets: Vec<(String, ClassArc)> = Vec::new();
+        let mut seen = HashSet::new();
         let mut add = |target: String, arc: &ClassArc| {
-            if !targets.iter().any(|(t, _)| *t == target) {
+            if seen.insert(target.clone()) {
                 targets.push((target, arc.clone()));
             }
         };
-        for site in &sites {
+        // Only sites that author a class arc, or whose child does, give targets: the others are passed over
+        // before a child path is made.
+        let relevant = sites.0.iter().filter(|site| {
+            self.class.contains_key(site.as_str()) || self.class_parents.contains(site.as_str())
+        });
+        for site in relevant {
             let child = if site == "/" {
                 format!("/{name}")
             } else {
@@ -251,19 +362,15 @@ impl Precache {
             for at in [site.as_str(), child.as_str()] {
                 for arc in self.class.get(at).into_iter().flatten() {
                     add(arc.target.clone(), arc);
-                    for scope in &sites {
-                        for ancestor in ancestors(scope) {
-                            for from in self.maps.get(ancestor).into_iter().flatten() {
-                                if let Some(mapped) = map(&arc.target, from, ancestor) {
-                                    add(mapped, arc);
-                                }
-                            }
+                    for &(from, ancestor) in &scope_maps {
+                        if let Some(mapped) = map(&arc.target, from, ancestor) {
+                            add(mapped, arc);
                         }
                     }
                     for (ancestor, its_sites) in &ancestor_sites {
-                        for site in its_sites.iter().filter(|s| *s != ancestor) {
-                            if let Some(mapped) = map(&arc.target, site, ancestor) {
-                                add(mapped, arc);
+                        for site in ancestors(&arc.target) {
+                            if site != ancestor && its_sites.1.contains(site) {
+                                add(map(&arc.target, site, ancestor).expect("inside"), arc);
                             }
                         }
                     }
