@@ -57,7 +57,7 @@ use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::guiding::adjoint::{self, Roulette};
 use crate::guiding::{GuidePath, ProductGuide};
-use crate::light::LightContext;
+use crate::light::{LightContext, LightSample};
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
 use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
 use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
@@ -186,6 +186,53 @@ pub struct PathContext<'a, 's> {
     pub rng: &'a mut Rng,
     /// The work counters the path adds to.
     pub counters: &'a mut PathCounters,
+}
+
+/// A point inside media that scatters light toward the ray's origin: where the three in-medium direct-light
+/// estimates (next-event estimation at a collision, the equiangular and the decoupled samples) evaluate a light
+/// sample.
+struct ScatterPoint<'a> {
+    /// The point, on the ray.
+    p: Vec3,
+    /// The direction back along the ray.
+    wo: Vec3,
+    /// The ray's time, for moving media and geometry.
+    time: f32,
+    /// The media the point lies in, where shadow rays start.
+    stack: &'a MediumStack,
+}
+
+impl<'a> ScatterPoint<'a> {
+    /// The point `p` on `ray`, inside the media of `stack`.
+    fn on(ray: &Ray, p: Vec3, stack: &'a MediumStack) -> Self {
+        Self {
+            p,
+            wo: -ray.dir,
+            time: ray.time,
+            stack,
+        }
+    }
+
+    /// One light sample's unweighted in-scattering here: the phase function's value ρ(ωo, ωi) toward the sample
+    /// and the transmittance of its shadow segment (the radiative transfer equation's in-scattering integrand
+    /// without σ_s, L_i and the sample's pdf, which each estimate weighs its own way). None where either is
+    /// zero; no shadow ray is traced where the phase function is zero.
+    fn lit_by(
+        &self,
+        services: &RendererServices,
+        phase: &PhaseFunction,
+        sample: &LightSample,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> Option<(f32, Rgb)> {
+        let value = phase.eval(self.wo, sample.wi);
+        let shadow = sample.shadow_segment(&SurfacePoint::free(self.p))?;
+        if value <= 0.0 {
+            return None;
+        }
+        let tr = services.transmittance(&shadow, self.time, self.stack, rng, counters);
+        (tr.max_element() > 0.0).then_some((value, tr))
+    }
 }
 
 /// A segment inside exactly one medium of constant coefficients, whose direct light is estimated at up to three
@@ -933,17 +980,15 @@ impl PathTracer {
         };
         let ls = chosen.sample;
         let coefficients = &segment.coefficients;
-        let phase = coefficients.phase.eval(-ray.dir, ls.wi);
-        let Some(shadow) = ls.shadow_segment(&SurfacePoint::free(p)) else {
+        let Some((phase, tr)) = ScatterPoint::on(ray, p, &s.onward.stack).lit_by(
+            services,
+            &coefficients.phase,
+            &ls,
+            cx.rng,
+            cx.counters,
+        ) else {
             return;
         };
-        if phase <= 0.0 {
-            return;
-        }
-        let tr = services.transmittance(&shadow, ray.time, &s.onward.stack, cx.rng, cx.counters);
-        if tr.max_element() <= 0.0 {
-            return;
-        }
         let weight = power_heuristic(pdf, coefficients.free_flight_pdf(t, segment.throughput));
         let transmittance = coefficients.transmittance(t);
         let value = segment.throughput
@@ -998,17 +1043,15 @@ impl PathTracer {
                 return;
             }
             let ls = chosen.sample;
-            let phase = c.phase.eval(wo, ls.wi);
-            let Some(shadow) = ls.shadow_segment(&SurfacePoint::free(p)) else {
+            let Some((phase, tr)) = ScatterPoint::on(ray, p, &s.onward.stack).lit_by(
+                services,
+                &c.phase,
+                &ls,
+                rng,
+                cx.counters,
+            ) else {
                 return;
             };
-            if phase <= 0.0 {
-                return;
-            }
-            let tr = services.transmittance(&shadow, ray.time, &s.onward.stack, rng, cx.counters);
-            if tr.max_element() <= 0.0 {
-                return;
-            }
             let light_pdf = chosen.pmf * ls.pdf;
             let weight = if ls.is_delta || !self.media_mis {
                 1.0
@@ -1570,7 +1613,6 @@ impl PathTracer {
     ) {
         let services = cx.services;
         let scene = services.scene();
-        let wo = -ray.dir;
         let ctx = LightContext {
             p: ray.at(t),
             n: None,
@@ -1586,24 +1628,25 @@ impl PathTracer {
                 return;
             }
             let ls = chosen.sample;
-            let phase = phase.eval(wo, ls.wi);
-            let segment = ls.shadow_segment(&SurfacePoint::free(ctx.p));
-            if let (true, Some(segment)) = (phase > 0.0, segment) {
-                let tr =
-                    services.transmittance(&segment, ray.time, &s.onward.stack, rng, cx.counters);
-                if tr.max_element() > 0.0 {
-                    let light_pdf = chosen.pmf * ls.pdf;
-                    let weight = if ls.is_delta {
-                        self.equiangular_weight(services, s, t, chosen.index)
-                    } else if !self.media_mis {
-                        1.0
-                    } else {
-                        power_heuristic(light_pdf, direction_pdf(ls.wi))
-                    };
-                    let value = s.onward.beta * tr * ls.radiance * (phase * weight / light_pdf);
-                    s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
-                }
-            }
+            let Some((phase, tr)) = ScatterPoint::on(ray, ctx.p, &s.onward.stack).lit_by(
+                services,
+                phase,
+                &ls,
+                rng,
+                cx.counters,
+            ) else {
+                return;
+            };
+            let light_pdf = chosen.pmf * ls.pdf;
+            let weight = if ls.is_delta {
+                self.equiangular_weight(services, s, t, chosen.index)
+            } else if !self.media_mis {
+                1.0
+            } else {
+                power_heuristic(light_pdf, direction_pdf(ls.wi))
+            };
+            let value = s.onward.beta * tr * ls.radiance * (phase * weight / light_pdf);
+            s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
         });
     }
 
