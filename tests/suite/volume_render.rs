@@ -137,15 +137,8 @@ fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 /// the environment behind x. Evaluated by Gauss–Legendre quadrature in s and in cos θ about d, and the
 /// (periodic) trapezoid rule in azimuth: a reference independent of the renderer's sampling.
 fn single_scattering_radiance(origin: DVec3, d: DVec3, sigma_s: f64, g: f64) -> f64 {
-    let to_surface = |x: DVec3, u: DVec3| {
-        (0..3)
-            .filter(|&i| u[i] != 0.0)
-            .map(|i| ((u[i].signum() - x[i]) / u[i]).max(0.0))
-            .fold(f64::INFINITY, f64::min)
-    };
     let entry = origin + d * ((1.0 - origin.z) / d.z);
-    let chord = to_surface(entry, d);
-    let hg = |c: f64| (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * c).powf(1.5));
+    let chord = distance_out_of_box(entry, d);
     let e1 = d.any_orthonormal_vector();
     let e2 = d.cross(e1);
     let (along, cosines, azimuths) = (gauss_legendre(24), gauss_legendre(48), 96);
@@ -160,11 +153,11 @@ fn single_scattering_radiance(origin: DVec3, d: DVec3, sigma_s: f64, g: f64) -> 
                 .map(|k| {
                     let phi = 2.0 * PI * k as f64 / azimuths as f64;
                     let u = d * c + (e1 * phi.cos() + e2 * phi.sin()) * r;
-                    (-sigma_s * to_surface(x, u)).exp()
+                    (-sigma_s * distance_out_of_box(x, u)).exp()
                 })
                 .sum::<f64>()
                 * (2.0 * PI / azimuths as f64);
-            inscattered += wc * hg(c) * ring;
+            inscattered += wc * henyey_greenstein(g, c) * ring;
         }
         scattered += 0.5 * chord * ws * sigma_s * (-sigma_s * s).exp() * inscattered;
     }
@@ -247,6 +240,91 @@ fn homogeneous_sphere_transmittance_for_every_method() {
     }
 }
 
+/// The distance from `x` inside the box [−1, 1]³ to its boundary along the unit direction `u`, slab by slab.
+fn distance_out_of_box(x: DVec3, u: DVec3) -> f64 {
+    (0..3)
+        .filter(|&i| u[i] != 0.0)
+        .map(|i| ((u[i].signum() - x[i]) / u[i]).max(0.0))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The Henyey–Greenstein phase function at deflection cosine `mu`.
+fn henyey_greenstein(g: f64, mu: f64) -> f64 {
+    (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
+}
+
+/// Midpoint quadrature of the single scattering seen along the ray from z = 1 to z = −1 through the box
+/// [−1, 1]³ (toward a camera on +z): L_c = ∫₀² σ_s,c e^{−σ_t,c (s + r(x))} w(x) E_c ds at x = (0, 0, 1 − s), where
+/// `light_at(x)` gives r(x), the distance the light travels inside the medium to x, and w(x), the phase function
+/// toward the camera times the light's falloff (1/r² for a point light, 1 for the sun), and E is `emitted`.
+fn single_scattering_quadrature(
+    sigma_a: Rgb,
+    sigma_s: Rgb,
+    emitted: Rgb,
+    light_at: impl Fn(DVec3) -> (f64, f64),
+) -> [f64; 3] {
+    let sigma_t = sigma_a + sigma_s;
+    let steps = 400_000;
+    let mut truth = [0.0f64; 3];
+    for i in 0..steps {
+        let s = (i as f64 + 0.5) / steps as f64 * 2.0;
+        let (r, w) = light_at(DVec3::new(0.0, 0.0, 1.0 - s));
+        for c in 0..3 {
+            truth[c] += sigma_s[c] as f64
+                * (-(sigma_t[c] as f64) * (s + r)).exp()
+                * w
+                * emitted[c] as f64
+                * (2.0 / steps as f64);
+        }
+    }
+    truth
+}
+
+/// Renders the one pixel of [`single_scattering_quadrature`]'s ray (a camera on +z with a tiny field of view,
+/// 40,000 spp, max depth 1) through the homogeneous box lit by `light` alone, with the in-medium sampling of
+/// `settings`, and checks each channel's mean within 4 standard errors of `truth`. Returns the statistics and
+/// the image's variance (the sum of the channels' squared standard errors).
+fn render_single_scattering(
+    label: &str,
+    medium: HomogeneousMedium,
+    light: nimbus::light::Light,
+    settings: nimbus::render::RenderSettings,
+    truth: [f64; 3],
+) -> (RenderStats, f64) {
+    let mut b = SceneBuilder::default();
+    let medium = b.add_medium(Arc::new(medium));
+    let mat = b.add_material(common::boundary(medium));
+    b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
+    b.add_light(light);
+    b.set_camera(Camera::look_at(
+        Vec3::new(0.0, 0.0, 5.0),
+        Vec3::ZERO,
+        0.001f32.to_radians(),
+    ));
+    let settings = nimbus::render::RenderSettings {
+        width: 1,
+        height: 1,
+        spp: 40_000,
+        threads: 2,
+        max_depth: 1,
+        ..settings
+    };
+    let (img, stats) = nimbus::render::Renderer::new(settings)
+        .render(&b.build().unwrap(), &mut |_| true)
+        .unwrap();
+    let mut variance = 0.0;
+    for (c, &expected) in truth.iter().enumerate() {
+        let (mean, se) = common::mean_and_se(&img, c);
+        eprintln!("{label} channel {c}: {mean:.6} ± {se:.6} vs {expected:.6}");
+        assert!(
+            (mean - expected).abs() < 4.0 * se,
+            "{label} channel {c}: {mean} vs {expected} (se {se})"
+        );
+        variance += se * se;
+    }
+    (stats, variance)
+}
+
 /// Single scattering of a point light inside a homogeneous box, seen along one ray, against the quadrature of
 /// its closed-form integrand L = ∫ σ_s e^{−σ_t s} ρ_HG(μ(s)) I e^{−σ_t r(s)} / r(s)² ds (max depth 1, no other
 /// light). Distance sampling alone, equiangular sampling MIS'd with it, and each with the decoupled sample on
@@ -269,77 +347,40 @@ fn single_scattering_of_a_point_light_matches_quadrature() {
             Rgb::new(0.5, 0.4, 0.3),
         ),
     ] {
-        let sigma_t = sigma_a + sigma_s;
-        // The ray runs from z = 1 (where it enters the box) to z = −1 along −z.
-        let steps = 400_000;
-        let mut truth = [0.0f64; 3];
-        for i in 0..steps {
-            let s = (i as f64 + 0.5) / steps as f64 * 2.0;
-            let x = DVec3::new(0.0, 0.0, 1.0 - s);
+        let truth = single_scattering_quadrature(sigma_a, sigma_s, intensity, |x| {
             let to_light = light.as_dvec3() - x;
             let r = to_light.length();
-            // Deflection cosine between the light's travel (−wi) and the ray's (−z toward the camera... d·wi).
+            // Deflection cosine between the light's travel (from the light to x) and the camera's direction (+z).
             let mu = -to_light.z / r;
-            let phase = (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5));
-            for c in 0..3 {
-                let st = sigma_t[c] as f64;
-                truth[c] += sigma_s[c] as f64 * (-st * (s + r)).exp() * phase * intensity[c] as f64
-                    / (r * r)
-                    * (2.0 / steps as f64);
-            }
-        }
+            (r, henyey_greenstein(g, mu) / (r * r))
+        });
         let mut variances = Vec::new();
         for (equiangular, decoupled) in [(false, false), (true, false), (false, true), (true, true)]
         {
-            let mut b = SceneBuilder::default();
-            let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
-                "box", sigma_a, sigma_s, g as f32,
-            )));
-            let mat = b.add_material(common::boundary(medium));
-            b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
-            b.add_light(Light::Point(PointLight {
-                position: light,
-                intensity,
-            }));
-            b.set_camera(Camera::look_at(
-                Vec3::new(0.0, 0.0, 5.0),
-                Vec3::ZERO,
-                0.001f32.to_radians(),
-            ));
-            let settings = nimbus::render::RenderSettings {
-                width: 1,
-                height: 1,
-                spp: 40_000,
-                seed: 5,
-                threads: 2,
-                max_depth: 1,
-                equiangular,
-                decoupled,
-                ..Default::default()
-            };
-            let (img, stats) = nimbus::render::Renderer::new(settings)
-                .render(&b.build().unwrap(), &mut |_| true)
-                .unwrap();
-            assert_eq!(stats.rays.equiangular > 0, equiangular, "{label}");
+            let name = format!("{label} equiangular={equiangular} decoupled={decoupled}");
+            let (stats, variance) = render_single_scattering(
+                &name,
+                HomogeneousMedium::new("box", sigma_a, sigma_s, g as f32),
+                Light::Point(PointLight {
+                    position: light,
+                    intensity,
+                }),
+                nimbus::render::RenderSettings {
+                    seed: 5,
+                    equiangular,
+                    decoupled,
+                    ..Default::default()
+                },
+                truth,
+            );
+            assert_eq!(stats.rays.equiangular > 0, equiangular, "{name}");
             // With equiangular sampling on, the point light is its to serve, not the decoupled sample's.
             assert_eq!(
                 stats.rays.decoupled > 0,
                 decoupled && !equiangular,
-                "{label}"
+                "{name}"
             );
-            let mut var = 0.0;
-            for (c, &expected) in truth.iter().enumerate() {
-                let (mean, se) = common::mean_and_se(&img, c);
-                let name =
-                    format!("{label} equiangular={equiangular} decoupled={decoupled} channel {c}");
-                eprintln!("{name}: {mean:.6} ± {se:.6} vs {expected:.6}");
-                assert!(
-                    (mean - expected).abs() < 4.0 * se,
-                    "{name}: {mean} vs {expected} (se {se})"
-                );
-                var += se * se;
-            }
-            variances.push(var);
+            variances.push(variance);
         }
         eprintln!("{label}: variances distance, MIS, decoupled, decoupled with MIS {variances:?}");
         assert!(variances[1] * 2.0 < variances[0], "{label}: {variances:?}");
@@ -369,76 +410,31 @@ fn single_scattering_of_the_sun_matches_quadrature() {
             Rgb::new(0.4, 0.3, 0.2),
         ),
     ] {
-        let sigma_t = sigma_a + sigma_s;
-        // The ray runs from z = 1 (where it enters the box [−1, 1]³) to z = −1 along −z.
         let to_sun = -travel.as_dvec3();
-        let exit = |x: DVec3| {
-            // Distance from x inside the box to its boundary along `to_sun` (slab by slab).
-            (0..3)
-                .filter(|&a| to_sun[a] != 0.0)
-                .map(|a| ((to_sun[a].signum() - x[a]) / to_sun[a]).max(0.0))
-                .fold(f64::INFINITY, f64::min)
-        };
-        // Deflection cosine between the light's travel and the scattered light's, toward the camera (+z).
-        let mu = travel.as_dvec3().dot(DVec3::new(0.0, 0.0, 1.0));
-        let phase = (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5));
-        let steps = 400_000;
-        let mut truth = [0.0f64; 3];
-        for i in 0..steps {
-            let s = (i as f64 + 0.5) / steps as f64 * 2.0;
-            let r = exit(DVec3::new(0.0, 0.0, 1.0 - s));
-            for c in 0..3 {
-                let st = sigma_t[c] as f64;
-                truth[c] += sigma_s[c] as f64
-                    * (-st * (s + r)).exp()
-                    * phase
-                    * irradiance[c] as f64
-                    * (2.0 / steps as f64);
-            }
-        }
+        // Deflection cosine between the light's travel and the camera's direction (+z): the same everywhere.
+        let phase = henyey_greenstein(g, travel.as_dvec3().z);
+        let truth = single_scattering_quadrature(sigma_a, sigma_s, irradiance, |x| {
+            (distance_out_of_box(x, to_sun), phase)
+        });
         let mut variances = Vec::new();
         for decoupled in [false, true] {
-            let mut b = SceneBuilder::default();
-            let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
-                "box", sigma_a, sigma_s, g as f32,
-            )));
-            let mat = b.add_material(common::boundary(medium));
-            b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
-            b.add_light(Light::Directional(DirectionalLight {
-                direction: travel,
-                irradiance,
-            }));
-            b.set_camera(Camera::look_at(
-                Vec3::new(0.0, 0.0, 5.0),
-                Vec3::ZERO,
-                0.001f32.to_radians(),
-            ));
-            let settings = nimbus::render::RenderSettings {
-                width: 1,
-                height: 1,
-                spp: 40_000,
-                seed: 9,
-                threads: 2,
-                max_depth: 1,
-                decoupled,
-                ..Default::default()
-            };
-            let (img, stats) = nimbus::render::Renderer::new(settings)
-                .render(&b.build().unwrap(), &mut |_| true)
-                .unwrap();
-            assert_eq!(stats.rays.decoupled > 0, decoupled, "{label}");
-            let mut var = 0.0;
-            for (c, &expected) in truth.iter().enumerate() {
-                let (mean, se) = common::mean_and_se(&img, c);
-                let name = format!("{label} decoupled={decoupled} channel {c}");
-                eprintln!("{name}: {mean:.6} ± {se:.6} vs {expected:.6}");
-                assert!(
-                    (mean - expected).abs() < 4.0 * se,
-                    "{name}: {mean} vs {expected} (se {se})"
-                );
-                var += se * se;
-            }
-            variances.push(var);
+            let name = format!("{label} decoupled={decoupled}");
+            let (stats, variance) = render_single_scattering(
+                &name,
+                HomogeneousMedium::new("box", sigma_a, sigma_s, g as f32),
+                Light::Directional(DirectionalLight {
+                    direction: travel,
+                    irradiance,
+                }),
+                nimbus::render::RenderSettings {
+                    seed: 9,
+                    decoupled,
+                    ..Default::default()
+                },
+                truth,
+            );
+            assert_eq!(stats.rays.decoupled > 0, decoupled, "{name}");
+            variances.push(variance);
         }
         eprintln!("{label}: variances without, with the decoupled sample {variances:?}");
         assert!(variances[1] * 1.5 < variances[0], "{label}: {variances:?}");
