@@ -616,11 +616,11 @@ fn arcs_in_variants_into_a_variant_prim_of_their_name_are_refused_at_any_depth()
     }
     // A target inside the prim's own image (`/R/Q`, where `/R`'s reference composes `/B/Q`) recursed the same
     // way in `openusd` 0.6 (1.6 s); it is an arc cycle, refused by the walk's cycle rule.
-    let image = format!(
-        "def \"R\" (references = </B> variants = {{ string v = \"x\" }} variantSets = \"v\") {{ variantSet \"v\" \
-         = {{ \"x\" () {{}} }} }}\nclass \"B\" {{\nclass \"Q\" (variants = {{ string v = \"x\" }} variantSets = \
-         \"v\") {{ variantSet \"v\" = {{ \"x\" (inherits = </R/Q/X>) {{}} }} }}\n}}\n"
-    );
-    let err = check_files("variant_recursion_image", &[("root.usda", &image)]).unwrap_err().to_string();
+    let image = r#"def "R" (references = </B> variants = { string v = "x" } variantSets = "v") { variantSet "v" = { "x" () {} } }
+class "B" {
+class "Q" (variants = { string v = "x" } variantSets = "v") { variantSet "v" = { "x" (inherits = </R/Q/X>) {} } }
+}
+"#;
+    let err = check_files("variant_recursion_image", &[("root.usda", image)]).unwrap_err().to_string();
     assert!(err.contains("composition cycle"), "{err}");
 }
