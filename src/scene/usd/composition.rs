@@ -67,6 +67,7 @@ mod precache;
 mod stacks;
 #[cfg(test)]
 mod tests;
+mod variants;
 
 pub(super) use error::CompositionError;
 use cycles::{cycle_back, run_start};
@@ -281,12 +282,14 @@ impl<'a> Walk<'a> {
 
     /// Walks the composition from the pseudo-root of `root`'s layer stack: first every site once, counting the
     /// prims each composes and finding the cycles of sites (see [`Walk::count`]), then every path of children
-    /// and arcs, as many as the prims counted, for arcs back into the chain they extend (see [`Walk::unfold`]).
+    /// and arcs, as many as the prims counted, for arcs back into the chain they extend (see [`Walk::unfold`]),
+    /// and last the arcs inside variants of the sites walked (see [`Walk::no_variant_recursion`]).
     fn run(&mut self, root: usize) -> Result<(), CompositionError> {
         let start = (self.stack(root)?, "/".to_owned());
         let start = self.site(start);
         self.count(start)?;
-        self.unfold(start)
+        self.unfold(start)?;
+        self.no_variant_recursion()
     }
 
     /// The index of `site`, interned the first time.

@@ -94,6 +94,20 @@ pub(in crate::scene::usd) enum CompositionError {
         arc: String,
         mapped: String,
     },
+    /// An arc authored inside a variant of the prim `path`, targeting a path inside `holder`, which has a variant
+    /// set and composes `path` as `image` through `composing`.
+    #[error(
+        "{path}: {arc} (authored inside a variant) targets a path inside {holder}, which has a variant set and \
+         composes {path} as {image} through its {composing}: openusd 0.6 re-composes that target through \
+         {holder}'s variant ever deeper, up to 100 nested prim indices (seconds to minutes), so it is refused"
+    )]
+    VariantRecursion {
+        path: String,
+        arc: String,
+        holder: String,
+        composing: String,
+        image: String,
+    },
     /// A layer stack (`root`'s) in which `layer` names a sublayer (`names`) already on the path to it.
     #[error(
         "{root}: its subLayers lead back to a layer on their path: {layer} names {names}, a layer on the path of \

@@ -41,6 +41,7 @@ impl<'a> Walk<'a> {
             layer: None,
             path: path.clone(),
             asset: String::new(),
+            in_variant: arc.in_variant,
         };
         let site = self.site((*stack, path));
         let frame = &mut frames[through];

@@ -43,6 +43,8 @@ pub(super) struct Arc {
     pub(super) path: String,
     /// The asset path as authored (empty for an internal arc), for messages.
     pub(super) asset: String,
+    /// Whether the arc is authored inside a variant (of its prim or of an ancestor).
+    pub(super) in_variant: bool,
 }
 
 impl Arc {
@@ -62,11 +64,13 @@ impl Arc {
     }
 }
 
-/// What one prim spec contributes: its children (paths) and its arcs.
+/// What one prim spec contributes: its children (paths), its arcs, and whether it authors variants.
 #[derive(Default)]
 pub(super) struct Prim {
     pub(super) children: Vec<String>,
     pub(super) arcs: Vec<Arc>,
+    /// Whether a layer authors a variant of the prim (of any of its variant sets).
+    pub(super) variants: bool,
 }
 
 /// What one layer contributes to composition.
@@ -201,7 +205,12 @@ impl<'a> Layers<'a> {
             if !matches!(kind, Some(sdf::SpecType::Prim | sdf::SpecType::Variant)) {
                 continue;
             }
-            let path = spec.strip_all_variant_selections().as_str().to_owned();
+            let stripped = spec.strip_all_variant_selections();
+            let in_variant = stripped != spec;
+            let path = stripped.as_str().to_owned();
+            if kind == Some(sdf::SpecType::Variant) {
+                layer.prims.entry(path.clone()).or_default().variants = true;
+            }
             if kind == Some(sdf::SpecType::Prim) {
                 let parent = parent(&path).to_owned();
                 layer
@@ -211,7 +220,7 @@ impl<'a> Layers<'a> {
                     .children
                     .push(path.clone());
             }
-            let arcs = self.arcs(data, &spec, anchor);
+            let arcs = self.arcs(data, &spec, anchor, in_variant);
             let twice = arcs.iter().enumerate().find(|(i, a)| {
                 arcs[..*i].iter().any(|b| {
                     (b.kind, b.layer, &b.path, &b.asset) == (a.kind, a.layer, &a.path, &a.asset)
@@ -225,12 +234,14 @@ impl<'a> Layers<'a> {
         layer
     }
 
-    /// The arcs authored on the prim or variant spec `spec`: every item its list ops add.
+    /// The arcs authored on the prim or variant spec `spec` (`in_variant` when its path selects a variant):
+    /// every item its list ops add.
     pub(super) fn arcs(
         &mut self,
         data: &dyn sdf::AbstractData,
         spec: &sdf::Path,
         anchor: &ar::ResolvedPath,
+        in_variant: bool,
     ) -> Vec<Arc> {
         let target = |path: &sdf::Path| {
             if path.is_empty() {
@@ -281,6 +292,7 @@ impl<'a> Layers<'a> {
                     layer,
                     path,
                     asset,
+                    in_variant,
                 });
             }
         }

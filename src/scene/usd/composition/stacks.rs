@@ -28,6 +28,7 @@ impl<'a> Walk<'a> {
                 let merged = prims.entry(path.clone()).or_default();
                 merged.children.extend(prim.children.iter().cloned());
                 merged.arcs.extend(prim.arcs.iter().cloned());
+                merged.variants |= prim.variants;
             }
         }
         for prim in prims.values_mut() {

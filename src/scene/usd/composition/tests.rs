@@ -542,3 +542,85 @@ fn cycles_through_children_layers_and_parents_name_their_first_arc() {
          which inherits </D/E>)"
     );
 }
+
+/// `fuzz/open` stage `cc20016f`, reduced: `openusd` 0.6 composed it for 19-23 s (Pixar's USD: 0.02 s).
+#[test]
+fn an_arc_in_a_variant_into_a_variant_prim_that_composes_it_is_refused() {
+    let l0 = r#"(
+ subLayers = [@./l2.usda@]
+)
+def "C" (payload = </B>) {}
+class "B" {
+class "C" (variants = { string v = "x" } variantSets = "v") {
+variantSet "v" = { "x" (inherits = </C/B/D>) {} }
+}
+}
+"#;
+    let l2 = "def \"C\" (variants = { string v = \"x\" } variantSets = \"v\") {\nvariantSet \"v\" = { \"x\" \
+              (specializes = </A>) {} }\n}\n";
+    let err = check_files("variant_recursion", &[("l0.usda", l0), ("l2.usda", l2)])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("/B/C: inherits </C/B/D>") && err.contains("inside /C, which has a variant set"),
+        "{err}"
+    );
+    // The same arcs with the inherit outside the variant compose at once in `openusd` 0.6 (and load as before);
+    // so do a target outside the prim the stage composes `/B/C` through, and a variant-less `/C`.
+    let outside = l0.replace("(variants = { string v = \"x\" } variantSets = \"v\")", "(inherits = </C/B/D>)")
+        .replace("(inherits = </C/B/D>) {}", "() {}");
+    check_files("variant_recursion_outside", &[("l0.usda", &outside), ("l2.usda", l2)]).unwrap();
+    let elsewhere = l0.replace("</C/B/D>", "</D/B/D>");
+    check_files("variant_recursion_elsewhere", &[("l0.usda", &elsewhere), ("l2.usda", l2)]).unwrap();
+    let plain = "def \"C\" (specializes = </A>) {}\n";
+    check_files("variant_recursion_plain", &[("l0.usda", l0), ("l2.usda", plain)]).unwrap();
+}
+
+/// The growth behind `cc20016f`, measured on variations (`openusd` 0.6 recursed through the variant to its depth
+/// limit of 100 nested indices, for 0.2 s to past 10 s each): the target anywhere inside the prim that bears the
+/// name, and that prim and the arc's parent anywhere in the namespace, through any arc.
+#[test]
+fn arcs_in_variants_into_a_variant_prim_of_their_name_are_refused_at_any_depth() {
+    for (name, holder, arc, parent, target) in [
+        ("deep_target", "/C", "payload", "/B", "/C/X/Y/Z/W"),
+        ("renamed", "/E", "references", "/B", "/E/X"),
+        ("deeper_parent", "/C", "inherits", "/B/E", "/C/X"),
+        ("deeper_holder", "/Z/E", "specializes", "/B", "/Z/E/X"),
+    ] {
+        let own = holder.rsplit('/').next().unwrap();
+        let variant = "variants = { string v = \"x\" } variantSets = \"v\"";
+        let mut stage = String::new();
+        let mut close = String::new();
+        for part in holder.split('/').skip(1).collect::<Vec<_>>().split_last().unwrap().1 {
+            stage += &format!("def \"{part}\" {{\n");
+            close += "}\n";
+        }
+        stage += &format!(
+            "def \"{own}\" ({arc} = <{parent}> {variant}) {{ variantSet \"v\" = {{ \"x\" () {{}} }} }}\n{close}"
+        );
+        let mut classes = String::new();
+        for part in parent.split('/').skip(1) {
+            classes += &format!("class \"{part}\" {{\n");
+        }
+        classes += &format!(
+            "class \"{own}\" ({variant}) {{ variantSet \"v\" = {{ \"x\" (inherits = <{target}>) {{}} }} }}\n"
+        );
+        classes += &"}\n".repeat(parent.split('/').count() - 1);
+        let err = check_files(&format!("variant_recursion_{name}"), &[("root.usda", &(stage + &classes))])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!("inherits <{target}>")) && err.contains(&format!("inside {holder}, which has")),
+            "{name}: {err}"
+        );
+    }
+    // A target inside the prim's own image (`/R/Q`, where `/R`'s reference composes `/B/Q`) recursed the same
+    // way in `openusd` 0.6 (1.6 s); it is an arc cycle, refused by the walk's cycle rule.
+    let image = r#"def "R" (references = </B> variants = { string v = "x" } variantSets = "v") { variantSet "v" = { "x" () {} } }
+class "B" {
+class "Q" (variants = { string v = "x" } variantSets = "v") { variantSet "v" = { "x" (inherits = </R/Q/X>) {} } }
+}
+"#;
+    let err = check_files("variant_recursion_image", &[("root.usda", image)]).unwrap_err().to_string();
+    assert!(err.contains("composition cycle"), "{err}");
+}
