@@ -12,8 +12,8 @@
 //! for the next iteration; a cell that received no energy has none (paths there sample the phase function alone).
 //!
 //! Each cell also keeps the mean incident radiance its records estimate (Σ radiance/pdf over the records, / 4π
-//! and their count), and the cache keeps the training's pixel values ([`PixelEstimates`]): the two adjoint estimates of
-//! guided Russian roulette and splitting ([`super::adjoint`]).
+//! and their count), and the cache keeps the training's pixel values ([`PixelEstimates`]): the two adjoint
+//! estimates of guided Russian roulette and splitting ([`super::adjoint`]).
 //!
 //! Determinism: records are added in the order [`GuidingField::add_records`] gets them, one thread (the
 //! reservoirs draw from one seeded generator), so a caller that hands them over in a fixed order (the training's
@@ -122,7 +122,7 @@ impl GuidingField {
             cells: vec![Cell::new(0, None, None)],
             iterations: 0,
             pixels: None,
-            rng: Rng::new(0x766d_66, 0),
+            rng: Rng::new(0x0076_6d66, 0),
         }
     }
 

@@ -5,15 +5,16 @@
 //!
 //! - A lobe is v(ω) = κ / (2π (1 − e^(−2κ))) · e^(κ (μ·ω − 1)) (the vMF density on the sphere, written so that
 //!   it stays finite for large κ), sampled by Jakob 2012 ("Numerically stable sampling of the von Mises Fisher
-//!   distribution on S² (and other tricks)", Eq. 7's inversion with the cosine w = 1 + ln(ξ + (1 − ξ) e^(−2κ))/κ).
+//!   distribution on S² (and other tricks)": the cosine to μ by inversion, w = 1 + ln(ξ + (1 − ξ) e^(−2κ))/κ,
+//!   evaluated with ln_1p and exp_m1).
 //! - The fit ([`VmfMixture::fit`]): batch EM over the records' directions weighted by radiance/pdf (each
 //!   record an importance-weighted sample of the incident radiance). The M-step's mean direction is the
 //!   weighted resultant; its concentration comes from the mean resultant length r̄ by Banerjee et al. 2005
-//!   ("Clustering on the Unit Hypersphere using von Mises-Fisher Distributions", JMLR 6, Eq. 4: κ ≈ r̄(3 − r̄²)/
-//!   (1 − r̄²) in three dimensions). The MAP priors: r̄ is computed with [`KAPPA_PRIOR`] pseudo-records of
-//!   mean cosine 0 added to each lobe (a lobe that holds a few records stays broad instead of collapsing onto
-//!   one), and the weights with a Dirichlet prior of [`WEIGHT_PRIOR`] pseudo-records per lobe. No record
-//!   counts for more than [`MAX_RECORD_WEIGHT`] average records (the spikes of single high-value records the
+//!   ("Clustering on the Unit Hypersphere using von Mises-Fisher Distributions", JMLR 6; their approximation
+//!   κ ≈ r̄(d − r̄²)/(1 − r̄²) with d = 3). The MAP priors: r̄ is computed with [`KAPPA_PRIOR`] · N/[`LOBES`]
+//!   pseudo-records of mean cosine 0 added to each lobe's N records (a lobe that holds a few records stays
+//!   broad instead of collapsing onto one), and the weights with a Dirichlet prior of [`WEIGHT_PRIOR`] ·
+//!   N/[`LOBES`] pseudo-records per lobe. No record counts for more than [`MAX_RECORD_WEIGHT`] average records (the spikes of single high-value records the
 //!   histograms showed, docs/performance.md "Diagnosis with an oracle").
 //! - The product with a lobe (the phase function or a cosine approximated by one, [`lobe_kappa`]) has a closed
 //!   form: v₁ v₂ = c · v(κ₁μ₁ + κ₂μ₂) (Herholz et al. 2019 §4), so the product of the mixture with a lobe is a
@@ -37,7 +38,7 @@ const KAPPA_PRIOR: f32 = 0.5;
 const WEIGHT_PRIOR: f32 = 0.01;
 /// The most average records one record counts as in a fit.
 const MAX_RECORD_WEIGHT: f32 = 20.0;
-/// The largest concentration a fitted lobe may have (a lobe about 2.6° wide).
+/// The largest concentration a fitted lobe may have (an angular spread 1/√κ of about 1.8°).
 const MAX_KAPPA: f32 = 1000.0;
 /// The smallest concentration a lobe may have (below it the lobe is uniform to f32 precision).
 const MIN_KAPPA: f32 = 1e-4;
@@ -49,7 +50,7 @@ fn ln_norm(kappa: f32) -> f32 {
     (kappa / (-(-2.0 * kappa).exp_m1())).ln() - (2.0 * PI).ln()
 }
 
-/// The concentration of a vMF lobe with mean cosine `mean_cosine` ∈ \[0, 1) (Banerjee et al. 2005, Eq. 4).
+/// The concentration of a vMF lobe with mean cosine `mean_cosine` ∈ \[0, 1) (Banerjee et al. 2005's approximation).
 pub fn lobe_kappa(mean_cosine: f32) -> f32 {
     let r = mean_cosine.clamp(0.0, 0.999);
     (r * (3.0 - r * r) / (1.0 - r * r)).clamp(MIN_KAPPA, MAX_KAPPA)
@@ -204,8 +205,10 @@ impl VmfMixture {
         for _ in 0..EM_ITERATIONS {
             let mut mass = [0.0f64; LOBES];
             let mut resultant = [[0.0f64; 3]; LOBES];
-            let ln_parts: [(f32, f32); LOBES] =
-                std::array::from_fn(|k| (lobes[k].weight.max(1e-30).ln() + ln_norm(lobes[k].kappa), lobes[k].kappa));
+            let ln_parts: [(f32, f32); LOBES] = std::array::from_fn(|k| {
+                let l = lobes[k];
+                (l.weight.max(1e-30).ln() + ln_norm(l.kappa), l.kappa)
+            });
             for r in records {
                 let w = weight(r);
                 if w <= 0.0 {
@@ -216,7 +219,7 @@ impl VmfMixture {
                     p[k] = (ln_parts[k].0 + ln_parts[k].1 * (l.mu.dot(r.0) - 1.0)).exp();
                 }
                 let sum: f32 = p.iter().sum();
-                if !(sum > 0.0) {
+                if sum.is_nan() || sum <= 0.0 {
                     continue;
                 }
                 for k in 0..LOBES {
@@ -228,7 +231,7 @@ impl VmfMixture {
                 }
             }
             let all: f64 = mass.iter().sum();
-            if !(all > 0.0) {
+            if all.is_nan() || all <= 0.0 {
                 return None;
             }
             let prior_w = (WEIGHT_PRIOR * per_lobe) as f64;
@@ -383,8 +386,7 @@ mod tests {
     }
 
     /// One record of a large weight among uniformly spread ones (the histograms' spikes) does not get a lobe of
-    /// its own: the fitted density toward it stays within 2× of uniform (without the clamp and the priors, a
-    /// lobe collapses onto it at the largest κ).
+    /// its own: the fitted density toward it stays within 2× of uniform.
     #[test]
     fn a_single_heavy_record_does_not_make_a_lobe() {
         let mut rng = Rng::new(3, 4);

@@ -1,8 +1,8 @@
 //! Path guiding inside the path tracer: when the render trained a guiding cache
 //! ([`RendererServices::guide`]), a medium scattering event samples its direction from the product of the
 //! cache's vMF mixture at that point with the phase function ([`VmfMixture::product`], Herholz et al. 2019,
-//! "Volume Path Guiding Based on Zero-Variance Random Walk Theory", §4) with probability [`GUIDE_PROBABILITY`] and from
-//! the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS with a fixed
+//! "Volume Path Guiding Based on Zero-Variance Random Walk Theory", §4) with probability [`GUIDE_PROBABILITY`]
+//! and from the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS with a fixed
 //! selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient Light-Transport
 //! Simulation", with the phase function in the BSDF's place). A Lambertian surface samples the product of the
 //! cache's distribution with the cosine to its shading normal in the mixture with its BSDF, weighting by
