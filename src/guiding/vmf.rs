@@ -47,7 +47,9 @@ const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// ln of the vMF normalisation in the form v(ω) = exp(ln_norm(κ) + κ (μ·ω − 1)): ln(κ / (2π (1 − e^(−2κ)))).
 fn ln_norm(kappa: f32) -> f32 {
-    (kappa / (-(-2.0 * kappa).exp_m1())).ln() - (2.0 * PI).ln()
+    // Above κ = 9, 1 − e^(−2κ) rounds to 1 in f32.
+    let denominator = if kappa > 9.0 { 1.0 } else { -(-2.0 * kappa).exp_m1() };
+    (kappa / denominator).ln() - (2.0 * PI).ln()
 }
 
 /// The concentration of a vMF lobe with mean cosine `mean_cosine` ∈ \[0, 1) (Banerjee et al. 2005's approximation).
@@ -178,7 +180,21 @@ impl VmfMixture {
         for (l, lw) in lobes.iter_mut().zip(ln_weights) {
             l.weight = (lw - top).exp();
         }
-        Self::new(&lobes)
+        let total: f32 = lobes.iter().map(|l| l.weight).sum();
+        if !(total > 0.0 && total.is_finite()) {
+            return None;
+        }
+        lobes.iter_mut().for_each(|l| l.weight /= total);
+        // The product lobe's ln(weight) + ln_norm(κ') − κ' is c − ln(Σ): no normalisation to evaluate again.
+        let ln_total = top + total.ln();
+        let ln_scale = std::array::from_fn(|k| {
+            if lobes[k].weight > 0.0 {
+                self.ln_scale[k] - ln_total
+            } else {
+                f32::NEG_INFINITY
+            }
+        });
+        Some(Self { lobes, ln_scale })
     }
 
     /// The MAP-EM fit to `records` (unit direction, weight ≥ 0; see the module documentation), started from
