@@ -1,34 +1,32 @@
 //! The spatial half of the guiding cache and the cache itself: a binary tree over a cube around the scene and
-//! its media, each leaf (a cell) with the directional quadtree learned there (Müller et al. 2017, "Practical
-//! Path Guiding for Efficient Light-Transport Simulation": the SD-tree).
+//! its media, each leaf (a cell) with the directional distribution learned there (the spatial tree of Müller et
+//! al. 2017, "Practical Path Guiding for Efficient Light-Transport Simulation", with a vMF mixture per cell in
+//! place of their quadtree, [`super::vmf`]).
 //!
 //! Cells split at their midpoint along x, y, z in turn. After each training iteration k, a cell that received
 //! more than `c · √(2^k)` radiance records is split until each part would (at an even spread) hold fewer
 //! (their rule, with c = [`SPLIT_RECORDS`] records instead of their 12000 path vertices, for our smaller
-//! training budgets), and the parts start from the parent's distribution. Each cell's histogram of the
-//! iteration's records, averaged over blocks of 8 × 8 bins ([`smooth`]: the records are too few for more
-//! directional resolution), becomes its quadtree for the next iteration; a cell that received no energy has none
-//! (paths there sample the phase function alone).
+//! training budgets), and the parts start from the parent's distribution. Each cell keeps a uniform sample of at
+//! most [`FIT_RECORDS`] of the iteration's records that carry energy (reservoir sampling, Vitter 1985's algorithm
+//! R), to which a vMF mixture is fitted at the iteration's end ([`VmfMixture::fit`]): the cell's distribution
+//! for the next iteration; a cell that received no energy has none (paths there sample the phase function alone).
 //!
-//! Each cell also keeps the mean incident radiance its records estimate (the histogram's total over the records
-//! and 4π), and the cache keeps the training's pixel values ([`PixelEstimates`]): the two adjoint estimates of
-//! guided Russian roulette and splitting ([`super::adjoint`]).
+//! Each cell also keeps the mean incident radiance its records estimate (Σ radiance/pdf over the records, / 4π
+//! and their count), and the cache keeps the training's pixel values ([`PixelEstimates`]): the two adjoint
+//! estimates of guided Russian roulette and splitting ([`super::adjoint`]).
 //!
-//! Determinism: records are added in the order [`GuidingField::add_records`] gets them, one thread, so a
-//! caller that hands them over in a fixed order (the training's rows, in row order) builds the same field on
-//! any number of threads.
+//! Determinism: records are added in the order [`GuidingField::add_records`] gets them, one thread (the
+//! reservoirs draw from one seeded generator), so a caller that hands them over in a fixed order (the training's
+//! rows, in row order) builds the same field on any number of threads; each cell's fit is its own.
 
 use super::adjoint::PixelEstimates;
-use super::product::RadianceGrid;
-use super::quadtree::{bin_of, to_square, DirectionalQuadtree, HISTOGRAM_SIDE};
-use crate::math::{Aabb, Vec3};
+use super::vmf::{VmfMixture, FIT_RECORDS};
+use crate::math::{Aabb, Rng, Vec3};
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// The `c` of the split rule (see the module documentation).
 pub const SPLIT_RECORDS: f64 = 4000.0;
-/// Histogram bins a side of the blocks each cell's histogram is averaged over before its quadtree is built
-/// ([`smooth`]): 8 leaves 4 × 4 directions over the sphere.
-const SMOOTHING_BLOCK: usize = 8;
 /// The most cells the tree may have; a cell is not split beyond it.
 pub const MAX_CELLS: usize = 4096;
 /// The deepest a cell may be.
@@ -36,7 +34,7 @@ const MAX_DEPTH: u32 = 30;
 
 /// What one path vertex teaches the cache: at point `p`, light arrived from the unit direction `dir`, which had
 /// been sampled with solid-angle density `pdf`, with an incident-radiance estimate `radiance` (a luminance):
-/// its histogram bin gets `radiance / pdf`, a Monte Carlo estimate of the bin's integral of incident radiance.
+/// its weight in the fit is `radiance / pdf`, a Monte Carlo estimate of the incident radiance's integral.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RadianceRecord {
     /// Where the path scattered.
@@ -63,37 +61,37 @@ enum SpatialNode {
 struct Cell {
     /// Records added this iteration.
     records: u64,
-    /// Σ radiance / pdf per histogram bin this iteration.
-    histogram: Vec<f64>,
-    /// What paths sample from, learned in the previous iteration.
-    distribution: Option<DirectionalQuadtree>,
-    /// The same distribution tabulated for the product with the phase function at medium events.
-    radiance_grid: Option<RadianceGrid>,
+    /// Σ radiance / pdf over this iteration's records.
+    energy: f64,
     /// The mean incident radiance over the sphere the previous iteration's records estimate (Σ radiance/pdf
     /// over the records, / 4π), when it had records.
     mean_radiance: Option<f32>,
     /// Depth in the spatial tree.
     depth: u32,
+    /// A uniform sample (reservoir) of this iteration's records with energy: direction and radiance / pdf.
+    sample: Vec<(Vec3, f32)>,
+    /// Records with energy this iteration (the reservoir's count).
+    energetic: u64,
+    /// What paths sample from: the vMF mixture fitted to the previous iteration's sample.
+    vmf: Option<VmfMixture>,
 }
 
 impl Cell {
-    fn new(
-        depth: u32,
-        distribution: Option<DirectionalQuadtree>,
-        mean_radiance: Option<f32>,
-    ) -> Self {
+    fn new(depth: u32, vmf: Option<VmfMixture>, mean_radiance: Option<f32>) -> Self {
         Self {
             records: 0,
-            histogram: vec![0.0; HISTOGRAM_SIDE * HISTOGRAM_SIDE],
-            radiance_grid: distribution.as_ref().map(RadianceGrid::new),
-            distribution,
+            energy: 0.0,
             mean_radiance,
             depth,
+            sample: Vec::new(),
+            energetic: 0,
+            vmf,
         }
     }
 }
 
-/// The guiding cache (an SD-tree): where paths look up a distribution of incident light to sample from.
+/// The guiding cache (a spatial tree of vMF mixtures): where paths look up a distribution of incident light to
+/// sample from.
 #[derive(Clone, Debug)]
 pub struct GuidingField {
     bounds: Aabb,
@@ -103,6 +101,8 @@ pub struct GuidingField {
     iterations: u32,
     /// The training's pixel values, once given ([`GuidingField::set_pixel_estimates`]).
     pixels: Option<PixelEstimates>,
+    /// The reservoirs' random numbers (records arrive in a fixed order, so the samples are deterministic).
+    rng: Rng,
 }
 
 impl GuidingField {
@@ -122,6 +122,7 @@ impl GuidingField {
             cells: vec![Cell::new(0, None, None)],
             iterations: 0,
             pixels: None,
+            rng: Rng::new(0x0076_6d66, 0),
         }
     }
 
@@ -132,7 +133,7 @@ impl GuidingField {
 
     /// Cells with a distribution to sample.
     pub fn guided_cell_count(&self) -> usize {
-        self.cells.iter().filter(|c| c.distribution.is_some()).count()
+        self.cells.iter().filter(|c| c.vmf.is_some()).count()
     }
 
     /// Training iterations finished.
@@ -164,15 +165,10 @@ impl GuidingField {
         }
     }
 
-    /// The distribution paths at `p` sample from, if the cell there learned one.
-    #[cfg(test)]
-    pub fn distribution_at(&self, p: Vec3) -> Option<&DirectionalQuadtree> {
-        self.cells[self.cell_index(p)].distribution.as_ref()
-    }
-
-    /// The learned distribution at `p` tabulated for product guiding, if the cell there learned one.
-    pub fn radiance_grid_at(&self, p: Vec3) -> Option<&RadianceGrid> {
-        self.cells[self.cell_index(p)].radiance_grid.as_ref()
+    /// The distribution paths at `p` sample from (its product with the phase function or the cosine), if the
+    /// cell there learned one.
+    pub fn vmf_at(&self, p: Vec3) -> Option<&VmfMixture> {
+        self.cells[self.cell_index(p)].vmf.as_ref()
     }
 
     /// The mean incident radiance over the sphere at `p` (a luminance), as the cell there estimated it in the
@@ -201,20 +197,33 @@ impl GuidingField {
             let index = self.cell_index(r.p);
             let cell = &mut self.cells[index];
             cell.records += 1;
-            cell.histogram[bin_of(to_square(r.dir))] += r.radiance as f64 / r.pdf as f64;
+            let energy = r.radiance / r.pdf;
+            cell.energy += r.radiance as f64 / r.pdf as f64;
+            if energy > 0.0 && energy.is_finite() {
+                cell.energetic += 1;
+                if cell.sample.len() < FIT_RECORDS {
+                    cell.sample.push((r.dir, energy));
+                } else {
+                    // Reservoir sampling (Vitter's algorithm R): keep it with probability FIT_RECORDS / seen.
+                    let k = (self.rng.next_f32() as f64 * cell.energetic as f64) as usize;
+                    if k < FIT_RECORDS {
+                        cell.sample[k] = (r.dir, energy);
+                    }
+                }
+            }
         }
     }
 
-    /// Ends training iteration `self.iterations()`: every cell's histogram becomes its distribution (none
-    /// without energy), cells over the split rule are split (their parts start from the new distribution),
-    /// and every histogram starts again from zero.
+    /// Ends training iteration `self.iterations()`: every cell's sample is fitted (no distribution without
+    /// energy), cells over the split rule are split (their parts start from the new distribution), and every
+    /// cell's records start again from none.
     pub fn finish_iteration(&mut self) {
         let threshold = SPLIT_RECORDS * 2f64.powf(self.iterations as f64 * 0.5);
+        self.cells.par_iter_mut().for_each(|cell| {
+            cell.vmf = VmfMixture::fit(&cell.sample);
+        });
         for cell in &mut self.cells {
-            smooth(&mut cell.histogram);
-            cell.distribution = DirectionalQuadtree::from_histogram(&cell.histogram);
-            cell.radiance_grid = cell.distribution.as_ref().map(RadianceGrid::new);
-            let total: f64 = cell.histogram.iter().sum();
+            let total = cell.energy;
             cell.mean_radiance = (cell.records > 0 && total.is_finite())
                 .then(|| (total / (cell.records as f64 * 4.0 * PI)) as f32);
         }
@@ -238,7 +247,9 @@ impl GuidingField {
         }
         for cell in &mut self.cells {
             cell.records = 0;
-            cell.histogram.iter_mut().for_each(|b| *b = 0.0);
+            cell.energetic = 0;
+            cell.sample.clear();
+            cell.energy = 0.0;
         }
         self.iterations += 1;
     }
@@ -251,12 +262,11 @@ impl GuidingField {
             return;
         }
         let first_child = self.nodes.len();
-        let distribution = self.cells[cell].distribution.clone();
         let mean_radiance = self.cells[cell].mean_radiance;
+        let vmf = self.cells[cell].vmf;
         let other = self.cells.len();
         self.cells[cell].depth = depth + 1;
-        self.cells
-            .push(Cell::new(depth + 1, distribution, mean_radiance));
+        self.cells.push(Cell::new(depth + 1, vmf, mean_radiance));
         self.nodes.push(SpatialNode::Leaf(cell as u32));
         self.nodes.push(SpatialNode::Leaf(other as u32));
         self.nodes[node] = SpatialNode::Inner {
@@ -268,47 +278,9 @@ impl GuidingField {
     }
 }
 
-/// Replaces each [`SMOOTHING_BLOCK`]² block of the histogram `bins` by its mean (the total is kept). A bin's
-/// sum is a few records of one path's radiance each, too noisy for the histogram's resolution: at full
-/// resolution the learned distributions sampled the backlit cloud's incident radiance worse than uniform
-/// sampling at 8 of 10 points checked against brute force, and averaging 8 × 8 blocks lowered guided MSE by
-/// 6% (backlit cloud) and 22% (door-gap room; docs/performance.md, "Diagnosis with an oracle").
-fn smooth(bins: &mut [f64]) {
-    let (side, block) = (HISTOGRAM_SIDE, SMOOTHING_BLOCK);
-    for j0 in (0..side).step_by(block) {
-        for i0 in (0..side).step_by(block) {
-            let rows = || (j0..j0 + block).map(|j| j * side + i0..j * side + i0 + block);
-            let sum: f64 = rows().flat_map(|r| bins[r].iter().copied()).sum();
-            let mean = sum / (block * block) as f64;
-            rows().for_each(|r| bins[r].fill(mean));
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Smoothing spreads a bin's energy evenly over its block and keeps the total; other blocks stay empty.
-    #[test]
-    fn smoothing_spreads_each_block_evenly() {
-        let mut bins = vec![0.0; HISTOGRAM_SIDE * HISTOGRAM_SIDE];
-        bins[3 * HISTOGRAM_SIDE + 5] = 64.0;
-        bins[20 * HISTOGRAM_SIDE + 30] = 6.4;
-        smooth(&mut bins);
-        let total: f64 = bins.iter().sum();
-        assert!((total - 70.4).abs() < 1e-9, "{total}");
-        for j in 0..HISTOGRAM_SIDE {
-            for i in 0..HISTOGRAM_SIDE {
-                let expected = match (j / SMOOTHING_BLOCK, i / SMOOTHING_BLOCK) {
-                    (0, 0) => 1.0,
-                    (2, 3) => 0.1,
-                    _ => 0.0,
-                };
-                assert!((bins[j * HISTOGRAM_SIDE + i] - expected).abs() < 1e-12, "bin ({i}, {j})");
-            }
-        }
-    }
 
     fn unit_box() -> Aabb {
         Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0))
@@ -317,8 +289,8 @@ mod tests {
     #[test]
     fn cells_split_where_the_records_are_and_learn_their_light() {
         let mut field = GuidingField::new(unit_box());
-        assert!(field.distribution_at(Vec3::ZERO).is_none());
-        // Many records near one corner, light from +z; a few elsewhere, light from -x.
+        assert!(field.vmf_at(Vec3::ZERO).is_none());
+        // Many records near one corner, light from +z; fewer elsewhere, light from -x.
         let mut records = Vec::new();
         for k in 0..20_000 {
             let t = k as f32 / 20_000.0;
@@ -329,18 +301,22 @@ mod tests {
                 pdf: 0.25,
             });
         }
-        records.push(RadianceRecord {
-            p: Vec3::new(-0.8, -0.8, -0.8),
-            dir: -Vec3::X,
-            radiance: 2.0,
-            pdf: 0.1,
-        });
+        // (Enough of them to be in the reservoirs' samples and to outweigh the fit's priors: a single record
+        // does not make a lobe.)
+        for _ in 0..2000 {
+            records.push(RadianceRecord {
+                p: Vec3::new(-0.8, -0.8, -0.8),
+                dir: -Vec3::X,
+                radiance: 2.0,
+                pdf: 0.1,
+            });
+        }
         field.add_records(&records);
         field.finish_iteration();
         assert!(field.cell_count() >= 8, "{}", field.cell_count());
-        let near = field.distribution_at(Vec3::new(0.7, 0.6, 0.6)).unwrap();
+        let near = field.vmf_at(Vec3::new(0.7, 0.6, 0.6)).unwrap();
         assert!(near.pdf(Vec3::Z) > 10.0 * near.pdf(-Vec3::Z));
-        let far = field.distribution_at(Vec3::new(-0.8, -0.8, -0.8)).unwrap();
+        let far = field.vmf_at(Vec3::new(-0.8, -0.8, -0.8)).unwrap();
         assert!(far.pdf(-Vec3::X) > far.pdf(Vec3::X));
         // The same records in the same order give the same field.
         let mut again = GuidingField::new(unit_box());
@@ -350,8 +326,8 @@ mod tests {
         let w = Vec3::new(0.3, 0.4, 0.866).normalize();
         let p = Vec3::new(0.7, 0.6, 0.6);
         assert_eq!(
-            again.distribution_at(p).unwrap().pdf(w).to_bits(),
-            field.distribution_at(p).unwrap().pdf(w).to_bits()
+            again.vmf_at(p).unwrap().pdf(w).to_bits(),
+            field.vmf_at(p).unwrap().pdf(w).to_bits()
         );
     }
 
@@ -364,7 +340,7 @@ mod tests {
         let records: Vec<RadianceRecord> = (0..100)
             .map(|k| RadianceRecord {
                 p: Vec3::splat(0.5),
-                dir: super::super::quadtree::from_square(crate::math::Vec2::new(
+                dir: crate::math::sampling::uniform_sphere(crate::math::Vec2::new(
                     (k % 10) as f32 / 10.0 + 0.05,
                     (k / 10) as f32 / 10.0 + 0.05,
                 )),
@@ -393,10 +369,10 @@ mod tests {
         };
         field.add_records(&[bad, RadianceRecord { pdf: 0.0, radiance: 1.0, ..bad }]);
         field.finish_iteration();
-        assert!(field.distribution_at(Vec3::ZERO).is_none());
+        assert!(field.vmf_at(Vec3::ZERO).is_none());
         field.add_records(&[RadianceRecord { radiance: 1.0, ..bad }]);
         field.finish_iteration();
-        assert!(field.distribution_at(Vec3::splat(100.0)).is_some());
+        assert!(field.vmf_at(Vec3::splat(100.0)).is_some());
         assert_eq!(field.iterations(), 2);
     }
 }

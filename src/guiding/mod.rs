@@ -1,11 +1,11 @@
 //! Path guiding: a cache of incident light learned from the render's own paths, from which paths sample
 //! directions at medium scattering events (Müller et al. 2017, "Practical Path Guiding for Efficient
-//! Light-Transport Simulation", CGF 36(4); their SD-tree, applied to volumes as Herholz et al. 2019, "Volume
-//! Path Guiding Based on Zero-Variance Random Walk Theory", TOG 38(3), do with their own cache).
+//! Light-Transport Simulation", CGF 36(4): their spatial tree, with the von Mises–Fisher mixtures that Herholz
+//! et al. 2019, "Volume Path Guiding Based on Zero-Variance Random Walk Theory", TOG 38(3), guide volumes with).
 //!
-//! - [`quadtree`]: the directional distributions (quadtrees over the cylindrical map of the sphere).
+//! - [`vmf`]: the directional distributions (von Mises–Fisher mixtures fitted by EM) and their product with the
+//!   phase function or the cosine, sampled at guided events.
 //! - [`field`]: the spatial tree of cells and the cache ([`GuidingField`]).
-//! - [`product`]: the product of a cell's distribution with the phase function, sampled at medium events.
 //! - [`adjoint`]: guided Russian roulette and splitting from the cache's radiance and the training's pixel values.
 //! - [`pilot`]: what `--guiding auto` decides for a scene, and why.
 //! - [`GuidePath`]: what a training path remembers of its vertices, turned into [`RadianceRecord`]s at its end.
@@ -16,11 +16,10 @@
 pub mod adjoint;
 pub mod field;
 pub mod pilot;
-pub mod product;
-pub mod quadtree;
+pub mod vmf;
 
 pub use field::{GuidingField, RadianceRecord};
-pub use product::ProductGuide;
+pub use vmf::VmfMixture;
 pub use pilot::GuidingDecision;
 
 use crate::math::{Rgb, Vec3};

@@ -1,8 +1,8 @@
 //! Path guiding inside the path tracer: when the render trained a guiding cache
 //! ([`RendererServices::guide`]), a medium scattering event samples its direction from the product of the
-//! cache's distribution at that point with the phase function ([`ProductGuide`], Herholz et al. 2019, "Volume
-//! Path Guiding Based on Zero-Variance Random Walk Theory", §4) with probability [`GUIDE_PROBABILITY`] and from
-//! the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS with a fixed
+//! cache's vMF mixture at that point with the phase function ([`VmfMixture::product`], Herholz et al. 2019,
+//! "Volume Path Guiding Based on Zero-Variance Random Walk Theory", §4) with probability [`GUIDE_PROBABILITY`]
+//! and from the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS with a fixed
 //! selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient Light-Transport
 //! Simulation", with the phase function in the BSDF's place). A Lambertian surface samples the product of the
 //! cache's distribution with the cosine to its shading normal in the mixture with its BSDF, weighting by
@@ -17,7 +17,8 @@
 //! weight uses the density it sampled with.
 
 use super::services::RendererServices;
-use crate::guiding::{ProductGuide, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
+use crate::guiding::vmf::lobe_kappa;
+use crate::guiding::{VmfMixture, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
 use crate::material::{Bsdf, BsdfSample, LobeClass};
 use crate::math::{Frame, Rgb, Rng, Vec2, Vec3};
 use crate::volume::PhaseFunction;
@@ -28,47 +29,47 @@ const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 /// The product of the guiding cache's distribution at a surface point `p` with the cosine to the shading
 /// normal `n` (a Lambertian BSDF's shape), when the render is guided, the cache learned one there, and the path's
 /// throughput `beta` is at most [`GUIDE_MAX_THROUGHPUT`].
-pub(super) fn surface_guide_at<'a>(
-    services: &RendererServices<'a>,
+pub(super) fn surface_guide_at(
+    services: &RendererServices,
     beta: Rgb,
     p: Vec3,
     n: Vec3,
-) -> Option<ProductGuide<'a>> {
-    services
+) -> Option<VmfMixture> {
+    let field = services
         .guide()
-        .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)
-        .and_then(|g| g.radiance_grid_at(p))
-        .and_then(|grid| ProductGuide::new(grid, n, |cos| cos))
+        .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)?;
+    // The clamped cosine max(cos θ, 0)/π as the vMF lobe of the same mean cosine (2/3) about the normal.
+    field.vmf_at(p)?.product(n, lobe_kappa(2.0 / 3.0))
 }
 
 /// The product of the guiding cache's distribution at a medium point `p` with the phase function `phase` for
 /// light leaving toward `wo`, under the same conditions as [`surface_guide_at`].
-pub(super) fn medium_guide_at<'a>(
-    services: &RendererServices<'a>,
+pub(super) fn medium_guide_at(
+    services: &RendererServices,
     beta: Rgb,
     p: Vec3,
     phase: &PhaseFunction,
     wo: Vec3,
-) -> Option<ProductGuide<'a>> {
-    services
+) -> Option<VmfMixture> {
+    let field = services
         .guide()
-        .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)
-        .and_then(|g| g.radiance_grid_at(p))
-        .and_then(|grid| match *phase {
-            // A constant factor: the product is the learned distribution itself.
-            PhaseFunction::Isotropic => ProductGuide::new(grid, -wo, |_| 1.0),
-            // Henyey & Greenstein 1941 without its constant (1 − g²)/4π, which the product's normalisation
-            // divides out: (1 + g² − 2g cos θ)^(−3/2).
-            PhaseFunction::HenyeyGreenstein { g } => ProductGuide::new(grid, -wo, |cos| {
-                let d = 1.0 + g * g - 2.0 * g * cos;
-                1.0 / (d * d.sqrt())
-            }),
-        })
+        .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)?;
+    let mixture = field.vmf_at(p)?;
+    match *phase {
+        // A constant factor: the product is the learned distribution itself.
+        PhaseFunction::Isotropic => Some(*mixture),
+        // Henyey & Greenstein 1941 as the vMF lobe of the same mean cosine g about the forward direction −ω_o
+        // (of −g about ω_o for back scattering; Herholz et al. 2019 §4 match the mean cosine too).
+        PhaseFunction::HenyeyGreenstein { g } => {
+            let axis = if g >= 0.0 { -wo } else { wo };
+            mixture.product(axis, lobe_kappa(g.abs()))
+        }
+    }
 }
 
 /// The density of the direction `wi_world` under the one-sample MIS mixture α q + (1 − α) p of the guide's
 /// distribution q and the phase function's or BSDF's density `pdf` = p(wi); `pdf` alone unguided.
-pub(super) fn mixture_pdf(guide: Option<&ProductGuide>, wi_world: Vec3, pdf: f32) -> f32 {
+pub(super) fn mixture_pdf(guide: Option<&VmfMixture>, wi_world: Vec3, pdf: f32) -> f32 {
     match guide {
         Some(d) => GUIDE_PROBABILITY * d.pdf(wi_world) + (1.0 - GUIDE_PROBABILITY) * pdf,
         None => pdf,
@@ -97,7 +98,7 @@ fn choose_strategy(u: Vec2) -> (bool, Vec2) {
 /// density is not positive.
 pub(super) fn sample_phase(
     phase: &PhaseFunction,
-    guide: Option<&ProductGuide>,
+    guide: Option<&VmfMixture>,
     wo: Vec3,
     rng: &mut Rng,
 ) -> Option<(Vec3, f32, f32)> {
@@ -122,7 +123,7 @@ pub(super) fn sample_phase(
 /// guided, the mixture's, with the mixture's density (`direction_pdf`, local directions) and the BSDF's value.
 pub(super) fn sample_bsdf(
     bsdf: &Bsdf,
-    guide: Option<&ProductGuide>,
+    guide: Option<&VmfMixture>,
     frame: &Frame,
     wo: Vec3,
     rng: &mut Rng,

@@ -56,7 +56,7 @@ use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::guiding::adjoint::{self, Roulette};
-use crate::guiding::{GuidePath, ProductGuide};
+use crate::guiding::{GuidePath, VmfMixture};
 use crate::light::{LightContext, LightSample};
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
 use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
@@ -129,7 +129,7 @@ const BRANCH_STREAM: u64 = 0x8979_0a0b_4e5d_1c3f;
 
 /// A medium scattering event, as a path goes on from it after its next-event estimate.
 #[derive(Clone, Copy)]
-struct MediumEvent<'g> {
+struct MediumEvent {
     /// The ray that reached the event, and the event's distance along it.
     ray: Ray,
     t: f32,
@@ -138,10 +138,10 @@ struct MediumEvent<'g> {
     /// The product of the guiding cache's distribution with the phase function, which its direction is sampled
     /// from in the mixture with the phase function, when the event is guided ([`guided::medium_guide_at`],
     /// decided once, before next-event estimation, which is weighed against that density).
-    guide: Option<ProductGuide<'g>>,
+    guide: Option<VmfMixture>,
 }
 
-impl MediumEvent<'_> {
+impl MediumEvent {
     /// Where it happened.
     fn point(&self) -> Vec3 {
         self.ray.at(self.t)
@@ -151,15 +151,15 @@ impl MediumEvent<'_> {
 /// A path split off at a medium scattering event by guided splitting: the state of the path there (its albedo,
 /// next-event estimate and the split's 1/n done), and a generator of its own. It goes on from there as the path
 /// that split does, sampling its own direction.
-struct Branch<'g> {
-    event: MediumEvent<'g>,
+struct Branch {
+    event: MediumEvent,
     rng: Rng,
     onward: OnwardState,
 }
 
-impl<'g> Branch<'g> {
+impl Branch {
     /// A copy of the path in `s` at `event`, its generator seeded from `rng`'s next numbers.
-    fn split_off(s: &PathState, event: &MediumEvent<'g>, rng: &mut Rng) -> Self {
+    fn split_off(s: &PathState, event: &MediumEvent, rng: &mut Rng) -> Self {
         let seed = (u64::from(rng.next_u32()) << 32) | u64::from(rng.next_u32());
         let stream = u64::from(rng.next_u32()) ^ BRANCH_STREAM;
         Self {
@@ -171,7 +171,7 @@ impl<'g> Branch<'g> {
 
     /// Puts the branch's state into `s` (the radiance, coverage and records stay the sample's) and returns
     /// the event and the branch's generator.
-    fn resume(self, s: &mut PathState) -> (MediumEvent<'g>, Rng) {
+    fn resume(self, s: &mut PathState) -> (MediumEvent, Rng) {
         s.onward = self.onward;
         (self.event, self.rng)
     }
@@ -279,9 +279,8 @@ struct OnwardState {
     first_event: FirstEvent,
 }
 
-/// The state of a path between events; `'r` borrows the sample's records, `'g` the guiding cache its
-/// split-off paths sample from.
-struct PathState<'r, 'g> {
+/// The state of a path between events; `'r` borrows the sample's records.
+struct PathState<'r> {
     radiance: Rgb,
     /// What the path carries from event to event, and all a path split off from it copies.
     onward: OnwardState,
@@ -316,12 +315,12 @@ struct PathState<'r, 'g> {
     /// Where a training path remembers its guided vertices, when it trains the guiding cache.
     guide_path: Option<&'r mut GuidePath>,
     /// Paths split off and not yet traced.
-    branches: Vec<Branch<'g>>,
+    branches: Vec<Branch>,
     /// Extra paths splitting may still add to the sample.
     branch_budget: u32,
 }
 
-impl PathState<'_, '_> {
+impl PathState<'_> {
     /// 1 − the mean of the throughput's channels: how much of the camera ray something in front has taken,
     /// where the path meets the environment or a holdout.
     fn coverage_so_far(&self) -> f32 {
@@ -684,10 +683,10 @@ impl PathTracer {
     }
 
     /// Follows the path in `s` from `ray` until it ends, filling `out`'s first-hit AOVs when they are pending.
-    fn walk<'g>(
+    fn walk(
         &self,
-        cx: &mut PathContext<'_, 'g>,
-        s: &mut PathState<'_, 'g>,
+        cx: &mut PathContext<'_, '_>,
+        s: &mut PathState<'_>,
         mut ray: Ray,
         out: &mut PathSample,
     ) {
@@ -1477,10 +1476,10 @@ impl PathTracer {
     /// Handles a real collision at distance `t` in medium `m`: the medium's albedo, next-event estimation with
     /// MIS against the direction sampling to come, guided Russian roulette and splitting where it applies
     /// ([`Self::guided_roulette`]), then [`Self::scatter_onward`]. Returns false when the path ends.
-    fn scatter_in_medium<'g>(
+    fn scatter_in_medium(
         &self,
-        cx: &mut PathContext<'_, 'g>,
-        s: &mut PathState<'_, 'g>,
+        cx: &mut PathContext<'_, '_>,
+        s: &mut PathState<'_>,
         ray: &mut Ray,
         t: f32,
         m: u32,
@@ -1538,11 +1537,11 @@ impl PathTracer {
     /// continuation, leaves out the event's own next-event estimate), compared with its pixel's training value.
     /// Returns `None` where it does not apply (not on, a training path, or no estimate: classic Russian roulette
     /// then), else whether the path goes on; paths split off wait in `s.branches`.
-    fn guided_roulette<'g>(
+    fn guided_roulette(
         &self,
         cx: &mut PathContext,
-        s: &mut PathState<'_, 'g>,
-        event: &MediumEvent<'g>,
+        s: &mut PathState<'_>,
+        event: &MediumEvent,
     ) -> Option<bool> {
         if !self.guided_roulette || s.guide_path.is_some() {
             return None;

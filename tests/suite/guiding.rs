@@ -158,7 +158,8 @@ fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
 /// classic roulette.
 #[test]
 fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
-    let scene = ball_scene(30.0, 0.98, true);
+    // Density 10: in the denser ball of density 30 the window splits no path of these samples (vMF caches).
+    let scene = ball_scene(10.0, 0.98, true);
     let (size, spp) = (20, 6);
     let render = |threads| {
         Renderer::new(RenderSettings {
