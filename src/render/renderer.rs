@@ -73,10 +73,10 @@ pub struct RenderSettings {
     /// Equiangular sampling toward point and spot lights on segments through constant media, MIS'd with
     /// distance sampling (Kulla & Fajardo 2012); off: distance sampling alone.
     pub equiangular: bool,
-    /// Decoupled direct light on segments through constant (homogeneous) scattering media: each segment also
-    /// estimates the direct light of every light at a distance drawn from the free-flight density truncated to
-    /// it, MIS'd with the estimate at the free-flight collision (Novák et al. 2018, §5); off: only at
-    /// collisions.
+    /// Decoupled direct light on segments through constant (homogeneous) scattering media: each segment
+    /// estimates the direct light of the lights equiangular sampling does not serve (all but point and spot
+    /// lights when it is on) at a distance drawn from the free-flight density truncated to it, in place of the
+    /// estimate at the free-flight collision (Novák et al. 2018, §5); off: only at collisions.
     pub decoupled: bool,
     /// Where the path's key random decisions come from.
     pub sampler: Sampler,
