@@ -20,6 +20,7 @@
 //!   form: v₁ v₂ = c · v(κ₁μ₁ + κ₂μ₂) (Herholz et al. 2019 §4), so the product of the mixture with a lobe is a
 //!   mixture ([`VmfMixture::product`]).
 
+use crate::math::sampling::ONE_BELOW;
 use crate::math::{Frame, Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -42,8 +43,6 @@ const MAX_RECORD_WEIGHT: f32 = 20.0;
 const MAX_KAPPA: f32 = 1000.0;
 /// The smallest concentration a lobe may have (below it the lobe is uniform to f32 precision).
 const MIN_KAPPA: f32 = 1e-4;
-/// The largest f32 below 1.
-const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// ln of the vMF normalisation in the form v(ω) = exp(ln_norm(κ) + κ (μ·ω − 1)): ln(κ / (2π (1 − e^(−2κ)))).
 fn ln_norm(kappa: f32) -> f32 {

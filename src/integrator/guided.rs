@@ -20,11 +20,9 @@ use super::services::RendererServices;
 use crate::guiding::vmf::lobe_kappa;
 use crate::guiding::{VmfMixture, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
 use crate::material::{Bsdf, BsdfSample, LobeClass};
+use crate::math::sampling::ONE_BELOW;
 use crate::math::{Frame, Rgb, Rng, Vec2, Vec3};
 use crate::volume::PhaseFunction;
-
-/// The largest f32 below 1.
-const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// The product of the guiding cache's distribution at a surface point `p` with the cosine to the shading
 /// normal `n` (a Lambertian BSDF's shape), when the render is guided, the cache learned one there, and the path's

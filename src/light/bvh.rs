@@ -28,6 +28,7 @@
 
 use super::Light;
 use crate::material::Texture;
+use crate::math::sampling::ONE_BELOW;
 use crate::math::{luminance, Aabb, Distribution1D, Quat, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -41,8 +42,6 @@ pub struct LightContext {
     pub n: Option<Vec3>,
 }
 
-/// The largest representable f32 below 1: where remapped sample values are clamped.
-const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 /// Bins per axis of the binned surface area orientation heuristic.
 const BINS: usize = 12;
 /// Deepest leaf allowed; a light's bit trail has one bit per level of a u64. The build switches to balanced
@@ -384,7 +383,7 @@ impl LightBvh {
         if self.nodes.is_empty() {
             return None;
         }
-        let mut u = ((u - p_infinite) / (1.0 - p_infinite)).min(ONE_MINUS_EPSILON);
+        let mut u = ((u - p_infinite) / (1.0 - p_infinite)).min(ONE_BELOW);
         let mut pmf = 1.0 - p_infinite;
         let mut node = 0;
         loop {
@@ -394,11 +393,11 @@ impl LightBvh {
                     let second = second as usize;
                     let p_first = self.first_child_probability(node, second, ctx);
                     if u < p_first {
-                        u = (u / p_first).min(ONE_MINUS_EPSILON);
+                        u = (u / p_first).min(ONE_BELOW);
                         pmf *= p_first;
                         node += 1;
                     } else {
-                        u = ((u - p_first) / (1.0 - p_first)).min(ONE_MINUS_EPSILON);
+                        u = ((u - p_first) / (1.0 - p_first)).min(ONE_BELOW);
                         pmf *= 1.0 - p_first;
                         node = second;
                     }

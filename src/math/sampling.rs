@@ -38,6 +38,10 @@ pub fn uniform_sphere(u: Vec2) -> Vec3 {
     Vec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
+/// The largest f32 below 1: where a sample value rescaled to \[0, 1) is clamped, so that rounding in the
+/// rescaling cannot reach 1.
+pub const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
+
 /// Density of [`uniform_sphere`].
 pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
 
