@@ -109,15 +109,7 @@ impl HomogeneousMedium {
         let channel = match self.spectral_mis() {
             None => 0,
             Some(choice) => {
-                let w = channel_weights(choice, throughput);
-                let u = rng.next_f32();
-                if u < w.x {
-                    0
-                } else if u < w.x + w.y {
-                    1
-                } else {
-                    2
-                }
+                channel_of(channel_weights(choice, throughput), rng.next_f32())
             }
         };
         let sigma = self.sigma_t[channel];
@@ -269,6 +261,18 @@ pub(crate) fn channel_weights(choice: ChannelSampling, throughput: Rgb) -> Rgb {
         #[cfg(any(test, feature = "testing"))]
         ChannelSampling::Uniform => Rgb::splat(1.0 / 3.0),
         ChannelSampling::Throughput => throughput_weights(throughput),
+    }
+}
+
+/// The channel that `u` ∈ \[0, 1) picks with the channel probabilities `w`: the first whose running sum of
+/// probabilities exceeds `u`.
+pub(crate) fn channel_of(w: Rgb, u: f32) -> usize {
+    if u < w.x {
+        0
+    } else if u < w.x + w.y {
+        1
+    } else {
+        2
     }
 }
 

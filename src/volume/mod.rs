@@ -181,14 +181,7 @@ impl ConstantScattering {
     /// as free flights choose it (throughput-proportional spectral MIS) and its truncated exponential sampled
     /// by `u.x`. `None` for an unbounded or empty segment.
     pub fn sample_in_segment(&self, u: Vec2, length: f32, throughput: Rgb) -> Option<(f32, f32)> {
-        let w = self.segment_channels(throughput);
-        let channel = if u.y < w.x {
-            0
-        } else if u.y < w.x + w.y {
-            1
-        } else {
-            2
-        };
+        let channel = homogeneous::channel_of(self.segment_channels(throughput), u.y);
         let (t, _) = TruncatedExponential::new(self.sigma_t[channel], length)?.sample(u.x);
         Some((t, self.segment_pdf(t, length, throughput)))
     }
