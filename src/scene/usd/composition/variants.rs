@@ -32,8 +32,7 @@ impl<'a> Walk<'a> {
         let Some(own) = prims.get(path) else {
             return Ok(());
         };
-        let name = &path[parent(path).len()..];
-        let name = name.trim_start_matches('/');
+        let name = path.rsplit('/').next().unwrap_or(path);
         let here = |arc: &&Arc| self.in_stack(stack, arc);
         for arc in own.arcs.iter().filter(|a| a.in_variant).filter(here) {
             let Some(target) = self.target_path(arc) else {
