@@ -156,6 +156,13 @@ impl SobolStream {
         ))
     }
 
+    /// Uses up the next dimension pair without computing its point, as [`Self::next_1d`] would: false (nothing
+    /// used up) after [`SOBOL_PAIRS`] pairs. For a decision that does not need its value, so that the later
+    /// pairs keep theirs.
+    pub fn skip_pair(&mut self) -> bool {
+        self.next_pair_key().is_some()
+    }
+
     /// The next dimension pair's point in \[0, 1)², or `None` after [`SOBOL_PAIRS`] pairs.
     pub fn next_2d(&mut self) -> Option<Vec2> {
         let key = self.next_pair_key()?;
