@@ -63,6 +63,7 @@ use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
 use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
 use crate::scene::{Scene, SurfaceHit};
 use crate::volume::{ConstantScattering, PhaseFunction, TentativeEmission};
+use std::borrow::Cow;
 
 /// Bounces after which Russian roulette may end a path.
 const ROULETTE_START: u32 = 3;
@@ -1217,7 +1218,7 @@ impl PathTracer {
             unmapped,
             frame,
         };
-        self.scatter_at_surface(cx, s, ray, &surface, shading.bsdf)
+        self.scatter_at_surface(cx, s, ray, &surface, &shading.bsdf)
     }
 
     /// Adds the light the emissive surface `hit` emits toward the path (where an emissive texture is black there
@@ -1254,18 +1255,20 @@ impl PathTracer {
         s: &mut PathState,
         ray: &Ray,
         surface: &Surface,
-        mut bsdf: Bsdf,
+        bsdf: &Bsdf,
     ) -> SurfaceOutcome {
         let services = cx.services;
         let scene = services.scene();
         let (hit, frame) = (surface.hit, surface.frame);
         let material = &scene.materials[hit.material as usize];
+        // The material's BSDF, copied only where this hit changes it.
+        let mut bsdf = Cow::Borrowed(bsdf);
         // A dispersive surface: the path goes on in one colour channel, refracted with that channel's index (the
         // first hit's colours are seen with the throughput before the choice).
         let seen_beta = s.onward.beta;
         if material.is_dispersive() {
             let channel = carry_one_channel(&mut s.onward.beta, cx.rng);
-            bsdf = material.bsdf_in_channel(surface.at, &scene.textures, channel);
+            bsdf = Cow::Owned(material.bsdf_in_channel(surface.at, &scene.textures, channel));
         }
         // The clear coat's normal: its own normal map, else the normal before the base's normal map.
         if let Some(n) = material.coat_normal(&surface.unmapped, surface.at, &scene.textures) {
@@ -1274,8 +1277,9 @@ impl PathTracer {
             } else {
                 n
             };
-            bsdf.set_coat_normal(frame.to_local(n));
+            bsdf.to_mut().set_coat_normal(frame.to_local(n));
         }
+        let bsdf = &*bsdf;
         let wo = frame.to_local(-ray.dir);
         if s.onward.depth == 0 {
             if let Some(r) = s.record.as_deref_mut() {
@@ -1289,9 +1293,9 @@ impl PathTracer {
         let direction_pdf =
             |wi: Vec3| guided::mixture_pdf(guide.as_ref(), frame.to_world(wi), bsdf.pdf(wo, wi));
         if !bsdf.is_delta() {
-            self.surface_next_event(cx, s, ray, surface, &bsdf, direction_pdf);
+            self.surface_next_event(cx, s, ray, surface, bsdf, direction_pdf);
         }
-        let sampled = guided::sample_bsdf(&bsdf, guide.as_ref(), &frame, wo, cx.rng, direction_pdf);
+        let sampled = guided::sample_bsdf(bsdf, guide.as_ref(), &frame, wo, cx.rng, direction_pdf);
         let Some(bs) = sampled else {
             return SurfaceOutcome::End;
         };

@@ -81,6 +81,15 @@ impl Rng {
         }
     }
 
+    /// Uses up the value [`Rng::sample_1d`] would return without computing it (its Sobol pair, else one PCG32
+    /// output), so that every later value is the one it would have been: for a key decision that turns out not
+    /// to need its value (the lobe choice of a single-lobe BSDF).
+    pub fn skip_1d(&mut self) {
+        if !self.sobol.as_mut().is_some_and(SobolStream::skip_pair) {
+            self.next_u32();
+        }
+    }
+
     /// The next 32 uniformly distributed bits.
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
@@ -105,6 +114,33 @@ impl Rng {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn skip_1d_leaves_later_values_as_sample_1d_does() {
+        // Past the Sobol pairs too: 60 decisions run beyond the 48 pairs into PCG32.
+        for skipped in [0, 5, 47, 48, 55] {
+            let mut drawn = Rng::for_sample_sobol(3, 17, 9);
+            let mut skipping = drawn.clone();
+            let values = |rng: &mut Rng, skip: bool| -> Vec<f32> {
+                (0..60)
+                    .map(|i| match (i == skipped, skip) {
+                        (true, true) => {
+                            rng.skip_1d();
+                            -1.0
+                        }
+                        (true, false) => {
+                            rng.sample_1d();
+                            -1.0
+                        }
+                        _ if i % 2 == 0 => rng.sample_2d().y,
+                        _ => rng.sample_1d(),
+                    })
+                    .collect()
+            };
+            assert_eq!(values(&mut drawn, false), values(&mut skipping, true));
+            assert_eq!(drawn.next_u32(), skipping.next_u32());
+        }
+    }
 
     #[test]
     fn hash_to_unit_is_uniform() {

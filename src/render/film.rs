@@ -148,12 +148,18 @@ impl PixelSums {
                 v
             };
             self.count += 1;
+            // Arrays, not the vectors' `Index`, whose match on the channel the loop kept.
+            let (radiance, albedo, normal) = (
+                s.radiance.to_array(),
+                s.albedo.to_array(),
+                s.normal.to_array(),
+            );
             for c in 0..3 {
-                let v = take(s.radiance[c]);
+                let v = take(radiance[c]);
                 self.sum[c].add_value(v);
                 self.sum_sq[c].add_square(v);
-                self.albedo[c].add_value(take(s.albedo[c]));
-                self.normal[c].add_value(take(s.normal[c]));
+                self.albedo[c].add_value(take(albedo[c]));
+                self.normal[c].add_value(take(normal[c]));
             }
             self.depth.add_value(take(s.depth));
             self.alpha.add_value(take(s.alpha));

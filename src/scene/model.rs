@@ -10,6 +10,7 @@ use crate::light::{EnvironmentLight, Light, LightBvh, LightSampler};
 use crate::material::{AlphaMode, Material, MaterialShading, ShadingPoint, TexCoord, Texture};
 use crate::math::{hash_to_unit, Aabb, Frame, Ray, Vec2, Vec3, Vec4};
 use crate::volume::Medium;
+use std::borrow::Cow;
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
@@ -365,8 +366,8 @@ impl Scene {
 
     /// The parameters and BSDF of material `material` at `at` (a hit's [`SurfaceHit::shading_point`]); the
     /// same as [`Material::pbr_params`] and [`Material::bsdf`], taken from [`Self::constant_shading`] where
-    /// the material has no textures.
-    pub(crate) fn shading(&self, material: u32, at: &ShadingPoint) -> MaterialShading {
+    /// the material has no textures (borrowed from there, not copied).
+    pub(crate) fn shading(&self, material: u32, at: &ShadingPoint) -> Cow<'_, MaterialShading> {
         let index = material as usize;
         MaterialShading::at(
             self.constant_shading.get(index).and_then(Option::as_ref),
