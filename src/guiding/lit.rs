@@ -222,7 +222,7 @@ impl LitGrid {
             t_in = t_in.max(t0.min(t1));
             t_out = t_out.min(t0.max(t1));
         }
-        if !(t_in < t_out) {
+        if t_in.partial_cmp(&t_out) != Some(std::cmp::Ordering::Less) {
             return false;
         }
         if t_in > 0.0 {
