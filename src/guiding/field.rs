@@ -240,8 +240,8 @@ impl GuidingField {
     }
 
     /// Ends training iteration `self.iterations()`: every cell's sample is fitted (no distribution without
-    /// energy), the lit grid's means are published, cells over the split rule are split (their parts start from the new distribution), and every
-    /// cell's records start again from none.
+    /// energy), the lit grid's means are published, cells over the split rule are split (their parts start
+    /// from the new distribution), and every cell's records start again from none.
     pub fn finish_iteration(&mut self) {
         let threshold = SPLIT_RECORDS * 2f64.powf(self.iterations as f64 * 0.5);
         self.cells.par_iter_mut().for_each(|cell| {

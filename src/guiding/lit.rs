@@ -13,12 +13,12 @@
 //! [`DistanceGuide`] cuts a segment where it crosses the voxels (Amanatides & Woo 1987, "A Fast Voxel Traversal
 //! Algorithm for Ray Tracing") and gives piece i the weight max(L_i, [`LIT_FLOOR`] · L̄) ∫_piece e^{−σ t} dt, with
 //! L_i the voxel's estimate (L̄, the length-weighted mean over the segment's pieces that have one, where a voxel
-//! has none; the parts of the segment outside the box of the voxels with light are one piece each, of estimate
-//! 0, and a segment that misses that box gets no guide: the traversal walks the lit box alone) and σ the mean of the medium's σ_t channels (the integral of the transmittance by the trapezoid
-//! rule, with a rational stand-in for the exponential: any positive weights make a density, and the estimator
-//! divides by the one it sampled); within a piece the density is uniform. The floor keeps
-//! every part of the segment at a density of at least that fraction of the mean, so a lit interval the grid
-//! missed is not left to the free-flight density alone.
+//! has none) and σ the mean of the medium's σ_t channels. The integral of the transmittance is taken by the
+//! trapezoid rule with a rational stand-in for the exponential: any positive weights make a density, and the
+//! estimator divides by the one it sampled. Within a piece the density is uniform. The traversal walks only the
+//! box of the voxels with light: the parts of the segment outside it are one piece each, of estimate 0, and a
+//! segment that misses it gets no guide. The floor keeps every part of the segment at a density of at least that
+//! fraction of the mean, so a lit interval the grid missed is not left to the free-flight density alone.
 
 use crate::math::{Aabb, Vec3};
 
@@ -27,7 +27,7 @@ pub const LIT_RESOLUTION: usize = 32;
 /// The fraction of a segment's mean estimate below which no piece's estimate falls in [`DistanceGuide`].
 pub const LIT_FLOOR: f32 = 0.05;
 /// The most pieces a segment is cut into: one per voxel crossed (at most the sum of the grid's three
-/// resolutions, plus the start voxel) and the parts before and after the grid.
+/// resolutions, plus the start voxel) and the parts before and after the box of the lit voxels.
 const MAX_PIECES: usize = 3 * LIT_RESOLUTION + 4;
 
 /// What a training path's decoupled direct-light sample received at `p`: its lights' radiance times the
