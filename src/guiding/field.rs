@@ -15,11 +15,15 @@
 //! and their count), and the cache keeps the training's pixel values ([`PixelEstimates`]): the two adjoint
 //! estimates of guided Russian roulette and splitting ([`super::adjoint`]).
 //!
+//! The cache also holds the grid of the direct light the training's decoupled samples received
+//! ([`LitGrid`]), from which those samples draw guided distances.
+//!
 //! Determinism: records are added in the order [`GuidingField::add_records`] gets them, one thread (the
 //! reservoirs draw from one seeded generator), so a caller that hands them over in a fixed order (the training's
 //! rows, in row order) builds the same field on any number of threads; each cell's fit is its own.
 
 use super::adjoint::PixelEstimates;
+use super::lit::{DistanceGuide, LitGrid, LitRecord};
 use super::vmf::{VmfMixture, FIT_RECORDS};
 use crate::math::{Aabb, Rng, Vec3};
 use rayon::prelude::*;
@@ -103,12 +107,15 @@ pub struct GuidingField {
     pixels: Option<PixelEstimates>,
     /// The reservoirs' random numbers (records arrive in a fixed order, so the samples are deterministic).
     rng: Rng,
+    /// The direct light of the decoupled samples.
+    lit: LitGrid,
 }
 
 impl GuidingField {
     /// An empty cache over `bounds` (made a cube around their centre, so that cells split in turn along x, y,
     /// z stay near cubes), with one cell and no distribution.
     pub fn new(bounds: Aabb) -> Self {
+        let lit = LitGrid::new(bounds);
         let (centre, half) = if bounds.is_empty() {
             (Vec3::ZERO, 1.0)
         } else {
@@ -123,6 +130,7 @@ impl GuidingField {
             iterations: 0,
             pixels: None,
             rng: Rng::new(0x0076_6d66, 0),
+            lit,
         }
     }
 
@@ -214,14 +222,32 @@ impl GuidingField {
         }
     }
 
+    /// Adds the records of decoupled direct-light samples to the lit grid, in order ([`LitGrid::add`]).
+    pub fn add_lit_records(&mut self, records: &[LitRecord]) {
+        self.lit.add(records);
+    }
+
+    /// The guided distance density of a decoupled sample on the segment `origin + t dir`, t ∈ [0, `length`],
+    /// in a medium of mean extinction `sigma` ([`LitGrid::distance_guide`]).
+    pub fn distance_guide(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        length: f32,
+        sigma: f32,
+    ) -> Option<DistanceGuide> {
+        self.lit.distance_guide(origin, dir, length, sigma)
+    }
+
     /// Ends training iteration `self.iterations()`: every cell's sample is fitted (no distribution without
-    /// energy), cells over the split rule are split (their parts start from the new distribution), and every
-    /// cell's records start again from none.
+    /// energy), the lit grid's means are published, cells over the split rule are split (their parts start
+    /// from the new distribution), and every cell's records start again from none.
     pub fn finish_iteration(&mut self) {
         let threshold = SPLIT_RECORDS * 2f64.powf(self.iterations as f64 * 0.5);
         self.cells.par_iter_mut().for_each(|cell| {
             cell.vmf = VmfMixture::fit(&cell.sample);
         });
+        self.lit.finish_iteration();
         for cell in &mut self.cells {
             let total = cell.energy;
             cell.mean_radiance = (cell.records > 0 && total.is_finite())

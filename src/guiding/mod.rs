@@ -6,6 +6,8 @@
 //! - [`vmf`]: the directional distributions (von Mises–Fisher mixtures fitted by EM) and their product with the
 //!   phase function or the cosine, sampled at guided events.
 //! - [`field`]: the spatial tree of cells and the cache ([`GuidingField`]).
+//! - [`lit`]: the grid of the direct light the decoupled direct-light samples received, and the guided
+//!   distances it gives them ([`lit::DistanceGuide`]).
 //! - [`adjoint`]: guided Russian roulette and splitting from the cache's radiance and the training's pixel values.
 //! - [`pilot`]: what `--guiding auto` decides for a scene, and why.
 //! - [`GuidePath`]: what a training path remembers of its vertices, turned into [`RadianceRecord`]s at its end.
@@ -15,10 +17,12 @@
 
 pub mod adjoint;
 pub mod field;
+pub mod lit;
 pub mod pilot;
 pub mod vmf;
 
 pub use field::{GuidingField, RadianceRecord};
+pub use lit::LitRecord;
 pub use vmf::VmfMixture;
 pub use pilot::GuidingDecision;
 
@@ -32,6 +36,12 @@ pub const GUIDE_PROBABILITY: f32 = 0.5;
 /// each at most 1/(1 − [`GUIDE_PROBABILITY`]), cannot compound beyond it over a long walk (our safeguard,
 /// kept beside the weight window of [`adjoint`]).
 pub const GUIDE_MAX_THROUGHPUT: f32 = 1.0;
+
+/// Probability that a decoupled direct-light sample draws its distance from the learned lit regions
+/// ([`lit::DistanceGuide`]) rather than the truncated free-flight density, in their one-sample mixture: its
+/// density is at least 1 − this times the free flight's, so the sample's weight is at most 1/(1 − this) times
+/// what it was unguided.
+pub const GUIDED_DISTANCE_PROBABILITY: f32 = 0.5;
 
 /// Training iterations before the image's samples: iteration k takes `2^k` samples per pixel of the whole
 /// frame (1, 2, 4: Müller et al. 2017's doubling iterations), and the cache of the last one guides the image.
@@ -73,12 +83,25 @@ struct GuideVertex {
 #[derive(Clone, Debug, Default)]
 pub struct GuidePath {
     vertices: Vec<GuideVertex>,
+    /// What its decoupled direct-light samples received.
+    lit: Vec<LitRecord>,
 }
 
 impl GuidePath {
     /// Forgets the previous path's vertices (keeps the allocation).
     pub fn clear(&mut self) {
         self.vertices.clear();
+        self.lit.clear();
+    }
+
+    /// Remembers that a decoupled direct-light sample at `p` received `value` ([`LitRecord`]).
+    pub fn push_lit(&mut self, p: Vec3, value: f32) {
+        self.lit.push(LitRecord { p, value });
+    }
+
+    /// The records of the path's decoupled direct-light samples.
+    pub fn lit(&self) -> &[LitRecord] {
+        &self.lit
     }
 
     /// Remembers a scattering event at `p` that sampled `dir` with density `pdf`, leaving throughput

@@ -17,12 +17,16 @@
 //! weight uses the density it sampled with.
 
 use super::services::RendererServices;
+use crate::guiding::lit::DistanceGuide;
 use crate::guiding::vmf::lobe_kappa;
-use crate::guiding::{VmfMixture, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY};
+use crate::guiding::{
+    VmfMixture, GUIDED_DISTANCE_PROBABILITY, GUIDE_MAX_THROUGHPUT, GUIDE_PROBABILITY,
+};
 use crate::material::{Bsdf, BsdfSample, LobeClass};
 use crate::math::sampling::ONE_BELOW;
+use crate::math::Ray;
 use crate::math::{Frame, Rgb, Rng, Vec2, Vec3};
-use crate::volume::PhaseFunction;
+use crate::volume::{ConstantScattering, PhaseFunction};
 
 /// The product of the guiding cache's distribution at a surface point `p` with the cosine to the shading
 /// normal `n` (a Lambertian BSDF's shape), when the render is guided, the cache learned one there, and the path's
@@ -74,12 +78,11 @@ pub(super) fn mixture_pdf(guide: Option<&VmfMixture>, wi_world: Vec3, pdf: f32) 
     }
 }
 
-/// The one-sample MIS choice of a guided event from its 2-D sample `u`: the guide when `u.x` <
-/// [`GUIDE_PROBABILITY`], else the phase function or BSDF, with `u.x` rescaled to \[0, 1) within the part chosen,
-/// so that each strategy keeps the stratification of the sampler's points (a separate random number for the
-/// choice measured worse on the Sobol sampler's early bounces).
-fn choose_strategy(u: Vec2) -> (bool, Vec2) {
-    let a = GUIDE_PROBABILITY;
+/// The one-sample MIS choice of a guided event from its 2-D sample `u`: the guide when `u.x` < `a` (its
+/// probability), else the other strategy, with `u.x` rescaled to \[0, 1) within the part chosen, so that each
+/// strategy keeps the stratification of the sampler's points (a separate random number for the choice measured
+/// worse on the Sobol sampler's early bounces).
+fn choose_strategy(u: Vec2, a: f32) -> (bool, Vec2) {
     if u.x < a {
         (true, Vec2::new((u.x / a).min(ONE_BELOW), u.y))
     } else {
@@ -104,7 +107,7 @@ pub(super) fn sample_phase(
         let (wi, pdf) = phase.sample(wo, rng.sample_2d());
         return Some((wi, pdf, 1.0));
     };
-    let (guided, u) = choose_strategy(rng.sample_2d());
+    let (guided, u) = choose_strategy(rng.sample_2d(), GUIDE_PROBABILITY);
     let wi = if guided {
         distribution.sample(u)
     } else {
@@ -143,7 +146,7 @@ pub(super) fn sample_bsdf(
         return bsdf.sample(wo, lobe_choice(bsdf, rng), rng.sample_2d());
     };
     let u_lobe = lobe_choice(bsdf, rng);
-    let (guided, u) = choose_strategy(rng.sample_2d());
+    let (guided, u) = choose_strategy(rng.sample_2d(), GUIDE_PROBABILITY);
     let wi = if guided {
         Some(frame.to_local(distribution.sample(u)))
     } else {
@@ -158,4 +161,136 @@ pub(super) fn sample_bsdf(
         // Guided surfaces are Lambertian: nothing refracts.
         eta: 1.0,
     })
+}
+
+/// The distance of the decoupled direct-light sample on the segment [0, `length`] of `ray` through the
+/// homogeneous medium `c`, for a path of `throughput`, from the 2-D sample `u`, and its density: unguided, or
+/// where the cache's lit grid knows no light on the segment, the free-flight density truncated to the segment
+/// ([`ConstantScattering::sample_in_segment`]); else the one-sample mixture of the grid's distance density
+/// ([`DistanceGuide`], with probability [`GUIDED_DISTANCE_PROBABILITY`]) and that density
+/// ([`distance_from_mixture`]).
+pub(super) fn decoupled_distance(
+    services: &RendererServices,
+    c: &ConstantScattering,
+    ray: &Ray,
+    length: f32,
+    throughput: Rgb,
+    u: Vec2,
+) -> Option<(f32, f32)> {
+    let guide = services.guide().and_then(|field| {
+        field.distance_guide(ray.origin, ray.dir, length, c.sigma_t.element_sum() / 3.0)
+    });
+    distance_from_mixture(guide.as_ref(), c, length, throughput, u)
+}
+
+/// A distance on [0, `length`] from `u` and its density: with `guide`, the one-sample mixture a p_g + (1 − a)
+/// p_ff of the guide's density and the truncated free-flight density (a = [`GUIDED_DISTANCE_PROBABILITY`],
+/// chosen by `u.x` as [`choose_strategy`] does), its density evaluated at the distance drawn whichever drew
+/// it, so that the estimate stays unbiased whatever the guide; without, the free-flight density's sample.
+fn distance_from_mixture(
+    guide: Option<&DistanceGuide>,
+    c: &ConstantScattering,
+    length: f32,
+    throughput: Rgb,
+    u: Vec2,
+) -> Option<(f32, f32)> {
+    let Some(guide) = guide else {
+        return c.sample_in_segment(u, length, throughput);
+    };
+    let a = GUIDED_DISTANCE_PROBABILITY;
+    let t = match choose_strategy(u, a) {
+        (true, u) => guide.sample(u.x),
+        (false, u) => c.sample_in_segment(u, length, throughput)?.0,
+    };
+    let pdf = a * guide.pdf(t) + (1.0 - a) * c.segment_pdf(t, length, throughput);
+    Some((t, pdf))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::guiding::lit::{LitGrid, LitRecord};
+    use crate::math::Aabb;
+    use crate::volume::ChannelSampling;
+
+    /// A lit grid over [0, 2]³ that knows light in the slab 0.8 ≤ x < 1 only.
+    fn slab() -> LitGrid {
+        let mut grid = LitGrid::new(Aabb::new(Vec3::ZERO, Vec3::splat(2.0)));
+        let records: Vec<LitRecord> = (0..200)
+            .map(|k| {
+                let x = (k as f32 + 0.5) / 100.0;
+                LitRecord {
+                    p: Vec3::new(x, 1.0, 1.0),
+                    value: if (0.8..1.0).contains(&x) { 3.0 } else { 0.0 },
+                }
+            })
+            .collect();
+        grid.add(&records);
+        grid.finish_iteration();
+        grid
+    }
+
+    /// The mixture's density integrates to 1 over the segment, for grey and chromatic media (the latter with
+    /// its channel mixture), and its samples keep the density they claim (chi-square).
+    #[test]
+    fn the_guided_distance_mixture_is_a_density_on_the_segment() {
+        let grid = slab();
+        let grey = ConstantScattering {
+            sigma_s: Rgb::splat(0.6),
+            sigma_t: Rgb::splat(0.8),
+            phase: PhaseFunction::Isotropic,
+            spectral_mis: None,
+        };
+        let chromatic = ConstantScattering {
+            sigma_s: Rgb::new(0.3, 0.5, 1.0),
+            sigma_t: Rgb::new(0.5, 1.0, 2.0),
+            spectral_mis: Some(ChannelSampling::Throughput),
+            ..grey
+        };
+        let throughput = Rgb::new(1.0, 0.5, 0.25);
+        let length = 1.9;
+        let origin = Vec3::new(0.05, 1.0, 1.0);
+        for (i, c) in [grey, chromatic].iter().enumerate() {
+            let guide = grid
+                .distance_guide(origin, Vec3::X, length, c.sigma_t.element_sum() / 3.0)
+                .unwrap();
+            let n = 200_000;
+            let mut rng = Rng::new(7, i as u64);
+            let mut density_at = Vec::new();
+            let integral: f64 = (0..n)
+                .map(|k| {
+                    let t = (k as f32 + 0.5) / n as f32 * length;
+                    let pdf = GUIDED_DISTANCE_PROBABILITY * guide.pdf(t)
+                        + (1.0 - GUIDED_DISTANCE_PROBABILITY)
+                            * c.segment_pdf(t, length, throughput);
+                    pdf as f64 * (length / n as f32) as f64
+                })
+                .sum();
+            assert!((integral - 1.0).abs() < 1e-3, "{i}: {integral}");
+            crate::math::chi2::assert_interval_sampler_fits(
+                &format!("guided distance mixture {i}"),
+                200_000,
+                (0.0, length as f64),
+                || {
+                    let (t, pdf) =
+                        distance_from_mixture(Some(&guide), c, length, throughput, rng.next_2d())
+                            .unwrap();
+                    density_at.push((t, pdf));
+                    t
+                },
+                |t| {
+                    let t = t as f32;
+                    (GUIDED_DISTANCE_PROBABILITY * guide.pdf(t)
+                        + (1.0 - GUIDED_DISTANCE_PROBABILITY)
+                            * c.segment_pdf(t, length, throughput)) as f64
+                },
+            );
+            // Over a third of the samples land in the lit slab, [0.75, 0.95] of the segment (a tenth of it).
+            let lit = density_at
+                .iter()
+                .filter(|(t, _)| (0.75..0.95).contains(t))
+                .count();
+            assert!(lit * 3 > density_at.len(), "{i}: {lit}");
+        }
+    }
 }

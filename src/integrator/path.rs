@@ -60,7 +60,7 @@ use crate::guiding::{GuidePath, VmfMixture};
 use crate::light::{LightContext, LightSample};
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
 use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
-use crate::math::{Frame, Ray, Rgb, Rng, Vec3};
+use crate::math::{luminance, Frame, Ray, Rgb, Rng, Vec3};
 use crate::scene::{Scene, SurfaceHit};
 use crate::volume::{ConstantScattering, PhaseFunction, TentativeEmission};
 use std::borrow::Cow;
@@ -1011,6 +1011,10 @@ impl PathTracer {
     /// direction MIS a collision at t would use: the power heuristic (Veach 1997, eq. 9.13) against the density
     /// the path would sample its next direction with there, guided or not, so the phase-sampled hits on
     /// emitters keep their weight and the estimate stays unbiased. The path does not continue from t.
+    ///
+    /// Guided, t comes from the one-sample mixture of the free-flight density with the distances of the cache's
+    /// lit grid ([`guided::decoupled_distance`]; Herholz et al. 2019 §5), and a training path records what the
+    /// sample received ([`GuidePath::push_lit`]).
     fn sample_decoupled(
         &self,
         cx: &mut PathContext,
@@ -1021,9 +1025,14 @@ impl PathTracer {
         let services = cx.services;
         let scene = services.scene();
         let c = &segment.coefficients;
-        let Some((t, pdf)) =
-            c.sample_in_segment(cx.rng.sample_2d(), segment.length, segment.throughput)
-        else {
+        let Some((t, pdf)) = guided::decoupled_distance(
+            services,
+            c,
+            ray,
+            segment.length,
+            segment.throughput,
+            cx.rng.sample_2d(),
+        ) else {
             return;
         };
         if !(pdf > 0.0 && pdf.is_finite()) {
@@ -1038,6 +1047,8 @@ impl PathTracer {
         let guide = guided::medium_guide_at(services, at_collision, p, &c.phase, wo);
         let scale = segment.throughput * c.sigma_s * transmittance / pdf;
         let ctx = LightContext { p, n: None };
+        // What the lights gave, per unit of `scale`, for the guiding cache's lit grid.
+        let mut received = Rgb::ZERO;
         services.sample_lights(&ctx, cx.rng, |chosen, rng| {
             if !self.decoupled_serves(services, chosen.index) {
                 return;
@@ -1058,9 +1069,13 @@ impl PathTracer {
             } else {
                 power_heuristic(light_pdf, guided::mixture_pdf(guide.as_ref(), ls.wi, phase))
             };
+            received += tr * ls.radiance * (phase * weight / light_pdf);
             let value = scale * tr * ls.radiance * (phase * weight / light_pdf);
             s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
         });
+        if let Some(path) = s.guide_path.as_deref_mut() {
+            path.push_lit(p, luminance(received));
+        }
     }
 
     /// True when the decoupled sample, not next-event estimation at the collision, estimates the direct light

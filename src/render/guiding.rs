@@ -15,7 +15,7 @@ use super::renderer::GuidingStats;
 use super::CancelToken;
 use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::{
-    GuidePath, GuidingDecision, GuidingField, RadianceRecord, TRAINING_ITERATIONS,
+    GuidePath, GuidingDecision, GuidingField, LitRecord, RadianceRecord, TRAINING_ITERATIONS,
 };
 use crate::integrator::{FirstEmission, PathContext, PathCounters, PathTracer, RendererServices};
 use crate::math::{Rng, Vec2};
@@ -80,6 +80,7 @@ pub(super) fn train(
             for row in &traced {
                 stats.training_records += row.records.len() as u64;
                 field.add_records(&row.records);
+                field.add_lit_records(&row.lit);
                 if let Some(pixels) = pixels.as_mut() {
                     for &(pixel, value) in &row.values {
                         pixels.add(pixel, value);
@@ -100,10 +101,11 @@ pub(super) fn train(
     (Some(field), stats)
 }
 
-/// What the training paths of one row found: their records and, for guided Russian roulette, each sample's
-/// value (channel mean), pixel by pixel in order.
+/// What the training paths of one row found: their records, their decoupled samples' records and, for guided
+/// Russian roulette, each sample's value (channel mean), pixel by pixel in order.
 struct TrainingRow {
     records: Vec<RadianceRecord>,
+    lit: Vec<LitRecord>,
     values: Vec<((usize, usize), f32)>,
 }
 
@@ -121,6 +123,7 @@ fn trace_row(
     let mut counters = PathCounters::new(scene.media.len());
     let mut path = GuidePath::default();
     let mut records = Vec::new();
+    let mut lit = Vec::new();
     // Only guided Russian roulette reads the samples' values (as its pixel estimates).
     let keeps_values = tracer.guided_roulette;
     let mut values = Vec::with_capacity(keeps_values as usize * frame.width * spp as usize);
@@ -143,6 +146,7 @@ fn trace_row(
                 counters: &mut counters,
             };
             let result = tracer.trace(&mut cx, ray, FirstEmission::Count, None, Some(&mut path));
+            lit.extend_from_slice(path.lit());
             if result.radiance.is_finite() {
                 path.finish(result.radiance, &mut records);
                 if keeps_values {
@@ -151,7 +155,11 @@ fn trace_row(
             }
         }
     }
-    TrainingRow { records, values }
+    TrainingRow {
+        records,
+        lit,
+        values,
+    }
 }
 
 #[cfg(test)]

@@ -440,3 +440,92 @@ fn single_scattering_of_the_sun_matches_quadrature() {
         assert!(variances[1] * 1.5 < variances[0], "{label}: {variances:?}");
     }
 }
+
+/// Single scattering of the sun through a slit: the homogeneous box of
+/// [`single_scattering_of_the_sun_matches_quadrature`] behind a black wall at x = 1.5 with a 0.2 m gap, so the
+/// sun lights the camera's ray only over 0.35 < z < 0.55 (a tenth of it), against the quadrature of the same
+/// integral with that visibility. Unguided and guided (`--guiding on`: the decoupled samples' distances from the
+/// mixture with the training's lit grid) must both match within 4 standard errors, and the guided distances must
+/// cut the variance (most unguided decoupled samples land in the wall's shadow). 16² pixels of the same ray
+/// (a field of view of 0.001°), so that the training has 1,792 paths to learn the lit interval from.
+#[test]
+fn single_scattering_of_the_sun_through_a_slit_matches_quadrature_guided() {
+    use nimbus::light::{DirectionalLight, Light};
+    use nimbus::render::GuidingMode;
+    let travel = Vec3::new(-1.0, -0.5, 0.3).normalize();
+    let irradiance = Rgb::new(2.0, 1.5, 1.0);
+    let (g, sigma_a, sigma_s) = (0.3, Rgb::splat(0.1), Rgb::splat(0.3));
+    let to_sun = -travel.as_dvec3();
+    let phase = henyey_greenstein(g, travel.as_dvec3().z);
+    // Where the ray from x toward the sun crosses the wall's plane x = 1.5: lit through the gap |z| < 0.1.
+    let lit = |x: DVec3| {
+        let at_wall = x + to_sun * ((1.5 - x.x) / to_sun.x);
+        at_wall.z.abs() < 0.1
+    };
+    let truth = single_scattering_quadrature(sigma_a, sigma_s, irradiance, |x| {
+        (
+            distance_out_of_box(x, to_sun),
+            if lit(x) { phase } else { 0.0 },
+        )
+    });
+    let mut variances = Vec::new();
+    for guiding in [GuidingMode::Off, GuidingMode::On] {
+        let mut b = SceneBuilder::default();
+        let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
+            "box", sigma_a, sigma_s, g as f32,
+        )));
+        let mat = b.add_material(common::boundary(medium));
+        b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
+        let black = b.add_material(nimbus::material::Material::lambertian("wall", Vec3::ZERO));
+        for (z0, z1) in [(-3.0, -0.1), (0.1, 3.0)] {
+            let corner = |y: f32, z: f32| Vec3::new(1.5, y, z);
+            b.add_mesh(common::quad(
+                [
+                    corner(-3.0, z0),
+                    corner(3.0, z0),
+                    corner(3.0, z1),
+                    corner(-3.0, z1),
+                ],
+                black,
+            ));
+        }
+        b.add_light(Light::Directional(DirectionalLight {
+            direction: travel,
+            irradiance,
+        }));
+        b.set_camera(Camera::look_at(
+            Vec3::new(0.0, 0.0, 5.0),
+            Vec3::ZERO,
+            0.001f32.to_radians(),
+        ));
+        let settings = nimbus::render::RenderSettings {
+            width: 16,
+            height: 16,
+            spp: 160,
+            threads: 2,
+            max_depth: 1,
+            seed: 13,
+            guiding,
+            ..Default::default()
+        };
+        let (img, stats) = nimbus::render::Renderer::new(settings)
+            .render(&b.build().unwrap(), &mut |_| true)
+            .unwrap();
+        assert!(stats.rays.decoupled > 0, "{guiding:?}");
+        let mut variance = 0.0;
+        for (c, &expected) in truth.iter().enumerate() {
+            let (mean, se) = common::mean_and_se(&img, c);
+            eprintln!(
+                "slit, guiding {guiding:?}, channel {c}: {mean:.6} ± {se:.6} vs {expected:.6}"
+            );
+            assert!(
+                (mean - expected).abs() < 4.0 * se,
+                "guiding {guiding:?} channel {c}: {mean} vs {expected} (se {se})"
+            );
+            variance += se * se;
+        }
+        variances.push(variance);
+    }
+    eprintln!("slit: variances unguided, guided {variances:?}");
+    assert!(variances[1] * 2.0 < variances[0], "{variances:?}");
+}
