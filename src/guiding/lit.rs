@@ -10,8 +10,8 @@
 //! iterations so far (each is an unbiased sample of the light there, however its distance was drawn), published
 //! at the end of each iteration.
 //!
-//! [`DistanceGuide`] cuts a segment where it crosses the voxels (Amanatides & Woo 1987, "A Fast Voxel Traversal
-//! Algorithm for Ray Tracing") and gives piece i the weight max(L_i, [`LIT_FLOOR`] · L̄) ∫_piece e^{−σ t} dt, with
+//! [`DistanceGuide`] cuts a segment where it crosses the voxels (the volume module's 3D DDA,
+//! `crate::volume::dda`) and gives piece i the weight max(L_i, [`LIT_FLOOR`] · L̄) ∫_piece e^{−σ t} dt, with
 //! L_i the voxel's estimate (L̄, the length-weighted mean over the segment's pieces that have one, where a voxel
 //! has none) and σ the mean of the medium's σ_t channels. The integral of the transmittance is taken by the
 //! trapezoid rule with a rational stand-in for the exponential: any positive weights make a density, and the
@@ -20,7 +20,9 @@
 //! segment that misses it gets no guide. The floor keeps every part of the segment at a density of at least that
 //! fraction of the mean, so a lit interval the grid missed is not left to the free-flight density alone.
 
-use crate::math::{Aabb, Vec3};
+use crate::math::{Aabb, Ray, Vec3};
+use crate::volume::dda::{Dda, UniformGrid};
+use glam::IVec3;
 
 /// Voxels of [`LitGrid`] along the longest side of the scene's box.
 pub const LIT_RESOLUTION: usize = 32;
@@ -228,52 +230,16 @@ impl LitGrid {
         if t_in > 0.0 {
             push(guide, t_in, 0.0);
         }
-        // Amanatides & Woo's traversal from the voxel at the middle of the first step's entry.
-        let mut voxel = self.voxel_of(origin + dir * t_in);
-        let mut next = [f32::INFINITY; 3];
-        let mut delta = [f32::INFINITY; 3];
-        for a in 0..3 {
-            if dir[a] > 0.0 {
-                let face = self.bounds.min[a] + (voxel[a] + 1) as f32 * self.voxel;
-                next[a] = (face - origin[a]) / dir[a];
-                delta[a] = self.voxel / dir[a];
-            } else if dir[a] < 0.0 {
-                let face = self.bounds.min[a] + voxel[a] as f32 * self.voxel;
-                next[a] = (face - origin[a]) / dir[a];
-                delta[a] = -self.voxel / dir[a];
-            }
-        }
-        let mut index = self.index(voxel);
-        let stride = [1, self.resolution[0], self.resolution[0] * self.resolution[1]];
-        let steps = self.resolution.iter().sum::<usize>() + 1;
-        for _ in 0..steps {
-            let a = if next[0] <= next[1] && next[0] <= next[2] {
-                0
-            } else if next[1] <= next[2] {
-                1
-            } else {
-                2
-            };
-            let end = next[a].max(t_in).min(t_out);
-            push(guide, end, self.means[index]);
-            if end >= t_out {
-                break;
-            }
-            let stepped = if dir[a] > 0.0 {
-                voxel[a] + 1
-            } else {
-                voxel[a].wrapping_sub(1)
-            };
-            if stepped >= self.resolution[a] {
-                break;
-            }
-            voxel[a] = stepped;
-            index = if dir[a] > 0.0 {
-                index + stride[a]
-            } else {
-                index - stride[a]
-            };
-            next[a] += delta[a];
+        // The voxels the segment crosses inside that box, in order (the volume module's 3D DDA).
+        let grid = UniformGrid {
+            origin: self.bounds.min,
+            cell: Vec3::splat(self.voxel),
+            res: IVec3::from_array(self.resolution.map(|r| r as i32)),
+        };
+        let mut walk = Dda::inside(&grid, &Ray::new(origin, dir), dir.recip(), t_in, t_out);
+        let mut cells = 0;
+        while let Some((voxel, _, end)) = walk.next(&mut cells) {
+            push(guide, end, self.means[self.index(voxel.to_array().map(|c| c as usize))]);
         }
         let last = if guide.len > 0 { guide.ends[guide.len - 1] } else { 0.0 };
         if last < length {

@@ -24,6 +24,7 @@
 
 pub mod channels;
 pub mod density;
+pub(crate) mod dda;
 pub mod emission;
 pub mod error;
 pub mod grid;
