@@ -14,10 +14,13 @@
 //! collapsed into 8-wide nodes (Dammertz, Hanika, Keller 2008, "Shallow bounding volume hierarchies for fast
 //! SIMD ray tracing of incoherent rays", EGSR): 256 bytes holding the eight child boxes in
 //! structure-of-arrays form, their offsets, counts and visiting orders, so two 4-lane SIMD slab tests cover all
-//! eight. On the benchmark mesh (`benches/bvh.rs`, 1M triangles) a 4-wide tree traced 2–24% more rays per
-//! CPU-second than the binary one it came from; 8-wide nodes took a third of the node steps off a ray and
-//! traced about 11–13 % more incoherent rays and 3 % fewer coherent ones per CPU-second than 4-wide ones
-//! (docs/performance.md). Triangles are copied into leaf order, four to a structure-of-arrays pack
+//! eight. Which binary nodes become wide nodes, slots or leaves is chosen by the cost-driven dynamic programme
+//! of Ylitie, Karras and Laine 2017 ([`Collapse`]), which may also merge a subtree of up to `WIDE_MAX_LEAF`
+//! primitives into one leaf slot: on the benchmark mesh (`benches/bvh.rs`, 1M triangles) the nodes hold 7.5
+//! slots on average (a greedy collapse that opened the largest child first left 3.9, with 42 % of the nodes
+//! holding two), and against 4-wide nodes a ray took 36–38 % fewer node steps, coherent rays traced 3 % more
+//! and incoherent ones 21–31 % more per CPU-second (docs/performance.md). Triangles are copied into leaf
+//! order, four to a structure-of-arrays pack
 //! ([`Triangle4`], 40 bytes a triangle with its input index), each leaf starting a pack, so a leaf is one
 //! contiguous run of packs tested four triangles at a time, like the four-triangle leaves of Embree (Wald et
 //! al. 2014, "Embree: a kernel framework for efficient CPU ray tracing", ACM TOG 33(4)). The SAH counts a
@@ -70,6 +73,12 @@ const COST_INTERSECT: f32 = 1.0;
 const SAH_MAX_DEPTH: u32 = 64;
 /// Children of a wide node.
 const WIDTH: usize = 8;
+/// Largest number of primitives in a leaf slot of a wide node: the collapse may merge binary leaves into one
+/// leaf slot up to this many ([`Collapse::plan`]).
+const WIDE_MAX_LEAF: usize = 16;
+/// Cost of testing one wide node in the collapse's SAH, relative to testing one block of a leaf (one pack of
+/// four triangles).
+const COST_NODE: f32 = 3.0;
 /// Traversal stack size that always suffices: a wide node pushes at most `WIDTH - 1` entries after popping
 /// one, and the wide tree is no deeper than the binary one.
 const STACK_MAX: usize = (WIDTH - 1) * (SAH_MAX_DEPTH as usize + 32) + WIDTH + PUSH_SLACK;
@@ -413,7 +422,9 @@ const ORDER_BITS: u32 = 24;
 const IDENTITY_ORDER: u32 = 0o76543210;
 
 // A leaf's count must fit the top byte of `Node8::meta`, and an order its low bits.
-const _: () = assert!(MAX_LEAF <= u8::MAX as usize && 3 * WIDTH as u32 == ORDER_BITS);
+const _: () = assert!(
+    MAX_LEAF <= WIDE_MAX_LEAF && WIDE_MAX_LEAF <= u8::MAX as usize && 3 * WIDTH as u32 == ORDER_BITS
+);
 
 impl Node8 {
     const EMPTY: Node8 = Node8 {
@@ -425,15 +436,17 @@ impl Node8 {
         meta: [IDENTITY_ORDER; WIDTH],
     };
 
-    fn set_slot(&mut self, i: usize, node: &Node, child: u32) {
+    /// Puts the box of `node` in slot `i`: a leaf of `count` primitives at `child`, or with `count` 0 the
+    /// wide node `child`.
+    fn set_slot(&mut self, i: usize, node: &Node, child: u32, count: u32) {
         for a in 0..3 {
             self.bounds[0][a][i / 4][i % 4] = node.min[a];
             self.bounds[1][a][i / 4][i % 4] = node.max[a];
         }
         self.child[i] = child;
-        // Leaves hold at most MAX_LEAF primitives (see `plan`), so the count always fits.
-        debug_assert!(node.count as usize <= MAX_LEAF);
-        self.meta[i] = self.order(i) | node.count << ORDER_BITS;
+        // Leaves hold at most WIDE_MAX_LEAF primitives (see `Collapse::plan`), so the count always fits.
+        debug_assert!(count as usize <= WIDE_MAX_LEAF);
+        self.meta[i] = self.order(i) | count << ORDER_BITS;
     }
 
     /// Slot `i`'s leaf primitive count, 0 for an inner node or an unused slot.
@@ -459,20 +472,154 @@ impl Node8 {
     }
 }
 
-/// Collapses the binary tree into 8-wide nodes: each wide node takes its binary node's children and keeps
-/// replacing the inner child with the largest surface area by that child's two children until it holds
-/// eight (Dammertz et al. 2008). The SAH tree's structure is kept; only levels are merged.
-fn collapse(binary: &[Node]) -> Vec<Node8> {
+/// Collapses the binary tree into 8-wide nodes by the dynamic programme of Ylitie, Karras and Laine 2017
+/// ("Efficient incoherent ray traversal on GPUs through compressed wide BVHs", HPG, §3.1): for every binary node
+/// and every budget of one to eight slots it finds the cheapest way to represent the node's subtree in that
+/// many slots of its parent wide node ([`Collapse::plan`]), then fills the wide nodes top down from those
+/// choices. The binary tree's splits are kept; which of its nodes become wide nodes, slots or leaves is chosen
+/// by cost. `block` primitives are tested at a time (the SAH's `block`).
+fn collapse(binary: &[Node], block: u32) -> Vec<Node8> {
+    let plan = Collapse::plan(binary, block);
     let mut wide = vec![Node8::EMPTY];
-    if binary[0].count > 0 {
-        wide[0].set_slot(0, &binary[0], binary[0].offset);
+    if plan.choice[0][WIDTH - 1] == Choice::LEAF {
+        wide[0].set_slot(0, &binary[0], plan.first[0], plan.count[0]);
     } else {
-        fill_wide(binary, 0, &mut wide, 0);
+        plan.fill(binary, 0, &mut wide, 0);
     }
     // The nodes were pushed one at a time: drop the spare capacity the vector grew by (about a tenth of the
     // hierarchy on a large mesh), held otherwise for the render's whole life.
     wide.shrink_to_fit();
     wide
+}
+
+/// How the subtree of a binary node is represented in `i` slots of its parent wide node: as one leaf slot,
+/// as one slot holding a wide node of its own, or split between its two children, the left one getting `k`
+/// slots (`Choice(k)`, `1 <= k < i`) and the right one the others.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Choice(u8);
+
+impl Choice {
+    /// One leaf slot holding every primitive of the subtree.
+    const LEAF: Choice = Choice(0);
+    /// One slot holding a wide node filled from the subtree.
+    const INNER: Choice = Choice(WIDTH as u8);
+}
+
+/// The dynamic programme's table (Ylitie et al. 2017, §3.1): for binary node `n` and `i + 1` slots, the
+/// least SAH cost `cost[n][i]` of its subtree (areas times the tests a ray entering it makes: `COST_NODE` per
+/// wide node, one per block of a leaf) and the choice `choice[n][i]` that reaches it; with each node's run of
+/// primitives in leaf order (`first`, `count`), which a leaf slot made of a whole subtree holds.
+struct Collapse {
+    cost: Vec<[f32; WIDTH]>,
+    choice: Vec<[Choice; WIDTH]>,
+    /// For an inner binary node, how many of a wide node's eight slots the best split gives its left child.
+    split: Vec<u8>,
+    first: Vec<u32>,
+    count: Vec<u32>,
+}
+
+impl Collapse {
+    /// Fills the table bottom up (a binary node's children follow it in `binary`). With `C(n, i)` the cost of
+    /// `n` in at most `i` slots (Ylitie et al. 2017, eqs. 1-3):
+    /// `C(n, 1) = min(C_leaf(n), C_node(n))`, `C(n, i) = min(C(n, i - 1), min_k C(l, k) + C(r, i - k))`,
+    /// `C_node(n) = A(n)·COST_NODE + min_k C(l, k) + C(r, 8 - k)`, `C_leaf(n) = A(n)·⌈count / block⌉` for a
+    /// subtree of at most `WIDE_MAX_LEAF` primitives (a binary leaf is always a leaf).
+    fn plan(binary: &[Node], block: u32) -> Collapse {
+        let n = binary.len();
+        let mut table = Collapse {
+            cost: vec![[0.0; WIDTH]; n],
+            choice: vec![[Choice::LEAF; WIDTH]; n],
+            split: vec![0; n],
+            first: vec![0; n],
+            count: vec![0; n],
+        };
+        let leaf_cost = |count: u32| count.div_ceil(block) as f32;
+        for b in (0..n).rev() {
+            let node = &binary[b];
+            let a = area(node);
+            if node.count > 0 {
+                table.first[b] = node.offset;
+                table.count[b] = node.count;
+                table.cost[b] = [a * leaf_cost(node.count); WIDTH];
+                continue;
+            }
+            let (l, r) = (node.offset as usize, node.offset as usize + 1);
+            table.first[b] = table.first[l];
+            table.count[b] = table.count[l] + table.count[r];
+            // Best split of i + 1 slots between the children, for i = 1..8 (two slots or more). The first
+            // split stands unless another is cheaper, so an infinite or NaN cost (a box whose area overflows)
+            // still gives a valid choice.
+            let mut split = [(f32::INFINITY, Choice::LEAF); WIDTH];
+            for (i, best) in split.iter_mut().enumerate().skip(1) {
+                *best = (table.cost[l][0] + table.cost[r][i - 1], Choice(1));
+                for k in 2..=i {
+                    let c = table.cost[l][k - 1] + table.cost[r][i - k];
+                    if c < best.0 {
+                        *best = (c, Choice(k as u8));
+                    }
+                }
+            }
+            let as_leaf = a * leaf_cost(table.count[b]);
+            let as_node = a * COST_NODE + split[WIDTH - 1].0;
+            table.split[b] = split[WIDTH - 1].1 .0;
+            let mut best = if table.count[b] as usize <= WIDE_MAX_LEAF && as_leaf <= as_node {
+                (as_leaf, Choice::LEAF)
+            } else {
+                (as_node, Choice::INNER)
+            };
+            for (i, &option) in split.iter().enumerate() {
+                if option.0 < best.0 {
+                    best = option;
+                }
+                table.cost[b][i] = best.0;
+                table.choice[b][i] = best.1;
+            }
+        }
+        table
+    }
+
+    /// Appends to `slots` the binary nodes that fill at most `i + 1` slots for binary node `b`, as chosen, each
+    /// with whether it is a leaf slot.
+    fn slots(&self, binary: &[Node], b: usize, i: usize, slots: &mut Vec<(usize, bool)>) {
+        match self.choice[b][i] {
+            Choice::LEAF => slots.push((b, true)),
+            Choice::INNER => slots.push((b, false)),
+            Choice(k) => {
+                let (l, k) = (binary[b].offset as usize, k as usize);
+                self.slots(binary, l, k - 1, slots);
+                self.slots(binary, l + 1, i - k, slots);
+            }
+        }
+    }
+
+    /// Fills wide node `at` from the binary node `b` chosen as a wide node, then its inner children, depth
+    /// first.
+    fn fill(&self, binary: &[Node], b: usize, wide: &mut Vec<Node8>, at: usize) {
+        let (l, k) = (binary[b].offset as usize, self.split[b] as usize);
+        let mut slots = Vec::with_capacity(WIDTH);
+        self.slots(binary, l, k - 1, &mut slots);
+        self.slots(binary, l + 1, WIDTH - 1 - k, &mut slots);
+        // Children of one wide node are stored next to each other.
+        let mut node = Node8::EMPTY;
+        let mut inner = Vec::new();
+        for (i, &(s, leaf)) in slots.iter().enumerate() {
+            if leaf {
+                node.set_slot(i, &binary[s], self.first[s], self.count[s]);
+            } else {
+                node.set_slot(i, &binary[s], wide.len() as u32, 0);
+                inner.push((s, wide.len()));
+                wide.push(Node8::EMPTY);
+            }
+        }
+        let ids: Vec<usize> = slots.iter().map(|&(s, _)| s).collect();
+        for octant in 0..8 {
+            node.set_order(octant, octant_order(binary, b, &ids, octant));
+        }
+        wide[at] = node;
+        for (s, w) in inner {
+            self.fill(binary, s, wide, w);
+        }
+    }
 }
 
 /// The most stack entries a traversal of `wide` from node `at` can hold: a node's hit children are all
@@ -490,49 +637,6 @@ fn stack_needed(wide: &[Node8], at: usize) -> usize {
 
 fn area(node: &Node) -> f32 {
     Aabb::new(Vec3::from_array(node.min), Vec3::from_array(node.max)).surface_area()
-}
-
-/// Fills wide node `at` from the inner binary node `b`, then its inner children, depth first.
-fn fill_wide(binary: &[Node], b: usize, wide: &mut Vec<Node8>, at: usize) {
-    let first = binary[b].offset as usize;
-    let mut slots = vec![first, first + 1];
-    while slots.len() < WIDTH {
-        let open = slots
-            .iter()
-            .enumerate()
-            .filter(|(_, &s)| binary[s].count == 0)
-            .fold(None, |best: Option<(usize, f32)>, (i, &s)| {
-                let a = area(&binary[s]);
-                if best.is_none_or(|(_, ba)| a > ba) {
-                    Some((i, a))
-                } else {
-                    best
-                }
-            });
-        let Some((i, _)) = open else { break };
-        let c = binary[slots[i]].offset as usize;
-        slots[i] = c;
-        slots.insert(i + 1, c + 1);
-    }
-    // Children of one wide node are stored next to each other.
-    let mut node = Node8::EMPTY;
-    let mut inner = Vec::new();
-    for (i, &s) in slots.iter().enumerate() {
-        if binary[s].count > 0 {
-            node.set_slot(i, &binary[s], binary[s].offset);
-        } else {
-            node.set_slot(i, &binary[s], wide.len() as u32);
-            inner.push((s, wide.len()));
-            wide.push(Node8::EMPTY);
-        }
-    }
-    for octant in 0..8 {
-        node.set_order(octant, octant_order(binary, b, &slots, octant));
-    }
-    wide[at] = node;
-    for (s, w) in inner {
-        fill_wide(binary, s, wide, w);
-    }
 }
 
 /// The order in which a ray whose direction lies in `octant` (bit `a` set: negative along axis `a`) should
@@ -1048,7 +1152,7 @@ impl Tree {
             binary.push(root.shifted(1));
             binary.extend(desc.into_iter().map(|n| n.shifted(1)));
             let bounds = Aabb::new(Vec3::from_array(root.min), Vec3::from_array(root.max));
-            (collapse(&binary), bounds)
+            (collapse(&binary, block), bounds)
         };
         // Stack entries name a slot as `node·8 + slot` in 32 bits. Only a hierarchy of close to
         // `MAX_TRIANGLES` one-triangle leaves could have more nodes than that allows.
@@ -1772,6 +1876,49 @@ pub(super) mod tests {
             .unwrap();
         assert_eq!((hit.prim, hit.t), (1, 2.0));
         assert_eq!(bvh.triangle_count(), 3);
+    }
+
+    #[test]
+    fn huge_coordinates_whose_box_areas_overflow_match_brute_force() {
+        // Boxes whose surface areas overflow to infinity (coordinates near 1e37), and flat ones spanning more
+        // than `f32::MAX` along one axis, whose areas are NaN (an infinite extent times a zero one): the
+        // collapse's costs are then infinite or NaN, and it must still build a tree that culls no hit.
+        let mut rng = Rng::new(23, 24);
+        let mut tris: Vec<[Vec3; 3]> = soup(&mut rng, 300)
+            .into_iter()
+            .map(|t| t.map(|v| v * 1e37))
+            .collect();
+        for k in 0..40 {
+            let x = if k % 2 == 0 { 3e38 } else { -3e38 };
+            let z = k as f32 * 1e36;
+            tris.push([
+                Vec3::new(x, 0.0, z),
+                Vec3::new(0.0, 0.0, z + 1e36),
+                Vec3::new(x * 0.5, 0.0, z + 2e36),
+            ]);
+        }
+        let bvh = Bvh::build(&tris).unwrap();
+        for k in 0..600 {
+            let (lo, hi) = (Vec3::splat(-14e37), Vec3::splat(14e37));
+            let ray = if k % 2 == 0 {
+                random_ray(&mut rng, lo, hi)
+            } else {
+                let tri = tris[rng.next_u32() as usize % tris.len()];
+                let o = random_point(&mut rng, lo, hi);
+                let target = tri[0] / 3.0 + tri[1] / 3.0 + tri[2] / 3.0;
+                Ray::new(o, (target - o).normalize())
+            };
+            assert_eq!(
+                bvh.intersect(&ray, 0.0, f32::INFINITY),
+                brute_closest(&tris, &ray, 0.0, f32::INFINITY),
+                "ray {k}"
+            );
+            assert_eq!(
+                bvh.occluded(&ray, 0.0, f32::INFINITY),
+                brute_occluded(&tris, &ray, 0.0, f32::INFINITY),
+                "ray {k}"
+            );
+        }
     }
 
     #[test]
