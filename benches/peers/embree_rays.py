@@ -241,7 +241,7 @@ def write_section(rows, checks, build_s, loads, stdout, rounds):
                   f"{built[1] if built else '?'} s on one thread, Embree {build_s:.2f} s (its own thread pool, "
                   "committed on the first query). Nimbus's BVH holds "
                   f"{memory[1] if memory else '?'} MiB ({memory[2] if memory else '?'} bytes a triangle).", "",
-              "Work per ray in Nimbus (`cargo bench --bench bvh`): wide nodes whose four boxes are tested, and "
+              "Work per ray in Nimbus (`cargo bench --bench bvh`): wide nodes whose eight boxes are tested, and "
               "triangles tested (four at a time in packs):", "",
               "| rays | query | nodes per ray | triangles per ray |", "|---|---|---|---|",
               *traversal_counts(stdout), "",

@@ -1,4 +1,4 @@
-//! A 4-wide bounding volume hierarchy over world-space triangles, built as a binary SAH tree.
+//! An 8-wide bounding volume hierarchy over world-space triangles, built as a binary SAH tree.
 //!
 //! **Build.** Top-down binned SAH after Wald 2007, "On fast construction of SAH-based bounding volume
 //! hierarchies" (IEEE Symposium on Interactive Ray Tracing): primitive centroids are binned into
@@ -11,11 +11,16 @@
 //! pure function of the triangles, so the tree is the same whatever the thread count.
 //!
 //! **Layout.** The binary SAH tree (32-byte nodes: six bounds, a child or triangle offset, a count) is
-//! collapsed into 4-wide nodes (Dammertz, Hanika, Keller 2008, "Shallow bounding volume hierarchies for fast
-//! SIMD ray tracing of incoherent rays", EGSR): 128 bytes holding the four child boxes in
-//! structure-of-arrays form, their offsets and counts, so one SIMD slab test covers all four. On the
-//! benchmark mesh (`benches/bvh.rs`, 1M triangles) the 4-wide tree traced 2–24% more rays per CPU-second than
-//! the binary one it came from. Triangles are copied into leaf order, four to a structure-of-arrays pack
+//! collapsed into 8-wide nodes (Dammertz, Hanika, Keller 2008, "Shallow bounding volume hierarchies for fast
+//! SIMD ray tracing of incoherent rays", EGSR): 256 bytes holding the eight child boxes in
+//! structure-of-arrays form, their offsets, counts and visiting orders, so two 4-lane SIMD slab tests cover all
+//! eight. Which binary nodes become wide nodes, slots or leaves is chosen by the cost-driven dynamic programme
+//! of Ylitie, Karras and Laine 2017 ([`Collapse`]), which may also merge a subtree of up to `WIDE_MAX_LEAF`
+//! primitives into one leaf slot: on the benchmark mesh (`benches/bvh.rs`, 1M triangles) the nodes hold 7.5
+//! slots on average (a greedy collapse that opened the largest child first left 3.9, with 42 % of the nodes
+//! holding two), and against 4-wide nodes a ray took 36–38 % fewer node steps, coherent rays traced 3 % more
+//! and incoherent ones 21–31 % more per CPU-second (docs/performance.md). Triangles are copied into leaf
+//! order, four to a structure-of-arrays pack
 //! ([`Triangle4`], 40 bytes a triangle with its input index), each leaf starting a pack, so a leaf is one
 //! contiguous run of packs tested four triangles at a time, like the four-triangle leaves of Embree (Wald et
 //! al. 2014, "Embree: a kernel framework for efficient CPU ray tracing", ACM TOG 33(4)). The SAH counts a
@@ -66,17 +71,26 @@ const COST_INTERSECT: f32 = 1.0;
 /// Below this depth splits are chosen by the SAH; deeper nodes are split at the object median, which bounds
 /// the tree depth by `SAH_MAX_DEPTH + 32` and so the traversal stack.
 const SAH_MAX_DEPTH: u32 = 64;
-/// Traversal stack size that always suffices: a wide node pushes at most four entries after popping one,
-/// and the wide tree is no deeper than the binary one.
-const STACK_MAX: usize = 3 * (SAH_MAX_DEPTH as usize + 32) + 4 + PUSH_SLACK;
+/// Children of a wide node.
+const WIDTH: usize = 8;
+/// Largest number of primitives in a leaf slot of a wide node: the collapse may merge binary leaves into one
+/// leaf slot up to this many ([`Collapse::plan`]).
+const WIDE_MAX_LEAF: usize = 16;
+/// Cost of testing one wide node in the collapse's SAH, relative to testing one block of a leaf (one pack of
+/// four triangles).
+const COST_NODE: f32 = 3.0;
+/// Traversal stack size that always suffices: a wide node pushes at most `WIDTH - 1` entries after popping
+/// one, and the wide tree is no deeper than the binary one.
+const STACK_MAX: usize = (WIDTH - 1) * (SAH_MAX_DEPTH as usize + 32) + WIDTH + PUSH_SLACK;
 /// Stack entries beyond those a ray can need that the octant-ordered push may write (it writes an entry for
 /// every slot of a node and keeps the hit ones).
-const PUSH_SLACK: usize = 4;
-/// Stack size used when the tree's own bound allows it (nearly always), so each ray clears less memory.
-const STACK_SMALL: usize = 64;
-/// Stack size for shallow trees (a few hundred triangles), whose rays would spend a measurable share of their
-/// time clearing a larger stack.
-const STACK_TINY: usize = 16;
+const PUSH_SLACK: usize = WIDTH;
+/// Stack size used when the tree's own bound allows it (nearly always: the bench's 1 M-triangle mesh needs
+/// 68 entries), so each ray clears less memory.
+const STACK_SMALL: usize = 96;
+/// Stack size for shallow trees (up to three levels of wide nodes: a few thousand triangles), whose rays
+/// would spend a measurable share of their time clearing a larger stack.
+const STACK_TINY: usize = 32;
 
 /// Scale of a box's far distance. Ize 2013 shows `1 + 2γ(3)` covers the slab test's own rounding; we
 /// double it so it also covers the rounding of the triangle test's distance, so that a hit on a box's
@@ -134,8 +148,8 @@ pub struct Bvh {
 /// [`crate::geometry::MotionBvh`] (moving ones), which differ only in what a leaf holds and how it is hit.
 #[derive(Clone, Debug)]
 pub(super) struct Tree {
-    /// 4-wide nodes; the root is node 0.
-    nodes: Vec<Node4>,
+    /// 8-wide nodes; the root is node 0.
+    nodes: Vec<Node8>,
     /// Bounds of all primitives.
     bounds: Aabb,
     /// For each primitive in leaf order, its index in the input list (released by [`Tree::pack_leaves`]).
@@ -380,66 +394,97 @@ fn build_parallel(refs: &mut [PrimRef], first: usize, depth: u32, block: u32) ->
     }
 }
 
-/// A 4-wide node (128 bytes, two cache lines): the boxes of up to four children in structure-of-arrays form
-/// so one SIMD slab test covers all four, after the "multi bounding volume hierarchies" of Ernst and Greiner
-/// 2008 and the QBVH of Dammertz, Hanika, Keller 2008 ("Shallow bounding volume hierarchies for fast SIMD
-/// ray tracing of incoherent rays", EGSR). Slot `i` is a leaf with triangles `child[i] .. child[i] +
-/// count[i]` when `count[i] > 0`, else an inner node `child[i]`; unused slots hold an empty box, which no
+/// An 8-wide node (256 bytes, four cache lines): the boxes of up to eight children in structure-of-arrays
+/// form, two groups of four lanes per plane, so two 4-lane SIMD slab tests cover all eight, after the "multi
+/// bounding volume hierarchies" of Ernst and Greiner 2008, the QBVH of Dammertz, Hanika, Keller 2008
+/// ("Shallow bounding volume hierarchies for fast SIMD ray tracing of incoherent rays", EGSR) and the 8-wide
+/// nodes of Embree (Wald et al. 2014). Slot `i` is a leaf with triangles `child[i] .. child[i] + count` when its
+/// count ([`Node8::count`]) is not 0, else an inner node `child[i]`; unused slots hold an empty box, which no
 /// ray hits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
-struct Node4 {
-    /// `bounds[0][a]` and `bounds[1][a]`: the lower and upper bounds of the four boxes on axis `a`, so a
-    /// ray picks its near and far planes by indexing with the sign of its direction.
-    bounds: [[Vec4; 3]; 2],
-    child: [u32; 4],
-    /// A leaf slot's primitive count (at most `MAX_LEAF`), 0 for an inner node or an unused slot.
-    count: [u8; 4],
-    /// For each direction octant (bit `a` set: negative along axis `a`), the slots in the order a ray of
-    /// that octant should visit them, two bits a slot, first slot lowest.
-    order: [u8; 8],
+struct Node8 {
+    /// `bounds[0][a][h]` and `bounds[1][a][h]`: the lower and upper bounds on axis `a` of boxes `4h .. 4h + 4`,
+    /// so a ray picks its near and far planes by indexing with the sign of its direction.
+    bounds: [[[Vec4; 2]; 3]; 2],
+    child: [u32; WIDTH],
+    /// Two fields in one word, so the node fits four cache lines: bits 0-23 of `meta[k]` are the slots in the
+    /// order a ray of direction octant `k` (bit `a` set: negative along axis `a`) should visit them, three bits
+    /// a slot, first slot lowest ([`Node8::order`]); bits 24-31 are slot `k`'s leaf primitive count (at most
+    /// `MAX_LEAF`), 0 for an inner node or an unused slot ([`Node8::count`]).
+    meta: [u32; WIDTH],
 }
 
-/// Slots 0, 1, 2, 3 in that order, as [`Node4::order`] encodes it.
-const IDENTITY_ORDER: u8 = 0b11_10_01_00;
+/// Bits of [`Node8::meta`] below the count.
+const ORDER_BITS: u32 = 24;
 
-// A leaf's count must fit `Node4::count`.
-const _: () = assert!(MAX_LEAF <= u8::MAX as usize);
+/// Slots 0 to 7 in that order, as [`Node8::order`] encodes it.
+const IDENTITY_ORDER: u32 = 0o76543210;
 
-impl Node4 {
-    const EMPTY: Node4 = Node4 {
-        bounds: [[Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]],
-        child: [0; 4],
-        count: [0; 4],
-        order: [IDENTITY_ORDER; 8],
+// A leaf's count must fit the top byte of `Node8::meta`, and an order its low bits.
+const _: () = assert!(
+    MAX_LEAF <= WIDE_MAX_LEAF && WIDE_MAX_LEAF <= u8::MAX as usize && 3 * WIDTH as u32 == ORDER_BITS
+);
+
+impl Node8 {
+    const EMPTY: Node8 = Node8 {
+        bounds: [
+            [[Vec4::INFINITY; 2]; 3],
+            [[Vec4::NEG_INFINITY; 2]; 3],
+        ],
+        child: [0; WIDTH],
+        meta: [IDENTITY_ORDER; WIDTH],
     };
 
-    fn set_slot(&mut self, i: usize, node: &Node, child: u32) {
+    /// Puts the box of `node` in slot `i`: a leaf of `count` primitives at `child`, or with `count` 0 the
+    /// wide node `child`.
+    fn set_slot(&mut self, i: usize, node: &Node, child: u32, count: u32) {
         for a in 0..3 {
-            self.bounds[0][a][i] = node.min[a];
-            self.bounds[1][a][i] = node.max[a];
+            self.bounds[0][a][i / 4][i % 4] = node.min[a];
+            self.bounds[1][a][i / 4][i % 4] = node.max[a];
         }
         self.child[i] = child;
-        // Leaves hold at most MAX_LEAF primitives (see `plan`), so the count always fits.
-        debug_assert!(node.count as usize <= MAX_LEAF);
-        self.count[i] = node.count as u8;
+        // Leaves hold at most WIDE_MAX_LEAF primitives (see `Collapse::plan`), so the count always fits.
+        debug_assert!(count as usize <= WIDE_MAX_LEAF);
+        self.meta[i] = self.order(i) | count << ORDER_BITS;
+    }
+
+    /// Slot `i`'s leaf primitive count, 0 for an inner node or an unused slot.
+    #[inline(always)]
+    fn count(&self, i: usize) -> usize {
+        (self.meta[i] >> ORDER_BITS) as usize
+    }
+
+    /// The visiting order of the slots for a ray of direction octant `octant`, three bits a slot, first lowest.
+    #[inline(always)]
+    fn order(&self, octant: usize) -> u32 {
+        self.meta[octant] & ((1 << ORDER_BITS) - 1)
+    }
+
+    /// Sets the visiting order for direction octant `octant` (encoded as [`Node8::order`]).
+    fn set_order(&mut self, octant: usize, order: u32) {
+        self.meta[octant] = self.meta[octant] & !((1 << ORDER_BITS) - 1) | order;
     }
 
     /// Whether slot `i` holds a box (a leaf or an inner node) rather than nothing.
     fn slot_used(&self, i: usize) -> bool {
-        self.bounds[0][0][i] <= self.bounds[1][0][i]
+        self.bounds[0][0][i / 4][i % 4] <= self.bounds[1][0][i / 4][i % 4]
     }
 }
 
-/// Collapses the binary tree into 4-wide nodes: each wide node takes its binary node's children and keeps
-/// replacing the inner child with the largest surface area by that child's two children until it holds
-/// four (Dammertz et al. 2008). The SAH tree's structure is kept; only levels are merged.
-fn collapse(binary: &[Node]) -> Vec<Node4> {
-    let mut wide = vec![Node4::EMPTY];
-    if binary[0].count > 0 {
-        wide[0].set_slot(0, &binary[0], binary[0].offset);
+/// Collapses the binary tree into 8-wide nodes by the dynamic programme of Ylitie, Karras and Laine 2017
+/// ("Efficient incoherent ray traversal on GPUs through compressed wide BVHs", HPG, §3.1): for every binary node
+/// and every budget of one to eight slots it finds the cheapest way to represent the node's subtree in that
+/// many slots of its parent wide node ([`Collapse::plan`]), then fills the wide nodes top down from those
+/// choices. The binary tree's splits are kept; which of its nodes become wide nodes, slots or leaves is chosen
+/// by cost. `block` primitives are tested at a time (the SAH's `block`).
+fn collapse(binary: &[Node], block: u32) -> Vec<Node8> {
+    let plan = Collapse::plan(binary, block);
+    let mut wide = vec![Node8::EMPTY];
+    if plan.choice[0][WIDTH - 1] == Choice::LEAF {
+        wide[0].set_slot(0, &binary[0], plan.first[0], plan.count[0]);
     } else {
-        fill_wide(binary, 0, &mut wide, 0);
+        plan.fill(binary, 0, &mut wide, 0);
     }
     // The nodes were pushed one at a time: drop the spare capacity the vector grew by (about a tenth of the
     // hierarchy on a large mesh), held otherwise for the render's whole life.
@@ -447,14 +492,144 @@ fn collapse(binary: &[Node]) -> Vec<Node4> {
     wide
 }
 
+/// How the subtree of a binary node is represented in `i` slots of its parent wide node: as one leaf slot,
+/// as one slot holding a wide node of its own, or split between its two children, the left one getting `k`
+/// slots (`Choice(k)`, `1 <= k < i`) and the right one the others.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Choice(u8);
+
+impl Choice {
+    /// One leaf slot holding every primitive of the subtree.
+    const LEAF: Choice = Choice(0);
+    /// One slot holding a wide node filled from the subtree.
+    const INNER: Choice = Choice(WIDTH as u8);
+}
+
+/// The dynamic programme's table (Ylitie et al. 2017, §3.1): for binary node `n` and `i + 1` slots, the
+/// least SAH cost `cost[n][i]` of its subtree (areas times the tests a ray entering it makes: `COST_NODE` per
+/// wide node, one per block of a leaf) and the choice `choice[n][i]` that reaches it; with each node's run of
+/// primitives in leaf order (`first`, `count`), which a leaf slot made of a whole subtree holds.
+struct Collapse {
+    cost: Vec<[f32; WIDTH]>,
+    choice: Vec<[Choice; WIDTH]>,
+    /// For an inner binary node, how many of a wide node's eight slots the best split gives its left child.
+    split: Vec<u8>,
+    first: Vec<u32>,
+    count: Vec<u32>,
+}
+
+impl Collapse {
+    /// Fills the table bottom up (a binary node's children follow it in `binary`). With `C(n, i)` the cost of
+    /// `n` in at most `i` slots (Ylitie et al. 2017, eqs. 1-3):
+    /// `C(n, 1) = min(C_leaf(n), C_node(n))`, `C(n, i) = min(C(n, i - 1), min_k C(l, k) + C(r, i - k))`,
+    /// `C_node(n) = A(n)·COST_NODE + min_k C(l, k) + C(r, 8 - k)`, `C_leaf(n) = A(n)·⌈count / block⌉` for a
+    /// subtree of at most `WIDE_MAX_LEAF` primitives (a binary leaf is always a leaf).
+    fn plan(binary: &[Node], block: u32) -> Collapse {
+        let n = binary.len();
+        let mut table = Collapse {
+            cost: vec![[0.0; WIDTH]; n],
+            choice: vec![[Choice::LEAF; WIDTH]; n],
+            split: vec![0; n],
+            first: vec![0; n],
+            count: vec![0; n],
+        };
+        let leaf_cost = |count: u32| count.div_ceil(block) as f32;
+        for b in (0..n).rev() {
+            let node = &binary[b];
+            let a = area(node);
+            if node.count > 0 {
+                table.first[b] = node.offset;
+                table.count[b] = node.count;
+                table.cost[b] = [a * leaf_cost(node.count); WIDTH];
+                continue;
+            }
+            let (l, r) = (node.offset as usize, node.offset as usize + 1);
+            table.first[b] = table.first[l];
+            table.count[b] = table.count[l] + table.count[r];
+            // Best split of i + 1 slots between the children, for i = 1..8 (two slots or more). The first
+            // split stands unless another is cheaper, so an infinite or NaN cost (a box whose area overflows)
+            // still gives a valid choice.
+            let mut split = [(f32::INFINITY, Choice::LEAF); WIDTH];
+            for (i, best) in split.iter_mut().enumerate().skip(1) {
+                *best = (table.cost[l][0] + table.cost[r][i - 1], Choice(1));
+                for k in 2..=i {
+                    let c = table.cost[l][k - 1] + table.cost[r][i - k];
+                    if c < best.0 {
+                        *best = (c, Choice(k as u8));
+                    }
+                }
+            }
+            let as_leaf = a * leaf_cost(table.count[b]);
+            let as_node = a * COST_NODE + split[WIDTH - 1].0;
+            table.split[b] = split[WIDTH - 1].1 .0;
+            let mut best = if table.count[b] as usize <= WIDE_MAX_LEAF && as_leaf <= as_node {
+                (as_leaf, Choice::LEAF)
+            } else {
+                (as_node, Choice::INNER)
+            };
+            for (i, &option) in split.iter().enumerate() {
+                if option.0 < best.0 {
+                    best = option;
+                }
+                table.cost[b][i] = best.0;
+                table.choice[b][i] = best.1;
+            }
+        }
+        table
+    }
+
+    /// Appends to `slots` the binary nodes that fill at most `i + 1` slots for binary node `b`, as chosen, each
+    /// with whether it is a leaf slot.
+    fn slots(&self, binary: &[Node], b: usize, i: usize, slots: &mut Vec<(usize, bool)>) {
+        match self.choice[b][i] {
+            Choice::LEAF => slots.push((b, true)),
+            Choice::INNER => slots.push((b, false)),
+            Choice(k) => {
+                let (l, k) = (binary[b].offset as usize, k as usize);
+                self.slots(binary, l, k - 1, slots);
+                self.slots(binary, l + 1, i - k, slots);
+            }
+        }
+    }
+
+    /// Fills wide node `at` from the binary node `b` chosen as a wide node, then its inner children, depth
+    /// first.
+    fn fill(&self, binary: &[Node], b: usize, wide: &mut Vec<Node8>, at: usize) {
+        let (l, k) = (binary[b].offset as usize, self.split[b] as usize);
+        let mut slots = Vec::with_capacity(WIDTH);
+        self.slots(binary, l, k - 1, &mut slots);
+        self.slots(binary, l + 1, WIDTH - 1 - k, &mut slots);
+        // Children of one wide node are stored next to each other.
+        let mut node = Node8::EMPTY;
+        let mut inner = Vec::new();
+        for (i, &(s, leaf)) in slots.iter().enumerate() {
+            if leaf {
+                node.set_slot(i, &binary[s], self.first[s], self.count[s]);
+            } else {
+                node.set_slot(i, &binary[s], wide.len() as u32, 0);
+                inner.push((s, wide.len()));
+                wide.push(Node8::EMPTY);
+            }
+        }
+        let ids: Vec<usize> = slots.iter().map(|&(s, _)| s).collect();
+        for octant in 0..8 {
+            node.set_order(octant, octant_order(binary, b, &ids, octant));
+        }
+        wide[at] = node;
+        for (s, w) in inner {
+            self.fill(binary, s, wide, w);
+        }
+    }
+}
+
 /// The most stack entries a traversal of `wide` from node `at` can hold: a node's hit children are all
 /// pushed but the first in visiting order, which is descended into while the others wait (counted here as
 /// all pushed, then one popped).
-fn stack_needed(wide: &[Node4], at: usize) -> usize {
+fn stack_needed(wide: &[Node8], at: usize) -> usize {
     let node = &wide[at];
-    let slots = (0..4).filter(|&i| node.slot_used(i)).count();
-    (0..4)
-        .filter(|&i| node.count[i] == 0 && node.slot_used(i))
+    let slots = (0..WIDTH).filter(|&i| node.slot_used(i)).count();
+    (0..WIDTH)
+        .filter(|&i| node.count(i) == 0 && node.slot_used(i))
         .map(|i| slots - 1 + stack_needed(wide, node.child[i] as usize))
         .max()
         .unwrap_or(slots)
@@ -464,60 +639,19 @@ fn area(node: &Node) -> f32 {
     Aabb::new(Vec3::from_array(node.min), Vec3::from_array(node.max)).surface_area()
 }
 
-/// Fills wide node `at` from the inner binary node `b`, then its inner children, depth first.
-fn fill_wide(binary: &[Node], b: usize, wide: &mut Vec<Node4>, at: usize) {
-    let first = binary[b].offset as usize;
-    let mut slots = vec![first, first + 1];
-    while slots.len() < 4 {
-        let open = slots
-            .iter()
-            .enumerate()
-            .filter(|(_, &s)| binary[s].count == 0)
-            .fold(None, |best: Option<(usize, f32)>, (i, &s)| {
-                let a = area(&binary[s]);
-                if best.is_none_or(|(_, ba)| a > ba) {
-                    Some((i, a))
-                } else {
-                    best
-                }
-            });
-        let Some((i, _)) = open else { break };
-        let c = binary[slots[i]].offset as usize;
-        slots[i] = c;
-        slots.insert(i + 1, c + 1);
-    }
-    // Children of one wide node are stored next to each other.
-    let mut node = Node4::EMPTY;
-    let mut inner = Vec::new();
-    for (i, &s) in slots.iter().enumerate() {
-        if binary[s].count > 0 {
-            node.set_slot(i, &binary[s], binary[s].offset);
-        } else {
-            node.set_slot(i, &binary[s], wide.len() as u32);
-            inner.push((s, wide.len()));
-            wide.push(Node4::EMPTY);
-        }
-    }
-    node.order = std::array::from_fn(|octant| octant_order(binary, b, &slots, octant));
-    wide[at] = node;
-    for (s, w) in inner {
-        fill_wide(binary, s, wide, w);
-    }
-}
-
 /// The order in which a ray whose direction lies in `octant` (bit `a` set: negative along axis `a`) should
 /// visit the slots of the wide node filled from binary node `b`, `slots` being the binary nodes placed in
-/// them, encoded as [`Node4::order`]. Each binary split inside the wide node is ordered by the sign of the
+/// them, encoded as [`Node8::order`]. Each binary split inside the wide node is ordered by the sign of the
 /// direction along the axis on which its two children's centres lie farthest apart, the child whose centre is
 /// lower on that axis first for a positive direction: front to back without any distance. Unused slots come
 /// last.
-fn octant_order(binary: &[Node], b: usize, slots: &[usize], octant: usize) -> u8 {
-    let mut seq = Vec::with_capacity(4);
+fn octant_order(binary: &[Node], b: usize, slots: &[usize], octant: usize) -> u32 {
+    let mut seq = Vec::with_capacity(WIDTH);
     push_in_octant_order(binary, b, slots, octant, &mut seq);
-    seq.extend((0..4).filter(|i| !seq.contains(i)).collect::<Vec<_>>());
+    seq.extend((0..WIDTH).filter(|i| !seq.contains(i)).collect::<Vec<_>>());
     seq.iter()
         .enumerate()
-        .fold(0, |code, (k, &slot)| code | (slot as u8) << (2 * k))
+        .fold(0, |code, (k, &slot)| code | (slot as u32) << (3 * k))
 }
 
 /// Appends to `seq` the slots under binary node `s` (itself a slot, or split inside the wide node) in the
@@ -554,7 +688,7 @@ struct TraversalRay {
     /// Per axis, whether the direction is negative (sign bit set, so `-0.0` counts), which swaps the near
     /// and far planes (Williams et al. 2005).
     neg: [bool; 3],
-    /// The direction's octant, bit `a` set when `neg[a]`: the index into [`Node4::order`].
+    /// The direction's octant, bit `a` set when `neg[a]`: the index into [`Node8::order`].
     octant: usize,
 }
 
@@ -579,19 +713,32 @@ impl TraversalRay {
         }
     }
 
-    /// Slab test of the four child boxes of `node` (Williams et al. 2005, Ize 2013): a bit mask of the
-    /// children the ray meets within `[t_min, t_clip]`, and their entry distances. The near plane of each axis
-    /// is `bounds[neg]` and the far one `bounds[!neg]`, picked by indexing rather than a branch. A ray lying
-    /// in a slab's plane with a zero direction component gives `0·∞ = NaN` for that plane, which
-    /// [`greater_or_second`] and [`less_or_second`] ignore (a comparison with NaN is false): the slab then
-    /// constrains nothing, so boundary hits are kept.
+    /// Slab test of the eight child boxes of `node` (Williams et al. 2005, Ize 2013), as two tests of four
+    /// ([`TraversalRay::slab4`]): a bit mask of the children the ray meets within `[t_min, t_clip]`, and their
+    /// entry distances.
     #[inline(always)]
-    fn slab4(&self, node: &Node4, t_min: f32, t_clip: f32) -> (u32, Vec4) {
+    fn slab8(&self, node: &Node8, t_min: f32, t_clip: f32) -> (u32, [f32; WIDTH]) {
+        let (low_mask, low_near) = self.slab4(node, 0, t_min, t_clip);
+        let (high_mask, high_near) = self.slab4(node, 1, t_min, t_clip);
+        let mut near = [0.0; WIDTH];
+        low_near.write_to_slice(&mut near[..4]);
+        high_near.write_to_slice(&mut near[4..]);
+        (low_mask | high_mask << 4, near)
+    }
+
+    /// Slab test of boxes `4h .. 4h + 4` of `node`: a bit mask of those the ray meets within `[t_min,
+    /// t_clip]`, and their entry distances. The near plane of each axis is `bounds[neg]` and the far one
+    /// `bounds[!neg]`, picked by indexing rather than a branch. A ray lying in a slab's plane with a zero
+    /// direction component gives `0·∞ = NaN` for that plane, which [`greater_or_second`] and
+    /// [`less_or_second`] ignore (a comparison with NaN is false): the slab then constrains nothing, so
+    /// boundary hits are kept.
+    #[inline(always)]
+    fn slab4(&self, node: &Node8, h: usize, t_min: f32, t_clip: f32) -> (u32, Vec4) {
         let mut near = Vec4::splat(t_min);
         let mut far = Vec4::INFINITY;
         for a in 0..3 {
-            let lo = node.bounds[usize::from(self.neg[a])][a];
-            let hi = node.bounds[usize::from(!self.neg[a])][a];
+            let lo = node.bounds[usize::from(self.neg[a])][a][h];
+            let hi = node.bounds[usize::from(!self.neg[a])][a][h];
             let tn = (lo - self.origin[a]) * self.inv_dir[a];
             let tf = (hi - self.origin[a]) * self.inv_dir[a];
             near = greater_or_second(tn, near);
@@ -643,7 +790,7 @@ fn clip_of(t: f32) -> f32 {
     t + t.abs() * (FAR_SCALE - 1.0)
 }
 
-/// The traversal stack: `entries[..len]` hold child slots (`node·4 + slot`) still to visit and their entry
+/// The traversal stack: `entries[..len]` hold child slots (`node·8 + slot`) still to visit and their entry
 /// distances, the next to visit last.
 struct Stack<const N: usize> {
     entries: [(u32, f32); N],
@@ -691,7 +838,7 @@ impl Bvh {
     pub const MAX_TRIANGLES: usize = (1 << 30) - 1;
 
     /// Builds the hierarchy over world-space triangles with the parallel binned SAH, then collapses it to
-    /// 4-wide nodes (see the module documentation). Triangles with a non-finite coordinate can never be hit
+    /// 8-wide nodes (see the module documentation). Triangles with a non-finite coordinate can never be hit
     /// and are left out; degenerate (zero-area) triangles are kept and never hit. An empty list gives an
     /// empty hierarchy. More than [`Bvh::MAX_TRIANGLES`] triangles is an error.
     pub fn build(triangles: &[[Vec3; 3]]) -> Result<Bvh, TooManyTriangles> {
@@ -799,11 +946,11 @@ impl TriangleHierarchy for Bvh {
     }
 }
 
-/// How much work one query did: the wide nodes whose four boxes it tested and the triangles it tested.
+/// How much work one query did: the wide nodes whose eight boxes it tested and the triangles it tested.
 #[cfg(feature = "testing")]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TraversalCounts {
-    /// Wide nodes visited (one 4-box slab test each).
+    /// Wide nodes visited (one 8-box slab test each).
     pub nodes: u64,
     /// Triangles tested (the valid lanes of the packs tested).
     pub triangles: u64,
@@ -997,7 +1144,7 @@ impl Tree {
         if input_count > Bvh::MAX_TRIANGLES {
             return Err(TooManyTriangles(input_count));
         }
-        let (nodes, bounds): (Vec<Node4>, Aabb) = if refs.is_empty() {
+        let (nodes, bounds): (Vec<Node8>, Aabb) = if refs.is_empty() {
             (Vec::new(), Aabb::EMPTY)
         } else {
             let (root, desc) = build_parallel(&mut refs, 0, 0, block);
@@ -1005,8 +1152,13 @@ impl Tree {
             binary.push(root.shifted(1));
             binary.extend(desc.into_iter().map(|n| n.shifted(1)));
             let bounds = Aabb::new(Vec3::from_array(root.min), Vec3::from_array(root.max));
-            (collapse(&binary), bounds)
+            (collapse(&binary, block), bounds)
         };
+        // Stack entries name a slot as `node·8 + slot` in 32 bits. Only a hierarchy of close to
+        // `MAX_TRIANGLES` one-triangle leaves could have more nodes than that allows.
+        if nodes.len() > (u32::MAX as usize + 1) / WIDTH {
+            return Err(TooManyTriangles(input_count));
+        }
         let stack_needed = if nodes.is_empty() {
             0
         } else {
@@ -1041,7 +1193,7 @@ impl Tree {
     /// Heap bytes held by the nodes and the input indices.
     #[cfg(any(test, feature = "testing"))]
     pub(super) fn heap_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<Node4>()
+        self.nodes.capacity() * std::mem::size_of::<Node8>()
             + self.prim_ids.capacity() * std::mem::size_of::<u32>()
     }
 
@@ -1080,8 +1232,8 @@ impl Tree {
             self.traverse::<ANY_HIT, STACK_MAX>(ray, t_min, t_max, hooks)
         }
     }
-    /// Stack-based traversal of the 4-wide tree with a stack of `STACK` entries. Stack entries name a child
-    /// slot (`node·4 + slot`) and its entry distance. Of a node's hit children the first in visiting order is
+    /// Stack-based traversal of the 8-wide tree with a stack of `STACK` entries. Stack entries name a child
+    /// slot (`node·8 + slot`) and its entry distance. Of a node's hit children the first in visiting order is
     /// visited next without going through the stack, the others are pushed so that they pop in that order, and
     /// an entry is dropped when popped if a closer hit has been found since. The visiting order is given by
     /// [`Tree::push_children`]. Hits that `accept` rejects are skipped.
@@ -1117,10 +1269,10 @@ impl Tree {
             if count == 0 {
                 node_visited();
                 let node = &self.nodes[child];
-                let (mask, near) = r.slab4(node, t_min, best.clip);
-                match self.push_children::<STACK>(child, mask, near, &r, &mut stack, leaves) {
+                let (mask, near) = r.slab8(node, t_min, best.clip);
+                match self.push_children::<STACK>(child, mask, &near, &r, &mut stack, leaves) {
                     Pushed::Next(i) => {
-                        (child, count) = (node.child[i] as usize, usize::from(node.count[i]));
+                        (child, count) = (node.child[i] as usize, node.count(i));
                         continue;
                     }
                     Pushed::Nothing => {}
@@ -1144,9 +1296,9 @@ impl Tree {
                     return best.best;
                 };
                 if t <= best.clip {
-                    let parent = &self.nodes[slot as usize / 4];
-                    let i = slot as usize % 4;
-                    (child, count) = (parent.child[i] as usize, usize::from(parent.count[i]));
+                    let parent = &self.nodes[slot as usize / WIDTH];
+                    let i = slot as usize % WIDTH;
+                    (child, count) = (parent.child[i] as usize, parent.count(i));
                     break;
                 }
             }
@@ -1162,7 +1314,7 @@ impl Tree {
         &self,
         at: usize,
         mask: u32,
-        near: Vec4,
+        near: &[f32; WIDTH],
         r: &TraversalRay,
         stack: &mut Stack<N>,
         leaves: &impl Leaves,
@@ -1182,18 +1334,16 @@ impl Tree {
         }
         // Every slot is written, last in visiting order first, and the top advances past the hit ones only:
         // no branch depends on which children were hit.
-        let order = node.order[r.octant & 7];
-        // Lanes read from an array: `Vec4` indexed by a run-time lane became a jump table per entry.
-        let near = near.to_array();
-        for k in (0..4).rev() {
-            let i = usize::from(order >> (2 * k) & 3);
-            if !stack.write_top(((at * 4 + i) as u32, near[i])) {
+        let order = node.order(r.octant & 7);
+        for k in (0..WIDTH).rev() {
+            let i = (order >> (3 * k) & 7) as usize;
+            if !stack.write_top(((at * WIDTH + i) as u32, near[i])) {
                 return Pushed::Overflow;
             }
             stack.len += (mask >> i & 1) as usize;
         }
         match stack.pop() {
-            Some((slot, _)) => Pushed::Next(slot as usize % 4),
+            Some((slot, _)) => Pushed::Next(slot as usize % WIDTH),
             None => Pushed::Nothing,
         }
     }
@@ -1203,15 +1353,15 @@ impl Tree {
     /// live in the packs, so `prim_ids` is released.
     fn pack_leaves(&mut self, triangles: &[[Vec3; 3]]) -> Vec<Triangle4> {
         let mut leaves: Vec<(u32, usize, usize)> = (0..self.nodes.len())
-            .flat_map(|n| (0..4).map(move |i| (n, i)))
-            .filter(|&(n, i)| self.nodes[n].count[i] > 0)
+            .flat_map(|n| (0..WIDTH).map(move |i| (n, i)))
+            .filter(|&(n, i)| self.nodes[n].count(i) > 0)
             .map(|(n, i)| (self.nodes[n].child[i], n, i))
             .collect();
         leaves.sort_unstable();
         let mut packs = Vec::with_capacity(self.prim_ids.len().div_ceil(PACK) + leaves.len());
         for (first, n, i) in leaves {
             let first = first as usize;
-            let ids = &self.prim_ids[first..first + self.nodes[n].count[i] as usize];
+            let ids = &self.prim_ids[first..first + self.nodes[n].count(i)];
             self.nodes[n].child[i] = packs.len() as u32;
             for chunk in ids.chunks(PACK) {
                 let tris: Vec<[Vec3; 3]> = chunk.iter().map(|&id| triangles[id as usize]).collect();
@@ -1225,14 +1375,15 @@ impl Tree {
     }
 
     /// Starts loading what visiting child `i` of `node` will read, so that the memory latency overlaps the
-    /// work on its siblings: the child's node (two cache lines) or the leaf's first primitive.
+    /// work on its siblings: the child's node (four cache lines) or the leaf's first primitive.
     #[inline(always)]
-    fn prefetch_slot(&self, node: &Node4, i: usize, leaves: &impl Leaves) {
+    fn prefetch_slot(&self, node: &Node8, i: usize, leaves: &impl Leaves) {
         let child = node.child[i] as usize;
-        if node.count[i] == 0 {
-            let p = &self.nodes[child] as *const Node4 as *const i8;
-            prefetch(p);
-            prefetch(p.wrapping_add(64));
+        if node.count(i) == 0 {
+            let p = &self.nodes[child] as *const Node8 as *const i8;
+            for line in 0..4 {
+                prefetch(p.wrapping_add(64 * line));
+            }
         } else {
             leaves.prefetch(child);
         }
@@ -1452,7 +1603,7 @@ pub(super) mod tests {
     #[test]
     fn nodes_are_32_bytes_per_child() {
         assert_eq!(std::mem::size_of::<Node>(), 32);
-        assert_eq!(std::mem::size_of::<Node4>(), 4 * 32);
+        assert_eq!(std::mem::size_of::<Node8>(), WIDTH * 32);
     }
 
     #[test]
@@ -1595,14 +1746,61 @@ pub(super) mod tests {
         let mut rng = Rng::new(17, 18);
         let bvh = Bvh::build(&soup(&mut rng, 5000)).unwrap();
         for node in &bvh.tree.nodes {
-            for code in node.order {
-                let mut seen = [false; 4];
-                for k in 0..4 {
-                    seen[usize::from(code >> (2 * k) & 3)] = true;
+            for octant in 0..8 {
+                let code = node.order(octant);
+                let mut seen = [false; WIDTH];
+                for k in 0..WIDTH {
+                    seen[(code >> (3 * k) & 7) as usize] = true;
                 }
-                assert_eq!(seen, [true; 4], "{code:08b}");
+                assert_eq!(seen, [true; WIDTH], "{code:024b}");
             }
         }
+    }
+
+    #[test]
+    fn wide_nodes_of_every_fill_match_brute_force_on_random_and_degenerate_meshes() {
+        // Meshes from one triangle up: the root holds 1 to 8 slots, and larger trees have inner nodes with
+        // every number of used slots, both halves of the slab test, and pushes of 2 to 8 hit children. Each
+        // mesh also repeats some of its triangles (and holds zero-area ones), so equally close hits in different
+        // slots and leaves must still resolve to the lowest input index.
+        let mut rng = Rng::new(19, 20);
+        let mut fills = [false; WIDTH + 1];
+        for n in [1, 2, 3, 5, 8, 9, 16, 17, 40, 64, 65, 130, 700, 2500] {
+            let mut tris = soup(&mut rng, n);
+            for k in 0..n / 3 {
+                tris.push(tris[(k * 7) % n]);
+            }
+            let bvh = Bvh::build(&tris).unwrap();
+            for node in &bvh.tree.nodes {
+                fills[(0..WIDTH).filter(|&i| node.slot_used(i)).count()] = true;
+            }
+            let rays: Vec<_> = (0..600)
+                .map(|k| {
+                    let ray = if k % 2 == 0 {
+                        random_ray(&mut rng, Vec3::splat(-14.0), Vec3::splat(14.0))
+                    } else {
+                        // Aimed at a triangle's centroid, so most rays hit and many hit repeated triangles.
+                        let tri = tris[rng.next_u32() as usize % tris.len()];
+                        let o = random_point(&mut rng, Vec3::splat(-14.0), Vec3::splat(14.0));
+                        let target = (tri[0] + tri[1] + tri[2]) / 3.0;
+                        Ray::new(o, (target - o).normalize())
+                    };
+                    let (a, b) = random_interval(&mut rng);
+                    (ray, a, b)
+                })
+                .collect();
+            for (k, (ray, t0, t1)) in rays.iter().enumerate() {
+                let expect = brute_closest(&tris, ray, *t0, *t1);
+                assert_eq!(bvh.intersect(ray, *t0, *t1), expect, "{n} triangles, ray {k}");
+                assert_eq!(
+                    bvh.occluded(ray, *t0, *t1),
+                    brute_occluded(&tris, ray, *t0, *t1),
+                    "{n} triangles, ray {k}"
+                );
+            }
+        }
+        // Every fill from one slot (a root leaf) to eight occurred.
+        assert_eq!(fills[1..], [true; WIDTH], "{fills:?}");
     }
 
     #[test]
@@ -1681,6 +1879,49 @@ pub(super) mod tests {
     }
 
     #[test]
+    fn huge_coordinates_whose_box_areas_overflow_match_brute_force() {
+        // Boxes whose surface areas overflow to infinity (coordinates near 1e37), and flat ones spanning more
+        // than `f32::MAX` along one axis, whose areas are NaN (an infinite extent times a zero one): the
+        // collapse's costs are then infinite or NaN, and it must still build a tree that culls no hit.
+        let mut rng = Rng::new(23, 24);
+        let mut tris: Vec<[Vec3; 3]> = soup(&mut rng, 300)
+            .into_iter()
+            .map(|t| t.map(|v| v * 1e37))
+            .collect();
+        for k in 0..40 {
+            let x = if k % 2 == 0 { 3e38 } else { -3e38 };
+            let z = k as f32 * 1e36;
+            tris.push([
+                Vec3::new(x, 0.0, z),
+                Vec3::new(0.0, 0.0, z + 1e36),
+                Vec3::new(x * 0.5, 0.0, z + 2e36),
+            ]);
+        }
+        let bvh = Bvh::build(&tris).unwrap();
+        for k in 0..600 {
+            let (lo, hi) = (Vec3::splat(-14e37), Vec3::splat(14e37));
+            let ray = if k % 2 == 0 {
+                random_ray(&mut rng, lo, hi)
+            } else {
+                let tri = tris[rng.next_u32() as usize % tris.len()];
+                let o = random_point(&mut rng, lo, hi);
+                let target = tri[0] / 3.0 + tri[1] / 3.0 + tri[2] / 3.0;
+                Ray::new(o, (target - o).normalize())
+            };
+            assert_eq!(
+                bvh.intersect(&ray, 0.0, f32::INFINITY),
+                brute_closest(&tris, &ray, 0.0, f32::INFINITY),
+                "ray {k}"
+            );
+            assert_eq!(
+                bvh.occluded(&ray, 0.0, f32::INFINITY),
+                brute_occluded(&tris, &ray, 0.0, f32::INFINITY),
+                "ray {k}"
+            );
+        }
+    }
+
+    #[test]
     fn build_is_independent_of_thread_count() {
         let mut rng = Rng::new(11, 12);
         let tris = soup(&mut rng, 40_000);
@@ -1692,7 +1933,7 @@ pub(super) mod tests {
                 .install(|| Bvh::build(&tris).unwrap())
         };
         let (a, b) = (build_with(1), build_with(3));
-        assert!(a.tree.nodes.len() > tris.len() / (4 * MAX_LEAF));
+        assert!(a.tree.nodes.len() > tris.len() / (WIDTH * MAX_LEAF));
         assert_eq!(a.tree.nodes, b.tree.nodes);
         assert_eq!(a.packs, b.packs);
     }
