@@ -1044,7 +1044,9 @@ impl PathTracer {
         let transmittance = c.transmittance(t);
         // The direction density of a path that collided here, for the direction MIS.
         let at_collision = c.throughput_at_collision(t, segment.throughput);
-        let guide = guided::medium_guide_at(services, at_collision, p, &c.phase, wo);
+        // Looked up and multiplied with the phase function only when a light sample is weighed against it (none
+        // for a delta light, as the door-gap room's sun: the product is most of guiding's cost per event).
+        let mut guide: Option<Option<VmfMixture>> = None;
         let scale = segment.throughput * c.sigma_s * transmittance / pdf;
         let ctx = LightContext { p, n: None };
         // What the lights gave, per unit of `scale`, for the guiding cache's lit grid.
@@ -1067,6 +1069,9 @@ impl PathTracer {
             let weight = if ls.is_delta || !self.media_mis {
                 1.0
             } else {
+                let guide = guide.get_or_insert_with(|| {
+                    guided::medium_guide_at(services, at_collision, p, &c.phase, wo)
+                });
                 power_heuristic(light_pdf, guided::mixture_pdf(guide.as_ref(), ls.wi, phase))
             };
             received += tr * ls.radiance * (phase * weight / light_pdf);
