@@ -15,6 +15,10 @@
 //! and their count), and the cache keeps the training's pixel values ([`PixelEstimates`]): the two adjoint
 //! estimates of guided Russian roulette and splitting ([`super::adjoint`]).
 //!
+//! Each cell also learns the probability with which the image's paths sample its guide
+//! ([`GuidingField::guide_at`]): of [`SELECTION_CHOICES`], the one under which the iteration's records (each
+//! with its strategies' densities) estimate the least second moment, guiding counted [`SELECTION_COST`] dearer.
+//!
 //! The cache also holds the grid of the direct light the training's decoupled samples received
 //! ([`LitGrid`]), from which those samples draw guided distances.
 //!
@@ -25,6 +29,7 @@
 use super::adjoint::PixelEstimates;
 use super::lit::{DistanceGuide, LitGrid, LitRecord};
 use super::vmf::{VmfMixture, FIT_RECORDS};
+use super::GUIDE_PROBABILITY;
 use crate::math::{Aabb, Rng, Vec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -35,6 +40,32 @@ pub const SPLIT_RECORDS: f64 = 4000.0;
 pub const MAX_CELLS: usize = 4096;
 /// The deepest a cell may be.
 const MAX_DEPTH: u32 = 30;
+/// The guide's selection probabilities a cell chooses among ([`GuidingField::guide_at`]): 0 (the cell's
+/// events are not guided, and no product is made there), or up to [`GUIDE_PROBABILITY`], which bounds a guided
+/// event's weight.
+pub const SELECTION_CHOICES: [f32; 3] = [0.0, 0.25, GUIDE_PROBABILITY];
+/// The fewest guided records of an iteration from which a cell chooses its selection probability.
+pub const MIN_SELECTION_RECORDS: u64 = 64;
+/// What a guided event costs beyond an unguided one, as a fraction of the second moment: a cell guides only
+/// where a positive selection probability's estimated second moment is below 1/(1 + this) of the unguided
+/// one's (the product, its density and the lookup, about 2,000 instructions per event against about 7,700 for
+/// an unguided event's share of the door-gap room's paths; 0, 0.05, 0.1 and 1 (no cell guided) measured on it,
+/// docs/performance.md "Cutting guiding's cost on the door-gap room").
+pub const SELECTION_COST: f64 = 0.1;
+
+/// The selection probability of a cell whose records estimate the second moments `moments` under
+/// [`SELECTION_CHOICES`] (the first, 0, unguided): the least of them, a guided one counted [`SELECTION_COST`]
+/// higher; ties go to the smaller probability.
+fn choose_selection(moments: &[f64; SELECTION_CHOICES.len()]) -> f32 {
+    let cost = |k: usize| moments[k] * if k > 0 { 1.0 + SELECTION_COST } else { 1.0 };
+    let mut best = 0;
+    for k in 1..moments.len() {
+        if cost(k) < cost(best) {
+            best = k;
+        }
+    }
+    SELECTION_CHOICES[best]
+}
 
 /// What one path vertex teaches the cache: at point `p`, light arrived from the unit direction `dir`, which had
 /// been sampled with solid-angle density `pdf`, with an incident-radiance estimate `radiance` (a luminance):
@@ -49,6 +80,11 @@ pub struct RadianceRecord {
     pub radiance: f32,
     /// The density `dir` was sampled with.
     pub pdf: f32,
+    /// The density of the unguided strategy (the phase function or the BSDF) at `dir`.
+    pub unguided_pdf: f32,
+    /// The density of the guide (the cell's distribution times the phase function or the cosine) at `dir`,
+    /// where the event looked one up.
+    pub guide_pdf: Option<f32>,
 }
 
 /// A node of the spatial tree: a leaf holds a cell, an inner node its two children.
@@ -78,10 +114,18 @@ struct Cell {
     energetic: u64,
     /// What paths sample from: the vMF mixture fitted to the previous iteration's sample.
     vmf: Option<VmfMixture>,
+    /// The estimated second moments of this iteration's guided records under each of [`SELECTION_CHOICES`]
+    /// (see [`GuidingField::selection_at`]).
+    moments: [f64; SELECTION_CHOICES.len()],
+    /// Records of this iteration that count in `moments`.
+    moment_records: u64,
+    /// The probability with which the image's paths sample the guide here (learned, else
+    /// [`GUIDE_PROBABILITY`]).
+    selection: f32,
 }
 
 impl Cell {
-    fn new(depth: u32, vmf: Option<VmfMixture>, mean_radiance: Option<f32>) -> Self {
+    fn new(depth: u32, vmf: Option<VmfMixture>, mean_radiance: Option<f32>, selection: f32) -> Self {
         Self {
             records: 0,
             energy: 0.0,
@@ -90,6 +134,9 @@ impl Cell {
             sample: Vec::new(),
             energetic: 0,
             vmf,
+            moments: [0.0; SELECTION_CHOICES.len()],
+            moment_records: 0,
+            selection,
         }
     }
 }
@@ -126,7 +173,7 @@ impl GuidingField {
         Self {
             bounds: Aabb::new(centre - half, centre + half),
             nodes: vec![SpatialNode::Leaf(0)],
-            cells: vec![Cell::new(0, None, None)],
+            cells: vec![Cell::new(0, None, None, GUIDE_PROBABILITY)],
             iterations: 0,
             pixels: None,
             rng: Rng::new(0x0076_6d66, 0),
@@ -175,8 +222,23 @@ impl GuidingField {
 
     /// The distribution paths at `p` sample from (its product with the phase function or the cosine), if the
     /// cell there learned one.
+    #[cfg(test)]
     pub fn vmf_at(&self, p: Vec3) -> Option<&VmfMixture> {
         self.cells[self.cell_index(p)].vmf.as_ref()
+    }
+
+    /// The distribution the cell at `p` learned, if any, and the probability with which the image's paths
+    /// sample it (its product) there rather than the phase function or the BSDF: of [`SELECTION_CHOICES`], the
+    /// one under which the last iteration's guided records estimate the least second moment of the direction's
+    /// estimate (ρ L / (α q + (1 − α) ρ): the unguided density ρ, the guide's q, L the incident radiance),
+    /// each record's term (ρ L)² / ((α q + (1 − α) ρ) p), p the density it was sampled with (an importance-
+    /// sampled estimate of ∫ (ρ L)² / (α q + (1 − α) ρ), the second moment at α; the idea of Müller et al.
+    /// 2019, "Practical Path Guiding in Production", learning the selection probability per cell, with a
+    /// choice among a few values in place of their gradient descent), a positive one counted [`SELECTION_COST`]
+    /// higher. [`GUIDE_PROBABILITY`] where the cell had fewer than [`MIN_SELECTION_RECORDS`] such records.
+    pub fn guide_at(&self, p: Vec3) -> Option<(&VmfMixture, f32)> {
+        let cell = &self.cells[self.cell_index(p)];
+        cell.vmf.as_ref().map(|v| (v, cell.selection))
     }
 
     /// The mean incident radiance over the sphere at `p` (a luminance), as the cell there estimated it in the
@@ -207,6 +269,17 @@ impl GuidingField {
             cell.records += 1;
             let energy = r.radiance / r.pdf;
             cell.energy += r.radiance as f64 / r.pdf as f64;
+            if let Some(q) = r.guide_pdf {
+                let (p, rho) = (r.pdf as f64, r.unguided_pdf as f64);
+                if q >= 0.0 && q.is_finite() && rho > 0.0 && rho.is_finite() {
+                    let f = rho * r.radiance as f64;
+                    for (m, a) in cell.moments.iter_mut().zip(SELECTION_CHOICES) {
+                        let a = a as f64;
+                        *m += f * f / ((a * q as f64 + (1.0 - a) * rho) * p);
+                    }
+                    cell.moment_records += 1;
+                }
+            }
             if energy > 0.0 && energy.is_finite() {
                 cell.energetic += 1;
                 if cell.sample.len() < FIT_RECORDS {
@@ -252,6 +325,9 @@ impl GuidingField {
             let total = cell.energy;
             cell.mean_radiance = (cell.records > 0 && total.is_finite())
                 .then(|| (total / (cell.records as f64 * 4.0 * PI)) as f32);
+            if cell.moment_records >= MIN_SELECTION_RECORDS {
+                cell.selection = choose_selection(&cell.moments);
+            }
         }
         // Walk the leaves in node order (deterministic) and split those over the threshold.
         let leaves: Vec<(usize, usize)> = self
@@ -273,6 +349,8 @@ impl GuidingField {
         }
         for cell in &mut self.cells {
             cell.records = 0;
+            cell.moments = [0.0; SELECTION_CHOICES.len()];
+            cell.moment_records = 0;
             cell.energetic = 0;
             cell.sample.clear();
             cell.energy = 0.0;
@@ -290,9 +368,10 @@ impl GuidingField {
         let first_child = self.nodes.len();
         let mean_radiance = self.cells[cell].mean_radiance;
         let vmf = self.cells[cell].vmf;
+        let selection = self.cells[cell].selection;
         let other = self.cells.len();
         self.cells[cell].depth = depth + 1;
-        self.cells.push(Cell::new(depth + 1, vmf, mean_radiance));
+        self.cells.push(Cell::new(depth + 1, vmf, mean_radiance, selection));
         self.nodes.push(SpatialNode::Leaf(cell as u32));
         self.nodes.push(SpatialNode::Leaf(other as u32));
         self.nodes[node] = SpatialNode::Inner {
@@ -325,6 +404,8 @@ mod tests {
                 dir: Vec3::Z,
                 radiance: 1.0,
                 pdf: 0.25,
+                unguided_pdf: 0.25,
+                guide_pdf: None,
             });
         }
         // (Enough of them to be in the reservoirs' samples and to outweigh the fit's priors: a single record
@@ -335,6 +416,8 @@ mod tests {
                 dir: -Vec3::X,
                 radiance: 2.0,
                 pdf: 0.1,
+                unguided_pdf: 0.1,
+                guide_pdf: None,
             });
         }
         field.add_records(&records);
@@ -372,6 +455,8 @@ mod tests {
                 )),
                 radiance: 2.0,
                 pdf,
+                unguided_pdf: pdf,
+                guide_pdf: None,
             })
             .collect();
         field.add_records(&records);
@@ -384,6 +469,55 @@ mod tests {
         assert!(empty.mean_radiance_at(Vec3::ZERO).is_none());
     }
 
+    /// Records of light from a cap about +z (L = 1 where z > 0.8), their directions uniform over the sphere
+    /// (as the phase function of an isotropic medium samples them), each with the density at its direction of a
+    /// guide lobe of κ 10 about `guide_axis`.
+    fn cap_records(count: usize, guide_axis: Vec3) -> Vec<RadianceRecord> {
+        let guide = crate::guiding::vmf::VmfLobe {
+            mu: guide_axis,
+            kappa: 10.0,
+            weight: 1.0,
+        };
+        let uniform = 0.25 / std::f32::consts::PI;
+        let mut rng = Rng::new(11, 12);
+        (0..count)
+            .map(|_| {
+                let dir = crate::math::sampling::uniform_sphere(rng.next_2d());
+                RadianceRecord {
+                    p: Vec3::splat(0.5),
+                    dir,
+                    radiance: if dir.z > 0.8 { 1.0 } else { 0.0 },
+                    pdf: uniform,
+                    unguided_pdf: uniform,
+                    guide_pdf: Some(guide.pdf(dir)),
+                }
+            })
+            .collect()
+    }
+
+    /// A cell learns its selection probability from its records' estimated second moments: a guide toward the
+    /// light is sampled with the largest probability, a guide away from it (where guiding only adds variance)
+    /// not at all, and too few records leave [`GUIDE_PROBABILITY`].
+    #[test]
+    fn cells_learn_their_selection_probability() {
+        let selection = |records: &[RadianceRecord]| {
+            let mut field = GuidingField::new(unit_box());
+            field.add_records(records);
+            field.finish_iteration();
+            field.guide_at(Vec3::splat(0.5)).unwrap().1
+        };
+        assert_eq!(selection(&cap_records(3000, Vec3::Z)), GUIDE_PROBABILITY);
+        assert_eq!(selection(&cap_records(3000, -Vec3::Z)), 0.0);
+        let few = MIN_SELECTION_RECORDS as usize - 1;
+        let mut records = cap_records(3000, -Vec3::Z);
+        records.iter_mut().skip(few).for_each(|r| r.guide_pdf = None);
+        assert_eq!(selection(&records), GUIDE_PROBABILITY);
+        // The choice weighs the cost of guiding: an estimated second moment below the unguided one's by less
+        // than the cost is not guided.
+        assert_eq!(choose_selection(&[1.0, 0.96, 0.95]), 0.0);
+        assert_eq!(choose_selection(&[1.0, 0.85, 0.88]), SELECTION_CHOICES[1]);
+    }
+
     #[test]
     fn bad_records_are_skipped_and_points_outside_are_clamped() {
         let mut field = GuidingField::new(unit_box());
@@ -392,6 +526,8 @@ mod tests {
             dir: Vec3::Z,
             radiance: f32::NAN,
             pdf: 1.0,
+            unguided_pdf: 1.0,
+            guide_pdf: None,
         };
         field.add_records(&[bad, RadianceRecord { pdf: 0.0, radiance: 1.0, ..bad }]);
         field.finish_iteration();

@@ -146,6 +146,8 @@ impl LitGrid {
         if !(length > 0.0 && length.is_finite() && sigma >= 0.0 && sigma.is_finite()) {
             return None;
         }
+        // A segment that misses the lit voxels' box crosses no light (tested before the pieces' arrays are made).
+        let span = self.lit_span(origin, dir, length)?;
         let mut guide = DistanceGuide {
             ends: [0.0; MAX_PIECES],
             cdf: [0.0; MAX_PIECES],
@@ -153,9 +155,7 @@ impl LitGrid {
             total: 0.0,
         };
         // First the pieces' estimates (NaN: none) in `cdf`; then their weights, summed.
-        if !self.cut(origin, dir, length, &mut guide) {
-            return None;
-        }
+        self.cut(origin, dir, length, span, &mut guide);
         let (mut known_length, mut known_sum) = (0.0f32, 0.0f32);
         let mut start = 0.0;
         for i in 0..guide.len {
@@ -191,14 +191,31 @@ impl LitGrid {
         (total > 0.0 && total.is_finite()).then_some(guide)
     }
 
-    /// Cuts the segment into pieces where it crosses voxel faces inside the box of the lit voxels: `guide.ends`
-    /// the pieces' ends (increasing, the last `length`), `guide.cdf` their voxels' estimates (NaN for none), and
-    /// one piece of estimate 0 for each part outside that box (no voxel there has light). False when the
-    /// segment misses the box (it crosses no light).
-    fn cut(&self, origin: Vec3, dir: Vec3, length: f32, guide: &mut DistanceGuide) -> bool {
-        let Some(lit) = self.lit_bounds else {
-            return false;
-        };
+    /// The part [t_in, t_out] of the segment `origin + t dir`, t ∈ [0, `length`], inside the box of the lit
+    /// voxels; `None` when it misses the box (or no voxel has light).
+    fn lit_span(&self, origin: Vec3, dir: Vec3, length: f32) -> Option<(f32, f32)> {
+        let lit = self.lit_bounds?;
+        let (mut t_in, mut t_out) = (0.0f32, length);
+        for a in 0..3 {
+            if dir[a] == 0.0 {
+                if origin[a] < lit.min[a] || origin[a] > lit.max[a] {
+                    return None;
+                }
+                continue;
+            }
+            let t0 = (lit.min[a] - origin[a]) / dir[a];
+            let t1 = (lit.max[a] - origin[a]) / dir[a];
+            t_in = t_in.max(t0.min(t1));
+            t_out = t_out.min(t0.max(t1));
+        }
+        (t_in < t_out).then_some((t_in, t_out))
+    }
+
+    /// Cuts the segment into pieces where it crosses voxel faces inside the box of the lit voxels (`span`, from
+    /// [`Self::lit_span`]): `guide.ends` the pieces' ends (increasing, the last `length`), `guide.cdf` their
+    /// voxels' estimates (NaN for none), and one piece of estimate 0 for each part outside that box (no voxel
+    /// there has light).
+    fn cut(&self, origin: Vec3, dir: Vec3, length: f32, span: (f32, f32), guide: &mut DistanceGuide) {
         let push = |guide: &mut DistanceGuide, end: f32, value: f32| {
             let end = end.min(length);
             if guide.len == MAX_PIECES {
@@ -210,23 +227,7 @@ impl LitGrid {
             guide.cdf[guide.len] = value;
             guide.len += 1;
         };
-        // The segment's part inside the lit voxels' box, [t_in, t_out].
-        let (mut t_in, mut t_out) = (0.0f32, length);
-        for a in 0..3 {
-            if dir[a] == 0.0 {
-                if origin[a] < lit.min[a] || origin[a] > lit.max[a] {
-                    t_out = -1.0;
-                }
-                continue;
-            }
-            let t0 = (lit.min[a] - origin[a]) / dir[a];
-            let t1 = (lit.max[a] - origin[a]) / dir[a];
-            t_in = t_in.max(t0.min(t1));
-            t_out = t_out.min(t0.max(t1));
-        }
-        if t_in.partial_cmp(&t_out) != Some(std::cmp::Ordering::Less) {
-            return false;
-        }
+        let (t_in, t_out) = span;
         if t_in > 0.0 {
             push(guide, t_in, 0.0);
         }
@@ -245,7 +246,6 @@ impl LitGrid {
         if last < length {
             push(guide, length, 0.0);
         }
-        true
     }
 }
 

@@ -28,8 +28,9 @@ pub use pilot::GuidingDecision;
 
 use crate::math::{Rgb, Vec3};
 
-/// Probability that a guided scattering event samples the cache's distribution rather than the phase function
-/// (a fixed one-sample MIS selection probability, the α of Müller et al. 2017, fixed at 0.5 as there).
+/// Probability that a guided scattering event of a training path samples the cache's distribution rather than
+/// the phase function (the one-sample MIS selection probability α of Müller et al. 2017, fixed at 0.5 as
+/// there), and the largest a cell may learn for the image's paths ([`field::SELECTION_CHOICES`]).
 pub const GUIDE_PROBABILITY: f32 = 0.5;
 
 /// Paths whose throughput (largest channel) is above this sample the phase function alone: guided weights,
@@ -73,8 +74,20 @@ struct GuideVertex {
     p: Vec3,
     dir: Vec3,
     pdf: f32,
+    densities: StrategyDensities,
     throughput: Rgb,
     radiance_before: Rgb,
+}
+
+/// The densities of a guided event's two strategies at the direction it sampled: the unguided one (the phase
+/// function or the BSDF) and the guide's (`None` where the event looked up no guide), from which the cache
+/// learns each cell's selection probability ([`GuidingField::guide_at`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StrategyDensities {
+    /// The phase function's or the BSDF's density.
+    pub unguided: f32,
+    /// The guide's density.
+    pub guide: Option<f32>,
 }
 
 /// What a training path remembers of its medium scattering events, so that at its end each learns the
@@ -104,13 +117,21 @@ impl GuidePath {
         &self.lit
     }
 
-    /// Remembers a scattering event at `p` that sampled `dir` with density `pdf`, leaving throughput
-    /// `throughput`, when the path had gathered `radiance_before`.
-    pub fn push(&mut self, p: Vec3, dir: Vec3, pdf: f32, throughput: Rgb, radiance_before: Rgb) {
+    /// Remembers a scattering event at `p` that sampled `dir` with density `pdf` (the strategies' own
+    /// `densities` there), leaving throughput `throughput`, when the path had gathered `radiance_before`.
+    pub fn push(
+        &mut self,
+        p: Vec3,
+        (dir, pdf): (Vec3, f32),
+        densities: StrategyDensities,
+        throughput: Rgb,
+        radiance_before: Rgb,
+    ) {
         self.vertices.push(GuideVertex {
             p,
             dir,
             pdf,
+            densities,
             throughput,
             radiance_before,
         });
@@ -131,6 +152,8 @@ impl GuidePath {
                 dir: v.dir,
                 radiance: incident,
                 pdf: v.pdf,
+                unguided_pdf: v.densities.unguided,
+                guide_pdf: v.densities.guide,
             });
         }
     }

@@ -51,6 +51,19 @@ fn ln_norm(kappa: f32) -> f32 {
     (kappa / denominator).ln() - (2.0 * PI).ln()
 }
 
+/// 1 − e^(−2κ) for κ > 0, for the product's weights: 1 above κ = 9 (as in [`ln_norm`]), exp_m1 below 2κ = 0.7
+/// (where 1 − e^(−2κ) would lose digits), else one exponential (the difference then is at least 1/2, exact to the
+/// rounding of e^(−2κ)).
+fn one_minus_exp_neg_2k(kappa: f32) -> f32 {
+    if kappa > 9.0 {
+        1.0
+    } else if kappa < 0.35 {
+        -(-2.0 * kappa).exp_m1()
+    } else {
+        1.0 - (-2.0 * kappa).exp()
+    }
+}
+
 /// The concentration of a vMF lobe with mean cosine `mean_cosine` ∈ \[0, 1) (Banerjee et al. 2005's approximation).
 pub fn lobe_kappa(mean_cosine: f32) -> f32 {
     let r = mean_cosine.clamp(0.0, 0.999);
@@ -154,10 +167,20 @@ impl VmfMixture {
     /// The mixture times the lobe e^(κ a·ω) (unnormalised; `kappa` 0 is a constant), normalised: each lobe's
     /// product is the lobe of κᵢμᵢ + κa with weight wᵢ · exp(ln_norm(κᵢ) − κᵢ − ln_norm(κ') + κ') (the
     /// normalisations' ratio). `None` where no weight is left (or it is not finite).
+    ///
+    /// The weights are taken as exp(cᵢ + κ' − top) · (1 − e^(−2κ'))/κ' (cᵢ = ln wᵢ + ln_norm(κᵢ) − κᵢ, top the
+    /// largest cᵢ + κ'; ln_norm(κ') = ln((κ'/(1 − e^(−2κ'))) / 2π)): one exponential and, below κ' = 9, one
+    /// more for the normalisation, in place of a logarithm and an exp_m1 per lobe.
     pub fn product(&self, axis: Vec3, kappa: f32) -> Option<Self> {
         let mut lobes = self.lobes;
-        let mut ln_weights = [f32::NEG_INFINITY; LOBES];
-        for ((l, lw), &c) in lobes.iter_mut().zip(ln_weights.iter_mut()).zip(self.ln_scale.iter()) {
+        let mut exponents = [f32::NEG_INFINITY; LOBES];
+        let mut norms = [0.0f32; LOBES];
+        for (((l, e), n), &c) in lobes
+            .iter_mut()
+            .zip(exponents.iter_mut())
+            .zip(norms.iter_mut())
+            .zip(self.ln_scale.iter())
+        {
             if l.weight <= 0.0 {
                 continue;
             }
@@ -168,24 +191,27 @@ impl VmfMixture {
             } else {
                 (axis, MIN_KAPPA)
             };
-            *lw = c - ln_norm(k) + k;
+            *e = c + k;
+            *n = one_minus_exp_neg_2k(k) / k;
             l.mu = mu;
             l.kappa = k;
         }
-        let top = ln_weights.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let top = exponents.iter().copied().fold(f32::NEG_INFINITY, f32::max);
         if !top.is_finite() {
             return None;
         }
-        for (l, lw) in lobes.iter_mut().zip(ln_weights) {
-            l.weight = (lw - top).exp();
+        for ((l, e), n) in lobes.iter_mut().zip(exponents).zip(norms) {
+            l.weight = (e - top).exp() * n;
         }
         let total: f32 = lobes.iter().map(|l| l.weight).sum();
         if !(total > 0.0 && total.is_finite()) {
             return None;
         }
         lobes.iter_mut().for_each(|l| l.weight /= total);
-        // The product lobe's ln(weight) + ln_norm(κ') − κ' is c − ln(Σ): no normalisation to evaluate again.
-        let ln_total = top + total.ln();
+        // The product lobe's ln(weight) + ln_norm(κ') − κ' is c − ln(Σ), Σ the sum of the weights before they
+        // are normalised, exp(c + κ' − ln_norm(κ')) = 2π · exp(c + κ') (1 − e^(−2κ'))/κ' each: no
+        // normalisation to evaluate again.
+        let ln_total = top + total.ln() + (2.0 * PI).ln();
         let ln_scale = std::array::from_fn(|k| {
             if lobes[k].weight > 0.0 {
                 self.ln_scale[k] - ln_total
@@ -340,24 +366,36 @@ mod tests {
     }
 
     /// The product's density is the normalised pointwise product (checked against quadrature of the two
-    /// factors).
+    /// factors), and its lobes' weights are the shares of that product's mass near their axes: the second axis
+    /// (κ 2.4 against the broad lobe's κ 2.5) leaves that lobe a product of κ' ≈ 0.15, the normalisation's
+    /// exp_m1 branch, the first κ' from 0.5 to 43 (its exponential and above-9 branches).
     #[test]
     fn the_product_is_the_normalised_product() {
         let mix = two_lobes();
-        let axis = Vec3::new(-0.5, 0.5, 0.5).normalize();
-        let kappa = 3.0;
-        let factor = |w: Vec3| (kappa * (axis.dot(w) - 1.0)).exp();
-        let norm = integral(|w| mix.pdf(w) * factor(w));
-        let product = mix.product(axis, kappa).unwrap();
-        let mut rng = Rng::new(8, 9);
-        for _ in 0..200 {
-            let w = crate::math::sampling::uniform_sphere(rng.next_2d());
-            let expected = (mix.pdf(w) * factor(w)) as f64 / norm;
-            let got = product.pdf(w) as f64;
-            assert!((got - expected).abs() <= 1e-3 * expected.max(1e-4), "{got} vs {expected} at {w}");
+        let broad = mix.lobes()[1];
+        for (axis, kappa) in [
+            (Vec3::new(-0.5, 0.5, 0.5).normalize(), 3.0),
+            (-broad.mu, 2.4),
+        ] {
+            let factor = |w: Vec3| (kappa * (axis.dot(w) - 1.0)).exp();
+            let norm = integral(|w| mix.pdf(w) * factor(w));
+            let product = mix.product(axis, kappa).unwrap();
+            let mut rng = Rng::new(8, 9);
+            for _ in 0..200 {
+                let w = crate::math::sampling::uniform_sphere(rng.next_2d());
+                let expected = (mix.pdf(w) * factor(w)) as f64 / norm;
+                let got = product.pdf(w) as f64;
+                assert!((got - expected).abs() <= 1e-3 * expected.max(1e-4), "{got} vs {expected} at {w}");
+            }
+            // Each product lobe's weight is its share of the product's mass: the integral of its own density
+            // times its weight (the product lobe's term of the density) over the sphere, by quadrature.
+            for (k, l) in product.lobes().iter().enumerate() {
+                let share = integral(|w| (product.ln_scale[k] + l.kappa * l.mu.dot(w)).exp());
+                assert!((share - l.weight as f64).abs() < 1e-3, "lobe {k}: {share} vs {}", l.weight);
+            }
         }
         // A constant factor leaves the mixture as it is.
-        let same = mix.product(axis, 0.0).unwrap();
+        let same = mix.product(Vec3::Y, 0.0).unwrap();
         let w = Vec3::new(0.1, 0.2, 0.97).normalize();
         assert!((same.pdf(w) - mix.pdf(w)).abs() < 1e-4 * mix.pdf(w));
     }

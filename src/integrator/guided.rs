@@ -1,10 +1,11 @@
 //! Path guiding inside the path tracer: when the render trained a guiding cache
 //! ([`RendererServices::guide`]), a medium scattering event samples its direction from the product of the
 //! cache's vMF mixture at that point with the phase function ([`VmfMixture::product`], Herholz et al. 2019,
-//! "Volume Path Guiding Based on Zero-Variance Random Walk Theory", §4) with probability [`GUIDE_PROBABILITY`]
-//! and from the phase function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS with a fixed
-//! selection probability (Müller et al. 2017, "Practical Path Guiding for Efficient Light-Transport
-//! Simulation", with the phase function in the BSDF's place). A Lambertian surface samples the product of the
+//! "Volume Path Guiding Based on Zero-Variance Random Walk Theory", §4) with probability α and from the phase
+//! function otherwise, and weights it by ρ(ω)/(α q(ω) + (1 − α) ρ(ω)): one-sample MIS (Müller et al. 2017,
+//! "Practical Path Guiding for Efficient Light-Transport Simulation", with the phase function in the BSDF's
+//! place), α the cell's learned selection probability ([`Guide`]; [`GUIDE_PROBABILITY`] on training paths; a
+//! cell that learned 0 makes no product). A Lambertian surface samples the product of the
 //! cache's distribution with the cosine to its shading normal in the mixture with its BSDF, weighting by
 //! f cos θ/(α q + (1 − α) p_bsdf). Next-event estimation there is weighed by the power heuristic against that
 //! mixture's density ([`mixture_pdf`]), so the estimate stays unbiased.
@@ -28,52 +29,80 @@ use crate::math::Ray;
 use crate::math::{Frame, Rgb, Rng, Vec2, Vec3};
 use crate::volume::{ConstantScattering, PhaseFunction};
 
-/// The product of the guiding cache's distribution at a surface point `p` with the cosine to the shading
-/// normal `n` (a Lambertian BSDF's shape), when the render is guided, the cache learned one there, and the path's
-/// throughput `beta` is at most [`GUIDE_MAX_THROUGHPUT`].
+/// A guided event's guide: the product of the cache's distribution with the phase function or the cosine, and
+/// the probability `alpha` with which the event samples it (the cell's learned selection probability,
+/// [`crate::guiding::GuidingField::guide_at`]; [`GUIDE_PROBABILITY`] on training paths, whose records it is
+/// learned from).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Guide {
+    /// The product.
+    pub product: VmfMixture,
+    /// The probability of sampling it.
+    pub alpha: f32,
+}
+
+/// The cache's distribution at `p` and its selection probability, when the render is guided, the cache learned
+/// one there, the path's throughput `beta` is at most [`GUIDE_MAX_THROUGHPUT`] and the probability is positive
+/// (a cell where it is 0 makes no product); a `training` path uses [`GUIDE_PROBABILITY`].
+fn cell_guide<'a>(
+    services: &RendererServices<'a>,
+    beta: Rgb,
+    p: Vec3,
+    training: bool,
+) -> Option<(&'a VmfMixture, f32)> {
+    let field = services
+        .guide()
+        .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)?;
+    let (mixture, alpha) = field.guide_at(p)?;
+    let alpha = if training { GUIDE_PROBABILITY } else { alpha };
+    (alpha > 0.0).then_some((mixture, alpha))
+}
+
+/// The guide at a surface point `p` of shading normal `n` (the product with the cosine, a Lambertian BSDF's
+/// shape), under the conditions of [`cell_guide`].
 pub(super) fn surface_guide_at(
     services: &RendererServices,
     beta: Rgb,
     p: Vec3,
     n: Vec3,
-) -> Option<VmfMixture> {
-    let field = services
-        .guide()
-        .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)?;
+    training: bool,
+) -> Option<Guide> {
+    let (mixture, alpha) = cell_guide(services, beta, p, training)?;
     // The clamped cosine max(cos θ, 0)/π as the vMF lobe of the same mean cosine (2/3) about the normal.
-    field.vmf_at(p)?.product(n, lobe_kappa(2.0 / 3.0))
+    let product = mixture.product(n, lobe_kappa(2.0 / 3.0))?;
+    Some(Guide { product, alpha })
 }
 
-/// The product of the guiding cache's distribution at a medium point `p` with the phase function `phase` for
-/// light leaving toward `wo`, under the same conditions as [`surface_guide_at`].
+/// The guide at a medium point `p` (the product with the phase function `phase` for light leaving toward
+/// `wo`), under the conditions of [`cell_guide`].
 pub(super) fn medium_guide_at(
     services: &RendererServices,
     beta: Rgb,
     p: Vec3,
     phase: &PhaseFunction,
     wo: Vec3,
-) -> Option<VmfMixture> {
-    let field = services
-        .guide()
-        .filter(|_| beta.max_element() <= GUIDE_MAX_THROUGHPUT)?;
-    let mixture = field.vmf_at(p)?;
-    match *phase {
+    training: bool,
+) -> Option<Guide> {
+    let (mixture, alpha) = cell_guide(services, beta, p, training)?;
+    let product = match *phase {
         // A constant factor: the product is the learned distribution itself.
-        PhaseFunction::Isotropic => Some(*mixture),
+        PhaseFunction::Isotropic => *mixture,
         // Henyey & Greenstein 1941 as the vMF lobe of the same mean cosine g about the forward direction −ω_o
         // (of −g about ω_o for back scattering; Herholz et al. 2019 §4 match the mean cosine too).
         PhaseFunction::HenyeyGreenstein { g } => {
             let axis = if g >= 0.0 { -wo } else { wo };
-            mixture.product(axis, lobe_kappa(g.abs()))
+            mixture.product(axis, lobe_kappa(g.abs()))?
         }
-    }
+    };
+    Some(Guide { product, alpha })
 }
 
 /// The density of the direction `wi_world` under the one-sample MIS mixture α q + (1 − α) p of the guide's
-/// distribution q and the phase function's or BSDF's density `pdf` = p(wi); `pdf` alone unguided.
-pub(super) fn mixture_pdf(guide: Option<&VmfMixture>, wi_world: Vec3, pdf: f32) -> f32 {
+/// distribution q (α its selection probability) and the phase function's or BSDF's density `pdf` = p(wi);
+/// `pdf` alone unguided.
+pub(super) fn mixture_pdf(guide: Option<&Guide>, wi_world: Vec3, pdf: f32) -> f32 {
     match guide {
-        Some(d) => GUIDE_PROBABILITY * d.pdf(wi_world) + (1.0 - GUIDE_PROBABILITY) * pdf,
+        Some(g) => g.alpha * g.product.pdf(wi_world) + (1.0 - g.alpha) * pdf,
         None => pdf,
     }
 }
@@ -99,17 +128,17 @@ fn choose_strategy(u: Vec2, a: f32) -> (bool, Vec2) {
 /// density is not positive.
 pub(super) fn sample_phase(
     phase: &PhaseFunction,
-    guide: Option<&VmfMixture>,
+    guide: Option<&Guide>,
     wo: Vec3,
     rng: &mut Rng,
 ) -> Option<(Vec3, f32, f32)> {
-    let Some(distribution) = guide else {
+    let Some(g) = guide else {
         let (wi, pdf) = phase.sample(wo, rng.sample_2d());
         return Some((wi, pdf, 1.0));
     };
-    let (guided, u) = choose_strategy(rng.sample_2d(), GUIDE_PROBABILITY);
+    let (guided, u) = choose_strategy(rng.sample_2d(), g.alpha);
     let wi = if guided {
-        distribution.sample(u)
+        g.product.sample(u)
     } else {
         phase.sample(wo, u).0
     };
@@ -136,19 +165,19 @@ fn lobe_choice(bsdf: &Bsdf, rng: &mut Rng) -> f32 {
 /// guided, the mixture's, with the mixture's density (`direction_pdf`, local directions) and the BSDF's value.
 pub(super) fn sample_bsdf(
     bsdf: &Bsdf,
-    guide: Option<&VmfMixture>,
+    guide: Option<&Guide>,
     frame: &Frame,
     wo: Vec3,
     rng: &mut Rng,
     direction_pdf: impl Fn(Vec3) -> f32,
 ) -> Option<BsdfSample> {
-    let Some(distribution) = guide else {
+    let Some(g) = guide else {
         return bsdf.sample(wo, lobe_choice(bsdf, rng), rng.sample_2d());
     };
     let u_lobe = lobe_choice(bsdf, rng);
-    let (guided, u) = choose_strategy(rng.sample_2d(), GUIDE_PROBABILITY);
+    let (guided, u) = choose_strategy(rng.sample_2d(), g.alpha);
     let wi = if guided {
-        Some(frame.to_local(distribution.sample(u)))
+        Some(frame.to_local(g.product.sample(u)))
     } else {
         bsdf.sample(wo, u_lobe, u).map(|b| b.wi)
     };
@@ -212,6 +241,41 @@ mod tests {
     use crate::guiding::lit::{LitGrid, LitRecord};
     use crate::math::Aabb;
     use crate::volume::ChannelSampling;
+
+    /// Guided phase sampling at a selection probability below and at [`GUIDE_PROBABILITY`] draws directions
+    /// with the mixture density it claims (chi-square), which is what its weight and the MIS weights divide by.
+    #[test]
+    fn guided_phase_sampling_fits_its_mixture_density() {
+        let product = VmfMixture::new(&[
+            crate::guiding::vmf::VmfLobe {
+                mu: Vec3::new(0.3, -0.5, 0.81).normalize(),
+                kappa: 20.0,
+                weight: 0.7,
+            },
+            crate::guiding::vmf::VmfLobe {
+                mu: -Vec3::X,
+                kappa: 2.0,
+                weight: 0.3,
+            },
+        ])
+        .unwrap();
+        let phase = PhaseFunction::HenyeyGreenstein { g: 0.3 };
+        let wo = Vec3::new(0.0, 0.6, 0.8);
+        for (i, alpha) in [0.25, GUIDE_PROBABILITY].into_iter().enumerate() {
+            let guide = Guide { product, alpha };
+            crate::math::chi2::assert_sampler_fits(
+                &format!("guided phase sampling, α {alpha}"),
+                200_000,
+                40 + i as u64,
+                |rng| {
+                    let (wi, pdf, weight) = sample_phase(&phase, Some(&guide), wo, rng)?;
+                    assert!((weight * pdf - phase.eval(wo, wi)).abs() < 1e-5 * phase.eval(wo, wi));
+                    Some(wi)
+                },
+                |w| mixture_pdf(Some(&guide), w, phase.eval(wo, w)) as f64,
+            );
+        }
+    }
 
     /// A lit grid over [0, 2]³ that knows light in the slab 0.8 ≤ x < 1 only.
     fn slab() -> LitGrid {

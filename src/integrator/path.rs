@@ -56,7 +56,7 @@ use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::guiding::adjoint::{self, Roulette};
-use crate::guiding::{GuidePath, VmfMixture};
+use crate::guiding::{GuidePath, StrategyDensities};
 use crate::light::{LightContext, LightSample};
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
 use crate::math::sampling::{carry_one_channel, power_heuristic, Equiangular};
@@ -139,7 +139,7 @@ struct MediumEvent {
     /// The product of the guiding cache's distribution with the phase function, which its direction is sampled
     /// from in the mixture with the phase function, when the event is guided ([`guided::medium_guide_at`],
     /// decided once, before next-event estimation, which is weighed against that density).
-    guide: Option<VmfMixture>,
+    guide: Option<guided::Guide>,
 }
 
 impl MediumEvent {
@@ -1044,7 +1044,10 @@ impl PathTracer {
         let transmittance = c.transmittance(t);
         // The direction density of a path that collided here, for the direction MIS.
         let at_collision = c.throughput_at_collision(t, segment.throughput);
-        let guide = guided::medium_guide_at(services, at_collision, p, &c.phase, wo);
+        // Looked up and multiplied with the phase function only when a light sample is weighed against it (none
+        // for a delta light, as the door-gap room's sun: the product is most of guiding's cost per event).
+        let mut guide: Option<Option<guided::Guide>> = None;
+        let training = s.guide_path.is_some();
         let scale = segment.throughput * c.sigma_s * transmittance / pdf;
         let ctx = LightContext { p, n: None };
         // What the lights gave, per unit of `scale`, for the guiding cache's lit grid.
@@ -1067,6 +1070,9 @@ impl PathTracer {
             let weight = if ls.is_delta || !self.media_mis {
                 1.0
             } else {
+                let guide = guide.get_or_insert_with(|| {
+                    guided::medium_guide_at(services, at_collision, p, &c.phase, wo, training)
+                });
                 power_heuristic(light_pdf, guided::mixture_pdf(guide.as_ref(), ls.wi, phase))
             };
             received += tr * ls.radiance * (phase * weight / light_pdf);
@@ -1302,7 +1308,13 @@ impl PathTracer {
             }
         }
         let guide = match bsdf {
-            Bsdf::Lambert(_) => guided::surface_guide_at(services, s.onward.beta, hit.p, frame.n),
+            Bsdf::Lambert(_) => guided::surface_guide_at(
+                services,
+                s.onward.beta,
+                hit.p,
+                frame.n,
+                s.guide_path.is_some(),
+            ),
             _ => None,
         };
         let direction_pdf =
@@ -1325,7 +1337,12 @@ impl PathTracer {
                 bsdf.eval_split(wo, bs.wi).shares()
             });
         }
-        self.continue_from_surface(cx, s, ray, surface, material.interior, &bs)
+        // What a training path's record needs for the cell's selection probability.
+        let densities = s.guide_path.is_some().then(|| StrategyDensities {
+            unguided: bsdf.pdf(wo, bs.wi),
+            guide: guide.as_ref().map(|g| g.product.pdf(frame.to_world(bs.wi))),
+        });
+        self.continue_from_surface(cx, s, ray, surface, material.interior, (&bs, densities))
     }
 
     /// Next-event estimation at a surface, seen along `ray`: each light sample weighted by the power heuristic
@@ -1381,7 +1398,8 @@ impl PathTracer {
 
     /// Continues the path from `surface` along the sampled direction `bs`: weights the throughput, crosses into
     /// or out of the surface's `interior` when the direction refracts, counts the bounce (Russian roulette) and
-    /// remembers the event for the guiding cache. Returns the next ray, or the end of the path.
+    /// remembers the event for the guiding cache (with the strategies' `densities`, given on training paths).
+    /// Returns the next ray, or the end of the path.
     fn continue_from_surface(
         &self,
         cx: &mut PathContext,
@@ -1389,7 +1407,7 @@ impl PathTracer {
         ray: &Ray,
         surface: &Surface,
         interior: Option<u32>,
-        bs: &BsdfSample,
+        (bs, densities): (&BsdfSample, Option<StrategyDensities>),
     ) -> SurfaceOutcome {
         let (hit, frame) = (surface.hit, surface.frame);
         let wi_world = frame.to_world(bs.wi);
@@ -1417,8 +1435,16 @@ impl PathTracer {
         if !self.next_bounce(s, cx.rng, true) {
             return SurfaceOutcome::End;
         }
-        if let (Some(path), false) = (s.guide_path.as_deref_mut(), bs.is_delta) {
-            path.push(hit.p, wi_world, bs.pdf, s.onward.beta, radiance_before);
+        if let (Some(path), false, Some(densities)) =
+            (s.guide_path.as_deref_mut(), bs.is_delta, densities)
+        {
+            path.push(
+                hit.p,
+                (wi_world, bs.pdf),
+                densities,
+                s.onward.beta,
+                radiance_before,
+            );
         }
         cx.counters.rays.bounce += 1;
         SurfaceOutcome::Continue(Ray::new(hit.spawn_origin(wi_world), wi_world).at_time(ray.time))
@@ -1530,7 +1556,14 @@ impl PathTracer {
         // Guided directions (see the guided module): the mixture's density is what light sampling is weighed
         // against, so the estimate stays unbiased; the choice is made once, before roulette changes the
         // throughput, and holds for every path split off here.
-        let guide = guided::medium_guide_at(services, s.onward.beta, p, &collision.phase, wo);
+        let guide = guided::medium_guide_at(
+            services,
+            s.onward.beta,
+            p,
+            &collision.phase,
+            wo,
+            s.guide_path.is_some(),
+        );
         let direction_pdf =
             |wi: Vec3| guided::mixture_pdf(guide.as_ref(), wi, collision.phase.eval(wo, wi));
         self.medium_next_event(cx, s, ray, t, &collision.phase, direction_pdf);
@@ -1610,7 +1643,11 @@ impl PathTracer {
             return None;
         }
         if let Some(path) = s.guide_path.as_deref_mut() {
-            path.push(p, wi, pdf, s.onward.beta, radiance_before);
+            let densities = StrategyDensities {
+                unguided: event.phase.eval(-event.ray.dir, wi),
+                guide: event.guide.as_ref().map(|g| g.product.pdf(wi)),
+            };
+            path.push(p, (wi, pdf), densities, s.onward.beta, radiance_before);
         }
         cx.counters.rays.bounce += 1;
         Some(Ray::new(p, wi).at_time(event.ray.time))

@@ -158,9 +158,10 @@ fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
 /// classic roulette.
 #[test]
 fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
-    // Density 10: in the denser ball of density 30 the window splits no path of these samples (vMF caches).
-    let scene = ball_scene(10.0, 0.98, true);
-    let (size, spp) = (20, 6);
+    // Density 5, 12 samples: in the balls of density 1, 3, 10, 20 and 30 the window splits no path of these
+    // samples (vMF caches with learned selection probabilities; density 10 and 6 samples did before them).
+    let scene = ball_scene(5.0, 0.98, true);
+    let (size, spp) = (20, 12);
     let render = |threads| {
         Renderer::new(RenderSettings {
             guided_roulette: true,
@@ -203,16 +204,20 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
         farm::write_part(&path, &film, &info).unwrap();
         path
     };
-    let a = part(0..2, 2, GuidingMode::On, "a.exr");
-    let b = part(2..6, 3, GuidingMode::On, "b.exr");
+    let a = part(0..4, 2, GuidingMode::On, "a.exr");
+    let b = part(4..12, 3, GuidingMode::On, "b.exr");
     let merged = farm::merge_parts(&[a.clone(), b]).unwrap();
-    assert_bit_identical(&merged.image, &one, "parts 0..2 and 2..6 against the whole");
-    let off = part(2..6, 1, GuidingMode::Off, "off.exr");
+    assert_bit_identical(
+        &merged.image,
+        &one,
+        "parts 0..4 and 4..12 against the whole",
+    );
+    let off = part(4..12, 1, GuidingMode::Off, "off.exr");
     let Err(refused) = farm::merge_parts(&[a.clone(), off]) else {
         panic!("guided and unguided parts merged");
     };
     assert!(refused.to_string().contains("scene hash"), "{refused}");
-    let classic = part(2..6, 1, GuidingMode::On, "classic.exr");
+    let classic = part(4..12, 1, GuidingMode::On, "classic.exr");
     let Err(refused) = farm::merge_parts(&[a, classic]) else {
         panic!("parts with guided and classic roulette merged");
     };
