@@ -1050,7 +1050,7 @@ impl PathTracer {
         let training = s.guide_path.is_some();
         let scale = segment.throughput * c.sigma_s * transmittance / pdf;
         let ctx = LightContext { p, n: None };
-        // What the lights gave, per unit of `scale`, for the guiding cache's lit grid.
+        // What the lights gave, per unit of `scale`, for the guiding cache's lit grid (training paths only).
         let mut received = Rgb::ZERO;
         services.sample_lights(&ctx, cx.rng, |chosen, rng| {
             if !self.decoupled_serves(services, chosen.index) {
@@ -1075,7 +1075,9 @@ impl PathTracer {
                 });
                 power_heuristic(light_pdf, guided::mixture_pdf(guide.as_ref(), ls.wi, phase))
             };
-            received += tr * ls.radiance * (phase * weight / light_pdf);
+            if training {
+                received += tr * ls.radiance * (phase * weight / light_pdf);
+            }
             let value = scale * tr * ls.radiance * (phase * weight / light_pdf);
             s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
         });
