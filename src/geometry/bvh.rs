@@ -789,13 +789,8 @@ mod avx2 {
         _mm256_sub_ps, _CMP_LE_OQ,
     };
 
-    /// Whether this CPU has AVX2 (detected once by `std`, then a cached flag).
-    #[inline(always)]
-    pub(super) fn available() -> bool {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-
-    /// [`Tree::traverse_with`] with the 8-lane box test; only to be called where [`available`] is true.
+    /// [`Tree::traverse_with`] with the 8-lane box test where this CPU has AVX2 (detected once by `std`, then a
+    /// cached flag); `None` elsewhere.
     #[inline(always)]
     #[allow(unsafe_code)] // calls the AVX2 copy (see SAFETY below)
     pub(super) fn traverse<const ANY_HIT: bool>(
@@ -803,11 +798,13 @@ mod avx2 {
         ray: &Ray,
         t_range: [f32; 2],
         hooks: (&impl Leaves, &impl Fn()),
-    ) -> Option<TriangleHit> {
-        debug_assert!(available());
-        // SAFETY: a `target_feature` function may only run on a CPU with those features; the caller has just
-        // found AVX2 on this one (`available`).
-        unsafe { traverse_avx2::<ANY_HIT>(tree, ray, t_range, hooks) }
+    ) -> Option<Option<TriangleHit>> {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return None;
+        }
+        // SAFETY: a `target_feature` function may only run on a CPU with those features, and this CPU has just
+        // been found to have AVX2.
+        Some(unsafe { traverse_avx2::<ANY_HIT>(tree, ray, t_range, hooks) })
     }
 
     /// The traversal, its leaf tests inlined, compiled with AVX2.
@@ -1331,8 +1328,8 @@ impl Tree {
         }
         let hooks = (leaves, node_visited);
         #[cfg(target_arch = "x86_64")]
-        if avx2::available() {
-            return avx2::traverse::<ANY_HIT>(self, ray, [t_min, t_max], hooks);
+        if let Some(hit) = avx2::traverse::<ANY_HIT>(self, ray, [t_min, t_max], hooks) {
+            return hit;
         }
         self.traverse_baseline::<ANY_HIT>(ray, [t_min, t_max], hooks)
     }
