@@ -1349,9 +1349,9 @@ impl Tree {
         })
     }
 
-    /// [`Tree::traverse`] with a `FIRST`-entry stack (`STACK_FIRST`), and again with `STACK_MAX` entries for a ray that
-    /// overflows it, testing a node's eight boxes with `slab8` (as [`TraversalRay::slab8`], for a ray of
-    /// direction octant `octant`). The second traversal starts over, so the answer is the same either way.
+    /// [`Tree::traverse`] with a `FIRST`-entry stack (`STACK_FIRST`), testing a node's eight boxes with `slab8`
+    /// (as [`TraversalRay::slab8`], for a ray of direction octant `octant`), and for a ray that overflows it
+    /// [`Tree::traverse_deep`], which starts over, so the answer is the same either way.
     #[inline(always)]
     fn traverse_with<const ANY_HIT: bool, const FIRST: usize>(
         &self,
@@ -1366,10 +1366,25 @@ impl Tree {
         // then, only where that overflowed, again from the start with one that always suffices.
         match self.traverse::<ANY_HIT, FIRST>(ray, t_min, t_max, hooks, box_test) {
             Ok(hit) => hit,
-            Err(_) => self
-                .traverse::<ANY_HIT, STACK_MAX>(ray, t_min, t_max, hooks, box_test)
-                .unwrap_or_else(|partial| partial),
+            Err(_) => self.traverse_deep::<ANY_HIT>(ray, [t_min, t_max], hooks),
         }
+    }
+
+    /// [`Tree::traverse_baseline`] with `STACK_MAX` entries, for a ray that overflowed the first stack. Out of
+    /// line: it seldom runs, and inlined at every call site beside the first traversal it made a render of a small
+    /// mesh 3 % slower (docs/performance.md). Its answers are those of either box test.
+    #[cold]
+    #[inline(never)]
+    fn traverse_deep<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        [t_min, t_max]: [f32; 2],
+        hooks: (&impl Leaves, &impl Fn()),
+    ) -> Option<TriangleHit> {
+        let r = TraversalRay::new(ray);
+        let box_test = (r.octant, &|node: &Node8, t0, t1| r.slab8(node, t0, t1));
+        self.traverse::<ANY_HIT, STACK_MAX>(ray, t_min, t_max, hooks, box_test)
+            .unwrap_or_else(|partial| partial)
     }
 
     /// Stack-based traversal of the 8-wide tree with a stack of `STACK` entries. Stack entries name a child
