@@ -34,7 +34,15 @@
 //! of the eight direction octants, the order of its slots that takes the two sides of every binary split inside
 //! it by the sign of the direction along the axis on which the two sides' centres lie farthest apart (the
 //! ordered traversal of shallow BVHs in Dammertz et al. 2008, with the split axis taken from the boxes). With
-//! that order the pushes are branch-free: every slot's entry is written and the top advances past the hit ones.
+//! that order the pushes are branch-free: every slot's entry is written into the eight entries above the top
+//! (one bounds check a node) and the top advances past the hit ones, while the first hit child in the order is
+//! kept from the same loop (a select, not a pop of what was just written). Each query clears a 32-entry stack
+//! first; a ray that would overflow it (none of the bench's) is traced again from the start with a stack that
+//! always suffices. An any-hit query pops without comparing distances (its clip never moves). On CPUs with AVX2
+//! a second copy of the traversal, chosen once a query, tests a node's eight boxes as one 8-lane slab test, lane
+//! by lane the operations of the 4-lane one (no FMA), so its answers are bit for bit the same. These three took
+//! coherent rays on the benchmark mesh from 3.28 to 4.03 (closest) and from 3.88 to 4.77 (occlusion) Mrays per
+//! CPU-second (docs/performance.md).
 //! On the benchmark mesh, against distance-sorted pushes, nodes and triangles per ray stayed within 5 %; this
 //! traversal with the min/max slab test below traced 15–17 % more coherent closest-hit rays and 8–10 % more
 //! coherent occlusion rays per CPU-second than the previous one, and incoherent rays no differently beyond the
@@ -85,12 +93,11 @@ const STACK_MAX: usize = (WIDTH - 1) * (SAH_MAX_DEPTH as usize + 32) + WIDTH + P
 /// Stack entries beyond those a ray can need that the octant-ordered push may write (it writes an entry for
 /// every slot of a node and keeps the hit ones).
 const PUSH_SLACK: usize = WIDTH;
-/// Stack size used when the tree's own bound allows it (nearly always: the bench's 1 M-triangle mesh needs
-/// 68 entries), so each ray clears less memory.
-const STACK_SMALL: usize = 96;
-/// Stack size for shallow trees (up to three levels of wide nodes: a few thousand triangles), whose rays
-/// would spend a measurable share of their time clearing a larger stack.
-const STACK_TINY: usize = 32;
+/// Stack size of a query's first traversal; a ray that would overflow it is traced again from the start with
+/// `STACK_MAX` entries. Every query clears its stack, so a smaller one costs each ray less; trees of up to
+/// three levels of wide nodes (a few thousand triangles) can never overflow it, and on the bench's 1 M-triangle
+/// mesh, whose bound is 71 entries, none of its 2²¹ rays did (docs/performance.md).
+const STACK_FIRST: usize = 32;
 
 /// Scale of a box's far distance. Ize 2013 shows `1 + 2γ(3)` covers the slab test's own rounding; we
 /// double it so it also covers the rounding of the triangle test's distance, so that a hit on a box's
@@ -156,8 +163,6 @@ pub(super) struct Tree {
     prim_ids: Vec<u32>,
     /// Number of primitives given to the build (including those left out as non-finite).
     input_count: usize,
-    /// The most traversal-stack entries any ray can need in this tree.
-    stack_needed: usize,
 }
 
 /// A triangle reference during the build: its bounds and input index.
@@ -769,9 +774,116 @@ fn less_or_second(a: Vec4, b: Vec4) -> Vec4 {
     return Vec4::select(a.cmplt(b), a, b);
 }
 
+/// The traversal compiled a second time with AVX2, picked at run time on CPUs that have it (the crate is built
+/// for the x86-64 baseline, SSE2, so that its binaries run on any x86-64 machine). In this copy a wide node's
+/// eight boxes are one 8-lane slab test ([`avx2::Ray8::slab8`]) instead of two 4-lane ones. Every lane does the
+/// operations of [`TraversalRay::slab4`] in the same order (`vmaxps` and `vminps` are defined as `maxps` and
+/// `minps`; FMA is not enabled, and Rust never contracts a multiply and an add), so the answers are bit for bit
+/// those of the baseline copy (a unit test compares the two).
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{Leaves, Node8, Ray, Tree, TriangleHit, Vec4, FAR_SCALE, STACK_FIRST, WIDTH};
+    use std::arch::x86_64::{
+        __m256, _mm256_castps256_ps128, _mm256_cmp_ps, _mm256_extractf128_ps, _mm256_max_ps,
+        _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_set_m128,
+        _mm256_sub_ps, _CMP_LE_OQ,
+    };
+
+    /// [`Tree::traverse_with`] with the 8-lane box test where this CPU has AVX2 (detected once by `std`, then a
+    /// cached flag); `None` elsewhere.
+    #[inline(always)]
+    #[allow(unsafe_code)] // calls the AVX2 copy (see SAFETY below)
+    pub(super) fn traverse<const ANY_HIT: bool>(
+        tree: &Tree,
+        ray: &Ray,
+        t_range: [f32; 2],
+        hooks: (&impl Leaves, &impl Fn()),
+    ) -> Option<Option<TriangleHit>> {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return None;
+        }
+        // SAFETY: a `target_feature` function may only run on a CPU with those features, and this CPU has just
+        // been found to have AVX2.
+        Some(unsafe { traverse_avx2::<ANY_HIT>(tree, ray, t_range, hooks) })
+    }
+
+    /// The traversal, its leaf tests inlined, compiled with AVX2.
+    #[target_feature(enable = "avx2")]
+    fn traverse_avx2<const ANY_HIT: bool>(
+        tree: &Tree,
+        ray: &Ray,
+        t_range: [f32; 2],
+        hooks: (&impl Leaves, &impl Fn()),
+    ) -> Option<TriangleHit> {
+        let r = Ray8::new(ray);
+        tree.traverse_with::<ANY_HIT, STACK_FIRST>(ray, t_range, hooks, r.octant, &|node, t0, t1| {
+            r.slab8(node, t0, t1)
+        })
+    }
+
+    /// Per-ray constants of the 8-lane slab test, splatted across the eight lanes (as
+    /// [`super::TraversalRay`]).
+    struct Ray8 {
+        origin: [__m256; 3],
+        inv_dir: [__m256; 3],
+        neg: [bool; 3],
+        octant: usize,
+    }
+
+    impl Ray8 {
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        fn new(ray: &Ray) -> Self {
+            let (o, d) = (ray.origin, ray.dir);
+            let inv = d.recip();
+            let neg = [
+                d.x.is_sign_negative(),
+                d.y.is_sign_negative(),
+                d.z.is_sign_negative(),
+            ];
+            Self {
+                origin: [_mm256_set1_ps(o.x), _mm256_set1_ps(o.y), _mm256_set1_ps(o.z)],
+                inv_dir: [
+                    _mm256_set1_ps(inv.x),
+                    _mm256_set1_ps(inv.y),
+                    _mm256_set1_ps(inv.z),
+                ],
+                neg,
+                octant: usize::from(neg[0]) | usize::from(neg[1]) << 1 | usize::from(neg[2]) << 2,
+            }
+        }
+
+        /// [`super::TraversalRay::slab8`] as one test of eight lanes.
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        fn slab8(&self, node: &Node8, t_min: f32, t_clip: f32) -> (u32, [f32; WIDTH]) {
+            let lanes = |v: &[Vec4; 2]| _mm256_set_m128(v[1].into(), v[0].into());
+            let mut near = _mm256_set1_ps(t_min);
+            let mut far = _mm256_set1_ps(f32::INFINITY);
+            for a in 0..3 {
+                let lo = lanes(&node.bounds[usize::from(self.neg[a])][a]);
+                let hi = lanes(&node.bounds[usize::from(!self.neg[a])][a]);
+                let tn = _mm256_mul_ps(_mm256_sub_ps(lo, self.origin[a]), self.inv_dir[a]);
+                let tf = _mm256_mul_ps(_mm256_sub_ps(hi, self.origin[a]), self.inv_dir[a]);
+                near = _mm256_max_ps(tn, near);
+                far = _mm256_min_ps(tf, far);
+            }
+            let far = _mm256_min_ps(
+                _mm256_mul_ps(far, _mm256_set1_ps(FAR_SCALE)),
+                _mm256_set1_ps(t_clip),
+            );
+            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+            let mut out = [0.0; WIDTH];
+            Vec4::from(_mm256_castps256_ps128(near)).write_to_slice(&mut out[..4]);
+            Vec4::from(_mm256_extractf128_ps::<1>(near)).write_to_slice(&mut out[4..]);
+            (mask, out)
+        }
+    }
+}
+
 /// A hint to bring the cache line at `p` into the cache; it never faults and has no other effect.
 #[inline(always)]
-#[allow(unsafe_code)] // the crate's one unsafe block (see SAFETY below)
+#[allow(unsafe_code)] // a prefetch (see SAFETY below)
 pub(super) fn prefetch(p: *const i8) {
     #[cfg(target_arch = "x86_64")]
     {
@@ -798,18 +910,6 @@ struct Stack<const N: usize> {
 }
 
 impl<const N: usize> Stack<N> {
-    /// Writes `entry` just above the top without pushing it; false when the stack is full.
-    #[inline(always)]
-    fn write_top(&mut self, entry: (u32, f32)) -> bool {
-        match self.entries.get_mut(self.len) {
-            Some(top) => {
-                *top = entry;
-                true
-            }
-            None => false,
-        }
-    }
-
     /// Removes and returns the top entry.
     #[inline(always)]
     fn pop(&mut self) -> Option<(u32, f32)> {
@@ -1159,17 +1259,11 @@ impl Tree {
         if nodes.len() > (u32::MAX as usize + 1) / WIDTH {
             return Err(TooManyTriangles(input_count));
         }
-        let stack_needed = if nodes.is_empty() {
-            0
-        } else {
-            stack_needed(&nodes, 0)
-        };
         // The object-median splits below SAH_MAX_DEPTH bound the depth, and so the stack, by construction.
-        debug_assert!(stack_needed + PUSH_SLACK <= STACK_MAX);
+        debug_assert!(nodes.is_empty() || stack_needed(&nodes, 0) + PUSH_SLACK <= STACK_MAX);
         Ok(Tree {
             nodes,
             bounds,
-            stack_needed,
             prim_ids: refs.iter().map(|r| r.id).collect(),
             input_count,
         })
@@ -1223,28 +1317,6 @@ impl Tree {
         leaves: &impl Leaves,
         node_visited: &impl Fn(),
     ) -> Option<TriangleHit> {
-        let hooks = (leaves, node_visited);
-        if self.stack_needed + PUSH_SLACK <= STACK_TINY {
-            self.traverse::<ANY_HIT, STACK_TINY>(ray, t_min, t_max, hooks)
-        } else if self.stack_needed + PUSH_SLACK <= STACK_SMALL {
-            self.traverse::<ANY_HIT, STACK_SMALL>(ray, t_min, t_max, hooks)
-        } else {
-            self.traverse::<ANY_HIT, STACK_MAX>(ray, t_min, t_max, hooks)
-        }
-    }
-    /// Stack-based traversal of the 8-wide tree with a stack of `STACK` entries. Stack entries name a child
-    /// slot (`node·8 + slot`) and its entry distance. Of a node's hit children the first in visiting order is
-    /// visited next without going through the stack, the others are pushed so that they pop in that order, and
-    /// an entry is dropped when popped if a closer hit has been found since. The visiting order is given by
-    /// [`Tree::push_children`]. Hits that `accept` rejects are skipped.
-    #[inline(always)]
-    fn traverse<const ANY_HIT: bool, const STACK: usize>(
-        &self,
-        ray: &Ray,
-        t_min: f32,
-        t_max: f32,
-        (leaves, node_visited): (&impl Leaves, &impl Fn()),
-    ) -> Option<TriangleHit> {
         // A non-finite origin or direction, or a NaN interval, meets nothing. Such a ray would make every
         // slab comparison NaN, which the slab test reads as "no constraint", so it would "hit" every slot.
         if self.nodes.is_empty()
@@ -1254,7 +1326,82 @@ impl Tree {
         {
             return None;
         }
+        let hooks = (leaves, node_visited);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(hit) = avx2::traverse::<ANY_HIT>(self, ray, [t_min, t_max], hooks) {
+            return hit;
+        }
+        self.traverse_baseline::<ANY_HIT>(ray, [t_min, t_max], hooks)
+    }
+
+    /// [`Tree::traverse_with`] with the build target's box test (two 4-lane tests, [`TraversalRay::slab8`]),
+    /// whatever the CPU.
+    #[inline(always)]
+    fn traverse_baseline<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        t_range: [f32; 2],
+        hooks: (&impl Leaves, &impl Fn()),
+    ) -> Option<TriangleHit> {
         let r = TraversalRay::new(ray);
+        self.traverse_with::<ANY_HIT, STACK_FIRST>(ray, t_range, hooks, r.octant, &|node, t0, t1| {
+            r.slab8(node, t0, t1)
+        })
+    }
+
+    /// [`Tree::traverse`] with a `FIRST`-entry stack (`STACK_FIRST`), testing a node's eight boxes with `slab8`
+    /// (as [`TraversalRay::slab8`], for a ray of direction octant `octant`), and for a ray that overflows it
+    /// [`Tree::traverse_deep`], which starts over, so the answer is the same either way.
+    #[inline(always)]
+    fn traverse_with<const ANY_HIT: bool, const FIRST: usize>(
+        &self,
+        ray: &Ray,
+        [t_min, t_max]: [f32; 2],
+        hooks: (&impl Leaves, &impl Fn()),
+        octant: usize,
+        slab8: &impl Fn(&Node8, f32, f32) -> (u32, [f32; WIDTH]),
+    ) -> Option<TriangleHit> {
+        let box_test = (octant, slab8);
+        // Rays seldom need more than a few stack entries, and each clears its stack: first with a small one,
+        // then, only where that overflowed, again from the start with one that always suffices.
+        match self.traverse::<ANY_HIT, FIRST>(ray, t_min, t_max, hooks, box_test) {
+            Ok(hit) => hit,
+            Err(_) => self.traverse_deep::<ANY_HIT>(ray, [t_min, t_max], hooks),
+        }
+    }
+
+    /// [`Tree::traverse_baseline`] with `STACK_MAX` entries, for a ray that overflowed the first stack. Out of
+    /// line: it seldom runs, and inlined at every call site beside the first traversal it made a render of a small
+    /// mesh 3 % slower (docs/performance.md). Its answers are those of either box test.
+    #[cold]
+    #[inline(never)]
+    fn traverse_deep<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        [t_min, t_max]: [f32; 2],
+        hooks: (&impl Leaves, &impl Fn()),
+    ) -> Option<TriangleHit> {
+        let r = TraversalRay::new(ray);
+        let box_test = (r.octant, &|node: &Node8, t0, t1| r.slab8(node, t0, t1));
+        self.traverse::<ANY_HIT, STACK_MAX>(ray, t_min, t_max, hooks, box_test)
+            .unwrap_or_else(|partial| partial)
+    }
+
+    /// Stack-based traversal of the 8-wide tree with a stack of `STACK` entries. Stack entries name a child
+    /// slot (`node·8 + slot`) and its entry distance. Of a node's hit children the first in visiting order is
+    /// visited next without going through the stack, the others are pushed so that they pop in that order, and
+    /// an entry is dropped when popped if a closer hit has been found since. The visiting order is given by
+    /// [`Tree::push_children`]. Hits that `accept` rejects are skipped. `Err` (with the best hit found so far)
+    /// when the stack was too small for this ray; with `STACK_MAX` entries that cannot happen.
+    #[inline(always)]
+    fn traverse<const ANY_HIT: bool, const STACK: usize>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        (leaves, node_visited): (&impl Leaves, &impl Fn()),
+        (octant, slab8): (usize, &impl Fn(&Node8, f32, f32) -> (u32, [f32; WIDTH])),
+    ) -> Result<Option<TriangleHit>, Option<TriangleHit>> {
         // The triangle test's constants, computed at the first leaf: a ray that meets no leaf box (most of
         // them, in a scene of a few large triangles) never needs them.
         let mut tri: Option<WatertightRay> = None;
@@ -1269,16 +1416,15 @@ impl Tree {
             if count == 0 {
                 node_visited();
                 let node = &self.nodes[child];
-                let (mask, near) = r.slab8(node, t_min, best.clip);
-                match self.push_children::<STACK>(child, mask, &near, &r, &mut stack, leaves) {
+                let (mask, near) = slab8(node, t_min, best.clip);
+                match self.push_children::<STACK>(child, mask, &near, octant, &mut stack, leaves) {
                     Pushed::Next(i) => {
                         (child, count) = (node.child[i] as usize, node.count(i));
                         continue;
                     }
                     Pushed::Nothing => {}
-                    // `stack_needed` bounds the stack for any ray; a full stack is still a miss of the rest,
-                    // never an overrun.
-                    Pushed::Overflow => return best.best,
+                    // Never an overrun: the caller traces the ray again with a larger stack.
+                    Pushed::Overflow => return Err(best.best),
                 }
             } else {
                 if leaves.intersect(
@@ -1287,15 +1433,16 @@ impl Tree {
                     tri.get_or_insert_with(|| WatertightRay::new(ray)),
                     &mut best,
                 ) {
-                    return best.best;
+                    return Ok(best.best);
                 }
             }
             // Pop until an entry still within reach.
             loop {
                 let Some((slot, t)) = stack.pop() else {
-                    return best.best;
+                    return Ok(best.best);
                 };
-                if t <= best.clip {
+                // An any-hit query's clip never moves, and every entry was pushed within it.
+                if ANY_HIT || t <= best.clip {
                     let parent = &self.nodes[slot as usize / WIDTH];
                     let i = slot as usize % WIDTH;
                     (child, count) = (parent.child[i] as usize, parent.count(i));
@@ -1315,7 +1462,7 @@ impl Tree {
         at: usize,
         mask: u32,
         near: &[f32; WIDTH],
-        r: &TraversalRay,
+        octant: usize,
         stack: &mut Stack<N>,
         leaves: &impl Leaves,
     ) -> Pushed {
@@ -1332,20 +1479,25 @@ impl Tree {
             m &= m - 1;
             self.prefetch_slot(node, i, leaves);
         }
-        // Every slot is written, last in visiting order first, and the top advances past the hit ones only:
-        // no branch depends on which children were hit.
-        let order = node.order(r.octant & 7);
+        // Every slot is written into the eight entries above the top, last in visiting order first, and the
+        // write position advances past the hit ones only: no branch depends on which children were hit. The
+        // first hit child in visiting order (written last) is not pushed but visited next.
+        let order = node.order(octant & 7);
+        let Some(window) = stack.entries.get_mut(stack.len..stack.len + WIDTH) else {
+            return Pushed::Overflow;
+        };
+        let (mut written, mut first) = (0, 0);
         for k in (0..WIDTH).rev() {
             let i = (order >> (3 * k) & 7) as usize;
-            if !stack.write_top(((at * WIDTH + i) as u32, near[i])) {
-                return Pushed::Overflow;
-            }
-            stack.len += (mask >> i & 1) as usize;
+            // `written` is at most `k` here, below WIDTH: the mask only spares the bounds check.
+            window[written % WIDTH] = ((at * WIDTH + i) as u32, near[i]);
+            let hit = (mask >> i & 1) as usize;
+            written += hit;
+            first = if hit != 0 { i } else { first };
         }
-        match stack.pop() {
-            Some((slot, _)) => Pushed::Next(slot as usize % WIDTH),
-            None => Pushed::Nothing,
-        }
+        // At least two children were hit.
+        stack.len += written - 1;
+        Pushed::Next(first)
     }
 
     /// Packs the primitives of each leaf, in leaf order, into [`Triangle4`]s of `triangles` (indexed by input
@@ -1598,6 +1750,73 @@ pub(super) mod tests {
             );
             assert!(!bvh.occluded(&ray, t0, t1), "{ray:?} [{t0}, {t1}]");
         }
+    }
+
+    /// The leaves of `bvh` for a query run outside [`Bvh::query_counted`].
+    fn pack_leaves<const ANY_HIT: bool>(
+        bvh: &Bvh,
+        t_min: f32,
+    ) -> PackLeaves<'_, impl Fn(&TriangleHit) -> bool, impl Fn(usize), ANY_HIT> {
+        PackLeaves {
+            packs: &bvh.packs,
+            t_min,
+            accept: &|_: &TriangleHit| true,
+            tested: &|_| {},
+        }
+    }
+
+    #[test]
+    fn rays_that_overflow_the_first_stack_match_brute_force() {
+        // With a first stack of 12 entries (a push needs 8 free), many rays through a random soup overflow it and
+        // are traced again with `STACK_MAX`; the answers must still be those of brute force.
+        const FIRST: usize = 12;
+        let mut rng = Rng::new(5, 6);
+        let tris = soup(&mut rng, 2000);
+        let bvh = Bvh::build(&tris).unwrap();
+        let bits = |h: Option<TriangleHit>| h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits(), h.b2.to_bits()));
+        let (mut overflowed, mut hits) = (0, 0);
+        for k in 0..1500 {
+            let ray = random_ray(&mut rng, Vec3::splat(-14.0), Vec3::splat(14.0));
+            let (t0, t1) = random_interval(&mut rng);
+            let r = TraversalRay::new(&ray);
+            let box_test = (r.octant, &|node: &Node8, a, b| r.slab8(node, a, b));
+            let closest = (&pack_leaves::<false>(&bvh, t0), &|| {});
+            let first = bvh.tree.traverse::<false, FIRST>(&ray, t0, t1, closest, box_test);
+            overflowed += usize::from(first.is_err());
+            let got = bvh.tree.traverse_with::<false, FIRST>(&ray, [t0, t1], closest, box_test.0, box_test.1);
+            let expect = brute_closest(&tris, &ray, t0, t1);
+            assert_eq!(bits(got), bits(expect), "ray {k}: {ray:?} [{t0}, {t1}]");
+            let any = (&pack_leaves::<true>(&bvh, t0), &|| {});
+            let got = bvh.tree.traverse_with::<true, FIRST>(&ray, [t0, t1], any, box_test.0, box_test.1);
+            assert_eq!(got.is_some(), brute_occluded(&tris, &ray, t0, t1), "ray {k}: {ray:?} [{t0}, {t1}]");
+            hits += usize::from(expect.is_some());
+        }
+        assert!(overflowed > 100 && hits > 150, "{overflowed} rays overflowed, {hits} hit");
+    }
+
+    #[test]
+    fn dispatched_traversal_matches_the_baseline_bit_for_bit() {
+        // On a CPU with AVX2 the queries run the AVX2 copy of the traversal (an 8-lane box test); the baseline
+        // copy must give the very same bits and occlusion answers. Elsewhere both are one copy.
+        let mut rng = Rng::new(41, 42);
+        let mut tris = soup(&mut rng, 3000);
+        tris.extend(bumpy_sphere(24, 48, &mut rng));
+        let bvh = Bvh::build(&tris).unwrap();
+        let bits = |h: Option<TriangleHit>| h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits(), h.b2.to_bits()));
+        let mut hits = [0; 2];
+        for k in 0..4000 {
+            let ray = random_ray(&mut rng, Vec3::splat(-12.0), Vec3::splat(12.0));
+            let (t0, t1) = random_interval(&mut rng);
+            let hooks = (&pack_leaves::<false>(&bvh, t0), &|| {});
+            let base = bvh.tree.traverse_baseline::<false>(&ray, [t0, t1], hooks);
+            assert_eq!(bits(bvh.intersect(&ray, t0, t1)), bits(base), "ray {k}: {ray:?} [{t0}, {t1}]");
+            let hooks = (&pack_leaves::<true>(&bvh, t0), &|| {});
+            let base_any = bvh.tree.traverse_baseline::<true>(&ray, [t0, t1], hooks);
+            assert_eq!(bvh.occluded(&ray, t0, t1), base_any.is_some(), "ray {k}: {ray:?} [{t0}, {t1}]");
+            hits[0] += usize::from(base.is_some());
+            hits[1] += usize::from(base_any.is_some());
+        }
+        assert!(hits.iter().all(|&h| h > 400 && h < 3600), "{hits:?}");
     }
 
     #[test]
