@@ -7,8 +7,13 @@
 //! place), α the cell's learned selection probability ([`Guide`]; [`GUIDE_PROBABILITY`] on training paths; a
 //! cell that learned 0 makes no product). A Lambertian surface samples the product of the
 //! cache's distribution with the cosine to its shading normal in the mixture with its BSDF, weighting by
-//! f cos θ/(α q + (1 − α) p_bsdf). Next-event estimation there is weighed by the power heuristic against that
-//! mixture's density ([`mixture_pdf`]), so the estimate stays unbiased.
+//! f cos θ/(α q + (1 − α) p_bsdf). Next-event estimation at a medium event is weighed by the power heuristic
+//! against the mixture's density ([`mixture_pdf`]); at a guided surface against the BSDF's density alone, and
+//! the emission its sampled direction reaches (guided or not) is weighed with the same density, so that the
+//! two weights still sum to 1 and the estimate stays unbiased (Veach 1997, §9.2: any weights that sum to 1 over
+//! the strategies that can produce a path). Weighed against the mixture, a guide that points at a light takes
+//! its direct light from next-event estimation and gives it to the noisier guided direction (measured on the
+//! baffle box: docs/performance.md, "Next-event estimation against the BSDF at guided surfaces").
 //!
 //! A path whose throughput exceeds [`GUIDE_MAX_THROUGHPUT`] samples the phase function or BSDF alone
 //! (no guide is looked up) until it falls back: a guided event's weight is at most

@@ -35,7 +35,9 @@
 //!
 //! Path guiding: when the render trained a guiding cache, medium scattering events sample their direction from
 //! the one-sample MIS mixture of the phase function and the product of the cache's distribution with it, and
-//! Lambertian surfaces from the mixture of the cache's distribution and the BSDF; next-event estimation there is weighed against the mixture's density (all in [`super::guided`]). A
+//! Lambertian surfaces from the mixture of the cache's distribution and the BSDF; next-event estimation is
+//! weighed against the mixture's density in media and against the BSDF's alone at surfaces (all in
+//! [`super::guided`]). A
 //! training path remembers its events ([`GuidePath`]) so that the cache learns the radiance found after each.
 //! With [`PathTracer::guided_roulette`], a medium scattering event also plays the weight window of guided Russian
 //! roulette and splitting ([`crate::guiding::adjoint`]) in place of classic Russian roulette: the path may end,
@@ -287,7 +289,8 @@ struct PathState<'r> {
     onward: OnwardState,
     /// Whether the last scattering event was a delta lobe (no MIS for emitters hit next).
     prev_delta: bool,
-    /// Solid-angle density of the last sampled direction, for MIS on emitters hit next.
+    /// Solid-angle density the last sampled direction is weighed with by MIS on emitters hit next: the one it
+    /// was sampled with, except at a guided surface (the BSDF's alone; see the guided module).
     prev_pdf: f32,
     /// Where the last scattering event happened, with its shading normal at a surface (the normal also
     /// tells whether its next-event estimate may have sampled every light, see
@@ -1319,11 +1322,13 @@ impl PathTracer {
             ),
             _ => None,
         };
+        // Next-event estimation is weighed against the BSDF's density alone, guided or not (see the guided
+        // module): so is the emission the sampled direction reaches (`mis_pdf` below).
+        if !bsdf.is_delta() {
+            self.surface_next_event(cx, s, ray, surface, bsdf, |wi| bsdf.pdf(wo, wi));
+        }
         let direction_pdf =
             |wi: Vec3| guided::mixture_pdf(guide.as_ref(), frame.to_world(wi), bsdf.pdf(wo, wi));
-        if !bsdf.is_delta() {
-            self.surface_next_event(cx, s, ray, surface, bsdf, direction_pdf);
-        }
         let sampled = guided::sample_bsdf(bsdf, guide.as_ref(), &frame, wo, cx.rng, direction_pdf);
         let Some(bs) = sampled else {
             return SurfaceOutcome::End;
@@ -1331,6 +1336,11 @@ impl PathTracer {
         if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f.max_element() <= 0.0 {
             return SurfaceOutcome::End;
         }
+        let mis_pdf = if guide.is_some() {
+            bsdf.pdf(wo, bs.wi)
+        } else {
+            bs.pdf
+        };
         if s.onward.depth == 0 && s.record.is_some() {
             // The first event's classes share the path's later light as they share this direction's value.
             s.onward.first_event = FirstEvent::Surface(if bs.is_delta {
@@ -1344,11 +1354,19 @@ impl PathTracer {
             unguided: bsdf.pdf(wo, bs.wi),
             guide: guide.as_ref().map(|g| g.product.pdf(frame.to_world(bs.wi))),
         });
-        self.continue_from_surface(cx, s, ray, surface, material.interior, (&bs, densities))
+        self.continue_from_surface(
+            cx,
+            s,
+            ray,
+            surface,
+            material.interior,
+            (&bs, mis_pdf, densities),
+        )
     }
 
     /// Next-event estimation at a surface, seen along `ray`: each light sample weighted by the power heuristic
-    /// against `direction_pdf` (the density with which the path samples its next direction, local directions).
+    /// against `direction_pdf` (the BSDF's density, local directions, also where the path's next direction is
+    /// guided: the emission that direction reaches is weighed with the same density).
     fn surface_next_event(
         &self,
         cx: &mut PathContext,
@@ -1398,10 +1416,11 @@ impl PathTracer {
         });
     }
 
-    /// Continues the path from `surface` along the sampled direction `bs`: weights the throughput, crosses into
-    /// or out of the surface's `interior` when the direction refracts, counts the bounce (Russian roulette) and
-    /// remembers the event for the guiding cache (with the strategies' `densities`, given on training paths).
-    /// Returns the next ray, or the end of the path.
+    /// Continues the path from `surface` along the sampled direction `bs`: weights the throughput, keeps
+    /// `mis_pdf` (the density an emitter hit next is weighed with: the BSDF's, also where `bs` was guided),
+    /// crosses into or out of the surface's `interior` when the direction refracts, counts the bounce (Russian
+    /// roulette) and remembers the event for the guiding cache (with the strategies' `densities`, given on
+    /// training paths). Returns the next ray, or the end of the path.
     fn continue_from_surface(
         &self,
         cx: &mut PathContext,
@@ -1409,14 +1428,14 @@ impl PathTracer {
         ray: &Ray,
         surface: &Surface,
         interior: Option<u32>,
-        (bs, densities): (&BsdfSample, Option<StrategyDensities>),
+        (bs, mis_pdf, densities): (&BsdfSample, f32, Option<StrategyDensities>),
     ) -> SurfaceOutcome {
         let (hit, frame) = (surface.hit, surface.frame);
         let wi_world = frame.to_world(bs.wi);
         s.onward.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
         s.onward.eta_scale *= bs.eta * bs.eta;
         s.prev_delta = bs.is_delta;
-        s.prev_pdf = bs.pdf;
+        s.prev_pdf = mis_pdf;
         s.prev = LightContext {
             p: hit.p,
             n: Some(frame.n),

@@ -152,6 +152,79 @@ fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
     }
 }
 
+/// Irradiance at `x` (normal +y) from a convex polygon of constant radiance `radiance` above it (Lambert's
+/// formula: E = L/2 · Σ_i θ_i n · (u_i × u_(i+1))/|u_i × u_(i+1)|, u_i the unit vectors to its corners, θ_i the
+/// angle between consecutive ones).
+fn polygon_irradiance(x: DVec3, corners: &[DVec3], radiance: f64) -> f64 {
+    let sum: f64 = (0..corners.len())
+        .map(|i| {
+            let a = (corners[i] - x).normalize();
+            let b = (corners[(i + 1) % corners.len()] - x).normalize();
+            let c = a.cross(b);
+            a.angle_between(b) * c.y / c.length()
+        })
+        .sum();
+    0.5 * radiance * sum.abs()
+}
+
+/// A Lambertian floor of albedo 0.5 lit by a black square emitter of radiance 5 (0.5 m wide, 1 m above it,
+/// nothing else) reflects (0.5/π)·E at the point the camera sees (a field of 0.01°: one point, E from Lambert's
+/// formula). Guided directions at the floor find the square, so where the guide and the BSDF differ, next-event
+/// estimation's MIS weight and the weight of the emission a sampled direction hits must be computed from the
+/// same density, or they no longer sum to 1: with next-event estimation weighed against the BSDF and the
+/// emission hit against the guided mixture (or the reverse) the mean moves by more than 4 standard errors.
+#[test]
+fn a_guided_floor_under_a_square_light_reflects_its_irradiance() {
+    let mut b = SceneBuilder::default();
+    let grey = b.add_material(nimbus::Material::lambertian("floor", Rgb::splat(0.5)));
+    let f = 1000.0;
+    let floor = vec![
+        Vec3::new(-f, 0.0, -f),
+        Vec3::new(-f, 0.0, f),
+        Vec3::new(f, 0.0, f),
+        Vec3::new(f, 0.0, -f),
+    ];
+    b.add_triangle_mesh(floor, vec![[0, 1, 2], [0, 2, 3]], grey)
+        .unwrap();
+    let mut lamp = nimbus::Material::lambertian("lamp", Rgb::ZERO);
+    lamp.emission = Rgb::splat(5.0);
+    let lamp = b.add_material(lamp);
+    // Counter-clockwise seen from below: it shines down.
+    let (h, height) = (0.25, 1.0);
+    let corners = [
+        Vec3::new(-h, height, -h),
+        Vec3::new(h, height, -h),
+        Vec3::new(h, height, h),
+        Vec3::new(-h, height, h),
+    ];
+    b.add_mesh(common::quad(corners, lamp));
+    let seen = Vec3::new(0.2, 0.0, 0.1);
+    b.set_camera(Camera::look_at(
+        Vec3::new(0.0, 0.5, 1.5),
+        seen,
+        0.01f32.to_radians(),
+    ));
+    let scene = b.build().unwrap();
+    let corners = corners.map(|c| c.as_dvec3());
+    let want = 0.5 / std::f64::consts::PI * polygon_irradiance(seen.as_dvec3(), &corners, 5.0);
+    let (img, stats) = Renderer::new(settings(32, 64, 2, GuidingMode::On))
+        .render(&scene, &mut |_| true)
+        .unwrap();
+    assert!(stats.guiding.guided_cells > 0, "{:?}", stats.guiding);
+    assert_eq!(stats.nan_samples, 0);
+    for c in 0..3 {
+        let (mean, se) = common::mean_and_se(&img, c);
+        assert!(
+            se > 0.0 && se < 0.01 * want,
+            "standard error {se} of {want}"
+        );
+        assert!(
+            (mean - want).abs() < 4.0 * se,
+            "guided floor {mean} vs {want} (se {se})"
+        );
+    }
+}
+
 /// The guided image is the same on 1 and 3 threads, and sample-range parts written to files merge into it bit
 /// for bit, with guided Russian roulette and splitting at work (split paths draw from generators derived from
 /// their sample's); a part rendered unguided refuses to merge with a guided one, and so does a guided part with
