@@ -3,7 +3,7 @@
 the time of a render of it.
 
     python3 benches/peers/vdb_production.py [--size 660] [--file /tmp/nimbus-production.vdb] [--reps 3]
-                                            [--nimbus target/release/nimbus] [--no-docs]
+                                            [--nimbus target/release/nimbus] [--cycles-python PYTHON] [--no-docs]
 
 Run by hand from the repository root after `cargo build --release` (never in CI). Needs Debian's python3-openvdb
 (on /usr/bin/python3.11), libopenvdb-dev and libboost-dev (`apt-get install -y libopenvdb-dev libboost-dev`; OpenVDB 10's
@@ -18,7 +18,11 @@ headers include Boost's), and g++.
    peak resident memory), and one `nimbus render` of the ball at 256x256 and 16 spp (wall seconds and peak
    memory of the whole process), with its time to the first pixel (`--stats` `first_pixel_seconds`, from the
    start of the render: the scene loaded).
-4. Prints the table and (unless `--no-docs`) writes it into `docs/performance.md` between the `vdb` section
+4. With `--cycles-python` (default: `$CYCLES_PYTHON`, a Python with `bpy` 5.0.1), renders the same scene once with
+   Cycles (`cycles_render.py`, same size, samples and threads): wall seconds and peak memory of the whole process,
+   and the seconds of its render call alone. The image means of both renders (`oiiotool --printstats`, where installed)
+   show that they render the same thing.
+5. Prints the table and (unless `--no-docs`) writes it into `docs/performance.md` between the `vdb` section
    markers, which `run.py` keeps when it rewrites the page.
 """
 import argparse
@@ -105,6 +109,8 @@ def main():
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--nimbus", default=os.path.join(ROOT, "target", "release", "nimbus"))
     ap.add_argument("--python", default="/usr/bin/python3.11")
+    ap.add_argument("--cycles-python", default=os.environ.get("CYCLES_PYTHON"),
+                    help="a Python with bpy for the Cycles render (default $CYCLES_PYTHON; none: no Cycles render)")
     ap.add_argument("--no-docs", action="store_true")
     a = ap.parse_args()
     if not os.path.exists(a.file):
@@ -130,14 +136,46 @@ def main():
     render_s, render_mb = timed([a.nimbus, "render", scene(a.file, work), "-o", os.path.join(work, "r.exr"),
                                  "--width", "256", "--spp", "16", "--threads", "2", "--stats", stats_path])
     stats = json.load(open(stats_path))
-    load_after = os.getloadavg()[0]
+    render = {"Nimbus": {"seconds": render_s, "call_s": stats["render_seconds"], "peak_mb": render_mb,
+                         "mean": image_mean(os.path.join(work, "r.exr"))}}
     print(f"render: {render_s:.2f} s, peak {render_mb:.0f} MB, NaN samples {stats.get('nan_samples')}, "
-          f"first pixel {stats.get('first_pixel_seconds')} s after the render's start")
+          f"first pixel {stats.get('first_pixel_seconds')} s after the render's start, mean {render['Nimbus']['mean']}")
+    if a.cycles_python:
+        render["Cycles"] = cycles(a.cycles_python, scene(a.file, work), os.path.join(work, "cycles.exr"))
+        print(f"cycles: {render['Cycles']}")
+    load_after = os.getloadavg()[0]
     if not a.no_docs:
-        write_section(a, size_mb, info, runs, render_s, render_mb, stats, (load_before, load_after))
+        write_section(a, size_mb, info, runs, render, stats, (load_before, load_after))
 
 
-def write_section(a, size_mb, info, runs, render_s, render_mb, stats, loads):
+def cycles(python, scene_path, out):
+    """Cycles' render of the scene (`cycles_render.py`, 256x256, 16 spp, 2 threads): whole-process wall seconds and
+    peak MB, its render call's seconds, and the image mean"""
+    cmd = ["/usr/bin/time", "-f", "%e %M", python, os.path.join(os.path.dirname(os.path.abspath(__file__)),
+           "cycles_render.py"), scene_path, out, "--res", "256", "--spp", "16", "--threads", "2", "--seed", "1"]
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    result = next((line for line in p.stdout.splitlines() if line.startswith("RESULT ")), None)
+    if p.returncode != 0 or result is None:
+        raise SystemExit(f"the Cycles render failed:\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}")
+    seconds, kib = p.stderr.strip().splitlines()[-1].split()
+    return {"seconds": float(seconds), "call_s": json.loads(result[len("RESULT "):])["render_s"],
+            "peak_mb": int(kib) / 1024, "mean": image_mean(out)}
+
+
+def image_mean(exr):
+    """The mean of the image's R, G and B (`oiiotool --printstats`), or None without oiiotool"""
+    try:
+        p = subprocess.run(["oiiotool", exr, "--ch", "R,G,B", "--printstats"], capture_output=True, text=True)
+    except FileNotFoundError:
+        return None
+    for line in p.stdout.splitlines():
+        if line.strip().startswith("Stats Avg:"):
+            values = [float(v) for v in line.split(":", 1)[1].split()[:3]]
+            return sum(values) / len(values)
+    return None
+
+
+def write_section(a, size_mb, info, runs, render, stats, loads):
     best = {k: (min(s for s, _ in v), min(m for _, m in v)) for k, v in runs.items()}
     n, o = best["nimbus info"], best["OpenVDB C++"]
     lines = [BEGIN, "## Production-size VDB", "",
@@ -149,11 +187,24 @@ def write_section(a, size_mb, info, runs, render_s, render_mb, stats, loads):
              "| reader | seconds | peak MB |", "|---|---|---|",
              f"| `nimbus info` | {n[0]:.2f} | {n[1]:.0f} |", f"| OpenVDB C++ | {o[0]:.2f} | {o[1]:.0f} |",
              f"| Nimbus / OpenVDB | **{n[0] / o[0]:.2f}x** | **{n[1] / o[1]:.2f}x** |", "",
-             f"A render of the ball (256x256, 16 spp, 2 threads, sun and sky): {render_s:.2f} s in all, peak "
-             f"{render_mb:.0f} MB; its first pixel {stats['first_pixel_seconds']:.3f} s after the render's start "
-             f"(`--stats` `first_pixel_seconds`; the render itself {stats['render_seconds']:.2f} s, reading the "
-             f"file, building the medium and writing the outputs the rest). Load average (1 min) {loads[0]:.1f} before, {loads[1]:.1f} after, on 2 cores "
-             "shared with other builds.", "", END]
+             "A render of the ball (256x256, 16 spp, 2 threads, sun and sky), once by each renderer: wall seconds and "
+             "peak resident memory of the whole process (reading the file, building the medium, rendering, writing "
+             "the image), the seconds of the render itself (Nimbus's `--stats` `render_seconds`, Cycles' "
+             "`bpy.ops.render.render` call), and the image's mean (R, G, B averaged; `oiiotool --printstats`):", "",
+             "| renderer | seconds in all | render seconds | peak MB | image mean |", "|---|---|---|---|---|"]
+    for name, r in render.items():
+        mean = "n/a" if r["mean"] is None else f"{r['mean']:.4f}"
+        lines.append(f"| {name} | {r['seconds']:.2f} | {r['call_s']:.2f} | {r['peak_mb']:.0f} | {mean} |")
+    if "Cycles" in render:
+        c, nb = render["Cycles"], render["Nimbus"]
+        lines += ["", f"Nimbus / Cycles: **{nb['seconds'] / c['seconds']:.2f}x** the time in all, "
+                      f"**{nb['call_s'] / c['call_s']:.2f}x** the render call's, **{nb['peak_mb'] / c['peak_mb']:.2f}x** "
+                      "the peak memory."]
+    else:
+        lines += ["", "Cycles was not run (no `--cycles-python` or `$CYCLES_PYTHON`)."]
+    lines += ["", f"Nimbus's first pixel came {stats['first_pixel_seconds']:.3f} s after its render's start (`--stats` "
+              f"`first_pixel_seconds`). Load average (1 min) {loads[0]:.1f} before, {loads[1]:.1f} after, on 2 cores "
+              "shared with other builds.", "", END]
     section = "\n".join(lines)
     text = open(DOC).read() if os.path.exists(DOC) else ""
     if BEGIN in text and END in text:
