@@ -54,6 +54,10 @@ SCENES = {
                                                   "medium, over a checkerboard floor; quad light and dim sky"),
     "dense": ("benches/peers/scenes/dense.gltf", "the Cornell box with a 1,002,528-triangle bumpy Lambert sphere "
                                                   "(git-ignored; `make_scenes.py` writes it)"),
+    "vdb-production": ("benches/peers/scenes/production.gltf", "a production-size VDB: a 660³ ball of noisy fog "
+                                                                "density, 150 M active voxels in a 606 MB file, sun "
+                                                                "and sky (the VDB git-ignored; `vdb_production.py "
+                                                                "--file benches/peers/scenes/production.vdb` writes it)"),
     "backlit": ("benches/peers/scenes/backlit.gltf", "path guiding (issue 34): a dense cloud (albedo 0.99, optical "
                                                       "depth about 60) lit from behind by the sun"),
     "doorgap": ("benches/peers/scenes/doorgap.gltf", "path guiding (issue 34): a hazy room lit by the sun through "
@@ -111,7 +115,7 @@ RENDERERS = {"nimbus": render_nimbus, "mitsuba": render_mitsuba, "cycles": rende
 # reference samples per pixel where the default would take too long in Mitsuba (its global majorant makes the dense
 # plume cost about 10x per sample); the reference's variance is subtracted from every MSE, so fewer samples make
 # the figures noisier, not biased
-REFERENCE_SPP = {"plume": 1024, "smoke-sun": 2048, "backlit": 512}
+REFERENCE_SPP = {"plume": 1024, "smoke-sun": 2048, "backlit": 512, "vdb-production": 1024}
 
 
 def reference_path(name, scene, res, ref_spp):
