@@ -705,16 +705,12 @@ impl TraversalRay {
     fn new(ray: &Ray) -> Self {
         let (o, d) = (ray.origin, ray.dir);
         let inv = d.recip();
-        let neg = [
-            d.x.is_sign_negative(),
-            d.y.is_sign_negative(),
-            d.z.is_sign_negative(),
-        ];
+        let (neg, octant) = direction_signs(d);
         Self {
             origin: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
             inv_dir: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
             neg,
-            octant: usize::from(neg[0]) | usize::from(neg[1]) << 1 | usize::from(neg[2]) << 2,
+            octant,
         }
     }
 
@@ -754,6 +750,20 @@ impl TraversalRay {
     }
 }
 
+/// Per axis whether `d` is negative (sign bit set, so `-0.0` counts), and the octant with bit `a` set for each
+/// negative axis: what both box tests' per-ray constants ([`TraversalRay`] and the AVX2 copy's) take from the
+/// direction.
+#[inline(always)]
+fn direction_signs(d: Vec3) -> ([bool; 3], usize) {
+    let neg = [
+        d.x.is_sign_negative(),
+        d.y.is_sign_negative(),
+        d.z.is_sign_negative(),
+    ];
+    let octant = usize::from(neg[0]) | usize::from(neg[1]) << 1 | usize::from(neg[2]) << 2;
+    (neg, octant)
+}
+
 /// Lane by lane `if a > b { a } else { b }`: `b` where `a` is NaN, and `b` where the two are equal (so
 /// `-0.0` against `0.0` gives the second). On x86_64 this is exactly the definition of SSE's `maxps a, b`,
 /// which glam's `Vec4::max` is there: one instruction instead of a compare and a three-instruction select.
@@ -782,7 +792,9 @@ fn less_or_second(a: Vec4, b: Vec4) -> Vec4 {
 /// those of the baseline copy (a unit test compares the two).
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Leaves, Node8, Ray, Tree, TriangleHit, Vec4, FAR_SCALE, STACK_FIRST, WIDTH};
+    use super::{
+        direction_signs, Leaves, Node8, Ray, Tree, TriangleHit, Vec4, FAR_SCALE, STACK_FIRST, WIDTH,
+    };
     use std::arch::x86_64::{
         __m256, _mm256_castps256_ps128, _mm256_cmp_ps, _mm256_extractf128_ps, _mm256_max_ps,
         _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_set_m128,
@@ -836,11 +848,7 @@ mod avx2 {
         fn new(ray: &Ray) -> Self {
             let (o, d) = (ray.origin, ray.dir);
             let inv = d.recip();
-            let neg = [
-                d.x.is_sign_negative(),
-                d.y.is_sign_negative(),
-                d.z.is_sign_negative(),
-            ];
+            let (neg, octant) = direction_signs(d);
             Self {
                 origin: [_mm256_set1_ps(o.x), _mm256_set1_ps(o.y), _mm256_set1_ps(o.z)],
                 inv_dir: [
@@ -849,7 +857,7 @@ mod avx2 {
                     _mm256_set1_ps(inv.z),
                 ],
                 neg,
-                octant: usize::from(neg[0]) | usize::from(neg[1]) << 1 | usize::from(neg[2]) << 2,
+                octant,
             }
         }
 

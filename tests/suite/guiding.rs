@@ -115,12 +115,8 @@ fn a_guided_white_furnace_shows_the_environment() {
     }
 }
 
-/// A Lambertian floor of albedo 0.5 under a uniform sky of radiance 1 (nothing else in the scene) reflects
-/// exactly 0.5 everywhere; guided directions at the floor (the cache learns the sky from the floor's own paths)
-/// must keep that mean within 4 standard errors.
-#[test]
-fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
-    let mut b = SceneBuilder::default();
+/// Adds a Lambertian floor of albedo 0.5 at y = 0, 2 km on a side, centred on the origin.
+fn add_grey_floor(b: &mut SceneBuilder) {
     let grey = b.add_material(nimbus::Material::lambertian("floor", Rgb::splat(0.5)));
     let f = 1000.0;
     let floor = vec![
@@ -131,6 +127,15 @@ fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
     ];
     b.add_triangle_mesh(floor, vec![[0, 1, 2], [0, 2, 3]], grey)
         .unwrap();
+}
+
+/// A Lambertian floor of albedo 0.5 under a uniform sky of radiance 1 (nothing else in the scene) reflects
+/// exactly 0.5 everywhere; guided directions at the floor (the cache learns the sky from the floor's own paths)
+/// must keep that mean within 4 standard errors.
+#[test]
+fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
+    let mut b = SceneBuilder::default();
+    add_grey_floor(&mut b);
     b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
     b.set_camera(Camera::look_at(
         Vec3::new(0.0, 1.0, 0.5),
@@ -176,16 +181,7 @@ fn polygon_irradiance(x: DVec3, corners: &[DVec3], radiance: f64) -> f64 {
 #[test]
 fn a_guided_floor_under_a_square_light_reflects_its_irradiance() {
     let mut b = SceneBuilder::default();
-    let grey = b.add_material(nimbus::Material::lambertian("floor", Rgb::splat(0.5)));
-    let f = 1000.0;
-    let floor = vec![
-        Vec3::new(-f, 0.0, -f),
-        Vec3::new(-f, 0.0, f),
-        Vec3::new(f, 0.0, f),
-        Vec3::new(f, 0.0, -f),
-    ];
-    b.add_triangle_mesh(floor, vec![[0, 1, 2], [0, 2, 3]], grey)
-        .unwrap();
+    add_grey_floor(&mut b);
     let mut lamp = nimbus::Material::lambertian("lamp", Rgb::ZERO);
     lamp.emission = Rgb::splat(5.0);
     let lamp = b.add_material(lamp);
