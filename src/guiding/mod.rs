@@ -8,6 +8,8 @@
 //! - [`field`]: the spatial tree of cells and the cache ([`GuidingField`]).
 //! - [`lit`]: the grid of the direct light the decoupled direct-light samples received, and the guided
 //!   distances it gives them ([`lit::DistanceGuide`]).
+//! - [`shadow`]: guided Russian roulette on medium shadow rays, from the transmittance the training's shadow
+//!   rays found (on a grid of the lit grid's voxels).
 //! - [`adjoint`]: guided Russian roulette and splitting from the cache's radiance and the training's pixel values.
 //! - [`pilot`]: what `--guiding auto` decides for a scene, and why.
 //! - [`GuidePath`]: what a training path remembers of its vertices, turned into [`RadianceRecord`]s at its end.
@@ -19,6 +21,7 @@ pub mod adjoint;
 pub mod field;
 pub mod lit;
 pub mod pilot;
+pub mod shadow;
 pub mod vmf;
 
 pub use field::{GuidingField, RadianceRecord};
@@ -98,6 +101,8 @@ pub struct GuidePath {
     vertices: Vec<GuideVertex>,
     /// What its decoupled direct-light samples received.
     lit: Vec<LitRecord>,
+    /// The transmittance its medium shadow rays found ([`shadow`]).
+    shadow: Vec<LitRecord>,
 }
 
 impl GuidePath {
@@ -105,6 +110,7 @@ impl GuidePath {
     pub fn clear(&mut self) {
         self.vertices.clear();
         self.lit.clear();
+        self.shadow.clear();
     }
 
     /// Remembers that a decoupled direct-light sample at `p` received `value` ([`LitRecord`]).
@@ -115,6 +121,17 @@ impl GuidePath {
     /// The records of the path's decoupled direct-light samples.
     pub fn lit(&self) -> &[LitRecord] {
         &self.lit
+    }
+
+    /// Remembers that a shadow ray of next-event estimation at a medium scattering event at `p` found the
+    /// transmittance `value` (its largest channel; [`shadow`]).
+    pub fn push_shadow(&mut self, p: Vec3, value: f32) {
+        self.shadow.push(LitRecord { p, value });
+    }
+
+    /// The records of the path's medium shadow rays.
+    pub fn shadow(&self) -> &[LitRecord] {
+        &self.shadow
     }
 
     /// Remembers a scattering event at `p` that sampled `dir` with density `pdf` (the strategies' own

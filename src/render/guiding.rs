@@ -81,6 +81,7 @@ pub(super) fn train(
                 stats.training_records += row.records.len() as u64;
                 field.add_records(&row.records);
                 field.add_lit_records(&row.lit);
+                field.add_shadow_records(&row.shadow);
                 if let Some(pixels) = pixels.as_mut() {
                     for &(pixel, value) in &row.values {
                         pixels.add(pixel, value);
@@ -101,11 +102,12 @@ pub(super) fn train(
     (Some(field), stats)
 }
 
-/// What the training paths of one row found: their records, their decoupled samples' records and, for guided
-/// Russian roulette, each sample's value (channel mean), pixel by pixel in order.
+/// What the training paths of one row found: their records, their decoupled samples' and medium shadow rays'
+/// records and, for guided Russian roulette, each sample's value (channel mean), pixel by pixel in order.
 struct TrainingRow {
     records: Vec<RadianceRecord>,
     lit: Vec<LitRecord>,
+    shadow: Vec<LitRecord>,
     values: Vec<((usize, usize), f32)>,
 }
 
@@ -124,6 +126,7 @@ fn trace_row(
     let mut path = GuidePath::default();
     let mut records = Vec::new();
     let mut lit = Vec::new();
+    let mut shadow = Vec::new();
     // Only guided Russian roulette reads the samples' values (as its pixel estimates).
     let keeps_values = tracer.guided_roulette;
     let mut values = Vec::with_capacity(keeps_values as usize * frame.width * spp as usize);
@@ -147,6 +150,7 @@ fn trace_row(
             };
             let result = tracer.trace(&mut cx, ray, FirstEmission::Count, None, Some(&mut path));
             lit.extend_from_slice(path.lit());
+            shadow.extend_from_slice(path.shadow());
             if result.radiance.is_finite() {
                 path.finish(result.radiance, &mut records);
                 if keeps_values {
@@ -158,6 +162,7 @@ fn trace_row(
     TrainingRow {
         records,
         lit,
+        shadow,
         values,
     }
 }
