@@ -137,6 +137,15 @@ impl GuidePath {
         });
     }
 
+    /// The light a path that ended with `radiance` gathered found after its first remembered event's
+    /// next-event estimate (its continuation from there; nothing where it remembered no event): the part of a
+    /// pixel's value that guided Russian roulette compares continuations with ([`adjoint::PixelEstimates`]).
+    pub fn continuation(&self, radiance: Rgb) -> Rgb {
+        self.vertices
+            .first()
+            .map_or(Rgb::ZERO, |v| radiance - v.radiance_before)
+    }
+
     /// The records of the path, which ended with `radiance` gathered, appended to `out`.
     pub fn finish(&self, radiance: Rgb, out: &mut Vec<RadianceRecord>) {
         for v in &self.vertices {

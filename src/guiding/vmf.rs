@@ -132,7 +132,6 @@ impl VmfMixture {
     }
 
     /// The lobes.
-    #[cfg(test)]
     pub fn lobes(&self) -> &[VmfLobe; LOBES] {
         &self.lobes
     }
