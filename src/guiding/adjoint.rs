@@ -5,24 +5,14 @@
 //! At a medium scattering event the path's expected contribution to its pixel is its throughput times the
 //! radiance the cache expects to be scattered there (the cell's mean incident radiance,
 //! [`super::GuidingField::mean_radiance_at`]); a zero-variance walk would keep that equal to the pixel's value
-//! ([`PixelEstimates`], from the training pre-pass). Their ratio r is held in a weight window around 1
+//! ([`PixelEstimates`], from the training pre-pass: like the continuation it is compared with, the light its
+//! samples found after their first event's next-event estimate). Their ratio r is held in a weight window around 1
 //! (Vorba & Křivánek 2016, §4.2, eq. 7: bounds 2/(1+s) and 2s/(1+s) with s = [`WINDOW_SPREAD`]): below it the
 //! path survives with probability q = max(r, [`MIN_SURVIVAL`]) and its throughput is divided by q; above it the
 //! path splits into n = ⌊r⌋ + (1 with probability r − ⌊r⌋) paths (at most [`MAX_SPLIT`], and within the
 //! sample's budget of [`MAX_BRANCHES`] extra paths), each with throughput / n. Both keep every estimate
 //! unbiased, whatever the estimates are: E\[1{u < q}/q\] = 1, and n independent continuations weighted 1/n each
 //! have the expectation of one. Good estimates only lower the variance.
-//!
-//! At a surface vertex (after its next-event estimate, before its direction is sampled) the expected
-//! contribution is the throughput times the radiance the cache expects the continuation to bring back toward the
-//! path, [`surface_radiance`]: the BSDF integrated against the cell's learned incident radiance (Vorba &
-//! Křivánek 2016 also take the adjoint from their guiding cache).
-
-use super::vmf::{lobe_kappa, VmfMixture};
-use super::GuidingField;
-use crate::material::Bsdf;
-use crate::math::{Frame, Rgb, Vec2, Vec3};
-use std::f32::consts::PI;
 
 /// The window's spread s: its upper bound over its lower bound (Vorba & Křivánek 2016 use s = 5).
 pub const WINDOW_SPREAD: f32 = 5.0;
@@ -92,76 +82,9 @@ pub fn play(ratio: f32, u: f32, budget: u32) -> Roulette {
     }
 }
 
-/// The fixed points (lobe choice, then the direction's two numbers) of the quadrature by which
-/// [`surface_radiance`] integrates the cache's radiance against a BSDF other than a Lambertian one: one sample
-/// of the BSDF's own sampler per point, a 2 × 2 grid with the lobe choices spread over \[0, 1).
-const QUADRATURE: [(f32, f32, f32); 4] = [
-    (0.125, 0.25, 0.25),
-    (0.375, 0.75, 0.25),
-    (0.625, 0.25, 0.75),
-    (0.875, 0.75, 0.75),
-];
-
-/// The vMF normalisation C(κ) = κ / (2π (1 − e^(−2κ))) (κ at least 10⁻⁴: below it the lobe is uniform).
-fn vmf_norm(kappa: f32) -> f32 {
-    let kappa = kappa.max(1e-4);
-    kappa / (2.0 * PI * -(-2.0 * kappa).exp_m1())
-}
-
-/// ∫ m(ω) v(ω) dω, the overlap of `mixture` m with the vMF lobe v of mean `axis` (unit) and concentration
-/// `kappa`: per lobe of weight wᵢ, w_i C(κᵢ) C(κ) / C(κ') · e^(κ' − κᵢ − κ), κ' = |κᵢμᵢ + κ axis| (the
-/// product of two lobes is a lobe, Herholz et al. 2019, §4).
-pub fn overlap(mixture: &VmfMixture, axis: Vec3, kappa: f32) -> f32 {
-    mixture
-        .lobes()
-        .iter()
-        .filter(|l| l.weight > 0.0)
-        .map(|l| {
-            let k = (l.mu * l.kappa + axis * kappa).length();
-            l.weight * vmf_norm(l.kappa) * vmf_norm(kappa) / vmf_norm(k)
-                * (k - l.kappa - kappa).exp()
-        })
-        .sum()
-}
-
-/// The radiance the cache expects the continuation of a path at a surface point `p` to bring back toward `wo`
-/// (in the shading `frame`'s local coordinates), per unit throughput and by channel: ∫ f(ωo, ω) |cos θ| L(ω) dω
-/// with the cell's incident radiance L(ω) ≈ Ē m(ω), m its vMF mixture and Ē = 4π × its mean incident radiance
-/// (the records' mean of L/p, an estimate of ∫ L). Like the records, it leaves out the vertex's own
-/// next-event estimate. A Lambertian BSDF in closed form, albedo · Ē ∫ m(ω) max(cos θ, 0)/π dω with the
-/// clamped cosine as the vMF lobe of its mean cosine ([`overlap`]); any other by [`QUADRATURE`]'s fixed BSDF
-/// samples, Ē · mean(f |cos θ| m(ω) / p): deterministic at a point, a stand-in whose error changes only the
-/// variance. `None` where the cell learned no distribution or no radiance.
-pub fn surface_radiance(
-    field: &GuidingField,
-    p: Vec3,
-    frame: &Frame,
-    bsdf: &Bsdf,
-    wo: Vec3,
-) -> Option<Rgb> {
-    let (mixture, _) = field.guide_at(p)?;
-    let energy = 4.0 * PI * field.mean_radiance_at(p)?;
-    let reflected = match bsdf {
-        Bsdf::Lambert(b) if wo.z > 0.0 => b.albedo * overlap(mixture, frame.n, lobe_kappa(2.0 / 3.0)),
-        Bsdf::Lambert(_) => Rgb::ZERO,
-        _ => {
-            let sum = QUADRATURE
-                .iter()
-                .filter_map(|&(lobe, x, y)| {
-                    let bs = bsdf.sample(wo, lobe, Vec2::new(x, y))?;
-                    (bs.pdf > 0.0).then(|| {
-                        bs.f * (bs.wi.z.abs() / bs.pdf * mixture.pdf(frame.to_world(bs.wi)))
-                    })
-                })
-                .fold(Rgb::ZERO, |a, b| a + b);
-            sum / QUADRATURE.len() as f32
-        }
-    };
-    Some(reflected * energy)
-}
-
-/// The value each pixel's paths are compared with: the mean of the training samples' values (channel means)
-/// over the [`PIXEL_TILE`]² tile the pixel lies in.
+/// The value each pixel's paths are compared with: the mean of the training samples' continuations (channel
+/// means; [`super::GuidePath::continuation`], the light found after a sample's first event's next-event
+/// estimate, as a path's continuation after an event's) over the [`PIXEL_TILE`]² tile the pixel lies in.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PixelEstimates {
     /// Tiles a row.

@@ -132,6 +132,7 @@ impl VmfMixture {
     }
 
     /// The lobes.
+    #[cfg(test)]
     pub fn lobes(&self) -> &[VmfLobe; LOBES] {
         &self.lobes
     }

@@ -39,11 +39,10 @@
 //! weighed against the mixture's density in media and against the BSDF's alone at surfaces (all in
 //! [`super::guided`]). A
 //! training path remembers its events ([`GuidePath`]) so that the cache learns the radiance found after each.
-//! With [`PathTracer::guided_roulette`], a medium scattering event or a surface bounce also plays the weight
-//! window of guided Russian roulette and splitting ([`crate::guiding::adjoint`]) in place of classic Russian
-//! roulette: the path may end, or split into paths of their own after the event's next-event estimate (at a
-//! medium event a [`Branch`] waiting until the path ends; at a surface traced at once), each of which samples
-//! its direction from a generator derived from the path's, so a sample stays a pure function of its seed.
+//! With [`PathTracer::guided_roulette`], a medium scattering event also plays the weight window of guided Russian
+//! roulette and splitting ([`crate::guiding::adjoint`]) in place of classic Russian roulette: the path may end,
+//! or split into paths of their own ([`Branch`]) after the event's next-event estimate, each of which samples its
+//! direction from a generator derived from the path's, so a sample stays a pure function of its seed.
 //!
 //! `max_depth` counts scattering events (surface bounces and medium scattering), as pbrt's `maxdepth`: 0 shows
 //! emitters seen directly, 1 adds direct lighting, and so on. Crossing an index-matched boundary (transmission
@@ -120,9 +119,9 @@ pub struct PathTracer {
     /// Whether the scene has holdouts or shadow catchers ([`crate::scene::SceneNames::has_mattes`]), which
     /// camera rays must look for.
     pub mattes: bool,
-    /// Guided Russian roulette and splitting at medium scattering events and surface bounces, where the render
-    /// is guided and the cache and the training have estimates there ([`crate::guiding::adjoint`]); classic
-    /// Russian roulette otherwise.
+    /// Guided Russian roulette and splitting at medium scattering events, where the render is guided and the
+    /// cache and the training have estimates there ([`crate::guiding::adjoint`]); classic Russian roulette
+    /// otherwise.
     pub guided_roulette: bool,
     /// The interior media around the camera, which camera paths start in ([`MediumStack::enclosing`]).
     pub camera_media: MediumStack,
@@ -164,18 +163,13 @@ struct Branch {
 impl Branch {
     /// A copy of the path in `s` at `event`, its generator seeded from `rng`'s next numbers.
     fn split_off(s: &PathState, event: &MediumEvent, rng: &mut Rng) -> Self {
-        Self {
-            event: *event,
-            rng: Self::generator(rng),
-            onward: s.onward,
-        }
-    }
-
-    /// The generator of a path split off from a path drawing from `rng`, seeded from `rng`'s next numbers.
-    fn generator(rng: &mut Rng) -> Rng {
         let seed = (u64::from(rng.next_u32()) << 32) | u64::from(rng.next_u32());
         let stream = u64::from(rng.next_u32()) ^ BRANCH_STREAM;
-        Rng::new(seed, stream)
+        Self {
+            event: *event,
+            rng: Rng::new(seed, stream),
+            onward: s.onward,
+        }
     }
 
     /// Puts the branch's state into `s` (the radiance, coverage and records stay the sample's) and returns
@@ -421,19 +415,6 @@ enum SurfaceOutcome {
     Continue(Ray),
     /// The path ends here.
     End,
-}
-
-/// A surface scattering event, as a path goes on from it after its next-event estimate.
-struct SurfaceEvent<'a> {
-    /// The ray that reached it.
-    ray: &'a Ray,
-    /// Where it happened.
-    surface: &'a Surface<'a>,
-    /// The BSDF there (this hit's: a dispersive surface's channel, a coat's normal).
-    bsdf: &'a Bsdf,
-    /// The guide its direction is sampled from in the mixture with the BSDF, when it is guided (decided once,
-    /// before guided roulette changes the throughput, and the same for every path split off there).
-    guide: Option<&'a guided::Guide>,
 }
 
 /// A surface hit a path scatters at.
@@ -1263,7 +1244,7 @@ impl PathTracer {
             unmapped,
             frame,
         };
-        self.scatter_at_surface(cx, s, ray, &surface, &shading.bsdf, out)
+        self.scatter_at_surface(cx, s, ray, &surface, &shading.bsdf)
     }
 
     /// Adds the light the emissive surface `hit` emits toward the path (where an emissive texture is black there
@@ -1292,10 +1273,8 @@ impl PathTracer {
     }
 
     /// Scatters at a surface: a dispersive surface first makes the path carry one channel; next-event
-    /// estimation, guided Russian roulette and splitting where it applies ([`Self::surface_roulette`]: paths
-    /// split off here are traced to their end at once, filling `out`), then the BSDF (or, guided at a Lambertian
-    /// surface, the mixture of the guide and the BSDF, see the guided module) samples the direction to continue
-    /// in.
+    /// estimation, then the BSDF (or, guided at a Lambertian surface, the mixture of the guide and the BSDF,
+    /// see the guided module) samples the direction to continue in.
     fn scatter_at_surface(
         &self,
         cx: &mut PathContext,
@@ -1303,7 +1282,6 @@ impl PathTracer {
         ray: &Ray,
         surface: &Surface,
         bsdf: &Bsdf,
-        out: &mut PathSample,
     ) -> SurfaceOutcome {
         let services = cx.services;
         let scene = services.scene();
@@ -1349,100 +1327,9 @@ impl PathTracer {
         if !bsdf.is_delta() {
             self.surface_next_event(cx, s, ray, surface, bsdf, |wi| bsdf.pdf(wo, wi));
         }
-        let event = SurfaceEvent {
-            ray,
-            surface,
-            bsdf,
-            guide: guide.as_ref(),
-        };
-        let classic = match self.surface_roulette(cx, s, &event) {
-            None => true,
-            Some(Roulette::Ends) => return SurfaceOutcome::End,
-            Some(Roulette::GoesOn { copies, weight }) => {
-                s.onward.beta *= weight;
-                s.branch_budget -= copies - 1;
-                cx.counters.rays.split += u64::from(copies - 1);
-                for _ in 1..copies {
-                    self.split_at_surface(cx, s, &event, out);
-                }
-                false
-            }
-        };
-        self.sample_from_surface(cx, s, &event, classic)
-    }
-
-    /// Guided Russian roulette and splitting at a surface, after its next-event estimate
-    /// ([`crate::guiding::adjoint`]): the expected contribution of the path's continuation is its throughput
-    /// times the radiance the cache expects it to bring back ([`adjoint::surface_radiance`], which, like the
-    /// continuation, leaves out the vertex's next-event estimate), channel by channel, their mean compared
-    /// with the pixel's training value. `None` where it does not apply (not on, a training path, or no
-    /// estimate: classic Russian roulette then).
-    fn surface_roulette(
-        &self,
-        cx: &mut PathContext,
-        s: &PathState,
-        event: &SurfaceEvent,
-    ) -> Option<Roulette> {
-        if !self.guided_roulette || s.guide_path.is_some() {
-            return None;
-        }
-        let pixel = cx.services.pixel_estimate()?;
-        let frame = &event.surface.frame;
-        let wo = frame.to_local(-event.ray.dir);
-        let radiance = adjoint::surface_radiance(
-            cx.services.guide()?,
-            event.surface.hit.p,
-            frame,
-            event.bsdf,
-            wo,
-        )?;
-        let ratio = (s.onward.beta * radiance).element_sum() / 3.0 / pixel;
-        Some(adjoint::play(ratio, cx.rng.next_f32(), s.branch_budget))
-    }
-
-    /// A path split off at a surface by guided splitting, traced to its end at once: from the path's state in
-    /// `s` (its next-event estimate and the split's 1/n done) with a generator derived from the path's
-    /// ([`Branch::generator`]), it samples its own direction and walks on, adding to the sample's radiance;
-    /// then the path's state is put back for the path that split.
-    fn split_at_surface(
-        &self,
-        cx: &mut PathContext,
-        s: &mut PathState,
-        event: &SurfaceEvent,
-        out: &mut PathSample,
-    ) {
-        let onward = s.onward;
-        let mut rng = Branch::generator(cx.rng);
-        let mut branch_cx = PathContext {
-            services: cx.services,
-            rng: &mut rng,
-            counters: &mut *cx.counters,
-        };
-        if let SurfaceOutcome::Continue(next) =
-            self.sample_from_surface(&mut branch_cx, s, event, false)
-        {
-            self.walk(&mut branch_cx, s, next, out);
-        }
-        s.onward = onward;
-    }
-
-    /// Samples the direction to go on from a surface `event` (its next-event estimate done) and continues
-    /// there ([`Self::continue_from_surface`]; classic Russian roulette unless guided roulette decided the
-    /// event).
-    fn sample_from_surface(
-        &self,
-        cx: &mut PathContext,
-        s: &mut PathState,
-        event: &SurfaceEvent,
-        classic_roulette: bool,
-    ) -> SurfaceOutcome {
-        let (ray, surface, bsdf, guide) = (event.ray, event.surface, event.bsdf, event.guide);
-        let (hit, frame) = (surface.hit, surface.frame);
-        let material = &cx.services.scene().materials[hit.material as usize];
-        let wo = frame.to_local(-ray.dir);
         let direction_pdf =
-            |wi: Vec3| guided::mixture_pdf(guide, frame.to_world(wi), bsdf.pdf(wo, wi));
-        let sampled = guided::sample_bsdf(bsdf, guide, &frame, wo, cx.rng, direction_pdf);
+            |wi: Vec3| guided::mixture_pdf(guide.as_ref(), frame.to_world(wi), bsdf.pdf(wo, wi));
+        let sampled = guided::sample_bsdf(bsdf, guide.as_ref(), &frame, wo, cx.rng, direction_pdf);
         let Some(bs) = sampled else {
             return SurfaceOutcome::End;
         };
@@ -1465,7 +1352,7 @@ impl PathTracer {
         // What a training path's record needs for the cell's selection probability.
         let densities = s.guide_path.is_some().then(|| StrategyDensities {
             unguided: bsdf.pdf(wo, bs.wi),
-            guide: guide.map(|g| g.product.pdf(frame.to_world(bs.wi))),
+            guide: guide.as_ref().map(|g| g.product.pdf(frame.to_world(bs.wi))),
         });
         self.continue_from_surface(
             cx,
@@ -1473,7 +1360,7 @@ impl PathTracer {
             ray,
             surface,
             material.interior,
-            (&bs, mis_pdf, densities, classic_roulette),
+            (&bs, mis_pdf, densities),
         )
     }
 
@@ -1531,9 +1418,9 @@ impl PathTracer {
 
     /// Continues the path from `surface` along the sampled direction `bs`: weights the throughput, keeps
     /// `mis_pdf` (the density an emitter hit next is weighed with: the BSDF's, also where `bs` was guided),
-    /// crosses into or out of the surface's `interior` when the direction refracts, counts the bounce (classic
-    /// Russian roulette, with `classic_roulette`) and remembers the event for the guiding cache (with the
-    /// strategies' `densities`, given on training paths). Returns the next ray, or the end of the path.
+    /// crosses into or out of the surface's `interior` when the direction refracts, counts the bounce (Russian
+    /// roulette) and remembers the event for the guiding cache (with the strategies' `densities`, given on
+    /// training paths). Returns the next ray, or the end of the path.
     fn continue_from_surface(
         &self,
         cx: &mut PathContext,
@@ -1541,12 +1428,7 @@ impl PathTracer {
         ray: &Ray,
         surface: &Surface,
         interior: Option<u32>,
-        (bs, mis_pdf, densities, classic_roulette): (
-            &BsdfSample,
-            f32,
-            Option<StrategyDensities>,
-            bool,
-        ),
+        (bs, mis_pdf, densities): (&BsdfSample, f32, Option<StrategyDensities>),
     ) -> SurfaceOutcome {
         let (hit, frame) = (surface.hit, surface.frame);
         let wi_world = frame.to_world(bs.wi);
@@ -1571,7 +1453,7 @@ impl PathTracer {
                     .cross(interior, wi_world.dot(hit.geometric_normal) < 0.0);
             }
         }
-        if !self.next_bounce(s, cx.rng, classic_roulette) {
+        if !self.next_bounce(s, cx.rng, true) {
             return SurfaceOutcome::End;
         }
         if let (Some(path), false, Some(densities)) =
