@@ -154,6 +154,15 @@ impl GuidePath {
         });
     }
 
+    /// The light a path that ended with `radiance` gathered found after its first remembered event's
+    /// next-event estimate (its continuation from there; nothing where it remembered no event): the part of a
+    /// pixel's value that guided Russian roulette compares continuations with ([`adjoint::PixelEstimates`]).
+    pub fn continuation(&self, radiance: Rgb) -> Rgb {
+        self.vertices
+            .first()
+            .map_or(Rgb::ZERO, |v| radiance - v.radiance_before)
+    }
+
     /// The records of the path, which ended with `radiance` gathered, appended to `out`.
     pub fn finish(&self, radiance: Rgb, out: &mut Vec<RadianceRecord>) {
         for v in &self.vertices {
@@ -176,3 +185,24 @@ impl GuidePath {
     }
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A path's continuation is what it gathered after its first remembered event's next-event estimate: the
+    /// light before it (emission seen, that estimate) is left out, later events' light kept; a path that
+    /// remembered no event has none.
+    #[test]
+    fn the_continuation_starts_after_the_first_event() {
+        let mut path = GuidePath::default();
+        let densities = StrategyDensities {
+            unguided: 1.0,
+            guide: None,
+        };
+        assert_eq!(path.continuation(Rgb::splat(3.0)), Rgb::ZERO);
+        path.push(Vec3::ZERO, (Vec3::Z, 1.0), densities, Rgb::ONE, Rgb::splat(2.0));
+        path.push(Vec3::ONE, (Vec3::Y, 1.0), densities, Rgb::ONE, Rgb::splat(2.5));
+        assert_eq!(path.continuation(Rgb::new(3.0, 2.0, 4.0)), Rgb::new(1.0, 0.0, 2.0));
+    }
+}

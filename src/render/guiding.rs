@@ -7,9 +7,10 @@
 //! rows are traced in parallel a block at a time and their records added to the cache in row order, one thread.
 //! The cache, and so the image, is the same for any thread count and in every farm part of a render.
 //!
-//! With guided Russian roulette on ([`PathTracer::guided_roulette`]), the training's samples are also the pixel
-//! values it compares paths with ([`PixelEstimates`], every iteration's samples: each is an unbiased estimate of
-//! its pixel), summed in the same row order; without it they are not kept.
+//! With guided Russian roulette on ([`PathTracer::guided_roulette`]), the training's samples also give the pixel
+//! values it compares paths with ([`PixelEstimates`], every iteration's samples: each sample's continuation
+//! after its first remembered event's next-event estimate, [`GuidePath::continuation`], an unbiased estimate of
+//! that part of its pixel), summed in the same row order; without it they are not kept.
 
 use super::renderer::GuidingStats;
 use super::CancelToken;
@@ -103,7 +104,7 @@ pub(super) fn train(
 }
 
 /// What the training paths of one row found: their records, their decoupled samples' and medium shadow rays'
-/// records and, for guided Russian roulette, each sample's value (channel mean), pixel by pixel in order.
+/// records and, for guided Russian roulette, each sample's continuation (channel mean), pixel by pixel in order.
 struct TrainingRow {
     records: Vec<RadianceRecord>,
     lit: Vec<LitRecord>,
@@ -154,7 +155,8 @@ fn trace_row(
             if result.radiance.is_finite() {
                 path.finish(result.radiance, &mut records);
                 if keeps_values {
-                    values.push(((x, y), result.radiance.element_sum() / 3.0));
+                    let continued = path.continuation(result.radiance);
+                    values.push(((x, y), continued.element_sum() / 3.0));
                 }
             }
         }
