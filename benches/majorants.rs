@@ -156,7 +156,8 @@ fn bench_file(
             let mut cr = TrackingCounters::default();
             let (ratio_ns, (sum, sum2)) = timed(|| {
                 rays.iter().fold((0.0f64, 0.0f64), |(s, s2), r| {
-                    let t = ratio_tracking(&field, maj, r, 0.0, t_max, &mut rng, &mut cr) as f64;
+                    let t =
+                        ratio_tracking(&field, maj, r, (0.0, t_max), 1.0, &mut rng, &mut cr) as f64;
                     (s + t, s2 + t * t)
                 })
             });

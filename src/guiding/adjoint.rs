@@ -5,7 +5,8 @@
 //! At a medium scattering event the path's expected contribution to its pixel is its throughput times the
 //! radiance the cache expects to be scattered there (the cell's mean incident radiance,
 //! [`super::GuidingField::mean_radiance_at`]); a zero-variance walk would keep that equal to the pixel's value
-//! ([`PixelEstimates`], from the training pre-pass). Their ratio r is held in a weight window around 1
+//! ([`PixelEstimates`], from the training pre-pass: like the continuation it is compared with, the light its
+//! samples found after their first event's next-event estimate). Their ratio r is held in a weight window around 1
 //! (Vorba & Křivánek 2016, §4.2, eq. 7: bounds 2/(1+s) and 2s/(1+s) with s = [`WINDOW_SPREAD`]): below it the
 //! path survives with probability q = max(r, [`MIN_SURVIVAL`]) and its throughput is divided by q; above it the
 //! path splits into n = ⌊r⌋ + (1 with probability r − ⌊r⌋) paths (at most [`MAX_SPLIT`], and within the
@@ -81,8 +82,9 @@ pub fn play(ratio: f32, u: f32, budget: u32) -> Roulette {
     }
 }
 
-/// The value each pixel's paths are compared with: the mean of the training samples' values (channel means)
-/// over the [`PIXEL_TILE`]² tile the pixel lies in.
+/// The value each pixel's paths are compared with: the mean of the training samples' continuations (channel
+/// means; [`super::GuidePath::continuation`], the light found after a sample's first event's next-event
+/// estimate, as a path's continuation after an event's) over the [`PIXEL_TILE`]² tile the pixel lies in.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PixelEstimates {
     /// Tiles a row.

@@ -167,6 +167,8 @@ pub struct GuidingField {
     rng: Rng,
     /// The direct light of the decoupled samples.
     lit: LitGrid,
+    /// The transmittance of the medium shadow rays ([`super::shadow`]).
+    shadow: LitGrid,
 }
 
 impl GuidingField {
@@ -195,6 +197,7 @@ impl GuidingField {
             pixels: None,
             rng: Rng::new(0x0076_6d66, 0),
             lit,
+            shadow: LitGrid::new(bounds),
         }
     }
 
@@ -316,6 +319,16 @@ impl GuidingField {
         self.lit.add(records);
     }
 
+    /// Adds the records of medium shadow rays to the shadow grid, in order ([`LitGrid::add`]).
+    pub fn add_shadow_records(&mut self, records: &[LitRecord]) {
+        self.shadow.add(records);
+    }
+
+    /// The probability with which an image path traces a medium shadow ray from `p` ([`super::shadow`]).
+    pub fn shadow_survival(&self, p: Vec3) -> f32 {
+        super::shadow::survival(self.shadow.mean_at(p))
+    }
+
     /// The guided distance density of a decoupled sample on the segment `origin + t dir`, t ∈ [0, `length`],
     /// in a medium of mean extinction `sigma` ([`LitGrid::distance_guide`]).
     pub fn distance_guide(
@@ -337,6 +350,7 @@ impl GuidingField {
             cell.vmf = VmfMixture::fit(&cell.sample);
         });
         self.lit.finish_iteration();
+        self.shadow.finish_iteration();
         for cell in &mut self.cells {
             let total = cell.energy;
             cell.mean_radiance = (cell.records > 0 && total.is_finite())

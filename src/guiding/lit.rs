@@ -107,6 +107,13 @@ impl LitGrid {
         }
     }
 
+    /// The mean of the records in the voxel holding `p` (clamped into the grid) at the end of the last finished
+    /// iteration, or `None` where it had none.
+    pub fn mean_at(&self, p: Vec3) -> Option<f32> {
+        let mean = self.means[self.index(self.voxel_of(p))];
+        (!mean.is_nan()).then_some(mean)
+    }
+
     /// Publishes every voxel's mean over the records so far, and the box of those with light.
     pub fn finish_iteration(&mut self) {
         for ((mean, &sum), &count) in self.means.iter_mut().zip(&self.sums).zip(&self.counts) {

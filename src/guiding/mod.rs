@@ -8,6 +8,8 @@
 //! - [`field`]: the spatial tree of cells and the cache ([`GuidingField`]).
 //! - [`lit`]: the grid of the direct light the decoupled direct-light samples received, and the guided
 //!   distances it gives them ([`lit::DistanceGuide`]).
+//! - [`shadow`]: guided Russian roulette on medium shadow rays, from the transmittance the training's shadow
+//!   rays found (on a grid of the lit grid's voxels).
 //! - [`adjoint`]: guided Russian roulette and splitting from the cache's radiance and the training's pixel values.
 //! - [`pilot`]: what `--guiding auto` decides for a scene, and why.
 //! - [`GuidePath`]: what a training path remembers of its vertices, turned into [`RadianceRecord`]s at its end.
@@ -19,6 +21,7 @@ pub mod adjoint;
 pub mod field;
 pub mod lit;
 pub mod pilot;
+pub mod shadow;
 pub mod vmf;
 
 pub use field::{GuidingField, RadianceRecord};
@@ -98,6 +101,8 @@ pub struct GuidePath {
     vertices: Vec<GuideVertex>,
     /// What its decoupled direct-light samples received.
     lit: Vec<LitRecord>,
+    /// The transmittance its medium shadow rays found ([`shadow`]).
+    shadow: Vec<LitRecord>,
 }
 
 impl GuidePath {
@@ -105,6 +110,7 @@ impl GuidePath {
     pub fn clear(&mut self) {
         self.vertices.clear();
         self.lit.clear();
+        self.shadow.clear();
     }
 
     /// Remembers that a decoupled direct-light sample at `p` received `value` ([`LitRecord`]).
@@ -115,6 +121,17 @@ impl GuidePath {
     /// The records of the path's decoupled direct-light samples.
     pub fn lit(&self) -> &[LitRecord] {
         &self.lit
+    }
+
+    /// Remembers that a shadow ray of next-event estimation at a medium scattering event at `p` found the
+    /// transmittance `value` (its largest channel; [`shadow`]).
+    pub fn push_shadow(&mut self, p: Vec3, value: f32) {
+        self.shadow.push(LitRecord { p, value });
+    }
+
+    /// The records of the path's medium shadow rays.
+    pub fn shadow(&self) -> &[LitRecord] {
+        &self.shadow
     }
 
     /// Remembers a scattering event at `p` that sampled `dir` with density `pdf` (the strategies' own
@@ -135,6 +152,15 @@ impl GuidePath {
             throughput,
             radiance_before,
         });
+    }
+
+    /// The light a path that ended with `radiance` gathered found after its first remembered event's
+    /// next-event estimate (its continuation from there; nothing where it remembered no event): the part of a
+    /// pixel's value that guided Russian roulette compares continuations with ([`adjoint::PixelEstimates`]).
+    pub fn continuation(&self, radiance: Rgb) -> Rgb {
+        self.vertices
+            .first()
+            .map_or(Rgb::ZERO, |v| radiance - v.radiance_before)
     }
 
     /// The records of the path, which ended with `radiance` gathered, appended to `out`.
@@ -159,3 +185,24 @@ impl GuidePath {
     }
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A path's continuation is what it gathered after its first remembered event's next-event estimate: the
+    /// light before it (emission seen, that estimate) is left out, later events' light kept; a path that
+    /// remembered no event has none.
+    #[test]
+    fn the_continuation_starts_after_the_first_event() {
+        let mut path = GuidePath::default();
+        let densities = StrategyDensities {
+            unguided: 1.0,
+            guide: None,
+        };
+        assert_eq!(path.continuation(Rgb::splat(3.0)), Rgb::ZERO);
+        path.push(Vec3::ZERO, (Vec3::Z, 1.0), densities, Rgb::ONE, Rgb::splat(2.0));
+        path.push(Vec3::ONE, (Vec3::Y, 1.0), densities, Rgb::ONE, Rgb::splat(2.5));
+        assert_eq!(path.continuation(Rgb::new(3.0, 2.0, 4.0)), Rgb::new(1.0, 0.0, 2.0));
+    }
+}

@@ -218,13 +218,15 @@ impl<'a> ScatterPoint<'a> {
 
     /// One light sample's unweighted in-scattering here: the phase function's value ρ(ωo, ωi) toward the sample
     /// and the transmittance of its shadow segment (the radiative transfer equation's in-scattering integrand
-    /// without σ_s, L_i and the sample's pdf, which each estimate weighs its own way). None where either is
-    /// zero; no shadow ray is traced where the phase function is zero.
+    /// without σ_s, L_i and the sample's pdf, which each estimate weighs its own way), the latter times
+    /// `weight` (1, or 1/q for a shadow ray kept with probability q: [`crate::guiding::shadow`]). None where
+    /// either is zero; no shadow ray is traced where the phase function is zero.
     fn lit_by(
         &self,
         services: &RendererServices,
         phase: &PhaseFunction,
         sample: &LightSample,
+        weight: f32,
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) -> Option<(f32, Rgb)> {
@@ -233,7 +235,8 @@ impl<'a> ScatterPoint<'a> {
         if value <= 0.0 {
             return None;
         }
-        let tr = services.transmittance(&shadow, self.time, self.stack, rng, counters);
+        let tr =
+            services.weighted_transmittance(weight, &shadow, self.time, self.stack, rng, counters);
         (tr.max_element() > 0.0).then_some((value, tr))
     }
 }
@@ -987,6 +990,7 @@ impl PathTracer {
             services,
             &coefficients.phase,
             &ls,
+            1.0,
             cx.rng,
             cx.counters,
         ) else {
@@ -1064,6 +1068,7 @@ impl PathTracer {
                 services,
                 &c.phase,
                 &ls,
+                1.0,
                 rng,
                 cx.counters,
             ) else {
@@ -1698,19 +1703,34 @@ impl PathTracer {
             // The segment's decoupled sample estimated every light's direct light.
             return;
         }
+        // Guided shadow roulette (`crate::guiding::shadow`) for the image's paths; a training path traces every
+        // shadow ray and records what it found.
+        let survival = match services.guide() {
+            Some(guide) if s.guide_path.is_none() => guide.shadow_survival(ctx.p),
+            _ => 1.0,
+        };
+        let shadow_weight = 1.0 / survival;
         services.sample_lights(&ctx, cx.rng, |chosen, rng| {
             if decoupled && self.decoupled_serves(services, chosen.index) {
                 // The segment's decoupled sample estimated this light's direct light (weight 0 here).
                 return;
             }
+            if survival < 1.0 && rng.next_f32() >= survival {
+                return;
+            }
             let ls = chosen.sample;
-            let Some((phase, tr)) = ScatterPoint::on(ray, ctx.p, &s.onward.stack).lit_by(
+            let lit = ScatterPoint::on(ray, ctx.p, &s.onward.stack).lit_by(
                 services,
                 phase,
                 &ls,
+                shadow_weight,
                 rng,
                 cx.counters,
-            ) else {
+            );
+            if let Some(path) = s.guide_path.as_deref_mut() {
+                path.push_shadow(ctx.p, lit.map_or(0.0, |(_, tr)| tr.max_element()));
+            }
+            let Some((phase, tr)) = lit else {
                 return;
             };
             let light_pdf = chosen.pmf * ls.pdf;

@@ -274,6 +274,21 @@ impl<'a> RendererServices<'a> {
         rng: &mut Rng,
         counters: &mut PathCounters,
     ) -> Rgb {
+        self.weighted_transmittance(1.0, segment, time, stack, rng, counters)
+    }
+
+    /// `weight` times [`Self::transmittance`], for a shadow ray that Russian roulette kept with probability
+    /// 1/`weight` (`crate::guiding::shadow`): the first medium the segment crosses starts its estimate from the
+    /// weight ([`crate::volume::Medium::weighted_transmittance`]).
+    pub fn weighted_transmittance(
+        &self,
+        weight: f32,
+        segment: &ShadowSegment,
+        time: f32,
+        stack: &MediumStack,
+        rng: &mut Rng,
+        counters: &mut PathCounters,
+    ) -> Rgb {
         counters.rays.shadow += 1;
         let scene = self.scene;
         let mut stack = *stack;
@@ -287,13 +302,16 @@ impl<'a> RendererServices<'a> {
             if scene.occluded(&ray, 0.0, remaining) {
                 return Rgb::ZERO;
             }
-            return self.through_media(Rgb::ONE, &ray, remaining, &stack, rng, counters);
+            return self.through_media((Rgb::ONE, weight), &ray, remaining, &stack, rng, counters);
         }
         let mut tr = Rgb::ONE;
+        // Given to the first part of the segment only.
+        let mut weight = weight;
         for _ in 0..MAX_SHADOW_CROSSINGS {
             let hit = scene.intersect(&ray, 0.0, remaining);
             let t_seg = hit.as_ref().map_or(remaining, |h| h.t);
-            tr = self.through_media(tr, &ray, t_seg, &stack, rng, counters);
+            tr = self.through_media((tr, weight), &ray, t_seg, &stack, rng, counters);
+            weight = 1.0;
             if tr.max_element() <= 0.0 {
                 return Rgb::ZERO;
             }
@@ -322,11 +340,11 @@ impl<'a> RendererServices<'a> {
         Rgb::ZERO
     }
 
-    /// `tr` times the transmittance estimate of every medium over `(0, t_max)` of `ray`, inside the interiors
-    /// of `stack` (no surface in between).
+    /// `tr` times `weight` times the transmittance estimate of every medium over `(0, t_max)` of `ray`, inside
+    /// the interiors of `stack` (no surface in between); the first medium starts its estimate from `weight`.
     fn through_media(
         &self,
-        mut tr: Rgb,
+        (mut tr, mut weight): (Rgb, f32),
         ray: &Ray,
         t_max: f32,
         stack: &MediumStack,
@@ -335,13 +353,15 @@ impl<'a> RendererServices<'a> {
     ) -> Rgb {
         if stack.current().is_none() && self.scene.filled_media.is_empty() {
             // No interior and no volume anywhere: nothing on the segment attenuates.
-            return tr;
+            return tr * weight;
         }
         for &m in self.segment_media(ray, t_max, stack).ids() {
             let medium = &self.scene.media[m as usize];
-            tr *= medium.transmittance(ray, t_max, rng, &mut counters.media[m as usize]);
+            let counters = &mut counters.media[m as usize];
+            tr *= medium.weighted_transmittance(weight, ray, t_max, rng, counters);
+            weight = 1.0;
         }
-        tr
+        tr * weight
     }
 }
 

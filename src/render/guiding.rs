@@ -7,9 +7,10 @@
 //! rows are traced in parallel a block at a time and their records added to the cache in row order, one thread.
 //! The cache, and so the image, is the same for any thread count and in every farm part of a render.
 //!
-//! With guided Russian roulette on ([`PathTracer::guided_roulette`]), the training's samples are also the pixel
-//! values it compares paths with ([`PixelEstimates`], every iteration's samples: each is an unbiased estimate of
-//! its pixel), summed in the same row order; without it they are not kept.
+//! With guided Russian roulette on ([`PathTracer::guided_roulette`]), the training's samples also give the pixel
+//! values it compares paths with ([`PixelEstimates`], every iteration's samples: each sample's continuation
+//! after its first remembered event's next-event estimate, [`GuidePath::continuation`], an unbiased estimate of
+//! that part of its pixel), summed in the same row order; without it they are not kept.
 
 use super::renderer::GuidingStats;
 use super::CancelToken;
@@ -81,6 +82,7 @@ pub(super) fn train(
                 stats.training_records += row.records.len() as u64;
                 field.add_records(&row.records);
                 field.add_lit_records(&row.lit);
+                field.add_shadow_records(&row.shadow);
                 if let Some(pixels) = pixels.as_mut() {
                     for &(pixel, value) in &row.values {
                         pixels.add(pixel, value);
@@ -101,11 +103,12 @@ pub(super) fn train(
     (Some(field), stats)
 }
 
-/// What the training paths of one row found: their records, their decoupled samples' records and, for guided
-/// Russian roulette, each sample's value (channel mean), pixel by pixel in order.
+/// What the training paths of one row found: their records, their decoupled samples' and medium shadow rays'
+/// records and, for guided Russian roulette, each sample's continuation (channel mean), pixel by pixel in order.
 struct TrainingRow {
     records: Vec<RadianceRecord>,
     lit: Vec<LitRecord>,
+    shadow: Vec<LitRecord>,
     values: Vec<((usize, usize), f32)>,
 }
 
@@ -124,6 +127,7 @@ fn trace_row(
     let mut path = GuidePath::default();
     let mut records = Vec::new();
     let mut lit = Vec::new();
+    let mut shadow = Vec::new();
     // Only guided Russian roulette reads the samples' values (as its pixel estimates).
     let keeps_values = tracer.guided_roulette;
     let mut values = Vec::with_capacity(keeps_values as usize * frame.width * spp as usize);
@@ -147,10 +151,12 @@ fn trace_row(
             };
             let result = tracer.trace(&mut cx, ray, FirstEmission::Count, None, Some(&mut path));
             lit.extend_from_slice(path.lit());
+            shadow.extend_from_slice(path.shadow());
             if result.radiance.is_finite() {
                 path.finish(result.radiance, &mut records);
                 if keeps_values {
-                    values.push(((x, y), result.radiance.element_sum() / 3.0));
+                    let continued = path.continuation(result.radiance);
+                    values.push(((x, y), continued.element_sum() / 3.0));
                 }
             }
         }
@@ -158,6 +164,7 @@ fn trace_row(
     TrainingRow {
         records,
         lit,
+        shadow,
         values,
     }
 }

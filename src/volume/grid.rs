@@ -822,13 +822,25 @@ impl Medium for GridMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> Rgb {
+        self.weighted_transmittance(1.0, ray, t_max, rng, counters)
+    }
+
+    /// The ratio-tracking walks start from `weight`, so their roulette sees the weighted estimate.
+    fn weighted_transmittance(
+        &self,
+        weight: f32,
+        ray: &Ray,
+        t_max: f32,
+        rng: &mut Rng,
+        counters: &mut TrackingCounters,
+    ) -> Rgb {
         let mut estimate = |channel: &GridDensity, rng: &mut Rng| match self.shadow {
             ShadowEstimator::Ratio => with_field!(self, channel, ray.time, |f| ratio_tracking(
                 f,
                 &self.majorants,
                 ray,
-                0.0,
-                t_max,
+                (0.0, t_max),
+                weight,
                 rng,
                 counters
             )),
@@ -837,8 +849,8 @@ impl Medium for GridMedium {
                     f,
                     &self.majorants,
                     ray,
-                    0.0,
-                    t_max,
+                    (0.0, t_max),
+                    weight,
                     rng,
                     counters
                 ))

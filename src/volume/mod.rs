@@ -275,6 +275,21 @@ pub trait Medium: Send + Sync {
         counters: &mut TrackingCounters,
     ) -> Rgb;
 
+    /// An unbiased estimate of `weight` times the transmittance over `(0, t_max)`, for a shadow ray that
+    /// Russian roulette kept with probability 1/`weight` (guided shadow roulette, `crate::guiding::shadow`).
+    /// The default multiplies [`Medium::transmittance`]; media whose estimate plays roulette of its own start it
+    /// from the weight, so that the two roulettes do not compound.
+    fn weighted_transmittance(
+        &self,
+        weight: f32,
+        ray: &Ray,
+        t_max: f32,
+        rng: &mut Rng,
+        counters: &mut TrackingCounters,
+    ) -> Rgb {
+        self.transmittance(ray, t_max, rng, counters) * weight
+    }
+
     /// The medium's coefficients when they are constant and it scatters, so that the integrator can also
     /// sample its segments toward point and spot lights (equiangular sampling); `None` (the default) for media
     /// whose transmittance has no closed form.

@@ -144,7 +144,7 @@ impl NoiseMedium {
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> f32 {
-        ratio_tracking(self, &self.majorants, ray, 0.0, t_max, rng, counters)
+        ratio_tracking(self, &self.majorants, ray, (0.0, t_max), 1.0, rng, counters)
     }
 }
 

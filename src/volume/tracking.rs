@@ -601,16 +601,21 @@ impl Estimator for Ratio {
 /// roulette below [`ROULETTE_THRESHOLD`] keeps it unbiased and bounds the work in thick media. On a segment of
 /// constant density ([`Segment::is_uniform`]) the factor is exp(−σ ℓ) in closed form: residual ratio tracking
 /// with the exact control, so the estimate there has zero variance and costs no lookup.
+///
+/// The walk starts from the weight `start` (1 for the transmittance itself) and returns an estimate of
+/// `start` · T: the roulette sees the weighted estimate, so a caller that kept the ray with probability
+/// q = 1/`start` (Russian roulette before the walk) is not played roulette on a second time until the weighted
+/// estimate falls below the threshold.
 pub fn ratio_tracking<F: DensityField + ?Sized>(
     field: &F,
     majorants: &Majorants,
     ray: &Ray,
-    t_min: f32,
-    t_max: f32,
+    (t_min, t_max): (f32, f32),
+    start: f32,
     rng: &mut Rng,
     counters: &mut TrackingCounters,
 ) -> f32 {
-    let mut ratio = Ratio { tr: 1.0 };
+    let mut ratio = Ratio { tr: start };
     track(
         field,
         majorants,
@@ -677,13 +682,13 @@ pub fn residual_ratio_tracking<F: DensityField + ?Sized>(
     field: &F,
     majorants: &Majorants,
     ray: &Ray,
-    t_min: f32,
-    t_max: f32,
+    (t_min, t_max): (f32, f32),
+    start: f32,
     rng: &mut Rng,
     counters: &mut TrackingCounters,
 ) -> f32 {
     let mut residual = ResidualRatio {
-        tr: 1.0,
+        tr: start,
         control: 0.0,
         residual_max: 0.0,
     };
@@ -904,11 +909,11 @@ mod tests {
         });
         check(&format!("{label} decomposition"), dt, truth);
         let r = estimate(n, || {
-            ratio_tracking(f, maj, ray, t0, t1, &mut rng, &mut c) as f64
+            ratio_tracking(f, maj, ray, (t0, t1), 1.0, &mut rng, &mut c) as f64
         });
         check(&format!("{label} ratio"), r, truth);
         let rr = estimate(n, || {
-            residual_ratio_tracking(f, maj, ray, t0, t1, &mut rng, &mut c) as f64
+            residual_ratio_tracking(f, maj, ray, (t0, t1), 1.0, &mut rng, &mut c) as f64
         });
         check(&format!("{label} residual"), rr, truth);
         assert_eq!(c.majorant_violations, 0, "{label}");
@@ -944,7 +949,7 @@ mod tests {
         check_all("const", &f, &maj, &ray, (0.0, 5.0), truth, 40_000);
         // Homogeneous: residual ratio tracking integrates the control exactly and needs no lookup.
         let mut c = TrackingCounters::default();
-        let t = residual_ratio_tracking(&f, &maj, &ray, 0.0, 5.0, &mut Rng::new(1, 2), &mut c);
+        let t = residual_ratio_tracking(&f, &maj, &ray, (0.0, 5.0), 1.0, &mut Rng::new(1, 2), &mut c);
         assert!(
             (t as f64 - truth).abs() < 1e-6 && c.density_lookups == 0,
             "{t} {c:?}"
@@ -1367,7 +1372,7 @@ mod tests {
         let mut c = TrackingCounters::default();
         for ray in random_rays(&g, 64, 9) {
             sample_collision(&g, &bad, &ray, 0.0, 20.0, &mut rng, &mut c);
-            ratio_tracking(&g, &bad, &ray, 0.0, 20.0, &mut rng, &mut c);
+            ratio_tracking(&g, &bad, &ray, (0.0, 20.0), 1.0, &mut rng, &mut c);
         }
         assert!(c.majorant_violations > 0, "{c:?}");
     }

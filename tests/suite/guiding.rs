@@ -339,3 +339,80 @@ fn a_cancelled_render_stops_training() {
     assert_eq!(stats.guiding.training_paths, 0, "{:?}", stats.guiding);
     assert_eq!(stats.guiding.cells, 0, "no cache is kept");
 }
+
+/// Guided shadow roulette (`nimbus::guiding::shadow`) keeps single scattering's mean. A slab of grid medium,
+/// its density varying along z only (so that ratio tracking walks it with tentative collisions and plays its
+/// own roulette), lit by the sun from behind along the camera's axis: a point's transmittance toward the camera
+/// and toward the sun multiply to e^{−τ} for the slab's whole optical depth τ, wherever the point is, so single
+/// scattering (`max_depth` 1, g = 0) is L = E α τ e^{−τ} / (4π) in closed form. Most collisions are on the
+/// camera's side, where the training's shadow rays found a transmittance of e^{−5} or less, so most shadow rays
+/// of the guided render are cut; the survivors' weight 1/q must keep the mean (within 4 standard errors).
+#[test]
+fn guided_shadow_roulette_keeps_single_scattering_through_a_backlit_slab() {
+    let (tau, albedo, irradiance) = (8.0f64, 0.8f32, 100.0f32);
+    let spacing = 0.0625f64;
+    let profile = |z: i32| 0.5 + 0.4 * (z as f64).sin();
+    let depth: f64 = (-6..=6).map(profile).sum::<f64>() * spacing;
+    let mut voxels = Vec::new();
+    for x in -20..=20 {
+        for y in -20..=20 {
+            for z in -6..=6 {
+                voxels.push((IVec3::new(x, y, z), profile(z) as f32));
+            }
+        }
+    }
+    let density = GridDensity::from_tree(
+        Arc::new(GridTree::Float(Tree::from_voxels(0.0, voxels))),
+        DMat4::from_scale(DVec3::splat(spacing)),
+        (tau / depth) as f32,
+    )
+    .unwrap();
+    let mut b = SceneBuilder::default();
+    let medium = GridMedium::new(
+        "slab",
+        density,
+        MajorantKind::Adaptive,
+        Rgb::splat(albedo),
+        0.0,
+    );
+    b.add_medium(Arc::new(medium));
+    // Travelling along +z, toward the camera.
+    b.add_directional_light(Vec3::Z, Rgb::splat(irradiance));
+    b.set_camera(Camera::look_at(
+        Vec3::new(0.0, 0.0, 3.0),
+        Vec3::ZERO,
+        0.01f32.to_radians(),
+    ));
+    let scene = b.build().unwrap();
+    let truth = (irradiance * albedo) as f64 * tau * (-tau).exp() / (4.0 * std::f64::consts::PI);
+    let mut shadow_rays = Vec::new();
+    for guiding in [GuidingMode::Off, GuidingMode::On] {
+        let settings = RenderSettings {
+            max_depth: 1,
+            ..settings(32, 192, 2, guiding)
+        };
+        let (img, stats) = Renderer::new(settings)
+            .render(&scene, &mut |_| true)
+            .unwrap();
+        for c in 0..3 {
+            let (mean, se) = common::mean_and_se(&img, c);
+            eprintln!(
+                "backlit slab, guiding {guiding:?}, channel {c}: {mean:.6} ± {se:.6} vs {truth:.6}"
+            );
+            assert!(
+                se > 0.0 && se < 0.05 * truth,
+                "{guiding:?}: standard error {se}"
+            );
+            assert!(
+                (mean - truth).abs() < 4.0 * se,
+                "{guiding:?}: single scattering {mean} vs {truth} (se {se})"
+            );
+        }
+        shadow_rays.push(stats.rays.shadow);
+    }
+    // The guided render cut most of its shadow rays.
+    assert!(
+        shadow_rays[1] * 2 < shadow_rays[0],
+        "shadow rays unguided, guided: {shadow_rays:?}"
+    );
+}

@@ -1,0 +1,53 @@
+//! Guided Russian roulette on the shadow rays of medium next-event estimation: a shadow ray whose transmittance
+//! the training expects to be nearly zero is traced only with probability q, and weighed by 1/q when it is.
+//!
+//! In a dense cloud lit from behind (the backlit cloud of issue 34: optical depth 60–76, albedo 0.99) most
+//! scattering events are deep on the dark side, where the transmittance toward the sun is e^{−20} or less; their
+//! shadow rays carry nothing, but ratio tracking still walks them until its own roulette (below a running
+//! estimate of [`crate::volume::tracking::ROULETTE_THRESHOLD`]) ends them, about 2.3 optical depths of lookups
+//! each. The training's medium shadow rays record their transmittance estimates on a grid
+//! ([`super::lit::LitGrid`], the same voxels as the lit grid), and an image path's shadow ray at a point whose
+//! voxel learned a mean transmittance T̄ survives with
+//!
+//! q = clamp(T̄ / [`SHADOW_CUT`], [`SHADOW_MIN_SURVIVAL`], 1)
+//!
+//! (q = 1 where the voxel has no record). Survivors start their ratio-tracking walk from the weight 1/q
+//! ([`crate::volume::Medium::weighted_transmittance`]), so that walk's roulette, which acts on the weighted
+//! estimate, does not compound with this one: where the point's transmittance T is below 10 T̄, the weighted
+//! estimate T/q falls below that roulette's threshold (0.1) before the walk ends (T/q ≤ [`SHADOW_CUT`] · T/T̄
+//! above the floor), and the surviving walk is ended by the same roulette as before, so the estimate's second
+//! moment is what it was, for a fraction q of the walks. Any q > 0 keeps the estimate unbiased (E[X/q · 1_{u<q}] = E[X]); the learned mean only decides how
+//! much work is saved, and how much variance a voxel whose points see far more light than its mean adds.
+//! This is the zero-variance idea applied to the shadow ray's continuation (Herholz et al. 2019 §5; Vorba &
+//! Křivánek 2016 decide survival from the expected contribution the same way).
+
+/// The learned transmittance below which shadow rays are played roulette on (see the module documentation).
+pub const SHADOW_CUT: f32 = 0.01;
+/// The smallest survival probability, where a voxel learned a mean transmittance of (almost) zero: it bounds
+/// the weight 1/q of the rare survivor.
+pub const SHADOW_MIN_SURVIVAL: f32 = 0.1;
+
+/// The probability with which a medium shadow ray at a point whose voxel learned the mean transmittance
+/// `mean` (`None`: no record) is traced.
+pub fn survival(mean: Option<f32>) -> f32 {
+    match mean {
+        Some(m) if m.is_finite() => (m / SHADOW_CUT).clamp(SHADOW_MIN_SURVIVAL, 1.0),
+        _ => 1.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn survival_follows_the_learned_transmittance_within_its_bounds() {
+        assert_eq!(survival(None), 1.0);
+        assert_eq!(survival(Some(f32::NAN)), 1.0);
+        assert_eq!(survival(Some(0.5)), 1.0);
+        assert_eq!(survival(Some(SHADOW_CUT)), 1.0);
+        assert!((survival(Some(SHADOW_CUT * 0.25)) - 0.25).abs() < 1e-6);
+        assert_eq!(survival(Some(0.0)), SHADOW_MIN_SURVIVAL);
+        assert_eq!(survival(Some(-1.0)), SHADOW_MIN_SURVIVAL);
+    }
+}
