@@ -183,12 +183,12 @@ impl GuidingField {
         };
         // A little margin so that points on the boundary are inside.
         let half = Vec3::splat(half * 1.001);
-        let bounds = Aabb::new(centre - half, centre + half);
+        let cube = Aabb::new(centre - half, centre + half);
         Self {
-            bounds,
+            bounds: cube,
             nodes: vec![SpatialNode::Leaf(0)],
             cells: vec![Cell::new(
-                (0, bounds.min, bounds.max),
+                (0, cube.min, cube.max),
                 None,
                 None,
                 GUIDE_PROBABILITY,
