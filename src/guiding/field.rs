@@ -92,9 +92,8 @@ pub struct RadianceRecord {
 enum SpatialNode {
     /// Index into the cells.
     Leaf(u32),
-    /// Index of the first child (the second follows: the points at or above `mid`), the axis split and the
-    /// midpoint along it.
-    Inner { first_child: u32, axis: u8, mid: f32 },
+    /// Index of the first child (the second follows) and the axis split at the midpoint.
+    Inner { first_child: u32, axis: u8 },
 }
 
 /// One cell: its records of the iteration under way and the distribution learned before.
@@ -109,9 +108,6 @@ struct Cell {
     mean_radiance: Option<f32>,
     /// Depth in the spatial tree.
     depth: u32,
-    /// The cell's box: its corners' coordinates are the midpoints its ancestors split at.
-    lo: Vec3,
-    hi: Vec3,
     /// A uniform sample (reservoir) of this iteration's records with energy: direction and radiance / pdf.
     sample: Vec<(Vec3, f32)>,
     /// Records with energy this iteration (the reservoir's count).
@@ -129,19 +125,12 @@ struct Cell {
 }
 
 impl Cell {
-    fn new(
-        (depth, lo, hi): (u32, Vec3, Vec3),
-        vmf: Option<VmfMixture>,
-        mean_radiance: Option<f32>,
-        selection: f32,
-    ) -> Self {
+    fn new(depth: u32, vmf: Option<VmfMixture>, mean_radiance: Option<f32>, selection: f32) -> Self {
         Self {
             records: 0,
             energy: 0.0,
             mean_radiance,
             depth,
-            lo,
-            hi,
             sample: Vec::new(),
             energetic: 0,
             vmf,
@@ -183,16 +172,10 @@ impl GuidingField {
         };
         // A little margin so that points on the boundary are inside.
         let half = Vec3::splat(half * 1.001);
-        let cube = Aabb::new(centre - half, centre + half);
         Self {
-            bounds: cube,
+            bounds: Aabb::new(centre - half, centre + half),
             nodes: vec![SpatialNode::Leaf(0)],
-            cells: vec![Cell::new(
-                (0, cube.min, cube.max),
-                None,
-                None,
-                GUIDE_PROBABILITY,
-            )],
+            cells: vec![Cell::new(0, None, None, GUIDE_PROBABILITY)],
             iterations: 0,
             pixels: None,
             rng: Rng::new(0x0076_6d66, 0),
@@ -219,20 +202,21 @@ impl GuidingField {
 
     /// The index of the cell holding `p` (points outside the bounds are clamped into them).
     fn cell_index(&self, p: Vec3) -> usize {
-        let p = p.clamp(self.bounds.min, self.bounds.max).to_array();
+        let (mut lo, mut hi) = (self.bounds.min, self.bounds.max);
+        let p = p.clamp(lo, hi);
         let mut node = 0usize;
         loop {
             match self.nodes[node] {
                 SpatialNode::Leaf(cell) => return cell as usize,
-                SpatialNode::Inner {
-                    first_child,
-                    axis,
-                    mid,
-                } => {
-                    node = if p[axis as usize] < mid {
-                        first_child as usize
+                SpatialNode::Inner { first_child, axis } => {
+                    let a = axis as usize;
+                    let mid = 0.5 * (lo[a] + hi[a]);
+                    if p[a] < mid {
+                        hi[a] = mid;
+                        node = first_child as usize;
                     } else {
-                        first_child as usize + 1
+                        lo[a] = mid;
+                        node = first_child as usize + 1;
                     }
                 }
             }
@@ -396,29 +380,17 @@ impl GuidingField {
             return;
         }
         let first_child = self.nodes.len();
-        let parent = &mut self.cells[cell];
-        let (mean_radiance, vmf, selection) = (parent.mean_radiance, parent.vmf, parent.selection);
-        let axis = (depth % 3) as usize;
-        let (lo, hi) = (parent.lo, parent.hi);
-        let mid = 0.5 * (lo[axis] + hi[axis]);
-        let (mut upper_lo, mut lower_hi) = (lo, hi);
-        upper_lo[axis] = mid;
-        lower_hi[axis] = mid;
-        parent.depth = depth + 1;
-        parent.hi = lower_hi;
+        let mean_radiance = self.cells[cell].mean_radiance;
+        let vmf = self.cells[cell].vmf;
+        let selection = self.cells[cell].selection;
         let other = self.cells.len();
-        self.cells.push(Cell::new(
-            (depth + 1, upper_lo, hi),
-            vmf,
-            mean_radiance,
-            selection,
-        ));
+        self.cells[cell].depth = depth + 1;
+        self.cells.push(Cell::new(depth + 1, vmf, mean_radiance, selection));
         self.nodes.push(SpatialNode::Leaf(cell as u32));
         self.nodes.push(SpatialNode::Leaf(other as u32));
         self.nodes[node] = SpatialNode::Inner {
             first_child: first_child as u32,
-            axis: axis as u8,
-            mid,
+            axis: (depth % 3) as u8,
         };
         self.split(first_child, cell, levels - 1);
         self.split(first_child + 1, other, levels - 1);
@@ -480,44 +452,6 @@ mod tests {
             again.vmf_at(p).unwrap().pdf(w).to_bits(),
             field.vmf_at(p).unwrap().pdf(w).to_bits()
         );
-    }
-
-    /// After splits of every depth, the cells' boxes tile the cache's cube (their volumes sum to its volume)
-    /// and the lookup puts every point in the cell whose box holds it: the midpoints the tree's nodes keep are
-    /// those of their cells (a midpoint taken along another axis, or off by a rounding, fails this).
-    #[test]
-    fn the_lookup_finds_the_cell_whose_box_holds_the_point() {
-        let mut field = GuidingField::new(Aabb::new(Vec3::new(-1.0, 0.0, -3.0), Vec3::new(2.0, 1.0, 0.3)));
-        let mut rng = Rng::new(5, 6);
-        // Records crowded toward one corner, so that the tree splits deep there and stays coarse elsewhere.
-        let records: Vec<RadianceRecord> = (0..60_000)
-            .map(|_| {
-                let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-                RadianceRecord {
-                    p: Vec3::new(-1.0, 0.0, -3.0) + u * u * u * Vec3::new(3.0, 1.0, 3.3),
-                    dir: Vec3::Z,
-                    radiance: 1.0,
-                    pdf: 0.25,
-                    unguided_pdf: 0.25,
-                    guide_pdf: None,
-                }
-            })
-            .collect();
-        for _ in 0..3 {
-            field.add_records(&records);
-            field.finish_iteration();
-        }
-        let depths: Vec<u32> = field.cells.iter().map(|c| c.depth).collect();
-        assert!(depths.iter().max() > Some(&(depths.iter().min().unwrap() + 3)), "{depths:?}");
-        let volume: f64 = field.cells.iter().map(|c| (c.hi - c.lo).as_dvec3().element_product()).sum();
-        let cube = (field.bounds.max - field.bounds.min).as_dvec3().element_product();
-        assert!((volume / cube - 1.0).abs() < 1e-5, "{volume} {cube}");
-        for _ in 0..20_000 {
-            let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-            let p = field.bounds.min + u * u * (field.bounds.max - field.bounds.min);
-            let cell = &field.cells[field.cell_index(p)];
-            assert!(p.cmpge(cell.lo).all() && p.cmple(cell.hi).all(), "{p} in {} {}", cell.lo, cell.hi);
-        }
     }
 
     /// Records of a uniform incident radiance L sampled uniformly over the sphere (pdf 1/4π) give a mean

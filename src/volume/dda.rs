@@ -134,40 +134,6 @@ impl Dda {
         }
     }
 
-    /// Gives `visit` the cells [`Self::next`] would give (those of non-zero length, in the same order, from the
-    /// same boundaries), each with the parameter where the ray leaves it, until `visit` returns true; returns
-    /// whether it did. A walk without the bookkeeping of `next`, for path guiding's grid of the direct light.
-    #[inline]
-    pub(crate) fn visit(mut self, mut visit: impl FnMut([i32; 3], f32) -> bool) -> bool {
-        if self.done {
-            return false;
-        }
-        loop {
-            let t = &self.t_next;
-            let a = if t[0] <= t[1] && t[0] <= t[2] {
-                0
-            } else if t[1] <= t[2] {
-                1
-            } else {
-                2
-            };
-            let t1 = self.t_next[a].min(self.t_end);
-            if t1 > self.t && visit(self.cell, t1) {
-                return true;
-            }
-            if t1 >= self.t_end {
-                return false;
-            }
-            self.t = t1;
-            self.cell[a] += self.step[a];
-            if self.cell[a] < 0 || self.cell[a] >= self.res[a] {
-                return false;
-            }
-            self.steps[a] += 1.0;
-            self.t_next[a] = self.t_first[a] + self.steps[a] * self.t_delta[a];
-        }
-    }
-
     /// The next cell of non-zero length and its parameter interval, adding every cell stepped through to
     /// `cells`; `None` once the walk has left the interval or the grid.
     #[inline]
@@ -198,57 +164,5 @@ impl Dda {
             }
         }
         None
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::math::Rng;
-
-    /// [`Dda::visit`] gives the cells [`Dda::next`] gives, with the same exits, in the same order, on rays
-    /// from inside and outside a grid of unequal resolutions (some along an axis), and stops where asked.
-    #[test]
-    fn visit_gives_the_cells_of_next() {
-        let grid = UniformGrid {
-            origin: Vec3::new(-1.0, 0.5, 2.0),
-            cell: Vec3::new(0.25, 0.5, 0.125),
-            res: IVec3::new(8, 5, 16),
-        };
-        let mut rng = Rng::new(3, 4);
-        let mut cells_seen = 0;
-        for k in 0..2000 {
-            let origin = grid.origin + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 4.0
-                - Vec3::splat(1.0);
-            let mut dir = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3::splat(0.5);
-            if k % 7 == 0 {
-                dir[k % 3] = 0.0;
-            }
-            let Some(dir) = dir.try_normalize() else { continue };
-            let ray = Ray::new(origin, dir);
-            let walk = Dda::clipped(&grid, &ray, dir.recip(), 0.0, 3.0 * rng.next_f32());
-            let mut expected = Vec::new();
-            let mut stepped = 0;
-            let mut next = walk.clone();
-            while let Some((cell, _, t1)) = next.next(&mut stepped) {
-                expected.push((cell.to_array(), t1));
-            }
-            let mut visited = Vec::new();
-            assert!(!walk.clone().visit(|cell, t1| {
-                visited.push((cell, t1));
-                false
-            }));
-            assert_eq!(visited, expected, "ray {k}");
-            cells_seen += visited.len();
-            if let Some(&(stop, _)) = expected.get(expected.len() / 2) {
-                let mut before = 0;
-                assert!(walk.visit(|cell, _| {
-                    before += 1;
-                    cell == stop
-                }));
-                assert_eq!(before, expected.len() / 2 + 1, "ray {k}");
-            }
-        }
-        assert!(cells_seen > 2000, "{cells_seen}");
     }
 }
