@@ -264,9 +264,11 @@ struct RenderArgs {
     #[arg(long = "emitter-edges", value_parser = choice::<nimbus::render::EmitterEdgeSampling>(),
           default_value = "auto")]
     emitter_edges: nimbus::render::EmitterEdgeSampling,
-    /// Path guiding in media: `on` trains a cache of incident light (7 samples per pixel of the frame, before
-    /// the image's) and samples directions from it at medium scattering events; `auto` guides where a medium has
-    /// high albedo and high optical depth (--explain says why); `off` never guides.
+    /// Path guiding: `on` trains a cache of incident light (7 samples per pixel of the frame, before the
+    /// image's, from seeds of its own) and uses it for directions at medium scattering events and Lambertian
+    /// surfaces, for the distances of the decoupled direct-light sample in homogeneous media and for Russian
+    /// roulette on medium shadow rays; `auto` does not guide yet (guiding has not been measured to win by enough;
+    /// --explain says what its pilot measured); `off` never guides.
     #[arg(long, value_parser = choice::<nimbus::render::GuidingMode>(), default_value = "auto")]
     guiding: nimbus::render::GuidingMode,
     /// Where paths are guided, guided Russian roulette and splitting at medium scattering events instead of

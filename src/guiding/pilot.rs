@@ -5,8 +5,9 @@
 //! lookup per scattering event. Measured on the scene built for it (`benches/peers/scenes/backlit.gltf`: albedo
 //! 0.99, median optical depth 76; `benches/guiding_bench.py`), guided paths had 0.77x the efficiency of unguided
 //! ones at equal samples and 0.79x at equal time, and on the door-gap haze room 1.17x the MSE at equal samples
-//! (since then, at 128², in CPU time against Mitsuba references: 0.89x on the cloud, 1.06x on the door-gap room,
-//! docs/performance.md "Cutting guiding's cost on the door-gap room": a win within the noise of the timings). So
+//! (since then, at 128², in CPU time against Mitsuba references: 1.01-1.10x on the cloud with guided shadow
+//! roulette, 1.06x on the door-gap room, 0.84x on the baffle box, docs/performance.md "Equal time against Cycles
+//! 5.0 with guiding": wins within the noise of the timings). So
 //! `auto` does not guide yet: it reports the scattering medium where guiding would have the best chance, the one
 //! with the largest albedo × optical depth, with what the pilot measured there, and leaves guiding to
 //! `--guiding on`. A measured win would give auto a rule from these measurements (high albedo and optical depth).
@@ -95,8 +96,9 @@ fn auto_decision(scene: &Scene) -> GuidingDecision {
         on: false,
         reason: format!(
             "off (auto): the likeliest medium to pay, '{name}', has albedo {:.3} and median optical depth \
-             {:.1}; guiding measured 0.89x the efficiency of unguided paths on a cloud of albedo 0.99 and depth \
-             76 (1.06x only on a hazy room lit through a door gap), so auto leaves it to --guiding on",
+             {:.1}; guiding measured 1.01-1.10x the efficiency of unguided paths on a cloud of albedo 0.99 and \
+             depth 76 and 1.06x on a hazy room lit through a door gap, gains within the timings' noise, so auto \
+             leaves it to --guiding on",
             pilot.albedo, pilot.depth
         ),
     }
