@@ -97,18 +97,10 @@
 
 /// Declares internal items: `pub` with the `testing` feature, so that the crate's integration tests and benches
 /// reach them (see `nimbus::testing` when it is on), and `pub(crate)` without it, so that they are not part of the
-/// API an embedder sees. It takes any number of `pub mod NAME;` and `pub use TREE;` items, or one other item.
+/// API an embedder sees. It takes any number of `pub use TREE;` items, or one other item. (Internal modules are
+/// declared as a `#[cfg(feature = "testing")]` pair instead, which rustfmt follows into their files.)
 macro_rules! internal {
     () => {};
-    ($(#[$attr:meta])* pub mod $name:ident; $($rest:tt)*) => {
-        #[cfg(feature = "testing")]
-        $(#[$attr])*
-        pub mod $name;
-        #[cfg(not(feature = "testing"))]
-        $(#[$attr])*
-        pub(crate) mod $name;
-        internal! { $($rest)* }
-    };
     ($(#[$attr:meta])* pub use $($rest:tt)*) => {
         internal! { @use [$(#[$attr])*] [] $($rest)* }
     };
@@ -141,8 +133,14 @@ pub mod converge;
 pub mod denoise;
 pub mod farm;
 pub mod frames;
-internal! { pub mod geometry; }
-internal! { pub mod guiding; }
+#[cfg(feature = "testing")]
+pub mod geometry;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod geometry;
+#[cfg(feature = "testing")]
+pub mod guiding;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod guiding;
 mod integrator;
 pub mod light;
 pub mod limits;
@@ -155,7 +153,10 @@ pub mod scene;
 #[cfg(feature = "testing")]
 pub mod testing;
 pub mod vdb;
-internal! { pub mod volume; }
+#[cfg(feature = "testing")]
+pub mod volume;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod volume;
 
 pub use error::{Error, Result};
 pub use material::Material;

@@ -255,8 +255,16 @@ mod tests {
         for (i, change) in unhashed.iter().enumerate() {
             let mut t = s.clone();
             change(&mut t);
-            assert_ne!(format!("{t:?}"), format!("{s:?}"), "unhashed change {i} changes nothing");
-            assert_eq!(base, scene_hash(&[b"scene"], &t, &[]), "unhashed change {i}");
+            assert_ne!(
+                format!("{t:?}"),
+                format!("{s:?}"),
+                "unhashed change {i} changes nothing"
+            );
+            assert_eq!(
+                base,
+                scene_hash(&[b"scene"], &t, &[]),
+                "unhashed change {i}"
+            );
         }
         let changes: [fn(&mut RenderSettings); 14] = [
             |s| s.width += 1,

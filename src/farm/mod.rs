@@ -18,12 +18,22 @@
 //! checks, and nothing here assumes a still beyond that.
 
 pub mod checkpoint;
-internal! {
-    pub mod chunk;
-    pub mod hash;
-    pub mod merge;
-    pub mod part;
-}
+#[cfg(feature = "testing")]
+pub mod chunk;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod chunk;
+#[cfg(feature = "testing")]
+pub mod hash;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod hash;
+#[cfg(feature = "testing")]
+pub mod merge;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod merge;
+#[cfg(feature = "testing")]
+pub mod part;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod part;
 #[cfg(feature = "testing")]
 pub use hash::SceneHasher;
 #[cfg(feature = "testing")]

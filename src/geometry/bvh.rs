@@ -428,15 +428,14 @@ const IDENTITY_ORDER: u32 = 0o76543210;
 
 // A leaf's count must fit the top byte of `Node8::meta`, and an order its low bits.
 const _: () = assert!(
-    MAX_LEAF <= WIDE_MAX_LEAF && WIDE_MAX_LEAF <= u8::MAX as usize && 3 * WIDTH as u32 == ORDER_BITS
+    MAX_LEAF <= WIDE_MAX_LEAF
+        && WIDE_MAX_LEAF <= u8::MAX as usize
+        && 3 * WIDTH as u32 == ORDER_BITS
 );
 
 impl Node8 {
     const EMPTY: Node8 = Node8 {
-        bounds: [
-            [[Vec4::INFINITY; 2]; 3],
-            [[Vec4::NEG_INFINITY; 2]; 3],
-        ],
+        bounds: [[[Vec4::INFINITY; 2]; 3], [[Vec4::NEG_INFINITY; 2]; 3]],
         child: [0; WIDTH],
         meta: [IDENTITY_ORDER; WIDTH],
     };
@@ -828,9 +827,13 @@ mod avx2 {
         hooks: (&impl Leaves, &impl Fn()),
     ) -> Option<TriangleHit> {
         let r = Ray8::new(ray);
-        tree.traverse_with::<ANY_HIT, STACK_FIRST>(ray, t_range, hooks, r.octant, &|node, t0, t1| {
-            r.slab8(node, t0, t1)
-        })
+        tree.traverse_with::<ANY_HIT, STACK_FIRST>(
+            ray,
+            t_range,
+            hooks,
+            r.octant,
+            &|node, t0, t1| r.slab8(node, t0, t1),
+        )
     }
 
     /// Per-ray constants of the 8-lane slab test, splatted across the eight lanes (as
@@ -850,7 +853,11 @@ mod avx2 {
             let inv = d.recip();
             let (neg, octant) = direction_signs(d);
             Self {
-                origin: [_mm256_set1_ps(o.x), _mm256_set1_ps(o.y), _mm256_set1_ps(o.z)],
+                origin: [
+                    _mm256_set1_ps(o.x),
+                    _mm256_set1_ps(o.y),
+                    _mm256_set1_ps(o.z),
+                ],
                 inv_dir: [
                     _mm256_set1_ps(inv.x),
                     _mm256_set1_ps(inv.y),
@@ -1128,9 +1135,18 @@ where
     T: Fn(usize),
 {
     #[inline(always)]
-    fn intersect(&self, first: usize, count: usize, ray: &WatertightRay, best: &mut Closest) -> bool {
+    fn intersect(
+        &self,
+        first: usize,
+        count: usize,
+        ray: &WatertightRay,
+        best: &mut Closest,
+    ) -> bool {
         (self.tested)(count);
-        let packs = self.packs.get(first..first + count.div_ceil(PACK)).unwrap_or_default();
+        let packs = self
+            .packs
+            .get(first..first + count.div_ceil(PACK))
+            .unwrap_or_default();
         for (p, pack) in packs.iter().enumerate() {
             let valid = (1u32 << (count - p * PACK).min(PACK)) - 1;
             let hits = pack.intersect(ray, valid, self.t_min, best.limit());
@@ -1167,7 +1183,13 @@ pub(super) trait Leaves {
     /// Intersects the leaf of `count` primitives at `first` (an index into the leaf order, or whatever the
     /// hierarchy made it), offers each hit to `best` ([`Closest::offer`]) and returns whether `offer` ended
     /// the query.
-    fn intersect(&self, first: usize, count: usize, ray: &WatertightRay, best: &mut Closest) -> bool;
+    fn intersect(
+        &self,
+        first: usize,
+        count: usize,
+        ray: &WatertightRay,
+        best: &mut Closest,
+    ) -> bool;
 
     /// Starts loading the leaf at `first`.
     fn prefetch(&self, first: usize);
@@ -1182,7 +1204,13 @@ where
     P: Fn(usize),
 {
     #[inline(always)]
-    fn intersect(&self, first: usize, count: usize, ray: &WatertightRay, best: &mut Closest) -> bool {
+    fn intersect(
+        &self,
+        first: usize,
+        count: usize,
+        ray: &WatertightRay,
+        best: &mut Closest,
+    ) -> bool {
         (self.0)(first, count, ray, best)
     }
 
@@ -1227,8 +1255,8 @@ impl Closest {
         accept: &impl Fn(&TriangleHit) -> bool,
     ) -> bool {
         let t = hit.t;
-        let better = t < self.best_t
-            || (t == self.best_t && self.best.is_none_or(|b| hit.prim < b.prim));
+        let better =
+            t < self.best_t || (t == self.best_t && self.best.is_none_or(|b| hit.prim < b.prim));
         if better && accept(&hit) {
             self.best = Some(hit);
             if ANY_HIT {
@@ -1352,9 +1380,13 @@ impl Tree {
         hooks: (&impl Leaves, &impl Fn()),
     ) -> Option<TriangleHit> {
         let r = TraversalRay::new(ray);
-        self.traverse_with::<ANY_HIT, STACK_FIRST>(ray, t_range, hooks, r.octant, &|node, t0, t1| {
-            r.slab8(node, t0, t1)
-        })
+        self.traverse_with::<ANY_HIT, STACK_FIRST>(
+            ray,
+            t_range,
+            hooks,
+            r.octant,
+            &|node, t0, t1| r.slab8(node, t0, t1),
+        )
     }
 
     /// [`Tree::traverse`] with a `FIRST`-entry stack (`STACK_FIRST`), testing a node's eight boxes with `slab8`
@@ -1781,7 +1813,9 @@ pub(super) mod tests {
         let mut rng = Rng::new(5, 6);
         let tris = soup(&mut rng, 2000);
         let bvh = Bvh::build(&tris).unwrap();
-        let bits = |h: Option<TriangleHit>| h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits(), h.b2.to_bits()));
+        let bits = |h: Option<TriangleHit>| {
+            h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits(), h.b2.to_bits()))
+        };
         let (mut overflowed, mut hits) = (0, 0);
         for k in 0..1500 {
             let ray = random_ray(&mut rng, Vec3::splat(-14.0), Vec3::splat(14.0));
@@ -1789,17 +1823,34 @@ pub(super) mod tests {
             let r = TraversalRay::new(&ray);
             let box_test = (r.octant, &|node: &Node8, a, b| r.slab8(node, a, b));
             let closest = (&pack_leaves::<false>(&bvh, t0), &|| {});
-            let first = bvh.tree.traverse::<false, FIRST>(&ray, t0, t1, closest, box_test);
+            let first = bvh
+                .tree
+                .traverse::<false, FIRST>(&ray, t0, t1, closest, box_test);
             overflowed += usize::from(first.is_err());
-            let got = bvh.tree.traverse_with::<false, FIRST>(&ray, [t0, t1], closest, box_test.0, box_test.1);
+            let got = bvh.tree.traverse_with::<false, FIRST>(
+                &ray,
+                [t0, t1],
+                closest,
+                box_test.0,
+                box_test.1,
+            );
             let expect = brute_closest(&tris, &ray, t0, t1);
             assert_eq!(bits(got), bits(expect), "ray {k}: {ray:?} [{t0}, {t1}]");
             let any = (&pack_leaves::<true>(&bvh, t0), &|| {});
-            let got = bvh.tree.traverse_with::<true, FIRST>(&ray, [t0, t1], any, box_test.0, box_test.1);
-            assert_eq!(got.is_some(), brute_occluded(&tris, &ray, t0, t1), "ray {k}: {ray:?} [{t0}, {t1}]");
+            let got =
+                bvh.tree
+                    .traverse_with::<true, FIRST>(&ray, [t0, t1], any, box_test.0, box_test.1);
+            assert_eq!(
+                got.is_some(),
+                brute_occluded(&tris, &ray, t0, t1),
+                "ray {k}: {ray:?} [{t0}, {t1}]"
+            );
             hits += usize::from(expect.is_some());
         }
-        assert!(overflowed > 100 && hits > 150, "{overflowed} rays overflowed, {hits} hit");
+        assert!(
+            overflowed > 100 && hits > 150,
+            "{overflowed} rays overflowed, {hits} hit"
+        );
     }
 
     #[test]
@@ -1810,17 +1861,27 @@ pub(super) mod tests {
         let mut tris = soup(&mut rng, 3000);
         tris.extend(bumpy_sphere(24, 48, &mut rng));
         let bvh = Bvh::build(&tris).unwrap();
-        let bits = |h: Option<TriangleHit>| h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits(), h.b2.to_bits()));
+        let bits = |h: Option<TriangleHit>| {
+            h.map(|h| (h.t.to_bits(), h.prim, h.b1.to_bits(), h.b2.to_bits()))
+        };
         let mut hits = [0; 2];
         for k in 0..4000 {
             let ray = random_ray(&mut rng, Vec3::splat(-12.0), Vec3::splat(12.0));
             let (t0, t1) = random_interval(&mut rng);
             let hooks = (&pack_leaves::<false>(&bvh, t0), &|| {});
             let base = bvh.tree.traverse_baseline::<false>(&ray, [t0, t1], hooks);
-            assert_eq!(bits(bvh.intersect(&ray, t0, t1)), bits(base), "ray {k}: {ray:?} [{t0}, {t1}]");
+            assert_eq!(
+                bits(bvh.intersect(&ray, t0, t1)),
+                bits(base),
+                "ray {k}: {ray:?} [{t0}, {t1}]"
+            );
             let hooks = (&pack_leaves::<true>(&bvh, t0), &|| {});
             let base_any = bvh.tree.traverse_baseline::<true>(&ray, [t0, t1], hooks);
-            assert_eq!(bvh.occluded(&ray, t0, t1), base_any.is_some(), "ray {k}: {ray:?} [{t0}, {t1}]");
+            assert_eq!(
+                bvh.occluded(&ray, t0, t1),
+                base_any.is_some(),
+                "ray {k}: {ray:?} [{t0}, {t1}]"
+            );
             hits[0] += usize::from(base.is_some());
             hits[1] += usize::from(base_any.is_some());
         }
@@ -1955,7 +2016,16 @@ pub(super) mod tests {
     fn slab_min_max_keep_the_second_operand_on_nan_and_ties() {
         // The slab test relies on these exact semantics (NaN planes ignored, ties kept), which the select
         // form states; check them against it lane by lane.
-        let values = [f32::NAN, 0.0, -0.0, 1.0, -1.0, f32::INFINITY, f32::NEG_INFINITY, 3.5];
+        let values = [
+            f32::NAN,
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            3.5,
+        ];
         for &x in &values {
             for &y in &values {
                 let (a, b) = (Vec4::new(x, y, x, 1.0), Vec4::new(y, x, 2.0, x));
@@ -2018,7 +2088,11 @@ pub(super) mod tests {
                 .collect();
             for (k, (ray, t0, t1)) in rays.iter().enumerate() {
                 let expect = brute_closest(&tris, ray, *t0, *t1);
-                assert_eq!(bvh.intersect(ray, *t0, *t1), expect, "{n} triangles, ray {k}");
+                assert_eq!(
+                    bvh.intersect(ray, *t0, *t1),
+                    expect,
+                    "{n} triangles, ray {k}"
+                );
                 assert_eq!(
                     bvh.occluded(ray, *t0, *t1),
                     brute_occluded(&tris, ray, *t0, *t1),

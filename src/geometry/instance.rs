@@ -227,9 +227,10 @@ impl TriangleHierarchy for InstanceBvh {
                         prim: place.first + h.prim,
                         ..*h
                     };
-                    let hit = proto.query::<ANY_HIT>(&local, t_min.max(reach), best.limit(), &|h| {
-                        accept(&numbered(h))
-                    });
+                    let hit =
+                        proto.query::<ANY_HIT>(&local, t_min.max(reach), best.limit(), &|h| {
+                            accept(&numbered(h))
+                        });
                     // The prototype's query has applied `accept` already.
                     if let Some(h) = hit {
                         if best.offer::<ANY_HIT>(numbered(&h), &|_| true) {

@@ -16,9 +16,9 @@ pub use bvh::TraversalCounts;
 pub use bvh::{Bvh, TooManyTriangles, TriangleHierarchy};
 pub use instance::{Instance, InstanceBvh};
 pub use mesh::{Mesh, MeshMotion};
-pub use motion::{MotionBvh, MotionSteps};
 #[cfg(feature = "testing")]
 pub use motion::{lerp, MovingTriangle};
+pub use motion::{MotionBvh, MotionSteps};
 pub use spawn::{ShadowSegment, SurfacePoint};
 pub use subdivision::{
     BoundaryRule, CreaseMethod, FaceVaryingRule, PolygonMesh, Scheme, SubdivisionRules,

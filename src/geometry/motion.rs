@@ -184,10 +184,13 @@ impl TriangleHierarchy for MotionBvh {
             t_min,
             t_max,
             &|first, count, r, best| {
-                for (i, &prim) in (first..first + count).zip(&self.tree.prim_ids()[first..first + count]) {
+                for (i, &prim) in
+                    (first..first + count).zip(&self.tree.prim_ids()[first..first + count])
+                {
                     let (steps, at) = self.prims[i];
                     let at = at as usize;
-                    let tri = interpolate(steps, &self.vertices[at..at + steps.count as usize], time);
+                    let tri =
+                        interpolate(steps, &self.vertices[at..at + steps.count as usize], time);
                     if let Some((t, b1, b2)) = intersect_triangle(r, &tri, t_min, best.limit()) {
                         if best.offer::<ANY_HIT>(TriangleHit { t, prim, b1, b2 }, accept) {
                             return true;

@@ -684,9 +684,8 @@ impl PolygonMesh {
         // The mesh's corners hold for its values, and so does `edgeAndCorner`'s corner at a vertex of one face
         // (which matters under `none`, whose own boundary rule leaves island corners smooth).
         for (value, &v) in vertex_of.iter().enumerate() {
-            let boundary_corner =
-                self.rules.boundary == BoundaryRule::EdgeAndCorner
-                    && topology.vertex_faces[v as usize].len() == 1;
+            let boundary_corner = self.rules.boundary == BoundaryRule::EdgeAndCorner
+                && topology.vertex_faces[v as usize].len() == 1;
             let sharpness = if boundary_corner {
                 Some(INFINITELY_SHARP)
             } else {

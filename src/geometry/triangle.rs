@@ -61,7 +61,8 @@ impl WatertightRay {
         let x_largest = a.x >= a.y && a.x >= a.z;
         let y_largest = !x_largest && a.y >= a.z;
         let kz = usize::from(!x_largest) + usize::from(!x_largest && !y_largest);
-        const OTHERS: [[(usize, usize); 2]; 3] = [[(1, 2), (2, 1)], [(2, 0), (0, 2)], [(0, 1), (1, 0)]];
+        const OTHERS: [[(usize, usize); 2]; 3] =
+            [[(1, 2), (2, 1)], [(2, 0), (0, 2)], [(0, 1), (1, 0)]];
         let (kx, ky) = OTHERS[kz][usize::from(d[kz] < 0.0)];
         let sz = 1.0 / d[kz];
         // Each row holds one exact 1 (or `Sz`) and the shear at `kz`, +0 elsewhere.
@@ -85,7 +86,12 @@ impl WatertightRay {
             shear_x,
             shear_y,
             scale_z,
-            splat: [splat(ray.origin), splat(shear_x), splat(shear_y), splat(scale_z)],
+            splat: [
+                splat(ray.origin),
+                splat(shear_x),
+                splat(shear_y),
+                splat(scale_z),
+            ],
         }
     }
 }
@@ -174,9 +180,8 @@ impl Triangle4 {
     /// Packs up to four triangles with their input indices; an empty list gives a pack no valid lane names.
     pub(super) fn new(tris: &[[Vec3; 3]], ids: &[u32]) -> Self {
         let lane = |i: usize| tris.get(i).or(tris.first()).copied().unwrap_or_default();
-        let vertex = [0, 1, 2].map(|k| {
-            [0, 1, 2].map(|a| Vec4::from_array([0, 1, 2, 3].map(|i| lane(i)[k][a])))
-        });
+        let vertex = [0, 1, 2]
+            .map(|k| [0, 1, 2].map(|a| Vec4::from_array([0, 1, 2, 3].map(|i| lane(i)[k][a]))));
         Self {
             vertex,
             ids: [0, 1, 2, 3].map(|i| ids.get(i).copied().unwrap_or(u32::MAX)),
@@ -187,7 +192,13 @@ impl Triangle4 {
     /// performs exactly the scalar operations of [`intersect_triangle`] in the same order, so its hits,
     /// distances and barycentrics are bit for bit those of testing the triangles one at a time.
     #[inline(always)]
-    pub(super) fn intersect(&self, ray: &WatertightRay, valid: u32, t_min: f32, t_max: f32) -> Hits4 {
+    pub(super) fn intersect(
+        &self,
+        ray: &WatertightRay,
+        valid: u32,
+        t_min: f32,
+        t_max: f32,
+    ) -> Hits4 {
         let [o, shear_x, shear_y, scale_z] = &ray.splat;
         // Vertex k translated to the ray origin, then a row of the permute-and-shear transform applied.
         let rel = |k: usize| {
@@ -201,13 +212,16 @@ impl Triangle4 {
         let mut u = cx * by - cy * bx;
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
-        let zero = (u.cmpeq(Vec4::ZERO) | v.cmpeq(Vec4::ZERO) | w.cmpeq(Vec4::ZERO)).bitmask() & valid;
+        let zero =
+            (u.cmpeq(Vec4::ZERO) | v.cmpeq(Vec4::ZERO) | w.cmpeq(Vec4::ZERO)).bitmask() & valid;
         let mut m = zero;
         while m != 0 {
             // An exact zero may be a rounding artefact; decide that lane in double precision.
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
-            let edge = |p: [f32; 4]| -> f64 { f64::from(p[0]) * f64::from(p[1]) - f64::from(p[2]) * f64::from(p[3]) };
+            let edge = |p: [f32; 4]| -> f64 {
+                f64::from(p[0]) * f64::from(p[1]) - f64::from(p[2]) * f64::from(p[3])
+            };
             u[i] = edge([cx[i], by[i], cy[i], bx[i]]) as f32;
             v[i] = edge([ax[i], cy[i], ay[i], cx[i]]) as f32;
             w[i] = edge([bx[i], ay[i], by[i], ax[i]]) as f32;
@@ -215,7 +229,12 @@ impl Triangle4 {
         let negative = u.cmplt(Vec4::ZERO) | v.cmplt(Vec4::ZERO) | w.cmplt(Vec4::ZERO);
         let positive = u.cmpgt(Vec4::ZERO) | v.cmpgt(Vec4::ZERO) | w.cmpgt(Vec4::ZERO);
         let inside = (!(negative & positive)).bitmask() & valid;
-        let none = Hits4 { mask: 0, t: Vec4::ZERO, b1: Vec4::ZERO, b2: Vec4::ZERO };
+        let none = Hits4 {
+            mask: 0,
+            t: Vec4::ZERO,
+            b1: Vec4::ZERO,
+            b2: Vec4::ZERO,
+        };
         if inside == 0 {
             return none;
         }
@@ -226,13 +245,22 @@ impl Triangle4 {
         let t = t_scaled * rcp;
         let max_abs = |p: Vec4, q: Vec4, r: Vec4| p.abs().max(q.abs()).max(r.abs());
         let bound = error_bound_from_maxima(
-            [max_abs(ax, bx, cx), max_abs(ay, by, cy), max_abs(az, bz, cz)],
+            [
+                max_abs(ax, bx, cx),
+                max_abs(ay, by, cy),
+                max_abs(az, bz, cz),
+            ],
             max_abs(u, v, w),
             rcp.abs(),
         );
         let in_range: BVec4A = t.cmpge(Vec4::splat(t_min)) & t.cmple(Vec4::splat(t_max));
         let hit = det.cmpne(Vec4::ZERO) & in_range & t.cmpgt(bound);
-        Hits4 { mask: hit.bitmask() & inside, t, b1: v * rcp, b2: w * rcp }
+        Hits4 {
+            mask: hit.bitmask() & inside,
+            t,
+            b1: v * rcp,
+            b2: w * rcp,
+        }
     }
 }
 
@@ -336,7 +364,11 @@ mod tests {
             for (i, tri) in tris[..used].iter().enumerate() {
                 let single = intersect_triangle(&ray, tri, 0.0, 2.5);
                 let packed = (hits.mask >> i & 1 == 1).then(|| (hits.t[i], hits.b1[i], hits.b2[i]));
-                assert_eq!(packed.map(|h| h.0.to_bits()), single.map(|h| h.0.to_bits()), "{k} {i}");
+                assert_eq!(
+                    packed.map(|h| h.0.to_bits()),
+                    single.map(|h| h.0.to_bits()),
+                    "{k} {i}"
+                );
                 assert_eq!(packed, single, "{k} {i}");
             }
             assert_eq!(hits.mask >> used, 0, "{k}: an unused lane hit");
@@ -369,9 +401,23 @@ mod tests {
     #[test]
     fn shear_rows_are_those_of_the_indexed_form_bit_for_bit() {
         let mut rng = crate::math::Rng::new(5, 6);
-        let mut dirs = vec![Vec3::X, -Vec3::Y, Vec3::Z, Vec3::ONE, -Vec3::ONE, Vec3::new(-0.0, 0.0, 1.0)];
-        dirs.extend([Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 2.0, -2.0), Vec3::new(-0.0, -0.0, -0.5)]);
-        dirs.extend((0..2000).map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0));
+        let mut dirs = vec![
+            Vec3::X,
+            -Vec3::Y,
+            Vec3::Z,
+            Vec3::ONE,
+            -Vec3::ONE,
+            Vec3::new(-0.0, 0.0, 1.0),
+        ];
+        dirs.extend([
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(0.0, 2.0, -2.0),
+            Vec3::new(-0.0, -0.0, -0.5),
+        ]);
+        dirs.extend(
+            (0..2000)
+                .map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0),
+        );
         for d in dirs {
             let ray = WatertightRay::new(&Ray::new(Vec3::ZERO, d));
             let bits = |v: Vec3| v.to_array().map(f32::to_bits);

@@ -138,7 +138,12 @@ mod tests {
     /// the expected score is 1/(1 − albedo). The weight window is played at every step against a deliberately
     /// poor adjoint estimate (a constant `adjoint` times the throughput), so it both kills and splits. Returns
     /// the mean score and its standard error over `paths` walks.
-    fn walk_mean(paths: u32, albedo: f32, adjoint: f32, play: fn(f32, f32, u32) -> Roulette) -> (f64, f64) {
+    fn walk_mean(
+        paths: u32,
+        albedo: f32,
+        adjoint: f32,
+        play: fn(f32, f32, u32) -> Roulette,
+    ) -> (f64, f64) {
         let mut rng = Rng::new(7, 11);
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);
         for _ in 0..paths {
@@ -187,23 +192,71 @@ mod tests {
         // An adjoint estimate 10x too low kills, one 10x too high splits.
         for adjoint in [0.1f32, 10.0] {
             let (mean, se) = walk_mean(100_000, albedo, adjoint, play);
-            assert!((mean - want).abs() < 4.0 * se, "adjoint {adjoint}: {mean} vs {want} (se {se})");
+            assert!(
+                (mean - want).abs() < 4.0 * se,
+                "adjoint {adjoint}: {mean} vs {want} (se {se})"
+            );
             let (biased, se) = walk_mean(100_000, albedo, adjoint, play_forgetting_survival);
             if adjoint < 1.0 {
-                assert!((biased - want).abs() > 4.0 * se, "the biased window passed: {biased} (se {se})");
+                assert!(
+                    (biased - want).abs() > 4.0 * se,
+                    "the biased window passed: {biased} (se {se})"
+                );
             }
         }
     }
 
     #[test]
     fn the_window_splits_within_its_bounds_and_leaves_the_middle_alone() {
-        assert_eq!(play(1.0, 0.3, MAX_BRANCHES), Roulette::GoesOn { copies: 1, weight: 1.0 });
-        assert_eq!(play(3.5, 0.2, MAX_BRANCHES), Roulette::GoesOn { copies: 4, weight: 0.25 });
-        assert_eq!(play(3.5, 0.7, MAX_BRANCHES), Roulette::GoesOn { copies: 3, weight: 1.0 / 3.0 });
-        assert_eq!(play(1e9, 0.5, MAX_BRANCHES), Roulette::GoesOn { copies: MAX_SPLIT, weight: 0.125 });
-        assert_eq!(play(1e9, 0.5, 2), Roulette::GoesOn { copies: 3, weight: 1.0 / 3.0 });
-        assert_eq!(play(1e9, 0.5, 0), Roulette::GoesOn { copies: 1, weight: 1.0 });
-        assert_eq!(play(0.0, 0.04, MAX_BRANCHES), Roulette::GoesOn { copies: 1, weight: 20.0 });
+        assert_eq!(
+            play(1.0, 0.3, MAX_BRANCHES),
+            Roulette::GoesOn {
+                copies: 1,
+                weight: 1.0
+            }
+        );
+        assert_eq!(
+            play(3.5, 0.2, MAX_BRANCHES),
+            Roulette::GoesOn {
+                copies: 4,
+                weight: 0.25
+            }
+        );
+        assert_eq!(
+            play(3.5, 0.7, MAX_BRANCHES),
+            Roulette::GoesOn {
+                copies: 3,
+                weight: 1.0 / 3.0
+            }
+        );
+        assert_eq!(
+            play(1e9, 0.5, MAX_BRANCHES),
+            Roulette::GoesOn {
+                copies: MAX_SPLIT,
+                weight: 0.125
+            }
+        );
+        assert_eq!(
+            play(1e9, 0.5, 2),
+            Roulette::GoesOn {
+                copies: 3,
+                weight: 1.0 / 3.0
+            }
+        );
+        assert_eq!(
+            play(1e9, 0.5, 0),
+            Roulette::GoesOn {
+                copies: 1,
+                weight: 1.0
+            }
+        );
+        assert_eq!(
+            play(0.0, 0.04, MAX_BRANCHES),
+            Roulette::GoesOn {
+                copies: 1,
+                weight: 20.0
+            }
+        );
         assert_eq!(play(0.0, 0.06, MAX_BRANCHES), Roulette::Ends);
         assert_eq!(play(f32::NAN, 0.06, MAX_BRANCHES), Roulette::Ends);
     }

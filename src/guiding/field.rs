@@ -125,7 +125,12 @@ struct Cell {
 }
 
 impl Cell {
-    fn new(depth: u32, vmf: Option<VmfMixture>, mean_radiance: Option<f32>, selection: f32) -> Self {
+    fn new(
+        depth: u32,
+        vmf: Option<VmfMixture>,
+        mean_radiance: Option<f32>,
+        selection: f32,
+    ) -> Self {
         Self {
             records: 0,
             energy: 0.0,
@@ -168,7 +173,10 @@ impl GuidingField {
         let (centre, half) = if bounds.is_empty() {
             (Vec3::ZERO, 1.0)
         } else {
-            (bounds.center(), (bounds.extent().max_element() * 0.5).max(1e-3))
+            (
+                bounds.center(),
+                (bounds.extent().max_element() * 0.5).max(1e-3),
+            )
         };
         // A little margin so that points on the boundary are inside.
         let half = Vec3::splat(half * 1.001);
@@ -385,7 +393,8 @@ impl GuidingField {
         let selection = self.cells[cell].selection;
         let other = self.cells.len();
         self.cells[cell].depth = depth + 1;
-        self.cells.push(Cell::new(depth + 1, vmf, mean_radiance, selection));
+        self.cells
+            .push(Cell::new(depth + 1, vmf, mean_radiance, selection));
         self.nodes.push(SpatialNode::Leaf(cell as u32));
         self.nodes.push(SpatialNode::Leaf(other as u32));
         self.nodes[node] = SpatialNode::Inner {
@@ -524,7 +533,10 @@ mod tests {
         assert_eq!(selection(&cap_records(3000, -Vec3::Z)), 0.0);
         let few = MIN_SELECTION_RECORDS as usize - 1;
         let mut records = cap_records(3000, -Vec3::Z);
-        records.iter_mut().skip(few).for_each(|r| r.guide_pdf = None);
+        records
+            .iter_mut()
+            .skip(few)
+            .for_each(|r| r.guide_pdf = None);
         assert_eq!(selection(&records), GUIDE_PROBABILITY);
         // The choice weighs the cost of guiding: an estimated second moment below the unguided one's by less
         // than the cost is not guided.
@@ -543,10 +555,20 @@ mod tests {
             unguided_pdf: 1.0,
             guide_pdf: None,
         };
-        field.add_records(&[bad, RadianceRecord { pdf: 0.0, radiance: 1.0, ..bad }]);
+        field.add_records(&[
+            bad,
+            RadianceRecord {
+                pdf: 0.0,
+                radiance: 1.0,
+                ..bad
+            },
+        ]);
         field.finish_iteration();
         assert!(field.vmf_at(Vec3::ZERO).is_none());
-        field.add_records(&[RadianceRecord { radiance: 1.0, ..bad }]);
+        field.add_records(&[RadianceRecord {
+            radiance: 1.0,
+            ..bad
+        }]);
         field.finish_iteration();
         assert!(field.vmf_at(Vec3::splat(100.0)).is_some());
         assert_eq!(field.iterations(), 2);

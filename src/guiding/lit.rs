@@ -71,8 +71,14 @@ impl LitGrid {
             (bounds.min, bounds.extent())
         };
         let voxel = (extent.max_element() / LIT_RESOLUTION as f32).max(1e-4);
-        let resolution = [0, 1, 2].map(|a| ((extent[a] / voxel).ceil() as usize).clamp(1, LIT_RESOLUTION));
-        let max = min + Vec3::new(resolution[0] as f32, resolution[1] as f32, resolution[2] as f32) * voxel;
+        let resolution =
+            [0, 1, 2].map(|a| ((extent[a] / voxel).ceil() as usize).clamp(1, LIT_RESOLUTION));
+        let max = min
+            + Vec3::new(
+                resolution[0] as f32,
+                resolution[1] as f32,
+                resolution[2] as f32,
+            ) * voxel;
         let n = resolution.iter().product();
         Self {
             bounds: Aabb::new(min, max),
@@ -184,7 +190,11 @@ impl LitGrid {
         let (mut start, mut total, mut decay) = (0.0f32, 0.0f32, 1.0f32);
         for i in 0..guide.len {
             let value = guide.cdf[i];
-            let value = if value.is_nan() { mean } else { value.max(floor) };
+            let value = if value.is_nan() {
+                mean
+            } else {
+                value.max(floor)
+            };
             let end = guide.ends[i];
             let x = sigma * (end - start);
             let decay_end = decay / (1.0 + x * (1.0 + 0.5 * x));
@@ -222,7 +232,14 @@ impl LitGrid {
     /// [`Self::lit_span`]): `guide.ends` the pieces' ends (increasing, the last `length`), `guide.cdf` their
     /// voxels' estimates (NaN for none), and one piece of estimate 0 for each part outside that box (no voxel
     /// there has light).
-    fn cut(&self, origin: Vec3, dir: Vec3, length: f32, span: (f32, f32), guide: &mut DistanceGuide) {
+    fn cut(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        length: f32,
+        span: (f32, f32),
+        guide: &mut DistanceGuide,
+    ) {
         let push = |guide: &mut DistanceGuide, end: f32, value: f32| {
             let end = end.min(length);
             if guide.len == MAX_PIECES {
@@ -247,9 +264,17 @@ impl LitGrid {
         let mut walk = Dda::inside(&grid, &Ray::new(origin, dir), dir.recip(), t_in, t_out);
         let mut cells = 0;
         while let Some((voxel, _, end)) = walk.next(&mut cells) {
-            push(guide, end, self.means[self.index(voxel.to_array().map(|c| c as usize))]);
+            push(
+                guide,
+                end,
+                self.means[self.index(voxel.to_array().map(|c| c as usize))],
+            );
         }
-        let last = if guide.len > 0 { guide.ends[guide.len - 1] } else { 0.0 };
+        let last = if guide.len > 0 {
+            guide.ends[guide.len - 1]
+        } else {
+            0.0
+        };
         if last < length {
             push(guide, length, 0.0);
         }
@@ -350,9 +375,24 @@ mod tests {
         let grid = shaft();
         for (i, (origin, dir, length, sigma)) in [
             (Vec3::new(0.1, 1.0, 1.0), Vec3::new(1.0, 0.1, 0.2), 3.5, 0.5),
-            (Vec3::new(-1.0, 2.0, 2.0), Vec3::new(1.0, 0.0, 0.0), 6.0, 0.0),
-            (Vec3::new(3.9, 0.3, 1.0), Vec3::new(-0.7, 0.3, 0.6), 4.0, 2.0),
-            (Vec3::new(1.7, 3.0, 3.5), Vec3::new(0.0, -0.6, -0.8), 3.0, 1.0),
+            (
+                Vec3::new(-1.0, 2.0, 2.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                6.0,
+                0.0,
+            ),
+            (
+                Vec3::new(3.9, 0.3, 1.0),
+                Vec3::new(-0.7, 0.3, 0.6),
+                4.0,
+                2.0,
+            ),
+            (
+                Vec3::new(1.7, 3.0, 3.5),
+                Vec3::new(0.0, -0.6, -0.8),
+                3.0,
+                1.0,
+            ),
         ]
         .into_iter()
         .enumerate()
@@ -382,13 +422,23 @@ mod tests {
         let (origin, dir, length) = (Vec3::new(0.1, 1.0, 1.0), Vec3::X, 3.8);
         let guide = grid.distance_guide(origin, dir, length, 0.0).unwrap();
         // Lit over [1.4, 1.9] of the segment (x from 1.5 to 2.0).
-        let lit: f32 = (0..1000).map(|k| guide.pdf(1.4 + 0.5 * (k as f32 + 0.5) / 1000.0)).sum::<f32>() * 0.5 / 1000.0;
+        let lit: f32 = (0..1000)
+            .map(|k| guide.pdf(1.4 + 0.5 * (k as f32 + 0.5) / 1000.0))
+            .sum::<f32>()
+            * 0.5
+            / 1000.0;
         assert!(lit > 0.7, "{lit}");
         let mean = 1.0 / length;
         let dark = guide.pdf(0.5);
         assert!(dark > 0.0 && dark < 0.2 * mean, "{dark}");
-        assert!(grid.distance_guide(Vec3::new(0.1, 1.0, 1.0), Vec3::Y, 2.0, 0.0).is_none());
-        assert!(grid.distance_guide(Vec3::new(1.7, 1.0, 3.5), Vec3::Y, 2.0, 0.0).is_none());
-        assert!(grid.distance_guide(origin, dir, f32::INFINITY, 0.0).is_none());
+        assert!(grid
+            .distance_guide(Vec3::new(0.1, 1.0, 1.0), Vec3::Y, 2.0, 0.0)
+            .is_none());
+        assert!(grid
+            .distance_guide(Vec3::new(1.7, 1.0, 3.5), Vec3::Y, 2.0, 0.0)
+            .is_none());
+        assert!(grid
+            .distance_guide(origin, dir, f32::INFINITY, 0.0)
+            .is_none());
     }
 }

@@ -26,8 +26,8 @@ pub mod vmf;
 
 pub use field::{GuidingField, RadianceRecord};
 pub use lit::LitRecord;
-pub use vmf::VmfMixture;
 pub use pilot::GuidingDecision;
+pub use vmf::VmfMixture;
 
 use crate::math::{Rgb, Vec3};
 
@@ -185,7 +185,6 @@ impl GuidePath {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -201,8 +200,23 @@ mod tests {
             guide: None,
         };
         assert_eq!(path.continuation(Rgb::splat(3.0)), Rgb::ZERO);
-        path.push(Vec3::ZERO, (Vec3::Z, 1.0), densities, Rgb::ONE, Rgb::splat(2.0));
-        path.push(Vec3::ONE, (Vec3::Y, 1.0), densities, Rgb::ONE, Rgb::splat(2.5));
-        assert_eq!(path.continuation(Rgb::new(3.0, 2.0, 4.0)), Rgb::new(1.0, 0.0, 2.0));
+        path.push(
+            Vec3::ZERO,
+            (Vec3::Z, 1.0),
+            densities,
+            Rgb::ONE,
+            Rgb::splat(2.0),
+        );
+        path.push(
+            Vec3::ONE,
+            (Vec3::Y, 1.0),
+            densities,
+            Rgb::ONE,
+            Rgb::splat(2.5),
+        );
+        assert_eq!(
+            path.continuation(Rgb::new(3.0, 2.0, 4.0)),
+            Rgb::new(1.0, 0.0, 2.0)
+        );
     }
 }

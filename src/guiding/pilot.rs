@@ -82,7 +82,10 @@ fn auto_decision(scene: &Scene) -> GuidingDecision {
             continue;
         };
         let pilot = measure(medium.as_ref(), &bounds);
-        if best.as_ref().is_none_or(|(_, b)| pilot.depth * pilot.albedo > b.depth * b.albedo) {
+        if best
+            .as_ref()
+            .is_none_or(|(_, b)| pilot.depth * pilot.albedo > b.depth * b.albedo)
+        {
             best = Some((medium.name().to_owned(), pilot));
         }
     }

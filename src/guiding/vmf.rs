@@ -47,7 +47,11 @@ const MIN_KAPPA: f32 = 1e-4;
 /// ln of the vMF normalisation in the form v(ω) = exp(ln_norm(κ) + κ (μ·ω − 1)): ln(κ / (2π (1 − e^(−2κ)))).
 fn ln_norm(kappa: f32) -> f32 {
     // Above κ = 9, 1 − e^(−2κ) rounds to 1 in f32.
-    let denominator = if kappa > 9.0 { 1.0 } else { -(-2.0 * kappa).exp_m1() };
+    let denominator = if kappa > 9.0 {
+        1.0
+    } else {
+        -(-2.0 * kappa).exp_m1()
+    };
     (kappa / denominator).ln() - (2.0 * PI).ln()
 }
 
@@ -128,7 +132,10 @@ impl VmfMixture {
                 f32::NEG_INFINITY
             }
         });
-        Some(Self { lobes: out, ln_scale })
+        Some(Self {
+            lobes: out,
+            ln_scale,
+        })
     }
 
     /// The lobes.
@@ -343,13 +350,21 @@ mod tests {
     #[test]
     fn sampling_fits_the_pdf_chi2() {
         let mix = two_lobes();
-        chi2::assert_sampler_fits("vMF mixture", 200_000, 31, |rng| Some(mix.sample(rng.next_2d())), |w| {
-            mix.pdf(w) as f64
-        });
+        chi2::assert_sampler_fits(
+            "vMF mixture",
+            200_000,
+            31,
+            |rng| Some(mix.sample(rng.next_2d())),
+            |w| mix.pdf(w) as f64,
+        );
         let product = mix.product(Vec3::new(0.0, 0.6, 0.8), 1.8).unwrap();
-        chi2::assert_sampler_fits("vMF mixture times a lobe", 200_000, 32, |rng| {
-            Some(product.sample(rng.next_2d()))
-        }, |w| product.pdf(w) as f64);
+        chi2::assert_sampler_fits(
+            "vMF mixture times a lobe",
+            200_000,
+            32,
+            |rng| Some(product.sample(rng.next_2d())),
+            |w| product.pdf(w) as f64,
+        );
     }
 
     #[test]
@@ -360,9 +375,13 @@ mod tests {
         let mut lobes = *mix.lobes();
         lobes[0].kappa = 44.0;
         let claimed = VmfMixture::new(&lobes).unwrap();
-        chi2::assert_sampler_fits("vMF against another κ", 200_000, 33, |rng| Some(mix.sample(rng.next_2d())), |w| {
-            claimed.pdf(w) as f64
-        });
+        chi2::assert_sampler_fits(
+            "vMF against another κ",
+            200_000,
+            33,
+            |rng| Some(mix.sample(rng.next_2d())),
+            |w| claimed.pdf(w) as f64,
+        );
     }
 
     /// The product's density is the normalised pointwise product (checked against quadrature of the two
@@ -385,13 +404,20 @@ mod tests {
                 let w = crate::math::sampling::uniform_sphere(rng.next_2d());
                 let expected = (mix.pdf(w) * factor(w)) as f64 / norm;
                 let got = product.pdf(w) as f64;
-                assert!((got - expected).abs() <= 1e-3 * expected.max(1e-4), "{got} vs {expected} at {w}");
+                assert!(
+                    (got - expected).abs() <= 1e-3 * expected.max(1e-4),
+                    "{got} vs {expected} at {w}"
+                );
             }
             // Each product lobe's weight is its share of the product's mass: the integral of its own density
             // times its weight (the product lobe's term of the density) over the sphere, by quadrature.
             for (k, l) in product.lobes().iter().enumerate() {
                 let share = integral(|w| (product.ln_scale[k] + l.kappa * l.mu.dot(w)).exp());
-                assert!((share - l.weight as f64).abs() < 1e-3, "lobe {k}: {share} vs {}", l.weight);
+                assert!(
+                    (share - l.weight as f64).abs() < 1e-3,
+                    "lobe {k}: {share} vs {}",
+                    l.weight
+                );
             }
         }
         // A constant factor leaves the mixture as it is.
@@ -419,21 +445,36 @@ mod tests {
         ])
         .unwrap();
         let mut rng = Rng::new(1, 2);
-        let records: Vec<(Vec3, f32)> = (0..FIT_RECORDS).map(|_| (truth.sample(rng.next_2d()), 1.0)).collect();
+        let records: Vec<(Vec3, f32)> = (0..FIT_RECORDS)
+            .map(|_| (truth.sample(rng.next_2d()), 1.0))
+            .collect();
         let fit = VmfMixture::fit(&records).unwrap();
         let mass_near = |m: &VmfMixture, d: Vec3| -> f32 {
-            m.lobes().iter().filter(|l| l.mu.dot(d) > 0.9).map(|l| l.weight).sum()
+            m.lobes()
+                .iter()
+                .filter(|l| l.mu.dot(d) > 0.9)
+                .map(|l| l.weight)
+                .sum()
         };
         let (z, x) = (mass_near(&fit, Vec3::Z), mass_near(&fit, -Vec3::X));
-        assert!((z - 0.5).abs() < 0.1 && (x - 0.5).abs() < 0.1, "{z} {x}: {fit:?}");
+        assert!(
+            (z - 0.5).abs() < 0.1 && (x - 0.5).abs() < 0.1,
+            "{z} {x}: {fit:?}"
+        );
         for d in [Vec3::Z, -Vec3::X] {
             let (a, b) = (fit.pdf(d), truth.pdf(d));
             assert!(a > 0.15 * b && a < b, "{d}: {a} vs {b}: {fit:?}");
         }
         assert!(fit.pdf(Vec3::Z) > fit.pdf(-Vec3::X), "{fit:?}");
-        assert!(fit.pdf(Vec3::X) < 0.1 * fit.pdf(-Vec3::X), "{}", fit.pdf(Vec3::X));
-        let weighted: Vec<(Vec3, f32)> =
-            records.iter().map(|&(d, _)| (d, if d.z > 0.5 { 3.0 } else { 1.0 })).collect();
+        assert!(
+            fit.pdf(Vec3::X) < 0.1 * fit.pdf(-Vec3::X),
+            "{}",
+            fit.pdf(Vec3::X)
+        );
+        let weighted: Vec<(Vec3, f32)> = records
+            .iter()
+            .map(|&(d, _)| (d, if d.z > 0.5 { 3.0 } else { 1.0 }))
+            .collect();
         let fit = VmfMixture::fit(&weighted).unwrap();
         assert!(mass_near(&fit, Vec3::Z) > 0.65, "{fit:?}");
     }
@@ -450,7 +491,11 @@ mod tests {
         records.push((spike, 1000.0));
         let fit = VmfMixture::fit(&records).unwrap();
         let uniform = 0.25 / PI;
-        assert!(fit.pdf(spike) < 2.0 * uniform, "{} against {uniform}: {fit:?}", fit.pdf(spike));
+        assert!(
+            fit.pdf(spike) < 2.0 * uniform,
+            "{} against {uniform}: {fit:?}",
+            fit.pdf(spike)
+        );
     }
 
     #[test]

@@ -16,7 +16,10 @@ mod lobes;
 mod microfacet;
 mod sample;
 mod sheen;
-internal! { pub mod spec_gloss; }
+#[cfg(feature = "testing")]
+pub mod spec_gloss;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod spec_gloss;
 mod surface;
 mod texture;
 mod thin_film;

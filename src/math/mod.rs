@@ -10,9 +10,15 @@ mod float;
 mod frame;
 mod ray;
 mod rng;
+#[cfg(feature = "testing")]
+pub mod sampling;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod sampling;
+#[cfg(feature = "testing")]
+pub mod sobol;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod sobol;
 internal! {
-    pub mod sampling;
-    pub mod sobol;
     pub use bounds::Aabb;
     pub use distribution::{Distribution1D, Distribution2D};
     pub use float::gamma;

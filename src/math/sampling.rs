@@ -300,9 +300,15 @@ mod tests {
     #[test]
     fn truncated_exponential_samples_follow_their_density() {
         // Thin (nearly uniform), moderate and thick segments, and σ = 0 (uniform).
-        for (i, (sigma, length)) in [(1e-3, 2.0), (0.31, 4.0), (2.0, 1.5), (30.0, 3.0), (0.0, 2.5)]
-            .into_iter()
-            .enumerate()
+        for (i, (sigma, length)) in [
+            (1e-3, 2.0),
+            (0.31, 4.0),
+            (2.0, 1.5),
+            (30.0, 3.0),
+            (0.0, 2.5),
+        ]
+        .into_iter()
+        .enumerate()
         {
             let d = TruncatedExponential::new(sigma, length).unwrap();
             let mut rng = Rng::new(11, i as u64);

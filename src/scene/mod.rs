@@ -8,17 +8,26 @@ mod build;
 mod builder;
 mod camera;
 mod error;
-internal! { pub mod gltf; }
+#[cfg(feature = "testing")]
+pub mod gltf;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod gltf;
 mod hit;
 mod instancing;
 mod model;
 mod names;
+#[cfg(feature = "testing")]
+pub mod obj;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod obj;
 mod options;
 mod own_lighting;
+#[cfg(feature = "testing")]
+pub mod usd;
+#[cfg(not(feature = "testing"))]
+pub(crate) mod usd;
 mod validate;
 internal! {
-    pub mod obj;
-    pub mod usd;
     pub use builder::BUILDER_PATH;
     pub use camera::{blender_focal_length, CameraMotion, CAMERA_KEYS};
     pub use names::{Emitter, LightTag, MediumTag, SceneNames, ENVIRONMENT_NAME};

@@ -36,12 +36,12 @@
 mod maps;
 mod mtl;
 
-use crate::scene::MalformedPart;
 use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::Mesh;
 use crate::limits::{one_line, read_file, Limits};
 use crate::material::{AlphaMode, Material};
 use crate::math::{Rgb, Vec2, Vec3};
+use crate::scene::MalformedPart;
 use std::cell::{Cell, RefCell};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -339,7 +339,9 @@ fn check_vertex(n: usize, args: &[&str]) -> Result<(), LineError> {
         k => {
             return Err(bad(
                 n,
-                format!("vertex: expected 3 coordinates (then a weight or a colour), found {k} numbers"),
+                format!(
+                    "vertex: expected 3 coordinates (then a weight or a colour), found {k} numbers"
+                ),
             ))
         }
     };
@@ -384,7 +386,12 @@ fn check_normal(n: usize, args: &[&str]) -> Result<(), LineError> {
 
 /// Checks a face (`f`, at least 3 corners) or line element (`l`, at least 2) on line `n`: each corner's
 /// indices refer to the `[v, vt, vn]` elements declared before it.
-fn check_element(n: usize, key: &str, args: &[&str], declared: [usize; 3]) -> Result<(), LineError> {
+fn check_element(
+    n: usize,
+    key: &str,
+    args: &[&str],
+    declared: [usize; 3],
+) -> Result<(), LineError> {
     let what = if key == "f" { "face" } else { "line element" };
     let least = if key == "f" { 3 } else { 2 };
     if args.len() < least {
@@ -441,10 +448,7 @@ fn check_corner(corner: &str, counts: [usize; 3]) -> Result<(), CornerError> {
             continue;
         }
         let Ok(index) = part.parse::<i64>() else {
-            return Err((
-                malformed_face,
-                "an index is not an integer".into(),
-            ));
+            return Err((malformed_face, "an index is not an integer".into()));
         };
         let (name, count) = (NAMES[k], counts[k] as i64);
         let valid = if index > 0 {

@@ -83,7 +83,11 @@ impl CieSamples {
             y += b * cy;
             z += b * cz;
         }
-        xyz_to_rgb(x / self.y_integral, y / self.y_integral, z / self.y_integral)
+        xyz_to_rgb(
+            x / self.y_integral,
+            y / self.y_integral,
+            z / self.y_integral,
+        )
     }
 }
 

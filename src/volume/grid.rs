@@ -42,8 +42,9 @@ use super::tracking::{
 };
 use super::velocity::{Displaced, VelocityField};
 use super::{
-    Chromatic, ChromaticTracking, Collision, Flight, FreeFlight, Medium, MediumMethod, MethodReason,
-    PhaseFunction, TentativeEmission, TrackingCounters, TransmittanceMethod, VolumeSpec,
+    Chromatic, ChromaticTracking, Collision, Flight, FreeFlight, Medium, MediumMethod,
+    MethodReason, PhaseFunction, TentativeEmission, TrackingCounters, TransmittanceMethod,
+    VolumeSpec,
 };
 #[cfg(any(test, feature = "testing"))]
 use crate::limits::Limits;
@@ -786,7 +787,8 @@ impl Medium for GridMedium {
         emission: &mut TentativeEmission,
     ) -> Flight {
         if self.tracks_spectrally() {
-            if let Some(flight) = self.spectral_flight(ray, t_max, throughput, rng, counters, emission)
+            if let Some(flight) =
+                self.spectral_flight(ray, t_max, throughput, rng, counters, emission)
             {
                 return flight;
             }
@@ -911,9 +913,12 @@ mod tests {
             let tree = Tree::from_voxels(0.0, voxels.map(|(p, x)| (p, value(x))));
             Arc::new(GridTree::Float(tree))
         };
-        let density =
-            GridDensity::from_tree(block(0, N, &|x| RAMP_START + x as f32), index_to_world, scale)
-                .unwrap();
+        let density = GridDensity::from_tree(
+            block(0, N, &|x| RAMP_START + x as f32),
+            index_to_world,
+            scale,
+        )
+        .unwrap();
         let temperature =
             GridDensity::from_tree(block(-2, N + 2, &|_| 1.0), index_to_world, 1.0).unwrap();
         let mut medium = GridMedium::new("ramp", density, kind, Rgb::ZERO, 0.0);

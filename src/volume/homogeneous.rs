@@ -108,9 +108,7 @@ impl HomogeneousMedium {
         }
         let channel = match self.spectral_mis() {
             None => 0,
-            Some(choice) => {
-                channel_of(channel_weights(choice, throughput), rng.next_f32())
-            }
+            Some(choice) => channel_of(channel_weights(choice, throughput), rng.next_f32()),
         };
         let sigma = self.sigma_t[channel];
         let u = rng.next_f32();
@@ -218,7 +216,8 @@ impl Medium for HomogeneousMedium {
         _emission: &mut TentativeEmission,
     ) -> Flight {
         let collision = self.sample_distance(t_max, throughput, rng, counters);
-        let weight = self.flight_weight(collision.unwrap_or(t_max), collision.is_some(), throughput);
+        let weight =
+            self.flight_weight(collision.unwrap_or(t_max), collision.is_some(), throughput);
         Flight {
             collision,
             throughput: throughput * weight,

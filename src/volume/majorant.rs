@@ -25,13 +25,13 @@
 //! Bounds are conservative for trilinear interpolation: a lookup at `x` reads voxels `floor(x)` and
 //! `floor(x) + 1`, so a cell's bound covers every voxel its points can read, one voxel beyond the cell.
 
+use super::dda::{Dda, UniformGrid};
 #[cfg(test)]
 use super::density::AnalyticDensity;
 #[cfg(test)]
 use super::density::DensityField;
 use super::density::{nonzero_regions, GridDensity};
 use crate::limits::{Limits, OverBudget};
-use super::dda::{Dda, UniformGrid};
 use crate::math::{Aabb, Ray, Vec3};
 use crate::vdb::{floor_ivec3, FloatTree, Leaf, LowerNode};
 use glam::IVec3;

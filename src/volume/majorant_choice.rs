@@ -98,7 +98,15 @@ pub fn estimate(
     let mut traced = 0;
     for ray in rays {
         decomposition_tracking(field, majorants, ray, 0.0, t_max, &mut rng, &mut counters);
-        ratio_tracking(field, majorants, ray, (0.0, t_max), 1.0, &mut rng, &mut counters);
+        ratio_tracking(
+            field,
+            majorants,
+            ray,
+            (0.0, t_max),
+            1.0,
+            &mut rng,
+            &mut counters,
+        );
         traced += 1;
         if work_ns(&counters) > max_total_ns {
             break;

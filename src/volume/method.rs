@@ -282,12 +282,12 @@ fn write_reason(f: &mut fmt::Formatter<'_>, why: &MethodReason) -> fmt::Result {
 
 /// How a chromatic medium's collisions are sampled, and why.
 fn write_chromatic(f: &mut fmt::Formatter<'_>, c: &Chromatic) -> fmt::Result {
-        let why = if c.requested {
-            "as requested"
-        } else {
-            ChromaticTracking::AUTO_WHY
-        };
-        match c.tracking {
+    let why = if c.requested {
+        "as requested"
+    } else {
+        ChromaticTracking::AUTO_WHY
+    };
+    match c.tracking {
             ChromaticTracking::Spectral => write!(
                 f,
                 ", history-aware collision probabilities over the path throughput ({why}; beside other media too, over the part of a segment before the collisions of the media asked before it)"

@@ -23,8 +23,8 @@
 //!   ratio or residual ratio tracking for shadow rays.
 
 pub mod channels;
-pub mod density;
 pub(crate) mod dda;
+pub mod density;
 pub mod emission;
 pub mod error;
 pub mod grid;
@@ -193,7 +193,9 @@ impl ConstantScattering {
         let w = self.segment_channels(throughput);
         (0..3)
             .filter(|&c| w[c] > 0.0)
-            .filter_map(|c| TruncatedExponential::new(self.sigma_t[c], length).map(|d| w[c] * d.pdf(t)))
+            .filter_map(|c| {
+                TruncatedExponential::new(self.sigma_t[c], length).map(|d| w[c] * d.pdf(t))
+            })
             .sum()
     }
 }
@@ -429,7 +431,10 @@ mod tests {
 
     /// Every key of `keys` with a default is given it in turn inside `wrap` (the declaration around the keys);
     /// the result must be the declaration that omits it.
-    fn check_defaults(keys: &[ParamKey], wrap: impl Fn(serde_json::Value) -> serde_json::Value) -> usize {
+    fn check_defaults(
+        keys: &[ParamKey],
+        wrap: impl Fn(serde_json::Value) -> serde_json::Value,
+    ) -> usize {
         let omitted = MediumParams::from_json(&wrap(json!({}))).unwrap();
         let mut checked = 0;
         for key in keys {
@@ -437,7 +442,11 @@ mod tests {
                 continue;
             };
             let given = MediumParams::from_json(&wrap(json!({key.name: default}))).unwrap();
-            assert_eq!(given, omitted, "'{}' given as its default {default}", key.name);
+            assert_eq!(
+                given, omitted,
+                "'{}' given as its default {default}",
+                key.name
+            );
             checked += 1;
         }
         checked

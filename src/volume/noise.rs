@@ -13,8 +13,8 @@ use super::density::DensityField;
 use super::majorant::{MajorantKind, Majorants};
 use super::tracking::ratio_tracking;
 use super::{
-    Collision, Flight, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction, TrackingCounters,
-    TransmittanceMethod,
+    Collision, Flight, FreeFlight, Medium, MediumMethod, MethodReason, PhaseFunction,
+    TrackingCounters, TransmittanceMethod,
 };
 use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 

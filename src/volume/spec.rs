@@ -16,8 +16,8 @@ use super::majorant::MajorantKind;
 use super::method::ChromaticTracking;
 use crate::math::{Mat4, Rgb};
 use crate::params::{
-    JsonParams, ParamDefault, ParamError, ParamKey, ParamRead, ParamSource, ParamType, TableDefaults,
-    UsdBinding,
+    JsonParams, ParamDefault, ParamError, ParamKey, ParamRead, ParamSource, ParamType,
+    TableDefaults, UsdBinding,
 };
 use std::path::PathBuf;
 
@@ -643,7 +643,11 @@ mod tests {
             };
             let given = json!({"file": "a", key.name: default});
             let explicit = VolumeSpec::from_json(&given, "n", base, Mat4::IDENTITY).unwrap();
-            assert_eq!(explicit, omitted, "'{}' given as its default {default}", key.name);
+            assert_eq!(
+                explicit, omitted,
+                "'{}' given as its default {default}",
+                key.name
+            );
             checked += 1;
         }
         assert!(checked >= 15, "only {checked} keys have a default");

@@ -949,7 +949,8 @@ mod tests {
         check_all("const", &f, &maj, &ray, (0.0, 5.0), truth, 40_000);
         // Homogeneous: residual ratio tracking integrates the control exactly and needs no lookup.
         let mut c = TrackingCounters::default();
-        let t = residual_ratio_tracking(&f, &maj, &ray, (0.0, 5.0), 1.0, &mut Rng::new(1, 2), &mut c);
+        let t =
+            residual_ratio_tracking(&f, &maj, &ray, (0.0, 5.0), 1.0, &mut Rng::new(1, 2), &mut c);
         assert!(
             (t as f64 - truth).abs() < 1e-6 && c.density_lookups == 0,
             "{t} {c:?}"

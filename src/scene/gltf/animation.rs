@@ -16,14 +16,14 @@
 //! interpolated linearly between steps, so a rotation's arc is cut to chords no longer than that angle
 //! (a radius shrinks by at most 1 − cos 5° ≈ 0.4 % between steps).
 
-use crate::scene::MalformedPart;
 use super::accessors::{read_floats, Usage};
 use super::check::SkippedChannels;
-use crate::scene::SceneErrorKind;
 use crate::frames::Shutter;
 use crate::geometry::MotionSteps;
 use crate::limits::{one_line, Limits};
 use crate::math::{Mat4, Quat, Vec3};
+use crate::scene::MalformedPart;
+use crate::scene::SceneErrorKind;
 use gltf::animation::{Interpolation, Property};
 use std::collections::HashMap;
 use std::rc::Rc;
@@ -123,10 +123,13 @@ impl KeyCache<'_> {
         if usage == Usage::KeyTimes
             && (!floats.iter().all(|t| t.is_finite()) || floats.windows(2).any(|w| w[0] >= w[1]))
         {
-            return Err(SceneErrorKind::malformed(MalformedPart::Animation, format!(
-                "{at}: the key times (accessor {}) must be finite and strictly increasing",
-                key.0
-            )));
+            return Err(SceneErrorKind::malformed(
+                MalformedPart::Animation,
+                format!(
+                    "{at}: the key times (accessor {}) must be finite and strictly increasing",
+                    key.0
+                ),
+            ));
         }
         self.floats.insert(key, floats.clone());
         Ok(floats)
@@ -178,8 +181,9 @@ impl Animations {
                         n => n,
                     },
                 };
-                check_counts(&sampler, property, elements)
-                    .map_err(|e| SceneErrorKind::malformed(MalformedPart::Animation, format!("{at}: {e}")))?;
+                check_counts(&sampler, property, elements).map_err(|e| {
+                    SceneErrorKind::malformed(MalformedPart::Animation, format!("{at}: {e}"))
+                })?;
                 let usage = match property {
                     Property::Translation | Property::Scale => Usage::KeyVec3,
                     Property::Rotation => Usage::KeyRotation,

@@ -2,12 +2,14 @@
 //! node (a rigid transform), with a thin lens from `extras.nimbus_camera` (keys [`crate::scene::CAMERA_KEYS`])
 //! on the node or the camera object, and motion across the shutter when the node is animated.
 
-use crate::scene::MalformedPart;
+use super::{Loader, QUOTE};
 use crate::limits::one_line;
 use crate::math::Mat4;
 use crate::params::unknown_json_keys;
-use crate::scene::{Camera, CameraMotion, NamedCamera, Projection, SceneError, SceneErrorKind, ThinLens};
-use super::{Loader, QUOTE};
+use crate::scene::MalformedPart;
+use crate::scene::{
+    Camera, CameraMotion, NamedCamera, Projection, SceneError, SceneErrorKind, ThinLens,
+};
 
 impl Loader<'_> {
     /// Adds the camera of `node` to the scene's cameras, named by the node (else by the camera object, else
@@ -32,7 +34,10 @@ impl Loader<'_> {
                 p.yfov(),
                 Projection::Perspective,
                 p.aspect_ratio(),
-                Some(crate::scene::blender_focal_length(p.yfov(), p.aspect_ratio())),
+                Some(crate::scene::blender_focal_length(
+                    p.yfov(),
+                    p.aspect_ratio(),
+                )),
             ),
             gltf::camera::Projection::Orthographic(o) => (
                 // Unused by an orthographic camera; a valid perspective angle keeps the numbers checkable.
@@ -75,8 +80,12 @@ impl Loader<'_> {
     ) -> Result<Option<ThinLens>, SceneError> {
         let camera_extras = match camera.extras() {
             Some(raw) => Some(
-                serde_json::from_str::<serde_json::Value>(raw.get())
-                    .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Camera, format!("{at}: {e}"))))?,
+                serde_json::from_str::<serde_json::Value>(raw.get()).map_err(|e| {
+                    self.error(SceneErrorKind::malformed(
+                        MalformedPart::Camera,
+                        format!("{at}: {e}"),
+                    ))
+                })?,
             ),
             None => None,
         };

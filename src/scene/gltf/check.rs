@@ -348,11 +348,17 @@ fn check_buffer_and_image_indices(root: &Root) -> Result<(), CheckError> {
                     views,
                 )?;
                 if image.mime_type.is_none() {
-                    return Err(CheckError::ImageSource(format!("images[{i}] has a bufferView but no mimeType")));
+                    return Err(CheckError::ImageSource(format!(
+                        "images[{i}] has a bufferView but no mimeType"
+                    )));
                 }
             }
             (None, Some(_)) => {}
-            (None, None) => return Err(CheckError::ImageSource(format!("images[{i}] has neither a uri nor a bufferView"))),
+            (None, None) => {
+                return Err(CheckError::ImageSource(format!(
+                    "images[{i}] has neither a uri nor a bufferView"
+                )))
+            }
         }
     }
     Ok(())
@@ -488,11 +494,15 @@ fn check_forest(root: &Root) -> Result<(), CheckError> {
         for c in node.children.iter().flatten() {
             let c = c.value();
             if c == i {
-                return Err(CheckError::NotAForest(format!("nodes[{i}] lists itself as a child")));
+                return Err(CheckError::NotAForest(format!(
+                    "nodes[{i}] lists itself as a child"
+                )));
             }
             match parent[c] {
                 Some(p) if p == i => {
-                    return Err(CheckError::NotAForest(format!("nodes[{i}] lists nodes[{c}] twice as a child")))
+                    return Err(CheckError::NotAForest(format!(
+                        "nodes[{i}] lists nodes[{c}] twice as a child"
+                    )))
                 }
                 Some(p) => {
                     return Err(CheckError::NotAForest(format!(
@@ -550,7 +560,9 @@ fn check_forest(root: &Root) -> Result<(), CheckError> {
                 )));
             }
             if std::mem::replace(&mut seen[r], true) {
-                return Err(CheckError::NotAForest(format!("scenes[{s}] lists nodes[{r}] twice")));
+                return Err(CheckError::NotAForest(format!(
+                    "scenes[{s}] lists nodes[{r}] twice"
+                )));
             }
         }
     }
@@ -688,13 +700,17 @@ fn check_lights(root: &Root) -> Result<(), CheckError> {
         }
         if let Some(r) = light.range {
             if !(r.is_finite() && r > 0.0) {
-                return Err(CheckError::Light(format!("{at}.range is {r}; it must be finite and > 0")));
+                return Err(CheckError::Light(format!(
+                    "{at}.range is {r}; it must be finite and > 0"
+                )));
             }
         }
         match light.type_ {
             Checked::Valid(Type::Spot) => {
                 let Some(spot) = &light.spot else {
-                    return Err(CheckError::Light(format!("{at} is of type spot but has no 'spot' object")));
+                    return Err(CheckError::Light(format!(
+                        "{at} is of type spot but has no 'spot' object"
+                    )));
                 };
                 let (inner, outer) = (spot.inner_cone_angle, spot.outer_cone_angle);
                 if !(outer > 0.0 && outer <= FRAC_PI_2) {

@@ -67,7 +67,9 @@ pub(super) enum DeformError {
         name: &'static str,
     },
     /// A skinned primitive without both JOINTS_0 and WEIGHTS_0.
-    #[error("a skinned primitive needs JOINTS_0 and WEIGHTS_0 together (glTF 2.0 section 3.7.3.1)")]
+    #[error(
+        "a skinned primitive needs JOINTS_0 and WEIGHTS_0 together (glTF 2.0 section 3.7.3.1)"
+    )]
     FirstSkinSetIncomplete,
     /// A later JOINTS_n or WEIGHTS_n set without the other.
     #[error("a skinned primitive needs JOINTS_{set} and WEIGHTS_{set} together")]
@@ -155,10 +157,12 @@ pub(super) fn joint_matrices(
     let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
     let inverse_binds: Vec<Mat4> = match skin.inverse_bind_matrices() {
         Some(a) => {
-            let floats = read_floats(&a, Usage::InverseBindMatrices, buffers, limits)
-                .map_err(|source| DeformError::Accessor {
-                    at: format!("skin {}: inverseBindMatrices", skin.index()),
-                    source,
+            let floats =
+                read_floats(&a, Usage::InverseBindMatrices, buffers, limits).map_err(|source| {
+                    DeformError::Accessor {
+                        at: format!("skin {}: inverseBindMatrices", skin.index()),
+                        source,
+                    }
                 })?;
             if floats.len() / 16 < joints.len() {
                 return Err(DeformError::TooFewInverseBinds {
@@ -216,11 +220,12 @@ pub(super) fn apply_morph_targets(
             let Some(a) = a else {
                 return Ok(None);
             };
-            let floats = read_floats(&a, usage, buffers, limits)
-                .map_err(|source| DeformError::Accessor {
+            let floats = read_floats(&a, usage, buffers, limits).map_err(|source| {
+                DeformError::Accessor {
                     at: format!("targets[{k}].{name}"),
                     source,
-                })?;
+                }
+            })?;
             if floats.len() != 3 * count {
                 return Err(DeformError::TargetCount {
                     target: k,
@@ -331,11 +336,12 @@ fn blended_joints(
             at: format!("JOINTS_{set}"),
             source,
         })?;
-        let weights = read_floats(&w, Usage::Weights, buffers, limits)
-            .map_err(|source| DeformError::Accessor {
+        let weights = read_floats(&w, Usage::Weights, buffers, limits).map_err(|source| {
+            DeformError::Accessor {
                 at: format!("WEIGHTS_{set}"),
                 source,
-            })?;
+            }
+        })?;
         if ids.len() != count || weights.len() != 4 * count {
             return Err(DeformError::SkinSetCount { set, count });
         }
@@ -375,14 +381,12 @@ fn add_joint_set(
             if weight == 0.0 {
                 continue;
             }
-            let m = joints
-                .get(id as usize)
-                .ok_or(DeformError::NoSuchJoint {
-                    set,
-                    vertex: v,
-                    joint: id,
-                    joints: joints.len(),
-                })?;
+            let m = joints.get(id as usize).ok_or(DeformError::NoSuchJoint {
+                set,
+                vertex: v,
+                joint: id,
+                joints: joints.len(),
+            })?;
             blend[v] += *m * weight;
             total[v] += weight;
         }

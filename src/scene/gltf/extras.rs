@@ -3,24 +3,31 @@
 //! or material (`nimbus_light_group`, `nimbus_holdout`, `nimbus_shadow_catcher`), and a node's
 //! `nimbus_volume` (the keys of `crate::volume::spec::VOLUME_KEYS`), a VDB medium placed by the node.
 
-use crate::scene::MalformedPart;
+use super::nodes::NodeContext;
+use super::{Loader, QUOTE};
 use crate::geometry::CompositingTags;
 use crate::light::{EnvironmentLight, EnvironmentMap};
-use crate::limits::{Limits, one_line};
+use crate::limits::{one_line, Limits};
 use crate::math::Mat4;
 use crate::params::{parse_rgb, unknown_json_keys, unknown_json_names};
+use crate::scene::MalformedPart;
 use crate::scene::{SceneError, SceneErrorKind};
 use std::path::Path;
-use super::{Loader, QUOTE};
-use super::nodes::NodeContext;
 
 impl Loader<'_> {
     /// Reads the scene's `extras`: `max_bounces`, `nimbus_environment` and `nimbus_transparent` (unknown
     /// `nimbus_*` keys warned about, or refused under `--strict`).
-    pub(super) fn read_scene_extras(&mut self, extras: &gltf::json::Extras) -> Result<(), SceneError> {
+    pub(super) fn read_scene_extras(
+        &mut self,
+        extras: &gltf::json::Extras,
+    ) -> Result<(), SceneError> {
         let Some(raw) = extras else { return Ok(()) };
-        let value: serde_json::Value = serde_json::from_str(raw.get())
-            .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Settings, format!("scene extras: {e}"))))?;
+        let value: serde_json::Value = serde_json::from_str(raw.get()).map_err(|e| {
+            self.error(SceneErrorKind::malformed(
+                MalformedPart::Settings,
+                format!("scene extras: {e}"),
+            ))
+        })?;
         self.unknown_keys(
             "scene extras",
             &unknown_json_names(&value, SCENE_EXTRAS, "nimbus_"),
@@ -31,7 +38,8 @@ impl Loader<'_> {
         }
         if let Some(b) = value.get("max_bounces") {
             let b = b.as_u64().ok_or_else(|| {
-                self.error(SceneErrorKind::malformed(MalformedPart::Settings,
+                self.error(SceneErrorKind::malformed(
+                    MalformedPart::Settings,
                     "scene extras: max_bounces must be a non-negative integer",
                 ))
             })?;
@@ -45,7 +53,8 @@ impl Loader<'_> {
         }
         if let Some(t) = value.get("nimbus_transparent") {
             let t = t.as_bool().ok_or_else(|| {
-                self.error(SceneErrorKind::malformed(MalformedPart::Settings,
+                self.error(SceneErrorKind::malformed(
+                    MalformedPart::Settings,
                     "scene extras: nimbus_transparent must be true or false",
                 ))
             })?;
@@ -111,13 +120,14 @@ pub(super) fn parse_environment(
     base: &Path,
     limits: &Limits,
 ) -> Result<(EnvironmentLight, Option<String>), SceneErrorKind> {
-    let malformed = |m: &str| SceneErrorKind::malformed(MalformedPart::Settings, format!("nimbus_environment: {m}"));
+    let malformed = |m: &str| {
+        SceneErrorKind::malformed(MalformedPart::Settings, format!("nimbus_environment: {m}"))
+    };
     let group = match value.get("light_group") {
         None => None,
-        Some(g) => Some(
-            light_group_name(g)
-                .map_err(|m| SceneErrorKind::malformed(MalformedPart::Settings, format!("nimbus_environment: {m}")))?,
-        ),
+        Some(g) => Some(light_group_name(g).map_err(|m| {
+            SceneErrorKind::malformed(MalformedPart::Settings, format!("nimbus_environment: {m}"))
+        })?),
     };
     parse_environment_light(value, base, limits, &malformed).map(|env| (env, group))
 }

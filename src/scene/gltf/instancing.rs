@@ -2,15 +2,15 @@
 //! `TRANSLATION`, `ROTATION`, `SCALE`): a static one is read once as object-space prototypes and placed as
 //! instances; skinned, morphed and moving ones are copied per placement (`meshes`).
 
-use crate::scene::MalformedPart;
+use super::accessors::{read_floats, Usage};
+use super::meshes::{mesh_name, primitive_size};
+use super::nodes::{node_name, NodeContext};
+use super::{Loader, QUOTE};
 use crate::limits::one_line;
 use crate::math::{Mat4, Quat, Vec3};
+use crate::scene::MalformedPart;
 use crate::scene::{SceneError, SceneErrorKind};
 use std::rc::Rc;
-use super::{Loader, QUOTE};
-use super::accessors::{Usage, read_floats};
-use super::meshes::{mesh_name, primitive_size};
-use super::nodes::{NodeContext, node_name};
 
 impl Loader<'_> {
     /// `EXT_mesh_gpu_instancing` on `node`: one matrix per instance, T·R·S from its `TRANSLATION`, `ROTATION`
@@ -28,7 +28,12 @@ impl Loader<'_> {
         let attributes = ext
             .get("attributes")
             .and_then(|a| a.as_object())
-            .ok_or_else(|| self.malformed(MalformedPart::Instancing, format!("{at}: attributes must be an object")))?;
+            .ok_or_else(|| {
+                self.malformed(
+                    MalformedPart::Instancing,
+                    format!("{at}: attributes must be an object"),
+                )
+            })?;
         let read =
             |key: &str, usage: Usage, components: usize| -> Result<Option<Vec<f32>>, SceneError> {
                 let Some(value) = attributes.get(key) else {
@@ -38,11 +43,21 @@ impl Loader<'_> {
                     .as_u64()
                     .and_then(|i| usize::try_from(i).ok())
                     .and_then(|i| self.document.accessors().nth(i))
-                    .ok_or_else(|| self.malformed(MalformedPart::Instancing, format!("{at}.{key}: no such accessor")))?;
+                    .ok_or_else(|| {
+                        self.malformed(
+                            MalformedPart::Instancing,
+                            format!("{at}.{key}: no such accessor"),
+                        )
+                    })?;
                 let floats = read_floats(&accessor, usage, self.buffers, &self.options.limits)
-                    .map_err(|m| self.malformed(MalformedPart::Instancing, format!("{at}.{key}: {m}")))?;
+                    .map_err(|m| {
+                        self.malformed(MalformedPart::Instancing, format!("{at}.{key}: {m}"))
+                    })?;
                 if floats.len() % components != 0 || floats.iter().any(|v| !v.is_finite()) {
-                    return Err(self.malformed(MalformedPart::Instancing, format!("{at}.{key}: values must be finite")));
+                    return Err(self.malformed(
+                        MalformedPart::Instancing,
+                        format!("{at}.{key}: values must be finite"),
+                    ));
                 }
                 Ok(Some(floats))
             };
@@ -56,12 +71,16 @@ impl Loader<'_> {
         ];
         let mut known = counts.iter().flatten();
         let Some(&count) = known.next() else {
-            return Err(self.malformed(MalformedPart::Instancing, format!("{at}: needs TRANSLATION, ROTATION or SCALE")));
+            return Err(self.malformed(
+                MalformedPart::Instancing,
+                format!("{at}: needs TRANSLATION, ROTATION or SCALE"),
+            ));
         };
         if known.any(|&c| c != count) {
-            return Err(self.malformed(MalformedPart::Instancing, format!(
-                "{at}: the attributes have different counts {counts:?}"
-            )));
+            return Err(self.malformed(
+                MalformedPart::Instancing,
+                format!("{at}: the attributes have different counts {counts:?}"),
+            ));
         }
         let vec3 = |v: &Option<Vec<f32>>, i: usize, default: Vec3| {
             v.as_ref()

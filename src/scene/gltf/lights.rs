@@ -3,16 +3,21 @@
 //! extras key `nimbus_light_units` (`"photometric"`, the default, divides intensities by
 //! [`LUMENS_PER_WATT`]; `"radiometric"` takes them as W/sr and W/m²).
 
-use crate::scene::MalformedPart;
-use crate::light::{DirectionalLight, LUMENS_PER_WATT, Light, PointLight, SpotLight};
-use crate::math::{Mat4, Rgb, Vec3};
-use crate::scene::{LightTag, SceneError, SceneErrorKind};
 use super::Loader;
+use crate::light::{DirectionalLight, Light, PointLight, SpotLight, LUMENS_PER_WATT};
+use crate::math::{Mat4, Rgb, Vec3};
+use crate::scene::MalformedPart;
+use crate::scene::{LightTag, SceneError, SceneErrorKind};
 
 impl Loader<'_> {
     /// Adds a `KHR_lights_punctual` light placed by its node's `world` matrix, its intensity in the scene's
     /// light units; `range` is warned about and ignored.
-    pub(super) fn load_light(&mut self, light: gltf::khr_lights_punctual::Light, world: &Mat4, tag: LightTag) {
+    pub(super) fn load_light(
+        &mut self,
+        light: gltf::khr_lights_punctual::Light,
+        world: &Mat4,
+        tag: LightTag,
+    ) {
         let color = Rgb::from(light.color()) * (light.intensity() * self.light_unit_scale);
         let position = world.transform_point3(Vec3::ZERO);
         let direction = world.transform_vector3(-Vec3::Z).normalize_or_zero();
@@ -46,10 +51,17 @@ impl Loader<'_> {
     }
 
     /// Reads `nimbus_light_units` from the scene extras, before any light is loaded.
-    pub(super) fn read_light_units(&mut self, extras: &gltf::json::Extras) -> Result<(), SceneError> {
+    pub(super) fn read_light_units(
+        &mut self,
+        extras: &gltf::json::Extras,
+    ) -> Result<(), SceneError> {
         let Some(raw) = extras else { return Ok(()) };
-        let value: serde_json::Value = serde_json::from_str(raw.get())
-            .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Settings, format!("scene extras: {e}"))))?;
+        let value: serde_json::Value = serde_json::from_str(raw.get()).map_err(|e| {
+            self.error(SceneErrorKind::malformed(
+                MalformedPart::Settings,
+                format!("scene extras: {e}"),
+            ))
+        })?;
         self.light_unit_scale = match value.get("nimbus_light_units") {
             None => 1.0 / LUMENS_PER_WATT,
             Some(v) => match v.as_str() {

@@ -3,11 +3,14 @@
 //! `KHR_materials_anisotropy`, `KHR_materials_diffuse_transmission`, `KHR_materials_iridescence` and
 //! `KHR_materials_dispersion` (their keys in each function's documentation).
 
-use crate::scene::MalformedPart;
-use crate::material::{Anisotropy, ClearcoatLayer, ColorSpace, DiffuseTransmission, Iridescence, SheenLayer, SpecularGlossiness};
-use crate::math::{Rgb, Vec4};
-use crate::scene::SceneError;
 use super::Loader;
+use crate::material::{
+    Anisotropy, ClearcoatLayer, ColorSpace, DiffuseTransmission, Iridescence, SheenLayer,
+    SpecularGlossiness,
+};
+use crate::math::{Rgb, Vec4};
+use crate::scene::MalformedPart;
+use crate::scene::SceneError;
 
 impl Loader<'_> {
     /// `KHR_materials_clearcoat` of a material, when present: factors checked (finite, in \[0, 1\]) and
@@ -31,7 +34,10 @@ impl Loader<'_> {
                 let field = format!("{at}.clearcoatNormalTexture");
                 let scale = match v.get("scale") {
                     Some(s) => s.as_f64().filter(|s| s.is_finite()).ok_or_else(|| {
-                        self.malformed(MalformedPart::Material, format!("{field}.scale must be a finite number"))
+                        self.malformed(
+                            MalformedPart::Material,
+                            format!("{field}.scale must be a finite number"),
+                        )
                     })? as f32,
                     None => 1.0,
                 };
@@ -63,9 +69,10 @@ impl Loader<'_> {
             Some(v) => crate::params::parse_rgb(v)
                 .filter(|c| c.max_element() <= 1.0)
                 .ok_or_else(|| {
-                    self.malformed(MalformedPart::Material, format!(
-                        "{at}.sheenColorFactor must be three numbers in [0, 1]"
-                    ))
+                    self.malformed(
+                        MalformedPart::Material,
+                        format!("{at}.sheenColorFactor must be three numbers in [0, 1]"),
+                    )
                 })?,
             None => Rgb::ZERO,
         };
@@ -96,15 +103,19 @@ impl Loader<'_> {
         let mut sg = SpecularGlossiness::default();
         if let Some(v) = ext.get("diffuseFactor") {
             let d = unit_numbers::<4>(v).ok_or_else(|| {
-                self.malformed(MalformedPart::Material, format!("{at}.diffuseFactor must be four numbers in [0, 1]"))
+                self.malformed(
+                    MalformedPart::Material,
+                    format!("{at}.diffuseFactor must be four numbers in [0, 1]"),
+                )
             })?;
             sg.diffuse = Vec4::from(d);
         }
         if let Some(v) = ext.get("specularFactor") {
             let s = unit_numbers::<3>(v).ok_or_else(|| {
-                self.malformed(MalformedPart::Material, format!(
-                    "{at}.specularFactor must be three numbers in [0, 1]"
-                ))
+                self.malformed(
+                    MalformedPart::Material,
+                    format!("{at}.specularFactor must be three numbers in [0, 1]"),
+                )
             })?;
             sg.specular = Rgb::from(s);
         }
@@ -134,9 +145,10 @@ impl Loader<'_> {
                 .map(|r| r as f32)
                 .filter(|r| r.is_finite())
                 .ok_or_else(|| {
-                    self.malformed(MalformedPart::Material, format!(
-                        "{at}.anisotropyRotation must be a finite number (radians)"
-                    ))
+                    self.malformed(
+                        MalformedPart::Material,
+                        format!("{at}.anisotropyRotation must be a finite number (radians)"),
+                    )
                 })?,
         };
         let texture = self.ext_texture(&ext, "anisotropyTexture", ColorSpace::Linear, &at)?;
@@ -164,9 +176,10 @@ impl Loader<'_> {
         let factor = self.unit_number(&ext, "diffuseTransmissionFactor", 0.0, &at)?;
         let color = match ext.get("diffuseTransmissionColorFactor") {
             Some(v) => Rgb::from(unit_numbers::<3>(v).ok_or_else(|| {
-                self.malformed(MalformedPart::Material, format!(
-                    "{at}.diffuseTransmissionColorFactor must be three numbers in [0, 1]"
-                ))
+                self.malformed(
+                    MalformedPart::Material,
+                    format!("{at}.diffuseTransmissionColorFactor must be three numbers in [0, 1]"),
+                )
             })?),
             None => Rgb::ONE,
         };
@@ -208,7 +221,10 @@ impl Loader<'_> {
                 .map(|v| v as f32)
                 .filter(|v| v.is_finite() && *v >= min)
                 .ok_or_else(|| {
-                    self.malformed(MalformedPart::Material, format!("{at}.{key} must be a finite number >= {min}"))
+                    self.malformed(
+                        MalformedPart::Material,
+                        format!("{at}.{key} must be a finite number >= {min}"),
+                    )
                 }),
         };
         let ior = number("iridescenceIor", defaults.ior, 1.0)?;
@@ -231,7 +247,11 @@ impl Loader<'_> {
     /// `KHR_materials_dispersion.dispersion` of a material (a finite number ≥ 0, default 0). It applies to the
     /// volume of a `KHR_materials_volume` material only (the extension's rule): without one, or with a thin
     /// wall (`thicknessFactor` 0), a warning says it is ignored and the result is 0.
-    pub(super) fn dispersion(&mut self, material: &gltf::Material, at: &str) -> Result<f32, SceneError> {
+    pub(super) fn dispersion(
+        &mut self,
+        material: &gltf::Material,
+        at: &str,
+    ) -> Result<f32, SceneError> {
         let name = "KHR_materials_dispersion";
         let at = format!("{at}.extensions.{name}");
         let Some(ext) = self.extension_object(material, name, &at)? else {
@@ -244,7 +264,10 @@ impl Loader<'_> {
                 .map(|v| v as f32)
                 .filter(|v| v.is_finite() && *v >= 0.0)
                 .ok_or_else(|| {
-                    self.malformed(MalformedPart::Material, format!("{at}.dispersion must be a finite number >= 0"))
+                    self.malformed(
+                        MalformedPart::Material,
+                        format!("{at}.dispersion must be a finite number >= 0"),
+                    )
                 })?,
         };
         let volume = material
@@ -269,7 +292,9 @@ impl Loader<'_> {
         match material.extensions().and_then(|e| e.get(name)) {
             None => Ok(None),
             Some(serde_json::Value::Object(o)) => Ok(Some(o.clone())),
-            Some(_) => Err(self.malformed(MalformedPart::Material, format!("{at} must be an object"))),
+            Some(_) => {
+                Err(self.malformed(MalformedPart::Material, format!("{at} must be an object")))
+            }
         }
     }
 
@@ -287,7 +312,12 @@ impl Loader<'_> {
                 .as_f64()
                 .filter(|v| (0.0..=1.0).contains(v))
                 .map(|v| v as f32)
-                .ok_or_else(|| self.malformed(MalformedPart::Material, format!("{at}.{key} must be a number in [0, 1]"))),
+                .ok_or_else(|| {
+                    self.malformed(
+                        MalformedPart::Material,
+                        format!("{at}.{key} must be a number in [0, 1]"),
+                    )
+                }),
         }
     }
 }

@@ -6,15 +6,15 @@
 //! interior); the others are in `material_extensions`. Material `extras`: [`MATERIAL_EXTRAS`]
 //! (`nimbus_medium` with `crate::volume::MEDIUM_KEYS`, and the compositing tags).
 
-use crate::scene::MalformedPart;
+use super::extras::node_tags;
+use super::{Loader, QUOTE};
 use crate::geometry::CompositingTags;
 use crate::limits::one_line;
 use crate::material::{AlphaMode, ColorSpace, Material};
 use crate::math::{Rgb, Vec4};
 use crate::params::{unknown_json_keys, unknown_json_names};
+use crate::scene::MalformedPart;
 use crate::scene::{MediumTag, SceneError, SceneErrorKind};
-use super::{Loader, QUOTE};
-use super::extras::node_tags;
 
 /// A material's core textures (scene texture indices), read by [`Loader::core_textures`].
 struct CoreTextures {
@@ -115,7 +115,11 @@ impl Loader<'_> {
 
     /// Adds `m`, made from `material`, with the compositing tags and interior medium of `material`; returns
     /// its index.
-    fn finish_material(&mut self, material: &gltf::Material, mut m: Material) -> Result<u32, SceneError> {
+    fn finish_material(
+        &mut self,
+        material: &gltf::Material,
+        mut m: Material,
+    ) -> Result<u32, SceneError> {
         m.tags = self.material_tags(material, &m.name)?;
         m.interior = self.interior_medium(material, &m)?;
         if let Some(interior) = m.interior {
@@ -247,9 +251,10 @@ impl Loader<'_> {
                 } else {
                     "finite"
                 };
-                return Err(self.error(SceneErrorKind::malformed(MalformedPart::Material, format!(
-                    "{at}.{field} holds {v}; it must be {rule}"
-                ))));
+                return Err(self.error(SceneErrorKind::malformed(
+                    MalformedPart::Material,
+                    format!("{at}.{field} holds {v}; it must be {rule}"),
+                )));
             }
         }
         Ok(())
@@ -262,10 +267,10 @@ impl Loader<'_> {
         name: &str,
     ) -> Result<CompositingTags, SceneError> {
         let bad = |msg: String| {
-            self.error(SceneErrorKind::malformed(MalformedPart::Material, format!(
-                "material '{}': extras: {msg}",
-                one_line(name, QUOTE)
-            )))
+            self.error(SceneErrorKind::malformed(
+                MalformedPart::Material,
+                format!("material '{}': extras: {msg}", one_line(name, QUOTE)),
+            ))
         };
         let Some(raw) = material.extras() else {
             return Ok(CompositingTags::default());
@@ -286,10 +291,10 @@ impl Loader<'_> {
         let bad = |msg: String| {
             SceneError::new(
                 path,
-                SceneErrorKind::malformed(MalformedPart::Material, format!(
-                    "material '{}': {msg}",
-                    one_line(&m.name, QUOTE)
-                )),
+                SceneErrorKind::malformed(
+                    MalformedPart::Material,
+                    format!("material '{}': {msg}", one_line(&m.name, QUOTE)),
+                ),
             )
         };
         if let Some(raw) = material.extras() {

@@ -4,22 +4,26 @@
 //! `targets` with the pose's or `weights`, skinned by the node's `skin` (see `deform`), and sampled at the
 //! motion steps under a shutter.
 
-use crate::scene::MalformedPart;
+use super::accessors::{check_bytes, read_floats, read_indices, Usage};
+use super::nodes::NodeContext;
+use super::{animation, deform, Loader, QUOTE};
 use crate::geometry::{Mesh, MeshMotion};
 use crate::limits::one_line;
 use crate::math::{Mat4, Vec2, Vec3, Vec4};
+use crate::scene::MalformedPart;
 use crate::scene::{SceneError, SceneErrorKind};
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::rc::Rc;
-use super::{Loader, QUOTE, animation, deform};
-use super::accessors::{Usage, check_bytes, read_floats, read_indices};
-use super::nodes::NodeContext;
 
 impl Loader<'_> {
     /// The description of `primitive` (`MESH, primitive N`) when it holds triangles (a list, strip or fan);
     /// any other mode is warned about and skipped (`None`).
-    pub(super) fn triangle_primitive(&mut self, mesh_name: &str, primitive: &gltf::Primitive) -> Option<String> {
+    pub(super) fn triangle_primitive(
+        &mut self,
+        mesh_name: &str,
+        primitive: &gltf::Primitive,
+    ) -> Option<String> {
         let what = format!("{mesh_name}, primitive {}", primitive.index());
         let mode = primitive.mode();
         if matches!(
@@ -213,7 +217,12 @@ impl Loader<'_> {
             .map_err(|e| self.error(SceneErrorKind::OverLimit(e.to_string())))?;
         let joints: Rc<[Mat4]> =
             deform::joint_matrices(skin, worlds, self.buffers, &self.options.limits)
-                .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Animation, e.to_string())))?
+                .map_err(|e| {
+                    self.error(SceneErrorKind::malformed(
+                        MalformedPart::Animation,
+                        e.to_string(),
+                    ))
+                })?
                 .into();
         self.joints.borrow_mut().insert(key, joints.clone());
         Ok(joints)
@@ -250,7 +259,12 @@ impl Loader<'_> {
                     Ok(())
                 }
             })
-            .map_err(|e| self.error(SceneErrorKind::malformed(MalformedPart::Animation, format!("{what}: {e}"))))?;
+            .map_err(|e| {
+                self.error(SceneErrorKind::malformed(
+                    MalformedPart::Animation,
+                    format!("{what}: {e}"),
+                ))
+            })?;
         if m.normals.is_empty() {
             m.generate_normals();
         }
@@ -259,7 +273,11 @@ impl Loader<'_> {
 
     /// A primitive's vertices in object space: POSITION, NORMAL, TANGENT and TEXCOORD_0 (sparse or quantized
     /// accessors decoded), its index list triangulated, every other attribute's bytes checked.
-    pub(super) fn read_primitive(&self, primitive: &gltf::Primitive, what: &str) -> Result<Mesh, SceneError> {
+    pub(super) fn read_primitive(
+        &self,
+        primitive: &gltf::Primitive,
+        what: &str,
+    ) -> Result<Mesh, SceneError> {
         let (buffers, limits) = (self.buffers, &self.options.limits);
         let bad = |m: String| self.error(SceneErrorKind::InvalidReference(format!("{what}: {m}")));
         let mut mesh = self.read_vertices(primitive, what)?;
@@ -292,7 +310,10 @@ impl Loader<'_> {
         };
         let positions: Vec<Vec3> = floats(&S::Positions, Usage::Position)?
             .ok_or_else(|| {
-                self.error(SceneErrorKind::malformed(MalformedPart::Mesh, format!("{what} has no POSITION")))
+                self.error(SceneErrorKind::malformed(
+                    MalformedPart::Mesh,
+                    format!("{what} has no POSITION"),
+                ))
             })?
             .chunks_exact(3)
             .map(Vec3::from_slice)
@@ -362,9 +383,10 @@ impl Loader<'_> {
             || colors.as_ref().is_some_and(|c| !same_len(c.len()))
             || tangents.as_ref().is_some_and(|t| !same_len(t.len()))
         {
-            return Err(self.error(SceneErrorKind::malformed(MalformedPart::Mesh, format!(
-                "{what}: attribute counts differ from POSITION's {count}"
-            ))));
+            return Err(self.error(SceneErrorKind::malformed(
+                MalformedPart::Mesh,
+                format!("{what}: attribute counts differ from POSITION's {count}"),
+            )));
         }
         let bad = [
             ("POSITION", positions.iter().position(|v| !v.is_finite())),
@@ -387,9 +409,10 @@ impl Loader<'_> {
             ),
         ];
         if let Some((name, Some(i))) = bad.into_iter().find(|(_, i)| i.is_some()) {
-            return Err(self.error(SceneErrorKind::malformed(MalformedPart::Mesh, format!(
-                "{what}: {name}[{i}] is not finite"
-            ))));
+            return Err(self.error(SceneErrorKind::malformed(
+                MalformedPart::Mesh,
+                format!("{what}: {name}[{i}] is not finite"),
+            )));
         }
         Ok(())
     }

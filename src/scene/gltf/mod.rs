@@ -53,23 +53,23 @@ mod nodes;
 mod textures;
 mod variants;
 
-use crate::scene::MalformedPart;
-use check::SkippedChannels;
+use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::CompositingTags;
 use crate::light::LUMENS_PER_WATT;
 use crate::limits::{one_line, Limits, WorkBudget};
 use crate::material::{ColorSpace, MipImage};
 use crate::math::Mat4;
 use crate::params::UnknownKey;
+use crate::scene::MalformedPart;
+use check::SkippedChannels;
 use gltf::json::validation::Validate;
-use meshes::{JointCache, mesh_users};
-use nodes::{NodeContext, node_name};
+use meshes::{mesh_users, JointCache};
+use nodes::{node_name, NodeContext};
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 use std::sync::Arc;
-use super::{LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use variants::{choose_variant, variant_names};
 
 /// The glTF extensions Nimbus implements; any other extension in `extensionsRequired` is an error, and any
@@ -186,8 +186,8 @@ pub fn load_slice(
         ));
     }
     let buffers = read_buffers(&document, blob, &base, path, &options.limits)?;
-    let (pose, motion) = read_pose(&document, &buffers, options, &skipped, &mut warnings)
-        .map_err(&err)?;
+    let (pose, motion) =
+        read_pose(&document, &buffers, options, &skipped, &mut warnings).map_err(&err)?;
     let mut loader = Loader {
         pose,
         motion,
@@ -310,7 +310,9 @@ type JsonParse = (gltf::json::Root, Option<Vec<u8>>, SkippedChannels);
 #[derive(Debug, thiserror::Error)]
 enum ParseError {
     /// A GLB header whose length field is missing or shorter than the header.
-    #[error("GLB container: the header's length field ({length}) is shorter than the 12-byte header")]
+    #[error(
+        "GLB container: the header's length field ({length}) is shorter than the 12-byte header"
+    )]
     ShortGlbHeader {
         /// The length field, or `missing`.
         length: String,
@@ -394,10 +396,10 @@ fn validate(root: &gltf::json::Root) -> Result<Vec<String>, SceneErrorKind> {
         }
     }
     if !fatal.is_empty() {
-        return Err(SceneErrorKind::malformed(MalformedPart::File, one_line(
-            &fatal.join("; "),
-            4 * QUOTE,
-        )));
+        return Err(SceneErrorKind::malformed(
+            MalformedPart::File,
+            one_line(&fatal.join("; "), 4 * QUOTE),
+        ));
     }
     Ok(root
         .extensions_used
@@ -476,7 +478,9 @@ impl Loader<'_> {
 
     /// An error about a malformed `part` of the file, naming the file, its message cut to one line.
     fn malformed(&self, part: MalformedPart, message: String) -> SceneError {
-        self.error(SceneErrorKind::malformed(part, one_line(&message, 4 * QUOTE)))
+        self.error(SceneErrorKind::malformed(
+            part,
+            one_line(&message, 4 * QUOTE),
+        ))
     }
-
 }

@@ -5,14 +5,14 @@
 //! `instancing`), `camera`, `extensions.KHR_lights_punctual.light` and an `extras.nimbus_volume`. A node's
 //! compositing tags pass to its children; the top-level node names Cryptomatte's asset.
 
-use crate::scene::MalformedPart;
+use super::extras::node_tags;
+use super::{Loader, MAX_NODE_DEPTH, QUOTE};
 use crate::geometry::CompositingTags;
 use crate::limits::one_line;
 use crate::math::Mat4;
 use crate::params::unknown_json_names;
+use crate::scene::MalformedPart;
 use crate::scene::{LightTag, SceneError, SceneErrorKind};
-use super::{Loader, MAX_NODE_DEPTH, QUOTE};
-use super::extras::node_tags;
 
 impl Loader<'_> {
     /// Loads `node` and its subtree under the `parent` world matrix at `depth`, with the compositing tags and
@@ -25,17 +25,20 @@ impl Loader<'_> {
         outer: &NodeContext,
     ) -> Result<(), SceneError> {
         if depth > MAX_NODE_DEPTH {
-            return Err(self.error(SceneErrorKind::malformed(MalformedPart::Node, format!(
-                "node {} is nested deeper than {MAX_NODE_DEPTH} levels (a cycle?)",
-                node.index()
-            ))));
+            return Err(self.error(SceneErrorKind::malformed(
+                MalformedPart::Node,
+                format!(
+                    "node {} is nested deeper than {MAX_NODE_DEPTH} levels (a cycle?)",
+                    node.index()
+                ),
+            )));
         }
         let world = parent * self.pose.locals[node.index()];
         if !world.is_finite() {
-            return Err(self.error(SceneErrorKind::malformed(MalformedPart::Node, format!(
-                "node {} has a non-finite transform",
-                node.index()
-            ))));
+            return Err(self.error(SceneErrorKind::malformed(
+                MalformedPart::Node,
+                format!("node {} has a non-finite transform", node.index()),
+            )));
         }
         let extras = self.node_extras(&node)?;
         if let Some(extras) = &extras {
@@ -45,10 +48,10 @@ impl Loader<'_> {
         let context = NodeContext {
             tags: node_tags(extras.as_ref())
                 .map_err(|m| {
-                    self.error(SceneErrorKind::malformed(MalformedPart::Node, format!(
-                        "node '{}': extras: {m}",
-                        node_name(&node)
-                    )))
+                    self.error(SceneErrorKind::malformed(
+                        MalformedPart::Node,
+                        format!("node '{}': extras: {m}", node_name(&node)),
+                    ))
                 })?
                 .or(&outer.tags),
             asset: outer.asset.clone(),
@@ -91,10 +94,10 @@ impl Loader<'_> {
             return Ok(None);
         };
         serde_json::from_str(raw.get()).map(Some).map_err(|e| {
-            self.error(SceneErrorKind::malformed(MalformedPart::Node, format!(
-                "node '{}': extras: {e}",
-                node_name(node)
-            )))
+            self.error(SceneErrorKind::malformed(
+                MalformedPart::Node,
+                format!("node '{}': extras: {e}", node_name(node)),
+            ))
         })
     }
 }

@@ -3,13 +3,13 @@
 //! `minFilter`, `wrapS`, `wrapT`) and `images[]` (`uri` or `bufferView`), decoded once per colour space within
 //! the memory budget.
 
-use crate::scene::MalformedPart;
+use super::{read_uri, Loader, QUOTE};
 use crate::limits::one_line;
-use crate::material::{ColorSpace, Filter, MipImage, Sampler, Texture, UV_SETS, UvTransform, Wrap};
+use crate::material::{ColorSpace, Filter, MipImage, Sampler, Texture, UvTransform, Wrap, UV_SETS};
 use crate::math::Vec2;
+use crate::scene::MalformedPart;
 use crate::scene::{SceneError, SceneErrorKind};
 use std::sync::Arc;
-use super::{Loader, QUOTE, read_uri};
 
 impl Loader<'_> {
     /// A texture of an extension object (a `textureInfo`), read into the scene, if present.
@@ -47,17 +47,26 @@ impl Loader<'_> {
     }
 
     /// A `textureInfo` given as JSON: `index`, `texCoord` and `extensions.KHR_texture_transform`.
-    pub(super) fn json_ref(&self, value: &serde_json::Value, at: &str) -> Result<TexRef, SceneError> {
-        let index = value
-            .get("index")
-            .and_then(|i| i.as_u64())
-            .ok_or_else(|| self.malformed(MalformedPart::Texture, format!("{at}.index must be a texture index")))?;
+    pub(super) fn json_ref(
+        &self,
+        value: &serde_json::Value,
+        at: &str,
+    ) -> Result<TexRef, SceneError> {
+        let index = value.get("index").and_then(|i| i.as_u64()).ok_or_else(|| {
+            self.malformed(
+                MalformedPart::Texture,
+                format!("{at}.index must be a texture index"),
+            )
+        })?;
         let tex_coord = match value.get("texCoord") {
             Some(t) => t
                 .as_u64()
                 .filter(|&t| t <= u32::MAX as u64)
                 .ok_or_else(|| {
-                    self.malformed(MalformedPart::Texture, format!("{at}.texCoord must be a non-negative integer"))
+                    self.malformed(
+                        MalformedPart::Texture,
+                        format!("{at}.texCoord must be a non-negative integer"),
+                    )
                 })? as u32,
             None => 0,
         };
@@ -85,7 +94,12 @@ impl Loader<'_> {
             transform: UvTransform::default(),
         };
         if let Some(t) = extensions.and_then(|e| e.get("KHR_texture_transform")) {
-            let bad = || self.malformed(MalformedPart::Texture, format!("{at}.extensions.KHR_texture_transform: {t}"));
+            let bad = || {
+                self.malformed(
+                    MalformedPart::Texture,
+                    format!("{at}.extensions.KHR_texture_transform: {t}"),
+                )
+            };
             let pair = |key: &str, default: [f32; 2]| match t.get(key) {
                 None => Some(default),
                 Some(v) => {
@@ -116,9 +130,10 @@ impl Loader<'_> {
         if let Some(t) = info.texture_transform() {
             r.transform =
                 checked_transform(t.offset(), t.rotation(), t.scale()).ok_or_else(|| {
-                    self.malformed(MalformedPart::Texture, format!(
-                        "{at}.extensions.KHR_texture_transform holds a non-finite number"
-                    ))
+                    self.malformed(
+                        MalformedPart::Texture,
+                        format!("{at}.extensions.KHR_texture_transform holds a non-finite number"),
+                    )
                 })?;
             if let Some(c) = t.tex_coord() {
                 r.tex_coord = c;
@@ -181,7 +196,12 @@ impl Loader<'_> {
             rgba.as_raw(),
             space,
         )
-        .ok_or_else(|| self.error(SceneErrorKind::malformed(MalformedPart::Texture, format!("image {index} is empty"))))?;
+        .ok_or_else(|| {
+            self.error(SceneErrorKind::malformed(
+                MalformedPart::Texture,
+                format!("image {index} is empty"),
+            ))
+        })?;
         let mip = Arc::new(mip);
         self.images.insert(key, mip.clone());
         Ok(mip)
@@ -217,10 +237,10 @@ impl Loader<'_> {
         };
         let budget = self.options.limits;
         let malformed = |e: String| {
-            self.error(SceneErrorKind::malformed(MalformedPart::Texture, format!(
-                "{name}: {}",
-                one_line(&e, QUOTE)
-            )))
+            self.error(SceneErrorKind::malformed(
+                MalformedPart::Texture,
+                format!("{name}: {}", one_line(&e, QUOTE)),
+            ))
         };
         // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels) stay in the budget.
         let decoded = crate::limits::decode_image(&bytes, &budget, 4 + 22)

@@ -1,11 +1,11 @@
 //! `KHR_materials_variants`: the root extension's `variants[].name`, the variant chosen by
 //! [`crate::scene::LoadOptions::variant`], and each primitive's `mappings[]` (`material`, `variants`).
 
-use crate::scene::MalformedPart;
+use super::{Loader, QUOTE};
 use crate::limits::one_line;
+use crate::scene::MalformedPart;
 use crate::scene::{SceneError, SceneErrorKind};
 use std::collections::HashMap;
-use super::{Loader, QUOTE};
 
 impl Loader<'_> {
     /// The material index `KHR_materials_variants` gives the chosen variant on a primitive, if the primitive
@@ -23,7 +23,12 @@ impl Loader<'_> {
         let mappings = ext
             .get("mappings")
             .and_then(|m| m.as_array())
-            .ok_or_else(|| self.malformed(MalformedPart::Material, format!("{at}.mappings must be an array")))?;
+            .ok_or_else(|| {
+                self.malformed(
+                    MalformedPart::Material,
+                    format!("{at}.mappings must be an array"),
+                )
+            })?;
         let materials = self.document.materials().len();
         // The mapping that named each variant met so far: the work follows the primitive's own mappings, not
         // the file's count of variants.
@@ -43,7 +48,10 @@ impl Loader<'_> {
                 .get("variants")
                 .and_then(|v| v.as_array())
                 .ok_or_else(|| {
-                    self.malformed(MalformedPart::Material, format!("{at}.mappings[{i}].variants must be an array"))
+                    self.malformed(
+                        MalformedPart::Material,
+                        format!("{at}.mappings[{i}].variants must be an array"),
+                    )
                 })?;
             for v in variants {
                 let index = v
@@ -57,9 +65,12 @@ impl Loader<'_> {
                         )))
                     })? as usize;
                 if let Some(first) = mapped_at.insert(index, i) {
-                    return Err(self.malformed(MalformedPart::Material, format!(
+                    return Err(self.malformed(
+                        MalformedPart::Material,
+                        format!(
                         "{at}: variant {index} is mapped by mappings[{first}] and mappings[{i}]"
-                    )));
+                    ),
+                    ));
                 }
                 if self.variant == Some(index) {
                     chosen = Some(material);
@@ -130,11 +141,14 @@ pub(super) fn choose_variant(
             one_line(wanted, QUOTE),
             list()
         ))),
-        _ => Err(SceneErrorKind::malformed(MalformedPart::Material, format!(
-            "{} material variants are named '{}' (variants: {})",
-            matches.len(),
-            one_line(wanted, QUOTE),
-            list()
-        ))),
+        _ => Err(SceneErrorKind::malformed(
+            MalformedPart::Material,
+            format!(
+                "{} material variants are named '{}' (variants: {})",
+                matches.len(),
+                one_line(wanted, QUOTE),
+                list()
+            ),
+        )),
     }
 }

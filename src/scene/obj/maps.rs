@@ -19,12 +19,12 @@
 //! `-clamp on` makes a texture clamp to its edge instead of repeating; `-o` and `-s` move and scale the texture
 //! coordinates of the meshes using the material (see [`super::load`]).
 
-use crate::scene::MalformedPart;
 use super::mtl::{MapKind, TextureMap};
 use super::QUOTE_CHARS;
 use crate::limits::{one_line, read_file, Limits};
 use crate::material::{ColorSpace, MipImage, Sampler, Texture, Wrap};
 use crate::math::{Vec3, Vec4};
+use crate::scene::MalformedPart;
 use crate::scene::{SceneBuilder, SceneError, SceneErrorKind};
 use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
@@ -92,9 +92,11 @@ impl<'a> TextureMaps<'a> {
             wrap_t: wrap,
             ..Sampler::default()
         };
-        let mip = mip_image(mtl, map, kind, &image, wrap, builder)
-        .ok_or_else(|| {
-            SceneError::new(&file, SceneErrorKind::malformed(MalformedPart::Texture, "the image is empty"))
+        let mip = mip_image(mtl, map, kind, &image, wrap, builder).ok_or_else(|| {
+            SceneError::new(
+                &file,
+                SceneErrorKind::malformed(MalformedPart::Texture, "the image is empty"),
+            )
         })?;
         let id = builder.add_texture(Texture::new(Arc::new(mip), sampler));
         self.textures.insert(key, id);
@@ -114,13 +116,16 @@ impl<'a> TextureMaps<'a> {
         let context = |e: String| {
             SceneError::new(
                 file,
-                SceneErrorKind::malformed(MalformedPart::Texture, format!(
-                    "{} (named by {} line {})",
-                    one_line(&e, 200),
-                    mtl.file_name()
-                        .map_or_else(String::new, |f| f.to_string_lossy().into_owned()),
-                    map.line
-                )),
+                SceneErrorKind::malformed(
+                    MalformedPart::Texture,
+                    format!(
+                        "{} (named by {} line {})",
+                        one_line(&e, 200),
+                        mtl.file_name()
+                            .map_or_else(String::new, |f| f.to_string_lossy().into_owned()),
+                        map.line
+                    ),
+                ),
             )
         };
         let bytes = read_file(file, self.limits).map_err(|e| context(e.to_string()))?;
@@ -152,11 +157,9 @@ fn mip_image(
         }
         MapKind::Normal => MipImage::from_rgba8(w, h, rgba.as_raw(), ColorSpace::Linear),
         MapKind::Dissolve => {
-            let channel = map.channel.unwrap_or(if image.color().has_alpha() {
-                'm'
-            } else {
-                'l'
-            });
+            let channel = map
+                .channel
+                .unwrap_or(if image.color().has_alpha() { 'm' } else { 'l' });
             let texels = scalars(&rgba, channel)
                 .map(|c| Vec4::new(c, c, c, 1.0))
                 .collect();
@@ -176,12 +179,15 @@ fn mip_image(
                 linear
             } else {
                 let heights: Vec<f32> = scalars(&rgba, map.channel.unwrap_or('l')).collect();
-                MipImage::new(w, h, height_to_normals(&heights, w, h, map.bump_multiplier, wrap))
+                MipImage::new(
+                    w,
+                    h,
+                    height_to_normals(&heights, w, h, map.bump_multiplier, wrap),
+                )
             }
         }
     }
 }
-
 
 /// The file an MTL statement names: `name` with `\` read as a separator, relative to `base` (an absolute path
 /// as it is), then the same with each component matched case-insensitively, then the bare file name next to

@@ -356,7 +356,10 @@ fn uv_option(args: &mut OptionWords, default: f32) -> Result<Vec2, LineError> {
             _ => break,
         }
     }
-    Ok(Vec2::new(values[0], values.get(1).copied().unwrap_or(default)))
+    Ok(Vec2::new(
+        values[0],
+        values.get(1).copied().unwrap_or(default),
+    ))
 }
 
 /// Reads texture option `option` of statement `key` (its values from `args`) into `map`; returns whether Nimbus

@@ -69,8 +69,8 @@ mod stacks;
 mod tests;
 mod variants;
 
-pub(super) use error::CompositionError;
 use cycles::{cycle_back, run_start};
+pub(super) use error::CompositionError;
 use error::ImpliedClassCycle;
 use implied::propagate_specializes;
 use layers::{Arc, ArcKind, Layers, Prim};
@@ -177,9 +177,10 @@ impl Step {
     /// The arc the step follows, if it follows one (its own, its parent's or an ancestor's).
     fn arc(&self) -> Option<&Arc> {
         match self {
-            Step::Arc(arc) | Step::ParentArc(arc) | Step::AncestorArc(arc, _) | Step::Implied(arc) => {
-                Some(arc)
-            }
+            Step::Arc(arc)
+            | Step::ParentArc(arc)
+            | Step::AncestorArc(arc, _)
+            | Step::Implied(arc) => Some(arc),
             Step::Child => None,
         }
     }
@@ -205,7 +206,9 @@ impl Step {
     fn authored(&self, at: &str) -> Option<String> {
         let by = match self {
             Step::Child => return None,
-            Step::Implied(arc) => return Some(format!("{at}: {} (an implied class)", arc.describe())),
+            Step::Implied(arc) => {
+                return Some(format!("{at}: {} (an implied class)", arc.describe()))
+            }
             Step::Arc(_) => at,
             Step::ParentArc(_) => parent(at),
             Step::AncestorArc(_, ancestor) => ancestor,
@@ -398,7 +401,8 @@ impl<'a> Walk<'a> {
                     if let Some(from) = self.lands_in_run(&frames, next) {
                         return Err(self.cycle(&frames, from, next));
                     }
-                    if let Some((from, level, target)) = self.lands_in_run_by_authors(&frames, next) {
+                    if let Some((from, level, target)) = self.lands_in_run_by_authors(&frames, next)
+                    {
                         let mut cycle = self.cycle(&frames, from, next);
                         if let CompositionError::Cycle { lands, .. } = &mut cycle {
                             *lands = format!(
@@ -584,7 +588,6 @@ impl<'a> Walk<'a> {
             _ => Some(arc.path.clone()),
         }
     }
-
 }
 
 /// Adds the prims of a site just walked to the frame that stepped to it, if that step counts, and the nodes of
@@ -615,4 +618,3 @@ fn nested(a: &Site, b: &Site) -> bool {
 fn inside(inner: &str, outer: &str) -> bool {
     inner.len() > outer.len() && inner.starts_with(outer) && inner.as_bytes()[outer.len()] == b'/'
 }
-

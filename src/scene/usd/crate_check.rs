@@ -346,7 +346,10 @@ impl Reader<'_> {
     fn count(&mut self) -> Result<usize, CrateError> {
         let n = self.u64()?;
         if n > self.limit() {
-            return Err(CrateError::CountExceeds { n, at: self.pos - 8 });
+            return Err(CrateError::CountExceeds {
+                n,
+                at: self.pos - 8,
+            });
         }
         Ok(n as usize)
     }

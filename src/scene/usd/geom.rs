@@ -1,12 +1,12 @@
 //! USD geometry: `Mesh` prims (points, face topology, normals and `st` primvars with their interpolation).
 
-use crate::scene::MalformedPart;
 use super::values::{number, token, vec2_array, vec3_array};
 use super::Loader;
 use crate::geometry::{
     BoundaryRule, CreaseMethod, FaceVaryingRule, Mesh, PolygonMesh, Scheme, SubdivisionRules,
 };
 use crate::math::{Mat4, Rgb, Vec2, Vec3};
+use crate::scene::MalformedPart;
 use crate::scene::SceneError;
 use openusd::{sdf, usd};
 
@@ -33,9 +33,9 @@ impl Loader<'_> {
     ) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
         let points = match self.value(prim, "points")? {
-            Some(v) => {
-                vec3_array(&v).ok_or_else(|| self.error(MalformedPart::Mesh, &at, "points must be a point3f[]"))?
-            }
+            Some(v) => vec3_array(&v).ok_or_else(|| {
+                self.error(MalformedPart::Mesh, &at, "points must be a point3f[]")
+            })?,
             None => return Ok(()),
         };
         let counts = self.int_array(prim, "faceVertexCounts")?;
@@ -107,7 +107,8 @@ impl Loader<'_> {
     ) -> Result<(), SceneError> {
         let total: usize = counts.iter().map(|&c| c.max(0) as usize).sum();
         if total != indices.len() {
-            return Err(self.error(MalformedPart::Mesh,
+            return Err(self.error(
+                MalformedPart::Mesh,
                 at,
                 format!(
                     "faceVertexCounts sum to {total} but faceVertexIndices has {} entries",
@@ -119,7 +120,8 @@ impl Loader<'_> {
             .iter()
             .find(|&&i| i < 0 || i as usize >= points.len())
         {
-            return Err(self.error(MalformedPart::Mesh,
+            return Err(self.error(
+                MalformedPart::Mesh,
                 at,
                 format!(
                     "face vertex index {bad} is out of range ({} points)",
@@ -171,7 +173,9 @@ impl Loader<'_> {
             if let Some(read) = self.primvar_color(face_material[f]).cloned() {
                 let values =
                     match self.primvar(prim, &[read.attribute.as_str()], "constant", vec3_array)? {
-                        Some(p) => topology.expand(p).map_err(|m| self.error(MalformedPart::Mesh, at, m))?,
+                        Some(p) => topology
+                            .expand(p)
+                            .map_err(|m| self.error(MalformedPart::Mesh, at, m))?,
                         None => vec![read.fallback; corners],
                     };
                 colors.get_or_insert_with(|| vec![Rgb::ONE; corners])[corner..corner + c]
@@ -221,9 +225,11 @@ impl Loader<'_> {
                 Some(v) => match number(&v) {
                     Some(l) if l.is_finite() && l >= 0.0 => l as u32,
                     _ => {
-                        return Err(
-                            self.error(MalformedPart::Mesh, at, "refineLevel must be a whole number of 0 or more")
-                        )
+                        return Err(self.error(
+                            MalformedPart::Mesh,
+                            at,
+                            "refineLevel must be a whole number of 0 or more",
+                        ))
                     }
                 },
                 None => DEFAULT_SUBDIVISION_LEVEL,
@@ -273,17 +279,27 @@ impl Loader<'_> {
         for (crease, &length) in crease_lengths.iter().enumerate() {
             let length = usize::try_from(length).unwrap_or(0);
             let chain = crease_indices.get(next..next + length).ok_or_else(|| {
-                self.error(MalformedPart::Mesh, at, "creaseLengths sum to more than creaseIndices holds")
+                self.error(
+                    MalformedPart::Mesh,
+                    at,
+                    "creaseLengths sum to more than creaseIndices holds",
+                )
             })?;
             next += length;
             for pair in chain.windows(2) {
                 let (Some(a), Some(b)) = (vertex(pair[0]), vertex(pair[1])) else {
-                    return Err(self.error(MalformedPart::Mesh, at, "a crease index is out of range"));
+                    return Err(self.error(
+                        MalformedPart::Mesh,
+                        at,
+                        "a crease index is out of range",
+                    ));
                 };
                 let sharpness = sharpnesses
                     .get(if per_edge { edge } else { crease })
                     .copied()
-                    .ok_or_else(|| self.error(MalformedPart::Mesh, at, "creaseSharpnesses is too short"))?;
+                    .ok_or_else(|| {
+                        self.error(MalformedPart::Mesh, at, "creaseSharpnesses is too short")
+                    })?;
                 edge += 1;
                 cage.creases
                     .insert((a.min(b), a.max(b)), sharpness.max(0.0));
@@ -292,11 +308,12 @@ impl Loader<'_> {
         let corner_indices = self.int_array(prim, "cornerIndices")?;
         let corner_sharpnesses = self.float_values(prim, "cornerSharpnesses")?;
         for (k, &i) in corner_indices.iter().enumerate() {
-            let v = vertex(i).ok_or_else(|| self.error(MalformedPart::Mesh, at, "a corner index is out of range"))?;
-            let s = corner_sharpnesses
-                .get(k)
-                .copied()
-                .ok_or_else(|| self.error(MalformedPart::Mesh, at, "cornerSharpnesses is too short"))?;
+            let v = vertex(i).ok_or_else(|| {
+                self.error(MalformedPart::Mesh, at, "a corner index is out of range")
+            })?;
+            let s = corner_sharpnesses.get(k).copied().ok_or_else(|| {
+                self.error(MalformedPart::Mesh, at, "cornerSharpnesses is too short")
+            })?;
             cage.corners.insert(v, s.max(0.0));
         }
         cage.rules = self.subdivision_rules(prim, at)?;
@@ -413,7 +430,8 @@ impl Loader<'_> {
                 .map(|i| usize::try_from(i).ok().filter(|&i| i < faces).ok_or(i))
                 .collect::<Result<Vec<_>, _>>()
                 .map_err(|i| {
-                    self.error(MalformedPart::Mesh,
+                    self.error(
+                        MalformedPart::Mesh,
                         at,
                         format!("face index {i} is out of range ({faces} faces)"),
                     )
@@ -427,7 +445,8 @@ impl Loader<'_> {
         match self.value(prim, name)? {
             None => Ok(Vec::new()),
             Some(sdf::Value::IntVec(v)) => Ok(v),
-            Some(_) => Err(self.error(MalformedPart::Mesh,
+            Some(_) => Err(self.error(
+                MalformedPart::Mesh,
                 &format!("{}.{name}", prim.path().as_str()),
                 "expected an int[]",
             )),
@@ -447,7 +466,8 @@ impl Loader<'_> {
                 continue;
             };
             let at = format!("{}.{name}", prim.path().as_str());
-            let values = convert(&v).ok_or_else(|| self.error(MalformedPart::Mesh, &at, "unexpected value type"))?;
+            let values = convert(&v)
+                .ok_or_else(|| self.error(MalformedPart::Mesh, &at, "unexpected value type"))?;
             let attr = prim.attribute(*name);
             let interpolation = attr
                 .get_metadata::<sdf::Value>("interpolation")
@@ -456,7 +476,9 @@ impl Loader<'_> {
                 .unwrap_or_else(|| default_interpolation.to_owned());
             let indices = match self.value(prim, &format!("{name}:indices"))? {
                 Some(sdf::Value::IntVec(ix)) => Some(ix),
-                Some(_) => return Err(self.error(MalformedPart::Mesh, &at, "indices must be an int[]")),
+                Some(_) => {
+                    return Err(self.error(MalformedPart::Mesh, &at, "indices must be an int[]"))
+                }
                 None => None,
             };
             let values = match indices {
@@ -464,7 +486,9 @@ impl Loader<'_> {
                     .iter()
                     .map(|&i| usize::try_from(i).ok().and_then(|i| values.get(i).copied()))
                     .collect::<Option<Vec<T>>>()
-                    .ok_or_else(|| self.error(MalformedPart::Mesh, &at, "primvar index out of range"))?,
+                    .ok_or_else(|| {
+                        self.error(MalformedPart::Mesh, &at, "primvar index out of range")
+                    })?,
                 None => values,
             };
             return Ok(Some(Primvar {
@@ -590,7 +614,6 @@ fn without_degenerate_faces(mesh: PolygonMesh) -> PolygonMesh {
     }
     out
 }
-
 
 /// A polygon surface as triangle meshes, one per material (face tag), with one vertex per face corner: simple,
 /// and right for every interpolation. Faces are fanned from their first corner (reversed when `left_handed`);

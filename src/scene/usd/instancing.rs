@@ -12,11 +12,11 @@
 //! (UsdGeomPointInstancer::ComputeInstanceTransformsAtTime), then the instancer's world matrix. Velocities,
 //! accelerations and angular velocities (motion) are not read.
 
-use crate::scene::MalformedPart;
 use super::values::vec3_array;
 use super::Loader;
-use crate::math::{Mat4, Quat, Vec3};
 use crate::geometry::{CompositingTags, Mesh};
+use crate::math::{Mat4, Quat, Vec3};
+use crate::scene::MalformedPart;
 use crate::scene::{MeshInstance, SceneError, SceneErrorKind};
 use openusd::{sdf, usd};
 use std::collections::HashSet;
@@ -101,10 +101,9 @@ impl Loader<'_> {
         depth: usize,
     ) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
-        let prototypes = prim
-            .relationship("prototypes")
-            .targets()
-            .map_err(|e| self.error(MalformedPart::Instancing, &at, format!("prototypes: {e:#}")))?;
+        let prototypes = prim.relationship("prototypes").targets().map_err(|e| {
+            self.error(MalformedPart::Instancing, &at, format!("prototypes: {e:#}"))
+        })?;
         let arrays = self.instancer_arrays(prim, &at)?;
         let parts = self.instancer_prototypes(&prototypes, &at, binding, depth)?;
         self.check_instancer_budget(&at, &arrays.indices, &parts)?;
@@ -117,7 +116,8 @@ impl Loader<'_> {
                 .ok()
                 .filter(|&p| p < parts.len())
                 .ok_or_else(|| {
-                    self.error(MalformedPart::Instancing,
+                    self.error(
+                        MalformedPart::Instancing,
                         &at,
                         format!(
                             "protoIndices[{i}] = {} but there are {} prototypes",
@@ -128,7 +128,11 @@ impl Loader<'_> {
                 })?;
             let m = *world * arrays.instance_matrix(i);
             if !m.is_finite() {
-                return Err(self.error(MalformedPart::Instancing, &at, format!("instance {i} has a non-finite transform")));
+                return Err(self.error(
+                    MalformedPart::Instancing,
+                    &at,
+                    format!("instance {i} has a non-finite transform"),
+                ));
             }
             self.place_instance(i, &m, &parts[p])?;
         }
@@ -140,20 +144,26 @@ impl Loader<'_> {
     fn instancer_arrays(&self, prim: &usd::Prim, at: &str) -> Result<InstancerArrays, SceneError> {
         let indices = self.int_array(prim, "protoIndices")?;
         let positions = match self.value(prim, "positions")? {
-            Some(v) => {
-                vec3_array(&v).ok_or_else(|| self.error(MalformedPart::Instancing, at, "positions must be a point3f[]"))?
-            }
+            Some(v) => vec3_array(&v).ok_or_else(|| {
+                self.error(
+                    MalformedPart::Instancing,
+                    at,
+                    "positions must be a point3f[]",
+                )
+            })?,
             None => Vec::new(),
         };
         let n = indices.len();
         if n > MAX_INSTANCES {
-            return Err(self.error(MalformedPart::Instancing,
+            return Err(self.error(
+                MalformedPart::Instancing,
                 at,
                 format!("{n} instances; at most {MAX_INSTANCES} are expanded"),
             ));
         }
         if positions.len() != n {
-            return Err(self.error(MalformedPart::Instancing,
+            return Err(self.error(
+                MalformedPart::Instancing,
                 at,
                 format!(
                     "positions has {} entries for {n} protoIndices",
@@ -163,9 +173,9 @@ impl Loader<'_> {
         }
         let orientations = self.orientations(prim)?;
         let scales = match self.value(prim, "scales")? {
-            Some(v) => {
-                vec3_array(&v).ok_or_else(|| self.error(MalformedPart::Instancing, at, "scales must be a float3[]"))?
-            }
+            Some(v) => vec3_array(&v).ok_or_else(|| {
+                self.error(MalformedPart::Instancing, at, "scales must be a float3[]")
+            })?,
             None => Vec::new(),
         };
         for (name, len) in [
@@ -173,7 +183,8 @@ impl Loader<'_> {
             ("scales", scales.len()),
         ] {
             if len != 0 && len != n {
-                return Err(self.error(MalformedPart::Instancing,
+                return Err(self.error(
+                    MalformedPart::Instancing,
                     at,
                     format!("{name} has {len} entries for {n} protoIndices"),
                 ));
@@ -181,7 +192,8 @@ impl Loader<'_> {
         }
         let ids = self.int64_array(prim, "ids")?;
         if !ids.is_empty() && ids.len() != n {
-            return Err(self.error(MalformedPart::Instancing,
+            return Err(self.error(
+                MalformedPart::Instancing,
                 at,
                 format!("ids has {} entries for {n} protoIndices", ids.len()),
             ));
@@ -275,7 +287,12 @@ impl Loader<'_> {
 
     /// Places instance `i` at `m`: an instance of each of its prototype's shared meshes, a copy of each of its
     /// moving ones.
-    fn place_instance(&mut self, i: usize, m: &Mat4, part: &PrototypeMeshes) -> Result<(), SceneError> {
+    fn place_instance(
+        &mut self,
+        i: usize,
+        m: &Mat4,
+        part: &PrototypeMeshes,
+    ) -> Result<(), SceneError> {
         for shared in &part.shared {
             let instance = MeshInstance {
                 prototype: shared.prototype,
@@ -379,7 +396,8 @@ impl Loader<'_> {
         visited?;
         let meshes = self.builder.split_meshes_off(before.0);
         let b = &mut self.builder;
-        let others = b.lights.len() != before.1 || b.cameras.len() != before.2 || b.media.len() != before.3;
+        let others =
+            b.lights.len() != before.1 || b.cameras.len() != before.2 || b.media.len() != before.3;
         if others || meshes.iter().any(|m| m.motion.is_some()) {
             b.truncate_lights(before.1);
             b.cameras.truncate(before.2);
@@ -431,7 +449,13 @@ impl Loader<'_> {
                 .iter()
                 .map(|q| Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32))
                 .collect(),
-            _ => return Err(self.error(MalformedPart::Instancing, at, "orientations must be a quath[]")),
+            _ => {
+                return Err(self.error(
+                    MalformedPart::Instancing,
+                    at,
+                    "orientations must be a quath[]",
+                ))
+            }
         };
         quats
             .into_iter()
@@ -439,7 +463,13 @@ impl Loader<'_> {
                 let len = q.length();
                 (len.is_finite() && len > 0.0)
                     .then(|| q / len)
-                    .ok_or_else(|| self.error(MalformedPart::Instancing, at, "an orientation is zero or not finite"))
+                    .ok_or_else(|| {
+                        self.error(
+                            MalformedPart::Instancing,
+                            at,
+                            "an orientation is zero or not finite",
+                        )
+                    })
             })
             .collect()
     }
@@ -450,7 +480,8 @@ impl Loader<'_> {
             None => Ok(Vec::new()),
             Some(sdf::Value::Int64Vec(v)) => Ok(v),
             Some(sdf::Value::IntVec(v)) => Ok(v.into_iter().map(i64::from).collect()),
-            Some(_) => Err(self.error(MalformedPart::Instancing,
+            Some(_) => Err(self.error(
+                MalformedPart::Instancing,
                 &format!("{}.{name}", prim.path().as_str()),
                 "expected an int64[]",
             )),

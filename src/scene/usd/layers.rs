@@ -51,7 +51,10 @@ pub(super) enum LayerError {
     EntryTooLarge { name: String, cap: u64 },
     /// A layer inside a package fails its check.
     #[error("package entry '{name}': {error}")]
-    InEntry { name: String, error: Box<LayerError> },
+    InEntry {
+        name: String,
+        error: Box<LayerError>,
+    },
 }
 
 /// Checks one layer or package by its content: a crate file, a zip package or (anything else) text.

@@ -1,11 +1,11 @@
 //! UsdLux lights: rect, disk, sphere, distant and dome lights (see the module docs of [`super`] for the units).
 
-use crate::scene::MalformedPart;
 use super::Loader;
 use crate::geometry::Mesh;
 use crate::light::{DirectionalLight, EnvironmentLight, EnvironmentMap, Light, PointLight};
 use crate::material::Material;
 use crate::math::{Mat3, Mat4, Quat, Rgb, Vec2, Vec3};
+use crate::scene::MalformedPart;
 use crate::scene::{LightTag, SceneError, SceneErrorKind};
 use openusd::{sdf, usd};
 
@@ -95,7 +95,11 @@ impl Loader<'_> {
             .sum();
         let emission = if normalize {
             if area <= 0.0 {
-                return Err(self.error(MalformedPart::Light, at, "a normalized light must have a positive area"));
+                return Err(self.error(
+                    MalformedPart::Light,
+                    at,
+                    "a normalized light must have a positive area",
+                ));
             }
             radiance / area
         } else {

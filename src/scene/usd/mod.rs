@@ -69,13 +69,13 @@ mod values;
 mod vol;
 mod xform;
 
-use crate::scene::MalformedPart;
 use super::camera::{Camera, CameraMotion, NamedCamera, Projection, ThinLens};
 use super::{report_unknown_keys, LoadOptions, SceneBuilder, SceneError, SceneErrorKind};
 use crate::geometry::{CompositingTags, Mesh, MeshMotion, MotionSteps};
 use crate::limits::{catch_quietly, one_line, read_file, Limits};
 use crate::math::{Mat4, Rgb, Vec3};
 use crate::params::{closest_name, UnknownKey, UsdBinding};
+use crate::scene::MalformedPart;
 use crate::volume::spec::VOLUME_KEYS;
 use crate::volume::VolumeSpec;
 use openusd::{ar, pcp, sdf, usd};
@@ -393,16 +393,22 @@ fn read_stage(
 fn open(path: &Path, limits: &Limits) -> Result<usd::Stage, SceneError> {
     let bytes =
         read_file(path, limits).map_err(|e| SceneError::new(path, SceneErrorKind::Io(e)))?;
-    layers::check_layer(&bytes, limits).map_err(|e| malformed(path, MalformedPart::File, e.to_string()))?;
+    layers::check_layer(&bytes, limits)
+        .map_err(|e| malformed(path, MalformedPart::File, e.to_string()))?;
     drop(bytes);
-    let name = path
-        .to_str()
-        .ok_or_else(|| malformed(path, MalformedPart::File, "the path is not valid UTF-8".into()))?;
+    let name = path.to_str().ok_or_else(|| {
+        malformed(
+            path,
+            MalformedPart::File,
+            "the path is not valid UTF-8".into(),
+        )
+    })?;
     let resolver = || crate_check::CheckingResolver {
         inner: ar::DefaultResolver::new(),
         limits: *limits,
     };
-    composition::check(name, &resolver(), limits).map_err(|e| malformed(path, MalformedPart::File, e.to_string()))?;
+    composition::check(name, &resolver(), limits)
+        .map_err(|e| malformed(path, MalformedPart::File, e.to_string()))?;
     let stage = usd::Stage::builder()
         .resolver(resolver())
         .open(name)
@@ -441,7 +447,9 @@ fn composition_errors(path: &Path, stage: &usd::Stage) -> Result<Vec<String>, Sc
         }
     }
     if !errors.is_empty() {
-        return Err(malformed(path, MalformedPart::File,
+        return Err(malformed(
+            path,
+            MalformedPart::File,
             format!("composition: {}", errors.join("; ")),
         ));
     }
@@ -535,7 +543,13 @@ impl Loader<'_> {
         let start = self
             .stage
             .stage_metadata("startTimeCode")
-            .map_err(|e| self.error(MalformedPart::File, "stage metadata", format!("startTimeCode: {e:#}")))?
+            .map_err(|e| {
+                self.error(
+                    MalformedPart::File,
+                    "stage metadata",
+                    format!("startTimeCode: {e:#}"),
+                )
+            })?
             .and_then(|v| number(&v))
             .filter(|t| t.is_finite());
         Ok(start.map_or(usd::TimeCode::EARLIEST, usd::TimeCode::new))
@@ -561,29 +575,44 @@ impl Loader<'_> {
         let value = self
             .stage
             .stage_metadata(key)
-            .map_err(|e| self.error(MalformedPart::File, "stage metadata", format!("{key}: {e:#}")))?
+            .map_err(|e| {
+                self.error(
+                    MalformedPart::File,
+                    "stage metadata",
+                    format!("{key}: {e:#}"),
+                )
+            })?
             .and_then(|v| number(&v))
             .unwrap_or(24.0);
         if value.is_finite() && value > 0.0 {
             Ok(value)
         } else {
-            Err(self.error(MalformedPart::File, "stage metadata", format!("{key} {value} must be positive")))
+            Err(self.error(
+                MalformedPart::File,
+                "stage metadata",
+                format!("{key} {value} must be positive"),
+            ))
         }
     }
 
     /// The matrix from stage units and axes to Nimbus's metres and +Y up.
     fn stage_root(&self) -> Result<Mat4, SceneError> {
         let meta = |key: &str| {
-            self.stage
-                .stage_metadata(key)
-                .map_err(|e| self.error(MalformedPart::File, "stage metadata", format!("{key}: {e:#}")))
+            self.stage.stage_metadata(key).map_err(|e| {
+                self.error(
+                    MalformedPart::File,
+                    "stage metadata",
+                    format!("{key}: {e:#}"),
+                )
+            })
         };
         let up = meta("upAxis")?.and_then(|v| token(&v));
         let mpu = meta("metersPerUnit")?
             .and_then(|v| number(&v))
             .unwrap_or(1.0);
         if !(mpu.is_finite() && mpu > 0.0) {
-            return Err(self.error(MalformedPart::File,
+            return Err(self.error(
+                MalformedPart::File,
                 "stage metadata",
                 format!("metersPerUnit {mpu} must be positive"),
             ));
@@ -605,7 +634,8 @@ impl Loader<'_> {
     /// resolving a malformed one (a line break inside, from a damaged string) walked path parents for minutes.
     fn value(&self, prim: &usd::Prim, name: &str) -> Result<Option<sdf::Value>, SceneError> {
         if !is_property_name(name) {
-            return Err(self.error(MalformedPart::Node,
+            return Err(self.error(
+                MalformedPart::Node,
                 prim.path().as_str(),
                 format!(
                     "'{}' is not a valid attribute name",
@@ -616,7 +646,8 @@ impl Loader<'_> {
         prim.attribute(name)
             .get_at::<sdf::Value>(self.time)
             .map_err(|e| {
-                self.error(MalformedPart::Node,
+                self.error(
+                    MalformedPart::Node,
                     &format!("{}.{name}", prim.path().as_str()),
                     format!("{e:#}"),
                 )
@@ -630,7 +661,8 @@ impl Loader<'_> {
                 .filter(|x| x.is_finite())
                 .map(|x| x as f32)
                 .ok_or_else(|| {
-                    self.error(MalformedPart::Node,
+                    self.error(
+                        MalformedPart::Node,
                         &format!("{}.{name}", prim.path().as_str()),
                         "expected a number",
                     )
@@ -642,7 +674,8 @@ impl Loader<'_> {
         match self.value(prim, name)? {
             None => Ok(default),
             Some(v) => vec3(&v).filter(|c| c.is_finite()).ok_or_else(|| {
-                self.error(MalformedPart::Node,
+                self.error(
+                    MalformedPart::Node,
                     &format!("{}.{name}", prim.path().as_str()),
                     "expected a colour",
                 )
@@ -667,13 +700,18 @@ impl Loader<'_> {
     ) -> Result<(), SceneError> {
         let at = prim.path().as_str().to_owned();
         if depth > MAX_DEPTH {
-            return Err(self.error(MalformedPart::Node, &at, format!("nested deeper than {MAX_DEPTH} levels")));
+            return Err(self.error(
+                MalformedPart::Node,
+                &at,
+                format!("nested deeper than {MAX_DEPTH} levels"),
+            ));
         }
         // The composition check counts prims before composing, but not those an ancestor's arcs map onto an
         // arc's target: every prim composed is counted here too.
         self.prims += 1;
         if self.prims > self.limits.usd_prims {
-            return Err(self.error(MalformedPart::Node,
+            return Err(self.error(
+                MalformedPart::Node,
                 &at,
                 format!(
                     "the stage has more than {} prims (raise the limit with --max-prims)",
@@ -805,7 +843,11 @@ impl Loader<'_> {
             match self.value(prim, name)? {
                 None => Ok(false),
                 Some(sdf::Value::Bool(b)) => Ok(b),
-                Some(_) => Err(self.error(MalformedPart::Node, &format!("{at}.{name}"), "expected a bool")),
+                Some(_) => Err(self.error(
+                    MalformedPart::Node,
+                    &format!("{at}.{name}"),
+                    "expected a bool",
+                )),
             }
         };
         let light_group = match self.value(prim, "nimbus:lightGroup")? {
@@ -813,7 +855,8 @@ impl Loader<'_> {
             Some(v) => match token(&v) {
                 Some(name) if !name.trim().is_empty() && name.chars().count() <= 64 => Some(name),
                 _ => {
-                    return Err(self.error(MalformedPart::Node,
+                    return Err(self.error(
+                        MalformedPart::Node,
                         &format!("{at}.nimbus:lightGroup"),
                         "a light group must be a non-empty string of at most 64 characters",
                     ))
@@ -909,7 +952,11 @@ impl Loader<'_> {
         let h = self.float(prim, "horizontalAperture", 20.955)?;
         let v = self.float(prim, "verticalAperture", 15.2908)?;
         if !(focal > 0.0 && h > 0.0 && v > 0.0) {
-            return Err(self.error(MalformedPart::Camera, &at, "focalLength and apertures must be positive"));
+            return Err(self.error(
+                MalformedPart::Camera,
+                &at,
+                "focalLength and apertures must be positive",
+            ));
         }
         let f_stop = self.float(prim, "fStop", 0.0)?;
         let focus = self.float(prim, "focusDistance", 0.0)?;
@@ -942,7 +989,11 @@ impl Loader<'_> {
             }
         }
         if !(f_stop.is_finite() && f_stop >= 0.0) {
-            return Err(self.error(MalformedPart::Camera, &format!("{at}.fStop"), format!("{f_stop} must be ≥ 0")));
+            return Err(self.error(
+                MalformedPart::Camera,
+                &format!("{at}.fStop"),
+                format!("{f_stop} must be ≥ 0"),
+            ));
         }
         let radius = if f_stop > 0.0 {
             0.1 * focal / (2.0 * f_stop) * unit

@@ -1,10 +1,10 @@
 //! USD shading: `material:binding`, `Material` → `UsdPreviewSurface` and `UsdUVTexture` inputs.
 
-use crate::scene::MalformedPart;
 use super::values::{number, token, vec2, vec3, vec3_array, vec4};
 use super::Loader;
 use crate::material::{ColorSpace, Material, Texture, UvTransform};
 use crate::math::{Rgb, Vec2, Vec4};
+use crate::scene::MalformedPart;
 use crate::scene::{SceneError, SceneErrorKind};
 use openusd::{sdf, usd};
 use std::path::PathBuf;
@@ -126,7 +126,13 @@ impl Loader<'_> {
         let targets = prim
             .relationship("material:binding")
             .targets()
-            .map_err(|e| self.error(MalformedPart::Material, prim.path().as_str(), format!("{e:#}")))?;
+            .map_err(|e| {
+                self.error(
+                    MalformedPart::Material,
+                    prim.path().as_str(),
+                    format!("{e:#}"),
+                )
+            })?;
         Ok(targets.first().map(|p| p.prim_path().as_str().to_owned()))
     }
 
@@ -333,7 +339,13 @@ impl Loader<'_> {
             }
             let packed = ScalarMap::pack(roughness_map.as_ref(), metallic_map.as_ref());
             let texture = Texture::from_linear(packed.width, packed.height, packed.texels)
-                .ok_or_else(|| self.error(MalformedPart::Material, path, "empty metallic-roughness texture"))?;
+                .ok_or_else(|| {
+                    self.error(
+                        MalformedPart::Material,
+                        path,
+                        "empty metallic-roughness texture",
+                    )
+                })?;
             self.builder.textures.push(texture);
             let id = (self.builder.textures.len() - 1) as u32;
             m.metallic_roughness_texture = Some(self.transformed(id, transform));
@@ -482,10 +494,13 @@ impl Loader<'_> {
         shader: &usd::Prim,
         name: &str,
     ) -> Result<Option<usd::Prim>, SceneError> {
-        let targets = shader
-            .attribute(name)
-            .connections()
-            .map_err(|e| self.error(MalformedPart::Material, shader.path().as_str(), format!("{e:#}")))?;
+        let targets = shader.attribute(name).connections().map_err(|e| {
+            self.error(
+                MalformedPart::Material,
+                shader.path().as_str(),
+                format!("{e:#}"),
+            )
+        })?;
         Ok(targets
             .first()
             .map(|p| self.stage.prim(p.prim_path().as_str())))
@@ -558,10 +573,19 @@ impl Loader<'_> {
         };
         // The RGBA8 copy and the float mip pyramid (16 bytes a texel, 4/3 for the levels).
         let image = crate::limits::decode_image_named(&bytes, Some(&file), &self.limits, 4 + 22)
-            .map_err(|e| SceneError::new(&file, SceneErrorKind::malformed(MalformedPart::Texture, e.to_string())))?
+            .map_err(|e| {
+                SceneError::new(
+                    &file,
+                    SceneErrorKind::malformed(MalformedPart::Texture, e.to_string()),
+                )
+            })?
             .to_rgba8();
-        let t = texture_from_image(&image, srgb, (scale, bias), role)
-        .ok_or_else(|| SceneError::new(&file, SceneErrorKind::malformed(MalformedPart::Texture, "empty image")))?;
+        let t = texture_from_image(&image, srgb, (scale, bias), role).ok_or_else(|| {
+            SceneError::new(
+                &file,
+                SceneErrorKind::malformed(MalformedPart::Texture, "empty image"),
+            )
+        })?;
         self.builder.textures.push(t);
         let id = (self.builder.textures.len() - 1) as u32;
         self.textures.insert(key, id);
@@ -650,7 +674,12 @@ impl Loader<'_> {
         // The RGBA8 copy, the values and the packed texture's float mip pyramid.
         let image =
             crate::limits::decode_image_named(&bytes, Some(&file), &self.limits, 4 + 4 + 22)
-                .map_err(|e| SceneError::new(&file, SceneErrorKind::malformed(MalformedPart::Texture, e.to_string())))?
+                .map_err(|e| {
+                    SceneError::new(
+                        &file,
+                        SceneErrorKind::malformed(MalformedPart::Texture, e.to_string()),
+                    )
+                })?
                 .to_rgba8();
         let values = image
             .as_raw()
@@ -690,7 +719,11 @@ impl Loader<'_> {
         let translation = pair(self.value(&node, "inputs:translation")?, Vec2::ZERO);
         let at = node.path().as_str();
         if !(rotation.is_finite() && scale.is_finite() && translation.is_finite()) {
-            return Err(self.error(MalformedPart::Material, at, "UsdTransform2d inputs must be finite"));
+            return Err(self.error(
+                MalformedPart::Material,
+                at,
+                "UsdTransform2d inputs must be finite",
+            ));
         }
         Ok(usd_transform_2d(rotation, scale, translation))
     }
@@ -703,7 +736,8 @@ impl Loader<'_> {
             match self.value(tex, name)? {
                 None => Ok(None),
                 Some(v) => vec4(&v).filter(|v| v.is_finite()).map(Some).ok_or_else(|| {
-                    self.error(MalformedPart::Material,
+                    self.error(
+                        MalformedPart::Material,
                         &format!("{}.{name}", tex.path().as_str()),
                         "expected a float4",
                     )

@@ -8,11 +8,11 @@
 //! toward +axis (width along X for axis Z or Y, along Z for axis X; length along Y for axis Z or X, along Z for
 //! axis Y).
 
-use crate::scene::MalformedPart;
 use super::values::token;
 use super::Loader;
 use crate::geometry::Mesh;
 use crate::math::{Mat4, Vec2, Vec3};
+use crate::scene::MalformedPart;
 use crate::scene::SceneError;
 use openusd::{sdf, usd};
 use std::f32::consts::{FRAC_PI_2, TAU};
@@ -36,7 +36,11 @@ impl Loader<'_> {
             if v > 0.0 {
                 Ok(v)
             } else {
-                Err(self.error(MalformedPart::Mesh, &at, format!("{name} must be positive, is {v}")))
+                Err(self.error(
+                    MalformedPart::Mesh,
+                    &at,
+                    format!("{name} must be positive, is {v}"),
+                ))
             }
         };
         let axis = match self.value(prim, "axis")?.and_then(|v| token(&v)) {
@@ -45,7 +49,13 @@ impl Loader<'_> {
                 "X" => Axis::X,
                 "Y" => Axis::Y,
                 "Z" => Axis::Z,
-                other => return Err(self.error(MalformedPart::Mesh, &at, format!("axis '{other}' is not X, Y or Z"))),
+                other => {
+                    return Err(self.error(
+                        MalformedPart::Mesh,
+                        &at,
+                        format!("axis '{other}' is not X, Y or Z"),
+                    ))
+                }
             },
         };
         let shape = match kind {
@@ -77,7 +87,11 @@ impl Loader<'_> {
                 height: {
                     let h = self.float(prim, "height", 1.0)?;
                     if h < 0.0 {
-                        return Err(self.error(MalformedPart::Mesh, &at, format!("height must not be negative, is {h}")));
+                        return Err(self.error(
+                            MalformedPart::Mesh,
+                            &at,
+                            format!("height must not be negative, is {h}"),
+                        ));
                     }
                     h
                 },

@@ -1,11 +1,11 @@
 //! UsdVol: `Volume` prims with `OpenVDBAsset` fields, and the `nimbus:` attributes of
 //! [`VOLUME_KEYS`](crate::volume::spec::VOLUME_KEYS), read through the same table as glTF's keys.
 
-use crate::scene::MalformedPart;
 use super::values::{number, token, vec3};
 use super::Loader;
 use crate::math::{Mat4, Rgb};
 use crate::params::{ParamError, ParamKey, ParamSource, ParamType, ParamValue, UsdBinding};
+use crate::scene::MalformedPart;
 use crate::scene::{SceneError, SceneErrorKind};
 use crate::volume::VolumeSpec;
 use openusd::{sdf, usd};
@@ -141,14 +141,19 @@ impl Loader<'_> {
         let asset = self.stage.prim(t.prim_path().as_str());
         let kind = self.type_name(&asset)?;
         if kind != "OpenVDBAsset" {
-            return Err(self.error(MalformedPart::Volume,
+            return Err(self.error(
+                MalformedPart::Volume,
                 at,
                 format!("{name} targets a '{kind}', not an OpenVDBAsset"),
             ));
         }
-        let file = self
-            .asset(&asset, "filePath")?
-            .ok_or_else(|| self.error(MalformedPart::Volume, asset.path().as_str(), "filePath is required"))?;
+        let file = self.asset(&asset, "filePath")?.ok_or_else(|| {
+            self.error(
+                MalformedPart::Volume,
+                asset.path().as_str(),
+                "filePath is required",
+            )
+        })?;
         let grid = self
             .value(&asset, "fieldName")?
             .and_then(|v| token(&v))

@@ -1,9 +1,9 @@
 //! USD xform ops: `xformOpOrder` and each op's matrix (UsdGeomXformable).
 
-use crate::scene::MalformedPart;
 use super::values::{number, tokens, vec3};
 use super::Loader;
 use crate::math::{Mat4, Quat};
+use crate::scene::MalformedPart;
 use crate::scene::SceneError;
 use openusd::{sdf, usd};
 
@@ -14,8 +14,13 @@ impl Loader<'_> {
         let Some(order) = self.value(prim, "xformOpOrder")? else {
             return Ok((Mat4::IDENTITY, false));
         };
-        let ops =
-            tokens(&order).ok_or_else(|| self.error(MalformedPart::Node, at, "xformOpOrder must be a token array"))?;
+        let ops = tokens(&order).ok_or_else(|| {
+            self.error(
+                MalformedPart::Node,
+                at,
+                "xformOpOrder must be a token array",
+            )
+        })?;
         let mut m = Mat4::IDENTITY;
         let mut reset = false;
         for op in ops {
@@ -27,12 +32,20 @@ impl Loader<'_> {
                 Some(n) => (n, true),
                 None => (op.as_str(), false),
             };
-            let value = self
-                .value(prim, name)?
-                .ok_or_else(|| self.error(MalformedPart::Node, at, format!("xformOp '{name}' has no value")))?;
+            let value = self.value(prim, name)?.ok_or_else(|| {
+                self.error(
+                    MalformedPart::Node,
+                    at,
+                    format!("xformOp '{name}' has no value"),
+                )
+            })?;
             let op_kind = name.split(':').nth(1).unwrap_or("");
             let mut op_m = xform_op(op_kind, &value).ok_or_else(|| {
-                self.error(MalformedPart::Node, at, format!("unsupported or malformed xformOp '{name}'"))
+                self.error(
+                    MalformedPart::Node,
+                    at,
+                    format!("unsupported or malformed xformOp '{name}'"),
+                )
             })?;
             if invert {
                 op_m = op_m.inverse();

@@ -24,10 +24,12 @@ impl<'a> Walk<'a> {
         next: usize,
     ) -> Option<(usize, String, String)> {
         let top = frames.len() - 1;
-        let (mut level, lands) = self.author(&frames[top].last_step().1, &self.sites[frames[top].site].1)?;
+        let (mut level, lands) =
+            self.author(&frames[top].last_step().1, &self.sites[frames[top].site].1)?;
         let lands = (self.sites[next].0, lands);
         for i in (run_start(frames)..top).rev() {
-            let (author, target) = self.author(&frames[i].last_step().1, &self.sites[frames[i].site].1)?;
+            let (author, target) =
+                self.author(&frames[i].last_step().1, &self.sites[frames[i].site].1)?;
             level = precache::map(&level, &target, &author)?;
             if nested(&(self.sites[frames[i].site].0, level.clone()), &lands) {
                 return Some((i, level, lands.1));
@@ -42,7 +44,11 @@ impl<'a> Walk<'a> {
     /// `/X/Y`, or references `/X` and specializes `/X/Y`, or under one that inherits `/X`, a prim `B` that
     /// inherits `/X/B`. Such a stage composes in USD, but `openusd` 0.6 pre-caches the mapped path, finds the
     /// same arc there again and recurses until its stack overflows.
-    pub(super) fn not_mapped_onto_itself(&self, stack: usize, path: &str) -> Result<(), CompositionError> {
+    pub(super) fn not_mapped_onto_itself(
+        &self,
+        stack: usize,
+        path: &str,
+    ) -> Result<(), CompositionError> {
         let prims = &self.stacks[stack].prims;
         let Some(own) = prims.get(path) else {
             return Ok(());

@@ -123,7 +123,11 @@ pub(in crate::scene::usd) enum CompositionError {
         "the layer stack of {layer} expands to {entries} layers (a sublayer named twice counts twice), over the \
          limit of {max} (raise it with --max-sublayers)"
     )]
-    LayerStack { layer: String, entries: u64, max: u64 },
+    LayerStack {
+        layer: String,
+        entries: u64,
+        max: u64,
+    },
     /// `openusd`'s pre-caching of inherit and specialize targets follows more than the limit from `from`.
     #[error(
         "openusd 0.6 pre-caches more than {max_prims} inherit and specialize targets from {from} (each once per \

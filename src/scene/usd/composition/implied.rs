@@ -2,7 +2,10 @@
 //! the referencing layer stack (walked for their work, refused when they land back in the run), and specializes
 //! copied to the root of their prim index.
 
-use super::{inside, nested, precache, run_start, Arc, ArcKind, CompositionError, Frame, ImpliedClassCycle, Step, Walk};
+use super::{
+    inside, nested, precache, run_start, Arc, ArcKind, CompositionError, Frame, ImpliedClassCycle,
+    Step, Walk,
+};
 
 impl<'a> Walk<'a> {
     /// Carries the class-based arc just followed from the top frame to `next` onto the layer stack of the
@@ -59,7 +62,11 @@ impl<'a> Walk<'a> {
     /// exponential time. Only the nearest reference of the run is modelled; when either arc is an ancestor's,
     /// the class is also implied at the level of the prims that author them (Pcp composes the ancestors' index
     /// first), so that an ancestor of a site of the run inheriting its own namespace is refused too.
-    pub(super) fn implied_class_in_run(&self, frames: &[Frame], next: usize) -> Result<(), CompositionError> {
+    pub(super) fn implied_class_in_run(
+        &self,
+        frames: &[Frame],
+        next: usize,
+    ) -> Result<(), CompositionError> {
         let start = run_start(frames);
         let through = (start..frames.len()).rev().find(|&i| {
             let (target, step) = frames[i].last_step();
@@ -105,14 +112,16 @@ impl<'a> Walk<'a> {
             step.describe(&self.sites[frame.site].1, &self.sites[*next].1)
         };
         let class_arc = top.last_step().1.authored(&self.sites[top.site].1);
-        Err(CompositionError::ImpliedClass(Box::new(ImpliedClassCycle {
-            class_arc: class_arc.unwrap_or_default(),
-            through: describe(&frames[through]),
-            below: describe(top),
-            referencing,
-            implied,
-            nested_with: self.sites[frames[from].site].1.clone(),
-        })))
+        Err(CompositionError::ImpliedClass(Box::new(
+            ImpliedClassCycle {
+                class_arc: class_arc.unwrap_or_default(),
+                through: describe(&frames[through]),
+                below: describe(top),
+                referencing,
+                implied,
+                nested_with: self.sites[frames[from].site].1.clone(),
+            },
+        )))
     }
 
     /// The prim that authors the arc `step` follows from the site at `at` (the site's own path, or the ancestor
@@ -162,14 +171,16 @@ impl<'a> Walk<'a> {
             return Ok(());
         }
         let class_arc = top.last_step().1.authored(&self.sites[top.site].1);
-        Err(CompositionError::ImpliedClass(Box::new(ImpliedClassCycle {
-            class_arc: class_arc.unwrap_or_default(),
-            through: step.describe(referencing, source),
-            below: format!("{} composes {composed}", self.sites[top.site].1),
-            referencing: referencing.clone(),
-            implied,
-            nested_with: composed,
-        })))
+        Err(CompositionError::ImpliedClass(Box::new(
+            ImpliedClassCycle {
+                class_arc: class_arc.unwrap_or_default(),
+                through: step.describe(referencing, source),
+                below: format!("{} composes {composed}", self.sites[top.site].1),
+                referencing: referencing.clone(),
+                implied,
+                nested_with: composed,
+            },
+        )))
     }
 }
 

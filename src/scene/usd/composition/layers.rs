@@ -131,7 +131,11 @@ impl<'a> Layers<'a> {
 
     /// The index of the layer `asset` names (relative to `anchor`), queued to be read the first time it is
     /// named; `None` for an expression (its variables are `openusd`'s to evaluate) or an empty identifier.
-    pub(super) fn index(&mut self, asset: &str, anchor: Option<&ar::ResolvedPath>) -> Option<usize> {
+    pub(super) fn index(
+        &mut self,
+        asset: &str,
+        anchor: Option<&ar::ResolvedPath>,
+    ) -> Option<usize> {
         if asset.is_empty() || sdf::expr::is_expression(asset) {
             return None;
         }
@@ -163,7 +167,10 @@ impl<'a> Layers<'a> {
     }
 
     /// The file format that reads `resolved`.
-    pub(super) fn format(&self, resolved: &ar::ResolvedPath) -> Option<&'static dyn sdf::FileFormat> {
+    pub(super) fn format(
+        &self,
+        resolved: &ar::ResolvedPath,
+    ) -> Option<&'static dyn sdf::FileFormat> {
         let ext = extension(resolved);
         if ext != "usd" {
             return sdf::LayerRegistry::find_by_extension(&ext);
@@ -180,7 +187,11 @@ impl<'a> Layers<'a> {
     }
 
     /// The sublayers, default prim, and every prim's children and arcs of a layer read from `anchor`.
-    pub(super) fn summarise(&mut self, data: &dyn sdf::AbstractData, anchor: &ar::ResolvedPath) -> Layer {
+    pub(super) fn summarise(
+        &mut self,
+        data: &dyn sdf::AbstractData,
+        anchor: &ar::ResolvedPath,
+    ) -> Layer {
         let root = sdf::Path::abs_root();
         let field = |path: &sdf::Path, name: &str| data.try_field(path, name).ok().flatten();
         let sublayers = field(&root, "subLayers")

@@ -302,7 +302,10 @@ impl Precache {
                 }
             }
             for mapped in found {
-                if sites.len() < MAX_SITES && depth(&mapped) <= max_depth && seen.insert(mapped.clone()) {
+                if sites.len() < MAX_SITES
+                    && depth(&mapped) <= max_depth
+                    && seen.insert(mapped.clone())
+                {
                     sites.push(mapped);
                 }
             }

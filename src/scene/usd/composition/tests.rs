@@ -10,11 +10,7 @@ fn check_files(tag: &str, files: &[(&str, &str)]) -> Result<(), CompositionError
 }
 
 /// [`check_files`] under `limits`.
-fn check_with(
-    tag: &str,
-    files: &[(&str, &str)],
-    limits: Limits,
-) -> Result<(), CompositionError> {
+fn check_with(tag: &str, files: &[(&str, &str)], limits: Limits) -> Result<(), CompositionError> {
     let root = write_files(tag, files);
     check(root.to_str().unwrap(), &resolver(), &limits)
 }
@@ -24,14 +20,12 @@ fn precache_files(tag: &str, files: &[(&str, &str)]) -> Result<(), CompositionEr
     let root = write_files(tag, files);
     let resolver = resolver();
     let (layers, _) = Layers::load(&resolver, root.to_str().unwrap());
-    precache::Precache::new(&layers)
-        .check(Limits::default().usd_prims)
+    precache::Precache::new(&layers).check(Limits::default().usd_prims)
 }
 
 /// Writes `files` (name, text) to a fresh folder; returns the path of the first, the root layer.
 fn write_files(tag: &str, files: &[(&str, &str)]) -> std::path::PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("nimbus_composition_{}_{tag}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("nimbus_composition_{}_{tag}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     for (name, text) in files {
@@ -53,8 +47,9 @@ fn resolver() -> CheckingResolver {
 fn an_ancestors_arc_back_into_the_run_is_a_cycle() {
     let root = "(\n defaultPrim = \"A\"\n)\ndef \"A\" (references = @./a.usda@</C/C>) {}";
     let asset = "over \"C\" (payload = @./root.usda@) { def \"C\" {} }";
-    let err =
-        check_files("ancestor_cycle", &[("root.usda", root), ("a.usda", asset)]).unwrap_err().to_string();
+    let err = check_files("ancestor_cycle", &[("root.usda", root), ("a.usda", asset)])
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("composition cycle") && err.contains("/C/C is under /C, which payload"),
         "{err}"
@@ -65,9 +60,10 @@ fn an_ancestors_arc_back_into_the_run_is_a_cycle() {
 /// ever deeper (`openusd` 0.6 never met the same site twice and ran for minutes).
 #[test]
 fn arcs_that_map_a_prim_ever_deeper_are_a_cycle() {
-    let root =
-        "def \"A\" (references = </C/D>) {}\ndef \"C\" (references = </A>) { def \"D\" {} }";
-    let err = check_files("deeper", &[("root.usda", root)]).unwrap_err().to_string();
+    let root = "def \"A\" (references = </C/D>) {}\ndef \"C\" (references = </A>) { def \"D\" {} }";
+    let err = check_files("deeper", &[("root.usda", root)])
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("composition cycle") && err.contains("back inside /A"),
         "{err}"
@@ -113,7 +109,9 @@ fn implied_classes_are_walked_with_their_own_arcs() {
 fn a_class_implied_back_into_the_referencing_prim_is_refused() {
     let root = "def \"A\" (references = @./l1.usda@</C/C>) { over \"C\" (references = @./l1.usda@</C/D>) {} }";
     let asset = "over \"C\" (inherits = </A>) {}\ndef \"A\" {}";
-    let err = check_files("implied", &[("root.usda", root), ("l1.usda", asset)]).unwrap_err().to_string();
+    let err = check_files("implied", &[("root.usda", root), ("l1.usda", asset)])
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("implied onto /A's layer stack as /A/C, nested with /A"),
         "{err}"
@@ -130,7 +128,9 @@ fn a_class_implied_from_a_child_below_a_reference_onto_its_ancestor_is_refused()
     let root = "def \"A\" { def \"A\" (references = @./l1.usda@</C/C>) {} }";
     let asset = "def \"C\" { class \"C\" { over \"C\" (inherits = </A>) {} } }";
     let files = [("root.usda", root), ("l1.usda", asset)];
-    let err = check_files("implied_child", &files).unwrap_err().to_string();
+    let err = check_files("implied_child", &files)
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("implied onto /A/A's layer stack as /A, nested with /A/A/C"),
         "{err}"
@@ -153,7 +153,9 @@ fn a_class_implied_at_the_level_of_the_ancestors_that_author_the_arcs_is_refused
     let asset = "def \"C\" (payload = [</D/D/B>, @./l0.usda@</A/B/A>]) {}\n\
                  def \"D\" (payload = @./l0.usda@</A>) {}";
     let files = [("l0.usda", root), ("l1.usda", asset)];
-    let err = check_files("implied_ancestors", &files).unwrap_err().to_string();
+    let err = check_files("implied_ancestors", &files)
+        .unwrap_err()
+        .to_string();
     assert!(
         err.starts_with("/A: inherits </C> is a composition cycle")
             && err.contains("implied onto /D's layer stack as /C, nested with /C/C"),
@@ -168,10 +170,14 @@ fn a_class_implied_at_the_level_of_the_ancestors_that_author_the_arcs_is_refused
 /// `openusd` 0.6 ran past 60 s (the fuzz target's `final-run-64d6ea8c`, reduced).
 #[test]
 fn ancestors_arcs_back_into_the_run_at_their_own_level_are_a_cycle() {
-    let root = "def \"A\" (specializes = </B/B/C>) { over \"C\" (references = @./l1.usda@</B/A/C>) {} }";
-    let asset = "(\n subLayers = [@./l0.usda@]\n)\nover \"B\" (inherits = </A> payload = </A/A>) {}";
+    let root =
+        "def \"A\" (specializes = </B/B/C>) { over \"C\" (references = @./l1.usda@</B/A/C>) {} }";
+    let asset =
+        "(\n subLayers = [@./l0.usda@]\n)\nover \"B\" (inherits = </A> payload = </A/A>) {}";
     let files = [("l0.usda", root), ("l1.usda", asset)];
-    let err = check_files("ancestor_level", &files).unwrap_err().to_string();
+    let err = check_files("ancestor_level", &files)
+        .unwrap_err()
+        .to_string();
     // Refused as arcs that map prims ever deeper (the first rule met), or as the cycle it is at the level of
     // the prims that author the arcs.
     assert!(
@@ -187,7 +193,8 @@ fn ancestors_arcs_back_into_the_run_at_their_own_level_are_a_cycle() {
 /// without errors.
 #[test]
 fn ancestral_arcs_of_an_ordinary_asset_are_no_cycle() {
-    let root = "def \"World\" {\n def \"Chair\" (references = @./chair.usda@</Chair>) {\n  over \"Leg\" \
+    let root =
+        "def \"World\" {\n def \"Chair\" (references = @./chair.usda@</Chair>) {\n  over \"Leg\" \
                 (inherits = </World/Looks/Wood>) {}\n }\n class \"Looks\" { class \"Wood\" {} }\n}";
     let chair = "def \"Chair\" (inherits = </_class_Chair>) { def \"Leg\" (references = </Parts/Leg>) {} }\n\
                  class \"_class_Chair\" {}\nover \"Parts\" { def \"Leg\" { def \"Foot\" {} } }";
@@ -198,8 +205,9 @@ fn ancestral_arcs_of_an_ordinary_asset_are_no_cycle() {
 /// 0.6 kept both copies, and fuzz inputs built on them composed for minutes or overflowed its stack.
 #[test]
 fn a_prim_or_an_arc_authored_twice_is_refused() {
-    let prim =
-        check_files("twice_prim", &[("root.usda", "def \"A\" {}\ndef \"A\" {}")]).unwrap_err().to_string();
+    let prim = check_files("twice_prim", &[("root.usda", "def \"A\" {}\ndef \"A\" {}")])
+        .unwrap_err()
+        .to_string();
     assert!(
         prim.ends_with(
             "root.usda defines prim </A> twice in one scope: Pixar's USD refuses such a layer \
@@ -208,10 +216,14 @@ fn a_prim_or_an_arc_authored_twice_is_refused() {
         "{prim}"
     );
     let nested = "def \"B\" { def \"C\" {}\n def \"C\" {} }";
-    let err = check_files("twice_nested", &[("root.usda", nested)]).unwrap_err().to_string();
+    let err = check_files("twice_nested", &[("root.usda", nested)])
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("defines prim </B/C> twice"), "{err}");
     let arcs = "def \"A\" (inherits = [</B>, </B>]) {}\nclass \"B\" {}";
-    let err = check_files("twice_arc", &[("root.usda", arcs)]).unwrap_err().to_string();
+    let err = check_files("twice_arc", &[("root.usda", arcs)])
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("lists </A> inherits </B> twice"), "{err}");
     // The same target through two kinds of arc, or in two prims, is no duplicate.
     let fine = "def \"A\" (inherits = </B> specializes = </B>) {}\ndef \"C\" (inherits = </B>) {}\nclass \"B\" {}";
@@ -239,11 +251,15 @@ fn a_parents_inherit_around_a_child_or_a_reference_is_no_cycle() {
 /// 26.11) composes the stage in 0.02 s with no error; it is refused as openusd's cycle.
 #[test]
 fn pre_caching_maps_targets_back_through_chains_of_arcs() {
-    let stage = "def \"D\" {\n over \"B\" (specializes = </B/A>) {}\n def \"D\" (inherits = </X>) {}\n}\n\
+    let stage =
+        "def \"D\" {\n over \"B\" (specializes = </B/A>) {}\n def \"D\" (inherits = </X>) {}\n}\n\
                  def \"B\" (inherits = [</D/D/A>, </D>]) {}\n";
-    let err = precache_files("chain", &[("root.usda", stage)]).unwrap_err().to_string();
+    let err = precache_files("chain", &[("root.usda", stage)])
+        .unwrap_err()
+        .to_string();
     assert!(
-        err.contains("is a composition cycle for openusd 0.6") && err.contains("/B/D/A -> /B/D -> /B/D/A"),
+        err.contains("is a composition cycle for openusd 0.6")
+            && err.contains("/B/D/A -> /B/D -> /B/D/A"),
         "{err}"
     );
 }
@@ -257,7 +273,9 @@ fn pre_caching_maps_targets_back_through_chains_of_arcs() {
 fn pre_caching_composes_the_ancestors_of_each_target() {
     let stage = "class \"B\" {}\ndef \"D\" (inherits = </B/A> references = </B>) {}\n\
                  def \"E\" (inherits = </D/X/Y>) {}\n";
-    let err = precache_files("ancestors", &[("root.usda", stage)]).unwrap_err().to_string();
+    let err = precache_files("ancestors", &[("root.usda", stage)])
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("is a composition cycle for openusd 0.6") && err.contains("/D/A -> /D/A"),
         "{err}"
@@ -273,9 +291,12 @@ fn pre_caching_composes_the_ancestors_of_each_target() {
 fn pre_caching_composes_class_targets_mapped_back_through_the_arcs() {
     let stage = "def \"C\" (inherits = </A>) { over \"A\" (inherits = </A>) {} }\n\
                  def \"A\" { def \"D\" (specializes = </A/A>) {} }\n";
-    let err = precache_files("implied_site", &[("root.usda", stage)]).unwrap_err().to_string();
+    let err = precache_files("implied_site", &[("root.usda", stage)])
+        .unwrap_err()
+        .to_string();
     assert!(
-        err.contains("is a composition cycle for openusd 0.6") && err.contains("/C/A/D/A -> /C/A/D/A"),
+        err.contains("is a composition cycle for openusd 0.6")
+            && err.contains("/C/A/D/A -> /C/A/D/A"),
         "{err}"
     );
 }
@@ -290,7 +311,9 @@ fn pre_caching_maps_class_targets_through_the_authors_ancestors() {
     let stage = "(\n defaultPrim = \"A\"\n)\n\
                  over \"D\" (references = @./root.usda@) { class \"A\" (inherits = </A>) {} }\n\
                  def \"A\" { over \"B\" (specializes = </D/A/A>) {} }\n";
-    let err = precache_files("author_ancestors", &[("root.usda", stage)]).unwrap_err().to_string();
+    let err = precache_files("author_ancestors", &[("root.usda", stage)])
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("is a composition cycle for openusd 0.6") && err.contains("/A/B/A -> /A/B/A"),
         "{err}"
@@ -307,9 +330,12 @@ fn pre_caching_starts_from_the_children_composed_through_arcs() {
     let stage = "def \"A\" { def \"B\" (inherits = </A/C>) {} }\n\
                  over \"C\" (payload = </A>) {}\n\
                  def \"D\" { over \"A\" (payload = @./root.usda@</C>) { class \"C\" (inherits = </A>) {} } }\n";
-    let err = precache_files("composed_children", &[("root.usda", stage)]).unwrap_err().to_string();
+    let err = precache_files("composed_children", &[("root.usda", stage)])
+        .unwrap_err()
+        .to_string();
     assert!(
-        err.contains("is a composition cycle for openusd 0.6") && err.contains("/D/A/C/B/C -> /D/A/C/B/C"),
+        err.contains("is a composition cycle for openusd 0.6")
+            && err.contains("/D/A/C/B/C -> /D/A/C/B/C"),
         "{err}"
     );
 }
@@ -335,7 +361,9 @@ fn pre_caching_follows_stage_paths_across_layer_stacks() {
         ),
         ("other.usda", "def \"X\" (specializes = </Q>) {}"),
     ];
-    let walk = check_files("precache_cycle", &files).unwrap_err().to_string();
+    let walk = check_files("precache_cycle", &files)
+        .unwrap_err()
+        .to_string();
     assert!(
         walk.starts_with("/X: specializes </Q> is a composition cycle"),
         "{walk}"
@@ -434,7 +462,9 @@ fn prims_are_counted_once_per_arc_that_brings_them_in() {
         "the stage composes 48 prims through its arcs and children (each counted once per arc that brings it \
          in), over the limit of 47 prims (raise it with --max-prims)"
     );
-    let err = check_with("fan_20", &[("root.usda", &fan)], limit(20)).unwrap_err().to_string();
+    let err = check_with("fan_20", &[("root.usda", &fan)], limit(20))
+        .unwrap_err()
+        .to_string();
     assert!(err.starts_with("/L3 composes 29 prims"), "{err}");
 }
 
@@ -448,7 +478,9 @@ fn a_sublayer_cycle_is_refused() {
         ("b.usda", "(\n subLayers = [@./c.usda@, @./a.usda@]\n)\n"),
         ("c.usda", "def \"C\" {}\n"),
     ];
-    let err = check_files("sublayer_cycle", &files).unwrap_err().to_string();
+    let err = check_files("sublayer_cycle", &files)
+        .unwrap_err()
+        .to_string();
     let cycle = "a.usda, a layer on the path of sublayers that leads to it (a sublayer cycle)";
     assert!(
         err.contains("a.usda: its subLayers lead back to a layer on their path: ")
@@ -461,9 +493,14 @@ fn a_sublayer_cycle_is_refused() {
         ("r.usda", "def \"A\" (references = @./d.usda@</D>) {}\n"),
         ("d.usda", "(\n subLayers = [@./d.usda@]\n)\ndef \"D\" {}\n"),
     ];
-    let err = check_files("sublayer_self", &files).unwrap_err().to_string();
+    let err = check_files("sublayer_self", &files)
+        .unwrap_err()
+        .to_string();
     let cycle = "d.usda, a layer on the path of sublayers that leads to it (a sublayer cycle)";
-    assert!(err.contains("d.usda names ") && err.ends_with(cycle), "{err}");
+    assert!(
+        err.contains("d.usda names ") && err.ends_with(cycle),
+        "{err}"
+    );
     // A layer named twice is no cycle (Pixar's USD composes it with no error).
     let files = [
         ("t.usda", "(\n subLayers = [@./u.usda@, @./u.usda@]\n)\n"),
@@ -485,7 +522,9 @@ fn layer_stacks_count_every_naming_of_a_sublayer() {
         ..Limits::default()
     };
     check_with("stack_7", &files, limit(7)).unwrap();
-    let err = check_with("stack_6", &files, limit(6)).unwrap_err().to_string();
+    let err = check_with("stack_6", &files, limit(6))
+        .unwrap_err()
+        .to_string();
     assert!(
         err.starts_with("the layer stack of ")
             && err.ends_with(
@@ -562,18 +601,35 @@ variantSet "v" = { "x" (inherits = </C/B/D>) {} }
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("/B/C: inherits </C/B/D>") && err.contains("inside /C, which has a variant set"),
+        err.contains("/B/C: inherits </C/B/D>")
+            && err.contains("inside /C, which has a variant set"),
         "{err}"
     );
     // The same arcs with the inherit outside the variant compose at once in `openusd` 0.6 (and load as before);
     // so do a target outside the prim the stage composes `/B/C` through, and a variant-less `/C`.
-    let outside = l0.replace("(variants = { string v = \"x\" } variantSets = \"v\")", "(inherits = </C/B/D>)")
+    let outside = l0
+        .replace(
+            "(variants = { string v = \"x\" } variantSets = \"v\")",
+            "(inherits = </C/B/D>)",
+        )
         .replace("(inherits = </C/B/D>) {}", "() {}");
-    check_files("variant_recursion_outside", &[("l0.usda", &outside), ("l2.usda", l2)]).unwrap();
+    check_files(
+        "variant_recursion_outside",
+        &[("l0.usda", &outside), ("l2.usda", l2)],
+    )
+    .unwrap();
     let elsewhere = l0.replace("</C/B/D>", "</D/B/D>");
-    check_files("variant_recursion_elsewhere", &[("l0.usda", &elsewhere), ("l2.usda", l2)]).unwrap();
+    check_files(
+        "variant_recursion_elsewhere",
+        &[("l0.usda", &elsewhere), ("l2.usda", l2)],
+    )
+    .unwrap();
     let plain = "def \"C\" (specializes = </A>) {}\n";
-    check_files("variant_recursion_plain", &[("l0.usda", l0), ("l2.usda", plain)]).unwrap();
+    check_files(
+        "variant_recursion_plain",
+        &[("l0.usda", l0), ("l2.usda", plain)],
+    )
+    .unwrap();
 }
 
 /// The growth behind `cc20016f`, measured on variations (`openusd` 0.6 recursed through the variant to its depth
@@ -591,7 +647,14 @@ fn arcs_in_variants_into_a_variant_prim_of_their_name_are_refused_at_any_depth()
         let variant = "variants = { string v = \"x\" } variantSets = \"v\"";
         let mut stage = String::new();
         let mut close = String::new();
-        for part in holder.split('/').skip(1).collect::<Vec<_>>().split_last().unwrap().1 {
+        for part in holder
+            .split('/')
+            .skip(1)
+            .collect::<Vec<_>>()
+            .split_last()
+            .unwrap()
+            .1
+        {
             stage += &format!("def \"{part}\" {{\n");
             close += "}\n";
         }
@@ -606,11 +669,15 @@ fn arcs_in_variants_into_a_variant_prim_of_their_name_are_refused_at_any_depth()
             "class \"{own}\" ({variant}) {{ variantSet \"v\" = {{ \"x\" (inherits = <{target}>) {{}} }} }}\n"
         );
         classes += &"}\n".repeat(parent.split('/').count() - 1);
-        let err = check_files(&format!("variant_recursion_{name}"), &[("root.usda", &(stage + &classes))])
-            .unwrap_err()
-            .to_string();
+        let err = check_files(
+            &format!("variant_recursion_{name}"),
+            &[("root.usda", &(stage + &classes))],
+        )
+        .unwrap_err()
+        .to_string();
         assert!(
-            err.contains(&format!("inherits <{target}>")) && err.contains(&format!("inside {holder}, which has")),
+            err.contains(&format!("inherits <{target}>"))
+                && err.contains(&format!("inside {holder}, which has")),
             "{name}: {err}"
         );
     }
@@ -621,6 +688,8 @@ class "B" {
 class "Q" (variants = { string v = "x" } variantSets = "v") { variantSet "v" = { "x" (inherits = </R/Q/X>) {} } }
 }
 "#;
-    let err = check_files("variant_recursion_image", &[("root.usda", image)]).unwrap_err().to_string();
+    let err = check_files("variant_recursion_image", &[("root.usda", image)])
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("composition cycle"), "{err}");
 }

@@ -17,7 +17,11 @@ impl<'a> Walk<'a> {
     /// Applies [`Walk::variant_recursion_at`] to every site the walk stepped from, after the walk's other rules
     /// (a stage they refuse keeps their message).
     pub(super) fn no_variant_recursion(&self) -> Result<(), CompositionError> {
-        let walked = self.sites.iter().zip(&self.steps).filter(|(_, steps)| steps.is_some());
+        let walked = self
+            .sites
+            .iter()
+            .zip(&self.steps)
+            .filter(|(_, steps)| steps.is_some());
         for ((stack, path), _) in walked {
             self.variant_recursion_at(*stack, path)?;
         }
@@ -42,9 +46,11 @@ impl<'a> Walk<'a> {
             while holder != "/" {
                 let named = holder.rsplit('/').next() == Some(name);
                 if let Some(r) = prims.get(holder).filter(|r| named && r.variants) {
-                    let composing = r.arcs.iter().filter(here).find(|a| {
-                        self.target_path(a).as_deref() == Some(parent(path))
-                    });
+                    let composing = r
+                        .arcs
+                        .iter()
+                        .filter(here)
+                        .find(|a| self.target_path(a).as_deref() == Some(parent(path)));
                     if let Some(composing) = composing {
                         return Err(CompositionError::VariantRecursion {
                             path: path.to_owned(),
