@@ -136,15 +136,25 @@ impl NoiseMedium {
         self.max_density * (0.5 * (self.noise.noise(p * self.scale) + 1.0)).clamp(0.0, 1.0)
     }
 
-    /// Ratio-tracked transmittance over `(0, t_max)` with the constant majorant `max_density`.
+    /// Ratio-tracked transmittance over `(0, t_max)` with the constant majorant `max_density`, times `weight`
+    /// (the walk starts from it: [`ratio_tracking`]).
     fn ratio_track(
         &self,
+        weight: f32,
         ray: &Ray,
         t_max: f32,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
     ) -> f32 {
-        ratio_tracking(self, &self.majorants, ray, (0.0, t_max), 1.0, rng, counters)
+        ratio_tracking(
+            self,
+            &self.majorants,
+            ray,
+            (0.0, t_max),
+            weight,
+            rng,
+            counters,
+        )
     }
 }
 
@@ -200,7 +210,7 @@ impl Medium for NoiseMedium {
         // Never a collision: the path carries the ratio-tracked transmittance.
         Flight {
             collision: None,
-            throughput: throughput * Rgb::splat(self.ratio_track(ray, t_max, rng, counters)),
+            throughput: throughput * Rgb::splat(self.ratio_track(1.0, ray, t_max, rng, counters)),
         }
     }
 
@@ -213,7 +223,19 @@ impl Medium for NoiseMedium {
     }
 
     fn transmittance(&self, ray: &Ray, t_max: f32, rng: &mut Rng, c: &mut TrackingCounters) -> Rgb {
-        Rgb::splat(self.ratio_track(ray, t_max, rng, c))
+        Rgb::splat(self.ratio_track(1.0, ray, t_max, rng, c))
+    }
+
+    /// The ratio-tracking walk starts from `weight`, so its roulette sees the weighted estimate.
+    fn weighted_transmittance(
+        &self,
+        weight: f32,
+        ray: &Ray,
+        t_max: f32,
+        rng: &mut Rng,
+        c: &mut TrackingCounters,
+    ) -> Rgb {
+        Rgb::splat(self.ratio_track(weight, ray, t_max, rng, c))
     }
 }
 
@@ -241,6 +263,49 @@ mod tests {
             0.0,
             "zero at lattice points"
         );
+    }
+
+    /// Guided shadow roulette hands the walk the weight 1/q of a ray it kept with probability q; the walk must
+    /// start from it, so that its own roulette (below `ROULETTE_THRESHOLD`) acts on the weighted estimate and does
+    /// not compound with the caller's. Through optical depth 3 (T ≈ 0.05) with weight 10 the weighted estimate
+    /// (≈ 0.5) seldom falls below the threshold: 24% of the walks end at 0 (ratio tracking's loose majorant makes
+    /// some steps small). With the weight multiplied after a walk started from 1, 68% do (measured, same
+    /// streams), which the bound below rejects.
+    #[test]
+    fn weighted_transmittance_starts_the_walk_from_the_weight() {
+        let m = NoiseMedium::new("noise", 2.0, 3.0, 9);
+        let ray = Ray::new(Vec3::ZERO, Vec3::X);
+        let d = 2.0;
+        let steps = 20_000;
+        let tau: f64 = (0..steps)
+            .map(|i| m.density(ray.at((i as f32 + 0.5) / steps as f32 * d)) as f64)
+            .sum::<f64>()
+            * d as f64
+            / steps as f64;
+        let weight = 10.0;
+        let truth = weight as f64 * (-tau).exp();
+        let mut rng = Rng::new(5, 5);
+        let mut c = TrackingCounters::default();
+        let n = 50_000;
+        let (mut s, mut s2) = (0.0f64, 0.0f64);
+        let mut ended = 0;
+        for _ in 0..n {
+            let v = m
+                .weighted_transmittance(weight, &ray, d, &mut rng, &mut c)
+                .x as f64;
+            ended += (v == 0.0) as u32;
+            s += v;
+            s2 += v * v;
+        }
+        let mean = s / n as f64;
+        let sd = (s2 / n as f64 - mean * mean).sqrt();
+        let se = sd / (n as f64).sqrt();
+        assert!(
+            (mean - truth).abs() < 4.0 * se,
+            "{mean} vs {truth} (se {se}, optical depth {tau})"
+        );
+        let ended = ended as f64 / n as f64;
+        assert!(ended < 0.4, "{ended} of the walks ended by roulette");
     }
 
     #[test]
