@@ -342,7 +342,7 @@ impl GuidingField {
             cell.vmf = VmfMixture::fit(&cell.sample);
         });
         self.lit.finish_iteration();
-        self.shadow.finish_iteration();
+        self.shadow.publish_means();
         for cell in &mut self.cells {
             let total = cell.energy;
             cell.mean_radiance = (cell.records > 0 && total.is_finite())

@@ -120,8 +120,9 @@ impl LitGrid {
         (!mean.is_nan()).then_some(mean)
     }
 
-    /// Publishes every voxel's mean over the records so far, and the box of those with light.
-    pub fn finish_iteration(&mut self) {
+    /// Publishes every voxel's mean over the records so far ([`LitGrid::mean_at`]), without the box of those
+    /// with light that [`LitGrid::finish_iteration`] also finds (a grid asked only for means: the shadow grid).
+    pub fn publish_means(&mut self) {
         for ((mean, &sum), &count) in self.means.iter_mut().zip(&self.sums).zip(&self.counts) {
             *mean = if count > 0 {
                 (sum / count as f64) as f32
@@ -129,6 +130,12 @@ impl LitGrid {
                 f32::NAN
             };
         }
+    }
+
+    /// Publishes every voxel's mean over the records so far, and the box of those with light (for
+    /// [`LitGrid::distance_guide`]).
+    pub fn finish_iteration(&mut self) {
+        self.publish_means();
         let [nx, ny, _] = self.resolution;
         let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
         for (i, _) in self.means.iter().enumerate().filter(|(_, &m)| m > 0.0) {
