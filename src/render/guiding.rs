@@ -4,11 +4,12 @@
 //!
 //! Iteration k takes `2^k` samples of every pixel of the whole frame, whatever the region a part renders: the
 //! samples `2^k − 1 .. 2^(k+1) − 1` of each pixel's sequence, drawn, traced and filtered as every image sample
-//! is ([`Pass::train_row`]), so that the [`TRAINING_SAMPLES`] (7) samples of the training are samples `0..7` of
-//! the image (Müller et al. 2017, §5.2, and Cycles keep them too: each is an unbiased estimate of its pixel,
-//! iteration 0 unguided, the later ones guided by the cache before). Those of them in the render's sample range
-//! and of the pixels of its window are added to its film, exactly as image samples; the rest only teach the
-//! cache. A render of `--spp N` thus traces `N − 7` samples per pixel after the training (none when N ≤ 7).
+//! is (`Pass::train_row` in `super::renderer`), so that the [`TRAINING_SAMPLES`] (7) samples of the training
+//! are samples `0..7` of the image (Cycles keeps its training's samples too: each is an unbiased estimate of
+//! its pixel, iteration 0 unguided, the later ones guided by the cache before). Those of them in the render's
+//! sample range and of the pixels of its window are added to its film, exactly as image samples; the rest only
+//! teach the cache. A render of `--spp N` thus traces `N − 7` samples per pixel after the training (none when
+//! N ≤ 7).
 //!
 //! Determinism: rows are traced in parallel a block at a time and their records added to the cache in row
 //! order, one thread. The cache is the same for any thread count and in every farm part of a render, and the
