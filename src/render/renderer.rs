@@ -554,9 +554,10 @@ impl Renderer {
         // The guiding cache, trained over the whole frame whatever the region; its samples in the region are the
         // film's first (see `super::guiding`).
         let decision = s.guiding.decide(scene);
-        let keep = match decision.on {
-            true => super::guiding::kept_samples(&region.samples, at.complete),
-            false => 0..0,
+        let keep = if decision.on {
+            super::guiding::kept_samples(&region.samples, at.complete)
+        } else {
+            0..0
         };
         if !keep.is_empty() && at.complete != region.samples.start {
             return Err(RenderError::Resume(format!(
@@ -843,8 +844,8 @@ impl<'a> Pass<'a> {
     }
 
     /// Traces the pass's samples (those of a training iteration, guided by the cache of the iteration before)
-    /// through every pixel of frame row `y`, the whole frame's width, remembering on `path` what the guiding
-    /// cache learns from; those in `keep` of the pixels of the window are added to `film_row` (the window's row
+    /// through every pixel of frame row `y`, the whole frame's width, and returns what the guiding cache learns
+    /// from them; those in `keep` of the pixels of the window are added to `film_row` (the window's row
     /// `y`, `None` outside it) as image samples, exactly as [`render_row`](Self::render_row) adds them. With
     /// `keeps_values` (guided Russian roulette), each sample's continuation is kept as its pixel's estimate.
     pub(super) fn train_row(
