@@ -219,7 +219,8 @@ struct RenderArgs {
     /// or USD nimbus: attribute) instead of warning and ignoring them.
     #[arg(long)]
     strict: bool,
-    /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows).
+    /// Samples per pixel (with --time-limit and no --spp: as many as the budget allows); with guiding on, the
+    /// training's 7 are among them.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
     /// Image size, seed and threads.
@@ -264,8 +265,8 @@ struct RenderArgs {
     #[arg(long = "emitter-edges", value_parser = choice::<nimbus::render::EmitterEdgeSampling>(),
           default_value = "auto")]
     emitter_edges: nimbus::render::EmitterEdgeSampling,
-    /// Path guiding: `on` trains a cache of incident light (7 samples per pixel of the frame, before the
-    /// image's, from seeds of its own) and uses it for directions at medium scattering events and Lambertian
+    /// Path guiding: `on` trains a cache of incident light (7 samples per pixel of the frame, which are the
+    /// image's first 7 and count in --spp) and uses it for directions at medium scattering events and Lambertian
     /// surfaces, for the distances of the decoupled direct-light sample in homogeneous media and for Russian
     /// roulette on medium shadow rays; `auto` does not guide yet (guiding has not been measured to win by enough;
     /// --explain says what its pilot measured); `off` never guides.

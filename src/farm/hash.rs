@@ -8,8 +8,9 @@
 //!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian; the
 //!    tags `emitter-edges off` and `decoupled off` when those are off (so that the hashes of renders from
 //!    before them stay the same) and `transparent` for a transparent film; and, unless `--guiding auto`, the
-//!    tag `guiding`, the mode's name, the training iterations (the cache) and whether guided Russian roulette
-//!    is on (one byte);
+//!    tag `guiding`, the mode's name, the training iterations (the cache), the tag `training in image` (the
+//!    training's samples are the image's first: guided parts from before that refuse to merge with later ones)
+//!    and whether guided Russian roulette is on (one byte);
 //! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
 //!    its name's UTF-8 bytes; the CLI also passes the frame, the shutter, the `--camera` name and, for a camera
 //!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
@@ -141,6 +142,7 @@ pub fn scene_hash(
         h.field(b"guiding");
         h.field(guiding.name().as_bytes());
         h.field(&crate::guiding::TRAINING_ITERATIONS.to_le_bytes());
+        h.field(b"training in image");
         h.field(&[*guided_roulette as u8]);
     }
     for (name, value) in overrides {

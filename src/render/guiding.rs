@@ -1,82 +1,112 @@
-//! The guiding cache's training: a fixed pre-pass of samples of its own before the image's (Müller et al. 2017,
-//! "Practical Path Guiding for Efficient Light-Transport Simulation": iterations of doubling sample
-//! counts, each guided by the cache of the one before, the last cache guiding the image).
+//! The guiding cache's training: a fixed pre-pass before the image's samples (Müller et al. 2017, "Practical
+//! Path Guiding for Efficient Light-Transport Simulation": iterations of doubling sample counts, each guided by
+//! the cache of the one before, the last cache guiding the image), whose samples are the image's first.
 //!
-//! Determinism: iteration k takes `2^k` samples of every pixel of the whole frame, whatever the region a part
-//! renders, from streams of their own (`seed` mixed with [`TRAINING_STREAM`] and k, the independent sampler);
-//! rows are traced in parallel a block at a time and their records added to the cache in row order, one thread.
-//! The cache, and so the image, is the same for any thread count and in every farm part of a render.
+//! Iteration k takes `2^k` samples of every pixel of the whole frame, whatever the region a part renders: the
+//! samples `2^k − 1 .. 2^(k+1) − 1` of each pixel's sequence, drawn, traced and filtered as every image sample
+//! is (`Pass::train_row` in `super::renderer`), so that the [`TRAINING_SAMPLES`] (7) samples of the training
+//! are samples `0..7` of the image (Cycles keeps its training's samples too: each is an unbiased estimate of
+//! its pixel, iteration 0 unguided, the later ones guided by the cache before). Those of them in the render's
+//! sample range and of the pixels of its window are added to its film, exactly as image samples; the rest only
+//! teach the cache. A render of `--spp N` thus traces `N − 7` samples per pixel after the training (none when
+//! N ≤ 7).
+//!
+//! Determinism: rows are traced in parallel a block at a time and their records added to the cache in row
+//! order, one thread. The cache is the same for any thread count and in every farm part of a render, and the
+//! film's sums are exact, so the training's samples merge bit for bit whichever part holds them.
 //!
 //! With guided Russian roulette on ([`PathTracer::guided_roulette`]), the training's samples also give the pixel
 //! values it compares paths with ([`PixelEstimates`], every iteration's samples: each sample's continuation
 //! after its first remembered event's next-event estimate, [`GuidePath::continuation`], an unbiased estimate of
 //! that part of its pixel), summed in the same row order; without it they are not kept.
+//!
+//! [`PathTracer::guided_roulette`]: crate::integrator::PathTracer::guided_roulette
+//! [`GuidePath::continuation`]: crate::guiding::GuidePath::continuation
 
-use super::renderer::GuidingStats;
-use super::CancelToken;
+use super::film::{Film, FilmRow};
+use super::renderer::{GuidingStats, Pass};
 use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::{
-    GuidePath, GuidingDecision, GuidingField, LitRecord, RadianceRecord, TRAINING_ITERATIONS,
+    GuidingDecision, GuidingField, LitRecord, RadianceRecord, TRAINING_ITERATIONS,
 };
-use crate::integrator::{FirstEmission, PathContext, PathCounters, PathTracer, RendererServices};
-use crate::math::{Rng, Vec2};
-use crate::scene::Scene;
+use crate::integrator::PathCounters;
 use rayon::prelude::*;
+use std::ops::Range;
 use std::time::Instant;
 
-/// Mixed into the seed of the training streams (the next 64 bits of π's fraction after the renderer's).
-const TRAINING_STREAM: u64 = 0xa409_3822_299f_31d0;
+/// Samples per pixel of the training, all its iterations' (1 + 2 + 4): the first samples of every pixel.
+pub(crate) const TRAINING_SAMPLES: u32 = (1 << TRAINING_ITERATIONS) - 1;
 /// Rows traced in parallel before their records are added (bounds the records held at once).
 const ROWS_PER_BLOCK: usize = 16;
 
-/// The frame training paths are shot through, and the seed their streams are mixed from.
-pub(super) struct TrainingFrame {
-    /// Frame width in pixels.
-    pub width: usize,
-    /// Frame height.
-    pub height: usize,
-    /// The render's seed.
-    pub seed: u64,
+/// What the training did: the cache (none when guiding is off or the render was cancelled), its statistics, the
+/// work of all its paths, and the samples it added to the film that were dropped or clamped.
+pub(super) struct Training {
+    /// The trained cache.
+    pub field: Option<GuidingField>,
+    /// What `--stats` says of it.
+    pub stats: GuidingStats,
+    /// The work of every training path (those only the cache learned from included).
+    pub counters: PathCounters,
+    /// Samples meant for the film dropped as NaN or infinite.
+    pub nan_samples: u64,
+    /// Samples added to the film with a value clamped.
+    pub clamped_samples: u64,
 }
 
-/// Trains a guiding cache for `scene` with `tracer` (on the caller's thread pool) and says what it did;
-/// `decision` is what the guiding mode decided (no cache when off). A cancelled render stops training between
-/// blocks of rows and gets no cache (it renders no samples after it); the time budget is not looked at here, the
-/// passes after it are (the training's seconds count in the budget).
-pub(super) fn train(
-    scene: &Scene,
-    tracer: &PathTracer,
-    services: &RendererServices,
-    frame: &TrainingFrame,
-    decision: GuidingDecision,
-    cancel: &CancelToken,
-) -> (Option<GuidingField>, GuidingStats) {
-    let mut stats = GuidingStats {
-        mode: if decision.on { "on" } else { "off" }.to_owned(),
-        reason: decision.reason,
-        ..GuidingStats::default()
+/// Trains a guiding cache for `image`'s scene, adding the training's samples in `image.samples` (a part of
+/// `0..TRAINING_SAMPLES`, empty for none) to the pixels of `film` (empty so far; `image` is the pass over its
+/// window), on the caller's thread pool; `decision` is what the guiding mode decided (no cache when off). A
+/// cancelled render stops training between blocks of rows and gets no cache (it renders no samples after it,
+/// and the caller empties the film again); the time budget is not looked at here, the passes after it are (the
+/// training's seconds count in the budget).
+pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision) -> Training {
+    let mut training = Training {
+        field: None,
+        stats: GuidingStats {
+            mode: if decision.on { "on" } else { "off" }.to_owned(),
+            reason: decision.reason,
+            ..GuidingStats::default()
+        },
+        counters: PathCounters::new(image.scene.media.len()),
+        nan_samples: 0,
+        clamped_samples: 0,
     };
     if !decision.on {
-        return (None, stats);
+        return training;
     }
+    let stats = &mut training.stats;
+    let keep = image.samples.clone();
+    let (width, height) = (image.width, image.height);
     let start = Instant::now();
-    let mut field = GuidingField::new(scene.bounds);
-    let mut pixels = tracer
-        .guided_roulette
-        .then(|| PixelEstimates::new(frame.width, frame.height));
+    let mut field = GuidingField::new(image.scene.bounds);
+    let keeps_values = image.tracer.guided_roulette;
+    let mut pixels = keeps_values.then(|| PixelEstimates::new(width, height));
     for k in 0..TRAINING_ITERATIONS {
-        let spp = 1u32 << k;
-        let seed = frame.seed ^ TRAINING_STREAM ^ k as u64;
-        for block in (0..frame.height).step_by(ROWS_PER_BLOCK) {
-            if cancel.is_cancelled() {
+        let samples = (1u32 << k) - 1..(2u32 << k) - 1;
+        // The window's rows, taken in order as the blocks reach them (none when no sample is kept).
+        let mut film_rows = if keep.is_empty() {
+            Vec::new()
+        } else {
+            film.rows_mut()
+        }
+        .into_iter();
+        for block in (0..height).step_by(ROWS_PER_BLOCK) {
+            if image.cancel.is_cancelled() {
                 stats.training_seconds = start.elapsed().as_secs_f64();
-                return (None, stats);
+                return training;
             }
-            let rows = block..(block + ROWS_PER_BLOCK).min(frame.height);
-            let guided = services.with_guide(Some(&field));
+            let pass = image.retargeted(image.services.with_guide(Some(&field)), samples.clone());
+            let rows: Vec<(usize, Option<FilmRow<'_>>)> = (block
+                ..(block + ROWS_PER_BLOCK).min(height))
+                .map(|y| {
+                    let in_window = (image.window.y0..image.window.y1).contains(&y);
+                    (y, in_window.then(|| film_rows.next()).flatten())
+                })
+                .collect();
             let traced: Vec<TrainingRow> = rows
                 .into_par_iter()
-                .map(|y| trace_row(tracer, &guided, frame, y, spp, seed))
+                .map(|(y, film_row)| pass.train_row(y, film_row, &keep, keeps_values))
                 .collect();
             for row in &traced {
                 stats.training_records += row.records.len() as u64;
@@ -88,11 +118,14 @@ pub(super) fn train(
                         pixels.add(pixel, value);
                     }
                 }
+                training.counters.add(&row.counters);
+                training.nan_samples += row.nan_samples;
+                training.clamped_samples += row.clamped_samples;
             }
         }
         field.finish_iteration();
-        stats.training_paths += (frame.width * frame.height) as u64 * spp as u64;
-        stats.training_samples_per_pixel += spp;
+        stats.training_paths += (width * height) as u64 * samples.len() as u64;
+        stats.training_samples_per_pixel += samples.len() as u32;
     }
     if let Some(pixels) = pixels {
         field.set_pixel_estimates(pixels);
@@ -100,81 +133,64 @@ pub(super) fn train(
     stats.cells = field.cell_count();
     stats.guided_cells = field.guided_cell_count();
     stats.training_seconds = start.elapsed().as_secs_f64();
-    (Some(field), stats)
+    stats.training_samples_in_image = keep.len() as u32;
+    training.field = Some(field);
+    training
+}
+
+/// The training samples of a region of `samples` to add to its film, which holds its samples up to `complete`:
+/// those of `0..TRAINING_SAMPLES` in the range from `complete` on.
+pub(super) fn kept_samples(samples: &Range<u32>, complete: u32) -> Range<u32> {
+    complete.max(samples.start)..samples.end.min(TRAINING_SAMPLES)
 }
 
 /// What the training paths of one row found: their records, their decoupled samples' and medium shadow rays'
-/// records and, for guided Russian roulette, each sample's continuation (channel mean), pixel by pixel in order.
-struct TrainingRow {
-    records: Vec<RadianceRecord>,
-    lit: Vec<LitRecord>,
-    shadow: Vec<LitRecord>,
-    values: Vec<((usize, usize), f32)>,
+/// records and, for guided Russian roulette, each sample's continuation (channel mean), pixel by pixel in order;
+/// the work of its paths, and its samples for the film that were dropped or clamped.
+pub(super) struct TrainingRow {
+    /// The radiance records of the row's paths.
+    pub records: Vec<RadianceRecord>,
+    /// Their decoupled direct-light samples' records.
+    pub lit: Vec<LitRecord>,
+    /// Their medium shadow rays' records.
+    pub shadow: Vec<LitRecord>,
+    /// Each sample's continuation, by pixel (guided Russian roulette only).
+    pub values: Vec<((usize, usize), f32)>,
+    /// The work of the row's paths.
+    pub counters: PathCounters,
+    /// Samples for the film dropped as NaN or infinite.
+    pub nan_samples: u64,
+    /// Samples added to the film with a value clamped.
+    pub clamped_samples: u64,
 }
 
-/// Traces `spp` training paths through every pixel of row `y` (samples from `seed`'s streams).
-fn trace_row(
-    tracer: &PathTracer,
-    services: &RendererServices,
-    frame: &TrainingFrame,
-    y: usize,
-    spp: u32,
-    seed: u64,
-) -> TrainingRow {
-    let scene = services.scene();
-    let aspect = frame.width as f32 / frame.height as f32;
-    let mut counters = PathCounters::new(scene.media.len());
-    let mut path = GuidePath::default();
-    let mut records = Vec::new();
-    let mut lit = Vec::new();
-    let mut shadow = Vec::new();
-    // Only guided Russian roulette reads the samples' values (as its pixel estimates).
-    let keeps_values = tracer.guided_roulette;
-    let mut values = Vec::with_capacity(keeps_values as usize * frame.width * spp as usize);
-    for x in 0..frame.width {
-        let pixel_index = (y * frame.width + x) as u64;
-        for sample in 0..spp {
-            let mut rng = Rng::for_sample(seed, pixel_index, sample as u64);
-            let time = scene.shutter.map(|shutter| shutter.time_at(rng.next_f32()));
-            let jitter = rng.sample_2d();
-            let lens = scene.camera.lens.is_some().then(|| rng.sample_2d());
-            let film = Vec2::new(
-                (x as f32 + jitter.x) / frame.width as f32,
-                (y as f32 + jitter.y) / frame.height as f32,
-            );
-            let ray = scene.camera.sample_ray(film, lens, aspect, time);
-            path.clear();
-            let mut cx = PathContext {
-                services,
-                rng: &mut rng,
-                counters: &mut counters,
-            };
-            let result = tracer.trace(&mut cx, ray, FirstEmission::Count, None, Some(&mut path));
-            lit.extend_from_slice(path.lit());
-            shadow.extend_from_slice(path.shadow());
-            if result.radiance.is_finite() {
-                path.finish(result.radiance, &mut records);
-                if keeps_values {
-                    let continued = path.continuation(result.radiance);
-                    values.push(((x, y), continued.element_sum() / 3.0));
-                }
-            }
+impl TrainingRow {
+    /// An empty row's findings, in a scene of `media` media.
+    pub fn new(media: usize) -> Self {
+        Self {
+            records: Vec::new(),
+            lit: Vec::new(),
+            shadow: Vec::new(),
+            values: Vec::new(),
+            counters: PathCounters::new(media),
+            nan_samples: 0,
+            clamped_samples: 0,
         }
-    }
-    TrainingRow {
-        records,
-        lit,
-        shadow,
-        values,
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::*;
-    use crate::integrator::{MediumStack, PathSample};
+    use crate::guiding::GuidingMode;
+    use crate::integrator::{
+        FirstEmission, MediumStack, PathContext, PathCounters, PathSample, PathTracer,
+        RendererServices,
+    };
     use crate::light::EnvironmentLight;
     use crate::math::{Rgb, Vec3};
+    use crate::math::{Rng, Vec2};
+    use crate::render::{RenderSettings, Renderer};
+    use crate::scene::Scene;
     use crate::scene::{Camera, SceneBuilder};
     use crate::vdb::{GridTree, Tree};
     use crate::volume::density::GridDensity;
@@ -256,32 +272,30 @@ mod tests {
         }
     }
 
+    /// A renderer of a `size`² frame of seed 3 whose paths are those of [`furnace_tracer`] (`max_depth`
+    /// bounces, with or without guided Russian roulette), guiding on.
+    fn furnace_renderer(size: usize, max_depth: u32, guided_roulette: bool) -> Renderer {
+        Renderer::new(RenderSettings {
+            width: size,
+            height: size,
+            seed: 3,
+            max_depth,
+            equiangular: false,
+            decoupled: false,
+            guiding: GuidingMode::On,
+            guided_roulette,
+            ..RenderSettings::default()
+        })
+    }
+
     /// The training keeps its samples' values as pixel estimates only for guided Russian roulette, their only
     /// reader: a render without it does no such work.
     #[test]
     fn pixel_estimates_are_kept_only_for_guided_roulette() {
         let scene = furnace();
-        let services = RendererServices::new(&scene, false);
-        let frame = TrainingFrame {
-            width: 4,
-            height: 4,
-            seed: 3,
-        };
         for guided_roulette in [false, true] {
-            let tracer = furnace_tracer(64, guided_roulette);
-            let decision = GuidingDecision {
-                on: true,
-                reason: String::new(),
-            };
-            let (field, _) = train(
-                &scene,
-                &tracer,
-                &services,
-                &frame,
-                decision,
-                &CancelToken::new(),
-            );
-            let estimate = field.unwrap().pixel_estimate((2, 2));
+            let field = furnace_renderer(4, 64, guided_roulette).trained_guide(&scene);
+            let estimate = field.pixel_estimate((2, 2));
             assert_eq!(estimate.is_some(), guided_roulette, "{estimate:?}");
         }
     }
@@ -295,18 +309,7 @@ mod tests {
         let scene = furnace();
         let tracer = furnace_tracer(100_000, true);
         let services = RendererServices::new(&scene, false);
-        let frame = TrainingFrame {
-            width: 16,
-            height: 16,
-            seed: 3,
-        };
-        let decision = GuidingDecision {
-            on: true,
-            reason: String::new(),
-        };
-        let cancel = CancelToken::new();
-        let (field, _) = train(&scene, &tracer, &services, &frame, decision, &cancel);
-        let field = field.unwrap();
+        let field = furnace_renderer(16, 100_000, true).trained_guide(&scene);
         let guided = services.with_guide(Some(&field));
         let (_, _, plain) = trace_middle(&scene, &tracer, &guided, 1000);
         for pixel in [0.02f32, 50.0] {

@@ -8,11 +8,12 @@
 
 use super::aovs::{AovSelection, LayerPlan, LightGroupMode, LightGroups, PlanError};
 use super::emitter_edges::{EmitterEdgeSampling, EmitterEdges, EDGE_RAYS};
-use super::film::{Film, FilmRow, PixelSums, PixelWindow};
+use super::film::{Film, FilmPixel, FilmRow, PixelSums, PixelWindow};
+use super::guiding::TrainingRow;
 use super::recording::LayerRecorder;
 use super::resume::{RegionProgress, ResumeFrom, StoppedPass};
 use super::{CancelToken, RenderImage};
-use crate::guiding::{GuidingField, GuidingMode};
+use crate::guiding::{GuidePath, GuidingDecision, GuidingField, GuidingMode};
 use crate::integrator::{
     FirstEmission, MediumStack, Origin, PathContext, PathCounters, PathSample, PathTracer,
     RayCounters, RendererServices, SampleRecord,
@@ -259,6 +260,10 @@ pub struct GuidingStats {
     pub reason: String,
     /// Samples per pixel of the whole frame the training took (0 when off).
     pub training_samples_per_pixel: u32,
+    /// Samples per pixel of the image that are the training's (counted in `samples_per_pixel`): its samples in
+    /// the render's sample range, 7 of a whole render of 7 samples or more, none in a part whose range starts at
+    /// 7 or later (see `--spp` in docs/reference.md).
+    pub training_samples_in_image: u32,
     /// Training paths traced.
     pub training_paths: u64,
     /// Radiance records the cache learned from (one per medium scattering event of a training path).
@@ -520,21 +525,6 @@ impl Renderer {
         let (mut film, at, nan_samples, clamped_samples) = self.first_film(from, region, &plan)?;
         let edges = s.emitter_edges.decide(scene, s.width, s.height);
         let tracer = self.path_tracer(scene);
-        // The guiding cache, trained over the whole frame whatever the region (see `super::guiding`).
-        let (guide, guiding) = pool.install(|| {
-            super::guiding::train(
-                scene,
-                &tracer,
-                &self.services(scene),
-                &super::guiding::TrainingFrame {
-                    width: s.width,
-                    height: s.height,
-                    seed: s.seed,
-                },
-                s.guiding.decide(scene),
-                cancel,
-            )
-        });
         let resumed_samples = at.complete - region.samples.start;
         let mut totals = PassTotals {
             counters: PathCounters::new(scene.media.len()),
@@ -555,11 +545,47 @@ impl Renderer {
             region,
             recorder: &recorder,
             edges: edges.edges(),
-            guide: guide.as_ref(),
+            guide: None,
             pool: &pool,
             cancel,
             doubling,
             start,
+        };
+        // The guiding cache, trained over the whole frame whatever the region; its samples in the region are the
+        // film's first (see `super::guiding`).
+        let decision = s.guiding.decide(scene);
+        let keep = if decision.on {
+            super::guiding::kept_samples(&region.samples, at.complete)
+        } else {
+            0..0
+        };
+        if !keep.is_empty() && at.complete != region.samples.start {
+            return Err(RenderError::Resume(format!(
+                "the film holds samples {}..{}, inside the guiding training's first {}",
+                region.samples.start,
+                at.complete,
+                super::guiding::TRAINING_SAMPLES
+            )));
+        }
+        let training = pool.install(|| passes.train(&mut film, keep.clone(), decision));
+        totals.counters.add(&training.counters);
+        let mut at = at;
+        if !keep.is_empty() {
+            if training.field.is_some() {
+                at = RegionProgress::start(keep.end);
+                totals.done = at.complete - region.samples.start;
+                totals.nan_samples += training.nan_samples;
+                totals.clamped_samples += training.clamped_samples;
+                clock.pixel_done();
+            } else {
+                // Cancelled part way: the film, empty before, holds no whole sample of any pixel.
+                film = self.first_film(None, region, &plan)?.0;
+            }
+        }
+        let guiding = training.stats;
+        let passes = Passes {
+            guide: training.field.as_ref(),
+            ..passes
         };
         let at = passes.run(&mut film, at, &mut totals, progress);
         totals.cancelled |= cancel.is_cancelled();
@@ -686,19 +712,20 @@ impl Renderer {
 
 /// What every pixel of one pass shares: the scene and how it is traced, where the samples go, and which samples
 /// they are.
-struct Pass<'a> {
-    scene: &'a Scene,
+#[derive(Clone)]
+pub(super) struct Pass<'a> {
+    pub(super) scene: &'a Scene,
     settings: &'a RenderSettings,
-    tracer: PathTracer,
-    services: RendererServices<'a>,
+    pub(super) tracer: PathTracer,
+    pub(super) services: RendererServices<'a>,
     recorder: &'a LayerRecorder,
     /// The pixels that supersample their directly visible emission.
     edges: Option<&'a EmitterEdges>,
     /// The whole frame's size (the window is a part of it).
-    width: usize,
-    height: usize,
+    pub(super) width: usize,
+    pub(super) height: usize,
     /// The film's window.
-    window: PixelWindow,
+    pub(super) window: PixelWindow,
     /// Whether samples are recorded for layers (AOVs or deep output).
     records: bool,
     /// Whether the records carry the shadow catcher's lit estimate.
@@ -708,8 +735,8 @@ struct Pass<'a> {
     /// The most deep bins a pixel keeps.
     max_bins: usize,
     /// The sample indices the pass adds to every pixel.
-    samples: Range<u32>,
-    cancel: &'a CancelToken,
+    pub(super) samples: Range<u32>,
+    pub(super) cancel: &'a CancelToken,
     /// Notes when the first pixel is done.
     clock: &'a FirstPixelClock,
 }
@@ -731,7 +758,7 @@ impl FirstPixelClock {
     }
 }
 
-impl Pass<'_> {
+impl<'a> Pass<'a> {
     /// Adds the pass's samples to the pixels of window row `row_index` from column `first_column` on, stopping
     /// before the next pixel once cancelled. Returns the counters, the dropped NaN samples, the clamped samples,
     /// and how many pixels of the row, from the left, hold the samples.
@@ -759,35 +786,129 @@ impl Pass<'_> {
             let pixel_index = (y * self.width + x) as u64;
             let on_edge = self.edges.is_some_and(|e| e.is_marked(x, y));
             for sample in self.samples.clone() {
-                let (ray, time, result) = self.trace_sample(
+                let (ray, time, result, _) = self.trace_sample(
                     (x, y),
                     pixel_index,
                     sample,
                     on_edge,
                     record.as_mut(),
                     &mut counters,
+                    None,
                 );
                 if !is_finite_rgb(result.radiance) {
                     nans += 1;
                     continue;
                 }
-                let mut clamped_here = pixel.sums.add(&result);
-                if let Some(r) = &record {
-                    clamped_here |= self.recorder.commit(r, result.alpha, &mut pixel);
-                    if let Some(d) = pixel.deep.as_deref_mut() {
-                        let cos = ray.dir.normalize_or_zero().dot(self.view_axis(time));
-                        d.add(r, result.radiance, result.alpha, cos, self.max_bins);
-                    }
-                }
-                clamped += clamped_here as u64;
+                clamped += self.splat(&mut pixel, (ray, time), &result, record.as_ref()) as u64;
             }
             self.clock.pixel_done();
         }
         (counters, nans, clamped, columns_done as u32)
     }
 
+    /// The same pass, its paths traced with `services` and adding the samples `samples`.
+    pub(super) fn retargeted<'b>(
+        &self,
+        services: RendererServices<'b>,
+        samples: Range<u32>,
+    ) -> Pass<'b>
+    where
+        'a: 'b,
+    {
+        Pass {
+            services,
+            samples,
+            ..self.clone()
+        }
+    }
+
+    /// Adds a sample, traced along the camera ray `ray` at shutter time `time`, whose `result` is finite and
+    /// whose layers `record` holds (when the film keeps layers) to `pixel`: its sums, its layers and its deep
+    /// bins. Returns whether a value had to be clamped.
+    fn splat(
+        &self,
+        pixel: &mut FilmPixel<'_>,
+        (ray, time): (Ray, Option<f32>),
+        result: &PathSample,
+        record: Option<&SampleRecord>,
+    ) -> bool {
+        let mut clamped = pixel.sums.add(result);
+        if let Some(r) = record {
+            clamped |= self.recorder.commit(r, result.alpha, pixel);
+            if let Some(d) = pixel.deep.as_deref_mut() {
+                let cos = ray.dir.normalize_or_zero().dot(self.view_axis(time));
+                d.add(r, result.radiance, result.alpha, cos, self.max_bins);
+            }
+        }
+        clamped
+    }
+
+    /// Traces the pass's samples (those of a training iteration, guided by the cache of the iteration before)
+    /// through every pixel of frame row `y`, the whole frame's width, and returns what the guiding cache learns
+    /// from them; those in `keep` of the pixels of the window are added to `film_row` (the window's row
+    /// `y`, `None` outside it) as image samples, exactly as [`render_row`](Self::render_row) adds them. With
+    /// `keeps_values` (guided Russian roulette), each sample's continuation is kept as its pixel's estimate.
+    pub(super) fn train_row(
+        &self,
+        y: usize,
+        film_row: Option<FilmRow<'_>>,
+        keep: &Range<u32>,
+        keeps_values: bool,
+    ) -> TrainingRow {
+        let mut pixels: Vec<FilmPixel<'_>> =
+            film_row.map_or_else(Vec::new, |r| r.pixels().collect());
+        let mut row = TrainingRow::new(self.scene.media.len());
+        let mut record = self.records.then(|| SampleRecord {
+            shadow_catcher: self.shadow_catcher,
+            deep: self.deep,
+            ..SampleRecord::default()
+        });
+        let mut path = GuidePath::default();
+        for x in 0..self.width {
+            let pixel_index = (y * self.width + x) as u64;
+            let on_edge = self.edges.is_some_and(|e| e.is_marked(x, y));
+            let mut pixel = (self.window.x0..self.window.x1)
+                .contains(&x)
+                .then(|| pixels.get_mut(x - self.window.x0))
+                .flatten();
+            for sample in self.samples.clone() {
+                let kept = pixel.is_some() && keep.contains(&sample);
+                path.clear();
+                let (ray, time, result, gathered) = self.trace_sample(
+                    (x, y),
+                    pixel_index,
+                    sample,
+                    on_edge,
+                    record.as_mut().filter(|_| kept),
+                    &mut row.counters,
+                    Some(&mut path),
+                );
+                row.lit.extend_from_slice(path.lit());
+                row.shadow.extend_from_slice(path.shadow());
+                if !is_finite_rgb(result.radiance) {
+                    row.nan_samples += kept as u64;
+                    continue;
+                }
+                path.finish(gathered, &mut row.records);
+                if keeps_values {
+                    let continued = path.continuation(gathered);
+                    row.values.push(((x, y), continued.element_sum() / 3.0));
+                }
+                if let (true, Some(pixel)) = (kept, pixel.as_deref_mut()) {
+                    let r = record.as_ref();
+                    row.clamped_samples += self.splat(pixel, (ray, time), &result, r) as u64;
+                }
+            }
+        }
+        row
+    }
+
     /// Traces sample `sample` of the pixel at `(x, y)` (index `pixel_index` in the frame), clearing and filling
-    /// `record`. Returns the camera ray, its shutter time and the path's sample.
+    /// `record`, and remembering on `guide_path` (a training sample's) what the guiding cache learns from.
+    /// Returns the camera ray, its shutter time, the path's sample, and the radiance the path gathered itself
+    /// (the sample's but an emitter-edge pixel's supersampled directly visible emission, which no event of the
+    /// path saw).
+    #[allow(clippy::too_many_arguments)]
     fn trace_sample(
         &self,
         (x, y): (usize, usize),
@@ -796,7 +917,8 @@ impl Pass<'_> {
         on_edge: bool,
         mut record: Option<&mut SampleRecord>,
         counters: &mut PathCounters,
-    ) -> (Ray, Option<f32>, PathSample) {
+        guide_path: Option<&mut GuidePath>,
+    ) -> (Ray, Option<f32>, PathSample, Rgb) {
         let s = self.settings;
         // Only guided Russian roulette reads the pixel's training value.
         let services = if self.tracer.guided_roulette {
@@ -838,21 +960,24 @@ impl Pass<'_> {
                 rng: &mut rng,
                 counters,
             };
-            let mut result = self
-                .tracer
-                .trace(&mut cx, ray, FirstEmission::Omit, record, None);
+            let mut result =
+                self.tracer
+                    .trace(&mut cx, ray, FirstEmission::Omit, record, guide_path);
+            let gathered = result.radiance;
             result.radiance += emission / EDGE_RAYS as f32;
-            result
+            (result, gathered)
         } else {
             let mut cx = PathContext {
                 services: &services,
                 rng: &mut rng,
                 counters,
             };
-            self.tracer
-                .trace(&mut cx, ray, FirstEmission::Count, record, None)
+            let result = self
+                .tracer
+                .trace(&mut cx, ray, FirstEmission::Count, record, guide_path);
+            (result, result.radiance)
         };
-        (ray, time, result)
+        (ray, time, result.0, result.1)
     }
 
     /// The directly visible emission summed over the EDGE_RAYS camera rays of an edge pixel's sample, each
@@ -957,7 +1082,41 @@ struct Passes<'a> {
     start: Instant,
 }
 
-impl Passes<'_> {
+impl<'a> Passes<'a> {
+    /// The pass that adds `samples` to the pixels of `film`'s window, its paths traced with `services`.
+    fn pass(&self, film: &Film, samples: Range<u32>, services: RendererServices<'a>) -> Pass<'a> {
+        Pass {
+            scene: self.scene,
+            settings: &self.renderer.settings,
+            tracer: self.tracer,
+            services,
+            recorder: self.recorder,
+            edges: self.edges,
+            width: film.width,
+            height: film.height,
+            window: film.window(),
+            records: film.plan().records() || film.deep_samples().is_some(),
+            shadow_catcher: film.plan().slot(super::aovs::CATCHER_LIT).is_some(),
+            deep: film.deep_samples().is_some(),
+            max_bins: film.deep_samples().map_or(0, super::deep::max_bins),
+            samples,
+            cancel: self.cancel,
+            clock: self.clock,
+        }
+    }
+
+    /// Trains the guiding cache that `decision` asks for, adding the training's samples in `keep` to `film`
+    /// (empty so far) as image samples (see `super::guiding`).
+    fn train(
+        &self,
+        film: &mut Film,
+        keep: Range<u32>,
+        decision: GuidingDecision,
+    ) -> super::guiding::Training {
+        let pass = self.pass(film, keep, self.renderer.services(self.scene));
+        super::guiding::train(&pass, film, decision)
+    }
+
     /// Adds `samples` to every pixel of the film's window, but the first `skip[r]` pixels of each window row
     /// `r` (which took them already), stopping each row before its next pixel once the render is cancelled;
     /// pixels that the emitter edges mark supersample their directly visible emission. Returns the counters, the
@@ -969,27 +1128,10 @@ impl Passes<'_> {
         samples: Range<u32>,
         skip: Option<&[u32]>,
     ) -> (PathCounters, u64, u64, Vec<u32>) {
-        let (renderer, scene) = (self.renderer, self.scene);
-        let window = film.window();
-        debug_assert!(film.width > 0 && film.height > 0 && !window.is_empty());
-        let pass = Pass {
-            scene,
-            settings: &renderer.settings,
-            tracer: self.tracer,
-            services: renderer.services(scene).with_guide(self.guide),
-            recorder: self.recorder,
-            edges: self.edges,
-            width: film.width,
-            height: film.height,
-            window,
-            records: film.plan().records() || film.deep_samples().is_some(),
-            shadow_catcher: film.plan().slot(super::aovs::CATCHER_LIT).is_some(),
-            deep: film.deep_samples().is_some(),
-            max_bins: film.deep_samples().map_or(0, super::deep::max_bins),
-            samples,
-            cancel: self.cancel,
-            clock: self.clock,
-        };
+        let scene = self.scene;
+        debug_assert!(film.width > 0 && film.height > 0 && !film.window().is_empty());
+        let services = self.renderer.services(scene).with_guide(self.guide);
+        let pass = self.pass(film, samples, services);
         film.rows_mut()
             .into_par_iter()
             // One row per task: rayon's adaptive splitting otherwise hands a thread a run of rows it cannot
@@ -1113,6 +1255,50 @@ impl Renderer {
     /// The renderer services of a render of `scene` with these settings (unguided).
     fn services<'a>(&self, scene: &'a Scene) -> RendererServices<'a> {
         RendererServices::new(scene, self.settings.light_sampler.uses_bvh(scene.lights()))
+    }
+}
+
+#[cfg(test)]
+impl Renderer {
+    /// The guiding cache that a render of `scene` trains (guiding on, whatever the settings say), none of its
+    /// samples kept, for tests of what it guides.
+    pub(super) fn trained_guide(&self, scene: &Scene) -> GuidingField {
+        let plan = Arc::new(LayerPlan::default());
+        let recorder = LayerRecorder::new(scene, &plan, &self.light_groups(scene).unwrap());
+        let region = self.whole();
+        let pool = rayon::ThreadPoolBuilder::new().build().unwrap();
+        let start = Instant::now();
+        let clock = FirstPixelClock {
+            start,
+            seconds: OnceLock::new(),
+        };
+        let passes = Passes {
+            clock: &clock,
+            renderer: self,
+            scene,
+            tracer: self.path_tracer(scene),
+            region: &region,
+            recorder: &recorder,
+            edges: None,
+            guide: None,
+            pool: &pool,
+            cancel: &CancelToken::new(),
+            doubling: false,
+            start,
+        };
+        let mut film = Film::with_plan(
+            self.settings.width,
+            self.settings.height,
+            region.window,
+            plan,
+        );
+        let decision = GuidingDecision {
+            on: true,
+            reason: String::new(),
+        };
+        pool.install(|| passes.train(&mut film, 0..0, decision))
+            .field
+            .unwrap()
     }
 }
 

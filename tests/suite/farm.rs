@@ -7,7 +7,7 @@ use nimbus::farm::{self, FarmError, PartInfo};
 use nimbus::light::EnvironmentLight;
 use nimbus::math::Rgb;
 use nimbus::render::{
-    CancelToken, PixelWindow, RenderImage, RenderRegion, RenderSettings, Renderer,
+    CancelToken, GuidingMode, PixelWindow, RenderImage, RenderRegion, RenderSettings, Renderer,
 };
 use nimbus::{channel_names, Scene};
 use std::ops::Range;
@@ -716,19 +716,28 @@ fn samples_whose_float_sums_depend_on_grouping_merge_exactly_through_part_files(
 #[test]
 fn parts_with_every_layer_merge_bit_for_bit_cryptomatte_ranks_included() {
     // Every layer: light paths, colours, per-light groups, the shadow catcher, all three Cryptomatte kinds; a
-    // transparent film. Tiles × sample ranges, on different thread counts.
+    // transparent film. Tiles × sample ranges, on different thread counts; unguided, then guided (the
+    // training's 7 samples the image's first: the ranges 0..5 and 5..12 split them, 0..7 holds them whole).
+    for guiding in [GuidingMode::Off, GuidingMode::On] {
+        every_layer_parts_merge_bit_for_bit(guiding);
+    }
+}
+
+/// The parts of `parts_with_every_layer_merge_bit_for_bit_cryptomatte_ranks_included` with `guiding`.
+fn every_layer_parts_merge_bit_for_bit(guiding: GuidingMode) {
     let scene = scene();
     let with_layers = |threads: usize| RenderSettings {
         aovs: Some(nimbus::render::AovSelection::parse("all").unwrap()),
         transparent: true,
         light_groups: nimbus::render::LightGroupMode::PerLight,
         cryptomatte_depth: 4,
+        guiding,
         ..settings(threads)
     };
     let (single, _) = Renderer::new(with_layers(2))
         .render(&scene, &mut |_| true)
         .unwrap();
-    let dir = temp_dir("layers");
+    let dir = temp_dir(&format!("layers-{guiding:?}"));
     let mut paths = Vec::new();
     for (k, (w, samples)) in [
         (window(0, 0, 41, 13), 0..5),
