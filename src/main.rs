@@ -1162,22 +1162,7 @@ fn explain_volume_sampling(scene: &Scene, sampling: VolumeSampling) {
         point_lights: points,
         decoupled_lights: others,
         open_constant_media: open,
-        heterogeneous_media: heterogeneous,
     } = nimbus::render::EquiangularTargets::of(scene);
-    if heterogeneous > 0 {
-        let choice = if sampling == VolumeSampling::Distance {
-            "distance sampling alone (--volume-sampling distance)".to_string()
-        } else if points + others == 0 {
-            "distance sampling alone: no light to sample toward".to_string()
-        } else {
-            "the direct light of every light estimated on the camera segment at a distance drawn from the \
-             majorant (decoupled from the camera ray's collision, which estimates none): collisions alone \
-             reach only the 1 - T of camera rays that collide, which left most of a backlit cloud's error \
-             in its thin edges"
-                .to_string()
-        };
-        eprintln!("nimbus: volume sampling in {heterogeneous} grid medium/media: {choice}");
-    }
     if constant == 0 {
         return;
     }

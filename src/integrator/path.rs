@@ -26,13 +26,6 @@
 //! where the medium is dense, not where the light is bright, and leaves fireflies around every small light in a
 //! thin medium.
 //!
-//! Direct light in grid media: on the camera segment inside one medium that offers it
-//! ([`Medium::offers_decoupled_points`]: grids of scalar density), every light's direct light is estimated at a
-//! point the medium draws from a density it knows exactly, with its σ_s and a transmittance estimate
-//! ([`Medium::decoupled_point`]), up to where the medium says the transmittance from the camera is negligible;
-//! the camera ray's free-flight collisions before that point's end estimate no direct light
-//! ([`PathTracer::heterogeneous_decoupled`]).
-//!
 //! Texture filtering: each path carries a ray cone (Akenine-Möller et al. 2021, "Improved Shader and Texture
 //! Level of Detail Using Ray Cones", JCGT 10(1)) that starts at the camera with the spread of one pixel. Its
 //! width at a hit, projected onto the surface, is the footprint over which textures are filtered
@@ -57,8 +50,6 @@
 //!
 //! [`Medium::free_flight`]: crate::volume::Medium::free_flight
 //! [`Medium::constant_scattering`]: crate::volume::Medium::constant_scattering
-//! [`Medium::offers_decoupled_points`]: crate::volume::Medium::offers_decoupled_points
-//! [`Medium::decoupled_point`]: crate::volume::Medium::decoupled_point
 //! [`SurfaceHit::tex_coord`]: crate::scene::SurfaceHit::tex_coord
 
 use super::guided;
@@ -76,9 +67,6 @@ use crate::scene::{Scene, SurfaceHit};
 use crate::volume::{ConstantScattering, PhaseFunction, TentativeEmission};
 use std::borrow::Cow;
 
-/// Segments, from the camera's on, that get a heterogeneous decoupled sample
-/// ([`PathTracer::heterogeneous_decoupled`]): the camera segment alone.
-const HETEROGENEOUS_DECOUPLED_DEPTHS: u32 = 1;
 /// Bounces after which Russian roulette may end a path.
 const ROULETTE_START: u32 = 3;
 /// Invisible-boundary crossings allowed per path, a guard against degenerate geometry.
@@ -126,12 +114,6 @@ pub struct PathTracer {
     /// truncated to the segment, in place of next-event estimation at its free-flight collision (see the module
     /// documentation); [`PathTracer::uses_decoupled`] says whether a scene gets it.
     pub decoupled: bool,
-    /// Decoupled direct light on camera segments through one heterogeneous medium that offers it
-    /// ([`Medium::offers_decoupled_points`](crate::volume::Medium::offers_decoupled_points)): each such segment
-    /// estimates every light's direct light at a distance the medium draws from its majorants, in place of
-    /// next-event estimation at its free-flight collision (see the module documentation);
-    /// [`PathTracer::uses_heterogeneous_decoupled`] says whether a scene gets it.
-    pub heterogeneous_decoupled: bool,
     /// A transparent film: the environment seen directly is left out of the radiance (recorded apart).
     pub transparent: bool,
     /// Whether the scene has holdouts or shadow catchers ([`crate::scene::SceneNames::has_mattes`]), which
@@ -299,10 +281,6 @@ struct OnwardState {
     /// next-event estimate against equiangular sampling, and to leave out of it the lights whose direct light
     /// the segment's decoupled sample estimated.
     collided_segment: Option<ConstantSegment>,
-    /// How far along the current segment a heterogeneous decoupled sample estimated every light's direct light
-    /// ([`PathTracer::heterogeneous_decoupled`], [`DecoupledPoint::end`](crate::volume::DecoupledPoint::end)):
-    /// next-event estimation at a real collision before it estimates none (0: no such sample).
-    decoupled_until: f32,
     /// The path's first scattering event, by which its later light is classed.
     first_event: FirstEvent,
 }
@@ -585,9 +563,6 @@ pub struct EquiangularTargets {
     /// sample's extra shadow rays there are wasted (measured: 0.79× the efficiency on the peer benchmark's
     /// glass), and it runs only where one of these exists.
     pub open_constant_media: usize,
-    /// Scattering media whose coefficients vary (grids) and that can draw decoupled points
-    /// ([`Medium::offers_decoupled_points`](crate::volume::Medium::offers_decoupled_points)).
-    pub heterogeneous_media: usize,
 }
 
 impl EquiangularTargets {
@@ -605,11 +580,6 @@ impl EquiangularTargets {
                 .iter()
                 .enumerate()
                 .filter(|(i, m)| m.constant_scattering().is_some() && open(*i))
-                .count(),
-            heterogeneous_media: scene
-                .media
-                .iter()
-                .filter(|m| m.offers_decoupled_points())
                 .count(),
             constant_media: scene
                 .media
@@ -657,16 +627,6 @@ impl PathTracer {
         decoupled && targets.open_constant_media > 0 && lights > 0
     }
 
-    /// True when `scene` gets decoupled direct-light sampling in heterogeneous media: it is on (with
-    /// `decoupled`, as `--volume-sampling mis` turns both on), and the scene has a medium that offers decoupled
-    /// points ([`EquiangularTargets::heterogeneous_media`]) and a light that emits.
-    pub fn uses_heterogeneous_decoupled(decoupled: bool, scene: &Scene) -> bool {
-        let targets = EquiangularTargets::of(scene);
-        decoupled
-            && targets.heterogeneous_media > 0
-            && targets.decoupled_lights + targets.point_lights > 0
-    }
-
     /// Traces one camera path: alternates [`Self::sample_segment_media`] along each segment with either
     /// [`Self::scatter_in_medium`] at a real collision or [`Self::shade_surface`] at the surface that ends it.
     /// With [`FirstEmission::Omit`] the light emitted by the first surface hit is left out. A training path
@@ -691,7 +651,6 @@ impl PathTracer {
                 crossings: 0,
                 first_hit: true,
                 collided_segment: None,
-                decoupled_until: 0.0,
                 first_event: FirstEvent::None,
             },
             prev_delta: true,
@@ -827,7 +786,6 @@ impl PathTracer {
             // to, without their work).
             s.emitted.clear();
             s.onward.collided_segment = None;
-            s.onward.decoupled_until = 0.0;
             return None;
         }
         let crossed = services.segment_media(ray, t_surface, &s.onward.stack);
@@ -846,10 +804,6 @@ impl PathTracer {
                 self.sample_decoupled(cx, s, ray, segment);
             }
         }
-        s.onward.decoupled_until = match self.heterogeneous_segment(services, s, media.ids()) {
-            Some(medium) => self.sample_heterogeneous_decoupled(cx, s, ray, t_surface, medium),
-            None => 0.0,
-        };
         let nearest = self.combined_flight(cx, s, ray, t_surface, media.ids());
         self.add_media_emission(cx, s, ray, media.ids());
         s.onward.collided_segment = constant.filter(|_| nearest.is_some());
@@ -1138,102 +1092,6 @@ impl PathTracer {
         if let Some(path) = s.guide_path.as_deref_mut() {
             path.push_lit(p, luminance(received));
         }
-    }
-
-    /// The medium of the segment when it gets a heterogeneous decoupled sample: it is on, the path is on its
-    /// camera segment and may still scatter, and the segment lies inside exactly one medium, which offers
-    /// decoupled points ([`Medium::offers_decoupled_points`](crate::volume::Medium::offers_decoupled_points)).
-    fn heterogeneous_segment(
-        &self,
-        services: &RendererServices,
-        s: &PathState,
-        media: &[u32],
-    ) -> Option<u32> {
-        let &[medium] = media else { return None };
-        let on = self.heterogeneous_decoupled
-            && s.onward.depth < HETEROGENEOUS_DECOUPLED_DEPTHS.min(self.max_depth);
-        (on && services.scene().media[medium as usize].offers_decoupled_points()).then_some(medium)
-    }
-
-    /// The decoupled direct light of a segment `[0, t_surface)` of `ray` inside the one heterogeneous medium
-    /// `m`: the medium draws a point t on it from a density it knows exactly and returns σ_s(t) T̂(0, t) / p(t)
-    /// ([`Medium::decoupled_point`](crate::volume::Medium::decoupled_point)), and one next-event estimate there
-    /// adds that weight times ρ L_i T_shadow / (P(light) p(ω)) for every light (Novák et al. 2018, §5). On the
-    /// part of the segment the point was drawn on, `(0, end)` (returned; `end` depends on the ray alone), it
-    /// replaces next-event estimation at the segment's free-flight collision, which estimates no light there
-    /// (`decoupled_until`), so the estimate stays unbiased: its distance weight is 1 here and 0 there on that
-    /// part, 0 here and 1 there beyond it, and p > 0 wherever the medium scatters on it. The direction MIS against the density the path would sample its
-    /// next direction with at t, and guided shadow roulette, are next-event estimation's at a collision
-    /// ([`Self::medium_next_event`]). The path does not continue from t.
-    fn sample_heterogeneous_decoupled(
-        &self,
-        cx: &mut PathContext,
-        s: &mut PathState,
-        ray: &Ray,
-        t_surface: f32,
-        m: u32,
-    ) -> f32 {
-        let services = cx.services;
-        let scene = services.scene();
-        let u = cx.rng.sample_2d();
-        let counter = &mut cx.counters.media[m as usize];
-        let Some(point) =
-            scene.media[m as usize].decoupled_point(ray, t_surface, u, cx.rng, counter)
-        else {
-            return 0.0;
-        };
-        cx.counters.rays.decoupled += 1;
-        let scale = s.onward.beta * point.weight;
-        if scale.max_element() <= 0.0 {
-            return point.end;
-        }
-        let p = ray.at(point.t);
-        let wo = -ray.dir;
-        let training = s.guide_path.is_some();
-        let guide = guided::medium_guide_at(
-            services,
-            s.onward.beta * point.albedo,
-            p,
-            &point.phase,
-            wo,
-            training,
-        );
-        let direction_pdf =
-            |wi: Vec3| guided::mixture_pdf(guide.as_ref(), wi, point.phase.eval(wo, wi));
-        let ctx = LightContext { p, n: None };
-        let survival = match services.guide() {
-            Some(guide) if !training => guide.shadow_survival(p),
-            _ => 1.0,
-        };
-        services.sample_lights(&ctx, cx.rng, |chosen, rng| {
-            if survival < 1.0 && rng.next_f32() >= survival {
-                return;
-            }
-            let ls = chosen.sample;
-            let lit = ScatterPoint::on(ray, p, &s.onward.stack).lit_by(
-                services,
-                &point.phase,
-                &ls,
-                1.0 / survival,
-                rng,
-                cx.counters,
-            );
-            if let Some(path) = s.guide_path.as_deref_mut() {
-                path.push_shadow(p, lit.map_or(0.0, |(_, tr)| tr.max_element()));
-            }
-            let Some((phase, tr)) = lit else {
-                return;
-            };
-            let light_pdf = chosen.pmf * ls.pdf;
-            let weight = if ls.is_delta || !self.media_mis {
-                1.0
-            } else {
-                power_heuristic(light_pdf, direction_pdf(ls.wi))
-            };
-            let value = scale * tr * ls.radiance * (phase * weight / light_pdf);
-            s.add_volume_sample(value, || scene.names().emitter_of_light(chosen.index));
-        });
-        point.end
     }
 
     /// True when the decoupled sample, not next-event estimation at the collision, estimates the direct light
@@ -1840,10 +1698,6 @@ impl PathTracer {
             p: ray.at(t),
             n: None,
         };
-        if t < s.onward.decoupled_until {
-            // The heterogeneous segment's decoupled sample estimated every light's direct light here.
-            return;
-        }
         let decoupled = self.decoupled && s.onward.collided_segment.is_some();
         if decoupled && !self.equiangular {
             // The segment's decoupled sample estimated every light's direct light.

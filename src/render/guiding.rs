@@ -249,7 +249,6 @@ mod tests {
             pixel_width: 0.0,
             equiangular: false,
             decoupled: false,
-            heterogeneous_decoupled: false,
             transparent: false,
             mattes: false,
             guided_roulette,

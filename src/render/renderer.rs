@@ -1101,7 +1101,6 @@ impl Renderer {
             media_mis: s.media_mis,
             equiangular: PathTracer::uses_equiangular(s.equiangular, scene),
             decoupled: PathTracer::uses_decoupled(s.decoupled, s.equiangular, scene),
-            heterogeneous_decoupled: PathTracer::uses_heterogeneous_decoupled(s.decoupled, scene),
             pixel_spread: scene.camera.pixel_spread_angle(s.height),
             pixel_width: scene.camera.pixel_width(s.height),
             transparent: self.transparent(scene),

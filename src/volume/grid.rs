@@ -30,8 +30,7 @@
 //!   ([`super::velocity`]), over majorants dilated for the shutter.
 
 use super::channels::{AlbedoGrids, ChannelGrid, Flame};
-use super::decoupled::{self, MajorantDistance};
-use super::density::{local_ray, DensityField, GridDensity};
+use super::density::{DensityField, GridDensity};
 use super::emission::BlackbodyTable;
 use super::error::VolumeError;
 use super::majorant::{MajorantKind, Majorants};
@@ -43,13 +42,13 @@ use super::tracking::{
 };
 use super::velocity::{Displaced, VelocityField};
 use super::{
-    Chromatic, ChromaticTracking, Collision, DecoupledPoint, Flight, FreeFlight, Medium,
-    MediumMethod, MethodReason, PhaseFunction, TentativeEmission, TrackingCounters,
-    TransmittanceMethod, VolumeSpec,
+    Chromatic, ChromaticTracking, Collision, Flight, FreeFlight, Medium, MediumMethod,
+    MethodReason, PhaseFunction, TentativeEmission, TrackingCounters, TransmittanceMethod,
+    VolumeSpec,
 };
 #[cfg(any(test, feature = "testing"))]
 use crate::limits::Limits;
-use crate::math::{Aabb, Ray, Rgb, Rng, Vec2, Vec3};
+use crate::math::{Aabb, Ray, Rgb, Rng, Vec3};
 use std::sync::Arc;
 
 /// The estimator used for shadow-ray transmittance.
@@ -826,64 +825,6 @@ impl Medium for GridMedium {
         counters: &mut TrackingCounters,
     ) -> Rgb {
         self.weighted_transmittance(1.0, ray, t_max, rng, counters)
-    }
-
-    /// Scalar densities only: an RGB density's channels would each need their own transmittance and σ_s.
-    fn offers_decoupled_points(&self) -> bool {
-        self.channels.is_none()
-    }
-
-    /// The distance is drawn from the voxel bounds along the segment ([`MajorantDistance`]: uniform in their
-    /// optical depth or their truncated exponential, a one-sample mixture), σ_t is looked up there, and the
-    /// transmittance from the segment's start is estimated by ratio tracking over the same bounds.
-    fn decoupled_point(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        u: Vec2,
-        rng: &mut Rng,
-        counters: &mut TrackingCounters,
-    ) -> Option<DecoupledPoint> {
-        if !self.offers_decoupled_points() {
-            return None;
-        }
-        let t_end = self.exit(ray, t_max);
-        let lr = local_ray(&self.density, ray);
-        let len = ray.dir.length();
-        // A moving medium's displaced density has no voxel cells: its (dilated) majorants bound it.
-        let (t, end, sigma_t, distance_pdf, transmittance) =
-            with_field!(self, &self.density, ray.time, |f| {
-                let distance = MajorantDistance::new(
-                    f,
-                    &self.majorants,
-                    lr,
-                    len,
-                    (0.0, t_end),
-                    decoupled::MAX_DEPTH,
-                    counters,
-                )?;
-                let (t, pdf) = distance.sample(u);
-                counters.density_lookups += 1;
-                let sigma_t = f.density(ray.at(t));
-                let tr = if sigma_t > 0.0 {
-                    distance.transmittance(t, rng, counters)
-                } else {
-                    0.0
-                };
-                (t, distance.end(), sigma_t, pdf, tr)
-            });
-        if !(distance_pdf > 0.0 && distance_pdf.is_finite()) {
-            return None;
-        }
-        let collision = self.collision(ray.at(t), ray.time);
-        let weight = collision.albedo * (sigma_t * transmittance / distance_pdf);
-        Some(DecoupledPoint {
-            t,
-            end,
-            weight,
-            albedo: collision.albedo,
-            phase: collision.phase,
-        })
     }
 
     /// The ratio-tracking walks start from `weight`, so their roulette sees the weighted estimate.

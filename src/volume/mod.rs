@@ -24,7 +24,6 @@
 
 pub mod channels;
 pub(crate) mod dda;
-pub mod decoupled;
 pub mod density;
 pub mod emission;
 pub mod error;
@@ -201,27 +200,6 @@ impl ConstantScattering {
     }
 }
 
-/// A point drawn on a ray segment through a heterogeneous medium for the decoupled direct light
-/// ([`Medium::decoupled_point`]), with what an estimate of the light scattered there toward the ray's origin needs
-/// of the medium.
-#[derive(Clone, Copy, Debug)]
-pub struct DecoupledPoint {
-    /// The point's ray parameter.
-    pub t: f32,
-    /// Where the part of the segment whose direct light the point estimates ends: the point was drawn on
-    /// `(0, end)` (the whole segment, or where the medium's bound says that the transmittance from its start is
-    /// negligible), and free-flight collisions beyond it still estimate the direct light there.
-    pub end: f32,
-    /// σ_s(t) T̂(0, t) / p(t) per channel: the scattering coefficient there times an unbiased estimate of the
-    /// transmittance from the segment's start, over the density the distance was drawn with. Times the phase
-    /// function and the light arriving there, its expectation is the segment's single-scattering integral.
-    pub weight: Rgb,
-    /// The single-scattering albedo σ_s/σ_t there: what a path that collided there would carry on with.
-    pub albedo: Rgb,
-    /// The phase function there.
-    pub phase: PhaseFunction,
-}
-
 /// What one free flight through a medium ([`Medium::free_flight`]) did: where it collided, and the path
 /// throughput that the walk's weights leave.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -318,31 +296,6 @@ pub trait Medium: Send + Sync {
     /// sample its segments toward point and spot lights (equiangular sampling); `None` (the default) for media
     /// whose transmittance has no closed form.
     fn constant_scattering(&self) -> Option<ConstantScattering> {
-        None
-    }
-
-    /// True when the medium offers [`Medium::decoupled_point`]: it scatters, its coefficients are not constant
-    /// (constant media are served in closed form through [`Medium::constant_scattering`]), and it can draw a
-    /// distance from a density it knows exactly.
-    fn offers_decoupled_points(&self) -> bool {
-        false
-    }
-
-    /// A point on `(0, end)` of `ray` for the decoupled direct light of the segment (Novák et al. 2018, §5),
-    /// `end` ≤ `t_max` a function of the ray alone ([`DecoupledPoint::end`]), drawn with the 2-D sample `u` from
-    /// a density positive wherever the medium can scatter there, and the
-    /// weight σ_s T̂ / p of an estimate there ([`DecoupledPoint`]; its transmittance estimate uses `rng`). `None`
-    /// where the medium offers none ([`Medium::offers_decoupled_points`], the default) or nothing can scatter on
-    /// the segment.
-    fn decoupled_point(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        u: Vec2,
-        rng: &mut Rng,
-        counters: &mut TrackingCounters,
-    ) -> Option<DecoupledPoint> {
-        let _ = (ray, t_max, u, rng, counters);
         None
     }
 }

@@ -292,7 +292,7 @@ fn track<F: DensityField + ?Sized, E: Estimator>(
 /// Unbiased Russian roulette on a transmittance weight: below [`ROULETTE_THRESHOLD`] the path survives with
 /// probability q = |T|/threshold and is divided by q (so E[T] is unchanged). Returns true when terminated.
 #[inline]
-pub(crate) fn roulette(tr: &mut f32, rng: &mut Rng) -> bool {
+fn roulette(tr: &mut f32, rng: &mut Rng) -> bool {
     let a = tr.abs();
     if a < ROULETTE_THRESHOLD {
         let q = a / ROULETTE_THRESHOLD;
