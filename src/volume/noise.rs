@@ -265,6 +265,17 @@ mod tests {
         );
     }
 
+    /// The optical depth of `m` along `ray` over (0, `d`), by the midpoint rule on 20,000 steps (the quadrature
+    /// the ratio-tracking tests compare with).
+    fn optical_depth(m: &NoiseMedium, ray: &Ray, d: f32) -> f64 {
+        let steps = 20_000;
+        (0..steps)
+            .map(|i| m.density(ray.at((i as f32 + 0.5) / steps as f32 * d)) as f64)
+            .sum::<f64>()
+            * d as f64
+            / steps as f64
+    }
+
     /// Guided shadow roulette hands the walk the weight 1/q of a ray it kept with probability q; the walk must
     /// start from it, so that its own roulette (below `ROULETTE_THRESHOLD`) acts on the weighted estimate and does
     /// not compound with the caller's. Through optical depth 3 (T ≈ 0.05) with weight 10 the weighted estimate
@@ -276,12 +287,7 @@ mod tests {
         let m = NoiseMedium::new("noise", 2.0, 3.0, 9);
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
         let d = 2.0;
-        let steps = 20_000;
-        let tau: f64 = (0..steps)
-            .map(|i| m.density(ray.at((i as f32 + 0.5) / steps as f32 * d)) as f64)
-            .sum::<f64>()
-            * d as f64
-            / steps as f64;
+        let tau = optical_depth(&m, &ray, d);
         let weight = 10.0;
         let truth = weight as f64 * (-tau).exp();
         let mut rng = Rng::new(5, 5);
@@ -316,12 +322,7 @@ mod tests {
             Vec3::new(1.0, 0.5, 0.2).normalize(),
         );
         let d = 1.3;
-        let steps = 20_000;
-        let tau: f64 = (0..steps)
-            .map(|i| m.density(ray.at((i as f32 + 0.5) / steps as f32 * d)) as f64)
-            .sum::<f64>()
-            * d as f64
-            / steps as f64;
+        let tau = optical_depth(&m, &ray, d);
         let truth = (-tau).exp();
         let mut rng = Rng::new(4, 4);
         let mut c = TrackingCounters::default();
