@@ -817,16 +817,6 @@ impl Medium for GridMedium {
         }
     }
 
-    fn transmittance(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        rng: &mut Rng,
-        counters: &mut TrackingCounters,
-    ) -> Rgb {
-        self.weighted_transmittance(1.0, ray, t_max, rng, counters)
-    }
-
     /// The ratio-tracking walks start from `weight`, so their roulette sees the weighted estimate.
     fn weighted_transmittance(
         &self,

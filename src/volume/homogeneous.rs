@@ -234,14 +234,16 @@ impl Medium for HomogeneousMedium {
         }
     }
 
-    fn transmittance(
+    /// Beer–Lambert's closed form times the weight: exact, so no roulette of its own to compound.
+    fn weighted_transmittance(
         &self,
+        weight: f32,
         _ray: &Ray,
         t_max: f32,
         _rng: &mut Rng,
         _c: &mut TrackingCounters,
     ) -> Rgb {
-        beer_lambert(self.sigma_t, t_max)
+        beer_lambert(self.sigma_t, t_max) * weight
     }
 
     fn constant_scattering(&self) -> Option<ConstantScattering> {

@@ -268,19 +268,24 @@ pub trait Medium: Send + Sync {
     /// a moving medium reads its values where they were at the frame).
     fn collision(&self, p: Vec3, time: f32) -> Collision;
 
-    /// An unbiased estimate of the transmittance over `(0, t_max)`.
+    /// An unbiased estimate of the transmittance over `(0, t_max)`: [`Medium::weighted_transmittance`] with
+    /// weight 1.
     fn transmittance(
         &self,
         ray: &Ray,
         t_max: f32,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
-    ) -> Rgb;
+    ) -> Rgb {
+        self.weighted_transmittance(1.0, ray, t_max, rng, counters)
+    }
 
-    /// An unbiased estimate of `weight` times the transmittance over `(0, t_max)`, for a shadow ray that
-    /// Russian roulette kept with probability 1/`weight` (guided shadow roulette, `crate::guiding::shadow`).
-    /// The default multiplies [`Medium::transmittance`]; media whose estimate plays roulette of its own start it
-    /// from the weight, so that the two roulettes do not compound.
+    /// An unbiased estimate of `weight` times the transmittance over `(0, t_max)`; `weight` is 1 for an
+    /// ordinary shadow ray and 1/q for one that guided shadow roulette kept with probability q
+    /// (`crate::guiding::shadow`). Every medium decides how the weight enters its estimate, so there is no
+    /// default: a closed-form transmittance multiplies by it, but an estimator that plays Russian roulette of
+    /// its own (ratio tracking's, below a threshold of its running estimate) must start its walk from the
+    /// weight, or the two roulettes compound and the shadow ray's variance grows with the weight.
     fn weighted_transmittance(
         &self,
         weight: f32,
@@ -288,9 +293,7 @@ pub trait Medium: Send + Sync {
         t_max: f32,
         rng: &mut Rng,
         counters: &mut TrackingCounters,
-    ) -> Rgb {
-        self.transmittance(ray, t_max, rng, counters) * weight
-    }
+    ) -> Rgb;
 
     /// The medium's coefficients when they are constant and it scatters, so that the integrator can also
     /// sample its segments toward point and spot lights (equiangular sampling); `None` (the default) for media

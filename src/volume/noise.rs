@@ -222,10 +222,6 @@ impl Medium for NoiseMedium {
         }
     }
 
-    fn transmittance(&self, ray: &Ray, t_max: f32, rng: &mut Rng, c: &mut TrackingCounters) -> Rgb {
-        Rgb::splat(self.ratio_track(1.0, ray, t_max, rng, c))
-    }
-
     /// The ratio-tracking walk starts from `weight`, so its roulette sees the weighted estimate.
     fn weighted_transmittance(
         &self,
