@@ -374,22 +374,6 @@ mod tests {
     use crate::scene::{Camera, Scene, SceneBuilder};
     use glam::DVec3;
 
-    /// Irradiance at `p` (normal `n`) from a polygon of uniform radiance `radiance` wholly above `p`'s
-    /// horizon and unoccluded: Lambert's contour formula E = L/2 · |Σ_i Θ_i (n · ĝ_i)|, with Θ_i the angle
-    /// the edge i subtends at `p` and ĝ_i the unit normal of the plane through `p` and that edge (Lambert's
-    /// formula for polygonal sources, as in Arvo 1994, "The Irradiance Jacobian for Partially Occluded
-    /// Polyhedral Sources").
-    fn polygon_irradiance(p: DVec3, n: DVec3, vertices: &[DVec3], radiance: f64) -> f64 {
-        let sum: f64 = (0..vertices.len())
-            .map(|i| {
-                let a = (vertices[i] - p).normalize();
-                let b = (vertices[(i + 1) % vertices.len()] - p).normalize();
-                a.dot(b).clamp(-1.0, 1.0).acos() * n.dot(a.cross(b).normalize())
-            })
-            .sum();
-        0.5 * radiance * sum.abs()
-    }
-
     /// A grey Lambertian floor under a checkerboard of 128 emissive squares (256 triangles of different
     /// radiances) at height 2, facing down, with 32 squares facing up (away from the floor) above them; the
     /// camera looks down at a 5 mm patch around the origin. Returns the scene and the reflected radiance at
@@ -436,8 +420,12 @@ mod tests {
                 };
                 if !up {
                     let polygon: Vec<DVec3> = corners.iter().map(|c| c.as_dvec3()).collect();
-                    irradiance +=
-                        polygon_irradiance(DVec3::ZERO, DVec3::Y, &polygon, radiance as f64);
+                    irradiance += crate::testing::polygon_irradiance(
+                        DVec3::ZERO,
+                        DVec3::Y,
+                        &polygon,
+                        radiance as f64,
+                    );
                 }
                 b.add_triangle_mesh(corners, indices, m).unwrap();
             }

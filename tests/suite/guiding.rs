@@ -160,21 +160,6 @@ fn a_guided_lambert_floor_under_a_uniform_sky_reflects_its_albedo() {
     }
 }
 
-/// Irradiance at `x` (normal +y) from a convex polygon of constant radiance `radiance` above it (Lambert's
-/// formula: E = L/2 · Σ_i θ_i n · (u_i × u_(i+1))/|u_i × u_(i+1)|, u_i the unit vectors to its corners, θ_i the
-/// angle between consecutive ones).
-fn polygon_irradiance(x: DVec3, corners: &[DVec3], radiance: f64) -> f64 {
-    let sum: f64 = (0..corners.len())
-        .map(|i| {
-            let a = (corners[i] - x).normalize();
-            let b = (corners[(i + 1) % corners.len()] - x).normalize();
-            let c = a.cross(b);
-            a.angle_between(b) * c.y / c.length()
-        })
-        .sum();
-    0.5 * radiance * sum.abs()
-}
-
 /// A Lambertian floor of albedo 0.5 lit by a black square emitter of radiance 5 (0.5 m wide, 1 m above it,
 /// nothing else) reflects (0.5/π)·E at the point the camera sees (a field of 0.01°: one point, E from Lambert's
 /// formula). Guided directions at the floor find the square, so where the guide and the BSDF differ, next-event
@@ -205,7 +190,8 @@ fn a_guided_floor_under_a_square_light_reflects_its_irradiance() {
     ));
     let scene = b.build().unwrap();
     let corners = corners.map(|c| c.as_dvec3());
-    let want = 0.5 / std::f64::consts::PI * polygon_irradiance(seen.as_dvec3(), &corners, 5.0);
+    let want = 0.5 / std::f64::consts::PI
+        * nimbus::testing::polygon_irradiance(seen.as_dvec3(), DVec3::Y, &corners, 5.0);
     let (img, stats) = Renderer::new(settings(32, 64, 2, GuidingMode::On))
         .render(&scene, &mut |_| true)
         .unwrap();
