@@ -1283,12 +1283,12 @@ fn part_region(
 /// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings,
 /// the `--env-color` override, the frame, the shutter, the material variant, the `--camera` choice and the
 /// camera's lens, if it has one (parts of different frames, shutters, variants, cameras or apertures must not
-/// merge).
+/// merge), and whether `--guiding` guides `scene`.
 fn part_scene_hash(
     args: &RenderArgs,
     frame: Option<i64>,
     settings: &RenderSettings,
-    camera: &nimbus::scene::Camera,
+    scene: &nimbus::Scene,
 ) -> Result<u64, String> {
     let file;
     let files: Vec<&[u8]> = match &args.scene {
@@ -1305,11 +1305,11 @@ fn part_scene_hash(
         fps: args.fps,
         shutter: args.shutter,
         camera: args.camera.as_deref(),
-        lens: camera.lens,
+        lens: scene.camera().lens,
         variant: args.variant.as_deref(),
         subdivision_level: args.subdivision_level,
     };
-    Ok(overrides.scene_hash(&files, settings))
+    Ok(overrides.scene_hash(&files, settings, scene))
 }
 
 fn merge(args: MergeArgs) -> Result<(), String> {
