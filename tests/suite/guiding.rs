@@ -1,7 +1,7 @@
 //! Path guiding end to end (issue 34): guided renders keep the mean (a white furnace, closed form), are the same
 //! on any number of threads and in any farm split, refuse to merge with unguided parts (parts hash by what
-//! `--guiding` decided), and `--guiding auto` leaves guiding off (it has not been measured to win), saying what
-//! its pilot measured.
+//! `--guiding` decided), and `--guiding auto` leaves guiding off (no rule from its pilot's figures separates where
+//! guiding wins), saying what its pilot measured.
 
 use crate::common;
 
