@@ -268,8 +268,9 @@ struct RenderArgs {
     /// Path guiding: `on` trains a cache of incident light (7 samples per pixel of the frame, which are the
     /// image's first 7 and count in --spp) and uses it for directions at medium scattering events and Lambertian
     /// surfaces, for the distances of the decoupled direct-light sample in homogeneous media and for Russian
-    /// roulette on medium shadow rays; `auto` does not guide yet (guiding has not been measured to win by enough;
-    /// --explain says what its pilot measured); `off` never guides.
+    /// roulette on medium shadow rays; `auto` does not guide yet (no rule from its pilot's albedo and optical
+    /// depth separates the scenes where guiding wins from those where it loses; --explain says what the pilot
+    /// measured); `off` never guides.
     #[arg(long, value_parser = choice::<nimbus::render::GuidingMode>(), default_value = "auto")]
     guiding: nimbus::render::GuidingMode,
     /// Where paths are guided, guided Russian roulette and splitting at medium scattering events instead of
@@ -1283,12 +1284,12 @@ fn part_region(
 /// The scene hash of a part render: the scene file's bytes (the embedded demo's without one), the settings,
 /// the `--env-color` override, the frame, the shutter, the material variant, the `--camera` choice and the
 /// camera's lens, if it has one (parts of different frames, shutters, variants, cameras or apertures must not
-/// merge).
+/// merge), and whether `--guiding` guides `scene`.
 fn part_scene_hash(
     args: &RenderArgs,
     frame: Option<i64>,
     settings: &RenderSettings,
-    camera: &nimbus::scene::Camera,
+    scene: &nimbus::Scene,
 ) -> Result<u64, String> {
     let file;
     let files: Vec<&[u8]> = match &args.scene {
@@ -1305,11 +1306,11 @@ fn part_scene_hash(
         fps: args.fps,
         shutter: args.shutter,
         camera: args.camera.as_deref(),
-        lens: camera.lens,
+        lens: scene.camera().lens,
         variant: args.variant.as_deref(),
         subdivision_level: args.subdivision_level,
     };
-    Ok(overrides.scene_hash(&files, settings))
+    Ok(overrides.scene_hash(&files, settings, scene))
 }
 
 fn merge(args: MergeArgs) -> Result<(), String> {

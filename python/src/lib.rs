@@ -168,7 +168,7 @@ impl Scene {
             }
             Source::Text { text, .. } => text,
         };
-        Ok(overrides.scene_hash(&[bytes], settings))
+        Ok(overrides.scene_hash(&[bytes], settings, &self.scene))
     }
 }
 

@@ -227,7 +227,7 @@ impl<'a> FrameJob<'a> {
             return Err("--compression pxr24 rounds 32-bit floats to 24 bits, which destroys Cryptomatte IDs; use zip, piz, rle or none".into());
         }
         let settings = renderer.settings();
-        let hash = part_scene_hash(args, frame, settings, scene.camera())?;
+        let hash = part_scene_hash(args, frame, settings, scene)?;
         let part = part_region(args, &output, settings)?;
         let is_part = part.is_some();
         let (region, output) = part.unwrap_or_else(|| {

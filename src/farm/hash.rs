@@ -7,10 +7,13 @@
 //! 3. the settings that change the image: width, height, seed, max depth, media MIS, equiangular sampling,
 //!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian; the
 //!    tags `emitter-edges off` and `decoupled off` when those are off (so that the hashes of renders from
-//!    before them stay the same) and `transparent` for a transparent film; and, unless `--guiding auto`, the
-//!    tag `guiding`, the mode's name, the training iterations (the cache), the tag `training in image` (the
-//!    training's samples are the image's first: guided parts from before that refuse to merge with later ones)
-//!    and whether guided Russian roulette is on (one byte);
+//!    before them stay the same) and `transparent` for a transparent film; and, when the render is guided
+//!    (what `--guiding` decided for the scene: `on`, or `auto` where its rule guides), the tag `guiding`, the
+//!    tag `on`, the training iterations (the cache), the tag `training in image` (the training's samples are
+//!    the image's first: guided parts from before that refuse to merge with later ones) and whether guided
+//!    Russian roulette is on (one byte). An unguided render (`off`, or `auto` deciding off) adds none of these,
+//!    so it hashes as renders from before guiding existed, and an `auto` part merges with the parts of
+//!    whichever mode decided the same;
 //! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
 //!    its name's UTF-8 bytes; the CLI also passes the frame, the shutter, the `--camera` name and, for a camera
 //!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
@@ -73,10 +76,13 @@ impl SceneHasher {
 }
 
 /// The scene hash of a render (see the module docs): `scene_files` are the bytes of the scene file (or of
-/// each embedded file), `overrides` the command line's scene overrides as (name, value bytes).
+/// each embedded file), `guided` whether the render is guided (`settings.guiding`'s decision for the scene,
+/// [`crate::guiding::GuidingMode::decide`]), `overrides` the command line's scene overrides as (name, value
+/// bytes).
 pub fn scene_hash(
     scene_files: &[&[u8]],
     settings: &RenderSettings,
+    guided: bool,
     overrides: &[(&str, &[u8])],
 ) -> u64 {
     let mut h = SceneHasher::new();
@@ -111,7 +117,8 @@ pub fn scene_hash(
         // The memory budget: the estimators it chooses travel in the part (`nimbus.estimators`) and are
         // compared by the merge, since the default budget depends on the machine.
         limits: _,
-        guiding,
+        // The mode is hashed by what it decided for the scene, `guided`: an `auto` that guides renders as `on`.
+        guiding: _,
         guided_roulette,
     } = settings;
     h.field(&(*width as u64).to_le_bytes());
@@ -134,13 +141,12 @@ pub fn scene_hash(
     if *transparent {
         h.field(b"transparent");
     }
-    // Path guiding: its cache depends on the mode and the training plan (the scene and the settings above fix
-    // everything else it learns from). Auto is left out, so that the hashes of renders from before guiding
-    // existed stay the same; auto decides from the scene, which is hashed.
-    if *guiding != crate::guiding::GuidingMode::Auto {
-        use crate::params::Choice;
+    // Path guiding, only where the render is guided (so that unguided renders hash as before guiding existed):
+    // its cache depends on the training plan, and the scene and the settings above fix everything else it
+    // learns from. The tag `on` is the one `--guiding on` parts have always carried.
+    if guided {
         h.field(b"guiding");
-        h.field(guiding.name().as_bytes());
+        h.field(b"on");
         h.field(&crate::guiding::TRAINING_ITERATIONS.to_le_bytes());
         h.field(b"training in image");
         h.field(&[*guided_roulette as u8]);
@@ -177,8 +183,14 @@ pub struct SceneOverrides<'a> {
 }
 
 impl SceneOverrides<'_> {
-    /// The scene hash ([`scene_hash`]) of `scene_files` rendered with `settings` under these overrides.
-    pub fn scene_hash(&self, scene_files: &[&[u8]], settings: &RenderSettings) -> u64 {
+    /// The scene hash ([`scene_hash`]) of `scene_files`, loaded as `scene`, rendered with `settings` under these
+    /// overrides: guided or not as `settings.guiding` decides for `scene`.
+    pub fn scene_hash(
+        &self,
+        scene_files: &[&[u8]],
+        settings: &RenderSettings,
+        scene: &crate::scene::Scene,
+    ) -> u64 {
         let floats =
             |values: &[f32]| -> Vec<u8> { values.iter().flat_map(|v| v.to_le_bytes()).collect() };
         let env = self.env_color.map(|c| floats(&c.to_array()));
@@ -212,7 +224,8 @@ impl SceneOverrides<'_> {
                     .map(|l| ("subdivision-level", l.as_slice())),
             )
             .collect();
-        scene_hash(scene_files, settings, &overrides)
+        let guided = settings.guiding.decide(scene).on;
+        scene_hash(scene_files, settings, guided, &overrides)
     }
 }
 
@@ -241,10 +254,14 @@ mod tests {
             height: 48,
             ..Default::default()
         };
-        let base = scene_hash(&[b"scene"], &s, &[]);
-        assert_eq!(base, scene_hash(&[b"scene"], &s, &[]));
+        let base = scene_hash(&[b"scene"], &s, false, &[]);
+        assert_eq!(base, scene_hash(&[b"scene"], &s, false, &[]));
         // Each field `scene_hash` leaves out, changed in turn.
-        let unhashed: [fn(&mut RenderSettings); 8] = [
+        // The mode itself is hashed by its decision, and guided roulette only where paths are guided.
+        let unhashed: [fn(&mut RenderSettings); 11] = [
+            |s| s.guiding = crate::guiding::GuidingMode::On,
+            |s| s.guiding = crate::guiding::GuidingMode::Off,
+            |s| s.guided_roulette = true,
             |s| s.spp = 3,
             |s| s.threads = 7,
             |s| s.time_limit = Some(std::time::Duration::from_secs(1)),
@@ -264,11 +281,11 @@ mod tests {
             );
             assert_eq!(
                 base,
-                scene_hash(&[b"scene"], &t, &[]),
+                scene_hash(&[b"scene"], &t, false, &[]),
                 "unhashed change {i}"
             );
         }
-        let changes: [fn(&mut RenderSettings); 14] = [
+        let changes: [fn(&mut RenderSettings); 11] = [
             |s| s.width += 1,
             |s| s.height -= 1,
             |s| s.seed = 1,
@@ -280,26 +297,30 @@ mod tests {
             |s| s.light_sampler = crate::light::LightSamplerChoice::Bvh,
             |s| s.emitter_edges = crate::render::EmitterEdgeSampling::Off,
             |s| s.transparent = !s.transparent,
-            |s| s.guiding = crate::guiding::GuidingMode::On,
-            |s| s.guiding = crate::guiding::GuidingMode::Off,
-            |s| {
-                s.guiding = crate::guiding::GuidingMode::On;
-                s.guided_roulette = true;
-            },
         ];
         let mut changed: Vec<u64> = changes
             .iter()
             .map(|change| {
                 let mut t = s.clone();
                 change(&mut t);
-                scene_hash(&[b"scene"], &t, &[])
+                scene_hash(&[b"scene"], &t, false, &[])
             })
             .collect();
         changed.extend([
-            scene_hash(&[b"scene!"], &s, &[]),
-            scene_hash(&[b"sce", b"ne"], &s, &[]),
-            scene_hash(&[b"scene"], &s, &[("env-color", &[0, 0, 0])]),
+            scene_hash(&[b"scene!"], &s, false, &[]),
+            scene_hash(&[b"sce", b"ne"], &s, false, &[]),
+            scene_hash(&[b"scene"], &s, false, &[("env-color", &[0, 0, 0])]),
+            scene_hash(&[b"scene"], &s, true, &[]),
         ]);
+        let roulette = RenderSettings {
+            guided_roulette: true,
+            ..s.clone()
+        };
+        assert_ne!(
+            scene_hash(&[b"scene"], &roulette, true, &[]),
+            scene_hash(&[b"scene"], &s, true, &[]),
+            "guided roulette in a guided render"
+        );
         for (i, h) in changed.iter().enumerate() {
             assert_ne!(*h, base, "change {i}");
         }

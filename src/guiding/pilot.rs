@@ -2,15 +2,18 @@
 //!
 //! Guiding could pay only where paths wander: in media of high albedo that are optically thick, where light
 //! reaches a point after many scattering events. It costs its training (7 samples per pixel of the frame) and a
-//! lookup per scattering event. Measured on the scene built for it (`benches/peers/scenes/backlit.gltf`: albedo
-//! 0.99, median optical depth 76; `benches/guiding_bench.py`), guided paths had 0.77x the efficiency of unguided
-//! ones at equal samples and 0.79x at equal time, and on the door-gap haze room 1.17x the MSE at equal samples
-//! (since then, at 128², in CPU time against Mitsuba references: 1.01-1.10x on the cloud with guided shadow
-//! roulette, 1.06x on the door-gap room, 0.84x on the baffle box, docs/performance.md "Equal time against Cycles
-//! 5.0 with guiding": wins within the noise of the timings). So
-//! `auto` does not guide yet: it reports the scattering medium where guiding would have the best chance, the one
-//! with the largest albedo × optical depth, with what the pilot measured there, and leaves guiding to
-//! `--guiding on`. A measured win would give auto a rule from these measurements (high albedo and optical depth).
+//! lookup per scattering event. `auto` does not guide: no rule from what the pilot measures separates the scenes
+//! where guiding wins from those where it loses (docs/performance.md, "Where guiding pays: the benchmark set
+//! against a rule for auto"). At 128², 128 spp, 2 threads, in CPU time, two pairs of seeds each, guided paths had
+//! 1.05-1.37x unguided paths' efficiency on three of the eleven benchmark scenes with a scattering medium (the
+//! backlit cloud, albedo 0.99 and median optical depth 76; the door-gap room and the validation's point in a
+//! medium, albedo 0.97 and 0.94, depth 2) and 0.89-1.08x on the other eight, none of them above 1 in both pairs
+//! by more than the noise; and the same cloud (albedo 0.99, depth 22 or 76) gained 1.15x and 1.27x lit from
+//! behind but lost (0.97x, 0.92x) lit from the front, where the pilot measures the very same figures. At 16 spp
+//! the three wins fell to 1.02-1.04x. So `auto` reports the scattering medium where guiding would have the best
+//! chance, the one with the largest albedo × optical depth, with what the pilot measured there, and leaves
+//! guiding to `--guiding on`; a rule would need to see the light's way through the media (the backlit cloud's
+//! win is mostly the CPU its guided shadow roulette saves), not only the media.
 //!
 //! The pilot measures with the media's own estimators, through the `Medium` trait only: [`PILOT_CHORDS`]
 //! chords through the centre of the medium's bounds (a position-filled volume's box, or the box of the meshes
@@ -99,9 +102,10 @@ fn auto_decision(scene: &Scene) -> GuidingDecision {
         on: false,
         reason: format!(
             "off (auto): the likeliest medium to pay, '{name}', has albedo {:.3} and median optical depth \
-             {:.1}; guiding measured 1.01-1.10x the efficiency of unguided paths on a cloud of albedo 0.99 and \
-             depth 76 and 1.06x on a hazy room lit through a door gap, gains within the timings' noise, so auto \
-             leaves it to --guiding on",
+             {:.1}; these do not tell where guiding pays: on the benchmark scenes with media it measured \
+             1.05-1.37x the efficiency of unguided paths on three and 0.89-1.08x on eight, and on one cloud \
+             (albedo 0.99, depth 76) 1.27x lit from behind but 0.92x lit from the front, so auto leaves it to \
+             --guiding on",
             pilot.albedo, pilot.depth
         ),
     }

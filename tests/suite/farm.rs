@@ -61,7 +61,7 @@ fn render_part(
     samples: Range<u32>,
     path: &Path,
 ) {
-    let hash = farm::scene_hash(&[b"cloud"], &settings, &[]);
+    let hash = farm::SceneOverrides::default().scene_hash(&[b"cloud"], &settings, scene);
     let region = RenderRegion { window, samples };
     let renderer = Renderer::new(settings);
     let (film, stats) = renderer
@@ -326,7 +326,7 @@ fn parts_of_other_renders_overlaps_and_gaps_are_refused() {
     // A different scene file: the hash of other bytes.
     let other_scene = {
         let s = settings(2);
-        let hash = farm::scene_hash(&[b"another scene"], &s, &[]);
+        let hash = farm::SceneOverrides::default().scene_hash(&[b"another scene"], &s, &scene);
         let region = RenderRegion {
             window: full,
             samples: 5..12,

@@ -1,6 +1,7 @@
 //! Path guiding end to end (issue 34): guided renders keep the mean (a white furnace, closed form), are the same
-//! on any number of threads and in any farm split, refuse to merge with unguided parts, and `--guiding auto`
-//! leaves guiding off (it has not been measured to win), saying what its pilot measured.
+//! on any number of threads and in any farm split, refuse to merge with unguided parts (parts hash by what
+//! `--guiding` decided), and `--guiding auto` leaves guiding off (no rule from its pilot's figures separates where
+//! guiding wins), saying what its pilot measured.
 
 use crate::common;
 
@@ -248,7 +249,7 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
             guided_roulette: name != "classic.exr",
             ..settings(size, spp, threads, mode)
         };
-        let hash = farm::scene_hash(&[b"ball"], &settings, &[]);
+        let hash = farm::SceneOverrides::default().scene_hash(&[b"ball"], &settings, &scene);
         let region = RenderRegion {
             window: PixelWindow::full(size, size),
             samples,
@@ -278,6 +279,55 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
     let classic = part(4..12, 1, GuidingMode::On, "classic.exr");
     let Err(refused) = farm::merge_parts(&[a, classic]) else {
         panic!("parts with guided and classic roulette merged");
+    };
+    assert!(refused.to_string().contains("scene hash"), "{refused}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Parts hash by what `--guiding` decided for the scene, not by the mode's name: `auto`, which guides no scene
+/// yet, hashes as `off` (and so as renders from before guiding existed), so an auto part and an off part of one
+/// render merge, bit for bit the unguided whole, and a guided part refuses to merge with an auto one.
+#[test]
+fn parts_hash_by_what_guiding_decided() {
+    let scene = ball_scene(5.0, 0.98, true);
+    let (size, spp) = (12, 6);
+    assert!(!GuidingMode::Auto.decide(&scene).on);
+    let dir = std::env::temp_dir().join(format!("nimbus-guiding-hash-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let part = |samples: std::ops::Range<u32>, mode: GuidingMode, name: &str| {
+        let settings = settings(size, spp, 1, mode);
+        let hash = farm::SceneOverrides::default().scene_hash(&[b"ball"], &settings, &scene);
+        let region = RenderRegion {
+            window: PixelWindow::full(size, size),
+            samples,
+        };
+        let renderer = Renderer::new(settings);
+        let (film, stats) = renderer
+            .render_region(&scene, &region, &mut |_| true, &CancelToken::new())
+            .unwrap();
+        let path = dir.join(name);
+        farm::write_part(
+            &path,
+            &film,
+            &PartInfo::new(renderer.settings(), hash, &region, &stats),
+        )
+        .unwrap();
+        path
+    };
+    let auto = part(0..2, GuidingMode::Auto, "auto.exr");
+    let off = part(2..6, GuidingMode::Off, "off.exr");
+    let merged = farm::merge_parts(&[auto.clone(), off]).unwrap();
+    let (whole, _) = Renderer::new(settings(size, spp, 1, GuidingMode::Off))
+        .render(&scene, &mut |_| true)
+        .unwrap();
+    assert_bit_identical(
+        &merged.image,
+        &whole,
+        "auto 0..2 and off 2..6 against the whole",
+    );
+    let on = part(2..6, GuidingMode::On, "on.exr");
+    let Err(refused) = farm::merge_parts(&[auto, on]) else {
+        panic!("an unguided auto part merged with a guided one");
     };
     assert!(refused.to_string().contains("scene hash"), "{refused}");
     std::fs::remove_dir_all(&dir).unwrap();
