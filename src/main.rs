@@ -268,9 +268,10 @@ struct RenderArgs {
     /// Path guiding: `on` trains a cache of incident light (7 samples per pixel of the frame, which are the
     /// image's first 7 and count in --spp) and uses it for directions at medium scattering events and Lambertian
     /// surfaces, for the distances of the decoupled direct-light sample in homogeneous media and for Russian
-    /// roulette on medium shadow rays; `auto` does not guide yet (no rule from its pilot's albedo and optical
-    /// depth separates the scenes where guiding wins from those where it loses; --explain says what the pilot
-    /// measured); `off` never guides.
+    /// roulette on medium shadow rays; `auto` guides where that roulette saves most of the shadow rays: in a
+    /// scene with a scattering medium it decides after the training's first iteration (guided when roulette
+    /// would trace at most half its shadow rays and --spp is at least 16, otherwise unguided, as `off`);
+    /// --explain and --stats say why; `off` never guides.
     #[arg(long, value_parser = choice::<nimbus::render::GuidingMode>(), default_value = "auto")]
     guiding: nimbus::render::GuidingMode,
     /// Where paths are guided, guided Russian roulette and splitting at medium scattering events instead of

@@ -7,13 +7,14 @@
 //! 3. the settings that change the image: width, height, seed, max depth, media MIS, equiangular sampling,
 //!    the sampler and the light sampler (`--light-sampler` as given: auto, power or bvh), little-endian; the
 //!    tags `emitter-edges off` and `decoupled off` when those are off (so that the hashes of renders from
-//!    before them stay the same) and `transparent` for a transparent film; and, when the render is guided
-//!    (what `--guiding` decided for the scene: `on`, or `auto` where its rule guides), the tag `guiding`, the
-//!    tag `on`, the training iterations (the cache), the tag `training in image` (the training's samples are
-//!    the image's first: guided parts from before that refuse to merge with later ones) and whether guided
-//!    Russian roulette is on (one byte). An unguided render (`off`, or `auto` deciding off) adds none of these,
-//!    so it hashes as renders from before guiding existed, and an `auto` part merges with the parts of
-//!    whichever mode decided the same;
+//!    before them stay the same) and `transparent` for a transparent film; and, when the render may be guided
+//!    (what `--guiding` decided for the scene before rendering: `on`, or `auto` in a scene with a scattering
+//!    medium, which decides after the training's first iteration), the tag `guiding`, the mode's tag (`on`, or
+//!    `auto` followed by its rule's threshold as an `f64`), the training iterations (the cache), the tag
+//!    `training in image` (the training's samples are the image's first: guided parts from before that refuse
+//!    to merge with later ones) and whether guided Russian roulette is on (one byte). An unguided render (`off`,
+//!    or `auto` in a scene without a scattering medium) adds none of these, so it hashes as renders from before
+//!    guiding existed; `auto` parts of a scene it may guide merge with each other only (they all decide alike);
 //! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
 //!    its name's UTF-8 bytes; the CLI also passes the frame, the shutter, the `--camera` name and, for a camera
 //!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
@@ -76,13 +77,14 @@ impl SceneHasher {
 }
 
 /// The scene hash of a render (see the module docs): `scene_files` are the bytes of the scene file (or of
-/// each embedded file), `guided` whether the render is guided (`settings.guiding`'s decision for the scene,
-/// [`crate::guiding::GuidingMode::decide`]), `overrides` the command line's scene overrides as (name, value
-/// bytes).
+/// each embedded file), `guiding` the mode's tag where the render may be guided (`"on"`, or `"auto"` where
+/// `auto` decides after the training's first iteration; `None` for an unguided render: see
+/// [`SceneOverrides::scene_hash`], which derives it from the scene), `overrides` the command line's scene
+/// overrides as (name, value bytes).
 pub fn scene_hash(
     scene_files: &[&[u8]],
     settings: &RenderSettings,
-    guided: bool,
+    guiding: Option<&str>,
     overrides: &[(&str, &[u8])],
 ) -> u64 {
     let mut h = SceneHasher::new();
@@ -117,7 +119,7 @@ pub fn scene_hash(
         // The memory budget: the estimators it chooses travel in the part (`nimbus.estimators`) and are
         // compared by the merge, since the default budget depends on the machine.
         limits: _,
-        // The mode is hashed by what it decided for the scene, `guided`: an `auto` that guides renders as `on`.
+        // The mode is hashed by what it decided for the scene before rendering, `guiding`.
         guiding: _,
         guided_roulette,
     } = settings;
@@ -141,12 +143,16 @@ pub fn scene_hash(
     if *transparent {
         h.field(b"transparent");
     }
-    // Path guiding, only where the render is guided (so that unguided renders hash as before guiding existed):
-    // its cache depends on the training plan, and the scene and the settings above fix everything else it
-    // learns from. The tag `on` is the one `--guiding on` parts have always carried.
-    if guided {
+    // Path guiding, only where the render may be guided (so that unguided renders hash as before guiding
+    // existed): its cache depends on the training plan, and the scene and the settings above fix everything
+    // else it learns from. The tag `on` is the one `--guiding on` parts have always carried; `auto` adds its
+    // rule's threshold, which decides whether it guides.
+    if let Some(mode) = guiding {
         h.field(b"guiding");
-        h.field(b"on");
+        h.field(mode.as_bytes());
+        if mode == "auto" {
+            h.field(&crate::guiding::pilot::AUTO_MAX_SHADOW_TRACED.to_le_bytes());
+        }
         h.field(&crate::guiding::TRAINING_ITERATIONS.to_le_bytes());
         h.field(b"training in image");
         h.field(&[*guided_roulette as u8]);
@@ -184,7 +190,7 @@ pub struct SceneOverrides<'a> {
 
 impl SceneOverrides<'_> {
     /// The scene hash ([`scene_hash`]) of `scene_files`, loaded as `scene`, rendered with `settings` under these
-    /// overrides: guided or not as `settings.guiding` decides for `scene`.
+    /// overrides: guided or not as `settings.guiding` decides for `scene` before rendering.
     pub fn scene_hash(
         &self,
         scene_files: &[&[u8]],
@@ -224,8 +230,13 @@ impl SceneOverrides<'_> {
                     .map(|l| ("subdivision-level", l.as_slice())),
             )
             .collect();
-        let guided = settings.guiding.decide(scene).on;
-        scene_hash(scene_files, settings, guided, &overrides)
+        let decision = settings.guiding.decide(scene);
+        let guiding = match (decision.on, decision.provisional) {
+            (false, _) => None,
+            (true, false) => Some("on"),
+            (true, true) => Some("auto"),
+        };
+        scene_hash(scene_files, settings, guiding, &overrides)
     }
 }
 
@@ -254,8 +265,8 @@ mod tests {
             height: 48,
             ..Default::default()
         };
-        let base = scene_hash(&[b"scene"], &s, false, &[]);
-        assert_eq!(base, scene_hash(&[b"scene"], &s, false, &[]));
+        let base = scene_hash(&[b"scene"], &s, None, &[]);
+        assert_eq!(base, scene_hash(&[b"scene"], &s, None, &[]));
         // Each field `scene_hash` leaves out, changed in turn.
         // The mode itself is hashed by its decision, and guided roulette only where paths are guided.
         let unhashed: [fn(&mut RenderSettings); 11] = [
@@ -281,7 +292,7 @@ mod tests {
             );
             assert_eq!(
                 base,
-                scene_hash(&[b"scene"], &t, false, &[]),
+                scene_hash(&[b"scene"], &t, None, &[]),
                 "unhashed change {i}"
             );
         }
@@ -303,22 +314,28 @@ mod tests {
             .map(|change| {
                 let mut t = s.clone();
                 change(&mut t);
-                scene_hash(&[b"scene"], &t, false, &[])
+                scene_hash(&[b"scene"], &t, None, &[])
             })
             .collect();
         changed.extend([
-            scene_hash(&[b"scene!"], &s, false, &[]),
-            scene_hash(&[b"sce", b"ne"], &s, false, &[]),
-            scene_hash(&[b"scene"], &s, false, &[("env-color", &[0, 0, 0])]),
-            scene_hash(&[b"scene"], &s, true, &[]),
+            scene_hash(&[b"scene!"], &s, None, &[]),
+            scene_hash(&[b"sce", b"ne"], &s, None, &[]),
+            scene_hash(&[b"scene"], &s, None, &[("env-color", &[0, 0, 0])]),
+            scene_hash(&[b"scene"], &s, Some("on"), &[]),
+            scene_hash(&[b"scene"], &s, Some("auto"), &[]),
         ]);
+        assert_ne!(
+            scene_hash(&[b"scene"], &s, Some("on"), &[]),
+            scene_hash(&[b"scene"], &s, Some("auto"), &[]),
+            "auto, which may guide, against on"
+        );
         let roulette = RenderSettings {
             guided_roulette: true,
             ..s.clone()
         };
         assert_ne!(
-            scene_hash(&[b"scene"], &roulette, true, &[]),
-            scene_hash(&[b"scene"], &s, true, &[]),
+            scene_hash(&[b"scene"], &roulette, Some("on"), &[]),
+            scene_hash(&[b"scene"], &s, Some("on"), &[]),
             "guided roulette in a guided render"
         );
         for (i, h) in changed.iter().enumerate() {

@@ -120,6 +120,19 @@ impl LitGrid {
         (!mean.is_nan()).then_some(mean)
     }
 
+    /// The records so far and the sum of `f` of their voxel's published mean over them (`Σ_voxels n_v f(m_v)`),
+    /// voxels without a published mean left out: for the shadow grid, how many medium shadow rays the training
+    /// traced and how many guided shadow roulette would trace in their place.
+    pub fn records_and_sum_of(&self, f: impl Fn(f32) -> f32) -> (u64, f64) {
+        self.counts
+            .iter()
+            .zip(&self.means)
+            .filter(|(&count, mean)| count > 0 && !mean.is_nan())
+            .fold((0, 0.0), |(n, sum), (&count, &mean)| {
+                (n + count as u64, sum + count as f64 * f(mean) as f64)
+            })
+    }
+
     /// Publishes every voxel's mean over the records so far ([`LitGrid::mean_at`]), without the box of those
     /// with light that [`LitGrid::finish_iteration`] also finds (a grid asked only for means: the shadow grid).
     pub fn publish_means(&mut self) {

@@ -2,18 +2,21 @@
 //!
 //! Guiding could pay only where paths wander: in media of high albedo that are optically thick, where light
 //! reaches a point after many scattering events. It costs its training (7 samples per pixel of the frame) and a
-//! lookup per scattering event. `auto` does not guide: no rule from what the pilot measures separates the scenes
-//! where guiding wins from those where it loses (docs/performance.md, "Where guiding pays: the benchmark set
-//! against a rule for auto"). At 128², 128 spp, 2 threads, in CPU time, two pairs of seeds each, guided paths had
-//! 1.05-1.37x unguided paths' efficiency on three of the eleven benchmark scenes with a scattering medium (the
-//! backlit cloud, albedo 0.99 and median optical depth 76; the door-gap room and the validation's point in a
-//! medium, albedo 0.97 and 0.94, depth 2) and 0.89-1.08x on the other eight, none of them above 1 in both pairs
-//! by more than the noise; and the same cloud (albedo 0.99, depth 22 or 76) gained 1.15x and 1.27x lit from
-//! behind but lost (0.97x, 0.92x) lit from the front, where the pilot measures the very same figures. At 16 spp
-//! the three wins fell to 1.02-1.04x. So `auto` reports the scattering medium where guiding would have the best
-//! chance, the one with the largest albedo × optical depth, with what the pilot measured there, and leaves
-//! guiding to `--guiding on`; a rule would need to see the light's way through the media (the backlit cloud's
-//! win is mostly the CPU its guided shadow roulette saves), not only the media.
+//! lookup per scattering event. Measured on the eleven benchmark scenes with a scattering medium (docs/performance.md,
+//! "Where guiding pays: the benchmark set against a rule for auto"; 128², 128 spp, 2 threads, CPU time, two pairs
+//! of seeds each), guided paths had 1.05-1.37x unguided paths' efficiency on three (the backlit cloud; the
+//! door-gap room and the validation's point in a medium) and 0.89-1.08x on the other eight, none of them above 1
+//! in both pairs by more than the noise. What the pilot below measures of the media cannot tell them apart: the
+//! same cloud (albedo 0.99, depth 22 or 76) gained 1.15x and 1.27x lit from behind but lost (0.97x, 0.92x) lit
+//! from the front. The backlit clouds' win is the CPU their guided shadow roulette saves (0.28-0.54x the shadow
+//! rays; the front-lit ones 1.00x), which depends on the light's way through the medium. So `auto` decides in
+//! two steps: before rendering, off where the scene has no scattering medium (the pilot reports the likeliest
+//! medium of those it has, the one with the largest albedo × optical depth); otherwise after the training's first
+//! iteration, the image's unguided sample 0, from what its shadow rays found ([`decide_after_first_iteration`]):
+//! guided where guided shadow roulette would trace at most [`AUTO_MAX_SHADOW_TRACED`] of them and the render has
+//! at least [`AUTO_MIN_SPP`] samples per pixel. Of the benchmark scenes that guides the backlit clouds only
+//! (docs/performance.md, "Auto decides after the first iteration"); the door gap's and the point light's wins,
+//! which come from elsewhere, are left to `--guiding on`.
 //!
 //! The pilot measures with the media's own estimators, through the `Medium` trait only: [`PILOT_CHORDS`]
 //! chords through the centre of the medium's bounds (a position-filled volume's box, or the box of the meshes
@@ -35,10 +38,64 @@ const MAX_PILOT_COLLISIONS: u32 = 1000;
 /// Whether a render is guided, and why in words.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GuidingDecision {
-    /// True when paths are guided.
+    /// True when paths are guided (for a provisional decision: when the training starts).
     pub on: bool,
+    /// True when the training's first iteration decides whether guiding goes on after it
+    /// ([`decide_after_first_iteration`]; `--guiding auto` in a scene with a scattering medium).
+    pub provisional: bool,
     /// Why, as `--explain` says it.
     pub reason: String,
+}
+
+/// The fewest samples per pixel a render must have for `auto` to guide it: the training's 7 are the image's
+/// first, but a render of few more has too few guided samples to pay back its iterations (at 16 spp the
+/// benchmark's wins were 1.02-1.04x, within the noise).
+pub const AUTO_MIN_SPP: u32 = 16;
+
+/// The largest fraction of the first iteration's shadow rays that guided shadow roulette may still have to trace
+/// for `auto` to guide (see [`decide_after_first_iteration`]).
+pub const AUTO_MAX_SHADOW_TRACED: f64 = 0.5;
+
+/// Whether `auto` guides after the training's first iteration (the image's sample 0, unguided), from its shadow
+/// rays: `shadow_rays` of them in all, `medium_shadow_rays` from medium scattering events, of which guided shadow
+/// roulette, from the transmittance they found, would trace `medium_traced` (the sum of their survival
+/// probabilities, [`super::shadow`]). On the benchmark scenes guiding won where that roulette saves most of the
+/// shadow rays (the backlit clouds: 1.15-1.27x the efficiency, guided renders tracing 0.28-0.54x the shadow rays)
+/// and not elsewhere, where the pilot's albedo and depth are the same (docs/performance.md, "Where guiding
+/// pays"), so `auto` guides a render of `spp` samples per pixel when the predicted fraction of the shadow rays
+/// traced, 1 − (medium_shadow_rays − medium_traced) / shadow_rays, is at most [`AUTO_MAX_SHADOW_TRACED`] and
+/// `spp` is at least [`AUTO_MIN_SPP`].
+pub fn decide_after_first_iteration(
+    spp: u32,
+    shadow_rays: u64,
+    medium_shadow_rays: u64,
+    medium_traced: f64,
+) -> GuidingDecision {
+    let saved = (medium_shadow_rays as f64 - medium_traced).max(0.0);
+    let traced = if shadow_rays == 0 {
+        1.0
+    } else {
+        (1.0 - saved / shadow_rays as f64).clamp(0.0, 1.0)
+    };
+    let on = traced <= AUTO_MAX_SHADOW_TRACED && spp >= AUTO_MIN_SPP;
+    let few_samples = if spp < AUTO_MIN_SPP {
+        format!("; {spp} samples per pixel, fewer than {AUTO_MIN_SPP}")
+    } else {
+        String::new()
+    };
+    GuidingDecision {
+        on,
+        provisional: false,
+        reason: format!(
+            "{} (auto): after the training's first iteration guided shadow roulette would trace {:.2} of the \
+             shadow rays ({} of {} from medium scattering events; guided at most {AUTO_MAX_SHADOW_TRACED}){}",
+            if on { "on" } else { "off" },
+            traced,
+            medium_shadow_rays,
+            shadow_rays,
+            few_samples,
+        ),
+    }
 }
 
 /// What the pilot measured of one medium.
@@ -62,10 +119,12 @@ impl GuidingMode {
         match self {
             GuidingMode::Off => GuidingDecision {
                 on: false,
+                provisional: false,
                 reason: "off (--guiding off)".into(),
             },
             GuidingMode::On => GuidingDecision {
                 on: true,
+                provisional: false,
                 reason: "on (--guiding on)".into(),
             },
             GuidingMode::Auto => auto_decision(scene),
@@ -95,17 +154,18 @@ fn auto_decision(scene: &Scene) -> GuidingDecision {
     let Some((name, pilot)) = best else {
         return GuidingDecision {
             on: false,
+            provisional: false,
             reason: "off (auto): no scattering medium to guide in".to_owned(),
         };
     };
     GuidingDecision {
-        on: false,
+        on: true,
+        provisional: true,
         reason: format!(
-            "off (auto): the likeliest medium to pay, '{name}', has albedo {:.3} and median optical depth \
-             {:.1}; these do not tell where guiding pays: on the benchmark scenes with media it measured \
-             1.05-1.37x the efficiency of unguided paths on three and 0.89-1.08x on eight, and on one cloud \
-             (albedo 0.99, depth 76) 1.27x lit from behind but 0.92x lit from the front, so auto leaves it to \
-             --guiding on",
+            "decided after the training's first iteration (auto): guided if guided shadow roulette would trace \
+             at most {AUTO_MAX_SHADOW_TRACED} of its shadow rays and the render has at least {AUTO_MIN_SPP} \
+             samples per pixel; the likeliest medium to pay, '{name}', has \
+             albedo {:.3} and median optical depth {:.1}",
             pilot.albedo, pilot.depth
         ),
     }

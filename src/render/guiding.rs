@@ -27,7 +27,8 @@ use super::film::{Film, FilmRow};
 use super::renderer::{GuidingStats, Pass};
 use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::{
-    GuidingDecision, GuidingField, LitRecord, RadianceRecord, TRAINING_ITERATIONS,
+    decide_after_first_iteration, GuidingDecision, GuidingField, LitRecord, RadianceRecord,
+    TRAINING_ITERATIONS,
 };
 use crate::integrator::PathCounters;
 use rayon::prelude::*;
@@ -48,6 +49,9 @@ pub(super) struct Training {
     pub stats: GuidingStats,
     /// The work of every training path (those only the cache learned from included).
     pub counters: PathCounters,
+    /// True when `auto` decided after the first iteration not to guide ([`GuidingDecision::provisional`]): the
+    /// first iteration's samples kept (sample 0, where in the region) are in the film as unguided samples.
+    pub stopped_after_first_iteration: bool,
     /// Samples meant for the film dropped as NaN or infinite.
     pub nan_samples: u64,
     /// Samples added to the film with a value clamped.
@@ -69,6 +73,7 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
             ..GuidingStats::default()
         },
         counters: PathCounters::new(image.scene.media.len()),
+        stopped_after_first_iteration: false,
         nan_samples: 0,
         clamped_samples: 0,
     };
@@ -126,6 +131,23 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
         field.finish_iteration();
         stats.training_paths += (width * height) as u64 * samples.len() as u64;
         stats.training_samples_per_pixel += samples.len() as u32;
+        if k == 0 && decision.provisional {
+            let (medium_rays, traced) = field.shadow_rays_and_traced();
+            let decided = decide_after_first_iteration(
+                image.settings.spp,
+                training.counters.rays.shadow,
+                medium_rays,
+                traced,
+            );
+            stats.mode = if decided.on { "on" } else { "off" }.to_owned();
+            stats.reason = decided.reason;
+            if !decided.on {
+                stats.training_seconds = start.elapsed().as_secs_f64();
+                stats.training_samples_in_image = keep.end.min(1).saturating_sub(keep.start);
+                training.stopped_after_first_iteration = true;
+                return training;
+            }
+        }
     }
     if let Some(pixels) = pixels {
         field.set_pixel_estimates(pixels);

@@ -559,18 +559,37 @@ impl Renderer {
         } else {
             0..0
         };
-        if !keep.is_empty() && at.complete != region.samples.start {
-            return Err(RenderError::Resume(format!(
+        // A film stopped inside the training cannot go on guided (its cache would guide the training's samples
+        // still to come differently); `auto` knows whether it guides only after the first iteration.
+        let inside_training = !keep.is_empty() && at.complete != region.samples.start;
+        let refusal = || {
+            RenderError::Resume(format!(
                 "the film holds samples {}..{}, inside the guiding training's first {}",
                 region.samples.start,
                 at.complete,
                 super::guiding::TRAINING_SAMPLES
-            )));
+            ))
+        };
+        if inside_training && !decision.provisional {
+            return Err(refusal());
         }
         let training = pool.install(|| passes.train(&mut film, keep.clone(), decision));
+        if inside_training && training.field.is_some() {
+            return Err(refusal());
+        }
         totals.counters.add(&training.counters);
         let mut at = at;
-        if !keep.is_empty() {
+        if training.stopped_after_first_iteration {
+            // `auto` decided not to guide: the first iteration's samples kept (sample 0) are unguided image
+            // samples, as an unguided render's.
+            if keep.contains(&0) {
+                at = RegionProgress::start(1);
+                totals.done = 1 - region.samples.start;
+                totals.nan_samples += training.nan_samples;
+                totals.clamped_samples += training.clamped_samples;
+                clock.pixel_done();
+            }
+        } else if !keep.is_empty() {
             if training.field.is_some() {
                 at = RegionProgress::start(keep.end);
                 totals.done = at.complete - region.samples.start;
@@ -715,7 +734,7 @@ impl Renderer {
 #[derive(Clone)]
 pub(super) struct Pass<'a> {
     pub(super) scene: &'a Scene,
-    settings: &'a RenderSettings,
+    pub(super) settings: &'a RenderSettings,
     pub(super) tracer: PathTracer,
     pub(super) services: RendererServices<'a>,
     recorder: &'a LayerRecorder,
@@ -1294,6 +1313,7 @@ impl Renderer {
         );
         let decision = GuidingDecision {
             on: true,
+            provisional: false,
             reason: String::new(),
         };
         pool.install(|| passes.train(&mut film, 0..0, decision))

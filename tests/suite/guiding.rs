@@ -284,14 +284,16 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Parts hash by what `--guiding` decided for the scene, not by the mode's name: `auto`, which guides no scene
-/// yet, hashes as `off` (and so as renders from before guiding existed), so an auto part and an off part of one
-/// render merge, bit for bit the unguided whole, and a guided part refuses to merge with an auto one.
+/// Parts hash by what `--guiding` decided for the scene before rendering, not by the mode's name: `off`, and
+/// `auto` in a scene without a scattering medium, add nothing (so they hash as renders from before guiding
+/// existed); `auto` in a scene with one, which decides after the training's first iteration, has a tag of its
+/// own. So two auto parts of the ball merge, bit for bit the whole auto render, and an auto part refuses to merge
+/// with an off part and with an on part.
 #[test]
 fn parts_hash_by_what_guiding_decided() {
     let scene = ball_scene(5.0, 0.98, true);
-    let (size, spp) = (12, 6);
-    assert!(!GuidingMode::Auto.decide(&scene).on);
+    let (size, spp) = (12, 9);
+    assert!(GuidingMode::Auto.decide(&scene).provisional);
     let dir = std::env::temp_dir().join(format!("nimbus-guiding-hash-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let part = |samples: std::ops::Range<u32>, mode: GuidingMode, name: &str| {
@@ -315,21 +317,23 @@ fn parts_hash_by_what_guiding_decided() {
         path
     };
     let auto = part(0..2, GuidingMode::Auto, "auto.exr");
-    let off = part(2..6, GuidingMode::Off, "off.exr");
-    let merged = farm::merge_parts(&[auto.clone(), off]).unwrap();
-    let (whole, _) = Renderer::new(settings(size, spp, 1, GuidingMode::Off))
+    let rest = part(2..9, GuidingMode::Auto, "auto-rest.exr");
+    let merged = farm::merge_parts(&[auto.clone(), rest]).unwrap();
+    let (whole, _) = Renderer::new(settings(size, spp, 1, GuidingMode::Auto))
         .render(&scene, &mut |_| true)
         .unwrap();
     assert_bit_identical(
         &merged.image,
         &whole,
-        "auto 0..2 and off 2..6 against the whole",
+        "auto 0..2 and auto 2..9 against the whole",
     );
-    let on = part(2..6, GuidingMode::On, "on.exr");
-    let Err(refused) = farm::merge_parts(&[auto, on]) else {
-        panic!("an unguided auto part merged with a guided one");
-    };
-    assert!(refused.to_string().contains("scene hash"), "{refused}");
+    for (mode, name) in [(GuidingMode::Off, "off.exr"), (GuidingMode::On, "on.exr")] {
+        let other = part(2..9, mode, name);
+        let Err(refused) = farm::merge_parts(&[auto.clone(), other]) else {
+            panic!("an auto part merged with a {mode:?} part");
+        };
+        assert!(refused.to_string().contains("scene hash"), "{refused}");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -452,35 +456,118 @@ fn guided_renders_resume_bit_for_bit() {
     );
 }
 
-/// `--guiding auto` stays off on the bundled demo, on the surfaces-only Cornell boxes (the Lambertian one and the
-/// glossy baffle box of the guiding benchmark) and on the backlit-cloud benchmark, each with what its pilot
-/// measured (the demo's albedo 0.95, the backlit cloud's 0.99 and its optical depth far above the demo's).
+/// `--guiding auto` decides before rendering only where there is no scattering medium (off: the surfaces-only
+/// Cornell boxes, the Lambertian one and the glossy baffle box of the guiding benchmark); in a scene with one (the
+/// bundled demo, the backlit-cloud benchmark) the training's first iteration decides, and the reason says what
+/// the pilot measured of the likeliest medium (the demo's albedo 0.95, the backlit cloud's 0.99).
 #[test]
-fn auto_leaves_guiding_off_and_says_what_it_measured() {
+fn auto_decides_after_the_first_iteration_where_there_is_a_scattering_medium() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let decide = |file: &str| {
         let scene = Scene::load(&root.join(file)).unwrap();
         GuidingMode::Auto.decide(&scene)
     };
     let demo = decide("assets/cloud.gltf");
-    assert!(!demo.on && demo.reason.contains("albedo 0.950"), "{demo:?}");
-    let cornell = decide("benches/peers/scenes/cornell.gltf");
     assert!(
-        !cornell.on && cornell.reason.contains("no scattering medium"),
-        "{cornell:?}"
+        demo.on && demo.provisional && demo.reason.contains("albedo 0.950"),
+        "{demo:?}"
     );
-    let baffle = decide("benches/peers/scenes/baffle.gltf");
-    assert!(
-        !baffle.on && baffle.reason.contains("no scattering medium"),
-        "{baffle:?}"
-    );
+    for surfaces_only in [
+        "benches/peers/scenes/cornell.gltf",
+        "benches/peers/scenes/baffle.gltf",
+    ] {
+        let d = decide(surfaces_only);
+        assert!(
+            !d.on && !d.provisional && d.reason.contains("no scattering medium"),
+            "{d:?}"
+        );
+    }
     let backlit = decide("benches/peers/scenes/backlit.gltf");
     assert!(
-        !backlit.on && backlit.reason.contains("albedo 0.990"),
+        backlit.provisional && backlit.reason.contains("albedo 0.990"),
         "{backlit:?}"
     );
     let scene = Scene::load(&root.join("assets/cloud.gltf")).unwrap();
-    assert!(!GuidingMode::Off.decide(&scene).on && GuidingMode::On.decide(&scene).on);
+    let (off, on) = (
+        GuidingMode::Off.decide(&scene),
+        GuidingMode::On.decide(&scene),
+    );
+    assert!(!off.on && on.on && !off.provisional && !on.provisional);
+}
+
+/// `--guiding auto` guides where guided shadow roulette would save most of the shadow rays, as the training's
+/// first iteration (the image's unguided sample 0) finds: in the slab of grid medium lit from behind, most
+/// scattering events the camera's paths reach are on its dark side, so the render is guided, the same bits as
+/// `--guiding on`'s; lit from the front, their shadow rays find the light and auto stops after that iteration,
+/// the same bits as `--guiding off`'s in every layer (its sample 0 kept as the unguided render's).
+#[test]
+fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
+    for (light, guided) in [(Vec3::Z, true), (-Vec3::Z, false)] {
+        let scene = slab_scene(8.0, 0.8, 100.0, light);
+        let render = |mode| {
+            Renderer::new(settings(16, 16, 2, mode))
+                .render(&scene, &mut |_| true)
+                .unwrap()
+        };
+        let (auto, stats) = render(GuidingMode::Auto);
+        let (same, _) = render(if guided {
+            GuidingMode::On
+        } else {
+            GuidingMode::Off
+        });
+        assert_eq!(
+            stats.guiding.mode,
+            if guided { "on" } else { "off" },
+            "{:?}",
+            stats.guiding
+        );
+        assert!(stats
+            .guiding
+            .reason
+            .contains("after the training's first iteration"));
+        assert_bit_identical(&auto, &same, &format!("auto, light along {light}"));
+        assert_eq!(stats.samples_per_pixel, 16);
+    }
+    // With fewer samples per pixel than the training pays back in, auto does not guide the backlit slab.
+    let scene = slab_scene(8.0, 0.8, 100.0, Vec3::Z);
+    let (_, stats) = Renderer::new(settings(16, 15, 2, GuidingMode::Auto))
+        .render(&scene, &mut |_| true)
+        .unwrap();
+    assert_eq!(stats.guiding.mode, "off", "{:?}", stats.guiding);
+    assert!(stats.guiding.reason.contains("fewer than 16"));
+}
+
+/// An `auto` render that decides not to guide resumes as an unguided one: a film stopped after 3 samples (inside
+/// the training's 7, which a guided render refuses) goes on to the uninterrupted render's bits.
+#[test]
+fn an_unguided_auto_render_resumes_inside_the_training() {
+    let scene = slab_scene(8.0, 0.8, 100.0, -Vec3::Z);
+    let renderer = Renderer::new(settings(12, 10, 2, GuidingMode::Auto));
+    let region = RenderRegion {
+        window: PixelWindow::full(12, 12),
+        samples: 0..10,
+    };
+    let resume = |region: &RenderRegion, from| {
+        renderer
+            .render_resumable(&scene, region, from, &mut |_, _| true, &CancelToken::new())
+            .unwrap()
+    };
+    let (whole, stats, _) = resume(&region, None);
+    assert_eq!(stats.guiding.mode, "off");
+    let short = RenderRegion {
+        samples: 0..3,
+        ..region.clone()
+    };
+    let (film, _, progress) = resume(&short, None);
+    assert_eq!(progress.complete, 3);
+    let from = ResumeFrom {
+        film,
+        progress,
+        nan_samples: 0,
+        clamped_samples: 0,
+    };
+    let (resumed, _, _) = resume(&region, Some(from));
+    assert!(resumed == whole, "resumed from 3 samples");
 }
 
 /// A render cancelled before it starts does not train either: guiding's pre-pass stops between blocks of rows at
@@ -498,16 +585,10 @@ fn a_cancelled_render_stops_training() {
     assert_eq!(stats.guiding.cells, 0, "no cache is kept");
 }
 
-/// Guided shadow roulette (`nimbus::guiding::shadow`) keeps single scattering's mean. A slab of grid medium,
-/// its density varying along z only (so that ratio tracking walks it with tentative collisions and plays its
-/// own roulette), lit by the sun from behind along the camera's axis: a point's transmittance toward the camera
-/// and toward the sun multiply to e^{−τ} for the slab's whole optical depth τ, wherever the point is, so single
-/// scattering (`max_depth` 1, g = 0) is L = E α τ e^{−τ} / (4π) in closed form. Most collisions are on the
-/// camera's side, where the training's shadow rays found a transmittance of e^{−5} or less, so most shadow rays
-/// of the guided render are cut; the survivors' weight 1/q must keep the mean (within 4 standard errors).
-#[test]
-fn guided_shadow_roulette_keeps_single_scattering_through_a_backlit_slab() {
-    let (tau, albedo, irradiance) = (8.0f64, 0.8f32, 100.0f32);
+/// A slab of grid medium of optical depth `tau` along z and albedo `albedo` (g = 0), its density varying along z
+/// only, lit by a sun of irradiance `irradiance` travelling along `light`, seen along −z through a field of
+/// 0.01° from z = 3.
+fn slab_scene(tau: f64, albedo: f32, irradiance: f32, light: Vec3) -> Scene {
     let spacing = 0.0625f64;
     let profile = |z: i32| 0.5 + 0.4 * (z as f64).sin();
     let depth: f64 = (-6..=6).map(profile).sum::<f64>() * spacing;
@@ -534,14 +615,27 @@ fn guided_shadow_roulette_keeps_single_scattering_through_a_backlit_slab() {
         0.0,
     );
     b.add_medium(Arc::new(medium));
-    // Travelling along +z, toward the camera.
-    b.add_directional_light(Vec3::Z, Rgb::splat(irradiance));
+    b.add_directional_light(light, Rgb::splat(irradiance));
     b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 3.0),
         Vec3::ZERO,
         0.01f32.to_radians(),
     ));
-    let scene = b.build().unwrap();
+    b.build().unwrap()
+}
+
+/// Guided shadow roulette (`nimbus::guiding::shadow`) keeps single scattering's mean. A slab of grid medium,
+/// its density varying along z only (so that ratio tracking walks it with tentative collisions and plays its
+/// own roulette), lit by the sun from behind along the camera's axis: a point's transmittance toward the camera
+/// and toward the sun multiply to e^{−τ} for the slab's whole optical depth τ, wherever the point is, so single
+/// scattering (`max_depth` 1, g = 0) is L = E α τ e^{−τ} / (4π) in closed form. Most collisions are on the
+/// camera's side, where the training's shadow rays found a transmittance of e^{−5} or less, so most shadow rays
+/// of the guided render are cut; the survivors' weight 1/q must keep the mean (within 4 standard errors).
+#[test]
+fn guided_shadow_roulette_keeps_single_scattering_through_a_backlit_slab() {
+    let (tau, albedo, irradiance) = (8.0f64, 0.8f32, 100.0f32);
+    // Travelling along +z, toward the camera.
+    let scene = slab_scene(tau, albedo, irradiance, Vec3::Z);
     let truth = (irradiance * albedo) as f64 * tau * (-tau).exp() / (4.0 * std::f64::consts::PI);
     let mut shadow_rays = Vec::new();
     for guiding in [GuidingMode::Off, GuidingMode::On] {
