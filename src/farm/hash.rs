@@ -9,7 +9,7 @@
 //!    tags `emitter-edges off` and `decoupled off` when those are off (so that the hashes of renders from
 //!    before them stay the same) and `transparent` for a transparent film; and, when the render may be guided
 //!    (what `--guiding` decided for the scene before rendering: `on`, or `auto` in a scene with a scattering
-//!    medium, which decides after the training's first iteration), the tag `guiding`, the mode's tag (`on`, or
+//!    medium, which a pilot of unguided paths decides), the tag `guiding`, the mode's tag (`on`, or
 //!    `auto` followed by its rule's threshold as an `f64`), the training iterations (the cache), the tag
 //!    `training in image` (the training's samples are the image's first: guided parts from before that refuse
 //!    to merge with later ones) and whether guided Russian roulette is on (one byte). An unguided render (`off`,
@@ -78,7 +78,7 @@ impl SceneHasher {
 
 /// The scene hash of a render (see the module docs): `scene_files` are the bytes of the scene file (or of
 /// each embedded file), `guiding` the mode's tag where the render may be guided (`"on"`, or `"auto"` where
-/// `auto` decides after the training's first iteration; `None` for an unguided render: see
+/// `auto` decides by its pilot; `None` for an unguided render: see
 /// [`SceneOverrides::scene_hash`], which derives it from the scene), `overrides` the command line's scene
 /// overrides as (name, value bytes).
 pub fn scene_hash(

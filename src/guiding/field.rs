@@ -321,13 +321,6 @@ impl GuidingField {
         super::shadow::survival(self.shadow.mean_at(p))
     }
 
-    /// The medium shadow rays the training has recorded, and how many of them guided shadow roulette would
-    /// trace with the means published at the end of the last iteration (Σ of their survival probabilities).
-    pub fn shadow_rays_and_traced(&self) -> (u64, f64) {
-        self.shadow
-            .records_and_sum_of(|mean| super::shadow::survival(Some(mean)))
-    }
-
     /// The guided distance density of a decoupled sample on the segment `origin + t dir`, t ∈ [0, `length`],
     /// in a medium of mean extinction `sigma` ([`LitGrid::distance_guide`]).
     pub fn distance_guide(

@@ -120,17 +120,16 @@ impl LitGrid {
         (!mean.is_nan()).then_some(mean)
     }
 
-    /// The records so far and the sum of `f` of their voxel's published mean over them (`Σ_voxels n_v f(m_v)`),
-    /// voxels without a published mean left out: for the shadow grid, how many medium shadow rays the training
-    /// traced and how many guided shadow roulette would trace in their place.
-    pub fn records_and_sum_of(&self, f: impl Fn(f32) -> f32) -> (u64, f64) {
-        self.counts
-            .iter()
-            .zip(&self.means)
-            .filter(|(&count, mean)| count > 0 && !mean.is_nan())
-            .fold((0, 0.0), |(n, sum), (&count, &mean)| {
-                (n + count as u64, sum + count as f64 * f(mean) as f64)
-            })
+    /// The mean of the records so far in the voxel of `record`, `record` itself left out (one that
+    /// [`LitGrid::add`] added): `None` where it is the voxel's only one, or was skipped. A leave-one-out mean,
+    /// for judging what a mean learned from other rays predicts of this one (`auto`'s shadow-ray pilot).
+    pub fn mean_without(&self, record: &LitRecord) -> Option<f32> {
+        if !(record.value.is_finite() && record.value >= 0.0 && record.p.is_finite()) {
+            return None;
+        }
+        let i = self.index(self.voxel_of(record.p));
+        let others = self.counts[i].checked_sub(1).filter(|&n| n > 0)?;
+        Some(((self.sums[i] - record.value as f64) / others as f64).max(0.0) as f32)
     }
 
     /// Publishes every voxel's mean over the records so far ([`LitGrid::mean_at`]), without the box of those
@@ -362,6 +361,21 @@ impl DistanceGuide {
 mod tests {
     use super::*;
     use crate::math::Rng;
+
+    #[test]
+    fn the_mean_without_a_record_is_that_of_the_others_in_its_voxel() {
+        let mut grid = LitGrid::new(Aabb::new(Vec3::ZERO, Vec3::splat(4.0)));
+        let at = |x: f32, value: f32| LitRecord {
+            p: Vec3::new(x, 0.1, 0.1),
+            value,
+        };
+        let (a, b, c, alone) = (at(0.01, 0.2), at(0.02, 0.4), at(0.03, 0.9), at(3.9, 0.5));
+        grid.add(&[a, b, c, alone]);
+        assert!((grid.mean_without(&a).unwrap() - 0.65).abs() < 1e-6);
+        assert!((grid.mean_without(&c).unwrap() - 0.3).abs() < 1e-6);
+        assert_eq!(grid.mean_without(&alone), None, "alone in its voxel");
+        assert_eq!(grid.mean_without(&at(0.01, f32::NAN)), None, "never added");
+    }
 
     /// A grid over [0, 4]³ whose voxels in the slab 1.5 ≤ x < 2 are lit (value 2), all others dark (0) except
     /// those with z ≥ 3, which have no record.

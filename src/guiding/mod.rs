@@ -26,7 +26,7 @@ pub mod vmf;
 
 pub use field::{GuidingField, RadianceRecord};
 pub use lit::LitRecord;
-pub use pilot::{decide_after_first_iteration, GuidingDecision};
+pub use pilot::{decide_from_shadow_pilot, GuidingDecision};
 pub use vmf::VmfMixture;
 
 use crate::math::{Rgb, Vec3};

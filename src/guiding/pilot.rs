@@ -11,11 +11,12 @@
 //! from the front. The backlit clouds' win is the CPU their guided shadow roulette saves (0.28-0.54x the shadow
 //! rays; the front-lit ones 1.00x), which depends on the light's way through the medium. So `auto` decides in
 //! two steps: before rendering, off where the scene has no scattering medium (the pilot reports the likeliest
-//! medium of those it has, the one with the largest albedo × optical depth); otherwise after the training's first
-//! iteration, the image's unguided sample 0, from what its shadow rays found ([`decide_after_first_iteration`]):
-//! guided where guided shadow roulette would trace at most [`AUTO_MAX_SHADOW_TRACED`] of them and the render has
-//! at least [`AUTO_MIN_SPP`] samples per pixel. Of the benchmark scenes that guides the backlit clouds only
-//! (docs/performance.md, "Auto decides after the first iteration"); the door gap's and the point light's wins,
+//! medium of those it has, the one with the largest albedo × optical depth); otherwise from a pilot of unguided
+//! paths (sample 0 of every 4th pixel along each axis, `auto_pilot` in `crate::render::guiding`), from what
+//! their shadow rays found ([`decide_from_shadow_pilot`]): guided where guided shadow roulette would trace at most
+//! [`AUTO_MAX_SHADOW_TRACED`] of them and the render has at least [`AUTO_MIN_SPP`] samples per pixel. Of the
+//! benchmark scenes that guides the backlit clouds only (docs/performance.md, "Auto decides by a shadow-ray
+//! pilot"); the door gap's and the point light's wins,
 //! which come from elsewhere, are left to `--guiding on`.
 //!
 //! The pilot measures with the media's own estimators, through the `Medium` trait only: [`PILOT_CHORDS`]
@@ -40,8 +41,8 @@ const MAX_PILOT_COLLISIONS: u32 = 1000;
 pub struct GuidingDecision {
     /// True when paths are guided (for a provisional decision: when the training starts).
     pub on: bool,
-    /// True when the training's first iteration decides whether guiding goes on after it
-    /// ([`decide_after_first_iteration`]; `--guiding auto` in a scene with a scattering medium).
+    /// True when a pilot of unguided paths decides, before the training, whether the render is guided
+    /// ([`decide_from_shadow_pilot`]; `--guiding auto` in a scene with a scattering medium).
     pub provisional: bool,
     /// Why, as `--explain` says it.
     pub reason: String,
@@ -52,12 +53,12 @@ pub struct GuidingDecision {
 /// benchmark's wins were 1.02-1.04x, within the noise).
 pub const AUTO_MIN_SPP: u32 = 16;
 
-/// The largest fraction of the first iteration's shadow rays that guided shadow roulette may still have to trace
-/// for `auto` to guide (see [`decide_after_first_iteration`]).
+/// The largest fraction of the pilot's shadow rays that guided shadow roulette may still have to trace
+/// for `auto` to guide (see [`decide_from_shadow_pilot`]).
 pub const AUTO_MAX_SHADOW_TRACED: f64 = 0.5;
 
-/// Whether `auto` guides after the training's first iteration (the image's sample 0, unguided), from its shadow
-/// rays: `shadow_rays` of them in all, `medium_shadow_rays` from medium scattering events, of which guided shadow
+/// Whether `auto` guides, from the shadow rays of its pilot (unguided paths of sample 0 over a lattice of the
+/// frame's pixels): `shadow_rays` of them in all, `medium_shadow_rays` from medium scattering events, of which guided shadow
 /// roulette, from the transmittance they found, would trace `medium_traced` (the sum of their survival
 /// probabilities, [`super::shadow`]). On the benchmark scenes guiding won where that roulette saves most of the
 /// shadow rays (the backlit clouds: 1.15-1.27x the efficiency, guided renders tracing 0.28-0.54x the shadow rays)
@@ -65,7 +66,7 @@ pub const AUTO_MAX_SHADOW_TRACED: f64 = 0.5;
 /// pays"), so `auto` guides a render of `spp` samples per pixel when the predicted fraction of the shadow rays
 /// traced, 1 − (medium_shadow_rays − medium_traced) / shadow_rays, is at most [`AUTO_MAX_SHADOW_TRACED`] and
 /// `spp` is at least [`AUTO_MIN_SPP`].
-pub fn decide_after_first_iteration(
+pub fn decide_from_shadow_pilot(
     spp: u32,
     shadow_rays: u64,
     medium_shadow_rays: u64,
@@ -87,7 +88,7 @@ pub fn decide_after_first_iteration(
         on,
         provisional: false,
         reason: format!(
-            "{} (auto): after the training's first iteration guided shadow roulette would trace {:.2} of the \
+            "{} (auto): on a pilot of unguided paths guided shadow roulette would trace {:.2} of the \
              shadow rays ({} of {} from medium scattering events; guided at most {AUTO_MAX_SHADOW_TRACED}){}",
             if on { "on" } else { "off" },
             traced,
@@ -162,7 +163,7 @@ fn auto_decision(scene: &Scene) -> GuidingDecision {
         on: true,
         provisional: true,
         reason: format!(
-            "decided after the training's first iteration (auto): guided if guided shadow roulette would trace \
+            "decided by a pilot of unguided paths before the training (auto): guided if guided shadow roulette would trace \
              at most {AUTO_MAX_SHADOW_TRACED} of its shadow rays and the render has at least {AUTO_MIN_SPP} \
              samples per pixel; the likeliest medium to pay, '{name}', has \
              albedo {:.3} and median optical depth {:.1}",

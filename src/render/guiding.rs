@@ -26,8 +26,10 @@
 use super::film::{Film, FilmRow};
 use super::renderer::{GuidingStats, Pass};
 use crate::guiding::adjoint::PixelEstimates;
+use crate::guiding::lit::LitGrid;
+use crate::guiding::shadow::survival;
 use crate::guiding::{
-    decide_after_first_iteration, GuidingDecision, GuidingField, LitRecord, RadianceRecord,
+    decide_from_shadow_pilot, GuidingDecision, GuidingField, LitRecord, RadianceRecord,
     TRAINING_ITERATIONS,
 };
 use crate::integrator::PathCounters;
@@ -37,6 +39,9 @@ use std::time::Instant;
 
 /// Samples per pixel of the training, all its iterations' (1 + 2 + 4): the first samples of every pixel.
 pub(crate) const TRAINING_SAMPLES: u32 = (1 << TRAINING_ITERATIONS) - 1;
+/// `auto`'s pilot traces every this-many-th pixel along each axis ([`auto_pilot`]): a sixteenth of a sample per
+/// pixel of the frame.
+const AUTO_PILOT_STRIDE: usize = 4;
 /// Rows traced in parallel before their records are added (bounds the records held at once).
 const ROWS_PER_BLOCK: usize = 16;
 
@@ -49,9 +54,9 @@ pub(super) struct Training {
     pub stats: GuidingStats,
     /// The work of every training path (those only the cache learned from included).
     pub counters: PathCounters,
-    /// True when `auto` decided after the first iteration not to guide ([`GuidingDecision::provisional`]): the
-    /// first iteration's samples kept (sample 0, where in the region) are in the film as unguided samples.
-    pub stopped_after_first_iteration: bool,
+    /// True when `auto`'s pilot decided not to guide ([`GuidingDecision::provisional`]): nothing was added to
+    /// the film.
+    pub decided_off: bool,
     /// Samples meant for the film dropped as NaN or infinite.
     pub nan_samples: u64,
     /// Samples added to the film with a value clamped.
@@ -73,17 +78,30 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
             ..GuidingStats::default()
         },
         counters: PathCounters::new(image.scene.media.len()),
-        stopped_after_first_iteration: false,
+        decided_off: false,
         nan_samples: 0,
         clamped_samples: 0,
     };
     if !decision.on {
         return training;
     }
+    let start = Instant::now();
+    if decision.provisional {
+        let (decided, counters, paths) = auto_pilot(image);
+        training.counters.add(&counters);
+        let stats = &mut training.stats;
+        stats.training_paths += paths;
+        stats.mode = if decided.on { "on" } else { "off" }.to_owned();
+        stats.reason = decided.reason;
+        if !decided.on {
+            stats.training_seconds = start.elapsed().as_secs_f64();
+            training.decided_off = true;
+            return training;
+        }
+    }
     let stats = &mut training.stats;
     let keep = image.samples.clone();
     let (width, height) = (image.width, image.height);
-    let start = Instant::now();
     let mut field = GuidingField::new(image.scene.bounds);
     let keeps_values = image.tracer.guided_roulette;
     let mut pixels = keeps_values.then(|| PixelEstimates::new(width, height));
@@ -111,7 +129,7 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
                 .collect();
             let traced: Vec<TrainingRow> = rows
                 .into_par_iter()
-                .map(|(y, film_row)| pass.train_row(y, film_row, &keep, keeps_values))
+                .map(|(y, film_row)| pass.train_row(y, 1, film_row, &keep, keeps_values))
                 .collect();
             for row in &traced {
                 stats.training_records += row.records.len() as u64;
@@ -131,23 +149,6 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
         field.finish_iteration();
         stats.training_paths += (width * height) as u64 * samples.len() as u64;
         stats.training_samples_per_pixel += samples.len() as u32;
-        if k == 0 && decision.provisional {
-            let (medium_rays, traced) = field.shadow_rays_and_traced();
-            let decided = decide_after_first_iteration(
-                image.settings.spp,
-                training.counters.rays.shadow,
-                medium_rays,
-                traced,
-            );
-            stats.mode = if decided.on { "on" } else { "off" }.to_owned();
-            stats.reason = decided.reason;
-            if !decided.on {
-                stats.training_seconds = start.elapsed().as_secs_f64();
-                stats.training_samples_in_image = keep.end.min(1).saturating_sub(keep.start);
-                training.stopped_after_first_iteration = true;
-                return training;
-            }
-        }
     }
     if let Some(pixels) = pixels {
         field.set_pixel_estimates(pixels);
@@ -158,6 +159,42 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
     stats.training_samples_in_image = keep.len() as u32;
     training.field = Some(field);
     training
+}
+
+/// `auto`'s pilot ([`GuidingDecision::provisional`]): sample 0 of every [`AUTO_PILOT_STRIDE`]-th pixel along
+/// both axes of the whole frame, traced unguided as the training's first iteration would trace it but for no film,
+/// its medium shadow rays' records on a shadow grid as the training's; whether `auto` guides follows from them
+/// ([`decide_from_shadow_pilot`]). Rows in parallel, their records added in row order: the same decision for
+/// any thread count and in every farm part. Returns the decision, the pilot's work and its paths.
+fn auto_pilot(image: &Pass<'_>) -> (GuidingDecision, PathCounters, u64) {
+    let pass = image.retargeted(image.services.with_guide(None), 0..1);
+    let rows: Vec<TrainingRow> = (0..image.height)
+        .step_by(AUTO_PILOT_STRIDE)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|y| pass.train_row(y, AUTO_PILOT_STRIDE, None, &(0..0), false))
+        .collect();
+    let mut grid = LitGrid::new(image.scene.bounds);
+    let mut counters = PathCounters::new(image.scene.media.len());
+    for row in &rows {
+        grid.add(&row.shadow);
+        counters.add(&row.counters);
+    }
+    // Each ray is judged by the mean of the others in its voxel, as the image's rays are by the training's: a
+    // mean that held the ray itself would predict too much of it where voxels hold few records.
+    let shadow = || rows.iter().flat_map(|row| &row.shadow);
+    let traced: f64 = shadow()
+        .map(|r| survival(grid.mean_without(r)) as f64)
+        .sum();
+    let decided = decide_from_shadow_pilot(
+        image.settings.spp,
+        counters.rays.shadow,
+        shadow().count() as u64,
+        traced,
+    );
+    let paths =
+        (image.height.div_ceil(AUTO_PILOT_STRIDE) * image.width.div_ceil(AUTO_PILOT_STRIDE)) as u64;
+    (decided, counters, paths)
 }
 
 /// The training samples of a region of `samples` to add to its film, which holds its samples up to `complete`:

@@ -560,7 +560,7 @@ impl Renderer {
             0..0
         };
         // A film stopped inside the training cannot go on guided (its cache would guide the training's samples
-        // still to come differently); `auto` knows whether it guides only after the first iteration.
+        // still to come differently); `auto` knows whether it guides only after its pilot.
         let inside_training = !keep.is_empty() && at.complete != region.samples.start;
         let refusal = || {
             RenderError::Resume(format!(
@@ -579,17 +579,8 @@ impl Renderer {
         }
         totals.counters.add(&training.counters);
         let mut at = at;
-        if training.stopped_after_first_iteration {
-            // `auto` decided not to guide: the first iteration's samples kept (sample 0) are unguided image
-            // samples, as an unguided render's.
-            if keep.contains(&0) {
-                at = RegionProgress::start(1);
-                totals.done = 1 - region.samples.start;
-                totals.nan_samples += training.nan_samples;
-                totals.clamped_samples += training.clamped_samples;
-                clock.pixel_done();
-            }
-        } else if !keep.is_empty() {
+        // `auto` that decided not to guide added nothing to the film: the render goes on unguided from `at`.
+        if !keep.is_empty() && !training.decided_off {
             if training.field.is_some() {
                 at = RegionProgress::start(keep.end);
                 totals.done = at.complete - region.samples.start;
@@ -870,6 +861,7 @@ impl<'a> Pass<'a> {
     pub(super) fn train_row(
         &self,
         y: usize,
+        x_stride: usize,
         film_row: Option<FilmRow<'_>>,
         keep: &Range<u32>,
         keeps_values: bool,
@@ -883,7 +875,7 @@ impl<'a> Pass<'a> {
             ..SampleRecord::default()
         });
         let mut path = GuidePath::default();
-        for x in 0..self.width {
+        for x in (0..self.width).step_by(x_stride) {
             let pixel_index = (y * self.width + x) as u64;
             let on_edge = self.edges.is_some_and(|e| e.is_marked(x, y));
             let mut pixel = (self.window.x0..self.window.x1)

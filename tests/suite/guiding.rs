@@ -286,7 +286,7 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
 
 /// Parts hash by what `--guiding` decided for the scene before rendering, not by the mode's name: `off`, and
 /// `auto` in a scene without a scattering medium, add nothing (so they hash as renders from before guiding
-/// existed); `auto` in a scene with one, which decides after the training's first iteration, has a tag of its
+/// existed); `auto` in a scene with one, which a pilot of unguided paths decides, has a tag of its
 /// own. So two auto parts of the ball merge, bit for bit the whole auto render, and an auto part refuses to merge
 /// with an off part and with an on part.
 #[test]
@@ -458,10 +458,10 @@ fn guided_renders_resume_bit_for_bit() {
 
 /// `--guiding auto` decides before rendering only where there is no scattering medium (off: the surfaces-only
 /// Cornell boxes, the Lambertian one and the glossy baffle box of the guiding benchmark); in a scene with one (the
-/// bundled demo, the backlit-cloud benchmark) the training's first iteration decides, and the reason says what
+/// bundled demo, the backlit-cloud benchmark) a pilot of unguided paths decides, and the reason says what
 /// the pilot measured of the likeliest medium (the demo's albedo 0.95, the backlit cloud's 0.99).
 #[test]
-fn auto_decides_after_the_first_iteration_where_there_is_a_scattering_medium() {
+fn auto_decides_by_a_pilot_where_there_is_a_scattering_medium() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let decide = |file: &str| {
         let scene = Scene::load(&root.join(file)).unwrap();
@@ -495,11 +495,11 @@ fn auto_decides_after_the_first_iteration_where_there_is_a_scattering_medium() {
     assert!(!off.on && on.on && !off.provisional && !on.provisional);
 }
 
-/// `--guiding auto` guides where guided shadow roulette would save most of the shadow rays, as the training's
-/// first iteration (the image's unguided sample 0) finds: in the slab of grid medium lit from behind, most
-/// scattering events the camera's paths reach are on its dark side, so the render is guided, the same bits as
-/// `--guiding on`'s; lit from the front, their shadow rays find the light and auto stops after that iteration,
-/// the same bits as `--guiding off`'s in every layer (its sample 0 kept as the unguided render's).
+/// `--guiding auto` guides where guided shadow roulette would save most of the shadow rays, as its pilot
+/// (unguided paths of sample 0 at every 4th pixel along each axis) finds: in the slab of grid medium lit from
+/// behind, most scattering events the camera's paths reach are on its dark side, so the render is guided, the
+/// same bits as `--guiding on`'s; lit from the front, their shadow rays find the light and auto does not guide,
+/// the same bits as `--guiding off`'s in every layer.
 #[test]
 fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
     for (light, guided) in [(Vec3::Z, true), (-Vec3::Z, false)] {
@@ -524,7 +524,7 @@ fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
         assert!(stats
             .guiding
             .reason
-            .contains("after the training's first iteration"));
+            .contains("on a pilot of unguided paths"));
         assert_bit_identical(&auto, &same, &format!("auto, light along {light}"));
         assert_eq!(stats.samples_per_pixel, 16);
     }
