@@ -2,7 +2,30 @@
 
 #![allow(dead_code)]
 
+use nimbus::farm::{self, PartInfo};
+use nimbus::render::{CancelToken, PixelWindow, RenderRegion, RenderSettings, Renderer};
+use std::ops::Range;
 use std::path::{Path, PathBuf};
+
+/// Renders the samples `samples` of `window` of `scene` with `settings` and writes them to `path` as a farm part,
+/// its scene hash taken over `scene_file` as the scene file's bytes.
+pub fn render_part(
+    scene: &nimbus::Scene,
+    scene_file: &[u8],
+    settings: RenderSettings,
+    window: PixelWindow,
+    samples: Range<u32>,
+    path: &Path,
+) {
+    let hash = farm::SceneOverrides::default().scene_hash(&[scene_file], &settings, scene);
+    let region = RenderRegion { window, samples };
+    let renderer = Renderer::new(settings);
+    let (film, stats) = renderer
+        .render_region(scene, &region, &mut |_| true, &CancelToken::new())
+        .unwrap();
+    let info = PartInfo::new(renderer.settings(), hash, &region, &stats);
+    farm::write_part(path, &film, &info).unwrap();
+}
 
 /// The shared test-data folder: `$NIMBUS_SHARED_DIR` if set, else `$CARGO_MANIFEST_DIR/../shared`.
 ///

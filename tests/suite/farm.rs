@@ -3,11 +3,12 @@
 //! whatever the split, the order of the parts and the thread counts; parts of different renders, overlapping
 //! parts and gaps are refused with one line naming the files. Through the library and through the CLI.
 
+use crate::common::render_part;
 use nimbus::farm::{self, FarmError, PartInfo};
 use nimbus::light::EnvironmentLight;
 use nimbus::math::Rgb;
 use nimbus::render::{
-    CancelToken, GuidingMode, PixelWindow, RenderImage, RenderRegion, RenderSettings, Renderer,
+    GuidingMode, PixelWindow, RenderImage, RenderRegion, RenderSettings, Renderer,
 };
 use nimbus::{channel_names, Scene};
 use std::ops::Range;
@@ -51,24 +52,6 @@ fn temp_dir(name: &str) -> PathBuf {
 
 fn window(x0: usize, y0: usize, x1: usize, y1: usize) -> PixelWindow {
     PixelWindow { x0, y0, x1, y1 }
-}
-
-/// Renders one part with `settings` and writes it to `path`.
-fn render_part(
-    scene: &Scene,
-    settings: RenderSettings,
-    window: PixelWindow,
-    samples: Range<u32>,
-    path: &Path,
-) {
-    let hash = farm::SceneOverrides::default().scene_hash(&[b"cloud"], &settings, scene);
-    let region = RenderRegion { window, samples };
-    let renderer = Renderer::new(settings);
-    let (film, stats) = renderer
-        .render_region(scene, &region, &mut |_| true, &CancelToken::new())
-        .unwrap();
-    let info = PartInfo::new(renderer.settings(), hash, &region, &stats);
-    farm::write_part(path, &film, &info).unwrap();
 }
 
 /// Asserts that two images hold the same bits in every channel, naming the first difference.
@@ -125,7 +108,14 @@ fn sample_splits_merge_bit_identically() {
         for (i, samples) in ranges.iter().enumerate() {
             let path = dir.join(format!("split{k}_part{i}.exr"));
             // Every part on its own thread count: 1, 2, 3, 1, ...
-            render_part(&scene, settings(1 + i % 3), full, samples.clone(), &path);
+            render_part(
+                &scene,
+                b"cloud",
+                settings(1 + i % 3),
+                full,
+                samples.clone(),
+                &path,
+            );
             paths.push(path);
         }
         let merged = farm::merge_parts(&paths).unwrap();
@@ -160,6 +150,7 @@ fn tile_and_mixed_splits_merge_bit_identically() {
                 let path = dir.join(format!("tile{k}_{}.exr", samples.start));
                 render_part(
                     &scene,
+                    b"cloud",
                     settings(1 + k % 3),
                     window(x0, y0, x1, y1),
                     samples.clone(),
@@ -181,7 +172,7 @@ fn parts_carry_their_keys_and_windows_in_the_exr_header() {
     let dir = temp_dir("header");
     let path = dir.join("part.exr");
     let crop = window(3, 4, 20, 9);
-    render_part(&scene, settings(2), crop, 2..7, &path);
+    render_part(&scene, b"cloud", settings(2), crop, 2..7, &path);
     let info = farm::read_part_info(&path).unwrap();
     assert_eq!(
         (info.width, info.height, info.window),
@@ -241,7 +232,7 @@ fn parts_of_other_renders_overlaps_and_gaps_are_refused() {
     let full = PixelWindow::full(WIDTH, HEIGHT);
     let part = |name: &str, s: RenderSettings, w: PixelWindow, samples: Range<u32>| {
         let path = dir.join(name);
-        render_part(&scene, s, w, samples, &path);
+        render_part(&scene, b"cloud", s, w, samples, &path);
         path
     };
     let first = part("first.exr", settings(2), full, 0..5);
@@ -324,26 +315,15 @@ fn parts_of_other_renders_overlaps_and_gaps_are_refused() {
     );
     assert!(matches!(farm::merge_parts(&[]), Err(FarmError::NoParts)));
     // A different scene file: the hash of other bytes.
-    let other_scene = {
-        let s = settings(2);
-        let hash = farm::SceneOverrides::default().scene_hash(&[b"another scene"], &s, &scene);
-        let region = RenderRegion {
-            window: full,
-            samples: 5..12,
-        };
-        let renderer = Renderer::new(s);
-        let (film, stats) = renderer
-            .render_region(&scene, &region, &mut |_| true, &CancelToken::new())
-            .unwrap();
-        let path = dir.join("other_scene.exr");
-        farm::write_part(
-            &path,
-            &film,
-            &PartInfo::new(renderer.settings(), hash, &region, &stats),
-        )
-        .unwrap();
-        path
-    };
+    let other_scene = dir.join("other_scene.exr");
+    render_part(
+        &scene,
+        b"another scene",
+        settings(2),
+        full,
+        5..12,
+        &other_scene,
+    );
     refused(
         &[&first, &other_scene],
         "scene hash (scene file or settings)",
@@ -365,7 +345,14 @@ fn a_damaged_part_is_refused() {
     let scene = scene();
     let dir = temp_dir("damaged");
     let path = dir.join("part.exr");
-    render_part(&scene, settings(2), window(1, 1, 9, 7), 0..12, &path);
+    render_part(
+        &scene,
+        b"cloud",
+        settings(2),
+        window(1, 1, 9, 7),
+        0..12,
+        &path,
+    );
     let mut image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -750,7 +737,7 @@ fn every_layer_parts_merge_bit_for_bit(guiding: GuidingMode) {
     .enumerate()
     {
         let path = dir.join(format!("part{k}.exr"));
-        render_part(&scene, with_layers(1 + k % 2), w, samples, &path);
+        render_part(&scene, b"cloud", with_layers(1 + k % 2), w, samples, &path);
         paths.push(path);
     }
     paths.reverse();
@@ -774,7 +761,14 @@ fn every_layer_parts_merge_bit_for_bit(guiding: GuidingMode) {
         aovs: None,
         ..with_layers(1)
     };
-    render_part(&scene, default_layers, window(0, 0, 41, 13), 0..5, &other);
+    render_part(
+        &scene,
+        b"cloud",
+        default_layers,
+        window(0, 0, 41, 13),
+        0..5,
+        &other,
+    );
     let err = farm::merge_parts(&[paths[0].clone(), other]).unwrap_err();
     assert!(err.to_string().contains("(--aovs"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
@@ -802,6 +796,7 @@ fn parts_whose_media_chose_other_estimators_are_refused() {
     let (a, b) = (dir.join("grid16.exr"), dir.join("global.exr"));
     render_part(
         &load(MajorantKind::Grid16),
+        b"cloud",
         settings(1),
         window(0, 0, 41, 29),
         0..6,
@@ -809,6 +804,7 @@ fn parts_whose_media_chose_other_estimators_are_refused() {
     );
     render_part(
         &load(MajorantKind::Global),
+        b"cloud",
         settings(1),
         window(0, 0, 41, 29),
         6..12,
@@ -934,7 +930,7 @@ fn parts_whose_sums_or_counts_would_wrap_when_merged_are_refused() {
     let edits: [(&str, Forgery); 2] = [("value sum", huge_sum), ("nan_samples", huge_count)];
     for (what, edit) in edits {
         for (path, samples) in halves.iter().zip(ranges.clone()) {
-            render_part(&scene, settings(2), whole, samples, path);
+            render_part(&scene, b"cloud", settings(2), whole, samples, path);
             forge_part(path, edit);
         }
         let merged = std::panic::catch_unwind(|| farm::merge_parts(&halves));
@@ -973,7 +969,14 @@ fn a_part_whose_header_declares_a_huge_frame_is_refused_before_its_samples_are_a
     let scene = scene();
     let dir = temp_dir("huge-header");
     let path = dir.join("part.exr");
-    render_part(&scene, settings(2), window(0, 0, 12, 8), 0..12, &path);
+    render_part(
+        &scene,
+        b"cloud",
+        settings(2),
+        window(0, 0, 12, 8),
+        0..12,
+        &path,
+    );
     let mut bytes = std::fs::read(&path).unwrap();
     // A 65536x65536 frame and data window: some 70 channels of 4 bytes are 1.2 TB of samples.
     patch_box(&mut bytes, "displayWindow", 65535);

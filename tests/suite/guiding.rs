@@ -6,7 +6,7 @@
 use crate::common;
 
 use glam::{DMat4, DVec3, IVec3};
-use nimbus::farm::{self, PartInfo};
+use nimbus::farm;
 use nimbus::light::EnvironmentLight;
 use nimbus::math::{Rgb, Vec3};
 use nimbus::render::resume::ResumeFrom;
@@ -249,18 +249,15 @@ fn guided_renders_are_deterministic_and_merge_bit_for_bit() {
             guided_roulette: name != "classic.exr",
             ..settings(size, spp, threads, mode)
         };
-        let hash = farm::SceneOverrides::default().scene_hash(&[b"ball"], &settings, &scene);
-        let region = RenderRegion {
-            window: PixelWindow::full(size, size),
-            samples,
-        };
-        let renderer = Renderer::new(settings);
-        let (film, stats) = renderer
-            .render_region(&scene, &region, &mut |_| true, &CancelToken::new())
-            .unwrap();
-        let info = PartInfo::new(renderer.settings(), hash, &region, &stats);
         let path = dir.join(name);
-        farm::write_part(&path, &film, &info).unwrap();
+        common::render_part(
+            &scene,
+            b"ball",
+            settings,
+            PixelWindow::full(size, size),
+            samples,
+            &path,
+        );
         path
     };
     let a = part(0..4, 2, GuidingMode::On, "a.exr");
@@ -297,23 +294,16 @@ fn parts_hash_by_what_guiding_decided() {
     let dir = std::env::temp_dir().join(format!("nimbus-guiding-hash-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let part = |samples: std::ops::Range<u32>, mode: GuidingMode, name: &str| {
-        let settings = settings(size, spp, 1, mode);
-        let hash = farm::SceneOverrides::default().scene_hash(&[b"ball"], &settings, &scene);
-        let region = RenderRegion {
-            window: PixelWindow::full(size, size),
-            samples,
-        };
-        let renderer = Renderer::new(settings);
-        let (film, stats) = renderer
-            .render_region(&scene, &region, &mut |_| true, &CancelToken::new())
-            .unwrap();
         let path = dir.join(name);
-        farm::write_part(
+        let settings = settings(size, spp, 1, mode);
+        common::render_part(
+            &scene,
+            b"ball",
+            settings,
+            PixelWindow::full(size, size),
+            samples,
             &path,
-            &film,
-            &PartInfo::new(renderer.settings(), hash, &region, &stats),
-        )
-        .unwrap();
+        );
         path
     };
     let auto = part(0..2, GuidingMode::Auto, "auto.exr");
