@@ -316,9 +316,10 @@ impl GuidingField {
         self.shadow.add(records);
     }
 
-    /// The probability with which an image path traces a medium shadow ray from `p` ([`super::shadow`]).
-    pub fn shadow_survival(&self, p: Vec3) -> f32 {
-        super::shadow::survival(self.shadow.mean_at(p))
+    /// The probability with which an image path traces a medium shadow ray from `p`, at least `min_survival`
+    /// ([`super::shadow`]).
+    pub fn shadow_survival(&self, p: Vec3, min_survival: f32) -> f32 {
+        super::shadow::survival(self.shadow.mean_at(p), min_survival)
     }
 
     /// The guided distance density of a decoupled sample on the segment `origin + t dir`, t ∈ [0, `length`],

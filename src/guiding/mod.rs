@@ -101,8 +101,10 @@ pub struct GuidePath {
     vertices: Vec<GuideVertex>,
     /// What its decoupled direct-light samples received.
     lit: Vec<LitRecord>,
-    /// The transmittance its medium shadow rays found ([`shadow`]).
+    /// The transmittance its medium collisions' shadow rays found ([`shadow`]).
     shadow: Vec<LitRecord>,
+    /// The transmittance its decoupled samples' shadow rays found ([`shadow`]).
+    decoupled_shadow: Vec<LitRecord>,
 }
 
 impl GuidePath {
@@ -111,6 +113,7 @@ impl GuidePath {
         self.vertices.clear();
         self.lit.clear();
         self.shadow.clear();
+        self.decoupled_shadow.clear();
     }
 
     /// Remembers that a decoupled direct-light sample at `p` received `value` ([`LitRecord`]).
@@ -132,6 +135,17 @@ impl GuidePath {
     /// The records of the path's medium shadow rays.
     pub fn shadow(&self) -> &[LitRecord] {
         &self.shadow
+    }
+
+    /// Remembers that a shadow ray of a decoupled direct-light sample at `p` found the transmittance `value`
+    /// (its largest channel; [`shadow`]).
+    pub fn push_decoupled_shadow(&mut self, p: Vec3, value: f32) {
+        self.decoupled_shadow.push(LitRecord { p, value });
+    }
+
+    /// The records of the path's decoupled samples' shadow rays.
+    pub fn decoupled_shadow(&self) -> &[LitRecord] {
+        &self.decoupled_shadow
     }
 
     /// Remembers a scattering event at `p` that sampled `dir` with density `pdf` (the strategies' own

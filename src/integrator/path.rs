@@ -58,6 +58,7 @@ use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::guiding::adjoint::{self, Roulette};
+use crate::guiding::shadow::{DECOUPLED_SHADOW_MIN_SURVIVAL, SHADOW_MIN_SURVIVAL};
 use crate::guiding::{GuidePath, StrategyDensities};
 use crate::light::{LightContext, LightSample};
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
@@ -1021,7 +1022,10 @@ impl PathTracer {
     ///
     /// Guided, t comes from the one-sample mixture of the free-flight density with the distances of the cache's
     /// lit grid ([`guided::decoupled_distance`]; Herholz et al. 2019 §5), and a training path records what the
-    /// sample received ([`GuidePath::push_lit`]).
+    /// sample received ([`GuidePath::push_lit`]) and what its shadow rays found ([`GuidePath::push_shadow`]), from
+    /// which an image path's shadow rays play guided shadow roulette as at a collision (`crate::guiding::shadow`):
+    /// in the door-gap room most decoupled samples lie in the dark, and their shadow rays toward the sun end on
+    /// the wall.
     fn sample_decoupled(
         &self,
         cx: &mut PathContext,
@@ -1059,19 +1063,30 @@ impl PathTracer {
         let ctx = LightContext { p, n: None };
         // What the lights gave, per unit of `scale`, for the guiding cache's lit grid (training paths only).
         let mut received = Rgb::ZERO;
+        let survival = match services.guide() {
+            Some(guide) if !training => guide.shadow_survival(p, DECOUPLED_SHADOW_MIN_SURVIVAL),
+            _ => 1.0,
+        };
         services.sample_lights(&ctx, cx.rng, |chosen, rng| {
             if !self.decoupled_serves(services, chosen.index) {
                 return;
             }
+            if survival < 1.0 && rng.next_f32() >= survival {
+                return;
+            }
             let ls = chosen.sample;
-            let Some((phase, tr)) = ScatterPoint::on(ray, p, &s.onward.stack).lit_by(
+            let lit = ScatterPoint::on(ray, p, &s.onward.stack).lit_by(
                 services,
                 &c.phase,
                 &ls,
-                1.0,
+                1.0 / survival,
                 rng,
                 cx.counters,
-            ) else {
+            );
+            if let Some(path) = s.guide_path.as_deref_mut() {
+                path.push_decoupled_shadow(p, lit.map_or(0.0, |(_, tr)| tr.max_element()));
+            }
+            let Some((phase, tr)) = lit else {
                 return;
             };
             let light_pdf = chosen.pmf * ls.pdf;
@@ -1706,7 +1721,9 @@ impl PathTracer {
         // Guided shadow roulette (`crate::guiding::shadow`) for the image's paths; a training path traces every
         // shadow ray and records what it found.
         let survival = match services.guide() {
-            Some(guide) if s.guide_path.is_none() => guide.shadow_survival(ctx.p),
+            Some(guide) if s.guide_path.is_none() => {
+                guide.shadow_survival(ctx.p, SHADOW_MIN_SURVIVAL)
+            }
             _ => 1.0,
         };
         let shadow_weight = 1.0 / survival;

@@ -27,7 +27,7 @@ use super::film::{Film, FilmRow};
 use super::renderer::{GuidingStats, Pass};
 use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::lit::LitGrid;
-use crate::guiding::shadow::survival;
+use crate::guiding::shadow::{survival, DECOUPLED_SHADOW_MIN_SURVIVAL, SHADOW_MIN_SURVIVAL};
 use crate::guiding::{
     decide_from_shadow_pilot, GuidingDecision, GuidingField, LitRecord, RadianceRecord,
     TRAINING_ITERATIONS,
@@ -136,6 +136,7 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
                 field.add_records(&row.records);
                 field.add_lit_records(&row.lit);
                 field.add_shadow_records(&row.shadow);
+                field.add_shadow_records(&row.decoupled_shadow);
                 if let Some(pixels) = pixels.as_mut() {
                     for &(pixel, value) in &row.values {
                         pixels.add(pixel, value);
@@ -178,18 +179,28 @@ fn auto_pilot(image: &Pass<'_>) -> (GuidingDecision, PathCounters, u64) {
     let mut counters = PathCounters::new(image.scene.media.len());
     for row in &rows {
         grid.add(&row.shadow);
+        grid.add(&row.decoupled_shadow);
         counters.add(&row.counters);
     }
     // Each ray is judged by the mean of the others in its voxel, as the image's rays are by the training's: a
     // mean that held the ray itself would predict too much of it where voxels hold few records.
-    let shadow = || rows.iter().flat_map(|row| &row.shadow);
-    let traced: f64 = shadow()
-        .map(|r| survival(grid.mean_without(r)) as f64)
-        .sum();
+    let traced_of = |records: &[LitRecord], min_survival: f32| -> f64 {
+        records
+            .iter()
+            .map(|r| survival(grid.mean_without(r), min_survival) as f64)
+            .sum()
+    };
+    let mut traced = 0.0;
+    let mut medium_shadow_rays = 0;
+    for row in &rows {
+        traced += traced_of(&row.shadow, SHADOW_MIN_SURVIVAL);
+        traced += traced_of(&row.decoupled_shadow, DECOUPLED_SHADOW_MIN_SURVIVAL);
+        medium_shadow_rays += (row.shadow.len() + row.decoupled_shadow.len()) as u64;
+    }
     let decided = decide_from_shadow_pilot(
         image.settings.spp,
         counters.rays.shadow,
-        shadow().count() as u64,
+        medium_shadow_rays,
         traced,
     );
     let paths =
@@ -211,8 +222,10 @@ pub(super) struct TrainingRow {
     pub records: Vec<RadianceRecord>,
     /// Their decoupled direct-light samples' records.
     pub lit: Vec<LitRecord>,
-    /// Their medium shadow rays' records.
+    /// Their medium collisions' shadow rays' records.
     pub shadow: Vec<LitRecord>,
+    /// Their decoupled samples' shadow rays' records.
+    pub decoupled_shadow: Vec<LitRecord>,
     /// Each sample's continuation, by pixel (guided Russian roulette only).
     pub values: Vec<((usize, usize), f32)>,
     /// The work of the row's paths.
@@ -230,6 +243,7 @@ impl TrainingRow {
             records: Vec::new(),
             lit: Vec::new(),
             shadow: Vec::new(),
+            decoupled_shadow: Vec::new(),
             values: Vec::new(),
             counters: PathCounters::new(media),
             nan_samples: 0,

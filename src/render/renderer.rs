@@ -896,6 +896,8 @@ impl<'a> Pass<'a> {
                 );
                 row.lit.extend_from_slice(path.lit());
                 row.shadow.extend_from_slice(path.shadow());
+                row.decoupled_shadow
+                    .extend_from_slice(path.decoupled_shadow());
                 if !is_finite_rgb(result.radiance) {
                     row.nan_samples += kept as u64;
                     continue;

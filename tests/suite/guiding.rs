@@ -17,6 +17,7 @@ use nimbus::scene::{Camera, SceneBuilder};
 use nimbus::vdb::{GridTree, Tree};
 use nimbus::volume::density::GridDensity;
 use nimbus::volume::grid::GridMedium;
+use nimbus::volume::homogeneous::HomogeneousMedium;
 use nimbus::volume::majorant::MajorantKind;
 use nimbus::{channel_names, Scene};
 use std::path::Path;
@@ -655,6 +656,74 @@ fn guided_shadow_roulette_keeps_single_scattering_through_a_backlit_slab() {
     // The guided render cut most of its shadow rays.
     assert!(
         shadow_rays[1] * 2 < shadow_rays[0],
+        "shadow rays unguided, guided: {shadow_rays:?}"
+    );
+}
+
+/// Guided shadow roulette at the decoupled direct-light samples of a constant medium keeps single scattering's
+/// mean. The homogeneous twin of the slab above: a box 0.5 m thick along z (2 m across, so the shadow grid's
+/// voxels are 1/16 m) of optical depth τ = 8, lit by the sun from behind along the camera's axis, so single
+/// scattering (`max_depth` 1, g = 0) is again L = E α τ e^{−τ} / (4π). The camera segment's decoupled sample
+/// (not a collision's next-event estimate) takes the sun; most of its distances lie on the camera's side, where
+/// the training's decoupled shadow rays found e^{−4} or less, so the guided render plays roulette on most of
+/// them, and the survivors' weight 1/q must keep the mean (within 4 standard errors).
+#[test]
+fn guided_shadow_roulette_keeps_decoupled_single_scattering_through_a_backlit_homogeneous_slab() {
+    let (tau, albedo, irradiance) = (8.0f32, 0.8f32, 100.0f32);
+    let thickness = 0.5f32;
+    let sigma_t = tau / thickness;
+    let mut b = SceneBuilder::default();
+    let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
+        "slab",
+        Rgb::splat(sigma_t * (1.0 - albedo)),
+        Rgb::splat(sigma_t * albedo),
+        0.0,
+    )));
+    let material = b.add_material(common::boundary(medium));
+    b.add_mesh(common::cuboid(
+        Vec3::new(-1.0, -1.0, -0.5 * thickness),
+        Vec3::new(1.0, 1.0, 0.5 * thickness),
+        material,
+    ));
+    // Travelling along +z, toward the camera.
+    b.add_directional_light(Vec3::Z, Rgb::splat(irradiance));
+    b.set_camera(Camera::look_at(
+        Vec3::new(0.0, 0.0, 3.0),
+        Vec3::ZERO,
+        0.01f32.to_radians(),
+    ));
+    let scene = b.build().unwrap();
+    let tau = tau as f64;
+    let truth = (irradiance * albedo) as f64 * tau * (-tau).exp() / (4.0 * std::f64::consts::PI);
+    let mut shadow_rays = Vec::new();
+    for guiding in [GuidingMode::Off, GuidingMode::On] {
+        let settings = RenderSettings {
+            max_depth: 1,
+            ..settings(32, 128, 2, guiding)
+        };
+        let (img, stats) = Renderer::new(settings)
+            .render(&scene, &mut |_| true)
+            .unwrap();
+        for c in 0..3 {
+            let (mean, se) = common::mean_and_se(&img, c);
+            eprintln!(
+                "backlit homogeneous slab, guiding {guiding:?}, channel {c}: {mean:.6} ± {se:.6} vs {truth:.6}"
+            );
+            assert!(
+                se > 0.0 && se < 0.05 * truth,
+                "{guiding:?}: standard error {se}"
+            );
+            assert!(
+                (mean - truth).abs() < 4.0 * se,
+                "{guiding:?}: single scattering {mean} vs {truth} (se {se})"
+            );
+        }
+        assert!(stats.rays.decoupled > 0, "no decoupled samples");
+        shadow_rays.push(stats.rays.shadow);
+    }
+    // The guided render played roulette on most of its shadow rays (at least a quarter of them survive).
+    assert!(
+        shadow_rays[1] * 3 < shadow_rays[0] * 2,
         "shadow rays unguided, guided: {shadow_rays:?}"
     );
 }
