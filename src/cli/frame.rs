@@ -14,7 +14,8 @@ use nimbus::light::EnvironmentLight;
 use nimbus::limits::{one_line, MAX_MESSAGE_CHARS};
 use nimbus::render::resume::RegionProgress;
 use nimbus::render::{
-    CancelToken, Film, PixelWindow, Progress, RenderRegion, RenderSettings, RenderStats, Renderer,
+    CancelToken, Film, GuidingMode, PixelWindow, Progress, RenderRegion, RenderSettings,
+    RenderStats, Renderer,
 };
 use nimbus::scene::{Scene, SceneBuilder, DEFAULT_ENVIRONMENT_RADIANCE};
 use std::path::{Path, PathBuf};
@@ -39,6 +40,10 @@ pub(crate) fn render_frame(
     let renderer = Renderer::new(settings);
     let job = FrameJob::plan(args, frame, &scene, &renderer, output, stats_path)?;
     let (film, stats, progress) = job.render(reporter, cancel)?;
+    if args.explain && args.guiding == GuidingMode::Auto {
+        // Before rendering `--explain` could only say how `auto` would decide; its pilot has decided now.
+        eprintln!("nimbus: path guiding decided: {}", stats.guiding.reason);
+    }
     let stop = STOP_SIGNAL.load(Ordering::SeqCst);
     // A signal that came after the last pass stops nothing: the render is written as finished.
     let finished = progress.complete == job.region.samples.end;

@@ -105,6 +105,8 @@ pub struct GuidePath {
     shadow: Vec<LitRecord>,
     /// The transmittance its decoupled samples' shadow rays found ([`shadow`]).
     decoupled_shadow: Vec<LitRecord>,
+    /// The transmittance its surfaces' shadow rays found ([`shadow`]).
+    surface_shadow: Vec<LitRecord>,
 }
 
 impl GuidePath {
@@ -114,6 +116,7 @@ impl GuidePath {
         self.lit.clear();
         self.shadow.clear();
         self.decoupled_shadow.clear();
+        self.surface_shadow.clear();
     }
 
     /// Remembers that a decoupled direct-light sample at `p` received `value` ([`LitRecord`]).
@@ -146,6 +149,17 @@ impl GuidePath {
     /// The records of the path's decoupled samples' shadow rays.
     pub fn decoupled_shadow(&self) -> &[LitRecord] {
         &self.decoupled_shadow
+    }
+
+    /// Remembers that a shadow ray of next-event estimation at a surface point `p` found the transmittance
+    /// `value` (its largest channel; [`shadow`]).
+    pub fn push_surface_shadow(&mut self, p: Vec3, value: f32) {
+        self.surface_shadow.push(LitRecord { p, value });
+    }
+
+    /// The records of the path's surfaces' shadow rays.
+    pub fn surface_shadow(&self) -> &[LitRecord] {
+        &self.surface_shadow
     }
 
     /// Remembers a scattering event at `p` that sampled `dir` with density `pdf` (the strategies' own

@@ -58,7 +58,7 @@ use super::services::RendererServices;
 use super::{MediumStack, PathCounters};
 use crate::geometry::SurfacePoint;
 use crate::guiding::adjoint::{self, Roulette};
-use crate::guiding::shadow::{DECOUPLED_SHADOW_MIN_SURVIVAL, SHADOW_MIN_SURVIVAL};
+use crate::guiding::shadow::{SHADOW_MIN_SURVIVAL, VISIBILITY_MIN_SURVIVAL};
 use crate::guiding::{GuidePath, StrategyDensities};
 use crate::light::{LightContext, LightSample};
 use crate::material::{Bsdf, BsdfSample, LobeSplit, ShadingPoint};
@@ -1064,7 +1064,7 @@ impl PathTracer {
         // What the lights gave, per unit of `scale`, for the guiding cache's lit grid (training paths only).
         let mut received = Rgb::ZERO;
         let survival = match services.guide() {
-            Some(guide) if !training => guide.shadow_survival(p, DECOUPLED_SHADOW_MIN_SURVIVAL),
+            Some(guide) if !training => guide.shadow_survival(p, VISIBILITY_MIN_SURVIVAL),
             _ => 1.0,
         };
         services.sample_lights(&ctx, cx.rng, |chosen, rng| {
@@ -1405,17 +1405,38 @@ impl PathTracer {
             p: hit.p,
             n: Some(frame.n),
         };
+        // Guided shadow roulette (`crate::guiding::shadow`) for the image's paths; a training path traces every
+        // shadow ray and records what it found.
+        let survival = match services.guide() {
+            Some(guide) if s.guide_path.is_none() => {
+                guide.shadow_survival(hit.p, VISIBILITY_MIN_SURVIVAL)
+            }
+            _ => 1.0,
+        };
         services.sample_lights(&ctx, cx.rng, |chosen, rng| {
             let ls = chosen.sample;
             let wi = frame.to_local(ls.wi);
             let f = bsdf.eval(wo, wi) * wi.z.abs();
             let segment = ls.shadow_segment(&hit.surface_point());
             if let (true, Some(segment)) = (f.max_element() > 0.0, segment) {
+                if survival < 1.0 && rng.next_f32() >= survival {
+                    return;
+                }
                 let mut stack = s.onward.stack;
                 if let Some(interior) = material.interior {
                     stack.cross(interior, ls.wi.dot(hit.geometric_normal) < 0.0);
                 }
-                let tr = services.transmittance(&segment, ray.time, &stack, rng, cx.counters);
+                let tr = services.weighted_transmittance(
+                    1.0 / survival,
+                    &segment,
+                    ray.time,
+                    &stack,
+                    rng,
+                    cx.counters,
+                );
+                if let Some(path) = s.guide_path.as_deref_mut() {
+                    path.push_surface_shadow(hit.p, tr.max_element());
+                }
                 if tr.max_element() > 0.0 {
                     let light_pdf = chosen.pmf * ls.pdf;
                     let weight = if ls.is_delta {

@@ -27,7 +27,7 @@ use super::film::{Film, FilmRow};
 use super::renderer::{GuidingStats, Pass};
 use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::lit::LitGrid;
-use crate::guiding::shadow::{survival, DECOUPLED_SHADOW_MIN_SURVIVAL, SHADOW_MIN_SURVIVAL};
+use crate::guiding::shadow::{survival, SHADOW_MIN_SURVIVAL, VISIBILITY_MIN_SURVIVAL};
 use crate::guiding::{
     decide_from_shadow_pilot, GuidingDecision, GuidingField, LitRecord, RadianceRecord,
     TRAINING_ITERATIONS,
@@ -137,6 +137,7 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
                 field.add_lit_records(&row.lit);
                 field.add_shadow_records(&row.shadow);
                 field.add_shadow_records(&row.decoupled_shadow);
+                field.add_shadow_records(&row.surface_shadow);
                 if let Some(pixels) = pixels.as_mut() {
                     for &(pixel, value) in &row.values {
                         pixels.add(pixel, value);
@@ -194,7 +195,7 @@ fn auto_pilot(image: &Pass<'_>) -> (GuidingDecision, PathCounters, u64) {
     let mut medium_shadow_rays = 0;
     for row in &rows {
         traced += traced_of(&row.shadow, SHADOW_MIN_SURVIVAL);
-        traced += traced_of(&row.decoupled_shadow, DECOUPLED_SHADOW_MIN_SURVIVAL);
+        traced += traced_of(&row.decoupled_shadow, VISIBILITY_MIN_SURVIVAL);
         medium_shadow_rays += (row.shadow.len() + row.decoupled_shadow.len()) as u64;
     }
     let decided = decide_from_shadow_pilot(
@@ -226,6 +227,8 @@ pub(super) struct TrainingRow {
     pub shadow: Vec<LitRecord>,
     /// Their decoupled samples' shadow rays' records.
     pub decoupled_shadow: Vec<LitRecord>,
+    /// Their surfaces' shadow rays' records (not the pilot's: it predicts from the media's alone).
+    pub surface_shadow: Vec<LitRecord>,
     /// Each sample's continuation, by pixel (guided Russian roulette only).
     pub values: Vec<((usize, usize), f32)>,
     /// The work of the row's paths.
@@ -244,6 +247,7 @@ impl TrainingRow {
             lit: Vec::new(),
             shadow: Vec::new(),
             decoupled_shadow: Vec::new(),
+            surface_shadow: Vec::new(),
             values: Vec::new(),
             counters: PathCounters::new(media),
             nan_samples: 0,

@@ -898,6 +898,7 @@ impl<'a> Pass<'a> {
                 row.shadow.extend_from_slice(path.shadow());
                 row.decoupled_shadow
                     .extend_from_slice(path.decoupled_shadow());
+                row.surface_shadow.extend_from_slice(path.surface_shadow());
                 if !is_finite_rgb(result.radiance) {
                     row.nan_samples += kept as u64;
                     continue;

@@ -206,6 +206,59 @@ fn volume_sampling_and_sampler_flags_are_explained_and_counted() {
 }
 
 #[test]
+fn what_auto_guiding_decided_is_explained_after_its_pilot() {
+    // Before rendering `--explain` can only say how `auto` will decide; after, it says what its pilot decided.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = std::env::temp_dir().join(format!("nimbus-cli-guiding-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let render = |scene: &str, guiding: &str| {
+        let output = Command::new(env!("CARGO_BIN_EXE_nimbus"))
+            .arg("render")
+            .arg(root.join(scene))
+            .args([
+                "--width",
+                "64",
+                "--spp",
+                "16",
+                "--explain",
+                "--guiding",
+                guiding,
+            ])
+            .arg("-o")
+            .arg(dir.join("out.exr"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert_eq!(output.status.code(), Some(0), "{scene}: {stderr}");
+        stderr
+    };
+    // The sun behind a dense cloud: guided shadow roulette would save most shadow rays.
+    let stderr = render("benches/peers/scenes/backlit.gltf", "auto");
+    assert!(
+        stderr.contains("path guiding: decided by a pilot of unguided paths before the training"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("path guiding decided: on (auto): on a pilot of unguided paths"),
+        "{stderr}"
+    );
+    // The bundled cloud, lit from the front: it would not.
+    let stderr = render("assets/cloud.gltf", "auto");
+    assert!(
+        stderr.contains("path guiding decided: off (auto): on a pilot of unguided paths"),
+        "{stderr}"
+    );
+    // A forced mode was explained before rendering, and needs no second line.
+    let stderr = render("assets/cloud.gltf", "on");
+    assert!(
+        stderr.contains("path guiding: on (--guiding on)"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("path guiding decided"), "{stderr}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn the_light_sampler_flag_is_explained() {
     // The peer benchmark's Cornell box: one quad light, two emissive triangles.
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/scenes/cornell.gltf");
