@@ -11,7 +11,8 @@ use nimbus::light::EnvironmentLight;
 use nimbus::math::{Rgb, Vec3};
 use nimbus::render::resume::ResumeFrom;
 use nimbus::render::{
-    CancelToken, GuidingMode, PixelWindow, RenderImage, RenderRegion, RenderSettings, Renderer,
+    CancelToken, GuidingMode, PixelWindow, RenderImage, RenderRegion, RenderSettings, RenderStats,
+    Renderer,
 };
 use nimbus::scene::{Camera, SceneBuilder};
 use nimbus::vdb::{GridTree, Tree};
@@ -615,6 +616,40 @@ fn slab_scene(tau: f64, albedo: f32, irradiance: f32, light: Vec3) -> Scene {
     b.build().unwrap()
 }
 
+/// Renders `scene` (32², `spp`, `max_depth` 1) unguided and then guided, checks every channel's mean against
+/// `truth` within 4 standard errors (the standard error below 5% of it), and returns the two renders' statistics.
+fn single_scattering_unguided_and_guided(
+    scene: &Scene,
+    truth: f64,
+    spp: u32,
+    label: &str,
+) -> [RenderStats; 2] {
+    [GuidingMode::Off, GuidingMode::On].map(|guiding| {
+        let settings = RenderSettings {
+            max_depth: 1,
+            ..settings(32, spp, 2, guiding)
+        };
+        let (img, stats) = Renderer::new(settings)
+            .render(scene, &mut |_| true)
+            .unwrap();
+        for c in 0..3 {
+            let (mean, se) = common::mean_and_se(&img, c);
+            eprintln!(
+                "{label}, guiding {guiding:?}, channel {c}: {mean:.6} ± {se:.6} vs {truth:.6}"
+            );
+            assert!(
+                se > 0.0 && se < 0.05 * truth,
+                "{label}, {guiding:?}: standard error {se}"
+            );
+            assert!(
+                (mean - truth).abs() < 4.0 * se,
+                "{label}, {guiding:?}: single scattering {mean} vs {truth} (se {se})"
+            );
+        }
+        stats
+    })
+}
+
 /// Guided shadow roulette (`nimbus::guiding::shadow`) keeps single scattering's mean. A slab of grid medium,
 /// its density varying along z only (so that ratio tracking walks it with tentative collisions and plays its
 /// own roulette), lit by the sun from behind along the camera's axis: a point's transmittance toward the camera
@@ -628,31 +663,8 @@ fn guided_shadow_roulette_keeps_single_scattering_through_a_backlit_slab() {
     // Travelling along +z, toward the camera.
     let scene = slab_scene(tau, albedo, irradiance, Vec3::Z);
     let truth = (irradiance * albedo) as f64 * tau * (-tau).exp() / (4.0 * std::f64::consts::PI);
-    let mut shadow_rays = Vec::new();
-    for guiding in [GuidingMode::Off, GuidingMode::On] {
-        let settings = RenderSettings {
-            max_depth: 1,
-            ..settings(32, 192, 2, guiding)
-        };
-        let (img, stats) = Renderer::new(settings)
-            .render(&scene, &mut |_| true)
-            .unwrap();
-        for c in 0..3 {
-            let (mean, se) = common::mean_and_se(&img, c);
-            eprintln!(
-                "backlit slab, guiding {guiding:?}, channel {c}: {mean:.6} ± {se:.6} vs {truth:.6}"
-            );
-            assert!(
-                se > 0.0 && se < 0.05 * truth,
-                "{guiding:?}: standard error {se}"
-            );
-            assert!(
-                (mean - truth).abs() < 4.0 * se,
-                "{guiding:?}: single scattering {mean} vs {truth} (se {se})"
-            );
-        }
-        shadow_rays.push(stats.rays.shadow);
-    }
+    let stats = single_scattering_unguided_and_guided(&scene, truth, 192, "backlit slab");
+    let shadow_rays = stats.map(|s| s.rays.shadow);
     // The guided render cut most of its shadow rays.
     assert!(
         shadow_rays[1] * 2 < shadow_rays[0],
@@ -695,32 +707,13 @@ fn guided_shadow_roulette_keeps_decoupled_single_scattering_through_a_backlit_ho
     let scene = b.build().unwrap();
     let tau = tau as f64;
     let truth = (irradiance * albedo) as f64 * tau * (-tau).exp() / (4.0 * std::f64::consts::PI);
-    let mut shadow_rays = Vec::new();
-    for guiding in [GuidingMode::Off, GuidingMode::On] {
-        let settings = RenderSettings {
-            max_depth: 1,
-            ..settings(32, 128, 2, guiding)
-        };
-        let (img, stats) = Renderer::new(settings)
-            .render(&scene, &mut |_| true)
-            .unwrap();
-        for c in 0..3 {
-            let (mean, se) = common::mean_and_se(&img, c);
-            eprintln!(
-                "backlit homogeneous slab, guiding {guiding:?}, channel {c}: {mean:.6} ± {se:.6} vs {truth:.6}"
-            );
-            assert!(
-                se > 0.0 && se < 0.05 * truth,
-                "{guiding:?}: standard error {se}"
-            );
-            assert!(
-                (mean - truth).abs() < 4.0 * se,
-                "{guiding:?}: single scattering {mean} vs {truth} (se {se})"
-            );
-        }
-        assert!(stats.rays.decoupled > 0, "no decoupled samples");
-        shadow_rays.push(stats.rays.shadow);
-    }
+    let stats =
+        single_scattering_unguided_and_guided(&scene, truth, 128, "backlit homogeneous slab");
+    assert!(
+        stats.iter().all(|s| s.rays.decoupled > 0),
+        "no decoupled samples"
+    );
+    let shadow_rays = stats.map(|s| s.rays.shadow);
     // The guided render played roulette on most of its shadow rays (at least a quarter of them survive).
     assert!(
         shadow_rays[1] * 3 < shadow_rays[0] * 2,
