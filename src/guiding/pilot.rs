@@ -16,9 +16,10 @@
 //! their shadow rays found ([`decide_from_shadow_pilot`]): guided where guided shadow roulette would trace at most
 //! [`AUTO_MAX_SHADOW_TRACED`] of them and the render has at least [`AUTO_MIN_SPP`] samples per pixel. Of the
 //! benchmark scenes that guides the backlit clouds only (docs/performance.md, "Auto decides by a shadow-ray
-//! pilot"); the door gap's and the point light's wins are left to `--guiding on` (the door gap's pilot,
+//! pilot"); at 128² the door gap's and the point light's wins are left to `--guiding on` (the door gap's pilot,
 //! 0.78 at 128² since its decoupled samples' shadow rays are played roulette on, sits beside the glass scene's
-//! 0.80, where guiding neither wins nor loses).
+//! 0.80, where guiding neither wins nor loses; at 512² and 1024², with more records per voxel, it gives 0.44, and
+//! `auto` guides the door gap there).
 //!
 //! The pilot measures with the media's own estimators, through the `Medium` trait only: [`PILOT_CHORDS`]
 //! chords through the centre of the medium's bounds (a position-filled volume's box, or the box of the meshes
