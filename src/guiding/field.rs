@@ -316,7 +316,7 @@ impl GuidingField {
         self.shadow.add(records);
     }
 
-    /// The probability with which an image path traces a medium shadow ray from `p`, at least `min_survival`
+    /// The probability with which an image path traces a shadow ray from `p`, at least `min_survival`
     /// ([`super::shadow`]).
     pub fn shadow_survival(&self, p: Vec3, min_survival: f32) -> f32 {
         super::shadow::survival(self.shadow.mean_at(p), min_survival)

@@ -66,8 +66,8 @@ mod tests {
         assert!((survival(Some(SHADOW_CUT * 0.25), floor) - 0.25).abs() < 1e-6);
         assert_eq!(survival(Some(0.0), floor), SHADOW_MIN_SURVIVAL);
         assert_eq!(survival(Some(-1.0), floor), SHADOW_MIN_SURVIVAL);
-        let decoupled = VISIBILITY_MIN_SURVIVAL;
-        assert_eq!(survival(Some(0.0), decoupled), VISIBILITY_MIN_SURVIVAL);
-        assert!((survival(Some(SHADOW_CUT * 0.5), decoupled) - 0.5).abs() < 1e-6);
+        let visibility = VISIBILITY_MIN_SURVIVAL;
+        assert_eq!(survival(Some(0.0), visibility), VISIBILITY_MIN_SURVIVAL);
+        assert!((survival(Some(SHADOW_CUT * 0.5), visibility) - 0.5).abs() < 1e-6);
     }
 }
