@@ -161,7 +161,7 @@ pub struct GuidingField {
     rng: Rng,
     /// The direct light of the decoupled samples.
     lit: LitGrid,
-    /// The transmittance of the medium shadow rays ([`super::shadow`]).
+    /// The transmittance the training's shadow rays found ([`super::shadow`]).
     shadow: LitGrid,
 }
 
@@ -311,7 +311,7 @@ impl GuidingField {
         self.lit.add(records);
     }
 
-    /// Adds the records of medium shadow rays to the shadow grid, in order ([`LitGrid::add`]).
+    /// Adds the records of shadow rays to the shadow grid, in order ([`LitGrid::add`]).
     pub fn add_shadow_records(&mut self, records: &[LitRecord]) {
         self.shadow.add(records);
     }

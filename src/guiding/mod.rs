@@ -8,8 +8,8 @@
 //! - [`field`]: the spatial tree of cells and the cache ([`GuidingField`]).
 //! - [`lit`]: the grid of the direct light the decoupled direct-light samples received, and the guided
 //!   distances it gives them ([`lit::DistanceGuide`]).
-//! - [`shadow`]: guided Russian roulette on medium shadow rays, from the transmittance the training's shadow
-//!   rays found (on a grid of the lit grid's voxels).
+//! - [`shadow`]: guided Russian roulette on shadow rays (of medium collisions, decoupled samples and surfaces),
+//!   from the transmittance the training's shadow rays found (on a grid of the lit grid's voxels).
 //! - [`adjoint`]: guided Russian roulette and splitting from the cache's radiance and the training's pixel values.
 //! - [`pilot`]: what `--guiding auto` decides for a scene, and why.
 //! - [`GuidePath`]: what a training path remembers of its vertices, turned into [`RadianceRecord`]s at its end.
@@ -135,7 +135,7 @@ impl GuidePath {
         self.shadow.push(LitRecord { p, value });
     }
 
-    /// The records of the path's medium shadow rays.
+    /// The records of the path's medium collisions' shadow rays.
     pub fn shadow(&self) -> &[LitRecord] {
         &self.shadow
     }
