@@ -12,14 +12,13 @@
 //! rays; the front-lit ones 1.00x), which depends on the light's way through the medium. So `auto` decides in
 //! two steps: before rendering, off where the scene has no scattering medium (the pilot reports the likeliest
 //! medium of those it has, the one with the largest albedo × optical depth); otherwise from a pilot of unguided
-//! paths (sample 0 of every 4th pixel along each axis, `auto_pilot` in `crate::render::guiding`), from what
-//! their shadow rays found ([`decide_from_shadow_pilot`]): guided where guided shadow roulette would trace at most
-//! [`AUTO_MAX_SHADOW_TRACED`] of them and the render has at least [`AUTO_MIN_SPP`] samples per pixel. Of the
-//! benchmark scenes that guides the backlit clouds only (docs/performance.md, "Auto decides by a shadow-ray
-//! pilot"); at 128² the door gap's and the point light's wins are left to `--guiding on` (the door gap's pilot,
-//! 0.78 at 128² since its decoupled samples' shadow rays are played roulette on, sits beside the glass scene's
-//! 0.80, where guiding neither wins nor loses; at 512² and 1024², with more records per voxel, it gives 0.44, and
-//! `auto` guides the door gap there).
+//! paths (sample 0 of at least 16,384 pixels spread over the frame, every pixel of a smaller one: `auto_pilot`
+//! in `crate::render::guiding`), from what their shadow rays found ([`decide_from_shadow_pilot`]): guided where
+//! guided shadow roulette would trace at most [`AUTO_MAX_SHADOW_TRACED`] of them and the render has at least
+//! [`AUTO_MIN_SPP`] samples per pixel. Of the benchmark scenes that guides the backlit clouds and, from 128² on,
+//! the door-gap room (its pilot 0.44 there, against 0.77 and 0.80 on the glass scene and `cloud_mitsuba_check`,
+//! where guiding neither wins nor loses: docs/performance.md, "Auto decides by a shadow-ray pilot" and "A pilot of
+//! the same size at every image size"); the point light's win is left to `--guiding on`.
 //!
 //! The pilot measures with the media's own estimators, through the `Medium` trait only: [`PILOT_CHORDS`]
 //! chords through the centre of the medium's bounds (a position-filled volume's box, or the box of the meshes

@@ -1,7 +1,7 @@
 //! Path guiding end to end (issue 34): guided renders keep the mean (a white furnace, closed form), are the same
 //! on any number of threads and in any farm split, refuse to merge with unguided parts (parts hash by what
-//! `--guiding` decided), and `--guiding auto` leaves guiding off (no rule from its pilot's figures separates where
-//! guiding wins), saying what its pilot measured.
+//! `--guiding` decided), and `--guiding auto` guides where a pilot of unguided paths finds that guided shadow
+//! roulette would save most of the shadow rays, saying what its pilot measured.
 
 use crate::common;
 
@@ -488,7 +488,8 @@ fn auto_decides_by_a_pilot_where_there_is_a_scattering_medium() {
 }
 
 /// `--guiding auto` guides where guided shadow roulette would save most of the shadow rays, as its pilot
-/// (unguided paths of sample 0 at every 4th pixel along each axis) finds: in the slab of grid medium lit from
+/// (unguided paths of sample 0 at every pixel of this 16² frame: at least 16,384 pixels where a frame has
+/// them, every pixel of a smaller one) finds: in the slab of grid medium lit from
 /// behind, most scattering events the camera's paths reach are on its dark side, so the render is guided, the
 /// same bits as `--guiding on`'s; lit from the front, their shadow rays find the light and auto does not guide,
 /// the same bits as `--guiding off`'s in every layer.
@@ -519,6 +520,10 @@ fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
             .contains("on a pilot of unguided paths"));
         assert_bit_identical(&auto, &same, &format!("auto, light along {light}"));
         assert_eq!(stats.samples_per_pixel, 16);
+        if !guided {
+            // An unguided auto render traced its pilot alone: every pixel of the small frame.
+            assert_eq!(stats.guiding.training_paths, 16 * 16);
+        }
     }
     // With fewer samples per pixel than the training pays back in, auto does not guide the backlit slab.
     let scene = slab_scene(8.0, 0.8, 100.0, Vec3::Z);
