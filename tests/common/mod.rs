@@ -134,6 +134,12 @@ pub fn boundary(medium: u32) -> nimbus::material::Material {
     m
 }
 
+/// Fills the box [`min`, `max`] with the medium `medium` of `builder`: an index-matched [`boundary`] around it.
+pub fn fill_box(builder: &mut nimbus::scene::SceneBuilder, medium: u32, min: Vec3, max: Vec3) {
+    let material = builder.add_material(boundary(medium));
+    builder.add_mesh(cuboid(min, max, material));
+}
+
 /// Renders `builder` at `size`² with `spp` samples, `max_depth` bounces and `seed`, on two threads.
 pub fn render_square(
     builder: nimbus::scene::SceneBuilder,

@@ -6,7 +6,6 @@
 
 use crate::common;
 
-use common::{boundary, cuboid};
 use nimbus::light::{EnvironmentLight, Light};
 use nimbus::math::{Rgb, Vec3};
 use nimbus::scene::SceneBuilder;
@@ -25,8 +24,7 @@ fn cubes_around_the_camera(cubes: &[(f32, f32)]) -> SceneBuilder {
             Rgb::ZERO,
             0.0,
         )));
-        let material = b.add_material(boundary(medium));
-        b.add_mesh(cuboid(Vec3::splat(-half), Vec3::splat(half), material));
+        common::fill_box(&mut b, medium, Vec3::splat(-half), Vec3::splat(half));
     }
     b.add_light(Light::Environment(EnvironmentLight::Constant(Rgb::ONE)));
     b.set_camera(Camera::look_at(

@@ -71,12 +71,12 @@ fn slab_scene(sigma_a: Rgb, sigma_s: Rgb) -> Scene {
     let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
         "slab", sigma_a, sigma_s, 0.0,
     )));
-    let m = b.add_material(boundary(medium));
-    b.add_mesh(cuboid(
+    common::fill_box(
+        &mut b,
+        medium,
         Vec3::new(-5.0, -5.0, -0.25),
         Vec3::new(5.0, 5.0, 0.25),
-        m,
-    ));
+    );
     b.add_light(Light::Environment(EnvironmentLight::Constant(Rgb::ONE)));
     b.set_camera(narrow_camera());
     b.build().unwrap()
@@ -409,12 +409,12 @@ fn a_holdout_cuts_the_alpha_and_still_occludes() {
                 Rgb::ZERO,
                 0.0,
             )));
-            let m = b.add_material(boundary(medium));
-            b.add_mesh(cuboid(
+            common::fill_box(
+                &mut b,
+                medium,
                 Vec3::new(-5.0, -5.0, 0.5),
                 Vec3::new(5.0, 5.0, 1.5),
-                m,
-            ));
+            );
         }
         b.add_point_light(Vec3::new(0.0, 0.0, 3.0), Rgb::splat(5.0));
         b.set_camera(narrow_camera());

@@ -101,12 +101,7 @@ fn delta_tracking_on_a_constant_grid_matches_the_closed_form() {
         Rgb::splat(scale),
         0.0,
     )));
-    let mat = b.add_material(common::boundary(h));
-    b.add_mesh(common::cuboid(
-        Vec3::new(-0.5, -0.5, -0.5),
-        Vec3::new(0.5, 0.5, 0.5),
-        mat,
-    ));
+    common::fill_box(&mut b, h, Vec3::splat(-0.5), Vec3::splat(0.5));
     b.set_environment(EnvironmentLight::Constant(Rgb::ONE));
     b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 60.0),

@@ -696,12 +696,12 @@ fn guided_shadow_roulette_keeps_decoupled_single_scattering_through_a_backlit_ho
         Rgb::splat(sigma_t * albedo),
         0.0,
     )));
-    let material = b.add_material(common::boundary(medium));
-    b.add_mesh(common::cuboid(
+    common::fill_box(
+        &mut b,
+        medium,
         Vec3::new(-1.0, -1.0, -0.5 * thickness),
         Vec3::new(1.0, 1.0, 0.5 * thickness),
-        material,
-    ));
+    );
     // Travelling along +z, toward the camera.
     b.add_directional_light(Vec3::Z, Rgb::splat(irradiance));
     b.set_camera(Camera::look_at(
@@ -756,12 +756,12 @@ fn guided_shadow_roulette_keeps_a_floors_direct_light_under_an_absorbing_slab() 
         Rgb::ZERO,
         0.0,
     )));
-    let slab = b.add_material(common::boundary(medium));
-    b.add_mesh(common::cuboid(
+    common::fill_box(
+        &mut b,
+        medium,
         Vec3::new(-3.0, 1.0, -3.0),
         Vec3::new(3.0, 1.0 + thickness, 3.0),
-        slab,
-    ));
+    );
     // Travelling down.
     b.add_directional_light(Vec3::NEG_Y, Rgb::splat(irradiance));
     b.set_camera(Camera::look_at(

@@ -41,12 +41,7 @@ fn with_cube(path: &std::path::Path, sigma_a: Rgb, sigma_s: Rgb) -> nimbus::scen
     let cube = builder.add_medium(std::sync::Arc::new(
         nimbus::volume::homogeneous::HomogeneousMedium::new("cube", sigma_a, sigma_s, 0.0),
     ));
-    let material = builder.add_material(common::boundary(cube));
-    builder.add_mesh(common::cuboid(
-        Vec3::splat(-1.0),
-        Vec3::splat(1.0),
-        material,
-    ));
+    common::fill_box(&mut builder, cube, Vec3::splat(-1.0), Vec3::splat(1.0));
     builder
 }
 

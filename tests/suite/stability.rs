@@ -99,8 +99,7 @@ fn run_seeded(case: Case, spp: u32, seed: u64) -> (RenderImage, RenderStats, f64
     let mut b = SceneBuilder::default();
     let ids: Vec<u32> = case.media.into_iter().map(|m| b.add_medium(m)).collect();
     for (medium, min, max) in case.boundaries {
-        let mat = b.add_material(common::boundary(ids[medium]));
-        b.add_mesh(common::cuboid(min, max, mat));
+        common::fill_box(&mut b, ids[medium], min, max);
     }
     if let Some(env) = case.env {
         b.set_environment(EnvironmentLight::Constant(env));

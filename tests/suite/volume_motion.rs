@@ -301,12 +301,7 @@ fn flame_emission_through_an_overlapping_chromatic_absorber_matches_the_integral
             0.0,
         ),
     ));
-    let material = builder.add_material(common::boundary(absorber));
-    builder.add_mesh(common::cuboid(
-        Vec3::splat(-1.0),
-        Vec3::splat(1.0),
-        material,
-    ));
+    common::fill_box(&mut builder, absorber, Vec3::splat(-1.0), Vec3::splat(1.0));
     let (img, stats) = common::render_square(builder, 4, 256, 8, 3);
     assert_eq!(stats.nan_samples, 0);
     // The box's density at world z is σ f(z + 0.5) (the node moves it by −0.5 m).
@@ -354,12 +349,7 @@ fn a_chromatic_grid_overlapping_a_grey_medium_keeps_its_colours() {
                 0.0,
             ),
         ));
-        let material = builder.add_material(common::boundary(grey));
-        builder.add_mesh(common::cuboid(
-            Vec3::splat(-1.0),
-            Vec3::splat(1.0),
-            material,
-        ));
+        common::fill_box(&mut builder, grey, Vec3::splat(-1.0), Vec3::splat(1.0));
         let (img, stats) = common::render_square(builder, 4, 256, 8, 3);
         assert_eq!(stats.nan_samples, 0);
         [0, 1, 2].map(|c| common::mean_and_se(&img, c))

@@ -22,8 +22,7 @@ fn box_scene(sigma_a: Rgb, sigma_s: Rgb, env: Rgb, fov: f32) -> SceneBuilder {
     let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
         "box", sigma_a, sigma_s, 0.3,
     )));
-    let mat = b.add_material(common::boundary(medium));
-    b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
+    common::fill_box(&mut b, medium, Vec3::splat(-1.0), Vec3::splat(1.0));
     b.set_environment(EnvironmentLight::Constant(env));
     b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 5.0),
@@ -293,8 +292,7 @@ fn render_single_scattering(
 ) -> (RenderStats, f64) {
     let mut b = SceneBuilder::default();
     let medium = b.add_medium(Arc::new(medium));
-    let mat = b.add_material(common::boundary(medium));
-    b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
+    common::fill_box(&mut b, medium, Vec3::splat(-1.0), Vec3::splat(1.0));
     b.add_light(light);
     b.set_camera(Camera::look_at(
         Vec3::new(0.0, 0.0, 5.0),
@@ -474,8 +472,7 @@ fn single_scattering_of_the_sun_through_a_slit_matches_quadrature_guided() {
         let medium = b.add_medium(Arc::new(HomogeneousMedium::new(
             "box", sigma_a, sigma_s, g as f32,
         )));
-        let mat = b.add_material(common::boundary(medium));
-        b.add_mesh(common::cuboid(Vec3::splat(-1.0), Vec3::splat(1.0), mat));
+        common::fill_box(&mut b, medium, Vec3::splat(-1.0), Vec3::splat(1.0));
         let black = b.add_material(nimbus::material::Material::lambertian("wall", Vec3::ZERO));
         for (z0, z1) in [(-3.0, -0.1), (0.1, 3.0)] {
             let corner = |y: f32, z: f32| Vec3::new(1.5, y, z);
