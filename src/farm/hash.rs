@@ -10,7 +10,7 @@
 //!    before them stay the same) and `transparent` for a transparent film; and, when the render may be guided
 //!    (what `--guiding` decided for the scene before rendering: `on`, or `auto` in a scene with a scattering
 //!    medium, which a pilot of unguided paths decides), the tag `guiding`, the mode's tag (`on`, or
-//!    `auto` followed by its rule's threshold as an `f64`), the training iterations (the cache), the tag
+//!    `auto` followed by its rule's threshold as an `f64` and its pilot's size as a `u64`), the training iterations (the cache), the tag
 //!    `training in image` (the training's samples are the image's first: guided parts from before that refuse
 //!    to merge with later ones) and whether guided Russian roulette is on (one byte). An unguided render (`off`,
 //!    or `auto` in a scene without a scattering medium) adds none of these, so it hashes as renders from before
@@ -146,12 +146,13 @@ pub fn scene_hash(
     // Path guiding, only where the render may be guided (so that unguided renders hash as before guiding
     // existed): its cache depends on the training plan, and the scene and the settings above fix everything
     // else it learns from. The tag `on` is the one `--guiding on` parts have always carried; `auto` adds its
-    // rule's threshold, which decides whether it guides.
+    // rule's threshold and its pilot's size, which decide whether it guides.
     if let Some(mode) = guiding {
         h.field(b"guiding");
         h.field(mode.as_bytes());
         if mode == "auto" {
             h.field(&crate::guiding::pilot::AUTO_MAX_SHADOW_TRACED.to_le_bytes());
+            h.field(&(crate::guiding::pilot::AUTO_PILOT_PATHS as u64).to_le_bytes());
         }
         h.field(&crate::guiding::TRAINING_ITERATIONS.to_le_bytes());
         h.field(b"training in image");

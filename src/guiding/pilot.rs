@@ -58,6 +58,12 @@ pub const AUTO_MIN_SPP: u32 = 16;
 /// for `auto` to guide (see [`decide_from_shadow_pilot`]).
 pub const AUTO_MAX_SHADOW_TRACED: f64 = 0.5;
 
+/// The pixels the shadow-ray pilot traces at the least, where the frame has that many (every pixel of a smaller
+/// frame; `pilot_stride` in `crate::render::guiding`): its prediction rests on the records per voxel of the
+/// shadow grid, whatever the image's size (measured on the door-gap room: 0.58 of the shadow rays traced from
+/// 4,096 pixels, 0.44 from 16,384 and from 65,536). Part of an `auto` render's farm hash, as it decides.
+pub const AUTO_PILOT_PATHS: usize = 16_384;
+
 /// Whether `auto` guides, from the shadow rays of its pilot (unguided paths of sample 0 over a lattice of the
 /// frame's pixels): `shadow_rays` of them in all, `medium_shadow_rays` from medium scattering events, of which guided shadow
 /// roulette, from the transmittance they found, would trace `medium_traced` (the sum of their survival

@@ -27,6 +27,7 @@ use super::film::{Film, FilmRow};
 use super::renderer::{GuidingStats, Pass};
 use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::lit::LitGrid;
+use crate::guiding::pilot::AUTO_PILOT_PATHS;
 use crate::guiding::shadow::{survival, SHADOW_MIN_SURVIVAL, VISIBILITY_MIN_SURVIVAL};
 use crate::guiding::{
     decide_from_shadow_pilot, GuidingDecision, GuidingField, LitRecord, RadianceRecord,
@@ -39,10 +40,6 @@ use std::time::Instant;
 
 /// Samples per pixel of the training, all its iterations' (1 + 2 + 4): the first samples of every pixel.
 pub(crate) const TRAINING_SAMPLES: u32 = (1 << TRAINING_ITERATIONS) - 1;
-/// The paths `auto`'s pilot traces at the least, where the frame has that many pixels ([`pilot_stride`]): its
-/// prediction rests on the records per voxel of the shadow grid, whatever the image's size (measured on the
-/// door-gap room: 0.58 of the shadow rays traced from 4,096 paths, 0.44 from 16,384 and from 65,536).
-const AUTO_PILOT_PATHS: usize = 16_384;
 /// The sparsest the pilot gets: every 4th pixel along each axis, a sixteenth of a sample per pixel.
 const AUTO_PILOT_MAX_STRIDE: usize = 4;
 /// Rows traced in parallel before their records are added (bounds the records held at once).
@@ -291,11 +288,12 @@ mod tests {
     use glam::{DMat4, DVec3, IVec3};
     use std::sync::Arc;
 
-    /// The pilot traces at least [`super::AUTO_PILOT_PATHS`] pixels where the frame has them (every pixel of a
+    /// The pilot traces at least [`AUTO_PILOT_PATHS`] pixels where the frame has them (every pixel of a
     /// smaller frame) and never fewer than a sixteenth of them.
     #[test]
     fn the_pilot_traces_enough_paths_at_every_image_size() {
-        use super::{pilot_stride, AUTO_PILOT_MAX_STRIDE, AUTO_PILOT_PATHS};
+        use super::{pilot_stride, AUTO_PILOT_MAX_STRIDE};
+        use crate::guiding::pilot::AUTO_PILOT_PATHS;
         let traced = |w: usize, h: usize| {
             let s = pilot_stride(w, h);
             w.div_ceil(s) * h.div_ceil(s)
