@@ -10,11 +10,12 @@
 //!    before them stay the same) and `transparent` for a transparent film; and, when the render may be guided
 //!    (what `--guiding` decided for the scene before rendering: `on`, or `auto` in a scene with a scattering
 //!    medium, which a pilot of unguided paths decides), the tag `guiding`, the mode's tag (`on`, or
-//!    `auto` followed by its rule's threshold as an `f64` and its pilot's size as a `u64`), the training iterations (the cache), the tag
-//!    `training in image` (the training's samples are the image's first: guided parts from before that refuse
-//!    to merge with later ones) and whether guided Russian roulette is on (one byte). An unguided render (`off`,
-//!    or `auto` in a scene without a scattering medium) adds none of these, so it hashes as renders from before
-//!    guiding existed; `auto` parts of a scene it may guide merge with each other only (they all decide alike);
+//!    `auto` followed by its rule's threshold as an `f64` and its pilot's size as a `u64`), the training
+//!    iterations (the cache), the tag `training in image` (the training's samples are the image's first:
+//!    guided parts from before that refuse to merge with later ones) and whether guided Russian roulette is on
+//!    (one byte). An unguided render (`off`, or `auto` in a scene without a scattering medium) adds none of
+//!    these, so it hashes as renders from before guiding existed; `auto` parts of a scene it may guide merge
+//!    with each other only (they all decide alike);
 //! 4. each scene override of the command line by name and value (`--env-color` as three `f32`, `--variant` as
 //!    its name's UTF-8 bytes; the CLI also passes the frame, the shutter, the `--camera` name and, for a camera
 //!    with a thin lens, its aperture radius and focus distance as two `f32`, so that parts of different
