@@ -89,6 +89,9 @@ typedef struct {
   uint32_t light_groups;
   // Cryptomatte ranks per pixel, 1 to 16 (0: the default, 6).
   uint32_t cryptomatte_depth;
+  // Path guiding, as the CLI's `--guiding`: 0 auto (the default: guided where a pilot of unguided paths
+  // finds that it pays), 1 on, 2 off.
+  uint32_t guiding;
 } NimbusRenderSettings;
 
 // Progress callback of `nimbus_render()`, called on the rendering thread after every pass with the fraction
@@ -105,7 +108,7 @@ extern "C" {
 const char *nimbus_last_error(void);
 
 // The default render settings: 640x480, 64 spp, max depth 64, every core, seed 0, no time limit, the
-// default layers, an opaque film, the scene's light groups, 6 Cryptomatte ranks.
+// default layers, an opaque film, the scene's light groups, 6 Cryptomatte ranks, guiding auto.
 NimbusRenderSettings nimbus_render_settings_default(void);
 
 // Loads a scene file (`.gltf`, `.glb`, `.obj`, `.usd`, `.usda`, `.usdc` or `.usdz`, chosen by extension) into `*out_scene`.

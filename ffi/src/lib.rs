@@ -22,7 +22,7 @@
 //!   the same variable is a no-op; freeing null is a no-op.
 
 use nimbus::render::{
-    AovSelection, LightGroupMode, RenderImage, RenderSettings, RenderStats, Renderer,
+    AovSelection, GuidingMode, LightGroupMode, RenderImage, RenderSettings, RenderStats, Renderer,
 };
 use nimbus::scene::{load_builder, LoadOptions};
 use nimbus::{Error, Scene};
@@ -107,6 +107,9 @@ pub struct NimbusRenderSettings {
     pub light_groups: u32,
     /// Cryptomatte ranks per pixel, 1 to 16 (0: the default, 6).
     pub cryptomatte_depth: u32,
+    /// Path guiding, as the CLI's `--guiding`: 0 auto (the default: guided where a pilot of unguided paths
+    /// finds that it pays), 1 on, 2 off.
+    pub guiding: u32,
 }
 
 /// Progress callback of `nimbus_render()`, called on the rendering thread after every pass with the fraction
@@ -339,6 +342,16 @@ unsafe fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, F
             )))
         }
     };
+    let guiding = match s.guiding {
+        0 => GuidingMode::Auto,
+        1 => GuidingMode::On,
+        2 => GuidingMode::Off,
+        g => {
+            return Err(invalid(format!(
+                "guiding {g} is not 0 (auto), 1 (on) or 2 (off)"
+            )))
+        }
+    };
     Ok(RenderSettings {
         width: s.width as usize,
         height: s.height as usize,
@@ -355,6 +368,7 @@ unsafe fn convert_settings(s: &NimbusRenderSettings) -> Result<RenderSettings, F
             0 => nimbus::render::cryptomatte::DEFAULT_DEPTH,
             d => d as usize,
         },
+        guiding,
         ..RenderSettings::default()
     })
 }
@@ -367,7 +381,7 @@ pub extern "C" fn nimbus_last_error() -> *const c_char {
 }
 
 /// The default render settings: 640x480, 64 spp, max depth 64, every core, seed 0, no time limit, the
-/// default layers, an opaque film, the scene's light groups, 6 Cryptomatte ranks.
+/// default layers, an opaque film, the scene's light groups, 6 Cryptomatte ranks, guiding auto.
 #[no_mangle]
 pub extern "C" fn nimbus_render_settings_default() -> NimbusRenderSettings {
     let d = RenderSettings::default();
@@ -383,6 +397,7 @@ pub extern "C" fn nimbus_render_settings_default() -> NimbusRenderSettings {
         transparent: 0,
         light_groups: 0,
         cryptomatte_depth: d.cryptomatte_depth as u32,
+        guiding: 0,
     }
 }
 

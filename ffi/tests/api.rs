@@ -326,6 +326,10 @@ fn bad_arguments_are_reported() {
                 time_limit_seconds: f64::NAN,
                 ..tiny_settings()
             },
+            NimbusRenderSettings {
+                guiding: 3,
+                ..tiny_settings()
+            },
         ] {
             let status = nimbus_render(scene, &settings, None, null_mut(), &mut image);
             assert_eq!(status, NimbusStatus::InvalidArgument, "{settings:?}");
@@ -420,6 +424,36 @@ fn errors_are_per_thread() {
     let other = std::thread::spawn(last_error).join().unwrap();
     assert_eq!(other, "");
     assert!(last_error().contains("elsewhere.glb"));
+}
+
+/// `guiding` is the CLI's `--guiding`: 1 (on) trains a cache and guides, 2 (off) does not, and the default 0
+/// (auto) leaves a render of fewer than 16 samples per pixel unguided, as off does, bit for bit.
+#[test]
+fn guiding_is_chosen_by_the_settings() {
+    unsafe {
+        let mut scene = load_demo();
+        let beauty = |guiding: u32| {
+            let settings = NimbusRenderSettings {
+                spp: 4,
+                guiding,
+                ..tiny_settings()
+            };
+            let mut image = null_mut();
+            let status = nimbus_render(scene, &settings, None, null_mut(), &mut image);
+            assert_eq!(status, NimbusStatus::Ok, "{}", last_error());
+            let mut pixels = vec![f32::NAN; 24];
+            let name = CString::new("R").unwrap();
+            let status = nimbus_image_channel(image, name.as_ptr(), pixels.as_mut_ptr(), 24);
+            assert_eq!(status, NimbusStatus::Ok, "{}", last_error());
+            nimbus_image_free(&mut image);
+            pixels
+        };
+        let (auto, on, off) = (beauty(0), beauty(1), beauty(2));
+        assert!(on.iter().chain(&off).all(|v| v.is_finite()));
+        assert_eq!(auto, off, "auto below 16 spp renders unguided");
+        assert_ne!(on, off, "a guided render's paths differ from unguided ones");
+        nimbus_scene_free(&mut scene);
+    }
 }
 
 #[test]

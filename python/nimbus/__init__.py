@@ -203,6 +203,7 @@ def render(
     max_depth: Optional[int] = None,
     aovs: Optional[str] = None,
     transparent: bool = False,
+    guiding: Optional[str] = None,
 ) -> Image:
     """Renders ``scene``: the same image as ``nimbus render`` with the same options and seed, bit for bit.
 
@@ -221,6 +222,8 @@ def render(
         max_depth: scattering events per path (default: the scene's own, else 64).
         aovs: the layers beyond beauty and alpha, as ``--aovs`` takes them (``"default,lightgroups"``).
         transparent: leave the environment seen directly out of the beauty.
+        guiding: path guiding, as ``--guiding`` takes it: ``"auto"`` (the default: guided where a pilot of
+            unguided paths finds that it pays), ``"on"`` or ``"off"``.
 
     The GIL is released while the render runs. Ctrl-C cancels it within a fraction of a second and raises
     KeyboardInterrupt.
@@ -228,7 +231,7 @@ def render(
     Raises:
         RegionError: ``crop`` or ``samples`` do not fit the frame.
         RenderError: the render cannot start (memory budget, unknown light group in ``aovs``).
-        ValueError: an option is out of range.
+        ValueError: an option is out of range, or ``guiding`` is not ``"auto"``, ``"on"`` or ``"off"``.
     """
     if spp is None and time_limit is None:
         raise ValueError("spp=None needs a time_limit")
@@ -246,6 +249,7 @@ def render(
         max_depth=max_depth,
         aovs=aovs,
         transparent=transparent,
+        guiding=guiding,
     )
     return Image(raw)
 

@@ -92,6 +92,7 @@ def render(
     max_depth: Optional[int] = None,
     aovs: Optional[str] = None,
     transparent: bool = False,
+    guiding: Optional[str] = None,
 ) -> RawImage:
     """Renders as ``nimbus render`` does, with the GIL released."""
 

@@ -8,7 +8,8 @@
 
 use nimbus::farm::{PartInfo, SceneOverrides};
 use nimbus::limits::{one_line, Limits, MAX_MESSAGE_CHARS};
-use nimbus::render::{AovSelection, Film, ImageMetadata, PixelWindow, RenderRegion};
+use nimbus::params::Choice;
+use nimbus::render::{AovSelection, Film, GuidingMode, ImageMetadata, PixelWindow, RenderRegion};
 use nimbus::scene::LoadOptions;
 use nimbus::{CancelToken, RenderImage, RenderSettings, RenderStats, Renderer};
 use pyo3::create_exception;
@@ -383,7 +384,8 @@ struct Shared {
 /// with the GIL released; Ctrl-C (a pending KeyboardInterrupt) or an exception from `progress` cancels it.
 #[pyfunction]
 #[pyo3(signature = (scene, spp=None, width=None, height=None, seed=0, threads=0, time_limit=None,
-                    samples=None, crop=None, progress=None, max_depth=None, aovs=None, transparent=false))]
+                    samples=None, crop=None, progress=None, max_depth=None, aovs=None, transparent=false,
+                    guiding=None))]
 #[allow(clippy::too_many_arguments)]
 fn render(
     py: Python<'_>,
@@ -400,8 +402,19 @@ fn render(
     max_depth: Option<u32>,
     aovs: Option<&str>,
     transparent: bool,
+    guiding: Option<&str>,
 ) -> PyResult<RawImage> {
     let scene = scene.get();
+    let guiding = match guiding {
+        None => GuidingMode::default(),
+        Some(name) => GuidingMode::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = GuidingMode::CHOICES.iter().map(|(n, _)| *n).collect();
+            PyValueError::new_err(format!(
+                "guiding '{name}' is not one of {}",
+                names.join(", ")
+            ))
+        })?,
+    };
     if spp == Some(0) || width == Some(0) || height == Some(0) {
         return Err(PyValueError::new_err(
             "spp, width and height must be at least 1",
@@ -433,6 +446,7 @@ fn render(
         limits: scene.limits,
         aovs,
         transparent,
+        guiding,
         ..RenderSettings::default()
     };
     let is_part = samples.is_some() || crop.is_some();

@@ -62,6 +62,26 @@ def test_the_written_exr_and_stats_are_the_clis(cloud, cli_render, tmp_path):
     assert [m["name"] for m in image.stats["media"]] == [m["name"] for m in cli_stats["media"]]
 
 
+def test_guiding_is_the_clis(cloud, cli, tmp_path):
+    """``guiding`` is ``--guiding``: forced on, the demo renders the CLI's ``--guiding on`` bits and its stats say
+    so; off renders other bits; a name it does not know is a ValueError."""
+    size, spp = 32, 9
+    status, stderr = run_cli(cli, "render", cloud, "-o", tmp_path / "on.exr", "--width", size, "--spp", spp,
+                             "--seed", SEED, "--guiding", "on")
+    assert status == 0, stderr
+    scene = nimbus.load(cloud)
+    on = nimbus.render(scene, spp=spp, width=size, seed=SEED, guiding="on")
+    assert on.stats["guiding"]["mode"] == "on"
+    channels = read_exr(tmp_path / "on.exr")
+    for k, component in enumerate(on.components["beauty"]):
+        assert np.array_equal(on.layers["beauty"][:, :, k], channels[component]), component
+    off = nimbus.render(scene, spp=spp, width=size, seed=SEED, guiding="off")
+    assert off.stats["guiding"]["mode"] == "off"
+    assert not np.array_equal(off.layers["beauty"], on.layers["beauty"])
+    with pytest.raises(ValueError, match="guiding 'sometimes' is not one of auto, on, off"):
+        nimbus.render(scene, spp=spp, width=size, seed=SEED, guiding="sometimes")
+
+
 def test_parts_merge_into_the_whole_render_bit_for_bit(cloud, tmp_path, cli):
     scene = nimbus.load(cloud)
     whole = nimbus.render(scene, spp=SPP, width=SIZE, seed=SEED)
