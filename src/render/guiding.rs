@@ -168,11 +168,17 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
 fn pilot_stride(width: usize, height: usize) -> usize {
     let mut stride = 1;
     while stride < AUTO_PILOT_MAX_STRIDE
-        && width.div_ceil(stride + 1) * height.div_ceil(stride + 1) >= AUTO_PILOT_PATHS
+        && pilot_pixels(width, height, stride + 1) >= AUTO_PILOT_PATHS
     {
         stride += 1;
     }
     stride
+}
+
+/// The pixels a pilot of `stride` traces in a frame of `width` × `height`: every `stride`-th along each axis,
+/// from the first.
+fn pilot_pixels(width: usize, height: usize, stride: usize) -> usize {
+    width.div_ceil(stride) * height.div_ceil(stride)
 }
 
 /// `auto`'s pilot ([`GuidingDecision::provisional`]): sample 0 of every [`pilot_stride`]-th pixel along
@@ -217,7 +223,7 @@ fn auto_pilot(image: &Pass<'_>) -> (GuidingDecision, PathCounters, u64) {
         medium_shadow_rays,
         traced,
     );
-    let paths = (image.height.div_ceil(stride) * image.width.div_ceil(stride)) as u64;
+    let paths = pilot_pixels(image.width, image.height, stride) as u64;
     (decided, counters, paths)
 }
 
@@ -292,12 +298,9 @@ mod tests {
     /// smaller frame) and never fewer than a sixteenth of them.
     #[test]
     fn the_pilot_traces_enough_paths_at_every_image_size() {
-        use super::{pilot_stride, AUTO_PILOT_MAX_STRIDE};
+        use super::{pilot_pixels, pilot_stride, AUTO_PILOT_MAX_STRIDE};
         use crate::guiding::pilot::AUTO_PILOT_PATHS;
-        let traced = |w: usize, h: usize| {
-            let s = pilot_stride(w, h);
-            w.div_ceil(s) * h.div_ceil(s)
-        };
+        let traced = |w: usize, h: usize| pilot_pixels(w, h, pilot_stride(w, h));
         assert_eq!(pilot_stride(64, 64), 1);
         assert_eq!(pilot_stride(128, 128), 1);
         assert_eq!(pilot_stride(256, 256), 2);
