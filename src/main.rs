@@ -268,9 +268,10 @@ struct RenderArgs {
     /// Path guiding: `on` trains a cache of incident light (7 samples per pixel of the frame, which are the
     /// image's first 7 and count in --spp) and uses it for directions at medium scattering events and Lambertian
     /// surfaces, for the distances of the decoupled direct-light sample in homogeneous media and for Russian
-    /// roulette on shadow rays (of medium collisions, decoupled samples and surfaces); `auto` guides where that roulette saves most of the shadow rays: in a
-    /// scene with a scattering medium a pilot of unguided paths decides (guided when roulette
-    /// would trace at most half its shadow rays and --spp is at least 16, otherwise unguided, as `off`);
+    /// roulette on shadow rays (of medium collisions, decoupled samples and surfaces); `auto` guides where that
+    /// roulette saves most of the shadow rays: in a scene with a scattering medium a pilot of unguided paths
+    /// decides (guided when roulette would trace at most half its shadow rays and --spp is at least 16,
+    /// otherwise unguided, as `off`);
     /// --explain and --stats say why; `off` never guides.
     #[arg(long, value_parser = choice::<nimbus::render::GuidingMode>(), default_value = "auto")]
     guiding: nimbus::render::GuidingMode,

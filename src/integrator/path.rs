@@ -1023,10 +1023,9 @@ impl PathTracer {
     /// Guided, t comes from the one-sample mixture of the free-flight density with the distances of the cache's
     /// lit grid ([`guided::decoupled_distance`]; Herholz et al. 2019 §5), and a training path records what the
     /// sample received ([`GuidePath::push_lit`]) and what its shadow rays found
-    /// ([`GuidePath::push_decoupled_shadow`]), from
-    /// which an image path's shadow rays play guided shadow roulette as at a collision (`crate::guiding::shadow`):
-    /// in the door-gap room most decoupled samples lie in the dark, and their shadow rays toward the sun end on
-    /// the wall.
+    /// ([`GuidePath::push_decoupled_shadow`]), from which an image path's shadow rays play guided shadow roulette
+    /// as at a collision (`crate::guiding::shadow`): in the door-gap room most decoupled samples lie in the dark,
+    /// and their shadow rays toward the sun end on the wall.
     fn sample_decoupled(
         &self,
         cx: &mut PathContext,

@@ -234,8 +234,9 @@ pub(super) fn kept_samples(samples: &Range<u32>, complete: u32) -> Range<u32> {
 }
 
 /// What the training paths of one row found: their records, their decoupled samples' records and their shadow
-/// rays' (of medium collisions, decoupled samples and surfaces) and, for guided Russian roulette, each sample's continuation (channel mean), pixel by pixel in order;
-/// the work of its paths, and its samples for the film that were dropped or clamped.
+/// rays' (of medium collisions, decoupled samples and surfaces) and, for guided Russian roulette, each sample's
+/// continuation (channel mean), pixel by pixel in order; the work of its paths, and its samples for the film
+/// that were dropped or clamped.
 pub(super) struct TrainingRow {
     /// The radiance records of the row's paths.
     pub records: Vec<RadianceRecord>,

@@ -489,10 +489,10 @@ fn auto_decides_by_a_pilot_where_there_is_a_scattering_medium() {
 
 /// `--guiding auto` guides where guided shadow roulette would save most of the shadow rays, as its pilot
 /// (unguided paths of sample 0 at every pixel of this 16² frame: at least 16,384 pixels where a frame has
-/// them, every pixel of a smaller one) finds: in the slab of grid medium lit from
-/// behind, most scattering events the camera's paths reach are on its dark side, so the render is guided, the
-/// same bits as `--guiding on`'s; lit from the front, their shadow rays find the light and auto does not guide,
-/// the same bits as `--guiding off`'s in every layer.
+/// them, every pixel of a smaller one) finds: in the slab of grid medium lit from behind, most scattering events
+/// the camera's paths reach are on its dark side, so the render is guided, the same bits as `--guiding on`'s; lit
+/// from the front, their shadow rays find the light and auto does not guide, the same bits as `--guiding off`'s
+/// in every layer.
 #[test]
 fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
     for (light, guided) in [(Vec3::Z, true), (-Vec3::Z, false)] {
