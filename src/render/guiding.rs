@@ -54,9 +54,12 @@ pub(super) struct Training {
     pub stats: GuidingStats,
     /// The work of every training path (those only the cache learned from included).
     pub counters: PathCounters,
-    /// True when `auto`'s pilot decided not to guide ([`GuidingDecision::provisional`]): nothing was added to
-    /// the film.
+    /// True when `auto`'s pilot decided not to guide ([`GuidingDecision::provisional`]): the film holds no
+    /// sample but those in `in_film`.
     pub decided_off: bool,
+    /// The samples (of every pixel of the window) added to the film: the training's, or `auto`'s pilot's
+    /// sample 0 where it decided not to guide; none when cancelled.
+    pub in_film: Range<u32>,
     /// Samples meant for the film dropped as NaN or infinite.
     pub nan_samples: u64,
     /// Samples added to the film with a value clamped.
@@ -79,6 +82,7 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
         },
         counters: PathCounters::new(image.scene.media.len()),
         decided_off: false,
+        in_film: 0..0,
         nan_samples: 0,
         clamped_samples: 0,
     };
@@ -86,18 +90,28 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
         return training;
     }
     let start = Instant::now();
+    // Where `auto`'s pilot traced every pixel, its rows are the first iteration's.
+    let mut first_iteration = None;
     if decision.provisional {
-        let (decided, counters, paths) = auto_pilot(image);
-        training.counters.add(&counters);
+        let pilot = auto_pilot(image, film);
+        training.counters.add(&pilot.counters);
         let stats = &mut training.stats;
-        stats.training_paths += paths;
-        stats.mode = if decided.on { "on" } else { "off" }.to_owned();
-        stats.reason = decided.reason;
-        if !decided.on {
+        stats.training_paths += pilot.paths;
+        stats.mode = if pilot.decided.on { "on" } else { "off" }.to_owned();
+        stats.reason = pilot.decided.reason;
+        if !pilot.decided.on {
+            stats.pilot_samples_in_image = pilot.in_film.len() as u32;
             stats.training_seconds = start.elapsed().as_secs_f64();
+            for row in pilot.rows.iter().flatten() {
+                training.nan_samples += row.nan_samples;
+                training.clamped_samples += row.clamped_samples;
+            }
             training.decided_off = true;
+            training.in_film = pilot.in_film;
             return training;
         }
+        stats.pilot_samples_in_image = pilot.in_film.len() as u32;
+        first_iteration = pilot.rows;
     }
     let stats = &mut training.stats;
     let keep = image.samples.clone();
@@ -107,6 +121,17 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
     let mut pixels = keeps_values.then(|| PixelEstimates::new(width, height));
     for k in 0..TRAINING_ITERATIONS {
         let samples = (1u32 << k) - 1..(2u32 << k) - 1;
+        if let Some(rows) = first_iteration.take() {
+            // The pilot's rows: sample 0 of every pixel, traced unguided, its film samples added already.
+            for row in &rows {
+                stats.training_records += learn(&mut field, pixels.as_mut(), row);
+                training.nan_samples += row.nan_samples;
+                training.clamped_samples += row.clamped_samples;
+            }
+            field.finish_iteration();
+            stats.training_samples_per_pixel += samples.len() as u32;
+            continue;
+        }
         // The window's rows, taken in order as the blocks reach them (none when no sample is kept).
         let mut film_rows = if keep.is_empty() {
             Vec::new()
@@ -132,17 +157,7 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
                 .map(|(y, film_row)| pass.train_row(y, 1, film_row, &keep, keeps_values))
                 .collect();
             for row in &traced {
-                stats.training_records += row.records.len() as u64;
-                field.add_records(&row.records);
-                field.add_lit_records(&row.lit);
-                field.add_shadow_records(&row.shadow);
-                field.add_shadow_records(&row.decoupled_shadow);
-                field.add_shadow_records(&row.surface_shadow);
-                if let Some(pixels) = pixels.as_mut() {
-                    for &(pixel, value) in &row.values {
-                        pixels.add(pixel, value);
-                    }
-                }
+                stats.training_records += learn(&mut field, pixels.as_mut(), row);
                 training.counters.add(&row.counters);
                 training.nan_samples += row.nan_samples;
                 training.clamped_samples += row.clamped_samples;
@@ -160,7 +175,24 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
     stats.training_seconds = start.elapsed().as_secs_f64();
     stats.training_samples_in_image = keep.len() as u32;
     training.field = Some(field);
+    training.in_film = keep;
     training
+}
+
+/// Adds what one row's training paths found to the iteration under way of `field` (and their continuations to
+/// `pixels`, for guided Russian roulette); returns the radiance records added.
+fn learn(field: &mut GuidingField, pixels: Option<&mut PixelEstimates>, row: &TrainingRow) -> u64 {
+    field.add_records(&row.records);
+    field.add_lit_records(&row.lit);
+    field.add_shadow_records(&row.shadow);
+    field.add_shadow_records(&row.decoupled_shadow);
+    field.add_shadow_records(&row.surface_shadow);
+    if let Some(pixels) = pixels {
+        for &(pixel, value) in &row.values {
+            pixels.add(pixel, value);
+        }
+    }
+    row.records.len() as u64
 }
 
 /// The pilot's stride along each axis for a frame of `width` × `height` pixels: the largest that still traces
@@ -181,19 +213,56 @@ fn pilot_pixels(width: usize, height: usize, stride: usize) -> usize {
     width.div_ceil(stride) * height.div_ceil(stride)
 }
 
+/// What `auto`'s pilot found and did.
+struct Pilot {
+    /// Whether to guide, and why.
+    decided: GuidingDecision,
+    /// The work of its paths.
+    counters: PathCounters,
+    /// The paths it traced.
+    paths: u64,
+    /// Its rows in order, where it traced every pixel: then they are the training's first iteration.
+    rows: Option<Vec<TrainingRow>>,
+    /// The samples it added to the film: sample 0 where it traced every pixel and the film takes that sample,
+    /// else none.
+    in_film: Range<u32>,
+}
+
 /// `auto`'s pilot ([`GuidingDecision::provisional`]): sample 0 of every [`pilot_stride`]-th pixel along
-/// both axes of the whole frame, traced unguided as the training's first iteration would trace it but for no film,
-/// its medium shadow rays' records on a shadow grid as the training's; whether `auto` guides follows from them
+/// both axes of the whole frame, traced unguided as the training's first iteration traces it, its medium shadow
+/// rays' records on a shadow grid as the training's; whether `auto` guides follows from them
 /// ([`decide_from_shadow_pilot`]). Rows in parallel, their records added in row order: the same decision for
-/// any thread count and in every farm part. Returns the decision, the pilot's work and its paths.
-fn auto_pilot(image: &Pass<'_>) -> (GuidingDecision, PathCounters, u64) {
-    let pass = image.retargeted(image.services.with_guide(None), 0..1);
+/// any thread count and in every farm part.
+///
+/// Where the stride is 1 (every pixel), the pilot's paths are the training's first iteration and sample 0 of
+/// the unguided image, bit for bit, so nothing is traced twice: the pilot adds sample 0 of the window's pixels
+/// to `film` when the image's pass (`image.samples`) takes it, and hands its rows over for the training.
+fn auto_pilot(image: &Pass<'_>, film: &mut Film) -> Pilot {
+    let empty = GuidingField::new(image.scene.bounds);
+    let pass = image.retargeted(image.services.with_guide(Some(&empty)), 0..1);
     let stride = pilot_stride(image.width, image.height);
-    let rows: Vec<TrainingRow> = (0..image.height)
+    let in_film = if stride == 1 && image.samples.contains(&0) {
+        0..1
+    } else {
+        0..0
+    };
+    let mut film_rows = if in_film.is_empty() {
+        Vec::new()
+    } else {
+        film.rows_mut()
+    }
+    .into_iter();
+    let rows: Vec<(usize, Option<FilmRow<'_>>)> = (0..image.height)
         .step_by(stride)
-        .collect::<Vec<_>>()
+        .map(|y| {
+            let in_window = (image.window.y0..image.window.y1).contains(&y);
+            (y, in_window.then(|| film_rows.next()).flatten())
+        })
+        .collect();
+    let keeps_values = image.tracer.guided_roulette && stride == 1;
+    let rows: Vec<TrainingRow> = rows
         .into_par_iter()
-        .map(|y| pass.train_row(y, stride, None, &(0..0), false))
+        .map(|(y, film_row)| pass.train_row(y, stride, film_row, &in_film, keeps_values))
         .collect();
     let mut grid = LitGrid::new(image.scene.bounds);
     let mut counters = PathCounters::new(image.scene.media.len());
@@ -223,8 +292,13 @@ fn auto_pilot(image: &Pass<'_>) -> (GuidingDecision, PathCounters, u64) {
         medium_shadow_rays,
         traced,
     );
-    let paths = pilot_pixels(image.width, image.height, stride) as u64;
-    (decided, counters, paths)
+    Pilot {
+        decided,
+        counters,
+        paths: pilot_pixels(image.width, image.height, stride) as u64,
+        rows: (stride == 1).then_some(rows),
+        in_film,
+    }
 }
 
 /// The training samples of a region of `samples` to add to its film, which holds its samples up to `complete`:

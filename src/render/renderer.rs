@@ -264,7 +264,12 @@ pub struct GuidingStats {
     /// the render's sample range, 7 of a whole render of 7 samples or more, none in a part whose range starts at
     /// 7 or later (see `--spp` in docs/reference.md).
     pub training_samples_in_image: u32,
-    /// Training paths traced.
+    /// Samples per pixel of the image that are `auto`'s pilot's (counted in `samples_per_pixel`, and in
+    /// `training_samples_in_image` when it guides): 1 where the pilot traced every pixel (a frame of fewer than
+    /// 65,536 pixels) and the render's sample range starts at 0, else 0.
+    pub pilot_samples_in_image: u32,
+    /// Training paths traced, `auto`'s pilot's included (where the pilot traced every pixel, its paths are the
+    /// training's first iteration, traced once).
     pub training_paths: u64,
     /// Radiance records the cache learned from (one per medium scattering event of a training path).
     pub training_records: u64,
@@ -579,18 +584,17 @@ impl Renderer {
         }
         totals.counters.add(&training.counters);
         let mut at = at;
-        // `auto` that decided not to guide added nothing to the film: the render goes on unguided from `at`.
-        if !keep.is_empty() && !training.decided_off {
-            if training.field.is_some() {
-                at = RegionProgress::start(keep.end);
-                totals.done = at.complete - region.samples.start;
-                totals.nan_samples += training.nan_samples;
-                totals.clamped_samples += training.clamped_samples;
-                clock.pixel_done();
-            } else {
-                // Cancelled part way: the film, empty before, holds no whole sample of any pixel.
-                film = self.first_film(None, region, &plan)?.0;
-            }
+        // The training's samples in the film, or those of `auto`'s pilot that decided not to guide (then the
+        // render goes on unguided after them).
+        if !training.in_film.is_empty() {
+            at = RegionProgress::start(training.in_film.end);
+            totals.done = at.complete - region.samples.start;
+            totals.nan_samples += training.nan_samples;
+            totals.clamped_samples += training.clamped_samples;
+            clock.pixel_done();
+        } else if !keep.is_empty() && !training.decided_off && training.field.is_none() {
+            // Cancelled part way: the film, empty before, holds no whole sample of any pixel.
+            film = self.first_film(None, region, &plan)?.0;
         }
         let guiding = training.stats;
         let passes = Passes {

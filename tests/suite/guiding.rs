@@ -492,7 +492,8 @@ fn auto_decides_by_a_pilot_where_there_is_a_scattering_medium() {
 /// them, every pixel of a smaller one) finds: in the slab of grid medium lit from behind, most scattering events
 /// the camera's paths reach are on its dark side, so the render is guided, the same bits as `--guiding on`'s; lit
 /// from the front, their shadow rays find the light and auto does not guide, the same bits as `--guiding off`'s
-/// in every layer.
+/// in every layer. Either way the pilot's paths are the image's first sample, so auto traces the same rays as
+/// the render it equals.
 #[test]
 fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
     for (light, guided) in [(Vec3::Z, true), (-Vec3::Z, false)] {
@@ -503,7 +504,7 @@ fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
                 .unwrap()
         };
         let (auto, stats) = render(GuidingMode::Auto);
-        let (same, _) = render(if guided {
+        let (same, same_stats) = render(if guided {
             GuidingMode::On
         } else {
             GuidingMode::Off
@@ -520,10 +521,17 @@ fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
             .contains("on a pilot of unguided paths"));
         assert_bit_identical(&auto, &same, &format!("auto, light along {light}"));
         assert_eq!(stats.samples_per_pixel, 16);
-        if !guided {
-            // An unguided auto render traced its pilot alone: every pixel of the small frame.
-            assert_eq!(stats.guiding.training_paths, 16 * 16);
-        }
+        // The pilot traced sample 0 of every pixel of the small frame, which is the image's first sample and
+        // the training's first iteration: traced once, so auto traced the rays of the render it equals.
+        assert_eq!(stats.guiding.pilot_samples_in_image, 1);
+        assert_eq!(
+            stats.rays, same_stats.rays,
+            "auto against {}",
+            stats.guiding.mode
+        );
+        assert_eq!(stats.rays.camera, 16 * 16 * 16);
+        let training_samples = if guided { 7 } else { 1 };
+        assert_eq!(stats.guiding.training_paths, 16 * 16 * training_samples);
     }
     // With fewer samples per pixel than the training pays back in, auto does not guide the backlit slab.
     let scene = slab_scene(8.0, 0.8, 100.0, Vec3::Z);
