@@ -242,7 +242,9 @@ internal! {
         fn number_f64_or_default(&self, key: &ParamKey) -> Result<f64, ParamError> {
             match self.number_f64(key)? {
                 Some(x) => Ok(x),
-                None => TableDefaults.number_f64(key)?.ok_or_else(|| self.missing(key)),
+                None => TableDefaults
+                    .number_f64(key)?
+                    .ok_or_else(|| self.missing(key)),
             }
         }
 
@@ -483,7 +485,10 @@ fn collect_unknown(
 internal! {
     /// The name among `names` closest to `given` in edit distance, if within a third of its length (at least 1,
     /// at most 3 edits): a likely misspelling rather than another word.
-    pub fn closest_name<'n>(given: &str, names: impl IntoIterator<Item = &'n str>) -> Option<&'n str> {
+    pub fn closest_name<'n>(
+        given: &str,
+        names: impl IntoIterator<Item = &'n str>,
+    ) -> Option<&'n str> {
         let allowed = (given.chars().count() / 3).clamp(1, 3);
         names
             .into_iter()

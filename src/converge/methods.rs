@@ -73,7 +73,9 @@ impl Method {
                 Method::Grid16Majorant => spec.majorant = Some(MajorantKind::Grid16),
                 Method::AdaptiveMajorant => spec.majorant = Some(MajorantKind::Adaptive),
                 Method::RatioShadow => spec.shadow_estimator = ShadowEstimator::Ratio,
-                Method::ResidualRatioShadow => spec.shadow_estimator = ShadowEstimator::ResidualRatio,
+                Method::ResidualRatioShadow => {
+                    spec.shadow_estimator = ShadowEstimator::ResidualRatio
+                }
                 Method::Default | Method::NoMediaMis => {}
             }
         }

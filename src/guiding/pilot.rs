@@ -124,19 +124,19 @@ impl GuidingMode {
     internal! {
         /// What this mode decides for `scene`.
         pub fn decide(self, scene: &Scene) -> GuidingDecision {
-        match self {
-            GuidingMode::Off => GuidingDecision {
-                on: false,
-                provisional: false,
-                reason: "off (--guiding off)".into(),
-            },
-            GuidingMode::On => GuidingDecision {
-                on: true,
-                provisional: false,
-                reason: "on (--guiding on)".into(),
-            },
-            GuidingMode::Auto => auto_decision(scene),
-        }
+            match self {
+                GuidingMode::Off => GuidingDecision {
+                    on: false,
+                    provisional: false,
+                    reason: "off (--guiding off)".into(),
+                },
+                GuidingMode::On => GuidingDecision {
+                    on: true,
+                    provisional: false,
+                    reason: "on (--guiding on)".into(),
+                },
+                GuidingMode::Auto => auto_decision(scene),
+            }
         }
     }
 }

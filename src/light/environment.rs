@@ -165,11 +165,12 @@ impl EnvironmentMap {
             // Per texel: the RGB texels and the sampling distribution's weights, about 16 bytes.
             const TEXEL_BYTES: u64 = 16;
             let (width, height, texels) = if is_exr {
-                let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
-                    .map_err(|source| EnvironmentError::Exr {
-                        path: path.to_path_buf(),
-                        source,
-                    })?;
+                let meta =
+                    exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
+                        .map_err(|source| EnvironmentError::Exr {
+                            path: path.to_path_buf(),
+                            source,
+                        })?;
                 for header in &meta.headers {
                     let size = header.layer_size;
                     limits
@@ -188,7 +189,9 @@ impl EnvironmentMap {
                     .largest_resolution_level()
                     .rgba_channels(
                         |res, _| (res.width(), vec![Rgb::ZERO; res.width() * res.height()]),
-                        |(w, px): &mut (usize, Vec<Rgb>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                        |(w, px): &mut (usize, Vec<Rgb>),
+                         pos,
+                         (r, g, b, _a): (f32, f32, f32, f32)| {
                             px[pos.y() * *w + pos.x()] = Rgb::new(r, g, b);
                         },
                     )

@@ -510,16 +510,17 @@ impl Material {
             }
             let (mut sheen_color, mut sheen_roughness) = (Rgb::ZERO, 0.0);
             if let Some(s) = &self.sheen {
-                sheen_color =
-                    s.color * lookup(textures, s.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
+                sheen_color = s.color
+                    * lookup(textures, s.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
                 sheen_roughness =
                     s.roughness * lookup(textures, s.roughness_texture, at).map_or(1.0, |t| t.w);
             }
             let (mut diffuse_transmission, mut diffuse_transmission_color) = (0.0, Rgb::ONE);
             if let Some(d) = &self.diffuse_transmission {
-                diffuse_transmission = d.factor * lookup(textures, d.texture, at).map_or(1.0, |t| t.w);
-                diffuse_transmission_color =
-                    d.color * lookup(textures, d.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
+                diffuse_transmission =
+                    d.factor * lookup(textures, d.texture, at).map_or(1.0, |t| t.w);
+                diffuse_transmission_color = d.color
+                    * lookup(textures, d.color_texture, at).map_or(Rgb::ONE, |t| t.truncate());
             }
             let transmission = self.transmission
                 * lookup(textures, self.transmission_texture, at).map_or(1.0, |t| t.x);

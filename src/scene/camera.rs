@@ -374,7 +374,8 @@ impl Camera {
             let areas = Vec3::new(e.y * e.z, e.x * e.z, e.x * e.y);
             let front = Vec3::new(0.35, 0.25, 1.0);
             // Areas are relative to the largest face; the front direction only decides where they all vanish.
-            let dir = (areas / areas.max_element().max(f32::MIN_POSITIVE) + front * 1e-3).normalize();
+            let dir =
+                (areas / areas.max_element().max(f32::MIN_POSITIVE) + front * 1e-3).normalize();
             let center = bounds.center();
             // Seen from (nearly) straight above or below, the image's up is −Z: the far side of the scene at the top,
             // as when a camera in front tilts down.

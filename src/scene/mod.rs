@@ -30,9 +30,9 @@ mod validate;
 internal! {
     pub use builder::BUILDER_PATH;
     pub use camera::{blender_focal_length, CameraMotion, CAMERA_KEYS};
-    pub use names::{Emitter, LightTag, MediumTag, SceneNames, ENVIRONMENT_NAME};
-    pub use instancing::{MeshInstance, BYTES_PER_INSTANCE};
     pub use hit::SurfaceHit;
+    pub use instancing::{MeshInstance, BYTES_PER_INSTANCE};
+    pub use names::{Emitter, LightTag, MediumTag, SceneNames, ENVIRONMENT_NAME};
 }
 pub use builder::SceneBuilder;
 pub use camera::{Camera, LensError, NamedCamera, Projection, ThinLens, UnknownCamera};

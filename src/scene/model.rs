@@ -419,12 +419,18 @@ impl Scene {
             let ([v0, v1, v2], normals, geometric_normal, point) = match placed {
                 None => {
                     let geometric_normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
-                    let point = SurfacePoint::on_triangle([v0, v1, v2], b0, b1, b2, geometric_normal);
+                    let point =
+                        SurfacePoint::on_triangle([v0, v1, v2], b0, b1, b2, geometric_normal);
                     ([v0, v1, v2], normals, geometric_normal, point)
                 }
                 Some(placed) => {
                     let world = placed.triangle([v0, v1, v2], normals, [b0, b1, b2]);
-                    (world.vertices, world.normals, world.geometric_normal, world.point)
+                    (
+                        world.vertices,
+                        world.normals,
+                        world.geometric_normal,
+                        world.point,
+                    )
                 }
             };
             let front_face = geometric_normal.dot(ray.dir) < 0.0;

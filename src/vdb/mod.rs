@@ -32,7 +32,9 @@ pub use error::{VdbError, VdbErrorKind};
 pub use grid::TreeStats;
 pub use info::{file_info, FileInfo, GridInfo};
 internal! {
-    pub use grid::{floor_ivec3, Accessor, FloatTree, Leaf, LowerNode, Region, Tree, Vec3Tree, VoxelValue};
+    pub use grid::{
+        floor_ivec3, Accessor, FloatTree, Leaf, LowerNode, Region, Tree, Vec3Tree, VoxelValue,
+    };
     pub use header::FileHeader;
 }
 #[cfg(feature = "testing")]
