@@ -11,6 +11,12 @@
 //! teach the cache. A render of `--spp N` thus traces `N − 7` samples per pixel after the training (none when
 //! N ≤ 7).
 //!
+//! `auto`'s pilot ([`decide`]) traces sample 0 of a lattice of pixels unguided, as iteration 0 traces it. Where
+//! iteration 0 traces those paths anyway (a whole frame from sample 0, or a frame whose lattice is every pixel),
+//! iteration 0 is the pilot: it decides after that iteration, whose sample 0 stays in the film either way, so
+//! `auto` that does not guide traces no path an `off` render does not. Elsewhere the lattice is traced first, alone
+//! ([`lattice_pilot`]).
+//!
 //! Determinism: rows are traced in parallel a block at a time and their records added to the cache in row
 //! order, one thread. The cache is the same for any thread count and in every farm part of a render, and the
 //! film's sums are exact, so the training's samples merge bit for bit whichever part holds them.
@@ -23,7 +29,7 @@
 //! [`PathTracer::guided_roulette`]: crate::integrator::PathTracer::guided_roulette
 //! [`GuidePath::continuation`]: crate::guiding::GuidePath::continuation
 
-use super::film::{Film, FilmRow};
+use super::film::{Film, FilmRow, PixelWindow};
 use super::renderer::{GuidingStats, Pass};
 use crate::guiding::adjoint::PixelEstimates;
 use crate::guiding::lit::LitGrid;
@@ -71,7 +77,8 @@ pub(super) struct Training {
 /// window), on the caller's thread pool; `decision` is what the guiding mode decided (no cache when off). A
 /// cancelled render stops training between blocks of rows and gets no cache (it renders no samples after it,
 /// and the caller empties the film again); the time budget is not looked at here, the passes after it are (the
-/// training's seconds count in the budget).
+/// training's seconds count in the budget). A provisional decision (`auto`) is made by the pilot first
+/// (see the module documentation); when it does not guide, the film holds at most its sample 0.
 pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision) -> Training {
     let mut training = Training {
         field: None,
@@ -90,48 +97,31 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
         return training;
     }
     let start = Instant::now();
-    // Where `auto`'s pilot traced every pixel, its rows are the first iteration's.
-    let mut first_iteration = None;
-    if decision.provisional {
-        let pilot = auto_pilot(image, film);
-        training.counters.add(&pilot.counters);
-        let stats = &mut training.stats;
-        stats.training_paths += pilot.paths;
-        stats.mode = if pilot.decided.on { "on" } else { "off" }.to_owned();
-        stats.reason = pilot.decided.reason;
-        if !pilot.decided.on {
-            stats.pilot_samples_in_image = pilot.in_film.len() as u32;
-            stats.training_seconds = start.elapsed().as_secs_f64();
-            for row in pilot.rows.iter().flatten() {
-                training.nan_samples += row.nan_samples;
-                training.clamped_samples += row.clamped_samples;
-            }
-            training.decided_off = true;
-            training.in_film = pilot.in_film;
-            return training;
-        }
-        stats.pilot_samples_in_image = pilot.in_film.len() as u32;
-        first_iteration = pilot.rows;
-    }
-    let stats = &mut training.stats;
     let keep = image.samples.clone();
     let (width, height) = (image.width, image.height);
+    let stride = pilot_stride(width, height);
+    // `auto`'s pilot is the first iteration where none of that iteration's paths is traced for the pilot alone.
+    let first_is_pilot = decision.provisional
+        && (stride == 1 || (keep.contains(&0) && image.window == PixelWindow::full(width, height)));
+    if decision.provisional && !first_is_pilot {
+        let (lattice, counters) = lattice_pilot(image, stride);
+        training.counters.add(&counters);
+        training.stats.training_paths += pilot_pixels(width, height, stride) as u64;
+        let decided = decide(image, &lattice);
+        if !note_decision(&mut training.stats, decided) {
+            training.stats.training_seconds = start.elapsed().as_secs_f64();
+            training.decided_off = true;
+            return training;
+        }
+    }
+    let stats = &mut training.stats;
     let mut field = GuidingField::new(image.scene.bounds);
     let keeps_values = image.tracer.guided_roulette;
     let mut pixels = keeps_values.then(|| PixelEstimates::new(width, height));
+    let mut lattice = Vec::new();
     for k in 0..TRAINING_ITERATIONS {
         let samples = (1u32 << k) - 1..(2u32 << k) - 1;
-        if let Some(rows) = first_iteration.take() {
-            // The pilot's rows: sample 0 of every pixel, traced unguided, its film samples added already.
-            for row in &rows {
-                stats.training_records += learn(&mut field, pixels.as_mut(), row);
-                training.nan_samples += row.nan_samples;
-                training.clamped_samples += row.clamped_samples;
-            }
-            field.finish_iteration();
-            stats.training_samples_per_pixel += samples.len() as u32;
-            continue;
-        }
+        let pilot = (k == 0 && first_is_pilot).then_some(stride);
         // The window's rows, taken in order as the blocks reach them (none when no sample is kept).
         let mut film_rows = if keep.is_empty() {
             Vec::new()
@@ -154,17 +144,29 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
                 .collect();
             let traced: Vec<TrainingRow> = rows
                 .into_par_iter()
-                .map(|(y, film_row)| pass.train_row(y, 1, film_row, &keep, keeps_values))
+                .map(|(y, film_row)| pass.train_row(y, 1, film_row, &keep, keeps_values, pilot))
                 .collect();
-            for row in &traced {
-                stats.training_records += learn(&mut field, pixels.as_mut(), row);
+            for row in traced {
+                stats.training_records += learn(&mut field, pixels.as_mut(), &row);
                 training.counters.add(&row.counters);
                 training.nan_samples += row.nan_samples;
                 training.clamped_samples += row.clamped_samples;
+                lattice.extend(row.pilot);
+            }
+        }
+        stats.training_paths += (width * height) as u64 * samples.len() as u64;
+        if pilot.is_some() {
+            // Sample 0 of the window's pixels, where the film takes it, is there whatever the pilot decides.
+            let in_film = if keep.contains(&0) { 0..1 } else { 0..0 };
+            stats.pilot_samples_in_image = in_film.len() as u32;
+            if !note_decision(stats, decide(image, &std::mem::take(&mut lattice))) {
+                stats.training_seconds = start.elapsed().as_secs_f64();
+                training.decided_off = true;
+                training.in_film = in_film;
+                return training;
             }
         }
         field.finish_iteration();
-        stats.training_paths += (width * height) as u64 * samples.len() as u64;
         stats.training_samples_per_pixel += samples.len() as u32;
     }
     if let Some(pixels) = pixels {
@@ -177,6 +179,13 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
     training.field = Some(field);
     training.in_film = keep;
     training
+}
+
+/// Writes what `auto`'s pilot decided into `stats` (`mode`, `reason`); returns whether it guides.
+fn note_decision(stats: &mut GuidingStats, decided: GuidingDecision) -> bool {
+    stats.mode = if decided.on { "on" } else { "off" }.to_owned();
+    stats.reason = decided.reason;
+    decided.on
 }
 
 /// Adds what one row's training paths found to the iteration under way of `field` (and their continuations to
@@ -213,63 +222,54 @@ fn pilot_pixels(width: usize, height: usize, stride: usize) -> usize {
     width.div_ceil(stride) * height.div_ceil(stride)
 }
 
-/// What `auto`'s pilot found and did.
-struct Pilot {
-    /// Whether to guide, and why.
-    decided: GuidingDecision,
-    /// The work of its paths.
-    counters: PathCounters,
-    /// The paths it traced.
-    paths: u64,
-    /// Its rows in order, where it traced every pixel: then they are the training's first iteration.
-    rows: Option<Vec<TrainingRow>>,
-    /// The samples it added to the film: sample 0 where it traced every pixel and the film takes that sample,
-    /// else none.
-    in_film: Range<u32>,
+/// What one row of `auto`'s pilot found at the pixels of its lattice (every [`pilot_stride`]-th pixel along
+/// both axes): their paths' shadow rays, and the records of those that left medium scattering events and
+/// decoupled samples.
+#[derive(Default)]
+pub(super) struct PilotRow {
+    /// Shadow rays traced (of every kind).
+    pub shadow_rays: u64,
+    /// The records of the shadow rays of medium scattering events.
+    pub shadow: Vec<LitRecord>,
+    /// The records of the shadow rays of decoupled samples.
+    pub decoupled_shadow: Vec<LitRecord>,
 }
 
-/// `auto`'s pilot ([`GuidingDecision::provisional`]): sample 0 of every [`pilot_stride`]-th pixel along
-/// both axes of the whole frame, traced unguided as the training's first iteration traces it, its medium shadow
-/// rays' records on a shadow grid as the training's; whether `auto` guides follows from them
-/// ([`decide_from_shadow_pilot`]). Rows in parallel, their records added in row order: the same decision for
-/// any thread count and in every farm part.
-///
-/// Where the stride is 1 (every pixel), the pilot's paths are the training's first iteration and sample 0 of
-/// the unguided image, bit for bit, so nothing is traced twice: the pilot adds sample 0 of the window's pixels
-/// to `film` when the image's pass (`image.samples`) takes it, and hands its rows over for the training.
-fn auto_pilot(image: &Pass<'_>, film: &mut Film) -> Pilot {
+/// `auto`'s pilot where it is not the training's first iteration (a crop, or a part whose sample range does not
+/// start at 0, in a frame of 256² or more): sample 0 of the lattice's pixels alone, for no film. Returns their
+/// rows' findings and their paths' work.
+fn lattice_pilot(image: &Pass<'_>, stride: usize) -> (Vec<PilotRow>, PathCounters) {
     let empty = GuidingField::new(image.scene.bounds);
     let pass = image.retargeted(image.services.with_guide(Some(&empty)), 0..1);
-    let stride = pilot_stride(image.width, image.height);
-    let in_film = if stride == 1 && image.samples.contains(&0) {
-        0..1
-    } else {
-        0..0
-    };
-    let mut film_rows = if in_film.is_empty() {
-        Vec::new()
-    } else {
-        film.rows_mut()
-    }
-    .into_iter();
-    let rows: Vec<(usize, Option<FilmRow<'_>>)> = (0..image.height)
+    let rows: Vec<TrainingRow> = (0..image.height)
         .step_by(stride)
-        .map(|y| {
-            let in_window = (image.window.y0..image.window.y1).contains(&y);
-            (y, in_window.then(|| film_rows.next()).flatten())
-        })
-        .collect();
-    let keeps_values = image.tracer.guided_roulette && stride == 1;
-    let rows: Vec<TrainingRow> = rows
+        .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|(y, film_row)| pass.train_row(y, stride, film_row, &in_film, keeps_values))
+        .map(|y| pass.train_row(y, stride, None, &(0..0), false, Some(stride)))
         .collect();
-    let mut grid = LitGrid::new(image.scene.bounds);
     let mut counters = PathCounters::new(image.scene.media.len());
-    for row in &rows {
+    let mut lattice = Vec::new();
+    for row in rows {
+        counters.add(&row.counters);
+        lattice.extend(row.pilot);
+    }
+    (lattice, counters)
+}
+
+/// Whether `auto` guides `image`'s render ([`GuidingDecision::provisional`]), from its pilot: sample 0 of
+/// every [`pilot_stride`]-th pixel along both axes of the whole frame, traced unguided, whose medium shadow
+/// rays' records go on a shadow grid as the training's do ([`decide_from_shadow_pilot`]). `lattice` holds
+/// the rows' findings in row order, so the decision is the same for any thread count and in every farm part.
+///
+/// The pilot's paths are traced exactly as the training's first iteration and the unguided image's sample 0
+/// trace them. So where that iteration traces them anyway (a frame whose lattice is every pixel, or a whole
+/// frame whose sample range starts at 0), it is the pilot: its sample 0 goes into the film whatever the pilot
+/// decides, and its records into the cache when it guides. Elsewhere [`lattice_pilot`] traces the lattice alone.
+fn decide(image: &Pass<'_>, lattice: &[PilotRow]) -> GuidingDecision {
+    let mut grid = LitGrid::new(image.scene.bounds);
+    for row in lattice {
         grid.add(&row.shadow);
         grid.add(&row.decoupled_shadow);
-        counters.add(&row.counters);
     }
     // Each ray is judged by the mean of the others in its voxel, as the image's rays are by the training's: a
     // mean that held the ray itself would predict too much of it where voxels hold few records.
@@ -279,26 +279,14 @@ fn auto_pilot(image: &Pass<'_>, film: &mut Film) -> Pilot {
             .map(|r| survival(grid.mean_without(r), min_survival) as f64)
             .sum()
     };
-    let mut traced = 0.0;
-    let mut medium_shadow_rays = 0;
-    for row in &rows {
+    let (mut traced, mut medium_shadow_rays, mut shadow_rays) = (0.0, 0, 0);
+    for row in lattice {
         traced += traced_of(&row.shadow, SHADOW_MIN_SURVIVAL);
         traced += traced_of(&row.decoupled_shadow, VISIBILITY_MIN_SURVIVAL);
         medium_shadow_rays += (row.shadow.len() + row.decoupled_shadow.len()) as u64;
+        shadow_rays += row.shadow_rays;
     }
-    let decided = decide_from_shadow_pilot(
-        image.settings.spp,
-        counters.rays.shadow,
-        medium_shadow_rays,
-        traced,
-    );
-    Pilot {
-        decided,
-        counters,
-        paths: pilot_pixels(image.width, image.height, stride) as u64,
-        rows: (stride == 1).then_some(rows),
-        in_film,
-    }
+    decide_from_shadow_pilot(image.settings.spp, shadow_rays, medium_shadow_rays, traced)
 }
 
 /// The training samples of a region of `samples` to add to its film, which holds its samples up to `complete`:
@@ -320,10 +308,12 @@ pub(super) struct TrainingRow {
     pub shadow: Vec<LitRecord>,
     /// Their decoupled samples' shadow rays' records.
     pub decoupled_shadow: Vec<LitRecord>,
-    /// Their surfaces' shadow rays' records (not the pilot's: it predicts from the media's alone).
+    /// Their surfaces' shadow rays' records.
     pub surface_shadow: Vec<LitRecord>,
     /// Each sample's continuation, by pixel (guided Russian roulette only).
     pub values: Vec<((usize, usize), f32)>,
+    /// What the row's paths at the pixels of `auto`'s pilot lattice found, where the row is the pilot's.
+    pub pilot: Option<PilotRow>,
     /// The work of the row's paths.
     pub counters: PathCounters,
     /// Samples for the film dropped as NaN or infinite.
@@ -342,6 +332,7 @@ impl TrainingRow {
             decoupled_shadow: Vec::new(),
             surface_shadow: Vec::new(),
             values: Vec::new(),
+            pilot: None,
             counters: PathCounters::new(media),
             nan_samples: 0,
             clamped_samples: 0,

@@ -9,7 +9,7 @@
 use super::aovs::{AovSelection, LayerPlan, LightGroupMode, LightGroups, PlanError};
 use super::emitter_edges::{EmitterEdgeSampling, EmitterEdges, EDGE_RAYS};
 use super::film::{Film, FilmPixel, FilmRow, PixelSums, PixelWindow};
-use super::guiding::TrainingRow;
+use super::guiding::{PilotRow, TrainingRow};
 use super::recording::LayerRecorder;
 use super::resume::{RegionProgress, ResumeFrom, StoppedPass};
 use super::{CancelToken, RenderImage};
@@ -862,6 +862,8 @@ impl<'a> Pass<'a> {
     /// from them; those in `keep` of the pixels of the window are added to `film_row` (the window's row
     /// `y`, `None` outside it) as image samples, exactly as [`render_row`](Self::render_row) adds them. With
     /// `keeps_values` (guided Russian roulette), each sample's continuation is kept as its pixel's estimate.
+    /// With `pilot_stride`, the row is `auto`'s pilot's: its paths at the pixels of the pilot's lattice (every
+    /// `pilot_stride`-th along both axes) also go into the row's [`PilotRow`].
     pub(super) fn train_row(
         &self,
         y: usize,
@@ -869,6 +871,7 @@ impl<'a> Pass<'a> {
         film_row: Option<FilmRow<'_>>,
         keep: &Range<u32>,
         keeps_values: bool,
+        pilot_stride: Option<usize>,
     ) -> TrainingRow {
         let mut pixels: Vec<FilmPixel<'_>> =
             film_row.map_or_else(Vec::new, |r| r.pixels().collect());
@@ -879,6 +882,8 @@ impl<'a> Pass<'a> {
             ..SampleRecord::default()
         });
         let mut path = GuidePath::default();
+        let lattice = pilot_stride.filter(|s| y.is_multiple_of(*s));
+        row.pilot = lattice.map(|_| PilotRow::default());
         for x in (0..self.width).step_by(x_stride) {
             let pixel_index = (y * self.width + x) as u64;
             let on_edge = self.edges.is_some_and(|e| e.is_marked(x, y));
@@ -886,9 +891,11 @@ impl<'a> Pass<'a> {
                 .contains(&x)
                 .then(|| pixels.get_mut(x - self.window.x0))
                 .flatten();
+            let on_lattice = lattice.is_some_and(|s| x.is_multiple_of(s));
             for sample in self.samples.clone() {
                 let kept = pixel.is_some() && keep.contains(&sample);
                 path.clear();
+                let shadow_rays = row.counters.rays.shadow;
                 let (ray, time, result, gathered) = self.trace_sample(
                     (x, y),
                     pixel_index,
@@ -903,6 +910,13 @@ impl<'a> Pass<'a> {
                 row.decoupled_shadow
                     .extend_from_slice(path.decoupled_shadow());
                 row.surface_shadow.extend_from_slice(path.surface_shadow());
+                if let Some(pilot) = row.pilot.as_mut().filter(|_| on_lattice) {
+                    pilot.shadow_rays += row.counters.rays.shadow - shadow_rays;
+                    pilot.shadow.extend_from_slice(path.shadow());
+                    pilot
+                        .decoupled_shadow
+                        .extend_from_slice(path.decoupled_shadow());
+                }
                 if !is_finite_rgb(result.radiance) {
                     row.nan_samples += kept as u64;
                     continue;

@@ -542,6 +542,76 @@ fn auto_guides_where_shadow_roulette_saves_most_shadow_rays() {
     assert!(stats.guiding.reason.contains("fewer than 16"));
 }
 
+/// In a 256² frame, whose pilot lattice is every 2nd pixel along each axis, a whole render whose samples start at
+/// 0 takes the training's first iteration (sample 0 of every pixel) as `auto`'s pilot: that sample goes into the
+/// film and no path is traced twice (the rays of the `off` render it equals). A crop, or a part whose samples
+/// start later, traces the lattice alone and decides alike: the parts merge into the whole render bit for bit.
+#[test]
+fn autos_pilot_is_the_first_sample_of_a_whole_large_frame() {
+    let scene = slab_scene(8.0, 0.8, 100.0, -Vec3::Z);
+    let (size, spp) = (256, 2);
+    let render = |mode| {
+        Renderer::new(settings(size, spp, 2, mode))
+            .render(&scene, &mut |_| true)
+            .unwrap()
+    };
+    let (auto, stats) = render(GuidingMode::Auto);
+    let (off, off_stats) = render(GuidingMode::Off);
+    assert_eq!(stats.guiding.mode, "off", "{:?}", stats.guiding);
+    assert_bit_identical(&auto, &off, "auto against off");
+    assert_eq!(stats.rays, off_stats.rays);
+    assert_eq!(stats.guiding.pilot_samples_in_image, 1);
+    assert_eq!(stats.guiding.training_paths, (size * size) as u64);
+
+    let top = PixelWindow {
+        x0: 0,
+        y0: 0,
+        x1: size,
+        y1: size / 2,
+    };
+    let region = RenderRegion {
+        window: top,
+        samples: 0..spp,
+    };
+    let (_, crop) = Renderer::new(settings(size, spp, 2, GuidingMode::Auto))
+        .render_region(&scene, &region, &mut |_| true, &CancelToken::new())
+        .unwrap();
+    assert_eq!(crop.guiding.reason, stats.guiding.reason);
+    assert_eq!(crop.guiding.pilot_samples_in_image, 0);
+    assert_eq!(crop.guiding.training_paths, (size * size / 4) as u64);
+
+    let dir = std::env::temp_dir().join(format!("nimbus-guiding-pilot-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let part = |window: PixelWindow, samples: std::ops::Range<u32>, name: &str| {
+        let path = dir.join(name);
+        let settings = settings(size, spp, 2, GuidingMode::Auto);
+        common::render_part(&scene, b"slab", settings, window, samples, &path);
+        path
+    };
+    let whole = PixelWindow::full(size, size);
+    let bottom = PixelWindow {
+        y0: size / 2,
+        y1: size,
+        ..top
+    };
+    for (parts, what) in [
+        ([(whole, 0..1), (whole, 1..spp)], "samples 0..1 and 1..2"),
+        (
+            [(top, 0..spp), (bottom, 0..spp)],
+            "the top and bottom halves",
+        ),
+    ] {
+        let files: Vec<_> = parts
+            .into_iter()
+            .enumerate()
+            .map(|(i, (window, samples))| part(window, samples, &format!("{i}.exr")))
+            .collect();
+        let merged = farm::merge_parts(&files).unwrap();
+        assert_bit_identical(&merged.image, &auto, what);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// An `auto` render that decides not to guide resumes as an unguided one: a film stopped after 3 samples (inside
 /// the training's 7, which a guided render refuses) goes on to the uninterrupted render's bits.
 #[test]
