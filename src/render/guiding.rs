@@ -236,7 +236,7 @@ pub(super) struct PilotRow {
 }
 
 /// `auto`'s pilot where it is not the training's first iteration (a crop, or a part whose sample range does not
-/// start at 0, in a frame of 256² or more): sample 0 of the lattice's pixels alone, for no film. Returns their
+/// start at 0, in a frame of about 256² or more): sample 0 of the lattice's pixels alone, for no film. Returns their
 /// rows' findings and their paths' work.
 fn lattice_pilot(image: &Pass<'_>, stride: usize) -> (Vec<PilotRow>, PathCounters) {
     let empty = GuidingField::new(image.scene.bounds);

@@ -265,11 +265,11 @@ pub struct GuidingStats {
     /// 7 or later (see `--spp` in docs/reference.md).
     pub training_samples_in_image: u32,
     /// Samples per pixel of the image that are `auto`'s pilot's (counted in `samples_per_pixel`, and in
-    /// `training_samples_in_image` when it guides): 1 where the pilot traced every pixel (a frame of fewer than
-    /// 65,536 pixels) and the render's sample range starts at 0, else 0.
+    /// `training_samples_in_image` when it guides): 1 where the pilot is the training's first iteration (a whole
+    /// frame, or any frame below about 256²) and the render's sample range starts at 0, else 0.
     pub pilot_samples_in_image: u32,
-    /// Training paths traced, `auto`'s pilot's included (where the pilot traced every pixel, its paths are the
-    /// training's first iteration, traced once).
+    /// Training paths traced, each once: `auto`'s pilot's included (where the pilot is the training's first
+    /// iteration, its paths are that iteration's).
     pub training_paths: u64,
     /// Radiance records the cache learned from (one per medium scattering event of a training path).
     pub training_records: u64,
