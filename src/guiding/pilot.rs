@@ -12,7 +12,7 @@
 //! rays; the front-lit ones 1.00x), which depends on the light's way through the medium. So `auto` decides in
 //! two steps: before rendering, off where the scene has no scattering medium (the pilot reports the likeliest
 //! medium of those it has, the one with the largest albedo × optical depth); otherwise from a pilot of unguided
-//! paths (sample 0 of at least 16,384 pixels spread over the frame, every pixel of a smaller one: `auto_pilot`
+//! paths (sample 0 of at least 16,384 pixels spread over the frame, every pixel of a smaller one: `decide`
 //! in `crate::render::guiding`), from what their shadow rays found ([`decide_from_shadow_pilot`]): guided where
 //! guided shadow roulette would trace at most [`AUTO_MAX_SHADOW_TRACED`] of them and the render has at least
 //! [`AUTO_MIN_SPP`] samples per pixel. Of the benchmark scenes that guides the backlit clouds and, from 128² on,
