@@ -160,6 +160,8 @@ pub(super) fn train(image: &Pass<'_>, film: &mut Film, decision: GuidingDecision
             let in_film = if keep.contains(&0) { 0..1 } else { 0..0 };
             stats.pilot_samples_in_image = in_film.len() as u32;
             if !note_decision(stats, decide(image, &std::mem::take(&mut lattice))) {
+                // The cache that learned from this iteration is dropped: no render learns from its records.
+                stats.training_records = 0;
                 stats.training_seconds = start.elapsed().as_secs_f64();
                 training.decided_off = true;
                 training.in_film = in_film;

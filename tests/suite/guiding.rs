@@ -562,6 +562,7 @@ fn autos_pilot_is_the_first_sample_of_a_whole_large_frame() {
     assert_eq!(stats.rays, off_stats.rays);
     assert_eq!(stats.guiding.pilot_samples_in_image, 1);
     assert_eq!(stats.guiding.training_paths, (size * size) as u64);
+    assert_eq!(stats.guiding.training_records, 0, "no cache was kept");
 
     let top = PixelWindow {
         x0: 0,
