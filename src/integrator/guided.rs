@@ -282,6 +282,74 @@ mod tests {
         }
     }
 
+    /// A guide at a Lambertian surface of shading normal `n`: a two-lobe learned mixture's product with the
+    /// cosine, as [`surface_guide_at`] makes it, sampled with probability `alpha`.
+    fn lambert_guide(n: Vec3, alpha: f32) -> Guide {
+        let mixture = VmfMixture::new(&[
+            crate::guiding::vmf::VmfLobe {
+                mu: Vec3::new(0.3, 0.5, 0.81).normalize(),
+                kappa: 20.0,
+                weight: 0.7,
+            },
+            crate::guiding::vmf::VmfLobe {
+                mu: -Vec3::X,
+                kappa: 2.0,
+                weight: 0.3,
+            },
+        ])
+        .unwrap();
+        let product = mixture.product(n, lobe_kappa(2.0 / 3.0)).unwrap();
+        Guide { product, alpha }
+    }
+
+    /// Draws guided directions at a Lambertian surface (`sample_bsdf` with a guide sampled with probability
+    /// `sampled`) and checks them by chi-square against the mixture density of a guide of probability `claimed`,
+    /// the density the path divides by where the two are equal; each sample is the BSDF's value there.
+    fn check_guided_lambert(sampled: f32, claimed: f32, seed: u64) {
+        let n = Vec3::new(0.2, 0.9, -0.1).normalize();
+        let frame = Frame::from_normal(n);
+        let bsdf = Bsdf::Lambert(crate::material::Lambert {
+            albedo: Rgb::splat(0.7),
+        });
+        let wo = frame.to_local(Vec3::new(0.1, 0.8, 0.6).normalize());
+        let (guide, claimed) = (lambert_guide(n, sampled), lambert_guide(n, claimed));
+        let density =
+            |g: &Guide, wi: Vec3| mixture_pdf(Some(g), frame.to_world(wi), bsdf.pdf(wo, wi));
+        crate::math::chi2::assert_sampler_fits(
+            &format!(
+                "guided Lambertian sampling, α {sampled} against {}",
+                claimed.alpha
+            ),
+            200_000,
+            seed,
+            |rng| {
+                let s = sample_bsdf(&bsdf, Some(&guide), &frame, wo, rng, |wi| {
+                    density(&guide, wi)
+                })?;
+                assert_eq!(s.f, bsdf.eval(wo, s.wi));
+                Some(frame.to_world(s.wi))
+            },
+            |w| density(&claimed, frame.to_local(w)) as f64,
+        );
+    }
+
+    /// Guided sampling at a Lambertian surface (the learned mixture's product with the cosine, in one-sample MIS
+    /// with the BSDF's cosine-weighted sample) draws directions with the mixture density the path divides by, at
+    /// a selection probability below and at [`GUIDE_PROBABILITY`] (chi-square).
+    #[test]
+    fn guided_lambert_sampling_fits_its_mixture_density() {
+        check_guided_lambert(0.25, 0.25, 50);
+        check_guided_lambert(GUIDE_PROBABILITY, GUIDE_PROBABILITY, 51);
+    }
+
+    /// The check above can fail: directions drawn with the guide chosen a quarter of the time do not fit the
+    /// density of a guide chosen half of the time.
+    #[test]
+    #[should_panic(expected = "chi-square rejects")]
+    fn guided_lambert_sampling_against_another_selection_probability_is_rejected() {
+        check_guided_lambert(0.25, 0.5, 52);
+    }
+
     /// A lit grid over [0, 2]³ that knows light in the slab 0.8 ≤ x < 1 only.
     fn slab() -> LitGrid {
         let mut grid = LitGrid::new(Aabb::new(Vec3::ZERO, Vec3::splat(2.0)));
