@@ -592,6 +592,12 @@ impl Renderer {
             totals.nan_samples += training.nan_samples;
             totals.clamped_samples += training.clamped_samples;
             clock.pixel_done();
+            if training.decided_off {
+                // The pilot's sample 0 is reported as a pass is, so that progressive consumers see the film
+                // after it (`converge`'s rows at 1, 2, 4, ... samples: an `off` render's first pass of one).
+                let report = passes.report(&totals, region.samples.len() as u32, start.elapsed());
+                totals.cancelled = !progress(&report, &film);
+            }
         } else if !keep.is_empty() && !training.decided_off && training.field.is_none() {
             // Cancelled part way: the film, empty before, holds no whole sample of any pixel.
             film = self.first_film(None, region, &plan)?.0;
@@ -601,7 +607,11 @@ impl Renderer {
             guide: training.field.as_ref(),
             ..passes
         };
-        let at = passes.run(&mut film, at, &mut totals, progress);
+        let at = if totals.cancelled {
+            at
+        } else {
+            passes.run(&mut film, at, &mut totals, progress)
+        };
         totals.cancelled |= cancel.is_cancelled();
         let seconds = start.elapsed().as_secs_f64();
         let stats = RenderStats {
