@@ -247,13 +247,12 @@ mod tests {
     use crate::math::Aabb;
     use crate::volume::ChannelSampling;
 
-    /// Guided phase sampling at a selection probability below and at [`GUIDE_PROBABILITY`] draws directions
-    /// with the mixture density it claims (chi-square), which is what its weight and the MIS weights divide by.
-    #[test]
-    fn guided_phase_sampling_fits_its_mixture_density() {
-        let product = VmfMixture::new(&[
+    /// A learned mixture for the guided-sampling tests: a sharp lobe (κ 20, weight 0.7) about `sharp_axis`
+    /// (normalised) and a broad one (κ 2, weight 0.3) about −x.
+    fn two_lobes(sharp_axis: Vec3) -> VmfMixture {
+        VmfMixture::new(&[
             crate::guiding::vmf::VmfLobe {
-                mu: Vec3::new(0.3, -0.5, 0.81).normalize(),
+                mu: sharp_axis.normalize(),
                 kappa: 20.0,
                 weight: 0.7,
             },
@@ -263,7 +262,14 @@ mod tests {
                 weight: 0.3,
             },
         ])
-        .unwrap();
+        .unwrap()
+    }
+
+    /// Guided phase sampling at a selection probability below and at [`GUIDE_PROBABILITY`] draws directions
+    /// with the mixture density it claims (chi-square), which is what its weight and the MIS weights divide by.
+    #[test]
+    fn guided_phase_sampling_fits_its_mixture_density() {
+        let product = two_lobes(Vec3::new(0.3, -0.5, 0.81));
         let phase = PhaseFunction::HenyeyGreenstein { g: 0.3 };
         let wo = Vec3::new(0.0, 0.6, 0.8);
         for (i, alpha) in [0.25, GUIDE_PROBABILITY].into_iter().enumerate() {
@@ -285,19 +291,7 @@ mod tests {
     /// A guide at a Lambertian surface of shading normal `n`: a two-lobe learned mixture's product with the
     /// cosine, as [`surface_guide_at`] makes it, sampled with probability `alpha`.
     fn lambert_guide(n: Vec3, alpha: f32) -> Guide {
-        let mixture = VmfMixture::new(&[
-            crate::guiding::vmf::VmfLobe {
-                mu: Vec3::new(0.3, 0.5, 0.81).normalize(),
-                kappa: 20.0,
-                weight: 0.7,
-            },
-            crate::guiding::vmf::VmfLobe {
-                mu: -Vec3::X,
-                kappa: 2.0,
-                weight: 0.3,
-            },
-        ])
-        .unwrap();
+        let mixture = two_lobes(Vec3::new(0.3, 0.5, 0.81));
         let product = mixture.product(n, lobe_kappa(2.0 / 3.0)).unwrap();
         Guide { product, alpha }
     }
